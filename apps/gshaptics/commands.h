@@ -1,0 +1,11 @@
+#pragma once
+#include <CLI/CLI.hpp>
+
+namespace gshaptics::cli {
+void register_info(CLI::App& app);
+void register_query(CLI::App& app);
+void register_simulate(CLI::App& app);
+/// Exit status a command set while running (0 unless it reported a failure).
+int exit_code();
+void set_exit_code(int code);
+}  // namespace gshaptics::cli

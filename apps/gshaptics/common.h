@@ -1,0 +1,54 @@
+#pragma once
+// Helpers shared by the CLI subcommands: argument parsing, progress, building a world.
+
+#include <CLI/CLI.hpp>
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/io/scene_loader.h"
+
+namespace gshaptics::cli {
+
+/// Options every scene-consuming command shares.
+struct SceneOptions {
+  std::string scene;
+  float min_opacity = kDefaultMinOpacity;
+  double sigma = 1.0;
+  std::string registration_file;
+  std::string reg_scale, reg_rotation, reg_translation;  // empty: not given
+};
+
+/// Adds --min-opacity, --sigma, --registration and the --reg-* overrides.
+void add_world_options(CLI::App& app, SceneOptions& o);
+
+/// Path of the bundled scene (data/truck.splat) and its registration, or "" when not found.
+std::string bundled_scene();
+std::string bundled_registration();
+std::string data_file(const std::string& name);
+
+/// Registration from the file and flags (flags override the file's keys).
+SimilarityTransform registration_from(const SceneOptions& o);
+
+/// Loads a scene with a progress bar on stderr for files over a few MB.
+LoadedScene load_with_progress(const std::string& path, bool quiet = false);
+
+/// "X,Y,Z" -> vector; throws InputError naming the option.
+Eigen::Vector3d parse_vec3(const std::string& text, const std::string& option);
+Eigen::Vector4d parse_vec4(const std::string& text, const std::string& option);
+
+/// A one-line progress bar on stderr: "label [#####     ] 45%".
+class Progress {
+ public:
+  explicit Progress(std::string label, bool enabled = true);
+  void operator()(double fraction);
+  void done();
+
+ private:
+  std::string label_;
+  bool enabled_;
+  int last_ = -1;
+};
+
+}  // namespace gshaptics::cli

@@ -1,0 +1,35 @@
+// gshaptics: touch a 3D Gaussian Splatting scene through a haptic device.
+// Thin entry point: each subcommand parses its arguments and calls the library.
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <exception>
+
+#include "commands.h"
+#include "gshaptics/io/error.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "gshaptics: direct haptic rendering of 3D Gaussian Splatting scenes.\n"
+      "Loads a trained 3DGS scene, filters it by opacity, registers it into the device's world "
+      "frame, finds the Gaussians overlapping a tool ellipsoid (BVH broad phase + exact "
+      "Gilitschenski-Hanebeck K_min narrow phase) and renders the paper's penalty force.",
+      "gshaptics"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "gshaptics 0.1.0");
+  gshaptics::cli::register_info(app);
+  gshaptics::cli::register_query(app);
+  gshaptics::cli::register_simulate(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const gshaptics::InputError& e) {
+    std::fprintf(stderr, "gshaptics: error: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "gshaptics: internal error: %s\n", e.what());
+    return 3;
+  }
+  return gshaptics::cli::exit_code();
+}

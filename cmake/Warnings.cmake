@@ -1,0 +1,5 @@
+# Strict warnings on our own targets only (STYLE.md, "Build").
+function(gshaptics_set_warnings target)
+  target_compile_options(${target} PRIVATE
+    -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Wno-sign-conversion)
+endfunction()

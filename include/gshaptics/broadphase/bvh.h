@@ -1,0 +1,74 @@
+#pragma once
+/// @file
+/// Bounding-volume hierarchy over axis-aligned boxes, built once, queried without allocation.
+/// Node layout follows the compact "two children adjacent" scheme common to CPU BVHs
+/// (e.g. madmann91/bvh): inner nodes store the index of their first child, leaves a primitive range.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace gshaptics {
+
+/// Axis-aligned box in single precision. Built from double bounds by rounding outward, so a
+/// float box always contains the double box it came from (no false negatives).
+struct BvhNode {
+  float lo[3];
+  std::uint32_t first;  ///< leaf: first primitive slot; inner: index of the left child (right = first + 1)
+  float hi[3];
+  std::uint32_t count;  ///< leaf: number of primitives (> 0); inner: 0
+};
+static_assert(sizeof(BvhNode) == 32);
+
+/// Rounds a double bound outward to float.
+[[nodiscard]] float round_down_to_float(double x) noexcept;
+[[nodiscard]] float round_up_to_float(double x) noexcept;
+
+/// A BVH over N boxes. `order[k]` is the input index of the primitive in slot k; a leaf covers
+/// slots [first, first + count). Built by median split along the longest axis of the centroid
+/// bounds (O(N log N)); leaves hold at most `leaf_size` primitives.
+class Bvh {
+ public:
+  /// Builds over boxes [lo[i], hi[i]] (world frame). Throws std::invalid_argument on size mismatch.
+  static Bvh build(std::span<const Eigen::Vector3d> lo, std::span<const Eigen::Vector3d> hi,
+                   int leaf_size = 4);
+
+  [[nodiscard]] const std::vector<BvhNode>& nodes() const { return nodes_; }
+  [[nodiscard]] const std::vector<std::uint32_t>& order() const { return order_; }
+  [[nodiscard]] int depth() const { return depth_; }
+
+  /// Calls `on_leaf(first, count)` for every leaf whose box overlaps [box_lo, box_hi].
+  /// Allocation-free (fixed traversal stack); safe to call from several threads at once.
+  template <typename OnLeaf>
+  void for_each_overlapping_leaf(const float box_lo[3], const float box_hi[3],
+                                 OnLeaf&& on_leaf) const noexcept {
+    if (nodes_.empty()) return;
+    std::uint32_t stack[kMaxDepth];
+    int top = 0;
+    stack[top++] = 0;
+    const BvhNode* nodes = nodes_.data();
+    while (top > 0) {
+      const BvhNode& n = nodes[stack[--top]];
+      if (n.lo[0] > box_hi[0] || n.hi[0] < box_lo[0] || n.lo[1] > box_hi[1] ||
+          n.hi[1] < box_lo[1] || n.lo[2] > box_hi[2] || n.hi[2] < box_lo[2])
+        continue;
+      if (n.count > 0) {
+        on_leaf(n.first, n.count);
+      } else {
+        stack[top++] = n.first + 1;
+        stack[top++] = n.first;
+      }
+    }
+  }
+
+  /// Traversal stack size; the median split bounds the depth by log2(N) + 2 < kMaxDepth.
+  static constexpr int kMaxDepth = 96;
+
+ private:
+  std::vector<BvhNode> nodes_;
+  std::vector<std::uint32_t> order_;
+  int depth_ = 0;
+};
+
+}  // namespace gshaptics

@@ -1,0 +1,78 @@
+#pragma once
+/// @file
+/// The immutable collision representation of a scene: filtered, registered Gaussians as k-sigma
+/// ellipsoids plus the broad-phase BVH over their exact bounding boxes (DESIGN.md Sec. 1-3).
+///
+/// Threading: a CollisionWorld is immutable after build(); every const member is safe to call
+/// from several threads at once. Per-device mutable state lives in ContactQuery and ForceModel.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "gshaptics/broadphase/bvh.h"
+#include "gshaptics/scene/gaussian_scene.h"
+#include "gshaptics/scene/opacity_filter.h"
+#include "gshaptics/scene/registration.h"
+
+namespace gshaptics {
+
+/// How a scene becomes a collision world.
+struct WorldConfig {
+  float min_opacity = kDefaultMinOpacity;  ///< keep alpha > tau (paper Sec. III-A)
+  double sigma = 1.0;                      ///< ellipsoid at k sigma: semi-axes k * s_i (paper: 1)
+  SimilarityTransform registration;        ///< scene -> world (paper eq. 3)
+  int leaf_size = 4;                       ///< BVH leaf capacity
+};
+
+/// One Gaussian as a collision ellipsoid in the world frame; one cache line.
+struct alignas(64) CollisionGaussian {
+  double center[3];       ///< c_i = s R_g mu_i + t (world units)
+  float rotation[4];      ///< world rotation R_g R_i as a unit quaternion (w, x, y, z)
+  float semi_axes[3];     ///< k * s * scale_i (world units)
+  float bounding_radius;  ///< r_i of paper eq. 4: largest semi-axis, rounded up
+  float opacity;          ///< alpha_i
+  std::uint32_t source_index;  ///< index of the Gaussian in the original scene file
+};
+static_assert(sizeof(CollisionGaussian) == 64);
+
+/// What building the world did.
+struct WorldBuildReport {
+  OpacityFilterReport filter;
+  double build_seconds = 0;  ///< filter + registration + BVH
+  std::size_t memory_bytes = 0;
+};
+
+/// Filtered, registered Gaussians in BVH order plus the BVH.
+class CollisionWorld {
+ public:
+  /// Filters `scene` by opacity, registers it and builds the BVH. Throws InputError for an
+  /// invalid config (sigma <= 0, scale <= 0) and when no Gaussian passes the filter.
+  static CollisionWorld build(const GaussianScene& scene, const WorldConfig& config,
+                              WorldBuildReport* report = nullptr);
+
+  [[nodiscard]] std::size_t size() const { return gaussians_.size(); }
+  [[nodiscard]] const std::vector<CollisionGaussian>& gaussians() const { return gaussians_; }
+  [[nodiscard]] const Bvh& bvh() const { return bvh_; }
+  [[nodiscard]] const WorldConfig& config() const { return config_; }
+  /// Bounds of all ellipsoids (world frame).
+  [[nodiscard]] const Eigen::Vector3d& bounds_lo() const { return lo_; }
+  [[nodiscard]] const Eigen::Vector3d& bounds_hi() const { return hi_; }
+  /// Heap bytes held (Gaussians + BVH nodes).
+  [[nodiscard]] std::size_t memory_bytes() const;
+
+ private:
+  WorldConfig config_;
+  std::vector<CollisionGaussian> gaussians_;
+  Bvh bvh_;
+  Eigen::Vector3d lo_ = Eigen::Vector3d::Zero(), hi_ = Eigen::Vector3d::Zero();
+};
+
+/// Rotation matrix of a stored Gaussian, normalised in double.
+[[nodiscard]] Eigen::Matrix3d rotation_matrix(const CollisionGaussian& g) noexcept;
+
+/// Half-extents of the exact axis-aligned box of a rotated ellipsoid: sqrt(sum_k R_jk^2 a_k^2).
+[[nodiscard]] Eigen::Vector3d ellipsoid_half_extent(const Eigen::Matrix3d& R,
+                                                    const Eigen::Vector3d& semi_axes) noexcept;
+
+}  // namespace gshaptics

@@ -1,0 +1,89 @@
+#pragma once
+/// @file
+/// The per-tick collision query: broad phase (BVH over exact boxes, then the paper's
+/// bounding-sphere pre-filter, eq. 4), narrow phase (K_min, eq. 5-6), contact set out.
+///
+/// Threading: a ContactQuery belongs to one thread (one device). Several ContactQuery objects
+/// may share one CollisionWorld. run() never allocates, locks, logs or throws.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/collision/tool_ellipsoid.h"
+#include "gshaptics/narrowphase/k_min.h"
+
+namespace gshaptics {
+
+/// One Gaussian overlapping the tool.
+struct Contact {
+  std::uint32_t index = 0;    ///< index into the ORIGINAL scene file (before filtering)
+  float opacity = 0;          ///< alpha_i
+  double k_min = 0;           ///< K_min in (0, 1]: larger is deeper (paper eq. 6, Fig. 2)
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();  ///< c_i, world frame
+};
+
+/// The three counts the paper plots (Fig. 5, first row).
+struct QueryCounts {
+  std::uint32_t candidates = 0;   ///< Gaussians in BVH leaves whose box overlaps the tool's box
+  std::uint32_t prefiltered = 0;  ///< of those, passing the bounding-sphere test (eq. 4)
+  std::uint32_t contacts = 0;     ///< of those, with K_min > 0
+};
+
+/// Outcome of a query; the hot path reports, never throws.
+enum class QueryStatus : std::uint8_t {
+  kOk,
+  kInvalidTool,      ///< NaN/Inf pose or non-positive semi-axes: no contacts reported
+  kContactOverflow,  ///< more contacts than the ContactSet's capacity: the first ones are kept
+};
+
+/// Options of the query.
+struct QueryOptions {
+  KMinOptions narrow_phase{Minimiser::kNewton, 30, /*stop_when_separated=*/true};
+  std::size_t max_contacts = 1u << 18;  ///< capacity reserved up front
+};
+
+/// Contacts of one query, reused tick after tick; clear() keeps the capacity.
+class ContactSet {
+ public:
+  explicit ContactSet(std::size_t capacity = 1u << 18) { contacts_.reserve(capacity); }
+  void clear() noexcept {
+    contacts_.clear();
+    counts = {};
+  }
+  [[nodiscard]] std::span<const Contact> contacts() const noexcept { return contacts_; }
+  [[nodiscard]] std::size_t capacity() const noexcept { return contacts_.capacity(); }
+  /// Appends without reallocating; returns false when full.
+  bool push(const Contact& c) noexcept {
+    if (contacts_.size() == contacts_.capacity()) return false;
+    contacts_.push_back(c);
+    return true;
+  }
+  QueryCounts counts;
+
+ private:
+  std::vector<Contact> contacts_;
+};
+
+/// Runs collision queries of one tool against a shared world.
+class ContactQuery {
+ public:
+  ContactQuery(const CollisionWorld& world, const QueryOptions& options = {});
+
+  /// Finds every Gaussian whose ellipsoid overlaps `tool` (K_min > 0). Contacts are in BVH
+  /// order (sort by `index` if needed). Allocation-free.
+  QueryStatus run(const ToolEllipsoid& tool) noexcept;
+
+  [[nodiscard]] const ContactSet& result() const noexcept { return result_; }
+  [[nodiscard]] const CollisionWorld& world() const noexcept { return *world_; }
+  [[nodiscard]] const QueryOptions& options() const noexcept { return options_; }
+
+ private:
+  const CollisionWorld* world_;
+  QueryOptions options_;
+  ContactSet result_;
+};
+
+}  // namespace gshaptics

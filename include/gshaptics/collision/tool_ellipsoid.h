@@ -1,0 +1,28 @@
+#pragma once
+/// @file
+/// The tool (haptic interaction point) as an ellipsoid in the world frame (paper Sec. III-B2).
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace gshaptics {
+
+/// Tool ellipsoid {x : (x - center)^T Sigma_tool^-1 (x - center) <= 1} with
+/// Sigma_tool = R diag(semi_axes^2) R^T. World frame; metres for a registered scene.
+struct ToolEllipsoid {
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  ///< unit quaternion
+  Eigen::Vector3d semi_axes = Eigen::Vector3d::Constant(0.01);   ///< all > 0
+
+  /// A spherical tool of radius `radius` at `center`.
+  [[nodiscard]] static ToolEllipsoid sphere(const Eigen::Vector3d& center, double radius);
+
+  /// True when every value is finite, semi-axes are > 0 and the quaternion is not zero.
+  [[nodiscard]] bool valid() const noexcept;
+  /// Radius of the bounding sphere (largest semi-axis), as in paper eq. 4.
+  [[nodiscard]] double bounding_radius() const noexcept { return semi_axes.maxCoeff(); }
+  /// Half-extents of the exact axis-aligned bounding box: sqrt(Sigma_tool_jj).
+  [[nodiscard]] Eigen::Vector3d aabb_half_extent() const noexcept;
+};
+
+}  // namespace gshaptics

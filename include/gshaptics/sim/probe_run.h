@@ -1,0 +1,82 @@
+#pragma once
+/// @file
+/// The simulated probe run (the main job): a simulated user drives a simulated admittance
+/// device along a probe trajectory; every tick of simulated time (1 kHz by default) runs the
+/// collision query and the force model inline and renders the force on the device.
+
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "gshaptics/collision/contact_query.h"
+#include "gshaptics/force/force_model.h"
+#include "gshaptics/sim/admittance_device.h"
+#include "gshaptics/sim/probe_trajectory.h"
+
+namespace gshaptics {
+
+/// One servo tick of the run (world frame, SI units).
+struct TickRecord {
+  double time = 0;                                   ///< s
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< tool centre, m
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  ///< m/s
+  QueryCounts counts;
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();       ///< rendered force, N
+  Eigen::Vector3d user_force = Eigen::Vector3d::Zero();  ///< force of the simulated hand, N
+  double query_us = 0;  ///< collision query (broad + narrow phase) wall time, microseconds
+};
+
+/// A contiguous stretch of ticks with contacts (gaps shorter than the merge gap are bridged).
+struct ContactEpisode {
+  double t_start = 0, t_end = 0;  ///< s
+  std::uint32_t peak_contacts = 0;
+  double peak_force = 0;  ///< N
+  Eigen::Vector3d peak_direction = Eigen::Vector3d::Zero();  ///< unit force direction at the peak
+};
+
+/// Query-time statistics over a run.
+struct QueryTimeStats {
+  double p50_us = 0, p99_us = 0, max_us = 0;
+  std::size_t over_1ms = 0;  ///< ticks whose query exceeded the 1 ms servo period
+};
+
+struct ProbeRunParams {
+  double rate_hz = 1000;  ///< servo rate of the simulation (paper: 1 kHz)
+  ForceParams force;
+  AdmittanceParams device;
+  UserHandParams user;
+  QueryOptions query;
+};
+
+struct ProbeRunResult {
+  std::vector<TickRecord> ticks;
+  std::vector<ContactEpisode> episodes;
+  QueryTimeStats query_time;
+};
+
+/// Progress callback: fraction of simulated time done, in [0, 1]. May be empty.
+using RunProgressFn = std::function<void(double)>;
+
+/// Runs the whole trajectory (plus 0.5 s) with a spherical tool of the trajectory's radius.
+[[nodiscard]] ProbeRunResult run_probe(const CollisionWorld& world,
+                                       const ProbeTrajectory& trajectory,
+                                       const ProbeRunParams& params,
+                                       const RunProgressFn& progress = {});
+
+/// Groups ticks with contacts into episodes, bridging gaps shorter than `merge_gap_s`.
+[[nodiscard]] std::vector<ContactEpisode> find_episodes(const std::vector<TickRecord>& ticks,
+                                                        double merge_gap_s = 0.1);
+
+/// p50/p99/max of the ticks' query times.
+[[nodiscard]] QueryTimeStats query_time_stats(const std::vector<TickRecord>& ticks);
+
+/// Writes the per-tick CSV log (header: time_s, x, y, z, vx, vy, vz, candidates, prefiltered,
+/// contacts, fx, fy, fz, user_fx, user_fy, user_fz, query_us) to a temporary name, then renames.
+/// Throws InputError naming the file when it cannot be written.
+void write_tick_log_csv(const std::string& path, const std::vector<TickRecord>& ticks);
+
+/// Writes `text` to `path` atomically (temporary file, then rename). Throws InputError.
+void write_file_atomically(const std::string& path, const std::string& text);
+
+}  // namespace gshaptics

@@ -1,0 +1,67 @@
+#pragma once
+/// @file
+/// A seeded probe trajectory over a scene: contact sites on the object's outer surface, each
+/// approached along its outward normal, pressed in and released (paper Sec. V-A, Fig. 4).
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "gshaptics/collision/collision_world.h"
+
+namespace gshaptics {
+
+/// One contact site found on the surface.
+struct ProbeSite {
+  Eigen::Vector3d surface_point;  ///< centre of the Gaussian chosen on the surface (world)
+  Eigen::Vector3d normal;         ///< outward unit normal (world)
+  Eigen::Vector3d touch_point;    ///< tool centre at first contact along the approach
+  std::uint32_t gaussian_index;   ///< source index of the chosen Gaussian
+  double t_touch = 0;             ///< time (s) the target reaches touch_point
+};
+
+/// Parameters of the generator. Lengths in world units, times in seconds.
+struct ProbeParams {
+  int sites = 7;                 ///< contact sites (paper: seven)
+  std::uint64_t seed = 1;
+  double tool_radius = 0.05;     ///< spherical tool radius
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();  ///< world up (travel happens above the object)
+  double press_depth = 1.0;      ///< target goes this many tool radii past first contact
+  double approach_distance = 4;  ///< approach starts this many tool radii off the surface
+  double travel_speed = 1.0;     ///< m/s between sites (above the object)
+  double approach_speed = 0.15;  ///< m/s toward the surface
+  double press_time = 0.4, hold_time = 0.5, release_time = 0.3;
+};
+
+/// A piecewise minimum-jerk path through waypoints, sampled by time.
+class ProbeTrajectory {
+ public:
+  struct Waypoint {
+    double time;
+    Eigen::Vector3d position;
+  };
+  ProbeTrajectory() = default;
+  ProbeTrajectory(std::vector<Waypoint> waypoints, std::vector<ProbeSite> sites, double tool_radius);
+
+  /// Target position and velocity at time t (clamped to the ends).
+  void sample(double t, Eigen::Vector3d& position, Eigen::Vector3d& velocity) const noexcept;
+  [[nodiscard]] double duration() const { return waypoints_.empty() ? 0 : waypoints_.back().time; }
+  [[nodiscard]] const std::vector<ProbeSite>& sites() const { return sites_; }
+  [[nodiscard]] const std::vector<Waypoint>& waypoints() const { return waypoints_; }
+  [[nodiscard]] double tool_radius() const { return tool_radius_; }
+
+ private:
+  std::vector<Waypoint> waypoints_;
+  std::vector<ProbeSite> sites_;
+  double tool_radius_ = 0;
+};
+
+/// Finds `params.sites` sites on the outer surface of the object at the middle of the scene and
+/// links them into a path: above the object -> down to the approach point -> along -normal to
+/// first contact and `press_depth` beyond -> hold -> back out -> up. Sites are checked with the
+/// collision query itself: the approach column and path must be free until first contact.
+/// Throws InputError when no site can be found (an empty or degenerate scene).
+[[nodiscard]] ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world,
+                                                        const ProbeParams& params);
+
+}  // namespace gshaptics

@@ -1,0 +1,94 @@
+#include "gshaptics/collision/collision_world.h"
+
+#include <chrono>
+#include <cmath>
+
+#include "gshaptics/io/error.h"
+
+namespace gshaptics {
+
+Eigen::Matrix3d rotation_matrix(const CollisionGaussian& g) noexcept {
+  return Eigen::Quaterniond(g.rotation[0], g.rotation[1], g.rotation[2], g.rotation[3])
+      .normalized()
+      .toRotationMatrix();
+}
+
+Eigen::Vector3d ellipsoid_half_extent(const Eigen::Matrix3d& R,
+                                      const Eigen::Vector3d& semi_axes) noexcept {
+  return (R.cwiseAbs2() * semi_axes.cwiseAbs2()).cwiseSqrt();
+}
+
+CollisionWorld CollisionWorld::build(const GaussianScene& scene, const WorldConfig& config,
+                                     WorldBuildReport* report) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!(config.sigma > 0) || !std::isfinite(config.sigma))
+    throw InputError("sigma (k of the k-sigma ellipsoid) must be > 0, got " + std::to_string(config.sigma));
+  const SimilarityTransform& reg = config.registration;
+  if (!(reg.scale > 0) || !std::isfinite(reg.scale))
+    throw InputError("registration scale must be > 0");
+
+  CollisionWorld w;
+  w.config_ = config;
+  std::size_t kept = 0;
+  for (float a : scene.opacities) kept += a > config.min_opacity ? 1 : 0;
+  if (kept == 0)
+    throw InputError("no Gaussian has opacity > " + std::to_string(config.min_opacity) + " (of " +
+                     std::to_string(scene.size()) + "); lower --min-opacity");
+
+  std::vector<CollisionGaussian> unordered;
+  unordered.reserve(kept);
+  std::vector<Eigen::Vector3d> lo, hi;
+  lo.reserve(kept);
+  hi.reserve(kept);
+  const Eigen::Quaterniond qg = reg.rotation.normalized();
+  const double axis_scale = config.sigma * reg.scale;
+  w.lo_ = Eigen::Vector3d::Constant(INFINITY);
+  w.hi_ = -w.lo_;
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    if (!(scene.opacities[i] > config.min_opacity)) continue;
+    CollisionGaussian g{};
+    const Eigen::Vector3d c = reg.apply(scene.means[i].cast<double>());
+    const Eigen::Vector4f& r = scene.rotations[i];
+    const Eigen::Quaterniond q =
+        (qg * Eigen::Quaterniond(r[0], r[1], r[2], r[3]).normalized()).normalized();
+    for (int k = 0; k < 3; ++k) g.center[k] = c[k];
+    g.rotation[0] = float(q.w());
+    g.rotation[1] = float(q.x());
+    g.rotation[2] = float(q.y());
+    g.rotation[3] = float(q.z());
+    Eigen::Vector3d axes;
+    for (int k = 0; k < 3; ++k) {
+      g.semi_axes[k] = float(axis_scale * double(scene.scales[i][k]));
+      axes[k] = g.semi_axes[k];
+    }
+    g.bounding_radius = round_up_to_float(axes.maxCoeff());
+    g.opacity = scene.opacities[i];
+    g.source_index = scene.source_index[i];
+    // Bounds from the stored (float) values so the box holds exactly the ellipsoid we test.
+    const Eigen::Vector3d h = ellipsoid_half_extent(rotation_matrix(g), axes);
+    lo.push_back(c - h);
+    hi.push_back(c + h);
+    w.lo_ = w.lo_.cwiseMin(lo.back());
+    w.hi_ = w.hi_.cwiseMax(hi.back());
+    unordered.push_back(g);
+  }
+  w.bvh_ = Bvh::build(lo, hi, config.leaf_size);
+  w.gaussians_.resize(unordered.size());
+  const auto& order = w.bvh_.order();
+  for (std::size_t k = 0; k < order.size(); ++k) w.gaussians_[k] = unordered[order[k]];
+
+  if (report != nullptr) {
+    report->filter = {config.min_opacity, scene.size(), w.gaussians_.size()};
+    report->build_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    report->memory_bytes = w.memory_bytes();
+  }
+  return w;
+}
+
+std::size_t CollisionWorld::memory_bytes() const {
+  return gaussians_.capacity() * sizeof(CollisionGaussian) +
+         bvh_.nodes().capacity() * sizeof(BvhNode) + bvh_.order().capacity() * sizeof(std::uint32_t);
+}
+
+}  // namespace gshaptics

@@ -1,0 +1,25 @@
+#include "gshaptics/collision/tool_ellipsoid.h"
+
+#include <cmath>
+
+namespace gshaptics {
+
+ToolEllipsoid ToolEllipsoid::sphere(const Eigen::Vector3d& center, double radius) {
+  ToolEllipsoid t;
+  t.center = center;
+  t.semi_axes = Eigen::Vector3d::Constant(radius);
+  return t;
+}
+
+bool ToolEllipsoid::valid() const noexcept {
+  return center.allFinite() && semi_axes.allFinite() && rotation.coeffs().allFinite() &&
+         semi_axes.minCoeff() > 0 && rotation.norm() > 1e-9;
+}
+
+Eigen::Vector3d ToolEllipsoid::aabb_half_extent() const noexcept {
+  const Eigen::Matrix3d R = rotation.normalized().toRotationMatrix();
+  const Eigen::Vector3d a2 = semi_axes.cwiseAbs2();
+  return (R.cwiseAbs2() * a2).cwiseSqrt();
+}
+
+}  // namespace gshaptics

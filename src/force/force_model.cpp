@@ -1,0 +1,87 @@
+#include "gshaptics/force/force_model.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace gshaptics {
+
+double ema_factor(double tau, double dt) noexcept {
+  if (!(tau > 0)) return 1.0;
+  if (!(dt > 0)) return 0.0;
+  return 1.0 - std::exp(-dt / tau);
+}
+
+ForceOutput ForceModel::update(std::span<const Contact> contacts,
+                               const Eigen::Vector3d& tool_center,
+                               const Eigen::Vector3d& tool_velocity, double dt) noexcept {
+  ForceOutput out;
+  // The velocity filter tracks the tool whether or not it touches anything.
+  if (tool_velocity.allFinite()) {
+    if (!state_.has_velocity) {
+      state_.v_filtered = tool_velocity;
+      state_.has_velocity = true;
+    } else {
+      const double bv = ema_factor(params_.tau_velocity, dt);
+      state_.v_filtered = bv * tool_velocity + (1 - bv) * state_.v_filtered;
+    }
+  }
+  out.contacts = contacts.size();
+  if (contacts.empty() || !tool_center.allFinite()) {  // N = 0: zero force, contact filters reset
+    state_.in_contact = false;
+    state_.has_normal = false;
+    state_.alpha = 0;
+    state_.n_smooth.setZero();
+    return out;
+  }
+
+  // eq. 7-8: softmax over K_min (shifted by the max for stability), weighted centroid.
+  double k_max = contacts[0].k_min;
+  for (const Contact& c : contacts) k_max = std::max(k_max, c.k_min);
+  double w_sum = 0, alpha_raw = 0;
+  Eigen::Vector3d p_eff = Eigen::Vector3d::Zero();
+  for (const Contact& c : contacts) {
+    const double w = std::exp(c.k_min - k_max);
+    w_sum += w;
+    p_eff += w * c.center;
+    alpha_raw += w * double(c.opacity);
+  }
+  p_eff /= w_sum;
+  alpha_raw /= w_sum;
+  out.centroid = p_eff;
+
+  const bool new_contact = !state_.in_contact;
+  state_.in_contact = true;
+  // Repulsive direction: from the contact centroid toward the tool centre.
+  const Eigen::Vector3d to_tool = tool_center - p_eff;
+  const double len = to_tool.norm();
+  if (len > 1e-12) {
+    const Eigen::Vector3d n_raw = to_tool / len;
+    if (!state_.has_normal) {
+      state_.n_smooth = n_raw;
+      state_.has_normal = true;
+    } else {
+      const double bn = ema_factor(params_.tau_normal, dt);
+      const Eigen::Vector3d blended = bn * n_raw + (1 - bn) * state_.n_smooth;
+      const double bl = blended.norm();
+      if (bl > 1e-12) state_.n_smooth = blended / bl;  // opposite vectors: keep the previous n
+    }
+  }
+  // eq. 9: opacity EMA, reset to the raw value on a new contact.
+  if (new_contact) {
+    state_.alpha = alpha_raw;
+  } else {
+    const double ba = ema_factor(params_.tau_opacity, dt);
+    state_.alpha = ba * alpha_raw + (1 - ba) * state_.alpha;
+  }
+  out.k_eff = params_.k_base * state_.alpha;
+  out.elastic = out.k_eff * double(contacts.size());  // eq. 10
+  if (!state_.has_normal) return out;  // centroid at the tool centre on first touch: no direction yet
+
+  out.normal = state_.n_smooth;
+  out.damping_along_normal = (-params_.damping * state_.v_filtered).dot(out.normal);
+  out.magnitude = std::clamp(out.elastic + out.damping_along_normal, 0.0, params_.f_max);  // eq. 11
+  out.force = out.magnitude * out.normal;
+  return out;
+}
+
+}  // namespace gshaptics

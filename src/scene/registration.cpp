@@ -1,0 +1,110 @@
+#include "gshaptics/scene/registration.h"
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "gshaptics/io/error.h"
+
+namespace gshaptics {
+
+bool SimilarityTransform::is_identity() const {
+  return scale == 1.0 && translation.isZero(0) && rotation.coeffs() == Eigen::Quaterniond::Identity().coeffs();
+}
+
+std::string SimilarityTransform::to_json() const {
+  nlohmann::json j;
+  j["scale"] = scale;
+  j["rotation"] = {rotation.w(), rotation.x(), rotation.y(), rotation.z()};
+  j["translation"] = {translation.x(), translation.y(), translation.z()};
+  return j.dump(2);
+}
+
+namespace {
+
+double number_at(const nlohmann::json& v, const std::string& source, const std::string& field) {
+  if (!v.is_number()) throw InputError(source + ": field '" + field + "' must be a number");
+  const double x = v.get<double>();
+  if (!std::isfinite(x)) throw InputError(source + ": field '" + field + "' is not finite");
+  return x;
+}
+
+}  // namespace
+
+SimilarityTransform parse_registration_json(const std::string& text, const std::string& source) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(source + ": not valid JSON: " + e.what());
+  }
+  if (!j.is_object()) throw InputError(source + ": expected a JSON object");
+  static const char* kKnown[] = {"scale", "rotation", "matrix", "translation", "comment"};
+  for (const auto& [key, value] : j.items()) {
+    bool known = false;
+    for (const char* k : kKnown) known = known || key == k;
+    if (!known)
+      throw InputError(source + ": unknown key '" + key +
+                       "' (expected scale, rotation, matrix, translation, comment)");
+  }
+  SimilarityTransform t;
+  if (j.contains("scale")) {
+    t.scale = number_at(j["scale"], source, "scale");
+    if (!(t.scale > 0)) throw InputError(source + ": 'scale' must be > 0");
+  }
+  if (j.contains("rotation") && j.contains("matrix"))
+    throw InputError(source + ": give either 'rotation' or 'matrix', not both");
+  if (j.contains("rotation")) {
+    const auto& r = j["rotation"];
+    if (!r.is_array() || r.size() != 4)
+      throw InputError(source + ": 'rotation' must be [w, x, y, z]");
+    Eigen::Quaterniond q(number_at(r[0], source, "rotation[0]"), number_at(r[1], source, "rotation[1]"),
+                         number_at(r[2], source, "rotation[2]"), number_at(r[3], source, "rotation[3]"));
+    if (q.norm() < 1e-9) throw InputError(source + ": 'rotation' quaternion has zero norm");
+    t.rotation = q.normalized();
+  }
+  if (j.contains("matrix")) {
+    const auto& m = j["matrix"];
+    std::vector<double> flat;
+    if (m.is_array() && m.size() == 3 && m[0].is_array()) {
+      for (std::size_t r = 0; r < 3; ++r) {
+        if (!m[r].is_array() || m[r].size() != 3)
+          throw InputError(source + ": 'matrix' must be 3x3 (row " + std::to_string(r) + ")");
+        for (std::size_t c = 0; c < 3; ++c)
+          flat.push_back(number_at(m[r][c], source, "matrix[" + std::to_string(r) + "][" + std::to_string(c) + "]"));
+      }
+    } else if (m.is_array() && m.size() == 9) {
+      for (std::size_t i = 0; i < 9; ++i) flat.push_back(number_at(m[i], source, "matrix[" + std::to_string(i) + "]"));
+    } else {
+      throw InputError(source + ": 'matrix' must be 3x3 row-major (nested or 9 numbers)");
+    }
+    Eigen::Matrix3d R;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) R(r, c) = flat[std::size_t(3 * r + c)];
+    if ((R * R.transpose() - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6)
+      throw InputError(source + ": 'matrix' is not orthonormal (R R^T != I within 1e-6); "
+                                "put uniform scale in 'scale'");
+    if (R.determinant() < 0)
+      throw InputError(source + ": 'matrix' has determinant -1 (a reflection), not a rotation");
+    t.rotation = Eigen::Quaterniond(R).normalized();
+  }
+  if (j.contains("translation")) {
+    const auto& v = j["translation"];
+    if (!v.is_array() || v.size() != 3)
+      throw InputError(source + ": 'translation' must be [x, y, z]");
+    for (int k = 0; k < 3; ++k)
+      t.translation[k] = number_at(v[std::size_t(k)], source, "translation[" + std::to_string(k) + "]");
+  }
+  return t;
+}
+
+SimilarityTransform load_registration_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open registration file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_registration_json(ss.str(), path);
+}
+
+}  // namespace gshaptics

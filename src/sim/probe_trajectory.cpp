@@ -1,0 +1,214 @@
+#include "gshaptics/sim/probe_trajectory.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+#include "gshaptics/collision/contact_query.h"
+#include "gshaptics/io/error.h"
+#include "gshaptics/scene/scene_stats.h"
+
+namespace gshaptics {
+
+ProbeTrajectory::ProbeTrajectory(std::vector<Waypoint> waypoints, std::vector<ProbeSite> sites,
+                                 double tool_radius)
+    : waypoints_(std::move(waypoints)), sites_(std::move(sites)), tool_radius_(tool_radius) {}
+
+void ProbeTrajectory::sample(double t, Eigen::Vector3d& position,
+                             Eigen::Vector3d& velocity) const noexcept {
+  velocity.setZero();
+  if (waypoints_.empty()) {
+    position.setZero();
+    return;
+  }
+  if (t <= waypoints_.front().time) {
+    position = waypoints_.front().position;
+    return;
+  }
+  if (t >= waypoints_.back().time) {
+    position = waypoints_.back().position;
+    return;
+  }
+  const auto it = std::upper_bound(waypoints_.begin(), waypoints_.end(), t,
+                                   [](double x, const Waypoint& w) { return x < w.time; });
+  const Waypoint& b = *it;
+  const Waypoint& a = *(it - 1);
+  const double T = b.time - a.time;
+  if (!(T > 0)) {
+    position = b.position;
+    return;
+  }
+  // Minimum-jerk blend: s = 10 u^3 - 15 u^4 + 6 u^5, zero velocity and acceleration at waypoints.
+  const double u = (t - a.time) / T;
+  const double s = u * u * u * (10 - 15 * u + 6 * u * u);
+  const double ds = 30 * u * u * (1 - 2 * u + u * u) / T;
+  position = a.position + s * (b.position - a.position);
+  velocity = ds * (b.position - a.position);
+}
+
+namespace {
+
+struct SiteFinder {
+  const CollisionWorld& world;
+  const ProbeParams& p;
+  ContactQuery query;
+  Eigen::Vector3d up;
+  double z_safe = 0;
+
+  SiteFinder(const CollisionWorld& w, const ProbeParams& params)
+      : world(w), p(params), query(w), up(params.up.normalized()) {}
+
+  std::uint32_t contacts_at(const Eigen::Vector3d& x) {
+    query.run(ToolEllipsoid::sphere(x, p.tool_radius));
+    return query.result().counts.contacts;
+  }
+
+  // True when a tool swept from a to b (inclusive) touches nothing.
+  bool segment_clear(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    const double len = (b - a).norm();
+    const int steps = std::max(1, int(std::ceil(len / (0.5 * p.tool_radius))));
+    for (int k = 0; k <= steps; ++k)
+      if (contacts_at(a + (b - a) * (double(k) / steps)) > 0) return false;
+    return true;
+  }
+
+  Eigen::Vector3d lift(const Eigen::Vector3d& x) const { return x + (z_safe - x.dot(up)) * up; }
+};
+
+}  // namespace
+
+ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world, const ProbeParams& params) {
+  if (!(params.tool_radius > 0)) throw InputError("probe: tool radius must be > 0");
+  if (params.sites < 1) throw InputError("probe: need at least one site");
+  if (!(params.up.norm() > 0)) throw InputError("probe: 'up' must be a non-zero vector");
+  SiteFinder f(world, params);
+  const Eigen::Vector3d& up = f.up;
+  const double r = params.tool_radius;
+  const auto& gs = world.gaussians();
+
+  // The object: the dense middle of the scene (horizontal distance to the median centre within
+  // the 35th percentile), above the lowest 5% of it (the ground, if any).
+  std::vector<double> cx, cy, cz;
+  for (const auto& g : gs) {
+    cx.push_back(g.center[0]);
+    cy.push_back(g.center[1]);
+    cz.push_back(g.center[2]);
+  }
+  const Eigen::Vector3d median(percentile(cx, 50), percentile(cy, 50), percentile(cz, 50));
+  const auto center_of = [](const CollisionGaussian& g) {
+    return Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+  };
+  const auto horizontal = [&](const Eigen::Vector3d& v) { return v - v.dot(up) * up; };
+  std::vector<double> rho(gs.size());
+  for (std::size_t i = 0; i < gs.size(); ++i) rho[i] = horizontal(center_of(gs[i]) - median).norm();
+  const double r_obj = std::max(percentile(rho, 35), 4 * r);
+  std::vector<double> heights, heights_wide;
+  for (std::size_t i = 0; i < gs.size(); ++i) {
+    const double h = center_of(gs[i]).dot(up);
+    if (rho[i] <= r_obj) heights.push_back(h);
+    if (rho[i] <= 2 * r_obj) heights_wide.push_back(h + gs[i].bounding_radius);
+  }
+  const double h_ground = percentile(heights, 5);
+  const double h_mid = percentile(heights, 50);
+  f.z_safe = percentile(heights_wide, 99.9) + 3 * r;
+  const Eigen::Vector3d object_center = horizontal(median) + h_mid * up;
+
+  std::vector<std::uint32_t> pool;
+  for (std::size_t i = 0; i < gs.size(); ++i) {
+    const auto& g = gs[i];
+    const double h = center_of(g).dot(up);
+    const float smax = std::max({g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]});
+    if (rho[i] <= r_obj && g.opacity >= 0.5f && h >= h_ground + 2 * r && smax <= 2 * r)
+      pool.push_back(std::uint32_t(i));
+  }
+  std::mt19937_64 rng(params.seed);
+  std::shuffle(pool.begin(), pool.end(), rng);
+
+  std::vector<ProbeSite> sites;
+  const Eigen::Vector3d extent = world.bounds_hi() - world.bounds_lo();
+  const double d_app = params.approach_distance * r;
+  double spacing = std::max(6 * r, 0.15 * r_obj);
+  const std::size_t max_attempts = std::min<std::size_t>(pool.size(), 6000);
+  for (int pass = 0; pass < 4 && int(sites.size()) < params.sites; ++pass, spacing *= 0.5) {
+    for (std::size_t a = 0; a < max_attempts && int(sites.size()) < params.sites; ++a) {
+      const auto& g = gs[pool[a]];
+      const Eigen::Vector3d c = center_of(g);
+      bool near = false;
+      for (const auto& s : sites) near = near || (s.surface_point - c).norm() < spacing;
+      if (near) continue;
+      const Eigen::Matrix3d R = rotation_matrix(g);
+      int k_min_axis = 0;
+      Eigen::Vector3d axes(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+      axes.minCoeff(&k_min_axis);
+      std::array<double, 3> sorted{axes[0], axes[1], axes[2]};
+      std::sort(sorted.begin(), sorted.end());
+      if (sorted[0] > 0.5 * sorted[1]) continue;  // not flat enough to define a normal
+      Eigen::Vector3d n = R.col(k_min_axis);
+      if (n.dot(c - object_center) < 0) n = -n;
+      if (n.dot(up) < -0.2) continue;  // underside: not reachable from above
+      // First contact along the approach must be this surface, with nothing in the way.
+      const Eigen::Vector3d start = c + d_app * n;
+      double s_touch = NAN;
+      const double step = r / 8;
+      for (double s = d_app; s >= -r; s -= step) {
+        if (f.contacts_at(c + s * n) > 0) {
+          s_touch = s;
+          break;
+        }
+      }
+      if (!(s_touch < d_app - step) || s_touch > r + 2 * sorted[2]) continue;
+      if (!f.segment_clear(f.lift(start), start)) continue;
+      ProbeSite site;
+      site.surface_point = c;
+      site.normal = n;
+      site.touch_point = c + s_touch * n;
+      site.gaussian_index = g.source_index;
+      sites.push_back(site);
+    }
+  }
+  if (sites.empty())
+    throw InputError("probe: found no reachable surface site (scene extent " +
+                     std::to_string(extent.norm()) + ", tool radius " + std::to_string(r) +
+                     "); try another --seed, --tool-radius or --up");
+
+  // Visit sites in a short order (greedy nearest neighbour from the first).
+  for (std::size_t i = 1; i + 1 < sites.size(); ++i) {
+    std::size_t best = i;
+    for (std::size_t j = i + 1; j < sites.size(); ++j)
+      if ((sites[j].surface_point - sites[i - 1].surface_point).norm() <
+          (sites[best].surface_point - sites[i - 1].surface_point).norm())
+        best = j;
+    std::swap(sites[i], sites[best]);
+  }
+
+  std::vector<ProbeTrajectory::Waypoint> wps;
+  double t = 0;
+  const auto go = [&](const Eigen::Vector3d& x, double duration) {
+    t += std::max(duration, 0.05);
+    wps.push_back({t, x});
+  };
+  const auto travel = [&](const Eigen::Vector3d& x, double speed) {
+    go(x, (x - wps.back().position).norm() / speed);
+  };
+  const Eigen::Vector3d first_start = sites[0].surface_point + d_app * sites[0].normal;
+  wps.push_back({0.0, f.lift(first_start)});
+  go(f.lift(first_start), 0.3);  // settle
+  for (auto& s : sites) {
+    const Eigen::Vector3d start = s.surface_point + d_app * s.normal;
+    const Eigen::Vector3d press = s.touch_point - params.press_depth * r * s.normal;
+    travel(f.lift(start), params.travel_speed);
+    travel(start, params.travel_speed);
+    travel(s.touch_point, params.approach_speed);
+    s.t_touch = t;
+    go(press, params.press_time);
+    go(press, params.hold_time);
+    go(s.touch_point, params.release_time);
+    travel(start, 2 * params.approach_speed);
+    travel(f.lift(start), params.travel_speed);
+  }
+  go(wps.back().position, 0.3);
+  return ProbeTrajectory(std::move(wps), std::move(sites), r);
+}
+
+}  // namespace gshaptics

@@ -1,0 +1,78 @@
+#!/usr/bin/python3
+"""Draws the paper's Fig. 5 for a gshaptics probe run.
+
+Usage: plot_probe_run.py probe_log.csv summary.json out.png
+
+Rows: (1) broad-phase candidates, pre-filtered and colliding Gaussians; (2) rendered force
+x/y/z in the world frame; (3) force of the (simulated) user's hand; (4) collision-query time.
+Vertical lines mark the start of each contact episode (t_a, t_b, ...).
+The PNG is written to a temporary name and renamed, so a failed run never leaves half a file.
+"""
+import json
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def main(argv):
+    if len(argv) != 4:
+        print(__doc__, file=sys.stderr)
+        return 2
+    csv_path, summary_path, png_path = argv[1:]
+    try:
+        data = np.genfromtxt(csv_path, delimiter=",", names=True)
+    except (OSError, ValueError) as e:
+        print(f"{csv_path}: cannot read the tick log: {e}", file=sys.stderr)
+        return 1
+    if data.size == 0:
+        print(f"{csv_path}: the tick log has no rows", file=sys.stderr)
+        return 1
+    with open(summary_path) as f:
+        summary = json.load(f)
+    t = data["time_s"]
+    fig, ax = plt.subplots(4, 1, figsize=(11, 10), sharex=True)
+    ax[0].plot(t, data["candidates"], lw=0.8, label="broad-phase candidates")
+    ax[0].plot(t, data["prefiltered"], lw=0.8, label="after sphere pre-filter (eq. 4)")
+    ax[0].plot(t, data["contacts"], lw=1.0, label="colliding (K_min > 0)")
+    ax[0].set_yscale("symlog", linthresh=10)
+    ax[0].set_ylabel("Gaussians")
+    for name, lab in (("fx", "x"), ("fy", "y"), ("fz", "z")):
+        ax[1].plot(t, data[name], lw=0.9, label=f"F_{lab}")
+    ax[1].set_ylabel("rendered force (N)")
+    for name, lab in (("user_fx", "x"), ("user_fy", "y"), ("user_fz", "z")):
+        ax[2].plot(t, data[name], lw=0.9, label=f"F_user,{lab}")
+    ax[2].set_ylabel("user force (N)")
+    ax[3].plot(t, data["query_us"], lw=0.6, color="tab:purple", label="collision query")
+    ax[3].set_yscale("log")
+    ax[3].axhline(1000, color="red", ls="--", lw=0.8, label="1 ms servo period")
+    ax[3].set_ylabel("query time (us)")
+    ax[3].set_xlabel("time (s)")
+    q = summary.get("query_us", {})
+    ax[3].set_title(f"p50 {q.get('p50', 0):.1f} us, p99 {q.get('p99', 0):.1f} us, "
+                    f"max {q.get('max', 0):.1f} us", fontsize=9, loc="right")
+    for i, ep in enumerate(summary.get("episodes", [])):
+        label = "t_" + (chr(ord("a") + i) if i < 26 else str(i))
+        for a in ax:
+            a.axvline(ep["t_start"], color="gray", ls=":", lw=0.8)
+        ax[0].annotate(label, (ep["t_start"], 1), xycoords=("data", "axes fraction"),
+                       xytext=(2, -10), textcoords="offset points", fontsize=8)
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.legend(loc="upper left", fontsize=7, ncol=3)
+    scene = os.path.basename(summary.get("scene", ""))
+    fig.suptitle(f"gshaptics probe run: {scene}, {summary.get('gaussians_kept', '?')} Gaussians "
+                 f"after the opacity filter, tool radius {summary.get('tool_radius', 0):.3g}")
+    fig.tight_layout()
+    tmp = png_path + ".tmp.png"
+    fig.savefig(tmp, dpi=110)
+    os.replace(tmp, png_path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
