@@ -273,10 +273,14 @@ LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::strin
     const std::uint8_t* rec = base + i * stride;
     const auto get = [&](int k) { return read_as_float(rec + prop[k]->offset, prop[k]->type); };
     const float pos[3] = {get(0), get(1), get(2)};
-    const float opacity = detail::sigmoid(get(3));
-    const float scale[3] = {std::exp(get(4)), std::exp(get(5)), std::exp(get(6))};
+    const float logit = get(3);
+    const float log_scale[3] = {get(4), get(5), get(6)};
     const float quat[4] = {get(7), get(8), get(9), get(10)};
-    detail::accept_gaussian(pos, scale, quat, opacity, std::uint32_t(i), out.scene, out.report);
+    const bool raw_finite = std::isfinite(logit) && std::isfinite(log_scale[0]) &&
+                            std::isfinite(log_scale[1]) && std::isfinite(log_scale[2]);
+    const float scale[3] = {std::exp(log_scale[0]), std::exp(log_scale[1]), std::exp(log_scale[2])};
+    detail::accept_gaussian(pos, scale, quat, detail::sigmoid(logit), std::uint32_t(i), out.scene,
+                            out.report, raw_finite);
     if (progress && i % step == 0) progress(double(i) / double(vertex->count));
   }
   if (progress) progress(1.0);

@@ -69,9 +69,9 @@ inline Eval evaluate(const PairCoefficients& c, double lambda) noexcept {
   const double dg = -2 * a * c.q0 + (a - b) * c.q1 + 2 * b * c.q2;
   const double d2g = 2 * (c.q0 - c.q1 + c.q2);
   const double h = a * a * a + a * a * b * c.e1 + a * b * b * c.e2 + b * b * b * c.e3;
-  const double dh = -3 * a * a + (a * a - 2 * a * b) * c.e1 + (b * b - 2 * a * b) * c.e2 +
+  const double dh = -3 * a * a + (a * a - 2 * a * b) * c.e1 + (2 * a * b - b * b) * c.e2 +
                     3 * b * b * c.e3;
-  const double d2h = 6 * a + (2 * b - 4 * a) * c.e1 + (4 * b - 2 * a) * c.e2 + 6 * b * c.e3;
+  const double d2h = 6 * a + (2 * b - 4 * a) * c.e1 + (2 * a - 4 * b) * c.e2 + 6 * b * c.e3;
   const double u = a * b, du = a - b;
   const double r = g / h;
   const double dr = (dg - r * dh) / h;

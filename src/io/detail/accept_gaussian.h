@@ -10,10 +10,12 @@ namespace gshaptics::detail {
 
 /// Checks one decoded Gaussian (linear scales, raw quaternion w,x,y,z, opacity after sigmoid),
 /// normalises its quaternion and appends it to `out`, or counts why it was skipped.
+/// `raw_finite` is false when any value as stored in the file was NaN/Inf (a logit of +inf
+/// decodes to a finite opacity, but the file is still broken there).
 inline void accept_gaussian(const float pos[3], const float scale[3], const float quat[4],
                             float opacity, std::uint32_t source, GaussianScene& out,
-                            LoadReport& report) {
-  bool finite = std::isfinite(opacity);
+                            LoadReport& report, bool raw_finite = true) {
+  bool finite = raw_finite && std::isfinite(opacity);
   for (int k = 0; k < 3; ++k) finite = finite && std::isfinite(pos[k]) && std::isfinite(scale[k]);
   for (int k = 0; k < 4; ++k) finite = finite && std::isfinite(quat[k]);
   if (!finite) {

@@ -1,0 +1,88 @@
+// Broad phase: the BVH never misses a box that overlaps the query, whatever the size spread.
+
+#include "gshaptics/broadphase/bvh.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace gshaptics {
+namespace {
+
+bool overlaps(const Eigen::Vector3d& alo, const Eigen::Vector3d& ahi, const Eigen::Vector3d& blo,
+              const Eigen::Vector3d& bhi) {
+  return (alo.array() <= bhi.array()).all() && (blo.array() <= ahi.array()).all();
+}
+
+TEST(Bvh, NoFalseNegativesAgainstBruteForceWithHugeSizeSpread) {
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> pos(-100, 100), logsize(-6, 1.3);
+  const int n = 20000;
+  std::vector<Eigen::Vector3d> lo(n), hi(n);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d c(pos(rng), pos(rng), pos(rng) * 0.01);  // flat-ish world
+    Eigen::Vector3d h;
+    for (int k = 0; k < 3; ++k) h[k] = std::pow(10.0, logsize(rng));
+    if (i % 1000 == 0) h *= 1000;  // huge floaters
+    lo[std::size_t(i)] = c - h;
+    hi[std::size_t(i)] = c + h;
+  }
+  const Bvh bvh = Bvh::build(lo, hi, 4);
+  EXPECT_LT(bvh.depth(), Bvh::kMaxDepth);
+  std::vector<int> seen(n);
+  for (int q = 0; q < 300; ++q) {
+    const Eigen::Vector3d c(pos(rng), pos(rng), pos(rng) * 0.01);
+    const Eigen::Vector3d h = Eigen::Vector3d::Constant(std::pow(10.0, logsize(rng)));
+    float qlo[3], qhi[3];
+    for (int k = 0; k < 3; ++k) {
+      qlo[k] = round_down_to_float(c[k] - h[k]);
+      qhi[k] = round_up_to_float(c[k] + h[k]);
+    }
+    std::fill(seen.begin(), seen.end(), 0);
+    bvh.for_each_overlapping_leaf(qlo, qhi, [&](std::uint32_t first, std::uint32_t count) {
+      for (std::uint32_t s = first; s < first + count; ++s) seen[bvh.order()[s]] = 1;
+    });
+    for (int i = 0; i < n; ++i)
+      if (overlaps(lo[std::size_t(i)], hi[std::size_t(i)], c - h, c + h)) {
+        ASSERT_TRUE(seen[std::size_t(i)]) << "query " << q << " missed box " << i;
+      }
+  }
+}
+
+TEST(Bvh, EveryPrimitiveInExactlyOneLeaf) {
+  std::mt19937_64 rng(2);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<Eigen::Vector3d> lo(1001), hi(1001);
+  for (std::size_t i = 0; i < lo.size(); ++i) {
+    lo[i] = Eigen::Vector3d(u(rng), u(rng), u(rng));
+    hi[i] = lo[i] + Eigen::Vector3d::Constant(0.01);
+  }
+  const Bvh bvh = Bvh::build(lo, hi, 3);
+  std::vector<int> count(lo.size());
+  for (const BvhNode& node : bvh.nodes())
+    for (std::uint32_t s = node.first; node.count > 0 && s < node.first + node.count; ++s)
+      ++count[bvh.order()[s]];
+  for (int c : count) EXPECT_EQ(c, 1);
+}
+
+TEST(Bvh, OutwardRoundingContainsTheDoubleValue) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-1e5, 1e5);
+  for (int i = 0; i < 100000; ++i) {
+    const double x = u(rng);
+    EXPECT_LE(double(round_down_to_float(x)), x);
+    EXPECT_GE(double(round_up_to_float(x)), x);
+  }
+}
+
+TEST(Bvh, EmptyInputIsAValidEmptyTree) {
+  const Bvh bvh = Bvh::build({}, {}, 4);
+  const float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+  int leaves = 0;
+  bvh.for_each_overlapping_leaf(lo, hi, [&](std::uint32_t, std::uint32_t) { ++leaves; });
+  EXPECT_EQ(leaves, 0);
+}
+
+}  // namespace
+}  // namespace gshaptics

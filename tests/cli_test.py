@@ -1,0 +1,151 @@
+#!/usr/bin/python3
+"""End-to-end tests of the gshaptics command line: the query JSON contract, pose files,
+error messages and exit codes, info, and the simulated probe run with its outputs.
+
+Usage: cli_test.py PATH/TO/gshaptics SCENES_DIR
+"""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+EXE = None
+SCENES = None
+
+
+def run(*args, check=True):
+    p = subprocess.run([EXE, *args], capture_output=True, text=True, timeout=600)
+    if check and p.returncode != 0:
+        raise AssertionError(f"{args} exited {p.returncode}: {p.stderr}")
+    return p
+
+
+class Query(unittest.TestCase):
+    def test_contract_keys_sorting_and_values(self):
+        p = run("query", os.path.join(SCENES, "donut.ply"), "--tool-center", "0.0,0.05,0.04",
+                "--tool-axes", "0.03,0.02,0.02", "--tool-rotation", "0.9,0.1,0.2,0.3")
+        lines = p.stdout.strip().splitlines()
+        self.assertEqual(len(lines), 1)
+        j = json.loads(lines[0])
+        self.assertEqual(set(j), {"candidates", "prefiltered", "contacts", "query_us"})
+        self.assertGreater(len(j["contacts"]), 0)
+        self.assertGreaterEqual(j["candidates"], j["prefiltered"])
+        self.assertGreaterEqual(j["prefiltered"], len(j["contacts"]))
+        idx = [c["index"] for c in j["contacts"]]
+        self.assertEqual(idx, sorted(idx))
+        for c in j["contacts"]:
+            self.assertEqual(set(c), {"index", "k_min", "opacity", "center"})
+            self.assertTrue(0 < c["k_min"] <= 1)
+            self.assertTrue(0.2 < c["opacity"] <= 1)
+            self.assertEqual(len(c["center"]), 3)
+        self.assertGreaterEqual(j["query_us"], 0)
+
+    def test_pose_file_gives_json_lines_equal_to_single_queries(self):
+        poses = ["# cx cy cz ax ay az qw qx qy qz", "0 0.05 0.04 0.03 0.02 0.02 1 0 0 0",
+                 "", "0.05 -0.05 0.03  0.02 0.02 0.02  0.7 0 0.7 0  # trailing comment",
+                 "5 5 5 0.01 0.01 0.01 1 0 0 0"]
+        with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as f:
+            f.write("\n".join(poses) + "\n")
+        p = run("query", os.path.join(SCENES, "donut.ply"), "--poses", f.name)
+        out = [json.loads(line) for line in p.stdout.strip().splitlines()]
+        self.assertEqual(len(out), 3)
+        self.assertEqual(out[2]["contacts"], [])
+        single = json.loads(run("query", os.path.join(SCENES, "donut.ply"), "--tool-center",
+                                "0.05,-0.05,0.03", "--tool-axes", "0.02,0.02,0.02",
+                                "--tool-rotation", "0.7,0,0.7,0").stdout)
+        self.assertEqual(single["contacts"], out[1]["contacts"])
+
+    def test_registration_moves_centres_into_the_world_frame(self):
+        reg = {"scale": 2.0, "translation": [100.0, 0.0, 0.0]}
+        with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
+            json.dump(reg, f)
+        a = json.loads(run("query", os.path.join(SCENES, "donut.ply"), "--tool-center",
+                           "0,0.05,0.04", "--tool-axes", "0.03,0.03,0.03").stdout)
+        b = json.loads(run("query", os.path.join(SCENES, "donut.ply"), "--registration", f.name,
+                           "--tool-center", "100,0.1,0.08", "--tool-axes", "0.06,0.06,0.06").stdout)
+        self.assertEqual([c["index"] for c in a["contacts"]], [c["index"] for c in b["contacts"]])
+        for ca, cb in zip(a["contacts"], b["contacts"]):
+            self.assertAlmostEqual(cb["center"][0], 100 + 2 * ca["center"][0], places=5)
+            self.assertAlmostEqual(cb["k_min"], ca["k_min"], places=6)
+
+    def test_answers_on_the_large_aerial_scene(self):
+        j = json.loads(run("query", os.path.join(SCENES, "karangkidul_crop.ply"), "--tool-center",
+                           "-31.25,0,43.33", "--tool-axes", "3,3,3").stdout)
+        self.assertGreater(len(j["contacts"]), 0)
+
+
+class Errors(unittest.TestCase):
+    def test_missing_file(self):
+        p = run("query", "/nonexistent/a.ply", "--tool-center", "0,0,0", "--tool-axes", "1,1,1",
+                check=False)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("/nonexistent/a.ply", p.stderr)
+
+    def test_truncated_file(self):
+        with open(os.path.join(SCENES, "donut.ply"), "rb") as f:
+            data = f.read()
+        with tempfile.NamedTemporaryFile("wb", suffix=".ply", delete=False) as f:
+            f.write(data[: len(data) // 2])
+        p = run("info", f.name, check=False)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn(f.name, p.stderr)
+        self.assertIn("truncated", p.stderr)
+
+    def test_bad_tool_arguments(self):
+        scene = os.path.join(SCENES, "donut.ply")
+        p = run("query", scene, "--tool-center", "0,0", "--tool-axes", "1,1,1", check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--tool-center", p.stderr)
+        p = run("query", scene, "--tool-center", "0,0,0", "--tool-axes", "1,0,1", check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("semi-axes must be > 0", p.stderr)
+
+    def test_bad_pose_line_is_named(self):
+        with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as f:
+            f.write("0 0 0 1 1 1 1 0 0 0\n0 0 0 1 1 1 1 0 0\n")
+        p = run("query", os.path.join(SCENES, "donut.ply"), "--poses", f.name, check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("line 2", p.stderr)
+
+
+class Info(unittest.TestCase):
+    def test_info_reports_counts_and_filter(self):
+        p = run("info", os.path.join(SCENES, "fruitdrops.ply"))
+        self.assertIn("4721 in file", p.stdout)
+        self.assertIn("SH degree  3", p.stdout)
+        self.assertIn("transform", p.stdout)
+        self.assertIn("opacity > 0.20 keeps", p.stdout)
+
+    def test_help_of_every_command(self):
+        for cmd in ("info", "query", "simulate"):
+            p = run(cmd, "--help")
+            self.assertIn("--help", p.stdout)
+
+
+class Simulate(unittest.TestCase):
+    def test_probe_run_on_bundled_truck(self):
+        out = tempfile.mkdtemp()
+        p = run("simulate", "--out", out, "--quiet")
+        summary = json.load(open(os.path.join(out, "summary.json")))
+        self.assertEqual(len(summary["sites"]), 7)
+        self.assertGreaterEqual(len(summary["episodes"]), 7)
+        for ep in summary["episodes"]:
+            self.assertGreater(ep["peak_contacts"], 0)
+        self.assertGreater(sum(ep["peak_force"] > 0.5 for ep in summary["episodes"]), 6)
+        with open(os.path.join(out, "probe_log.csv")) as f:
+            header = f.readline().strip().split(",")
+            rows = f.readlines()
+        self.assertEqual(header[:4], ["time_s", "x", "y", "z"])
+        self.assertIn("query_us", header)
+        self.assertEqual(len(rows), summary["ticks"])
+        with open(os.path.join(out, "probe_run.png"), "rb") as f:
+            self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
+        self.assertIn("query time p50", p.stdout)
+        self.assertFalse(any(n.endswith(".tmp") for n in os.listdir(out)))
+
+
+if __name__ == "__main__":
+    EXE, SCENES = sys.argv[1], sys.argv[2]
+    unittest.main(argv=[sys.argv[0], "-v"])

@@ -1,0 +1,212 @@
+// The whole collision query against the independent float64 brute-force reference on real
+// scenes: identical contact sets except grazing pairs (|K_min| < 1e-5), K_min within 1e-5.
+
+#include "gshaptics/collision/contact_query.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <map>
+#include <random>
+
+#include "gshaptics/io/scene_loader.h"
+#include "support/reference.h"
+#include "support/scenes.h"
+
+namespace gshaptics {
+namespace {
+
+constexpr double kTolerance = 1e-5;
+
+Eigen::Quaterniond random_quaternion(std::mt19937_64& rng) {
+  std::normal_distribution<double> n(0, 1);
+  return Eigen::Quaterniond(n(rng), n(rng), n(rng), n(rng)).normalized();
+}
+
+struct Case {
+  const char* scene;
+  bool bundled_registration;
+  double tool_min, tool_max;  // tool radius as a fraction of the scene's largest extent
+  int poses;
+};
+
+// Poses: half near the surface (around a kept Gaussian, within a tool radius), half anywhere in
+// the world's bounds; tools are ellipsoids with axis ratios up to 3 and random orientation.
+std::vector<ToolEllipsoid> make_poses(const CollisionWorld& w, const Case& c, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  const Eigen::Vector3d lo = w.bounds_lo(), hi = w.bounds_hi();
+  // Robust extent from the Gaussians' centres (floaters make the bounds meaningless).
+  std::vector<double> ax[3];
+  for (const auto& g : w.gaussians())
+    for (int k = 0; k < 3; ++k) ax[k].push_back(g.center[k]);
+  double extent = 0;
+  Eigen::Vector3d p1, p99;
+  for (int k = 0; k < 3; ++k) {
+    std::sort(ax[k].begin(), ax[k].end());
+    p1[k] = ax[k][ax[k].size() / 100];
+    p99[k] = ax[k][ax[k].size() * 99 / 100];
+    extent = std::max(extent, p99[k] - p1[k]);
+  }
+  std::vector<ToolEllipsoid> poses;
+  for (int i = 0; i < c.poses; ++i) {
+    ToolEllipsoid t;
+    const double r = extent * (c.tool_min + (c.tool_max - c.tool_min) * u(rng));
+    t.semi_axes = Eigen::Vector3d(r, r * (0.34 + 0.66 * u(rng)), r * (0.34 + 0.66 * u(rng)));
+    t.rotation = random_quaternion(rng);
+    if (i % 2 == 0) {
+      const auto& g = w.gaussians()[std::size_t(rng() % w.size())];
+      t.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) +
+                 random_quaternion(rng).toRotationMatrix().col(0) * r * 1.5 * u(rng);
+    } else {
+      for (int k = 0; k < 3; ++k) t.center[k] = p1[k] + (p99[k] - p1[k]) * u(rng);
+    }
+    poses.push_back(t);
+  }
+  (void)lo;
+  (void)hi;
+  return poses;
+}
+
+// Compares one fast result with the reference; returns the number of contacts compared.
+std::size_t expect_same_contacts(const std::vector<test::RefGaussian>& ref_world,
+                                 const ToolEllipsoid& tool, const ContactSet& fast,
+                                 const std::string& what) {
+  const std::vector<test::RefContact> ref = test::reference_contacts(ref_world, tool);
+  std::map<std::uint32_t, double> fast_k;
+  for (const Contact& c : fast.contacts()) fast_k[c.index] = c.k_min;
+  EXPECT_EQ(fast.counts.contacts, fast.contacts().size());
+  EXPECT_LE(fast.counts.contacts, fast.counts.prefiltered);
+  EXPECT_LE(fast.counts.prefiltered, fast.counts.candidates);
+  for (const auto& r : ref) {
+    const auto it = fast_k.find(r.index);
+    if (it == fast_k.end()) {
+      EXPECT_LT(r.k_min, kTolerance) << what << ": missed contact " << r.index << " K_min " << r.k_min;
+      continue;
+    }
+    EXPECT_NEAR(it->second, r.k_min, kTolerance) << what << ": index " << r.index;
+    fast_k.erase(it);
+  }
+  for (const auto& [index, k] : fast_k) {  // reported by us, not by the reference
+    const double rk = test::reference_k_min_of(ref_world, tool, index);
+    EXPECT_LT(std::fabs(rk), kTolerance) << what << ": extra contact " << index << " ref K_min " << rk;
+  }
+  return ref.size();
+}
+
+class AgainstReference : public ::testing::TestWithParam<Case> {};
+
+TEST_P(AgainstReference, SameContactsAsBruteForceFloat64) {
+  const Case& c = GetParam();
+  const LoadedScene s = load_scene(test::scene_path(c.scene));
+  WorldConfig cfg;
+  if (c.bundled_registration) cfg.registration = load_registration_file(test::data_path("truck.registration.json"));
+  const CollisionWorld world = CollisionWorld::build(s.scene, cfg);
+  const auto ref_world = test::reference_world(s.scene, cfg.min_opacity, cfg.sigma, cfg.registration);
+  ASSERT_EQ(ref_world.size(), world.size());
+  ContactQuery query(world);
+  std::size_t total = 0, max_contacts = 0;
+  for (const ToolEllipsoid& tool : make_poses(world, c, 17)) {
+    ASSERT_EQ(query.run(tool), QueryStatus::kOk);
+    const std::size_t n = expect_same_contacts(ref_world, tool, query.result(), c.scene);
+    total += n;
+    max_contacts = std::max(max_contacts, n);
+  }
+  EXPECT_GT(total, std::size_t(c.poses));  // the poses really touch things
+  RecordProperty("reference_contacts", std::to_string(total));
+  RecordProperty("max_contacts_per_pose", std::to_string(max_contacts));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    RealScenes, AgainstReference,
+    ::testing::Values(Case{"truck.splat", true, 0.01, 0.02, 60},
+                      Case{"donut.ply", false, 0.02, 0.06, 60},
+                      Case{"burger.splat", false, 0.01, 0.03, 40},
+                      Case{"karangkidul_crop.ply", false, 0.005, 0.015, 24}),
+    [](const auto& param_info) {
+      std::string n = param_info.param.scene;
+      return n.substr(0, n.find('.'));
+    });
+
+// The same scene moved 1e4 units away and rotated, with the poses moved alike, gives the same
+// contacts: nothing in the query depends on absolute coordinates.
+TEST(ContactQuery, TranslatedAndRotatedSceneGivesSameContacts) {
+  const LoadedScene s = load_scene(test::scene_path("truck.splat"));
+  WorldConfig base;
+  const CollisionWorld w0 = CollisionWorld::build(s.scene, base);
+  WorldConfig moved;
+  moved.registration.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, -2, 0.5).normalized()));
+  moved.registration.translation = Eigen::Vector3d(1e4, -1e4, 5e3);
+  const CollisionWorld w1 = CollisionWorld::build(s.scene, moved);
+  const auto ref1 = test::reference_world(s.scene, moved.min_opacity, moved.sigma, moved.registration);
+  ContactQuery q0(w0), q1(w1);
+  std::size_t compared = 0;
+  for (ToolEllipsoid t : make_poses(w0, {"truck.splat", false, 0.01, 0.02, 40}, 23)) {
+    ASSERT_EQ(q0.run(t), QueryStatus::kOk);
+    ToolEllipsoid u = t;
+    u.center = moved.registration.apply(t.center);
+    u.rotation = moved.registration.rotation * t.rotation;
+    ASSERT_EQ(q1.run(u), QueryStatus::kOk);
+    std::map<std::uint32_t, double> a, b;
+    for (const Contact& c : q0.result().contacts()) a[c.index] = c.k_min;
+    for (const Contact& c : q1.result().contacts()) b[c.index] = c.k_min;
+    for (const auto& [i, k] : a) {
+      if (!b.count(i)) {
+        EXPECT_LT(k, kTolerance) << "lost " << i;
+        continue;
+      }
+      EXPECT_NEAR(b[i], k, kTolerance);
+      ++compared;
+    }
+    for (const auto& [i, k] : b) {
+      if (!a.count(i)) {
+        EXPECT_LT(k, kTolerance) << "gained " << i;
+      }
+    }
+    // and the far-away copy still matches its own float64 reference
+    expect_same_contacts(ref1, u, q1.result(), "moved truck");
+  }
+  EXPECT_GT(compared, 100u);
+}
+
+TEST(ContactQuery, InvalidToolAndOverflowAreReportedNotThrown) {
+  const LoadedScene s = load_scene(test::scene_path("donut.ply"));
+  const CollisionWorld world = CollisionWorld::build(s.scene, {});
+  ContactQuery q(world);
+  ToolEllipsoid bad = ToolEllipsoid::sphere(Eigen::Vector3d(NAN, 0, 0), 0.01);
+  EXPECT_EQ(q.run(bad), QueryStatus::kInvalidTool);
+  EXPECT_EQ(q.result().counts.candidates, 0u);
+  EXPECT_EQ(q.run(ToolEllipsoid::sphere(Eigen::Vector3d::Zero(), -1)), QueryStatus::kInvalidTool);
+
+  QueryOptions small;
+  small.max_contacts = 3;
+  ContactQuery tiny(world, small);
+  EXPECT_EQ(tiny.run(ToolEllipsoid::sphere(Eigen::Vector3d(0, 0, 0.04), 0.05)), QueryStatus::kContactOverflow);
+  EXPECT_EQ(tiny.result().contacts().size(), 3u);
+  EXPECT_GT(tiny.result().counts.contacts, 3u);  // the count still says how many there were
+}
+
+TEST(ContactQuery, GoldenSectionOptionAgreesOnContacts) {
+  const LoadedScene s = load_scene(test::scene_path("donut.ply"));
+  const CollisionWorld world = CollisionWorld::build(s.scene, {});
+  QueryOptions golden;
+  golden.narrow_phase = {Minimiser::kGoldenSection, 30, false};
+  ContactQuery qn(world), qg(world, golden);
+  std::size_t differ = 0, total = 0;
+  for (const ToolEllipsoid& t : make_poses(world, {"donut.ply", false, 0.02, 0.05, 30}, 5)) {
+    qn.run(t);
+    qg.run(t);
+    std::map<std::uint32_t, double> a;
+    for (const Contact& c : qn.result().contacts()) a[c.index] = c.k_min;
+    for (const Contact& c : qg.result().contacts()) {
+      ++total;
+      if (!a.count(c.index)) { ++differ; continue; }
+      EXPECT_GE(c.k_min, a[c.index] - 1e-12);  // golden never goes below the true minimum
+    }
+  }
+  EXPECT_GT(total, 100u);
+  EXPECT_LE(differ, total / 100);  // 30 golden steps can call a few grazing pairs wrongly
+}
+
+}  // namespace
+}  // namespace gshaptics

@@ -1,0 +1,157 @@
+// The simulated probe run on the bundled Truck, and the servo tick's allocation-free contract.
+
+#include "gshaptics/sim/probe_run.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <fstream>
+#include <new>
+
+#include "gshaptics/io/error.h"
+#include "gshaptics/io/scene_loader.h"
+#include "support/scenes.h"
+
+// Count every heap allocation in this test binary.
+static std::atomic<std::size_t> g_allocations{0};
+void* operator new(std::size_t n) {
+  ++g_allocations;
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t n) { return operator new(n); }
+void* operator new(std::size_t n, std::align_val_t a) {
+  ++g_allocations;
+  if (void* p = std::aligned_alloc(std::size_t(a), (n + std::size_t(a) - 1) / std::size_t(a) * std::size_t(a))) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+
+namespace gshaptics {
+namespace {
+
+class TruckRun : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    const LoadedScene s = load_scene(test::data_path("truck.splat"));
+    WorldConfig cfg;
+    cfg.registration = load_registration_file(test::data_path("truck.registration.json"));
+    world_ = new CollisionWorld(CollisionWorld::build(s.scene, cfg));
+  }
+  static void TearDownTestSuite() { delete world_; }
+  static CollisionWorld* world_;
+};
+CollisionWorld* TruckRun::world_ = nullptr;
+
+TEST_F(TruckRun, ServoTickAllocatesNothing) {
+  ContactQuery query(*world_);
+  ForceModel force;
+  // Warm up, then count allocations over ticks that sweep into the truck's dense middle.
+  query.run(ToolEllipsoid::sphere(Eigen::Vector3d(0, 0, 0.5), 0.08));
+  std::size_t max_contacts = 0;
+  const std::size_t before = g_allocations.load();
+  for (int k = 0; k < 400; ++k) {
+    const Eigen::Vector3d p(0.0, 0.0, 1.6 - 0.004 * k);
+    query.run(ToolEllipsoid::sphere(p, 0.08));
+    const ForceOutput f = force.update(query.result().contacts(), p, Eigen::Vector3d(0, 0, -4), 1e-3);
+    max_contacts = std::max<std::size_t>(max_contacts, f.contacts);
+  }
+  const std::size_t after = g_allocations.load();
+  EXPECT_EQ(after - before, 0u);
+  EXPECT_GT(max_contacts, 50u);  // the sweep really went through dense contact
+}
+
+TEST_F(TruckRun, SevenSitesEachTouchedWithForceAwayFromTheSurface) {
+  ProbeParams pp;
+  pp.tool_radius = 0.07;
+  pp.approach_speed = 2 * pp.tool_radius;
+  pp.travel_speed = 8 * pp.tool_radius;
+  const ProbeTrajectory traj = generate_probe_trajectory(*world_, pp);
+  ASSERT_EQ(traj.sites().size(), 7u);
+  for (const auto& s : traj.sites()) {
+    EXPECT_NEAR(s.normal.norm(), 1.0, 1e-9);
+    EXPECT_GT(s.normal.z(), -0.2);  // reachable from above
+  }
+  const ProbeRunResult run = run_probe(*world_, traj, {});
+  ASSERT_EQ(run.ticks.size(), std::size_t(std::ceil((traj.duration() + 0.5) * 1000)));
+  // Each site: within its press window the tool touches and the rendered force points out of
+  // the surface (positive along the site's outward normal).
+  for (const auto& s : traj.sites()) {
+    std::uint32_t peak_contacts = 0;
+    double peak_force = 0, along_normal = 0;
+    for (const auto& t : run.ticks) {
+      if (t.time < s.t_touch - 0.5 || t.time > s.t_touch + 1.5) continue;
+      peak_contacts = std::max(peak_contacts, t.counts.contacts);
+      if (t.force.norm() > peak_force) {
+        peak_force = t.force.norm();
+        along_normal = t.force.normalized().dot(s.normal);
+      }
+    }
+    EXPECT_GT(peak_contacts, 0u) << "site " << s.gaussian_index;
+    EXPECT_GT(peak_force, 0.5) << "site " << s.gaussian_index;
+    EXPECT_GT(along_normal, 0.0) << "site " << s.gaussian_index;
+  }
+  EXPECT_GE(run.episodes.size(), 7u);
+  // Without contact there is never force (paper Sec. V-A b).
+  for (const auto& t : run.ticks) {
+    if (t.counts.contacts == 0) {
+      ASSERT_EQ(t.force.norm(), 0.0);
+    }
+  }
+}
+
+TEST_F(TruckRun, SameSeedSameTrajectoryOtherSeedOtherSites) {
+  ProbeParams pp;
+  pp.tool_radius = 0.07;
+  const ProbeTrajectory a = generate_probe_trajectory(*world_, pp);
+  const ProbeTrajectory b = generate_probe_trajectory(*world_, pp);
+  pp.seed = 2;
+  const ProbeTrajectory c = generate_probe_trajectory(*world_, pp);
+  ASSERT_EQ(a.sites().size(), b.sites().size());
+  for (std::size_t i = 0; i < a.sites().size(); ++i)
+    EXPECT_EQ(a.sites()[i].gaussian_index, b.sites()[i].gaussian_index);
+  EXPECT_NE(a.sites()[0].gaussian_index, c.sites()[0].gaussian_index);
+}
+
+TEST(ProbeRun, EpisodesMergeShortGapsAndRecordPeaks) {
+  std::vector<TickRecord> ticks(1000);
+  for (std::size_t k = 0; k < ticks.size(); ++k) {
+    ticks[k].time = double(k) * 1e-3;
+    const bool touching = (k >= 100 && k < 200) || (k >= 250 && k < 300) || (k >= 700 && k < 710);
+    ticks[k].counts.contacts = touching ? std::uint32_t(k % 17 + 1) : 0;
+    ticks[k].force = touching ? Eigen::Vector3d(0, double(k), 0) : Eigen::Vector3d::Zero();
+  }
+  const auto eps = find_episodes(ticks, 0.1);
+  ASSERT_EQ(eps.size(), 2u);  // the 50 ms gap is bridged, the 400 ms gap is not
+  EXPECT_NEAR(eps[0].t_start, 0.100, 1e-12);
+  EXPECT_NEAR(eps[0].t_end, 0.299, 1e-12);
+  EXPECT_NEAR(eps[0].peak_force, 299, 1e-9);
+  EXPECT_EQ(eps[0].peak_contacts, 17u);
+  EXPECT_NEAR((eps[0].peak_direction - Eigen::Vector3d(0, 1, 0)).norm(), 0, 1e-12);
+}
+
+TEST(ProbeRun, CsvLogIsWrittenAtomicallyWithHeader) {
+  std::vector<TickRecord> ticks(3);
+  ticks[1].time = 0.001;
+  ticks[1].counts = {5, 3, 2};
+  ticks[1].force = {1, 2, 3};
+  const std::string p = test::temp_path(".csv");
+  write_tick_log_csv(p, ticks);
+  std::ifstream in(p);
+  std::string header, l0, l1;
+  std::getline(in, header);
+  std::getline(in, l0);
+  std::getline(in, l1);
+  EXPECT_EQ(header.rfind("time_s,x,y,z,vx,vy,vz,candidates,prefiltered,contacts,fx,fy,fz,", 0), 0u);
+  EXPECT_NE(l1.find(",5,3,2,1.00000,2.00000,3.00000,"), std::string::npos) << l1;
+  EXPECT_THROW(write_tick_log_csv("/nonexistent-dir/x.csv", ticks), InputError);
+}
+
+}  // namespace
+}  // namespace gshaptics

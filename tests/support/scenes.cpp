@@ -1,0 +1,34 @@
+#include "support/scenes.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+namespace gshaptics::test {
+
+std::string scene_path(const std::string& name) { return std::string(GSHAPTICS_SCENES_DIR) + "/" + name; }
+std::string data_path(const std::string& name) { return std::string(GSHAPTICS_DATA_DIR) + "/" + name; }
+
+std::string temp_path(const std::string& suffix) {
+  static std::atomic<int> counter{0};
+  return (std::filesystem::temp_directory_path() /
+          ("gshaptics_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++) + suffix))
+      .string();
+}
+
+void write_bytes(const std::string& path, const std::vector<std::uint8_t>& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  ASSERT_TRUE(out.good()) << path;
+}
+
+std::vector<std::uint8_t> read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+}  // namespace gshaptics::test

@@ -1,0 +1,20 @@
+#pragma once
+// Paths of the real scenes used by tests, and small helpers to write test files.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace gshaptics::test {
+
+/// Full path of a scene in ../shared/data/scenes.
+std::string scene_path(const std::string& name);
+/// Full path of a file in the repository's data/ folder.
+std::string data_path(const std::string& name);
+/// A fresh temporary file path (not created) with the given suffix.
+std::string temp_path(const std::string& suffix);
+/// Writes bytes to a file; fails the test on error.
+void write_bytes(const std::string& path, const std::vector<std::uint8_t>& bytes);
+std::vector<std::uint8_t> read_bytes(const std::string& path);
+
+}  // namespace gshaptics::test
