@@ -136,7 +136,7 @@ void register_simulate(CLI::App& app) {
     }
     // Speeds scale with the tool so that any scene unit gives a similar run.
     pp.approach_speed = 2.0 * pp.tool_radius;
-    pp.travel_speed = 15.0 * pp.tool_radius;
+    pp.travel_speed = 8.0 * pp.tool_radius;
     const ProbeTrajectory traj = generate_probe_trajectory(world, pp);
     fmt::print("probe      {} sites, tool radius {:.4g}, up [{:.2f}, {:.2f}, {:.2f}], {:.1f} s at {:.0f} Hz\n",
                traj.sites().size(), pp.tool_radius, pp.up.x(), pp.up.y(), pp.up.z(),
@@ -145,6 +145,7 @@ void register_simulate(CLI::App& app) {
       fmt::print(stderr, "warning: only {} of {} sites are reachable on this scene\n",
                  traj.sites().size(), o->sites);
 
+    std::fflush(stdout);  // the progress bar goes to stderr: keep the lines above first
     ProbeRunParams rp;
     rp.rate_hz = o->rate;
     rp.force = o->force;
