@@ -70,6 +70,19 @@ class Query(unittest.TestCase):
             self.assertAlmostEqual(cb["center"][0], 100 + 2 * ca["center"][0], places=5)
             self.assertAlmostEqual(cb["k_min"], ca["k_min"], places=6)
 
+    def test_pose_file_from_poses_command(self):
+        scene = os.path.join(SCENES, "burger.splat")
+        p = run("poses", scene, "--count", "20", "--seed", "3")
+        lines = [l for l in p.stdout.splitlines() if not l.startswith("#")]
+        self.assertEqual(len(lines), 20)
+        self.assertEqual(p.stdout, run("poses", scene, "--count", "20", "--seed", "3").stdout)
+        with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as f:
+            f.write(p.stdout)
+        out = run("query", scene, "--poses", f.name).stdout.strip().splitlines()
+        self.assertEqual(len(out), 20)
+        # near-surface poses: most touch something
+        self.assertGreater(sum(len(json.loads(l)["contacts"]) > 0 for l in out), 10)
+
     def test_answers_on_the_large_aerial_scene(self):
         j = json.loads(run("query", os.path.join(SCENES, "karangkidul_crop.ply"), "--tool-center",
                            "-31.25,0,43.33", "--tool-axes", "3,3,3").stdout)
@@ -119,7 +132,7 @@ class Info(unittest.TestCase):
         self.assertIn("opacity > 0.20 keeps", p.stdout)
 
     def test_help_of_every_command(self):
-        for cmd in ("info", "query", "simulate"):
+        for cmd in ("info", "query", "simulate", "poses"):
             p = run(cmd, "--help")
             self.assertIn("--help", p.stdout)
 

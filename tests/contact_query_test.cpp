@@ -10,6 +10,7 @@
 #include <random>
 
 #include "gshaptics/io/scene_loader.h"
+#include "gshaptics/sim/pose_sampler.h"
 #include "support/reference.h"
 #include "support/scenes.h"
 
@@ -18,53 +19,27 @@ namespace {
 
 constexpr double kTolerance = 1e-5;
 
-Eigen::Quaterniond random_quaternion(std::mt19937_64& rng) {
-  std::normal_distribution<double> n(0, 1);
-  return Eigen::Quaterniond(n(rng), n(rng), n(rng), n(rng)).normalized();
-}
-
 struct Case {
   const char* scene;
   bool bundled_registration;
-  double tool_min, tool_max;  // tool radius as a fraction of the scene's largest extent
+  double tool_min, tool_max;  // tool radius as a fraction of the scene's robust extent
   int poses;
 };
+void PrintTo(const Case& c, std::ostream* os) { *os << c.scene << " (" << c.poses << " poses)"; }
 
-// Poses: half near the surface (around a kept Gaussian, within a tool radius), half anywhere in
-// the world's bounds; tools are ellipsoids with axis ratios up to 3 and random orientation.
+// Poses: half near the surface (within a tool radius of a kept Gaussian), half anywhere in the
+// world's 1-99 percentile box; tools are ellipsoids with axis ratios down to 1/3, any orientation.
 std::vector<ToolEllipsoid> make_poses(const CollisionWorld& w, const Case& c, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(0, 1);
-  const Eigen::Vector3d lo = w.bounds_lo(), hi = w.bounds_hi();
-  // Robust extent from the Gaussians' centres (floaters make the bounds meaningless).
-  std::vector<double> ax[3];
-  for (const auto& g : w.gaussians())
-    for (int k = 0; k < 3; ++k) ax[k].push_back(g.center[k]);
-  double extent = 0;
-  Eigen::Vector3d p1, p99;
-  for (int k = 0; k < 3; ++k) {
-    std::sort(ax[k].begin(), ax[k].end());
-    p1[k] = ax[k][ax[k].size() / 100];
-    p99[k] = ax[k][ax[k].size() * 99 / 100];
-    extent = std::max(extent, p99[k] - p1[k]);
-  }
-  std::vector<ToolEllipsoid> poses;
-  for (int i = 0; i < c.poses; ++i) {
-    ToolEllipsoid t;
-    const double r = extent * (c.tool_min + (c.tool_max - c.tool_min) * u(rng));
-    t.semi_axes = Eigen::Vector3d(r, r * (0.34 + 0.66 * u(rng)), r * (0.34 + 0.66 * u(rng)));
-    t.rotation = random_quaternion(rng);
-    if (i % 2 == 0) {
-      const auto& g = w.gaussians()[std::size_t(rng() % w.size())];
-      t.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) +
-                 random_quaternion(rng).toRotationMatrix().col(0) * r * 1.5 * u(rng);
-    } else {
-      for (int k = 0; k < 3; ++k) t.center[k] = p1[k] + (p99[k] - p1[k]) * u(rng);
-    }
-    poses.push_back(t);
-  }
-  (void)lo;
-  (void)hi;
+  PoseSamplerParams p;
+  p.count = std::size_t(c.poses / 2);
+  p.seed = seed;
+  p.radius_min = c.tool_min;
+  p.radius_max = c.tool_max;
+  p.anisotropic = true;
+  std::vector<ToolEllipsoid> poses = sample_poses(w, p);
+  p.near_surface = false;
+  p.count = std::size_t(c.poses) - poses.size();
+  for (const ToolEllipsoid& t : sample_poses(w, p)) poses.push_back(t);
   return poses;
 }
 

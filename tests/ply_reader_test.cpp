@@ -25,6 +25,8 @@ struct Expect {
   int sh_degree;
 };
 
+void PrintTo(const Expect& e, std::ostream* os) { *os << e.file; }
+
 class RealPly : public ::testing::TestWithParam<Expect> {};
 
 TEST_P(RealPly, CountsBoundsAndOpacityMatchSources) {

@@ -22,6 +22,8 @@ struct Expect {
   double max_scale_median;
 };
 
+void PrintTo(const Expect& e, std::ostream* os) { *os << e.file; }
+
 class RealSplat : public ::testing::TestWithParam<Expect> {};
 
 TEST_P(RealSplat, CountsBoundsOpacityAndScalesMatchSources) {

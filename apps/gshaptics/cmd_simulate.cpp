@@ -105,10 +105,7 @@ void register_simulate(CLI::App& app) {
     const bool registered = !so.registration_file.empty() || !so.reg_rotation.empty() ||
                             !so.reg_scale.empty() || !so.reg_translation.empty();
     const LoadedScene s = load_with_progress(so.scene, o->quiet);
-    WorldConfig cfg;
-    cfg.min_opacity = so.min_opacity;
-    cfg.sigma = so.sigma;
-    cfg.registration = registration_from(so);
+    const WorldConfig cfg = world_config_from(so);
     WorldBuildReport br;
     const CollisionWorld world = CollisionWorld::build(s.scene, cfg, &br);
     fmt::print("scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),

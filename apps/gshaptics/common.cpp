@@ -56,6 +56,14 @@ SimilarityTransform registration_from(const SceneOptions& o) {
   return t;
 }
 
+WorldConfig world_config_from(const SceneOptions& o) {
+  WorldConfig cfg;
+  cfg.min_opacity = o.min_opacity;
+  cfg.sigma = o.sigma;
+  cfg.registration = registration_from(o);
+  return cfg;
+}
+
 LoadedScene load_with_progress(const std::string& path, bool quiet) {
   std::error_code ec;
   const auto size = std::filesystem::file_size(path, ec);

@@ -31,6 +31,9 @@ std::string data_file(const std::string& name);
 /// Registration from the file and flags (flags override the file's keys).
 SimilarityTransform registration_from(const SceneOptions& o);
 
+/// World configuration from the shared options (opacity filter, sigma, registration).
+WorldConfig world_config_from(const SceneOptions& o);
+
 /// Loads a scene with a progress bar on stderr for files over a few MB.
 LoadedScene load_with_progress(const std::string& path, bool quiet = false);
 
