@@ -32,7 +32,7 @@ Bvh Bvh::build(std::span<const Eigen::Vector3d> lo, std::span<const Eigen::Vecto
   if (n == 0) return bvh;
   std::vector<Eigen::Vector3d> centroid(n);
   for (std::size_t i = 0; i < n; ++i) centroid[i] = 0.5 * (lo[i] + hi[i]);
-  bvh.nodes_.reserve(2 * (n / std::size_t(leaf_size) + 1));
+  bvh.nodes_.reserve(2 * (2 * n / std::size_t(leaf_size) + 1));  // leaves hold >= leaf/2
 
   struct Task {
     std::uint32_t node, begin, end;
@@ -81,6 +81,7 @@ Bvh Bvh::build(std::span<const Eigen::Vector3d> lo, std::span<const Eigen::Vecto
     tasks.push_back({left + 1, mid, t.end, t.depth + 1});
   }
   if (bvh.depth_ >= kMaxDepth) throw std::logic_error("Bvh::build: depth exceeds traversal stack");
+  bvh.nodes_.shrink_to_fit();
   return bvh;
 }
 

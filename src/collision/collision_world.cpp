@@ -8,9 +8,10 @@
 namespace gshaptics {
 
 Eigen::Matrix3d rotation_matrix(const CollisionGaussian& g) noexcept {
-  return Eigen::Quaterniond(g.rotation[0], g.rotation[1], g.rotation[2], g.rotation[3])
-      .normalized()
-      .toRotationMatrix();
+  Eigen::Matrix3d R;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) R(i, j) = g.rotation[3 * i + j];
+  return R;
 }
 
 Eigen::Vector3d ellipsoid_half_extent(const Eigen::Matrix3d& R,
@@ -52,16 +53,14 @@ CollisionWorld CollisionWorld::build(const GaussianScene& scene, const WorldConf
     const Eigen::Quaterniond q =
         (qg * Eigen::Quaterniond(r[0], r[1], r[2], r[3]).normalized()).normalized();
     for (int k = 0; k < 3; ++k) g.center[k] = c[k];
-    g.rotation[0] = float(q.w());
-    g.rotation[1] = float(q.x());
-    g.rotation[2] = float(q.y());
-    g.rotation[3] = float(q.z());
+    const Eigen::Matrix3d R = q.toRotationMatrix();
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) g.rotation[3 * a + b] = float(R(a, b));
     Eigen::Vector3d axes;
     for (int k = 0; k < 3; ++k) {
       g.semi_axes[k] = float(axis_scale * double(scene.scales[i][k]));
       axes[k] = g.semi_axes[k];
     }
-    g.bounding_radius = round_up_to_float(axes.maxCoeff());
     g.opacity = scene.opacities[i];
     g.source_index = scene.source_index[i];
     // Bounds from the stored (float) values so the box holds exactly the ellipsoid we test.
@@ -76,6 +75,7 @@ CollisionWorld CollisionWorld::build(const GaussianScene& scene, const WorldConf
   w.gaussians_.resize(unordered.size());
   const auto& order = w.bvh_.order();
   for (std::size_t k = 0; k < order.size(); ++k) w.gaussians_[k] = unordered[order[k]];
+  w.bvh_.release_order();  // records are now in BVH order: the permutation is not needed
 
   if (report != nullptr) {
     report->filter = {config.min_opacity, scene.size(), w.gaussians_.size()};

@@ -1,17 +1,41 @@
 #include "gshaptics/collision/contact_query.h"
 
 #include "gshaptics/broadphase/bvh.h"
+#include "gshaptics/narrowphase/k_min_batch.h"
 
 namespace gshaptics {
 
 ContactQuery::ContactQuery(const CollisionWorld& world, const QueryOptions& options)
     : world_(&world), options_(options), result_(options.max_contacts) {}
 
+namespace {
+
+// Fills lane `l` of a batch from a stored Gaussian.
+inline void load_lane(PairBatch& b, int l, const CollisionGaussian& g, const double d[3]) noexcept {
+  b.dx[l] = d[0];
+  b.dy[l] = d[1];
+  b.dz[l] = d[2];
+  for (int k = 0; k < 9; ++k) b.r[k][l] = g.rotation[k];
+  b.sx[l] = g.semi_axes[0];
+  b.sy[l] = g.semi_axes[1];
+  b.sz[l] = g.semi_axes[2];
+}
+
+// Pads unused lanes with coincident, unit Gaussians (inactive in the kernel, no NaN/denormals).
+inline void pad_lanes(PairBatch& b) noexcept {
+  for (int l = b.count; l < kBatchLanes; ++l) {
+    b.dx[l] = b.dy[l] = b.dz[l] = 0;
+    for (int k = 0; k < 9; ++k) b.r[k][l] = (k % 4 == 0) ? 1.0 : 0.0;
+    b.sx[l] = b.sy[l] = b.sz[l] = 1;
+  }
+}
+
+}  // namespace
+
 QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
   result_.clear();
   if (!tool.valid()) return QueryStatus::kInvalidTool;
   const Eigen::Matrix3d R_tool = tool.rotation.normalized().toRotationMatrix();
-  const ToolFrame frame = ToolFrame::from(R_tool, tool.semi_axes);
   const Eigen::Vector3d half = ellipsoid_half_extent(R_tool, tool.semi_axes);
   float box_lo[3], box_hi[3];
   for (int k = 0; k < 3; ++k) {
@@ -19,33 +43,57 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
     box_hi[k] = round_up_to_float(tool.center[k] + half[k]);
   }
   const double r_tool = tool.bounding_radius();
+  const double c_tool[3] = {tool.center.x(), tool.center.y(), tool.center.z()};
   const CollisionGaussian* gs = world_->gaussians().data();
+  const bool golden = options_.narrow_phase.minimiser == Minimiser::kGoldenSection;
+  const ToolFrame frame = ToolFrame::from(R_tool, tool.semi_axes);
+  const BatchTool batch_tool = make_batch_tool(R_tool, tool.semi_axes);
   QueryStatus status = QueryStatus::kOk;
   QueryCounts counts;
+  PairBatch& batch = batch_;
+  std::uint32_t slot[kBatchLanes];
+  batch.count = 0;
+
+  const auto emit = [&](const CollisionGaussian& g, double k) {
+    ++counts.contacts;
+    Contact contact;
+    contact.index = g.source_index;
+    contact.opacity = g.opacity;
+    contact.k_min = k;
+    contact.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+    if (!result_.push(contact)) status = QueryStatus::kContactOverflow;
+  };
+  const auto flush = [&] {
+    pad_lanes(batch);
+    k_min_batch(batch, batch_tool, options_.narrow_phase.stop_when_separated);
+    for (int l = 0; l < batch.count; ++l)
+      if (!batch.separated[l] && batch.k_min[l] > 0) emit(gs[slot[l]], batch.k_min[l]);
+    batch.count = 0;
+  };
 
   world_->bvh().for_each_overlapping_leaf(box_lo, box_hi, [&](std::uint32_t first,
                                                               std::uint32_t count) {
     counts.candidates += count;
     for (std::uint32_t k = first; k < first + count; ++k) {
       const CollisionGaussian& g = gs[k];
-      const Eigen::Vector3d d(g.center[0] - tool.center.x(), g.center[1] - tool.center.y(),
-                              g.center[2] - tool.center.z());
-      const double reach = double(g.bounding_radius) + r_tool;
-      if (!(d.squaredNorm() <= reach * reach)) continue;  // eq. 4 (inclusive: touching is kept)
+      const double d[3] = {g.center[0] - c_tool[0], g.center[1] - c_tool[1], g.center[2] - c_tool[2]};
+      const double reach = double(g.bounding_radius()) + r_tool;
+      if (!(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= reach * reach)) continue;  // eq. 4
       ++counts.prefiltered;
-      const Eigen::Vector3d s(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
-      const PairCoefficients c = pair_coefficients(frame, d, rotation_matrix(g), s);
-      const KMinResult r = k_min(c, options_.narrow_phase);
-      if (r.separated_early || !(r.k_min > 0)) continue;
-      ++counts.contacts;
-      Contact contact;
-      contact.index = g.source_index;
-      contact.opacity = g.opacity;
-      contact.k_min = r.k_min;
-      contact.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
-      if (!result_.push(contact)) status = QueryStatus::kContactOverflow;
+      if (golden) {  // the paper's method, one pair at a time
+        const Eigen::Vector3d s(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+        const KMinResult r = k_min(pair_coefficients(frame, Eigen::Vector3d(d[0], d[1], d[2]),
+                                                     rotation_matrix(g), s),
+                                   options_.narrow_phase);
+        if (r.k_min > 0) emit(g, r.k_min);
+        continue;
+      }
+      slot[batch.count] = k;
+      load_lane(batch, batch.count, g, d);
+      if (++batch.count == kBatchLanes) flush();
     }
   });
+  if (batch.count > 0) flush();
   result_.counts = counts;
   return status;
 }

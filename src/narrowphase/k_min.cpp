@@ -1,5 +1,7 @@
 #include "gshaptics/narrowphase/k_min.h"
 
+#include "detail/newton_lane.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -52,31 +54,12 @@ PairCoefficients pair_coefficients(const Eigen::Vector3d& d_world, const Eigen::
 
 namespace {
 
-struct Eval {
-  double phi, dphi, d2phi;  // phi = 1 - K and its derivatives in lambda
-};
 
 inline double phi_only(const PairCoefficients& c, double lambda) noexcept {
   const double b = lambda, a = 1.0 - lambda;
   const double g = a * a * c.q0 + a * b * c.q1 + b * b * c.q2;
   const double h = a * a * a + a * a * b * c.e1 + a * b * b * c.e2 + b * b * b * c.e3;
   return h > 0 ? a * b * g / h : 0.0;
-}
-
-inline Eval evaluate(const PairCoefficients& c, double lambda) noexcept {
-  const double b = lambda, a = 1.0 - lambda;
-  const double g = a * a * c.q0 + a * b * c.q1 + b * b * c.q2;
-  const double dg = -2 * a * c.q0 + (a - b) * c.q1 + 2 * b * c.q2;
-  const double d2g = 2 * (c.q0 - c.q1 + c.q2);
-  const double h = a * a * a + a * a * b * c.e1 + a * b * b * c.e2 + b * b * b * c.e3;
-  const double dh = -3 * a * a + (a * a - 2 * a * b) * c.e1 + (2 * a * b - b * b) * c.e2 +
-                    3 * b * b * c.e3;
-  const double d2h = 6 * a + (2 * b - 4 * a) * c.e1 + (2 * a - 4 * b) * c.e2 + 6 * b * c.e3;
-  const double u = a * b, du = a - b;
-  const double r = g / h;
-  const double dr = (dg - r * dh) / h;
-  const double d2r = (d2g - 2 * dr * dh - r * d2h) / h;
-  return {u * r, du * r + u * dr, -2 * r + 2 * du * dr + u * d2r};
 }
 
 }  // namespace
@@ -111,37 +94,15 @@ KMinResult k_min(const PairCoefficients& c, const KMinOptions& options) noexcept
     return res;
   }
 
-  // Initial guess: exact for two spheres, lambda* = 1 / (1 + sqrt(delta)), with delta the
-  // Gaussian's normalised variance along the offset direction.
-  const double delta = std::max(c.q0 * c.e1 - c.q1, 0.0) / c.q0;  // = v^T M v / |v|^2
-  double lambda = 1.0 / (1.0 + std::sqrt(delta));
-  double lo = 0.0, hi = 1.0;  // phi' > 0 at lo, < 0 at hi
-  double best = 0.0, best_lambda = lambda;
-  constexpr int kMaxIterations = 60;
+  detail::NewtonLane lane;
+  detail::newton_init(lane, c, 1.0);
   int it = 0;
-  for (; it < kMaxIterations; ++it) {
-    const Eval e = evaluate(c, lambda);
-    if (e.phi > best) { best = e.phi; best_lambda = lambda; }
-    if (options.stop_when_separated && e.phi > 1.0) {
-      res.k_min = 1.0 - e.phi;
-      res.lambda = lambda;
-      res.iterations = it + 1;
-      res.separated_early = true;
-      return res;
-    }
-    if (e.dphi > 0) lo = lambda; else hi = lambda;
-    double next = (e.d2phi < 0) ? lambda - e.dphi / e.d2phi : 0.5 * (lo + hi);
-    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);  // safeguard: bisect the bracket
-    const double step = next - lambda;
-    lambda = next;
-    // Converged when the step changes phi by less than ~1e-15 (quadratic convergence makes the
-    // remaining error far smaller still) or the bracket is at machine resolution.
-    if (std::fabs(step * e.dphi) < 1e-16 || hi - lo < 1e-15) { ++it; break; }
+  while (lane.active > 0 && it < detail::kMaxNewton) {
+    detail::newton_step(lane, c, options.stop_when_separated ? 1.0 : 0.0);
+    ++it;
   }
-  const double last = phi_only(c, lambda);
-  if (last > best) { best = last; best_lambda = lambda; }
-  res.k_min = 1.0 - best;
-  res.lambda = best_lambda;
+  res.k_min = detail::newton_finish(lane, c, res.lambda);
+  res.separated_early = lane.separated > 0;
   res.iterations = it;
   return res;
 }

@@ -107,7 +107,7 @@ ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world, const Pro
   for (std::size_t i = 0; i < gs.size(); ++i) {
     const double h = center_of(gs[i]).dot(up);
     if (rho[i] <= r_obj) heights.push_back(h);
-    if (rho[i] <= 2 * r_obj) heights_wide.push_back(h + gs[i].bounding_radius);
+    if (rho[i] <= 2 * r_obj) heights_wide.push_back(h + gs[i].bounding_radius());
   }
   const double h_ground = percentile(heights, 5);
   const double h_mid = percentile(heights, 50);
@@ -144,7 +144,7 @@ ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world, const Pro
       std::array<double, 3> sorted{axes[0], axes[1], axes[2]};
       std::sort(sorted.begin(), sorted.end());
       if (sorted[0] > 0.5 * sorted[1]) continue;  // not flat enough to define a normal
-      Eigen::Vector3d n = R.col(k_min_axis);
+      Eigen::Vector3d n = R.col(k_min_axis).normalized();
       if (n.dot(c - object_center) < 0) n = -n;
       if (n.dot(up) < -0.2) continue;  // underside: not reachable from above
       // First contact along the approach must be this surface, with nothing in the way.

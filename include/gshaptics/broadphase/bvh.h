@@ -37,6 +37,8 @@ class Bvh {
   [[nodiscard]] const std::vector<BvhNode>& nodes() const { return nodes_; }
   [[nodiscard]] const std::vector<std::uint32_t>& order() const { return order_; }
   [[nodiscard]] int depth() const { return depth_; }
+  /// Frees `order()` once the caller has permuted its primitives into slot order.
+  void release_order() { std::vector<std::uint32_t>().swap(order_); }
 
   /// Calls `on_leaf(first, count)` for every leaf whose box overlaps [box_lo, box_hi].
   /// Allocation-free (fixed traversal stack); safe to call from several threads at once.

@@ -22,19 +22,24 @@ struct WorldConfig {
   float min_opacity = kDefaultMinOpacity;  ///< keep alpha > tau (paper Sec. III-A)
   double sigma = 1.0;                      ///< ellipsoid at k sigma: semi-axes k * s_i (paper: 1)
   SimilarityTransform registration;        ///< scene -> world (paper eq. 3)
-  int leaf_size = 4;                       ///< BVH leaf capacity
+  int leaf_size = 8;                       ///< BVH leaf capacity (one narrow-phase batch)
 };
 
-/// One Gaussian as a collision ellipsoid in the world frame; one cache line.
-struct alignas(64) CollisionGaussian {
+/// One Gaussian as a collision ellipsoid {c + R diag(a) u : |u| <= 1} in the world frame.
+/// The rotation is stored as a matrix so the narrow phase needs no quaternion conversion.
+struct CollisionGaussian {
   double center[3];       ///< c_i = s R_g mu_i + t (world units)
-  float rotation[4];      ///< world rotation R_g R_i as a unit quaternion (w, x, y, z)
-  float semi_axes[3];     ///< k * s * scale_i (world units)
-  float bounding_radius;  ///< r_i of paper eq. 4: largest semi-axis, rounded up
+  float rotation[9];      ///< world rotation R_g R_i, row-major; columns are the ellipsoid's axes
+  float semi_axes[3];     ///< a_i = k * s * scale_i (world units)
   float opacity;          ///< alpha_i
   std::uint32_t source_index;  ///< index of the Gaussian in the original scene file
+  /// r_i of paper eq. 4: the largest semi-axis.
+  [[nodiscard]] float bounding_radius() const noexcept {
+    const float m = semi_axes[0] > semi_axes[1] ? semi_axes[0] : semi_axes[1];
+    return m > semi_axes[2] ? m : semi_axes[2];
+  }
 };
-static_assert(sizeof(CollisionGaussian) == 64);
+static_assert(sizeof(CollisionGaussian) == 80);
 
 /// What building the world did.
 struct WorldBuildReport {
@@ -68,7 +73,7 @@ class CollisionWorld {
   Eigen::Vector3d lo_ = Eigen::Vector3d::Zero(), hi_ = Eigen::Vector3d::Zero();
 };
 
-/// Rotation matrix of a stored Gaussian, normalised in double.
+/// Rotation matrix of a stored Gaussian (world frame).
 [[nodiscard]] Eigen::Matrix3d rotation_matrix(const CollisionGaussian& g) noexcept;
 
 /// Half-extents of the exact axis-aligned box of a rotated ellipsoid: sqrt(sum_k R_jk^2 a_k^2).

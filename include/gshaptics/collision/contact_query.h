@@ -14,6 +14,7 @@
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/collision/tool_ellipsoid.h"
 #include "gshaptics/narrowphase/k_min.h"
+#include "gshaptics/narrowphase/k_min_batch.h"
 
 namespace gshaptics {
 
@@ -84,6 +85,7 @@ class ContactQuery {
   const CollisionWorld* world_;
   QueryOptions options_;
   ContactSet result_;
+  PairBatch batch_;  // narrow-phase scratch, reused every query
 };
 
 }  // namespace gshaptics

@@ -1,0 +1,146 @@
+// Google Benchmark microbenchmarks of the collision query's stages on real scenes:
+// narrow phase per pair (scalar and 8-lane batch), broad phase per query, whole query per pose.
+// Run: build/bench/gshaptics_micro_bench [--benchmark_filter=...]
+
+#include <benchmark/benchmark.h>
+
+#include <map>
+#include <memory>
+#include <random>
+
+#include "gshaptics/collision/contact_query.h"
+#include "gshaptics/force/force_model.h"
+#include "gshaptics/io/scene_loader.h"
+#include "gshaptics/narrowphase/k_min_batch.h"
+#include "gshaptics/sim/pose_sampler.h"
+
+namespace gshaptics {
+namespace {
+
+struct Fixture {
+  std::unique_ptr<CollisionWorld> world;
+  std::vector<ToolEllipsoid> poses;
+};
+
+// Loads a scene once per process; tool radius as a fraction of the robust extent.
+const Fixture& fixture(const std::string& name, double rmin, double rmax) {
+  static std::map<std::string, Fixture> cache;
+  auto it = cache.find(name);
+  if (it != cache.end()) return it->second;
+  const std::string dir = name == "truck.splat" ? GSHAPTICS_DATA_DIR : GSHAPTICS_SCENES_DIR;
+  const LoadedScene s = load_scene(dir + "/" + name);
+  WorldConfig cfg;
+  if (name == "truck.splat") cfg.registration = load_registration_file(std::string(GSHAPTICS_DATA_DIR) + "/truck.registration.json");
+  Fixture f;
+  f.world = std::make_unique<CollisionWorld>(CollisionWorld::build(s.scene, cfg));
+  PoseSamplerParams p;
+  p.count = 2000;
+  p.radius_min = rmin;
+  p.radius_max = rmax;
+  f.poses = sample_poses(*f.world, p);
+  return cache.emplace(name, std::move(f)).first->second;
+}
+
+// Prefiltered pairs of real near-surface queries, for the narrow-phase benchmarks.
+struct Pairs {
+  std::vector<PairCoefficients> coeffs;
+  std::vector<PairBatch> batches;
+  BatchTool tool;
+};
+
+const Pairs& pairs() {
+  static Pairs p = [] {
+    Pairs out;
+    const Fixture& f = fixture("karangkidul_crop.ply", 0.005, 0.015);
+    const ToolEllipsoid& t0 = f.poses[0];
+    out.tool = make_batch_tool(Eigen::Matrix3d::Identity(), t0.semi_axes);
+    const ToolFrame frame = ToolFrame::from(Eigen::Matrix3d::Identity(), t0.semi_axes);
+    PairBatch b{};
+    for (std::size_t i = 0; i < 200 && out.coeffs.size() < 20000; ++i) {
+      const ToolEllipsoid& t = f.poses[i];
+      for (const auto& g : f.world->gaussians()) {
+        const Eigen::Vector3d d(g.center[0] - t.center.x(), g.center[1] - t.center.y(), g.center[2] - t.center.z());
+        const double reach = g.bounding_radius() + t0.semi_axes.x();
+        if (d.squaredNorm() > reach * reach) continue;
+        const Eigen::Vector3d s(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+        out.coeffs.push_back(pair_coefficients(frame, d, rotation_matrix(g), s));
+        const int l = b.count++;
+        b.dx[l] = d.x(); b.dy[l] = d.y(); b.dz[l] = d.z();
+        for (int k = 0; k < 9; ++k) b.r[k][l] = g.rotation[k];
+        b.sx[l] = s.x(); b.sy[l] = s.y(); b.sz[l] = s.z();
+        if (b.count == kBatchLanes) { out.batches.push_back(b); b.count = 0; }
+      }
+    }
+    return out;
+  }();
+  return p;
+}
+
+void BM_NarrowPhaseScalar(benchmark::State& state) {
+  const Pairs& p = pairs();
+  KMinOptions opt;
+  opt.stop_when_separated = true;
+  std::size_t i = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(k_min(p.coeffs[i], opt));
+    if (++i == p.coeffs.size()) i = 0;
+  }
+  state.SetItemsProcessed(std::int64_t(state.iterations()));
+}
+BENCHMARK(BM_NarrowPhaseScalar);
+
+void BM_NarrowPhaseBatch8(benchmark::State& state) {
+  Pairs p = pairs();
+  std::size_t i = 0;
+  for (auto _ : state) {
+    k_min_batch(p.batches[i], p.tool, true);
+    benchmark::DoNotOptimize(p.batches[i].k_min[0]);
+    if (++i == p.batches.size()) i = 0;
+  }
+  state.SetItemsProcessed(std::int64_t(state.iterations()) * kBatchLanes);
+}
+BENCHMARK(BM_NarrowPhaseBatch8);
+
+void BM_BroadPhase(benchmark::State& state, const char* scene, double rmin, double rmax) {
+  const Fixture& f = fixture(scene, rmin, rmax);
+  std::size_t i = 0;
+  for (auto _ : state) {
+    const ToolEllipsoid& t = f.poses[i];
+    const Eigen::Vector3d h = t.aabb_half_extent();
+    float lo[3], hi[3];
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = float(t.center[k] - h[k]);
+      hi[k] = float(t.center[k] + h[k]);
+    }
+    std::uint32_t n = 0;
+    f.world->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t, std::uint32_t c) { n += c; });
+    benchmark::DoNotOptimize(n);
+    if (++i == f.poses.size()) i = 0;
+  }
+  state.SetItemsProcessed(std::int64_t(state.iterations()));
+}
+BENCHMARK_CAPTURE(BM_BroadPhase, truck, "truck.splat", 0.01, 0.02);
+BENCHMARK_CAPTURE(BM_BroadPhase, karangkidul, "karangkidul_crop.ply", 0.005, 0.015);
+
+void BM_Query(benchmark::State& state, const char* scene, double rmin, double rmax) {
+  const Fixture& f = fixture(scene, rmin, rmax);
+  ContactQuery q(*f.world);
+  ForceModel force;
+  std::size_t i = 0, contacts = 0;
+  for (auto _ : state) {
+    const ToolEllipsoid& t = f.poses[i];
+    q.run(t);
+    benchmark::DoNotOptimize(force.update(q.result().contacts(), t.center, Eigen::Vector3d::Zero(), 1e-3));
+    contacts += q.result().contacts().size();
+    if (++i == f.poses.size()) i = 0;
+  }
+  state.SetItemsProcessed(std::int64_t(state.iterations()));
+  state.counters["contacts/query"] = double(contacts) / double(state.iterations());
+}
+BENCHMARK_CAPTURE(BM_Query, truck, "truck.splat", 0.01, 0.02)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_Query, karangkidul, "karangkidul_crop.ply", 0.005, 0.015)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+}  // namespace gshaptics
+
+BENCHMARK_MAIN();

@@ -1,0 +1,110 @@
+#include "gshaptics/narrowphase/k_min_batch.h"
+
+#include "detail/newton_lane.h"
+
+#include <Eigen/Core>
+#include <cmath>
+
+namespace gshaptics {
+
+namespace {
+constexpr int L = kBatchLanes;
+}
+
+BatchTool make_batch_tool(const Eigen::Matrix3d& R_tool, const Eigen::Vector3d& a_tool) noexcept {
+  BatchTool t{};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) t.rt[3 * i + j] = R_tool(j, i);
+  for (int k = 0; k < 3; ++k) t.inv_a[k] = 1.0 / a_tool[k];
+  t.inv_adj_a[0] = t.inv_a[1] * t.inv_a[2];
+  t.inv_adj_a[1] = t.inv_a[0] * t.inv_a[2];
+  t.inv_adj_a[2] = t.inv_a[0] * t.inv_a[1];
+  t.inv_volume = t.inv_a[0] * t.inv_a[1] * t.inv_a[2];
+  return t;
+}
+
+// One clone per instruction set; the loader picks the best the CPU has (GCC ifunc).
+__attribute__((target_clones("avx512f", "avx2", "default")))
+void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noexcept {
+  alignas(64) double q0[L], q1[L], q2[L], e1[L], e2[L], e3[L];
+  // Coefficients (see pair_coefficients): in the tool frame d_t = R_t^T d and Q = R_t^T R_G;
+  // v = inv_a * d_t, F_j = s_j inv_a * Q_j, G_j = sigma_j inv_adj_a * Q_j,
+  // q2 = sum (sigma_j (Q_j . d_t) inv_volume)^2.
+#pragma omp simd
+  for (int l = 0; l < L; ++l) {
+    // Written out (no inner loops) so that the lane loop is the only loop and vectorises.
+    const double dx = b.dx[l], dy = b.dy[l], dz = b.dz[l];
+    const double dtx = t.rt[0] * dx + t.rt[1] * dy + t.rt[2] * dz;
+    const double dty = t.rt[3] * dx + t.rt[4] * dy + t.rt[5] * dz;
+    const double dtz = t.rt[6] * dx + t.rt[7] * dy + t.rt[8] * dz;
+    const double vx = t.inv_a[0] * dtx, vy = t.inv_a[1] * dty, vz = t.inv_a[2] * dtz;
+    const double s0 = b.sx[l], s1 = b.sy[l], s2 = b.sz[l];
+    const double sg0 = s1 * s2, sg1 = s0 * s2, sg2 = s0 * s1;
+    double a1 = 0, a2 = 0, c1 = 0, c2 = 0;
+#define GSH_AXIS(j, sj, sgj)                                                                   \
+  {                                                                                           \
+    const double qx = t.rt[0] * b.r[j][l] + t.rt[1] * b.r[3 + j][l] + t.rt[2] * b.r[6 + j][l]; \
+    const double qy = t.rt[3] * b.r[j][l] + t.rt[4] * b.r[3 + j][l] + t.rt[5] * b.r[6 + j][l]; \
+    const double qz = t.rt[6] * b.r[j][l] + t.rt[7] * b.r[3 + j][l] + t.rt[8] * b.r[6 + j][l]; \
+    const double fx = sj * t.inv_a[0] * qx, fy = sj * t.inv_a[1] * qy, fz = sj * t.inv_a[2] * qz; \
+    const double gx = sgj * t.inv_adj_a[0] * qx, gy = sgj * t.inv_adj_a[1] * qy,               \
+                 gz = sgj * t.inv_adj_a[2] * qz;                                              \
+    a1 += fx * fx + fy * fy + fz * fz;                                                        \
+    a2 += gx * gx + gy * gy + gz * gz;                                                        \
+    const double cx = fy * vz - fz * vy, cy = fz * vx - fx * vz, cz = fx * vy - fy * vx;      \
+    c1 += cx * cx + cy * cy + cz * cz;                                                        \
+    const double dg = (qx * dtx + qy * dty + qz * dtz) * sgj * t.inv_volume;                  \
+    c2 += dg * dg;                                                                            \
+  }
+    GSH_AXIS(0, s0, sg0)
+    GSH_AXIS(1, s1, sg1)
+    GSH_AXIS(2, s2, sg2)
+#undef GSH_AXIS
+    q0[l] = vx * vx + vy * vy + vz * vz;
+    q1[l] = c1;
+    q2[l] = c2;
+    e1[l] = a1;
+    e2[l] = a2;
+    const double det_f = s0 * s1 * s2 * t.inv_volume;
+    e3[l] = det_f * det_f;
+  }
+
+  // The shared lane logic (detail/newton_lane.h) is branch-free, so each loop over lanes below
+  // is if-converted and vectorised: every lane runs the same instructions, a select per branch.
+  // Lane state is kept as one array per field (structure of arrays) for contiguous vector loads.
+  alignas(64) double mu[L], lo[L], hi[L], best_phi[L], best_b[L], uphill[L], active[L], sep[L];
+  const auto load = [&](int l) {
+    return detail::NewtonLane{mu[l], lo[l], hi[l], best_phi[l], best_b[l], uphill[l], active[l], sep[l]};
+  };
+  const auto store = [&](int l, const detail::NewtonLane& s) {
+    mu[l] = s.mu; lo[l] = s.lo; hi[l] = s.hi; best_phi[l] = s.best_phi; best_b[l] = s.best_b;
+    uphill[l] = s.uphill; active[l] = s.active; sep[l] = s.separated;
+  };
+  const double want_sep = stop_when_separated ? 1.0 : 0.0;
+#pragma omp simd
+  for (int l = 0; l < L; ++l) {
+    detail::NewtonLane s;
+    detail::newton_init(s, {q0[l], q1[l], q2[l], e1[l], e2[l], e3[l]}, l < b.count ? 1.0 : 0.0);
+    store(l, s);
+  }
+  for (int it = 0; it < detail::kMaxNewton; ++it) {
+#pragma omp simd
+    for (int l = 0; l < L; ++l) {
+      const PairCoefficients c{q0[l], q1[l], q2[l], e1[l], e2[l], e3[l]};
+      detail::newton_step(mu[l], lo[l], hi[l], best_phi[l], best_b[l], uphill[l], active[l],
+                          sep[l], c, want_sep);
+    }
+    // Kept out of the loop above: an omp simd reduction there defeats GCC 12's vectoriser.
+    bool any = false;
+    for (int l = 0; l < L; ++l) any |= active[l] > 0;
+    if (!any) break;
+  }
+#pragma omp simd
+  for (int l = 0; l < L; ++l) {
+    double lambda;
+    b.k_min[l] = detail::newton_finish(load(l), {q0[l], q1[l], q2[l], e1[l], e2[l], e3[l]}, lambda);
+    b.separated[l] = sep[l] > 0 ? 1 : 0;
+  }
+}
+
+}  // namespace gshaptics
