@@ -20,6 +20,9 @@ inline constexpr double kMuMin = 1e-30, kMuMax = 1e30;  // bracket of mu
 inline constexpr double kMaxStep = 8.0;                  // largest Newton step in ln(mu)
 inline constexpr double kUphillStep = 2.0;               // first step where phi is convex in t
 inline constexpr int kMaxNewton = 100;
+// Stop when a Newton step changes phi by less than this: the step is still taken and its point
+// evaluated, and quadratic convergence leaves an error of the order of its square (<< 1e-12).
+inline constexpr double kConverged = 1e-11;
 
 struct NewtonLane {
   double mu, lo, hi;  // current point and bracket (mu)
@@ -116,7 +119,7 @@ inline void newton_step(double& s_mu, double& s_lo, double& s_hi, double& s_best
   const double uphill = newton_ok ? kUphillStep : min_of(2 * up0, kMaxStep);
   const double tried = mu * exp_small(dt);
   const double next = ((tried > lo) & (tried < hi)) ? tried : std::sqrt(lo * hi);
-  const bool converged = (newton_ok & (std::fabs(dt * phi_t) < 1e-16)) | (hi < lo * (1 + 1e-13));
+  const bool converged = (newton_ok & (std::fabs(dt * phi_t) < kConverged)) | (hi < lo * (1 + 1e-13));
   const double out_best_phi = better ? phi : best_phi;
   const double out_best_b = better ? b : best_b;
   const double out_sep = now_sep ? 1.0 : sep;
