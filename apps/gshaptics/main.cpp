@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   gshaptics::cli::register_query(app);
   gshaptics::cli::register_simulate(app);
   gshaptics::cli::register_poses(app);
+  gshaptics::cli::register_bench(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

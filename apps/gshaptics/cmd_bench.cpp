@@ -1,0 +1,318 @@
+// `gshaptics bench`: loads scenes, draws seeded near-surface pose sets (and the probe trajectory),
+// times gshaptics' whole query (broad + narrow phase + force model) per pose, times the peers
+// (the paper's method and FCL) on the same poses in the same run, checks all three against the
+// extended-precision brute-force reference, and prints one table.
+
+#include <fmt/format.h>
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include "commands.h"
+#include "common.h"
+#include "gshaptics/collision/contact_query.h"
+#include "gshaptics/force/force_model.h"
+#include "gshaptics/io/error.h"
+#include "gshaptics/scene/scene_stats.h"
+#include "gshaptics/sim/pose_sampler.h"
+#include "gshaptics/sim/probe_trajectory.h"
+#include "gshaptics/sim/probe_run.h"
+#ifdef GSHAPTICS_HAVE_PEERS
+#include "peers.h"
+#endif
+#ifdef GSHAPTICS_HAVE_REFERENCE
+#include "support/reference.h"
+#endif
+
+namespace gshaptics::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double us_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
+}
+
+double peak_rss_mb() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_maxrss) / 1024.0;
+}
+
+struct BenchOptions {
+  std::string scenes = "truck,truck-probe,karangkidul,karangkidul-4M,karangkidul-10M";
+  std::size_t poses = 2000;
+  std::size_t peer_poses = 300;
+  std::size_t reference_poses = 20;
+  std::uint64_t seed = 1;
+  bool no_peers = false;
+  std::string out;
+};
+
+struct Timing {
+  double p50 = 0, p99 = 0, p999 = 0, max = 0;
+};
+
+Timing timing_of(std::vector<double> us) {
+  Timing t;
+  if (us.empty()) return t;
+  t.p50 = percentile(us, 50);
+  t.p99 = percentile(us, 99);
+  t.p999 = percentile(us, 99.9);
+  t.max = *std::max_element(us.begin(), us.end());
+  return t;
+}
+
+// A scene as the bench sees it: the loaded Gaussians (tiled if asked) and their world config.
+struct BenchScene {
+  std::string name, file;
+  GaussianScene scene;
+  WorldConfig config;
+  double radius_min = 0, radius_max = 0;  // tool radius, fraction of the base scene's extent
+  int tiles = 1;
+  bool probe = false;
+};
+
+// Copies of `base` side by side on a grid in the x-z plane (y is up/down in 3DGS scenes), each
+// shifted by `spacing`, with distinct source indices. In memory only.
+GaussianScene tile_scene(const GaussianScene& base, int copies, double spacing) {
+  GaussianScene out;
+  out.reserve(base.size() * std::size_t(copies));
+  const int side = int(std::ceil(std::sqrt(double(copies))));
+  for (int k = 0; k < copies; ++k) {
+    const Eigen::Vector3f shift(float(spacing * (k % side)), 0.f, float(spacing * (k / side)));
+    for (std::size_t i = 0; i < base.size(); ++i)
+      out.push_back(base.means[i] + shift, base.scales[i], base.rotations[i], base.opacities[i],
+                    std::uint32_t(std::size_t(k) * base.size() + i));
+  }
+  return out;
+}
+
+std::string scene_file(const std::string& name) {
+  if (name == "truck.splat") return bundled_scene();
+  return std::string(GSHAPTICS_SCENES_DIR) + "/" + name;
+}
+
+// Missed = reference K_min > 1e-5 but not reported; extra = reported but reference K_min < -1e-5.
+struct Exactness {
+  std::size_t poses = 0, reference_contacts = 0, missed = 0, extra = 0;
+  double max_k_error = 0;  // ours only
+  [[nodiscard]] std::string str() const {
+    if (poses == 0) return "-";
+    return fmt::format("{} missed, {} extra", missed, extra);
+  }
+};
+
+}  // namespace
+
+void register_bench(CLI::App& app) {
+  auto o = std::make_shared<BenchOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "bench",
+      "Benchmark the whole collision query (broad + narrow phase + force model) on seeded "
+      "near-surface pose sets of real scenes, side by side with the paper's method and FCL on "
+      "the same poses, checked against the float64 brute-force reference. Scenes: truck (bundled, "
+      "registered; tool radius 1-2% of extent), truck-probe (every 1 kHz tick of the probe "
+      "trajectory), karangkidul (0.5-1.5%), karangkidul-4M and -10M (tiled in memory).");
+  cmd->add_option("--scenes", o->scenes, "Comma-separated scene sets")->capture_default_str();
+  cmd->add_option("--poses", o->poses, "Poses per scene for gshaptics")->capture_default_str();
+  cmd->add_option("--peer-poses", o->peer_poses, "Of those, poses run by the peers too")->capture_default_str();
+  cmd->add_option("--reference-poses", o->reference_poses,
+                  "Of those, poses checked against the brute-force reference (fewer on tiled scenes)")
+      ->capture_default_str();
+  cmd->add_option("--seed", o->seed, "Seed of the pose sets")->capture_default_str();
+  cmd->add_flag("--no-peers", o->no_peers, "Skip the paper's method and FCL");
+  cmd->add_option("--out", o->out, "Also write the table (Markdown) to this file");
+  cmd->callback([o] {
+    std::vector<BenchScene> sets;
+    std::stringstream ss(o->scenes);
+    std::string name;
+    std::map<std::string, LoadedScene> loaded;
+    const auto load = [&](const std::string& file) -> const GaussianScene& {
+      auto it = loaded.find(file);
+      if (it == loaded.end()) it = loaded.emplace(file, load_with_progress(scene_file(file))).first;
+      return it->second.scene;
+    };
+    while (std::getline(ss, name, ',')) {
+      BenchScene b;
+      b.name = name;
+      if (name == "truck" || name == "truck-probe") {
+        b.file = "truck.splat";
+        b.config.registration = load_registration_file(bundled_registration());
+        b.radius_min = 0.01;
+        b.radius_max = 0.02;
+        b.probe = name == "truck-probe";
+      } else if (name.rfind("karangkidul", 0) == 0) {
+        b.file = "karangkidul_crop.ply";
+        b.radius_min = 0.005;
+        b.radius_max = 0.015;
+        if (name == "karangkidul-4M") b.tiles = 5;   // 5 x 885k kept = 4.4M
+        if (name == "karangkidul-10M") b.tiles = 12; // 12 x 885k kept = 10.6M
+        if (name != "karangkidul" && b.tiles == 1) throw InputError("bench: unknown scene set '" + name + "'");
+      } else {
+        throw InputError("bench: unknown scene set '" + name +
+                         "' (truck, truck-probe, karangkidul, karangkidul-4M, karangkidul-10M)");
+      }
+      sets.push_back(std::move(b));
+    }
+
+    std::vector<std::string> rows;
+    const std::string header =
+        "| scene | Gaussians kept | build s | world B/G | peak RSS MB | poses | p50 us | p99 us | "
+        "p99.9 us | max us | candidates | contacts mean / max | paper p50 / p99 us | FCL p50 / p99 "
+        "us | p99 ratio paper / FCL | exactness ours / paper / FCL |";
+    const std::string rule = "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|";
+    for (BenchScene& b : sets) {
+      fmt::print(stderr, "bench: {}\n", b.name);
+      const GaussianScene& base = load(b.file);
+      const double base_extent = b.tiles > 1 ? robust_extent(CollisionWorld::build(base, b.config)) : 0.0;
+      // Start-up as a user sees it: load (timed separately above for the first use), filter,
+      // registration and BVH.
+      const auto t_load = Clock::now();
+      LoadedScene fresh = b.tiles == 1 ? load_scene(scene_file(b.file)) : LoadedScene{};
+      const double load_s = b.tiles == 1 ? us_since(t_load) * 1e-6 : 0.0;
+      const GaussianScene tiled = b.tiles > 1 ? tile_scene(base, b.tiles, 400.0) : GaussianScene{};
+      const GaussianScene& scene = b.tiles > 1 ? tiled : fresh.scene;
+      WorldBuildReport report;
+      const CollisionWorld world = CollisionWorld::build(scene, b.config, &report);
+      const double startup_s = load_s + report.build_seconds;
+
+      // Pose set: near-surface poses, or every tick of the probe trajectory on the truck.
+      std::vector<ToolEllipsoid> poses;
+      if (b.probe) {
+        ProbeParams pp;
+        pp.tool_radius = 0.01 * robust_extent(world);
+        pp.approach_speed = 2 * pp.tool_radius;
+        pp.travel_speed = 8 * pp.tool_radius;
+        const ProbeTrajectory traj = generate_probe_trajectory(world, pp);
+        const ProbeRunResult run = run_probe(world, traj, {});
+        for (const TickRecord& r : run.ticks) poses.push_back(ToolEllipsoid::sphere(r.position, pp.tool_radius));
+      } else {
+        PoseSamplerParams p;
+        p.count = o->poses;
+        p.seed = o->seed;
+        // Tool sizes relative to the untiled scene's extent, so tiling only adds Gaussians.
+        const double to_world = b.tiles > 1 ? base_extent / robust_extent(world) : 1.0;
+        p.radius_min = b.radius_min * to_world;
+        p.radius_max = b.radius_max * to_world;
+        poses = sample_poses(world, p);
+      }
+
+      // gshaptics: query + force model per pose, as in a servo tick.
+      ContactQuery query(world);
+      ForceModel force;
+      std::vector<double> ours_us;
+      ours_us.reserve(poses.size());
+      double candidates = 0, contacts = 0;
+      std::size_t max_contacts = 0, over_2000 = 0;
+      for (std::size_t i = 0; i < poses.size(); ++i) {
+        const auto t0 = Clock::now();
+        query.run(poses[i]);
+        const ForceOutput f = force.update(query.result().contacts(), poses[i].center, Eigen::Vector3d::Zero(), 1e-3);
+        ours_us.push_back(us_since(t0));
+        (void)f;
+        candidates += query.result().counts.candidates;
+        const std::size_t n = query.result().counts.contacts;
+        contacts += double(n);
+        max_contacts = std::max(max_contacts, n);
+        over_2000 += n > 2000 ? 1 : 0;
+      }
+      const Timing ours = timing_of(ours_us);
+      const std::size_t n_peer = std::min(o->peer_poses, poses.size());
+      // The peers run on an evenly spread subset so that long pose sets (the probe) stay fair.
+      std::vector<std::size_t> subset;
+      for (std::size_t k = 0; k < n_peer; ++k) subset.push_back(k * poses.size() / std::max<std::size_t>(n_peer, 1));
+
+      std::string paper_cell = "-", fcl_cell = "-", ratio_cell = "-";
+      Exactness ex_ours, ex_paper, ex_fcl;
+      std::vector<std::vector<std::uint32_t>> paper_sets, fcl_sets;
+#ifdef GSHAPTICS_HAVE_PEERS
+      if (!o->no_peers && b.tiles == 1) {
+        std::vector<double> ours_sub, paper_us, fcl_us;
+        for (std::size_t k : subset) ours_sub.push_back(ours_us[k]);
+        peers::PeerResult r;
+        {
+          peers::PaperMethodPeer paper(world);
+          for (std::size_t k : subset) {
+            const auto t0 = Clock::now();
+            paper.query(poses[k], r);
+            paper_us.push_back(us_since(t0));
+            paper_sets.push_back(r.contacts);
+          }
+        }
+        {
+          fmt::print(stderr, "bench: {}: building FCL's tree\n", b.name);
+          peers::FclPeer fcl(world);
+          for (std::size_t k : subset) {
+            const auto t0 = Clock::now();
+            fcl.query(poses[k], r);
+            fcl_us.push_back(us_since(t0));
+            fcl_sets.push_back(r.contacts);
+          }
+        }
+        const Timing tp = timing_of(paper_us), tf = timing_of(fcl_us), to = timing_of(ours_sub);
+        paper_cell = fmt::format("{:.0f} / {:.0f}", tp.p50, tp.p99);
+        fcl_cell = fmt::format("{:.0f} / {:.0f}", tf.p50, tf.p99);
+        ratio_cell = fmt::format("{:.0f}x / {:.0f}x", tp.p99 / to.p99, tf.p99 / to.p99);
+      }
+#endif
+#ifdef GSHAPTICS_HAVE_REFERENCE
+      {
+        const std::size_t n_ref = std::min(b.tiles > 1 ? std::size_t(2) : o->reference_poses, subset.size() ? subset.size() : poses.size());
+        fmt::print(stderr, "bench: {}: reference on {} poses\n", b.name, n_ref);
+        const auto ref_world = test::reference_world(scene, b.config.min_opacity, b.config.sigma, b.config.registration);
+        const auto check = [&](Exactness& ex, const std::vector<std::uint32_t>& got,
+                               const std::vector<test::RefContact>& ref, const ToolEllipsoid& tool) {
+          std::vector<std::uint32_t> ref_ids;
+          for (const auto& c : ref) ref_ids.push_back(c.index);
+          for (const auto& c : ref)
+            if (c.k_min > 1e-5 && !std::binary_search(got.begin(), got.end(), c.index)) ++ex.missed;
+          for (std::uint32_t id : got)
+            if (!std::binary_search(ref_ids.begin(), ref_ids.end(), id) &&
+                test::reference_k_min_of(ref_world, tool, id) < -1e-5)
+              ++ex.extra;
+          ++ex.poses;
+          ex.reference_contacts += ref.size();
+        };
+        for (std::size_t j = 0; j < n_ref; ++j) {
+          const std::size_t k = subset.empty() ? j : subset[j];
+          const auto ref = test::reference_contacts(ref_world, poses[k]);
+          query.run(poses[k]);
+          std::vector<std::uint32_t> ours_ids;
+          for (const auto& c : query.result().contacts()) ours_ids.push_back(c.index);
+          std::sort(ours_ids.begin(), ours_ids.end());
+          check(ex_ours, ours_ids, ref, poses[k]);
+          for (const auto& c : query.result().contacts()) {
+            const auto it = std::lower_bound(ref.begin(), ref.end(), c.index,
+                                             [](const test::RefContact& r, std::uint32_t i) { return r.index < i; });
+            if (it != ref.end() && it->index == c.index)
+              ex_ours.max_k_error = std::max(ex_ours.max_k_error, std::fabs(it->k_min - c.k_min));
+          }
+          if (j < paper_sets.size()) check(ex_paper, paper_sets[j], ref, poses[k]);
+          if (j < fcl_sets.size()) check(ex_fcl, fcl_sets[j], ref, poses[k]);
+        }
+      }
+#endif
+      rows.push_back(fmt::format(
+          "| {} | {} | {:.2f} | {:.0f} | {:.0f} | {} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.0f} | "
+          "{:.0f} / {} ({} over 2000) | {} | {} | {} | {} (max dK {:.1e}) / {} / {} |",
+          b.name, world.size(), startup_s, double(world.memory_bytes()) / double(world.size()),
+          peak_rss_mb(), poses.size(), ours.p50, ours.p99, ours.p999, ours.max,
+          candidates / double(poses.size()), contacts / double(poses.size()), max_contacts,
+          over_2000, paper_cell, fcl_cell, ratio_cell, ex_ours.str(), ex_ours.max_k_error,
+          ex_paper.str(), ex_fcl.str()));
+      fmt::print(stderr, "{}\n", rows.back());
+    }
+    std::string table = header + "\n" + rule + "\n";
+    for (const auto& r : rows) table += r + "\n";
+    fmt::print("{}", table);
+    if (!o->out.empty()) write_file_atomically(o->out, table);
+  });
+}
+
+}  // namespace gshaptics::cli
