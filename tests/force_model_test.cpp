@@ -42,7 +42,7 @@ TEST(ForceModel, SoftmaxWeightsFavourDeeperContacts) {
   const std::vector<Contact> cs = {contact(0, 0.9, 1.f, {1, 0, 0}), contact(1, 0.1, 0.5f, {-1, 0, 0})};
   const ForceOutput f = m.update(cs, Eigen::Vector3d(0, 5, 0), Eigen::Vector3d::Zero(), 1e-3);
   const double w0 = std::exp(0.0), w1 = std::exp(-0.8);
-  EXPECT_NEAR(f.centroid.x(), (w0 - w1) / (w0 + w1), 1e-12);
+  EXPECT_NEAR(f.centroid.x(), (w0 - w1) / (w0 + w1), 1e-9);  // polynomial exp: ~1e-10
   EXPECT_NEAR(f.k_eff, (w0 * 1.0 + w1 * 0.5) / (w0 + w1), 1e-6);  // eq. 9 with alpha_raw
 }
 
@@ -118,5 +118,28 @@ TEST(ForceModel, ContactAtToolCentreGivesNoForceUntilADirectionExists) {
   EXPECT_TRUE(f.force.allFinite());
 }
 
+}  // namespace
+}  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+// The softmax weights use a polynomial exp on (-1, 0]: compare with libm through the centroid.
+TEST(ForceModel, SoftmaxWeightsMatchLibmExp) {
+  ForceParams p = no_smoothing();
+  ForceModel m(p);
+  std::vector<Contact> cs;
+  double w_sum = 0, x_sum = 0;
+  for (int i = 0; i < 50; ++i) {
+    const double k = 0.02 * i + 1e-3;
+    cs.push_back(contact(std::uint32_t(i), k, 1.f, {double(i), 0, -1}));
+  }
+  for (const auto& c : cs) {
+    const double w = std::exp(c.k_min - cs.back().k_min);
+    w_sum += w;
+    x_sum += w * c.center.x();
+  }
+  const ForceOutput f = m.update(cs, Eigen::Vector3d(0, 0, 5), Eigen::Vector3d::Zero(), 1e-3);
+  EXPECT_NEAR(f.centroid.x(), x_sum / w_sum, 1e-9);
+}
 }  // namespace
 }  // namespace gshaptics
