@@ -81,7 +81,30 @@ Bvh Bvh::build(std::span<const Eigen::Vector3d> lo, std::span<const Eigen::Vecto
     tasks.push_back({left + 1, mid, t.end, t.depth + 1});
   }
   if (bvh.depth_ >= kMaxDepth) throw std::logic_error("Bvh::build: depth exceeds traversal stack");
-  bvh.nodes_.shrink_to_fit();
+
+  // Re-lay the nodes out in depth-first preorder: a left child directly follows its parent,
+  // so the traversal walks mostly forward through memory; inner nodes keep only the right
+  // child's index.
+  std::vector<BvhNode> ordered;
+  ordered.reserve(bvh.nodes_.size());
+  struct Item {
+    std::uint32_t old_index;
+    std::uint32_t parent_slot;  // slot of the parent whose right-child index to fill, or ~0
+  };
+  std::vector<Item> todo{{0, ~0u}};
+  while (!todo.empty()) {
+    const Item item = todo.back();
+    todo.pop_back();
+    const auto slot = std::uint32_t(ordered.size());
+    if (item.parent_slot != ~0u) ordered[item.parent_slot].first = slot;
+    const BvhNode node = bvh.nodes_[item.old_index];
+    ordered.push_back(node);
+    if (node.count == 0) {
+      todo.push_back({node.first + 1, slot});  // right: index patched when it is emitted
+      todo.push_back({node.first, ~0u});       // left: emitted next, at slot + 1
+    }
+  }
+  bvh.nodes_ = std::move(ordered);
   return bvh;
 }
 

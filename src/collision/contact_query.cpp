@@ -6,7 +6,7 @@
 namespace gshaptics {
 
 ContactQuery::ContactQuery(const CollisionWorld& world, const QueryOptions& options)
-    : world_(&world), options_(options), result_(options.max_contacts) {}
+    : world_(&world), options_(options), result_(options.max_contacts), leaves_(kLeafScratch) {}
 
 namespace {
 
@@ -71,8 +71,10 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
     batch.count = 0;
   };
 
-  world_->bvh().for_each_overlapping_leaf(box_lo, box_hi, [&](std::uint32_t first,
-                                                              std::uint32_t count) {
+  // Two passes: the traversal collects the overlapping leaves and starts fetching their
+  // records, then the leaves are tested, so the record loads overlap instead of queuing
+  // behind each other. A leaf that does not fit the scratch list is tested at once.
+  const auto test_leaf = [&](std::uint32_t first, std::uint32_t count) {
     counts.candidates += count;
     for (std::uint32_t k = first; k < first + count; ++k) {
       const CollisionGaussian& g = gs[k];
@@ -92,7 +94,21 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
       load_lane(batch, batch.count, g, d);
       if (++batch.count == kBatchLanes) flush();
     }
+  };
+  std::size_t n_leaves = 0;
+  const std::size_t max_leaves = leaves_.size();
+  world_->bvh().for_each_overlapping_leaf(box_lo, box_hi, [&](std::uint32_t first,
+                                                              std::uint32_t count) {
+    if (n_leaves == max_leaves) {
+      test_leaf(first, count);
+      return;
+    }
+    const char* p = reinterpret_cast<const char*>(gs + first);
+    const char* end = reinterpret_cast<const char*>(gs + first + count);
+    for (; p < end; p += 64) __builtin_prefetch(p);
+    leaves_[n_leaves++] = {first, count};
   });
+  for (std::size_t i = 0; i < n_leaves; ++i) test_leaf(leaves_[i].first, leaves_[i].second);
   if (batch.count > 0) flush();
   result_.counts = counts;
   return status;

@@ -15,7 +15,7 @@ namespace gshaptics {
 /// float box always contains the double box it came from (no false negatives).
 struct BvhNode {
   float lo[3];
-  std::uint32_t first;  ///< leaf: first primitive slot; inner: index of the left child (right = first + 1)
+  std::uint32_t first;  ///< leaf: first primitive slot; inner: index of the right child (left = this + 1)
   float hi[3];
   std::uint32_t count;  ///< leaf: number of primitives (> 0); inner: 0
 };
@@ -26,7 +26,7 @@ static_assert(sizeof(BvhNode) == 32);
 [[nodiscard]] float round_up_to_float(double x) noexcept;
 
 /// A BVH over N boxes. `order[k]` is the input index of the primitive in slot k; a leaf covers
-/// slots [first, first + count). Built by median split along the longest axis of the centroid
+/// slots [first, first + count). Nodes are stored in depth-first preorder. Built by median split along the longest axis of the centroid
 /// bounds (O(N log N)); leaves hold at most `leaf_size` primitives.
 class Bvh {
  public:
@@ -48,19 +48,23 @@ class Bvh {
     if (nodes_.empty()) return;
     std::uint32_t stack[kMaxDepth];
     int top = 0;
-    stack[top++] = 0;
+    std::uint32_t i = 0;
     const BvhNode* nodes = nodes_.data();
-    while (top > 0) {
-      const BvhNode& n = nodes[stack[--top]];
-      if (n.lo[0] > box_hi[0] || n.hi[0] < box_lo[0] || n.lo[1] > box_hi[1] ||
-          n.hi[1] < box_lo[1] || n.lo[2] > box_hi[2] || n.hi[2] < box_lo[2])
-        continue;
-      if (n.count > 0) {
-        on_leaf(n.first, n.count);
-      } else {
-        stack[top++] = n.first + 1;
+    for (;;) {
+      const BvhNode& n = nodes[i];
+      const bool overlap = !(n.lo[0] > box_hi[0] || n.hi[0] < box_lo[0] || n.lo[1] > box_hi[1] ||
+                             n.hi[1] < box_lo[1] || n.lo[2] > box_hi[2] || n.hi[2] < box_lo[2]);
+      if (overlap && n.count == 0) {
+        // Preorder layout: the left child is next in memory; the right one waits on the stack
+        // and is fetched early, since traversal is bound by the latency of node loads.
+        __builtin_prefetch(&nodes[n.first]);
         stack[top++] = n.first;
+        i = i + 1;
+        continue;
       }
+      if (overlap) on_leaf(n.first, n.count);
+      if (top == 0) break;
+      i = stack[--top];
     }
   }
 

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "gshaptics/collision/collision_world.h"
@@ -86,6 +87,8 @@ class ContactQuery {
   QueryOptions options_;
   ContactSet result_;
   PairBatch batch_;  // narrow-phase scratch, reused every query
+  static constexpr std::size_t kLeafScratch = 4096;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> leaves_;  // overlapping leaves (first, count)
 };
 
 }  // namespace gshaptics
