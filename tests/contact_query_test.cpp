@@ -176,7 +176,9 @@ TEST(ContactQuery, GoldenSectionOptionAgreesOnContacts) {
     for (const Contact& c : qg.result().contacts()) {
       ++total;
       if (!a.count(c.index)) { ++differ; continue; }
-      EXPECT_GE(c.k_min, a[c.index] - 1e-12);  // golden never goes below the true minimum
+      // Golden section never goes below the true minimum; the batched Newton value is within
+      // ~1e-7 of it (float iterations, double evaluation).
+      EXPECT_GE(c.k_min, a[c.index] - 1e-6);
     }
   }
   EXPECT_GT(total, 100u);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace gshaptics {
 
@@ -94,16 +95,8 @@ KMinResult k_min(const PairCoefficients& c, const KMinOptions& options) noexcept
     return res;
   }
 
-  detail::NewtonLane lane;
-  detail::newton_init(lane, c, 1.0);
-  int it = 0;
-  while (lane.active > 0 && it < detail::kMaxNewton) {
-    detail::newton_step(lane, c, options.stop_when_separated ? 1.0 : 0.0);
-    ++it;
-  }
-  res.k_min = detail::newton_finish(lane, c, res.lambda);
-  res.separated_early = lane.separated > 0;
-  res.iterations = it;
+  res.k_min = detail::newton_k_min(c, options.stop_when_separated, res.lambda,
+                                   res.separated_early, res.iterations);
   return res;
 }
 
