@@ -89,7 +89,7 @@ void BM_NarrowPhaseScalar(benchmark::State& state) {
 }
 BENCHMARK(BM_NarrowPhaseScalar);
 
-void BM_NarrowPhaseBatch8(benchmark::State& state) {
+void BM_NarrowPhaseBatch(benchmark::State& state) {
   Pairs p = pairs();
   std::size_t i = 0;
   for (auto _ : state) {
@@ -99,7 +99,7 @@ void BM_NarrowPhaseBatch8(benchmark::State& state) {
   }
   state.SetItemsProcessed(std::int64_t(state.iterations()) * kBatchLanes);
 }
-BENCHMARK(BM_NarrowPhaseBatch8);
+BENCHMARK(BM_NarrowPhaseBatch);
 
 void BM_BroadPhase(benchmark::State& state, const char* scene, double rmin, double rmax) {
   const Fixture& f = fixture(scene, rmin, rmax);

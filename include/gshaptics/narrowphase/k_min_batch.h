@@ -11,7 +11,7 @@
 namespace gshaptics {
 
 /// Lanes of one batch; a multiple of every SIMD width we target.
-inline constexpr int kBatchLanes = 8;
+inline constexpr int kBatchLanes = 16;
 
 /// Inputs and outputs of one batch, structure of arrays. Lanes >= `count` are ignored.
 struct alignas(64) PairBatch {
