@@ -80,9 +80,10 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
       const CollisionGaussian& g = gs[k];
       const double d[3] = {g.center[0] - c_tool[0], g.center[1] - c_tool[1], g.center[2] - c_tool[2]};
       const double reach = double(g.bounding_radius()) + r_tool;
-      if (!(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= reach * reach)) continue;  // eq. 4
-      ++counts.prefiltered;
+      const bool pass = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= reach * reach;  // eq. 4
+      counts.prefiltered += pass ? 1 : 0;
       if (golden) {  // the paper's method, one pair at a time
+        if (!pass) continue;
         const Eigen::Vector3d s(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
         const KMinResult r = k_min(pair_coefficients(frame, Eigen::Vector3d(d[0], d[1], d[2]),
                                                      rotation_matrix(g), s),
@@ -90,9 +91,12 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
         if (r.k_min > 0) emit(g, r.k_min);
         continue;
       }
+      // Branch-free compaction: the lane is always written and kept only if it passed (about
+      // half do, which a branch would mispredict).
       slot[batch.count] = k;
       load_lane(batch, batch.count, g, d);
-      if (++batch.count == kBatchLanes) flush();
+      batch.count += pass ? 1 : 0;
+      if (batch.count == kBatchLanes) flush();
     }
   };
   std::size_t n_leaves = 0;
