@@ -9,6 +9,10 @@ namespace gshaptics {
 
 namespace {
 constexpr int L = kBatchLanes;
+// A float result is accepted when one more Newton step in double would gain less than this in
+// phi, so K_min is within 2e-6 of the minimum (the tolerance is 1e-5). Float iterations stop
+// at a predicted change of 1e-6 and their noise leaves about that much.
+constexpr double kVerifyGain = 2e-6;
 }
 
 BatchTool make_batch_tool(const Eigen::Matrix3d& R_tool, const Eigen::Vector3d& a_tool) noexcept {
@@ -107,14 +111,38 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
     for (int l = 0; l < L; ++l) any |= active[l] > 0;
     if (!any) break;
   }
+  // K_min in double at the better of the last and the best point, and a check of the float
+  // result there: a converged point has a small remaining Newton gain phi_t^2 / (2 |phi_tt|).
+  // Float second derivatives can be wrong on the plateaus of flat splats and stop a lane early;
+  // such lanes (rare) are redone by the scalar double search.
+  alignas(64) double dmu[L], dbest[L], redo[L];
 #pragma omp simd
   for (int l = 0; l < L; ++l) {
-    // The better of the last point and the best point seen, evaluated in double.
-    const double p_last = detail::phi_at_mu<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], mu[l]);
-    const double p_best = detail::phi_at_mu<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], best_mu[l]);
+    dmu[l] = mu[l];
+    dbest[l] = best_mu[l];
+  }
+#pragma omp simd
+  for (int l = 0; l < L; ++l) {
+    double p_last, dphi, phi_t, phi_tt;
+    detail::derivatives<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], dmu[l], p_last, dphi, phi_t, phi_tt);
+    const double p_best = detail::phi_at_mu<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], dbest[l]);
     const double phi = p_last > p_best ? p_last : p_best;
+    const bool settled = (phi_tt < 0) & (phi_t * phi_t < -2 * kVerifyGain * phi_tt);
     b.k_min[l] = q0[l] > 0 ? 1.0 - phi : 1.0;
+    redo[l] = ((q0[l] > 0) & !settled) ? 1.0 : 0.0;
+  }
+  for (int l = 0; l < L; ++l) {
     b.separated[l] = sep[l] > 0 ? 1 : 0;
+    if (b.separated[l]) redo[l] = 0;
+  }
+  for (int l = 0; l < b.count; ++l) {
+    if (redo[l] == 0) continue;
+    double lambda;
+    bool separated;
+    int iterations;
+    b.k_min[l] = detail::newton_k_min({q0[l], q1[l], q2[l], e1[l], e2[l], e3[l]}, stop_when_separated,
+                                      lambda, separated, iterations);
+    b.separated[l] = separated ? 1 : 0;
   }
 }
 
