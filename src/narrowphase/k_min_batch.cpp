@@ -9,10 +9,8 @@ namespace gshaptics {
 
 namespace {
 constexpr int L = kBatchLanes;
-// A float result is accepted when one more Newton step in double would gain less than this in
-// phi, so K_min is within 2e-6 of the minimum (the tolerance is 1e-5). Float iterations stop
-// at a predicted change of 1e-6 and their noise leaves about that much.
-constexpr double kVerifyGain = 2e-6;
+// Largest certified distance of a reported K_min from the true minimum (the tolerance is 1e-5).
+constexpr double kCertifiedGap = 1e-6;
 }
 
 BatchTool make_batch_tool(const Eigen::Matrix3d& R_tool, const Eigen::Vector3d& a_tool) noexcept {
@@ -111,10 +109,13 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
     for (int l = 0; l < L; ++l) any |= active[l] > 0;
     if (!any) break;
   }
-  // K_min in double at the better of the last and the best point, and a check of the float
-  // result there: a converged point has a small remaining Newton gain phi_t^2 / (2 |phi_tt|).
-  // Float second derivatives can be wrong on the plateaus of flat splats and stop a lane early;
-  // such lanes (rare) are redone by the scalar double search.
+  // Certificate in double. From the float point, one double Newton step (in t) polishes the
+  // location; there phi' = dphi/dlambda gives, by concavity of phi in lambda, the tangent bound
+  //   max phi <= phi(lambda') + |phi'| * (1 - lambda' if phi' > 0 else lambda').
+  // A lane is accepted when that gap is below kCertifiedGap, so its K_min is within the gap of
+  // the true minimum whatever the float iterations did. Otherwise (rare: flat splats whose phi
+  // is flat over many e-folds of mu, where float curvature is noise) the lane is redone by the
+  // scalar double search.
   alignas(64) double dmu[L], dbest[L], redo[L];
 #pragma omp simd
   for (int l = 0; l < L; ++l) {
@@ -123,13 +124,22 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
   }
 #pragma omp simd
   for (int l = 0; l < L; ++l) {
-    double p_last, dphi, phi_t, phi_tt;
-    detail::derivatives<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], dmu[l], p_last, dphi, phi_t, phi_tt);
+    // Start from the better of the last and the best float point.
+    const double p_last = detail::phi_at_mu<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], dmu[l]);
     const double p_best = detail::phi_at_mu<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], dbest[l]);
-    const double phi = p_last > p_best ? p_last : p_best;
-    const bool settled = (phi_tt < 0) & (phi_t * phi_t < -2 * kVerifyGain * phi_tt);
+    const double m_c = p_last > p_best ? dmu[l] : dbest[l];
+    double p_c, dphi_c, phi_t, phi_tt;
+    detail::derivatives<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], m_c, p_c, dphi_c, phi_t, phi_tt);
+    const double step = phi_tt < 0 ? detail::min_of<double>(detail::max_of<double>(-phi_t / phi_tt, -0.5), 0.5) : 0.0;
+    const double m2 = m_c * detail::exp_small<double>(step);
+    double p2, dphi2, t2, tt2;
+    detail::derivatives<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], m2, p2, dphi2, t2, tt2);
+    const double lam2 = m2 / (1 + m2);
+    const double dphi_dlambda = dphi2 * (1 + m2) * (1 + m2);
+    const double gap = dphi_dlambda > 0 ? dphi_dlambda * (1 - lam2) : -dphi_dlambda * lam2;
+    const double phi = detail::max_of<double>(p_c, p2);
     b.k_min[l] = q0[l] > 0 ? 1.0 - phi : 1.0;
-    redo[l] = ((q0[l] > 0) & !settled) ? 1.0 : 0.0;
+    redo[l] = ((q0[l] > 0) & !(gap < kCertifiedGap)) ? 1.0 : 0.0;
   }
   for (int l = 0; l < L; ++l) {
     b.separated[l] = sep[l] > 0 ? 1 : 0;

@@ -34,7 +34,7 @@ struct NewtonLimits<double> {
 };
 template <>
 struct NewtonLimits<float> {
-  static constexpr float kMuMin = 1e-12f, kMuMax = 1e12f;
+  static constexpr float kMuMin = 1e-8f, kMuMax = 1e8f;  // mu^4 stays finite
   // The predicted change of the last step bounds the error of the best point seen (~half of
   // it), and the step itself lands far closer; the value is then evaluated in double.
   static constexpr float kConverged = 1e-6f;
@@ -126,6 +126,26 @@ inline void derivatives(T q0, T q1, T q2, T e1, T e2, T e3, T mu, T& phi, T& dph
   phi_tt = mu * dphi + mu * mu * d2phi;
 }
 
+// phi and the t-derivatives of psi = ln(phi), from positive sums only: with N = sum n_k mu^k and
+// D = sum d_k mu^k, psi_t = E_N[k] - E_D[k] and psi_tt = Var_N[k] - Var_D[k] (the exponent's
+// mean and variance under the weights n_k mu^k and d_k mu^k). Unlike phi_tt these keep their
+// sign in float at large mu. Two divisions.
+template <typename T>
+inline void log_derivatives(T q0, T q1, T q2, T e1, T e2, T e3, T mu, T& phi, T& psi_t,
+                            T& psi_tt) noexcept {
+  const T m2 = mu * mu, m3 = m2 * mu, m4 = m3 * mu;
+  const T n1 = q0 * mu, n2 = q1 * m2, n3 = q2 * m3;
+  const T d1 = (1 + e1) * mu, d2 = (e1 + e2) * m2, d3 = (e2 + e3) * m3, d4 = e3 * m4;
+  const T sn = n1 + n2 + n3, mn = n1 + 2 * n2 + 3 * n3, qn = n1 + 4 * n2 + 9 * n3;
+  const T sd = 1 + d1 + d2 + d3 + d4, md = d1 + 2 * d2 + 3 * d3 + 4 * d4;
+  const T qd = d1 + 4 * d2 + 9 * d3 + 16 * d4;
+  const T inv_n = 1 / sn, inv_d = 1 / sd;
+  const T an = mn * inv_n, ad = md * inv_d;
+  phi = sn * inv_d;
+  psi_t = an - ad;
+  psi_tt = (qn * inv_n - an * an) - (qd * inv_d - ad * ad);
+}
+
 // One Newton step of an active lane; inactive lanes are left unchanged. Fields are passed by
 // reference (not as a struct) and each is read once and written once, unconditionally: both
 // keep GCC able to if-convert and vectorise a loop over structure-of-arrays lanes.
@@ -137,29 +157,34 @@ inline void newton_step(T& s_mu, T& s_lo, T& s_hi, T& s_best_phi, T& s_best_mu, 
                         T stop_when_separated, T sep_margin) noexcept {
   using Lim = NewtonLimits<T>;
   const T mu = s_mu;
-  T phi, dphi, phi_t, phi_tt;
-  derivatives<T>(q0, q1, q2, e1, e2, e3, mu, phi, dphi, phi_t, phi_tt);
+  // Newton on psi = ln(phi) in t: same maximiser, same sign of the slope, no cancellation.
+  T phi, psi_t, psi_tt;
+  log_derivatives<T>(q0, q1, q2, e1, e2, e3, mu, phi, psi_t, psi_tt);
 
   const T active = s_active, best_phi = s_best_phi, best_mu = s_best_mu, sep = s_separated;
   const T lo0 = s_lo, hi0 = s_hi, up0 = s_uphill;
   const bool act = active > 0;
   const bool better = act & (phi > best_phi);
   const bool now_sep = act & (stop_when_separated > 0) & (phi > 1 + sep_margin);
-  const T lo = dphi > 0 ? mu : lo0, hi = dphi > 0 ? hi0 : mu;
-  // Where phi is convex in t, step uphill (doubling on long plateaus) instead of Newton.
-  const bool newton_ok = phi_tt < 0;
-  const T step_n = min_of<T>(max_of<T>(-phi_t / phi_tt, T(-kMaxStep)), T(kMaxStep));
-  const T step_u = phi_t > 0 ? up0 : -up0;
+  const T lo = psi_t > 0 ? mu : lo0, hi = psi_t > 0 ? hi0 : mu;
+  // Where psi is convex in t, step uphill (doubling on long plateaus) instead of Newton.
+  const bool newton_ok = psi_tt < 0;
+  const T step_n = min_of<T>(max_of<T>(-psi_t / psi_tt, T(-kMaxStep)), T(kMaxStep));
+  const T step_u = psi_t > 0 ? up0 : -up0;
   const T dt = newton_ok ? step_n : step_u;
   const T uphill = newton_ok ? T(kUphillStep) : min_of<T>(2 * up0, T(kMaxStep));
   const T tried = mu * exp_small<T>(dt);
-  const T next = ((tried > lo) & (tried < hi)) ? tried : std::sqrt(lo * hi);
-  // Converged: a small Newton step that changes phi by less than kConverged. The step-size
-  // condition matters on plateaus (flat splats started far out): there phi_t and phi_tt are
-  // both tiny, so the predicted change is tiny although the optimum is many e-folds away.
+  const bool in_bracket = (tried > lo) & (tried < hi);
+  // Converged: a small Newton step that changes phi (= phi * psi change) by less than
+  // kConverged. The step-size condition matters on plateaus (flat splats started far out):
+  // there the slope and curvature are both tiny, so the predicted change is tiny although the
+  // optimum is many e-folds away.
   const bool converged =
-      (newton_ok & (std::fabs(dt) < T(kNewtonBasin)) & (std::fabs(dt * phi_t) < Lim::kConverged)) |
+      (newton_ok & (std::fabs(dt) < T(kNewtonBasin)) & (std::fabs(dt * psi_t) * phi < Lim::kConverged)) |
       (hi < lo * (1 + Lim::kBracket));
+  // Outside the bracket: bisect geometrically, unless converged (then stay: a bisection step
+  // would throw the lane far from its optimum).
+  const T next = in_bracket ? tried : (converged ? mu : std::sqrt(lo * hi));
   const T out_best_phi = better ? phi : best_phi;
   const T out_best_mu = better ? mu : best_mu;
   const T out_sep = now_sep ? T(1) : sep;
