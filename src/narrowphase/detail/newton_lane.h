@@ -37,7 +37,7 @@ struct NewtonLimits<float> {
   static constexpr float kMuMin = 1e-8f, kMuMax = 1e8f;  // mu^4 stays finite
   // The predicted change of the last step bounds the error of the best point seen (~half of
   // it), and the step itself lands far closer; the value is then evaluated in double.
-  static constexpr float kConverged = 1e-6f;
+  static constexpr float kConverged = 1e-5f;
   static constexpr float kBracket = 1e-5f;
 };
 
