@@ -67,7 +67,7 @@ const Pairs& pairs() {
         const int l = b.count++;
         b.dx[l] = d.x(); b.dy[l] = d.y(); b.dz[l] = d.z();
         for (int k = 0; k < 9; ++k) b.r[k][l] = g.rotation[k];
-        b.sx[l] = s.x(); b.sy[l] = s.y(); b.sz[l] = s.z();
+        b.sx[l] = g.semi_axes[0]; b.sy[l] = g.semi_axes[1]; b.sz[l] = g.semi_axes[2];
         if (b.count == kBatchLanes) { out.batches.push_back(b); b.count = 0; }
       }
     }

@@ -25,7 +25,7 @@ inline void load_lane(PairBatch& b, int l, const CollisionGaussian& g, const dou
 inline void pad_lanes(PairBatch& b) noexcept {
   for (int l = b.count; l < kBatchLanes; ++l) {
     b.dx[l] = b.dy[l] = b.dz[l] = 0;
-    for (int k = 0; k < 9; ++k) b.r[k][l] = (k % 4 == 0) ? 1.0 : 0.0;
+    for (int k = 0; k < 9; ++k) b.r[k][l] = (k % 4 == 0) ? 1.f : 0.f;
     b.sx[l] = b.sy[l] = b.sz[l] = 1;
   }
 }

@@ -17,9 +17,10 @@ inline constexpr int kBatchLanes = 16;
 struct alignas(64) PairBatch {
   // Gaussian offset from the tool centre, world frame: d = c_G - c_T.
   double dx[kBatchLanes], dy[kBatchLanes], dz[kBatchLanes];
-  // Gaussian rotation R_G (world frame), row-major per lane: r[3 * row + col][lane].
-  double r[9][kBatchLanes];
-  double sx[kBatchLanes], sy[kBatchLanes], sz[kBatchLanes];  ///< Gaussian semi-axes
+  // Gaussian rotation R_G (world frame), row-major per lane: r[3 * row + col][lane]. Single
+  // precision as stored in the world; widened inside the kernel, vectorised.
+  float r[9][kBatchLanes];
+  float sx[kBatchLanes], sy[kBatchLanes], sz[kBatchLanes];  ///< Gaussian semi-axes
   // outputs
   double k_min[kBatchLanes];        ///< K_min (or the first negative K found when separated)
   std::uint8_t separated[kBatchLanes];  ///< 1 when separation was proven early
