@@ -116,18 +116,14 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
   // the true minimum whatever the float iterations did. Otherwise (rare: flat splats whose phi
   // is flat over many e-folds of mu, where float curvature is noise) the lane is redone by the
   // scalar double search.
-  alignas(64) double dmu[L], dbest[L], redo[L];
+  alignas(64) double dmu[L], redo[L];
+#pragma omp simd
+  for (int l = 0; l < L; ++l) dmu[l] = mu[l];
 #pragma omp simd
   for (int l = 0; l < L; ++l) {
-    dmu[l] = mu[l];
-    dbest[l] = best_mu[l];
-  }
-#pragma omp simd
-  for (int l = 0; l < L; ++l) {
-    // Start from the better of the last and the best float point.
-    const double p_last = detail::phi_at_mu<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], dmu[l]);
-    const double p_best = detail::phi_at_mu<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], dbest[l]);
-    const double m_c = p_last > p_best ? dmu[l] : dbest[l];
+    // Start from the last float point (a converged lane stays at or next to its best point; if
+    // it did not, the certificate fails and the lane is redone).
+    const double m_c = dmu[l];
     double p_c, dphi_c, phi_t, phi_tt;
     detail::derivatives<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], m_c, p_c, dphi_c, phi_t, phi_tt);
     const double step = phi_tt < 0 ? detail::min_of<double>(detail::max_of<double>(-phi_t / phi_tt, -0.5), 0.5) : 0.0;
