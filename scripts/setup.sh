@@ -5,7 +5,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 PACKAGES=(cmake g++ make pkg-config libeigen3-dev libcli11-dev nlohmann-json3-dev libfmt-dev libfcl-dev libnanoflann-dev
-          libgtest-dev libgmock-dev libbenchmark-dev python3 python3-numpy python3-matplotlib)
+          libgtest-dev libgmock-dev libbenchmark-dev python3 python3-dev python3-numpy python3-matplotlib
+          python3-pytest pybind11-dev)
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -19,5 +20,5 @@ if [ ${#missing[@]} -gt 0 ]; then
 fi
 
 BUILD_DIR=${BUILD_DIR:-build}
-cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DGSHAPTICS_BUILD_TESTS=ON -DGSHAPTICS_BUILD_BENCHMARKS=ON ${CMAKE_ARGS:-}
+cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DGSHAPTICS_BUILD_TESTS=ON -DGSHAPTICS_BUILD_BENCHMARKS=ON -DGSHAPTICS_BUILD_PYTHON=ON ${CMAKE_ARGS:-}
 cmake --build "$BUILD_DIR" -j"$(nproc)"

@@ -1,0 +1,401 @@
+// Python bindings (pybind11 + NumPy) over the gshaptics C++ core: the same loaders, collision
+// world, query and force model as the CLI, not a reimplementation.
+
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gshaptics/collision/contact_query.h"
+#include "gshaptics/force/force_model.h"
+#include "gshaptics/io/error.h"
+#include "gshaptics/io/scene_loader.h"
+#include "gshaptics/narrowphase/k_min.h"
+#include "gshaptics/scene/registration.h"
+#include "gshaptics/sim/probe_run.h"
+
+namespace py = pybind11;
+using namespace gshaptics;
+
+namespace {
+
+template <typename T>
+using Array = py::array_t<T, py::array::c_style | py::array::forcecast>;
+
+// Copies rows of fixed-size Eigen vectors into a new (N, K) array.
+template <typename T, typename V>
+Array<T> rows_to_array(const std::vector<V>& rows, py::ssize_t k) {
+  Array<T> out({py::ssize_t(rows.size()), k});
+  auto m = out.template mutable_unchecked<2>();
+  for (py::ssize_t i = 0; i < py::ssize_t(rows.size()); ++i)
+    for (py::ssize_t j = 0; j < k; ++j) m(i, j) = T(rows[std::size_t(i)][int(j)]);
+  return out;
+}
+
+template <typename T>
+Array<T> vec_to_array(const std::vector<T>& v) {
+  Array<T> out(py::ssize_t(v.size()));
+  std::copy(v.begin(), v.end(), out.mutable_data());
+  return out;
+}
+
+// A 3-vector from any sequence/array; ValueError naming the argument otherwise.
+Eigen::Vector3d vec3(const py::handle& h, const char* name) {
+  Array<double> a;
+  try {
+    a = py::cast<Array<double>>(h);
+  } catch (const py::cast_error&) {
+    throw py::value_error(std::string(name) + ": expected 3 numbers");
+  }
+  if (a.ndim() != 1 || a.shape(0) != 3) throw py::value_error(std::string(name) + ": expected shape (3,)");
+  Eigen::Vector3d v(a.at(0), a.at(1), a.at(2));
+  if (!v.allFinite()) throw py::value_error(std::string(name) + ": values must be finite");
+  return v;
+}
+
+Eigen::Vector4d vec4(const py::handle& h, const char* name) {
+  Array<double> a = py::cast<Array<double>>(h);
+  if (a.ndim() != 1 || a.shape(0) != 4) throw py::value_error(std::string(name) + ": expected shape (4,)");
+  Eigen::Vector4d v(a.at(0), a.at(1), a.at(2), a.at(3));
+  if (!v.allFinite()) throw py::value_error(std::string(name) + ": values must be finite");
+  return v;
+}
+
+ToolEllipsoid make_tool(const Eigen::Vector3d& c, const Eigen::Vector3d& axes, const Eigen::Vector4d& q) {
+  if (!(axes.minCoeff() > 0)) throw py::value_error("axes: tool semi-axes must be > 0");
+  if (q.norm() < 1e-12) throw py::value_error("rotation: zero quaternion");
+  ToolEllipsoid t;
+  t.center = c;
+  t.semi_axes = axes;
+  t.rotation = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+  return t;
+}
+
+// Contacts of one query as arrays, sorted by index into the original file.
+struct QueryResult {
+  std::vector<std::uint32_t> index;
+  std::vector<double> k_min;
+  std::vector<float> opacity;
+  std::vector<Eigen::Vector3d> center;
+  std::uint32_t candidates = 0, prefiltered = 0, contacts = 0;
+  bool overflow = false;
+};
+
+QueryResult collect(const ContactQuery& q, QueryStatus status) {
+  std::vector<Contact> cs(q.result().contacts().begin(), q.result().contacts().end());
+  std::sort(cs.begin(), cs.end(), [](const Contact& a, const Contact& b) { return a.index < b.index; });
+  QueryResult r;
+  for (const Contact& c : cs) {
+    r.index.push_back(c.index);
+    r.k_min.push_back(c.k_min);
+    r.opacity.push_back(c.opacity);
+    r.center.push_back(c.center);
+  }
+  r.candidates = q.result().counts.candidates;
+  r.prefiltered = q.result().counts.prefiltered;
+  r.contacts = q.result().counts.contacts;
+  r.overflow = status == QueryStatus::kContactOverflow;
+  return r;
+}
+
+// The world owns its scene-independent data; Python keeps one object.
+struct PyWorld {
+  std::shared_ptr<CollisionWorld> world;
+  WorldBuildReport report;
+};
+
+SimilarityTransform registration_from(const py::object& reg) {
+  if (reg.is_none()) return {};
+  if (py::isinstance<py::str>(reg)) return load_registration_file(reg.cast<std::string>());
+  if (py::isinstance<py::dict>(reg)) {
+    py::module_ json = py::module_::import("json");
+    return parse_registration_json(json.attr("dumps")(reg).cast<std::string>(), "registration dict");
+  }
+  throw py::type_error("registration: expected None, a path to a JSON file or a dict");
+}
+
+// K_min of pairs given by covariances, vectorised over leading dimensions.
+py::array_t<double> k_min_pairs(const Array<double>& cov_a, const Array<double>& cov_b, const Array<double>& d) {
+  if (cov_a.ndim() < 2 || cov_a.shape(cov_a.ndim() - 1) != 3 || cov_a.shape(cov_a.ndim() - 2) != 3)
+    throw py::value_error("cov_a: expected shape (..., 3, 3)");
+  if (cov_b.ndim() != cov_a.ndim() || !std::equal(cov_a.shape(), cov_a.shape() + cov_a.ndim(), cov_b.shape()))
+    throw py::value_error("cov_b: expected the same shape as cov_a");
+  if (d.ndim() != cov_a.ndim() - 1 || !std::equal(d.shape(), d.shape() + d.ndim(), cov_a.shape()))
+    throw py::value_error("d: expected shape (..., 3) matching cov_a's leading dimensions");
+  const py::ssize_t n = d.size() / 3;
+  std::vector<py::ssize_t> shape(d.shape(), d.shape() + d.ndim() - 1);
+  py::array_t<double> out(shape);
+  const double* A = cov_a.data();
+  const double* B = cov_b.data();
+  const double* D = d.data();
+  double* o = out.mutable_data();
+  std::string error;
+  {
+    py::gil_scoped_release release;
+    for (py::ssize_t i = 0; i < n && error.empty(); ++i) {
+      Eigen::Matrix3d Ma, Mb;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) {
+          Ma(r, c) = A[9 * i + 3 * r + c];
+          Mb(r, c) = B[9 * i + 3 * r + c];
+        }
+      const Eigen::Vector3d dv(D[3 * i], D[3 * i + 1], D[3 * i + 2]);
+      if (!Ma.allFinite() || !Mb.allFinite() || !dv.allFinite()) {
+        error = "pair " + std::to_string(i) + ": NaN or Inf in the input";
+        break;
+      }
+      // Factor each covariance as R diag(s^2) R^T (symmetric part; must be positive definite).
+      const auto factor = [&](const Eigen::Matrix3d& M, Eigen::Matrix3d& R, Eigen::Vector3d& s, const char* name) {
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(0.5 * (M + M.transpose()));
+        if (!(es.eigenvalues().minCoeff() > 0)) {
+          error = "pair " + std::to_string(i) + ": " + name + " is not positive definite";
+          return;
+        }
+        R = es.eigenvectors();
+        if (R.determinant() < 0) R.col(0) *= -1;
+        s = es.eigenvalues().cwiseSqrt();
+      };
+      Eigen::Matrix3d Ra, Rb;
+      Eigen::Vector3d sa, sb;
+      factor(Ma, Ra, sa, "cov_a");
+      factor(Mb, Rb, sb, "cov_b");
+      if (!error.empty()) break;
+      o[i] = k_min(pair_coefficients(dv, Ra, sa, Rb, sb)).k_min;
+    }
+  }
+  if (!error.empty()) throw py::value_error(error);
+  return out;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(gshaptics, m) {
+  m.doc() =
+      "gshaptics: direct haptic rendering of 3D Gaussian Splatting scenes (Python bindings of the "
+      "C++ core). Units: scene units, or metres after registration; frames: the scene's own frame, "
+      "or the world frame of the registration (paper eq. 3).";
+  py::register_exception<InputError>(m, "InputError", PyExc_ValueError);
+
+  py::class_<GaussianScene, std::shared_ptr<GaussianScene>> scene(m, "Scene", py::dynamic_attr(),
+      "Gaussians of a trained 3DGS scene as loaded (scene frame).");
+  scene.def_static("load", [](const std::string& path) {
+        LoadedScene s;
+        {
+          py::gil_scoped_release release;
+          s = load_scene(path);
+        }
+        auto sp = std::make_shared<GaussianScene>(std::move(s.scene));
+        py::object obj = py::cast(sp);
+        const LoadReport& r = s.report;
+        py::dict rep;
+        rep["path"] = r.path;
+        rep["format"] = std::string(to_string(r.format));
+        rep["in_file"] = r.in_file;
+        rep["loaded"] = r.loaded;
+        rep["skipped_non_finite"] = r.skipped_non_finite;
+        rep["skipped_zero_quaternion"] = r.skipped_zero_quaternion;
+        rep["skipped_bad_scale"] = r.skipped_bad_scale;
+        rep["sh_degree"] = r.sh_degree;
+        rep["ignored_properties"] = r.ignored_properties;
+        obj.attr("report") = rep;
+        return obj;
+      },
+      py::arg("path"),
+      "Loads an INRIA PLY or .splat file (format detected from content). Raises InputError "
+      "(a ValueError) naming the file for missing, truncated, malformed or unsupported files. "
+      "The load report is in `.report` (dict).")
+      .def("__len__", &GaussianScene::size)
+      .def_property_readonly("means", [](const GaussianScene& s) { return rows_to_array<float>(s.means, 3); },
+                             "(N, 3) float32 centres mu_i, scene frame")
+      .def_property_readonly("scales", [](const GaussianScene& s) { return rows_to_array<float>(s.scales, 3); },
+                             "(N, 3) float32 linear standard deviations (exp of the stored log-scales)")
+      .def_property_readonly("rotations", [](const GaussianScene& s) { return rows_to_array<float>(s.rotations, 4); },
+                             "(N, 4) float32 unit quaternions, w first")
+      .def_property_readonly("opacities", [](const GaussianScene& s) { return vec_to_array(s.opacities); },
+                             "(N,) float32 opacities alpha in [0, 1] (after the sigmoid)")
+      .def_property_readonly("source_index", [](const GaussianScene& s) { return vec_to_array(s.source_index); },
+                             "(N,) uint32 index of each Gaussian in the original file");
+
+  py::class_<QueryResult>(m, "QueryResult",
+      "Contacts of one query, sorted by index into the original file (K contacts).")
+      .def_property_readonly("index", [](const QueryResult& r) { return vec_to_array(r.index); }, "(K,) uint32")
+      .def_property_readonly("k_min", [](const QueryResult& r) { return vec_to_array(r.k_min); },
+                             "(K,) float64 K_min in (0, 1] (paper eq. 6)")
+      .def_property_readonly("opacity", [](const QueryResult& r) { return vec_to_array(r.opacity); }, "(K,) float32")
+      .def_property_readonly("center", [](const QueryResult& r) { return rows_to_array<double>(r.center, 3); },
+                             "(K, 3) float64 Gaussian centres, world frame")
+      .def_readonly("candidates", &QueryResult::candidates, "broad-phase candidates")
+      .def_readonly("prefiltered", &QueryResult::prefiltered, "after the sphere pre-filter (eq. 4)")
+      .def_readonly("contacts", &QueryResult::contacts, "Gaussians with K_min > 0")
+      .def_readonly("overflow", &QueryResult::overflow)
+      .def("__len__", [](const QueryResult& r) { return r.index.size(); });
+
+  py::class_<PyWorld>(m, "CollisionWorld",
+      "Filtered, registered Gaussians as k-sigma ellipsoids plus the BVH broad phase. Immutable; "
+      "queries may run from several threads.")
+      .def(py::init([](const GaussianScene& s, float min_opacity, double sigma, const py::object& registration) {
+             WorldConfig cfg;
+             cfg.min_opacity = min_opacity;
+             cfg.sigma = sigma;
+             cfg.registration = registration_from(registration);
+             PyWorld w;
+             py::gil_scoped_release release;
+             w.world = std::make_shared<CollisionWorld>(CollisionWorld::build(s, cfg, &w.report));
+             return w;
+           }),
+           py::arg("scene"), py::arg("min_opacity") = kDefaultMinOpacity, py::arg("sigma") = 1.0,
+           py::arg("registration") = py::none(),
+           "Keeps Gaussians with opacity > min_opacity (paper Sec. III-A), scales ellipsoids to "
+           "sigma standard deviations, registers with `registration` (None, a JSON file path, or a "
+           "dict {'scale', 'rotation' [w,x,y,z] or 'matrix', 'translation'}; eq. 3).")
+      .def("__len__", [](const PyWorld& w) { return w.world->size(); })
+      .def_property_readonly("build_seconds", [](const PyWorld& w) { return w.report.build_seconds; })
+      .def_property_readonly("memory_bytes", [](const PyWorld& w) { return w.world->memory_bytes(); })
+      .def_property_readonly("bounds", [](const PyWorld& w) {
+        return py::make_tuple(w.world->bounds_lo(), w.world->bounds_hi());
+      }, "(lo (3,), hi (3,)) of all ellipsoids, world frame")
+      .def("query", [](const PyWorld& w, const py::object& center, const py::object& axes, const py::object& rotation) {
+             const ToolEllipsoid tool = make_tool(vec3(center, "center"), vec3(axes, "axes"), vec4(rotation, "rotation"));
+             ContactQuery q(*w.world);
+             QueryStatus st;
+             {
+               py::gil_scoped_release release;
+               st = q.run(tool);
+             }
+             return collect(q, st);
+           },
+           py::arg("center"), py::arg("axes"), py::arg("rotation") = py::make_tuple(1.0, 0.0, 0.0, 0.0),
+           "Gaussians overlapping the tool ellipsoid (centre (3,), semi-axes (3,) > 0, rotation "
+           "quaternion (4,) w first; world frame). Returns a QueryResult.")
+      .def("query_many", [](const PyWorld& w, const Array<double>& poses) {
+             if (poses.ndim() != 2 || poses.shape(1) != 10)
+               throw py::value_error("poses: expected shape (M, 10): cx cy cz ax ay az qw qx qy qz");
+             std::vector<ToolEllipsoid> tools;
+             auto p = poses.unchecked<2>();
+             for (py::ssize_t i = 0; i < p.shape(0); ++i) {
+               Eigen::Matrix<double, 10, 1> row;
+               for (int k = 0; k < 10; ++k) row[k] = p(i, k);
+               if (!row.allFinite()) throw py::value_error("poses: row " + std::to_string(i) + " has NaN or Inf");
+               tools.push_back(make_tool(row.head<3>(), row.segment<3>(3), row.tail<4>()));
+             }
+             std::vector<QueryResult> out;
+             {
+               py::gil_scoped_release release;
+               ContactQuery q(*w.world);
+               for (const ToolEllipsoid& t : tools) {
+                 const QueryStatus st = q.run(t);
+                 out.push_back(collect(q, st));
+               }
+             }
+             return out;
+           },
+           py::arg("poses"), "One query per row of an (M, 10) array; the GIL is released meanwhile.")
+      .def("run_probe", [](const PyWorld& w, int sites, std::uint64_t seed, double tool_radius,
+                           const py::object& up, double rate_hz) {
+             ProbeParams pp;
+             pp.sites = sites;
+             pp.seed = seed;
+             pp.tool_radius = tool_radius;
+             pp.up = vec3(up, "up");
+             pp.approach_speed = 2 * tool_radius;
+             pp.travel_speed = 8 * tool_radius;
+             ProbeRunParams rp;
+             rp.rate_hz = rate_hz;
+             ProbeRunResult run;
+             std::vector<ProbeSite> site_list;
+             {
+               py::gil_scoped_release release;
+               const ProbeTrajectory traj = generate_probe_trajectory(*w.world, pp);
+               site_list = traj.sites();
+               run = run_probe(*w.world, traj, rp);
+             }
+             const std::size_t n = run.ticks.size();
+             std::vector<double> time(n), query_us(n);
+             std::vector<std::uint32_t> cand(n), pre(n), cont(n);
+             std::vector<Eigen::Vector3d> pos(n), vel(n), force(n), user(n);
+             for (std::size_t i = 0; i < n; ++i) {
+               const TickRecord& t = run.ticks[i];
+               time[i] = t.time;
+               query_us[i] = t.query_us;
+               cand[i] = t.counts.candidates;
+               pre[i] = t.counts.prefiltered;
+               cont[i] = t.counts.contacts;
+               pos[i] = t.position;
+               vel[i] = t.velocity;
+               force[i] = t.force;
+               user[i] = t.user_force;
+             }
+             py::dict d;
+             d["time"] = vec_to_array(time);
+             d["position"] = rows_to_array<double>(pos, 3);
+             d["velocity"] = rows_to_array<double>(vel, 3);
+             d["candidates"] = vec_to_array(cand);
+             d["prefiltered"] = vec_to_array(pre);
+             d["contacts"] = vec_to_array(cont);
+             d["force"] = rows_to_array<double>(force, 3);
+             d["user_force"] = rows_to_array<double>(user, 3);
+             d["query_us"] = vec_to_array(query_us);
+             std::vector<double> t_touch;
+             for (const auto& s : site_list) t_touch.push_back(s.t_touch);
+             d["site_touch_times"] = vec_to_array(t_touch);
+             return d;
+           },
+           py::arg("sites") = 7, py::arg("seed") = 1, py::arg("tool_radius") = 0.05,
+           py::arg("up") = py::make_tuple(0.0, 0.0, 1.0), py::arg("rate_hz") = 1000.0,
+           "The simulated probe run of `gshaptics simulate` (admittance device, simulated hand, "
+           "inline query + force model each tick). Returns a dict of per-tick arrays (time (T,), "
+           "position/velocity/force/user_force (T, 3), candidates/prefiltered/contacts (T,), "
+           "query_us (T,)) and site_touch_times.");
+
+  py::class_<ForceParams>(m, "ForceParams", "Force-model parameters (SI units; paper eq. 7-11).")
+      .def(py::init<>())
+      .def_readwrite("k_base", &ForceParams::k_base, "N per contact (eq. 9-10)")
+      .def_readwrite("damping", &ForceParams::damping, "D, N s/m (eq. 10)")
+      .def_readwrite("f_max", &ForceParams::f_max, "N (eq. 11)")
+      .def_readwrite("tau_normal", &ForceParams::tau_normal, "s, normal EMA time constant")
+      .def_readwrite("tau_opacity", &ForceParams::tau_opacity, "s, opacity EMA time constant")
+      .def_readwrite("tau_velocity", &ForceParams::tau_velocity, "s, velocity filter time constant");
+
+  py::class_<ForceModel>(m, "ForceModel",
+      "The paper's penalty force with per-device filter state (DESIGN.md Sec. 4).")
+      .def(py::init<const ForceParams&>(), py::arg("params") = ForceParams{})
+      .def("update", [](ForceModel& fm, const QueryResult& r, const py::object& position,
+                        const py::object& velocity, double dt) {
+             if (!(dt > 0)) throw py::value_error("dt: must be > 0 seconds");
+             std::vector<Contact> cs(r.index.size());
+             for (std::size_t i = 0; i < cs.size(); ++i) {
+               cs[i].index = r.index[i];
+               cs[i].k_min = r.k_min[i];
+               cs[i].opacity = r.opacity[i];
+               cs[i].center = r.center[i];
+             }
+             const ForceOutput f = fm.update(cs, vec3(position, "position"), vec3(velocity, "velocity"), dt);
+             return Eigen::Vector3d(f.force);
+           },
+           py::arg("contacts"), py::arg("position"), py::arg("velocity"), py::arg("dt"),
+           "One tick: contacts (QueryResult), tool centre (3,) m, tool velocity (3,) m/s, dt s. "
+           "Returns the force (3,) in N, world frame.")
+      .def("reset", &ForceModel::reset)
+      .def_property_readonly("state", [](const ForceModel& fm) {
+        const ForceState& s = fm.state();
+        py::dict d;
+        d["n_smooth"] = Eigen::Vector3d(s.n_smooth);
+        d["alpha"] = s.alpha;
+        d["v_filtered"] = Eigen::Vector3d(s.v_filtered);
+        d["in_contact"] = s.in_contact;
+        return d;
+      }, "dict: n_smooth (3,), alpha, v_filtered (3,), in_contact");
+
+  m.def("k_min", &k_min_pairs, py::arg("cov_a"), py::arg("cov_b"), py::arg("d"),
+        "K_min of the Gilitschenski-Hanebeck test for ellipsoids {x: (x-c)^T cov^-1 (x-c) <= 1}, "
+        "vectorised: cov_a, cov_b (..., 3, 3) symmetric positive definite, d = c_a - c_b (..., 3). "
+        "Returns (...) float64; overlap iff K_min >= 0 (paper eq. 5-6). Raises ValueError for "
+        "wrong shapes, NaN/Inf or non-positive-definite covariances.");
+}

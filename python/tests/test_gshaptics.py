@@ -1,0 +1,179 @@
+"""Tests of the gshaptics Python module: arrays from the loaders, queries equal to the CLI's,
+k_min against a NumPy float64 implementation written here, the force model, and errors."""
+import json
+import os
+import subprocess
+import tempfile
+
+import numpy as np
+import pytest
+
+import gshaptics
+
+
+@pytest.fixture(scope="module")
+def donut(scenes_dir):
+    return gshaptics.Scene.load(os.path.join(scenes_dir, "donut.ply"))
+
+
+def test_scene_arrays_shapes_dtypes_and_report(donut):
+    n = len(donut)
+    assert n == 45624
+    assert donut.means.shape == (n, 3) and donut.means.dtype == np.float32
+    assert donut.scales.shape == (n, 3) and (donut.scales > 0).all()
+    assert donut.rotations.shape == (n, 4)
+    np.testing.assert_allclose(np.linalg.norm(donut.rotations, axis=1), 1.0, atol=1e-5)
+    assert donut.opacities.shape == (n,) and ((donut.opacities >= 0) & (donut.opacities <= 1)).all()
+    assert donut.source_index.dtype == np.uint32
+    np.testing.assert_allclose(donut.means.min(axis=0), [-0.1032, -0.0976, -0.0091], atol=1e-3)
+    assert donut.report["in_file"] == 45624 and donut.report["loaded"] == 45624
+    assert donut.report["format"].startswith("INRIA")
+
+
+def test_load_errors_are_python_exceptions_with_the_message(tmp_path):
+    with pytest.raises(gshaptics.InputError, match="cannot open"):
+        gshaptics.Scene.load(str(tmp_path / "missing.ply"))
+    bad = tmp_path / "bad.ply"
+    bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty float x\nend_header\n")
+    with pytest.raises(ValueError, match="bad.ply"):
+        gshaptics.Scene.load(str(bad))
+
+
+def make_poses(world, n, seed):
+    rng = np.random.default_rng(seed)
+    lo, hi = world.bounds
+    poses = np.zeros((n, 10))
+    poses[:, :3] = rng.uniform(0.3, 0.7, size=(n, 3)) * (hi - lo) + lo
+    poses[:, 3:6] = rng.uniform(0.01, 0.03, size=(n, 3))
+    q = rng.normal(size=(n, 4))
+    poses[:, 6:] = q / np.linalg.norm(q, axis=1, keepdims=True)
+    return poses
+
+
+def test_query_many_equals_the_cli(donut, scenes_dir):
+    cli = os.environ.get("GSHAPTICS_CLI")
+    if not cli:
+        pytest.skip("GSHAPTICS_CLI not set (run through ctest)")
+    world = gshaptics.CollisionWorld(donut)
+    poses = make_poses(world, 30, 1)
+    with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as f:
+        for p in poses:
+            f.write(" ".join(repr(float(x)) for x in p) + "\n")
+    out = subprocess.run([cli, "query", os.path.join(scenes_dir, "donut.ply"), "--poses", f.name],
+                         capture_output=True, text=True, check=True).stdout.strip().splitlines()
+    results = world.query_many(poses)
+    assert len(out) == len(results) == 30
+    touched = 0
+    for line, r in zip(out, results):
+        j = json.loads(line)
+        assert j["candidates"] == r.candidates and j["prefiltered"] == r.prefiltered
+        assert [c["index"] for c in j["contacts"]] == r.index.tolist()
+        np.testing.assert_allclose([c["k_min"] for c in j["contacts"]], r.k_min, rtol=0, atol=1e-12)
+        touched += len(r) > 0
+    assert touched > 5
+    single = world.query(poses[3, :3], poses[3, 3:6], poses[3, 6:])
+    assert single.index.tolist() == results[3].index.tolist()
+
+
+def numpy_k_min(A, B, d):
+    """K_min by brute force in float64: K on a fine grid of lambda, then golden section."""
+    def K(lam):
+        M = lam * A + (1 - lam) * B
+        return 1 - lam * (1 - lam) * d @ np.linalg.solve(M, d)
+    grid = np.linspace(0, 1, 401)
+    k = np.array([K(x) for x in grid])
+    i = int(np.argmin(k))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, 400)]
+    g = (np.sqrt(5) - 1) / 2
+    for _ in range(100):
+        x1, x2 = b - g * (b - a), a + g * (b - a)
+        if K(x1) < K(x2):
+            b = x2
+        else:
+            a = x1
+    return min(k.min(), K(0.5 * (a + b)))
+
+
+def random_spd(rng, lo, hi):
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    s = np.exp(rng.uniform(np.log(lo), np.log(hi), size=3))
+    return q @ np.diag(s ** 2) @ q.T
+
+
+def test_k_min_matches_numpy_float64():
+    rng = np.random.default_rng(7)
+    n = 200
+    A = np.stack([random_spd(rng, 0.05, 2.0) for _ in range(n)])
+    B = np.stack([random_spd(rng, 0.1, 1.0) for _ in range(n)])
+    d = rng.normal(size=(n, 3)) * 1.5
+    got = gshaptics.k_min(A, B, d)
+    assert got.shape == (n,)
+    want = np.array([numpy_k_min(A[i], B[i], d[i]) for i in range(n)])
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-7)
+    assert (got > 0).any() and (got < 0).any()
+    # broadcasting over extra leading dimensions and a single pair
+    assert gshaptics.k_min(A.reshape(10, 20, 3, 3), B.reshape(10, 20, 3, 3), d.reshape(10, 20, 3)).shape == (10, 20)
+    assert gshaptics.k_min(np.eye(3), 4 * np.eye(3), np.array([2.0, 0, 0])) == pytest.approx(1 - 4 / 9, abs=1e-12)
+
+
+def test_bad_arguments_raise_clear_errors(donut):
+    world = gshaptics.CollisionWorld(donut)
+    with pytest.raises(ValueError, match="cov_a"):
+        gshaptics.k_min(np.eye(2), np.eye(2), np.zeros(2))
+    with pytest.raises(ValueError, match="d:"):
+        gshaptics.k_min(np.stack([np.eye(3)] * 2), np.stack([np.eye(3)] * 2), np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="NaN"):
+        gshaptics.k_min(np.eye(3), np.eye(3), np.array([np.nan, 0, 0]))
+    with pytest.raises(ValueError, match="positive definite"):
+        gshaptics.k_min(np.diag([1.0, 1.0, -1.0]), np.eye(3), np.ones(3))
+    with pytest.raises(ValueError, match="semi-axes"):
+        world.query((0, 0, 0), (0.01, 0, 0.01))
+    with pytest.raises(ValueError, match="center"):
+        world.query((0, np.nan, 0), (0.01, 0.01, 0.01))
+    with pytest.raises(ValueError, match=r"\(3,\)"):
+        world.query((0, 0), (0.01, 0.01, 0.01))
+    with pytest.raises(ValueError, match=r"\(M, 10\)"):
+        world.query_many(np.zeros((4, 9)))
+    with pytest.raises(TypeError):
+        gshaptics.CollisionWorld(donut, registration=42)
+
+
+def test_registration_dict_moves_the_world(donut):
+    w0 = gshaptics.CollisionWorld(donut)
+    w1 = gshaptics.CollisionWorld(donut, registration={"scale": 2.0, "translation": [100.0, 0.0, 0.0]})
+    r0 = w0.query((0, 0.05, 0.04), (0.03, 0.03, 0.03))
+    r1 = w1.query((100, 0.1, 0.08), (0.06, 0.06, 0.06))
+    assert r0.index.tolist() == r1.index.tolist() and len(r0) > 0
+    np.testing.assert_allclose(r1.center, 2 * r0.center + [100, 0, 0], atol=1e-6)
+    np.testing.assert_allclose(r1.k_min, r0.k_min, atol=1e-6)
+
+
+def test_force_model_pushes_out_and_resets(donut):
+    world = gshaptics.CollisionWorld(donut)
+    params = gshaptics.ForceParams()
+    params.k_base = 0.1
+    fm = gshaptics.ForceModel(params)
+    tool = np.array([0.0, 0.06, 0.06])
+    r = world.query(tool, (0.02, 0.02, 0.02))
+    assert len(r) > 0
+    f = fm.update(r, tool, (0, 0, 0), 1e-3)
+    centroid = r.center.mean(axis=0)
+    assert f.shape == (3,) and np.linalg.norm(f) > 0
+    assert np.dot(f, tool - centroid) > 0  # away from the contacts
+    assert fm.state["in_contact"]
+    empty = world.query((5, 5, 5), (0.01, 0.01, 0.01))
+    assert len(empty) == 0
+    np.testing.assert_array_equal(fm.update(empty, (5, 5, 5), (0, 0, 0), 1e-3), 0)
+    assert not fm.state["in_contact"]
+
+
+def test_probe_run_on_bundled_truck(data_dir):
+    truck = gshaptics.Scene.load(os.path.join(data_dir, "truck.splat"))
+    world = gshaptics.CollisionWorld(truck, registration=os.path.join(data_dir, "truck.registration.json"))
+    run = world.run_probe(sites=3, tool_radius=0.07)
+    assert run["position"].shape == (len(run["time"]), 3)
+    assert len(run["site_touch_times"]) == 3
+    assert run["contacts"].max() > 0
+    touching = run["contacts"] > 0
+    assert np.linalg.norm(run["force"][touching], axis=1).max() > 0.5
+    assert np.all(np.linalg.norm(run["force"][~touching], axis=1) == 0)
