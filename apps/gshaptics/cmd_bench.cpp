@@ -235,25 +235,25 @@ void register_bench(CLI::App& app) {
       if (!o->no_peers && b.tiles == 1) {
         std::vector<double> ours_sub, paper_us, fcl_us;
         for (std::size_t k : subset) ours_sub.push_back(ours_us[k]);
-        peers::PeerResult r;
-        {
-          peers::PaperMethodPeer paper(world);
+        // Times one peer on the subset and keeps its contact sets for the exactness check.
+        const auto run_peer = [&](auto& peer, std::vector<double>& us,
+                                  std::vector<std::vector<std::uint32_t>>& sets) {
+          peers::PeerResult r;
           for (std::size_t k : subset) {
             const auto t0 = Clock::now();
-            paper.query(poses[k], r);
-            paper_us.push_back(us_since(t0));
-            paper_sets.push_back(r.contacts);
+            peer.query(poses[k], r);
+            us.push_back(us_since(t0));
+            sets.push_back(r.contacts);
           }
+        };
+        {
+          peers::PaperMethodPeer paper(world);
+          run_peer(paper, paper_us, paper_sets);
         }
         {
           fmt::print(stderr, "bench: {}: building FCL's tree\n", b.name);
           peers::FclPeer fcl(world);
-          for (std::size_t k : subset) {
-            const auto t0 = Clock::now();
-            fcl.query(poses[k], r);
-            fcl_us.push_back(us_since(t0));
-            fcl_sets.push_back(r.contacts);
-          }
+          run_peer(fcl, fcl_us, fcl_sets);
         }
         const Timing tp = timing_of(paper_us), tf = timing_of(fcl_us), to = timing_of(ours_sub);
         paper_cell = fmt::format("{:.0f} / {:.0f}", tp.p50, tp.p99);
