@@ -237,13 +237,13 @@ void register_bench(CLI::App& app) {
         for (std::size_t k : subset) ours_sub.push_back(ours_us[k]);
         // Times one peer on the subset and keeps its contact sets for the exactness check.
         const auto run_peer = [&](auto& peer, std::vector<double>& us,
-                                  std::vector<std::vector<std::uint32_t>>& sets) {
+                                  std::vector<std::vector<std::uint32_t>>& contact_sets) {
           peers::PeerResult r;
           for (std::size_t k : subset) {
             const auto t0 = Clock::now();
             peer.query(poses[k], r);
             us.push_back(us_since(t0));
-            sets.push_back(r.contacts);
+            contact_sets.push_back(r.contacts);
           }
         };
         {
