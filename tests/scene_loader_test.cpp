@@ -36,6 +36,8 @@ TEST(SceneLoader, DetectsFormatFromContentNotExtension) {
   EXPECT_EQ(s.scene.size(), 45624u);
 
   EXPECT_EQ(detect_scene_format(test::read_bytes(test::scene_path("biker.spz")), "x"), SceneFormat::kSpz);
+  EXPECT_EQ(load_scene(test::scene_path("biker.spz")).report.frame, SceneFrame::kRub);
+  EXPECT_EQ(load_scene(test::scene_path("donut.ply")).report.frame, SceneFrame::kRdf);
   EXPECT_EQ(detect_scene_format(test::read_bytes(test::scene_path("guitar.compressed.ply")), "x"),
             SceneFormat::kCompressedPly);
 }

@@ -15,12 +15,26 @@ std::string_view to_string(SceneFormat format) {
     case SceneFormat::kInriaPly: return "INRIA 3DGS PLY (binary little-endian)";
     case SceneFormat::kSplat: return "antimatter15 .splat";
     case SceneFormat::kCompressedPly: return "PlayCanvas compressed PLY";
-    case SceneFormat::kAsciiPly: return "ASCII PLY";
-    case SceneFormat::kBigEndianPly: return "big-endian binary PLY";
+    case SceneFormat::kAsciiPly: return "INRIA 3DGS PLY (ASCII)";
+    case SceneFormat::kBigEndianPly: return "INRIA 3DGS PLY (binary big-endian)";
     case SceneFormat::kSpz: return "Niantic SPZ";
     case SceneFormat::kUnknown: return "unknown";
   }
   return "unknown";
+}
+
+std::string_view to_string(SceneFrame frame) {
+  switch (frame) {
+    case SceneFrame::kRdf: return "RDF (x right, y down, z forward: 3DGS/COLMAP)";
+    case SceneFrame::kRub: return "RUB (x right, y up, z back: OpenGL/SPZ)";
+  }
+  return "unknown";
+}
+
+Eigen::Quaterniond frame_to_z_up(SceneFrame frame) {
+  // RDF: up is -y; (x, y, z) -> (x, z, -y) is -90 deg about x. RUB: up is +y; +90 deg about x.
+  const double h = std::sqrt(0.5);
+  return frame == SceneFrame::kRdf ? Eigen::Quaterniond(h, -h, 0, 0) : Eigen::Quaterniond(h, h, 0, 0);
 }
 
 namespace {
@@ -57,8 +71,7 @@ SceneFormat detect_scene_format(std::span<const std::uint8_t> bytes, std::string
       (bytes[3] == '\n' || bytes[3] == '\r'))
     return detect_ply_variant(bytes);
   if (bytes.size() >= 4 && std::memcmp(bytes.data(), "NGSP", 4) == 0) return SceneFormat::kSpz;
-  if (bytes.size() >= 2 && bytes[0] == 0x1f && bytes[1] == 0x8b && ends_with(path, ".spz"))
-    return SceneFormat::kSpz;
+  if (bytes.size() >= 2 && bytes[0] == 0x1f && bytes[1] == 0x8b) return SceneFormat::kSpz;  // gzip: SPZ v2/v3
   if (looks_like_splat(bytes)) return SceneFormat::kSplat;
   if (ends_with(path, ".splat") && !bytes.empty()) return SceneFormat::kSplat;  // reader says why
   return SceneFormat::kUnknown;
@@ -70,14 +83,15 @@ LoadedScene load_scene(const std::string& path, const ProgressFn& progress) {
   if (bytes.empty()) throw file_error(path, "file is empty");
   switch (detect_scene_format(bytes, path)) {
     case SceneFormat::kInriaPly:
-    case SceneFormat::kAsciiPly:      // the PLY reader names the unsupported encoding
+    case SceneFormat::kAsciiPly:
     case SceneFormat::kBigEndianPly:
-    case SceneFormat::kCompressedPly:
       return read_inria_ply(bytes, path, progress);
+    case SceneFormat::kCompressedPly:
+      return read_compressed_ply(bytes, path, progress);
     case SceneFormat::kSplat:
       return read_splat(bytes, path, progress);
     case SceneFormat::kSpz:
-      throw file_error(path, "Niantic SPZ is not supported yet; convert it to PLY or .splat");
+      return read_spz(bytes, path, progress);
     case SceneFormat::kUnknown:
       break;
   }

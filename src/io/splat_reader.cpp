@@ -27,6 +27,7 @@ LoadedScene read_splat(std::span<const std::uint8_t> bytes, const std::string& p
   LoadedScene out;
   out.report.path = path;
   out.report.format = SceneFormat::kSplat;
+  out.report.frame = SceneFrame::kRdf;
   out.report.in_file = n;
   out.scene.reserve(n);
   const std::uint64_t step = std::max<std::uint64_t>(1, n / 50);

@@ -2,6 +2,7 @@
 /// @file
 /// Loading trained 3DGS scenes from disk, with the format detected from the file's content.
 
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <functional>
 #include <span>
@@ -13,19 +14,29 @@
 
 namespace gshaptics {
 
-/// Scene file formats gshaptics recognises. Only the first two can be read today; the others
-/// are detected so that the error says what the file is (see SOURCES.md for their layouts).
+/// Scene file formats gshaptics reads (layouts in ../shared/data/scenes/SOURCES.md).
 enum class SceneFormat {
   kInriaPly,            ///< INRIA 3DGS binary little-endian PLY (x y z ... opacity scale_* rot_*)
   kSplat,               ///< antimatter15 .splat, 32 bytes per Gaussian
   kCompressedPly,       ///< PlayCanvas compressed PLY (chunk + packed vertex elements)
-  kAsciiPly,            ///< PLY, ASCII encoding
-  kBigEndianPly,        ///< PLY, binary big-endian encoding
-  kSpz,                 ///< Niantic SPZ (v4 "NGSP" header, or gzip-wrapped v2/v3)
+  kAsciiPly,            ///< INRIA PLY, ASCII encoding
+  kBigEndianPly,        ///< INRIA PLY, binary big-endian encoding
+  kSpz,                 ///< Niantic SPZ (v4 "NGSP" header with zstd streams, or gzip-wrapped v2/v3)
   kUnknown,
 };
 
 [[nodiscard]] std::string_view to_string(SceneFormat format);
+
+/// The coordinate convention a file's Gaussians are stored in (loaders do not convert).
+enum class SceneFrame {
+  kRdf,  ///< x right, y down, z forward: the 3DGS / COLMAP / OpenCV convention (PLY, .splat)
+  kRub,  ///< x right, y up, z back: the OpenGL convention of SPZ
+};
+
+[[nodiscard]] std::string_view to_string(SceneFrame frame);
+
+/// Rotation taking a frame's "up" to world +z (RDF: -y up; RUB: +y up), for z-up worlds.
+[[nodiscard]] Eigen::Quaterniond frame_to_z_up(SceneFrame frame);
 
 /// What a loader did with a file: how many Gaussians it found, kept and skipped, and why.
 /// A skipped Gaussian is never dropped silently: it is counted in exactly one `skipped_*` field
@@ -33,6 +44,8 @@ enum class SceneFormat {
 struct LoadReport {
   std::string path;
   SceneFormat format = SceneFormat::kUnknown;
+  SceneFrame frame = SceneFrame::kRdf;       ///< convention of the stored coordinates
+  int version = 0;                           ///< format version where the format has one (SPZ)
   std::uint64_t in_file = 0;                 ///< Gaussians the file declares
   std::uint64_t loaded = 0;                  ///< Gaussians kept in the scene
   std::uint64_t skipped_non_finite = 0;      ///< any NaN/Inf in position, scale, rotation, opacity
@@ -70,6 +83,17 @@ using ProgressFn = std::function<void(double)>;
 [[nodiscard]] LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes,
                                          const std::string& path,
                                          const ProgressFn& progress = {});
+
+/// Reads a PlayCanvas compressed PLY from memory (chunks of 256 with min/max; 11-10-11 packed
+/// positions and log-scales, 2+3x10-bit quaternions, RGBA with opacity). See load_scene.
+[[nodiscard]] LoadedScene read_compressed_ply(std::span<const std::uint8_t> bytes,
+                                              const std::string& path,
+                                              const ProgressFn& progress = {});
+
+/// Reads a Niantic SPZ file from memory: v2/v3 (one gzip stream) or v4 ("NGSP" header, table of
+/// contents, zstd streams). Coordinates stay in SPZ's RUB frame (report.frame). See load_scene.
+[[nodiscard]] LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& path,
+                                   const ProgressFn& progress = {});
 
 /// Reads an antimatter15 .splat from memory (`path` is used in messages only). See load_scene.
 [[nodiscard]] LoadedScene read_splat(std::span<const std::uint8_t> bytes, const std::string& path,

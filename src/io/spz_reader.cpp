@@ -1,0 +1,179 @@
+// Niantic SPZ reader. v2/v3: the whole file is one gzip stream holding a 16-byte header and the
+// attribute arrays; v4: an uncompressed 32-byte "NGSP" header, a table of contents of
+// (compressed size, uncompressed size) pairs, then one zstd frame per attribute stream
+// (positions, alphas, colours, scales, rotations, spherical harmonics). Layouts as checked on
+// biker.spz in SOURCES.md and as published by Niantic (github.com/nianticlabs/spz). Coordinates
+// are left in SPZ's own frame (x right, y up, z back).
+
+#include <zlib.h>
+#include <zstd.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <vector>
+
+#include "detail/accept_gaussian.h"
+#include "gshaptics/io/error.h"
+#include "gshaptics/io/scene_loader.h"
+
+namespace gshaptics {
+
+namespace {
+
+constexpr std::uint32_t kMagic = 0x5053474e;  // "NGSP" little-endian
+
+std::uint32_t u32_at(const std::uint8_t* p) { std::uint32_t v; std::memcpy(&v, p, 4); return v; }
+std::uint64_t u64_at(const std::uint8_t* p) { std::uint64_t v; std::memcpy(&v, p, 8); return v; }
+
+int sh_coeffs(int degree) { return degree <= 0 ? 0 : degree == 1 ? 3 : degree == 2 ? 8 : 15; }
+
+// Inflates a gzip stream into exactly `want` bytes (or fewer if the stream is shorter).
+std::vector<std::uint8_t> gunzip(std::span<const std::uint8_t> in, std::size_t want,
+                                 const std::string& path) {
+  std::vector<std::uint8_t> out(want);
+  z_stream zs{};
+  if (inflateInit2(&zs, 16 + MAX_WBITS) != Z_OK) throw file_error(path, "zlib: cannot start inflate");
+  zs.next_in = const_cast<Bytef*>(in.data());
+  zs.avail_in = uInt(std::min<std::size_t>(in.size(), std::numeric_limits<uInt>::max()));
+  zs.next_out = out.data();
+  zs.avail_out = uInt(want);
+  const int rc = inflate(&zs, Z_SYNC_FLUSH);
+  const std::size_t got = want - zs.avail_out;
+  inflateEnd(&zs);
+  if (rc != Z_OK && rc != Z_STREAM_END && rc != Z_BUF_ERROR)
+    throw file_error(path, std::string("gzip stream is corrupt (zlib: ") + (zs.msg ? zs.msg : "error") + ")");
+  out.resize(got);
+  return out;
+}
+
+struct Streams {
+  const std::uint8_t *positions, *alphas, *scales, *rotations;
+  int rotation_bytes;
+};
+
+void decode(const Streams& s, std::uint64_t n, int fractional_bits, const std::string& path,
+            LoadedScene& out, const ProgressFn& progress) {
+  const float pos_scale = 1.0f / float(1u << fractional_bits);
+  const std::uint64_t step = std::max<std::uint64_t>(1, n / 50);
+  out.scene.reserve(n);
+  for (std::uint64_t i = 0; i < n; ++i) {
+    float pos[3], scale[3], q[4];
+    for (int k = 0; k < 3; ++k) {
+      const std::uint8_t* b = s.positions + 9 * i + 3 * std::size_t(k);
+      std::int32_t v = std::int32_t(b[0] | (b[1] << 8) | (b[2] << 16));
+      if (v & 0x800000) v -= 0x1000000;  // sign-extend 24 bits
+      pos[k] = float(v) * pos_scale;
+      scale[k] = std::exp(float(s.scales[3 * i + std::size_t(k)]) / 16.0f - 10.0f);
+    }
+    if (s.rotation_bytes == 4) {  // v3+: largest index in 2 bits, three signed 9-bit magnitudes
+      std::uint32_t comp = u32_at(s.rotations + 4 * i);
+      const int largest = int(comp >> 30);
+      constexpr std::uint32_t kMask = (1u << 9) - 1;
+      float xyzw[4] = {0, 0, 0, 0}, sum = 0;
+      for (int k = 3; k >= 0; --k) {
+        if (k == largest) continue;
+        const float mag = 0.70710678f * float(comp & kMask) / float(kMask);
+        xyzw[k] = ((comp >> 9) & 1u) ? -mag : mag;
+        comp >>= 10;
+        sum += xyzw[k] * xyzw[k];
+      }
+      xyzw[largest] = std::sqrt(std::max(0.f, 1.f - sum));
+      q[0] = xyzw[3]; q[1] = xyzw[0]; q[2] = xyzw[1]; q[3] = xyzw[2];
+    } else {  // v2: x, y, z as (b / 127.5 - 1), w >= 0 rebuilt from the norm
+      const std::uint8_t* r = s.rotations + 3 * i;
+      q[1] = float(r[0]) / 127.5f - 1.f;
+      q[2] = float(r[1]) / 127.5f - 1.f;
+      q[3] = float(r[2]) / 127.5f - 1.f;
+      q[0] = std::sqrt(std::max(0.f, 1.f - (q[1] * q[1] + q[2] * q[2] + q[3] * q[3])));
+    }
+    detail::accept_gaussian(pos, scale, q, float(s.alphas[i]) / 255.f, std::uint32_t(i), out.scene, out.report);
+    if (progress && i % step == 0) progress(double(i) / double(n));
+  }
+  if (progress) progress(1.0);
+  (void)path;
+}
+
+}  // namespace
+
+LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& path,
+                     const ProgressFn& progress) {
+  LoadedScene out;
+  out.report.path = path;
+  out.report.format = SceneFormat::kSpz;
+  out.report.frame = SceneFrame::kRub;
+  if (bytes.size() >= 4 && u32_at(bytes.data()) == kMagic) {
+    // v4: plain header + table of contents + zstd streams.
+    if (bytes.size() < 32) throw file_error(path, "SPZ v4: header truncated (" + std::to_string(bytes.size()) + " of 32 bytes)");
+    const std::uint32_t version = u32_at(bytes.data() + 4);
+    const std::uint64_t n = u32_at(bytes.data() + 8);
+    const int sh_degree = bytes[12], frac = bytes[13], n_streams = bytes[15];
+    const std::uint32_t toc = u32_at(bytes.data() + 16);
+    if (version < 4) throw file_error(path, "SPZ: 'NGSP' header with version " + std::to_string(version) + " (expected 4)");
+    if (version > 4) throw file_error(path, "SPZ version " + std::to_string(version) + " is not supported (up to 4)");
+    if (sh_degree > 3 || frac > 24) throw file_error(path, "SPZ v4: bad header (SH degree " + std::to_string(sh_degree) + ", fractional bits " + std::to_string(frac) + ")");
+    if (n_streams < 5) throw file_error(path, "SPZ v4: " + std::to_string(n_streams) + " streams, expected at least 5");
+    if (n == 0) throw file_error(path, "SPZ declares 0 points");
+    const std::uint64_t toc_end = std::uint64_t(toc) + 16ull * std::uint64_t(n_streams);
+    if (toc < 32 || toc_end > bytes.size()) throw file_error_at(path, toc, "SPZ v4: table of contents outside the file");
+    // Uncompressed sizes the header implies, per stream.
+    const std::uint64_t want[5] = {9 * n, n, 3 * n, 3 * n, 4 * n};
+    std::uint64_t offset = toc_end;
+    std::vector<std::uint8_t> data[5];
+    for (int k = 0; k < n_streams; ++k) {
+      const std::uint64_t csize = u64_at(bytes.data() + toc + 16 * std::uint64_t(k));
+      const std::uint64_t usize = u64_at(bytes.data() + toc + 16 * std::uint64_t(k) + 8);
+      if (csize > bytes.size() || offset + csize > bytes.size())
+        throw file_error_at(path, offset, "SPZ v4: stream " + std::to_string(k) + " (" + std::to_string(csize) + " bytes) runs past the end of the file (truncated?)");
+      if (k < 5) {
+        if (usize != want[k])
+          throw file_error(path, "SPZ v4: stream " + std::to_string(k) + " holds " + std::to_string(usize) +
+                                     " bytes, " + std::to_string(n) + " points need " + std::to_string(want[k]));
+        data[k].resize(usize);
+        const std::size_t got = ZSTD_decompress(data[k].data(), data[k].size(), bytes.data() + offset, csize);
+        if (ZSTD_isError(got) || got != usize)
+          throw file_error_at(path, offset, "SPZ v4: stream " + std::to_string(k) + " is corrupt (zstd: " +
+                                                (ZSTD_isError(got) ? ZSTD_getErrorName(got) : "short") + ")");
+      }
+      offset += csize;
+    }
+    out.report.version = int(version);
+    out.report.sh_degree = sh_degree;
+    out.report.in_file = n;
+    decode({data[0].data(), data[1].data(), data[3].data(), data[4].data(), 4}, n, frac, path, out, progress);
+  } else {
+    // v2/v3: gzip stream; read the 16-byte header, then exactly the size it implies.
+    if (bytes.size() < 18 || bytes[0] != 0x1f || bytes[1] != 0x8b)
+      throw file_error(path, "not an SPZ file (neither an 'NGSP' header nor a gzip stream)");
+    const std::vector<std::uint8_t> head = gunzip(bytes, 16, path);
+    if (head.size() < 16) throw file_error(path, "SPZ: gzip stream ends inside the 16-byte header");
+    if (u32_at(head.data()) != kMagic) throw file_error(path, "SPZ: gzip content has no 'NGSP' magic");
+    const std::uint32_t version = u32_at(head.data() + 4);
+    const std::uint64_t n = u32_at(head.data() + 8);
+    const int sh_degree = head[12], frac = head[13];
+    if (version < 2 || version > 3) throw file_error(path, "SPZ version " + std::to_string(version) + " in a gzip stream is not supported (2 or 3)");
+    if (sh_degree > 3 || frac > 24) throw file_error(path, "SPZ: bad header (SH degree " + std::to_string(sh_degree) + ")");
+    if (n == 0) throw file_error(path, "SPZ declares 0 points");
+    const int rot = version >= 3 ? 4 : 3;
+    const std::uint64_t per_point = 9 + 1 + 3 + 3 + std::uint64_t(rot) + 3ull * std::uint64_t(sh_coeffs(sh_degree));
+    // Deflate expands at most ~1032:1: a header claiming more points than that is an error,
+    // not a huge allocation.
+    if (n > (std::uint64_t(bytes.size()) * 1100) / per_point)
+      throw file_error(path, "SPZ header claims " + std::to_string(n) + " points, more than a " +
+                                 std::to_string(bytes.size()) + "-byte gzip stream can hold");
+    const std::uint64_t base_size = 16 + n * (9 + 1 + 3 + 3 + std::uint64_t(rot));
+    const std::vector<std::uint8_t> all = gunzip(bytes, base_size, path);
+    if (all.size() < base_size)
+      throw file_error(path, "truncated: SPZ data ends after " + std::to_string(all.size()) + " of " +
+                                 std::to_string(base_size) + " decompressed bytes");
+    out.report.version = int(version);
+    out.report.sh_degree = sh_degree;
+    out.report.in_file = n;
+    const std::uint8_t* p = all.data() + 16;
+    decode({p, p + 9 * n, p + 13 * n, p + 16 * n, rot}, n, frac, path, out, progress);
+  }
+  if (out.scene.empty()) throw file_error(path, "no valid Gaussian in the SPZ file");
+  return out;
+}
+
+}  // namespace gshaptics
