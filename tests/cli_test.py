@@ -83,6 +83,17 @@ class Query(unittest.TestCase):
         # near-surface poses: most touch something
         self.assertGreater(sum(len(json.loads(l)["contacts"]) > 0 for l in out), 10)
 
+    def test_up_auto_puts_spz_and_ply_versions_of_a_scene_in_one_world(self):
+        args = ["--up", "auto", "--tool-center", "0.0,0.1,1.5", "--tool-axes", "0.15,0.15,0.15"]
+        a = json.loads(run("query", os.path.join(SCENES, "biker.spz"), *args).stdout)
+        b = json.loads(run("query", os.path.join(SCENES, "biker.compressed.ply"), *args).stdout)
+        ia, ib = {c["index"] for c in a["contacts"]}, {c["index"] for c in b["contacts"]}
+        self.assertGreater(len(ia), 20)
+        # the same Gaussians, up to the formats' quantisation at the tool's boundary
+        self.assertGreater(len(ia & ib), 0.95 * max(len(ia), len(ib)))
+        p = run("info", os.path.join(SCENES, "biker.spz"))
+        self.assertIn("RUB", p.stdout)
+
     def test_answers_on_the_large_aerial_scene(self):
         j = json.loads(run("query", os.path.join(SCENES, "karangkidul_crop.ply"), "--tool-center",
                            "-31.25,0,43.33", "--tool-axes", "3,3,3").stdout)

@@ -29,7 +29,8 @@ void register_info(CLI::App& app) {
     const LoadReport& r = s.report;
     const SceneStats st = compute_scene_stats(s.scene);
     fmt::print("scene      {}\n", r.path);
-    fmt::print("format     {}\n", to_string(r.format));
+    fmt::print("format     {}{}\n", to_string(r.format), r.version ? fmt::format(" (version {})", r.version) : "");
+    fmt::print("frame      {}\n", to_string(r.frame));
     fmt::print("Gaussians  {} in file, {} loaded, {} skipped (non-finite {}, zero quaternion {}, "
                "bad scale {})\n",
                r.in_file, r.loaded, r.skipped(), r.skipped_non_finite, r.skipped_zero_quaternion,

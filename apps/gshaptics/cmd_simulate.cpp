@@ -23,7 +23,6 @@ namespace {
 struct SimulateOptions {
   SceneOptions scene;
   std::string out_dir;
-  std::string up = "auto";
   int sites = 7;
   std::uint64_t seed = 1;
   double tool_radius = 0;  // 0: 1% of the scene's robust extent
@@ -32,18 +31,6 @@ struct SimulateOptions {
   bool no_plot = false;
   bool quiet = false;
 };
-
-Eigen::Vector3d parse_up(const std::string& s) {
-  if (s == "+x" || s == "x") return Eigen::Vector3d::UnitX();
-  if (s == "-x") return -Eigen::Vector3d::UnitX();
-  if (s == "+y" || s == "y") return Eigen::Vector3d::UnitY();
-  if (s == "-y") return -Eigen::Vector3d::UnitY();
-  if (s == "+z" || s == "z") return Eigen::Vector3d::UnitZ();
-  if (s == "-z") return -Eigen::Vector3d::UnitZ();
-  const Eigen::Vector3d v = parse_vec3(s, "--up");
-  if (v.norm() < 1e-9) throw InputError("--up: zero vector");
-  return v.normalized();
-}
 
 std::string find_plot_script() {
   if (const char* env = std::getenv("GSHAPTICS_PLOT_SCRIPT")) return env;
@@ -76,9 +63,6 @@ void register_simulate(CLI::App& app) {
   cmd->add_option("--seed", o->seed, "Seed of the site choice")->capture_default_str();
   cmd->add_option("--tool-radius", o->tool_radius,
                   "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)");
-  cmd->add_option("--up", o->up,
-                  "World up axis for the probe path: auto (+z with a registration, -y, the 3DGS "
-                  "convention, without), +x,-x,+y,-y,+z,-z or X,Y,Z")->capture_default_str();
   cmd->add_option("--rate", o->rate, "Servo rate of the simulation, Hz")->capture_default_str()
       ->check(CLI::Range(100.0, 20000.0));
   cmd->add_option("--k-base", o->force.k_base, "Base stiffness k_base, N per contact (eq. 9)")
@@ -103,9 +87,9 @@ void register_simulate(CLI::App& app) {
       if (so.registration_file.empty()) so.registration_file = bundled_registration();
     }
     const bool registered = !so.registration_file.empty() || !so.reg_rotation.empty() ||
-                            !so.reg_scale.empty() || !so.reg_translation.empty();
+                            !so.reg_scale.empty() || !so.reg_translation.empty() || so.up != "none";
     const LoadedScene s = load_with_progress(so.scene, o->quiet);
-    const WorldConfig cfg = world_config_from(so);
+    const WorldConfig cfg = world_config_from(so, s.report.frame);
     WorldBuildReport br;
     const CollisionWorld world = CollisionWorld::build(s.scene, cfg, &br);
     fmt::print("scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
@@ -119,8 +103,9 @@ void register_simulate(CLI::App& app) {
     ProbeParams pp;
     pp.sites = o->sites;
     pp.seed = o->seed;
-    pp.up = o->up == "auto" ? (registered ? Eigen::Vector3d(0, 0, 1) : Eigen::Vector3d(0, -1, 0))
-                            : parse_up(o->up);
+    // A registered (or --up turned) world is z-up; otherwise the probe goes along the file's own
+    // up axis (-y for PLY/.splat, +y for SPZ).
+    pp.up = registered ? Eigen::Vector3d(0, 0, 1) : up_axis_from("auto", s.report.frame);
     if (o->tool_radius > 0) {
       pp.tool_radius = o->tool_radius;
     } else {

@@ -22,6 +22,23 @@ void add_world_options(CLI::App& app, SceneOptions& o) {
   app.add_option("--reg-scale", o.reg_scale, "Registration scale s (overrides the file)");
   app.add_option("--reg-rotation", o.reg_rotation, "Registration rotation W,X,Y,Z (overrides)");
   app.add_option("--reg-translation", o.reg_translation, "Registration translation X,Y,Z (overrides)");
+  app.add_option("--up", o.up,
+                 "Turn the scene's up axis to world +z before the registration: none, auto (from "
+                 "the file's convention: -y for PLY/.splat, +y for SPZ), y-down, y-up, z-up, "
+                 "z-down, x-up, x-down")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"none", "auto", "y-down", "y-up", "z-up", "z-down", "x-up", "x-down"}));
+}
+
+Eigen::Vector3d up_axis_from(const std::string& up, SceneFrame frame) {
+  if (up == "auto") return Eigen::Vector3d(0, frame == SceneFrame::kRub ? 1.0 : -1.0, 0);
+  if (up == "y-down") return -Eigen::Vector3d::UnitY();
+  if (up == "y-up") return Eigen::Vector3d::UnitY();
+  if (up == "z-up") return Eigen::Vector3d::UnitZ();
+  if (up == "z-down") return -Eigen::Vector3d::UnitZ();
+  if (up == "x-up") return Eigen::Vector3d::UnitX();
+  if (up == "x-down") return -Eigen::Vector3d::UnitX();
+  return Eigen::Vector3d::Zero();
 }
 
 std::string data_file(const std::string& name) {
@@ -56,11 +73,16 @@ SimilarityTransform registration_from(const SceneOptions& o) {
   return t;
 }
 
-WorldConfig world_config_from(const SceneOptions& o) {
+WorldConfig world_config_from(const SceneOptions& o, SceneFrame frame) {
   WorldConfig cfg;
   cfg.min_opacity = o.min_opacity;
   cfg.sigma = o.sigma;
   cfg.registration = registration_from(o);
+  const Eigen::Vector3d up = up_axis_from(o.up, frame);
+  if (up.squaredNorm() > 0) {  // x_world = s R_g (R_up x) + t
+    const Eigen::Quaterniond r_up = Eigen::Quaterniond::FromTwoVectors(up, Eigen::Vector3d::UnitZ());
+    cfg.registration.rotation = (cfg.registration.rotation * r_up).normalized();
+  }
   return cfg;
 }
 

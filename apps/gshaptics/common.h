@@ -18,6 +18,7 @@ struct SceneOptions {
   double sigma = 1.0;
   std::string registration_file;
   std::string reg_scale, reg_rotation, reg_translation;  // empty: not given
+  std::string up = "none";  // scene up axis turned to world +z before the registration
 };
 
 /// Adds --min-opacity, --sigma, --registration and the --reg-* overrides.
@@ -31,8 +32,12 @@ std::string data_file(const std::string& name);
 /// Registration from the file and flags (flags override the file's keys).
 SimilarityTransform registration_from(const SceneOptions& o);
 
-/// World configuration from the shared options (opacity filter, sigma, registration).
-WorldConfig world_config_from(const SceneOptions& o);
+/// World configuration from the shared options (opacity filter, sigma, --up, registration).
+/// `frame` is the loaded file's convention, used by `--up auto`.
+WorldConfig world_config_from(const SceneOptions& o, SceneFrame frame);
+
+/// The scene's up axis named by `--up` (none: zero vector), in scene coordinates.
+Eigen::Vector3d up_axis_from(const std::string& up, SceneFrame frame);
 
 /// Loads a scene with a progress bar on stderr for files over a few MB.
 LoadedScene load_with_progress(const std::string& path, bool quiet = false);
