@@ -7,6 +7,7 @@ void register_query(CLI::App& app);
 void register_simulate(CLI::App& app);
 void register_poses(CLI::App& app);
 void register_bench(CLI::App& app);
+void register_convert(CLI::App& app);
 /// Exit status a command set while running (0 unless it reported a failure).
 int exit_code();
 void set_exit_code(int code);

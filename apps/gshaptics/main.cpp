@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   gshaptics::cli::register_simulate(app);
   gshaptics::cli::register_poses(app);
   gshaptics::cli::register_bench(app);
+  gshaptics::cli::register_convert(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

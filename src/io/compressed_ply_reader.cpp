@@ -44,6 +44,13 @@ LoadedScene read_compressed_ply(std::span<const std::uint8_t> bytes, const std::
     cp[k] = chunk->find(kChunkProps[k]);
     if (cp[k] == nullptr) throw file_error(path, std::string("'chunk' element lacks '") + kChunkProps[k] + "'");
   }
+  static const char* kColorProps[] = {"min_r", "min_g", "min_b", "max_r", "max_g", "max_b"};
+  const Property* colp[6];
+  bool has_color = true;
+  for (int k = 0; k < 6; ++k) {
+    colp[k] = chunk->find(kColorProps[k]);
+    has_color = has_color && colp[k] != nullptr;
+  }
   static const char* kVertexProps[] = {"packed_position", "packed_rotation", "packed_scale", "packed_color"};
   const Property* vp[4];
   for (int k = 0; k < 4; ++k) {
@@ -73,6 +80,12 @@ LoadedScene read_compressed_ply(std::span<const std::uint8_t> bytes, const std::
     const std::uint8_t* c = bytes.data() + chunk_offset + (i / 256) * cstride;
     float cv[12];
     for (int k = 0; k < 12; ++k) cv[k] = read_as_float(c + cp[k]->offset, cp[k]->type);
+    float color_min[3] = {0, 0, 0}, color_max[3] = {1, 1, 1};
+    if (has_color)
+      for (int k = 0; k < 3; ++k) {
+        color_min[k] = read_as_float(c + colp[k]->offset, colp[k]->type);
+        color_max[k] = read_as_float(c + colp[3 + k]->offset, colp[3 + k]->type);
+      }
     const std::uint8_t* v = bytes.data() + vertex_offset + i * vstride;
     const std::uint32_t pp = u32(v + vp[0]->offset), pr = u32(v + vp[1]->offset),
                         ps = u32(v + vp[2]->offset), pc = u32(v + vp[3]->offset);
@@ -98,7 +111,16 @@ LoadedScene read_compressed_ply(std::span<const std::uint8_t> bytes, const std::
     const float opacity = float(pc & 0xffu) / 255.f;
     const bool raw_finite = std::isfinite(cv[0] + cv[1] + cv[2] + cv[3] + cv[4] + cv[5]) &&
                             std::isfinite(cv[6] + cv[7] + cv[8] + cv[9] + cv[10] + cv[11]);
-    accept_gaussian(pos, scale, q, opacity, std::uint32_t(i), out.scene, out.report, raw_finite);
+    if (accept_gaussian(pos, scale, q, opacity, std::uint32_t(i), out.scene, out.report, raw_finite)) {
+      // Colour: 8-bit fractions lerped in the chunk's [min, max] of 0.5 + C0 * f_dc.
+      Eigen::Vector3f f;
+      for (int k = 0; k < 3; ++k) {
+        const float t = float((pc >> (24 - 8 * k)) & 0xffu) / 255.f;
+        const float lo = has_color ? color_min[k] : 0.f, hi = has_color ? color_max[k] : 1.f;
+        f[k] = (lo + t * (hi - lo) - 0.5f) / kShC0;
+      }
+      out.scene.colors_dc.push_back(f);
+    }
     if (progress && i % step == 0) progress(double(i) / double(n));
   }
   if (progress) progress(1.0);

@@ -91,6 +91,28 @@ LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::strin
   }
   const int coeffs = n_rest / 3;  // per colour channel
   out.report.sh_degree = coeffs >= 15 ? 3 : coeffs >= 8 ? 2 : coeffs >= 3 ? 1 : 0;
+  // Colour for conversion: f_dc_0..2 and f_rest_0..K-1 (by name, in index order).
+  std::vector<std::size_t> color_props;
+  for (const char* c : {"f_dc_0", "f_dc_1", "f_dc_2"})
+    if (const Property* pr = vertex->find(c)) color_props.push_back(std::size_t(pr - vertex->properties.data()));
+  const bool has_dc = color_props.size() == 3;
+  if (!has_dc) color_props.clear();
+  int rest = 0;
+  while (const Property* pr = vertex->find("f_rest_" + std::to_string(rest))) {
+    color_props.push_back(std::size_t(pr - vertex->properties.data()));
+    ++rest;
+  }
+  if (!has_dc) {
+    rest = 0;
+    color_props.clear();
+  }
+  out.scene.sh_rest_count = rest;
+  std::vector<float> color_values(color_props.size());
+  const auto keep_color = [&] {
+    if (!has_dc) return;
+    out.scene.colors_dc.emplace_back(color_values[0], color_values[1], color_values[2]);
+    out.scene.sh_rest.insert(out.scene.sh_rest.end(), color_values.begin() + 3, color_values.end());
+  };
   if (vertex->count == 0) throw file_error(path, "PLY declares 0 vertices");
   const auto check_count = [&] {  // after the truncation checks, which name the sizes
     if (vertex->count > std::numeric_limits<std::uint32_t>::max())
@@ -108,8 +130,9 @@ LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::strin
     const bool raw_finite = std::isfinite(logit) && std::isfinite(log_scale[0]) &&
                             std::isfinite(log_scale[1]) && std::isfinite(log_scale[2]);
     const float scale[3] = {std::exp(log_scale[0]), std::exp(log_scale[1]), std::exp(log_scale[2])};
-    detail::accept_gaussian(pos, scale, quat, detail::sigmoid(logit), std::uint32_t(i), out.scene,
-                            out.report, raw_finite);
+    if (detail::accept_gaussian(pos, scale, quat, detail::sigmoid(logit), std::uint32_t(i), out.scene,
+                                out.report, raw_finite))
+      keep_color();
     if (progress && i % step == 0) progress(double(i) / double(n));
   };
 
@@ -135,6 +158,10 @@ LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::strin
                               " bytes) but only " + std::to_string(available) + " bytes follow the header");
     check_count();
     out.scene.reserve(n);
+    if (has_dc) {
+      out.scene.colors_dc.reserve(n);
+      out.scene.sh_rest.reserve(n * std::size_t(rest));
+    }
     const std::uint8_t* base = bytes.data() + offset;
     float v[11];
     for (std::uint64_t i = 0; i < n; ++i) {
@@ -142,6 +169,10 @@ LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::strin
       for (std::size_t k = 0; k < 11; ++k) {
         const Property& pr = vertex->properties[prop[k]];
         v[k] = big ? read_as_float_be(rec + pr.offset, pr.type) : read_as_float(rec + pr.offset, pr.type);
+      }
+      for (std::size_t k = 0; k < color_props.size(); ++k) {
+        const Property& pr = vertex->properties[color_props[k]];
+        color_values[k] = big ? read_as_float_be(rec + pr.offset, pr.type) : read_as_float(rec + pr.offset, pr.type);
       }
       accept(i, v);
     }
@@ -197,6 +228,7 @@ LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::strin
         }
       }
       for (std::size_t k = 0; k < 11; ++k) v[k] = values[prop[k]];
+      for (std::size_t k = 0; k < color_props.size(); ++k) color_values[k] = values[color_props[k]];
       accept(i, v);
     }
   }

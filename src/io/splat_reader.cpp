@@ -39,7 +39,10 @@ LoadedScene read_splat(std::span<const std::uint8_t> bytes, const std::string& p
     const float opacity = float(rec[27]) / 255.f;
     const float quat[4] = {(float(rec[28]) - 128.f) / 128.f, (float(rec[29]) - 128.f) / 128.f,
                            (float(rec[30]) - 128.f) / 128.f, (float(rec[31]) - 128.f) / 128.f};
-    detail::accept_gaussian(pos, scale, quat, opacity, std::uint32_t(i), out.scene, out.report);
+    if (detail::accept_gaussian(pos, scale, quat, opacity, std::uint32_t(i), out.scene, out.report))
+      out.scene.colors_dc.emplace_back((float(rec[24]) / 255.f - 0.5f) / detail::kShC0,
+                                       (float(rec[25]) / 255.f - 0.5f) / detail::kShC0,
+                                       (float(rec[26]) / 255.f - 0.5f) / detail::kShC0);
     if (progress && i % step == 0) progress(double(i) / double(n));
   }
   if (progress) progress(1.0);

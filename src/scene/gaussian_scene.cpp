@@ -20,4 +20,15 @@ void GaussianScene::push_back(const Eigen::Vector3f& mean, const Eigen::Vector3f
   source_index.push_back(source);
 }
 
+void GaussianScene::push_back_from(const GaussianScene& other, std::size_t i) {
+  push_back(other.means[i], other.scales[i], other.rotations[i], other.opacities[i],
+            other.source_index[i]);
+  if (!other.colors_dc.empty()) colors_dc.push_back(other.colors_dc[i]);
+  if (other.sh_rest_count > 0) {
+    sh_rest_count = other.sh_rest_count;
+    const auto* first = other.sh_rest.data() + i * std::size_t(other.sh_rest_count);
+    sh_rest.insert(sh_rest.end(), first, first + other.sh_rest_count);
+  }
+}
+
 }  // namespace gshaptics

@@ -9,9 +9,7 @@ GaussianScene filter_by_opacity(const GaussianScene& scene, float min_opacity,
   GaussianScene out;
   out.reserve(kept);
   for (std::size_t i = 0; i < scene.size(); ++i) {
-    if (scene.opacities[i] > min_opacity)
-      out.push_back(scene.means[i], scene.scales[i], scene.rotations[i], scene.opacities[i],
-                    scene.source_index[i]);
+    if (scene.opacities[i] > min_opacity) out.push_back_from(scene, i);
   }
   if (report != nullptr) *report = {min_opacity, scene.size(), out.size()};
   return out;

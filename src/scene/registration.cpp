@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "gshaptics/io/error.h"
+#include "gshaptics/scene/gaussian_scene.h"
 
 namespace gshaptics {
 
@@ -97,6 +98,19 @@ SimilarityTransform parse_registration_json(const std::string& text, const std::
       t.translation[k] = number_at(v[std::size_t(k)], source, "translation[" + std::to_string(k) + "]");
   }
   return t;
+}
+
+GaussianScene transform_scene(const GaussianScene& scene, const SimilarityTransform& t) {
+  GaussianScene out = scene;
+  const Eigen::Quaterniond r = t.rotation.normalized();
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out.means[i] = t.apply(scene.means[i].cast<double>()).cast<float>();
+    out.scales[i] = (t.scale * scene.scales[i].cast<double>()).cast<float>();
+    const Eigen::Vector4f& q = scene.rotations[i];
+    const Eigen::Quaterniond w = (r * Eigen::Quaterniond(q[0], q[1], q[2], q[3])).normalized();
+    out.rotations[i] = Eigen::Vector4f(float(w.w()), float(w.x()), float(w.y()), float(w.z()));
+  }
+  return out;
 }
 
 SimilarityTransform load_registration_file(const std::string& path) {

@@ -17,13 +17,22 @@ namespace gshaptics {
 /// - `opacities`: alpha_i in [0, 1] (after the sigmoid), N;
 /// - `source_index`: index of the Gaussian in the original file, N. Loaders skip invalid
 ///   Gaussians, so this is not always the identity; every contact reports this index.
-/// Colour and spherical harmonics are not kept: the haptic pipeline does not use them.
+/// Colour is kept only for conversion (the haptic pipeline does not use it):
+/// - `colors_dc`: SH band-0 coefficients f_dc (N x 3), empty when the file has no colour;
+/// - `sh_rest`: higher SH coefficients f_rest_* in the INRIA order (channel-major),
+///   `sh_rest_count` per Gaussian (0, 9, 24 or 45), N * sh_rest_count values.
 struct GaussianScene {
   std::vector<Eigen::Vector3f> means;
   std::vector<Eigen::Vector3f> scales;
   std::vector<Eigen::Vector4f> rotations;
   std::vector<float> opacities;
   std::vector<std::uint32_t> source_index;
+  std::vector<Eigen::Vector3f> colors_dc;
+  std::vector<float> sh_rest;
+  int sh_rest_count = 0;
+
+  /// Copies Gaussian `i` of `other` (all fields, colour included when both have it) to the end.
+  void push_back_from(const GaussianScene& other, std::size_t i);
 
   [[nodiscard]] std::size_t size() const { return means.size(); }
   [[nodiscard]] bool empty() const { return means.empty(); }

@@ -24,6 +24,13 @@ struct SimilarityTransform {
   [[nodiscard]] std::string to_json() const;
 };
 
+struct GaussianScene;
+
+/// Applies a registration to every Gaussian (eq. 3): means s R mu + t, rotations R q, scales
+/// s * scale. Colour is copied; SH bands above 0 are not rotated (view-dependent colour then
+/// turns with the scene only approximately).
+[[nodiscard]] GaussianScene transform_scene(const GaussianScene& scene, const SimilarityTransform& t);
+
 /// Parses `{"scale": s, "rotation": [w, x, y, z], "translation": [x, y, z]}`; every key is
 /// optional, and `"matrix"` (3x3 row-major, nested or flat) may replace `"rotation"`.
 /// Quaternions are normalised; a matrix must be orthonormal with determinant +1 (tolerance 1e-6).

@@ -12,7 +12,7 @@ namespace gshaptics::detail {
 /// normalises its quaternion and appends it to `out`, or counts why it was skipped.
 /// `raw_finite` is false when any value as stored in the file was NaN/Inf (a logit of +inf
 /// decodes to a finite opacity, but the file is still broken there).
-inline void accept_gaussian(const float pos[3], const float scale[3], const float quat[4],
+inline bool accept_gaussian(const float pos[3], const float scale[3], const float quat[4],
                             float opacity, std::uint32_t source, GaussianScene& out,
                             LoadReport& report, bool raw_finite = true) {
   bool finite = raw_finite && std::isfinite(opacity);
@@ -20,17 +20,17 @@ inline void accept_gaussian(const float pos[3], const float scale[3], const floa
   for (int k = 0; k < 4; ++k) finite = finite && std::isfinite(quat[k]);
   if (!finite) {
     ++report.skipped_non_finite;
-    return;
+    return false;
   }
   const double norm2 = double(quat[0]) * quat[0] + double(quat[1]) * quat[1] +
                        double(quat[2]) * quat[2] + double(quat[3]) * quat[3];
   if (!(norm2 > 1e-12)) {
     ++report.skipped_zero_quaternion;
-    return;
+    return false;
   }
   if (!(scale[0] > 0.f && scale[1] > 0.f && scale[2] > 0.f)) {
     ++report.skipped_bad_scale;
-    return;
+    return false;
   }
   const double inv = 1.0 / std::sqrt(norm2);
   const Eigen::Vector4f q(float(quat[0] * inv), float(quat[1] * inv), float(quat[2] * inv),
@@ -40,7 +40,11 @@ inline void accept_gaussian(const float pos[3], const float scale[3], const floa
   out.push_back(Eigen::Vector3f(pos[0], pos[1], pos[2]),
                 Eigen::Vector3f(scale[0], scale[1], scale[2]), q, alpha, source);
   ++report.loaded;
+  return true;
 }
+
+/// SH band-0 constant: colour = 0.5 + kShC0 * f_dc.
+inline constexpr float kShC0 = 0.28209479177387814f;
 
 /// Logistic sigmoid in double, stable for large |x| (opacity logits of +-40 occur in real files).
 inline float sigmoid(float logit) {

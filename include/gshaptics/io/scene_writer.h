@@ -1,0 +1,25 @@
+#pragma once
+/// @file
+/// Writing scenes: INRIA 3DGS binary PLY and antimatter15 .splat. Files are written to a
+/// temporary name and renamed, so a failure never leaves a half-written output.
+
+#include <string>
+
+#include "gshaptics/scene/gaussian_scene.h"
+
+namespace gshaptics {
+
+/// INRIA layout: x y z nx ny nz f_dc_0..2 f_rest_* opacity (logit) scale_0..2 (log) rot_0..3
+/// (w, x, y, z), all float, little-endian. Colour is written when the scene has it (zeros
+/// otherwise). Opacity 0 / 1 are written as logits -40 / +40. Throws InputError naming `path`.
+void write_inria_ply(const std::string& path, const GaussianScene& scene);
+
+/// antimatter15 layout: position and linear scale as float, RGBA bytes (colour from f_dc,
+/// A = opacity), quaternion bytes (q * 128 + 128, w first). Higher SH bands are dropped.
+void write_splat(const std::string& path, const GaussianScene& scene);
+
+/// Chooses the writer from the extension (.ply, .splat). SPZ has no writer here: an InputError
+/// says so (no SPZ encoder is packaged in Debian; Niantic's reference library is not).
+void write_scene(const std::string& path, const GaussianScene& scene);
+
+}  // namespace gshaptics

@@ -1,0 +1,105 @@
+#include "gshaptics/io/scene_writer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "gshaptics/io/error.h"
+
+namespace gshaptics {
+
+namespace {
+
+constexpr float kShC0 = 0.28209479177387814f;
+
+void write_atomically(const std::string& path, const std::vector<char>& header, const std::vector<char>& body) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw file_error(path, "cannot open '" + tmp + "' for writing");
+    out.write(header.data(), std::streamsize(header.size()));
+    out.write(body.data(), std::streamsize(body.size()));
+    out.flush();
+    if (!out) {
+      std::remove(tmp.c_str());
+      throw file_error(path, "write failed (disk full?)");
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::remove(tmp.c_str());
+    throw file_error(path, "cannot rename the temporary file: " + ec.message());
+  }
+}
+
+template <typename T>
+void put(std::vector<char>& out, T v) {
+  const char* p = reinterpret_cast<const char*>(&v);
+  out.insert(out.end(), p, p + sizeof(T));
+}
+
+float logit(float a) {
+  if (!(a > 0.f)) return -40.f;
+  if (!(a < 1.f)) return 40.f;
+  return float(std::log(double(a) / (1.0 - double(a))));
+}
+
+}  // namespace
+
+void write_inria_ply(const std::string& path, const GaussianScene& s) {
+  const bool color = s.colors_dc.size() == s.size();
+  const int rest = color ? s.sh_rest_count : 0;
+  std::string h = "ply\nformat binary_little_endian 1.0\ncomment written by gshaptics\nelement vertex " +
+                  std::to_string(s.size()) + "\n";
+  for (const char* p : {"x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"})
+    h += std::string("property float ") + p + "\n";
+  for (int k = 0; k < rest; ++k) h += "property float f_rest_" + std::to_string(k) + "\n";
+  for (const char* p : {"opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"})
+    h += std::string("property float ") + p + "\n";
+  h += "end_header\n";
+  std::vector<char> body;
+  body.reserve(s.size() * std::size_t(4 * (17 + rest)));
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    for (int k = 0; k < 3; ++k) put(body, s.means[i][k]);
+    for (int k = 0; k < 3; ++k) put(body, 0.f);
+    for (int k = 0; k < 3; ++k) put(body, color ? s.colors_dc[i][k] : 0.f);
+    for (int k = 0; k < rest; ++k) put(body, s.sh_rest[i * std::size_t(rest) + std::size_t(k)]);
+    put(body, logit(s.opacities[i]));
+    for (int k = 0; k < 3; ++k) put(body, std::log(s.scales[i][k]));
+    for (int k = 0; k < 4; ++k) put(body, s.rotations[i][k]);
+  }
+  write_atomically(path, std::vector<char>(h.begin(), h.end()), body);
+}
+
+void write_splat(const std::string& path, const GaussianScene& s) {
+  const bool color = s.colors_dc.size() == s.size();
+  std::vector<char> body;
+  body.reserve(s.size() * 32);
+  const auto byte = [](float v) { return std::uint8_t(std::lround(std::clamp(v, 0.f, 255.f))); };
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    for (int k = 0; k < 3; ++k) put(body, s.means[i][k]);
+    for (int k = 0; k < 3; ++k) put(body, s.scales[i][k]);
+    for (int k = 0; k < 3; ++k) put(body, byte(((color ? s.colors_dc[i][k] : 0.f) * kShC0 + 0.5f) * 255.f));
+    put(body, byte(s.opacities[i] * 255.f));
+    for (int k = 0; k < 4; ++k) put(body, byte(s.rotations[i][k] * 128.f + 128.f));
+  }
+  write_atomically(path, {}, body);
+}
+
+void write_scene(const std::string& path, const GaussianScene& scene) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  if (ext == ".ply") return write_inria_ply(path, scene);
+  if (ext == ".splat") return write_splat(path, scene);
+  if (ext == ".spz")
+    throw file_error(path, "writing SPZ is not supported: no SPZ encoder is packaged in Debian; "
+                           "write .ply or .splat");
+  throw file_error(path, "unknown output extension '" + ext + "' (expected .ply or .splat)");
+}
+
+}  // namespace gshaptics
