@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 PACKAGES=(cmake g++ make pkg-config libeigen3-dev libcli11-dev nlohmann-json3-dev libfmt-dev libfcl-dev libnanoflann-dev
           zlib1g-dev libzstd-dev
           libgtest-dev libgmock-dev libbenchmark-dev python3 python3-dev python3-numpy python3-matplotlib
-          python3-pytest pybind11-dev)
+          python3-pytest pybind11-dev clang libclang-rt-14-dev)
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets (clang, ASan + UBSan) and fuzzes every scene reader for
+# SECONDS each (default 60), starting from seeds cut out of the real scenes. Exits non-zero on
+# any finding (crash, sanitizer report, leak, timeout, out-of-memory). Artifacts: build-fuzz/.
+# Usage: fuzz/run.sh [SECONDS] [FORMAT...]   (formats: ply compressed_ply splat spz)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+SECONDS_EACH=${1:-60}
+shift || true
+FORMATS=("${@:-ply compressed_ply splat spz}")
+FORMATS=(${FORMATS[@]})
+SCENES=${GSHAPTICS_SCENES_DIR:-$(pwd)/../shared/data/scenes}
+OUT=build-fuzz
+
+need=()
+for p in clang libclang-rt-14-dev libeigen3-dev nlohmann-json3-dev zlib1g-dev libzstd-dev; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need+=("$p")
+done
+if [ ${#need[@]} -gt 0 ]; then
+  SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}"
+fi
+
+mkdir -p "$OUT/obj"
+CXX="clang++ -std=c++20 -O1 -g -fno-omit-frame-pointer -Iinclude -I/usr/include/eigen3"
+SAN="-fsanitize=address,undefined -fno-sanitize-recover=undefined"
+# The loaders and what they use, compiled once with coverage and sanitizers.
+SOURCES=(src/io/error.cpp src/io/mapped_file.cpp src/io/ply_reader.cpp src/io/splat_reader.cpp
+         src/io/compressed_ply_reader.cpp src/io/spz_reader.cpp src/io/scene_loader.cpp
+         src/io/scene_writer.cpp src/scene/gaussian_scene.cpp)
+objs=()
+for s in "${SOURCES[@]}"; do
+  o="$OUT/obj/$(basename "${s%.cpp}").o"
+  $CXX $SAN -fsanitize=fuzzer-no-link -c "$s" -o "$o"
+  objs+=("$o")
+done
+# Seeds: a plain (unsanitized) helper writes small valid files of every format.
+$CXX "fuzz/make_seeds.cpp" "${SOURCES[@]}" -lz -lzstd -o "$OUT/make_seeds"
+"$OUT/make_seeds" "$SCENES" "$OUT/seeds"
+
+status=0
+for f in "${FORMATS[@]}"; do
+  def=$(echo "$f" | tr a-z A-Z)
+  $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_loader.cpp "${objs[@]}" -lz -lzstd -o "$OUT/fuzz_$f"
+  mkdir -p "$OUT/corpus/$f" "$OUT/artifacts/$f"
+  echo "fuzz: $f for ${SECONDS_EACH}s"
+  if ! "$OUT/fuzz_$f" "$OUT/corpus/$f" "$OUT/seeds/$f" -max_total_time="$SECONDS_EACH" -max_len=65536 \
+       -rss_limit_mb=2048 -timeout=10 -print_final_stats=1 -artifact_prefix="$OUT/artifacts/$f/" \
+       > "$OUT/fuzz_$f.log" 2>&1; then
+    echo "fuzz: $f FAILED (see $OUT/fuzz_$f.log and $OUT/artifacts/$f/)"; tail -30 "$OUT/fuzz_$f.log"; status=1
+  else
+    echo "fuzz: $f ok: $(grep -E 'stat::number_of_executed_units' "$OUT/fuzz_$f.log" | awk '{print $2}') runs, $(grep -E 'stat::new_units_added' "$OUT/fuzz_$f.log" | awk '{print $2}') new units, $(grep -oE 'cov: [0-9]+' "$OUT/fuzz_$f.log" | tail -1)"
+  fi
+done
+exit $status
