@@ -75,3 +75,21 @@ TEST(SceneLoader, GarbageNeverCrashesAndIsNamed) {
 
 }  // namespace
 }  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+TEST(SceneLoader, ColourIsKeptOnlyWhenAsked) {
+  LoadOptions no_color;
+  no_color.keep_color = false;
+  for (const char* f : {"fruitdrops.ply", "truck.splat", "guitar.compressed.ply", "biker.spz"}) {
+    const LoadedScene with = load_scene(test::scene_path(f));
+    const LoadedScene without = load_scene(test::scene_path(f), {}, no_color);
+    EXPECT_EQ(with.scene.colors_dc.size(), with.scene.size()) << f;
+    EXPECT_TRUE(without.scene.colors_dc.empty()) << f;
+    EXPECT_TRUE(without.scene.sh_rest.empty()) << f;
+    EXPECT_EQ(without.scene.means, with.scene.means) << f;
+  }
+  EXPECT_EQ(load_scene(test::scene_path("fruitdrops.ply")).scene.sh_rest_count, 45);
+}
+}  // namespace
+}  // namespace gshaptics

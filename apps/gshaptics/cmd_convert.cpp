@@ -31,7 +31,7 @@ void register_convert(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::IsMember({"none", "auto", "y-down", "y-up", "z-up", "z-down", "x-up", "x-down"}));
   cmd->callback([o, out, min_opacity] {
-    const LoadedScene s = load_with_progress(o->scene);
+    const LoadedScene s = load_with_progress(o->scene, false, /*keep_color=*/true);
     GaussianScene scene = s.scene;
     if (*min_opacity >= 0.f) {
       OpacityFilterReport rep;

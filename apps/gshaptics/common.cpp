@@ -86,12 +86,14 @@ WorldConfig world_config_from(const SceneOptions& o, SceneFrame frame) {
   return cfg;
 }
 
-LoadedScene load_with_progress(const std::string& path, bool quiet) {
+LoadedScene load_with_progress(const std::string& path, bool quiet, bool keep_color) {
   std::error_code ec;
   const auto size = std::filesystem::file_size(path, ec);
   Progress bar("loading " + std::filesystem::path(path).filename().string(),
                !quiet && !ec && size > (8u << 20));
-  LoadedScene s = load_scene(path, [&](double f) { bar(f); });
+  LoadOptions options;
+  options.keep_color = keep_color;
+  LoadedScene s = load_scene(path, [&](double f) { bar(f); }, options);
   bar.done();
   return s;
 }

@@ -40,7 +40,7 @@ WorldConfig world_config_from(const SceneOptions& o, SceneFrame frame);
 Eigen::Vector3d up_axis_from(const std::string& up, SceneFrame frame);
 
 /// Loads a scene with a progress bar on stderr for files over a few MB.
-LoadedScene load_with_progress(const std::string& path, bool quiet = false);
+LoadedScene load_with_progress(const std::string& path, bool quiet = false, bool keep_color = false);
 
 /// "X,Y,Z" -> vector; throws InputError naming the option.
 Eigen::Vector3d parse_vec3(const std::string& text, const std::string& option);

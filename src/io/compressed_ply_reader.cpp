@@ -16,7 +16,8 @@ namespace gshaptics {
 using namespace detail;
 
 LoadedScene read_compressed_ply(std::span<const std::uint8_t> bytes, const std::string& path,
-                                const ProgressFn& progress) {
+                                const ProgressFn& progress,
+                    const LoadOptions& options) {
   const Header h = parse_header(bytes, path);
   if (h.format != "binary_little_endian")
     throw file_error(path, "compressed PLY must be binary_little_endian, not '" + h.format + "'");
@@ -111,7 +112,8 @@ LoadedScene read_compressed_ply(std::span<const std::uint8_t> bytes, const std::
     const float opacity = float(pc & 0xffu) / 255.f;
     const bool raw_finite = std::isfinite(cv[0] + cv[1] + cv[2] + cv[3] + cv[4] + cv[5]) &&
                             std::isfinite(cv[6] + cv[7] + cv[8] + cv[9] + cv[10] + cv[11]);
-    if (accept_gaussian(pos, scale, q, opacity, std::uint32_t(i), out.scene, out.report, raw_finite)) {
+    if (accept_gaussian(pos, scale, q, opacity, std::uint32_t(i), out.scene, out.report, raw_finite) &&
+        options.keep_color) {
       // Colour: 8-bit fractions lerped in the chunk's [min, max] of 0.5 + C0 * f_dc.
       Eigen::Vector3f f;
       for (int k = 0; k < 3; ++k) {

@@ -44,7 +44,8 @@ SceneFormat detect_ply_variant(std::span<const std::uint8_t> bytes) {
 }
 
 LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::string& path,
-                           const ProgressFn& progress) {
+                           const ProgressFn& progress,
+                    const LoadOptions& options) {
   const Header h = parse_header(bytes, path);
   const bool ascii = h.format == "ascii";
   const bool big = h.format == "binary_big_endian";
@@ -53,7 +54,7 @@ LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::strin
                                "' (expected ascii, binary_little_endian or binary_big_endian)");
 
   for (const auto& e : h.elements)
-    if (e.name == "chunk" || e.find("packed_position") != nullptr) return read_compressed_ply(bytes, path, progress);
+    if (e.name == "chunk" || e.find("packed_position") != nullptr) return read_compressed_ply(bytes, path, progress, options);
 
   const Element* vertex = nullptr;
   std::size_t vertex_element = 0;
@@ -95,7 +96,7 @@ LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::strin
   std::vector<std::size_t> color_props;
   for (const char* c : {"f_dc_0", "f_dc_1", "f_dc_2"})
     if (const Property* pr = vertex->find(c)) color_props.push_back(std::size_t(pr - vertex->properties.data()));
-  const bool has_dc = color_props.size() == 3;
+  const bool has_dc = options.keep_color && color_props.size() == 3;
   if (!has_dc) color_props.clear();
   int rest = 0;
   while (const Property* pr = vertex->find("f_rest_" + std::to_string(rest))) {

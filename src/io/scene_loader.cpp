@@ -77,7 +77,7 @@ SceneFormat detect_scene_format(std::span<const std::uint8_t> bytes, std::string
   return SceneFormat::kUnknown;
 }
 
-LoadedScene load_scene(const std::string& path, const ProgressFn& progress) {
+LoadedScene load_scene(const std::string& path, const ProgressFn& progress, const LoadOptions& options) {
   const MappedFile file(path);
   const auto bytes = file.bytes();
   if (bytes.empty()) throw file_error(path, "file is empty");
@@ -85,13 +85,13 @@ LoadedScene load_scene(const std::string& path, const ProgressFn& progress) {
     case SceneFormat::kInriaPly:
     case SceneFormat::kAsciiPly:
     case SceneFormat::kBigEndianPly:
-      return read_inria_ply(bytes, path, progress);
+      return read_inria_ply(bytes, path, progress, options);
     case SceneFormat::kCompressedPly:
-      return read_compressed_ply(bytes, path, progress);
+      return read_compressed_ply(bytes, path, progress, options);
     case SceneFormat::kSplat:
-      return read_splat(bytes, path, progress);
+      return read_splat(bytes, path, progress, options);
     case SceneFormat::kSpz:
-      return read_spz(bytes, path, progress);
+      return read_spz(bytes, path, progress, options);
     case SceneFormat::kUnknown:
       break;
   }

@@ -12,7 +12,8 @@
 namespace gshaptics {
 
 LoadedScene read_splat(std::span<const std::uint8_t> bytes, const std::string& path,
-                       const ProgressFn& progress) {
+                       const ProgressFn& progress,
+                    const LoadOptions& options) {
   constexpr std::size_t kRecord = 32;
   if (bytes.empty()) throw file_error(path, "file is empty");
   if (bytes.size() % kRecord != 0)
@@ -39,7 +40,8 @@ LoadedScene read_splat(std::span<const std::uint8_t> bytes, const std::string& p
     const float opacity = float(rec[27]) / 255.f;
     const float quat[4] = {(float(rec[28]) - 128.f) / 128.f, (float(rec[29]) - 128.f) / 128.f,
                            (float(rec[30]) - 128.f) / 128.f, (float(rec[31]) - 128.f) / 128.f};
-    if (detail::accept_gaussian(pos, scale, quat, opacity, std::uint32_t(i), out.scene, out.report))
+    if (detail::accept_gaussian(pos, scale, quat, opacity, std::uint32_t(i), out.scene, out.report) &&
+        options.keep_color)
       out.scene.colors_dc.emplace_back((float(rec[24]) / 255.f - 0.5f) / detail::kShC0,
                                        (float(rec[25]) / 255.f - 0.5f) / detail::kShC0,
                                        (float(rec[26]) / 255.f - 0.5f) / detail::kShC0);

@@ -53,7 +53,7 @@ struct Streams {
 };
 
 void decode(const Streams& s, std::uint64_t n, int fractional_bits, const std::string& path,
-            LoadedScene& out, const ProgressFn& progress) {
+            LoadedScene& out, const ProgressFn& progress, bool keep_color) {
   const float pos_scale = 1.0f / float(1u << fractional_bits);
   const std::uint64_t step = std::max<std::uint64_t>(1, n / 50);
   out.scene.reserve(n);
@@ -87,7 +87,8 @@ void decode(const Streams& s, std::uint64_t n, int fractional_bits, const std::s
       q[3] = float(r[2]) / 127.5f - 1.f;
       q[0] = std::sqrt(std::max(0.f, 1.f - (q[1] * q[1] + q[2] * q[2] + q[3] * q[3])));
     }
-    if (detail::accept_gaussian(pos, scale, q, float(s.alphas[i]) / 255.f, std::uint32_t(i), out.scene, out.report)) {
+    if (detail::accept_gaussian(pos, scale, q, float(s.alphas[i]) / 255.f, std::uint32_t(i), out.scene, out.report) &&
+        keep_color) {
       // SPZ stores colour as f_dc * 0.15 + 0.5, in bytes (Niantic's colorScale).
       const std::uint8_t* c = s.colors + 3 * i;
       out.scene.colors_dc.emplace_back((float(c[0]) / 255.f - 0.5f) / 0.15f, (float(c[1]) / 255.f - 0.5f) / 0.15f,
@@ -102,7 +103,8 @@ void decode(const Streams& s, std::uint64_t n, int fractional_bits, const std::s
 }  // namespace
 
 LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& path,
-                     const ProgressFn& progress) {
+                     const ProgressFn& progress,
+                    const LoadOptions& options) {
   LoadedScene out;
   out.report.path = path;
   out.report.format = SceneFormat::kSpz;
@@ -145,7 +147,7 @@ LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& pat
     out.report.version = int(version);
     out.report.sh_degree = sh_degree;
     out.report.in_file = n;
-    decode({data[0].data(), data[1].data(), data[2].data(), data[3].data(), data[4].data(), 4}, n, frac, path, out, progress);
+    decode({data[0].data(), data[1].data(), data[2].data(), data[3].data(), data[4].data(), 4}, n, frac, path, out, progress, options.keep_color);
   } else {
     // v2/v3: gzip stream; read the 16-byte header, then exactly the size it implies.
     if (bytes.size() < 18 || bytes[0] != 0x1f || bytes[1] != 0x8b)
@@ -175,7 +177,7 @@ LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& pat
     out.report.sh_degree = sh_degree;
     out.report.in_file = n;
     const std::uint8_t* p = all.data() + 16;
-    decode({p, p + 9 * n, p + 10 * n, p + 13 * n, p + 16 * n, rot}, n, frac, path, out, progress);
+    decode({p, p + 9 * n, p + 10 * n, p + 13 * n, p + 16 * n, rot}, n, frac, path, out, progress, options.keep_color);
   }
   if (out.scene.empty()) throw file_error(path, "no valid Gaussian in the SPZ file");
   return out;

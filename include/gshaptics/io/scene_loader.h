@@ -68,6 +68,13 @@ struct LoadedScene {
 /// Progress callback: fraction done in [0, 1]. May be empty.
 using ProgressFn = std::function<void(double)>;
 
+/// What to keep besides the geometry.
+struct LoadOptions {
+  /// Keep colour (f_dc) and higher SH bands (for conversion). Collision does not need them; an
+  /// SH3 scene's colour is ~3x its geometry, so the collision path loads without it.
+  bool keep_color = true;
+};
+
 /// Guesses the format from the bytes (magic numbers, PLY header), falling back on the
 /// extension of `path` only to choose between "looks like .splat" and "unknown".
 [[nodiscard]] SceneFormat detect_scene_format(std::span<const std::uint8_t> bytes,
@@ -77,26 +84,31 @@ using ProgressFn = std::function<void(double)>;
 /// Throws InputError naming the file and the problem for a missing, empty, truncated,
 /// malformed or unsupported file. Never returns an empty scene without saying why: a file
 /// whose every Gaussian is invalid is an error too.
-[[nodiscard]] LoadedScene load_scene(const std::string& path, const ProgressFn& progress = {});
+[[nodiscard]] LoadedScene load_scene(const std::string& path, const ProgressFn& progress = {},
+                                     const LoadOptions& options = {});
 
 /// Reads an INRIA 3DGS PLY from memory (`path` is used in messages only). See load_scene.
 [[nodiscard]] LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes,
                                          const std::string& path,
-                                         const ProgressFn& progress = {});
+                                         const ProgressFn& progress = {},
+    const LoadOptions& options = {});
 
 /// Reads a PlayCanvas compressed PLY from memory (chunks of 256 with min/max; 11-10-11 packed
 /// positions and log-scales, 2+3x10-bit quaternions, RGBA with opacity). See load_scene.
 [[nodiscard]] LoadedScene read_compressed_ply(std::span<const std::uint8_t> bytes,
                                               const std::string& path,
-                                              const ProgressFn& progress = {});
+                                              const ProgressFn& progress = {},
+    const LoadOptions& options = {});
 
 /// Reads a Niantic SPZ file from memory: v2/v3 (one gzip stream) or v4 ("NGSP" header, table of
 /// contents, zstd streams). Coordinates stay in SPZ's RUB frame (report.frame). See load_scene.
 [[nodiscard]] LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& path,
-                                   const ProgressFn& progress = {});
+                                   const ProgressFn& progress = {},
+    const LoadOptions& options = {});
 
 /// Reads an antimatter15 .splat from memory (`path` is used in messages only). See load_scene.
 [[nodiscard]] LoadedScene read_splat(std::span<const std::uint8_t> bytes, const std::string& path,
-                                     const ProgressFn& progress = {});
+                                     const ProgressFn& progress = {},
+    const LoadOptions& options = {});
 
 }  // namespace gshaptics
