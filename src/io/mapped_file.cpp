@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <utility>
@@ -38,6 +39,13 @@ MappedFile::MappedFile(const std::string& path) : path_(path) {
     data_ = static_cast<const std::uint8_t*>(p);
   }
   ::close(fd);
+}
+
+void MappedFile::release_before(std::size_t offset) const noexcept {
+  if (data_ == nullptr) return;
+  const std::size_t page = std::size_t(::sysconf(_SC_PAGESIZE));
+  const std::size_t end = std::min(offset, size_) / page * page;
+  if (end > 0) ::madvise(const_cast<std::uint8_t*>(data_), end, MADV_DONTNEED);
 }
 
 MappedFile::~MappedFile() {

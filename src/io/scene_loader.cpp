@@ -81,17 +81,24 @@ LoadedScene load_scene(const std::string& path, const ProgressFn& progress, cons
   const MappedFile file(path);
   const auto bytes = file.bytes();
   if (bytes.empty()) throw file_error(path, "file is empty");
+  // Readers go through the file front to back and report progress as they go: drop the pages
+  // they are done with (less a 16 MiB margin), so a 1 GB scene does not stay resident twice.
+  const ProgressFn report_and_release = [&](double fraction) {
+    if (progress) progress(fraction);
+    const double done = fraction * double(bytes.size()) - double(16u << 20);
+    if (done > 0 && fraction < 1.0) file.release_before(std::size_t(done));
+  };
   switch (detect_scene_format(bytes, path)) {
     case SceneFormat::kInriaPly:
     case SceneFormat::kAsciiPly:
     case SceneFormat::kBigEndianPly:
-      return read_inria_ply(bytes, path, progress, options);
+      return read_inria_ply(bytes, path, report_and_release, options);
     case SceneFormat::kCompressedPly:
-      return read_compressed_ply(bytes, path, progress, options);
+      return read_compressed_ply(bytes, path, report_and_release, options);
     case SceneFormat::kSplat:
-      return read_splat(bytes, path, progress, options);
+      return read_splat(bytes, path, report_and_release, options);
     case SceneFormat::kSpz:
-      return read_spz(bytes, path, progress, options);
+      return read_spz(bytes, path, report_and_release, options);
     case SceneFormat::kUnknown:
       break;
   }

@@ -13,45 +13,47 @@ double percentile(std::vector<double> values, double p) {
   return values[k];
 }
 
+namespace {
+// Percentile p of a vector sorted in place (nearest rank).
+double sorted_percentile(const std::vector<float>& v, double p) {
+  if (v.empty()) return 0.0;
+  const double pos = std::clamp(p, 0.0, 100.0) / 100.0 * double(v.size() - 1);
+  return v[std::size_t(std::llround(pos))];
+}
+}  // namespace
+
 SceneStats compute_scene_stats(const GaussianScene& scene) {
+  // One float array at a time, sorted in place: a 15M-Gaussian scene needs ~60 MB here.
   SceneStats s;
   s.count = scene.size();
   if (scene.empty()) return s;
-  s.bbox_min = Eigen::Vector3d::Constant(INFINITY);
-  s.bbox_max = Eigen::Vector3d::Constant(-INFINITY);
-  std::array<std::vector<double>, 3> axis;
-  for (auto& a : axis) a.reserve(scene.size());
-  std::vector<double> scales, max_scales, opac(scene.opacities.begin(), scene.opacities.end());
-  scales.reserve(3 * scene.size());
-  max_scales.reserve(scene.size());
-  for (std::size_t i = 0; i < scene.size(); ++i) {
-    const Eigen::Vector3d m = scene.means[i].cast<double>();
-    s.bbox_min = s.bbox_min.cwiseMin(m);
-    s.bbox_max = s.bbox_max.cwiseMax(m);
-    for (int k = 0; k < 3; ++k) {
-      axis[std::size_t(k)].push_back(m[k]);
-      scales.push_back(scene.scales[i][k]);
-    }
-    max_scales.push_back(scene.scales[i].maxCoeff());
-  }
+  const std::size_t n = scene.size();
+  std::vector<float> v(n);
   for (int k = 0; k < 3; ++k) {
-    s.p01[k] = percentile(axis[std::size_t(k)], 1);
-    s.p99[k] = percentile(axis[std::size_t(k)], 99);
-    s.median[k] = percentile(axis[std::size_t(k)], 50);
+    for (std::size_t i = 0; i < n; ++i) v[i] = scene.means[i][k];
+    std::sort(v.begin(), v.end());
+    s.bbox_min[k] = v.front();
+    s.bbox_max[k] = v.back();
+    s.p01[k] = sorted_percentile(v, 1);
+    s.p99[k] = sorted_percentile(v, 99);
+    s.median[k] = sorted_percentile(v, 50);
   }
+  v.assign(scene.opacities.begin(), scene.opacities.end());
+  std::sort(v.begin(), v.end());
   const double op[5] = {1, 10, 25, 50, 75};
-  for (std::size_t i = 0; i < 5; ++i) s.opacity_pct[i] = percentile(opac, op[i]);
-  const double thr[3] = {0.1, 0.2, 0.3};
-  for (std::size_t i = 0; i < 3; ++i) {
-    const double t = double(float(thr[i]));  // the filter compares in float
-    const auto n = std::count_if(opac.begin(), opac.end(), [&](double a) { return a > t; });
-    s.opacity_above[i] = double(n) / double(opac.size());
-  }
+  for (std::size_t i = 0; i < 5; ++i) s.opacity_pct[i] = sorted_percentile(v, op[i]);
+  const float thr[3] = {0.1f, 0.2f, 0.3f};  // compared in float, like the filter
+  for (std::size_t i = 0; i < 3; ++i)
+    s.opacity_above[i] = double(v.end() - std::upper_bound(v.begin(), v.end(), thr[i])) / double(n);
   const double sp[4] = {1, 50, 99, 99.9};
-  for (std::size_t i = 0; i < 4; ++i) {
-    s.scale_pct[i] = percentile(scales, sp[i]);
-    s.max_scale_pct[i] = percentile(max_scales, sp[i]);
-  }
+  for (std::size_t i = 0; i < n; ++i) v[i] = scene.scales[i].maxCoeff();
+  std::sort(v.begin(), v.end());
+  for (std::size_t i = 0; i < 4; ++i) s.max_scale_pct[i] = sorted_percentile(v, sp[i]);
+  v.resize(3 * n);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) v[3 * i + std::size_t(k)] = scene.scales[i][k];
+  std::sort(v.begin(), v.end());
+  for (std::size_t i = 0; i < 4; ++i) s.scale_pct[i] = sorted_percentile(v, sp[i]);
   return s;
 }
 

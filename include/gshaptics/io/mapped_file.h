@@ -23,6 +23,10 @@ class MappedFile {
   /// The file's bytes (empty for an empty file).
   [[nodiscard]] std::span<const std::uint8_t> bytes() const { return {data_, size_}; }
   [[nodiscard]] const std::string& path() const { return path_; }
+  /// Tells the kernel the bytes before `offset` will not be read again, so their pages can be
+  /// dropped (keeps a sequential load from holding the whole file resident). Later reads of
+  /// those bytes still work: the pages come back from the page cache.
+  void release_before(std::size_t offset) const noexcept;
 
  private:
   std::string path_;
