@@ -108,7 +108,7 @@ std::vector<std::uint8_t> gzip(const std::vector<std::uint8_t>& raw) {
   return out;
 }
 
-std::vector<std::uint8_t> make_gzip_spz(int version, std::size_t limit = 0) {
+std::vector<std::uint8_t> make_gzip_spz(int version, std::size_t limit = 0, int sh_degree = 0) {
   const auto v4 = test::read_bytes(scene_path("biker.spz"));
   std::uint32_t n;
   std::memcpy(&n, v4.data() + 8, 4);
@@ -117,7 +117,7 @@ std::vector<std::uint8_t> make_gzip_spz(int version, std::size_t limit = 0) {
   std::memcpy(raw.data(), &magic, 4);
   std::memcpy(raw.data() + 4, &ver, 4);
   std::memcpy(raw.data() + 8, &n, 4);
-  raw[12] = 0;       // SH degree
+  raw[12] = std::uint8_t(sh_degree);
   raw[13] = v4[13];  // fractional bits
   for (int k = 0; k < 4; ++k) {
     const auto s = zstd_stream(v4, k);
@@ -134,6 +134,10 @@ std::vector<std::uint8_t> make_gzip_spz(int version, std::size_t limit = 0) {
         raw.push_back(std::uint8_t(std::lround(std::clamp((sign * q[k] + 1.f) * 127.5f, 0.f, 255.f))));
     }
   }
+  if (sh_degree == 1)  // 3 coefficients x RGB per point: byte = (3 * k + channel + point) % 256
+    for (std::uint32_t i = 0; i < n; ++i)
+      for (int k = 0; k < 3; ++k)
+        for (int ch = 0; ch < 3; ++ch) raw.push_back(std::uint8_t((3 * k + ch + int(i)) % 256));
   if (limit) raw.resize(limit);
   return gzip(raw);
 }
@@ -148,6 +152,23 @@ TEST(Spz, GzipVersions3And2MatchVersion4) {
     EXPECT_EQ(s.report.frame, SceneFrame::kRub);
     expect_same(s.scene, b.spz.scene, false, 1e-7f, 1e-6f, version == 3 ? 1e-6f : 2e-3f);
   }
+}
+
+TEST(Spz, HigherShBandsAreKeptInInriaOrder) {
+  const std::string p = test::temp_path(".spz");
+  test::write_bytes(p, make_gzip_spz(3, 0, 1));
+  const LoadedScene s = load_scene(p);
+  EXPECT_EQ(s.report.sh_degree, 1);
+  ASSERT_EQ(s.scene.sh_rest_count, 9);
+  ASSERT_EQ(s.scene.sh_rest.size(), 9 * s.scene.size());
+  for (std::size_t i = 0; i < 5; ++i)
+    for (int ch = 0; ch < 3; ++ch)
+      for (int k = 0; k < 3; ++k) {
+        const float want = (float((3 * k + ch + int(i)) % 256) - 128.f) / 128.f;
+        ASSERT_EQ(s.scene.sh_rest[9 * i + std::size_t(3 * ch + k)], want) << i << " " << ch << " " << k;
+      }
+  // and the geometry is that of the same file without SH
+  expect_same(s.scene, biker().spz.scene, false, 1e-7f, 1e-6f, 1e-6f);
 }
 
 std::string error_of(const std::vector<std::uint8_t>& bytes, const char* suffix) {

@@ -50,6 +50,8 @@ std::vector<std::uint8_t> gunzip(std::span<const std::uint8_t> in, std::size_t w
 struct Streams {
   const std::uint8_t *positions, *alphas, *colors, *scales, *rotations;
   int rotation_bytes;
+  const std::uint8_t* sh = nullptr;  // n * coefficients * 3 bytes (coefficient-major, RGB inner)
+  int sh_coefficients = 0;           // per colour channel
 };
 
 void decode(const Streams& s, std::uint64_t n, int fractional_bits, const std::string& path,
@@ -57,6 +59,7 @@ void decode(const Streams& s, std::uint64_t n, int fractional_bits, const std::s
   const float pos_scale = 1.0f / float(1u << fractional_bits);
   const std::uint64_t step = std::max<std::uint64_t>(1, n / 50);
   out.scene.reserve(n);
+  if (keep_color && s.sh != nullptr) out.scene.sh_rest_count = 3 * s.sh_coefficients;
   for (std::uint64_t i = 0; i < n; ++i) {
     float pos[3], scale[3], q[4];
     for (int k = 0; k < 3; ++k) {
@@ -93,6 +96,12 @@ void decode(const Streams& s, std::uint64_t n, int fractional_bits, const std::s
       const std::uint8_t* c = s.colors + 3 * i;
       out.scene.colors_dc.emplace_back((float(c[0]) / 255.f - 0.5f) / 0.15f, (float(c[1]) / 255.f - 0.5f) / 0.15f,
                                        (float(c[2]) / 255.f - 0.5f) / 0.15f);
+      // Higher SH bands: bytes (v - 128) / 128, stored coefficient-major with RGB inner; INRIA's
+      // f_rest is channel-major (f_rest_{c * K + k}).
+      const int K = s.sh_coefficients;
+      for (int ch = 0; ch < 3 && s.sh != nullptr; ++ch)
+        for (int k = 0; k < K; ++k)
+          out.scene.sh_rest.push_back((float(s.sh[(i * std::size_t(K) + std::size_t(k)) * 3 + std::size_t(ch)]) - 128.f) / 128.f);
     }
     if (progress && i % step == 0) progress(double(i) / double(n));
   }
@@ -124,15 +133,17 @@ LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& pat
     const std::uint64_t toc_end = std::uint64_t(toc) + 16ull * std::uint64_t(n_streams);
     if (toc < 32 || toc_end > bytes.size()) throw file_error_at(path, toc, "SPZ v4: table of contents outside the file");
     // Uncompressed sizes the header implies, per stream.
-    const std::uint64_t want[5] = {9 * n, n, 3 * n, 3 * n, 4 * n};
+    const std::uint64_t want[6] = {9 * n, n, 3 * n, 3 * n, 4 * n, 3 * n * std::uint64_t(sh_coeffs(sh_degree))};
+    const int used = sh_degree > 0 ? 6 : 5;
+    if (n_streams < used) throw file_error(path, "SPZ v4: SH degree " + std::to_string(sh_degree) + " needs 6 streams, the file has " + std::to_string(n_streams));
     std::uint64_t offset = toc_end;
-    std::vector<std::uint8_t> data[5];
+    std::vector<std::uint8_t> data[6];
     for (int k = 0; k < n_streams; ++k) {
       const std::uint64_t csize = u64_at(bytes.data() + toc + 16 * std::uint64_t(k));
       const std::uint64_t usize = u64_at(bytes.data() + toc + 16 * std::uint64_t(k) + 8);
       if (csize > bytes.size() || offset + csize > bytes.size())
         throw file_error_at(path, offset, "SPZ v4: stream " + std::to_string(k) + " (" + std::to_string(csize) + " bytes) runs past the end of the file (truncated?)");
-      if (k < 5) {
+      if (k < used) {
         if (usize != want[k])
           throw file_error(path, "SPZ v4: stream " + std::to_string(k) + " holds " + std::to_string(usize) +
                                      " bytes, " + std::to_string(n) + " points need " + std::to_string(want[k]));
@@ -147,7 +158,9 @@ LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& pat
     out.report.version = int(version);
     out.report.sh_degree = sh_degree;
     out.report.in_file = n;
-    decode({data[0].data(), data[1].data(), data[2].data(), data[3].data(), data[4].data(), 4}, n, frac, path, out, progress, options.keep_color);
+    decode({data[0].data(), data[1].data(), data[2].data(), data[3].data(), data[4].data(), 4,
+            sh_degree > 0 ? data[5].data() : nullptr, sh_coeffs(sh_degree)},
+           n, frac, path, out, progress, options.keep_color);
   } else {
     // v2/v3: gzip stream; read the 16-byte header, then exactly the size it implies.
     if (bytes.size() < 18 || bytes[0] != 0x1f || bytes[1] != 0x8b)
@@ -168,7 +181,7 @@ LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& pat
     if (n > (std::uint64_t(bytes.size()) * 1100) / per_point)
       throw file_error(path, "SPZ header claims " + std::to_string(n) + " points, more than a " +
                                  std::to_string(bytes.size()) + "-byte gzip stream can hold");
-    const std::uint64_t base_size = 16 + n * (9 + 1 + 3 + 3 + std::uint64_t(rot));
+    const std::uint64_t base_size = 16 + n * per_point;
     const std::vector<std::uint8_t> all = gunzip(bytes, base_size, path);
     if (all.size() < base_size)
       throw file_error(path, "truncated: SPZ data ends after " + std::to_string(all.size()) + " of " +
@@ -177,7 +190,9 @@ LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& pat
     out.report.sh_degree = sh_degree;
     out.report.in_file = n;
     const std::uint8_t* p = all.data() + 16;
-    decode({p, p + 9 * n, p + 10 * n, p + 13 * n, p + 16 * n, rot}, n, frac, path, out, progress, options.keep_color);
+    decode({p, p + 9 * n, p + 10 * n, p + 13 * n, p + 16 * n, rot,
+            sh_degree > 0 ? p + (16 + std::uint64_t(rot)) * n : nullptr, sh_coeffs(sh_degree)},
+           n, frac, path, out, progress, options.keep_color);
   }
   if (out.scene.empty()) throw file_error(path, "no valid Gaussian in the SPZ file");
   return out;
