@@ -208,8 +208,8 @@ std::vector<std::uint8_t> to_ascii(const std::vector<Prop>& props, const std::ve
   char buf[64];
   for (const auto& r : rows) {
     for (std::size_t i = 0; i < r.size(); ++i) {
-      std::snprintf(buf, sizeof buf, "%.9g", r[i]);
-      t += (i ? " " : "") + std::string(buf);
+      std::snprintf(buf, sizeof buf, i ? " %.9g" : "%.9g", r[i]);
+      t.append(buf);
     }
     t += "\n";
   }
