@@ -255,7 +255,7 @@ TEST(PlyReader, AsciiErrorsNameTheVertexAndValue) {
   std::vector<std::vector<double>> rows = {row(1, 0, -3), row(2, 0, -3)};
   auto bytes = to_ascii(standard_props(), rows);
   std::string t(bytes.begin(), bytes.end());
-  t.replace(t.rfind("\n", t.size() - 2) + 1, 1, "x");  // garbage at the start of the last line
+  t[t.rfind('\n', t.size() - 2) + 1] = 'x';  // garbage at the start of the last line
   const std::string p = save(std::vector<std::uint8_t>(t.begin(), t.end()));
   EXPECT_NE(load_error(p).find("ASCII vertex 1"), std::string::npos) << load_error(p);
   auto cut = to_ascii(standard_props(), rows);
