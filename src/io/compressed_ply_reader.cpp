@@ -125,8 +125,7 @@ LoadedScene read_compressed_ply(std::span<const std::uint8_t> bytes, const std::
     }
     if (progress && i % step == 0) progress(double(i) / double(n));
   }
-  if (progress) progress(1.0);
-  if (out.scene.empty()) throw file_error(path, "no valid Gaussian among " + std::to_string(n));
+  finish_load(out, path, n, progress);
   return out;
 }
 

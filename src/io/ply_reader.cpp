@@ -233,10 +233,7 @@ LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::strin
       accept(i, v);
     }
   }
-  if (progress) progress(1.0);
-  if (out.scene.empty())
-    throw file_error(path, "no valid Gaussian among " + std::to_string(n) +
-                               " (all had NaN/Inf, zero quaternions or bad scales)");
+  detail::finish_load(out, path, n, progress);
   return out;
 }
 

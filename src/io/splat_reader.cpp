@@ -47,10 +47,7 @@ LoadedScene read_splat(std::span<const std::uint8_t> bytes, const std::string& p
                                        (float(rec[26]) / 255.f - 0.5f) / detail::kShC0);
     if (progress && i % step == 0) progress(double(i) / double(n));
   }
-  if (progress) progress(1.0);
-  if (out.scene.empty())
-    throw file_error(path, "no valid Gaussian among " + std::to_string(n) +
-                               " (all had NaN/Inf, zero quaternions or bad scales)");
+  detail::finish_load(out, path, n, progress);
   return out;
 }
 

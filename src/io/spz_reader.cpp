@@ -105,7 +105,6 @@ void decode(const Streams& s, std::uint64_t n, int fractional_bits, const std::s
     }
     if (progress && i % step == 0) progress(double(i) / double(n));
   }
-  if (progress) progress(1.0);
   (void)path;
 }
 
@@ -194,7 +193,7 @@ LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& pat
             sh_degree > 0 ? p + (16 + std::uint64_t(rot)) * n : nullptr, sh_coeffs(sh_degree)},
            n, frac, path, out, progress, options.keep_color);
   }
-  if (out.scene.empty()) throw file_error(path, "no valid Gaussian in the SPZ file");
+  detail::finish_load(out, path, out.report.in_file, progress);
   return out;
 }
 

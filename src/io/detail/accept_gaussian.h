@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "gshaptics/io/error.h"
 #include "gshaptics/io/scene_loader.h"
 
 namespace gshaptics::detail {
@@ -41,6 +42,16 @@ inline bool accept_gaussian(const float pos[3], const float scale[3], const floa
                 Eigen::Vector3f(scale[0], scale[1], scale[2]), q, alpha, source);
   ++report.loaded;
   return true;
+}
+
+/// Ends every reader: final progress, and an error for a file with no valid Gaussian at all
+/// (a loader never returns an empty scene without saying why).
+inline void finish_load(const LoadedScene& out, const std::string& path, std::uint64_t in_file,
+                        const ProgressFn& progress) {
+  if (progress) progress(1.0);
+  if (out.scene.empty())
+    throw file_error(path, "no valid Gaussian among " + std::to_string(in_file) +
+                               " (all had NaN/Inf, zero quaternions or bad scales)");
 }
 
 /// SH band-0 constant: colour = 0.5 + kShC0 * f_dc.
