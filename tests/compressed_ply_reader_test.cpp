@@ -174,12 +174,7 @@ TEST(Spz, HigherShBandsAreKeptInInriaOrder) {
 std::string error_of(const std::vector<std::uint8_t>& bytes, const char* suffix) {
   const std::string p = test::temp_path(suffix);
   test::write_bytes(p, bytes);
-  try {
-    (void)load_scene(p);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
+  return test::load_error(p);
 }
 
 TEST(Spz, BrokenFilesAreNamedErrors) {

@@ -134,15 +134,6 @@ std::string save(const std::vector<std::uint8_t>& bytes, const std::string& suff
   return p;
 }
 
-std::string load_error(const std::string& path) {
-  try {
-    (void)load_scene(path);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
-
 TEST(PlyReader, DecodesSigmoidExpAndNormalises) {
   const std::string p = save(make_ply("", standard_props(), {row(1, 0, std::log(0.5)), row(2, 40, 0, 0, 3)}));
   const LoadedScene s = load_scene(p);
@@ -197,7 +188,7 @@ TEST(PlyReader, InvalidGaussiansAreSkippedAndCounted) {
 TEST(PlyReader, AllInvalidIsAnError) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const std::string p = save(make_ply("", standard_props(), {row(nan, 0, 0), row(nan, 0, 0)}));
-  EXPECT_NE(load_error(p).find("no valid Gaussian"), std::string::npos) << load_error(p);
+  EXPECT_NE(test::load_error(p).find("no valid Gaussian"), std::string::npos) << test::load_error(p);
 }
 
 std::vector<std::uint8_t> to_ascii(const std::vector<Prop>& props, const std::vector<std::vector<double>>& rows,
@@ -257,12 +248,12 @@ TEST(PlyReader, AsciiErrorsNameTheVertexAndValue) {
   std::string t(bytes.begin(), bytes.end());
   t[t.rfind('\n', t.size() - 2) + 1] = 'x';  // garbage at the start of the last line
   const std::string p = save(std::vector<std::uint8_t>(t.begin(), t.end()));
-  EXPECT_NE(load_error(p).find("ASCII vertex 1"), std::string::npos) << load_error(p);
+  EXPECT_NE(test::load_error(p).find("ASCII vertex 1"), std::string::npos) << test::load_error(p);
   auto cut = to_ascii(standard_props(), rows);
   std::string c(cut.begin(), cut.end());
   c.resize(c.rfind("\n", c.size() - 2) + 1);  // drop the last line
   const std::string p2 = save(std::vector<std::uint8_t>(c.begin(), c.end()));
-  EXPECT_NE(load_error(p2).find("truncated"), std::string::npos) << load_error(p2);
+  EXPECT_NE(test::load_error(p2).find("truncated"), std::string::npos) << test::load_error(p2);
 }
 
 TEST(PlyReader, MissingPropertyIsNamed) {
@@ -271,13 +262,13 @@ TEST(PlyReader, MissingPropertyIsNamed) {
   std::vector<double> r = row(1, 0, 0);
   r.erase(r.begin() + 8);
   const std::string p = save(make_ply("", props, {r}));
-  EXPECT_NE(load_error(p).find("'scale_1'"), std::string::npos) << load_error(p);
+  EXPECT_NE(test::load_error(p).find("'scale_1'"), std::string::npos) << test::load_error(p);
 }
 
 TEST(PlyReader, HugeDeclaredCountIsAnErrorNotAnAllocation) {
   const std::string p = save(make_ply("", standard_props(), {row(1, 0, 0)}, "binary_little_endian",
                                       "\n", {}, 1000000000000ull));
-  const std::string e = load_error(p);
+  const std::string e = test::load_error(p);
   EXPECT_NE(e.find("truncated"), std::string::npos) << e;
   EXPECT_NE(e.find("1000000000000"), std::string::npos) << e;
 }
@@ -287,7 +278,7 @@ TEST(PlyReader, TruncatedRealFileNamesFileAndSizes) {
   ASSERT_GT(bytes.size(), 1000u);
   bytes.resize(bytes.size() - 37);
   const std::string p = save(bytes);
-  const std::string e = load_error(p);
+  const std::string e = test::load_error(p);
   EXPECT_NE(e.find(p), std::string::npos) << e;
   EXPECT_NE(e.find("truncated"), std::string::npos) << e;
 }
@@ -295,18 +286,18 @@ TEST(PlyReader, TruncatedRealFileNamesFileAndSizes) {
 TEST(PlyReader, HeaderOnlyCutIsAnError) {
   auto bytes = test::read_bytes(scene_path("donut.ply"));
   bytes.resize(100);  // inside the header
-  const std::string e = load_error(save(bytes));
+  const std::string e = test::load_error(save(bytes));
   EXPECT_NE(e.find("end_header"), std::string::npos) << e;
 }
 
 TEST(PlyReader, MalformedHeaderLinesAreReported) {
   const std::string p1 = save(make_ply("element\n", standard_props(), {row(1, 0, 0)}));
-  EXPECT_NE(load_error(p1).find("expected 'element <name> <count>'"), std::string::npos) << load_error(p1);
+  EXPECT_NE(test::load_error(p1).find("expected 'element <name> <count>'"), std::string::npos) << test::load_error(p1);
   std::vector<std::uint8_t> weird = make_ply("", standard_props(), {row(1, 0, 0)});
   const std::string text(weird.begin(), weird.end());
   const std::string bad_type = std::string(text).replace(text.find("property float x"), 16, "property quux x");
   const std::string p2 = save(std::vector<std::uint8_t>(bad_type.begin(), bad_type.end()));
-  EXPECT_NE(load_error(p2).find("unknown property type 'quux'"), std::string::npos) << load_error(p2);
+  EXPECT_NE(test::load_error(p2).find("unknown property type 'quux'"), std::string::npos) << test::load_error(p2);
 }
 
 }  // namespace

@@ -13,15 +13,6 @@
 namespace gshaptics {
 namespace {
 
-std::string error_of(const std::string& path) {
-  try {
-    (void)load_scene(path);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
-
 TEST(SceneLoader, DetectsFormatFromContentNotExtension) {
   const auto splat = test::read_bytes(test::scene_path("burger.splat"));
   const std::string as_bin = test::temp_path(".bin");
@@ -45,9 +36,9 @@ TEST(SceneLoader, DetectsFormatFromContentNotExtension) {
 TEST(SceneLoader, EmptyMissingAndDirectoryAreErrors) {
   const std::string empty = test::temp_path(".ply");
   test::write_bytes(empty, {});
-  EXPECT_NE(error_of(empty).find("empty"), std::string::npos) << error_of(empty);
-  EXPECT_NE(error_of("/nonexistent/scene.ply").find("cannot open"), std::string::npos);
-  EXPECT_NE(error_of(std::filesystem::temp_directory_path().string()).find("not a regular file"),
+  EXPECT_NE(test::load_error(empty).find("empty"), std::string::npos) << test::load_error(empty);
+  EXPECT_NE(test::load_error("/nonexistent/scene.ply").find("cannot open"), std::string::npos);
+  EXPECT_NE(test::load_error(std::filesystem::temp_directory_path().string()).find("not a regular file"),
             std::string::npos);
 }
 

@@ -67,12 +67,7 @@ LoadedScene read_compressed_ply(std::span<const std::uint8_t> bytes, const std::
     throw file_error(path, std::to_string(n) + " vertices need " + std::to_string((n + 255) / 256) +
                                " chunks of 256, the file has " + std::to_string(chunk->count));
 
-  LoadedScene out;
-  out.report.path = path;
-  out.report.format = SceneFormat::kCompressedPly;
-  out.report.frame = SceneFrame::kRdf;
-  out.report.in_file = n;
-  out.scene.reserve(n);
+  LoadedScene out = start_load(path, SceneFormat::kCompressedPly, SceneFrame::kRdf, n);
   const std::size_t cstride = chunk->stride(), vstride = vertex->stride();
   const std::uint64_t step = std::max<std::uint64_t>(1, n / 50);
   const auto unorm = [](std::uint32_t v, int bits) { return float(v & ((1u << bits) - 1u)) / float((1u << bits) - 1u); };

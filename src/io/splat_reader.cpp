@@ -25,12 +25,7 @@ LoadedScene read_splat(std::span<const std::uint8_t> bytes, const std::string& p
   if (n > std::numeric_limits<std::uint32_t>::max())
     throw file_error(path, "more than 2^32 Gaussians are not supported");
 
-  LoadedScene out;
-  out.report.path = path;
-  out.report.format = SceneFormat::kSplat;
-  out.report.frame = SceneFrame::kRdf;
-  out.report.in_file = n;
-  out.scene.reserve(n);
+  LoadedScene out = detail::start_load(path, SceneFormat::kSplat, SceneFrame::kRdf, n);
   const std::uint64_t step = std::max<std::uint64_t>(1, n / 50);
   for (std::uint64_t i = 0; i < n; ++i) {
     const std::uint8_t* rec = bytes.data() + i * kRecord;

@@ -8,6 +8,9 @@
 #include <fstream>
 #include <iterator>
 
+#include "gshaptics/io/error.h"
+#include "gshaptics/io/scene_loader.h"
+
 namespace gshaptics::test {
 
 std::string scene_path(const std::string& name) { return std::string(GSHAPTICS_SCENES_DIR) + "/" + name; }
@@ -29,6 +32,15 @@ void write_bytes(const std::string& path, const std::vector<std::uint8_t>& bytes
 std::vector<std::uint8_t> read_bytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+std::string load_error(const std::string& path) {
+  try {
+    (void)load_scene(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
 }
 
 }  // namespace gshaptics::test

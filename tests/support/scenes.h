@@ -16,5 +16,7 @@ std::string temp_path(const std::string& suffix);
 /// Writes bytes to a file; fails the test on error.
 void write_bytes(const std::string& path, const std::vector<std::uint8_t>& bytes);
 std::vector<std::uint8_t> read_bytes(const std::string& path);
+/// The InputError message load_scene(path) throws, or "" when it loads.
+std::string load_error(const std::string& path);
 
 }  // namespace gshaptics::test

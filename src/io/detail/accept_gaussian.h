@@ -44,6 +44,18 @@ inline bool accept_gaussian(const float pos[3], const float scale[3], const floa
   return true;
 }
 
+/// Starts every reader's result: the report's identity fields and room for `in_file` Gaussians.
+inline LoadedScene start_load(const std::string& path, SceneFormat format, SceneFrame frame,
+                              std::uint64_t in_file) {
+  LoadedScene out;
+  out.report.path = path;
+  out.report.format = format;
+  out.report.frame = frame;
+  out.report.in_file = in_file;
+  out.scene.reserve(in_file);
+  return out;
+}
+
 /// Ends every reader: final progress, and an error for a file with no valid Gaussian at all
 /// (a loader never returns an empty scene without saying why).
 inline void finish_load(const LoadedScene& out, const std::string& path, std::uint64_t in_file,
