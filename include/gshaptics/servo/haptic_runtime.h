@@ -1,0 +1,108 @@
+#pragma once
+/// @file
+/// The real-time haptic runtime (paper Sec. IV-V): a servo thread ticking at a fixed rate on
+/// absolute deadlines and, in the decoupled mode (the paper's, the default), a collision worker
+/// thread; the servo loop never waits on collision work and renders the newest valid force
+/// through the safety layer.
+///
+/// Threading contract:
+///   - start(), wait(), request_stop() and the accessors are called from one controlling thread
+///     (the CLI's main thread). request_stop() is a single atomic store, so it may also be
+///     called from any thread.
+///   - Between start() and the end of wait(), the servo thread owns the device and the servo
+///     state; the worker thread owns the CollisionWorker. They share only the two triple buffers
+///     (PoseChannel, ResultChannel) and relaxed atomic counters (stats()).
+///   - log() and summary() are complete after wait() returned.
+
+#include <atomic>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "gshaptics/servo/collision_worker.h"
+#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/servo/runtime_stats.h"
+#include "gshaptics/servo/safety.h"
+#include "gshaptics/servo/servo_controller.h"
+
+namespace gshaptics {
+
+/// How the runtime asks the OS for real-time service. Each step that the OS refuses is reported
+/// as a warning; the run goes on without it.
+struct RealtimeOptions {
+  int servo_priority = 80;   ///< SCHED_FIFO priority of the servo thread (0: do not ask)
+  int worker_priority = 70;  ///< SCHED_FIFO priority of the collision worker (0: do not ask)
+  bool pin_threads = true;   ///< servo thread on the last CPU, worker on the one before it
+  bool lock_memory = false;  ///< mlockall(MCL_CURRENT | MCL_FUTURE): no page faults in a tick
+};
+
+struct RuntimeConfig {
+  double rate_hz = 1000;    ///< servo rate, Hz (paper: 1 kHz)
+  bool inline_query = false;  ///< query inside the tick instead of on the worker thread
+  double duration = 0;      ///< s; 0: until request_stop() or the device finishes
+  /// Longest stop ramp: the force is zeroed at the latest this long after a stop request, s.
+  double stop_timeout = 0.1;
+  ToolShape tool;
+  ForceParams force;
+  QueryOptions query;
+  SafetyParams safety;
+  RealtimeOptions realtime;
+  /// Ticks kept in the per-tick log (reserved up front). 0: duration * rate + 1 s worth when a
+  /// duration is set, else 10 minutes' worth.
+  std::size_t log_capacity = 0;
+};
+
+class HapticRuntime {
+ public:
+  /// Validates the config against the device (rate within its limit, tool axes > 0) and reserves
+  /// all memory. Throws InputError naming the setting that is wrong.
+  HapticRuntime(const CollisionWorld& world, HapticDevice& device, const RuntimeConfig& config,
+                Clock& clock = MonotonicClock::instance());
+  ~HapticRuntime();
+  HapticRuntime(const HapticRuntime&) = delete;
+  HapticRuntime& operator=(const HapticRuntime&) = delete;
+
+  /// Starts the threads (and the device, on the servo thread). Throws InputError when the device
+  /// cannot start. Returns at once.
+  void start();
+  /// Asks the run to end: the force ramps to zero, the device is left at zero force.
+  void request_stop() noexcept { stop_requested_.store(true, std::memory_order_relaxed); }
+  /// True while the servo thread runs.
+  [[nodiscard]] bool running() const noexcept { return running_.load(std::memory_order_acquire); }
+  /// Blocks until the run has ended and the threads are joined; rethrows a device start error.
+  void wait();
+
+  [[nodiscard]] const RuntimeStats& stats() const noexcept { return stats_; }
+  [[nodiscard]] const CollisionWorker& worker() const noexcept { return *worker_; }
+  void set_observer(ResultObserver* observer) noexcept { worker_->set_observer(observer); }
+  /// Messages about real-time service the OS refused (priority, affinity, memory locking).
+  [[nodiscard]] const std::vector<std::string>& warnings() const noexcept { return warnings_; }
+  [[nodiscard]] const TickLog& log() const noexcept { return log_; }
+  [[nodiscard]] RuntimeSummary summary() const;
+  [[nodiscard]] const RuntimeConfig& config() const noexcept { return config_; }
+
+ private:
+  void servo_main();
+  void worker_main();
+  void apply_realtime();
+
+  const CollisionWorld& world_;
+  HapticDevice& device_;
+  RuntimeConfig config_;
+  Clock& clock_;
+  Nanos period_;
+  PoseChannel poses_;
+  ResultChannel results_;
+  RuntimeStats stats_;
+  TickLog log_;
+  std::unique_ptr<CollisionWorker> worker_;
+  std::unique_ptr<ServoController> servo_;
+  std::thread servo_thread_, worker_thread_;
+  std::atomic<bool> go_{false}, stop_requested_{false}, running_{false}, worker_stop_{false};
+  std::atomic<std::uint32_t> pose_signal_{0};  // bumped by the servo thread: wakes the worker
+  std::exception_ptr start_error_;
+  std::vector<std::string> warnings_;
+};
+
+}  // namespace gshaptics

@@ -1,0 +1,60 @@
+#pragma once
+/// @file
+/// Counters of a real-time run: written by the servo thread every tick, readable live from any
+/// thread (relaxed atomics), and summarised at the end.
+
+#include <atomic>
+#include <cstdint>
+
+#include "gshaptics/servo/latency_histogram.h"
+
+namespace gshaptics {
+
+/// Live counters. Threading: the servo thread is the only writer; readers may lag by a tick.
+struct RuntimeStats {
+  std::atomic<std::uint64_t> ticks{0};
+  std::atomic<std::uint64_t> deadline_misses{0};  ///< ticks that ended after the next deadline
+  std::atomic<std::uint64_t> skipped_periods{0};  ///< periods dropped to catch up after a miss
+  std::atomic<std::uint64_t> stale_ticks{0};      ///< held a result that was not new (kFlagHeld)
+  std::atomic<std::uint64_t> fading_ticks{0};     ///< kFlagFading
+  std::atomic<std::uint64_t> faded_ticks{0};      ///< kFlagFaded
+  std::atomic<std::uint64_t> fades{0};            ///< times a fade began
+  std::atomic<std::uint64_t> no_result_ticks{0};  ///< before the first collision result
+  std::atomic<std::uint64_t> watchdog_ticks{0};
+  std::atomic<std::uint64_t> invalid_pose_ticks{0};
+  std::atomic<std::uint64_t> outside_workspace_ticks{0};
+  std::atomic<std::uint64_t> force_limited_ticks{0};
+  std::atomic<std::uint64_t> rate_limited_ticks{0};
+  std::atomic<std::uint64_t> results_used{0};     ///< distinct collision results rendered
+  std::atomic<std::uint32_t> last_contacts{0};
+  std::atomic<double> last_force{0};              ///< |F| sent on the last tick, N
+  std::atomic<double> peak_force{0};              ///< largest |F| sent, N
+  std::atomic<std::int64_t> start_ns{0}, last_tick_ns{0};
+  LatencyHistogram jitter;      ///< wake-up time minus scheduled time, ns
+  LatencyHistogram tick_time;   ///< work inside one tick (wake to device write), ns
+  LatencyHistogram result_age;  ///< age of the result rendered (now - its pose stamp), ns
+};
+
+/// Plain-value summary of a run.
+struct RuntimeSummary {
+  double duration_s = 0;
+  std::uint64_t ticks = 0;
+  double rate_hz = 0;           ///< configured
+  double achieved_rate_hz = 0;  ///< ticks / wall time between first and last tick
+  double jitter_p50_us = 0, jitter_p99_us = 0, jitter_max_us = 0;
+  double tick_p99_us = 0, tick_max_us = 0;
+  double query_p50_us = 0, query_p99_us = 0, query_max_us = 0;  ///< worker step (query + force)
+  std::uint64_t queries = 0;
+  double result_age_p50_us = 0, result_age_p99_us = 0, result_age_max_us = 0;
+  std::uint64_t deadline_misses = 0, skipped_periods = 0, stale_ticks = 0, fading_ticks = 0,
+                faded_ticks = 0, fades = 0, no_result_ticks = 0, watchdog_ticks = 0,
+                invalid_pose_ticks = 0, outside_workspace_ticks = 0, force_limited_ticks = 0,
+                rate_limited_ticks = 0, results_used = 0;
+  double peak_force = 0;  ///< N
+};
+
+/// Builds the summary from the counters and the worker's latency histogram.
+[[nodiscard]] RuntimeSummary summarize(const RuntimeStats& stats, const LatencyHistogram& query,
+                                       double rate_hz);
+
+}  // namespace gshaptics

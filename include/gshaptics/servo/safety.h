@@ -1,0 +1,86 @@
+#pragma once
+/// @file
+/// The safety layer between the force model and the device: what a device that can push a
+/// person must do when something goes wrong. Applied by the servo loop on every tick, in order:
+///   1. device gate: no fresh device data within `device_timeout` (watchdog), a non-finite pose or
+///      a pose outside the device's workspace -> zero force at once, and the soft start re-arms;
+///   2. staleness: the newest collision result is held while it is at most `hold_timeout` old,
+///      then faded linearly to zero over `fade_time` (the paper's asynchronous hold, bounded);
+///   3. soft start: force scaled by a ramp 0 -> 1 over `ramp_time` after start and every resume;
+///   4. force limit: |F| <= f_max;
+///   5. force-rate limit: |F(t) - F(t - dt)| <= max_force_rate * dt.
+/// A stop request ramps the force to zero through the rate limit, then the loop ends.
+///
+/// Threading: a SafetyFilter belongs to the servo thread. apply() never allocates, locks, logs or
+/// throws.
+
+#include <Eigen/Core>
+#include <cstdint>
+
+#include "gshaptics/servo/clock.h"
+
+namespace gshaptics {
+
+/// Limits and time-outs. Units: N, N/s, s.
+struct SafetyParams {
+  double f_max = 30.0;            ///< force limit, N (paper eq. 11 clamps at the same value)
+  double max_force_rate = 5000;   ///< N/s: 5 N per 1 ms tick
+  double hold_timeout = 0.020;    ///< age of the newest result (since its pose) held at full force, s
+  double fade_time = 0.020;       ///< linear fade after hold_timeout, s
+  double ramp_time = 0.5;         ///< soft start, s
+  double device_timeout = 0.010;  ///< watchdog: device data older than this zeroes the force, s
+};
+
+/// Why a tick's force differs from the force model's (bit flags, several may be set).
+enum SafetyFlag : std::uint32_t {
+  kFlagHeld = 1u << 0,          ///< no new collision result this tick: the previous one is held
+  kFlagFading = 1u << 1,        ///< result older than hold_timeout: fading
+  kFlagFaded = 1u << 2,         ///< result older than hold_timeout + fade_time: force zero
+  kFlagNoResult = 1u << 3,      ///< no collision result yet
+  kFlagRamping = 1u << 4,       ///< soft start below full scale
+  kFlagForceLimited = 1u << 5,  ///< clipped to f_max
+  kFlagRateLimited = 1u << 6,   ///< clipped by max_force_rate
+  kFlagWatchdog = 1u << 7,      ///< device data stopped: force zero
+  kFlagInvalidPose = 1u << 8,   ///< NaN/Inf in the device sample: force zero, pose not used
+  kFlagOutsideWorkspace = 1u << 9,  ///< tool centre outside the device workspace: force zero
+  kFlagStopping = 1u << 10,     ///< stop requested: ramping down to zero
+};
+
+/// What the safety layer knows at one tick.
+struct SafetyInput {
+  Nanos now = 0;
+  Eigen::Vector3d desired = Eigen::Vector3d::Zero();  ///< force of the newest result, N
+  bool have_result = false;   ///< a collision result exists
+  bool fresh_result = false;  ///< it arrived since the previous tick
+  Nanos result_age = 0;       ///< now - stamp of the pose the result answers, ns
+  bool device_ok = true;      ///< gate 1 passed (data fresh, finite, inside the workspace)
+  std::uint32_t device_flags = 0;  ///< kFlagWatchdog / kFlagInvalidPose / kFlagOutsideWorkspace
+  bool stopping = false;      ///< a stop was requested
+};
+
+/// The force to send and why.
+struct SafetyOutput {
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< N
+  std::uint32_t flags = 0;                          ///< SafetyFlag bits
+  double scale = 0;  ///< hold/fade factor times ramp factor in [0, 1]
+};
+
+class SafetyFilter {
+ public:
+  explicit SafetyFilter(const SafetyParams& params = {}) : params_(params) {}
+  /// Arms the soft start at `now` (call at start).
+  void reset(Nanos now) noexcept;
+  /// One tick; `dt` is the time since the previous tick, s (> 0).
+  SafetyOutput apply(const SafetyInput& in, double dt) noexcept;
+  [[nodiscard]] const SafetyParams& params() const noexcept { return params_; }
+  /// The force last sent, N.
+  [[nodiscard]] const Eigen::Vector3d& last_force() const noexcept { return last_; }
+
+ private:
+  SafetyParams params_;
+  Eigen::Vector3d last_ = Eigen::Vector3d::Zero();
+  Nanos ramp_start_ = 0;
+  bool gated_ = false;  // gate 1 closed on the previous tick: re-arm the ramp when it opens
+};
+
+}  // namespace gshaptics

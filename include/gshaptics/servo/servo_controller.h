@@ -1,0 +1,99 @@
+#pragma once
+/// @file
+/// One servo tick (paper Sec. IV-V, DESIGN.md Sec. 5): read the device, publish its pose to the
+/// collision worker, take the newest collision result, pass it through the safety layer and
+/// command the wrench. No threads here: HapticRuntime calls tick() from its servo thread, and
+/// tests call it with a ManualClock to check hold, fade, ramp, limits and the watchdog exactly.
+///
+/// Threading: a ServoController belongs to the servo thread. tick() never allocates, locks,
+/// logs or throws (given a device whose read()/write() keep the same promise).
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "gshaptics/servo/collision_worker.h"
+#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/servo/runtime_stats.h"
+#include "gshaptics/servo/safety.h"
+
+namespace gshaptics {
+
+/// What happened at one tick (the runtime's per-tick log). World frame, SI units.
+struct ServoTickRecord {
+  Nanos time = 0;          ///< scheduled tick time since the run started, ns
+  float jitter_us = 0;     ///< wake-up lateness, microseconds
+  float tick_us = 0;       ///< work in the tick, microseconds
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();    ///< tool centre, m
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();    ///< m/s
+  QueryCounts counts;                                    ///< of the result rendered
+  Eigen::Vector3d desired = Eigen::Vector3d::Zero();     ///< force model output, N
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();       ///< force sent after safety, N
+  Eigen::Vector3d user_force = Eigen::Vector3d::Zero();  ///< from the device sample, N
+  float query_us = 0;       ///< worker time of the result rendered, microseconds
+  float result_age_us = 0;  ///< now - stamp of its pose, microseconds
+  std::uint32_t flags = 0;  ///< SafetyFlag bits
+};
+
+/// Per-tick log with all memory reserved up front; push() drops (and counts) records past the
+/// capacity instead of allocating.
+class TickLog {
+ public:
+  explicit TickLog(std::size_t capacity = 0) { records_.reserve(capacity); }
+  void push(const ServoTickRecord& r) noexcept {
+    if (records_.size() < records_.capacity())
+      records_.push_back(r);
+    else
+      ++dropped_;
+  }
+  [[nodiscard]] const std::vector<ServoTickRecord>& records() const noexcept { return records_; }
+  [[nodiscard]] std::uint64_t dropped() const noexcept { return dropped_; }
+
+ private:
+  std::vector<ServoTickRecord> records_;
+  std::uint64_t dropped_ = 0;
+};
+
+class ServoController {
+ public:
+  /// `period` is the servo period, ns (> 0). `log` may be null.
+  ServoController(HapticDevice& device, const SafetyParams& safety, Nanos period,
+                  PoseChannel& poses, ResultChannel& results, RuntimeStats& stats, TickLog* log,
+                  Clock& clock);
+
+  /// Starts the device and arms the soft start; `now` becomes the run's time zero. Throws what
+  /// the device's start() throws.
+  void start(Nanos now);
+  /// One tick scheduled at `scheduled` (absolute, ns), run now. In the inline mode pass the
+  /// worker: it runs between publishing the pose and reading the result. Returns the time the
+  /// tick's work ended (after the device write); a tick ending after scheduled + period counts
+  /// as a deadline miss.
+  Nanos tick(Nanos scheduled, CollisionWorker* inline_worker = nullptr) noexcept;
+  /// Begins the shutdown: later ticks ramp the force to zero through the rate limit.
+  void request_stop() noexcept { stopping_ = true; }
+  /// True after a stop request once the force sent is zero.
+  [[nodiscard]] bool force_released() const noexcept {
+    return stopping_ && safety_.last_force().squaredNorm() == 0.0;
+  }
+  /// Commands an exact zero wrench and stops the device (the last call of a run).
+  void finish(Nanos now) noexcept;
+
+  [[nodiscard]] const SafetyFilter& safety() const noexcept { return safety_; }
+  [[nodiscard]] Nanos start_time() const noexcept { return t0_; }
+
+ private:
+  HapticDevice& device_;
+  SafetyFilter safety_;
+  Nanos period_;
+  PoseChannel& poses_;
+  ResultChannel& results_;
+  RuntimeStats& stats_;
+  TickLog* log_;
+  Clock& clock_;
+  Nanos t0_ = 0, prev_now_ = 0, last_device_data_ = 0;
+  std::uint64_t last_device_seq_ = 0, pose_seq_ = 0, last_result_seq_ = 0;
+  bool have_device_data_ = false, stopping_ = false, was_fading_ = false;
+  CollisionResult result_;
+};
+
+}  // namespace gshaptics

@@ -1,0 +1,28 @@
+#include "gshaptics/servo/clock.h"
+
+#include <cerrno>
+#include <ctime>
+
+namespace gshaptics {
+
+Nanos MonotonicClock::now() const noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return Nanos(ts.tv_sec) * kNanosPerSecond + Nanos(ts.tv_nsec);
+}
+
+void MonotonicClock::sleep_until(Nanos deadline) noexcept {
+  timespec ts{};
+  ts.tv_sec = time_t(deadline / kNanosPerSecond);
+  ts.tv_nsec = long(deadline % kNanosPerSecond);
+  // Absolute deadline: an interrupted sleep resumes toward the same instant (no drift).
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
+
+MonotonicClock& MonotonicClock::instance() noexcept {
+  static MonotonicClock clock;
+  return clock;
+}
+
+}  // namespace gshaptics

@@ -1,0 +1,172 @@
+#include "gshaptics/servo/haptic_runtime.h"
+
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+#include "gshaptics/io/error.h"
+
+namespace gshaptics {
+
+namespace {
+
+std::size_t default_log_capacity(const RuntimeConfig& c) {
+  const double seconds = c.duration > 0 ? c.duration + 1.0 : 600.0;
+  return std::size_t(std::ceil(seconds * c.rate_hz));
+}
+
+std::string errno_text(int e) { return std::strerror(e); }
+
+}  // namespace
+
+HapticRuntime::HapticRuntime(const CollisionWorld& world, HapticDevice& device,
+                             const RuntimeConfig& config, Clock& clock)
+    : world_(world), device_(device), config_(config), clock_(clock), period_(0),
+      log_(0) {
+  const DeviceInfo& info = device.info();
+  if (!(config.rate_hz > 0) || !std::isfinite(config.rate_hz))
+    throw InputError("runtime: --rate must be a positive number of Hz");
+  if (config.rate_hz > info.max_rate_hz)
+    throw InputError("runtime: rate " + std::to_string(config.rate_hz) + " Hz is above what device '" +
+                     info.name + "' accepts (" + std::to_string(info.max_rate_hz) + " Hz)");
+  if (!(config.tool.semi_axes.minCoeff() > 0) || !config.tool.semi_axes.allFinite())
+    throw InputError("runtime: tool semi-axes must be finite and > 0");
+  if (!(config.duration >= 0)) throw InputError("runtime: duration must be >= 0 s");
+  period_ = to_nanos(1.0 / config.rate_hz);
+  if (period_ <= 0) throw InputError("runtime: rate too high");
+  log_ = TickLog(config.log_capacity > 0 ? config.log_capacity : default_log_capacity(config));
+  worker_ = std::make_unique<CollisionWorker>(world, config.tool, config.force, config.query,
+                                              1.0 / config.rate_hz, clock);
+  servo_ = std::make_unique<ServoController>(device, config.safety, period_, poses_, results_,
+                                             stats_, &log_, clock);
+}
+
+HapticRuntime::~HapticRuntime() {
+  request_stop();
+  go_.store(true);
+  worker_stop_.store(true);
+  pose_signal_.fetch_add(1);
+  pose_signal_.notify_all();
+  if (servo_thread_.joinable()) servo_thread_.join();
+  if (worker_thread_.joinable()) worker_thread_.join();
+}
+
+void HapticRuntime::apply_realtime() {
+  const RealtimeOptions& rt = config_.realtime;
+  if (rt.lock_memory && mlockall(MCL_CURRENT | MCL_FUTURE) != 0)
+    warnings_.push_back("memory locking (mlockall) refused: " + errno_text(errno) +
+                        "; page faults may delay ticks (raise RLIMIT_MEMLOCK, e.g. ulimit -l)");
+  const auto set_priority = [&](std::thread& t, int prio, const char* who) {
+    if (prio <= 0 || !t.joinable()) return;
+    sched_param sp{};
+    sp.sched_priority = prio;
+    const int e = pthread_setschedparam(t.native_handle(), SCHED_FIFO, &sp);
+    if (e != 0)
+      warnings_.push_back(std::string("real-time priority (SCHED_FIFO ") + std::to_string(prio) +
+                          ") for the " + who + " thread refused: " + errno_text(e) +
+                          "; running at normal priority (grant CAP_SYS_NICE or an rtprio limit "
+                          "in /etc/security/limits.conf)");
+  };
+  set_priority(servo_thread_, rt.servo_priority, "servo");
+  set_priority(worker_thread_, rt.worker_priority, "collision worker");
+  if (rt.pin_threads) {
+    const long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+    if (ncpu < 2) {
+      warnings_.push_back("CPU pinning skipped: only one CPU online");
+      return;
+    }
+    const auto pin = [&](std::thread& t, long cpu, const char* who) {
+      if (!t.joinable()) return;
+      cpu_set_t set;
+      CPU_ZERO(&set);
+      CPU_SET(int(cpu), &set);
+      const int e = pthread_setaffinity_np(t.native_handle(), sizeof set, &set);
+      if (e != 0)
+        warnings_.push_back(std::string("CPU pinning of the ") + who + " thread to CPU " +
+                            std::to_string(cpu) + " refused: " + errno_text(e));
+    };
+    pin(servo_thread_, ncpu - 1, "servo");
+    pin(worker_thread_, ncpu - 2, "collision worker");
+  }
+}
+
+void HapticRuntime::start() {
+  if (servo_thread_.joinable()) throw InputError("runtime: already started");
+  running_.store(true, std::memory_order_release);
+  servo_thread_ = std::thread([this] { servo_main(); });
+  if (!config_.inline_query) worker_thread_ = std::thread([this] { worker_main(); });
+  apply_realtime();
+  go_.store(true, std::memory_order_release);
+  go_.notify_all();
+}
+
+void HapticRuntime::wait() {
+  if (servo_thread_.joinable()) servo_thread_.join();
+  worker_stop_.store(true, std::memory_order_release);
+  pose_signal_.fetch_add(1, std::memory_order_release);
+  pose_signal_.notify_all();
+  if (worker_thread_.joinable()) worker_thread_.join();
+  if (start_error_) std::rethrow_exception(std::exchange(start_error_, nullptr));
+}
+
+void HapticRuntime::worker_main() {
+  go_.wait(false, std::memory_order_acquire);
+  std::uint32_t seen = pose_signal_.load(std::memory_order_acquire);
+  while (!worker_stop_.load(std::memory_order_acquire)) {
+    // Sleep until the servo thread publishes a pose (futex wait; no lock, no spinning).
+    pose_signal_.wait(seen, std::memory_order_acquire);
+    seen = pose_signal_.load(std::memory_order_acquire);
+    worker_->step(poses_, results_);
+  }
+}
+
+void HapticRuntime::servo_main() {
+  go_.wait(false, std::memory_order_acquire);
+  try {
+    servo_->start(clock_.now());
+  } catch (...) {
+    start_error_ = std::current_exception();
+    running_.store(false, std::memory_order_release);
+    return;
+  }
+  CollisionWorker* inline_worker = config_.inline_query ? worker_.get() : nullptr;
+  const Nanos t0 = servo_->start_time();
+  const Nanos end_at = config_.duration > 0 ? t0 + to_nanos(config_.duration) : INT64_MAX;
+  const Nanos stop_timeout = to_nanos(config_.stop_timeout);
+  Nanos stop_at = -1;
+  Nanos deadline = t0;
+  for (;;) {
+    clock_.sleep_until(deadline);
+    const Nanos end = servo_->tick(deadline, inline_worker);
+    if (!config_.inline_query) {
+      pose_signal_.fetch_add(1, std::memory_order_release);
+      pose_signal_.notify_one();
+    }
+    if (stop_at < 0 &&
+        (stop_requested_.load(std::memory_order_relaxed) || deadline >= end_at || device_.finished())) {
+      servo_->request_stop();
+      stop_at = deadline;
+    }
+    if (stop_at >= 0 && (servo_->force_released() || deadline - stop_at >= stop_timeout)) break;
+    deadline += period_;
+    if (end > deadline) {
+      // Behind by more than a period: drop the periods already past instead of bursting.
+      const Nanos behind = (end - deadline) / period_;
+      if (behind > 0) {
+        deadline += behind * period_;
+        stats_.skipped_periods.fetch_add(std::uint64_t(behind), std::memory_order_relaxed);
+      }
+    }
+  }
+  servo_->finish(clock_.now());
+  running_.store(false, std::memory_order_release);
+}
+
+RuntimeSummary HapticRuntime::summary() const { return summarize(stats_, worker_->latency(), config_.rate_hz); }
+
+}  // namespace gshaptics

@@ -1,0 +1,85 @@
+#include "gshaptics/servo/safety.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace gshaptics {
+
+void SafetyFilter::reset(Nanos now) noexcept {
+  last_.setZero();
+  ramp_start_ = now;
+  gated_ = false;
+}
+
+SafetyOutput SafetyFilter::apply(const SafetyInput& in, double dt) noexcept {
+  SafetyOutput out;
+  // 1. Device gate: zero at once (no rate limit: the data that would justify a force is gone).
+  if (!in.device_ok) {
+    out.flags = in.device_flags;
+    last_.setZero();
+    gated_ = true;
+    return out;
+  }
+  if (gated_) {  // resume after a gate: soft start again
+    gated_ = false;
+    ramp_start_ = in.now;
+  }
+
+  // 2. Hold, then fade, a result that stopped coming.
+  double scale = 1.0;
+  if (!in.have_result) {
+    out.flags |= kFlagNoResult;
+    scale = 0.0;
+  } else {
+    if (!in.fresh_result) out.flags |= kFlagHeld;
+    const double age = to_seconds(in.result_age);
+    if (age > params_.hold_timeout) {
+      const double f = params_.fade_time > 0 ? 1.0 - (age - params_.hold_timeout) / params_.fade_time : 0.0;
+      if (f > 0) {
+        out.flags |= kFlagFading;
+        scale = f;
+      } else {
+        out.flags |= kFlagFaded;
+        scale = 0.0;
+      }
+    }
+  }
+
+  // 3. Soft start.
+  if (params_.ramp_time > 0) {
+    const double r = to_seconds(in.now - ramp_start_) / params_.ramp_time;
+    if (r < 1.0) {
+      out.flags |= kFlagRamping;
+      scale *= std::clamp(r, 0.0, 1.0);
+    }
+  }
+  if (in.stopping) {
+    out.flags |= kFlagStopping;
+    scale = 0.0;
+  }
+  out.scale = scale;
+
+  Eigen::Vector3d target = scale * in.desired;
+  if (!target.allFinite()) target.setZero();
+
+  // 4. Force limit.
+  const double n = target.norm();
+  if (n > params_.f_max) {
+    target *= params_.f_max / n;
+    out.flags |= kFlagForceLimited;
+  }
+
+  // 5. Force-rate limit.
+  const Eigen::Vector3d step = target - last_;
+  const double max_step = params_.max_force_rate * std::max(dt, 0.0);
+  const double s = step.norm();
+  if (s > max_step) {
+    target = last_ + step * (max_step / s);
+    out.flags |= kFlagRateLimited;
+  }
+  last_ = target;
+  out.force = target;
+  return out;
+}
+
+}  // namespace gshaptics

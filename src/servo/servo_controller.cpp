@@ -1,0 +1,140 @@
+#include "gshaptics/servo/servo_controller.h"
+
+#include <cmath>
+
+namespace gshaptics {
+
+namespace {
+
+void max_store(std::atomic<double>& a, double v) noexcept {
+  if (v > a.load(std::memory_order_relaxed)) a.store(v, std::memory_order_relaxed);
+}
+
+void bump(std::atomic<std::uint64_t>& a, bool cond) noexcept {
+  if (cond) a.store(a.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+}
+
+}  // namespace
+
+ServoController::ServoController(HapticDevice& device, const SafetyParams& safety, Nanos period,
+                                 PoseChannel& poses, ResultChannel& results, RuntimeStats& stats,
+                                 TickLog* log, Clock& clock)
+    : device_(device), safety_(safety), period_(period), poses_(poses), results_(results),
+      stats_(stats), log_(log), clock_(clock) {}
+
+void ServoController::start(Nanos now) {
+  device_.start(now);
+  t0_ = now;
+  prev_now_ = now;
+  last_device_data_ = now;
+  safety_.reset(now);
+  stats_.start_ns.store(now, std::memory_order_relaxed);
+}
+
+Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noexcept {
+  const Nanos now = clock_.now();
+  const double dt = prev_now_ < now ? to_seconds(now - prev_now_) : to_seconds(period_);
+  prev_now_ = now;
+
+  // Read the device; gate 1 of the safety layer (watchdog, finite pose, workspace).
+  const DeviceSample s = device_.read(now);
+  std::uint32_t device_flags = 0;
+  if (!have_device_data_ || s.sequence != last_device_seq_) {
+    have_device_data_ = true;
+    last_device_seq_ = s.sequence;
+    last_device_data_ = now;
+  } else if (now - last_device_data_ > to_nanos(safety_.params().device_timeout)) {
+    device_flags |= kFlagWatchdog;
+  }
+  const bool finite = s.position.allFinite() && s.velocity.allFinite() &&
+                      s.orientation.coeffs().allFinite() && s.orientation.coeffs().squaredNorm() > 0;
+  if (!finite) {
+    device_flags |= kFlagInvalidPose;
+  } else if (!device_.info().workspace.contains(s.position)) {
+    device_flags |= kFlagOutsideWorkspace;
+  }
+
+  // Publish the pose (never a non-finite one) to the collision side.
+  if (finite && (device_flags & kFlagWatchdog) == 0) {
+    PoseCommand p;
+    p.sequence = ++pose_seq_;
+    p.stamp = now;
+    p.position = s.position;
+    p.orientation = s.orientation.normalized();
+    p.velocity = s.velocity;
+    poses_.write(p);
+  }
+  if (inline_worker != nullptr) inline_worker->step(poses_, results_);
+
+  // The newest collision result.
+  const bool fresh = results_.read_if_new(result_) && result_.pose_sequence != last_result_seq_;
+  if (fresh) last_result_seq_ = result_.pose_sequence;
+
+  SafetyInput in;
+  in.now = now;
+  in.desired = result_.force;
+  in.have_result = result_.pose_sequence != 0;
+  in.fresh_result = fresh;
+  in.result_age = in.have_result ? now - result_.pose_stamp : 0;
+  in.device_ok = device_flags == 0;
+  in.device_flags = device_flags;
+  in.stopping = stopping_;
+  const SafetyOutput out = safety_.apply(in, dt);
+
+  Wrench w;
+  w.force = out.force;
+  device_.write(w, now);
+  const Nanos end = clock_.now();
+
+  // Statistics and log.
+  const std::uint32_t f = out.flags;
+  stats_.ticks.store(stats_.ticks.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+  bump(stats_.deadline_misses, end > scheduled + period_);
+  bump(stats_.stale_ticks, (f & kFlagHeld) != 0);
+  bump(stats_.fading_ticks, (f & kFlagFading) != 0);
+  bump(stats_.faded_ticks, (f & kFlagFaded) != 0);
+  const bool fading = (f & (kFlagFading | kFlagFaded)) != 0;
+  bump(stats_.fades, fading && !was_fading_);
+  was_fading_ = fading;
+  bump(stats_.no_result_ticks, (f & kFlagNoResult) != 0);
+  bump(stats_.watchdog_ticks, (f & kFlagWatchdog) != 0);
+  bump(stats_.invalid_pose_ticks, (f & kFlagInvalidPose) != 0);
+  bump(stats_.outside_workspace_ticks, (f & kFlagOutsideWorkspace) != 0);
+  bump(stats_.force_limited_ticks, (f & kFlagForceLimited) != 0);
+  bump(stats_.rate_limited_ticks, (f & kFlagRateLimited) != 0);
+  bump(stats_.results_used, fresh);
+  const double fm = out.force.norm();
+  stats_.last_force.store(fm, std::memory_order_relaxed);
+  max_store(stats_.peak_force, fm);
+  stats_.last_contacts.store(result_.counts.contacts, std::memory_order_relaxed);
+  stats_.last_tick_ns.store(now, std::memory_order_relaxed);
+  stats_.jitter.record(now - scheduled);
+  stats_.tick_time.record(end - now);
+  if (in.have_result) stats_.result_age.record(in.result_age);
+
+  if (log_ != nullptr) {
+    ServoTickRecord r;
+    r.time = scheduled - t0_;
+    r.jitter_us = float(double(now - scheduled) * 1e-3);
+    r.tick_us = float(double(end - now) * 1e-3);
+    r.position = s.position;
+    r.velocity = s.velocity;
+    r.counts = result_.counts;
+    r.desired = result_.force;
+    r.force = out.force;
+    r.user_force = s.user_force;
+    r.query_us = result_.query_us;
+    r.result_age_us = float(double(in.result_age) * 1e-3);
+    r.flags = f;
+    log_->push(r);
+  }
+  return end;
+}
+
+void ServoController::finish(Nanos now) noexcept {
+  device_.write(Wrench{}, now);
+  device_.stop(now);
+  stats_.last_force.store(0.0, std::memory_order_relaxed);
+}
+
+}  // namespace gshaptics
