@@ -4,34 +4,13 @@
 
 #include <gtest/gtest.h>
 
-#include <atomic>
 #include <cstdlib>
 #include <fstream>
-#include <new>
 
 #include "gshaptics/io/error.h"
 #include "gshaptics/io/scene_loader.h"
+#include "support/allocation_counter.h"
 #include "support/scenes.h"
-
-// Count every heap allocation in this test binary.
-static std::atomic<std::size_t> g_allocations{0};
-void* operator new(std::size_t n) {
-  ++g_allocations;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) { return operator new(n); }
-void* operator new(std::size_t n, std::align_val_t a) {
-  ++g_allocations;
-  if (void* p = std::aligned_alloc(std::size_t(a), (n + std::size_t(a) - 1) / std::size_t(a) * std::size_t(a))) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 namespace gshaptics {
 namespace {
@@ -55,14 +34,14 @@ TEST_F(TruckRun, ServoTickAllocatesNothing) {
   // Warm up, then count allocations over ticks that sweep into the truck's dense middle.
   query.run(ToolEllipsoid::sphere(Eigen::Vector3d(0, 0, 0.5), 0.08));
   std::size_t max_contacts = 0;
-  const std::size_t before = g_allocations.load();
+  const std::size_t before = test::allocation_count();
   for (int k = 0; k < 400; ++k) {
     const Eigen::Vector3d p(0.0, 0.0, 1.6 - 0.004 * k);
     query.run(ToolEllipsoid::sphere(p, 0.08));
     const ForceOutput f = force.update(query.result().contacts(), p, Eigen::Vector3d(0, 0, -4), 1e-3);
     max_contacts = std::max<std::size_t>(max_contacts, f.contacts);
   }
-  const std::size_t after = g_allocations.load();
+  const std::size_t after = test::allocation_count();
   EXPECT_EQ(after - before, 0u);
   EXPECT_GT(max_contacts, 50u);  // the sweep really went through dense contact
 }

@@ -1,0 +1,158 @@
+// The safety layer on its own, with hand-set times: hold, fade, soft start, force and force-rate
+// limits, the device gate and the stop ramp.
+
+#include "gshaptics/servo/safety.h"
+
+#include <gtest/gtest.h>
+
+namespace gshaptics {
+namespace {
+
+constexpr double kDt = 1e-3;
+constexpr Nanos kMs = 1'000'000;
+
+SafetyParams no_ramp() {
+  SafetyParams p;
+  p.ramp_time = 0;
+  p.max_force_rate = 1e9;
+  return p;
+}
+
+SafetyInput fresh(Nanos now, const Eigen::Vector3d& f) {
+  SafetyInput in;
+  in.now = now;
+  in.desired = f;
+  in.have_result = true;
+  in.fresh_result = true;
+  in.result_age = kMs;
+  return in;
+}
+
+TEST(Safety, FreshResultPassesUnchanged) {
+  SafetyFilter s(no_ramp());
+  s.reset(0);
+  const SafetyOutput o = s.apply(fresh(10 * kMs, {1, 2, 3}), kDt);
+  EXPECT_EQ(o.force, Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(o.flags, 0u);
+  EXPECT_DOUBLE_EQ(o.scale, 1.0);
+}
+
+TEST(Safety, StaleResultIsHeldThenFadedLinearlyThenZero) {
+  SafetyFilter s(no_ramp());  // hold 20 ms, fade 20 ms
+  s.reset(0);
+  SafetyInput in = fresh(0, {0, 0, 10});
+  in.fresh_result = false;
+  in.result_age = 15 * kMs;  // within the hold
+  SafetyOutput o = s.apply(in, kDt);
+  EXPECT_EQ(o.flags, std::uint32_t(kFlagHeld));
+  EXPECT_DOUBLE_EQ(o.force.z(), 10.0);
+  in.result_age = 25 * kMs;  // a quarter into the fade
+  o = s.apply(in, kDt);
+  EXPECT_EQ(o.flags, std::uint32_t(kFlagHeld | kFlagFading));
+  EXPECT_NEAR(o.force.z(), 7.5, 1e-12);
+  in.result_age = 40 * kMs + 1;  // past the fade
+  o = s.apply(in, kDt);
+  EXPECT_EQ(o.flags, std::uint32_t(kFlagHeld | kFlagFaded));
+  EXPECT_EQ(o.force, Eigen::Vector3d::Zero());
+}
+
+TEST(Safety, NoResultYetGivesZero) {
+  SafetyFilter s(no_ramp());
+  s.reset(0);
+  SafetyInput in;
+  in.now = kMs;
+  in.desired = {5, 0, 0};
+  const SafetyOutput o = s.apply(in, kDt);
+  EXPECT_TRUE(o.flags & kFlagNoResult);
+  EXPECT_EQ(o.force, Eigen::Vector3d::Zero());
+}
+
+TEST(Safety, SoftStartRampsOverHalfASecond) {
+  SafetyParams p = no_ramp();
+  p.ramp_time = 0.5;
+  SafetyFilter s(p);
+  s.reset(100 * kMs);
+  EXPECT_NEAR(s.apply(fresh(100 * kMs, {0, 8, 0}), kDt).force.y(), 0.0, 1e-12);
+  const SafetyOutput o = s.apply(fresh(225 * kMs, {0, 8, 0}), kDt);
+  EXPECT_TRUE(o.flags & kFlagRamping);
+  EXPECT_NEAR(o.force.y(), 8 * 0.25, 1e-9);
+  const SafetyOutput full = s.apply(fresh(600 * kMs, {0, 8, 0}), kDt);
+  EXPECT_FALSE(full.flags & kFlagRamping);
+  EXPECT_DOUBLE_EQ(full.force.y(), 8.0);
+}
+
+TEST(Safety, ForceLimitKeepsDirection) {
+  SafetyParams p = no_ramp();
+  p.f_max = 5;
+  SafetyFilter s(p);
+  s.reset(0);
+  const SafetyOutput o = s.apply(fresh(kMs, {30, 40, 0}), kDt);
+  EXPECT_TRUE(o.flags & kFlagForceLimited);
+  EXPECT_NEAR(o.force.x(), 3, 1e-12);
+  EXPECT_NEAR(o.force.y(), 4, 1e-12);
+}
+
+TEST(Safety, ForceRateLimitBoundsTheStepPerTick) {
+  SafetyParams p = no_ramp();
+  p.max_force_rate = 2000;  // 2 N per 1 ms tick
+  SafetyFilter s(p);
+  s.reset(0);
+  double prev = 0;
+  for (int k = 1; k <= 5; ++k) {
+    const SafetyOutput o = s.apply(fresh(k * kMs, {0, 0, 7}), kDt);
+    EXPECT_LE(o.force.z() - prev, 2.0 + 1e-12);
+    prev = o.force.z();
+    if (k <= 3) {
+      EXPECT_TRUE(o.flags & kFlagRateLimited);
+      EXPECT_NEAR(o.force.z(), 2.0 * k, 1e-12);
+    }
+  }
+  EXPECT_DOUBLE_EQ(prev, 7.0);
+}
+
+TEST(Safety, DeviceGateZeroesAtOnceAndResumeRampsAgain) {
+  SafetyParams p = no_ramp();
+  p.ramp_time = 0.5;
+  SafetyFilter s(p);
+  s.reset(0);
+  ASSERT_DOUBLE_EQ(s.apply(fresh(kNanosPerSecond, {0, 0, 10}), kDt).force.z(), 10.0);
+  SafetyInput bad = fresh(kNanosPerSecond + kMs, {0, 0, 10});
+  bad.device_ok = false;
+  bad.device_flags = kFlagWatchdog;
+  const SafetyOutput z = s.apply(bad, kDt);
+  EXPECT_EQ(z.force, Eigen::Vector3d::Zero());  // not rate-limited: at once
+  EXPECT_EQ(z.flags, std::uint32_t(kFlagWatchdog));
+  // Data returns at t = 1.1 s: the soft start re-arms there.
+  const Nanos resume = kNanosPerSecond + 100 * kMs;
+  EXPECT_NEAR(s.apply(fresh(resume, {0, 0, 10}), kDt).force.z(), 0.0, 1e-12);
+  EXPECT_NEAR(s.apply(fresh(resume + 250 * kMs, {0, 0, 10}), kDt).force.z(), 5.0, 1e-9);
+}
+
+TEST(Safety, StopRampsToExactlyZeroThroughTheRateLimit) {
+  SafetyParams p = no_ramp();
+  p.max_force_rate = 5000;
+  SafetyFilter s(p);
+  s.reset(0);
+  for (int k = 1; k <= 3; ++k) s.apply(fresh(k * kMs, {0, 0, 12}), kDt);  // 5, 10, 12
+  ASSERT_DOUBLE_EQ(s.last_force().z(), 12.0);
+  SafetyInput in = fresh(4 * kMs, {0, 0, 12});
+  in.stopping = true;
+  int ticks = 0;
+  while (s.last_force().squaredNorm() > 0 && ticks < 100) {
+    const SafetyOutput o = s.apply(in, kDt);
+    EXPECT_TRUE(o.flags & kFlagStopping);
+    ++ticks;
+  }
+  EXPECT_EQ(ticks, 3);  // 12 -> 7 -> 2 -> 0
+  EXPECT_EQ(s.last_force(), Eigen::Vector3d::Zero());
+}
+
+TEST(Safety, NonFiniteDesiredForceIsDropped) {
+  SafetyFilter s(no_ramp());
+  s.reset(0);
+  const SafetyOutput o = s.apply(fresh(kMs, {std::nan(""), 0, 0}), kDt);
+  EXPECT_EQ(o.force, Eigen::Vector3d::Zero());
+}
+
+}  // namespace
+}  // namespace gshaptics

@@ -1,0 +1,12 @@
+#pragma once
+// Counts heap allocations in the whole test binary that links this (operator new is replaced),
+// for the "a servo tick does not allocate" tests (STYLE.md "Hot paths").
+
+#include <cstddef>
+
+namespace gshaptics::test {
+
+/// Number of operator new calls so far, from every thread.
+std::size_t allocation_count() noexcept;
+
+}  // namespace gshaptics::test
