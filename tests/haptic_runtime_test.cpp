@@ -1,0 +1,267 @@
+// The runtime in real time, with real threads, on the bundled Truck. Tolerant of a loaded 2-core
+// CI machine: these tests assert behaviour (tick counts, safety invariants on every tick, faults
+// handled), never tight timing.
+
+#include "gshaptics/servo/haptic_runtime.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <thread>
+
+#include "gshaptics/io/error.h"
+#include "gshaptics/io/scene_loader.h"
+#include "gshaptics/servo/simulated_device.h"
+#include "support/allocation_counter.h"
+#include "support/scenes.h"
+
+namespace gshaptics {
+namespace {
+
+/// Wraps a device and injects faults between two times (s since start): a stall (the sequence
+/// stops), NaN positions, or a wild pose far outside the scene.
+class FaultyDevice final : public HapticDevice {
+ public:
+  enum class Fault { kNone, kStall, kNan, kFarAway };
+  FaultyDevice(HapticDevice& inner, Fault fault, double from_s, double to_s)
+      : inner_(inner), fault_(fault), from_(to_nanos(from_s)), to_(to_nanos(to_s)) {}
+  const DeviceInfo& info() const noexcept override { return inner_.info(); }
+  void start(Nanos now) override {
+    t0_ = now;
+    inner_.start(now);
+  }
+  DeviceSample read(Nanos now) noexcept override {
+    DeviceSample s = inner_.read(now);
+    const bool active = now - t0_ >= from_ && now - t0_ < to_;
+    if (!active) {
+      held_ = s;
+      return s;
+    }
+    switch (fault_) {
+      case Fault::kStall: return held_;
+      case Fault::kNan: s.position.x() = std::nan(""); return s;
+      case Fault::kFarAway: s.position = {5e5, 5e5, -5e5}; return s;
+      case Fault::kNone: return s;
+    }
+    return s;
+  }
+  void write(const Wrench& w, Nanos now) noexcept override { inner_.write(w, now); }
+  void stop(Nanos now) noexcept override { inner_.stop(now); }
+
+ private:
+  HapticDevice& inner_;
+  Fault fault_;
+  Nanos from_, to_, t0_ = 0;
+  DeviceSample held_;
+};
+
+/// Stalls the collision worker once (fault injection through the observer hook).
+class StallingObserver final : public ResultObserver {
+ public:
+  explicit StallingObserver(std::uint64_t at_step, double seconds) : at_(at_step), seconds_(seconds) {}
+  void on_result(const PoseCommand&, std::span<const Contact>, const CollisionResult&) noexcept override {
+    if (++steps_ == at_) std::this_thread::sleep_for(std::chrono::duration<double>(seconds_));
+  }
+
+ private:
+  std::uint64_t at_, steps_ = 0;
+  double seconds_;
+};
+
+class RealTime : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    const LoadedScene s = load_scene(test::data_path("truck.splat"));
+    WorldConfig cfg;
+    cfg.registration = load_registration_file(test::data_path("truck.registration.json"));
+    world_ = new CollisionWorld(CollisionWorld::build(s.scene, cfg));
+    ProbeParams pp;
+    pp.tool_radius = 0.07;
+    pp.approach_speed = 2 * pp.tool_radius;
+    pp.travel_speed = 8 * pp.tool_radius;
+    pp.sites = 3;
+    trajectory_ = new ProbeTrajectory(generate_probe_trajectory(*world_, pp));
+  }
+  static void TearDownTestSuite() {
+    delete trajectory_;
+    delete world_;
+  }
+  static RuntimeConfig config(double rate, double duration) {
+    RuntimeConfig c;
+    c.rate_hz = rate;
+    c.duration = duration;
+    c.tool.semi_axes = Eigen::Vector3d::Constant(trajectory_->tool_radius());
+    c.realtime.servo_priority = 0;  // CI: no privileges, no warnings to wade through
+    c.realtime.worker_priority = 0;
+    return c;
+  }
+  /// Checks the safety invariants on every logged tick.
+  static void expect_invariants(const HapticRuntime& rt) {
+    const SafetyParams& sp = rt.config().safety;
+    const auto& recs = rt.log().records();
+    ASSERT_FALSE(recs.empty());
+    Eigen::Vector3d prev = Eigen::Vector3d::Zero();
+    Nanos prev_t = 0;
+    std::size_t bad_clamp = 0, bad_rate = 0, bad_ramp = 0, bad_gate = 0, bad_finite = 0;
+    for (const auto& r : recs) {
+      const double fm = r.force.norm();
+      const double t = to_seconds(r.time);
+      bad_finite += r.force.allFinite() ? 0 : 1;
+      bad_clamp += fm <= sp.f_max + 1e-9 ? 0 : 1;
+      // Rate limit: measured against wall-clock dt of the scheduled instants (a late tick may
+      // move further; allow the jitter of the tick on top).
+      const double dt = to_seconds(r.time - prev_t) + double(r.jitter_us) * 1e-6 + 1e-6;
+      bad_rate += (r.force - prev).norm() <= sp.max_force_rate * dt + 1e-9 ? 0 : 1;
+      // Soft start: at time t no more than the ramp allows of f_max (the jitter may add).
+      const double ramp = std::min(1.0, (t + double(r.jitter_us) * 1e-6 + 1e-6) / sp.ramp_time);
+      bad_ramp += fm <= ramp * sp.f_max + 1e-9 && fm <= ramp * r.desired.norm() + 1e-6 ? 0 : 1;
+      if (r.flags & (kFlagWatchdog | kFlagInvalidPose | kFlagOutsideWorkspace | kFlagFaded | kFlagNoResult))
+        bad_gate += fm == 0 ? 0 : 1;
+      prev = r.force;
+      prev_t = r.time;
+    }
+    EXPECT_EQ(bad_finite, 0u);
+    EXPECT_EQ(bad_clamp, 0u);
+    EXPECT_EQ(bad_rate, 0u);
+    EXPECT_EQ(bad_ramp, 0u);
+    EXPECT_EQ(bad_gate, 0u);
+    EXPECT_EQ(recs.back().force, Eigen::Vector3d::Zero());
+  }
+  static CollisionWorld* world_;
+  static ProbeTrajectory* trajectory_;
+};
+CollisionWorld* RealTime::world_ = nullptr;
+ProbeTrajectory* RealTime::trajectory_ = nullptr;
+
+TEST_F(RealTime, FiveSecondsAtOneKilohertzOnTheTruck) {
+  SimulatedDevice device(*trajectory_);
+  HapticRuntime rt(*world_, device, config(1000, 5.0));
+  rt.start();
+  rt.wait();
+  const RuntimeSummary s = rt.summary();
+  // Every scheduled period is either ticked or counted as skipped; the stop ramp may add a few.
+  EXPECT_GE(s.ticks + s.skipped_periods, 5000u);
+  EXPECT_LE(s.ticks + s.skipped_periods, 5000u + 101u);
+  EXPECT_GE(s.ticks, 4500u);  // even a loaded CI machine keeps 90 % of the ticks
+  EXPECT_NEAR(s.achieved_rate_hz, 1000.0 * double(s.ticks - 1) / double(s.ticks + s.skipped_periods - 1), 30.0);
+  EXPECT_EQ(rt.log().records().size(), s.ticks);
+  EXPECT_GT(s.queries, 1000u);
+  EXPECT_GT(s.peak_force, 0.5);  // the probe pressed into the truck
+  EXPECT_EQ(s.watchdog_ticks + s.invalid_pose_ticks + s.outside_workspace_ticks, 0u);
+  expect_invariants(rt);
+  EXPECT_EQ(device.last_wrench().force, Eigen::Vector3d::Zero());
+  EXPECT_FALSE(rt.running());
+}
+
+TEST_F(RealTime, TenKilohertzForOneSecond) {
+  SimulatedDevice device(*trajectory_);
+  HapticRuntime rt(*world_, device, config(10000, 1.0));
+  rt.start();
+  rt.wait();
+  const RuntimeSummary s = rt.summary();
+  EXPECT_GE(s.ticks + s.skipped_periods, 10000u);
+  EXPECT_GE(s.ticks, 5000u);
+  expect_invariants(rt);
+}
+
+TEST_F(RealTime, InlineModeRendersEveryTickFresh) {
+  SimulatedDevice device(*trajectory_);
+  RuntimeConfig c = config(1000, 1.0);
+  c.inline_query = true;
+  HapticRuntime rt(*world_, device, c);
+  rt.start();
+  rt.wait();
+  const RuntimeSummary s = rt.summary();
+  EXPECT_EQ(s.stale_ticks, 0u);
+  EXPECT_EQ(s.results_used, s.ticks);
+  EXPECT_EQ(s.result_age_max_us, 0.0);
+  expect_invariants(rt);
+}
+
+TEST_F(RealTime, StalledWorkerFadesAndRecovers) {
+  SimulatedDevice device(*trajectory_);
+  StallingObserver stall(/*at_step=*/1500, /*seconds=*/0.15);  // fault at ~1.5 s for 150 ms
+  HapticRuntime rt(*world_, device, config(1000, 3.0));
+  rt.set_observer(&stall);
+  rt.start();
+  rt.wait();
+  const RuntimeSummary s = rt.summary();
+  EXPECT_GE(s.fades, 1u);
+  EXPECT_GE(s.faded_ticks, 50u);  // 150 ms stall - 40 ms hold and fade
+  EXPECT_GE(s.stale_ticks, 140u);
+  expect_invariants(rt);
+  // After the stall, fresh results flow again.
+  const auto& recs = rt.log().records();
+  std::size_t fresh_after = 0;
+  for (const auto& r : recs)
+    if (to_seconds(r.time) > 2.2 && (r.flags & kFlagHeld) == 0) ++fresh_after;
+  EXPECT_GT(fresh_after, 500u);
+}
+
+TEST_F(RealTime, StalledDeviceTripsTheWatchdog) {
+  SimulatedDevice sim(*trajectory_);
+  FaultyDevice device(sim, FaultyDevice::Fault::kStall, 1.0, 1.2);
+  HapticRuntime rt(*world_, device, config(1000, 2.0));
+  rt.start();
+  rt.wait();
+  const RuntimeSummary s = rt.summary();
+  EXPECT_GE(s.watchdog_ticks, 150u);  // 200 ms stall - 10 ms timeout, minus skipped periods
+  EXPECT_LE(s.watchdog_ticks, 195u);
+  expect_invariants(rt);
+}
+
+TEST_F(RealTime, NanAndFarAwayPosesAreGatedAndCounted) {
+  for (auto fault : {FaultyDevice::Fault::kNan, FaultyDevice::Fault::kFarAway}) {
+    SimulatedDevice sim(*trajectory_);
+    FaultyDevice device(sim, fault, 0.6, 0.8);
+    HapticRuntime rt(*world_, device, config(1000, 1.2));
+    rt.start();
+    rt.wait();
+    const RuntimeSummary s = rt.summary();
+    const std::uint64_t gated = fault == FaultyDevice::Fault::kNan ? s.invalid_pose_ticks : s.outside_workspace_ticks;
+    EXPECT_GE(gated, 150u);
+    EXPECT_LE(gated, 201u);
+    expect_invariants(rt);
+  }
+}
+
+TEST_F(RealTime, StopRequestLeavesTheDeviceAtZeroForce) {
+  SimulatedDevice device(*trajectory_);
+  HapticRuntime rt(*world_, device, config(1000, 0));  // open-ended
+  rt.start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(800));
+  EXPECT_TRUE(rt.running());
+  rt.request_stop();
+  rt.wait();
+  EXPECT_FALSE(rt.running());
+  EXPECT_EQ(device.last_wrench().force, Eigen::Vector3d::Zero());
+  expect_invariants(rt);
+}
+
+TEST_F(RealTime, SteadyStateAllocatesNothing) {
+  SimulatedDevice device(*trajectory_);
+  HapticRuntime rt(*world_, device, config(1000, 1.5));
+  rt.start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // past start-up
+  const std::size_t before = test::allocation_count();
+  std::this_thread::sleep_for(std::chrono::milliseconds(900));
+  const std::size_t after = test::allocation_count();
+  rt.wait();
+  EXPECT_EQ(after - before, 0u);  // servo and worker threads, about 900 ticks
+  EXPECT_GT(rt.summary().queries, 500u);
+}
+
+TEST_F(RealTime, RejectsARateAboveTheDevicesLimit) {
+  SimulatedDevice device(*trajectory_);
+  RuntimeConfig c = config(1000, 1);
+  c.rate_hz = 1e6;
+  EXPECT_THROW(HapticRuntime(*world_, device, c), InputError);
+  c.rate_hz = 1000;
+  c.tool.semi_axes.x() = 0;
+  EXPECT_THROW(HapticRuntime(*world_, device, c), InputError);
+}
+
+}  // namespace
+}  // namespace gshaptics
