@@ -4,7 +4,9 @@
 Usage: plot_probe_run.py probe_log.csv summary.json out.png
 
 Rows: (1) broad-phase candidates, pre-filtered and colliding Gaussians; (2) rendered force
-x/y/z in the world frame; (3) force of the (simulated) user's hand; (4) collision-query time.
+x/y/z in the world frame; (3) force of the (simulated) user's hand; (4) collision-query time;
+and for a real-time run (servo_log.csv of `gshaptics run`) a fifth row: servo tick jitter with
+the ticks that held a stale result or faded marked.
 Vertical lines mark the start of each contact episode (t_a, t_b, ...).
 The PNG is written to a temporary name and renamed, so a failed run never leaves half a file.
 """
@@ -35,7 +37,9 @@ def main(argv):
     with open(summary_path) as f:
         summary = json.load(f)
     t = data["time_s"]
-    fig, ax = plt.subplots(4, 1, figsize=(11, 10), sharex=True)
+    realtime = "jitter_us" in data.dtype.names
+    rows = 5 if realtime else 4
+    fig, ax = plt.subplots(rows, 1, figsize=(11, 12 if realtime else 10), sharex=True)
     ax[0].plot(t, data["candidates"], lw=0.8, label="broad-phase candidates")
     ax[0].plot(t, data["prefiltered"], lw=0.8, label="after sphere pre-filter (eq. 4)")
     ax[0].plot(t, data["contacts"], lw=1.0, label="colliding (K_min > 0)")
@@ -51,7 +55,26 @@ def main(argv):
     ax[3].set_yscale("log")
     ax[3].axhline(1000, color="red", ls="--", lw=0.8, label="1 ms servo period")
     ax[3].set_ylabel("query time (us)")
-    ax[3].set_xlabel("time (s)")
+    ax[-1].set_xlabel("time (s)")
+    if realtime:
+        rt = summary.get("runtime", {})
+        period_us = 1e6 / rt.get("rate_hz", 1000)
+        ax[4].plot(t, np.maximum(data["jitter_us"], 0.01), lw=0.5, color="tab:gray", label="tick jitter")
+        held = data["held"] > 0
+        fading = data["fading"] > 0
+        if held.any():
+            ax[4].plot(t[held], np.maximum(data["jitter_us"][held], 0.01), "o", ms=2.5,
+                       color="tab:orange", label=f"held a stale result ({int(held.sum())} ticks)")
+        if fading.any():
+            ax[4].plot(t[fading], np.maximum(data["jitter_us"][fading], 0.01), "x", ms=3,
+                       color="tab:red", label=f"fading/faded ({int(fading.sum())} ticks)")
+        ax[4].axhline(period_us, color="red", ls="--", lw=0.8, label="one servo period")
+        ax[4].set_yscale("log")
+        ax[4].set_ylabel("jitter (us)")
+        j = rt.get("jitter_us", {})
+        ax[4].set_title(f"{rt.get('achieved_rate_hz', 0):.1f} Hz achieved, jitter p99 "
+                        f"{j.get('p99', 0):.1f} us, {rt.get('deadline_misses', 0)} deadline misses, "
+                        f"{rt.get('stale_ticks', 0)} stale ticks", fontsize=9, loc="right")
     q = summary.get("query_us", {})
     ax[3].set_title(f"p50 {q.get('p50', 0):.1f} us, p99 {q.get('p99', 0):.1f} us, "
                     f"max {q.get('max', 0):.1f} us", fontsize=9, loc="right")
@@ -65,7 +88,9 @@ def main(argv):
         a.grid(alpha=0.3)
         a.legend(loc="upper left", fontsize=7, ncol=3)
     scene = os.path.basename(summary.get("scene", ""))
-    fig.suptitle(f"gshaptics probe run: {scene}, {summary.get('gaussians_kept', '?')} Gaussians "
+    kind = (f"real-time run ({summary.get('mode', '')}, {summary.get('runtime', {}).get('rate_hz', 0):.0f} Hz)"
+            if realtime else "probe run")
+    fig.suptitle(f"gshaptics {kind}: {scene}, {summary.get('gaussians_kept', '?')} Gaussians "
                  f"after the opacity filter, tool radius {summary.get('tool_radius', 0):.3g}")
     fig.tight_layout()
     tmp = png_path + ".tmp.png"

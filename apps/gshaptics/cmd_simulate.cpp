@@ -3,15 +3,13 @@
 // the paper's Fig. 5.
 
 #include <fmt/format.h>
-#include <sys/wait.h>
-
-#include <cstdlib>
 #include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
 #include "common.h"
+#include "probe_setup.h"
 #include "gshaptics/io/error.h"
 #include "gshaptics/scene/scene_stats.h"
 #include "gshaptics/sim/probe_run.h"
@@ -32,20 +30,6 @@ struct SimulateOptions {
   bool quiet = false;
 };
 
-std::string find_plot_script() {
-  if (const char* env = std::getenv("GSHAPTICS_PLOT_SCRIPT")) return env;
-  for (const std::string& p : {std::string(GSHAPTICS_SOURCE_DIR) + "/tools/plot_probe_run.py",
-                              std::string(GSHAPTICS_INSTALL_DATADIR) + "/plot_probe_run.py"})
-    if (std::filesystem::exists(p)) return p;
-  return "";
-}
-
-std::string shell_quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
 }  // namespace
 
 void register_simulate(CLI::App& app) {
@@ -65,67 +49,19 @@ void register_simulate(CLI::App& app) {
                   "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)");
   cmd->add_option("--rate", o->rate, "Servo rate of the simulation, Hz")->capture_default_str()
       ->check(CLI::Range(100.0, 20000.0));
-  cmd->add_option("--k-base", o->force.k_base, "Base stiffness k_base, N per contact (eq. 9)")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd->add_option("--damping", o->force.damping, "Damping D, N s/m (eq. 10)")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd->add_option("--f-max", o->force.f_max, "Force clamp F_max, N (eq. 11)")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd->add_option("--tau-normal", o->force.tau_normal, "Time constant of the normal EMA, s")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd->add_option("--tau-opacity", o->force.tau_opacity, "Time constant of the opacity EMA, s")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
+  add_force_options(*cmd, o->force);
   cmd->add_flag("--no-plot", o->no_plot, "Do not draw probe_run.png (needs /usr/bin/python3 with matplotlib)");
   cmd->add_flag("--quiet", o->quiet, "No progress bars");
   add_world_options(*cmd, o->scene);
 
   cmd->callback([o] {
-    SceneOptions so = o->scene;
-    if (so.scene.empty()) {
-      so.scene = bundled_scene();
-      if (so.scene.empty()) throw InputError("simulate: bundled scene data/truck.splat not found; give SCENE");
-      if (so.registration_file.empty()) so.registration_file = bundled_registration();
-    }
-    const bool registered = !so.registration_file.empty() || !so.reg_rotation.empty() ||
-                            !so.reg_scale.empty() || !so.reg_translation.empty() || so.up != "none";
-    const LoadedScene s = load_with_progress(so.scene, o->quiet);
-    const WorldConfig cfg = world_config_from(so, s.report.frame);
-    WorldBuildReport br;
-    const CollisionWorld world = CollisionWorld::build(s.scene, cfg, &br);
-    fmt::print("scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
-               s.report.loaded, s.report.skipped());
-    fmt::print("filter     opacity > {:.2f}: kept {} ({:.1f}%)\n", cfg.min_opacity, br.filter.after,
-               100 * br.filter.kept_fraction());
-    fmt::print("world      {} Gaussians, BVH built in {:.0f} ms, {:.1f} MB{}\n", world.size(),
-               br.build_seconds * 1e3, double(br.memory_bytes) / 1e6,
-               so.registration_file.empty() ? "" : ", registration " + so.registration_file);
-
-    ProbeParams pp;
-    pp.sites = o->sites;
-    pp.seed = o->seed;
-    // A registered (or --up turned) world is z-up; otherwise the probe goes along the file's own
-    // up axis (-y for PLY/.splat, +y for SPZ).
-    pp.up = registered ? Eigen::Vector3d(0, 0, 1) : up_axis_from("auto", s.report.frame);
-    if (o->tool_radius > 0) {
-      pp.tool_radius = o->tool_radius;
-    } else {
-      std::vector<double> ax[3];
-      for (const auto& g : world.gaussians())
-        for (int k = 0; k < 3; ++k) ax[k].push_back(g.center[k]);
-      double extent = 0;
-      for (int k = 0; k < 3; ++k) extent = std::max(extent, percentile(ax[k], 99) - percentile(ax[k], 1));
-      pp.tool_radius = 0.01 * extent;
-    }
-    // Speeds scale with the tool so that any scene unit gives a similar run.
-    pp.approach_speed = 2.0 * pp.tool_radius;
-    pp.travel_speed = 8.0 * pp.tool_radius;
-    const ProbeTrajectory traj = generate_probe_trajectory(world, pp);
-    fmt::print("probe      {} sites, tool radius {:.4g}, up [{:.2f}, {:.2f}, {:.2f}], {:.1f} s at {:.0f} Hz\n",
-               traj.sites().size(), pp.tool_radius, pp.up.x(), pp.up.y(), pp.up.z(),
-               traj.duration(), o->rate);
-    if (int(traj.sites().size()) < o->sites)
-      fmt::print(stderr, "warning: only {} of {} sites are reachable on this scene\n",
-                 traj.sites().size(), o->sites);
+    const SceneOptions so = with_bundled_defaults(o->scene, "simulate");
+    const PreparedWorld pw = prepare_world(so, o->quiet);
+    const CollisionWorld& world = pw.world;
+    const WorldConfig& cfg = pw.config;
+    const LoadedScene& s = pw.scene;
+    const ProbeTrajectory traj = make_probe_trajectory(pw, is_registered(so), o->sites, o->seed, o->tool_radius);
+    fmt::print("rate       {:.0f} Hz of simulated time (as fast as the CPU allows)\n", o->rate);
 
     std::fflush(stdout);  // the progress bar goes to stderr: keep the lines above first
     ProbeRunParams rp;
@@ -149,7 +85,7 @@ void register_simulate(CLI::App& app) {
     sj["gaussians_loaded"] = s.report.loaded;
     sj["gaussians_kept"] = world.size();
     sj["min_opacity"] = cfg.min_opacity;
-    sj["tool_radius"] = pp.tool_radius;
+    sj["tool_radius"] = traj.tool_radius();
     sj["rate_hz"] = o->rate;
     sj["ticks"] = run.ticks.size();
     sj["query_us"] = {{"p50", run.query_time.p50_us}, {"p99", run.query_time.p99_us},
@@ -184,16 +120,7 @@ void register_simulate(CLI::App& app) {
       set_exit_code(1);
     }
     if (o->no_plot) return;
-    const std::string script = find_plot_script();
-    if (script.empty()) throw InputError("simulate: tools/plot_probe_run.py not found (use --no-plot)");
-    const char* py = std::getenv("GSHAPTICS_PYTHON");
-    const std::string cmdline = fmt::format("{} {} {} {} {}", shell_quote(py ? py : "/usr/bin/python3"),
-                                            shell_quote(script), shell_quote(csv),
-                                            shell_quote(summary_path), shell_quote(png));
-    const int rc = std::system(cmdline.c_str());
-    if (rc != 0) {
-      fmt::print(stderr, "error: plotting failed ({}); the log and summary are written. Install "
-                         "python3-matplotlib or pass --no-plot\n", cmdline);
+    if (!plot_run(csv, summary_path, png, "simulate")) {
       set_exit_code(1);
       return;
     }

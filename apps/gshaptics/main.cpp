@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   gshaptics::cli::register_info(app);
   gshaptics::cli::register_query(app);
   gshaptics::cli::register_simulate(app);
+  gshaptics::cli::register_run(app);
   gshaptics::cli::register_poses(app);
   gshaptics::cli::register_bench(app);
   gshaptics::cli::register_convert(app);

@@ -3,6 +3,7 @@
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
+#include <sys/prctl.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -127,6 +128,9 @@ void HapticRuntime::worker_main() {
 
 void HapticRuntime::servo_main() {
   go_.wait(false, std::memory_order_acquire);
+  // Without a real-time policy, Linux may wake a sleeper up to its timer slack (50 us by
+  // default) late; 1 ns makes clock_nanosleep wake as close to the deadline as the timer allows.
+  prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   try {
     servo_->start(clock_.now());
   } catch (...) {
@@ -140,8 +144,15 @@ void HapticRuntime::servo_main() {
   const Nanos stop_timeout = to_nanos(config_.stop_timeout);
   Nanos stop_at = -1;
   Nanos deadline = t0;
+  const Nanos spin = to_nanos(config_.realtime.spin_s);
   for (;;) {
-    clock_.sleep_until(deadline);
+    if (spin > 0) {
+      clock_.sleep_until(deadline - spin);
+      while (clock_.now() < deadline) {
+      }
+    } else {
+      clock_.sleep_until(deadline);
+    }
     const Nanos end = servo_->tick(deadline, inline_worker);
     if (!config_.inline_query) {
       pose_signal_.fetch_add(1, std::memory_order_release);

@@ -35,6 +35,9 @@ struct RealtimeOptions {
   int worker_priority = 70;  ///< SCHED_FIFO priority of the collision worker (0: do not ask)
   bool pin_threads = true;   ///< servo thread on the last CPU, worker on the one before it
   bool lock_memory = false;  ///< mlockall(MCL_CURRENT | MCL_FUTURE): no page faults in a tick
+  /// Sleep until this long before each deadline, then spin on the clock: trades CPU time on the
+  /// servo's core for wake-up jitter below the kernel's timer latency. 0: sleep only.
+  double spin_s = 0;
 };
 
 struct RuntimeConfig {

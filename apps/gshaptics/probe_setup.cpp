@@ -1,0 +1,109 @@
+#include "probe_setup.h"
+
+#include <fmt/format.h>
+
+#include <cstdlib>
+#include <filesystem>
+
+#include "gshaptics/io/error.h"
+#include "gshaptics/sim/pose_sampler.h"
+
+namespace gshaptics::cli {
+
+namespace {
+
+std::string find_plot_script() {
+  if (const char* env = std::getenv("GSHAPTICS_PLOT_SCRIPT")) return env;
+  for (const std::string& p : {std::string(GSHAPTICS_SOURCE_DIR) + "/tools/plot_probe_run.py",
+                              std::string(GSHAPTICS_INSTALL_DATADIR) + "/plot_probe_run.py"})
+    if (std::filesystem::exists(p)) return p;
+  return "";
+}
+
+std::string shell_quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+}  // namespace
+
+void add_force_options(CLI::App& cmd, ForceParams& force) {
+  cmd.add_option("--k-base", force.k_base, "Base stiffness k_base, N per contact (eq. 9)")
+      ->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd.add_option("--damping", force.damping, "Damping D, N s/m (eq. 10)")
+      ->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd.add_option("--f-max", force.f_max, "Force clamp F_max, N (eq. 11)")
+      ->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd.add_option("--tau-normal", force.tau_normal, "Time constant of the normal EMA, s")
+      ->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd.add_option("--tau-opacity", force.tau_opacity, "Time constant of the opacity EMA, s")
+      ->capture_default_str()->check(CLI::NonNegativeNumber);
+}
+
+SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command) {
+  if (so.scene.empty()) {
+    so.scene = bundled_scene();
+    if (so.scene.empty()) throw InputError(command + ": bundled scene data/truck.splat not found; give SCENE");
+    if (so.registration_file.empty()) so.registration_file = bundled_registration();
+  }
+  return so;
+}
+
+bool is_registered(const SceneOptions& so) {
+  return !so.registration_file.empty() || !so.reg_rotation.empty() || !so.reg_scale.empty() ||
+         !so.reg_translation.empty() || so.up != "none";
+}
+
+PreparedWorld prepare_world(const SceneOptions& so, bool quiet) {
+  LoadedScene s = load_with_progress(so.scene, quiet);
+  const WorldConfig cfg = world_config_from(so, s.report.frame);
+  WorldBuildReport br;
+  CollisionWorld world = CollisionWorld::build(s.scene, cfg, &br);
+  fmt::print("scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
+             s.report.loaded, s.report.skipped());
+  fmt::print("filter     opacity > {:.2f}: kept {} ({:.1f}%)\n", cfg.min_opacity, br.filter.after,
+             100 * br.filter.kept_fraction());
+  fmt::print("world      {} Gaussians, BVH built in {:.0f} ms, {:.1f} MB{}\n", world.size(),
+             br.build_seconds * 1e3, double(br.memory_bytes) / 1e6,
+             so.registration_file.empty() ? "" : ", registration " + so.registration_file);
+  return {std::move(s), cfg, br, std::move(world)};
+}
+
+ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, int sites,
+                                      std::uint64_t seed, double tool_radius) {
+  ProbeParams pp;
+  pp.sites = sites;
+  pp.seed = seed;
+  // A registered (or --up turned) world is z-up; otherwise the probe goes along the file's own
+  // up axis (-y for PLY/.splat, +y for SPZ).
+  pp.up = registered ? Eigen::Vector3d(0, 0, 1) : up_axis_from("auto", w.scene.report.frame);
+  pp.tool_radius = tool_radius > 0 ? tool_radius : 0.01 * robust_extent(w.world);
+  pp.approach_speed = 2.0 * pp.tool_radius;
+  pp.travel_speed = 8.0 * pp.tool_radius;
+  ProbeTrajectory traj = generate_probe_trajectory(w.world, pp);
+  fmt::print("probe      {} sites, tool radius {:.4g}, up [{:.2f}, {:.2f}, {:.2f}], {:.1f} s per pass\n",
+             traj.sites().size(), pp.tool_radius, pp.up.x(), pp.up.y(), pp.up.z(), traj.duration());
+  if (int(traj.sites().size()) < sites)
+    fmt::print(stderr, "warning: only {} of {} sites are reachable on this scene\n",
+               traj.sites().size(), sites);
+  return traj;
+}
+
+bool plot_run(const std::string& csv, const std::string& summary, const std::string& png,
+              const std::string& command) {
+  const std::string script = find_plot_script();
+  if (script.empty()) throw InputError(command + ": tools/plot_probe_run.py not found (use --no-plot)");
+  const char* py = std::getenv("GSHAPTICS_PYTHON");
+  const std::string cmdline = fmt::format("{} {} {} {} {}", shell_quote(py ? py : "/usr/bin/python3"),
+                                          shell_quote(script), shell_quote(csv),
+                                          shell_quote(summary), shell_quote(png));
+  if (std::system(cmdline.c_str()) != 0) {
+    fmt::print(stderr, "error: plotting failed ({}); the log and summary are written. Install "
+                       "python3-matplotlib or pass --no-plot\n", cmdline);
+    return false;
+  }
+  return true;
+}
+
+}  // namespace gshaptics::cli

@@ -1,0 +1,42 @@
+#pragma once
+// What `simulate` and `run` share: the bundled-scene defaults, the world report, the probe
+// trajectory with scene-relative sizes, the force-model options and the Fig. 5 plot.
+
+#include <CLI/CLI.hpp>
+#include <string>
+
+#include "common.h"
+#include "gshaptics/force/force_model.h"
+#include "gshaptics/sim/probe_trajectory.h"
+
+namespace gshaptics::cli {
+
+/// Adds --k-base, --damping, --f-max, --tau-normal, --tau-opacity.
+void add_force_options(CLI::App& cmd, ForceParams& force);
+
+/// Without SCENE: the bundled Truck and its registration. Throws InputError naming `command`
+/// when the bundled scene is missing.
+SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command);
+
+/// True when the world frame is z-up: a registration or --up was given.
+bool is_registered(const SceneOptions& so);
+
+/// A loaded scene turned into a world, with the lines `simulate` and `run` print about it.
+struct PreparedWorld {
+  LoadedScene scene;
+  WorldConfig config;
+  WorldBuildReport report;
+  CollisionWorld world;
+};
+PreparedWorld prepare_world(const SceneOptions& so, bool quiet);
+
+/// The seeded probe trajectory; tool_radius <= 0 picks 1 % of the scene's robust extent.
+/// Speeds scale with the tool so that any scene unit gives a similar run. Prints one line.
+ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, int sites,
+                                      std::uint64_t seed, double tool_radius);
+
+/// Runs tools/plot_probe_run.py on a log and summary; false (with a message) when it fails.
+bool plot_run(const std::string& csv, const std::string& summary, const std::string& png,
+              const std::string& command);
+
+}  // namespace gshaptics::cli
