@@ -1,18 +1,28 @@
 #!/usr/bin/python3
 """End-to-end tests of the gshaptics command line: the query JSON contract, pose files,
-error messages and exit codes, info, and the simulated probe run with its outputs.
+error messages and exit codes, info, the simulated probe run with its outputs, and the
+real-time runtime (`run`: sim and replay devices, faults, SIGINT).
 
 Usage: cli_test.py PATH/TO/gshaptics SCENES_DIR
 """
+import csv
 import json
+import math
 import os
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 
 EXE = None
 SCENES = None
+
+
+def load_json(path):
+    with open(path) as f:
+        return json.load(f)
 
 
 def run(*args, check=True):
@@ -143,7 +153,7 @@ class Info(unittest.TestCase):
         self.assertIn("opacity > 0.20 keeps", p.stdout)
 
     def test_help_of_every_command(self):
-        for cmd in ("info", "query", "simulate", "poses"):
+        for cmd in ("info", "query", "simulate", "run", "poses"):
             p = run(cmd, "--help")
             self.assertIn("--help", p.stdout)
 
@@ -152,7 +162,7 @@ class Simulate(unittest.TestCase):
     def test_probe_run_on_bundled_truck(self):
         out = tempfile.mkdtemp()
         p = run("simulate", "--out", out, "--quiet")
-        summary = json.load(open(os.path.join(out, "summary.json")))
+        summary = load_json(os.path.join(out, "summary.json"))
         self.assertEqual(len(summary["sites"]), 7)
         self.assertGreaterEqual(len(summary["episodes"]), 7)
         for ep in summary["episodes"]:
@@ -168,6 +178,101 @@ class Simulate(unittest.TestCase):
             self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
         self.assertIn("query time p50", p.stdout)
         self.assertFalse(any(n.endswith(".tmp") for n in os.listdir(out)))
+
+
+def read_log(path):
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+class Run(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.out = tempfile.mkdtemp()
+        cls.proc = run("run", "--duration", "5", "--quiet", "--out", cls.out)
+        cls.summary = load_json(os.path.join(cls.out, "run_summary.json"))
+        cls.log = read_log(os.path.join(cls.out, "servo_log.csv"))
+
+    def test_real_time_run_writes_log_summary_and_figure(self):
+        rt = self.summary["runtime"]
+        self.assertGreaterEqual(rt["ticks"] + rt["skipped_periods"], 5000)
+        self.assertGreater(rt["ticks"], 4500)
+        self.assertEqual(len(self.log), rt["ticks"])
+        self.assertEqual(self.summary["mode"], "decoupled")
+        for key in ("jitter_us", "result_age_us", "held", "fading", "flags", "desired_fx"):
+            self.assertIn(key, self.log[0])
+        self.assertEqual([float(self.log[-1][k]) for k in ("fx", "fy", "fz")], [0.0, 0.0, 0.0])
+        self.assertGreater(max(int(r["contacts"]) for r in self.log), 0)
+        self.assertLessEqual(max(math.hypot(float(r["fx"]), float(r["fy"]), float(r["fz"]))
+                                 for r in self.log), 30.0 + 1e-6)
+        with open(os.path.join(self.out, "run.png"), "rb") as f:
+            self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
+        self.assertIn("deadline misses", self.proc.stdout)
+        self.assertIn("stale", self.proc.stdout)
+        self.assertFalse(any(n.endswith(".tmp") for n in os.listdir(self.out)))
+
+    def test_replay_of_the_recorded_run_touches_the_same_places(self):
+        out = tempfile.mkdtemp()
+        log_path = os.path.join(self.out, "servo_log.csv")
+        p = run("run", "--device", "replay:" + log_path, "--quiet", "--no-plot", "--out", out,
+                "--tool-radius", str(self.summary["tool_radius"]))
+        self.assertIn("replay", p.stdout)
+        replay = read_log(os.path.join(out, "servo_log.csv"))
+        # The replay ends with the log (plus the stop ramp), not at a fixed duration.
+        self.assertAlmostEqual(float(replay[-1]["time_s"]), float(self.log[-1]["time_s"]), delta=0.3)
+        orig = max(int(r["contacts"]) for r in self.log)
+        again = max(int(r["contacts"]) for r in replay)
+        self.assertGreater(again, 0.5 * orig)
+        self.assertLess(again, 2.0 * orig + 5)
+
+    def test_replay_with_nan_rows_gates_the_force(self):
+        out = tempfile.mkdtemp()
+        path = os.path.join(out, "poses.csv")
+        with open(path, "w") as f:
+            f.write("time_s,x,y,z\n")
+            for i in range(1001):
+                t = i * 1e-3
+                x = "nan" if 0.4 <= t < 0.6 else "0.0"
+                f.write(f"{t:.3f},{x},0.0,3.0\n")
+        p = run("run", "--device", "replay:" + path, "--quiet", "--no-plot", "--out", out)
+        self.assertIn("NaN/Inf", p.stderr)
+        rt = json.load(open(os.path.join(out, "run_summary.json")))["runtime"]
+        self.assertGreater(rt["invalid_pose_ticks"], 150)
+        self.assertLess(rt["invalid_pose_ticks"], 260)
+
+    def test_sigint_ramps_down_and_exits_cleanly(self):
+        out = tempfile.mkdtemp()
+        p = subprocess.Popen([EXE, "run", "--duration", "60", "--quiet", "--no-plot", "--out", out],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        # Wait for the run to start (the scene loads first), then interrupt it.
+        line = ""
+        while "runtime" not in line:
+            line = p.stdout.readline()
+            self.assertNotEqual(line, "", "gshaptics run ended before starting")
+        time.sleep(1.5)
+        p.send_signal(signal.SIGINT)
+        stdout, stderr = p.communicate(timeout=60)
+        self.assertEqual(p.returncode, 0, stderr)
+        self.assertIn("SIGINT received", stderr)
+        summary = load_json(os.path.join(out, "run_summary.json"))
+        self.assertTrue(summary["interrupted"])
+        self.assertLess(summary["runtime"]["ticks"], 20000)
+        log = read_log(os.path.join(out, "servo_log.csv"))
+        self.assertEqual([float(log[-1][k]) for k in ("fx", "fy", "fz")], [0.0, 0.0, 0.0])
+
+    def test_bad_device_arguments_are_named(self):
+        p = run("run", "--device", "joystick", check=False)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("--device", p.stderr)
+        out = tempfile.mkdtemp()
+        path = os.path.join(out, "bad.csv")
+        with open(path, "w") as f:
+            f.write("time_s,x,y,z\n0,0,0,0\n0.001,0,abc,0\n")
+        p = run("run", "--device", "replay:" + path, check=False)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("bad.csv", p.stderr)
+        self.assertIn("line 3", p.stderr)
+        self.assertIn("'y'", p.stderr)
 
 
 if __name__ == "__main__":
