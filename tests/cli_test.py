@@ -236,7 +236,7 @@ class Run(unittest.TestCase):
                 f.write(f"{t:.3f},{x},0.0,3.0\n")
         p = run("run", "--device", "replay:" + path, "--quiet", "--no-plot", "--out", out)
         self.assertIn("NaN/Inf", p.stderr)
-        rt = json.load(open(os.path.join(out, "run_summary.json")))["runtime"]
+        rt = load_json(os.path.join(out, "run_summary.json"))["runtime"]
         self.assertGreater(rt["invalid_pose_ticks"], 150)
         self.assertLess(rt["invalid_pose_ticks"], 260)
 
