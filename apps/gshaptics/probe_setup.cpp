@@ -78,7 +78,14 @@ ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, i
   // A registered (or --up turned) world is z-up; otherwise the probe goes along the file's own
   // up axis (-y for PLY/.splat, +y for SPZ).
   pp.up = registered ? Eigen::Vector3d(0, 0, 1) : up_axis_from("auto", w.scene.report.frame);
-  pp.tool_radius = tool_radius > 0 ? tool_radius : 0.01 * robust_extent(w.world);
+  const double extent = robust_extent(w.world);
+  pp.tool_radius = tool_radius > 0 ? tool_radius : 0.01 * extent;
+  if (!registered && extent > 30.0)
+    fmt::print(stderr,
+               "warning: the scene is not registered and spans {:.0f} units; the simulated hand and "
+               "device work in metres and newtons, so they will move it like a {:.0f} m object. "
+               "Register it into metres (--registration, --reg-scale, --up) for a realistic run.\n",
+               extent, extent);
   pp.approach_speed = 2.0 * pp.tool_radius;
   pp.travel_speed = 8.0 * pp.tool_radius;
   ProbeTrajectory traj = generate_probe_trajectory(w.world, pp);
