@@ -1,0 +1,66 @@
+// The simulated device in real time: it follows the probe trajectory through the hand, its
+// state does not depend on how often it is read, and the commanded wrench acts on it.
+
+#include "gshaptics/servo/simulated_device.h"
+
+#include <gtest/gtest.h>
+
+namespace gshaptics {
+namespace {
+
+ProbeTrajectory straight_line() {
+  // 1 s at rest at the origin, then to (0.2, 0, 0) over 1 s, then rest.
+  return ProbeTrajectory({{0.0, Eigen::Vector3d::Zero()}, {1.0, Eigen::Vector3d::Zero()},
+                          {2.0, Eigen::Vector3d(0.2, 0, 0)}, {4.0, Eigen::Vector3d(0.2, 0, 0)}},
+                         {}, 0.01);
+}
+
+constexpr Nanos kMs = 1'000'000;
+
+TEST(SimulatedDevice, FollowsTheTrajectoryThroughTheHand) {
+  SimulatedDevice d(straight_line());
+  d.start(0);
+  DeviceSample s;
+  for (Nanos t = kMs; t <= 4000 * kMs; t += kMs) s = d.read(t);
+  EXPECT_NEAR(s.position.x(), 0.2, 0.005);
+  EXPECT_NEAR(s.velocity.norm(), 0.0, 0.01);
+  EXPECT_EQ(s.sequence, 4000u);
+  EXPECT_EQ(s.stamp, 4000 * kMs);
+}
+
+TEST(SimulatedDevice, StateDoesNotDependOnTheReadRate) {
+  SimulatedDevice a(straight_line()), b(straight_line());
+  a.start(0);
+  b.start(0);
+  DeviceSample sa, sb;
+  for (Nanos t = kMs; t <= 1500 * kMs; t += kMs) sa = a.read(t);
+  for (Nanos t = 10 * kMs; t <= 1500 * kMs; t += 10 * kMs) sb = b.read(t);  // 100 Hz reader
+  EXPECT_NEAR((sa.position - sb.position).norm(), 0.0, 1e-12);
+  EXPECT_GT(sa.position.x(), 0.01);  // it is moving at 1.5 s
+}
+
+TEST(SimulatedDevice, WrenchPushesTheDeviceAndStopZeroesIt) {
+  SimulatedDevice d(straight_line());
+  d.start(0);
+  Wrench w;
+  w.force = {0, 0, 10};
+  d.write(w, 0);
+  DeviceSample s;
+  for (Nanos t = kMs; t <= 500 * kMs; t += kMs) s = d.read(t);
+  // The hand holds the origin with 600 N/m: a 10 N push moves the device ~1.7 cm up.
+  EXPECT_NEAR(s.position.z(), 10.0 / 600.0, 0.002);
+  EXPECT_NEAR(s.user_force.z(), -10.0, 0.5);
+  d.stop(600 * kMs);
+  EXPECT_EQ(d.last_wrench().force, Eigen::Vector3d::Zero());
+}
+
+TEST(SimulatedDevice, WorkspaceCoversTheTrajectoryWithMargin) {
+  SimulatedDevice d(straight_line());
+  const auto& ws = d.info().workspace;
+  EXPECT_TRUE(ws.contains(Eigen::Vector3d(0.1, 0, 0)));
+  EXPECT_TRUE(ws.contains(Eigen::Vector3d(0.6, 0.4, -0.4)));
+  EXPECT_FALSE(ws.contains(Eigen::Vector3d(1.0, 0, 0)));
+}
+
+}  // namespace
+}  // namespace gshaptics
