@@ -3,119 +3,15 @@
 // worker computes forces asynchronously (paper Sec. IV-V); prints a live status line, then the
 // summary; writes servo_log.csv, run_summary.json and run.png (Fig. 5 plus a jitter row).
 
-#include <fmt/format.h>
-#include <unistd.h>
-
-#include <atomic>
-#include <chrono>
-#include <csignal>
-#include <filesystem>
 #include <memory>
-#include <nlohmann/json.hpp>
-#include <thread>
 
 #include "commands.h"
-#include "common.h"
-#include "gshaptics/io/error.h"
-#include "gshaptics/servo/haptic_runtime.h"
-#include "gshaptics/servo/replay_device.h"
-#include "gshaptics/servo/servo_log.h"
-#include "gshaptics/servo/simulated_device.h"
-#include "gshaptics/sim/pose_sampler.h"
-#include "probe_setup.h"
+#include "runtime_cli.h"
 
 namespace gshaptics::cli {
 
-namespace {
-
-struct RunOptions {
-  SceneOptions scene;
-  std::string device = "sim";
-  double rate = 1000;
-  double duration = 0;
-  bool inline_query = false;
-  int sites = 7;
-  std::uint64_t seed = 1;
-  double tool_radius = 0;
-  ForceParams force;
-  SafetyParams safety;
-  RealtimeOptions realtime;
-  bool no_pin = false;
-  double spin_us = 0;
-  std::string out_dir;
-  bool no_plot = false;
-  bool quiet = false;
-};
-
-std::atomic<int> g_signal{0};
-static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs a lock-free flag");
-
-extern "C" void on_stop_signal(int sig) { g_signal.store(sig, std::memory_order_relaxed); }
-
-/// Installs SIGINT/SIGTERM handlers for the lifetime of the object, restoring the old ones.
-class StopSignals {
- public:
-  StopSignals() {
-    struct sigaction sa {};
-    sa.sa_handler = on_stop_signal;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, &old_int_);
-    sigaction(SIGTERM, &sa, &old_term_);
-  }
-  ~StopSignals() {
-    sigaction(SIGINT, &old_int_, nullptr);
-    sigaction(SIGTERM, &old_term_, nullptr);
-  }
-  StopSignals(const StopSignals&) = delete;
-  StopSignals& operator=(const StopSignals&) = delete;
-
- private:
-  struct sigaction old_int_ {}, old_term_ {};
-};
-
-std::string status_line(const HapticRuntime& rt, double planned) {
-  const RuntimeStats& st = rt.stats();
-  const double t = double(st.last_tick_ns.load() - st.start_ns.load()) * 1e-9;
-  const std::uint64_t ticks = st.ticks.load();
-  return fmt::format(
-      "t {:6.1f}{} s | {:7.1f} Hz | jitter p99 {:5.1f} us | misses {} | query p99 {:6.1f} us | "
-      "stale {} | fades {} | contacts {:5} | F {:5.2f} N",
-      t, planned > 0 ? fmt::format("/{:.1f}", planned) : std::string(),
-      t > 0 ? double(ticks - 1) / t : 0.0, st.jitter.percentile(99) * 1e-3, st.deadline_misses.load(),
-      rt.worker().latency().percentile(99) * 1e-3, st.stale_ticks.load(), st.fades.load(),
-      st.last_contacts.load(), st.last_force.load());
-}
-
-nlohmann::json to_json(const RuntimeSummary& s) {
-  return {{"duration_s", s.duration_s},
-          {"ticks", s.ticks},
-          {"rate_hz", s.rate_hz},
-          {"achieved_rate_hz", s.achieved_rate_hz},
-          {"jitter_us", {{"p50", s.jitter_p50_us}, {"p99", s.jitter_p99_us}, {"max", s.jitter_max_us}}},
-          {"tick_us", {{"p99", s.tick_p99_us}, {"max", s.tick_max_us}}},
-          {"worker_us", {{"p50", s.query_p50_us}, {"p99", s.query_p99_us}, {"max", s.query_max_us}}},
-          {"queries", s.queries},
-          {"result_age_us", {{"p50", s.result_age_p50_us}, {"p99", s.result_age_p99_us}, {"max", s.result_age_max_us}}},
-          {"deadline_misses", s.deadline_misses},
-          {"skipped_periods", s.skipped_periods},
-          {"stale_ticks", s.stale_ticks},
-          {"fades", s.fades},
-          {"fading_ticks", s.fading_ticks},
-          {"faded_ticks", s.faded_ticks},
-          {"no_result_ticks", s.no_result_ticks},
-          {"watchdog_ticks", s.watchdog_ticks},
-          {"invalid_pose_ticks", s.invalid_pose_ticks},
-          {"outside_workspace_ticks", s.outside_workspace_ticks},
-          {"force_limited_ticks", s.force_limited_ticks},
-          {"rate_limited_ticks", s.rate_limited_ticks},
-          {"results_used", s.results_used},
-          {"peak_force_n", s.peak_force}};
-}
-
-}  // namespace
-
 void register_run(CLI::App& app) {
-  auto o = std::make_shared<RunOptions>();
+  auto o = std::make_shared<RuntimeOptions>();
   CLI::App* cmd = app.add_subcommand(
       "run",
       "Real-time haptic runtime: a servo thread at --rate (absolute deadlines, real-time priority "
@@ -123,181 +19,18 @@ void register_run(CLI::App& app) {
       "asynchronously (or --inline, inside the tick); the safety layer holds, fades, ramps and "
       "limits the force. Live status on stderr; Ctrl-C stops cleanly with the device at zero "
       "force. Writes servo_log.csv, run_summary.json and run.png (paper Fig. 5 + jitter row).");
-  cmd->add_option("scene", o->scene.scene, "Scene file (default: bundled data/truck.splat, registered z-up in metres)");
-  cmd->add_option("--device", o->device,
-                  "sim: simulated admittance device with a simulated hand probing the scene; "
-                  "replay:FILE: play a pose log (CSV with time_s,x,y,z[,vx,vy,vz][,qw,qx,qy,qz], "
-                  "e.g. a servo_log.csv or probe_log.csv)")
-      ->capture_default_str();
-  cmd->add_option("--rate", o->rate, "Servo rate, Hz")->capture_default_str()->check(CLI::Range(10.0, 20000.0));
-  cmd->add_option("--duration", o->duration,
-                  "Run length, s (default: one pass of the probe trajectory for sim, the log's "
-                  "length for replay; a longer sim run repeats the trajectory)")
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_flag("--inline", o->inline_query, "Run the query inside the servo tick instead of on the worker thread");
-  cmd->add_option("--sites", o->sites, "Contact sites of the simulated probe")->capture_default_str()
-      ->check(CLI::Range(1, 100));
-  cmd->add_option("--seed", o->seed, "Seed of the site choice")->capture_default_str();
-  cmd->add_option("--tool-radius", o->tool_radius,
-                  "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)");
-  add_force_options(*cmd, o->force);
-  cmd->add_option("--hold-timeout", o->safety.hold_timeout, "Hold a late result at full force this long, s")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd->add_option("--fade-time", o->safety.fade_time, "Then fade it to zero over this long, s")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd->add_option("--ramp-time", o->safety.ramp_time, "Soft start after start and every resume, s")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd->add_option("--max-force-rate", o->safety.max_force_rate, "Force-rate limit, N/s")
-      ->capture_default_str()->check(CLI::PositiveNumber);
-  cmd->add_option("--device-timeout", o->safety.device_timeout, "Watchdog: zero force when device data is older, s")
-      ->capture_default_str()->check(CLI::PositiveNumber);
-  cmd->add_option("--rt-priority", o->realtime.servo_priority,
-                  "SCHED_FIFO priority of the servo thread (worker: 10 lower); 0: normal scheduling")
-      ->capture_default_str()->check(CLI::Range(0, 99));
-  cmd->add_flag("--no-pin", o->no_pin, "Do not pin the servo and worker threads to CPUs");
-  cmd->add_option("--spin-us", o->spin_us,
-                  "Sleep until this many microseconds before each deadline, then spin: lower "
-                  "jitter for one busy core")
-      ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
-  cmd->add_flag("--mlock", o->realtime.lock_memory, "Lock all memory (mlockall) against page faults");
-  cmd->add_option("--out", o->out_dir, "Output folder (default: runs/<scene name>)");
-  cmd->add_flag("--no-plot", o->no_plot, "Do not draw run.png (needs /usr/bin/python3 with matplotlib)");
-  cmd->add_flag("--quiet", o->quiet, "No progress bar or live status line");
-  add_world_options(*cmd, o->scene);
-
+  add_runtime_options(*cmd, *o,
+                      "sim: simulated admittance device with a simulated hand probing the scene; "
+                      "replay:FILE: play a pose log (CSV with time_s,x,y,z[,vx,vy,vz][,qw,qx,qy,qz], "
+                      "e.g. a servo_log.csv or probe_log.csv)");
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->scene, "run");
-    // Check the device argument before the (slow) scene load.
-    std::string replay_file;
-    if (o->device.rfind("replay:", 0) == 0) {
-      replay_file = o->device.substr(7);
-      if (replay_file.empty()) throw InputError("--device replay:FILE: no file given");
-    } else if (o->device != "sim") {
-      throw InputError("--device: expected 'sim' or 'replay:FILE', got '" + o->device + "'");
-    }
-    PoseLog pose_log;
-    if (!replay_file.empty()) pose_log = load_pose_log(replay_file);
-
+    check_device_option(o->device, /*allow_mouse=*/false);  // before the (slow) scene load
     const PreparedWorld pw = prepare_world(so, o->quiet);
-    std::unique_ptr<HapticDevice> device;
-    double tool_radius = o->tool_radius;
-    double planned = o->duration;
-    if (replay_file.empty()) {
-      ProbeTrajectory traj = make_probe_trajectory(pw, is_registered(so), o->sites, o->seed, o->tool_radius);
-      tool_radius = traj.tool_radius();
-      if (planned == 0) planned = traj.duration() + 0.5;
-      device = std::make_unique<SimulatedDevice>(std::move(traj));
-    } else {
-      if (tool_radius <= 0) tool_radius = 0.01 * robust_extent(pw.world);
-      if (pose_log.non_finite_rows > 0)
-        fmt::print(stderr, "warning: {}: {} rows hold NaN/Inf; they are replayed as a faulty device\n",
-                   replay_file, pose_log.non_finite_rows);
-      auto replay = std::make_unique<ReplayDevice>(std::move(pose_log), "replay " + replay_file);
-      fmt::print("replay     {}: {:.2f} s, tool radius {:.4g}\n", replay_file, replay->duration(), tool_radius);
-      device = std::move(replay);
-    }
-
-    RuntimeConfig rc;
-    rc.rate_hz = o->rate;
-    rc.inline_query = o->inline_query;
-    rc.duration = planned;
-    rc.tool.semi_axes = Eigen::Vector3d::Constant(tool_radius);
-    rc.force = o->force;
-    rc.safety = o->safety;
-    rc.safety.f_max = o->force.f_max;
-    rc.realtime = o->realtime;
-    rc.realtime.worker_priority = std::max(0, o->realtime.servo_priority - 10);
-    rc.realtime.pin_threads = !o->no_pin;
-    rc.realtime.spin_s = o->spin_us * 1e-6;
-    HapticRuntime rt(pw.world, *device, rc);
-    fmt::print("runtime    {} at {:.0f} Hz, {} query, {}\n", device->info().name, o->rate,
-               o->inline_query ? "inline" : "decoupled (worker thread)",
-               planned > 0 ? fmt::format("{:.1f} s", planned) : std::string("until the log ends or Ctrl-C"));
-    std::fflush(stdout);
-
-    StopSignals signals;
-    g_signal.store(0);
-    rt.start();
-    for (const auto& w : rt.warnings()) fmt::print(stderr, "warning: {}\n", w);
-    const bool tty = ::isatty(STDERR_FILENO) != 0;
-    auto last_print = std::chrono::steady_clock::now();
-    bool stop_sent = false;
-    while (rt.running()) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-      if (!stop_sent && g_signal.load() != 0) {
-        rt.request_stop();
-        stop_sent = true;
-        fmt::print(stderr, "\n{} received: ramping the force to zero and stopping\n",
-                   g_signal.load() == SIGINT ? "SIGINT" : "SIGTERM");
-      }
-      const auto now = std::chrono::steady_clock::now();
-      if (!o->quiet && (tty || now - last_print >= std::chrono::seconds(2))) {
-        fmt::print(stderr, "{}{}", tty ? "\r" : "", status_line(rt, planned));
-        if (!tty) fmt::print(stderr, "\n");
-        last_print = now;
-      }
-    }
-    rt.wait();
-    if (!o->quiet && tty) fmt::print(stderr, "\r{}\n", status_line(rt, planned));
-
-    const RuntimeSummary s = rt.summary();
-    const auto& records = rt.log().records();
-    const std::vector<TickRecord> ticks = to_tick_records(records);
-    const std::vector<ContactEpisode> episodes = find_episodes(ticks);
-
-    std::string out_dir = o->out_dir;
-    if (out_dir.empty()) out_dir = "runs/" + std::filesystem::path(so.scene).stem().string();
-    std::filesystem::create_directories(out_dir);
-    const std::string csv = out_dir + "/servo_log.csv";
-    const std::string summary_path = out_dir + "/run_summary.json";
-    const std::string png = out_dir + "/run.png";
-    write_servo_log_csv(csv, records);
-
-    nlohmann::json sj;
-    sj["scene"] = so.scene;
-    sj["registration"] = so.registration_file;
-    sj["gaussians_kept"] = pw.world.size();
-    sj["device"] = device->info().name;
-    sj["mode"] = o->inline_query ? "inline" : "decoupled";
-    sj["tool_radius"] = tool_radius;
-    sj["interrupted"] = stop_sent;
-    sj["runtime"] = to_json(s);
-    sj["query_us"] = {{"p50", s.query_p50_us}, {"p99", s.query_p99_us}, {"max", s.query_max_us}};
-    sj["log_ticks"] = records.size();
-    sj["log_dropped"] = rt.log().dropped();
-    sj["warnings"] = rt.warnings();
-    nlohmann::json eps = nlohmann::json::array();
-    for (const auto& e : episodes)
-      eps.push_back({{"t_start", e.t_start}, {"t_end", e.t_end}, {"peak_contacts", e.peak_contacts},
-                     {"peak_force", e.peak_force}});
-    sj["episodes"] = eps;
-    write_file_atomically(summary_path, sj.dump(2) + "\n");
-
-    fmt::print("\nticks      {} in {:.2f} s: {:.1f} Hz achieved ({:.0f} Hz set); {} deadline misses, "
-               "{} periods skipped\n", s.ticks, s.duration_s, s.achieved_rate_hz, s.rate_hz,
-               s.deadline_misses, s.skipped_periods);
-    fmt::print("jitter     p50 {:.1f} us, p99 {:.1f} us, max {:.1f} us (wake-up lateness)\n",
-               s.jitter_p50_us, s.jitter_p99_us, s.jitter_max_us);
-    fmt::print("worker     {} queries: p50 {:.1f} us, p99 {:.1f} us, max {:.1f} us (query + force)\n",
-               s.queries, s.query_p50_us, s.query_p99_us, s.query_max_us);
-    fmt::print("age        result rendered p50 {:.0f} us, p99 {:.0f} us, max {:.0f} us after its pose\n",
-               s.result_age_p50_us, s.result_age_p99_us, s.result_age_max_us);
-    fmt::print("stale      {} ticks held a stale result; {} fades ({} ticks fading, {} faded)\n",
-               s.stale_ticks, s.fades, s.fading_ticks, s.faded_ticks);
-    fmt::print("safety     watchdog {}, invalid pose {}, outside workspace {}, force-limited {}, "
-               "rate-limited {} ticks; peak force {:.2f} N\n", s.watchdog_ticks, s.invalid_pose_ticks,
-               s.outside_workspace_ticks, s.force_limited_ticks, s.rate_limited_ticks, s.peak_force);
-    fmt::print("episodes   {} contact episodes\n", episodes.size());
-    if (rt.log().dropped() > 0)
-      fmt::print(stderr, "warning: the tick log kept the first {} ticks; {} more were not logged\n",
-                 records.size(), rt.log().dropped());
-    fmt::print("log        {}\nsummary    {}\n", csv, summary_path);
-    if (o->no_plot || records.empty()) return;
-    if (!plot_run(csv, summary_path, png, "run")) {
-      set_exit_code(1);
-      return;
-    }
-    fmt::print("figure     {}\n", png);
+    RuntimeSetup setup = make_runtime_setup(*o, so, pw, false);
+    HapticRuntime rt(pw.world, *setup.device, setup.config);
+    const bool interrupted = run_live(rt, setup.planned, o->quiet);
+    if (!write_run_outputs(rt, *o, so, pw, setup, interrupted, "run")) set_exit_code(1);
   });
 }
 

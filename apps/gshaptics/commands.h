@@ -6,6 +6,7 @@ void register_info(CLI::App& app);
 void register_query(CLI::App& app);
 void register_simulate(CLI::App& app);
 void register_run(CLI::App& app);
+void register_serve(CLI::App& app);
 void register_poses(CLI::App& app);
 void register_bench(CLI::App& app);
 void register_convert(CLI::App& app);

@@ -21,6 +21,9 @@ int main(int argc, char** argv) {
   gshaptics::cli::register_query(app);
   gshaptics::cli::register_simulate(app);
   gshaptics::cli::register_run(app);
+#ifdef GSHAPTICS_HAVE_VIEWER
+  gshaptics::cli::register_serve(app);
+#endif
   gshaptics::cli::register_poses(app);
   gshaptics::cli::register_bench(app);
   gshaptics::cli::register_convert(app);

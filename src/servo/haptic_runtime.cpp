@@ -44,7 +44,7 @@ HapticRuntime::HapticRuntime(const CollisionWorld& world, HapticDevice& device,
   worker_ = std::make_unique<CollisionWorker>(world, config.tool, config.force, config.query,
                                               1.0 / config.rate_hz, clock);
   servo_ = std::make_unique<ServoController>(device, config.safety, period_, poses_, results_,
-                                             stats_, &log_, clock);
+                                             stats_, &log_, clock, &monitor_);
 }
 
 HapticRuntime::~HapticRuntime() {
@@ -176,6 +176,12 @@ void HapticRuntime::servo_main() {
   }
   servo_->finish(clock_.now());
   running_.store(false, std::memory_order_release);
+}
+
+bool HapticRuntime::latest_tick(ServoTickRecord& out) noexcept {
+  if (monitor_.read_if_new(latest_)) have_latest_ = true;
+  out = latest_;
+  return have_latest_;
 }
 
 RuntimeSummary HapticRuntime::summary() const { return summarize(stats_, worker_->latency(), config_.rate_hz); }

@@ -18,9 +18,9 @@ void bump(std::atomic<std::uint64_t>& a, bool cond) noexcept {
 
 ServoController::ServoController(HapticDevice& device, const SafetyParams& safety, Nanos period,
                                  PoseChannel& poses, ResultChannel& results, RuntimeStats& stats,
-                                 TickLog* log, Clock& clock)
+                                 TickLog* log, Clock& clock, TripleBuffer<ServoTickRecord>* monitor)
     : device_(device), safety_(safety), period_(period), poses_(poses), results_(results),
-      stats_(stats), log_(log), clock_(clock) {}
+      stats_(stats), log_(log), clock_(clock), monitor_(monitor) {}
 
 void ServoController::start(Nanos now) {
   device_.start(now);
@@ -112,7 +112,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   stats_.tick_time.record(end - now);
   if (in.have_result) stats_.result_age.record(in.result_age);
 
-  if (log_ != nullptr) {
+  if (log_ != nullptr || monitor_ != nullptr) {
     ServoTickRecord r;
     r.time = scheduled - t0_;
     r.jitter_us = float(double(now - scheduled) * 1e-3);
@@ -126,7 +126,8 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
     r.query_us = result_.query_us;
     r.result_age_us = float(double(in.result_age) * 1e-3);
     r.flags = f;
-    log_->push(r);
+    if (log_ != nullptr) log_->push(r);
+    if (monitor_ != nullptr) monitor_->write(r);
   }
   return end;
 }

@@ -84,6 +84,9 @@ class HapticRuntime {
   [[nodiscard]] const TickLog& log() const noexcept { return log_; }
   [[nodiscard]] RuntimeSummary summary() const;
   [[nodiscard]] const RuntimeConfig& config() const noexcept { return config_; }
+  /// The newest servo tick (pose, counts, force sent, flags), for one display thread: the single
+  /// reader of this hand-off. Returns false before the first tick.
+  bool latest_tick(ServoTickRecord& out) noexcept;
 
  private:
   void servo_main();
@@ -99,6 +102,9 @@ class HapticRuntime {
   ResultChannel results_;
   RuntimeStats stats_;
   TickLog log_;
+  TripleBuffer<ServoTickRecord> monitor_;
+  ServoTickRecord latest_;
+  bool have_latest_ = false;
   std::unique_ptr<CollisionWorker> worker_;
   std::unique_ptr<ServoController> servo_;
   std::thread servo_thread_, worker_thread_;

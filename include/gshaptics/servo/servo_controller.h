@@ -56,10 +56,11 @@ class TickLog {
 
 class ServoController {
  public:
-  /// `period` is the servo period, ns (> 0). `log` may be null.
+  /// `period` is the servo period, ns (> 0). `log` may be null. When `monitor` is given, every
+  /// tick's record is also written to it (for a display thread, which is its single reader).
   ServoController(HapticDevice& device, const SafetyParams& safety, Nanos period,
                   PoseChannel& poses, ResultChannel& results, RuntimeStats& stats, TickLog* log,
-                  Clock& clock);
+                  Clock& clock, TripleBuffer<ServoTickRecord>* monitor = nullptr);
 
   /// Starts the device and arms the soft start; `now` becomes the run's time zero. Throws what
   /// the device's start() throws.
@@ -90,6 +91,7 @@ class ServoController {
   RuntimeStats& stats_;
   TickLog* log_;
   Clock& clock_;
+  TripleBuffer<ServoTickRecord>* monitor_;
   Nanos t0_ = 0, prev_now_ = 0, last_device_data_ = 0;
   std::uint64_t last_device_seq_ = 0, pose_seq_ = 0, last_result_seq_ = 0;
   bool have_device_data_ = false, stopping_ = false, was_fading_ = false;

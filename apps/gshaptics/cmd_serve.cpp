@@ -1,0 +1,140 @@
+// `gshaptics serve [SCENE]`: the real-time runtime plus the browser viewer. Serves the page, the
+// original scene file and a WebSocket stream of the tool, the touched Gaussians and the force;
+// with --device mouse the page steers the tool.
+
+#include <fmt/format.h>
+
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "gshaptics/io/error.h"
+#include "gshaptics/net/viewer_server.h"
+#include "gshaptics/scene/scene_stats.h"
+#include "gshaptics/sim/pose_sampler.h"
+#include "runtime_cli.h"
+
+namespace gshaptics::cli {
+
+namespace {
+
+struct ServeOptions {
+  RuntimeOptions run;
+  std::string host = "127.0.0.1";
+  int port = 8080;
+  double display_rate = 30;
+  std::string web_root;
+};
+
+std::string find_web_root() {
+  for (const std::string& p : {std::string(GSHAPTICS_SOURCE_DIR) + "/web",
+                              std::string(GSHAPTICS_INSTALL_DATADIR) + "/web"})
+    if (std::filesystem::exists(p + "/index.html")) return p;
+  return "";
+}
+
+std::string spark_file_type(SceneFormat f) {
+  switch (f) {
+    case SceneFormat::kSplat: return "splat";
+    case SceneFormat::kSpz: return "spz";
+    default: return "ply";
+  }
+}
+
+/// The hello message: everything the page needs once (docs/viewer_protocol.md).
+std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const RuntimeSetup& setup,
+                       double display_hz) {
+  const SimilarityTransform& r = pw.config.registration;
+  std::vector<double> ax[3];
+  for (const auto& g : pw.world.gaussians())
+    for (int k = 0; k < 3; ++k) ax[k].push_back(g.center[k]);
+  nlohmann::json lo = nlohmann::json::array(), hi = nlohmann::json::array();
+  for (int k = 0; k < 3; ++k) {
+    lo.push_back(percentile(ax[k], 1));
+    hi.push_back(percentile(ax[k], 99));
+  }
+  const Eigen::Vector3d up = is_registered(so) ? Eigen::Vector3d::UnitZ()
+                                               : up_axis_from("auto", pw.scene.report.frame);
+  nlohmann::json j;
+  j["type"] = "hello";
+  j["protocol"] = 1;
+  j["scene_url"] = "/scene";
+  j["scene_name"] = std::filesystem::path(so.scene).filename().string();
+  j["file_type"] = spark_file_type(pw.scene.report.format);
+  j["gaussians_in_file"] = pw.scene.report.loaded + pw.scene.report.skipped();
+  j["gaussians_kept"] = pw.world.size();
+  j["registration"] = {{"scale", r.scale},
+                       {"rotation", {r.rotation.w(), r.rotation.x(), r.rotation.y(), r.rotation.z()}},
+                       {"translation", {r.translation.x(), r.translation.y(), r.translation.z()}}};
+  j["up"] = {up.x(), up.y(), up.z()};
+  j["bounds"] = {{"min", lo}, {"max", hi}};
+  j["tool"] = {{"axes", {setup.tool_radius, setup.tool_radius, setup.tool_radius}}};
+  j["device"] = setup.device->info().name;
+  j["mouse"] = setup.mouse != nullptr;
+  j["f_max"] = setup.config.safety.f_max;
+  j["rate_hz"] = setup.config.rate_hz;
+  j["display_hz"] = display_hz;
+  j["step"] = 0.5 * setup.tool_radius;
+  return j.dump();
+}
+
+}  // namespace
+
+void register_serve(CLI::App& app) {
+  auto o = std::make_shared<ServeOptions>();
+  o->run.device = "mouse";
+  CLI::App* cmd = app.add_subcommand(
+      "serve",
+      "Real-time runtime plus the browser viewer: serves http://HOST:PORT/ with the original "
+      "scene (Spark on three.js), the tool ellipsoid at its live pose, the colliding Gaussians, "
+      "the force arrow, live counters and a scrolling plot; --device mouse (default) lets the "
+      "page steer the tool (drag the tool, arrows/WASD/QE keys). Ctrl-C stops and writes the run's "
+      "log and summary like `run`.");
+  add_runtime_options(*cmd, o->run,
+                      "mouse: the tool follows the browser (drag, keys); sim: simulated hand "
+                      "probing the scene; replay:FILE: play a pose log");
+  cmd->add_option("--host", o->host, "Address to listen on (127.0.0.1: this machine only)")->capture_default_str();
+  cmd->add_option("--port", o->port, "HTTP/WebSocket port (0: any free port)")->capture_default_str()
+      ->check(CLI::Range(0, 65535));
+  cmd->add_option("--display-rate", o->display_rate, "State frames per second to each browser")
+      ->capture_default_str()->check(CLI::Range(1.0, 120.0));
+  cmd->add_option("--web-root", o->web_root, "Folder of the page (default: the source tree's web/)");
+  cmd->callback([o] {
+    const SceneOptions so = with_bundled_defaults(o->run.scene, "serve");
+    check_device_option(o->run.device, /*allow_mouse=*/true);
+    ViewerConfig vc;
+    vc.host = o->host;
+    vc.port = std::uint16_t(o->port);
+    vc.display_hz = o->display_rate;
+    vc.web_root = o->web_root.empty() ? find_web_root() : o->web_root;
+    vc.scene_path = so.scene;
+    if (vc.web_root.empty()) throw InputError("serve: web/index.html not found; pass --web-root");
+    if (!std::filesystem::exists(vc.web_root + "/node_modules/three") ||
+        !std::filesystem::exists(vc.web_root + "/node_modules/@sparkjsdev/spark"))
+      throw InputError("serve: " + vc.web_root + "/node_modules has no three / @sparkjsdev/spark; run "
+                       "`npm ci --prefix " + vc.web_root + "` (scripts/setup.sh does)");
+
+    const PreparedWorld pw = prepare_world(so, o->run.quiet);
+    RuntimeSetup setup = make_runtime_setup(o->run, so, pw, true);
+    vc.hello_json = hello_json(pw, so, setup, o->display_rate);
+    HapticRuntime rt(pw.world, *setup.device, setup.config);
+    ContactSnapshotObserver snapshots(pw.world, o->display_rate, MonotonicClock::instance());
+    rt.set_observer(&snapshots);
+    ViewerServer server(vc, rt, pw.world, snapshots, setup.mouse, MonotonicClock::instance());
+    server.start();
+    fmt::print("viewer     http://{}:{}/  (Ctrl-C to stop)\n", vc.host, server.port());
+    std::fflush(stdout);
+    const bool interrupted = run_live(rt, setup.planned, o->run.quiet, [&server] {
+      return fmt::format(" | clients {} | frames {}", server.stats().clients.load(),
+                         server.stats().frames_sent.load());
+    });
+    server.stop();
+    fmt::print("\nviewer     {} frames sent, {} dropped for slow clients, {} tool messages ({} malformed)\n",
+               server.stats().frames_sent.load(), server.stats().frames_dropped.load(),
+               server.stats().tool_messages.load(), server.stats().bad_messages.load());
+    if (!write_run_outputs(rt, o->run, so, pw, setup, interrupted, "serve")) set_exit_code(1);
+  });
+}
+
+}  // namespace gshaptics::cli

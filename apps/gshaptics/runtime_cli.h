@@ -1,0 +1,63 @@
+#pragma once
+// What `run` and `serve` share: the runtime's options, the device they name, the live loop with
+// its status line and signal handling, and the outputs of a run.
+
+#include <CLI/CLI.hpp>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "gshaptics/servo/haptic_runtime.h"
+#include "gshaptics/servo/stream_device.h"
+#include "probe_setup.h"
+
+namespace gshaptics::cli {
+
+struct RuntimeOptions {
+  SceneOptions scene;
+  std::string device = "sim";
+  double rate = 1000;
+  double duration = 0;
+  bool inline_query = false;
+  int sites = 7;
+  std::uint64_t seed = 1;
+  double tool_radius = 0;
+  ForceParams force;
+  SafetyParams safety;
+  RealtimeOptions realtime;
+  bool no_pin = false;
+  double spin_us = 0;
+  std::string out_dir;
+  bool no_plot = false;
+  bool quiet = false;
+};
+
+/// Adds the device, rate, duration, tool, force, safety, real-time, output and world options.
+/// `devices` is the --device help text.
+void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& devices);
+
+/// The device a --device value names, made for a world. `mouse` is set for --device mouse
+/// (allowed only when `allow_mouse`).
+struct RuntimeSetup {
+  std::unique_ptr<HapticDevice> device;
+  StreamDevice* mouse = nullptr;
+  double tool_radius = 0;
+  double planned = 0;  ///< s, 0: open-ended
+  RuntimeConfig config;
+};
+/// Checks --device before the scene loads (throws InputError naming the option).
+void check_device_option(const std::string& device, bool allow_mouse);
+RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
+                                bool allow_mouse);
+
+/// Starts the runtime, shows the live status line (plus `extra()` when given) until it ends,
+/// and turns SIGINT/SIGTERM into a clean stop. Returns true when a signal ended it.
+bool run_live(HapticRuntime& rt, double planned, bool quiet, const std::function<std::string()>& extra = {});
+
+/// Writes servo_log.csv and run_summary.json (and run.png unless no_plot) into the output
+/// folder and prints the summary. Returns false when plotting failed.
+bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
+                       const PreparedWorld& pw, const RuntimeSetup& setup, bool interrupted,
+                       const std::string& command);
+
+}  // namespace gshaptics::cli

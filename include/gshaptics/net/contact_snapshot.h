@@ -1,0 +1,53 @@
+#pragma once
+/// @file
+/// Contacts for display: the collision worker's newest contact set, sampled at a display rate
+/// and handed to a display thread without locks (paper Sec. IV: the collision node sends the
+/// colliding Gaussians to the renderer).
+///
+/// Threading contract: on_result() runs on the collision worker's thread (it is a
+/// ResultObserver) and copies at most `kMaxShown` contacts, and only when 1 / display_hz has
+/// passed since the last copy; take() is called by one display thread.
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/servo/clock.h"
+#include "gshaptics/servo/collision_worker.h"
+#include "gshaptics/servo/triple_buffer.h"
+
+namespace gshaptics {
+
+struct ContactSnapshot {
+  static constexpr std::size_t kMaxShown = 2048;
+  std::uint64_t pose_sequence = 0;  ///< 0: none yet
+  PoseCommand pose;                 ///< the tool pose the contacts belong to
+  QueryCounts counts;
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< force model output for this pose, N
+  float query_us = 0;
+  std::uint32_t shown = 0;  ///< entries used in `record` (min(contacts, kMaxShown))
+  /// Position of each shown contact in CollisionWorld::gaussians() (world frame geometry).
+  std::array<std::uint32_t, kMaxShown> record{};
+};
+
+class ContactSnapshotObserver final : public ResultObserver {
+ public:
+  /// Builds the source-index -> record map of `world` (4 bytes per source index).
+  ContactSnapshotObserver(const CollisionWorld& world, double display_hz, Clock& clock);
+  void on_result(const PoseCommand& pose, std::span<const Contact> contacts,
+                 const CollisionResult& result) noexcept override;
+  /// Display thread: the newest snapshot; false when none arrived since the last take.
+  bool take(ContactSnapshot& out) noexcept { return buffer_.read_if_new(out); }
+
+ private:
+  const CollisionWorld& world_;
+  std::vector<std::uint32_t> record_of_source_;
+  Nanos min_interval_;
+  Clock& clock_;
+  Nanos last_copy_ = -1;
+  ContactSnapshot scratch_;
+  TripleBuffer<ContactSnapshot> buffer_;
+};
+
+}  // namespace gshaptics

@@ -1,0 +1,78 @@
+#pragma once
+/// @file
+/// The viewer's HTTP + WebSocket server (Boost.Beast): serves the page, its npm packages and the
+/// ORIGINAL scene file, and streams the runtime's state to every browser at a display rate,
+/// decoupled from the servo loop (a slow browser drops frames; it never slows a tick). Browsers
+/// may steer a StreamDevice (the mouse/keyboard device).
+///
+/// Protocol (JSON text frames on ws://HOST:PORT/ws; documented in docs/viewer_protocol.md):
+///   server -> client, once: {"type":"hello", scene, registration, tool, force limit, bounds...}
+///   server -> client, at display rate: {"type":"state", tool pose, force, counts, stats, contacts}
+///   client -> server: {"type":"tool","center":[x,y,z]} (mouse device; also a keep-alive)
+///
+/// Threading contract: all network work runs on one server thread started by start(); it is
+/// the single reader of HapticRuntime::latest_tick() and ContactSnapshotObserver::take(), and
+/// the single producer of StreamDevice::set_target(). stop() joins it.
+
+#include <cstdint>
+#include <memory>
+#include <nlohmann/json_fwd.hpp>
+#include <string>
+
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/net/contact_snapshot.h"
+#include "gshaptics/servo/haptic_runtime.h"
+#include "gshaptics/servo/stream_device.h"
+
+namespace gshaptics {
+
+struct ViewerConfig {
+  std::string host = "127.0.0.1";
+  std::uint16_t port = 8080;  ///< 0: any free port (see ViewerServer::port())
+  std::string web_root;       ///< folder with index.html, app.js and node_modules/
+  std::string scene_path;     ///< the original scene file, served at /scene
+  double display_hz = 30;     ///< state frames per second
+  /// Sent once in the hello message: scene format, registration, tool, limits, bounds.
+  std::string hello_json = "{}";
+};
+
+/// Counters of the server (any thread may read).
+struct ViewerStats {
+  std::atomic<std::uint64_t> frames_built{0};
+  std::atomic<std::uint64_t> frames_sent{0};
+  std::atomic<std::uint64_t> frames_dropped{0};  ///< a client was still busy with the last one
+  std::atomic<std::uint64_t> tool_messages{0};
+  std::atomic<std::uint64_t> bad_messages{0};
+  std::atomic<std::uint32_t> clients{0};
+};
+
+class ViewerServer {
+ public:
+  /// `mouse` may be null (the runtime's device is not steered from the page).
+  ViewerServer(const ViewerConfig& config, HapticRuntime& runtime, const CollisionWorld& world,
+               ContactSnapshotObserver& contacts, StreamDevice* mouse, Clock& clock);
+  ~ViewerServer();
+  ViewerServer(const ViewerServer&) = delete;
+  ViewerServer& operator=(const ViewerServer&) = delete;
+
+  /// Binds and starts the server thread. Throws InputError when the address cannot be bound
+  /// (port in use, bad host) or web_root has no index.html.
+  void start();
+  /// Stops accepting, closes connections, joins the thread.
+  void stop();
+  /// The bound port (after start()).
+  [[nodiscard]] std::uint16_t port() const noexcept;
+  [[nodiscard]] const ViewerStats& stats() const noexcept;
+
+  /// The state frame for a tick record and a contact snapshot (exposed for tests).
+  [[nodiscard]] static std::string state_json(const ServoTickRecord& tick, const ContactSnapshot& contacts,
+                                              const CollisionWorld& world, const RuntimeStats& stats,
+                                              const LatencyHistogram& query, double rate_hz);
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace gshaptics

@@ -1,0 +1,67 @@
+#pragma once
+/// @file
+/// A device whose target pose arrives from another thread at its own rate: a mouse in a browser,
+/// a network link. The servo thread reads servo-rate poses interpolated between the last two
+/// targets (so a 30-60 Hz input gives a smooth 1 kHz pose, one input period behind) with the
+/// matching velocity. The commanded wrench is kept for whoever displays it.
+///
+/// Threading contract: one producer thread calls set_target() (wait-free, allocation-free);
+/// the servo thread calls read()/write(). The producer may also call last_wrench_magnitude()
+/// and connected() from its thread.
+
+#include <atomic>
+#include <string>
+
+#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/servo/triple_buffer.h"
+
+namespace gshaptics {
+
+struct StreamDeviceParams {
+  std::string name = "stream";
+  /// No target for this long: the device stops delivering data, so the runtime's watchdog
+  /// zeroes the force (a closed browser tab, a dead link). s.
+  double input_timeout = 0.5;
+  double max_rate_hz = 100000;
+  Eigen::AlignedBox3d workspace{Eigen::Vector3d::Constant(-1e300), Eigen::Vector3d::Constant(1e300)};
+};
+
+/// A target pose as handed from the producer to the servo thread.
+struct StreamTarget {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
+  Nanos stamp = 0;
+  std::uint64_t count = 0;
+};
+
+class StreamDevice final : public HapticDevice {
+ public:
+  /// `initial` is the pose before any target arrives (world frame, m).
+  StreamDevice(const StreamDeviceParams& params, const Eigen::Vector3d& initial);
+  [[nodiscard]] const DeviceInfo& info() const noexcept override { return info_; }
+  void start(Nanos now) override;
+  [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
+  void write(const Wrench& wrench, Nanos now) noexcept override;
+  void stop(Nanos now) noexcept override;
+
+  /// Producer: a new target pose arrived at `stamp` (ns on the runtime's clock).
+  void set_target(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
+                  Nanos stamp) noexcept;
+  /// |F| last commanded, N (any thread).
+  [[nodiscard]] double last_force() const noexcept { return last_force_.load(std::memory_order_relaxed); }
+
+ private:
+  using Target = StreamTarget;
+  StreamDeviceParams params_;
+  DeviceInfo info_;
+  TripleBuffer<Target> targets_;
+  std::uint64_t produced_ = 0;  // producer thread only
+  // Servo thread only:
+  Target prev_, last_;
+  bool have_last_ = false;
+  std::uint64_t sequence_ = 0;
+  Nanos start_ = 0;
+  std::atomic<double> last_force_{0};
+};
+
+}  // namespace gshaptics

@@ -1,0 +1,374 @@
+#include "gshaptics/net/viewer_server.h"
+
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <cmath>
+#include <deque>
+#include <filesystem>
+#include <fmt/format.h>
+#include <list>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "gshaptics/io/error.h"
+
+namespace gshaptics {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = asio::ip::tcp;
+
+namespace {
+
+std::string mime_type(const std::string& path) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  if (ext == ".html") return "text/html; charset=utf-8";
+  if (ext == ".js" || ext == ".mjs") return "text/javascript; charset=utf-8";
+  if (ext == ".css") return "text/css; charset=utf-8";
+  if (ext == ".json" || ext == ".map") return "application/json";
+  if (ext == ".wasm") return "application/wasm";
+  if (ext == ".png") return "image/png";
+  return "application/octet-stream";
+}
+
+void append_vec(std::string& s, const Eigen::Vector3d& v, int digits = 5) {
+  s += fmt::format("[{:.{}g},{:.{}g},{:.{}g}]", v.x(), digits, v.y(), digits, v.z(), digits);
+}
+
+}  // namespace
+
+std::string ViewerServer::state_json(const ServoTickRecord& tick, const ContactSnapshot& contacts,
+                                     const CollisionWorld& world, const RuntimeStats& stats,
+                                     const LatencyHistogram& query, double rate_hz) {
+  // Built by hand: this runs 30-60 times a second with up to 2048 contacts.
+  std::string s;
+  s.reserve(200 + std::size_t(contacts.shown) * 110);
+  s += "{\"type\":\"state\",\"t\":";
+  s += fmt::format("{:.4f}", to_seconds(tick.time));
+  s += ",\"tool\":{\"center\":";
+  append_vec(s, tick.position, 7);
+  const Eigen::Quaterniond& q = contacts.pose.orientation;
+  s += fmt::format(",\"rotation\":[{:.6g},{:.6g},{:.6g},{:.6g}]}}", q.w(), q.x(), q.y(), q.z());
+  s += ",\"force\":";
+  append_vec(s, tick.force);
+  s += ",\"desired\":";
+  append_vec(s, tick.desired);
+  s += ",\"user_force\":";
+  append_vec(s, tick.user_force);
+  const std::uint64_t ticks = stats.ticks.load(std::memory_order_relaxed);
+  const double wall = to_seconds(stats.last_tick_ns.load() - stats.start_ns.load());
+  s += fmt::format(
+      ",\"counts\":{{\"candidates\":{},\"prefiltered\":{},\"contacts\":{}}},\"query_us\":{:.2f},"
+      "\"flags\":{},\"stats\":{{\"ticks\":{},\"rate_hz\":{:.1f},\"set_rate_hz\":{:.0f},"
+      "\"jitter_p99_us\":{:.1f},\"deadline_misses\":{},\"stale_ticks\":{},\"fades\":{},"
+      "\"query_p99_us\":{:.1f}}}",
+      tick.counts.candidates, tick.counts.prefiltered, tick.counts.contacts, double(tick.query_us),
+      tick.flags, ticks, wall > 0 && ticks > 1 ? double(ticks - 1) / wall : 0.0, rate_hz,
+      stats.jitter.percentile(99) * 1e-3, stats.deadline_misses.load(), stats.stale_ticks.load(),
+      stats.fades.load(), query.percentile(99) * 1e-3);
+  // Contacts: [source index, cx, cy, cz, ax, ay, az, qw, qx, qy, qz] in the world frame.
+  s += fmt::format(",\"contacts_total\":{},\"contacts\":[", contacts.counts.contacts);
+  const auto& g = world.gaussians();
+  for (std::uint32_t i = 0; i < contacts.shown; ++i) {
+    const CollisionGaussian& c = g[contacts.record[i]];
+    Eigen::Matrix3d r;
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) r(a, b) = double(c.rotation[3 * a + b]);
+    Eigen::Quaterniond qc(r);
+    qc.normalize();
+    s += fmt::format("{}[{},{:.6g},{:.6g},{:.6g},{:.4g},{:.4g},{:.4g},{:.4f},{:.4f},{:.4f},{:.4f}]",
+                     i ? "," : "", c.source_index, c.center[0], c.center[1], c.center[2],
+                     double(c.semi_axes[0]), double(c.semi_axes[1]), double(c.semi_axes[2]), qc.w(),
+                     qc.x(), qc.y(), qc.z());
+  }
+  s += "]}";
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+struct WsSession;
+
+struct ViewerServer::Impl {
+  Impl(const ViewerConfig& c, HapticRuntime& rt, const CollisionWorld& w, ContactSnapshotObserver& o,
+       StreamDevice* m, Clock& cl)
+      : config(c), runtime(rt), world(w), contacts(o), mouse(m), clock(cl), acceptor(io), timer(io) {}
+
+  void accept();
+  void tick_display();
+  void on_tool_message(const std::string& text);
+
+  ViewerConfig config;
+  HapticRuntime& runtime;
+  const CollisionWorld& world;
+  ContactSnapshotObserver& contacts;
+  StreamDevice* mouse;
+  Clock& clock;
+  asio::io_context io;
+  tcp::acceptor acceptor;
+  asio::steady_timer timer;
+  std::thread thread;
+  std::list<std::weak_ptr<WsSession>> sessions;
+  ViewerStats stats;
+  ServoTickRecord tick;
+  ContactSnapshot snapshot;
+  std::uint16_t bound_port = 0;
+  bool stopping = false;
+};
+
+/// One WebSocket client. Keeps at most one frame queued: a newer state replaces an unsent one.
+struct WsSession : std::enable_shared_from_this<WsSession> {
+  WsSession(tcp::socket socket, ViewerServer::Impl& server) : ws(std::move(socket)), srv(server) {}
+
+  void run(http::request<http::string_body> req) {
+    ws.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    ws.async_accept(req, [self = shared_from_this()](beast::error_code ec) {
+      if (ec) return;
+      self->srv.stats.clients.fetch_add(1);
+      self->open = true;
+      self->send(std::make_shared<std::string>(self->srv.config.hello_json));
+      self->read();
+    });
+  }
+  void read() {
+    ws.async_read(buffer, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      if (ec) {
+        self->close();
+        return;
+      }
+      self->srv.on_tool_message(beast::buffers_to_string(self->buffer.data()));
+      self->buffer.consume(self->buffer.size());
+      self->read();
+    });
+  }
+  void send(std::shared_ptr<const std::string> frame) {
+    if (!open) return;
+    if (writing) {
+      if (pending) srv.stats.frames_dropped.fetch_add(1);
+      pending = std::move(frame);
+      return;
+    }
+    write(std::move(frame));
+  }
+  void write(std::shared_ptr<const std::string> frame) {
+    writing = true;
+    ws.text(true);
+    ws.async_write(asio::buffer(*frame), [self = shared_from_this(), frame](beast::error_code ec, std::size_t) {
+      self->writing = false;
+      if (ec) {
+        self->close();
+        return;
+      }
+      self->srv.stats.frames_sent.fetch_add(1);
+      if (self->pending) self->write(std::exchange(self->pending, nullptr));
+    });
+  }
+  void close() {
+    if (!open) return;
+    open = false;
+    srv.stats.clients.fetch_sub(1);
+  }
+  void shutdown() {
+    if (!ws.is_open()) return;
+    beast::error_code ec;
+    beast::get_lowest_layer(ws).socket().close(ec);
+  }
+
+  websocket::stream<beast::tcp_stream> ws;
+  ViewerServer::Impl& srv;
+  beast::flat_buffer buffer;
+  std::shared_ptr<const std::string> pending;
+  bool writing = false, open = false;
+};
+
+/// One HTTP connection: files, the scene, the hello JSON, or an upgrade to a WebSocket.
+struct HttpSession : std::enable_shared_from_this<HttpSession> {
+  HttpSession(tcp::socket socket, ViewerServer::Impl& server) : stream(std::move(socket)), srv(server) {}
+
+  void read() {
+    req = {};
+    stream.expires_after(std::chrono::seconds(30));
+    http::async_read(stream, buffer, req, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      if (ec) return;
+      self->handle();
+    });
+  }
+
+  template <class Response>
+  void send(Response&& res) {
+    auto sp = std::make_shared<std::decay_t<Response>>(std::forward<Response>(res));
+    http::async_write(stream, *sp, [self = shared_from_this(), sp](beast::error_code ec, std::size_t) {
+      if (ec || sp->need_eof()) {
+        beast::error_code ignored;
+        self->stream.socket().shutdown(tcp::socket::shutdown_send, ignored);
+        return;
+      }
+      self->read();
+    });
+  }
+
+  void text(http::status status, const std::string& body, const std::string& type = "text/plain") {
+    http::response<http::string_body> res{status, req.version()};
+    res.set(http::field::content_type, type);
+    res.set(http::field::cache_control, "no-store");
+    res.keep_alive(req.keep_alive());
+    res.body() = body;
+    res.prepare_payload();
+    send(std::move(res));
+  }
+
+  void file(const std::string& path) {
+    beast::error_code ec;
+    http::file_body::value_type body;
+    body.open(path.c_str(), beast::file_mode::scan, ec);
+    if (ec) {
+      text(http::status::not_found, "not found\n");
+      return;
+    }
+    const auto size = body.size();
+    http::response<http::file_body> res{std::piecewise_construct, std::make_tuple(std::move(body)),
+                                        std::make_tuple(http::status::ok, req.version())};
+    res.set(http::field::content_type, mime_type(path));
+    res.content_length(size);
+    res.keep_alive(req.keep_alive());
+    send(std::move(res));
+  }
+
+  void handle() {
+    if (websocket::is_upgrade(req)) {
+      if (req.target() != "/ws") {
+        text(http::status::not_found, "WebSocket endpoint is /ws\n");
+        return;
+      }
+      auto ws = std::make_shared<WsSession>(stream.release_socket(), srv);
+      srv.sessions.push_back(ws);
+      ws->run(std::move(req));
+      return;
+    }
+    if (req.method() != http::verb::get && req.method() != http::verb::head) {
+      text(http::status::method_not_allowed, "GET only\n");
+      return;
+    }
+    std::string target(req.target());
+    if (const auto q = target.find('?'); q != std::string::npos) target.resize(q);
+    if (target.find("..") != std::string::npos) {
+      text(http::status::bad_request, "bad path\n");
+      return;
+    }
+    if (target == "/" || target == "/index.html") return file(srv.config.web_root + "/index.html");
+    if (target == "/api/hello") return text(http::status::ok, srv.config.hello_json, "application/json");
+    if (target == "/scene") return file(srv.config.scene_path);
+    const bool allowed = target.rfind("/node_modules/three/", 0) == 0 ||
+                         target.rfind("/node_modules/@sparkjsdev/spark/", 0) == 0 ||
+                         target == "/app.js" || target == "/style.css";
+    if (!allowed) return text(http::status::not_found, "not found\n");
+    file(srv.config.web_root + target);
+  }
+
+  beast::tcp_stream stream;
+  ViewerServer::Impl& srv;
+  beast::flat_buffer buffer;
+  http::request<http::string_body> req;
+};
+
+void ViewerServer::Impl::accept() {
+  acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
+    if (stopping) return;
+    if (!ec) std::make_shared<HttpSession>(std::move(socket), *this)->read();
+    accept();
+  });
+}
+
+void ViewerServer::Impl::on_tool_message(const std::string& text) {
+  // {"type":"tool","center":[x,y,z]}; anything else is counted and ignored.
+  const auto j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_object() || j.value("type", "") != "tool" || !j.contains("center") ||
+      !j["center"].is_array() || j["center"].size() != 3) {
+    stats.bad_messages.fetch_add(1);
+    return;
+  }
+  Eigen::Vector3d c;
+  for (int k = 0; k < 3; ++k) {
+    if (!j["center"][std::size_t(k)].is_number()) {
+      stats.bad_messages.fetch_add(1);
+      return;
+    }
+    c[k] = j["center"][std::size_t(k)].get<double>();
+  }
+  stats.tool_messages.fetch_add(1);
+  // A NaN pose is passed on: the runtime's safety layer drops and counts it.
+  if (mouse != nullptr) mouse->set_target(c, Eigen::Quaterniond::Identity(), clock.now());
+}
+
+void ViewerServer::Impl::tick_display() {
+  if (stopping) return;
+  if (runtime.latest_tick(tick)) {
+    contacts.take(snapshot);
+    auto frame = std::make_shared<const std::string>(ViewerServer::state_json(
+        tick, snapshot, world, runtime.stats(), runtime.worker().latency(), runtime.config().rate_hz));
+    stats.frames_built.fetch_add(1);
+    for (auto it = sessions.begin(); it != sessions.end();) {
+      if (auto s = it->lock()) {
+        s->send(frame);
+        ++it;
+      } else {
+        it = sessions.erase(it);
+      }
+    }
+  }
+  timer.expires_after(std::chrono::microseconds(std::int64_t(1e6 / std::max(1.0, config.display_hz))));
+  timer.async_wait([this](beast::error_code ec) {
+    if (!ec) tick_display();
+  });
+}
+
+ViewerServer::ViewerServer(const ViewerConfig& config, HapticRuntime& runtime, const CollisionWorld& world,
+                           ContactSnapshotObserver& contacts, StreamDevice* mouse, Clock& clock)
+    : impl_(std::make_unique<Impl>(config, runtime, world, contacts, mouse, clock)) {}
+
+ViewerServer::~ViewerServer() { stop(); }
+
+void ViewerServer::start() {
+  Impl& m = *impl_;
+  if (!std::filesystem::exists(m.config.web_root + "/index.html"))
+    throw InputError("viewer: " + m.config.web_root + "/index.html not found (--web-root)");
+  beast::error_code ec;
+  const auto address = asio::ip::make_address(m.config.host, ec);
+  if (ec) throw InputError("viewer: bad host address '" + m.config.host + "'");
+  const tcp::endpoint ep{address, m.config.port};
+  m.acceptor.open(ep.protocol(), ec);
+  if (!ec) m.acceptor.set_option(asio::socket_base::reuse_address(true), ec);
+  if (!ec) m.acceptor.bind(ep, ec);
+  if (!ec) m.acceptor.listen(asio::socket_base::max_listen_connections, ec);
+  if (ec)
+    throw InputError(fmt::format("viewer: cannot listen on {}:{}: {}", m.config.host, m.config.port, ec.message()));
+  m.bound_port = m.acceptor.local_endpoint().port();
+  m.accept();
+  m.tick_display();
+  m.thread = std::thread([&m] { m.io.run(); });
+}
+
+void ViewerServer::stop() {
+  Impl& m = *impl_;
+  if (!m.thread.joinable()) return;
+  asio::post(m.io, [&m] {
+    m.stopping = true;
+    beast::error_code ec;
+    m.acceptor.close(ec);
+    m.timer.cancel();
+    for (auto& w : m.sessions)
+      if (auto s = w.lock()) s->shutdown();
+    m.io.stop();  // idle keep-alive HTTP connections would otherwise hold run() for their timeout
+  });
+  m.thread.join();
+}
+
+std::uint16_t ViewerServer::port() const noexcept { return impl_->bound_port; }
+const ViewerStats& ViewerServer::stats() const noexcept { return impl_->stats; }
+
+}  // namespace gshaptics

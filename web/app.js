@@ -1,0 +1,227 @@
+// gshaptics viewer: the original 3DGS scene (Spark on three.js) in the collision pipeline's world
+// frame, the tool ellipsoid at its live pose, the colliding Gaussians, the force arrow and live
+// counters, fed by `gshaptics serve` over a WebSocket (protocol: docs/viewer_protocol.md).
+// With the mouse device, the page steers the tool: drag the tool, or use the keys in #help.
+
+import * as THREE from "three";
+import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+import { SparkRenderer, SplatMesh } from "@sparkjsdev/spark";
+
+const $ = (id) => document.getElementById(id);
+const MAX_SHOWN = 2048;
+const PLOT_SAMPLES = 300;
+
+const view = {
+  hello: null, scene: null, camera: null, renderer: null, controls: null, splat: null,
+  tool: null, contacts: null, arrow: null, target: null, up: null, upChoices: [], upIndex: 0,
+  history: [], last: null, dragging: false, dragPlane: new THREE.Plane(), dragOffset: new THREE.Vector3(),
+};
+window.gshaptics = view; // for tests and the console
+
+const ws = new WebSocket(`ws://${location.host}/ws`);
+ws.onopen = () => { $("status").textContent = "connected"; };
+ws.onclose = () => { $("status").textContent = "disconnected"; $("status").style.color = "#e77"; };
+ws.onmessage = (ev) => {
+  const m = JSON.parse(ev.data);
+  if (m.type === "hello") init(m);
+  else if (m.type === "state" && view.hello) update(m);
+};
+
+function vec(a) { return new THREE.Vector3(a[0], a[1], a[2]); }
+
+function init(h) {
+  view.hello = h;
+  $("scene-name").textContent = `${h.scene_name}: ${h.gaussians_kept.toLocaleString()} of ` +
+    `${h.gaussians_in_file.toLocaleString()} Gaussians collide (opacity filter); device: ${h.device}`;
+  const lo = vec(h.bounds.min), hi = vec(h.bounds.max);
+  const center = lo.clone().add(hi).multiplyScalar(0.5);
+  const extent = hi.clone().sub(lo).length();
+  view.up = vec(h.up).normalize();
+  view.upChoices = [view.up.clone(), new THREE.Vector3(0, 0, 1), new THREE.Vector3(0, 1, 0), new THREE.Vector3(0, -1, 0)];
+
+  const scene = new THREE.Scene();
+  const camera = new THREE.PerspectiveCamera(55, innerWidth / innerHeight, extent * 1e-3, extent * 50);
+  camera.up.copy(view.up);
+  const side = new THREE.Vector3(1, 0.7, 0).applyQuaternion(new THREE.Quaternion().setFromUnitVectors(new THREE.Vector3(0, 0, 1), view.up));
+  camera.position.copy(center).addScaledVector(side.normalize(), 0.9 * extent).addScaledVector(view.up, 0.45 * extent);
+  const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
+  renderer.setSize(innerWidth, innerHeight);
+  $("view").appendChild(renderer.domElement);
+  scene.add(new SparkRenderer({ renderer }));
+  const controls = new OrbitControls(camera, renderer.domElement);
+  controls.target.copy(center);
+  controls.update();
+
+  // The scene file as stored, placed by the registration: x_world = s R x_file + t (paper eq. 3).
+  const splat = new SplatMesh({ url: h.scene_url, fileType: h.file_type });
+  const r = h.registration;
+  splat.scale.setScalar(r.scale);
+  splat.quaternion.set(r.rotation[1], r.rotation[2], r.rotation[3], r.rotation[0]);
+  splat.position.set(...r.translation);
+  scene.add(splat);
+
+  const tool = new THREE.Mesh(new THREE.SphereGeometry(1, 32, 16),
+    new THREE.MeshBasicMaterial({ color: 0x66ccff, wireframe: true, transparent: true, opacity: 0.7 }));
+  tool.scale.set(...h.tool.axes);
+  scene.add(tool);
+  const contacts = new THREE.InstancedMesh(new THREE.SphereGeometry(1, 10, 6),
+    new THREE.MeshBasicMaterial({ color: 0xff3355, transparent: true, opacity: 0.75, depthTest: false }), MAX_SHOWN);
+  contacts.count = 0;
+  contacts.renderOrder = 2;
+  scene.add(contacts);
+  const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0, 0xffaa00);
+  arrow.visible = false;
+  scene.add(arrow);
+
+  Object.assign(view, { scene, camera, renderer, controls, splat, tool, contacts, arrow, extent });
+  addEventListener("resize", () => {
+    camera.aspect = innerWidth / innerHeight;
+    camera.updateProjectionMatrix();
+    renderer.setSize(innerWidth, innerHeight);
+  });
+  if (h.mouse) setupMouseDevice(h);
+  $("help").innerHTML = h.mouse
+    ? "Drag the blue tool to move it in the view plane. Keys: arrows move in the view plane, W/S into/out of the view, " +
+      "Q/E up/down along the scene's up axis (Shift: 5x), R resets, U toggles the camera's up axis. Mouse elsewhere orbits."
+    : "The device drives the tool. U toggles the camera's up axis. Mouse orbits.";
+  renderer.setAnimationLoop(() => { controls.update(); renderer.render(scene, camera); });
+}
+
+const tmpM = new THREE.Matrix4(), tmpQ = new THREE.Quaternion(), tmpP = new THREE.Vector3(), tmpS = new THREE.Vector3();
+
+function update(m) {
+  view.last = m;
+  const c = vec(m.tool.center);
+  view.tool.position.copy(c);
+  const q = m.tool.rotation;
+  view.tool.quaternion.set(q[1], q[2], q[3], q[0]);
+  if (view.target === null) view.target = c.clone();
+
+  const n = Math.min(m.contacts.length, MAX_SHOWN);
+  for (let i = 0; i < n; i++) {
+    const k = m.contacts[i]; // [index, cx, cy, cz, ax, ay, az, qw, qx, qy, qz]
+    tmpP.set(k[1], k[2], k[3]);
+    tmpS.set(Math.max(k[4], 1e-5), Math.max(k[5], 1e-5), Math.max(k[6], 1e-5));
+    tmpQ.set(k[8], k[9], k[10], k[7]);
+    view.contacts.setMatrixAt(i, tmpM.compose(tmpP, tmpQ, tmpS));
+  }
+  view.contacts.count = n;
+  view.contacts.instanceMatrix.needsUpdate = true;
+
+  const f = vec(m.force);
+  const fm = f.length();
+  view.arrow.visible = fm > 1e-6;
+  if (view.arrow.visible) {
+    const len = 0.25 * view.extent * Math.min(1, fm / view.hello.f_max) + 1e-6;
+    view.arrow.position.copy(c);
+    view.arrow.setDirection(f.clone().normalize());
+    view.arrow.setLength(len, 0.2 * len, 0.1 * len);
+  }
+
+  $("candidates").textContent = m.counts.candidates;
+  $("prefiltered").textContent = m.counts.prefiltered;
+  $("contacts").textContent = m.counts.contacts;
+  $("force").textContent = `${fm.toFixed(2)} N`;
+  $("query").textContent = `${m.query_us.toFixed(1)} µs (p99 ${m.stats.query_p99_us.toFixed(1)})`;
+  $("rate").textContent = `${m.stats.rate_hz.toFixed(1)} / ${m.stats.set_rate_hz} Hz`;
+  $("jitter").textContent = `${m.stats.jitter_p99_us.toFixed(1)} µs, ${m.stats.deadline_misses} misses`;
+  $("stale").textContent = `${m.stats.stale_ticks} / ${m.stats.fades}`;
+  $("tool").textContent = m.tool.center.map((x) => x.toFixed(3)).join(", ");
+  document.body.dataset.contacts = m.counts.contacts;
+  document.body.dataset.force = fm.toFixed(4);
+
+  view.history.push([m.counts.contacts, fm]);
+  if (view.history.length > PLOT_SAMPLES) view.history.shift();
+  drawPlot();
+}
+
+function drawPlot() {
+  const cv = $("plot"), g = cv.getContext("2d");
+  g.clearRect(0, 0, cv.width, cv.height);
+  const h = view.history;
+  if (h.length < 2) return;
+  const maxC = Math.max(10, ...h.map((x) => x[0]));
+  const maxF = Math.max(1, ...h.map((x) => x[1]));
+  const line = (idx, max, color) => {
+    g.strokeStyle = color;
+    g.beginPath();
+    h.forEach((x, i) => {
+      const px = (i / (PLOT_SAMPLES - 1)) * cv.width, py = cv.height - 4 - (x[idx] / max) * (cv.height - 8);
+      i ? g.lineTo(px, py) : g.moveTo(px, py);
+    });
+    g.stroke();
+  };
+  line(0, maxC, "#4fc3f7");
+  line(1, maxF, "#ff7043");
+  g.fillStyle = "#888";
+  g.fillText(`${maxC} contacts / ${maxF.toFixed(1)} N`, 4, 11);
+}
+
+// ---- the mouse/keyboard device ----------------------------------------------------------------
+
+function sendTool() {
+  if (ws.readyState === WebSocket.OPEN && view.target)
+    ws.send(JSON.stringify({ type: "tool", center: [view.target.x, view.target.y, view.target.z] }));
+}
+
+function moveTool(delta) {
+  if (!view.target) return;
+  view.target.add(delta);
+  sendTool();
+}
+
+function setupMouseDevice(h) {
+  setInterval(sendTool, 1000 / 30); // the device's input rate; also keeps the watchdog fed
+  const el = view.renderer.domElement, ray = new THREE.Raycaster(), ndc = new THREE.Vector2();
+  const pick = (e) => {
+    const r = el.getBoundingClientRect();
+    ndc.set(((e.clientX - r.left) / r.width) * 2 - 1, -((e.clientY - r.top) / r.height) * 2 + 1);
+    ray.setFromCamera(ndc, view.camera);
+  };
+  el.addEventListener("pointerdown", (e) => {
+    pick(e);
+    if (!view.target || ray.intersectObject(view.tool).length === 0) return;
+    view.dragging = true;
+    view.controls.enabled = false;
+    const normal = view.camera.getWorldDirection(new THREE.Vector3());
+    view.dragPlane.setFromNormalAndCoplanarPoint(normal, view.target);
+    const hit = new THREE.Vector3();
+    ray.ray.intersectPlane(view.dragPlane, hit);
+    view.dragOffset.copy(view.target).sub(hit);
+    el.setPointerCapture(e.pointerId);
+  });
+  el.addEventListener("pointermove", (e) => {
+    if (!view.dragging) return;
+    pick(e);
+    const hit = new THREE.Vector3();
+    if (ray.ray.intersectPlane(view.dragPlane, hit)) {
+      view.target.copy(hit.add(view.dragOffset));
+      sendTool();
+    }
+  });
+  el.addEventListener("pointerup", () => { view.dragging = false; view.controls.enabled = true; });
+  addEventListener("keydown", (e) => {
+    const step = h.step * (e.shiftKey ? 5 : 1);
+    const cam = view.camera;
+    const fwd = cam.getWorldDirection(new THREE.Vector3());
+    const right = fwd.clone().cross(cam.up).normalize();
+    const screenUp = right.clone().cross(fwd).normalize();
+    const k = e.key.toLowerCase();
+    const moves = {
+      arrowleft: right.clone().multiplyScalar(-step), arrowright: right.clone().multiplyScalar(step),
+      arrowup: screenUp.clone().multiplyScalar(step), arrowdown: screenUp.clone().multiplyScalar(-step),
+      w: fwd.clone().multiplyScalar(step), s: fwd.clone().multiplyScalar(-step),
+      q: view.up.clone().multiplyScalar(step), e: view.up.clone().multiplyScalar(-step),
+    };
+    if (k in moves) {
+      moveTool(moves[k]);
+      e.preventDefault();
+    } else if (k === "r" && view.last) {
+      view.target = null;
+    } else if (k === "u") {
+      view.upIndex = (view.upIndex + 1) % view.upChoices.length;
+      cam.up.copy(view.upChoices[view.upIndex]);
+      view.controls.update();
+    }
+  });
+}
