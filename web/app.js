@@ -34,8 +34,8 @@ function init(h) {
   $("scene-name").textContent = `${h.scene_name}: ${h.gaussians_kept.toLocaleString()} of ` +
     `${h.gaussians_in_file.toLocaleString()} Gaussians collide (opacity filter); device: ${h.device}`;
   const lo = vec(h.bounds.min), hi = vec(h.bounds.max);
-  const center = lo.clone().add(hi).multiplyScalar(0.5);
   const extent = hi.clone().sub(lo).length();
+  const toolStart = view.last ? vec(view.last.tool.center) : lo.clone().add(hi).multiplyScalar(0.5);
   view.up = vec(h.up).normalize();
   view.upChoices = [view.up.clone(), new THREE.Vector3(0, 0, 1), new THREE.Vector3(0, 1, 0), new THREE.Vector3(0, -1, 0)];
 
@@ -43,7 +43,9 @@ function init(h) {
   const camera = new THREE.PerspectiveCamera(55, innerWidth / innerHeight, extent * 1e-3, extent * 50);
   camera.up.copy(view.up);
   const side = new THREE.Vector3(1, 0.7, 0).applyQuaternion(new THREE.Quaternion().setFromUnitVectors(new THREE.Vector3(0, 0, 1), view.up));
-  camera.position.copy(center).addScaledVector(side.normalize(), 0.9 * extent).addScaledVector(view.up, 0.45 * extent);
+  // Look at where the tool starts, from the side and above, close enough to see the contacts.
+  const center = h.tool_start ? vec(h.tool_start) : toolStart;
+  camera.position.copy(center).addScaledVector(side.normalize(), 0.28 * extent).addScaledVector(view.up, 0.12 * extent);
   const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
   renderer.setSize(innerWidth, innerHeight);
   $("view").appendChild(renderer.domElement);
@@ -61,16 +63,21 @@ function init(h) {
   scene.add(splat);
 
   const tool = new THREE.Mesh(new THREE.SphereGeometry(1, 32, 16),
-    new THREE.MeshBasicMaterial({ color: 0x66ccff, wireframe: true, transparent: true, opacity: 0.7 }));
+    new THREE.MeshBasicMaterial({ color: 0x66ccff, wireframe: true, transparent: true, opacity: 0.8, depthTest: false }));
   tool.scale.set(...h.tool.axes);
+  tool.renderOrder = 1000; // overlays: drawn after the splats, visible inside the surface
   scene.add(tool);
   const contacts = new THREE.InstancedMesh(new THREE.SphereGeometry(1, 10, 6),
     new THREE.MeshBasicMaterial({ color: 0xff3355, transparent: true, opacity: 0.75, depthTest: false }), MAX_SHOWN);
   contacts.count = 0;
-  contacts.renderOrder = 2;
+  contacts.renderOrder = 1001;
   scene.add(contacts);
   const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0, 0xffaa00);
   arrow.visible = false;
+  arrow.traverse((o) => {
+    o.renderOrder = 1002;
+    if (o.material) Object.assign(o.material, { depthTest: false, transparent: true });
+  });
   scene.add(arrow);
 
   Object.assign(view, { scene, camera, renderer, controls, splat, tool, contacts, arrow, extent });
@@ -81,9 +88,8 @@ function init(h) {
   });
   if (h.mouse) setupMouseDevice(h);
   $("help").innerHTML = h.mouse
-    ? "Drag the blue tool to move it in the view plane. Keys: arrows move in the view plane, W/S into/out of the view, " +
-      "Q/E up/down along the scene's up axis (Shift: 5x), R resets, U toggles the camera's up axis. Mouse elsewhere orbits."
-    : "The device drives the tool. U toggles the camera's up axis. Mouse orbits.";
+    ? "Drag the blue tool; arrows: view plane, W/S: depth, Q/E: up/down (Shift 5x), U: camera up axis; drag elsewhere orbits."
+    : "The device drives the tool. U: camera up axis; drag orbits.";
   renderer.setAnimationLoop(() => { controls.update(); renderer.render(scene, camera); });
 }
 

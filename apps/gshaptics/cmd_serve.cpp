@@ -76,6 +76,10 @@ std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const Ru
   j["rate_hz"] = setup.config.rate_hz;
   j["display_hz"] = display_hz;
   j["step"] = 0.5 * setup.tool_radius;
+  if (setup.mouse != nullptr) {
+    const Eigen::Vector3d p = setup.mouse_start;
+    j["tool_start"] = {p.x(), p.y(), p.z()};
+  }
   return j.dump();
 }
 

@@ -151,14 +151,33 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
   } else if (o.device == "mouse") {
     const double extent = robust_extent(pw.world);
     if (s.tool_radius <= 0) s.tool_radius = 0.01 * extent;
-    // Start above the middle of the scene (world +z is up for a registered scene).
+    // Start above the most upward-facing probe site on the object (or above the middle of the
+    // scene when none is found), so that lowering the tool touches the object.
+    const Eigen::Vector3d up = is_registered(so) ? Eigen::Vector3d::UnitZ()
+                                                 : up_axis_from("auto", pw.scene.report.frame);
     Eigen::Vector3d start = Eigen::Vector3d::Zero();
     for (const auto& g : pw.world.gaussians()) start += Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
     start /= double(std::max<std::size_t>(1, pw.world.size()));
-    start.z() += 0.5 * extent;
+    start += 0.5 * extent * up;
+    try {
+      ProbeParams pp;
+      pp.sites = 7;
+      pp.up = up;
+      pp.tool_radius = s.tool_radius;
+      const ProbeTrajectory traj = generate_probe_trajectory(pw.world, pp);
+      double best = -2;
+      for (const auto& site : traj.sites())
+        if (site.normal.dot(up) > best) {
+          best = site.normal.dot(up);
+          start = site.surface_point + 12.0 * s.tool_radius * up;
+        }
+    } catch (const InputError&) {
+      // No site on this scene: keep the point above its middle.
+    }
     StreamDeviceParams sp;
     sp.name = "mouse (browser)";
     auto dev = std::make_unique<StreamDevice>(sp, start);
+    s.mouse_start = start;
     s.mouse = dev.get();
     s.device = std::move(dev);
     fmt::print("mouse      tool radius {:.4g}, starts at [{:.3f}, {:.3f}, {:.3f}]\n", s.tool_radius,

@@ -41,6 +41,7 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
 struct RuntimeSetup {
   std::unique_ptr<HapticDevice> device;
   StreamDevice* mouse = nullptr;
+  Eigen::Vector3d mouse_start = Eigen::Vector3d::Zero();  ///< where the mouse device starts
   double tool_radius = 0;
   double planned = 0;  ///< s, 0: open-ended
   RuntimeConfig config;

@@ -117,6 +117,8 @@ struct ViewerServer::Impl {
   ViewerStats stats;
   ServoTickRecord tick;
   ContactSnapshot snapshot;
+  Eigen::Vector3d mouse_target = Eigen::Vector3d::Zero();
+  bool have_mouse_target = false;
   std::uint16_t bound_port = 0;
   bool stopping = false;
 };
@@ -262,6 +264,7 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
     }
     if (target == "/" || target == "/index.html") return file(srv.config.web_root + "/index.html");
     if (target == "/api/hello") return text(http::status::ok, srv.config.hello_json, "application/json");
+    if (target == "/favicon.ico") return text(http::status::no_content, "");
     if (target == "/scene") return file(srv.config.scene_path);
     const bool allowed = target.rfind("/node_modules/three/", 0) == 0 ||
                          target.rfind("/node_modules/@sparkjsdev/spark/", 0) == 0 ||
@@ -302,11 +305,18 @@ void ViewerServer::Impl::on_tool_message(const std::string& text) {
   }
   stats.tool_messages.fetch_add(1);
   // A NaN pose is passed on: the runtime's safety layer drops and counts it.
+  mouse_target = c;
+  have_mouse_target = true;
   if (mouse != nullptr) mouse->set_target(c, Eigen::Quaterniond::Identity(), clock.now());
 }
 
 void ViewerServer::Impl::tick_display() {
   if (stopping) return;
+  // While a browser is connected, the mouse device is alive even when the page is too busy
+  // rendering (software GL: ~1 frame/s) to send: repeat its last target. When every page is
+  // gone, the targets stop and the runtime's watchdog zeroes the force.
+  if (mouse != nullptr && have_mouse_target && stats.clients.load() > 0)
+    mouse->set_target(mouse_target, Eigen::Quaterniond::Identity(), clock.now());
   if (runtime.latest_tick(tick)) {
     contacts.take(snapshot);
     auto frame = std::make_shared<const std::string>(ViewerServer::state_json(
