@@ -7,7 +7,11 @@ cd "$(dirname "$0")/.."
 PACKAGES=(cmake g++ make pkg-config libeigen3-dev libcli11-dev nlohmann-json3-dev libfmt-dev libfcl-dev libnanoflann-dev
           zlib1g-dev libzstd-dev
           libgtest-dev libgmock-dev libbenchmark-dev python3 python3-dev python3-numpy python3-matplotlib
-          python3-pytest pybind11-dev clang libclang-rt-14-dev)
+          python3-pytest pybind11-dev clang libclang-rt-14-dev
+          libboost-dev chromium)
+# The viewer's front-end packages come from npm (web/package-lock.json); Node.js from Debian
+# only when the machine has none.
+command -v node > /dev/null 2>&1 || PACKAGES+=(nodejs npm)
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -18,6 +22,13 @@ if [ ${#missing[@]} -gt 0 ]; then
   [ "$(id -u)" -eq 0 ] || SUDO="sudo"
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+# three.js, Spark and playwright-core, pinned by web/package-lock.json; nothing from a CDN at
+# run time. Reinstalled only when the lock file changed.
+if [ ! -f web/node_modules/.package-lock.json ] || [ web/package-lock.json -nt web/node_modules/.package-lock.json ]; then
+  echo "setup: npm ci in web/"
+  npm ci --prefix web --no-audit --no-fund --loglevel=error
 fi
 
 BUILD_DIR=${BUILD_DIR:-build}

@@ -43,9 +43,11 @@ function init(h) {
   const camera = new THREE.PerspectiveCamera(55, innerWidth / innerHeight, extent * 1e-3, extent * 50);
   camera.up.copy(view.up);
   const side = new THREE.Vector3(1, 0.7, 0).applyQuaternion(new THREE.Quaternion().setFromUnitVectors(new THREE.Vector3(0, 0, 1), view.up));
-  // Look at where the tool starts, from the side and above, close enough to see the contacts.
-  const center = h.tool_start ? vec(h.tool_start) : toolStart;
-  camera.position.copy(center).addScaledVector(side.normalize(), 0.28 * extent).addScaledVector(view.up, 0.12 * extent);
+  // Look at the surface below where the tool starts, from the side and above, close enough to
+  // see single contacts (the user zooms out with the wheel).
+  const r = h.tool.axes[0];
+  const center = (h.tool_start ? vec(h.tool_start) : toolStart).addScaledVector(view.up, -10 * r);
+  camera.position.copy(center).addScaledVector(side.normalize(), 22 * r).addScaledVector(view.up, 10 * r);
   const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
   renderer.setSize(innerWidth, innerHeight);
   $("view").appendChild(renderer.domElement);
@@ -56,21 +58,22 @@ function init(h) {
 
   // The scene file as stored, placed by the registration: x_world = s R x_file + t (paper eq. 3).
   const splat = new SplatMesh({ url: h.scene_url, fileType: h.file_type });
-  const r = h.registration;
-  splat.scale.setScalar(r.scale);
-  splat.quaternion.set(r.rotation[1], r.rotation[2], r.rotation[3], r.rotation[0]);
-  splat.position.set(...r.translation);
+  const reg = h.registration;
+  splat.scale.setScalar(reg.scale);
+  splat.quaternion.set(reg.rotation[1], reg.rotation[2], reg.rotation[3], reg.rotation[0]);
+  splat.position.set(...reg.translation);
   scene.add(splat);
 
-  const tool = new THREE.Mesh(new THREE.SphereGeometry(1, 32, 16),
-    new THREE.MeshBasicMaterial({ color: 0x66ccff, wireframe: true, transparent: true, opacity: 0.8, depthTest: false }));
+  const tool = new THREE.Mesh(new THREE.SphereGeometry(1, 16, 10),
+    new THREE.MeshBasicMaterial({ color: 0x66ccff, wireframe: true, transparent: true, opacity: 0.45, depthTest: false }));
   tool.scale.set(...h.tool.axes);
   tool.renderOrder = 1000; // overlays: drawn after the splats, visible inside the surface
   scene.add(tool);
   const contacts = new THREE.InstancedMesh(new THREE.SphereGeometry(1, 10, 6),
-    new THREE.MeshBasicMaterial({ color: 0xff3355, transparent: true, opacity: 0.75, depthTest: false }), MAX_SHOWN);
+    new THREE.MeshBasicMaterial({ color: 0xff2244, transparent: true, opacity: 0.85, depthTest: false }), MAX_SHOWN);
   contacts.count = 0;
   contacts.renderOrder = 1001;
+  contacts.frustumCulled = false; // its bounding sphere would be cached from the first (empty) frame
   scene.add(contacts);
   const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0, 0xffaa00);
   arrow.visible = false;
@@ -107,7 +110,9 @@ function update(m) {
   for (let i = 0; i < n; i++) {
     const k = m.contacts[i]; // [index, cx, cy, cz, ax, ay, az, qw, qx, qy, qz]
     tmpP.set(k[1], k[2], k[3]);
-    tmpS.set(Math.max(k[4], 1e-5), Math.max(k[5], 1e-5), Math.max(k[6], 1e-5));
+    // True k-sigma semi-axes, with a floor so that flat splats still show as thin disks.
+    const floor = 0.03 * view.hello.tool.axes[0];
+    tmpS.set(Math.max(k[4], floor), Math.max(k[5], floor), Math.max(k[6], floor));
     tmpQ.set(k[8], k[9], k[10], k[7]);
     view.contacts.setMatrixAt(i, tmpM.compose(tmpP, tmpQ, tmpS));
   }

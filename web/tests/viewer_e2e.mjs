@@ -65,11 +65,12 @@ try {
   const start = await page.evaluate(() => window.gshaptics.last.tool.center);
   console.log(`tool starts at ${start.map((x) => x.toFixed(3))}`);
 
-  // Lower the tool along the scene's up axis with the page's own keys (Shift+E: 5 steps).
+  // Lower the tool along the scene's up axis with the page's own keys (E: half a tool radius),
+  // until the page shows a contact.
   let contacts = 0;
-  for (let i = 0; i < 80 && contacts === 0; i++) {
-    await page.keyboard.press("Shift+E");
-    await page.waitForTimeout(400);
+  for (let i = 0; i < 120 && contacts === 0; i++) {
+    await page.keyboard.press("E");
+    await page.waitForTimeout(500);
     contacts = Number(await page.evaluate(() => document.body.dataset.contacts || 0));
   }
   if (!(contacts > 0)) throw new Error("the page never showed a contact");
