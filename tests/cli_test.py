@@ -153,7 +153,7 @@ class Info(unittest.TestCase):
         self.assertIn("opacity > 0.20 keeps", p.stdout)
 
     def test_help_of_every_command(self):
-        for cmd in ("info", "query", "simulate", "run", "poses"):
+        for cmd in ("info", "query", "simulate", "run", "serve", "poses"):
             p = run(cmd, "--help")
             self.assertIn("--help", p.stdout)
 
