@@ -7,6 +7,8 @@ void register_query(CLI::App& app);
 void register_simulate(CLI::App& app);
 void register_run(CLI::App& app);
 void register_serve(CLI::App& app);
+void register_node(CLI::App& app);
+void register_device_sim(CLI::App& app);
 void register_poses(CLI::App& app);
 void register_bench(CLI::App& app);
 void register_convert(CLI::App& app);

@@ -24,6 +24,10 @@ int main(int argc, char** argv) {
 #ifdef GSHAPTICS_HAVE_VIEWER
   gshaptics::cli::register_serve(app);
 #endif
+#ifdef GSHAPTICS_HAVE_ROS2
+  gshaptics::cli::register_node(app);
+  gshaptics::cli::register_device_sim(app);
+#endif
   gshaptics::cli::register_poses(app);
   gshaptics::cli::register_bench(app);
   gshaptics::cli::register_convert(app);

@@ -193,11 +193,20 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     fmt::print("replay     {}: {:.2f} s, tool radius {:.4g}\n", file, replay->duration(), s.tool_radius);
     s.device = std::move(replay);
   }
-  RuntimeConfig& rc = s.config;
+  s.config = runtime_config_from(o, s.tool_radius, s.planned);
+  fmt::print("runtime    {} at {:.0f} Hz, {} query, {}\n", s.device->info().name, o.rate,
+             o.inline_query ? "inline" : "decoupled (worker thread)",
+             s.planned > 0 ? fmt::format("{:.1f} s", s.planned) : std::string("until the device ends or Ctrl-C"));
+  std::fflush(stdout);
+  return s;
+}
+
+RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, double planned) {
+  RuntimeConfig rc;
   rc.rate_hz = o.rate;
   rc.inline_query = o.inline_query;
-  rc.duration = s.planned;
-  rc.tool.semi_axes = Eigen::Vector3d::Constant(s.tool_radius);
+  rc.duration = planned;
+  rc.tool.semi_axes = Eigen::Vector3d::Constant(tool_radius);
   rc.force = o.force;
   rc.safety = o.safety;
   rc.safety.f_max = o.force.f_max;
@@ -205,11 +214,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
   rc.realtime.worker_priority = std::max(0, o.realtime.servo_priority - 10);
   rc.realtime.pin_threads = !o.no_pin;
   rc.realtime.spin_s = o.spin_us * 1e-6;
-  fmt::print("runtime    {} at {:.0f} Hz, {} query, {}\n", s.device->info().name, o.rate,
-             o.inline_query ? "inline" : "decoupled (worker thread)",
-             s.planned > 0 ? fmt::format("{:.1f} s", s.planned) : std::string("until the device ends or Ctrl-C"));
-  std::fflush(stdout);
-  return s;
+  return rc;
 }
 
 bool run_live(HapticRuntime& rt, double planned, bool quiet, const std::function<std::string()>& extra) {
@@ -243,7 +248,7 @@ bool run_live(HapticRuntime& rt, double planned, bool quiet, const std::function
 
 bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
                        const PreparedWorld& pw, const RuntimeSetup& setup, bool interrupted,
-                       const std::string& command) {
+                       const std::string& command, const nlohmann::json& extra) {
   const RuntimeSummary s = rt.summary();
   const auto& records = rt.log().records();
   const std::vector<TickRecord> ticks = to_tick_records(records);
@@ -275,6 +280,7 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
     eps.push_back({{"t_start", e.t_start}, {"t_end", e.t_end}, {"peak_contacts", e.peak_contacts},
                    {"peak_force", e.peak_force}});
   sj["episodes"] = eps;
+  for (const auto& [k, v] : extra.items()) sj[k] = v;
   write_file_atomically(summary_path, sj.dump(2) + "\n");
 
   fmt::print("\nticks      {} in {:.2f} s: {:.1f} Hz achieved ({:.0f} Hz set); {} deadline misses, "

@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "gshaptics/servo/haptic_runtime.h"
@@ -51,14 +52,19 @@ void check_device_option(const std::string& device, bool allow_mouse);
 RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
                                 bool allow_mouse);
 
+/// The runtime configuration from the options, for a tool of `tool_radius` and a run of
+/// `planned` seconds (0: open-ended).
+RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, double planned);
+
 /// Starts the runtime, shows the live status line (plus `extra()` when given) until it ends,
 /// and turns SIGINT/SIGTERM into a clean stop. Returns true when a signal ended it.
 bool run_live(HapticRuntime& rt, double planned, bool quiet, const std::function<std::string()>& extra = {});
 
 /// Writes servo_log.csv and run_summary.json (and run.png unless no_plot) into the output
 /// folder and prints the summary. Returns false when plotting failed.
+/// `extra` is merged into run_summary.json.
 bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
                        const PreparedWorld& pw, const RuntimeSetup& setup, bool interrupted,
-                       const std::string& command);
+                       const std::string& command, const nlohmann::json& extra = nlohmann::json::object());
 
 }  // namespace gshaptics::cli

@@ -39,7 +39,9 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   // Read the device; gate 1 of the safety layer (watchdog, finite pose, workspace).
   const DeviceSample s = device_.read(now);
   std::uint32_t device_flags = 0;
-  if (!have_device_data_ || s.sequence != last_device_seq_) {
+  if (s.sequence == 0) {
+    device_flags |= kFlagWatchdog;  // the device has not delivered any data yet
+  } else if (!have_device_data_ || s.sequence != last_device_seq_) {
     have_device_data_ = true;
     last_device_seq_ = s.sequence;
     last_device_data_ = now;

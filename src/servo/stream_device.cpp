@@ -21,9 +21,13 @@ void StreamDevice::start(Nanos now) {
 }
 
 void StreamDevice::set_target(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
-                              Nanos stamp) noexcept {
+                              Nanos stamp, const Eigen::Vector3d* velocity) noexcept {
   Target t;
   t.position = position;
+  if (velocity != nullptr) {
+    t.velocity = *velocity;
+    t.has_velocity = true;
+  }
   t.orientation = orientation;
   t.stamp = stamp;
   t.count = ++produced_;
@@ -45,17 +49,28 @@ DeviceSample StreamDevice::read(Nanos now) noexcept {
   DeviceSample s;
   // Before the first target the device sits at its initial pose and counts as alive; after
   // that it is alive while targets keep coming.
-  const bool alive = !have_last_ ? now - start_ <= to_nanos(params_.input_timeout)
+  const bool alive = !have_last_ ? params_.alive_before_first_target &&
+                                       now - start_ <= to_nanos(params_.input_timeout)
                                  : now - last_.stamp <= to_nanos(params_.input_timeout);
   if (alive) ++sequence_;
   s.sequence = sequence_;
   s.stamp = now;
+  if (!params_.interpolate) {
+    s.position = last_.position;
+    s.orientation = last_.orientation;
+    const double dt = to_seconds(last_.stamp - prev_.stamp);
+    s.velocity = last_.has_velocity ? last_.velocity
+                 : dt > 0 && have_last_ ? Eigen::Vector3d((last_.position - prev_.position) / dt)
+                                        : Eigen::Vector3d::Zero();
+    return s;
+  }
   // Interpolate from prev to last over one input period, starting when last arrived.
   const Nanos period = std::clamp<Nanos>(last_.stamp - prev_.stamp, 1'000'000, 100'000'000);
   const double u = std::clamp(double(now - last_.stamp) / double(period), 0.0, 1.0);
   s.position = prev_.position + u * (last_.position - prev_.position);
-  s.velocity = u < 1.0 ? Eigen::Vector3d((last_.position - prev_.position) / to_seconds(period))
-                       : Eigen::Vector3d::Zero();
+  s.velocity = last_.has_velocity ? last_.velocity
+                : u < 1.0 ? Eigen::Vector3d((last_.position - prev_.position) / to_seconds(period))
+                          : Eigen::Vector3d::Zero();
   s.orientation = prev_.orientation.slerp(u, last_.orientation);
   return s;
 }

@@ -20,7 +20,7 @@
 #include <string>
 
 #include "gshaptics/collision/collision_world.h"
-#include "gshaptics/net/contact_snapshot.h"
+#include "gshaptics/servo/contact_snapshot.h"
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/stream_device.h"
 

@@ -21,7 +21,8 @@ namespace gshaptics {
 /// metres, seconds.
 struct DeviceSample {
   /// Increments every time the device delivers new data. The runtime's watchdog trips when it
-  /// stops changing (a stalled driver, a dead network link).
+  /// stops changing (a stalled driver, a dead network link). 0: no data yet (the runtime
+  /// neither uses the pose nor renders a force).
   std::uint64_t sequence = 0;
   Nanos stamp = 0;  ///< when the data was measured, ns on the runtime's clock
   Eigen::Vector3d position = Eigen::Vector3d::Zero();                  ///< tool centre point, m

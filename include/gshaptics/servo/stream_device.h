@@ -23,6 +23,14 @@ struct StreamDeviceParams {
   /// zeroes the force (a closed browser tab, a dead link). s.
   double input_timeout = 0.5;
   double max_rate_hz = 100000;
+  /// true: interpolate between the last two targets over one input period (smooth servo-rate
+  /// poses from a 30-60 Hz input, one period behind); false: use the newest target as it is
+  /// (inputs at the servo rate, e.g. a device across a network).
+  bool interpolate = true;
+  /// true: before the first target the device sits at its initial pose and counts as alive
+  /// (a mouse starting at a chosen point); false: it delivers no data until the first target
+  /// (a network device must not render forces for a pose nobody sent).
+  bool alive_before_first_target = true;
   Eigen::AlignedBox3d workspace{Eigen::Vector3d::Constant(-1e300), Eigen::Vector3d::Constant(1e300)};
 };
 
@@ -32,6 +40,8 @@ struct StreamTarget {
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
   Nanos stamp = 0;
   std::uint64_t count = 0;
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+  bool has_velocity = false;
 };
 
 class StreamDevice final : public HapticDevice {
@@ -44,9 +54,10 @@ class StreamDevice final : public HapticDevice {
   void write(const Wrench& wrench, Nanos now) noexcept override;
   void stop(Nanos now) noexcept override;
 
-  /// Producer: a new target pose arrived at `stamp` (ns on the runtime's clock).
+  /// Producer: a new target pose arrived at `stamp` (ns on the runtime's clock). `velocity`
+  /// (m/s, world) when the source measures it; otherwise it is estimated from the targets.
   void set_target(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
-                  Nanos stamp) noexcept;
+                  Nanos stamp, const Eigen::Vector3d* velocity = nullptr) noexcept;
   /// |F| last commanded, N (any thread).
   [[nodiscard]] double last_force() const noexcept { return last_force_.load(std::memory_order_relaxed); }
 

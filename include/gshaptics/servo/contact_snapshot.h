@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Contacts for display: the collision worker's newest contact set, sampled at a display rate
+/// Contacts for display (viewer, ROS markers): the collision worker's newest contact set, sampled at a display rate
 /// and handed to a display thread without locks (paper Sec. IV: the collision node sends the
 /// colliding Gaussians to the renderer).
 ///

@@ -1,4 +1,4 @@
-#include "gshaptics/net/contact_snapshot.h"
+#include "gshaptics/servo/contact_snapshot.h"
 
 #include <algorithm>
 

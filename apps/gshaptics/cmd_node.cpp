@@ -1,0 +1,235 @@
+// `gshaptics node [SCENE] --ros2` and `gshaptics device-sim [SCENE] --ros2`: the paper's
+// two-machine split (Sec. IV) over ROS 2 / DDS. The node runs the servo loop and the collision
+// worker against a device whose pose arrives over the network, publishes the wrench at the servo
+// rate and the tool + colliding Gaussians as a MarkerArray. device-sim is the simulated
+// admittance device and hand as a separate process that publishes poses and applies the wrench.
+
+#include <fmt/format.h>
+
+#include <csignal>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "commands.h"
+#include "gshaptics/io/error.h"
+#include "gshaptics/ros2/ros2_bridge.h"
+#include "gshaptics/scene/scene_stats.h"
+#include "gshaptics/servo/simulated_device.h"
+#include "gshaptics/sim/pose_sampler.h"
+#include "gshaptics/sim/probe_run.h"
+#include "runtime_cli.h"
+
+namespace gshaptics::cli {
+
+namespace {
+
+struct NodeOptions {
+  RuntimeOptions run;
+  bool ros2 = false;
+  Ros2Options topics;
+};
+
+void add_bridge_options(CLI::App& cmd, bool& ros2, Ros2Options& t) {
+  cmd.add_flag("--ros2", ros2, "Speak ROS 2 over DDS (Cyclone DDS; ROS 2 Humble message layouts)")->required();
+  cmd.add_option("--domain", t.domain, "DDS domain id (ROS_DOMAIN_ID); -1: the DDS default");
+  cmd.add_option("--pose-topic", t.pose_topic, "geometry_msgs/PoseStamped of the tool")->capture_default_str();
+  cmd.add_option("--twist-topic", t.twist_topic, "geometry_msgs/TwistStamped of the tool (optional)")->capture_default_str();
+  cmd.add_option("--wrench-topic", t.wrench_topic, "geometry_msgs/WrenchStamped to the device")->capture_default_str();
+  cmd.add_option("--markers-topic", t.markers_topic, "visualization_msgs/MarkerArray: tool and contacts")->capture_default_str();
+  cmd.add_option("--frame-id", t.frame_id, "header.frame_id of what is published")->capture_default_str();
+  cmd.add_flag("--reliable", t.reliable, "Reliable streams instead of best-effort (keep-last --depth)");
+  cmd.add_option("--depth", t.depth, "Keep-last depth of the streams")->capture_default_str()->check(CLI::Range(1, 1000));
+  cmd.add_option("--marker-rate", t.marker_hz, "MarkerArrays per second")->capture_default_str()->check(CLI::Range(1.0, 200.0));
+}
+
+std::atomic<int> g_stop{0};
+extern "C" void on_signal(int sig) { g_stop.store(sig); }
+
+}  // namespace
+
+void register_node(CLI::App& app) {
+  auto o = std::make_shared<NodeOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "node",
+      "The haptic node of a two-machine setup (paper Sec. IV): the servo loop and collision "
+      "worker run here; the device's pose arrives over ROS 2 (PoseStamped, optional "
+      "TwistStamped), the wrench goes back (WrenchStamped) at the servo rate, and the tool plus "
+      "colliding Gaussians go out as a MarkerArray. Runs until Ctrl-C or --duration; writes the "
+      "run's log and summary like `run`. The device side: `gshaptics device-sim --ros2` or your driver.");
+  add_runtime_options(*cmd, o->run, "(unused: the device is the network)");
+  add_bridge_options(*cmd, o->ros2, o->topics);
+  cmd->callback([o] {
+    const SceneOptions so = with_bundled_defaults(o->run.scene, "node");
+    const PreparedWorld pw = prepare_world(so, o->run.quiet);
+    RuntimeSetup setup;
+    setup.tool_radius = o->run.tool_radius > 0 ? o->run.tool_radius : 0.01 * robust_extent(pw.world);
+    setup.planned = o->run.duration;
+    auto device = std::make_unique<Ros2NetworkDevice>(o->topics, MonotonicClock::instance());
+    Ros2NetworkDevice& net = *device;
+    setup.device = std::move(device);
+    setup.config = runtime_config_from(o->run, setup.tool_radius, setup.planned);
+    HapticRuntime rt(pw.world, net, setup.config);
+    ContactSnapshotObserver snapshots(pw.world, o->topics.marker_hz, MonotonicClock::instance());
+    rt.set_observer(&snapshots);
+    Ros2MarkerPublisher markers(net, pw.world, snapshots, setup.config.tool.semi_axes);
+    fmt::print("node       ROS 2: pose {} (+ twist {}) in, wrench {} at {:.0f} Hz and markers {} at {:.0f} Hz "
+               "out, frame '{}', {} depth {}, tool radius {:.4g}\n",
+               ros2_dds_topic(o->topics.pose_topic), ros2_dds_topic(o->topics.twist_topic),
+               ros2_dds_topic(o->topics.wrench_topic), o->run.rate, ros2_dds_topic(o->topics.markers_topic),
+               o->topics.marker_hz, o->topics.frame_id, o->topics.reliable ? "reliable" : "best-effort",
+               o->topics.depth, setup.tool_radius);
+    fmt::print("node       ready\n");
+    std::fflush(stdout);
+    markers.start();
+    const Ros2Stats& st = net.stats();
+    const bool interrupted = run_live(rt, setup.planned, o->run.quiet, [&st] {
+      return fmt::format(" | poses {} | wrenches {}", st.poses_received.load(), st.wrenches_published.load());
+    });
+    markers.stop();
+    fmt::print("\nros2       {} poses received ({} dropped: NaN/Inf), {} twists, {} wrenches and {} marker "
+               "arrays published, {} pose publisher(s)\n",
+               st.poses_received.load(), st.poses_dropped.load(), st.twists_received.load(),
+               st.wrenches_published.load(), st.markers_published.load(), st.pose_publishers.load());
+    if (st.pose_publishers.load() > 1)
+      fmt::print(stderr, "warning: {} publishers on {}: their poses interleaved (the newest sample wins)\n",
+                 st.pose_publishers.load(), ros2_dds_topic(o->topics.pose_topic));
+    nlohmann::json extra = {{"poses_received", st.poses_received.load()}, {"poses_dropped", st.poses_dropped.load()},
+                            {"twists_received", st.twists_received.load()},
+                            {"wrenches_published", st.wrenches_published.load()},
+                            {"markers_published", st.markers_published.load()},
+                            {"pose_publishers", st.pose_publishers.load()}};
+    if (!write_run_outputs(rt, o->run, so, pw, setup, interrupted, "node", {{"ros2", extra}})) set_exit_code(1);
+  });
+}
+
+void register_device_sim(CLI::App& app) {
+  struct DeviceSimOptions {
+    SceneOptions scene;
+    bool ros2 = false;
+    Ros2Options topics;
+    double rate = 1000;
+    double duration = 0;
+    int sites = 7;
+    std::uint64_t seed = 1;
+    double tool_radius = 0;
+    double wait = 30;
+    std::string out_dir;
+    bool quiet = false;
+  };
+  auto o = std::make_shared<DeviceSimOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "device-sim",
+      "The simulated admittance device and hand of `simulate` as a separate process on the "
+      "network: publishes the device's pose and twist at --rate, applies the wrench it receives, "
+      "follows the same seeded probe trajectory (so give it the same scene and options as the "
+      "node). Records the round-trip pose-to-wrench latency. Writes device_log.csv and "
+      "device_summary.json.");
+  cmd->add_option("scene", o->scene.scene, "Scene file (default: bundled data/truck.splat)");
+  add_world_options(*cmd, o->scene);
+  add_bridge_options(*cmd, o->ros2, o->topics);
+  cmd->add_option("--rate", o->rate, "Device rate, Hz")->capture_default_str()->check(CLI::Range(10.0, 20000.0));
+  cmd->add_option("--duration", o->duration, "Run length, s (default: one pass of the trajectory)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--sites", o->sites, "Contact sites")->capture_default_str()->check(CLI::Range(1, 100));
+  cmd->add_option("--seed", o->seed, "Seed of the site choice")->capture_default_str();
+  cmd->add_option("--tool-radius", o->tool_radius, "Tool radius (default: 1% of the scene's extent)");
+  cmd->add_option("--wait", o->wait, "Wait this long for a node to match, s")->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd->add_option("--out", o->out_dir, "Output folder (default: runs/<scene name>)");
+  cmd->add_flag("--quiet", o->quiet, "No progress line");
+  cmd->callback([o] {
+    const SceneOptions so = with_bundled_defaults(o->scene, "device-sim");
+    const PreparedWorld pw = prepare_world(so, o->quiet);
+    ProbeTrajectory traj = make_probe_trajectory(pw, is_registered(so), o->sites, o->seed, o->tool_radius);
+    const double duration = o->duration > 0 ? o->duration : traj.duration() + 0.5;
+    SimulatedDevice device(std::move(traj));
+    Ros2DeviceLink link(o->topics);
+    fmt::print("device-sim waiting for a node on {} / {} ...\n", ros2_dds_topic(o->topics.pose_topic),
+               ros2_dds_topic(o->topics.wrench_topic));
+    std::fflush(stdout);
+    if (!link.wait_for_node(o->wait))
+      throw InputError(fmt::format("device-sim: no node matched {} and {} within {:.0f} s (is `gshaptics node "
+                                   "--ros2` running with the same DDS config and domain?)",
+                                   ros2_dds_topic(o->topics.pose_topic), ros2_dds_topic(o->topics.wrench_topic), o->wait));
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
+
+    struct Row {
+      double t;
+      Eigen::Vector3d p, v, f, user;
+      double latency_us;
+    };
+    const Nanos period = to_nanos(1.0 / o->rate);
+    const std::size_t n_ticks = std::size_t(std::ceil(duration * o->rate));
+    std::vector<Row> rows;
+    rows.reserve(n_ticks);
+    std::vector<double> latencies;
+    latencies.reserve(n_ticks);
+    MonotonicClock& clock = MonotonicClock::instance();
+    const Nanos t0 = clock.now();
+    device.start(t0);
+    std::uint64_t sent = 0, received = 0;
+    Eigen::Vector3d force = Eigen::Vector3d::Zero();
+    RosTime last_echo;
+    for (std::size_t k = 0; k < n_ticks && g_stop.load() == 0; ++k) {
+      const Nanos deadline = t0 + Nanos(k) * period;
+      clock.sleep_until(deadline);
+      const Nanos now = clock.now();
+      const DeviceSample s = device.read(now);
+      const RosTime stamp = RosTime::now();
+      link.publish(s.position, s.orientation, s.velocity, stamp);
+      ++sent;
+      double latency = -1;
+      RosTime echo;
+      Eigen::Vector3d f;
+      if (link.take_wrench(f, echo)) {
+        ++received;
+        force = f;
+        if (echo.nanos() != last_echo.nanos() && echo.nanos() > 0) {
+          latency = double(RosTime::now().nanos() - echo.nanos()) * 1e-3;
+          latencies.push_back(latency);
+          last_echo = echo;
+        }
+      }
+      Wrench w;
+      w.force = force;
+      device.write(w, now);
+      rows.push_back({to_seconds(now - t0), s.position, s.velocity, force, s.user_force, latency});
+      if (!o->quiet && k % std::size_t(o->rate * 2) == 0)
+        fmt::print(stderr, "device-sim t {:5.1f}/{:.1f} s | sent {} | wrenches {} | |F| {:.2f} N\n",
+                   to_seconds(now - t0), duration, sent, received, force.norm());
+    }
+    device.stop(clock.now());
+
+    std::string out_dir = o->out_dir;
+    if (out_dir.empty()) out_dir = "runs/" + std::filesystem::path(so.scene).stem().string();
+    std::filesystem::create_directories(out_dir);
+    std::string csv = "time_s,x,y,z,vx,vy,vz,fx,fy,fz,user_fx,user_fy,user_fz,latency_us\n";
+    for (const Row& r : rows)
+      csv += fmt::format("{:.6f},{:.6f},{:.6f},{:.6f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.1f}\n",
+                         r.t, r.p.x(), r.p.y(), r.p.z(), r.v.x(), r.v.y(), r.v.z(), r.f.x(), r.f.y(), r.f.z(),
+                         r.user.x(), r.user.y(), r.user.z(), r.latency_us);
+    write_file_atomically(out_dir + "/device_log.csv", csv);
+    double peak = 0;
+    for (const Row& r : rows) peak = std::max(peak, r.f.norm());
+    nlohmann::json sj;
+    sj["scene"] = so.scene;
+    sj["rate_hz"] = o->rate;
+    sj["poses_sent"] = sent;
+    sj["wrenches_received"] = received;
+    sj["peak_force_n"] = peak;
+    sj["interrupted"] = g_stop.load() != 0;
+    sj["latency_us"] = {{"count", latencies.size()},
+                        {"p50", latencies.empty() ? 0 : percentile(latencies, 50)},
+                        {"p99", latencies.empty() ? 0 : percentile(latencies, 99)},
+                        {"max", latencies.empty() ? 0 : *std::max_element(latencies.begin(), latencies.end())}};
+    write_file_atomically(out_dir + "/device_summary.json", sj.dump(2) + "\n");
+    fmt::print("\ndevice-sim {} poses sent, {} wrenches received, peak |F| {:.2f} N\n", sent, received, peak);
+    fmt::print("latency    pose -> wrench round trip: p50 {:.0f} us, p99 {:.0f} us, max {:.0f} us ({} samples)\n",
+               sj["latency_us"]["p50"].get<double>(), sj["latency_us"]["p99"].get<double>(),
+               sj["latency_us"]["max"].get<double>(), latencies.size());
+    fmt::print("log        {}/device_log.csv\nsummary    {}/device_summary.json\n", out_dir, out_dir);
+  });
+}
+
+}  // namespace gshaptics::cli

@@ -1,0 +1,133 @@
+#pragma once
+/// @file
+/// ROS 2 over DDS (Eclipse Cyclone DDS, C API) in the ROS 2 wire format, so `ros2 topic echo`
+/// with rmw_cyclonedds_cpp sees our topics: DDS topic "rt/<name>", type names
+/// "<pkg>::msg::dds_::<Msg>_", XCDR1, message layouts of ROS 2 Humble
+/// (src/ros2/idl/ros2_interfaces.idl cites the definitions followed).
+///
+/// - Ros2NetworkDevice: a HapticDevice whose pose arrives as geometry_msgs/PoseStamped (and,
+///   optionally, geometry_msgs/TwistStamped) and whose wrench goes out as
+///   geometry_msgs/WrenchStamped at the servo rate. The paper's split (Sec. IV): the servo loop
+///   on one machine, the device on another.
+/// - Ros2MarkerPublisher: the tool ellipsoid and the colliding Gaussians as a
+///   visualization_msgs/MarkerArray at a display rate, for a renderer on another machine.
+///
+/// Threading contract: DDS work never runs on the servo thread. The device's reader thread
+/// takes poses and hands the newest to the servo thread through a triple buffer
+/// (StreamDevice); the servo thread's write() hands the wrench to a publisher thread the same
+/// way and wakes it (futex, no lock). Markers are published from their own thread.
+/// A second publisher on the pose topic: samples from both are taken in arrival order and the
+/// newest wins (the tool jumps between them); it is counted (pose_publishers()) and reported.
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "gshaptics/servo/contact_snapshot.h"
+#include "gshaptics/servo/stream_device.h"
+
+namespace gshaptics {
+
+/// Topics, frame and QoS. Topic names are ROS 2 names (no "rt/" prefix, leading '/' optional).
+struct Ros2Options {
+  int domain = -1;  ///< DDS domain (= ROS_DOMAIN_ID); -1: Cyclone's default (env CYCLONEDDS_URI / 0)
+  std::string pose_topic = "gshaptics/tool_pose";    ///< geometry_msgs/PoseStamped, in
+  std::string twist_topic = "gshaptics/tool_twist";  ///< geometry_msgs/TwistStamped, in (optional)
+  std::string wrench_topic = "gshaptics/wrench";     ///< geometry_msgs/WrenchStamped, out
+  std::string markers_topic = "gshaptics/markers";   ///< visualization_msgs/MarkerArray, out
+  std::string frame_id = "world";                    ///< header.frame_id of what we publish
+  bool reliable = false;  ///< streams: best-effort (default, like sensor data) or reliable
+  int depth = 1;          ///< keep-last depth of the streams
+  double marker_hz = 30;  ///< MarkerArray rate
+  std::size_t max_markers = 500;  ///< colliding Gaussians per MarkerArray (the rest are counted)
+  double input_timeout = 0.1;     ///< no pose for this long: the device stops (watchdog), s
+};
+
+/// "rt/" + the name without a leading '/'.
+[[nodiscard]] std::string ros2_dds_topic(const std::string& ros_name);
+
+/// Wall-clock time as builtin_interfaces/Time fields (ROS time is the system clock).
+struct RosTime {
+  std::int32_t sec = 0;
+  std::uint32_t nanosec = 0;
+  [[nodiscard]] static RosTime now() noexcept;
+  [[nodiscard]] std::int64_t nanos() const noexcept { return std::int64_t(sec) * 1'000'000'000 + nanosec; }
+};
+
+/// Counters of the bridge (any thread).
+struct Ros2Stats {
+  std::atomic<std::uint64_t> poses_received{0};
+  std::atomic<std::uint64_t> poses_dropped{0};   ///< NaN/Inf pose or twist: dropped, counted
+  std::atomic<std::uint64_t> twists_received{0};
+  std::atomic<std::uint64_t> wrenches_published{0};
+  std::atomic<std::uint64_t> markers_published{0};
+  std::atomic<std::uint32_t> pose_publishers{0};  ///< distinct writers seen on the pose topic
+};
+
+struct Ros2Impl;
+
+/// The network device (see file comment). Throws InputError when DDS cannot start.
+class Ros2NetworkDevice final : public HapticDevice {
+ public:
+  Ros2NetworkDevice(const Ros2Options& options, Clock& clock);
+  ~Ros2NetworkDevice() override;
+  [[nodiscard]] const DeviceInfo& info() const noexcept override { return input_.info(); }
+  void start(Nanos now) override;
+  [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
+  void write(const Wrench& wrench, Nanos now) noexcept override;
+  void stop(Nanos now) noexcept override;
+  [[nodiscard]] const Ros2Stats& stats() const noexcept;
+  /// The DDS participant (for a marker publisher sharing it).
+  [[nodiscard]] Ros2Impl& impl() noexcept { return *impl_; }
+
+ private:
+  StreamDevice input_;
+  std::unique_ptr<Ros2Impl> impl_;
+};
+
+/// Publishes MarkerArrays (tool ellipsoid + colliding Gaussians) from contact snapshots.
+class Ros2MarkerPublisher {
+ public:
+  /// Uses the device's participant; `tool_axes` are the tool's semi-axes, m.
+  Ros2MarkerPublisher(Ros2NetworkDevice& device, const CollisionWorld& world,
+                      ContactSnapshotObserver& snapshots, const Eigen::Vector3d& tool_axes);
+  ~Ros2MarkerPublisher();
+  void start();
+  void stop();
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace gshaptics
+
+namespace gshaptics {
+
+/// The device side of the split (`gshaptics device-sim --ros2`, or a driver next to the
+/// hardware): publishes the device's pose and twist, receives the wrench. Single-threaded: call
+/// from one thread. Throws InputError when DDS cannot start.
+class Ros2DeviceLink {
+ public:
+  explicit Ros2DeviceLink(const Ros2Options& options);
+  ~Ros2DeviceLink();
+  Ros2DeviceLink(const Ros2DeviceLink&) = delete;
+  Ros2DeviceLink& operator=(const Ros2DeviceLink&) = delete;
+  /// Waits until the pose writer and the wrench reader are matched with a node (or the timeout,
+  /// s, passes); returns whether they are.
+  bool wait_for_node(double timeout_s);
+  /// Publishes PoseStamped (and TwistStamped) stamped `stamp`. World frame, m, m/s.
+  void publish(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
+               const Eigen::Vector3d& velocity, const RosTime& stamp);
+  /// Takes the newest wrench since the last call; `echo` is its header stamp (the stamp of the
+  /// pose the node had read when it computed it). False when none arrived.
+  bool take_wrench(Eigen::Vector3d& force, RosTime& echo);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace gshaptics
