@@ -8,7 +8,10 @@ PACKAGES=(cmake g++ make pkg-config libeigen3-dev libcli11-dev nlohmann-json3-de
           zlib1g-dev libzstd-dev
           libgtest-dev libgmock-dev libbenchmark-dev python3 python3-dev python3-numpy python3-matplotlib
           python3-pytest pybind11-dev clang libclang-rt-14-dev
-          libboost-dev chromium)
+          libboost-dev chromium
+          cyclonedds-dev cyclonedds-tools
+          libroscpp-dev ros-core libgeometry-msgs-dev libvisualization-msgs-dev
+          python3-rostopic python3-geometry-msgs python3-visualization-msgs)
 # The viewer's front-end packages come from npm (web/package-lock.json); Node.js from Debian
 # only when the machine has none.
 command -v node > /dev/null 2>&1 || PACKAGES+=(nodejs npm)

@@ -153,7 +153,10 @@ class Info(unittest.TestCase):
         self.assertIn("opacity > 0.20 keeps", p.stdout)
 
     def test_help_of_every_command(self):
-        for cmd in ("info", "query", "simulate", "run", "serve", "poses"):
+        top = run("--help").stdout
+        commands = ["info", "query", "simulate", "run", "serve", "poses", "bench", "convert"]
+        commands += [c for c in ("node", "device-sim") if c in top]  # with the ROS bridges
+        for cmd in commands:
             p = run(cmd, "--help")
             self.assertIn("--help", p.stdout)
 

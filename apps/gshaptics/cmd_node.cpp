@@ -1,5 +1,5 @@
-// `gshaptics node [SCENE] --ros2` and `gshaptics device-sim [SCENE] --ros2`: the paper's
-// two-machine split (Sec. IV) over ROS 2 / DDS. The node runs the servo loop and the collision
+// `gshaptics node [SCENE] --ros2|--ros1` and `gshaptics device-sim [SCENE] --ros2`: the paper's
+// two-machine split (Sec. IV) over ROS 2 / DDS or ROS 1. The node runs the servo loop and the collision
 // worker against a device whose pose arrives over the network, publishes the wrench at the servo
 // rate and the tool + colliding Gaussians as a MarkerArray. device-sim is the simulated
 // admittance device and hand as a separate process that publishes poses and applies the wrench.
@@ -14,7 +14,13 @@
 
 #include "commands.h"
 #include "gshaptics/io/error.h"
+#include "gshaptics/net/ros_bridge.h"
+#ifdef GSHAPTICS_HAVE_ROS2
 #include "gshaptics/ros2/ros2_bridge.h"
+#endif
+#ifdef GSHAPTICS_HAVE_ROS1
+#include "gshaptics/ros1/ros1_bridge.h"
+#endif
 #include "gshaptics/scene/scene_stats.h"
 #include "gshaptics/servo/simulated_device.h"
 #include "gshaptics/sim/pose_sampler.h"
@@ -27,13 +33,11 @@ namespace {
 
 struct NodeOptions {
   RuntimeOptions run;
-  bool ros2 = false;
-  Ros2Options topics;
+  bool ros2 = false, ros1 = false;
+  RosBridgeOptions topics;
 };
 
-void add_bridge_options(CLI::App& cmd, bool& ros2, Ros2Options& t) {
-  cmd.add_flag("--ros2", ros2, "Speak ROS 2 over DDS (Cyclone DDS; ROS 2 Humble message layouts)")->required();
-  cmd.add_option("--domain", t.domain, "DDS domain id (ROS_DOMAIN_ID); -1: the DDS default");
+void add_topic_options(CLI::App& cmd, RosBridgeOptions& t) {
   cmd.add_option("--pose-topic", t.pose_topic, "geometry_msgs/PoseStamped of the tool")->capture_default_str();
   cmd.add_option("--twist-topic", t.twist_topic, "geometry_msgs/TwistStamped of the tool (optional)")->capture_default_str();
   cmd.add_option("--wrench-topic", t.wrench_topic, "geometry_msgs/WrenchStamped to the device")->capture_default_str();
@@ -42,6 +46,17 @@ void add_bridge_options(CLI::App& cmd, bool& ros2, Ros2Options& t) {
   cmd.add_flag("--reliable", t.reliable, "Reliable streams instead of best-effort (keep-last --depth)");
   cmd.add_option("--depth", t.depth, "Keep-last depth of the streams")->capture_default_str()->check(CLI::Range(1, 1000));
   cmd.add_option("--marker-rate", t.marker_hz, "MarkerArrays per second")->capture_default_str()->check(CLI::Range(1.0, 200.0));
+}
+
+std::unique_ptr<RosBridgeDevice> make_bridge(const NodeOptions& o) {
+#ifdef GSHAPTICS_HAVE_ROS2
+  if (o.ros2) return std::make_unique<Ros2NetworkDevice>(o.topics, MonotonicClock::instance());
+#endif
+#ifdef GSHAPTICS_HAVE_ROS1
+  if (o.ros1) return std::make_unique<Ros1NetworkDevice>(o.topics, MonotonicClock::instance());
+#endif
+  throw InputError(std::string("node: this build has no ") + (o.ros2 ? "ROS 2 (Cyclone DDS)" : "ROS 1 (roscpp)") +
+                   " bridge; install the packages scripts/setup.sh lists and rebuild");
 }
 
 std::atomic<int> g_stop{0};
@@ -56,53 +71,62 @@ void register_node(CLI::App& app) {
       "The haptic node of a two-machine setup (paper Sec. IV): the servo loop and collision "
       "worker run here; the device's pose arrives over ROS 2 (PoseStamped, optional "
       "TwistStamped), the wrench goes back (WrenchStamped) at the servo rate, and the tool plus "
-      "colliding Gaussians go out as a MarkerArray. Runs until Ctrl-C or --duration; writes the "
-      "run's log and summary like `run`. The device side: `gshaptics device-sim --ros2` or your driver.");
+      "colliding Gaussians go out as a MarkerArray (ROS 1: the same topics through roscpp and "
+      "the master at ROS_MASTER_URI). Runs until Ctrl-C or --duration; writes the run's log and "
+      "summary like `run`. The device side: `gshaptics device-sim --ros2` or your driver.");
   add_runtime_options(*cmd, o->run, "(unused: the device is the network)");
-  add_bridge_options(*cmd, o->ros2, o->topics);
+  auto* f2 = cmd->add_flag("--ros2", o->ros2, "Speak ROS 2 over DDS (Cyclone DDS; ROS 2 Humble message layouts)");
+  auto* f1 = cmd->add_flag("--ros1", o->ros1, "Speak ROS 1 (roscpp; master at ROS_MASTER_URI)");
+  f2->excludes(f1);
+  cmd->add_option("--domain", o->topics.domain, "ROS 2: DDS domain id (ROS_DOMAIN_ID); -1: the DDS default");
+  add_topic_options(*cmd, o->topics);
   cmd->callback([o] {
+    if (!o->ros2 && !o->ros1) throw InputError("node: give --ros2 or --ros1");
     const SceneOptions so = with_bundled_defaults(o->run.scene, "node");
     const PreparedWorld pw = prepare_world(so, o->run.quiet);
     RuntimeSetup setup;
     setup.tool_radius = o->run.tool_radius > 0 ? o->run.tool_radius : 0.01 * robust_extent(pw.world);
     setup.planned = o->run.duration;
-    auto device = std::make_unique<Ros2NetworkDevice>(o->topics, MonotonicClock::instance());
-    Ros2NetworkDevice& net = *device;
+    auto device = make_bridge(*o);
+    RosBridgeDevice& net = *device;
     setup.device = std::move(device);
     setup.config = runtime_config_from(o->run, setup.tool_radius, setup.planned);
     HapticRuntime rt(pw.world, net, setup.config);
     ContactSnapshotObserver snapshots(pw.world, o->topics.marker_hz, MonotonicClock::instance());
     rt.set_observer(&snapshots);
-    Ros2MarkerPublisher markers(net, pw.world, snapshots, setup.config.tool.semi_axes);
-    fmt::print("node       ROS 2: pose {} (+ twist {}) in, wrench {} at {:.0f} Hz and markers {} at {:.0f} Hz "
-               "out, frame '{}', {} depth {}, tool radius {:.4g}\n",
-               ros2_dds_topic(o->topics.pose_topic), ros2_dds_topic(o->topics.twist_topic),
-               ros2_dds_topic(o->topics.wrench_topic), o->run.rate, ros2_dds_topic(o->topics.markers_topic),
-               o->topics.marker_hz, o->topics.frame_id, o->topics.reliable ? "reliable" : "best-effort",
-               o->topics.depth, setup.tool_radius);
+    fmt::print("node       {}: pose {} (+ twist {}) in, wrench {} at {:.0f} Hz and markers {} at {:.0f} Hz "
+               "out, frame '{}'{}, tool radius {:.4g}\n", o->ros2 ? "ROS 2" : "ROS 1",
+               net.wire_topic(o->topics.pose_topic), net.wire_topic(o->topics.twist_topic),
+               net.wire_topic(o->topics.wrench_topic), o->run.rate, net.wire_topic(o->topics.markers_topic),
+               o->topics.marker_hz, o->topics.frame_id,
+               o->ros2 ? fmt::format(", {} depth {}", o->topics.reliable ? "reliable" : "best-effort", o->topics.depth)
+                       : std::string(), setup.tool_radius);
     fmt::print("node       ready\n");
     std::fflush(stdout);
-    markers.start();
-    const Ros2Stats& st = net.stats();
+    net.start_markers(pw.world, snapshots, setup.config.tool.semi_axes);
+    const RosBridgeStats& st = net.stats();
     const bool interrupted = run_live(rt, setup.planned, o->run.quiet, [&st] {
       return fmt::format(" | poses {} | wrenches {}", st.poses_received.load(), st.wrenches_published.load());
     });
-    markers.stop();
-    fmt::print("\nros2       {} poses received ({} dropped: NaN/Inf), {} twists, {} wrenches and {} marker "
-               "arrays published, {} pose publisher(s)\n",
+    net.stop_markers();
+    fmt::print("\n{}       {} poses received ({} dropped: NaN/Inf), {} twists, {} wrenches and {} marker "
+               "arrays published, {} pose publisher(s)\n", o->ros2 ? "ros2" : "ros1",
                st.poses_received.load(), st.poses_dropped.load(), st.twists_received.load(),
                st.wrenches_published.load(), st.markers_published.load(), st.pose_publishers.load());
     if (st.pose_publishers.load() > 1)
       fmt::print(stderr, "warning: {} publishers on {}: their poses interleaved (the newest sample wins)\n",
-                 st.pose_publishers.load(), ros2_dds_topic(o->topics.pose_topic));
+                 st.pose_publishers.load(), net.wire_topic(o->topics.pose_topic));
     nlohmann::json extra = {{"poses_received", st.poses_received.load()}, {"poses_dropped", st.poses_dropped.load()},
                             {"twists_received", st.twists_received.load()},
                             {"wrenches_published", st.wrenches_published.load()},
                             {"markers_published", st.markers_published.load()},
                             {"pose_publishers", st.pose_publishers.load()}};
-    if (!write_run_outputs(rt, o->run, so, pw, setup, interrupted, "node", {{"ros2", extra}})) set_exit_code(1);
+    if (!write_run_outputs(rt, o->run, so, pw, setup, interrupted, "node", {{o->ros2 ? "ros2" : "ros1", extra}}))
+      set_exit_code(1);
   });
 }
+
+#ifdef GSHAPTICS_HAVE_ROS2
 
 void register_device_sim(CLI::App& app) {
   struct DeviceSimOptions {
@@ -128,7 +152,9 @@ void register_device_sim(CLI::App& app) {
       "device_summary.json.");
   cmd->add_option("scene", o->scene.scene, "Scene file (default: bundled data/truck.splat)");
   add_world_options(*cmd, o->scene);
-  add_bridge_options(*cmd, o->ros2, o->topics);
+  cmd->add_flag("--ros2", o->ros2, "Speak ROS 2 over DDS (the only transport of device-sim)")->required();
+  cmd->add_option("--domain", o->topics.domain, "DDS domain id (ROS_DOMAIN_ID); -1: the DDS default");
+  add_topic_options(*cmd, o->topics);
   cmd->add_option("--rate", o->rate, "Device rate, Hz")->capture_default_str()->check(CLI::Range(10.0, 20000.0));
   cmd->add_option("--duration", o->duration, "Run length, s (default: one pass of the trajectory)")->check(CLI::NonNegativeNumber);
   cmd->add_option("--sites", o->sites, "Contact sites")->capture_default_str()->check(CLI::Range(1, 100));
@@ -231,5 +257,7 @@ void register_device_sim(CLI::App& app) {
     fmt::print("log        {}/device_log.csv\nsummary    {}/device_summary.json\n", out_dir, out_dir);
   });
 }
+
+#endif  // GSHAPTICS_HAVE_ROS2
 
 }  // namespace gshaptics::cli

@@ -24,8 +24,10 @@ int main(int argc, char** argv) {
 #ifdef GSHAPTICS_HAVE_VIEWER
   gshaptics::cli::register_serve(app);
 #endif
-#ifdef GSHAPTICS_HAVE_ROS2
+#if defined(GSHAPTICS_HAVE_ROS2) || defined(GSHAPTICS_HAVE_ROS1)
   gshaptics::cli::register_node(app);
+#endif
+#ifdef GSHAPTICS_HAVE_ROS2
   gshaptics::cli::register_device_sim(app);
 #endif
   gshaptics::cli::register_poses(app);

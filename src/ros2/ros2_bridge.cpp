@@ -85,11 +85,6 @@ std::string ros2_dds_topic(const std::string& ros_name) {
   return "rt/" + ros_name.substr(i);
 }
 
-RosTime RosTime::now() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
-  return {std::int32_t(ts.tv_sec), std::uint32_t(ts.tv_nsec)};
-}
 
 // ---------------------------------------------------------------------------------------------
 
@@ -230,7 +225,7 @@ Ros2NetworkDevice::Ros2NetworkDevice(const Ros2Options& options, Clock& clock)
       }(), Eigen::Vector3d::Zero()),
       impl_(std::make_unique<Ros2Impl>(options, clock, input_)) {}
 
-Ros2NetworkDevice::~Ros2NetworkDevice() = default;
+Ros2NetworkDevice::~Ros2NetworkDevice() { stop_markers(); }
 
 void Ros2NetworkDevice::start(Nanos now) {
   input_.start(now);
@@ -256,7 +251,7 @@ void Ros2NetworkDevice::stop(Nanos now) noexcept {
   impl_->shutdown();  // the writer thread publishes a zero wrench as its last message
 }
 
-const Ros2Stats& Ros2NetworkDevice::stats() const noexcept { return impl_->stats; }
+const RosBridgeStats& Ros2NetworkDevice::stats() const noexcept { return impl_->stats; }
 
 // ---------------------------------------------------------------------------------------------
 
@@ -345,6 +340,16 @@ Ros2MarkerPublisher::Ros2MarkerPublisher(Ros2NetworkDevice& device, const Collis
     : state_(std::make_unique<State>(device.impl(), world, snapshots, tool_axes)) {}
 
 Ros2MarkerPublisher::~Ros2MarkerPublisher() { stop(); }
+
+void Ros2NetworkDevice::start_markers(const CollisionWorld& world, ContactSnapshotObserver& snapshots,
+                                      const Eigen::Vector3d& tool_axes) {
+  markers_ = std::make_unique<Ros2MarkerPublisher>(*this, world, snapshots, tool_axes);
+  markers_->start();
+}
+
+void Ros2NetworkDevice::stop_markers() {
+  if (markers_) markers_->stop();
+}
 
 void Ros2MarkerPublisher::start() {
   state_->thread = std::thread([s = state_.get()] { s->run(); });

@@ -25,51 +25,24 @@
 #include <string>
 #include <thread>
 
+#include "gshaptics/net/ros_bridge.h"
 #include "gshaptics/servo/contact_snapshot.h"
 #include "gshaptics/servo/stream_device.h"
 
 namespace gshaptics {
 
-/// Topics, frame and QoS. Topic names are ROS 2 names (no "rt/" prefix, leading '/' optional).
-struct Ros2Options {
-  int domain = -1;  ///< DDS domain (= ROS_DOMAIN_ID); -1: Cyclone's default (env CYCLONEDDS_URI / 0)
-  std::string pose_topic = "gshaptics/tool_pose";    ///< geometry_msgs/PoseStamped, in
-  std::string twist_topic = "gshaptics/tool_twist";  ///< geometry_msgs/TwistStamped, in (optional)
-  std::string wrench_topic = "gshaptics/wrench";     ///< geometry_msgs/WrenchStamped, out
-  std::string markers_topic = "gshaptics/markers";   ///< visualization_msgs/MarkerArray, out
-  std::string frame_id = "world";                    ///< header.frame_id of what we publish
-  bool reliable = false;  ///< streams: best-effort (default, like sensor data) or reliable
-  int depth = 1;          ///< keep-last depth of the streams
-  double marker_hz = 30;  ///< MarkerArray rate
-  std::size_t max_markers = 500;  ///< colliding Gaussians per MarkerArray (the rest are counted)
-  double input_timeout = 0.1;     ///< no pose for this long: the device stops (watchdog), s
-};
+using Ros2Options = RosBridgeOptions;
+using Ros2Stats = RosBridgeStats;
 
 /// "rt/" + the name without a leading '/'.
 [[nodiscard]] std::string ros2_dds_topic(const std::string& ros_name);
 
-/// Wall-clock time as builtin_interfaces/Time fields (ROS time is the system clock).
-struct RosTime {
-  std::int32_t sec = 0;
-  std::uint32_t nanosec = 0;
-  [[nodiscard]] static RosTime now() noexcept;
-  [[nodiscard]] std::int64_t nanos() const noexcept { return std::int64_t(sec) * 1'000'000'000 + nanosec; }
-};
-
-/// Counters of the bridge (any thread).
-struct Ros2Stats {
-  std::atomic<std::uint64_t> poses_received{0};
-  std::atomic<std::uint64_t> poses_dropped{0};   ///< NaN/Inf pose or twist: dropped, counted
-  std::atomic<std::uint64_t> twists_received{0};
-  std::atomic<std::uint64_t> wrenches_published{0};
-  std::atomic<std::uint64_t> markers_published{0};
-  std::atomic<std::uint32_t> pose_publishers{0};  ///< distinct writers seen on the pose topic
-};
-
 struct Ros2Impl;
 
 /// The network device (see file comment). Throws InputError when DDS cannot start.
-class Ros2NetworkDevice final : public HapticDevice {
+class Ros2MarkerPublisher;
+
+class Ros2NetworkDevice final : public RosBridgeDevice {
  public:
   Ros2NetworkDevice(const Ros2Options& options, Clock& clock);
   ~Ros2NetworkDevice() override;
@@ -78,13 +51,20 @@ class Ros2NetworkDevice final : public HapticDevice {
   [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
   void write(const Wrench& wrench, Nanos now) noexcept override;
   void stop(Nanos now) noexcept override;
-  [[nodiscard]] const Ros2Stats& stats() const noexcept;
+  [[nodiscard]] const RosBridgeStats& stats() const noexcept override;
+  void start_markers(const CollisionWorld& world, ContactSnapshotObserver& snapshots,
+                     const Eigen::Vector3d& tool_axes) override;
+  void stop_markers() override;
+  [[nodiscard]] std::string wire_topic(const std::string& ros_name) const override {
+    return ros2_dds_topic(ros_name);
+  }
   /// The DDS participant (for a marker publisher sharing it).
   [[nodiscard]] Ros2Impl& impl() noexcept { return *impl_; }
 
  private:
   StreamDevice input_;
   std::unique_ptr<Ros2Impl> impl_;
+  std::unique_ptr<Ros2MarkerPublisher> markers_;
 };
 
 /// Publishes MarkerArrays (tool ellipsoid + colliding Gaussians) from contact snapshots.

@@ -1,0 +1,107 @@
+#include "ros1_transport.h"
+
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/TwistStamped.h>
+#include <geometry_msgs/WrenchStamped.h>
+#include <ros/ros.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <chrono>
+#include <stdexcept>
+#include <thread>
+
+namespace gshaptics::ros1 {
+
+struct Transport::State {
+  TransportOptions options;
+  std::function<void(const PoseIn&)> on_pose;
+  std::function<void(const std::array<double, 3>&)> on_twist;
+  std::unique_ptr<ros::NodeHandle> nh;
+  ros::Subscriber pose_sub, twist_sub;
+  ros::Publisher wrench_pub, marker_pub;
+  std::unique_ptr<ros::AsyncSpinner> spinner;
+  geometry_msgs::WrenchStamped wrench;
+
+  void pose_cb(const ros::MessageEvent<geometry_msgs::PoseStamped const>& ev) {
+    const geometry_msgs::PoseStamped& m = *ev.getMessage();
+    PoseIn p;
+    p.position = {m.pose.position.x, m.pose.position.y, m.pose.position.z};
+    p.orientation_xyzw = {m.pose.orientation.x, m.pose.orientation.y, m.pose.orientation.z, m.pose.orientation.w};
+    p.sec = std::int32_t(m.header.stamp.sec);
+    p.nanosec = m.header.stamp.nsec;
+    p.publisher = ev.getPublisherName();
+    on_pose(p);
+  }
+  void twist_cb(const geometry_msgs::TwistStamped::ConstPtr& m) {
+    on_twist({m->twist.linear.x, m->twist.linear.y, m->twist.linear.z});
+  }
+};
+
+Transport::Transport(const TransportOptions& o, std::function<void(const PoseIn&)> on_pose,
+                     std::function<void(const std::array<double, 3>&)> on_twist)
+    : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.options = o;
+  s.on_pose = std::move(on_pose);
+  s.on_twist = std::move(on_twist);
+  if (!ros::isInitialized()) {
+    int argc = 0;
+    ros::init(argc, nullptr, o.node_name, ros::init_options::NoSigintHandler);
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  while (!ros::master::check()) {
+    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > o.master_timeout)
+      throw std::runtime_error("ROS 1: no master at " + ros::master::getURI() +
+                               " (start roscore, or set ROS_MASTER_URI)");
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  s.nh = std::make_unique<ros::NodeHandle>();
+  s.pose_sub = s.nh->subscribe(o.pose_topic, 64, &State::pose_cb, &s,
+                                                            ros::TransportHints().tcpNoDelay());
+  s.twist_sub = s.nh->subscribe<geometry_msgs::TwistStamped>(o.twist_topic, 64, &State::twist_cb, &s,
+                                                              ros::TransportHints().tcpNoDelay());
+  s.wrench_pub = s.nh->advertise<geometry_msgs::WrenchStamped>(o.wrench_topic, 64);
+  s.marker_pub = s.nh->advertise<visualization_msgs::MarkerArray>(o.markers_topic, 2);
+  s.wrench.header.frame_id = o.frame_id;
+  s.spinner = std::make_unique<ros::AsyncSpinner>(1);
+  s.spinner->start();
+}
+
+Transport::~Transport() {
+  if (state_->spinner) state_->spinner->stop();
+  state_->pose_sub.shutdown();
+  state_->twist_sub.shutdown();
+}
+
+void Transport::publish_wrench(const std::array<double, 3>& f, const std::array<double, 3>& t, std::int32_t sec,
+                               std::uint32_t nanosec) {
+  geometry_msgs::WrenchStamped& m = state_->wrench;
+  m.header.stamp = ros::Time(std::uint32_t(sec), nanosec);
+  m.wrench.force.x = f[0], m.wrench.force.y = f[1], m.wrench.force.z = f[2];
+  m.wrench.torque.x = t[0], m.wrench.torque.y = t[1], m.wrench.torque.z = t[2];
+  state_->wrench_pub.publish(m);
+}
+
+void Transport::publish_markers(const std::vector<MarkerOut>& markers) {
+  visualization_msgs::MarkerArray arr;
+  const ros::Time now = ros::Time::now();
+  arr.markers.resize(markers.size());
+  for (std::size_t i = 0; i < markers.size(); ++i) {
+    const MarkerOut& in = markers[i];
+    visualization_msgs::Marker& m = arr.markers[i];
+    m.header.frame_id = state_->options.frame_id;
+    m.header.stamp = now;
+    m.ns = in.ns;
+    m.id = in.id;
+    m.type = in.type;
+    m.action = in.action;
+    m.pose.position.x = in.position[0], m.pose.position.y = in.position[1], m.pose.position.z = in.position[2];
+    m.pose.orientation.x = in.orientation_xyzw[0], m.pose.orientation.y = in.orientation_xyzw[1];
+    m.pose.orientation.z = in.orientation_xyzw[2], m.pose.orientation.w = in.orientation_xyzw[3];
+    m.scale.x = in.scale[0], m.scale.y = in.scale[1], m.scale.z = in.scale[2];
+    m.color.r = in.rgba[0], m.color.g = in.rgba[1], m.color.b = in.rgba[2], m.color.a = in.rgba[3];
+  }
+  state_->marker_pub.publish(arr);
+}
+
+}  // namespace gshaptics::ros1

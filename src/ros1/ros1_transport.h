@@ -1,0 +1,54 @@
+#pragma once
+// The roscpp side of the ROS 1 bridge, behind plain types. Debian's ROS 1 message headers need
+// std::allocator<void>::rebind, which C++20 removed, so this file and ros1_transport.cpp build
+// as C++17 and include nothing of gshaptics (whose headers are C++20). Not a public header.
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace gshaptics::ros1 {
+
+struct PoseIn {
+  std::array<double, 3> position{};
+  std::array<double, 4> orientation_xyzw{};
+  std::int32_t sec = 0;
+  std::uint32_t nanosec = 0;
+  std::string publisher;  ///< caller id of the publishing node
+};
+
+struct MarkerOut {
+  std::string ns;
+  std::int32_t id = 0, type = 2, action = 0;  // SPHERE, ADD
+  std::array<double, 3> position{};
+  std::array<double, 4> orientation_xyzw{0, 0, 0, 1};
+  std::array<double, 3> scale{};
+  std::array<float, 4> rgba{};
+};
+
+struct TransportOptions {
+  std::string node_name, pose_topic, twist_topic, wrench_topic, markers_topic, frame_id;
+  double master_timeout = 10;
+};
+
+class Transport {
+ public:
+  /// Initialises roscpp (once per process, without its SIGINT handler), waits for the master,
+  /// subscribes and advertises; callbacks run on an AsyncSpinner thread. Throws
+  /// std::runtime_error with a message naming the master when none answers.
+  Transport(const TransportOptions& options, std::function<void(const PoseIn&)> on_pose,
+            std::function<void(const std::array<double, 3>&)> on_twist);
+  ~Transport();
+  void publish_wrench(const std::array<double, 3>& force, const std::array<double, 3>& torque,
+                      std::int32_t sec, std::uint32_t nanosec);
+  void publish_markers(const std::vector<MarkerOut>& markers);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace gshaptics::ros1

@@ -1,0 +1,119 @@
+#!/usr/bin/python3
+"""`gshaptics node --ros1` against a real ROS 1 master: start roscore, run the node on the bundled
+Truck, publish poses with `rostopic pub`, read wrenches and markers with `rostopic echo`, and check
+the values; then the faults: the publisher dies mid-contact (force to zero), a NaN pose (dropped
+and counted), a second publisher (counted). Exits 77 (skipped) when ROS 1 is not installed.
+
+Usage: ros1_test.py PATH/TO/gshaptics
+"""
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+EXE = None
+POSE = "geometry_msgs/PoseStamped"
+INSIDE = "{header: {frame_id: world}, pose: {position: {x: 0.0, y: 0.0, z: 0.5}, orientation: {w: 1.0}}}"
+
+
+def echo_once(topic, env, timeout=20):
+    p = subprocess.run(["rostopic", "echo", "-n", "1", topic], env=env, capture_output=True, text=True,
+                       timeout=timeout)
+    return p.stdout
+
+
+def force_of(text):
+    """|F| and frame_id from `rostopic echo` of a WrenchStamped."""
+    lines = [l.strip() for l in text.splitlines()]
+    i = lines.index("force:")
+    f = [float(lines[i + k].split(":")[1]) for k in (1, 2, 3)]
+    frame = [l for l in lines if l.startswith("frame_id:")][0].split(":", 1)[1].strip().strip('"')
+    return math.sqrt(sum(x * x for x in f)), frame
+
+
+class Ros1Node(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = tempfile.mkdtemp()
+        port = 11500 + os.getpid() % 400
+        cls.env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOSTNAME="127.0.0.1",
+                       ROS_LOG_DIR=os.path.join(cls.dir, "log"), ROS_HOME=os.path.join(cls.dir, "home"))
+        cls.core = subprocess.Popen(["roscore", "-p", str(port)], env=cls.env, stdout=subprocess.DEVNULL,
+                                    stderr=subprocess.DEVNULL, start_new_session=True)
+        cls.node = subprocess.Popen([EXE, "node", "--ros1", "--quiet", "--no-plot", "--out", cls.dir],
+                                    env=cls.env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        line = ""
+        while "ready" not in line:
+            line = cls.node.stdout.readline()
+            if line == "":
+                raise AssertionError("gshaptics node --ros1 ended before it was ready: " + cls.node.stderr.read())
+        cls.pubs = []
+
+    @classmethod
+    def tearDownClass(cls):
+        for p in cls.pubs:
+            p.kill()
+        if cls.node.poll() is None:
+            cls.node.kill()
+        os.killpg(cls.core.pid, signal.SIGINT)
+        try:
+            cls.core.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            os.killpg(cls.core.pid, signal.SIGKILL)
+
+    def publish(self, msg, rate=200):
+        p = subprocess.Popen(["rostopic", "pub", "-r", str(rate), "/gshaptics/tool_pose", POSE, msg],
+                             env=self.env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.pubs.append(p)
+        return p
+
+    def test_all_in_order(self):
+        # 1. Poses into the truck -> a force comes back, in our frame.
+        pub = self.publish(INSIDE)
+        time.sleep(3.0)
+        f, frame = force_of(echo_once("/gshaptics/wrench", self.env))
+        self.assertGreater(f, 0.1)
+        self.assertEqual(frame, "world")
+        markers = echo_once("/gshaptics/markers", self.env)
+        self.assertIn('ns: "tool"', markers)
+        self.assertIn('ns: "contacts"', markers)
+        # 2. A second publisher on the same topic is counted (poses interleave).
+        second = self.publish(INSIDE, rate=50)
+        time.sleep(2.0)
+        second.kill()
+        # 3. A NaN pose is dropped and counted.
+        subprocess.run(["rostopic", "pub", "-1", "/gshaptics/tool_pose", POSE,
+                        "{pose: {position: {x: .nan, y: 0.0, z: 0.5}, orientation: {w: 1.0}}}"],
+                       env=self.env, capture_output=True, timeout=30)
+        # 4. The publisher dies mid-contact: the force goes to zero.
+        pub.kill()
+        pub.wait()
+        time.sleep(1.0)
+        f, _ = force_of(echo_once("/gshaptics/wrench", self.env))
+        self.assertEqual(f, 0.0)
+        # The node stops cleanly and reports.
+        self.node.send_signal(signal.SIGINT)
+        out, err = self.node.communicate(timeout=60)
+        self.assertEqual(self.node.returncode, 0, err)
+        with open(os.path.join(self.dir, "run_summary.json")) as fh:
+            summary = json.load(fh)
+        ros1 = summary["ros1"]
+        self.assertGreater(ros1["poses_received"], 300)
+        self.assertEqual(ros1["poses_dropped"], 1)
+        self.assertGreaterEqual(ros1["pose_publishers"], 3)  # two streams + the one-shot NaN publisher
+        self.assertGreater(ros1["markers_published"], 10)
+        self.assertIn("publishers on /gshaptics/tool_pose", err)
+
+
+if __name__ == "__main__":
+    if shutil.which("roscore") is None or shutil.which("rostopic") is None:
+        print("SKIP: ROS 1 (roscore, rostopic) not installed; scripts/setup.sh installs ros-core and python3-rostopic")
+        sys.exit(77)
+    EXE = sys.argv[1]
+    unittest.main(argv=[sys.argv[0], "-v"])
