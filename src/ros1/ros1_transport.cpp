@@ -82,12 +82,12 @@ void Transport::publish_wrench(const std::array<double, 3>& f, const std::array<
   state_->wrench_pub.publish(m);
 }
 
-void Transport::publish_markers(const std::vector<MarkerOut>& markers) {
+void Transport::publish_markers(const std::vector<RosMarker>& markers) {
   visualization_msgs::MarkerArray arr;
   const ros::Time now = ros::Time::now();
   arr.markers.resize(markers.size());
   for (std::size_t i = 0; i < markers.size(); ++i) {
-    const MarkerOut& in = markers[i];
+    const RosMarker& in = markers[i];
     visualization_msgs::Marker& m = arr.markers[i];
     m.header.frame_id = state_->options.frame_id;
     m.header.stamp = now;

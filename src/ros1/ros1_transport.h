@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "gshaptics/net/ros_marker.h"
+
 namespace gshaptics::ros1 {
 
 struct PoseIn {
@@ -18,15 +20,6 @@ struct PoseIn {
   std::int32_t sec = 0;
   std::uint32_t nanosec = 0;
   std::string publisher;  ///< caller id of the publishing node
-};
-
-struct MarkerOut {
-  std::string ns;
-  std::int32_t id = 0, type = 2, action = 0;  // SPHERE, ADD
-  std::array<double, 3> position{};
-  std::array<double, 4> orientation_xyzw{0, 0, 0, 1};
-  std::array<double, 3> scale{};
-  std::array<float, 4> rgba{};
 };
 
 struct TransportOptions {
@@ -44,7 +37,7 @@ class Transport {
   ~Transport();
   void publish_wrench(const std::array<double, 3>& force, const std::array<double, 3>& torque,
                       std::int32_t sec, std::uint32_t nanosec);
-  void publish_markers(const std::vector<MarkerOut>& markers);
+  void publish_markers(const std::vector<RosMarker>& markers);
 
  private:
   struct State;

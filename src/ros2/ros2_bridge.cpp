@@ -90,27 +90,18 @@ std::string ros2_dds_topic(const std::string& ros_name) {
 
 struct Ros2Impl {
   Ros2Options options;
-  Clock& clock;
-  StreamDevice& input;
+  RosBridgeStats stats;
   dds_entity_t participant = 0;
   Endpoint pose_reader, twist_reader, wrench_writer;
   dds_entity_t waitset = 0;
-  std::thread reader_thread, writer_thread;
+  std::thread reader_thread;
   std::atomic<bool> stop{false};
-  std::atomic<std::uint32_t> wrench_signal{0};
-  struct WrenchOut {
-    Wrench wrench;
-    RosTime echo;
-  };
-  TripleBuffer<WrenchOut> wrenches;
-  TripleBuffer<RosTime> pose_stamps;  // newest pose header stamp (reader thread -> servo thread)
-  RosTime last_pose_stamp;
-  Ros2Stats stats;
-  std::vector<dds_instance_handle_t> publishers;
-  Eigen::Vector3d twist = Eigen::Vector3d::Zero();
-  Nanos twist_at = -1;
+  RosPoseIntake intake;
+  RosWrenchOutbox outbox;
+  geometry_msgs_msg_dds__WrenchStamped_ wrench_msg{};  // publisher thread only
 
-  Ros2Impl(const Ros2Options& o, Clock& c, StreamDevice& in) : options(o), clock(c), input(in) {
+  Ros2Impl(const Ros2Options& o, Clock& c, StreamDevice& in)
+      : options(o), intake(in, c, stats), outbox([this](const Wrench& w, const RosTime& echo) { publish(w, echo); }, stats) {
     participant = check(dds_create_participant(o.domain < 0 ? DDS_DOMAIN_DEFAULT : dds_domainid_t(o.domain), nullptr, nullptr),
                         "participant");
     pose_reader = make_reader(participant, &geometry_msgs_msg_dds__PoseStamped__desc, o.pose_topic, o);
@@ -129,11 +120,16 @@ struct Ros2Impl {
 
   void shutdown() {
     stop.store(true);
-    wrench_signal.fetch_add(1);
-    wrench_signal.notify_all();
     if (waitset > 0) dds_waitset_set_trigger(waitset, true);
     if (reader_thread.joinable()) reader_thread.join();
-    if (writer_thread.joinable()) writer_thread.join();
+    outbox.stop();
+  }
+
+  void publish(const Wrench& w, const RosTime& echo) {
+    fill_header(wrench_msg.header, echo, options.frame_id);
+    wrench_msg.wrench.force = {w.force.x(), w.force.y(), w.force.z()};
+    wrench_msg.wrench.torque = {w.torque.x(), w.torque.y(), w.torque.z()};
+    dds_write(wrench_writer.entity, &wrench_msg);
   }
 
   void take_twists() {
@@ -143,14 +139,7 @@ struct Ros2Impl {
     for (int i = 0; i < n; ++i) {
       if (!infos[i].valid_data) continue;
       const auto* m = static_cast<const geometry_msgs_msg_dds__TwistStamped_*>(samples[i]);
-      const Eigen::Vector3d v(m->twist.linear.x, m->twist.linear.y, m->twist.linear.z);
-      if (!v.allFinite()) {
-        stats.poses_dropped.fetch_add(1);
-        continue;
-      }
-      twist = v;
-      twist_at = clock.now();
-      stats.twists_received.fetch_add(1);
+      intake.on_twist({m->twist.linear.x, m->twist.linear.y, m->twist.linear.z});
     }
     if (n > 0) dds_return_loan(twist_reader.entity, samples, n);
   }
@@ -161,25 +150,10 @@ struct Ros2Impl {
     const int n = dds_take(pose_reader.entity, samples, infos, 16, 16);
     for (int i = 0; i < n; ++i) {
       if (!infos[i].valid_data) continue;
-      const dds_instance_handle_t pub = infos[i].publication_handle;
-      if (std::find(publishers.begin(), publishers.end(), pub) == publishers.end()) {
-        publishers.push_back(pub);
-        stats.pose_publishers.store(std::uint32_t(publishers.size()));
-      }
       const auto* m = static_cast<const geometry_msgs_msg_dds__PoseStamped_*>(samples[i]);
-      const Eigen::Vector3d p(m->pose.position.x, m->pose.position.y, m->pose.position.z);
-      Eigen::Quaterniond q(m->pose.orientation.w, m->pose.orientation.x, m->pose.orientation.y, m->pose.orientation.z);
-      if (!p.allFinite() || !q.coeffs().allFinite()) {
-        stats.poses_dropped.fetch_add(1);
-        continue;
-      }
-      // An all-zero quaternion (an unset field, common from command-line publishers) is identity.
-      if (q.coeffs().squaredNorm() < 1e-12) q = Eigen::Quaterniond::Identity();
-      const Nanos now = clock.now();
-      const bool fresh_twist = twist_at >= 0 && now - twist_at < to_nanos(0.05);
-      input.set_target(p, q.normalized(), now, fresh_twist ? &twist : nullptr);
-      pose_stamps.write({m->header.stamp.sec, m->header.stamp.nanosec});
-      stats.poses_received.fetch_add(1);
+      const auto& q = m->pose.orientation;
+      intake.on_pose({m->pose.position.x, m->pose.position.y, m->pose.position.z}, {q.x, q.y, q.z, q.w},
+                     {m->header.stamp.sec, m->header.stamp.nanosec}, infos[i].publication_handle);
     }
     if (n > 0) dds_return_loan(pose_reader.entity, samples, n);
   }
@@ -191,25 +165,6 @@ struct Ros2Impl {
       if (stop.load()) break;
       take_twists();
       take_poses();
-    }
-  }
-
-  void writer_main() {
-    std::uint32_t seen = wrench_signal.load();
-    geometry_msgs_msg_dds__WrenchStamped_ msg{};
-    WrenchOut w;
-    while (true) {
-      wrench_signal.wait(seen);
-      seen = wrench_signal.load();
-      const bool stopping = stop.load();
-      if (wrenches.read_if_new(w) || stopping) {
-        if (stopping) w.wrench = Wrench{};  // leave the device at zero force
-        fill_header(msg.header, w.echo, options.frame_id);
-        msg.wrench.force = {w.wrench.force.x(), w.wrench.force.y(), w.wrench.force.z()};
-        msg.wrench.torque = {w.wrench.torque.x(), w.wrench.torque.y(), w.wrench.torque.z()};
-        if (dds_write(wrench_writer.entity, &msg) >= 0) stats.wrenches_published.fetch_add(1);
-      }
-      if (stopping) break;
     }
   }
 };
@@ -230,25 +185,19 @@ Ros2NetworkDevice::~Ros2NetworkDevice() { stop_markers(); }
 void Ros2NetworkDevice::start(Nanos now) {
   input_.start(now);
   impl_->reader_thread = std::thread([this] { impl_->reader_main(); });
-  impl_->writer_thread = std::thread([this] { impl_->writer_main(); });
+  impl_->outbox.start();
 }
 
-DeviceSample Ros2NetworkDevice::read(Nanos now) noexcept {
-  RosTime t;
-  if (impl_->pose_stamps.read_if_new(t)) impl_->last_pose_stamp = t;
-  return input_.read(now);
-}
+DeviceSample Ros2NetworkDevice::read(Nanos now) noexcept { return input_.read(now); }
 
 void Ros2NetworkDevice::write(const Wrench& wrench, Nanos now) noexcept {
   input_.write(wrench, now);
-  impl_->wrenches.write({wrench, impl_->last_pose_stamp});
-  impl_->wrench_signal.fetch_add(1, std::memory_order_release);
-  impl_->wrench_signal.notify_one();
+  impl_->outbox.post(wrench, impl_->intake.newest_stamp());
 }
 
 void Ros2NetworkDevice::stop(Nanos now) noexcept {
   input_.stop(now);
-  impl_->shutdown();  // the writer thread publishes a zero wrench as its last message
+  impl_->shutdown();  // the outbox publishes a zero wrench as its last message
 }
 
 const RosBridgeStats& Ros2NetworkDevice::stats() const noexcept { return impl_->stats; }
@@ -257,81 +206,44 @@ const RosBridgeStats& Ros2NetworkDevice::stats() const noexcept { return impl_->
 
 struct Ros2MarkerPublisher::State {
   Ros2Impl& dds;
-  const CollisionWorld& world;
-  ContactSnapshotObserver& snapshots;
-  Eigen::Vector3d tool_axes;
   Endpoint writer;
-  std::thread thread;
-  std::atomic<bool> stop{false};
-  ContactSnapshot snap;
+  RosMarkerLoop loop;
+  std::vector<visualization_msgs_msg_dds__Marker_> msgs;  // marker thread only
 
   State(Ros2Impl& d, const CollisionWorld& w, ContactSnapshotObserver& s, const Eigen::Vector3d& axes)
-      : dds(d), world(w), snapshots(s), tool_axes(axes) {
-    writer = make_writer(d.participant, &visualization_msgs_msg_dds__MarkerArray__desc, d.options.markers_topic,
-                         d.options, /*reliable_override=*/true);
-  }
+      : dds(d),
+        writer(make_writer(d.participant, &visualization_msgs_msg_dds__MarkerArray__desc, d.options.markers_topic,
+                           d.options, /*reliable_override=*/true)),
+        loop([this](const std::vector<RosMarker>& m) { publish(m); }, w, s, axes, d.options.marker_hz,
+             d.options.max_markers, d.stats) {}
 
-  static visualization_msgs_msg_dds__Marker_ blank(const RosTime& t, const std::string& frame) {
-    visualization_msgs_msg_dds__Marker_ m{};
-    fill_header(m.header, t, frame);
-    m.ns = kEmpty;
-    m.texture_resource = kEmpty;
-    m.texture.header.frame_id = kEmpty;
-    m.texture.format = kEmpty;
-    m.text = kEmpty;
-    m.mesh_resource = kEmpty;
-    m.mesh_file.filename = kEmpty;
-    m.pose.orientation.w = 1;
-    return m;
-  }
-
-  void publish_once() {
-    if (!snapshots.take(snap) || snap.pose_sequence == 0) return;
+  void publish(const std::vector<RosMarker>& markers) {
     const RosTime t = RosTime::now();
-    const std::string& frame = dds.options.frame_id;
-    static std::string ns_clear = "", ns_tool = "tool", ns_contacts = "contacts";
-    const std::size_t shown = std::min<std::size_t>(snap.shown, dds.options.max_markers);
-    std::vector<visualization_msgs_msg_dds__Marker_> markers(2 + shown);
-    // 0: delete the previous frame's markers; 1: the tool ellipsoid; then one per contact.
-    markers[0] = blank(t, frame);
-    markers[0].action = 3;  // DELETEALL
-    markers[0].ns = cstr(ns_clear);
-    visualization_msgs_msg_dds__Marker_& tool = markers[1] = blank(t, frame);
-    tool.ns = cstr(ns_tool);
-    tool.type = 2;  // SPHERE
-    tool.pose.position = {snap.pose.position.x(), snap.pose.position.y(), snap.pose.position.z()};
-    tool.pose.orientation = {snap.pose.orientation.x(), snap.pose.orientation.y(), snap.pose.orientation.z(),
-                             snap.pose.orientation.w()};
-    tool.scale = {2 * tool_axes.x(), 2 * tool_axes.y(), 2 * tool_axes.z()};  // diameters
-    tool.color = {0.4f, 0.8f, 1.0f, 0.5f};
-    for (std::size_t i = 0; i < shown; ++i) {
-      const CollisionGaussian& g = world.gaussians()[snap.record[i]];
-      visualization_msgs_msg_dds__Marker_& m = markers[2 + i] = blank(t, frame);
-      m.ns = cstr(ns_contacts);
-      m.id = std::int32_t(g.source_index);  // index into the original scene file
-      m.type = 2;
-      m.pose.position = {g.center[0], g.center[1], g.center[2]};
-      Eigen::Matrix3d r;
-      for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) r(a, b) = double(g.rotation[3 * a + b]);
-      const Eigen::Quaterniond q = Eigen::Quaterniond(r).normalized();
-      m.pose.orientation = {q.x(), q.y(), q.z(), q.w()};
-      m.scale = {2.0 * g.semi_axes[0], 2.0 * g.semi_axes[1], 2.0 * g.semi_axes[2]};
-      m.color = {1.0f, 0.15f, 0.25f, 0.85f};
+    msgs.assign(markers.size(), visualization_msgs_msg_dds__Marker_{});
+    for (std::size_t i = 0; i < markers.size(); ++i) {
+      const RosMarker& in = markers[i];
+      visualization_msgs_msg_dds__Marker_& m = msgs[i];
+      fill_header(m.header, t, dds.options.frame_id);
+      m.ns = const_cast<char*>(in.ns.c_str());
+      m.id = in.id;
+      m.type = in.type;
+      m.action = in.action;
+      m.pose.position = {in.position[0], in.position[1], in.position[2]};
+      m.pose.orientation = {in.orientation_xyzw[0], in.orientation_xyzw[1], in.orientation_xyzw[2], in.orientation_xyzw[3]};
+      m.scale = {in.scale[0], in.scale[1], in.scale[2]};
+      m.color = {in.rgba[0], in.rgba[1], in.rgba[2], in.rgba[3]};
+      m.texture_resource = kEmpty;
+      m.texture.header.frame_id = kEmpty;
+      m.texture.format = kEmpty;
+      m.text = kEmpty;
+      m.mesh_resource = kEmpty;
+      m.mesh_file.filename = kEmpty;
     }
     visualization_msgs_msg_dds__MarkerArray_ arr{};
-    arr.markers._length = arr.markers._maximum = std::uint32_t(markers.size());
-    arr.markers._buffer = markers.data();
+    arr.markers._length = arr.markers._maximum = std::uint32_t(msgs.size());
+    arr.markers._buffer = msgs.data();
     arr.markers._release = false;
-    if (dds_write(writer.entity, &arr) >= 0) dds.stats.markers_published.fetch_add(1);
-  }
-
-  void run() {
-    const auto period = std::chrono::duration<double>(1.0 / std::max(1.0, dds.options.marker_hz));
-    while (!stop.load()) {
-      publish_once();
-      std::this_thread::sleep_for(period);
-    }
+    dds_write(writer.entity, &arr);
   }
 };
 
@@ -351,14 +263,8 @@ void Ros2NetworkDevice::stop_markers() {
   if (markers_) markers_->stop();
 }
 
-void Ros2MarkerPublisher::start() {
-  state_->thread = std::thread([s = state_.get()] { s->run(); });
-}
-
-void Ros2MarkerPublisher::stop() {
-  state_->stop.store(true);
-  if (state_->thread.joinable()) state_->thread.join();
-}
+void Ros2MarkerPublisher::start() { state_->loop.start(); }
+void Ros2MarkerPublisher::stop() { state_->loop.stop(); }
 
 // ---------------------------------------------------------------------------------------------
 

@@ -1,17 +1,24 @@
 #pragma once
 /// @file
 /// What the ROS 2 (DDS) and ROS 1 (roscpp) bridges share: topic and QoS options, ROS time, the
-/// bridge counters and the device interface the CLI's `node` command drives. Header-only; no
+/// bridge counters, the device interface the CLI's `node` command drives, and the middleware-free
+/// parts of a bridge (pose intake, wrench outbox, marker loop; library gshaptics_ros_common). No
 /// middleware here, so the core and either bridge build without the other.
 
 #include <atomic>
 #include <cstdint>
 #include <ctime>
+#include <functional>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "gshaptics/collision/collision_world.h"
+#include "gshaptics/net/ros_marker.h"
 #include "gshaptics/servo/contact_snapshot.h"
 #include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/servo/stream_device.h"
+#include "gshaptics/servo/triple_buffer.h"
 
 namespace gshaptics {
 
@@ -62,6 +69,89 @@ class RosBridgeDevice : public HapticDevice {
   virtual void stop_markers() = 0;
   /// The full names of the pose, twist, wrench and markers topics on the wire.
   [[nodiscard]] virtual std::string wire_topic(const std::string& ros_name) const = 0;
+};
+
+/// The device side of a bridge's input, on the middleware's receive thread: validates a pose
+/// (NaN/Inf dropped and counted; an all-zero quaternion, an unset field, taken as identity),
+/// counts distinct publishers, pairs it with a recent twist and hands it to the StreamDevice.
+/// Threading: on_pose()/on_twist() from one receive thread; newest_stamp() from the servo thread.
+class RosPoseIntake {
+ public:
+  RosPoseIntake(StreamDevice& input, Clock& clock, RosBridgeStats& stats)
+      : input_(input), clock_(clock), stats_(stats) {}
+  /// A twist (m/s, world); used with poses arriving within 50 ms of it.
+  void on_twist(const Eigen::Vector3d& linear);
+  /// A pose: position (m), orientation (x, y, z, w as in ROS), its header stamp, and a key that
+  /// identifies its publisher.
+  void on_pose(const Eigen::Vector3d& position, const Eigen::Vector4d& orientation_xyzw,
+               const RosTime& stamp, std::uint64_t publisher);
+  /// Servo thread: the stamp of the newest pose (echoed in the wrench header). Never blocks.
+  [[nodiscard]] const RosTime& newest_stamp() noexcept;
+
+ private:
+  StreamDevice& input_;
+  Clock& clock_;
+  RosBridgeStats& stats_;
+  std::vector<std::uint64_t> publishers_;
+  Eigen::Vector3d twist_ = Eigen::Vector3d::Zero();
+  Nanos twist_at_ = -1;
+  TripleBuffer<RosTime> stamps_;
+  RosTime newest_;
+};
+
+/// The wrench's way out: the servo thread post()s (wait-free, no allocation; wakes the publisher
+/// thread through a futex), a publisher thread calls `publish`. stop() publishes a zero wrench
+/// last, so the device is left at zero force.
+class RosWrenchOutbox {
+ public:
+  using PublishFn = std::function<void(const Wrench&, const RosTime& echo)>;
+  RosWrenchOutbox(PublishFn publish, RosBridgeStats& stats) : publish_(std::move(publish)), stats_(stats) {}
+  ~RosWrenchOutbox() { stop(); }
+  void start();
+  void post(const Wrench& wrench, const RosTime& echo) noexcept;
+  void stop();
+
+ private:
+  struct Item {
+    Wrench wrench;
+    RosTime echo;
+  };
+  PublishFn publish_;
+  RosBridgeStats& stats_;
+  TripleBuffer<Item> items_;
+  std::atomic<std::uint32_t> signal_{0};
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+/// The tool ellipsoid and the colliding Gaussians of a snapshot as markers: DELETEALL first, then
+/// the tool (ns "tool"), then one SPHERE per contact (ns "contacts", id = index into the original
+/// scene file, scale = the k-sigma ellipsoid's diameters), at most `max_contacts`.
+[[nodiscard]] std::vector<RosMarker> contact_markers(const ContactSnapshot& snapshot,
+                                                     const CollisionWorld& world,
+                                                     const Eigen::Vector3d& tool_axes,
+                                                     std::size_t max_contacts);
+
+/// Publishes contact_markers() of the newest snapshot at `hz` from its own thread.
+class RosMarkerLoop {
+ public:
+  using PublishFn = std::function<void(const std::vector<RosMarker>&)>;
+  RosMarkerLoop(PublishFn publish, const CollisionWorld& world, ContactSnapshotObserver& snapshots,
+                const Eigen::Vector3d& tool_axes, double hz, std::size_t max_contacts, RosBridgeStats& stats);
+  ~RosMarkerLoop() { stop(); }
+  void start();
+  void stop();
+
+ private:
+  PublishFn publish_;
+  const CollisionWorld& world_;
+  ContactSnapshotObserver& snapshots_;
+  Eigen::Vector3d tool_axes_;
+  double hz_;
+  std::size_t max_;
+  RosBridgeStats& stats_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
 };
 
 }  // namespace gshaptics

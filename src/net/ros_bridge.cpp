@@ -1,0 +1,135 @@
+#include "gshaptics/net/ros_bridge.h"
+
+#include <algorithm>
+#include <chrono>
+
+namespace gshaptics {
+
+void RosPoseIntake::on_twist(const Eigen::Vector3d& linear) {
+  if (!linear.allFinite()) {
+    stats_.poses_dropped.fetch_add(1);
+    return;
+  }
+  twist_ = linear;
+  twist_at_ = clock_.now();
+  stats_.twists_received.fetch_add(1);
+}
+
+void RosPoseIntake::on_pose(const Eigen::Vector3d& position, const Eigen::Vector4d& q_xyzw, const RosTime& stamp,
+                            std::uint64_t publisher) {
+  if (std::find(publishers_.begin(), publishers_.end(), publisher) == publishers_.end()) {
+    publishers_.push_back(publisher);
+    stats_.pose_publishers.store(std::uint32_t(publishers_.size()));
+  }
+  if (!position.allFinite() || !q_xyzw.allFinite()) {
+    stats_.poses_dropped.fetch_add(1);
+    return;
+  }
+  Eigen::Quaterniond q(q_xyzw[3], q_xyzw[0], q_xyzw[1], q_xyzw[2]);
+  if (q.coeffs().squaredNorm() < 1e-12) q = Eigen::Quaterniond::Identity();
+  const Nanos now = clock_.now();
+  const bool fresh_twist = twist_at_ >= 0 && now - twist_at_ < to_nanos(0.05);
+  input_.set_target(position, q.normalized(), now, fresh_twist ? &twist_ : nullptr);
+  stamps_.write(stamp);
+  stats_.poses_received.fetch_add(1);
+}
+
+const RosTime& RosPoseIntake::newest_stamp() noexcept {
+  stamps_.read_if_new(newest_);
+  return newest_;
+}
+
+void RosWrenchOutbox::start() {
+  stop_.store(false);
+  thread_ = std::thread([this] {
+    std::uint32_t seen = signal_.load();
+    Item item;
+    while (true) {
+      signal_.wait(seen);
+      seen = signal_.load();
+      const bool stopping = stop_.load();
+      if (items_.read_if_new(item) || stopping) {
+        if (stopping) item.wrench = Wrench{};  // the last message: zero force
+        publish_(item.wrench, item.echo);
+        stats_.wrenches_published.fetch_add(1);
+      }
+      if (stopping) break;
+    }
+  });
+}
+
+void RosWrenchOutbox::post(const Wrench& wrench, const RosTime& echo) noexcept {
+  items_.write({wrench, echo});
+  signal_.fetch_add(1, std::memory_order_release);
+  signal_.notify_one();
+}
+
+void RosWrenchOutbox::stop() {
+  if (!thread_.joinable()) return;
+  stop_.store(true);
+  signal_.fetch_add(1);
+  signal_.notify_all();
+  thread_.join();
+}
+
+std::vector<RosMarker> contact_markers(const ContactSnapshot& snap, const CollisionWorld& world,
+                                       const Eigen::Vector3d& tool_axes, std::size_t max_contacts) {
+  const std::size_t shown = std::min<std::size_t>(snap.shown, max_contacts);
+  std::vector<RosMarker> out;
+  out.reserve(2 + shown);
+  RosMarker clear;
+  clear.action = RosMarker::kDeleteAll;
+  out.push_back(clear);
+  RosMarker tool;
+  tool.ns = "tool";
+  tool.position = {snap.pose.position.x(), snap.pose.position.y(), snap.pose.position.z()};
+  tool.orientation_xyzw = {snap.pose.orientation.x(), snap.pose.orientation.y(), snap.pose.orientation.z(),
+                           snap.pose.orientation.w()};
+  tool.scale = {2 * tool_axes.x(), 2 * tool_axes.y(), 2 * tool_axes.z()};
+  tool.rgba = {0.4f, 0.8f, 1.0f, 0.5f};
+  out.push_back(tool);
+  for (std::size_t i = 0; i < shown; ++i) {
+    const CollisionGaussian& g = world.gaussians()[snap.record[i]];
+    RosMarker m;
+    m.ns = "contacts";
+    m.id = std::int32_t(g.source_index);
+    m.position = {g.center[0], g.center[1], g.center[2]};
+    Eigen::Matrix3d r;
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) r(a, b) = double(g.rotation[3 * a + b]);
+    const Eigen::Quaterniond q = Eigen::Quaterniond(r).normalized();
+    m.orientation_xyzw = {q.x(), q.y(), q.z(), q.w()};
+    m.scale = {2.0 * g.semi_axes[0], 2.0 * g.semi_axes[1], 2.0 * g.semi_axes[2]};
+    m.rgba = {1.0f, 0.15f, 0.25f, 0.85f};
+    out.push_back(m);
+  }
+  return out;
+}
+
+RosMarkerLoop::RosMarkerLoop(PublishFn publish, const CollisionWorld& world, ContactSnapshotObserver& snapshots,
+                             const Eigen::Vector3d& tool_axes, double hz, std::size_t max_contacts,
+                             RosBridgeStats& stats)
+    : publish_(std::move(publish)), world_(world), snapshots_(snapshots), tool_axes_(tool_axes),
+      hz_(std::max(1.0, hz)), max_(max_contacts), stats_(stats) {}
+
+void RosMarkerLoop::start() {
+  stop_.store(false);
+  thread_ = std::thread([this] {
+    ContactSnapshot snap;
+    const auto period = std::chrono::duration<double>(1.0 / hz_);
+    while (!stop_.load()) {
+      if (snapshots_.take(snap) && snap.pose_sequence != 0) {
+        publish_(contact_markers(snap, world_, tool_axes_, max_));
+        stats_.markers_published.fetch_add(1);
+      }
+      std::this_thread::sleep_for(period);
+    }
+  });
+}
+
+void RosMarkerLoop::stop() {
+  stop_.store(true);
+  if (thread_.joinable()) thread_.join();
+}
+
+}  // namespace gshaptics
