@@ -73,10 +73,7 @@ class StallingObserver final : public ResultObserver {
 class RealTime : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    const LoadedScene s = load_scene(test::data_path("truck.splat"));
-    WorldConfig cfg;
-    cfg.registration = load_registration_file(test::data_path("truck.registration.json"));
-    world_ = new CollisionWorld(CollisionWorld::build(s.scene, cfg));
+    world_ = &test::truck_world();
     ProbeParams pp;
     pp.tool_radius = 0.07;
     pp.approach_speed = 2 * pp.tool_radius;
@@ -86,7 +83,6 @@ class RealTime : public ::testing::Test {
   }
   static void TearDownTestSuite() {
     delete trajectory_;
-    delete world_;
   }
   static RuntimeConfig config(double rate, double duration) {
     RuntimeConfig c;
@@ -129,10 +125,10 @@ class RealTime : public ::testing::Test {
     EXPECT_EQ(bad_gate, 0u);
     EXPECT_EQ(recs.back().force, Eigen::Vector3d::Zero());
   }
-  static CollisionWorld* world_;
+  static const CollisionWorld* world_;
   static ProbeTrajectory* trajectory_;
 };
-CollisionWorld* RealTime::world_ = nullptr;
+const CollisionWorld* RealTime::world_ = nullptr;
 ProbeTrajectory* RealTime::trajectory_ = nullptr;
 
 TEST_F(RealTime, FiveSecondsAtOneKilohertzOnTheTruck) {

@@ -18,15 +18,11 @@ namespace {
 class TruckRun : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    const LoadedScene s = load_scene(test::data_path("truck.splat"));
-    WorldConfig cfg;
-    cfg.registration = load_registration_file(test::data_path("truck.registration.json"));
-    world_ = new CollisionWorld(CollisionWorld::build(s.scene, cfg));
+    world_ = &test::truck_world();
   }
-  static void TearDownTestSuite() { delete world_; }
-  static CollisionWorld* world_;
+  static const CollisionWorld* world_;
 };
-CollisionWorld* TruckRun::world_ = nullptr;
+const CollisionWorld* TruckRun::world_ = nullptr;
 
 TEST_F(TruckRun, ServoTickAllocatesNothing) {
   ContactQuery query(*world_);

@@ -80,12 +80,8 @@ struct PlainDds {
 class Ros2Bridge : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    const LoadedScene s = load_scene(test::data_path("truck.splat"));
-    WorldConfig cfg;
-    cfg.registration = load_registration_file(test::data_path("truck.registration.json"));
-    world_ = new CollisionWorld(CollisionWorld::build(s.scene, cfg));
+    world_ = &test::truck_world();
   }
-  static void TearDownTestSuite() { delete world_; }
   void SetUp() override {
     domain_ = 10 + int(getpid() % 200);  // ctest runs tests in parallel: one domain each
     options_.domain = domain_;
@@ -127,7 +123,7 @@ class Ros2Bridge : public ::testing::Test {
     if (count) *count = n;
   }
 
-  static CollisionWorld* world_;
+  static const CollisionWorld* world_;
   int domain_ = 0;
   Ros2Options options_;
   std::unique_ptr<Ros2NetworkDevice> device_;
@@ -136,7 +132,7 @@ class Ros2Bridge : public ::testing::Test {
   std::unique_ptr<Ros2MarkerPublisher> markers_;
   std::unique_ptr<PlainDds> plain_;
 };
-CollisionWorld* Ros2Bridge::world_ = nullptr;
+const CollisionWorld* Ros2Bridge::world_ = nullptr;
 
 TEST(Ros2Names, TopicAndTypeNamesOfTheRos2WireFormat) {
   EXPECT_EQ(ros2_dds_topic("/gshaptics/wrench"), "rt/gshaptics/wrench");

@@ -54,12 +54,8 @@ HttpReply http_get(std::uint16_t port, const std::string& target) {
 class Viewer : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    const LoadedScene s = load_scene(test::data_path("truck.splat"));
-    WorldConfig cfg;
-    cfg.registration = load_registration_file(test::data_path("truck.registration.json"));
-    world_ = new CollisionWorld(CollisionWorld::build(s.scene, cfg));
+    world_ = &test::truck_world();
   }
-  static void TearDownTestSuite() { delete world_; }
 
   void SetUp() override {
     StreamDeviceParams sp;
@@ -88,13 +84,13 @@ class Viewer : public ::testing::Test {
     runtime_->wait();
   }
 
-  static CollisionWorld* world_;
+  static const CollisionWorld* world_;
   std::unique_ptr<StreamDevice> mouse_;
   std::unique_ptr<HapticRuntime> runtime_;
   std::unique_ptr<ContactSnapshotObserver> snapshots_;
   std::unique_ptr<ViewerServer> server_;
 };
-CollisionWorld* Viewer::world_ = nullptr;
+const CollisionWorld* Viewer::world_ = nullptr;
 
 TEST_F(Viewer, HttpRoutes) {
   const std::uint16_t port = server_->port();

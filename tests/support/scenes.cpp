@@ -43,4 +43,14 @@ std::string load_error(const std::string& path) {
   return "";
 }
 
+const CollisionWorld& truck_world() {
+  static const CollisionWorld world = [] {
+    const LoadedScene s = load_scene(data_path("truck.splat"));
+    WorldConfig cfg;
+    cfg.registration = load_registration_file(data_path("truck.registration.json"));
+    return CollisionWorld::build(s.scene, cfg);
+  }();
+  return world;
+}
+
 }  // namespace gshaptics::test

@@ -5,7 +5,13 @@
 #include <string>
 #include <vector>
 
+#include "gshaptics/collision/collision_world.h"
+
 namespace gshaptics::test {
+
+/// The bundled Truck (data/truck.splat) registered by data/truck.registration.json with the
+/// default WorldConfig, built once per test binary and shared (immutable).
+const CollisionWorld& truck_world();
 
 /// Full path of a scene in ../shared/data/scenes.
 std::string scene_path(const std::string& name);
