@@ -278,6 +278,29 @@ class Run(unittest.TestCase):
         self.assertIn("'y'", p.stderr)
 
 
+class Node(unittest.TestCase):
+    """Argument and start-up errors of the network commands (the bridges' own tests run them)."""
+
+    def setUp(self):
+        top = run("--help").stdout
+        if "node" not in top:
+            self.skipTest("built without the ROS bridges")
+        repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        os.environ["CYCLONEDDS_URI"] = "file://" + os.path.join(repo, "config", "cyclonedds-loopback.xml")
+
+    def test_node_needs_a_transport(self):
+        p = run("node", "--quiet", check=False)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("--ros2 or --ros1", p.stderr)
+
+    def test_device_sim_without_a_node_says_so(self):
+        if "device-sim" not in run("--help").stdout:
+            self.skipTest("built without ROS 2")
+        p = run("device-sim", "--ros2", "--domain", "213", "--wait", "1", "--quiet", check=False)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("no node matched rt/gshaptics/tool_pose", p.stderr)
+
+
 if __name__ == "__main__":
     EXE, SCENES = sys.argv[1], sys.argv[2]
     unittest.main(argv=[sys.argv[0], "-v"])
