@@ -32,14 +32,8 @@ struct Ros1Impl {
 
 Ros1NetworkDevice::Ros1NetworkDevice(const RosBridgeOptions& options, Clock& clock, const std::string& node_name,
                                      double master_timeout)
-    : input_([&] {
-        StreamDeviceParams p;
-        p.name = "ros1 (" + absolute(options.pose_topic) + ")";
-        p.input_timeout = options.input_timeout;
-        p.interpolate = false;
-        p.alive_before_first_target = false;
-        return p;
-      }(), Eigen::Vector3d::Zero()),
+    : input_(network_device_params("ros1 (" + absolute(options.pose_topic) + ")", options.input_timeout),
+             Eigen::Vector3d::Zero()),
       impl_(std::make_unique<Ros1Impl>(options, clock, input_)) {
   ros1::TransportOptions t;
   t.node_name = node_name;

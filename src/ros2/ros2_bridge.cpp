@@ -170,14 +170,8 @@ struct Ros2Impl {
 };
 
 Ros2NetworkDevice::Ros2NetworkDevice(const Ros2Options& options, Clock& clock)
-    : input_([&] {
-        StreamDeviceParams p;
-        p.name = "ros2 (" + ros2_dds_topic(options.pose_topic) + ")";
-        p.input_timeout = options.input_timeout;
-        p.interpolate = false;
-        p.alive_before_first_target = false;
-        return p;
-      }(), Eigen::Vector3d::Zero()),
+    : input_(network_device_params("ros2 (" + ros2_dds_topic(options.pose_topic) + ")", options.input_timeout),
+             Eigen::Vector3d::Zero()),
       impl_(std::make_unique<Ros2Impl>(options, clock, input_)) {}
 
 Ros2NetworkDevice::~Ros2NetworkDevice() { stop_markers(); }

@@ -71,6 +71,18 @@ class RosBridgeDevice : public HapticDevice {
   [[nodiscard]] virtual std::string wire_topic(const std::string& ros_name) const = 0;
 };
 
+/// StreamDevice parameters of a network device: the newest pose as it is (inputs come at the
+/// servo rate), and no data before the first pose arrives (nothing is rendered for a pose
+/// nobody sent).
+[[nodiscard]] inline StreamDeviceParams network_device_params(const std::string& name, double input_timeout) {
+  StreamDeviceParams p;
+  p.name = name;
+  p.input_timeout = input_timeout;
+  p.interpolate = false;
+  p.alive_before_first_target = false;
+  return p;
+}
+
 /// The device side of a bridge's input, on the middleware's receive thread: validates a pose
 /// (NaN/Inf dropped and counted; an all-zero quaternion, an unset field, taken as identity),
 /// counts distinct publishers, pairs it with a recent twist and hands it to the StreamDevice.
