@@ -59,9 +59,6 @@ std::unique_ptr<RosBridgeDevice> make_bridge(const NodeOptions& o) {
                    " bridge; install the packages scripts/setup.sh lists and rebuild");
 }
 
-std::atomic<int> g_stop{0};
-extern "C" void on_signal(int sig) { g_stop.store(sig); }
-
 }  // namespace
 
 void register_node(CLI::App& app) {
@@ -177,8 +174,7 @@ void register_device_sim(CLI::App& app) {
       throw InputError(fmt::format("device-sim: no node matched {} and {} within {:.0f} s (is `gshaptics node "
                                    "--ros2` running with the same DDS config and domain?)",
                                    ros2_dds_topic(o->topics.pose_topic), ros2_dds_topic(o->topics.wrench_topic), o->wait));
-    std::signal(SIGINT, on_signal);
-    std::signal(SIGTERM, on_signal);
+    const StopSignals signals;
 
     struct Row {
       double t;
@@ -197,7 +193,7 @@ void register_device_sim(CLI::App& app) {
     std::uint64_t sent = 0, received = 0;
     Eigen::Vector3d force = Eigen::Vector3d::Zero();
     RosTime last_echo;
-    for (std::size_t k = 0; k < n_ticks && g_stop.load() == 0; ++k) {
+    for (std::size_t k = 0; k < n_ticks && StopSignals::received() == 0; ++k) {
       const Nanos deadline = t0 + Nanos(k) * period;
       clock.sleep_until(deadline);
       const Nanos now = clock.now();
@@ -244,7 +240,7 @@ void register_device_sim(CLI::App& app) {
     sj["poses_sent"] = sent;
     sj["wrenches_received"] = received;
     sj["peak_force_n"] = peak;
-    sj["interrupted"] = g_stop.load() != 0;
+    sj["interrupted"] = StopSignals::received() != 0;
     sj["latency_us"] = {{"count", latencies.size()},
                         {"p50", latencies.empty() ? 0 : percentile(latencies, 50)},
                         {"p99", latencies.empty() ? 0 : percentile(latencies, 99)},

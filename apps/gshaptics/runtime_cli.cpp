@@ -25,27 +25,6 @@ static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs a
 
 extern "C" void on_stop_signal(int sig) { g_signal.store(sig, std::memory_order_relaxed); }
 
-/// Installs SIGINT/SIGTERM handlers for the lifetime of the object, restoring the old ones.
-class StopSignals {
- public:
-  StopSignals() {
-    struct sigaction sa {};
-    sa.sa_handler = on_stop_signal;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, &old_int_);
-    sigaction(SIGTERM, &sa, &old_term_);
-  }
-  ~StopSignals() {
-    sigaction(SIGINT, &old_int_, nullptr);
-    sigaction(SIGTERM, &old_term_, nullptr);
-  }
-  StopSignals(const StopSignals&) = delete;
-  StopSignals& operator=(const StopSignals&) = delete;
-
- private:
-  struct sigaction old_int_ {}, old_term_ {};
-};
-
 std::string status_line(const HapticRuntime& rt, double planned) {
   const RuntimeStats& st = rt.stats();
   const double t = double(st.last_tick_ns.load() - st.start_ns.load()) * 1e-9;
@@ -86,6 +65,22 @@ nlohmann::json to_json(const RuntimeSummary& s) {
 }
 
 }  // namespace
+
+StopSignals::StopSignals() {
+  g_signal.store(0);
+  struct sigaction sa {};
+  sa.sa_handler = on_stop_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, &old_int_);
+  sigaction(SIGTERM, &sa, &old_term_);
+}
+
+StopSignals::~StopSignals() {
+  sigaction(SIGINT, &old_int_, nullptr);
+  sigaction(SIGTERM, &old_term_, nullptr);
+}
+
+int StopSignals::received() noexcept { return g_signal.load(std::memory_order_relaxed); }
 
 void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& devices) {
   cmd.add_option("scene", o.scene.scene, "Scene file (default: bundled data/truck.splat, registered z-up in metres)");
@@ -219,7 +214,6 @@ RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, d
 
 bool run_live(HapticRuntime& rt, double planned, bool quiet, const std::function<std::string()>& extra) {
   StopSignals signals;
-  g_signal.store(0);
   rt.start();
   for (const auto& w : rt.warnings()) fmt::print(stderr, "warning: {}\n", w);
   const bool tty = ::isatty(STDERR_FILENO) != 0;
@@ -228,11 +222,11 @@ bool run_live(HapticRuntime& rt, double planned, bool quiet, const std::function
   const auto line = [&] { return status_line(rt, planned) + (extra ? extra() : std::string()); };
   while (rt.running()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    if (!stop_sent && g_signal.load() != 0) {
+    if (!stop_sent && StopSignals::received() != 0) {
       rt.request_stop();
       stop_sent = true;
       fmt::print(stderr, "\n{} received: ramping the force to zero and stopping\n",
-                 g_signal.load() == SIGINT ? "SIGINT" : "SIGTERM");
+                 StopSignals::received() == SIGINT ? "SIGINT" : "SIGTERM");
     }
     const auto now = std::chrono::steady_clock::now();
     if (!quiet && (tty || now - last_print >= std::chrono::seconds(2))) {

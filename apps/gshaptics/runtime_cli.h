@@ -3,6 +3,7 @@
 // its status line and signal handling, and the outputs of a run.
 
 #include <CLI/CLI.hpp>
+#include <csignal>
 #include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -13,6 +14,21 @@
 #include "probe_setup.h"
 
 namespace gshaptics::cli {
+
+/// Turns SIGINT/SIGTERM into a flag for the lifetime of the object (restoring the old handlers
+/// after), so a run can stop cleanly with the device at zero force.
+class StopSignals {
+ public:
+  StopSignals();
+  ~StopSignals();
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+  /// The signal received since construction (0: none). Async-signal-safe flag, any thread.
+  [[nodiscard]] static int received() noexcept;
+
+ private:
+  struct sigaction old_int_ {}, old_term_ {};
+};
 
 struct RuntimeOptions {
   SceneOptions scene;

@@ -27,7 +27,7 @@ std::string errno_text(int e) { return std::strerror(e); }
 
 HapticRuntime::HapticRuntime(const CollisionWorld& world, HapticDevice& device,
                              const RuntimeConfig& config, Clock& clock)
-    : world_(world), device_(device), config_(config), clock_(clock), period_(0),
+    : device_(device), config_(config), clock_(clock), period_(0),
       log_(0) {
   const DeviceInfo& info = device.info();
   if (!(config.rate_hz > 0) || !std::isfinite(config.rate_hz))

@@ -93,7 +93,6 @@ class HapticRuntime {
   void worker_main();
   void apply_realtime();
 
-  const CollisionWorld& world_;
   HapticDevice& device_;
   RuntimeConfig config_;
   Clock& clock_;
