@@ -69,8 +69,8 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   if (inline_worker != nullptr) inline_worker->step(poses_, results_);
 
   // The newest collision result.
-  const bool fresh = results_.read_if_new(result_) && result_.pose_sequence != last_result_seq_;
-  if (fresh) last_result_seq_ = result_.pose_sequence;
+  // The worker writes one result per new pose, so anything new in the buffer is a new result.
+  const bool fresh = results_.read_if_new(result_);
 
   SafetyInput in;
   in.now = now;

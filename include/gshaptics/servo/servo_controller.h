@@ -93,7 +93,7 @@ class ServoController {
   Clock& clock_;
   TripleBuffer<ServoTickRecord>* monitor_;
   Nanos t0_ = 0, prev_now_ = 0, last_device_data_ = 0;
-  std::uint64_t last_device_seq_ = 0, pose_seq_ = 0, last_result_seq_ = 0;
+  std::uint64_t last_device_seq_ = 0, pose_seq_ = 0;
   bool have_device_data_ = false, stopping_ = false, was_fading_ = false;
   CollisionResult result_;
 };
