@@ -30,7 +30,6 @@ void StreamDevice::set_target(const Eigen::Vector3d& position, const Eigen::Quat
   }
   t.orientation = orientation;
   t.stamp = stamp;
-  t.count = ++produced_;
   targets_.write(t);
 }
 

@@ -39,7 +39,6 @@ struct StreamTarget {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
   Nanos stamp = 0;
-  std::uint64_t count = 0;
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
   bool has_velocity = false;
 };
@@ -66,7 +65,6 @@ class StreamDevice final : public HapticDevice {
   StreamDeviceParams params_;
   DeviceInfo info_;
   TripleBuffer<Target> targets_;
-  std::uint64_t produced_ = 0;  // producer thread only
   // Servo thread only:
   Target prev_, last_;
   bool have_last_ = false;
