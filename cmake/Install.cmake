@@ -1,11 +1,18 @@
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
-install(TARGETS gshaptics EXPORT gshapticsTargets
+# Exactly the libraries that are built and their headers: core, runtime, net and, when built,
+# the viewer. The ROS bridges are reached through `gshaptics node` and are not installed (their
+# libraries depend on generated DDS types and on roscpp), so neither are their headers.
+install(TARGETS ${GSHAPTICS_EXPORTED_TARGETS} EXPORT gshapticsTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
-install(DIRECTORY include/gshaptics DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+set(_gshaptics_unbuilt_headers PATTERN ros1 EXCLUDE PATTERN ros2 EXCLUDE)
+if(NOT TARGET gshaptics_viewer)
+  list(APPEND _gshaptics_unbuilt_headers PATTERN viewer_server.h EXCLUDE)
+endif()
+install(DIRECTORY include/gshaptics DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} ${_gshaptics_unbuilt_headers})
 install(EXPORT gshapticsTargets NAMESPACE gshaptics::
   DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/gshaptics)
 configure_package_config_file(cmake/gshapticsConfig.cmake.in

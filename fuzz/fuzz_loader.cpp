@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <span>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

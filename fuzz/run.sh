@@ -26,9 +26,9 @@ mkdir -p "$OUT/obj"
 CXX="clang++ -std=c++20 -O1 -g -fno-omit-frame-pointer -Iinclude -I/usr/include/eigen3"
 SAN="-fsanitize=address,undefined -fno-sanitize-recover=undefined"
 # The loaders and what they use, compiled once with coverage and sanitizers.
-SOURCES=(src/io/error.cpp src/io/mapped_file.cpp src/io/ply_reader.cpp src/io/splat_reader.cpp
+SOURCES=(src/error.cpp src/io/atomic_file.cpp src/io/mapped_file.cpp src/io/ply_reader.cpp src/io/splat_reader.cpp
          src/io/compressed_ply_reader.cpp src/io/spz_reader.cpp src/io/scene_loader.cpp
-         src/io/scene_writer.cpp src/scene/gaussian_scene.cpp)
+         src/io/scene_writer.cpp src/io/gaussian_scene.cpp)
 objs=()
 for s in "${SOURCES[@]}"; do
   o="$OUT/obj/$(basename "${s%.cpp}").o"

@@ -15,7 +15,7 @@
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_model.h"
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/narrowphase/k_min.h"
 #include "gshaptics/scene/registration.h"
@@ -240,10 +240,12 @@ PYBIND11_MODULE(gshaptics, m) {
   py::class_<PyWorld>(m, "CollisionWorld",
       "Filtered, registered Gaussians as k-sigma ellipsoids plus the BVH broad phase. Immutable; "
       "queries may run from several threads.")
-      .def(py::init([](const GaussianScene& s, float min_opacity, double sigma, const py::object& registration) {
+      .def(py::init([](const GaussianScene& s, float min_opacity, double sigma, const py::object& registration,
+                       const std::string& up) {
              WorldConfig cfg;
              cfg.min_opacity = min_opacity;
              cfg.sigma = sigma;
+             cfg.up = parse_up_axis(up, "up");
              cfg.registration = registration_from(registration);
              PyWorld w;
              py::gil_scoped_release release;
@@ -251,10 +253,12 @@ PYBIND11_MODULE(gshaptics, m) {
              return w;
            }),
            py::arg("scene"), py::arg("min_opacity") = kDefaultMinOpacity, py::arg("sigma") = 1.0,
-           py::arg("registration") = py::none(),
+           py::arg("registration") = py::none(), py::arg("up") = "none",
            "Keeps Gaussians with opacity > min_opacity (paper Sec. III-A), scales ellipsoids to "
-           "sigma standard deviations, registers with `registration` (None, a JSON file path, or a "
-           "dict {'scale', 'rotation' [w,x,y,z] or 'matrix', 'translation'}; eq. 3).")
+           "sigma standard deviations, turns the scene's `up` axis to +z ('none', 'auto' from the "
+           "file's convention, 'y-down', 'y-up', 'z-up', 'z-down', 'x-up', 'x-down'), then "
+           "registers with `registration` (None, a JSON file path, or a dict {'scale', 'rotation' "
+           "[w,x,y,z] or 'matrix', 'translation'}; eq. 3).")
       .def("__len__", [](const PyWorld& w) { return w.world->size(); })
       .def_property_readonly("build_seconds", [](const PyWorld& w) { return w.report.build_seconds; })
       .def_property_readonly("memory_bytes", [](const PyWorld& w) { return w.world->memory_bytes(); })

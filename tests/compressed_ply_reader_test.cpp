@@ -8,7 +8,7 @@
 #include <cmath>
 #include <cstring>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 #include "support/scenes.h"
 
@@ -53,6 +53,7 @@ void expect_same(const GaussianScene& a, const GaussianScene& b, bool flip_yz, f
 }
 
 TEST(CompressedPly, MatchesTheDecodedInriaPly) {
+  GSHAPTICS_REQUIRE_SCENES();
   const Biker& b = biker();
   EXPECT_EQ(b.compressed.report.format, SceneFormat::kCompressedPly);
   EXPECT_EQ(b.compressed.report.in_file, 152746u);
@@ -60,6 +61,7 @@ TEST(CompressedPly, MatchesTheDecodedInriaPly) {
 }
 
 TEST(CompressedPly, GuitarLoadsWithSourcesStatistics) {
+  GSHAPTICS_REQUIRE_SCENES();
   const LoadedScene g = load_scene(scene_path("guitar.compressed.ply"));
   EXPECT_EQ(g.scene.size(), 90854u);
   Eigen::Vector3f lo = g.scene.means[0], hi = lo;
@@ -69,6 +71,7 @@ TEST(CompressedPly, GuitarLoadsWithSourcesStatistics) {
 }
 
 TEST(Spz, Version4MatchesCompressedPlyAfterTheFrameFlip) {
+  GSHAPTICS_REQUIRE_SCENES();
   const Biker& b = biker();
   EXPECT_EQ(b.spz.report.version, 4);
   EXPECT_EQ(b.spz.report.frame, SceneFrame::kRub);
@@ -143,6 +146,7 @@ std::vector<std::uint8_t> make_gzip_spz(int version, std::size_t limit = 0, int 
 }
 
 TEST(Spz, GzipVersions3And2MatchVersion4) {
+  GSHAPTICS_REQUIRE_SCENES();
   const Biker& b = biker();
   for (int version : {3, 2}) {
     const std::string p = test::temp_path(".spz");
@@ -155,9 +159,10 @@ TEST(Spz, GzipVersions3And2MatchVersion4) {
 }
 
 TEST(Spz, HigherShBandsAreKeptInInriaOrder) {
+  GSHAPTICS_REQUIRE_SCENES();
   const std::string p = test::temp_path(".spz");
   test::write_bytes(p, make_gzip_spz(3, 0, 1));
-  const LoadedScene s = load_scene(p);
+  const LoadedScene s = load_scene(p, test::with_color());
   EXPECT_EQ(s.report.sh_degree, 1);
   ASSERT_EQ(s.scene.sh_rest_count, 9);
   ASSERT_EQ(s.scene.sh_rest.size(), 9 * s.scene.size());
@@ -178,6 +183,7 @@ std::string error_of(const std::vector<std::uint8_t>& bytes, const char* suffix)
 }
 
 TEST(Spz, BrokenFilesAreNamedErrors) {
+  GSHAPTICS_REQUIRE_SCENES();
   auto v4 = test::read_bytes(scene_path("biker.spz"));
   auto cut = v4;
   cut.resize(v4.size() / 2);
@@ -193,6 +199,7 @@ TEST(Spz, BrokenFilesAreNamedErrors) {
 }
 
 TEST(CompressedPly, TruncatedIsNamed) {
+  GSHAPTICS_REQUIRE_SCENES();
   auto bytes = test::read_bytes(scene_path("guitar.compressed.ply"));
   bytes.resize(bytes.size() - 100);
   EXPECT_NE(error_of(bytes, ".ply").find("truncated"), std::string::npos) << error_of(bytes, ".ply");

@@ -73,6 +73,7 @@ class AgainstReference : public ::testing::TestWithParam<Case> {};
 
 TEST_P(AgainstReference, SameContactsAsBruteForceFloat64) {
   const Case& c = GetParam();
+  if (std::string(c.scene) != "truck.splat") GSHAPTICS_REQUIRE_SCENES();
   const LoadedScene s = load_scene(test::scene_path(c.scene));
   WorldConfig cfg;
   if (c.bundled_registration) cfg.registration = load_registration_file(test::data_path("truck.registration.json"));
@@ -148,6 +149,7 @@ TEST(ContactQuery, TranslatedAndRotatedSceneGivesSameContacts) {
 // search on a plateau where float second derivatives are noise, and it stopped there with K_min
 // off by 2e-3. Spherical tools, the first 40 poses of `gshaptics bench`'s karangkidul set.
 TEST(ContactQuery, FlatSplatPlateausStillGiveExactKMin) {
+  GSHAPTICS_REQUIRE_SCENES();
   const LoadedScene s = load_scene(test::scene_path("karangkidul_crop.ply"));
   const CollisionWorld world = CollisionWorld::build(s.scene, {});
   const auto ref_world = test::reference_world(s.scene, kDefaultMinOpacity, 1.0, {});
@@ -164,6 +166,7 @@ TEST(ContactQuery, FlatSplatPlateausStillGiveExactKMin) {
 }
 
 TEST(ContactQuery, InvalidToolAndOverflowAreReportedNotThrown) {
+  GSHAPTICS_REQUIRE_SCENES();
   const LoadedScene s = load_scene(test::scene_path("donut.ply"));
   const CollisionWorld world = CollisionWorld::build(s.scene, {});
   ContactQuery q(world);
@@ -181,6 +184,7 @@ TEST(ContactQuery, InvalidToolAndOverflowAreReportedNotThrown) {
 }
 
 TEST(ContactQuery, GoldenSectionOptionAgreesOnContacts) {
+  GSHAPTICS_REQUIRE_SCENES();
   const LoadedScene s = load_scene(test::scene_path("donut.ply"));
   const CollisionWorld world = CollisionWorld::build(s.scene, {});
   QueryOptions golden;

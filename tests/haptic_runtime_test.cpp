@@ -11,9 +11,9 @@
 #include <csignal>
 #include <thread>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
-#include "gshaptics/servo/simulated_device.h"
+#include "gshaptics/sim/simulated_device.h"
 #include "support/allocation_counter.h"
 #include "support/scenes.h"
 
@@ -99,16 +99,16 @@ class RealTime : public ::testing::Test {
     const auto& recs = rt.log().records();
     ASSERT_FALSE(recs.empty());
     Eigen::Vector3d prev = Eigen::Vector3d::Zero();
-    Nanos prev_t = 0;
+    double prev_t = 0;
     std::size_t bad_clamp = 0, bad_rate = 0, bad_ramp = 0, bad_gate = 0, bad_finite = 0;
     for (const auto& r : recs) {
       const double fm = r.force.norm();
-      const double t = to_seconds(r.time);
+      const double t = r.time;
       bad_finite += r.force.allFinite() ? 0 : 1;
       bad_clamp += fm <= sp.f_max + 1e-9 ? 0 : 1;
       // Rate limit: measured against wall-clock dt of the scheduled instants (a late tick may
       // move further; allow the jitter of the tick on top).
-      const double dt = to_seconds(r.time - prev_t) + double(r.jitter_us) * 1e-6 + 1e-6;
+      const double dt = (r.time - prev_t) + double(r.jitter_us) * 1e-6 + 1e-6;
       bad_rate += (r.force - prev).norm() <= sp.max_force_rate * dt + 1e-9 ? 0 : 1;
       // Soft start: at time t no more than the ramp allows of f_max (the jitter may add).
       const double ramp = std::min(1.0, (t + double(r.jitter_us) * 1e-6 + 1e-6) / sp.ramp_time);
@@ -192,7 +192,7 @@ TEST_F(RealTime, StalledWorkerFadesAndRecovers) {
   const auto& recs = rt.log().records();
   std::size_t fresh_after = 0;
   for (const auto& r : recs)
-    if (to_seconds(r.time) > 2.2 && (r.flags & kFlagHeld) == 0) ++fresh_after;
+    if (r.time > 2.2 && (r.flags & kFlagHeld) == 0) ++fresh_after;
   EXPECT_GT(fresh_after, 500u);
 }
 

@@ -9,7 +9,7 @@
 #include <cstring>
 #include <limits>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/scene/scene_stats.h"
 #include "support/scenes.h"
@@ -32,6 +32,7 @@ void PrintTo(const Expect& e, std::ostream* os) { *os << e.file; }
 class RealPly : public ::testing::TestWithParam<Expect> {};
 
 TEST_P(RealPly, CountsBoundsAndOpacityMatchSources) {
+  GSHAPTICS_REQUIRE_SCENES();
   const Expect& e = GetParam();
   const LoadedScene s = load_scene(scene_path(e.file));
   EXPECT_EQ(s.report.format, SceneFormat::kInriaPly);
@@ -66,6 +67,7 @@ INSTANTIATE_TEST_SUITE_P(
     });
 
 TEST(PlyReader, RawTrainerQuaternionsAreNormalisedAndExtrasReported) {
+  GSHAPTICS_REQUIRE_SCENES();
   const LoadedScene s = load_scene(scene_path("fruitdrops.ply"));
   ASSERT_EQ(s.report.ignored_properties, std::vector<std::string>{"transform"});
   const LoadedScene d = load_scene(scene_path("donut.ply"));
@@ -73,6 +75,7 @@ TEST(PlyReader, RawTrainerQuaternionsAreNormalisedAndExtrasReported) {
 }
 
 TEST(PlyReader, CompressedPlyIsDispatchedToItsReader) {
+  GSHAPTICS_REQUIRE_SCENES();
   const LoadedScene s = read_inria_ply(test::read_bytes(scene_path("guitar.compressed.ply")), "guitar");
   EXPECT_EQ(s.report.format, SceneFormat::kCompressedPly);
   EXPECT_EQ(s.scene.size(), 90854u);
@@ -274,6 +277,7 @@ TEST(PlyReader, HugeDeclaredCountIsAnErrorNotAnAllocation) {
 }
 
 TEST(PlyReader, TruncatedRealFileNamesFileAndSizes) {
+  GSHAPTICS_REQUIRE_SCENES();
   auto bytes = test::read_bytes(scene_path("donut.ply"));
   ASSERT_GT(bytes.size(), 1000u);
   bytes.resize(bytes.size() - 37);
@@ -284,6 +288,7 @@ TEST(PlyReader, TruncatedRealFileNamesFileAndSizes) {
 }
 
 TEST(PlyReader, HeaderOnlyCutIsAnError) {
+  GSHAPTICS_REQUIRE_SCENES();
   auto bytes = test::read_bytes(scene_path("donut.ply"));
   bytes.resize(100);  // inside the header
   const std::string e = test::load_error(save(bytes));

@@ -7,7 +7,7 @@
 #include <cstdlib>
 #include <fstream>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 #include "support/allocation_counter.h"
 #include "support/scenes.h"
@@ -117,7 +117,7 @@ TEST(ProbeRun, CsvLogIsWrittenAtomicallyWithHeader) {
   ticks[1].counts = {5, 3, 2};
   ticks[1].force = {1, 2, 3};
   const std::string p = test::temp_path(".csv");
-  write_tick_log_csv(p, ticks);
+  write_tick_log_csv(p, ticks, kProbeLogColumns);
   std::ifstream in(p);
   std::string header, l0, l1;
   std::getline(in, header);
@@ -125,7 +125,7 @@ TEST(ProbeRun, CsvLogIsWrittenAtomicallyWithHeader) {
   std::getline(in, l1);
   EXPECT_EQ(header.rfind("time_s,x,y,z,vx,vy,vz,candidates,prefiltered,contacts,fx,fy,fz,", 0), 0u);
   EXPECT_NE(l1.find(",5,3,2,1.00000,2.00000,3.00000,"), std::string::npos) << l1;
-  EXPECT_THROW(write_tick_log_csv("/nonexistent-dir/x.csv", ticks), InputError);
+  EXPECT_THROW(write_tick_log_csv("/nonexistent-dir/x.csv", ticks, kProbeLogColumns), InputError);
 }
 
 }  // namespace

@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "support/scenes.h"
 
 namespace gshaptics {

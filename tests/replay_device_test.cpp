@@ -7,8 +7,8 @@
 
 #include <fstream>
 
-#include "gshaptics/io/error.h"
-#include "gshaptics/servo/servo_log.h"
+#include "gshaptics/error.h"
+#include "gshaptics/servo/tick_log.h"
 #include "support/scenes.h"
 
 namespace gshaptics {
@@ -80,14 +80,14 @@ TEST(ReplayDevice, InterpolatesAndFinishes) {
 }
 
 TEST(ReplayDevice, ReplaysTheRuntimesOwnLog) {
-  std::vector<ServoTickRecord> recs(5);
+  std::vector<TickRecord> recs(5);
   for (int i = 0; i < 5; ++i) {
-    recs[std::size_t(i)].time = i * kMs;
+    recs[std::size_t(i)].time = to_seconds(i * kMs);
     recs[std::size_t(i)].position = {0.1 * i, -0.2 * i, 1.0};
     recs[std::size_t(i)].velocity = {100, -200, 0};
   }
   const std::string path = test::temp_path(".csv");
-  write_servo_log_csv(path, recs);
+  write_tick_log_csv(path, recs, kServoLogColumns);
   const PoseLog log = load_pose_log(path);
   ASSERT_EQ(log.rows.size(), 5u);
   EXPECT_TRUE(log.has_velocity);

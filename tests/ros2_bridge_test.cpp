@@ -92,7 +92,7 @@ class Ros2Bridge : public ::testing::Test {
     rc.safety.ramp_time = 0.02;
     rc.realtime.servo_priority = rc.realtime.worker_priority = 0;
     runtime_ = std::make_unique<HapticRuntime>(*world_, *device_, rc);
-    snapshots_ = std::make_unique<ContactSnapshotObserver>(*world_, 50, MonotonicClock::instance());
+    snapshots_ = std::make_unique<ContactSnapshotObserver>(50, MonotonicClock::instance());
     runtime_->set_observer(snapshots_.get());
     markers_ = std::make_unique<Ros2MarkerPublisher>(*device_, *world_, *snapshots_, rc.tool.semi_axes);
     plain_ = std::make_unique<PlainDds>(domain_);
@@ -230,7 +230,7 @@ TEST_F(Ros2Bridge, SecondPublisherIsCountedAndTheNewestSampleWins) {
   }
   std::this_thread::sleep_for(50ms);
   EXPECT_EQ(device_->stats().pose_publishers.load(), 2u);
-  ServoTickRecord tick;
+  TickRecord tick;
   ASSERT_TRUE(runtime_->latest_tick(tick));
   EXPECT_NEAR(tick.position.z(), 5.0, 1e-9);  // the newest sample (from the second publisher)
 }

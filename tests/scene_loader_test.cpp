@@ -7,13 +7,14 @@
 #include <filesystem>
 #include <random>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "support/scenes.h"
 
 namespace gshaptics {
 namespace {
 
 TEST(SceneLoader, DetectsFormatFromContentNotExtension) {
+  GSHAPTICS_REQUIRE_SCENES();
   const auto splat = test::read_bytes(test::scene_path("burger.splat"));
   const std::string as_bin = test::temp_path(".bin");
   test::write_bytes(as_bin, splat);
@@ -70,17 +71,18 @@ TEST(SceneLoader, GarbageNeverCrashesAndIsNamed) {
 namespace gshaptics {
 namespace {
 TEST(SceneLoader, ColourIsKeptOnlyWhenAsked) {
+  GSHAPTICS_REQUIRE_SCENES();
   LoadOptions no_color;
   no_color.keep_color = false;
   for (const char* f : {"fruitdrops.ply", "truck.splat", "guitar.compressed.ply", "biker.spz"}) {
-    const LoadedScene with = load_scene(test::scene_path(f));
-    const LoadedScene without = load_scene(test::scene_path(f), {}, no_color);
+    const LoadedScene with = load_scene(test::scene_path(f), test::with_color());
+    const LoadedScene without = load_scene(test::scene_path(f), no_color);
     EXPECT_EQ(with.scene.colors_dc.size(), with.scene.size()) << f;
     EXPECT_TRUE(without.scene.colors_dc.empty()) << f;
     EXPECT_TRUE(without.scene.sh_rest.empty()) << f;
     EXPECT_EQ(without.scene.means, with.scene.means) << f;
   }
-  EXPECT_EQ(load_scene(test::scene_path("fruitdrops.ply")).scene.sh_rest_count, 45);
+  EXPECT_EQ(load_scene(test::scene_path("fruitdrops.ply"), test::with_color()).scene.sh_rest_count, 45);
 }
 }  // namespace
 }  // namespace gshaptics

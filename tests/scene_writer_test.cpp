@@ -8,7 +8,7 @@
 #include <cmath>
 #include <filesystem>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/scene/registration.h"
 #include "support/scenes.h"
@@ -17,11 +17,12 @@ namespace gshaptics {
 namespace {
 
 TEST(SceneWriter, InriaPlyRoundTripKeepsEveryField) {
+  GSHAPTICS_REQUIRE_SCENES();
   for (const char* name : {"fruitdrops.ply", "donut.ply", "biker.compressed.ply"}) {
-    const LoadedScene a = load_scene(test::scene_path(name));
+    const LoadedScene a = load_scene(test::scene_path(name), test::with_color());
     const std::string p = test::temp_path(".ply");
     write_inria_ply(p, a.scene);
-    const LoadedScene b = load_scene(p);
+    const LoadedScene b = load_scene(p, test::with_color());
     ASSERT_EQ(b.scene.size(), a.scene.size()) << name;
     ASSERT_EQ(b.scene.colors_dc.size(), a.scene.colors_dc.size()) << name;
     ASSERT_EQ(b.scene.sh_rest_count, a.scene.sh_rest_count) << name;
@@ -38,7 +39,7 @@ TEST(SceneWriter, InriaPlyRoundTripKeepsEveryField) {
 
 TEST(SceneWriter, SplatRoundTripKeepsTheFormatsPrecision) {
   const auto original = test::read_bytes(test::scene_path("truck.splat"));
-  const LoadedScene a = load_scene(test::scene_path("truck.splat"));
+  const LoadedScene a = load_scene(test::scene_path("truck.splat"), test::with_color());
   const std::string p = test::temp_path(".splat");
   write_splat(p, a.scene);
   const auto written = test::read_bytes(p);
@@ -58,7 +59,8 @@ TEST(SceneWriter, SplatRoundTripKeepsTheFormatsPrecision) {
 }
 
 TEST(SceneWriter, RegistrationIsAppliedToMeansRotationsAndScales) {
-  const LoadedScene a = load_scene(test::scene_path("donut.ply"));
+  GSHAPTICS_REQUIRE_SCENES();
+  const LoadedScene a = load_scene(test::scene_path("donut.ply"), test::with_color());
   SimilarityTransform t;
   t.scale = 2;
   t.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
@@ -73,7 +75,8 @@ TEST(SceneWriter, RegistrationIsAppliedToMeansRotationsAndScales) {
 }
 
 TEST(SceneWriter, UnsupportedOutputsAndFailedWritesAreErrors) {
-  const LoadedScene a = load_scene(test::scene_path("donut.ply"));
+  GSHAPTICS_REQUIRE_SCENES();
+  const LoadedScene a = load_scene(test::scene_path("donut.ply"), test::with_color());
   EXPECT_THROW(write_scene(test::temp_path(".spz"), a.scene), InputError);
   EXPECT_THROW(write_scene(test::temp_path(".obj"), a.scene), InputError);
   EXPECT_THROW(write_scene("/nonexistent-dir/out.ply", a.scene), InputError);

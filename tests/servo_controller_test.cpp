@@ -77,7 +77,7 @@ class ServoTick : public ::testing::Test {
     servo_->start(clock_.now());
   }
   /// Advances the clock to the next period and ticks; returns the record of the tick.
-  const ServoTickRecord& tick(bool worker_runs, bool inline_mode = false) {
+  const TickRecord& tick(bool worker_runs, bool inline_mode = false) {
     clock_.advance(kMs);
     const Nanos scheduled = clock_.now();
     servo_->tick(scheduled, inline_mode ? worker_.get() : nullptr);
@@ -105,11 +105,11 @@ class ServoTick : public ::testing::Test {
 
 TEST_F(ServoTick, DecoupledHandOffRendersTheResultOneTickLater) {
   make(direct());
-  const ServoTickRecord& first = tick(/*worker_runs=*/true);
+  const TickRecord& first = tick(/*worker_runs=*/true);
   EXPECT_TRUE(first.flags & kFlagNoResult);
   EXPECT_EQ(first.force, Eigen::Vector3d::Zero());
   EXPECT_EQ(device_.last.force, Eigen::Vector3d::Zero());
-  const ServoTickRecord& second = tick(true);
+  const TickRecord& second = tick(true);
   EXPECT_EQ(second.flags, 0u);
   EXPECT_GT(second.counts.contacts, 0u);
   EXPECT_GT(second.force.z(), 0.0);  // the floor pushes the tool up
@@ -130,7 +130,7 @@ TEST_F(ServoTick, StalledWorkerHoldsThenFadesThenZeroes) {
   // (age 1 ms); from then on the same result is held and ages by 1 ms per tick.
   double prev = f0;
   for (int k = 1; k <= 45; ++k) {
-    const ServoTickRecord& r = tick(/*worker_runs=*/false);
+    const TickRecord& r = tick(/*worker_runs=*/false);
     const double age_ms = r.result_age_us / 1000.0;
     EXPECT_NEAR(age_ms, double(k), 1e-6);
     EXPECT_EQ((r.flags & kFlagHeld) != 0, k > 1) << k;
@@ -163,7 +163,7 @@ TEST_F(ServoTick, StalledDeviceTripsTheWatchdogAndResumeRampsUp) {
   device_.stalled = true;  // fault: the driver stops delivering data
   int watchdog_tick = -1;
   for (int k = 1; k <= 30; ++k) {
-    const ServoTickRecord& r = tick(true);
+    const TickRecord& r = tick(true);
     if (k <= 10) {
       EXPECT_GT(r.force.z(), 0.0) << k;  // within the 10 ms timeout
     } else {
@@ -181,7 +181,7 @@ TEST_F(ServoTick, StalledDeviceTripsTheWatchdogAndResumeRampsUp) {
   const double f1 = tick(true).force.z();
   EXPECT_EQ(f1, 0.0);
   for (int k = 0; k < 49; ++k) tick(true);
-  const ServoTickRecord& half = tick(true);  // 50 ms into a 100 ms ramp
+  const TickRecord& half = tick(true);  // 50 ms into a 100 ms ramp
   EXPECT_TRUE(half.flags & kFlagRamping);
   EXPECT_NEAR(half.force.z(), 0.5 * half.desired.z(), 0.02 * half.desired.z());
 }
@@ -193,7 +193,7 @@ TEST_F(ServoTick, NanPoseIsDroppedAndZeroesTheForce) {
   const std::uint64_t steps_before = worker_->steps();
   device_.sample.position.y() = std::nan("");  // fault: NaN from the device
   for (int k = 0; k < 3; ++k) {
-    const ServoTickRecord& r = tick(true);
+    const TickRecord& r = tick(true);
     EXPECT_TRUE(r.flags & kFlagInvalidPose);
     EXPECT_EQ(r.force, Eigen::Vector3d::Zero());
   }
@@ -208,10 +208,10 @@ TEST_F(ServoTick, PoseFarOutsideTheSceneGivesNoContactAndZeroForce) {
   make(direct());
   for (int k = 0; k < 5; ++k) tick(true);
   device_.sample.position = {1e6, -3e5, 2e4};  // fault: a wild pose
-  const ServoTickRecord& r = tick(true);
+  const TickRecord& r = tick(true);
   EXPECT_TRUE(r.flags & kFlagOutsideWorkspace);
   EXPECT_EQ(r.force, Eigen::Vector3d::Zero());
-  const ServoTickRecord& r2 = tick(true);  // the worker answered it: no contact there
+  const TickRecord& r2 = tick(true);  // the worker answered it: no contact there
   EXPECT_EQ(r2.counts.contacts, 0u);
   EXPECT_EQ(r2.counts.candidates, 0u);
   EXPECT_EQ(r2.desired, Eigen::Vector3d::Zero());
@@ -221,7 +221,7 @@ TEST_F(ServoTick, PoseFarOutsideTheSceneGivesNoContactAndZeroForce) {
 TEST_F(ServoTick, InlineModeRendersTheSameTicksPose) {
   make(direct());
   for (int k = 0; k < 3; ++k) {
-    const ServoTickRecord& r = tick(false, /*inline_mode=*/true);
+    const TickRecord& r = tick(false, /*inline_mode=*/true);
     EXPECT_EQ(r.flags, 0u);
     EXPECT_EQ(r.result_age_us, 0.0f);
     EXPECT_GT(r.force.z(), 0.0);
@@ -253,7 +253,7 @@ TEST_F(ServoTick, StopRampsTheForceDownAndLeavesTheDeviceAtZero) {
   int ticks = 0;
   double prev = f;
   while (!servo_->force_released() && ticks < 1000) {
-    const ServoTickRecord& r = tick(true);
+    const TickRecord& r = tick(true);
     EXPECT_LE(r.force.norm(), prev + 1e-12);
     prev = r.force.norm();
     ++ticks;

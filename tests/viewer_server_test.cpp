@@ -66,7 +66,7 @@ class Viewer : public ::testing::Test {
     rc.safety.ramp_time = 0.05;
     rc.realtime.servo_priority = rc.realtime.worker_priority = 0;
     runtime_ = std::make_unique<HapticRuntime>(*world_, *mouse_, rc);
-    snapshots_ = std::make_unique<ContactSnapshotObserver>(*world_, 30, MonotonicClock::instance());
+    snapshots_ = std::make_unique<ContactSnapshotObserver>(30, MonotonicClock::instance());
     runtime_->set_observer(snapshots_.get());
     ViewerConfig vc;
     vc.port = 0;
@@ -170,7 +170,7 @@ TEST(ViewerState, ContactsEncodeTheWorldGeometry) {
   snap.counts.contacts = 2;
   snap.shown = 2;
   for (std::uint32_t r = 0; r < 2; ++r) snap.record[r] = r;
-  ServoTickRecord tick;
+  TickRecord tick;
   tick.position = {1, 2, 3.2};
   tick.force = {0, 0, 2};
   RuntimeStats stats;

@@ -38,10 +38,11 @@ void register_convert(CLI::App& app) {
       scene = filter_by_opacity(scene, *min_opacity, &rep);
       fmt::print("filter     opacity > {:.2f}: kept {} of {}\n", *min_opacity, rep.after, rep.before);
     }
-    const WorldConfig cfg = world_config_from(*o, s.report.frame);
-    if (!cfg.registration.is_identity()) {
-      scene = transform_scene(scene, cfg.registration);
-      if (scene.sh_rest_count > 0 && !cfg.registration.rotation.isApprox(Eigen::Quaterniond::Identity()))
+    const WorldConfig cfg = world_config_from(*o);
+    const SimilarityTransform to_world = with_up_axis(cfg.registration, cfg.up, scene.frame);
+    if (!to_world.is_identity()) {
+      scene = transform_scene(scene, to_world);
+      if (scene.sh_rest_count > 0 && !to_world.rotation.isApprox(Eigen::Quaterniond::Identity()))
         fmt::print(stderr, "warning: SH bands above 0 are not rotated with the scene\n");
     }
     write_scene(*out, scene);

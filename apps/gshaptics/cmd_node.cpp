@@ -13,16 +13,17 @@
 #include <thread>
 
 #include "commands.h"
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/net/ros_bridge.h"
 #ifdef GSHAPTICS_HAVE_ROS2
+#include "gshaptics/ros2/device_sim.h"
 #include "gshaptics/ros2/ros2_bridge.h"
 #endif
 #ifdef GSHAPTICS_HAVE_ROS1
 #include "gshaptics/ros1/ros1_bridge.h"
 #endif
-#include "gshaptics/scene/scene_stats.h"
-#include "gshaptics/servo/simulated_device.h"
+#include "gshaptics/percentile.h"
+#include "gshaptics/sim/simulated_device.h"
 #include "gshaptics/sim/pose_sampler.h"
 #include "gshaptics/sim/probe_run.h"
 #include "runtime_cli.h"
@@ -89,7 +90,7 @@ void register_node(CLI::App& app) {
     setup.device = std::move(device);
     setup.config = runtime_config_from(o->run, setup.tool_radius, setup.planned);
     HapticRuntime rt(pw.world, net, setup.config);
-    ContactSnapshotObserver snapshots(pw.world, o->topics.marker_hz, MonotonicClock::instance());
+    ContactSnapshotObserver snapshots(o->topics.marker_hz, MonotonicClock::instance());
     rt.set_observer(&snapshots);
     fmt::print("node       {}: pose {} (+ twist {}) in, wrench {} at {:.0f} Hz and markers {} at {:.0f} Hz "
                "out, frame '{}'{}, tool radius {:.4g}\n", o->ros2 ? "ROS 2" : "ROS 1",
@@ -175,81 +176,40 @@ void register_device_sim(CLI::App& app) {
                                    "--ros2` running with the same DDS config and domain?)",
                                    ros2_dds_topic(o->topics.pose_topic), ros2_dds_topic(o->topics.wrench_topic), o->wait));
     const StopSignals signals;
-
-    struct Row {
-      double t;
-      Eigen::Vector3d p, v, f, user;
-      double latency_us;
-    };
-    const Nanos period = to_nanos(1.0 / o->rate);
-    const std::size_t n_ticks = std::size_t(std::ceil(duration * o->rate));
-    std::vector<Row> rows;
-    rows.reserve(n_ticks);
-    std::vector<double> latencies;
-    latencies.reserve(n_ticks);
-    MonotonicClock& clock = MonotonicClock::instance();
-    const Nanos t0 = clock.now();
-    device.start(t0);
-    std::uint64_t sent = 0, received = 0;
-    Eigen::Vector3d force = Eigen::Vector3d::Zero();
-    RosTime last_echo;
-    for (std::size_t k = 0; k < n_ticks && StopSignals::received() == 0; ++k) {
-      const Nanos deadline = t0 + Nanos(k) * period;
-      clock.sleep_until(deadline);
-      const Nanos now = clock.now();
-      const DeviceSample s = device.read(now);
-      const RosTime stamp = RosTime::now();
-      link.publish(s.position, s.orientation, s.velocity, stamp);
-      ++sent;
-      double latency = -1;
-      RosTime echo;
-      Eigen::Vector3d f;
-      if (link.take_wrench(f, echo)) {
-        ++received;
-        force = f;
-        if (echo.nanos() != last_echo.nanos() && echo.nanos() > 0) {
-          latency = double(RosTime::now().nanos() - echo.nanos()) * 1e-3;
-          latencies.push_back(latency);
-          last_echo = echo;
-        }
-      }
-      Wrench w;
-      w.force = force;
-      device.write(w, now);
-      rows.push_back({to_seconds(now - t0), s.position, s.velocity, force, s.user_force, latency});
-      if (!o->quiet && k % std::size_t(o->rate * 2) == 0)
-        fmt::print(stderr, "device-sim t {:5.1f}/{:.1f} s | sent {} | wrenches {} | |F| {:.2f} N\n",
-                   to_seconds(now - t0), duration, sent, received, force.norm());
-    }
-    device.stop(clock.now());
+    DeviceLoopParams params;
+    params.rate_hz = o->rate;
+    params.duration_s = duration;
+    const bool quiet = o->quiet;
+    const DeviceLoopResult r = run_device_loop(
+        device, link, params, &StopSignals::flag(),
+        [quiet, duration](double t, std::uint64_t sent, std::uint64_t received, double force) {
+          if (!quiet)
+            fmt::print(stderr, "device-sim t {:5.1f}/{:.1f} s | sent {} | wrenches {} | |F| {:.2f} N\n", t,
+                       duration, sent, received, force);
+        });
 
     std::string out_dir = o->out_dir;
     if (out_dir.empty()) out_dir = "runs/" + std::filesystem::path(so.scene).stem().string();
     std::filesystem::create_directories(out_dir);
-    std::string csv = "time_s,x,y,z,vx,vy,vz,fx,fy,fz,user_fx,user_fy,user_fz,latency_us\n";
-    for (const Row& r : rows)
-      csv += fmt::format("{:.6f},{:.6f},{:.6f},{:.6f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.1f}\n",
-                         r.t, r.p.x(), r.p.y(), r.p.z(), r.v.x(), r.v.y(), r.v.z(), r.f.x(), r.f.y(), r.f.z(),
-                         r.user.x(), r.user.y(), r.user.z(), r.latency_us);
-    write_file_atomically(out_dir + "/device_log.csv", csv);
-    double peak = 0;
-    for (const Row& r : rows) peak = std::max(peak, r.f.norm());
+    write_tick_log_csv(out_dir + "/device_log.csv", r.ticks, kDeviceLogColumns);
+    const std::vector<double>& lat = r.latencies_us;
     nlohmann::json sj;
     sj["scene"] = so.scene;
     sj["rate_hz"] = o->rate;
-    sj["poses_sent"] = sent;
-    sj["wrenches_received"] = received;
-    sj["peak_force_n"] = peak;
-    sj["interrupted"] = StopSignals::received() != 0;
-    sj["latency_us"] = {{"count", latencies.size()},
-                        {"p50", latencies.empty() ? 0 : percentile(latencies, 50)},
-                        {"p99", latencies.empty() ? 0 : percentile(latencies, 99)},
-                        {"max", latencies.empty() ? 0 : *std::max_element(latencies.begin(), latencies.end())}};
+    sj["poses_sent"] = r.poses_sent;
+    sj["wrenches_received"] = r.wrenches_received;
+    sj["peak_force_n"] = r.peak_force;
+    sj["interrupted"] = r.interrupted;
+    sj["latency_us"] = {{"count", lat.size()},
+                        {"p50", percentile(lat, 50)},
+                        {"p99", percentile(lat, 99)},
+                        {"max", lat.empty() ? 0 : *std::max_element(lat.begin(), lat.end())}};
     write_file_atomically(out_dir + "/device_summary.json", sj.dump(2) + "\n");
-    fmt::print("\ndevice-sim {} poses sent, {} wrenches received, peak |F| {:.2f} N\n", sent, received, peak);
+    fmt::print("\ndevice-sim {} poses sent, {} wrenches received, peak |F| {:.2f} N\n", r.poses_sent,
+               r.wrenches_received, r.peak_force);
     fmt::print("latency    pose -> wrench round trip: p50 {:.0f} us, p99 {:.0f} us, max {:.0f} us ({} samples)\n",
                sj["latency_us"]["p50"].get<double>(), sj["latency_us"]["p99"].get<double>(),
-               sj["latency_us"]["max"].get<double>(), latencies.size());
+               sj["latency_us"]["max"].get<double>(), lat.size());
     fmt::print("log        {}/device_log.csv\nsummary    {}/device_summary.json\n", out_dir, out_dir);
   });
 }

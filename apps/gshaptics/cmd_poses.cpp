@@ -31,7 +31,7 @@ void register_poses(CLI::App& app) {
   add_world_options(*cmd, *o);
   cmd->callback([o, p, uniform] {
     const LoadedScene s = load_with_progress(o->scene);
-    const WorldConfig cfg = world_config_from(*o, s.report.frame);
+    const WorldConfig cfg = world_config_from(*o);
     const CollisionWorld world = CollisionWorld::build(s.scene, cfg);
     PoseSamplerParams params = *p;
     params.near_surface = !*uniform;

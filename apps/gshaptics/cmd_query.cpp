@@ -12,7 +12,7 @@
 #include "commands.h"
 #include "common.h"
 #include "gshaptics/collision/contact_query.h"
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 
 namespace gshaptics::cli {
 
@@ -88,7 +88,7 @@ void register_query(CLI::App& app) {
     if (!o->poses.empty() && !o->center.empty())
       throw InputError("query: --poses and --tool-center are exclusive");
     const LoadedScene s = load_with_progress(o->scene.scene);
-    const WorldConfig cfg = world_config_from(o->scene, s.report.frame);
+    const WorldConfig cfg = world_config_from(o->scene);
     const CollisionWorld world = CollisionWorld::build(s.scene, cfg);
     QueryOptions qo;
     if (o->minimiser == "golden") {

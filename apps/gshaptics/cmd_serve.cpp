@@ -9,9 +9,9 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/net/viewer_server.h"
-#include "gshaptics/scene/scene_stats.h"
+#include "gshaptics/percentile.h"
 #include "gshaptics/sim/pose_sampler.h"
 #include "runtime_cli.h"
 
@@ -45,7 +45,7 @@ std::string spark_file_type(SceneFormat f) {
 /// The hello message: everything the page needs once (docs/viewer_protocol.md).
 std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const RuntimeSetup& setup,
                        double display_hz) {
-  const SimilarityTransform& r = pw.config.registration;
+  const SimilarityTransform& r = pw.world.scene_to_world();
   std::vector<double> ax[3];
   for (const auto& g : pw.world.gaussians())
     for (int k = 0; k < 3; ++k) ax[k].push_back(g.center[k]);
@@ -55,7 +55,7 @@ std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const Ru
     hi.push_back(percentile(ax[k], 99));
   }
   const Eigen::Vector3d up = is_registered(so) ? Eigen::Vector3d::UnitZ()
-                                               : up_axis_from("auto", pw.scene.report.frame);
+                                               : up_of(pw.scene.report.frame);
   nlohmann::json j;
   j["type"] = "hello";
   j["protocol"] = 1;
@@ -123,7 +123,7 @@ void register_serve(CLI::App& app) {
     RuntimeSetup setup = make_runtime_setup(o->run, so, pw, true);
     vc.hello_json = hello_json(pw, so, setup, o->display_rate);
     HapticRuntime rt(pw.world, *setup.device, setup.config);
-    ContactSnapshotObserver snapshots(pw.world, o->display_rate, MonotonicClock::instance());
+    ContactSnapshotObserver snapshots(o->display_rate, MonotonicClock::instance());
     rt.set_observer(&snapshots);
     ViewerServer server(vc, rt, pw.world, snapshots, setup.mouse, MonotonicClock::instance());
     server.start();

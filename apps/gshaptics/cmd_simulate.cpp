@@ -10,8 +10,7 @@
 #include "commands.h"
 #include "common.h"
 #include "probe_setup.h"
-#include "gshaptics/io/error.h"
-#include "gshaptics/scene/scene_stats.h"
+#include "gshaptics/error.h"
 #include "gshaptics/sim/probe_run.h"
 
 namespace gshaptics::cli {
@@ -77,7 +76,7 @@ void register_simulate(CLI::App& app) {
     const std::string csv = out_dir + "/probe_log.csv";
     const std::string summary_path = out_dir + "/summary.json";
     const std::string png = out_dir + "/probe_run.png";
-    write_tick_log_csv(csv, run.ticks);
+    write_tick_log_csv(csv, run.ticks, kProbeLogColumns);
 
     nlohmann::json sj;
     sj["scene"] = so.scene;

@@ -10,7 +10,6 @@ void register_serve(CLI::App& app);
 void register_node(CLI::App& app);
 void register_device_sim(CLI::App& app);
 void register_poses(CLI::App& app);
-void register_bench(CLI::App& app);
 void register_convert(CLI::App& app);
 /// Exit status a command set while running (0 unless it reported a failure).
 int exit_code();

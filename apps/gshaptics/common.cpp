@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <sstream>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 
 namespace gshaptics::cli {
 
@@ -28,17 +28,6 @@ void add_world_options(CLI::App& app, SceneOptions& o) {
                  "z-down, x-up, x-down")
       ->capture_default_str()
       ->check(CLI::IsMember({"none", "auto", "y-down", "y-up", "z-up", "z-down", "x-up", "x-down"}));
-}
-
-Eigen::Vector3d up_axis_from(const std::string& up, SceneFrame frame) {
-  if (up == "auto") return Eigen::Vector3d(0, frame == SceneFrame::kRub ? 1.0 : -1.0, 0);
-  if (up == "y-down") return -Eigen::Vector3d::UnitY();
-  if (up == "y-up") return Eigen::Vector3d::UnitY();
-  if (up == "z-up") return Eigen::Vector3d::UnitZ();
-  if (up == "z-down") return -Eigen::Vector3d::UnitZ();
-  if (up == "x-up") return Eigen::Vector3d::UnitX();
-  if (up == "x-down") return -Eigen::Vector3d::UnitX();
-  return Eigen::Vector3d::Zero();
 }
 
 std::string data_file(const std::string& name) {
@@ -73,16 +62,12 @@ SimilarityTransform registration_from(const SceneOptions& o) {
   return t;
 }
 
-WorldConfig world_config_from(const SceneOptions& o, SceneFrame frame) {
+WorldConfig world_config_from(const SceneOptions& o) {
   WorldConfig cfg;
   cfg.min_opacity = o.min_opacity;
   cfg.sigma = o.sigma;
+  cfg.up = parse_up_axis(o.up, "--up");
   cfg.registration = registration_from(o);
-  const Eigen::Vector3d up = up_axis_from(o.up, frame);
-  if (up.squaredNorm() > 0) {  // x_world = s R_g (R_up x) + t
-    const Eigen::Quaterniond r_up = Eigen::Quaterniond::FromTwoVectors(up, Eigen::Vector3d::UnitZ());
-    cfg.registration.rotation = (cfg.registration.rotation * r_up).normalized();
-  }
   return cfg;
 }
 
@@ -93,7 +78,8 @@ LoadedScene load_with_progress(const std::string& path, bool quiet, bool keep_co
                !quiet && !ec && size > (8u << 20));
   LoadOptions options;
   options.keep_color = keep_color;
-  LoadedScene s = load_scene(path, [&](double f) { bar(f); }, options);
+  options.progress = [&](double f) { bar(f); };
+  LoadedScene s = load_scene(path, options);
   bar.done();
   return s;
 }

@@ -7,6 +7,8 @@
 #include <string>
 
 #include "gshaptics/collision/collision_world.h"
+#include "gshaptics/error.h"
+#include "gshaptics/io/atomic_file.h"
 #include "gshaptics/io/scene_loader.h"
 
 namespace gshaptics::cli {
@@ -33,11 +35,7 @@ std::string data_file(const std::string& name);
 SimilarityTransform registration_from(const SceneOptions& o);
 
 /// World configuration from the shared options (opacity filter, sigma, --up, registration).
-/// `frame` is the loaded file's convention, used by `--up auto`.
-WorldConfig world_config_from(const SceneOptions& o, SceneFrame frame);
-
-/// The scene's up axis named by `--up` (none: zero vector), in scene coordinates.
-Eigen::Vector3d up_axis_from(const std::string& up, SceneFrame frame);
+WorldConfig world_config_from(const SceneOptions& o);
 
 /// Loads a scene with a progress bar on stderr for files over a few MB.
 LoadedScene load_with_progress(const std::string& path, bool quiet = false, bool keep_color = false);

@@ -6,7 +6,7 @@
 #include <exception>
 
 #include "commands.h"
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -31,7 +31,6 @@ int main(int argc, char** argv) {
   gshaptics::cli::register_device_sim(app);
 #endif
   gshaptics::cli::register_poses(app);
-  gshaptics::cli::register_bench(app);
   gshaptics::cli::register_convert(app);
   try {
     app.parse(argc, argv);

@@ -5,7 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/sim/pose_sampler.h"
 
 namespace gshaptics::cli {
@@ -57,7 +57,7 @@ bool is_registered(const SceneOptions& so) {
 
 PreparedWorld prepare_world(const SceneOptions& so, bool quiet) {
   LoadedScene s = load_with_progress(so.scene, quiet);
-  const WorldConfig cfg = world_config_from(so, s.report.frame);
+  const WorldConfig cfg = world_config_from(so);
   WorldBuildReport br;
   CollisionWorld world = CollisionWorld::build(s.scene, cfg, &br);
   fmt::print("scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
@@ -77,7 +77,7 @@ ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, i
   pp.seed = seed;
   // A registered (or --up turned) world is z-up; otherwise the probe goes along the file's own
   // up axis (-y for PLY/.splat, +y for SPZ).
-  pp.up = registered ? Eigen::Vector3d(0, 0, 1) : up_axis_from("auto", w.scene.report.frame);
+  pp.up = registered ? Eigen::Vector3d(0, 0, 1) : up_of(w.scene.report.frame);
   const double extent = robust_extent(w.world);
   pp.tool_radius = tool_radius > 0 ? tool_radius : 0.01 * extent;
   if (!registered && extent > 30.0)

@@ -10,10 +10,11 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/servo/replay_device.h"
-#include "gshaptics/servo/servo_log.h"
-#include "gshaptics/servo/simulated_device.h"
+#include "gshaptics/servo/tick_log.h"
+#include "gshaptics/sim/probe_run.h"
+#include "gshaptics/sim/simulated_device.h"
 #include "gshaptics/sim/pose_sampler.h"
 
 namespace gshaptics::cli {
@@ -81,6 +82,7 @@ StopSignals::~StopSignals() {
 }
 
 int StopSignals::received() noexcept { return g_signal.load(std::memory_order_relaxed); }
+const std::atomic<int>& StopSignals::flag() noexcept { return g_signal; }
 
 void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& devices) {
   cmd.add_option("scene", o.scene.scene, "Scene file (default: bundled data/truck.splat, registered z-up in metres)");
@@ -149,7 +151,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     // Start above the most upward-facing probe site on the object (or above the middle of the
     // scene when none is found), so that lowering the tool touches the object.
     const Eigen::Vector3d up = is_registered(so) ? Eigen::Vector3d::UnitZ()
-                                                 : up_axis_from("auto", pw.scene.report.frame);
+                                                 : up_of(pw.scene.report.frame);
     Eigen::Vector3d start = Eigen::Vector3d::Zero();
     for (const auto& g : pw.world.gaussians()) start += Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
     start /= double(std::max<std::size_t>(1, pw.world.size()));
@@ -245,8 +247,7 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
                        const std::string& command, const nlohmann::json& extra) {
   const RuntimeSummary s = rt.summary();
   const auto& records = rt.log().records();
-  const std::vector<TickRecord> ticks = to_tick_records(records);
-  const std::vector<ContactEpisode> episodes = find_episodes(ticks);
+  const std::vector<ContactEpisode> episodes = find_episodes(records);
 
   std::string out_dir = o.out_dir;
   if (out_dir.empty()) out_dir = "runs/" + std::filesystem::path(so.scene).stem().string();
@@ -254,7 +255,7 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
   const std::string csv = out_dir + "/servo_log.csv";
   const std::string summary_path = out_dir + "/run_summary.json";
   const std::string png = out_dir + "/run.png";
-  write_servo_log_csv(csv, records);
+  write_tick_log_csv(csv, records, kServoLogColumns);
 
   nlohmann::json sj;
   sj["scene"] = so.scene;

@@ -3,6 +3,7 @@
 // its status line and signal handling, and the outputs of a run.
 
 #include <CLI/CLI.hpp>
+#include <atomic>
 #include <csignal>
 #include <functional>
 #include <memory>
@@ -25,6 +26,8 @@ class StopSignals {
   StopSignals& operator=(const StopSignals&) = delete;
   /// The signal received since construction (0: none). Async-signal-safe flag, any thread.
   [[nodiscard]] static int received() noexcept;
+  /// The flag itself, for library loops that poll a stop flag.
+  [[nodiscard]] static const std::atomic<int>& flag() noexcept;
 
  private:
   struct sigaction old_int_ {}, old_term_ {};

@@ -3,7 +3,7 @@
 #include <chrono>
 #include <cmath>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 
 namespace gshaptics {
 
@@ -24,24 +24,25 @@ CollisionWorld CollisionWorld::build(const GaussianScene& scene, const WorldConf
   const auto t0 = std::chrono::steady_clock::now();
   if (!(config.sigma > 0) || !std::isfinite(config.sigma))
     throw InputError("sigma (k of the k-sigma ellipsoid) must be > 0, got " + std::to_string(config.sigma));
-  const SimilarityTransform& reg = config.registration;
-  if (!(reg.scale > 0) || !std::isfinite(reg.scale))
+  if (!(config.registration.scale > 0) || !std::isfinite(config.registration.scale))
     throw InputError("registration scale must be > 0");
 
   CollisionWorld w;
   w.config_ = config;
+  w.scene_to_world_ = with_up_axis(config.registration, config.up, scene.frame);
+  w.scene_to_world_.rotation.normalize();
+  const SimilarityTransform& reg = w.scene_to_world_;
   std::size_t kept = 0;
   for (float a : scene.opacities) kept += a > config.min_opacity ? 1 : 0;
   if (kept == 0)
     throw InputError("no Gaussian has opacity > " + std::to_string(config.min_opacity) + " (of " +
-                     std::to_string(scene.size()) + "); lower --min-opacity");
+                     std::to_string(scene.size()) + "); lower min_opacity");
 
   std::vector<CollisionGaussian> unordered;
   unordered.reserve(kept);
   std::vector<Eigen::Vector3d> lo, hi;
   lo.reserve(kept);
   hi.reserve(kept);
-  const Eigen::Quaterniond qg = reg.rotation.normalized();
   const double axis_scale = config.sigma * reg.scale;
   w.lo_ = Eigen::Vector3d::Constant(INFINITY);
   w.hi_ = -w.lo_;
@@ -49,9 +50,7 @@ CollisionWorld CollisionWorld::build(const GaussianScene& scene, const WorldConf
     if (!(scene.opacities[i] > config.min_opacity)) continue;
     CollisionGaussian g{};
     const Eigen::Vector3d c = reg.apply(scene.means[i].cast<double>());
-    const Eigen::Vector4f& r = scene.rotations[i];
-    const Eigen::Quaterniond q =
-        (qg * Eigen::Quaterniond(r[0], r[1], r[2], r[3]).normalized()).normalized();
+    const Eigen::Quaterniond q = reg.apply_rotation(scene.rotations[i]);
     for (int k = 0; k < 3; ++k) g.center[k] = c[k];
     const Eigen::Matrix3d R = q.toRotationMatrix();
     for (int a = 0; a < 3; ++a)

@@ -54,10 +54,12 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
   std::uint32_t slot[kBatchLanes];
   batch.count = 0;
 
-  const auto emit = [&](const CollisionGaussian& g, double k) {
+  const auto emit = [&](std::uint32_t record, double k) {
+    const CollisionGaussian& g = gs[record];
     ++counts.contacts;
     Contact contact;
     contact.index = g.source_index;
+    contact.slot = record;
     contact.opacity = g.opacity;
     contact.k_min = k;
     contact.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
@@ -67,7 +69,7 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
     pad_lanes(batch);
     k_min_batch(batch, batch_tool, options_.narrow_phase.stop_when_separated);
     for (int l = 0; l < batch.count; ++l)
-      if (!batch.separated[l] && batch.k_min[l] > 0) emit(gs[slot[l]], batch.k_min[l]);
+      if (!batch.separated[l] && batch.k_min[l] > 0) emit(slot[l], batch.k_min[l]);
     batch.count = 0;
   };
 
@@ -88,7 +90,7 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
         const KMinResult r = k_min(pair_coefficients(frame, Eigen::Vector3d(d[0], d[1], d[2]),
                                                      rotation_matrix(g), s),
                                    options_.narrow_phase);
-        if (r.k_min > 0) emit(g, r.k_min);
+        if (r.k_min > 0) emit(k, r.k_min);
         continue;
       }
       // Branch-free compaction: the lane is always written and kept only if it passed (about

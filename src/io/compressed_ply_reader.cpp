@@ -16,8 +16,8 @@ namespace gshaptics {
 using namespace detail;
 
 LoadedScene read_compressed_ply(std::span<const std::uint8_t> bytes, const std::string& path,
-                                const ProgressFn& progress,
-                    const LoadOptions& options) {
+    const LoadOptions& options) {
+  const ProgressFn& progress = options.progress;
   const Header h = parse_header(bytes, path);
   if (h.format != "binary_little_endian")
     throw file_error(path, "compressed PLY must be binary_little_endian, not '" + h.format + "'");

@@ -10,7 +10,7 @@
 #include <cstring>
 #include <utility>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 
 namespace gshaptics {
 

@@ -16,7 +16,7 @@
 
 #include "detail/accept_gaussian.h"
 #include "detail/ply_header.h"
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 
 namespace gshaptics {
@@ -44,8 +44,8 @@ SceneFormat detect_ply_variant(std::span<const std::uint8_t> bytes) {
 }
 
 LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::string& path,
-                           const ProgressFn& progress,
-                    const LoadOptions& options) {
+    const LoadOptions& options) {
+  const ProgressFn& progress = options.progress;
   const Header h = parse_header(bytes, path);
   const bool ascii = h.format == "ascii";
   const bool big = h.format == "binary_big_endian";
@@ -54,7 +54,7 @@ LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::strin
                                "' (expected ascii, binary_little_endian or binary_big_endian)");
 
   for (const auto& e : h.elements)
-    if (e.name == "chunk" || e.find("packed_position") != nullptr) return read_compressed_ply(bytes, path, progress, options);
+    if (e.name == "chunk" || e.find("packed_position") != nullptr) return read_compressed_ply(bytes, path, options);
 
   const Element* vertex = nullptr;
   std::size_t vertex_element = 0;
@@ -81,7 +81,7 @@ LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes, const std::strin
   LoadedScene out;
   out.report.path = path;
   out.report.format = ascii ? SceneFormat::kAsciiPly : big ? SceneFormat::kBigEndianPly : SceneFormat::kInriaPly;
-  out.report.frame = SceneFrame::kRdf;
+  out.report.frame = out.scene.frame = SceneFrame::kRdf;
   out.report.in_file = vertex->count;
   int n_rest = 0;
   for (const auto& pr : vertex->properties) {

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <cstring>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/mapped_file.h"
 
 namespace gshaptics {
@@ -21,20 +21,6 @@ std::string_view to_string(SceneFormat format) {
     case SceneFormat::kUnknown: return "unknown";
   }
   return "unknown";
-}
-
-std::string_view to_string(SceneFrame frame) {
-  switch (frame) {
-    case SceneFrame::kRdf: return "RDF (x right, y down, z forward: 3DGS/COLMAP)";
-    case SceneFrame::kRub: return "RUB (x right, y up, z back: OpenGL/SPZ)";
-  }
-  return "unknown";
-}
-
-Eigen::Quaterniond frame_to_z_up(SceneFrame frame) {
-  // RDF: up is -y; (x, y, z) -> (x, z, -y) is -90 deg about x. RUB: up is +y; +90 deg about x.
-  const double h = std::sqrt(0.5);
-  return frame == SceneFrame::kRdf ? Eigen::Quaterniond(h, -h, 0, 0) : Eigen::Quaterniond(h, h, 0, 0);
 }
 
 namespace {
@@ -77,14 +63,15 @@ SceneFormat detect_scene_format(std::span<const std::uint8_t> bytes, std::string
   return SceneFormat::kUnknown;
 }
 
-LoadedScene load_scene(const std::string& path, const ProgressFn& progress, const LoadOptions& options) {
+LoadedScene load_scene(const std::string& path, const LoadOptions& options) {
   const MappedFile file(path);
   const auto bytes = file.bytes();
   if (bytes.empty()) throw file_error(path, "file is empty");
   // Readers go through the file front to back and report progress as they go: drop the pages
   // they are done with (less a 16 MiB margin), so a 1 GB scene does not stay resident twice.
-  const ProgressFn report_and_release = [&](double fraction) {
-    if (progress) progress(fraction);
+  LoadOptions reading = options;
+  reading.progress = [&](double fraction) {
+    if (options.progress) options.progress(fraction);
     const double done = fraction * double(bytes.size()) - double(16u << 20);
     if (done > 0 && fraction < 1.0) file.release_before(std::size_t(done));
   };
@@ -92,13 +79,13 @@ LoadedScene load_scene(const std::string& path, const ProgressFn& progress, cons
     case SceneFormat::kInriaPly:
     case SceneFormat::kAsciiPly:
     case SceneFormat::kBigEndianPly:
-      return read_inria_ply(bytes, path, report_and_release, options);
+      return read_inria_ply(bytes, path, reading);
     case SceneFormat::kCompressedPly:
-      return read_compressed_ply(bytes, path, report_and_release, options);
+      return read_compressed_ply(bytes, path, reading);
     case SceneFormat::kSplat:
-      return read_splat(bytes, path, report_and_release, options);
+      return read_splat(bytes, path, reading);
     case SceneFormat::kSpz:
-      return read_spz(bytes, path, report_and_release, options);
+      return read_spz(bytes, path, reading);
     case SceneFormat::kUnknown:
       break;
   }

@@ -9,34 +9,14 @@
 #include <string>
 #include <vector>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
+#include "gshaptics/io/atomic_file.h"
 
 namespace gshaptics {
 
 namespace {
 
 constexpr float kShC0 = 0.28209479177387814f;
-
-void write_atomically(const std::string& path, const std::vector<char>& header, const std::vector<char>& body) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw file_error(path, "cannot open '" + tmp + "' for writing");
-    out.write(header.data(), std::streamsize(header.size()));
-    out.write(body.data(), std::streamsize(body.size()));
-    out.flush();
-    if (!out) {
-      std::remove(tmp.c_str());
-      throw file_error(path, "write failed (disk full?)");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::remove(tmp.c_str());
-    throw file_error(path, "cannot rename the temporary file: " + ec.message());
-  }
-}
 
 template <typename T>
 void put(std::vector<char>& out, T v) {
@@ -74,7 +54,7 @@ void write_inria_ply(const std::string& path, const GaussianScene& s) {
     for (int k = 0; k < 3; ++k) put(body, std::log(s.scales[i][k]));
     for (int k = 0; k < 4; ++k) put(body, s.rotations[i][k]);
   }
-  write_atomically(path, std::vector<char>(h.begin(), h.end()), body);
+  write_file_atomically(path, {h, std::string_view(body.data(), body.size())});
 }
 
 void write_splat(const std::string& path, const GaussianScene& s) {
@@ -89,7 +69,7 @@ void write_splat(const std::string& path, const GaussianScene& s) {
     put(body, byte(s.opacities[i] * 255.f));
     for (int k = 0; k < 4; ++k) put(body, byte(s.rotations[i][k] * 128.f + 128.f));
   }
-  write_atomically(path, {}, body);
+  write_file_atomically(path, std::string_view(body.data(), body.size()));
 }
 
 void write_scene(const std::string& path, const GaussianScene& scene) {

@@ -6,14 +6,14 @@
 #include <limits>
 
 #include "detail/accept_gaussian.h"
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 
 namespace gshaptics {
 
 LoadedScene read_splat(std::span<const std::uint8_t> bytes, const std::string& path,
-                       const ProgressFn& progress,
-                    const LoadOptions& options) {
+    const LoadOptions& options) {
+  const ProgressFn& progress = options.progress;
   constexpr std::size_t kRecord = 32;
   if (bytes.empty()) throw file_error(path, "file is empty");
   if (bytes.size() % kRecord != 0)

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "detail/accept_gaussian.h"
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 
 namespace gshaptics {
@@ -111,12 +111,12 @@ void decode(const Streams& s, std::uint64_t n, int fractional_bits, const std::s
 }  // namespace
 
 LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& path,
-                     const ProgressFn& progress,
-                    const LoadOptions& options) {
+    const LoadOptions& options) {
+  const ProgressFn& progress = options.progress;
   LoadedScene out;
   out.report.path = path;
   out.report.format = SceneFormat::kSpz;
-  out.report.frame = SceneFrame::kRub;
+  out.report.frame = out.scene.frame = SceneFrame::kRub;
   if (bytes.size() >= 4 && u32_at(bytes.data()) == kMagic) {
     // v4: plain header + table of contents + zstd streams.
     if (bytes.size() < 32) throw file_error(path, "SPZ v4: header truncated (" + std::to_string(bytes.size()) + " of 32 bytes)");

@@ -134,15 +134,20 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
     const double dphi_dlambda = dphi2 * (1 + m2) * (1 + m2);
     const double gap = dphi_dlambda > 0 ? dphi_dlambda * (1 - lam2) : -dphi_dlambda * lam2;
     const double phi = detail::max_of<double>(p_c, p2);
-    b.k_min[l] = q0[l] > 0 ? 1.0 - phi : 1.0;
+    // A lane stopped as separated reports 1 - (largest phi it saw), a negative upper bound of
+    // its K_min (as the scalar search does); its last iterate has moved on from that point.
+    const double k_at = sep[l] > 0 ? 1.0 - double(best_phi[l]) : 1.0 - phi;
+    b.k_min[l] = q0[l] > 0 ? k_at : 1.0;
     redo[l] = ((q0[l] > 0) & !(gap < kCertifiedGap)) ? 1.0 : 0.0;
   }
   for (int l = 0; l < L; ++l) {
     b.separated[l] = sep[l] > 0 ? 1 : 0;
     if (b.separated[l]) redo[l] = 0;
   }
+  b.redone = 0;
   for (int l = 0; l < b.count; ++l) {
     if (redo[l] == 0) continue;
+    ++b.redone;
     double lambda;
     bool separated;
     int iterations;

@@ -94,9 +94,7 @@ std::vector<RosMarker> contact_markers(const ContactSnapshot& snap, const Collis
     m.ns = "contacts";
     m.id = std::int32_t(g.source_index);
     m.position = {g.center[0], g.center[1], g.center[2]};
-    Eigen::Matrix3d r;
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) r(a, b) = double(g.rotation[3 * a + b]);
+    const Eigen::Matrix3d r = rotation_matrix(g);
     const Eigen::Quaterniond q = Eigen::Quaterniond(r).normalized();
     m.orientation_xyzw = {q.x(), q.y(), q.z(), q.w()};
     m.scale = {2.0 * g.semi_axes[0], 2.0 * g.semi_axes[1], 2.0 * g.semi_axes[2]};

@@ -13,7 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 
 namespace gshaptics {
 
@@ -42,14 +42,14 @@ void append_vec(std::string& s, const Eigen::Vector3d& v, int digits = 5) {
 
 }  // namespace
 
-std::string ViewerServer::state_json(const ServoTickRecord& tick, const ContactSnapshot& contacts,
+std::string ViewerServer::state_json(const TickRecord& tick, const ContactSnapshot& contacts,
                                      const CollisionWorld& world, const RuntimeStats& stats,
                                      const LatencyHistogram& query, double rate_hz) {
   // Built by hand: this runs 30-60 times a second with up to 2048 contacts.
   std::string s;
   s.reserve(200 + std::size_t(contacts.shown) * 110);
   s += "{\"type\":\"state\",\"t\":";
-  s += fmt::format("{:.4f}", to_seconds(tick.time));
+  s += fmt::format("{:.4f}", tick.time);
   s += ",\"tool\":{\"center\":";
   append_vec(s, tick.position, 7);
   const Eigen::Quaterniond& q = contacts.pose.orientation;
@@ -76,9 +76,7 @@ std::string ViewerServer::state_json(const ServoTickRecord& tick, const ContactS
   const auto& g = world.gaussians();
   for (std::uint32_t i = 0; i < contacts.shown; ++i) {
     const CollisionGaussian& c = g[contacts.record[i]];
-    Eigen::Matrix3d r;
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) r(a, b) = double(c.rotation[3 * a + b]);
+    const Eigen::Matrix3d r = rotation_matrix(c);
     Eigen::Quaterniond qc(r);
     qc.normalize();
     s += fmt::format("{}[{},{:.6g},{:.6g},{:.6g},{:.4g},{:.4g},{:.4g},{:.4f},{:.4f},{:.4f},{:.4f}]",
@@ -115,7 +113,7 @@ struct ViewerServer::Impl {
   std::thread thread;
   std::list<std::weak_ptr<WsSession>> sessions;
   ViewerStats stats;
-  ServoTickRecord tick;
+  TickRecord tick;
   ContactSnapshot snapshot;
   Eigen::Vector3d mouse_target = Eigen::Vector3d::Zero();
   bool have_mouse_target = false;

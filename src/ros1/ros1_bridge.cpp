@@ -3,7 +3,7 @@
 #include <functional>
 #include <stdexcept>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "ros1_transport.h"
 
 namespace gshaptics {

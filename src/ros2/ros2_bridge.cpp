@@ -8,7 +8,7 @@
 #include <ctime>
 #include <vector>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "ros2_interfaces.h"
 
 namespace gshaptics {

@@ -5,8 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "gshaptics/io/error.h"
-#include "gshaptics/scene/gaussian_scene.h"
+#include "gshaptics/error.h"
 
 namespace gshaptics {
 
@@ -102,15 +101,61 @@ SimilarityTransform parse_registration_json(const std::string& text, const std::
 
 GaussianScene transform_scene(const GaussianScene& scene, const SimilarityTransform& t) {
   GaussianScene out = scene;
-  const Eigen::Quaterniond r = t.rotation.normalized();
+  SimilarityTransform unit = t;
+  unit.rotation.normalize();
   for (std::size_t i = 0; i < out.size(); ++i) {
-    out.means[i] = t.apply(scene.means[i].cast<double>()).cast<float>();
-    out.scales[i] = (t.scale * scene.scales[i].cast<double>()).cast<float>();
-    const Eigen::Vector4f& q = scene.rotations[i];
-    const Eigen::Quaterniond w = (r * Eigen::Quaterniond(q[0], q[1], q[2], q[3])).normalized();
+    out.means[i] = unit.apply(scene.means[i].cast<double>()).cast<float>();
+    out.scales[i] = (unit.scale * scene.scales[i].cast<double>()).cast<float>();
+    const Eigen::Quaterniond w = unit.apply_rotation(scene.rotations[i]);
     out.rotations[i] = Eigen::Vector4f(float(w.w()), float(w.x()), float(w.y()), float(w.z()));
   }
   return out;
+}
+
+UpAxis parse_up_axis(std::string_view text, const std::string& source) {
+  static constexpr UpAxis kAll[] = {UpAxis::kNone, UpAxis::kAuto, UpAxis::kYDown, UpAxis::kYUp,
+                                    UpAxis::kZUp,  UpAxis::kZDown, UpAxis::kXUp,  UpAxis::kXDown};
+  for (UpAxis u : kAll)
+    if (to_string(u) == text) return u;
+  throw InputError(source + ": unknown up axis '" + std::string(text) +
+                   "' (expected none, auto, y-down, y-up, z-up, z-down, x-up or x-down)");
+}
+
+std::string_view to_string(UpAxis up) {
+  switch (up) {
+    case UpAxis::kNone: return "none";
+    case UpAxis::kAuto: return "auto";
+    case UpAxis::kYDown: return "y-down";
+    case UpAxis::kYUp: return "y-up";
+    case UpAxis::kZUp: return "z-up";
+    case UpAxis::kZDown: return "z-down";
+    case UpAxis::kXUp: return "x-up";
+    case UpAxis::kXDown: return "x-down";
+  }
+  return "none";
+}
+
+Eigen::Vector3d up_vector(UpAxis up, SceneFrame frame) {
+  switch (up) {
+    case UpAxis::kNone: return Eigen::Vector3d::Zero();
+    case UpAxis::kAuto: return up_of(frame);
+    case UpAxis::kYDown: return -Eigen::Vector3d::UnitY();
+    case UpAxis::kYUp: return Eigen::Vector3d::UnitY();
+    case UpAxis::kZUp: return Eigen::Vector3d::UnitZ();
+    case UpAxis::kZDown: return -Eigen::Vector3d::UnitZ();
+    case UpAxis::kXUp: return Eigen::Vector3d::UnitX();
+    case UpAxis::kXDown: return -Eigen::Vector3d::UnitX();
+  }
+  return Eigen::Vector3d::Zero();
+}
+
+SimilarityTransform with_up_axis(const SimilarityTransform& registration, UpAxis up, SceneFrame frame) {
+  SimilarityTransform t = registration;
+  const Eigen::Vector3d u = up_vector(up, frame);
+  if (u.squaredNorm() == 0) return t;
+  const Eigen::Quaterniond r_up = Eigen::Quaterniond::FromTwoVectors(u, Eigen::Vector3d::UnitZ());
+  t.rotation = (t.rotation * r_up).normalized();
+  return t;
 }
 
 SimilarityTransform load_registration_file(const std::string& path) {

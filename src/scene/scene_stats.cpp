@@ -5,14 +5,6 @@
 
 namespace gshaptics {
 
-double percentile(std::vector<double> values, double p) {
-  if (values.empty()) return 0.0;
-  const double pos = std::clamp(p, 0.0, 100.0) / 100.0 * double(values.size() - 1);
-  const auto k = std::size_t(std::llround(pos));
-  std::nth_element(values.begin(), values.begin() + std::ptrdiff_t(k), values.end());
-  return values[k];
-}
-
 namespace {
 // Percentile p of a vector sorted in place (nearest rank).
 double sorted_percentile(const std::vector<float>& v, double p) {

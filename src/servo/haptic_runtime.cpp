@@ -10,7 +10,7 @@
 #include <cmath>
 #include <cstring>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 
 namespace gshaptics {
 
@@ -178,7 +178,7 @@ void HapticRuntime::servo_main() {
   running_.store(false, std::memory_order_release);
 }
 
-bool HapticRuntime::latest_tick(ServoTickRecord& out) noexcept {
+bool HapticRuntime::latest_tick(TickRecord& out) noexcept {
   if (monitor_.read_if_new(latest_)) have_latest_ = true;
   out = latest_;
   return have_latest_;

@@ -5,7 +5,7 @@
 #include <cstdlib>
 #include <fstream>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 
 namespace gshaptics {
 

@@ -18,7 +18,7 @@ void bump(std::atomic<std::uint64_t>& a, bool cond) noexcept {
 
 ServoController::ServoController(HapticDevice& device, const SafetyParams& safety, Nanos period,
                                  PoseChannel& poses, ResultChannel& results, RuntimeStats& stats,
-                                 TickLog* log, Clock& clock, TripleBuffer<ServoTickRecord>* monitor)
+                                 TickLog* log, Clock& clock, TripleBuffer<TickRecord>* monitor)
     : device_(device), safety_(safety), period_(period), poses_(poses), results_(results),
       stats_(stats), log_(log), clock_(clock), monitor_(monitor) {}
 
@@ -115,8 +115,8 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   if (in.have_result) stats_.result_age.record(in.result_age);
 
   if (log_ != nullptr || monitor_ != nullptr) {
-    ServoTickRecord r;
-    r.time = scheduled - t0_;
+    TickRecord r;
+    r.time = to_seconds(scheduled - t0_);
     r.jitter_us = float(double(now - scheduled) * 1e-3);
     r.tick_us = float(double(end - now) * 1e-3);
     r.position = s.position;

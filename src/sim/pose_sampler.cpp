@@ -2,7 +2,7 @@
 
 #include <random>
 
-#include "gshaptics/scene/scene_stats.h"
+#include "gshaptics/percentile.h"
 
 namespace gshaptics {
 

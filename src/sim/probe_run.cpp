@@ -3,14 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <fstream>
-#include <sstream>
-#include <system_error>
-#include <filesystem>
 
-#include "gshaptics/io/error.h"
-#include "gshaptics/scene/scene_stats.h"
+#include "gshaptics/error.h"
+#include "gshaptics/percentile.h"
 
 namespace gshaptics {
 
@@ -51,9 +46,10 @@ ProbeRunResult run_probe(const CollisionWorld& world, const ProbeTrajectory& tra
     rec.position = s.position;
     rec.velocity = s.velocity;
     rec.counts = query.result().counts;
+    rec.desired = rendered;
     rec.force = rendered;
     rec.user_force = user;
-    rec.query_us = std::chrono::duration<double, std::micro>(q1 - q0).count();
+    rec.query_us = float(std::chrono::duration<double, std::micro>(q1 - q0).count());
 
     device.step(user + rendered, dt);
     if (progress && k % report_every == 0) progress(double(k) / double(n_ticks));
@@ -100,45 +96,6 @@ QueryTimeStats query_time_stats(const std::vector<TickRecord>& ticks) {
   s.p99_us = percentile(us, 99);
   s.max_us = *std::max_element(us.begin(), us.end());
   return s;
-}
-
-void write_file_atomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError(path + ": cannot open '" + tmp + "' for writing");
-    out << text;
-    out.flush();
-    if (!out) {
-      std::remove(tmp.c_str());
-      throw InputError(path + ": write failed (disk full?)");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::remove(tmp.c_str());
-    throw InputError(path + ": cannot rename temporary file: " + ec.message());
-  }
-}
-
-void write_tick_log_csv(const std::string& path, const std::vector<TickRecord>& ticks) {
-  std::string text;
-  text.reserve(ticks.size() * 160 + 200);
-  text +=
-      "time_s,x,y,z,vx,vy,vz,candidates,prefiltered,contacts,fx,fy,fz,user_fx,user_fy,user_fz,"
-      "query_us\n";
-  char line[512];
-  for (const auto& r : ticks) {
-    const int n = std::snprintf(
-        line, sizeof line,
-        "%.4f,%.6f,%.6f,%.6f,%.5f,%.5f,%.5f,%u,%u,%u,%.5f,%.5f,%.5f,%.5f,%.5f,%.5f,%.2f\n", r.time,
-        r.position.x(), r.position.y(), r.position.z(), r.velocity.x(), r.velocity.y(),
-        r.velocity.z(), r.counts.candidates, r.counts.prefiltered, r.counts.contacts, r.force.x(),
-        r.force.y(), r.force.z(), r.user_force.x(), r.user_force.y(), r.user_force.z(), r.query_us);
-    text.append(line, std::size_t(std::max(0, n)));
-  }
-  write_file_atomically(path, text);
 }
 
 }  // namespace gshaptics

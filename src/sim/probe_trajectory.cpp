@@ -6,8 +6,8 @@
 #include <random>
 
 #include "gshaptics/collision/contact_query.h"
-#include "gshaptics/io/error.h"
-#include "gshaptics/scene/scene_stats.h"
+#include "gshaptics/error.h"
+#include "gshaptics/percentile.h"
 
 namespace gshaptics {
 

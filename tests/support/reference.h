@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "gshaptics/collision/tool_ellipsoid.h"
-#include "gshaptics/scene/gaussian_scene.h"
+#include "gshaptics/io/gaussian_scene.h"
 #include "gshaptics/scene/registration.h"
 
 namespace gshaptics::test {

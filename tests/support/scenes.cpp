@@ -8,12 +8,31 @@
 #include <fstream>
 #include <iterator>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 
 namespace gshaptics::test {
 
-std::string scene_path(const std::string& name) { return std::string(GSHAPTICS_SCENES_DIR) + "/" + name; }
+std::string scene_path(const std::string& name) {
+  if (name == "truck.splat") return data_path(name);
+  return std::string(GSHAPTICS_SCENES_DIR) + "/" + name;
+}
+
+std::string missing_scenes_reason() {
+  // One scene of each kind the tests read; the folder holds them all or none.
+  for (const char* name : {"donut.ply", "biker.spz", "karangkidul_crop.ply"})
+    if (!std::filesystem::exists(scene_path(name)))
+      return "real scenes not found (no " + scene_path(name) +
+             "): put the scenes (donut.ply, biker.*, karangkidul_crop.ply, ...) in " GSHAPTICS_SCENES_DIR
+             " or configure with -DGSHAPTICS_SCENES_DIR=<folder>";
+  return "";
+}
+
+LoadOptions with_color() {
+  LoadOptions o;
+  o.keep_color = true;
+  return o;
+}
 std::string data_path(const std::string& name) { return std::string(GSHAPTICS_DATA_DIR) + "/" + name; }
 
 std::string temp_path(const std::string& suffix) {

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "gshaptics/broadphase/bvh.h"
-#include "gshaptics/scene/gaussian_scene.h"
+#include "gshaptics/io/gaussian_scene.h"
 #include "gshaptics/scene/opacity_filter.h"
 #include "gshaptics/scene/registration.h"
 
@@ -21,7 +21,10 @@ namespace gshaptics {
 struct WorldConfig {
   float min_opacity = kDefaultMinOpacity;  ///< keep alpha > tau (paper Sec. III-A)
   double sigma = 1.0;                      ///< ellipsoid at k sigma: semi-axes k * s_i (paper: 1)
-  SimilarityTransform registration;        ///< scene -> world (paper eq. 3)
+  /// Scene direction turned to world +z before `registration` (UpAxis::kAuto: from the
+  /// scene's file convention, GaussianScene::frame).
+  UpAxis up = UpAxis::kNone;
+  SimilarityTransform registration;        ///< scene -> world (paper eq. 3), after `up`
   int leaf_size = 8;                       ///< BVH leaf capacity (one narrow-phase batch)
 };
 
@@ -60,6 +63,9 @@ class CollisionWorld {
   [[nodiscard]] const std::vector<CollisionGaussian>& gaussians() const { return gaussians_; }
   [[nodiscard]] const Bvh& bvh() const { return bvh_; }
   [[nodiscard]] const WorldConfig& config() const { return config_; }
+  /// The whole scene -> world transform the world was built with: `config().up` then
+  /// `config().registration` (with_up_axis). A renderer of the original file places it with this.
+  [[nodiscard]] const SimilarityTransform& scene_to_world() const { return scene_to_world_; }
   /// Bounds of all ellipsoids (world frame).
   [[nodiscard]] const Eigen::Vector3d& bounds_lo() const { return lo_; }
   [[nodiscard]] const Eigen::Vector3d& bounds_hi() const { return hi_; }
@@ -68,6 +74,7 @@ class CollisionWorld {
 
  private:
   WorldConfig config_;
+  SimilarityTransform scene_to_world_;
   std::vector<CollisionGaussian> gaussians_;
   Bvh bvh_;
   Eigen::Vector3d lo_ = Eigen::Vector3d::Zero(), hi_ = Eigen::Vector3d::Zero();

@@ -10,7 +10,7 @@
 #include <string_view>
 #include <vector>
 
-#include "gshaptics/scene/gaussian_scene.h"
+#include "gshaptics/io/gaussian_scene.h"
 
 namespace gshaptics {
 
@@ -26,17 +26,6 @@ enum class SceneFormat {
 };
 
 [[nodiscard]] std::string_view to_string(SceneFormat format);
-
-/// The coordinate convention a file's Gaussians are stored in (loaders do not convert).
-enum class SceneFrame {
-  kRdf,  ///< x right, y down, z forward: the 3DGS / COLMAP / OpenCV convention (PLY, .splat)
-  kRub,  ///< x right, y up, z back: the OpenGL convention of SPZ
-};
-
-[[nodiscard]] std::string_view to_string(SceneFrame frame);
-
-/// Rotation taking a frame's "up" to world +z (RDF: -y up; RUB: +y up), for z-up worlds.
-[[nodiscard]] Eigen::Quaterniond frame_to_z_up(SceneFrame frame);
 
 /// What a loader did with a file: how many Gaussians it found, kept and skipped, and why.
 /// A skipped Gaussian is never dropped silently: it is counted in exactly one `skipped_*` field
@@ -68,11 +57,14 @@ struct LoadedScene {
 /// Progress callback: fraction done in [0, 1]. May be empty.
 using ProgressFn = std::function<void(double)>;
 
-/// What to keep besides the geometry.
+/// How to load: what to keep besides the geometry, and whom to tell about progress.
 struct LoadOptions {
-  /// Keep colour (f_dc) and higher SH bands (for conversion). Collision does not need them; an
-  /// SH3 scene's colour is ~3x its geometry, so the collision path loads without it.
-  bool keep_color = true;
+  /// Keep colour (f_dc) and higher SH bands, for conversion and rendering. Collision does not
+  /// need them, and an SH3 scene's colour is ~3x its geometry, so the default leaves them out.
+  bool keep_color = false;
+  /// Called with the fraction done, in [0, 1], as the reader goes; may be empty. Runs on the
+  /// loading thread.
+  ProgressFn progress;
 };
 
 /// Guesses the format from the bytes (magic numbers, PLY header), falling back on the
@@ -84,31 +76,26 @@ struct LoadOptions {
 /// Throws InputError naming the file and the problem for a missing, empty, truncated,
 /// malformed or unsupported file. Never returns an empty scene without saying why: a file
 /// whose every Gaussian is invalid is an error too.
-[[nodiscard]] LoadedScene load_scene(const std::string& path, const ProgressFn& progress = {},
-                                     const LoadOptions& options = {});
+[[nodiscard]] LoadedScene load_scene(const std::string& path, const LoadOptions& options = {});
 
 /// Reads an INRIA 3DGS PLY from memory (`path` is used in messages only). See load_scene.
 [[nodiscard]] LoadedScene read_inria_ply(std::span<const std::uint8_t> bytes,
                                          const std::string& path,
-                                         const ProgressFn& progress = {},
     const LoadOptions& options = {});
 
 /// Reads a PlayCanvas compressed PLY from memory (chunks of 256 with min/max; 11-10-11 packed
 /// positions and log-scales, 2+3x10-bit quaternions, RGBA with opacity). See load_scene.
 [[nodiscard]] LoadedScene read_compressed_ply(std::span<const std::uint8_t> bytes,
                                               const std::string& path,
-                                              const ProgressFn& progress = {},
     const LoadOptions& options = {});
 
 /// Reads a Niantic SPZ file from memory: v2/v3 (one gzip stream) or v4 ("NGSP" header, table of
 /// contents, zstd streams). Coordinates stay in SPZ's RUB frame (report.frame). See load_scene.
 [[nodiscard]] LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& path,
-                                   const ProgressFn& progress = {},
     const LoadOptions& options = {});
 
 /// Reads an antimatter15 .splat from memory (`path` is used in messages only). See load_scene.
 [[nodiscard]] LoadedScene read_splat(std::span<const std::uint8_t> bytes, const std::string& path,
-                                     const ProgressFn& progress = {},
     const LoadOptions& options = {});
 
 }  // namespace gshaptics

@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "gshaptics/scene/gaussian_scene.h"
+#include "gshaptics/io/gaussian_scene.h"
 
 namespace gshaptics {
 

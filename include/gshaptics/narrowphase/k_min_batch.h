@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// K_min for a batch of up to 8 tool/Gaussian pairs at once: the same cancellation-free form
+/// K_min for a batch of up to kBatchLanes (16) tool/Gaussian pairs at once: the same cancellation-free form
 /// and bracketed Newton iteration as k_min(), written branch-free over structure-of-arrays lanes
 /// so the compiler vectorises it (AVX-512, AVX2 or SSE2 clones chosen at run time).
 
@@ -22,9 +22,11 @@ struct alignas(64) PairBatch {
   float r[9][kBatchLanes];
   float sx[kBatchLanes], sy[kBatchLanes], sz[kBatchLanes];  ///< Gaussian semi-axes
   // outputs
-  double k_min[kBatchLanes];        ///< K_min (or the first negative K found when separated)
+  double k_min[kBatchLanes];        ///< K_min; when separated, a negative upper bound of it
   std::uint8_t separated[kBatchLanes];  ///< 1 when separation was proven early
-  int count = 0;
+  int count = 0;    ///< lanes in use (input)
+  int redone = 0;   ///< output: lanes whose float search was not certified and were solved again
+                    ///< by the scalar double search (flat splats; for tests and profiling)
 };
 
 /// Per-tick tool constants for the batch kernel.

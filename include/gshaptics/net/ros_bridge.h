@@ -15,7 +15,7 @@
 
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/net/ros_marker.h"
-#include "gshaptics/servo/contact_snapshot.h"
+#include "gshaptics/net/contact_snapshot.h"
 #include "gshaptics/servo/haptic_device.h"
 #include "gshaptics/servo/stream_device.h"
 #include "gshaptics/servo/triple_buffer.h"

@@ -20,7 +20,7 @@
 #include <string>
 
 #include "gshaptics/collision/collision_world.h"
-#include "gshaptics/servo/contact_snapshot.h"
+#include "gshaptics/net/contact_snapshot.h"
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/stream_device.h"
 
@@ -65,7 +65,7 @@ class ViewerServer {
   [[nodiscard]] const ViewerStats& stats() const noexcept;
 
   /// The state frame for a tick record and a contact snapshot (exposed for tests).
-  [[nodiscard]] static std::string state_json(const ServoTickRecord& tick, const ContactSnapshot& contacts,
+  [[nodiscard]] static std::string state_json(const TickRecord& tick, const ContactSnapshot& contacts,
                                               const CollisionWorld& world, const RuntimeStats& stats,
                                               const LatencyHistogram& query, double rate_hz);
 

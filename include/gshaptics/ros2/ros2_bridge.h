@@ -26,7 +26,7 @@
 #include <thread>
 
 #include "gshaptics/net/ros_bridge.h"
-#include "gshaptics/servo/contact_snapshot.h"
+#include "gshaptics/net/contact_snapshot.h"
 #include "gshaptics/servo/stream_device.h"
 
 namespace gshaptics {

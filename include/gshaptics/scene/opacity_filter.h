@@ -4,7 +4,7 @@
 
 #include <cstddef>
 
-#include "gshaptics/scene/gaussian_scene.h"
+#include "gshaptics/io/gaussian_scene.h"
 
 namespace gshaptics {
 

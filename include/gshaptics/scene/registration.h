@@ -5,6 +5,9 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <string>
+#include <string_view>
+
+#include "gshaptics/io/gaussian_scene.h"
 
 namespace gshaptics {
 
@@ -19,12 +22,36 @@ struct SimilarityTransform {
   [[nodiscard]] Eigen::Vector3d apply(const Eigen::Vector3d& p) const {
     return scale * (rotation * p) + translation;
   }
+  /// A Gaussian's orientation in the world: R_g q for a quaternion (w, x, y, z) of any
+  /// non-zero norm (raw trainer output is not normalised), normalised. Its scales map to
+  /// `scale` * s_i.
+  [[nodiscard]] Eigen::Quaterniond apply_rotation(const Eigen::Vector4f& q_wxyz) const {
+    return (rotation * Eigen::Quaterniond(q_wxyz[0], q_wxyz[1], q_wxyz[2], q_wxyz[3]).normalized())
+        .normalized();
+  }
   [[nodiscard]] bool is_identity() const;
   /// JSON text in the registration-file format (see parse_registration_json).
   [[nodiscard]] std::string to_json() const;
 };
 
-struct GaussianScene;
+/// Which of the scene's directions is "up": turned to world +z before the registration, so a
+/// scene never comes out upside down by surprise. kAuto takes the file's convention (SceneFrame:
+/// -y for PLY/.splat, +y for SPZ); kNone leaves the scene's axes as they are.
+enum class UpAxis { kNone, kAuto, kYDown, kYUp, kZUp, kZDown, kXUp, kXDown };
+
+/// "none", "auto", "y-down", "y-up", "z-up", "z-down", "x-up", "x-down" -> UpAxis. Throws
+/// InputError naming `source` (an option or a field) for any other text.
+[[nodiscard]] UpAxis parse_up_axis(std::string_view text, const std::string& source);
+[[nodiscard]] std::string_view to_string(UpAxis up);
+
+/// The scene direction `up` names, in scene coordinates (unit vector; zero for kNone).
+[[nodiscard]] Eigen::Vector3d up_vector(UpAxis up, SceneFrame frame);
+
+/// The whole scene -> world transform: first the rotation taking `up` to +z, then
+/// `registration`: x_world = s R_g (R_up x) + t (paper eq. 3 with R_g R_up). kNone returns
+/// `registration` unchanged.
+[[nodiscard]] SimilarityTransform with_up_axis(const SimilarityTransform& registration, UpAxis up,
+                                               SceneFrame frame);
 
 /// Applies a registration to every Gaussian (eq. 3): means s R mu + t, rotations R q, scales
 /// s * scale. Colour is copied; SH bands above 0 are not rotated (view-dependent colour then

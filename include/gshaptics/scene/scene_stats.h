@@ -5,7 +5,7 @@
 #include <Eigen/Core>
 #include <array>
 
-#include "gshaptics/scene/gaussian_scene.h"
+#include "gshaptics/io/gaussian_scene.h"
 
 namespace gshaptics {
 
@@ -23,8 +23,5 @@ struct SceneStats {
 
 /// Computes the statistics; an empty scene gives zeros.
 [[nodiscard]] SceneStats compute_scene_stats(const GaussianScene& scene);
-
-/// Percentile p in [0, 100] of `values` (nearest rank on a sorted copy; not for the hot path).
-[[nodiscard]] double percentile(std::vector<double> values, double p);
 
 }  // namespace gshaptics

@@ -86,7 +86,7 @@ class HapticRuntime {
   [[nodiscard]] const RuntimeConfig& config() const noexcept { return config_; }
   /// The newest servo tick (pose, counts, force sent, flags), for one display thread: the single
   /// reader of this hand-off. Returns false before the first tick.
-  bool latest_tick(ServoTickRecord& out) noexcept;
+  bool latest_tick(TickRecord& out) noexcept;
 
  private:
   void servo_main();
@@ -101,8 +101,8 @@ class HapticRuntime {
   ResultChannel results_;
   RuntimeStats stats_;
   TickLog log_;
-  TripleBuffer<ServoTickRecord> monitor_;
-  ServoTickRecord latest_;
+  TripleBuffer<TickRecord> monitor_;
+  TickRecord latest_;
   bool have_latest_ = false;
   std::unique_ptr<CollisionWorker> worker_;
   std::unique_ptr<ServoController> servo_;

@@ -16,43 +16,9 @@
 #include "gshaptics/servo/haptic_device.h"
 #include "gshaptics/servo/runtime_stats.h"
 #include "gshaptics/servo/safety.h"
+#include "gshaptics/servo/tick_log.h"
 
 namespace gshaptics {
-
-/// What happened at one tick (the runtime's per-tick log). World frame, SI units.
-struct ServoTickRecord {
-  Nanos time = 0;          ///< scheduled tick time since the run started, ns
-  float jitter_us = 0;     ///< wake-up lateness, microseconds
-  float tick_us = 0;       ///< work in the tick, microseconds
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();    ///< tool centre, m
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();    ///< m/s
-  QueryCounts counts;                                    ///< of the result rendered
-  Eigen::Vector3d desired = Eigen::Vector3d::Zero();     ///< force model output, N
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();       ///< force sent after safety, N
-  Eigen::Vector3d user_force = Eigen::Vector3d::Zero();  ///< from the device sample, N
-  float query_us = 0;       ///< worker time of the result rendered, microseconds
-  float result_age_us = 0;  ///< now - stamp of its pose, microseconds
-  std::uint32_t flags = 0;  ///< SafetyFlag bits
-};
-
-/// Per-tick log with all memory reserved up front; push() drops (and counts) records past the
-/// capacity instead of allocating.
-class TickLog {
- public:
-  explicit TickLog(std::size_t capacity = 0) { records_.reserve(capacity); }
-  void push(const ServoTickRecord& r) noexcept {
-    if (records_.size() < records_.capacity())
-      records_.push_back(r);
-    else
-      ++dropped_;
-  }
-  [[nodiscard]] const std::vector<ServoTickRecord>& records() const noexcept { return records_; }
-  [[nodiscard]] std::uint64_t dropped() const noexcept { return dropped_; }
-
- private:
-  std::vector<ServoTickRecord> records_;
-  std::uint64_t dropped_ = 0;
-};
 
 class ServoController {
  public:
@@ -60,7 +26,7 @@ class ServoController {
   /// tick's record is also written to it (for a display thread, which is its single reader).
   ServoController(HapticDevice& device, const SafetyParams& safety, Nanos period,
                   PoseChannel& poses, ResultChannel& results, RuntimeStats& stats, TickLog* log,
-                  Clock& clock, TripleBuffer<ServoTickRecord>* monitor = nullptr);
+                  Clock& clock, TripleBuffer<TickRecord>* monitor = nullptr);
 
   /// Starts the device and arms the soft start; `now` becomes the run's time zero. Throws what
   /// the device's start() throws.
@@ -91,7 +57,7 @@ class ServoController {
   RuntimeStats& stats_;
   TickLog* log_;
   Clock& clock_;
-  TripleBuffer<ServoTickRecord>* monitor_;
+  TripleBuffer<TickRecord>* monitor_;
   Nanos t0_ = 0, prev_now_ = 0, last_device_data_ = 0;
   std::uint64_t last_device_seq_ = 0, pose_seq_ = 0;
   bool have_device_data_ = false, stopping_ = false, was_fading_ = false;

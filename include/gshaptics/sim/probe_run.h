@@ -6,26 +6,15 @@
 
 #include <Eigen/Core>
 #include <functional>
-#include <string>
 #include <vector>
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_model.h"
+#include "gshaptics/servo/tick_log.h"
 #include "gshaptics/sim/admittance_device.h"
 #include "gshaptics/sim/probe_trajectory.h"
 
 namespace gshaptics {
-
-/// One servo tick of the run (world frame, SI units).
-struct TickRecord {
-  double time = 0;                                   ///< s
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< tool centre, m
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  ///< m/s
-  QueryCounts counts;
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();       ///< rendered force, N
-  Eigen::Vector3d user_force = Eigen::Vector3d::Zero();  ///< force of the simulated hand, N
-  double query_us = 0;  ///< collision query (broad + narrow phase) wall time, microseconds
-};
 
 /// A contiguous stretch of ticks with contacts (gaps shorter than the merge gap are bridged).
 struct ContactEpisode {
@@ -70,13 +59,5 @@ using RunProgressFn = std::function<void(double)>;
 
 /// p50/p99/max of the ticks' query times.
 [[nodiscard]] QueryTimeStats query_time_stats(const std::vector<TickRecord>& ticks);
-
-/// Writes the per-tick CSV log (header: time_s, x, y, z, vx, vy, vz, candidates, prefiltered,
-/// contacts, fx, fy, fz, user_fx, user_fy, user_fz, query_us) to a temporary name, then renames.
-/// Throws InputError naming the file when it cannot be written.
-void write_tick_log_csv(const std::string& path, const std::vector<TickRecord>& ticks);
-
-/// Writes `text` to `path` atomically (temporary file, then rename). Throws InputError.
-void write_file_atomically(const std::string& path, const std::string& text);
 
 }  // namespace gshaptics

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 
 namespace gshaptics::detail {
@@ -51,6 +51,7 @@ inline LoadedScene start_load(const std::string& path, SceneFormat format, Scene
   out.report.path = path;
   out.report.format = format;
   out.report.frame = frame;
+  out.scene.frame = frame;
   out.report.in_file = in_file;
   out.scene.reserve(in_file);
   return out;

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 
 namespace gshaptics::detail {
 

@@ -1,4 +1,4 @@
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 
 namespace gshaptics {
 

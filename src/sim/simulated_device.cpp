@@ -1,9 +1,9 @@
-#include "gshaptics/servo/simulated_device.h"
+#include "gshaptics/sim/simulated_device.h"
 
 #include <algorithm>
 #include <cmath>
 
-#include "gshaptics/io/error.h"
+#include "gshaptics/error.h"
 
 namespace gshaptics {
 

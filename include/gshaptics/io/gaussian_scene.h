@@ -3,11 +3,27 @@
 /// The Gaussians of a trained 3DGS scene, as loaded (structure of arrays).
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstddef>
 #include <cstdint>
+#include <string_view>
 #include <vector>
 
 namespace gshaptics {
+
+/// The coordinate convention a file's Gaussians are stored in (loaders do not convert).
+enum class SceneFrame {
+  kRdf,  ///< x right, y down, z forward: the 3DGS / COLMAP / OpenCV convention (PLY, .splat)
+  kRub,  ///< x right, y up, z back: the OpenGL convention of SPZ
+};
+
+[[nodiscard]] std::string_view to_string(SceneFrame frame);
+
+/// The scene's up direction in its own coordinates (RDF: -y; RUB: +y), unit vector.
+[[nodiscard]] Eigen::Vector3d up_of(SceneFrame frame);
+
+/// Rotation taking a frame's "up" to world +z (RDF: -y up; RUB: +y up), for z-up worlds.
+[[nodiscard]] Eigen::Quaterniond frame_to_z_up(SceneFrame frame);
 
 /// All Gaussians of a scene in the scene's own frame, one entry per Gaussian in each array
 /// (paper Sec. III-A, eq. 1-2). Values are in the decoded, physical form:
@@ -30,6 +46,8 @@ struct GaussianScene {
   std::vector<Eigen::Vector3f> colors_dc;
   std::vector<float> sh_rest;
   int sh_rest_count = 0;
+  /// Convention of `means` and `rotations`, set by the loader from the file's format.
+  SceneFrame frame = SceneFrame::kRdf;
 
   /// Copies Gaussian `i` of `other` (all fields, colour included when both have it) to the end.
   void push_back_from(const GaussianScene& other, std::size_t i);

@@ -1,6 +1,26 @@
-#include "gshaptics/scene/gaussian_scene.h"
+#include "gshaptics/io/gaussian_scene.h"
+
+#include <cmath>
 
 namespace gshaptics {
+
+std::string_view to_string(SceneFrame frame) {
+  switch (frame) {
+    case SceneFrame::kRdf: return "RDF (x right, y down, z forward: 3DGS/COLMAP)";
+    case SceneFrame::kRub: return "RUB (x right, y up, z back: OpenGL/SPZ)";
+  }
+  return "unknown";
+}
+
+Eigen::Vector3d up_of(SceneFrame frame) {
+  return Eigen::Vector3d(0, frame == SceneFrame::kRub ? 1.0 : -1.0, 0);
+}
+
+Eigen::Quaterniond frame_to_z_up(SceneFrame frame) {
+  // RDF: up is -y; (x, y, z) -> (x, z, -y) is -90 deg about x. RUB: up is +y; +90 deg about x.
+  const double h = std::sqrt(0.5);
+  return frame == SceneFrame::kRdf ? Eigen::Quaterniond(h, -h, 0, 0) : Eigen::Quaterniond(h, h, 0, 0);
+}
 
 void GaussianScene::reserve(std::size_t n) {
   means.reserve(n);

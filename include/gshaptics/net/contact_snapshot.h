@@ -10,15 +10,14 @@
 
 #include <array>
 #include <cstdint>
-#include <vector>
 
-#include "gshaptics/collision/collision_world.h"
 #include "gshaptics/servo/clock.h"
 #include "gshaptics/servo/collision_worker.h"
 #include "gshaptics/servo/triple_buffer.h"
 
 namespace gshaptics {
 
+/// The contacts of one collision result, as shown (at most kMaxShown of them).
 struct ContactSnapshot {
   static constexpr std::size_t kMaxShown = 2048;
   std::uint64_t pose_sequence = 0;  ///< 0: none yet
@@ -33,16 +32,14 @@ struct ContactSnapshot {
 
 class ContactSnapshotObserver final : public ResultObserver {
  public:
-  /// Builds the source-index -> record map of `world` (4 bytes per source index).
-  ContactSnapshotObserver(const CollisionWorld& world, double display_hz, Clock& clock);
+  /// Copies at most one snapshot per 1 / display_hz (every result when display_hz <= 0).
+  ContactSnapshotObserver(double display_hz, Clock& clock);
   void on_result(const PoseCommand& pose, std::span<const Contact> contacts,
                  const CollisionResult& result) noexcept override;
   /// Display thread: the newest snapshot; false when none arrived since the last take.
   bool take(ContactSnapshot& out) noexcept { return buffer_.read_if_new(out); }
 
  private:
-  const CollisionWorld& world_;
-  std::vector<std::uint32_t> record_of_source_;
   Nanos min_interval_;
   Clock& clock_;
   Nanos last_copy_ = -1;

@@ -1,0 +1,33 @@
+#include "gshaptics/io/atomic_file.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <system_error>
+
+#include "gshaptics/error.h"
+
+namespace gshaptics {
+
+void write_file_atomically(const std::string& path, std::initializer_list<std::string_view> parts) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw file_error(path, "cannot open '" + tmp + "' for writing");
+    for (std::string_view p : parts) out.write(p.data(), std::streamsize(p.size()));
+    out.flush();
+    if (!out) {
+      out.close();
+      std::remove(tmp.c_str());
+      throw file_error(path, "write failed (disk full?)");
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::remove(tmp.c_str());
+    throw file_error(path, "cannot rename the temporary file: " + ec.message());
+  }
+}
+
+}  // namespace gshaptics
