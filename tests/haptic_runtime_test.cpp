@@ -96,6 +96,7 @@ class RealTime : public ::testing::Test {
   /// Checks the safety invariants on every logged tick.
   static void expect_invariants(const HapticRuntime& rt) {
     const SafetyParams& sp = rt.config().safety;
+    const double f_max = rt.config().force.f_max;
     const auto& recs = rt.log().records();
     ASSERT_FALSE(recs.empty());
     Eigen::Vector3d prev = Eigen::Vector3d::Zero();
@@ -105,14 +106,14 @@ class RealTime : public ::testing::Test {
       const double fm = r.force.norm();
       const double t = r.time;
       bad_finite += r.force.allFinite() ? 0 : 1;
-      bad_clamp += fm <= sp.f_max + 1e-9 ? 0 : 1;
+      bad_clamp += fm <= f_max + 1e-9 ? 0 : 1;
       // Rate limit: measured against wall-clock dt of the scheduled instants (a late tick may
       // move further; allow the jitter of the tick on top).
       const double dt = (r.time - prev_t) + double(r.jitter_us) * 1e-6 + 1e-6;
       bad_rate += (r.force - prev).norm() <= sp.max_force_rate * dt + 1e-9 ? 0 : 1;
       // Soft start: at time t no more than the ramp allows of f_max (the jitter may add).
       const double ramp = std::min(1.0, (t + double(r.jitter_us) * 1e-6 + 1e-6) / sp.ramp_time);
-      bad_ramp += fm <= ramp * sp.f_max + 1e-9 && fm <= ramp * r.desired.norm() + 1e-6 ? 0 : 1;
+      bad_ramp += fm <= ramp * f_max + 1e-9 && fm <= ramp * r.desired.norm() + 1e-6 ? 0 : 1;
       if (r.flags & (kFlagWatchdog | kFlagInvalidPose | kFlagOutsideWorkspace | kFlagFaded | kFlagNoResult))
         bad_gate += fm == 0 ? 0 : 1;
       prev = r.force;

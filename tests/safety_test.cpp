@@ -83,8 +83,7 @@ TEST(Safety, SoftStartRampsOverHalfASecond) {
 
 TEST(Safety, ForceLimitKeepsDirection) {
   SafetyParams p = no_ramp();
-  p.f_max = 5;
-  SafetyFilter s(p);
+  SafetyFilter s(p, /*f_max=*/5);
   s.reset(0);
   const SafetyOutput o = s.apply(fresh(kMs, {30, 40, 0}), kDt);
   EXPECT_TRUE(o.flags & kFlagForceLimited);

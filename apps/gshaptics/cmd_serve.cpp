@@ -72,7 +72,7 @@ std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const Ru
   j["tool"] = {{"axes", {setup.tool_radius, setup.tool_radius, setup.tool_radius}}};
   j["device"] = setup.device->info().name;
   j["mouse"] = setup.mouse != nullptr;
-  j["f_max"] = setup.config.safety.f_max;
+  j["f_max"] = setup.config.force.f_max;
   j["rate_hz"] = setup.config.rate_hz;
   j["display_hz"] = display_hz;
   j["step"] = 0.5 * setup.tool_radius;

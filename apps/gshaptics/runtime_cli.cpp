@@ -206,7 +206,6 @@ RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, d
   rc.tool.semi_axes = Eigen::Vector3d::Constant(tool_radius);
   rc.force = o.force;
   rc.safety = o.safety;
-  rc.safety.f_max = o.force.f_max;
   rc.realtime = o.realtime;
   rc.realtime.worker_priority = std::max(0, o.realtime.servo_priority - 10);
   rc.realtime.pin_threads = !o.no_pin;

@@ -1,12 +1,17 @@
 #include "gshaptics/collision/contact_query.h"
 
+#include <algorithm>
+
 #include "gshaptics/broadphase/bvh.h"
 #include "gshaptics/narrowphase/k_min_batch.h"
 
 namespace gshaptics {
 
 ContactQuery::ContactQuery(const CollisionWorld& world, const QueryOptions& options)
-    : world_(&world), options_(options), result_(options.max_contacts), leaves_(kLeafScratch) {}
+    : world_(&world),
+      options_(options),
+      result_(std::max<std::size_t>(1, std::min(options.max_contacts, world.size()))),
+      leaves_(kLeafScratch) {}
 
 namespace {
 

@@ -344,7 +344,7 @@ ViewerServer::~ViewerServer() { stop(); }
 void ViewerServer::start() {
   Impl& m = *impl_;
   if (!std::filesystem::exists(m.config.web_root + "/index.html"))
-    throw InputError("viewer: " + m.config.web_root + "/index.html not found (--web-root)");
+    throw InputError("viewer: " + m.config.web_root + "/index.html not found (ViewerConfig::web_root)");
   beast::error_code ec;
   const auto address = asio::ip::make_address(m.config.host, ec);
   if (ec) throw InputError("viewer: bad host address '" + m.config.host + "'");

@@ -31,7 +31,7 @@ HapticRuntime::HapticRuntime(const CollisionWorld& world, HapticDevice& device,
       log_(0) {
   const DeviceInfo& info = device.info();
   if (!(config.rate_hz > 0) || !std::isfinite(config.rate_hz))
-    throw InputError("runtime: --rate must be a positive number of Hz");
+    throw InputError("runtime: rate_hz must be a positive number of Hz");
   if (config.rate_hz > info.max_rate_hz)
     throw InputError("runtime: rate " + std::to_string(config.rate_hz) + " Hz is above what device '" +
                      info.name + "' accepts (" + std::to_string(info.max_rate_hz) + " Hz)");
@@ -43,7 +43,7 @@ HapticRuntime::HapticRuntime(const CollisionWorld& world, HapticDevice& device,
   log_ = TickLog(config.log_capacity > 0 ? config.log_capacity : default_log_capacity(config));
   worker_ = std::make_unique<CollisionWorker>(world, config.tool, config.force, config.query,
                                               1.0 / config.rate_hz, clock);
-  servo_ = std::make_unique<ServoController>(device, config.safety, period_, poses_, results_,
+  servo_ = std::make_unique<ServoController>(device, config.safety, config.force.f_max, period_, poses_, results_,
                                              stats_, &log_, clock, &monitor_);
 }
 

@@ -64,8 +64,8 @@ SafetyOutput SafetyFilter::apply(const SafetyInput& in, double dt) noexcept {
 
   // 4. Force limit.
   const double n = target.norm();
-  if (n > params_.f_max) {
-    target *= params_.f_max / n;
+  if (n > f_max_) {
+    target *= f_max_ / n;
     out.flags |= kFlagForceLimited;
   }
 

@@ -170,7 +170,7 @@ ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world, const Pro
   if (sites.empty())
     throw InputError("probe: found no reachable surface site (scene extent " +
                      std::to_string(extent.norm()) + ", tool radius " + std::to_string(r) +
-                     "); try another --seed, --tool-radius or --up");
+                     "); try another seed, tool radius or up axis");
 
   // Visit sites in a short order (greedy nearest neighbour from the first).
   for (std::size_t i = 1; i + 1 < sites.size(); ++i) {

@@ -19,7 +19,7 @@ namespace gshaptics {
 struct ForceParams {
   double k_base = 0.05;        ///< base stiffness, N per contact (eq. 9-10)
   double damping = 5.0;        ///< D, N s/m (eq. 10)
-  double f_max = 30.0;         ///< device force limit, N (eq. 11)
+  double f_max = 30.0;         ///< device force limit, N: eq. 11 clamp, also enforced by the runtime's safety layer
   double tau_normal = 0.010;   ///< time constant of the normal EMA, s
   double tau_opacity = 0.010;  ///< time constant of the opacity EMA, s
   double tau_velocity = 0.005; ///< time constant of the tool-velocity filter, s

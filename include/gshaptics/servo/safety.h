@@ -7,7 +7,8 @@
 ///   2. staleness: the newest collision result is held while it is at most `hold_timeout` old,
 ///      then faded linearly to zero over `fade_time` (the paper's asynchronous hold, bounded);
 ///   3. soft start: force scaled by a ramp 0 -> 1 over `ramp_time` after start and every resume;
-///   4. force limit: |F| <= f_max;
+///   4. force limit: |F| <= f_max, the device's force limit, which the force model also clamps
+///      to (ForceParams::f_max, paper eq. 11): one value, given to both;
 ///   5. force-rate limit: |F(t) - F(t - dt)| <= max_force_rate * dt.
 /// A stop request ramps the force to zero through the rate limit, then the loop ends.
 ///
@@ -17,13 +18,13 @@
 #include <Eigen/Core>
 #include <cstdint>
 
+#include "gshaptics/force/force_model.h"
 #include "gshaptics/servo/clock.h"
 
 namespace gshaptics {
 
 /// Limits and time-outs. Units: N, N/s, s.
 struct SafetyParams {
-  double f_max = 30.0;            ///< force limit, N (paper eq. 11 clamps at the same value)
   double max_force_rate = 5000;   ///< N/s: 5 N per 1 ms tick
   double hold_timeout = 0.020;    ///< age of the newest result (since its pose) held at full force, s
   double fade_time = 0.020;       ///< linear fade after hold_timeout, s
@@ -67,17 +68,21 @@ struct SafetyOutput {
 
 class SafetyFilter {
  public:
-  explicit SafetyFilter(const SafetyParams& params = {}) : params_(params) {}
+  /// `f_max`: the device's force limit, N (> 0); the runtime passes ForceParams::f_max.
+  explicit SafetyFilter(const SafetyParams& params = {}, double f_max = ForceParams{}.f_max)
+      : params_(params), f_max_(f_max) {}
   /// Arms the soft start at `now` (call at start).
   void reset(Nanos now) noexcept;
   /// One tick; `dt` is the time since the previous tick, s (> 0).
   SafetyOutput apply(const SafetyInput& in, double dt) noexcept;
   [[nodiscard]] const SafetyParams& params() const noexcept { return params_; }
+  [[nodiscard]] double f_max() const noexcept { return f_max_; }
   /// The force last sent, N.
   [[nodiscard]] const Eigen::Vector3d& last_force() const noexcept { return last_; }
 
  private:
   SafetyParams params_;
+  double f_max_;
   Eigen::Vector3d last_ = Eigen::Vector3d::Zero();
   Nanos ramp_start_ = 0;
   bool gated_ = false;  // gate 1 closed on the previous tick: re-arm the ramp when it opens

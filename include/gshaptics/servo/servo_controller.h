@@ -22,9 +22,10 @@ namespace gshaptics {
 
 class ServoController {
  public:
-  /// `period` is the servo period, ns (> 0). `log` may be null. When `monitor` is given, every
+  /// `f_max` is the device's force limit, N (ForceParams::f_max, the force model's eq. 11
+  /// clamp). `period` is the servo period, ns (> 0). `log` may be null. When `monitor` is given, every
   /// tick's record is also written to it (for a display thread, which is its single reader).
-  ServoController(HapticDevice& device, const SafetyParams& safety, Nanos period,
+  ServoController(HapticDevice& device, const SafetyParams& safety, double f_max, Nanos period,
                   PoseChannel& poses, ResultChannel& results, RuntimeStats& stats, TickLog* log,
                   Clock& clock, TripleBuffer<TickRecord>* monitor = nullptr);
 

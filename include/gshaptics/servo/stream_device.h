@@ -6,8 +6,7 @@
 /// matching velocity. The commanded wrench is kept for whoever displays it.
 ///
 /// Threading contract: one producer thread calls set_target() (wait-free, allocation-free);
-/// the servo thread calls read()/write(). The producer may also call last_wrench_magnitude()
-/// and connected() from its thread.
+/// the servo thread calls read()/write(). last_force() may be called from any thread.
 
 #include <atomic>
 #include <string>

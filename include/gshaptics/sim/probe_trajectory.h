@@ -20,7 +20,8 @@ struct ProbeSite {
   double t_touch = 0;             ///< time (s) the target reaches touch_point
 };
 
-/// Parameters of the generator. Lengths in world units, times in seconds.
+/// Parameters of the generator. Lengths in world units (metres for a registered scene), speeds
+/// in world units per second, times in seconds.
 struct ProbeParams {
   int sites = 7;                 ///< contact sites (paper: seven)
   std::uint64_t seed = 1;
@@ -28,8 +29,8 @@ struct ProbeParams {
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();  ///< world up (travel happens above the object)
   double press_depth = 1.0;      ///< target goes this many tool radii past first contact
   double approach_distance = 4;  ///< approach starts this many tool radii off the surface
-  double travel_speed = 1.0;     ///< m/s between sites (above the object)
-  double approach_speed = 0.15;  ///< m/s toward the surface
+  double travel_speed = 1.0;     ///< world units / s between sites (above the object)
+  double approach_speed = 0.15;  ///< world units / s toward the surface
   double press_time = 0.4, hold_time = 0.5, release_time = 0.3;
 };
 
