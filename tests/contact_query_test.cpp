@@ -147,7 +147,7 @@ TEST(ContactQuery, TranslatedAndRotatedSceneGivesSameContacts) {
 
 // Regression: on these poses flat splats (thin axis ~1e-7 of the tool) started the float Newton
 // search on a plateau where float second derivatives are noise, and it stopped there with K_min
-// off by 2e-3. Spherical tools, the first 40 poses of `gshaptics bench`'s karangkidul set.
+// off by 2e-3. Spherical tools, the first 40 poses of gshaptics_bench's karangkidul set.
 TEST(ContactQuery, FlatSplatPlateausStillGiveExactKMin) {
   GSHAPTICS_REQUIRE_SCENES();
   const LoadedScene s = load_scene(test::scene_path("karangkidul_crop.ply"));
