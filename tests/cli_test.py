@@ -20,7 +20,7 @@ EXE = None
 SCENES = None
 
 
-def scene(name):
+def scene_file(name):
     """Path of a real scene; the test is skipped, saying where to put the scenes, without it."""
     path = os.path.join(SCENES, name)
     if not os.path.exists(path):
@@ -42,7 +42,7 @@ def run(*args, check=True):
 
 class Query(unittest.TestCase):
     def test_contract_keys_sorting_and_values(self):
-        p = run("query", scene("donut.ply"), "--tool-center", "0.0,0.05,0.04",
+        p = run("query", scene_file("donut.ply"), "--tool-center", "0.0,0.05,0.04",
                 "--tool-axes", "0.03,0.02,0.02", "--tool-rotation", "0.9,0.1,0.2,0.3")
         lines = p.stdout.strip().splitlines()
         self.assertEqual(len(lines), 1)
@@ -66,11 +66,11 @@ class Query(unittest.TestCase):
                  "5 5 5 0.01 0.01 0.01 1 0 0 0"]
         with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as f:
             f.write("\n".join(poses) + "\n")
-        p = run("query", scene("donut.ply"), "--poses", f.name)
+        p = run("query", scene_file("donut.ply"), "--poses", f.name)
         out = [json.loads(line) for line in p.stdout.strip().splitlines()]
         self.assertEqual(len(out), 3)
         self.assertEqual(out[2]["contacts"], [])
-        single = json.loads(run("query", scene("donut.ply"), "--tool-center",
+        single = json.loads(run("query", scene_file("donut.ply"), "--tool-center",
                                 "0.05,-0.05,0.03", "--tool-axes", "0.02,0.02,0.02",
                                 "--tool-rotation", "0.7,0,0.7,0").stdout)
         self.assertEqual(single["contacts"], out[1]["contacts"])
@@ -79,9 +79,9 @@ class Query(unittest.TestCase):
         reg = {"scale": 2.0, "translation": [100.0, 0.0, 0.0]}
         with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
             json.dump(reg, f)
-        a = json.loads(run("query", scene("donut.ply"), "--tool-center",
+        a = json.loads(run("query", scene_file("donut.ply"), "--tool-center",
                            "0,0.05,0.04", "--tool-axes", "0.03,0.03,0.03").stdout)
-        b = json.loads(run("query", scene("donut.ply"), "--registration", f.name,
+        b = json.loads(run("query", scene_file("donut.ply"), "--registration", f.name,
                            "--tool-center", "100,0.1,0.08", "--tool-axes", "0.06,0.06,0.06").stdout)
         self.assertEqual([c["index"] for c in a["contacts"]], [c["index"] for c in b["contacts"]])
         for ca, cb in zip(a["contacts"], b["contacts"]):
@@ -89,7 +89,7 @@ class Query(unittest.TestCase):
             self.assertAlmostEqual(cb["k_min"], ca["k_min"], places=6)
 
     def test_pose_file_from_poses_command(self):
-        scene = scene("burger.splat")
+        scene = scene_file("burger.splat")
         p = run("poses", scene, "--count", "20", "--seed", "3")
         lines = [l for l in p.stdout.splitlines() if not l.startswith("#")]
         self.assertEqual(len(lines), 20)
@@ -103,17 +103,17 @@ class Query(unittest.TestCase):
 
     def test_up_auto_puts_spz_and_ply_versions_of_a_scene_in_one_world(self):
         args = ["--up", "auto", "--tool-center", "0.0,0.1,1.5", "--tool-axes", "0.15,0.15,0.15"]
-        a = json.loads(run("query", scene("biker.spz"), *args).stdout)
-        b = json.loads(run("query", scene("biker.compressed.ply"), *args).stdout)
+        a = json.loads(run("query", scene_file("biker.spz"), *args).stdout)
+        b = json.loads(run("query", scene_file("biker.compressed.ply"), *args).stdout)
         ia, ib = {c["index"] for c in a["contacts"]}, {c["index"] for c in b["contacts"]}
         self.assertGreater(len(ia), 20)
         # the same Gaussians, up to the formats' quantisation at the tool's boundary
         self.assertGreater(len(ia & ib), 0.95 * max(len(ia), len(ib)))
-        p = run("info", scene("biker.spz"))
+        p = run("info", scene_file("biker.spz"))
         self.assertIn("RUB", p.stdout)
 
     def test_answers_on_the_large_aerial_scene(self):
-        j = json.loads(run("query", scene("karangkidul_crop.ply"), "--tool-center",
+        j = json.loads(run("query", scene_file("karangkidul_crop.ply"), "--tool-center",
                            "-31.25,0,43.33", "--tool-axes", "3,3,3").stdout)
         self.assertGreater(len(j["contacts"]), 0)
 
@@ -126,7 +126,7 @@ class Errors(unittest.TestCase):
         self.assertIn("/nonexistent/a.ply", p.stderr)
 
     def test_truncated_file(self):
-        with open(scene("donut.ply"), "rb") as f:
+        with open(scene_file("donut.ply"), "rb") as f:
             data = f.read()
         with tempfile.NamedTemporaryFile("wb", suffix=".ply", delete=False) as f:
             f.write(data[: len(data) // 2])
@@ -136,7 +136,7 @@ class Errors(unittest.TestCase):
         self.assertIn("truncated", p.stderr)
 
     def test_bad_tool_arguments(self):
-        scene = scene("donut.ply")
+        scene = scene_file("donut.ply")
         p = run("query", scene, "--tool-center", "0,0", "--tool-axes", "1,1,1", check=False)
         self.assertNotEqual(p.returncode, 0)
         self.assertIn("--tool-center", p.stderr)
@@ -147,14 +147,14 @@ class Errors(unittest.TestCase):
     def test_bad_pose_line_is_named(self):
         with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as f:
             f.write("0 0 0 1 1 1 1 0 0 0\n0 0 0 1 1 1 1 0 0\n")
-        p = run("query", scene("donut.ply"), "--poses", f.name, check=False)
+        p = run("query", scene_file("donut.ply"), "--poses", f.name, check=False)
         self.assertNotEqual(p.returncode, 0)
         self.assertIn("line 2", p.stderr)
 
 
 class Info(unittest.TestCase):
     def test_info_reports_counts_and_filter(self):
-        p = run("info", scene("fruitdrops.ply"))
+        p = run("info", scene_file("fruitdrops.ply"))
         self.assertIn("4721 in file", p.stdout)
         self.assertIn("SH degree  3", p.stdout)
         self.assertIn("transform", p.stdout)
