@@ -2,7 +2,7 @@
 """Checks that the library's modules include each other only downwards, in pipeline order.
 
     error, percentile (root) -> io -> scene -> broadphase | narrowphase -> collision -> force
-        -> servo -> sim -> net -> ros1 | ros2
+        -> servo -> sim -> fidelity -> net -> ros1 | ros2
 
 A file in include/gshaptics/<module>/ or src/<module>/ may include gshaptics headers of its own
 module and of modules earlier in the order; modules on one level (broadphase and narrowphase,
@@ -14,7 +14,7 @@ import re
 import sys
 
 ORDER = [["."], ["io"], ["scene"], ["broadphase", "narrowphase"], ["collision"], ["force"],
-         ["servo"], ["sim"], ["net"], ["ros1", "ros2"]]
+         ["servo"], ["sim"], ["fidelity"], ["net"], ["ros1", "ros2"]]
 LEVEL = {module: level for level, group in enumerate(ORDER) for module in group}
 INCLUDE = re.compile(r'^\s*#\s*include\s*[<"]gshaptics/(?:([a-z0-9_]+)/)?[^">]+[">]')
 

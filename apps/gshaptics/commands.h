@@ -11,6 +11,8 @@ void register_node(CLI::App& app);
 void register_device_sim(CLI::App& app);
 void register_poses(CLI::App& app);
 void register_convert(CLI::App& app);
+void register_synth(CLI::App& app);
+void register_fidelity(CLI::App& app);
 /// Exit status a command set while running (0 unless it reported a failure).
 int exit_code();
 void set_exit_code(int code);

@@ -32,6 +32,8 @@ int main(int argc, char** argv) {
 #endif
   gshaptics::cli::register_poses(app);
   gshaptics::cli::register_convert(app);
+  gshaptics::cli::register_synth(app);
+  gshaptics::cli::register_fidelity(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -12,14 +12,6 @@ namespace gshaptics::cli {
 
 namespace {
 
-std::string find_plot_script() {
-  if (const char* env = std::getenv("GSHAPTICS_PLOT_SCRIPT")) return env;
-  for (const std::string& p : {std::string(GSHAPTICS_SOURCE_DIR) + "/tools/plot_probe_run.py",
-                              std::string(GSHAPTICS_INSTALL_DATADIR) + "/plot_probe_run.py"})
-    if (std::filesystem::exists(p)) return p;
-  return "";
-}
-
 std::string shell_quote(const std::string& s) {
   std::string q = "'";
   for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
@@ -97,20 +89,31 @@ ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, i
   return traj;
 }
 
-bool plot_run(const std::string& csv, const std::string& summary, const std::string& png,
-              const std::string& command) {
-  const std::string script = find_plot_script();
-  if (script.empty()) throw InputError(command + ": tools/plot_probe_run.py not found (use --no-plot)");
+std::string find_tool_script(const std::string& name) {
+  if (name == "plot_probe_run.py")
+    if (const char* env = std::getenv("GSHAPTICS_PLOT_SCRIPT")) return env;
+  for (const std::string& p : {std::string(GSHAPTICS_SOURCE_DIR) + "/tools/" + name,
+                              std::string(GSHAPTICS_INSTALL_DATADIR) + "/" + name})
+    if (std::filesystem::exists(p)) return p;
+  return "";
+}
+
+bool run_python(const std::string& script, const std::vector<std::string>& args, const std::string& command) {
+  if (script.empty()) throw InputError(command + ": the plotting script is not found in tools/ (use --no-plot)");
   const char* py = std::getenv("GSHAPTICS_PYTHON");
-  const std::string cmdline = fmt::format("{} {} {} {} {}", shell_quote(py ? py : "/usr/bin/python3"),
-                                          shell_quote(script), shell_quote(csv),
-                                          shell_quote(summary), shell_quote(png));
+  std::string cmdline = shell_quote(py ? py : "/usr/bin/python3") + " " + shell_quote(script);
+  for (const std::string& a : args) cmdline += " " + shell_quote(a);
   if (std::system(cmdline.c_str()) != 0) {
-    fmt::print(stderr, "error: plotting failed ({}); the log and summary are written. Install "
+    fmt::print(stderr, "error: plotting failed ({}); the data files are written. Install "
                        "python3-matplotlib or pass --no-plot\n", cmdline);
     return false;
   }
   return true;
+}
+
+bool plot_run(const std::string& csv, const std::string& summary, const std::string& png,
+              const std::string& command) {
+  return run_python(find_tool_script("plot_probe_run.py"), {csv, summary, png}, command);
 }
 
 }  // namespace gshaptics::cli

@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 #include <string>
+#include <vector>
 
 #include "common.h"
 #include "gshaptics/force/force_model.h"
@@ -34,6 +35,13 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet);
 /// Speeds scale with the tool so that any scene unit gives a similar run. Prints one line.
 ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, int sites,
                                       std::uint64_t seed, double tool_radius);
+
+/// Path of a script in tools/ (source tree) or share/gshaptics (installed), "" when absent.
+std::string find_tool_script(const std::string& name);
+
+/// Runs `script` with /usr/bin/python3 (or $GSHAPTICS_PYTHON) and `args`; false (with a message
+/// naming `command`) when it fails. Throws InputError when `script` is "".
+bool run_python(const std::string& script, const std::vector<std::string>& args, const std::string& command);
 
 /// Runs tools/plot_probe_run.py on a log and summary; false (with a message) when it fails.
 bool plot_run(const std::string& csv, const std::string& summary, const std::string& png,

@@ -32,11 +32,16 @@ float logit(float a) {
 
 }  // namespace
 
-void write_inria_ply(const std::string& path, const GaussianScene& s) {
+void write_inria_ply(const std::string& path, const GaussianScene& s, const std::vector<std::string>& comments) {
   const bool color = s.colors_dc.size() == s.size();
   const int rest = color ? s.sh_rest_count : 0;
-  std::string h = "ply\nformat binary_little_endian 1.0\ncomment written by gshaptics\nelement vertex " +
-                  std::to_string(s.size()) + "\n";
+  std::string h = "ply\nformat binary_little_endian 1.0\ncomment written by gshaptics\n";
+  for (std::string c : comments) {
+    std::replace(c.begin(), c.end(), '\n', ' ');
+    std::replace(c.begin(), c.end(), '\r', ' ');
+    h += "comment " + c + "\n";
+  }
+  h += "element vertex " + std::to_string(s.size()) + "\n";
   for (const char* p : {"x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"})
     h += std::string("property float ") + p + "\n";
   for (int k = 0; k < rest; ++k) h += "property float f_rest_" + std::to_string(k) + "\n";

@@ -4,6 +4,7 @@
 /// temporary name and renamed, so a failure never leaves a half-written output.
 
 #include <string>
+#include <vector>
 
 #include "gshaptics/io/gaussian_scene.h"
 
@@ -11,8 +12,10 @@ namespace gshaptics {
 
 /// INRIA layout: x y z nx ny nz f_dc_0..2 f_rest_* opacity (logit) scale_0..2 (log) rot_0..3
 /// (w, x, y, z), all float, little-endian. Colour is written when the scene has it (zeros
-/// otherwise). Opacity 0 / 1 are written as logits -40 / +40. Throws InputError naming `path`.
-void write_inria_ply(const std::string& path, const GaussianScene& scene);
+/// otherwise). Opacity 0 / 1 are written as logits -40 / +40. Each of `comments` becomes one
+/// header comment line (line breaks replaced by spaces). Throws InputError naming `path`.
+void write_inria_ply(const std::string& path, const GaussianScene& scene,
+                     const std::vector<std::string>& comments = {});
 
 /// antimatter15 layout: position and linear scale as float, RGBA bytes (colour from f_dc,
 /// A = opacity), quaternion bytes (q * 128 + 128, w first). Higher SH bands are dropped.

@@ -1,0 +1,92 @@
+#pragma once
+/// @file
+/// The haptic fidelity benchmark: ground-truth scenes (AnalyticShape + make_synthetic_scene) at
+/// several Gaussian densities, scripted presses, slides and push-throughs with sphere tools,
+/// and the force a chosen renderer gives, judged against the analytic surface (interaction.h).
+/// `gshaptics fidelity` is a thin CLI over run_fidelity() and the writers below.
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "gshaptics/fidelity/interaction.h"
+#include "gshaptics/fidelity/synthetic_scene.h"
+
+namespace gshaptics {
+
+/// The matrix to run. Lengths in metres.
+struct FidelityOptions {
+  std::string force_model = "paper";  ///< make_force_renderer() name
+  ForceParams force;                   ///< the renderer's parameters
+  std::vector<ShapeKind> shapes = all_shapes();
+  std::vector<double> spacings = {0.002, 0.004, 0.008};  ///< Gaussian spacings (densities)
+  std::vector<double> tool_radii = {0.005, 0.010};
+  int press_sites = 20;       ///< per shape
+  int push_sites = 5;         ///< per plate / cube
+  double press_depth = 0.010;
+  double push_depth = 0.030;
+  std::uint64_t seed = 1;     ///< scenes and sites
+  double rate_hz = 1000;
+  std::string scene_dir;      ///< where the generated scenes are written (and reused); required
+};
+
+/// The CI subset: 4 mm spacing, 5 mm tool, 4 press sites, 2 push sites; plane, sphere, cube, 2 mm plate.
+[[nodiscard]] FidelityOptions quick_fidelity_options();
+
+/// One row of a table: a shape (and feature) at one density and tool radius.
+struct FidelityRow {
+  std::string shape, feature;  ///< feature: face / edge / corner / concave (presses), path (slides)
+  double spacing = 0, tool_radius = 0;  ///< m
+  int runs = 0;                         ///< sites or slides
+  // presses and push-throughs
+  double onset_mm_median = NAN, onset_mm_max = NAN;
+  double stiffness_median = NAN;       ///< N/mm
+  double hold_through_min_mm = NAN;
+  int never_lost = 0;                  ///< runs that held to the deepest point
+  double energy_min_j = NAN;
+  int active_cycles = 0;               ///< runs with W < 0
+  // slides
+  double force_rsd = NAN, tangential_over_normal = NAN, mean_force = NAN;
+  // all
+  double dir_p50 = NAN, dir_p95 = NAN, dir_max = NAN;  ///< degrees, ticks with |F| >= 0.1 N
+  double shallow_dir_p95 = NAN;  ///< presses: p95 over ticks with |F| >= 0.1 N and delta <= 2 mm
+  double tick_p50_us = NAN, tick_p99_us = NAN;
+};
+
+/// A curve for the figures: x (delta or path, mm) against force components (N).
+struct FidelityCurve {
+  std::string scenario, shape;
+  double spacing = 0, tool_radius = 0;
+  std::vector<double> x_mm, force, f_normal;
+};
+
+struct FidelityReport {
+  FidelityOptions options;
+  std::vector<FidelityRow> press, push, slide;
+  std::vector<FidelityCurve> curves;
+  /// Pooled press direction errors per shape (degrees), for the histogram.
+  std::vector<std::pair<std::string, std::vector<double>>> press_directions;
+  double seconds = 0;  ///< wall time of the whole run
+  std::size_t ticks = 0;
+};
+
+/// Progress: a line of what is running now. May be empty.
+using FidelityProgressFn = std::function<void(const std::string&)>;
+
+/// Generates (or reuses, when the sidecar matches) every scene, loads it through load_scene,
+/// builds its world with the default WorldConfig, and plays every script through a fresh
+/// renderer. Throws InputError for bad options or an unknown force model.
+[[nodiscard]] FidelityReport run_fidelity(const FidelityOptions& options, const FidelityProgressFn& progress = {});
+
+/// Writes the report as Markdown (one table per scenario, the stiffness ratio across densities,
+/// the command that made it) to `path`, atomically.
+void write_fidelity_markdown(const FidelityReport& report, const std::string& path, const std::string& command,
+                             const std::string& figures_prefix);
+
+/// Writes the curves and direction-error histograms (1-degree bins) as CSV files into `dir`
+/// (press_curves.csv, slide_curves.csv, push_curves.csv, press_directions.csv), for
+/// tools/plot_fidelity.py.
+void write_fidelity_data(const FidelityReport& report, const std::string& dir);
+
+}  // namespace gshaptics

@@ -1,0 +1,92 @@
+#pragma once
+/// @file
+/// Scripted interactions of the fidelity benchmark, played by an ideal position-controlled
+/// device (it follows the script exactly; the rendered force is recorded, not applied), and the
+/// metrics that judge the rendered force against the analytic surface.
+///
+/// Penetration delta: how far the tool's surface is past the true surface. For a sphere tool of
+/// radius r whose centre is at distance s from the surface along the site's outward normal,
+/// delta = r - s (at concave sites s is the signed distance, which is what the faces see).
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "gshaptics/fidelity/analytic_shape.h"
+#include "gshaptics/force/force_renderer.h"
+
+namespace gshaptics {
+
+enum class Scenario { kPress, kSlide, kPushThrough };
+[[nodiscard]] std::string_view to_string(Scenario s);
+
+/// One tick of a script. World frame, SI units.
+struct ScriptTick {
+  double time = 0;                                     ///< s
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< tool centre, m
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  ///< m/s
+  double delta = 0;                                    ///< penetration, m (> 0: past the surface)
+  double path = 0;                                     ///< slides: distance along the surface, m
+  bool measured = false;  ///< part of the scored stretch (slides: the constant-delta middle)
+  bool loading = false;   ///< moving into the surface (presses)
+};
+
+/// A whole interaction: where, how, and every tick.
+struct Script {
+  Scenario scenario = Scenario::kPress;
+  ContactSite site;           ///< press / push-through: where; slides: the start
+  double tool_radius = 0.005;  ///< m
+  double max_delta = 0.01;     ///< deepest penetration the script reaches, m
+  std::vector<ScriptTick> ticks;
+};
+
+/// Press: from 2 cm outside along the site normal at `speed` to `depth` past the surface, hold
+/// `hold` s, retract the same way (a closed cycle). Push-through is the same with depth 3 cm.
+[[nodiscard]] Script press_script(const AnalyticShape& shape, const ContactSite& site, double tool_radius,
+                                  double depth, double rate_hz, double speed = 0.02, double hold = 0.5,
+                                  double start_off = 0.02);
+
+/// Slide: press to `delta` at 2 cm/s, slide `length` m along the surface at `speed` keeping
+/// delta constant, retract. Plane: a straight line; cube: 5 cm on the top face, around the edge,
+/// 5 cm down the side; sphere: a great-circle arc. Throws InputError for other shapes.
+[[nodiscard]] Script slide_script(const AnalyticShape& shape, double tool_radius, double rate_hz,
+                                  double delta = 0.002, double length = 0.1, double speed = 0.05);
+
+/// What the renderer did on each tick of a script.
+struct ScriptTrace {
+  std::vector<Eigen::Vector3d> force;  ///< N
+  std::vector<float> render_us;        ///< wall time of render(), microseconds
+  std::vector<std::uint32_t> contacts;
+};
+
+/// Plays `script` through `renderer` (reset first). Render times are measured per tick.
+[[nodiscard]] ScriptTrace play_script(ForceRenderer& renderer, const Script& script, double rate_hz);
+
+/// Metrics of one press or push-through.
+struct PressMetrics {
+  double onset_mm = NAN;        ///< delta at which |F| first exceeds 0.1 N (NaN: never)
+  double stiffness_n_per_mm = NAN;  ///< slope of |F| over delta in [1, 5] mm while loading
+  double hold_through_mm = 0;   ///< largest delta the force stays outward and >= 10 % of its peak so far
+  bool never_lost = false;      ///< it held to the script's deepest point (within 0.1 mm)
+  double peak_force = 0;        ///< N
+  double energy_j = 0;          ///< W = -sum F . v dt over the closed cycle (< 0: not passive); v dt is
+                                ///< each tick's displacement, F the mean of its two ends
+  std::vector<double> direction_deg;  ///< per tick with |F| >= 0.1 N: angle to the normal cone
+  std::vector<double> shallow_direction_deg;  ///< the same over ticks with delta <= 2 mm
+};
+[[nodiscard]] PressMetrics press_metrics(const AnalyticShape& shape, const Script& script, const ScriptTrace& trace);
+
+/// Metrics of one slide (over its measured ticks).
+struct SlideMetrics {
+  double mean_force = 0;        ///< N
+  double force_rsd = NAN;       ///< relative standard deviation of |F|
+  double tangential_over_normal = NAN;  ///< mean |F_t| / mean F_n (true normal: grad of the distance)
+  std::vector<double> direction_deg;
+};
+[[nodiscard]] SlideMetrics slide_metrics(const AnalyticShape& shape, const Script& script, const ScriptTrace& trace);
+
+/// Unit gradient of the shape's signed distance at `p` (central differences): the true contact
+/// normal of a sphere tool centred at `p`.
+[[nodiscard]] Eigen::Vector3d distance_gradient(const AnalyticShape& shape, const Eigen::Vector3d& p);
+
+}  // namespace gshaptics

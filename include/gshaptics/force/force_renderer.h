@@ -1,0 +1,72 @@
+#pragma once
+/// @file
+/// A haptic force renderer: the whole per-tick path from a tool pose to a force, with its
+/// collision queries inside. The paper's penalty model (PaperRenderer: one contact query, then
+/// eq. 7-11) is one; models that keep more state (a proxy) are others. Benchmarks, the fidelity
+/// matrix and embedders drive any of them through this interface.
+///
+/// Threading: a renderer belongs to one thread (one device) and holds that device's state. It
+/// may share its CollisionWorld with other renderers. render() never allocates, locks, logs or
+/// throws.
+
+#include <Eigen/Core>
+#include <memory>
+#include <span>
+#include <string>
+
+#include "gshaptics/collision/contact_query.h"
+#include "gshaptics/force/force_model.h"
+
+namespace gshaptics {
+
+/// What a renderer produced at one tick. World frame, SI units.
+struct RenderOutput {
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< force on the tool (device), N
+  QueryCounts counts;                               ///< of the tick's contact query
+  QueryStatus status = QueryStatus::kOk;
+};
+
+class ForceRenderer {
+ public:
+  virtual ~ForceRenderer() = default;
+  /// Short name ("paper", ...), as on the command line.
+  [[nodiscard]] virtual std::string_view name() const noexcept = 0;
+  /// One tick: the tool ellipsoid where the device is now (world frame, m), its velocity (m/s)
+  /// and the time since the previous tick (s, > 0).
+  virtual RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept = 0;
+  /// The contacts of the last render() (valid until the next call).
+  [[nodiscard]] virtual std::span<const Contact> contacts() const noexcept = 0;
+  /// Forgets all per-device state (a new run, a teleport).
+  virtual void reset() noexcept = 0;
+};
+
+/// The paper's renderer: ContactQuery (broad + narrow phase, eq. 4-6) then ForceModel (eq. 7-11)
+/// on the tool centre and velocity.
+class PaperRenderer final : public ForceRenderer {
+ public:
+  PaperRenderer(const CollisionWorld& world, const ForceParams& force = {}, const QueryOptions& query = {})
+      : query_(world, query), model_(force) {}
+  [[nodiscard]] std::string_view name() const noexcept override { return "paper"; }
+  RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
+  [[nodiscard]] std::span<const Contact> contacts() const noexcept override { return query_.result().contacts(); }
+  void reset() noexcept override { model_.reset(); }
+  [[nodiscard]] const ForceModel& model() const noexcept { return model_; }
+
+ private:
+  ContactQuery query_;
+  ForceModel model_;
+};
+
+/// The force-model names make_force_renderer() knows, for help texts: "paper".
+[[nodiscard]] std::string_view force_model_names() noexcept;
+
+/// True when make_force_renderer() knows `name`.
+[[nodiscard]] bool is_force_model(std::string_view name) noexcept;
+
+/// The renderer named `name` (see force_model_names()) on `world`. Throws InputError naming
+/// `name` when it is unknown.
+[[nodiscard]] std::unique_ptr<ForceRenderer> make_force_renderer(std::string_view name, const CollisionWorld& world,
+                                                                 const ForceParams& force = {},
+                                                                 const QueryOptions& query = {});
+
+}  // namespace gshaptics

@@ -1,0 +1,333 @@
+#include "gshaptics/fidelity/fidelity_run.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "gshaptics/error.h"
+#include "gshaptics/io/atomic_file.h"
+#include "gshaptics/io/scene_loader.h"
+#include "gshaptics/percentile.h"
+
+namespace gshaptics {
+
+namespace {
+
+double median(std::vector<double> v) { return v.empty() ? NAN : percentile(std::move(v), 50); }
+
+double min_of(const std::vector<double>& v) { return v.empty() ? NAN : *std::min_element(v.begin(), v.end()); }
+
+double max_of(const std::vector<double>& v) { return v.empty() ? NAN : *std::max_element(v.begin(), v.end()); }
+
+// Everything gathered for one row before it is summarised.
+struct Pool {
+  std::vector<double> onset, stiffness, hold, energy, dirs, shallow, tick_us, rsd, ton, mean_force;
+  int runs = 0, never_lost = 0, active = 0;
+
+  void add_press(const PressMetrics& m, const ScriptTrace& tr) {
+    ++runs;
+    if (!std::isnan(m.onset_mm)) onset.push_back(m.onset_mm);
+    if (!std::isnan(m.stiffness_n_per_mm)) stiffness.push_back(m.stiffness_n_per_mm);
+    hold.push_back(m.hold_through_mm);
+    never_lost += m.never_lost ? 1 : 0;
+    energy.push_back(m.energy_j);
+    active += m.energy_j < 0 ? 1 : 0;
+    dirs.insert(dirs.end(), m.direction_deg.begin(), m.direction_deg.end());
+    shallow.insert(shallow.end(), m.shallow_direction_deg.begin(), m.shallow_direction_deg.end());
+    for (float t : tr.render_us) tick_us.push_back(double(t));
+  }
+  void add_slide(const SlideMetrics& m, const ScriptTrace& tr) {
+    ++runs;
+    if (!std::isnan(m.force_rsd)) rsd.push_back(m.force_rsd);
+    if (!std::isnan(m.tangential_over_normal)) ton.push_back(m.tangential_over_normal);
+    mean_force.push_back(m.mean_force);
+    dirs.insert(dirs.end(), m.direction_deg.begin(), m.direction_deg.end());
+    for (float t : tr.render_us) tick_us.push_back(double(t));
+  }
+  FidelityRow row(const std::string& shape, const std::string& feature, double spacing, double radius) const {
+    FidelityRow r;
+    r.shape = shape;
+    r.feature = feature;
+    r.spacing = spacing;
+    r.tool_radius = radius;
+    r.runs = runs;
+    r.onset_mm_median = median(onset);
+    r.onset_mm_max = max_of(onset);
+    r.stiffness_median = median(stiffness);
+    r.hold_through_min_mm = min_of(hold);
+    r.never_lost = never_lost;
+    r.energy_min_j = min_of(energy);
+    r.active_cycles = active;
+    r.force_rsd = median(rsd);
+    r.tangential_over_normal = median(ton);
+    r.mean_force = median(mean_force);
+    if (!dirs.empty()) {
+      r.dir_p50 = percentile(dirs, 50);
+      r.dir_p95 = percentile(dirs, 95);
+      r.dir_max = max_of(dirs);
+    }
+    if (!shallow.empty()) r.shallow_dir_p95 = percentile(shallow, 95);
+    if (!tick_us.empty()) {
+      r.tick_p50_us = percentile(tick_us, 50);
+      r.tick_p99_us = percentile(tick_us, 99);
+    }
+    return r;
+  }
+};
+
+// Loading ticks (presses) or measured ticks (slides), every `step`-th, as a figure curve.
+FidelityCurve curve_of(const Script& s, const ScriptTrace& tr, const std::string& shape, double spacing, int step) {
+  FidelityCurve c;
+  c.scenario = std::string(to_string(s.scenario));
+  c.shape = shape;
+  c.spacing = spacing;
+  c.tool_radius = s.tool_radius;
+  const bool slide = s.scenario == Scenario::kSlide;
+  for (std::size_t i = 0; i < s.ticks.size(); i += std::size_t(step)) {
+    const ScriptTick& t = s.ticks[i];
+    if (slide ? !t.measured : !t.loading) continue;
+    c.x_mm.push_back((slide ? t.path : t.delta) * 1e3);
+    c.force.push_back(tr.force[i].norm());
+    c.f_normal.push_back(tr.force[i].dot(s.site.normal));
+  }
+  return c;
+}
+
+std::string scene_file(const FidelityOptions& o, ShapeKind k, double spacing) {
+  return fmt::format("{}/{}_{:g}mm_seed{}.ply", o.scene_dir, to_string(k), spacing * 1e3, o.seed);
+}
+
+// The scene of a shape at a spacing: reused when the sidecar says it was made the same way.
+std::string ensure_scene(const FidelityOptions& o, ShapeKind k, double spacing) {
+  const std::string path = scene_file(o, k, spacing);
+  SynthParams p;
+  p.spacing = spacing;
+  p.seed = o.seed;
+  const SyntheticScene s = make_synthetic_scene(AnalyticShape(k), p);
+  std::ifstream in(path + ".json");
+  if (in && std::filesystem::exists(path)) {
+    std::stringstream ss;
+    ss << in.rdbuf();
+    try {
+      if (nlohmann::json::parse(ss.str()) == s.description()) return path;
+    } catch (const nlohmann::json::exception&) {
+    }
+  }
+  write_synthetic_scene(path, s);
+  return path;
+}
+
+}  // namespace
+
+FidelityOptions quick_fidelity_options() {
+  FidelityOptions o;
+  o.shapes = {ShapeKind::kPlane, ShapeKind::kSphere, ShapeKind::kCube, ShapeKind::kPlate2mm};
+  o.spacings = {0.004};
+  o.tool_radii = {0.005};
+  o.press_sites = 4;
+  o.push_sites = 2;
+  return o;
+}
+
+FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& progress) {
+  if (!is_force_model(o.force_model))
+    throw InputError("fidelity: force model '" + o.force_model + "' is not known (expected one of: " +
+                     std::string(force_model_names()) + ")");
+  if (o.scene_dir.empty()) throw InputError("fidelity: scene_dir is required (where the scenes are written)");
+  if (o.spacings.empty() || o.tool_radii.empty() || o.shapes.empty())
+    throw InputError("fidelity: shapes, spacings and tool radii must not be empty");
+  if (!(o.press_sites >= 1 && o.push_sites >= 0 && o.rate_hz > 0 && o.press_depth > 0 && o.push_depth > 0))
+    throw InputError("fidelity: sites >= 1, rate > 0 and depths > 0 are required");
+  for (double r : o.tool_radii)
+    if (!(r > 0.002)) throw InputError("fidelity: tool radii must be > 2 mm (slides run 2 mm deep)");
+  std::filesystem::create_directories(o.scene_dir);
+  const auto t_start = std::chrono::steady_clock::now();
+  FidelityReport rep;
+  rep.options = o;
+  std::map<std::string, std::vector<double>> directions;
+  for (ShapeKind kind : o.shapes) {
+    const AnalyticShape shape(kind);
+    const std::string name(shape.name());
+    const bool pushable = kind == ShapeKind::kPlate2mm || kind == ShapeKind::kPlate5mm || kind == ShapeKind::kCube;
+    const bool slidable = kind == ShapeKind::kPlane || kind == ShapeKind::kSphere || kind == ShapeKind::kCube;
+    const std::vector<ContactSite> sites = shape.press_sites(o.press_sites, o.seed, 0.03);
+    std::vector<ContactSite> push_sites;
+    for (const ContactSite& s : shape.press_sites(std::max(1, o.push_sites * 5), o.seed + 1, 0.03))
+      if (s.feature == "face" && int(push_sites.size()) < o.push_sites) push_sites.push_back(s);
+    for (double spacing : o.spacings) {
+      if (progress) progress(fmt::format("{} at {:g} mm spacing: generating and loading", name, spacing * 1e3));
+      const std::string file = ensure_scene(o, kind, spacing);
+      const LoadedScene loaded = load_scene(file);
+      const CollisionWorld world = CollisionWorld::build(loaded.scene, WorldConfig{});
+      for (double radius : o.tool_radii) {
+        if (progress) progress(fmt::format("{} at {:g} mm spacing, tool {:g} mm: {} presses{}{}", name, spacing * 1e3,
+                                           radius * 1e3, sites.size(), pushable ? ", push-throughs" : "",
+                                           slidable ? ", a slide" : ""));
+        const auto renderer = make_force_renderer(o.force_model, world, o.force);
+        std::map<std::string, Pool> by_feature;
+        bool first_curve = true;
+        for (const ContactSite& site : sites) {
+          const Script s = press_script(shape, site, radius, o.press_depth, o.rate_hz);
+          const ScriptTrace tr = play_script(*renderer, s, o.rate_hz);
+          const PressMetrics m = press_metrics(shape, s, tr);
+          by_feature[site.feature].add_press(m, tr);
+          auto& d = directions[name];
+          d.insert(d.end(), m.direction_deg.begin(), m.direction_deg.end());
+          rep.ticks += s.ticks.size();
+          if (first_curve && site.feature == "face") {
+            rep.curves.push_back(curve_of(s, tr, name, spacing, 5));
+            first_curve = false;
+          }
+        }
+        for (const auto& [feature, pool] : by_feature) rep.press.push_back(pool.row(name, feature, spacing, radius));
+        if (pushable && !push_sites.empty()) {
+          Pool pool;
+          for (std::size_t i = 0; i < push_sites.size(); ++i) {
+            const Script s = press_script(shape, push_sites[i], radius, o.push_depth, o.rate_hz);
+            const ScriptTrace tr = play_script(*renderer, s, o.rate_hz);
+            pool.add_press(press_metrics(shape, s, tr), tr);
+            rep.ticks += s.ticks.size();
+            if (i == 0) rep.curves.push_back(curve_of(s, tr, name, spacing, 5));
+          }
+          rep.push.push_back(pool.row(name, "face", spacing, radius));
+        }
+        if (slidable) {
+          const Script s = slide_script(shape, radius, o.rate_hz);
+          const ScriptTrace tr = play_script(*renderer, s, o.rate_hz);
+          Pool pool;
+          pool.add_slide(slide_metrics(shape, s, tr), tr);
+          rep.ticks += s.ticks.size();
+          rep.slide.push_back(pool.row(name, kind == ShapeKind::kCube ? "over an edge" : "path", spacing, radius));
+          rep.curves.push_back(curve_of(s, tr, name, spacing, 5));
+        }
+      }
+    }
+  }
+  for (auto& [shape, d] : directions) rep.press_directions.emplace_back(shape, std::move(d));
+  rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return rep;
+}
+
+namespace {
+
+std::string num(double v, const char* fmt_spec = "{:.2f}") {
+  return std::isnan(v) ? "-" : fmt::format(fmt::runtime(fmt_spec), v);
+}
+
+// Stiffness ratio max/min across spacings for each (shape, feature, radius), from press rows.
+std::string stiffness_ratios(const std::vector<FidelityRow>& rows) {
+  std::map<std::tuple<std::string, std::string, double>, std::vector<std::pair<double, double>>> groups;
+  for (const FidelityRow& r : rows) groups[{r.shape, r.feature, r.tool_radius}].emplace_back(r.spacing, r.stiffness_median);
+  std::string t = "| shape | feature | tool mm | stiffness N/mm by spacing | max / min |\n|---|---|---:|---|---:|\n";
+  for (const auto& [key, v] : groups) {
+    std::string cells;
+    double lo = INFINITY, hi = 0;
+    for (const auto& [sp, k] : v) {
+      cells += fmt::format("{}{:g} mm: {}", cells.empty() ? "" : ", ", sp * 1e3, num(k, "{:.3f}"));
+      if (!std::isnan(k) && k > 0) lo = std::min(lo, k), hi = std::max(hi, k);
+    }
+    const std::string ratio = v.size() > 1 && hi > 0 && std::isfinite(lo) ? fmt::format("{:.2f}", hi / lo) : "-";
+    t += fmt::format("| {} | {} | {:g} | {} | {} |\n", std::get<0>(key), std::get<1>(key), std::get<2>(key) * 1e3, cells, ratio);
+  }
+  return t;
+}
+
+std::string press_table(const std::vector<FidelityRow>& rows, bool push) {
+  std::string t =
+      "| shape | feature | spacing mm | tool mm | runs | onset mm (median / max) | stiffness N/mm (median) | "
+      "hold-through mm (min) | never lost | direction error deg p50 / p95 / max | shallow (delta <= 2 mm) p95 | W min (mJ) | W < 0 | tick us p50 / p99 |\n"
+      "|---|---|---:|---:|---:|---|---:|---:|---:|---|---:|---:|---:|---|\n";
+  for (const FidelityRow& r : rows)
+    t += fmt::format("| {} | {} | {:g} | {:g} | {} | {} / {} | {} | {} | {} / {} | {} / {} / {} | {} | {} | {} | {} / {} |\n",
+                     r.shape, r.feature, r.spacing * 1e3, r.tool_radius * 1e3, r.runs, num(r.onset_mm_median),
+                     num(r.onset_mm_max), num(r.stiffness_median, "{:.3f}"), num(r.hold_through_min_mm, "{:.1f}"),
+                     r.never_lost, r.runs, num(r.dir_p50, "{:.1f}"), num(r.dir_p95, "{:.1f}"),
+                     num(r.dir_max, "{:.1f}"), num(r.shallow_dir_p95, "{:.1f}"), num(r.energy_min_j * 1e3, "{:.3f}"), r.active_cycles,
+                     num(r.tick_p50_us, "{:.1f}"), num(r.tick_p99_us, "{:.1f}"));
+  (void)push;
+  return t;
+}
+
+std::string slide_table(const std::vector<FidelityRow>& rows) {
+  std::string t =
+      "| shape | path | spacing mm | tool mm | mean abs F N | RSD of abs F | F_t / F_n | direction error deg p50 / p95 / max | tick us p50 / p99 |\n"
+      "|---|---|---:|---:|---:|---:|---:|---|---|\n";
+  for (const FidelityRow& r : rows)
+    t += fmt::format("| {} | {} | {:g} | {:g} | {} | {} | {} | {} / {} / {} | {} / {} |\n", r.shape, r.feature,
+                     r.spacing * 1e3, r.tool_radius * 1e3, num(r.mean_force, "{:.3f}"), num(r.force_rsd),
+                     num(r.tangential_over_normal), num(r.dir_p50, "{:.1f}"), num(r.dir_p95, "{:.1f}"),
+                     num(r.dir_max, "{:.1f}"), num(r.tick_p50_us, "{:.1f}"), num(r.tick_p99_us, "{:.1f}"));
+  return t;
+}
+
+}  // namespace
+
+void write_fidelity_markdown(const FidelityReport& rep, const std::string& path, const std::string& command,
+                             const std::string& figures_prefix) {
+  const FidelityOptions& o = rep.options;
+  std::string md = "# Haptic fidelity: force model `" + o.force_model + "` against analytic ground truth\n\n";
+  md += "Command: `" + command + "`\n\n";
+  md += fmt::format(
+      "{} ticks at {:g} Hz in {:.0f} s. Scenes: Gaussians on analytic surfaces (`gshaptics synth`, seed {}; "
+      "flat discs, log-normal sizes around the spacing, 0.5 mm normal jitter, 3 deg tilt, 15 % below the 0.2 "
+      "opacity filter, 0.3 % floaters 5-30 mm off the surface), loaded as INRIA PLY, default world "
+      "(opacity > 0.2, 1 sigma). The device is ideal and position-controlled: it follows the script, the "
+      "force is recorded. delta = how far the tool's surface is past the true surface. Direction error: "
+      "angle between F and the nearest direction of the true normal cone, over ticks with |F| >= 0.1 N. "
+      "Stiffness: slope of |F| over delta in [1, 5] mm while loading. Hold-through: deepest delta up to "
+      "which F points out (within 90 deg of the site normal) and stays >= 10 % of the peak reached so far. W = -sum F.v dt "
+      "over the closed cycle (W < 0: the scene gave back more energy than it took). Tick: render() wall "
+      "time including its collision queries.\n\n",
+      rep.ticks, o.rate_hz, rep.seconds, o.seed);
+  md += fmt::format("## Press ({} sites per shape: 2 cm/s to {:g} mm, hold 0.5 s, retract)\n\n", o.press_sites,
+                    o.press_depth * 1e3);
+  md += press_table(rep.press, false) + "\n";
+  md += "### Stiffness across densities (1.00 = the wall does not depend on the training run)\n\n";
+  md += stiffness_ratios(rep.press) + "\n";
+  if (!rep.push.empty()) {
+    md += fmt::format("## Push-through ({} face sites: 2 cm/s to {:g} mm past the surface, retract)\n\n",
+                      o.push_sites, o.push_depth * 1e3);
+    md += press_table(rep.push, true) + "\n";
+  }
+  if (!rep.slide.empty()) {
+    md += "## Slide (10 cm at 5 cm/s, 2 mm past the surface; the first and last 5 mm not scored)\n\n";
+    md += slide_table(rep.slide) + "\n";
+  }
+  if (!figures_prefix.empty()) {
+    md += "## Figures\n\n";
+    for (const char* f : {"press", "direction", "slide", "push"})
+      md += fmt::format("![{}]({}{}.png)\n\n", f, figures_prefix, f);
+  }
+  write_file_atomically(path, md);
+}
+
+void write_fidelity_data(const FidelityReport& rep, const std::string& dir) {
+  std::filesystem::create_directories(dir);
+  std::map<std::string, std::string> files = {{"press", "scenario,shape,spacing_mm,tool_mm,x_mm,force_n,f_normal_n\n"},
+                                              {"slide", "scenario,shape,spacing_mm,tool_mm,x_mm,force_n,f_normal_n\n"},
+                                              {"push-through", "scenario,shape,spacing_mm,tool_mm,x_mm,force_n,f_normal_n\n"}};
+  for (const FidelityCurve& c : rep.curves)
+    for (std::size_t i = 0; i < c.x_mm.size(); ++i)
+      files[c.scenario] += fmt::format("{},{},{:g},{:g},{:.4f},{:.5f},{:.5f}\n", c.scenario, c.shape, c.spacing * 1e3,
+                                       c.tool_radius * 1e3, c.x_mm[i], c.force[i], c.f_normal[i]);
+  write_file_atomically(dir + "/press_curves.csv", files["press"]);
+  write_file_atomically(dir + "/slide_curves.csv", files["slide"]);
+  write_file_atomically(dir + "/push_curves.csv", files["push-through"]);
+  // Direction errors as a histogram per shape: 1-degree bins from 0 to 180.
+  std::string d = "shape,bin_deg,count\n";
+  for (const auto& [shape, v] : rep.press_directions) {
+    std::vector<std::size_t> bins(180, 0);
+    for (double x : v) ++bins[std::min<std::size_t>(179, std::size_t(std::max(0.0, x)))];
+    for (std::size_t b = 0; b < bins.size(); ++b) d += fmt::format("{},{},{}\n", shape, b, bins[b]);
+  }
+  write_file_atomically(dir + "/press_directions.csv", d);
+}
+
+}  // namespace gshaptics

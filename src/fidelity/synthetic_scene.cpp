@@ -1,0 +1,130 @@
+#include "gshaptics/fidelity/synthetic_scene.h"
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "gshaptics/error.h"
+#include "gshaptics/io/atomic_file.h"
+#include "gshaptics/io/scene_writer.h"
+
+namespace gshaptics {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Our own distributions over mt19937_64, so a seed gives the same file on any standard library.
+class Rng {
+ public:
+  explicit Rng(std::uint64_t seed) : g_(seed) {}
+  double uniform(double lo = 0, double hi = 1) { return lo + (hi - lo) * double(g_() >> 11) * (1.0 / 9007199254740992.0); }
+  double normal() {  // Box-Muller
+    const double u1 = std::max(uniform(), 1e-300), u2 = uniform();
+    return std::sqrt(-2 * std::log(u1)) * std::cos(2 * kPi * u2);
+  }
+
+ private:
+  std::mt19937_64 g_;
+};
+
+Eigen::Vector4f to_wxyz(const Eigen::Quaterniond& q) {
+  return {float(q.w()), float(q.x()), float(q.y()), float(q.z())};
+}
+
+}  // namespace
+
+nlohmann::json SyntheticScene::description() const {
+  nlohmann::json j = shape.describe();
+  j["generator"] = "gshaptics synth";
+  j["parameters"] = {{"spacing_m", params.spacing},
+                     {"seed", params.seed},
+                     {"scale_log_sigma", params.scale_log_sigma},
+                     {"thin_fraction", {params.thin_min, params.thin_max}},
+                     {"normal_jitter_sigma_m", params.normal_jitter},
+                     {"tilt_sigma_deg", params.tilt_deg},
+                     {"low_opacity_share", params.low_opacity_share},
+                     {"floater_share", params.floater_share},
+                     {"floater_distance_m", {params.floater_min, params.floater_max}}};
+  j["counts"] = {{"surface", surface_count}, {"floaters", floater_count}, {"total", scene.size()}};
+  j["layout"] = "Gaussians 0 .. surface-1 lie on the surface, the rest are floaters";
+  return j;
+}
+
+SyntheticScene make_synthetic_scene(const AnalyticShape& shape, const SynthParams& p) {
+  if (!(p.spacing >= 5e-4 && p.spacing <= 0.05))
+    throw InputError("synth: spacing must be in [0.0005, 0.05] m, got " + std::to_string(p.spacing));
+  for (double share : {p.low_opacity_share, p.floater_share})
+    if (!(share >= 0 && share <= 1)) throw InputError("synth: shares must be in [0, 1]");
+  if (!(p.thin_min > 0 && p.thin_max >= p.thin_min && p.thin_max <= 1))
+    throw InputError("synth: thin fractions must satisfy 0 < thin_min <= thin_max <= 1");
+  if (!(p.normal_jitter >= 0 && p.tilt_deg >= 0 && p.scale_log_sigma >= 0 && p.floater_min >= 0 &&
+        p.floater_max >= p.floater_min))
+    throw InputError("synth: jitters, sigmas and floater distances must be >= 0 (floater_max >= floater_min)");
+
+  SyntheticScene out;
+  out.shape = shape;
+  out.params = p;
+  Rng rng(p.seed);
+  const std::vector<SurfaceSample> samples = shape.sample_surface(p.spacing);
+  const auto floaters = std::size_t(std::lround(p.floater_share * double(samples.size())));
+  GaussianScene& g = out.scene;
+  g.frame = SceneFrame::kRdf;
+  g.reserve(samples.size() + floaters);
+  const auto opacity = [&] {
+    if (rng.uniform() < p.low_opacity_share) return rng.uniform(0.01, 0.2);
+    return rng.uniform() < 0.7 ? rng.uniform(0.8, 1.0) : rng.uniform(0.2, 0.8);
+  };
+  std::uint32_t index = 0;
+  for (const SurfaceSample& s : samples) {
+    // Disc frame: tangent, bitangent, normal; tilted a few degrees, spun at random in the plane.
+    const Eigen::Vector3d axis = Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized();
+    const double tilt = p.tilt_deg * kPi / 180 * rng.normal();
+    const double spin = rng.uniform(0, 2 * kPi);
+    const Eigen::Vector3d b = s.normal.cross(s.tangent);
+    Eigen::Matrix3d frame;
+    frame << s.tangent, b, s.normal;
+    const Eigen::Quaterniond q =
+        (Eigen::AngleAxisd(tilt, (axis - axis.dot(s.normal) * s.normal).normalized()) * Eigen::Quaterniond(frame) *
+         Eigen::AngleAxisd(spin, Eigen::Vector3d::UnitZ()))
+            .normalized();
+    const double s1 = p.spacing * std::exp(p.scale_log_sigma * rng.normal());
+    const double s2 = p.spacing * std::exp(p.scale_log_sigma * rng.normal());
+    const double thin = rng.uniform(p.thin_min, p.thin_max) * std::min(s1, s2);
+    const Eigen::Vector3d mean = s.position + s.normal * (p.normal_jitter * rng.normal());
+    g.push_back(mean.cast<float>(), Eigen::Vector3f(float(s1), float(s2), float(thin)), to_wxyz(q), float(opacity()),
+                index++);
+  }
+  out.surface_count = g.size();
+  for (std::size_t k = 0; k < floaters; ++k) {
+    // Off a random surface point along its normal; redrawn until it is in free space at the stated
+    // distance from the whole surface (near a concave corner the other face may be closer).
+    Eigen::Vector3d mean;
+    double d;
+    int tries = 0;
+    do {
+      const SurfaceSample& s = samples[std::size_t(rng.uniform(0, double(samples.size()))) % samples.size()];
+      mean = s.position + s.normal * rng.uniform(p.floater_min, p.floater_max);
+      d = shape.signed_distance(mean);
+    } while ((d < p.floater_min || d > p.floater_max) && ++tries < 1000);
+    const double r = p.spacing * rng.uniform(0.3, 1.0);
+    const Eigen::Quaterniond q = Eigen::Quaterniond(rng.normal(), rng.normal(), rng.normal(), rng.normal()).normalized();
+    g.push_back(mean.cast<float>(), Eigen::Vector3f(float(r), float(r * rng.uniform(0.5, 1.0)), float(r * rng.uniform(0.2, 1.0))),
+                to_wxyz(q), float(rng.uniform(0.05, 0.5)), index++);
+  }
+  out.floater_count = floaters;
+  return out;
+}
+
+void write_synthetic_scene(const std::string& path, const SyntheticScene& s) {
+  const nlohmann::json d = s.description();
+  std::vector<std::string> comments = {"gshaptics synth: ground-truth scene, metres; the exact surface is in the .json beside this file"};
+  comments.push_back("shape " + d["shape"].get<std::string>());
+  for (const auto& [k, v] : d["parameters"].items()) comments.push_back(k + " " + v.dump());
+  comments.push_back("surface_gaussians " + std::to_string(s.surface_count) + " floaters " + std::to_string(s.floater_count));
+  write_inria_ply(path, s.scene, comments);
+  write_file_atomically(path + ".json", d.dump(2) + "\n");
+}
+
+}  // namespace gshaptics
