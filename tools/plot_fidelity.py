@@ -41,7 +41,7 @@ def save(fig, out_dir, name):
     os.replace(tmp, path)
 
 
-def panels(data, title, xlabel, ylabel, component, out_dir, name, model):
+def panels(data, title, xlabel, ylabel, component, out_dir, name, model, xmin=None):
     shapes = sorted({k[0] for k in data})
     if not shapes:
         return
@@ -54,6 +54,8 @@ def panels(data, title, xlabel, ylabel, component, out_dir, name, model):
                 continue
             ax.plot(c[0], c[component], lw=1, label=f"{spacing:g} mm, tool {tool:g} mm")
         ax.set_title(shape)
+        if xmin is not None:
+            ax.set_xlim(left=xmin)
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel)
         ax.axhline(0, color="k", lw=0.5)
@@ -71,12 +73,12 @@ def main():
         sys.exit(__doc__)
     data_dir, out_dir, model = sys.argv[1:]
     panels(curves(read(os.path.join(data_dir, "press_curves.csv"))), "Press: |F| over penetration",
-           "delta (mm)", "|F| (N)", 1, out_dir, "fidelity_press.png", model)
+           "delta (mm)", "|F| (N)", 1, out_dir, "fidelity_press.png", model, xmin=-3)
     panels(curves(read(os.path.join(data_dir, "slide_curves.csv"))), "Slide at 2 mm: |F| along the path",
            "path (mm)", "|F| (N)", 1, out_dir, "fidelity_slide.png", model)
     panels(curves(read(os.path.join(data_dir, "push_curves.csv"))),
            "Push-through: force along the outward normal", "delta (mm)", "F . n (N)", 2, out_dir,
-           "fidelity_push.png", model)
+           "fidelity_push.png", model, xmin=-3)
     hist = defaultdict(lambda: [0] * 180)
     for r in read(os.path.join(data_dir, "press_directions.csv")):
         hist[r["shape"]][int(r["bin_deg"])] += int(r["count"])
