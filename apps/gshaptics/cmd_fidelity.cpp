@@ -54,13 +54,12 @@ void register_synth(CLI::App& app) {
 
 void register_fidelity(CLI::App& app) {
   struct Options {
-    std::string force_model = "paper";
     bool quick = false, no_plot = false;
     std::string out = "bench/FIDELITY.md";
     std::string data_dir;
     std::string scene_dir = "runs/fidelity/scenes";
     std::uint64_t seed = 1;
-    ForceParams force;
+    ForceModelOptions force;
   };
   auto o = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
@@ -71,8 +70,6 @@ void register_fidelity(CLI::App& app) {
       "position-controlled device at 1 kHz. Writes a Markdown report with one table per scenario "
       "(onset, direction error, stiffness and its ratio across densities, hold-through, energy, "
       "tick cost) and figures. --quick runs a small subset (CI).");
-  cmd->add_option("--force-model", o->force_model, std::string("Force model: ") + std::string(force_model_names()))
-      ->capture_default_str();
   cmd->add_flag("--quick", o->quick, "One density, one tool, 4 sites, 4 shapes");
   cmd->add_option("--out", o->out, "Markdown report")->capture_default_str();
   cmd->add_option("--data-dir", o->data_dir, "Curves (CSV) and figures (default: beside --out, in fidelity/)");
@@ -82,8 +79,9 @@ void register_fidelity(CLI::App& app) {
   add_force_options(*cmd, o->force);
   cmd->callback([o] {
     FidelityOptions fo = o->quick ? quick_fidelity_options() : FidelityOptions{};
-    fo.force_model = o->force_model;
-    fo.force = o->force;
+    fo.force_model = o->force.model;
+    fo.force = o->force.force;
+    fo.proxy = o->force.proxy;
     fo.seed = o->seed;
     const std::filesystem::path out(o->out);
     if (out.extension() != ".md") throw InputError("fidelity: --out " + o->out + ": expected a .md file");

@@ -24,7 +24,7 @@ struct SimulateOptions {
   std::uint64_t seed = 1;
   double tool_radius = 0;  // 0: 1% of the scene's robust extent
   double rate = 1000;
-  ForceParams force;
+  ForceModelOptions force;
   bool no_plot = false;
   bool quiet = false;
 };
@@ -65,7 +65,9 @@ void register_simulate(CLI::App& app) {
     std::fflush(stdout);  // the progress bar goes to stderr: keep the lines above first
     ProbeRunParams rp;
     rp.rate_hz = o->rate;
-    rp.force = o->force;
+    rp.force_model = o->force.model;
+    rp.force = o->force.force;
+    rp.proxy = o->force.proxy;
     Progress bar("simulating", !o->quiet);
     const ProbeRunResult run = run_probe(world, traj, rp, [&](double f) { bar(f); });
     bar.done();

@@ -20,17 +20,32 @@ std::string shell_quote(const std::string& s) {
 
 }  // namespace
 
-void add_force_options(CLI::App& cmd, ForceParams& force) {
-  cmd.add_option("--k-base", force.k_base, "Base stiffness k_base, N per contact (eq. 9)")
+void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
+  cmd.add_option("--force-model", o.model,
+                 std::string("Force model: proxy (god-object on the Gaussians, virtual coupling in N/m) "
+                             "or paper (the paper's penalty force, eq. 7-11)"))
+      ->capture_default_str()
+      ->check(CLI::IsMember({"proxy", "paper"}));
+  ForceParams& force = o.force;
+  cmd.add_option("--k-base", force.k_base, "paper: base stiffness k_base, N per contact (eq. 9)")
       ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd.add_option("--damping", force.damping, "Damping D, N s/m (eq. 10)")
+  cmd.add_option("--damping", force.damping, "paper: damping D, N s/m (eq. 10)")
       ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd.add_option("--f-max", force.f_max, "Force clamp F_max, N (eq. 11)")
+  cmd.add_option("--f-max", force.f_max, "Force limit F_max, N (every model; paper eq. 11)")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  cmd.add_option("--tau-normal", force.tau_normal, "paper: time constant of the normal EMA, s")
       ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd.add_option("--tau-normal", force.tau_normal, "Time constant of the normal EMA, s")
+  cmd.add_option("--tau-opacity", force.tau_opacity, "paper: time constant of the opacity EMA, s")
       ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd.add_option("--tau-opacity", force.tau_opacity, "Time constant of the opacity EMA, s")
+  ProxyParams& p = o.proxy;
+  cmd.add_option("--stiffness", p.stiffness, "proxy: coupling stiffness k_c, N/m")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  cmd.add_option("--coupling-damping", p.damping, "proxy: coupling damping b_c, N s/m (passive above k_c T / 2)")
       ->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd.add_option("--mu-s", p.mu_s, "proxy: static friction coefficient (0: off)")->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd.add_option("--mu-k", p.mu_k, "proxy: kinetic friction coefficient (<= --mu-s)")->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd.add_flag("--opacity-stiffness", p.opacity_stiffness, "proxy: scale k_c by the blocking Gaussians' opacity (paper eq. 9)");
+  cmd.add_option("--substeps", p.substeps, "proxy: sweeps per tick")->capture_default_str()->check(CLI::Range(1, 16));
 }
 
 SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command) {

@@ -8,12 +8,22 @@
 
 #include "common.h"
 #include "gshaptics/force/force_model.h"
+#include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/sim/probe_trajectory.h"
 
 namespace gshaptics::cli {
 
-/// Adds --k-base, --damping, --f-max, --tau-normal, --tau-opacity.
-void add_force_options(CLI::App& cmd, ForceParams& force);
+/// The force model a command renders with, and the parameters of each model.
+struct ForceModelOptions {
+  std::string model = "proxy";  ///< make_force_renderer() name
+  ForceParams force;            ///< the paper model's parameters, and F_max for every model
+  ProxyParams proxy;
+};
+
+/// Adds --force-model, the paper model's --k-base, --damping, --tau-normal, --tau-opacity, the
+/// proxy's --stiffness, --coupling-damping, --mu-s, --mu-k, --opacity-stiffness, --substeps, and
+/// --f-max.
+void add_force_options(CLI::App& cmd, ForceModelOptions& o);
 
 /// Without SCENE: the bundled Truck and its registration. Throws InputError naming `command`
 /// when the bundled scene is missing.

@@ -204,7 +204,9 @@ RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, d
   rc.inline_query = o.inline_query;
   rc.duration = planned;
   rc.tool.semi_axes = Eigen::Vector3d::Constant(tool_radius);
-  rc.force = o.force;
+  rc.force_model = o.force.model;
+  rc.force = o.force.force;
+  rc.proxy = o.force.proxy;
   rc.safety = o.safety;
   rc.realtime = o.realtime;
   rc.realtime.worker_priority = std::max(0, o.realtime.servo_priority - 10);

@@ -42,7 +42,7 @@ struct RuntimeOptions {
   int sites = 7;
   std::uint64_t seed = 1;
   double tool_radius = 0;
-  ForceParams force;
+  ForceModelOptions force;
   SafetyParams safety;
   RealtimeOptions realtime;
   bool no_pin = false;

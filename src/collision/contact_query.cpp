@@ -37,6 +37,43 @@ inline void pad_lanes(PairBatch& b) noexcept {
 
 }  // namespace
 
+bool ContactQuery::any_contact(const ToolEllipsoid& tool) noexcept {
+  if (!tool.valid()) return false;
+  const Eigen::Matrix3d R_tool = tool.rotation.normalized().toRotationMatrix();
+  const Eigen::Vector3d half = ellipsoid_half_extent(R_tool, tool.semi_axes);
+  float box_lo[3], box_hi[3];
+  for (int k = 0; k < 3; ++k) {
+    box_lo[k] = round_down_to_float(tool.center[k] - half[k]);
+    box_hi[k] = round_up_to_float(tool.center[k] + half[k]);
+  }
+  const double r_tool = tool.bounding_radius();
+  const CollisionGaussian* gs = world_->gaussians().data();
+  const BatchTool batch_tool = make_batch_tool(R_tool, tool.semi_axes);
+  PairBatch& batch = batch_;
+  batch.count = 0;
+  bool found = false;
+  const auto flush = [&] {
+    pad_lanes(batch);
+    k_min_batch(batch, batch_tool, /*stop_when_separated=*/true);
+    for (int l = 0; l < batch.count; ++l) found = found || (!batch.separated[l] && batch.k_min[l] > 0);
+    batch.count = 0;
+  };
+  world_->bvh().for_each_overlapping_leaf(box_lo, box_hi, [&](std::uint32_t first, std::uint32_t count) {
+    for (std::uint32_t k = first; k < first + count; ++k) {
+      const CollisionGaussian& g = gs[k];
+      const double d[3] = {g.center[0] - tool.center[0], g.center[1] - tool.center[1], g.center[2] - tool.center[2]};
+      const double reach = double(g.bounding_radius()) + r_tool;
+      load_lane(batch, batch.count, g, d);
+      batch.count += d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= reach * reach ? 1 : 0;  // eq. 4
+      if (batch.count == kBatchLanes) flush();
+      if (found) return false;
+    }
+    return true;
+  });
+  if (!found && batch.count > 0) flush();
+  return found;
+}
+
 QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
   result_.clear();
   if (!tool.valid()) return QueryStatus::kInvalidTool;

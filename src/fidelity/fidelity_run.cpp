@@ -170,7 +170,7 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
         if (progress) progress(fmt::format("{} at {:g} mm spacing, tool {:g} mm: {} presses{}{}", name, spacing * 1e3,
                                            radius * 1e3, sites.size(), pushable ? ", push-throughs" : "",
                                            slidable ? ", a slide" : ""));
-        const auto renderer = make_force_renderer(o.force_model, world, o.force);
+        const auto renderer = make_force_renderer(o.force_model, world, o.force, QueryOptions{}, o.proxy);
         std::map<std::string, Pool> by_feature;
         bool first_curve = true;
         for (const ContactSite& site : sites) {

@@ -41,8 +41,9 @@ HapticRuntime::HapticRuntime(const CollisionWorld& world, HapticDevice& device,
   period_ = to_nanos(1.0 / config.rate_hz);
   if (period_ <= 0) throw InputError("runtime: rate too high");
   log_ = TickLog(config.log_capacity > 0 ? config.log_capacity : default_log_capacity(config));
-  worker_ = std::make_unique<CollisionWorker>(world, config.tool, config.force, config.query,
-                                              1.0 / config.rate_hz, clock);
+  worker_ = std::make_unique<CollisionWorker>(
+      config.tool, make_force_renderer(config.force_model, world, config.force, config.query, config.proxy),
+      1.0 / config.rate_hz, clock);
   servo_ = std::make_unique<ServoController>(device, config.safety, config.force.f_max, period_, poses_, results_,
                                              stats_, &log_, clock, &monitor_);
 }

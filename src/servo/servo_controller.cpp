@@ -128,6 +128,8 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
     r.query_us = result_.query_us;
     r.result_age_us = float(double(in.result_age) * 1e-3);
     r.flags = f;
+    r.proxy = result_.pose_sequence != 0 ? result_.proxy : s.position;
+    r.constraints = result_.constraints;
     if (log_ != nullptr) log_->push(r);
     if (monitor_ != nullptr) monitor_->write(r);
   }

@@ -48,6 +48,10 @@ const Column kColumns[] = {
     GSH_COL("fading", kColumnsServo, "%d", (r.flags & (kFlagFading | kFlagFaded)) ? 1 : 0),
     GSH_COL("flags", kColumnsServo, "%u", r.flags),
     GSH_COL("latency_us", kColumnsLatency, "%.1f", double(r.latency_us)),
+    GSH_COL("proxy_x", kColumnsProxy, "%.6f", r.proxy.x()),
+    GSH_COL("proxy_y", kColumnsProxy, "%.6f", r.proxy.y()),
+    GSH_COL("proxy_z", kColumnsProxy, "%.6f", r.proxy.z()),
+    GSH_COL("constraints", kColumnsProxy, "%u", unsigned(r.constraints)),
 };
 
 #undef GSH_COL

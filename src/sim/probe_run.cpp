@@ -18,8 +18,8 @@ ProbeRunResult run_probe(const CollisionWorld& world, const ProbeTrajectory& tra
 
   ProbeRunResult out;
   out.ticks.resize(n_ticks);  // all memory up front: the loop below does not allocate
-  ContactQuery query(world, params.query);
-  ForceModel force_model(params.force);
+  const std::unique_ptr<ForceRenderer> renderer =
+      make_force_renderer(params.force_model, world, params.force, params.query, params.proxy);
   DeviceState start;
   Eigen::Vector3d target_v;
   trajectory.sample(0.0, start.position, target_v);
@@ -30,11 +30,10 @@ ProbeRunResult run_probe(const CollisionWorld& world, const ProbeTrajectory& tra
   for (std::size_t k = 0; k < n_ticks; ++k) {
     const double t = double(k) * dt;
     const DeviceState& s = device.state();
-    // Servo tick: pose in -> collision query -> force model -> wrench out (paper Sec. IV).
+    // Servo tick: pose in -> collision queries + force model -> wrench out (paper Sec. IV).
     const auto q0 = std::chrono::steady_clock::now();
-    query.run(ToolEllipsoid::sphere(s.position, trajectory.tool_radius()));
+    const RenderOutput f = renderer->render(ToolEllipsoid::sphere(s.position, trajectory.tool_radius()), s.velocity, dt);
     const auto q1 = std::chrono::steady_clock::now();
-    const ForceOutput f = force_model.update(query.result().contacts(), s.position, s.velocity, dt);
     rendered = f.force;
 
     Eigen::Vector3d target_p;
@@ -45,7 +44,9 @@ ProbeRunResult run_probe(const CollisionWorld& world, const ProbeTrajectory& tra
     rec.time = t;
     rec.position = s.position;
     rec.velocity = s.velocity;
-    rec.counts = query.result().counts;
+    rec.counts = f.counts;
+    rec.proxy = f.proxy;
+    rec.constraints = f.constraints;
     rec.desired = rendered;
     rec.force = rendered;
     rec.user_force = user;

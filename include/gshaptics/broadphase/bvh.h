@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <span>
+#include <type_traits>
 #include <vector>
 
 namespace gshaptics {
@@ -40,7 +41,8 @@ class Bvh {
   /// Frees `order()` once the caller has permuted its primitives into slot order.
   void release_order() { std::vector<std::uint32_t>().swap(order_); }
 
-  /// Calls `on_leaf(first, count)` for every leaf whose box overlaps [box_lo, box_hi].
+  /// Calls `on_leaf(first, count)` for every leaf whose box overlaps [box_lo, box_hi]. When
+  /// `on_leaf` returns bool, returning false stops the traversal (early exit).
   /// Allocation-free (fixed traversal stack); safe to call from several threads at once.
   template <typename OnLeaf>
   void for_each_overlapping_leaf(const float box_lo[3], const float box_hi[3],
@@ -62,7 +64,13 @@ class Bvh {
         i = i + 1;
         continue;
       }
-      if (overlap) on_leaf(n.first, n.count);
+      if (overlap) {
+        if constexpr (std::is_same_v<decltype(on_leaf(n.first, n.count)), bool>) {
+          if (!on_leaf(n.first, n.count)) return;
+        } else {
+          on_leaf(n.first, n.count);
+        }
+      }
       if (top == 0) break;
       i = stack[--top];
     }

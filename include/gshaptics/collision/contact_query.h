@@ -82,6 +82,11 @@ class ContactQuery {
   /// order (sort by `index` if needed). Allocation-free.
   QueryStatus run(const ToolEllipsoid& tool) noexcept;
 
+  /// Early exit: true as soon as one Gaussian is certified to overlap `tool` (K_min > 0), with
+  /// no K_min converged for the rest; false when none overlaps (or the tool is invalid). The
+  /// "is this pose free?" of the proxy. Leaves result() untouched. Allocation-free.
+  [[nodiscard]] bool any_contact(const ToolEllipsoid& tool) noexcept;
+
   [[nodiscard]] const ContactSet& result() const noexcept { return result_; }
   [[nodiscard]] const CollisionWorld& world() const noexcept { return *world_; }
   [[nodiscard]] const QueryOptions& options() const noexcept { return options_; }

@@ -12,13 +12,15 @@
 
 #include "gshaptics/fidelity/interaction.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/force/proxy_renderer.h"
 
 namespace gshaptics {
 
 /// The matrix to run. Lengths in metres.
 struct FidelityOptions {
   std::string force_model = "paper";  ///< make_force_renderer() name
-  ForceParams force;                   ///< the renderer's parameters
+  ForceParams force;                   ///< the paper model's parameters (and f_max for every model)
+  ProxyParams proxy;                   ///< the proxy model's parameters
   std::vector<ShapeKind> shapes = all_shapes();
   std::vector<double> spacings = {0.002, 0.004, 0.008};  ///< Gaussian spacings (densities)
   std::vector<double> tool_radii = {0.005, 0.010};

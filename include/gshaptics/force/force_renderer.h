@@ -24,6 +24,10 @@ struct RenderOutput {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< force on the tool (device), N
   QueryCounts counts;                               ///< of the tick's contact query
   QueryStatus status = QueryStatus::kOk;
+  /// Where the renderer holds the tool: the proxy's centre (m, world); the device's own centre
+  /// for renderers without a proxy.
+  Eigen::Vector3d proxy = Eigen::Vector3d::Zero();
+  std::uint8_t constraints = 0;  ///< constraint planes holding the proxy (0..3)
 };
 
 class ForceRenderer {
@@ -63,10 +67,16 @@ class PaperRenderer final : public ForceRenderer {
 /// True when make_force_renderer() knows `name`.
 [[nodiscard]] bool is_force_model(std::string_view name) noexcept;
 
-/// The renderer named `name` (see force_model_names()) on `world`. Throws InputError naming
-/// `name` when it is unknown.
+struct ProxyParams;
+/// ProxyParams{} (declared here so this header does not need the proxy's).
+[[nodiscard]] const ProxyParams& default_proxy_params() noexcept;
+
+/// The renderer named `name` (see force_model_names()) on `world`: "paper" uses `force` and
+/// `query`, "proxy" uses `proxy` and the force limit `force.f_max`. Throws InputError naming `name`
+/// when it is unknown, and what the renderer's constructor throws.
 [[nodiscard]] std::unique_ptr<ForceRenderer> make_force_renderer(std::string_view name, const CollisionWorld& world,
                                                                  const ForceParams& force = {},
-                                                                 const QueryOptions& query = {});
+                                                                 const QueryOptions& query = {},
+                                                                 const ProxyParams& proxy = default_proxy_params());
 
 }  // namespace gshaptics

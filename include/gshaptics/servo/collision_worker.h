@@ -13,10 +13,11 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <memory>
 #include <span>
 
 #include "gshaptics/collision/contact_query.h"
-#include "gshaptics/force/force_model.h"
+#include "gshaptics/force/force_renderer.h"
 #include "gshaptics/servo/clock.h"
 #include "gshaptics/servo/latency_histogram.h"
 #include "gshaptics/servo/triple_buffer.h"
@@ -41,6 +42,8 @@ struct CollisionResult {
   QueryCounts counts;
   QueryStatus status = QueryStatus::kOk;
   float query_us = 0;  ///< broad + narrow phase + force model, microseconds
+  Eigen::Vector3d proxy = Eigen::Vector3d::Zero();  ///< proxy centre (the pose's own centre without a proxy), m
+  std::uint8_t constraints = 0;                     ///< constraint planes holding the proxy
 };
 
 using PoseChannel = TripleBuffer<PoseCommand>;
@@ -64,8 +67,11 @@ class ResultObserver {
 
 class CollisionWorker {
  public:
-  /// `nominal_dt` is the servo period, s: the force model's dt for the first pose and the lower
+  /// Renders with `renderer` (any ForceRenderer: make_force_renderer(), or your own).
+  /// `nominal_dt` is the servo period, s: the renderer's dt for the first pose and the lower
   /// bound of the dt between poses.
+  CollisionWorker(const ToolShape& tool, std::unique_ptr<ForceRenderer> renderer, double nominal_dt, Clock& clock);
+  /// Renders with the paper's model (PaperRenderer with `force` and `query`).
   CollisionWorker(const CollisionWorld& world, const ToolShape& tool, const ForceParams& force,
                   const QueryOptions& query, double nominal_dt, Clock& clock);
 
@@ -79,11 +85,10 @@ class CollisionWorker {
   /// Query + force time of each step, ns (written by the worker's thread, readable from any).
   [[nodiscard]] const LatencyHistogram& latency() const noexcept { return latency_; }
   [[nodiscard]] std::uint64_t steps() const noexcept { return steps_.load(std::memory_order_relaxed); }
-  [[nodiscard]] const ContactQuery& query() const noexcept { return query_; }
+  [[nodiscard]] const ForceRenderer& renderer() const noexcept { return *renderer_; }
 
  private:
-  ContactQuery query_;
-  ForceModel force_;
+  std::unique_ptr<ForceRenderer> renderer_;
   ToolShape tool_;
   double nominal_dt_;
   Clock& clock_;

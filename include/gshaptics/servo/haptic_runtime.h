@@ -20,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/servo/collision_worker.h"
 #include "gshaptics/servo/haptic_device.h"
 #include "gshaptics/servo/runtime_stats.h"
@@ -47,7 +48,9 @@ struct RuntimeConfig {
   /// Longest stop ramp: the force is zeroed at the latest this long after a stop request, s.
   double stop_timeout = 0.1;
   ToolShape tool;
-  ForceParams force;
+  std::string force_model = "paper";  ///< make_force_renderer() name: "proxy" or "paper"
+  ForceParams force;                  ///< the paper model's parameters, and F_max for every model
+  ProxyParams proxy;                  ///< the proxy model's parameters
   QueryOptions query;
   SafetyParams safety;
   RealtimeOptions realtime;

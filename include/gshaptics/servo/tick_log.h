@@ -29,6 +29,8 @@ struct TickRecord {
   float result_age_us = 0;   ///< now - stamp of the rendered result's pose, microseconds
   float latency_us = -1;     ///< device side: pose -> wrench round trip, microseconds (-1: none)
   std::uint32_t flags = 0;   ///< SafetyFlag bits (servo/safety.h)
+  Eigen::Vector3d proxy = Eigen::Vector3d::Zero();  ///< proxy centre of the rendered result, m
+  std::uint8_t constraints = 0;                     ///< its constraint planes (0..3)
 };
 
 /// Column groups of the tick log. Each column is declared once (tick_log.cpp) with its group;
@@ -39,12 +41,13 @@ enum TickColumns : unsigned {
   kColumnsForce = 1u << 2,    ///< fx, fy, fz, user_fx, user_fy, user_fz
   kColumnsServo = 1u << 3,    ///< desired_f*, jitter_us, tick_us, result_age_us, held, fading, flags
   kColumnsLatency = 1u << 4,  ///< latency_us
+  kColumnsProxy = 1u << 5,    ///< proxy_x, proxy_y, proxy_z, constraints
 };
 /// The probe run's log (`simulate`, probe_log.csv): the paper's Fig. 5 quantities.
-inline constexpr unsigned kProbeLogColumns = kColumnsMotion | kColumnsQuery | kColumnsForce;
+inline constexpr unsigned kProbeLogColumns = kColumnsMotion | kColumnsQuery | kColumnsForce | kColumnsProxy;
 /// The real-time runtime's log (`run`, `serve`, `node`, servo_log.csv): the probe log's columns
 /// first, so the same plot and the replay device read both.
-inline constexpr unsigned kServoLogColumns = kProbeLogColumns | kColumnsServo;
+inline constexpr unsigned kServoLogColumns = kProbeLogColumns | kColumnsServo | kColumnsProxy;
 /// The device side of a two-process run (`device-sim`, device_log.csv).
 inline constexpr unsigned kDeviceLogColumns = kColumnsMotion | kColumnsForce | kColumnsLatency;
 

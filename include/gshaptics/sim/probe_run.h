@@ -6,10 +6,13 @@
 
 #include <Eigen/Core>
 #include <functional>
+#include <memory>
+#include <string>
 #include <vector>
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_model.h"
+#include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/servo/tick_log.h"
 #include "gshaptics/sim/admittance_device.h"
 #include "gshaptics/sim/probe_trajectory.h"
@@ -32,7 +35,9 @@ struct QueryTimeStats {
 
 struct ProbeRunParams {
   double rate_hz = 1000;  ///< servo rate of the simulation (paper: 1 kHz)
-  ForceParams force;
+  std::string force_model = "paper";  ///< make_force_renderer() name: "proxy" or "paper"
+  ForceParams force;                  ///< the paper model's parameters, and F_max for every model
+  ProxyParams proxy;                  ///< the proxy model's parameters
   AdmittanceParams device;
   UserHandParams user;
   QueryOptions query;

@@ -1,0 +1,71 @@
+#pragma once
+/// @file
+/// Continuous collision of a translating tool against the Gaussians (DESIGN notes Sec. 2b,
+/// docs/design.md): where along a straight motion the tool ellipsoid first touches a Gaussian
+/// ellipsoid, and the contact normal there. The basis of the proxy (god-object) renderer:
+/// however thin a shell and however long the step, the first contact along the way is found.
+///
+/// For one Gaussian: the ellipsoids overlap iff the offset d = c_G - c_T lies in every
+/// ellipsoid E_lambda = {d : lambda (1 - lambda) d^T S(lambda)^-1 d <= 1}, S(lambda) =
+/// lambda Sigma_G + (1 - lambda) Sigma_T (that is K(lambda) >= 0 for every lambda,
+/// Gilitschenski & Hanebeck). Along d(t) = d0 - t u the line enters E_lambda at the smaller root
+/// t_e(lambda) of a quadratic; it has entered all of them at t* = max over lambda of t_e. Any
+/// lambda gives t_e(lambda) <= t*, so a search that stops short of the maximum reports an
+/// earlier, never a later, contact: the tool is never placed past a Gaussian.
+///
+/// Threading: a SweepQuery belongs to one thread; several may share a world. first_contact()
+/// never allocates, locks, logs or throws.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/collision/tool_ellipsoid.h"
+
+namespace gshaptics {
+
+/// The first contact of a motion.
+struct SweepHit {
+  bool hit = false;          ///< a Gaussian is touched within the motion
+  double t = 1.0;            ///< fraction of the motion at first contact, in [0, 1] (1 when no hit)
+  std::uint32_t slot = 0;    ///< the blocking Gaussian's record in CollisionWorld::gaussians()
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit contact normal, Gaussian -> tool, world
+};
+
+/// What the last sweep looked at.
+struct SweepCounts {
+  std::uint32_t candidates = 0;  ///< in BVH leaves overlapping the swept box
+  std::uint32_t prefiltered = 0;  ///< bounding spheres within reach of the path
+  std::uint32_t exact = 0;        ///< exact first-contact searches run
+};
+
+/// First-contact time of `tool` translating by `motion` against one Gaussian, as a fraction of
+/// the motion: in [0, 1] when it touches within the motion (0 when it already touches at the
+/// start and moves further in), +infinity when it does not (a tool that touches at the start
+/// and moves away or along the contact plane is not blocked). `normal` (may be null) receives the unit contact normal
+/// (Gaussian -> tool). Stops early, returning a value > `stop_above`, once the contact is proven
+/// to come later than `stop_above`.
+[[nodiscard]] double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
+                                Eigen::Vector3d* normal = nullptr, double stop_above = 1.0) noexcept;
+
+class SweepQuery {
+ public:
+  /// `max_candidates`: scratch for candidates sorted by their earliest possible contact; more are
+  /// still tested, in BVH order.
+  explicit SweepQuery(const CollisionWorld& world, std::size_t max_candidates = 4096);
+
+  /// The first Gaussian `tool` touches when its centre moves by `motion` (rotation and axes
+  /// fixed; world frame). A zero or non-finite motion gives no hit.
+  SweepHit first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion) noexcept;
+  [[nodiscard]] const SweepCounts& counts() const noexcept { return counts_; }
+  [[nodiscard]] const CollisionWorld& world() const noexcept { return *world_; }
+
+ private:
+  const CollisionWorld* world_;
+  std::vector<std::pair<double, std::uint32_t>> scratch_;  // (earliest contact bound, slot)
+  SweepCounts counts_;
+};
+
+}  // namespace gshaptics

@@ -1,0 +1,100 @@
+#pragma once
+/// @file
+/// The proxy (god-object) renderer on the Gaussians themselves: a copy of the tool, the proxy,
+/// is kept where it overlaps no Gaussian that passed the filter, and the device is coupled to
+/// it by a virtual spring-damper. Each tick the proxy moves from its last free pose toward the
+/// device, stops at the first contact along the way (continuous: SweepQuery, so no shell is
+/// thin enough to tunnel through), then slides along the constraint planes of the Gaussians
+/// that block it (at most three, as in the god-object) within a fixed number of sub-steps.
+///
+/// Sources: the god-object of Zilles & Salisbury (1995), the virtual proxy of Ruspini, Kolarov &
+/// Khatib (1997), point-cloud proxies (Leeper et al. 2012; Ryden & Chizeck 2012), virtual
+/// coupling and its passivity bound b > k T / 2 (Colgate, Stanley & Brown 1995; Colgate &
+/// Schenkel 1997), Coulomb friction by a friction cone on the proxy (Salisbury et al. 1995),
+/// and force shading (Morgenbesser & Srinivasan 1996): the force acts along a smoothed normal.
+///
+/// Force shading on Gaussians: the contact normal is the negative gradient of the opacity-weighted
+/// Gaussian density, each Gaussian widened by a kernel of `shading_kernel` tool radii,
+///   n(p) ∝ sum_i alpha_i exp(-q_i / 2) A_i^-1 (p - c_i),  A_i = Sigma_i + s^2 I,
+///   q_i = (p - c_i)^T A_i^-1 (p - c_i),
+/// which varies smoothly across neighbouring Gaussians (docs/design.md Sec. 7). The proxy's
+/// position comes from the exact geometry; the force F = k_c (x_proxy - x_device) is taken along
+/// n (normal part, minus b_c v_device . n, never pulling), plus the friction part when
+/// friction is on. Without friction the tangential offset of the proxy, which comes only from
+/// Gaussian-scale bumps of the shell, is not rendered.
+///
+/// Threading and hot path as ForceRenderer: one thread; render() allocates, locks, logs and
+/// throws nothing. Placing the proxy after a start inside geometry or a teleport runs a bounded
+/// search (at most 15 directions x 40 steps of the early-exit query).
+
+#include <Eigen/Core>
+#include <array>
+
+#include "gshaptics/collision/sweep_query.h"
+#include "gshaptics/force/force_renderer.h"
+
+namespace gshaptics {
+
+/// Parameters of the proxy renderer. SI units.
+struct ProxyParams {
+  double stiffness = 1000.0;  ///< k_c, N/m: coupling spring (a desktop device renders 1-3 N/mm)
+  /// b_c, N s/m, along the contact normal while in contact. A sampled spring of stiffness k with
+  /// one tick T of delay is passive for b > k T / 2 (0.5 N s/m at 1000 N/m and 1 kHz).
+  double damping = 1.0;
+  double mu_s = 0.0;          ///< static friction coefficient (0: off)
+  double mu_k = 0.0;          ///< kinetic friction coefficient (<= mu_s)
+  bool opacity_stiffness = false;  ///< k_c scaled by the smoothed opacity of the blocking Gaussians
+  double tau_opacity = 0.02;  ///< s, time constant of that smoothing
+  int substeps = 4;           ///< sweeps per tick (first contact, then slides on up to 3 planes)
+  double shading_kernel = 1.0;  ///< kernel width of the shaded normal, in tool radii
+  double teleport = 10.0;     ///< a device jump of more tool radii than this in one tick re-places the proxy
+};
+
+class ProxyRenderer final : public ForceRenderer {
+ public:
+  /// `f_max`: the device's force limit, N (ForceParams::f_max, one value for every model).
+  /// Throws InputError for non-positive stiffness or f_max, negative damping or friction,
+  /// mu_k > mu_s, substeps outside [1, 16] or a non-positive kernel.
+  explicit ProxyRenderer(const CollisionWorld& world, const ProxyParams& params = {},
+                         double f_max = ForceParams{}.f_max);
+  [[nodiscard]] std::string_view name() const noexcept override { return "proxy"; }
+  RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
+  /// The Gaussians holding the proxy at the last tick (at most three).
+  [[nodiscard]] std::span<const Contact> contacts() const noexcept override { return {blockers_.data(), n_blockers_}; }
+  void reset() noexcept override;
+
+  [[nodiscard]] const Eigen::Vector3d& proxy_position() const noexcept { return proxy_; }
+  [[nodiscard]] const Eigen::Vector3d& contact_normal() const noexcept { return normal_; }
+  [[nodiscard]] bool sticking() const noexcept { return sticking_; }
+  /// Proxy placements by the search (start inside geometry, teleports) and failed searches.
+  [[nodiscard]] std::uint64_t placements() const noexcept { return placements_; }
+  [[nodiscard]] std::uint64_t lost() const noexcept { return lost_; }
+  [[nodiscard]] const ProxyParams& params() const noexcept { return params_; }
+
+  /// The shaded normal at `center` for a tool of bounding radius `radius` (unit; zero when no
+  /// Gaussian is near).
+  [[nodiscard]] Eigen::Vector3d shaded_normal(const Eigen::Vector3d& center, double radius) const noexcept;
+
+ private:
+  struct Plane {
+    Eigen::Vector3d normal, point;
+  };
+  void place(const ToolEllipsoid& tool) noexcept;
+  Eigen::Vector3d constrained_goal(const Eigen::Vector3d& goal, const Plane* planes, int n) const noexcept;
+
+  const CollisionWorld* world_;
+  ProxyParams params_;
+  double f_max_;
+  SweepQuery sweep_;
+  ContactQuery free_query_;
+  Eigen::Vector3d proxy_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond last_rotation_ = Eigen::Quaterniond::Identity();
+  bool valid_ = false, in_contact_ = false, sticking_ = false;
+  double opacity_ = 1.0;
+  std::array<Contact, 3> blockers_{};
+  std::size_t n_blockers_ = 0;
+  std::uint64_t placements_ = 0, lost_ = 0;
+};
+
+}  // namespace gshaptics

@@ -1,0 +1,195 @@
+#include "gshaptics/collision/sweep_query.h"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "gshaptics/broadphase/bvh.h"
+
+namespace gshaptics {
+
+namespace {
+
+constexpr double kNever = std::numeric_limits<double>::infinity();
+
+// The quadratic "inside E_lambda" in t, for one lambda: qa t^2 + qb t + qc <= 0.
+struct Quadratic {
+  double qa, qb, qc;
+};
+
+// Entry time into E_lambda (smaller root), or +infinity when the line misses it or left it before
+// t = 0 (convexity: it never comes back).
+inline double entry_time(const Quadratic& q) noexcept {
+  if (!(q.qa > 0)) return q.qc <= 0 ? -kNever : kNever;  // no motion across: inside or never
+  const double disc = q.qb * q.qb - 4 * q.qa * q.qc;
+  if (!(disc >= 0)) return kNever;
+  const double sq = std::sqrt(disc);
+  // Stable roots: q = -(qb + sign(qb) sq) / 2; roots q / qa and qc / q.
+  const double h = -0.5 * (q.qb + (q.qb >= 0 ? sq : -sq));
+  double t1 = h / q.qa, t2 = h != 0 ? q.qc / h : t1;
+  if (t1 > t2) std::swap(t1, t2);
+  return t2 < 0 ? kNever : t1;
+}
+
+// Evaluates the quadratic for a lambda, in the frame where it is cheapest.
+struct PairSweep {
+  bool spherical;
+  // spherical tool: Gaussian frame, diagonal shapes
+  Eigen::Vector3d dg, ug, a2;
+  double r2 = 0;
+  Eigen::Matrix3d Rg;
+  // general tool: world frame
+  Eigen::Matrix3d sigma_g, sigma_t;
+  Eigen::Vector3d d0, u;
+
+  Quadratic at(double lambda, Eigen::Vector3d* m_d = nullptr, double t = 0) const noexcept {
+    const double w_inv = 1.0 / (lambda * (1.0 - lambda));
+    Quadratic q{};
+    if (spherical) {
+      double qa = 0, qb = 0, qc = 0;
+      Eigen::Vector3d md;
+      for (int j = 0; j < 3; ++j) {
+        const double inv_m = 1.0 / (lambda * a2[j] + (1.0 - lambda) * r2);
+        qa += ug[j] * ug[j] * inv_m;
+        qb += ug[j] * dg[j] * inv_m;
+        qc += dg[j] * dg[j] * inv_m;
+        md[j] = (dg[j] - t * ug[j]) * inv_m;
+      }
+      if (m_d != nullptr) *m_d = Rg * md;
+      q = {qa, -2 * qb, qc - w_inv};
+    } else {
+      const Eigen::Matrix3d M = (lambda * sigma_g + (1.0 - lambda) * sigma_t).inverse();
+      const Eigen::Vector3d Mu = M * u;
+      q = {u.dot(Mu), -2 * Mu.dot(d0), d0.dot(M * d0) - w_inv};
+      if (m_d != nullptr) *m_d = M * (d0 - t * u);
+    }
+    return q;
+  }
+};
+
+// lambda from s = ln(lambda / (1 - lambda)).
+inline double lambda_of(double s) noexcept { return 1.0 / (1.0 + std::exp(-s)); }
+
+}  // namespace
+
+double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
+                  Eigen::Vector3d* normal, double stop_above) noexcept {
+  PairSweep p;
+  const Eigen::Vector3d cg(g.center[0], g.center[1], g.center[2]);
+  const Eigen::Vector3d d0 = cg - tool.center;
+  const Eigen::Vector3d& b = tool.semi_axes;
+  p.spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
+  p.Rg = rotation_matrix(g);
+  const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+  if (p.spherical) {
+    p.dg = p.Rg.transpose() * d0;
+    p.ug = p.Rg.transpose() * motion;
+    p.a2 = a.cwiseAbs2();
+    p.r2 = b.x() * b.x();
+  } else {
+    p.sigma_g = p.Rg * a.cwiseAbs2().asDiagonal() * p.Rg.transpose();
+    const Eigen::Matrix3d Rt = tool.rotation.normalized().toRotationMatrix();
+    p.sigma_t = Rt * b.cwiseAbs2().asDiagonal() * Rt.transpose();
+    p.d0 = d0;
+    p.u = motion;
+  }
+  // Coarse scan of s = ln(lambda / (1 - lambda)) over [-16, 16], then golden section around the
+  // best point. Every evaluation is a lower bound of t*, so it may stop as soon as one says
+  // "never" or "later than stop_above".
+  double best_s = 0, best_t = -kNever;
+  for (int k = -8; k <= 8; ++k) {
+    const double s = 2.0 * k;
+    const double t = entry_time(p.at(lambda_of(s)));
+    if (t > stop_above) return t;
+    if (t > best_t) best_t = t, best_s = s;
+  }
+  constexpr double kGolden = 0.6180339887498949;
+  double lo = best_s - 2, hi = best_s + 2;
+  double x1 = hi - kGolden * (hi - lo), x2 = lo + kGolden * (hi - lo);
+  double f1 = entry_time(p.at(lambda_of(x1))), f2 = entry_time(p.at(lambda_of(x2)));
+  for (int it = 0; it < 32; ++it) {
+    if (f1 > stop_above) return f1;
+    if (f2 > stop_above) return f2;
+    if (f1 > f2) {
+      hi = x2, x2 = x1, f2 = f1;
+      x1 = hi - kGolden * (hi - lo);
+      f1 = entry_time(p.at(lambda_of(x1)));
+    } else {
+      lo = x1, x1 = x2, f1 = f2;
+      x2 = lo + kGolden * (hi - lo);
+      f2 = entry_time(p.at(lambda_of(x2)));
+    }
+  }
+  if (f1 > best_t) best_t = f1, best_s = x1;
+  if (f2 > best_t) best_t = f2, best_s = x2;
+  const double t_star = std::max(0.0, best_t);
+  Eigen::Vector3d md;
+  (void)p.at(lambda_of(best_s), &md, t_star);
+  const double len = md.norm();
+  const Eigen::Vector3d n = len > 0 ? Eigen::Vector3d(-md / len) : Eigen::Vector3d(-motion.normalized());
+  // Touching (or overlapping by rounding) at the start and moving away or along the surface:
+  // this Gaussian does not block the motion.
+  if (best_t <= 0 && motion.dot(n) >= 0) return kNever;
+  if (normal != nullptr) *normal = n;
+  return t_star;
+}
+
+SweepQuery::SweepQuery(const CollisionWorld& world, std::size_t max_candidates)
+    : world_(&world), scratch_(std::max<std::size_t>(1, max_candidates)) {}
+
+SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion) noexcept {
+  counts_ = {};
+  SweepHit hit;
+  const double len2 = motion.squaredNorm();
+  if (!tool.valid() || !motion.allFinite() || !(len2 > 0)) return hit;
+  const Eigen::Vector3d c0 = tool.center, c1 = tool.center + motion;
+  const Eigen::Vector3d h = tool.aabb_half_extent();
+  float lo[3], hi[3];
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = round_down_to_float(std::min(c0[k], c1[k]) - h[k]);
+    hi[k] = round_up_to_float(std::max(c0[k], c1[k]) + h[k]);
+  }
+  const double r_tool = tool.bounding_radius();
+  const CollisionGaussian* gs = world_->gaussians().data();
+  std::size_t n = 0;
+  double best = 1.0;
+  const auto exact = [&](std::uint32_t k) {
+    Eigen::Vector3d nrm;
+    ++counts_.exact;
+    const double t = sweep_time(gs[k], tool, motion, &nrm, best);
+    if (t <= best) {
+      best = t;
+      hit = {true, t, k, nrm};
+    }
+  };
+  world_->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
+    counts_.candidates += count;
+    for (std::uint32_t k = first; k < first + count; ++k) {
+      const CollisionGaussian& g = gs[k];
+      const Eigen::Vector3d rel = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - c0;
+      const double reach = double(g.bounding_radius()) + r_tool;
+      // Bounding spheres: the earliest the two could touch along the path (capsule test).
+      const double bq = rel.dot(motion), cq = rel.squaredNorm() - reach * reach;
+      double t_lb;
+      if (cq <= 0) {
+        t_lb = 0;
+      } else {
+        const double disc = bq * bq - len2 * cq;
+        if (disc < 0 || bq <= 0) continue;
+        t_lb = (bq - std::sqrt(disc)) / len2;
+        if (t_lb > 1.0) continue;
+      }
+      ++counts_.prefiltered;
+      if (n < scratch_.size())
+        scratch_[n++] = {t_lb, k};
+      else if (t_lb <= best)
+        exact(k);
+    }
+  });
+  std::sort(scratch_.begin(), scratch_.begin() + std::ptrdiff_t(n));
+  for (std::size_t i = 0; i < n && scratch_[i].first <= best; ++i) exact(scratch_[i].second);
+  return hit;
+}
+
+}  // namespace gshaptics
