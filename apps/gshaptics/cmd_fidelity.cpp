@@ -60,6 +60,7 @@ void register_fidelity(CLI::App& app) {
     std::string scene_dir = "runs/fidelity/scenes";
     std::uint64_t seed = 1;
     ForceModelOptions force;
+    SynthParams synth;
   };
   auto o = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
@@ -76,6 +77,8 @@ void register_fidelity(CLI::App& app) {
   cmd->add_option("--scene-dir", o->scene_dir, "Where the generated scenes are written and reused")->capture_default_str();
   cmd->add_option("--seed", o->seed, "Seed of the scenes and sites")->capture_default_str();
   cmd->add_flag("--no-plot", o->no_plot, "Skip the figures (matplotlib)");
+  cmd->add_option("--floater-share", o->synth.floater_share, "Floaters per surface Gaussian in the scenes")
+      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
   add_force_options(*cmd, o->force);
   cmd->callback([o] {
     FidelityOptions fo = o->quick ? quick_fidelity_options() : FidelityOptions{};
@@ -83,6 +86,7 @@ void register_fidelity(CLI::App& app) {
     fo.force = o->force.force;
     fo.proxy = o->force.proxy;
     fo.seed = o->seed;
+    fo.synth = o->synth;
     const std::filesystem::path out(o->out);
     if (out.extension() != ".md") throw InputError("fidelity: --out " + o->out + ": expected a .md file");
     const std::string data_dir =
@@ -94,7 +98,10 @@ void register_fidelity(CLI::App& app) {
       fmt::print(stderr, "fidelity   {}\n", line);
     });
     write_fidelity_data(rep, data_dir);
-    std::string command = "gshaptics fidelity --force-model " + fo.force_model + (o->quick ? " --quick" : "");
+    std::string command = "gshaptics fidelity --force-model " + fo.force_model + (o->quick ? " --quick" : "") +
+                          (o->synth.floater_share != SynthParams{}.floater_share
+                               ? fmt::format(" --floater-share {:g}", o->synth.floater_share)
+                               : std::string());
     std::string prefix;
     if (!o->no_plot) {
       const std::string script = find_tool_script("plot_fidelity.py");

@@ -107,7 +107,7 @@ std::string scene_file(const FidelityOptions& o, ShapeKind k, double spacing) {
 // The scene of a shape at a spacing: reused when the sidecar says it was made the same way.
 std::string ensure_scene(const FidelityOptions& o, ShapeKind k, double spacing) {
   const std::string path = scene_file(o, k, spacing);
-  SynthParams p;
+  SynthParams p = o.synth;
   p.spacing = spacing;
   p.seed = o.seed;
   const SyntheticScene s = make_synthetic_scene(AnalyticShape(k), p);

@@ -27,7 +27,7 @@ ProxyRenderer::ProxyRenderer(const CollisionWorld& world, const ProxyParams& par
 }
 
 void ProxyRenderer::reset() noexcept {
-  valid_ = in_contact_ = sticking_ = false;
+  valid_ = in_contact_ = sticking_ = sliding_ = false;
   n_blockers_ = 0;
   opacity_ = 1.0;
   normal_.setZero();
@@ -119,7 +119,7 @@ Eigen::Vector3d ProxyRenderer::constrained_goal(const Eigen::Vector3d& goal, con
 void ProxyRenderer::place(const ToolEllipsoid& tool) noexcept {
   ++placements_;
   valid_ = true;
-  in_contact_ = sticking_ = false;
+  in_contact_ = sticking_ = sliding_ = false;
   n_blockers_ = 0;
   proxy_ = tool.center;
   if (!free_query_.any_contact(tool)) return;
@@ -166,41 +166,52 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     at.center = proxy_;
     if (free_query_.any_contact(at)) place(tool);  // the tool turned into geometry
   }
+  const Eigen::Vector3d device_step = xd - last_device_;
   last_device_ = xd;
   last_rotation_ = tool.rotation;
 
-  // Friction cone (Coulomb): while the device's tangential offset stays inside the cone the
-  // proxy sticks (only normal motion is asked for); outside, it slides to the cone's edge.
+  // Friction cone (Coulomb): a sticking proxy stays while the device's tangential offset is
+  // within mu_s times its depth; then it slides, kept mu_k times the depth behind the device,
+  // for as long as the device keeps moving on (kinetic friction needs relative motion).
   Eigen::Vector3d goal = xd;
+  Eigen::Vector3d slip_dir = Eigen::Vector3d::Zero();
+  const bool was_sliding = sliding_;
+  sticking_ = sliding_ = false;
   if (in_contact_ && params_.mu_s > 0 && normal_.squaredNorm() > 0) {
     const Eigen::Vector3d e = xd - proxy_;
     const double depth = -e.dot(normal_);
     const Eigen::Vector3d et = e + depth * normal_;
     const double offset = et.norm();
-    if (depth > 0) {
-      const double limit = (sticking_ ? params_.mu_s : params_.mu_k) * depth;
-      if (offset <= limit) {
+    if (depth > 0 && offset > 0) {
+      const Eigen::Vector3d dir = et / offset;
+      const bool moving_on = was_sliding && device_step.dot(dir) > 0;
+      const double limit = (was_sliding ? params_.mu_k : params_.mu_s) * depth;
+      if (offset <= limit && !moving_on) {
         sticking_ = true;
-        goal = proxy_ - depth * normal_;
+        goal = proxy_;  // stuck: the proxy stays (the device is inside the cone)
       } else {
-        sticking_ = false;
-        goal = xd - et * (params_.mu_k * depth / offset);
+        // Kinetic friction opposes the sliding motion: the device's own tangential step when
+        // it has one (the offset's direction wanders with the shell's bumps), else the offset.
+        sliding_ = true;
+        const Eigen::Vector3d step_t = device_step - device_step.dot(normal_) * normal_;
+        slip_dir = step_t.norm() > 1e-9 * r ? Eigen::Vector3d(step_t.normalized()) : dir;
+        goal = xd - slip_dir * (params_.mu_k * depth);
       }
-    } else {
-      sticking_ = false;
+    } else if (depth > 0) {
+      sticking_ = true;
+      goal = proxy_;
     }
-  } else {
-    sticking_ = false;
   }
 
-  // God-object: sweep toward the goal, stop at the first contact, slide on the planes.
+  // God-object: sweep toward the goal, stop at the first contact, slide on the planes. A
+  // sticking proxy keeps its place and its blockers.
   Plane planes[3];
-  int np = 0;
-  n_blockers_ = 0;
+  int np = sticking_ ? std::max(1, last_constraints_) : 0;
+  if (!sticking_) n_blockers_ = 0;
   Eigen::Vector3d p = proxy_;
   const double eps = 1e-4 * r;  // the proxy stops this far short of a contact
   std::uint32_t candidates = 0;
-  for (int s = 0; s < params_.substeps; ++s) {
+  for (int s = 0; s < params_.substeps && !sticking_; ++s) {
     const Eigen::Vector3d target = constrained_goal(goal, planes, np);
     const Eigen::Vector3d u = target - p;
     const double len = u.norm();
@@ -227,6 +238,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     planes[np++] = {hit.normal, p};
   }
   proxy_ = p;
+  last_constraints_ = np;
   out.proxy = p;
   out.constraints = std::uint8_t(np);
   out.counts.candidates = candidates;
@@ -234,7 +246,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
 
   const Eigen::Vector3d e = p - xd;
   if (np == 0 && e.norm() <= 1e-6 * r) {  // free: the proxy is on the device
-    in_contact_ = sticking_ = false;
+    in_contact_ = sticking_ = sliding_ = false;
     opacity_ = 1.0;
     return out;
   }
@@ -254,7 +266,8 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   }
   const double fn = std::max(0.0, k * e.dot(n) - params_.damping * velocity.dot(n));
   Eigen::Vector3d f = fn * n;
-  if (params_.mu_s > 0) f += k * (e - e.dot(n) * n);
+  if (sticking_) f += k * (e - e.dot(n) * n);  // static friction: the spring's tangential part
+  if (sliding_) f -= params_.mu_k * fn * slip_dir;  // kinetic friction: mu_k times the normal force
   const double fm = f.norm();
   if (fm > f_max_) f *= f_max_ / fm;
   out.force = f;

@@ -29,6 +29,7 @@ struct FidelityOptions {
   double press_depth = 0.010;
   double push_depth = 0.030;
   std::uint64_t seed = 1;     ///< scenes and sites
+  SynthParams synth;          ///< how the scenes are drawn (spacing and seed are set per scene)
   double rate_hz = 1000;
   std::string scene_dir;      ///< where the generated scenes are written (and reused); required
 };

@@ -90,10 +90,11 @@ class ProxyRenderer final : public ForceRenderer {
   Eigen::Vector3d proxy_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond last_rotation_ = Eigen::Quaterniond::Identity();
-  bool valid_ = false, in_contact_ = false, sticking_ = false;
+  bool valid_ = false, in_contact_ = false, sticking_ = false, sliding_ = false;
   double opacity_ = 1.0;
   std::array<Contact, 3> blockers_{};
   std::size_t n_blockers_ = 0;
+  int last_constraints_ = 0;
   std::uint64_t placements_ = 0, lost_ = 0;
 };
 

@@ -1,0 +1,271 @@
+// The proxy (god-object) renderer and the continuous first-contact query under it: analytic stop
+// distances and normals, no tunnelling through a 1 mm plate, friction stick and slip, placement
+// after a start inside geometry, and an allocation-free tick.
+
+#include "gshaptics/force/proxy_renderer.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <random>
+
+#include "gshaptics/error.h"
+#include "gshaptics/fidelity/synthetic_scene.h"
+#include "support/allocation_counter.h"
+
+namespace gshaptics {
+namespace {
+
+// A world of Gaussians given as (centre, semi-axes, rotation); opacity 1.
+CollisionWorld world_of(const std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>>& gs) {
+  GaussianScene s;
+  std::uint32_t i = 0;
+  for (const auto& [c, a, q] : gs) s.push_back(c, a, Eigen::Vector4f(q.w(), q.x(), q.y(), q.z()), 1.0f, i++);
+  return CollisionWorld::build(s, WorldConfig{});
+}
+
+// A flat layer of round discs (spacing h, radius h, thickness 0.05 h) at height z, normal +z.
+void add_layer(std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>>& gs, float z, float h,
+               float half) {
+  for (float x = -half; x <= half; x += h)
+    for (float y = -half; y <= half; y += h)
+      gs.emplace_back(Eigen::Vector3f(x, y, z), Eigen::Vector3f(h, h, 0.05f * h), Eigen::Quaternionf::Identity());
+}
+
+double overlap(const CollisionWorld& w, const ToolEllipsoid& t) {
+  ContactQuery q(w);
+  return q.any_contact(t) ? 1.0 : 0.0;
+}
+
+TEST(SweepQuery, FirstContactMatchesBisectionOnTheExactOverlapTest) {
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-1, 1), lg(-2.5, -1);
+  int hits = 0;
+  for (int i = 0; i < 300; ++i) {
+    const Eigen::Quaternionf q = Eigen::Quaternionf(float(u(rng)), float(u(rng)), float(u(rng)), float(u(rng))).normalized();
+    Eigen::Vector3f a(float(std::pow(10, lg(rng))), float(std::pow(10, lg(rng))), float(std::pow(10, lg(rng))));
+    if (i % 3 == 0) a.z() = 1e-6f;  // flat splats
+    const CollisionWorld w = world_of({{Eigen::Vector3f::Zero(), a, q}});
+    ToolEllipsoid tool;
+    tool.semi_axes = i % 2 ? Eigen::Vector3d::Constant(0.01)
+                           : Eigen::Vector3d(0.01, 0.02, 0.005);  // ellipsoidal tools too
+    tool.rotation = Eigen::Quaterniond(u(rng), u(rng), u(rng), u(rng)).normalized();
+    const Eigen::Vector3d dir = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+    tool.center = -dir * 0.15 + Eigen::Vector3d(u(rng), u(rng), u(rng)) * 0.02;
+    const Eigen::Vector3d motion = dir * 0.3;
+    SweepQuery sweep(w);
+    const SweepHit hit = sweep.first_contact(tool, motion);
+    // Reference: the first overlapping sample on a fine grid, refined by bisection.
+    ToolEllipsoid t = tool;
+    double lo = 0, hi = -1;
+    for (int k = 1; k <= 3000; ++k) {
+      t.center = tool.center + motion * (k / 3000.0);
+      if (overlap(w, t) > 0) {
+        hi = k / 3000.0;
+        lo = (k - 1) / 3000.0;
+        break;
+      }
+    }
+    if (hi < 0) {
+      EXPECT_FALSE(hit.hit) << i;
+      continue;
+    }
+    for (int it = 0; it < 40; ++it) {
+      t.center = tool.center + motion * (0.5 * (lo + hi));
+      (overlap(w, t) > 0 ? hi : lo) = 0.5 * (lo + hi);
+    }
+    ++hits;
+    ASSERT_TRUE(hit.hit) << i;
+    EXPECT_NEAR(hit.t, lo, 2e-6) << i;        // 0.6 um of a 30 cm motion
+    EXPECT_LE(hit.t, hi + 1e-7) << i;  // never past the contact (the reference decides K_min > 0 to 1e-6)
+    EXPECT_NEAR(hit.normal.norm(), 1.0, 1e-9);
+    EXPECT_LT(hit.normal.dot(motion), 0) << i;  // it opposes the motion
+  }
+  EXPECT_GT(hits, 60);
+}
+
+TEST(ProxyRenderer, StopsOnASphereAtTheAnalyticDistanceWithItsNormal) {
+  const float R = 0.02f;
+  const CollisionWorld w = world_of({{Eigen::Vector3f::Zero(), Eigen::Vector3f::Constant(R), Eigen::Quaternionf::Identity()}});
+  ProxyParams p;
+  ProxyRenderer proxy(w, p);
+  const double r = 0.005;
+  const Eigen::Vector3d from(0.003, -0.002, 0.05), dir = Eigen::Vector3d(-0.003, 0.002, -0.05).normalized();
+  RenderOutput out;
+  for (int k = 0; k <= 35; ++k)  // 1 mm per tick, ending 10 mm past the surface
+    out = proxy.render(ToolEllipsoid::sphere(from + dir * 0.001 * k, r), Eigen::Vector3d::Zero(), 1e-3);
+  const Eigen::Vector3d device = from + dir * 0.035;
+  // The proxy rests on the sphere of radius R + r (god-object: the point of the free space
+  // closest to the device), along the line from the centre to the device.
+  EXPECT_NEAR(proxy.proxy_position().norm(), R + r, 2e-6);
+  EXPECT_LT(std::acos(proxy.proxy_position().normalized().dot(device.normalized())) * 180 / M_PI, 0.05);
+  EXPECT_LT(std::acos(proxy.contact_normal().dot(device.normalized())) * 180 / M_PI, 0.05);
+  EXPECT_NEAR(out.force.norm(), p.stiffness * (R + r - device.norm()), 1e-2);
+  EXPECT_GE(out.constraints, 1);
+  EXPECT_EQ(proxy.contacts().size(), std::size_t(out.constraints) == 0 ? 0 : proxy.contacts().size());
+}
+
+TEST(ProxyRenderer, PlaneOfGaussiansStopDistanceNormalAndSlideDirection) {
+  std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>> gs;
+  add_layer(gs, 0.0f, 0.004f, 0.08f);
+  const CollisionWorld w = world_of(gs);
+  ProxyParams p;
+  ProxyRenderer proxy(w, p);
+  const double r = 0.005;
+  Eigen::Vector3d x(0.001, 0.002, 0.02);
+  for (int k = 0; k < 22; ++k, x.z() -= 0.001) (void)proxy.render(ToolEllipsoid::sphere(x, r), Eigen::Vector3d::Zero(), 1e-3);
+  // Device 2 mm below the discs: the proxy stops r above the highest disc surface under it
+  // (disc semi-axes 4, 4, 0.2 mm: at an in-plane offset rho from a centre the surface is at
+  // 0.2 mm * sqrt(1 - rho^2 / 16 mm^2)).
+  const RenderOutput pressed = proxy.render(ToolEllipsoid::sphere(x, r), Eigen::Vector3d::Zero(), 1e-3);
+  const auto top_at = [&](double px, double py) {
+    double top = 0;
+    for (const auto& [c, a, q] : gs) {
+      const double rho2 = (std::pow(px - c.x(), 2) + std::pow(py - c.y(), 2)) / (double(a.x()) * a.x());
+      if (rho2 < 1) top = std::max(top, double(a.z()) * std::sqrt(1 - rho2));
+    }
+    return top;
+  };
+  // Exactly where a sphere lowered there comes to rest: max over the surface under it of
+  // top(q) + sqrt(r^2 - |q - centre|^2) (sampled every 0.05 mm).
+  const auto rest_height = [&](double px, double py) {
+    double z = 0;
+    for (double qx = -r; qx <= r; qx += 5e-5)
+      for (double qy = -r; qy <= r; qy += 5e-5) {
+        const double l2 = qx * qx + qy * qy;
+        if (l2 < r * r) z = std::max(z, top_at(px + qx, py + qy) + std::sqrt(r * r - l2));
+      }
+    return z;
+  };
+  EXPECT_NEAR(proxy.proxy_position().z(), rest_height(proxy.proxy_position().x(), proxy.proxy_position().y()), 1e-6);
+  EXPECT_LT(std::acos(pressed.force.normalized().z()) * 180 / M_PI, 0.5);
+  EXPECT_NEAR(pressed.force.z(), p.stiffness * (proxy.proxy_position().z() - x.z()), 1e-6);
+  // Slide along +x: the proxy follows on the surface; no tangential force without friction.
+  const Eigen::Vector3d v(0.05, 0, 0);
+  for (int k = 0; k < 400; ++k) {
+    x += v * 1e-3;
+    const RenderOutput out = proxy.render(ToolEllipsoid::sphere(x, r), v, 1e-3);
+    // Resting on the discs: never below the surface under its centre, never above their tops.
+    ASSERT_GE(proxy.proxy_position().z(), r + top_at(proxy.proxy_position().x(), proxy.proxy_position().y()) - 1e-6) << k;
+    ASSERT_LE(proxy.proxy_position().z(), r + 0.0002 + 1e-6) << k;
+    ASSERT_NEAR(proxy.proxy_position().x(), x.x(), 1e-3) << k;
+    ASSERT_LT(std::hypot(out.force.x(), out.force.y()), 0.02 * out.force.z()) << k;
+  }
+}
+
+TEST(ProxyRenderer, DoesNotTunnelThroughAOneMillimetrePlateInOneTick) {
+  // Two layers of discs 1 mm apart: a 1 mm plate, hollow in between.
+  std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>> gs;
+  add_layer(gs, 0.0005f, 0.003f, 0.05f);
+  add_layer(gs, -0.0005f, 0.003f, 0.05f);
+  const CollisionWorld w = world_of(gs);
+  const double r = 0.004;
+  // 1 m/s at 1 kHz: 1 mm per tick, straight through.
+  ProxyRenderer proxy(w);
+  for (int k = 0; k <= 40; ++k) {
+    const Eigen::Vector3d x(0.0, 0.0, 0.02 - 0.001 * k);
+    const RenderOutput out = proxy.render(ToolEllipsoid::sphere(x, r), Eigen::Vector3d(0, 0, -1), 1e-3);
+    ASSERT_GT(proxy.proxy_position().z(), 0.0005 + r - 1e-5) << k;
+    if (x.z() < r) {
+      ASSERT_GT(out.force.z(), 0) << k;
+    }
+  }
+  // The whole plate and more in a single tick (9 mm): still held on the entry side.
+  ProxyRenderer jump(w);
+  (void)jump.render(ToolEllipsoid::sphere({0, 0, 0.0046}, r), Eigen::Vector3d::Zero(), 1e-3);
+  const RenderOutput out = jump.render(ToolEllipsoid::sphere({0, 0, -0.0044}, r), Eigen::Vector3d::Zero(), 1e-3);
+  EXPECT_GT(jump.proxy_position().z(), 0.0005 + r - 1e-5);
+  EXPECT_GT(out.force.z(), 5.0);
+}
+
+TEST(ProxyRenderer, FrictionSticksBelowMuSAndSlidesAtMuK) {
+  std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>> gs;
+  add_layer(gs, 0.0f, 0.004f, 0.1f);
+  const CollisionWorld w = world_of(gs);
+  ProxyParams p;
+  p.mu_s = 0.6;
+  p.mu_k = 0.4;
+  ProxyRenderer proxy(w, p);
+  const double r = 0.005;
+  Eigen::Vector3d x(0, 0, 0.01);
+  for (; x.z() > r - 0.002; x.z() -= 0.0005) (void)proxy.render(ToolEllipsoid::sphere(x, r), Eigen::Vector3d::Zero(), 1e-3);
+  const double depth = proxy.proxy_position().z() - x.z();  // ~2 mm
+  const double x0 = proxy.proxy_position().x();
+  // Tangential offset below mu_s * depth: the proxy sticks where it is.
+  const Eigen::Vector3d v(0.01, 0, 0);
+  int ticks = 0;
+  while (x.x() - x0 < 0.9 * p.mu_s * depth) {
+    x += v * 1e-3;
+    const RenderOutput out = proxy.render(ToolEllipsoid::sphere(x, r), v, 1e-3);
+    ASSERT_TRUE(proxy.sticking()) << ticks;
+    ASSERT_NEAR(proxy.proxy_position().x(), x0, 1e-6) << ticks;
+    ASSERT_NEAR(-out.force.x() / out.force.z(), (x.x() - x0) / depth, 0.02) << ticks;
+    ++ticks;
+  }
+  EXPECT_GT(ticks, 50);
+  // Past mu_s it slips, and while sliding F_t / F_n = mu_k.
+  for (int k = 0; k < 300; ++k) {
+    x += v * 1e-3;
+    const RenderOutput out = proxy.render(ToolEllipsoid::sphere(x, r), v, 1e-3);
+    if (k < 100) continue;
+    ASSERT_FALSE(proxy.sticking()) << k << " offset " << (x.x() - proxy.proxy_position().x()) << " depth " << (proxy.proxy_position().z() - x.z());
+    ASSERT_NEAR(-out.force.x() / out.force.z(), p.mu_k, 0.1 * p.mu_k) << k << " n " << proxy.contact_normal().transpose();
+  }
+}
+
+TEST(ProxyRenderer, StartInsideGeometryPlacesTheProxyOutside) {
+  std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>> gs;
+  add_layer(gs, 0.0f, 0.004f, 0.05f);
+  const CollisionWorld w = world_of(gs);
+  ProxyRenderer proxy(w);
+  const double r = 0.005;
+  const ToolEllipsoid start = ToolEllipsoid::sphere({0.001, 0.0, 0.001}, r);  // overlapping the layer
+  const RenderOutput out = proxy.render(start, Eigen::Vector3d::Zero(), 1e-3);
+  ToolEllipsoid at = start;
+  at.center = proxy.proxy_position();
+  EXPECT_EQ(overlap(w, at), 0.0);
+  EXPECT_GT(proxy.proxy_position().z(), start.center.z());  // out along the normal, the nearest way
+  EXPECT_LT((proxy.proxy_position() - start.center).norm(), 2 * r);
+  EXPECT_EQ(proxy.placements(), 1u);
+  EXPECT_TRUE(out.force.allFinite());
+  EXPECT_LE(out.force.norm(), ForceParams{}.f_max + 1e-9);
+}
+
+TEST(ProxyRenderer, TickIsAllocationFreeAndNoexcept) {
+  AnalyticShape shape(ShapeKind::kSphere);
+  SynthParams sp;
+  const SyntheticScene s = make_synthetic_scene(shape, sp);
+  const CollisionWorld w = CollisionWorld::build(s.scene, WorldConfig{});
+  ProxyRenderer proxy(w);
+  const ToolEllipsoid t0{};
+  const Eigen::Vector3d v0 = Eigen::Vector3d::Zero();
+  static_assert(noexcept(proxy.render(t0, v0, 1e-3)));
+  Eigen::Vector3d x(0, 0, 0.13);
+  (void)proxy.render(ToolEllipsoid::sphere(x, 0.005), Eigen::Vector3d::Zero(), 1e-3);  // placement
+  const std::size_t before = test::allocation_count();
+  for (int k = 0; k < 600; ++k) {
+    x += Eigen::Vector3d(0.00002, 0.00001, -0.0001);
+    (void)proxy.render(ToolEllipsoid::sphere(x, 0.005), Eigen::Vector3d(0.02, 0.01, -0.1), 1e-3);
+  }
+  EXPECT_EQ(test::allocation_count() - before, 0u);
+  EXPECT_GT(proxy.contact_normal().z(), 0.9);  // it did touch the sphere's top
+}
+
+TEST(ProxyRenderer, BadParametersAreErrors) {
+  std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>> gs;
+  add_layer(gs, 0.0f, 0.004f, 0.01f);
+  const CollisionWorld w = world_of(gs);
+  ProxyParams p;
+  p.stiffness = 0;
+  EXPECT_THROW(ProxyRenderer(w, p), InputError);
+  p = {};
+  p.mu_s = 0.2;
+  p.mu_k = 0.5;
+  EXPECT_THROW(ProxyRenderer(w, p), InputError);
+  EXPECT_THROW((void)make_force_renderer("spring", w), InputError);
+  EXPECT_EQ(make_force_renderer("proxy", w)->name(), "proxy");
+}
+
+}  // namespace
+}  // namespace gshaptics
