@@ -37,7 +37,7 @@ inline void pad_lanes(PairBatch& b) noexcept {
 
 }  // namespace
 
-bool ContactQuery::any_contact(const ToolEllipsoid& tool) noexcept {
+bool ContactQuery::any_contact(const ToolEllipsoid& tool, std::uint32_t exclude_slot) noexcept {
   if (!tool.valid()) return false;
   const Eigen::Matrix3d R_tool = tool.rotation.normalized().toRotationMatrix();
   const Eigen::Vector3d half = ellipsoid_half_extent(R_tool, tool.semi_axes);
@@ -64,7 +64,7 @@ bool ContactQuery::any_contact(const ToolEllipsoid& tool) noexcept {
       const double d[3] = {g.center[0] - tool.center[0], g.center[1] - tool.center[1], g.center[2] - tool.center[2]};
       const double reach = double(g.bounding_radius()) + r_tool;
       load_lane(batch, batch.count, g, d);
-      batch.count += d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= reach * reach ? 1 : 0;  // eq. 4
+      batch.count += d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= reach * reach && k != exclude_slot ? 1 : 0;  // eq. 4
       if (batch.count == kBatchLanes) flush();
       if (found) return false;
     }

@@ -98,8 +98,10 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
   // best point. Every evaluation is a lower bound of t*, so it may stop as soon as one says
   // "never" or "later than stop_above".
   double best_s = 0, best_t = -kNever;
-  for (int k = -8; k <= 8; ++k) {
-    const double s = 2.0 * k;
+  // From the middle outward: lambda = 1/2 is usually near the maximum, so a Gaussian that
+  // cannot be the first contact is dismissed after one or two evaluations.
+  for (int i = 0; i <= 16; ++i) {
+    const double s = 2.0 * ((i + 1) / 2) * (i % 2 ? 1 : -1);
     const double t = entry_time(p.at(lambda_of(s)));
     if (t > stop_above) return t;
     if (t > best_t) best_t = t, best_s = s;
@@ -138,7 +140,9 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
 SweepQuery::SweepQuery(const CollisionWorld& world, std::size_t max_candidates)
     : world_(&world), scratch_(std::max<std::size_t>(1, max_candidates)) {}
 
-SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion) noexcept {
+SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
+                                   std::span<const std::uint32_t> ignore,
+                                   std::span<const std::uint32_t> hints) noexcept {
   counts_ = {};
   SweepHit hit;
   const double len2 = motion.squaredNorm();
@@ -151,6 +155,10 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
     hi[k] = round_up_to_float(std::max(c0[k], c1[k]) + h[k]);
   }
   const double r_tool = tool.bounding_radius();
+  const double len = std::sqrt(len2);
+  const Eigen::Vector3d m_hat = motion / len;
+  const Eigen::Matrix3d Rt = tool.rotation.normalized().toRotationMatrix();
+  const double h_tool = (tool.semi_axes.cwiseProduct(Rt.transpose() * m_hat)).norm();  // tool extent along m
   const CollisionGaussian* gs = world_->gaussians().data();
   std::size_t n = 0;
   double best = 1.0;
@@ -163,6 +171,11 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
       hit = {true, t, k, nrm};
     }
   };
+  for (std::uint32_t hint : hints) {
+    bool ignored = false;
+    for (std::uint32_t s : ignore) ignored = ignored || s == hint;
+    if (!ignored && hint < world_->size()) exact(hint);
+  }
   world_->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
     counts_.candidates += count;
     for (std::uint32_t k = first; k < first + count; ++k) {
@@ -180,6 +193,18 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
         t_lb = (bq - std::sqrt(disc)) / len2;
         if (t_lb > 1.0) continue;
       }
+      // Slab bound along the motion: the ellipsoid's extent along it is sqrt(sum (a_j m.R_j)^2),
+      // tight for flat Gaussians met face-on, where the sphere bound is loose.
+      double h2 = 0;
+      for (int j = 0; j < 3; ++j) {
+        const double mr = m_hat[0] * g.rotation[j] + m_hat[1] * g.rotation[3 + j] + m_hat[2] * g.rotation[6 + j];
+        h2 += double(g.semi_axes[j]) * g.semi_axes[j] * mr * mr;
+      }
+      t_lb = std::max(t_lb, (rel.dot(m_hat) - std::sqrt(h2) - h_tool) / len);
+      if (t_lb > 1.0) continue;
+      bool ignored = false;
+      for (std::uint32_t s : ignore) ignored = ignored || s == k;
+      if (ignored) continue;
       ++counts_.prefiltered;
       if (n < scratch_.size())
         scratch_[n++] = {t_lb, k};

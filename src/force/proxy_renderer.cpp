@@ -27,9 +27,10 @@ ProxyRenderer::ProxyRenderer(const CollisionWorld& world, const ProxyParams& par
 }
 
 void ProxyRenderer::reset() noexcept {
-  valid_ = in_contact_ = sticking_ = sliding_ = false;
+  valid_ = in_contact_ = sticking_ = sliding_ = shade_valid_ = false;
   n_blockers_ = 0;
   opacity_ = 1.0;
+  cache_state_.fill(0);
   normal_.setZero();
 }
 
@@ -114,6 +115,21 @@ Eigen::Vector3d ProxyRenderer::constrained_goal(const Eigen::Vector3d& goal, con
     if (d < best_d) best_d = d, best = x;
   }
   return best;
+}
+
+bool ProxyRenderer::isolated(std::uint32_t slot) noexcept {
+  for (std::size_t i = 0; i < kIsolationCache; ++i)
+    if (cache_state_[i] != 0 && cache_slot_[i] == slot) return cache_state_[i] == 2;
+  const CollisionGaussian& g = world_->gaussians()[slot];
+  ToolEllipsoid self;
+  self.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+  self.rotation = Eigen::Quaterniond(rotation_matrix(g)).normalized();
+  self.semi_axes = Eigen::Vector3d(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+  const bool alone = !free_query_.any_contact(self, slot);
+  cache_slot_[cache_next_] = slot;
+  cache_state_[cache_next_] = alone ? 2 : 1;
+  cache_next_ = (cache_next_ + 1) % kIsolationCache;
+  return alone;
 }
 
 void ProxyRenderer::place(const ToolEllipsoid& tool) noexcept {
@@ -204,21 +220,32 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   }
 
   // God-object: sweep toward the goal, stop at the first contact, slide on the planes. A
-  // sticking proxy keeps its place and its blockers.
+  // sticking proxy keeps its place and its blockers. The last tick's blockers are tested first.
   Plane planes[3];
   int np = sticking_ ? std::max(1, last_constraints_) : 0;
+  std::uint32_t hints[3];
+  std::size_t n_hints = 0;
+  for (; n_hints < n_blockers_; ++n_hints) hints[n_hints] = blockers_[n_hints].slot;
   if (!sticking_) n_blockers_ = 0;
   Eigen::Vector3d p = proxy_;
   const double eps = 1e-4 * r;  // the proxy stops this far short of a contact
   std::uint32_t candidates = 0;
+  std::uint32_t ignore[8];
+  std::size_t n_ignore = 0;
   for (int s = 0; s < params_.substeps && !sticking_; ++s) {
     const Eigen::Vector3d target = constrained_goal(goal, planes, np);
     const Eigen::Vector3d u = target - p;
     const double len = u.norm();
     if (len <= 1e-9 * r) break;
     at.center = p;
-    const SweepHit hit = sweep_.first_contact(at, u);
+    SweepHit hit = sweep_.first_contact(at, u, {ignore, n_ignore}, {hints, n_hints});
     candidates += sweep_.counts().candidates;
+    // Floaters do not block: sweep again without them (at most 8 per tick).
+    while (hit.hit && params_.pass_isolated && n_ignore < 8 && isolated(hit.slot)) {
+      ignore[n_ignore++] = hit.slot;
+      hit = sweep_.first_contact(at, u, {ignore, n_ignore});
+      candidates += sweep_.counts().candidates;
+    }
     if (!hit.hit) {
       p = target;
       if (np == 0) break;
@@ -250,8 +277,14 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     opacity_ = 1.0;
     return out;
   }
-  // The contact normal: shaded, unless it disagrees with where the proxy holds the device.
-  Eigen::Vector3d n = shaded_normal(p, r);
+  // The contact normal: shaded (recomputed once the proxy has moved 5 % of the tool radius),
+  // unless it disagrees with where the proxy holds the device.
+  if (!(shade_valid_ && (p - shade_at_).norm() <= 0.05 * r)) {
+    shade_ = shaded_normal(p, r);
+    shade_at_ = p;
+    shade_valid_ = true;
+  }
+  Eigen::Vector3d n = shade_;
   if (!(n.dot(e) > 0)) n = e.norm() > 0 ? Eigen::Vector3d(e.normalized()) : (np > 0 ? planes[0].normal : Eigen::Vector3d::UnitZ());
   normal_ = n;
   in_contact_ = true;

@@ -85,7 +85,8 @@ class ContactQuery {
   /// Early exit: true as soon as one Gaussian is certified to overlap `tool` (K_min > 0), with
   /// no K_min converged for the rest; false when none overlaps (or the tool is invalid). The
   /// "is this pose free?" of the proxy. Leaves result() untouched. Allocation-free.
-  [[nodiscard]] bool any_contact(const ToolEllipsoid& tool) noexcept;
+  /// `exclude_slot`: a world record to leave out (a Gaussian tested against the others).
+  [[nodiscard]] bool any_contact(const ToolEllipsoid& tool, std::uint32_t exclude_slot = UINT32_MAX) noexcept;
 
   [[nodiscard]] const ContactSet& result() const noexcept { return result_; }
   [[nodiscard]] const CollisionWorld& world() const noexcept { return *world_; }

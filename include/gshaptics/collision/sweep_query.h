@@ -18,6 +18,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -57,8 +58,12 @@ class SweepQuery {
   explicit SweepQuery(const CollisionWorld& world, std::size_t max_candidates = 4096);
 
   /// The first Gaussian `tool` touches when its centre moves by `motion` (rotation and axes
-  /// fixed; world frame). A zero or non-finite motion gives no hit.
-  SweepHit first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion) noexcept;
+  /// fixed; world frame), leaving out the records in `ignore`. `hints` are records tested
+  /// first (the last tick's blockers: the likely answer, which then prunes the rest). A zero
+  /// or non-finite motion gives no hit.
+  SweepHit first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
+                         std::span<const std::uint32_t> ignore = {},
+                         std::span<const std::uint32_t> hints = {}) noexcept;
   [[nodiscard]] const SweepCounts& counts() const noexcept { return counts_; }
   [[nodiscard]] const CollisionWorld& world() const noexcept { return *world_; }
 

@@ -46,8 +46,12 @@ struct ProxyParams {
   bool opacity_stiffness = false;  ///< k_c scaled by the smoothed opacity of the blocking Gaussians
   double tau_opacity = 0.02;  ///< s, time constant of that smoothing
   int substeps = 4;           ///< sweeps per tick (first contact, then slides on up to 3 planes)
-  double shading_kernel = 1.0;  ///< kernel width of the shaded normal, in tool radii
+  double shading_kernel = 0.5;  ///< kernel width of the shaded normal, in tool radii
   double teleport = 10.0;     ///< a device jump of more tool radii than this in one tick re-places the proxy
+  /// A Gaussian that overlaps no other kept Gaussian (a floater, as trained scenes have in
+  /// free space) does not block the proxy, so the tool is not caught on specks in mid-air. A
+  /// Gaussian that touches any other one (a surface, a bump on it) always blocks.
+  bool pass_isolated = true;
 };
 
 class ProxyRenderer final : public ForceRenderer {
@@ -80,6 +84,9 @@ class ProxyRenderer final : public ForceRenderer {
     Eigen::Vector3d normal, point;
   };
   void place(const ToolEllipsoid& tool) noexcept;
+  /// Whether the Gaussian in `slot` overlaps no other kept Gaussian (cached; one early-exit
+  /// query the first time a slot blocks).
+  bool isolated(std::uint32_t slot) noexcept;
   Eigen::Vector3d constrained_goal(const Eigen::Vector3d& goal, const Plane* planes, int n) const noexcept;
 
   const CollisionWorld* world_;
@@ -90,12 +97,17 @@ class ProxyRenderer final : public ForceRenderer {
   Eigen::Vector3d proxy_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond last_rotation_ = Eigen::Quaterniond::Identity();
-  bool valid_ = false, in_contact_ = false, sticking_ = false, sliding_ = false;
+  bool valid_ = false, in_contact_ = false, sticking_ = false, sliding_ = false, shade_valid_ = false;
+  Eigen::Vector3d shade_ = Eigen::Vector3d::Zero(), shade_at_ = Eigen::Vector3d::Zero();
   double opacity_ = 1.0;
   std::array<Contact, 3> blockers_{};
   std::size_t n_blockers_ = 0;
   int last_constraints_ = 0;
   std::uint64_t placements_ = 0, lost_ = 0;
+  static constexpr std::size_t kIsolationCache = 64;
+  std::array<std::uint32_t, kIsolationCache> cache_slot_{};
+  std::array<std::uint8_t, kIsolationCache> cache_state_{};  // 0: empty, 1: supported, 2: isolated
+  std::size_t cache_next_ = 0;
 };
 
 }  // namespace gshaptics
