@@ -18,7 +18,7 @@ namespace gshaptics {
 
 /// The matrix to run. Lengths in metres.
 struct FidelityOptions {
-  std::string force_model = "paper";  ///< make_force_renderer() name
+  std::string force_model = "proxy";  ///< make_force_renderer() name
   ForceParams force;                   ///< the paper model's parameters (and f_max for every model)
   ProxyParams proxy;                   ///< the proxy model's parameters
   std::vector<ShapeKind> shapes = all_shapes();

@@ -48,7 +48,7 @@ struct RuntimeConfig {
   /// Longest stop ramp: the force is zeroed at the latest this long after a stop request, s.
   double stop_timeout = 0.1;
   ToolShape tool;
-  std::string force_model = "paper";  ///< make_force_renderer() name: "proxy" or "paper"
+  std::string force_model = "proxy";  ///< make_force_renderer() name: "proxy" (default) or "paper"
   ForceParams force;                  ///< the paper model's parameters, and F_max for every model
   ProxyParams proxy;                  ///< the proxy model's parameters
   QueryOptions query;
