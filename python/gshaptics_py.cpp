@@ -18,6 +18,7 @@
 #include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/narrowphase/k_min.h"
+#include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/scene/registration.h"
 #include "gshaptics/sim/probe_run.h"
 
@@ -302,7 +303,7 @@ PYBIND11_MODULE(gshaptics, m) {
            },
            py::arg("poses"), "One query per row of an (M, 10) array; the GIL is released meanwhile.")
       .def("run_probe", [](const PyWorld& w, int sites, std::uint64_t seed, double tool_radius,
-                           const py::object& up, double rate_hz) {
+                           const py::object& up, double rate_hz, const std::string& force_model) {
              ProbeParams pp;
              pp.sites = sites;
              pp.seed = seed;
@@ -312,6 +313,9 @@ PYBIND11_MODULE(gshaptics, m) {
              pp.travel_speed = 8 * tool_radius;
              ProbeRunParams rp;
              rp.rate_hz = rate_hz;
+             if (!is_force_model(force_model))
+               throw py::value_error("force_model: expected 'proxy' or 'paper', got '" + force_model + "'");
+             rp.force_model = force_model;
              ProbeRunResult run;
              std::vector<ProbeSite> site_list;
              {
@@ -353,6 +357,7 @@ PYBIND11_MODULE(gshaptics, m) {
            },
            py::arg("sites") = 7, py::arg("seed") = 1, py::arg("tool_radius") = 0.05,
            py::arg("up") = py::make_tuple(0.0, 0.0, 1.0), py::arg("rate_hz") = 1000.0,
+           py::arg("force_model") = "proxy",
            "The simulated probe run of `gshaptics simulate` (admittance device, simulated hand, "
            "inline query + force model each tick). Returns a dict of per-tick arrays (time (T,), "
            "position/velocity/force/user_force (T, 3), candidates/prefiltered/contacts (T,), "
@@ -396,6 +401,48 @@ PYBIND11_MODULE(gshaptics, m) {
         d["in_contact"] = s.in_contact;
         return d;
       }, "dict: n_smooth (3,), alpha, v_filtered (3,), in_contact");
+
+  // The proxy keeps a reference to its world: hold the world's shared_ptr beside it.
+  struct PyProxy {
+    std::shared_ptr<CollisionWorld> world;
+    std::unique_ptr<ProxyRenderer> proxy;
+  };
+  py::class_<PyProxy>(m, "ProxyRenderer",
+      "The proxy (god-object) force model on the Gaussians: the proxy never passes a Gaussian "
+      "(continuous first contact), the device is coupled to it by k_c (N/m) and b_c (N s/m); "
+      "optional Coulomb friction (mu_s, mu_k). One per device; not thread-safe.")
+      .def(py::init([](const PyWorld& w, double stiffness, double damping, double mu_s, double mu_k,
+                       double f_max, bool opacity_stiffness) {
+             ProxyParams p;
+             p.stiffness = stiffness;
+             p.damping = damping;
+             p.mu_s = mu_s;
+             p.mu_k = mu_k;
+             p.opacity_stiffness = opacity_stiffness;
+             return PyProxy{w.world, std::make_unique<ProxyRenderer>(*w.world, p, f_max)};
+           }),
+           py::arg("world"), py::arg("stiffness") = ProxyParams{}.stiffness,
+           py::arg("damping") = ProxyParams{}.damping, py::arg("mu_s") = 0.0, py::arg("mu_k") = 0.0,
+           py::arg("f_max") = ForceParams{}.f_max, py::arg("opacity_stiffness") = false)
+      .def("render", [](PyProxy& p, const py::object& center, const py::object& axes, const py::object& velocity,
+                        double dt) {
+             if (!(dt > 0)) throw py::value_error("dt: must be > 0 seconds");
+             ToolEllipsoid t;
+             t.center = vec3(center, "center");
+             t.semi_axes = vec3(axes, "axes");
+             if (!t.valid()) throw py::value_error("center/axes: finite values and axes > 0 required");
+             const RenderOutput o = p.proxy->render(t, vec3(velocity, "velocity"), dt);
+             return Eigen::Vector3d(o.force);
+           },
+           py::arg("center"), py::arg("axes"), py::arg("velocity"), py::arg("dt"),
+           "One tick: device tool centre (3,) m, semi-axes (3,) m, velocity (3,) m/s, dt s. "
+           "Returns the force (3,) in N, world frame.")
+      .def_property_readonly("proxy", [](const PyProxy& p) { return Eigen::Vector3d(p.proxy->proxy_position()); },
+                             "proxy centre (3,), m, world frame")
+      .def_property_readonly("normal", [](const PyProxy& p) { return Eigen::Vector3d(p.proxy->contact_normal()); },
+                             "shaded contact normal (3,) of the last contact")
+      .def_property_readonly("sticking", [](const PyProxy& p) { return p.proxy->sticking(); })
+      .def("reset", [](PyProxy& p) { p.proxy->reset(); });
 
   m.def("k_min", &k_min_pairs, py::arg("cov_a"), py::arg("cov_b"), py::arg("d"),
         "K_min of the Gilitschenski-Hanebeck test for ellipsoids {x: (x-c)^T cov^-1 (x-c) <= 1}, "

@@ -38,8 +38,9 @@ def main(argv):
         summary = json.load(f)
     t = data["time_s"]
     realtime = "jitter_us" in data.dtype.names
-    rows = 5 if realtime else 4
-    fig, ax = plt.subplots(rows, 1, figsize=(11, 12 if realtime else 10), sharex=True)
+    has_proxy = "proxy_x" in data.dtype.names
+    rows = (5 if realtime else 4) + (1 if has_proxy else 0)
+    fig, ax = plt.subplots(rows, 1, figsize=(11, 2.4 * rows + 0.4), sharex=True)
     ax[0].plot(t, data["candidates"], lw=0.8, label="broad-phase candidates")
     ax[0].plot(t, data["prefiltered"], lw=0.8, label="after sphere pre-filter (eq. 4)")
     ax[0].plot(t, data["contacts"], lw=1.0, label="colliding (K_min > 0)")
@@ -75,6 +76,18 @@ def main(argv):
         ax[4].set_title(f"{rt.get('achieved_rate_hz', 0):.1f} Hz achieved, jitter p99 "
                         f"{j.get('p99', 0):.1f} us, {rt.get('deadline_misses', 0)} deadline misses, "
                         f"{rt.get('stale_ticks', 0)} stale ticks", fontsize=9, loc="right")
+    if has_proxy:
+        # Proxy (god-object): how far the force model holds the tool from the device, and on how
+        # many constraint planes.
+        gap = np.sqrt((data["proxy_x"] - data["x"]) ** 2 + (data["proxy_y"] - data["y"]) ** 2 +
+                      (data["proxy_z"] - data["z"]) ** 2)
+        ax[-1].plot(t, gap * 1e3, lw=0.9, color="tab:green", label="proxy to device distance")
+        ax[-1].set_ylabel("proxy gap (mm)")
+        twin = ax[-1].twinx()
+        twin.plot(t, data["constraints"], lw=0.6, color="tab:gray", alpha=0.6, label="constraint planes")
+        twin.set_ylim(-0.2, 3.5)
+        twin.set_ylabel("constraints")
+        ax[-1].legend(loc="upper left", fontsize=8)
     q = summary.get("query_us", {})
     ax[3].set_title(f"p50 {q.get('p50', 0):.1f} us, p99 {q.get('p99', 0):.1f} us, "
                     f"max {q.get('max', 0):.1f} us", fontsize=9, loc="right")

@@ -69,6 +69,13 @@ function init(h) {
   tool.scale.set(...h.tool.axes);
   tool.renderOrder = 1000; // overlays: drawn after the splats, visible inside the surface
   scene.add(tool);
+  // The proxy (god-object): a ghost of the tool where the force model holds it, on the surface.
+  const proxy = new THREE.Mesh(new THREE.SphereGeometry(1, 16, 10),
+    new THREE.MeshBasicMaterial({ color: 0x99ff99, wireframe: true, transparent: true, opacity: 0.35, depthTest: false }));
+  proxy.scale.set(...h.tool.axes);
+  proxy.renderOrder = 999;
+  proxy.visible = false;
+  scene.add(proxy);
   const contacts = new THREE.InstancedMesh(new THREE.SphereGeometry(1, 10, 6),
     new THREE.MeshBasicMaterial({ color: 0xff2244, transparent: true, opacity: 0.85, depthTest: false }), MAX_SHOWN);
   contacts.count = 0;
@@ -83,7 +90,7 @@ function init(h) {
   });
   scene.add(arrow);
 
-  Object.assign(view, { scene, camera, renderer, controls, splat, tool, contacts, arrow, extent });
+  Object.assign(view, { scene, camera, renderer, controls, splat, tool, proxy, contacts, arrow, extent });
   addEventListener("resize", () => {
     camera.aspect = innerWidth / innerHeight;
     camera.updateProjectionMatrix();
@@ -105,6 +112,12 @@ function update(m) {
   const q = m.tool.rotation;
   view.tool.quaternion.set(q[1], q[2], q[3], q[0]);
   if (view.target === null) view.target = c.clone();
+  if (m.proxy) {  // shown while it holds the tool away from the device's pose
+    const p = vec(m.proxy.center);
+    view.proxy.position.copy(p);
+    view.proxy.quaternion.copy(view.tool.quaternion);
+    view.proxy.visible = p.distanceTo(c) > 0.02 * view.hello.tool.axes[0];
+  }
 
   const n = Math.min(m.contacts.length, MAX_SHOWN);
   for (let i = 0; i < n; i++) {

@@ -177,3 +177,35 @@ def test_probe_run_on_bundled_truck(data_dir):
     touching = run["contacts"] > 0
     assert np.linalg.norm(run["force"][touching], axis=1).max() > 0.5
     assert np.all(np.linalg.norm(run["force"][~touching], axis=1) == 0)
+
+
+def test_proxy_holds_the_bundled_truck_roof(data_dir):
+    scene = gshaptics.Scene.load(os.path.join(data_dir, "truck.splat"))
+    world = gshaptics.CollisionWorld(scene, registration=os.path.join(data_dir, "truck.registration.json"))
+    proxy = gshaptics.ProxyRenderer(world, stiffness=800.0)
+    r = 0.03
+    z_touch = None
+    for k in range(3000):  # lowered 1 mm per tick from above the roof to 1 m below it
+        z = 2.0 - 0.001 * k
+        f = proxy.render((0.0, 0.0, z), (r, r, r), (0.0, 0.0, -1.0), 1e-3)
+        if z_touch is None and np.linalg.norm(f) > 0:
+            z_touch = z
+    assert z_touch is not None and 0.9 < z_touch < 1.1  # the roof, ~1 m up
+    # With the device 2 m below the roof (1 m under the ground) the proxy is still on the roof
+    # (it slides down the roof's slope toward the device, never through it) and pushes up.
+    assert proxy.proxy[2] > z_touch - 0.15
+    assert f[2] > 0 and np.dot(f, proxy.normal) > 0.99 * np.linalg.norm(f)
+    np.testing.assert_allclose(np.linalg.norm(f), 30.0)  # clamped at f_max
+    with pytest.raises(ValueError):
+        gshaptics.ProxyRenderer(world, stiffness=-1.0)
+
+
+def test_run_probe_with_either_force_model(data_dir):
+    scene = gshaptics.Scene.load(os.path.join(data_dir, "truck.splat"))
+    world = gshaptics.CollisionWorld(scene, registration=os.path.join(data_dir, "truck.registration.json"))
+    proxy = world.run_probe(sites=2, tool_radius=0.05)
+    paper = world.run_probe(sites=2, tool_radius=0.05, force_model="paper")
+    for run in (proxy, paper):
+        assert run["contacts"].max() > 0 and np.abs(run["force"]).max() > 0
+    with pytest.raises(ValueError):
+        world.run_probe(sites=2, force_model="spring")

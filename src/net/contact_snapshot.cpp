@@ -16,6 +16,7 @@ void ContactSnapshotObserver::on_result(const PoseCommand& pose, std::span<const
   scratch_.pose = pose;
   scratch_.counts = result.counts;
   scratch_.force = result.force;
+  scratch_.proxy = result.proxy;
   scratch_.query_us = result.query_us;
   const std::size_t n = std::min(contacts.size(), ContactSnapshot::kMaxShown);
   for (std::size_t i = 0; i < n; ++i) scratch_.record[i] = contacts[i].slot;

@@ -76,7 +76,7 @@ std::vector<RosMarker> contact_markers(const ContactSnapshot& snap, const Collis
                                        const Eigen::Vector3d& tool_axes, std::size_t max_contacts) {
   const std::size_t shown = std::min<std::size_t>(snap.shown, max_contacts);
   std::vector<RosMarker> out;
-  out.reserve(2 + shown);
+  out.reserve(3 + shown);
   RosMarker clear;
   clear.action = RosMarker::kDeleteAll;
   out.push_back(clear);
@@ -100,6 +100,14 @@ std::vector<RosMarker> contact_markers(const ContactSnapshot& snap, const Collis
     m.scale = {2.0 * g.semi_axes[0], 2.0 * g.semi_axes[1], 2.0 * g.semi_axes[2]};
     m.rgba = {1.0f, 0.15f, 0.25f, 0.85f};
     out.push_back(m);
+  }
+  // The proxy (god-object) as a ghost of the tool, last, while it holds the tool off the pose.
+  if ((snap.proxy - snap.pose.position).norm() > 0.02 * tool_axes.maxCoeff()) {
+    RosMarker ghost = tool;
+    ghost.ns = "proxy";
+    ghost.position = {snap.proxy.x(), snap.proxy.y(), snap.proxy.z()};
+    ghost.rgba = {0.6f, 1.0f, 0.6f, 0.35f};
+    out.push_back(ghost);
   }
   return out;
 }

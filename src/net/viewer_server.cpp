@@ -54,6 +54,10 @@ std::string ViewerServer::state_json(const TickRecord& tick, const ContactSnapsh
   append_vec(s, tick.position, 7);
   const Eigen::Quaterniond& q = contacts.pose.orientation;
   s += fmt::format(",\"rotation\":[{:.6g},{:.6g},{:.6g},{:.6g}]}}", q.w(), q.x(), q.y(), q.z());
+  // The proxy (god-object): where the renderer holds the tool; the tool's own centre without one.
+  s += fmt::format(",\"proxy\":{{\"constraints\":{},\"center\":", unsigned(tick.constraints));
+  append_vec(s, tick.proxy, 7);
+  s += "}";
   s += ",\"force\":";
   append_vec(s, tick.force);
   s += ",\"desired\":";

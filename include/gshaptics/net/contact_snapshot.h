@@ -24,6 +24,7 @@ struct ContactSnapshot {
   PoseCommand pose;                 ///< the tool pose the contacts belong to
   QueryCounts counts;
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< force model output for this pose, N
+  Eigen::Vector3d proxy = Eigen::Vector3d::Zero();  ///< proxy centre (the pose's own without a proxy), m
   float query_us = 0;
   std::uint32_t shown = 0;  ///< entries used in `record` (min(contacts, kMaxShown))
   /// Position of each shown contact in CollisionWorld::gaussians() (world frame geometry).

@@ -138,7 +138,9 @@ class RosWrenchOutbox {
 
 /// The tool ellipsoid and the colliding Gaussians of a snapshot as markers: DELETEALL first, then
 /// the tool (ns "tool"), then one SPHERE per contact (ns "contacts", id = index into the original
-/// scene file, scale = the k-sigma ellipsoid's diameters), at most `max_contacts`.
+/// scene file, scale = the k-sigma ellipsoid's diameters), at most `max_contacts`, and last the
+/// proxy (ns "proxy", a ghost of the tool) while the proxy force model holds the tool away from
+/// the device's pose.
 [[nodiscard]] std::vector<RosMarker> contact_markers(const ContactSnapshot& snapshot,
                                                      const CollisionWorld& world,
                                                      const Eigen::Vector3d& tool_axes,
