@@ -279,8 +279,15 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   }
   // The contact normal: shaded (recomputed once the proxy has moved 5 % of the tool radius),
   // unless it disagrees with where the proxy holds the device.
-  if (!(shade_valid_ && (p - shade_at_).norm() <= 0.05 * r)) {
-    shade_ = shaded_normal(p, r);
+  if (!(shade_valid_ && (p - shade_at_).norm() <= params_.shading_reuse * r)) {
+    // The kernel follows the tool, or the Gaussians when they are larger (sparse scenes): a
+    // kernel smaller than the spacing would see single Gaussians, not the surface.
+    double scale = r;
+    for (std::size_t i = 0; i < n_blockers_; ++i) {
+      const float* a = world_->gaussians()[blockers_[i].slot].semi_axes;
+      scale = std::max(scale, double(std::max({std::min(a[0], a[1]), std::min(a[1], a[2]), std::min(a[0], a[2])})));
+    }
+    shade_ = shaded_normal(p, scale);
     shade_at_ = p;
     shade_valid_ = true;
   }

@@ -46,7 +46,9 @@ struct ProxyParams {
   bool opacity_stiffness = false;  ///< k_c scaled by the smoothed opacity of the blocking Gaussians
   double tau_opacity = 0.02;  ///< s, time constant of that smoothing
   int substeps = 4;           ///< sweeps per tick (first contact, then slides on up to 3 planes)
-  double shading_kernel = 0.5;  ///< kernel width of the shaded normal, in tool radii
+  double shading_kernel = 0.5;  ///< kernel width of the shaded normal, in tool radii (or in the
+                                ///< blocking Gaussians' middle semi-axis when that is larger)
+  double shading_reuse = 0.05;  ///< the shaded normal is recomputed once the proxy moved this many tool radii
   double teleport = 10.0;     ///< a device jump of more tool radii than this in one tick re-places the proxy
   /// A Gaussian that overlaps no other kept Gaussian (a floater, as trained scenes have in
   /// free space) does not block the proxy, so the tool is not caught on specks in mid-air. A
