@@ -232,6 +232,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   std::uint32_t candidates = 0;
   std::uint32_t ignore[8];
   std::size_t n_ignore = 0;
+  int lifts = 0;
   for (int s = 0; s < params_.substeps && !sticking_; ++s) {
     const Eigen::Vector3d target = constrained_goal(goal, planes, np);
     const Eigen::Vector3d u = target - p;
@@ -252,6 +253,25 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
       continue;
     }
     p += u * std::max(0.0, hit.t - eps / len);
+    // Wedged between Gaussian-scale bumps (two planes already, and blocked at once): step up
+    // along the planes' mean normal by a small lift and start the planes afresh, so the proxy
+    // glides over the shell's noise instead of stopping in a pocket of it.
+    if (np >= 2 && hit.t * len < 1e-3 * r && lifts < 2) {
+      Eigen::Vector3d up = Eigen::Vector3d::Zero();
+      for (int i = 0; i < np; ++i) up += planes[i].normal;
+      up += hit.normal;
+      if (up.norm() > 0) {
+        const Eigen::Vector3d lift = up.normalized() * (params_.lift * r);
+        at.center = p;
+        const SweepHit lh = sweep_.first_contact(at, lift, {ignore, n_ignore});
+        if (!lh.hit) {
+          p += lift;
+          np = 0;
+          ++lifts;
+          continue;
+        }
+      }
+    }
     const CollisionGaussian& g = world_->gaussians()[hit.slot];
     if (n_blockers_ < blockers_.size()) {
       Contact& c = blockers_[n_blockers_++];

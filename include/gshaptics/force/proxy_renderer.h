@@ -46,6 +46,9 @@ struct ProxyParams {
   bool opacity_stiffness = false;  ///< k_c scaled by the smoothed opacity of the blocking Gaussians
   double tau_opacity = 0.02;  ///< s, time constant of that smoothing
   int substeps = 4;           ///< sweeps per tick (first contact, then slides on up to 3 planes)
+  /// When the proxy is wedged between Gaussian-scale bumps it steps up this many tool radii
+  /// (at most twice a tick) and slides on: it glides over the shell's noise (0: never).
+  double lift = 0.05;
   double shading_kernel = 0.5;  ///< kernel width of the shaded normal, in tool radii (or in the
                                 ///< blocking Gaussians' middle semi-axis when that is larger)
   double shading_reuse = 0.05;  ///< the shaded normal is recomputed once the proxy moved this many tool radii
