@@ -189,6 +189,55 @@ TEST_F(Ros2Bridge, MarkerArrayHasTheToolAndTheContacts) {
   EXPECT_TRUE(checked);
 }
 
+// The node's writers are RELIABLE keep-last 1 by default: a reliable subscriber (ROS 2's default)
+// and a best-effort one (the fixture's) both receive the wrench.
+TEST_F(Ros2Bridge, ReliableAndBestEffortSubscribersBothGetTheWrench) {
+  dds_qos_t* q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+  dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 8);
+  const dds_entity_t reliable = dds_create_reader(plain_->pp, plain_->wrench_topic, q, nullptr);
+  dds_delete_qos(q);
+  ASSERT_GT(reliable, 0);
+  stream(500ms);
+  geometry_msgs_msg_dds__WrenchStamped_ w{};
+  std::string frame;
+  ASSERT_TRUE(plain_->newest_wrench(w, frame));  // best-effort reader
+  int got = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (got == 0 && std::chrono::steady_clock::now() - t0 < 3s) {
+    stream(20ms);
+    void* samples[8] = {};
+    dds_sample_info_t infos[8];
+    const int n = dds_take(reliable, samples, infos, 8, 8);
+    for (int i = 0; i < n; ++i) got += infos[i].valid_data ? 1 : 0;
+    if (n > 0) dds_return_loan(reliable, samples, n);
+  }
+  EXPECT_GT(got, 0);
+  EXPECT_EQ(device_->stats().qos_incompatible.load(), 0u);
+}
+
+// A reliable subscriber against a node told to write best-effort cannot match: the node counts
+// it and names the policy.
+TEST(Ros2BridgeQos, AnIncompatibleSubscriberIsReported) {
+  Ros2Options o;
+  o.domain = 10 + int((getpid() + 97) % 200);
+  o.reliable_output = false;
+  Ros2NetworkDevice node(o, MonotonicClock::instance());
+  node.start(MonotonicClock::instance().now());
+  PlainDds peer(o.domain);
+  dds_qos_t* q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+  const dds_entity_t reliable = dds_create_reader(peer.pp, peer.wrench_topic, q, nullptr);
+  dds_delete_qos(q);
+  ASSERT_GT(reliable, 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  while (node.stats().qos_incompatible.load() == 0 && std::chrono::steady_clock::now() - t0 < 5s)
+    std::this_thread::sleep_for(20ms);
+  EXPECT_GT(node.stats().qos_incompatible.load(), 0u);
+  EXPECT_EQ(ros2_qos_policy_name(node.stats().qos_last_policy.load()), "RELIABILITY");
+  node.stop(MonotonicClock::instance().now());
+}
+
 TEST_F(Ros2Bridge, PublisherDiesMidContactAndTheForceGoesToZero) {
   stream(500ms);
   geometry_msgs_msg_dds__WrenchStamped_ w{};

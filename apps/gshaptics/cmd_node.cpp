@@ -44,7 +44,11 @@ void add_topic_options(CLI::App& cmd, RosBridgeOptions& t) {
   cmd.add_option("--wrench-topic", t.wrench_topic, "geometry_msgs/WrenchStamped to the device")->capture_default_str();
   cmd.add_option("--markers-topic", t.markers_topic, "visualization_msgs/MarkerArray: tool and contacts")->capture_default_str();
   cmd.add_option("--frame-id", t.frame_id, "header.frame_id of what is published")->capture_default_str();
-  cmd.add_flag("--reliable", t.reliable, "Reliable streams instead of best-effort (keep-last --depth)");
+  cmd.add_flag("--reliable", t.reliable_input,
+               "Read poses RELIABLE instead of BEST_EFFORT (best-effort matches either kind of writer)");
+  cmd.add_flag("--best-effort-output", [&t](std::int64_t n) { t.reliable_output = n == 0; },
+               "Write wrenches and markers BEST_EFFORT instead of RELIABLE keep-last --depth (reliable "
+               "serves either kind of subscriber)");
   cmd.add_option("--depth", t.depth, "Keep-last depth of the streams")->capture_default_str()->check(CLI::Range(1, 1000));
   cmd.add_option("--marker-rate", t.marker_hz, "MarkerArrays per second")->capture_default_str()->check(CLI::Range(1.0, 200.0));
 }
@@ -58,6 +62,15 @@ std::unique_ptr<RosBridgeDevice> make_bridge(const NodeOptions& o) {
 #endif
   throw InputError(std::string("node: this build has no ") + (o.ros2 ? "ROS 2 (Cyclone DDS)" : "ROS 1 (roscpp)") +
                    " bridge; install the packages scripts/setup.sh lists and rebuild");
+}
+
+// The name of a DDS QoS policy id (ROS 2 builds; ROS 1 has no QoS mismatch).
+std::string qos_policy(std::uint32_t id) {
+#ifdef GSHAPTICS_HAVE_ROS2
+  return ros2_qos_policy_name(id);
+#else
+  return "policy " + std::to_string(id);
+#endif
 }
 
 }  // namespace
@@ -97,20 +110,33 @@ void register_node(CLI::App& app) {
                net.wire_topic(o->topics.pose_topic), net.wire_topic(o->topics.twist_topic),
                net.wire_topic(o->topics.wrench_topic), o->run.rate, net.wire_topic(o->topics.markers_topic),
                o->topics.marker_hz, o->topics.frame_id,
-               o->ros2 ? fmt::format(", {} depth {}", o->topics.reliable ? "reliable" : "best-effort", o->topics.depth)
+               o->ros2 ? fmt::format(", readers {}, writers {} depth {}", o->topics.reliable_input ? "reliable" : "best-effort",
+                                     o->topics.reliable_output ? "reliable" : "best-effort", o->topics.depth)
                        : std::string(), setup.tool_radius);
     fmt::print("node       ready\n");
     std::fflush(stdout);
     net.start_markers(pw.world, snapshots, setup.config.tool.semi_axes);
     const RosBridgeStats& st = net.stats();
-    const bool interrupted = run_live(rt, setup.planned, o->run.quiet, [&st] {
-      return fmt::format(" | poses {} | wrenches {}", st.poses_received.load(), st.wrenches_published.load());
+    const auto qos_problem = [&st] {
+      const std::uint64_t n = st.qos_incompatible.load();
+      return n == 0 ? std::string() : fmt::format("{} incompatible QoS ({})", n, qos_policy(st.qos_last_policy.load()));
+    };
+    const bool interrupted = run_live(rt, setup.planned, o->run.quiet, [&st, &qos_problem] {
+      const std::string q = qos_problem();
+      return fmt::format(" | poses {} | wrenches {}{}", st.poses_received.load(), st.wrenches_published.load(),
+                         q.empty() ? "" : " | " + q);
     });
     net.stop_markers();
     fmt::print("\n{}       {} poses received ({} dropped: NaN/Inf), {} twists, {} wrenches and {} marker "
                "arrays published, {} pose publisher(s)\n", o->ros2 ? "ros2" : "ros1",
                st.poses_received.load(), st.poses_dropped.load(), st.twists_received.load(),
                st.wrenches_published.load(), st.markers_published.load(), st.pose_publishers.load());
+    if (st.stamp_fallbacks.load() + st.stamp_rejected.load() > 0)
+      fmt::print("stamps     {} poses without a usable header stamp (velocity from arrival times), {} with an "
+                 "impossible stamp step\n", st.stamp_fallbacks.load(), st.stamp_rejected.load());
+    if (!qos_problem().empty())
+      fmt::print(stderr, "warning: {}: a subscriber or publisher could not match the node's QoS (see --reliable, "
+                         "--best-effort-output)\n", qos_problem());
     if (st.pose_publishers.load() > 1)
       fmt::print(stderr, "warning: {} publishers on {}: their poses interleaved (the newest sample wins)\n",
                  st.pose_publishers.load(), net.wire_topic(o->topics.pose_topic));
@@ -118,7 +144,11 @@ void register_node(CLI::App& app) {
                             {"twists_received", st.twists_received.load()},
                             {"wrenches_published", st.wrenches_published.load()},
                             {"markers_published", st.markers_published.load()},
-                            {"pose_publishers", st.pose_publishers.load()}};
+                            {"pose_publishers", st.pose_publishers.load()},
+                            {"stamp_fallbacks", st.stamp_fallbacks.load()},
+                            {"stamp_rejected", st.stamp_rejected.load()},
+                            {"qos_incompatible", st.qos_incompatible.load()},
+                            {"qos_last_policy", qos_policy(st.qos_last_policy.load())}};
     if (!write_run_outputs(rt, o->run, so, pw, setup, interrupted, "node", {{o->ros2 ? "ros2" : "ros1", extra}}))
       set_exit_code(1);
   });

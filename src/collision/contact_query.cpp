@@ -35,17 +35,29 @@ inline void pad_lanes(PairBatch& b) noexcept {
   }
 }
 
+// The tool's rotation and its exact axis-aligned box, rounded outward to float (the BVH's
+// precision), shared by every query of a tool.
+struct ToolBox {
+  explicit ToolBox(const ToolEllipsoid& tool) noexcept
+      : rotation(tool.rotation.normalized().toRotationMatrix()) {
+    const Eigen::Vector3d half = ellipsoid_half_extent(rotation, tool.semi_axes);
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = round_down_to_float(tool.center[k] - half[k]);
+      hi[k] = round_up_to_float(tool.center[k] + half[k]);
+    }
+  }
+  Eigen::Matrix3d rotation;
+  float lo[3], hi[3];
+};
+
 }  // namespace
 
 bool ContactQuery::any_contact(const ToolEllipsoid& tool, std::uint32_t exclude_slot) noexcept {
   if (!tool.valid()) return false;
-  const Eigen::Matrix3d R_tool = tool.rotation.normalized().toRotationMatrix();
-  const Eigen::Vector3d half = ellipsoid_half_extent(R_tool, tool.semi_axes);
-  float box_lo[3], box_hi[3];
-  for (int k = 0; k < 3; ++k) {
-    box_lo[k] = round_down_to_float(tool.center[k] - half[k]);
-    box_hi[k] = round_up_to_float(tool.center[k] + half[k]);
-  }
+  const ToolBox box(tool);
+  const Eigen::Matrix3d& R_tool = box.rotation;
+  const float* box_lo = box.lo;
+  const float* box_hi = box.hi;
   const double r_tool = tool.bounding_radius();
   const CollisionGaussian* gs = world_->gaussians().data();
   const BatchTool batch_tool = make_batch_tool(R_tool, tool.semi_axes);
@@ -77,13 +89,10 @@ bool ContactQuery::any_contact(const ToolEllipsoid& tool, std::uint32_t exclude_
 QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
   result_.clear();
   if (!tool.valid()) return QueryStatus::kInvalidTool;
-  const Eigen::Matrix3d R_tool = tool.rotation.normalized().toRotationMatrix();
-  const Eigen::Vector3d half = ellipsoid_half_extent(R_tool, tool.semi_axes);
-  float box_lo[3], box_hi[3];
-  for (int k = 0; k < 3; ++k) {
-    box_lo[k] = round_down_to_float(tool.center[k] - half[k]);
-    box_hi[k] = round_up_to_float(tool.center[k] + half[k]);
-  }
+  const ToolBox box(tool);
+  const Eigen::Matrix3d& R_tool = box.rotation;
+  const float* box_lo = box.lo;
+  const float* box_hi = box.hi;
   const double r_tool = tool.bounding_radius();
   const double c_tool[3] = {tool.center.x(), tool.center.y(), tool.center.z()};
   const CollisionGaussian* gs = world_->gaussians().data();

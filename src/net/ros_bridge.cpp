@@ -1,6 +1,8 @@
 #include "gshaptics/net/ros_bridge.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
 #include <chrono>
 
 namespace gshaptics {
@@ -29,7 +31,32 @@ void RosPoseIntake::on_pose(const Eigen::Vector3d& position, const Eigen::Vector
   if (q.coeffs().squaredNorm() < 1e-12) q = Eigen::Quaterniond::Identity();
   const Nanos now = clock_.now();
   const bool fresh_twist = twist_at_ >= 0 && now - twist_at_ < to_nanos(0.05);
-  input_.set_target(position, q.normalized(), now, fresh_twist ? &twist_ : nullptr);
+  // Velocity from the sender's stamps (transport jitter would otherwise enter the damping term
+  // as a force spike), arrival times only when the stamps cannot be used.
+  const std::int64_t st = stamp.nanos();
+  if (have_prev_) {
+    const std::int64_t d_stamp = st - prev_stamp_;
+    const Nanos d_arrival = now - prev_arrival_;
+    double dt = 0;
+    if (st == 0 || prev_stamp_ == 0 || d_stamp <= 0) {
+      stats_.stamp_fallbacks.fetch_add(1);
+      dt = to_seconds(d_arrival);
+    } else if (std::llabs(d_stamp - d_arrival) > 1'000'000'000LL) {
+      stats_.stamp_rejected.fetch_add(1);
+      dt = to_seconds(d_arrival);
+    } else {
+      dt = double(d_stamp) * 1e-9;
+    }
+    if (dt > 0) {
+      const Eigen::Vector3d raw = (position - prev_position_) / dt;
+      velocity_ += (1.0 - std::exp(-dt / kVelocityTau)) * (raw - velocity_);
+    }
+  }
+  have_prev_ = true;
+  prev_position_ = position;
+  prev_stamp_ = st;
+  prev_arrival_ = now;
+  input_.set_target(position, q.normalized(), now, fresh_twist ? &twist_ : &velocity_);
   stamps_.write(stamp);
   stats_.poses_received.fetch_add(1);
 }

@@ -29,10 +29,10 @@ dds_entity_t check(dds_entity_t e, const std::string& what) {
 }
 
 /// QoS of the streams: best-effort or reliable, keep-last depth, XCDR1 (as rmw_cyclonedds).
-dds_qos_t* stream_qos(const Ros2Options& o) {
+dds_qos_t* stream_qos(bool reliable, int depth) {
   dds_qos_t* q = dds_create_qos();
-  dds_qset_reliability(q, o.reliable ? DDS_RELIABILITY_RELIABLE : DDS_RELIABILITY_BEST_EFFORT, DDS_MSECS(100));
-  dds_qset_history(q, DDS_HISTORY_KEEP_LAST, std::max(1, o.depth));
+  dds_qset_reliability(q, reliable ? DDS_RELIABILITY_RELIABLE : DDS_RELIABILITY_BEST_EFFORT, DDS_MSECS(100));
+  dds_qset_history(q, DDS_HISTORY_KEEP_LAST, std::max(1, depth));
   const dds_data_representation_id_t rep[] = {DDS_DATA_REPRESENTATION_XCDR1};
   dds_qset_data_representation(q, 1, rep);
   return q;
@@ -58,21 +58,18 @@ Endpoint make_reader(dds_entity_t pp, const dds_topic_descriptor_t* desc, const 
   Endpoint e;
   e.topic = check(dds_create_topic(pp, desc, ros2_dds_topic(name).c_str(), nullptr, nullptr), "topic " + name);
   // Readers keep a burst (64 samples) so that nothing arriving between two takes is
-  // overwritten; the samples are applied in order and the newest wins.
-  Ros2Options deep = o;
-  deep.depth = std::max(o.depth, 64);
-  Qos q(stream_qos(deep));
+  // overwritten; the samples are applied in order and the newest wins. Best-effort by default:
+  // it matches reliable and best-effort writers.
+  Qos q(stream_qos(o.reliable_input, std::max(o.depth, 64)));
   e.entity = check(dds_create_reader(pp, e.topic, q.q, nullptr), "reader on " + name);
   return e;
 }
 
-Endpoint make_writer(dds_entity_t pp, const dds_topic_descriptor_t* desc, const std::string& name, const Ros2Options& o,
-                     bool reliable_override = false) {
+Endpoint make_writer(dds_entity_t pp, const dds_topic_descriptor_t* desc, const std::string& name, const Ros2Options& o) {
   Endpoint e;
   e.topic = check(dds_create_topic(pp, desc, ros2_dds_topic(name).c_str(), nullptr, nullptr), "topic " + name);
-  Ros2Options oo = o;
-  if (reliable_override) oo.reliable = true;
-  Qos q(stream_qos(oo));
+  // Reliable keep-last by default: it serves reliable and best-effort readers alike.
+  Qos q(stream_qos(o.reliable_output, o.depth));
   e.entity = check(dds_create_writer(pp, e.topic, q.q, nullptr), "writer on " + name);
   return e;
 }
@@ -158,6 +155,26 @@ struct Ros2Impl {
     if (n > 0) dds_return_loan(pose_reader.entity, samples, n);
   }
 
+  // Matches DDS refused for incompatible QoS, on our wrench writer and pose reader: counted, with
+  // the policy named, so that a driver that gets no wrench is never silent.
+  void poll_qos() {
+    dds_offered_incompatible_qos_status_t offered{};
+    dds_requested_incompatible_qos_status_t requested{};
+    std::uint64_t total = 0;
+    std::uint32_t last = 0;
+    if (dds_get_offered_incompatible_qos_status(wrench_writer.entity, &offered) == DDS_RETCODE_OK && offered.total_count > 0) {
+      total += offered.total_count;
+      last = offered.last_policy_id;
+    }
+    if (dds_get_requested_incompatible_qos_status(pose_reader.entity, &requested) == DDS_RETCODE_OK &&
+        requested.total_count > 0) {
+      total += requested.total_count;
+      last = requested.last_policy_id;
+    }
+    stats.qos_incompatible.store(total);
+    if (last != 0) stats.qos_last_policy.store(last);
+  }
+
   void reader_main() {
     while (!stop.load()) {
       dds_attach_t triggered[2];
@@ -165,6 +182,7 @@ struct Ros2Impl {
       if (stop.load()) break;
       take_twists();
       take_poses();
+      poll_qos();
     }
   }
 };
@@ -196,6 +214,23 @@ void Ros2NetworkDevice::stop(Nanos now) noexcept {
 
 const RosBridgeStats& Ros2NetworkDevice::stats() const noexcept { return impl_->stats; }
 
+std::string ros2_qos_policy_name(std::uint32_t id) {
+  switch (id) {
+    case 0: return "none";
+    case DDS_RELIABILITY_QOS_POLICY_ID: return "RELIABILITY";
+    case DDS_DURABILITY_QOS_POLICY_ID: return "DURABILITY";
+    case DDS_DEADLINE_QOS_POLICY_ID: return "DEADLINE";
+    case DDS_LIVELINESS_QOS_POLICY_ID: return "LIVELINESS";
+    case DDS_OWNERSHIP_QOS_POLICY_ID: return "OWNERSHIP";
+    case DDS_HISTORY_QOS_POLICY_ID: return "HISTORY";
+    case DDS_DESTINATIONORDER_QOS_POLICY_ID: return "DESTINATION_ORDER";
+    case DDS_PRESENTATION_QOS_POLICY_ID: return "PRESENTATION";
+    case DDS_DATA_REPRESENTATION_QOS_POLICY_ID: return "DATA_REPRESENTATION";
+    case DDS_TYPE_CONSISTENCY_ENFORCEMENT_QOS_POLICY_ID: return "TYPE_CONSISTENCY";
+    default: return "policy " + std::to_string(id);
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 
 struct Ros2MarkerPublisher::State {
@@ -207,7 +242,7 @@ struct Ros2MarkerPublisher::State {
   State(Ros2Impl& d, const CollisionWorld& w, ContactSnapshotObserver& s, const Eigen::Vector3d& axes)
       : dds(d),
         writer(make_writer(d.participant, &visualization_msgs_msg_dds__MarkerArray__desc, d.options.markers_topic,
-                           d.options, /*reliable_override=*/true)),
+                           d.options)),
         loop([this](const std::vector<RosMarker>& m) { publish(m); }, w, s, axes, d.options.marker_hz,
              d.options.max_markers, d.stats) {}
 

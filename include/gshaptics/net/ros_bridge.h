@@ -30,7 +30,14 @@ struct RosBridgeOptions {
   std::string wrench_topic = "gshaptics/wrench";     ///< geometry_msgs/WrenchStamped, out
   std::string markers_topic = "gshaptics/markers";   ///< visualization_msgs/MarkerArray, out
   std::string frame_id = "world";                    ///< header.frame_id of what we publish
-  bool reliable = false;  ///< ROS 2 streams: best-effort (default) or reliable
+  /// ROS 2 readers (pose, twist): BEST_EFFORT by default, which matches reliable and best-effort
+  /// writers alike (as ROS 2's sensor-data profile does); true asks for RELIABLE (then a
+  /// best-effort driver cannot match: the mismatch is counted, see RosBridgeStats).
+  bool reliable_input = false;
+  /// ROS 2 writers (wrench, markers): RELIABLE keep-last `depth` by default, which serves
+  /// reliable and best-effort subscribers alike (ROS 2 subscriptions are reliable by default);
+  /// false writes BEST_EFFORT (a reliable subscriber then gets nothing: counted).
+  bool reliable_output = true;
   int depth = 1;          ///< ROS 2 keep-last depth of the written streams (readers keep 64)
   double marker_hz = 30;  ///< MarkerArray rate
   std::size_t max_markers = 500;  ///< colliding Gaussians per MarkerArray (the rest are counted)
@@ -57,6 +64,16 @@ struct RosBridgeStats {
   std::atomic<std::uint64_t> wrenches_published{0};
   std::atomic<std::uint64_t> markers_published{0};
   std::atomic<std::uint32_t> pose_publishers{0};  ///< distinct publishers seen on the pose topic
+  /// Poses whose header stamp was missing (zero) or not after the previous one: their velocity
+  /// came from arrival times instead.
+  std::atomic<std::uint64_t> stamp_fallbacks{0};
+  /// Poses whose stamp step was impossible (more than 1 s off the arrival step): velocity from
+  /// arrival times too.
+  std::atomic<std::uint64_t> stamp_rejected{0};
+  /// ROS 2: matches refused for incompatible QoS (offered by our writers + requested by our
+  /// readers), and the DDS policy id of the last one (qos_policy_name() names it; 0: none).
+  std::atomic<std::uint64_t> qos_incompatible{0};
+  std::atomic<std::uint32_t> qos_last_policy{0};
 };
 
 /// A device on a ROS network: the pose comes in, the wrench goes out, markers on the side.
@@ -94,9 +111,15 @@ class RosPoseIntake {
   /// A twist (m/s, world); used with poses arriving within 50 ms of it.
   void on_twist(const Eigen::Vector3d& linear);
   /// A pose: position (m), orientation (x, y, z, w as in ROS), its header stamp, and a key that
-  /// identifies its publisher.
+  /// identifies its publisher. Without a fresh twist, the velocity is the pose's change over the
+  /// change of its header stamps (the sender's clock, so transport jitter does not enter),
+  /// smoothed by a first-order filter of time constant kVelocityTau; it falls back to arrival
+  /// times when the stamp is zero, does not advance, or steps more than 1 s off the arrival
+  /// step (each counted in the stats).
   void on_pose(const Eigen::Vector3d& position, const Eigen::Vector4d& orientation_xyzw,
                const RosTime& stamp, std::uint64_t publisher);
+  /// Time constant of the velocity filter, s.
+  static constexpr double kVelocityTau = 0.002;
   /// Servo thread: the stamp of the newest pose (echoed in the wrench header). Never blocks.
   [[nodiscard]] const RosTime& newest_stamp() noexcept;
 
@@ -109,6 +132,11 @@ class RosPoseIntake {
   Nanos twist_at_ = -1;
   TripleBuffer<RosTime> stamps_;
   RosTime newest_;
+  // Velocity estimate from stamps (reader thread only).
+  bool have_prev_ = false;
+  Eigen::Vector3d prev_position_ = Eigen::Vector3d::Zero(), velocity_ = Eigen::Vector3d::Zero();
+  std::int64_t prev_stamp_ = 0;
+  Nanos prev_arrival_ = 0;
 };
 
 /// The wrench's way out: the servo thread post()s (wait-free, no allocation; wakes the publisher

@@ -68,6 +68,9 @@ class Ros2NetworkDevice final : public RosBridgeDevice {
 };
 
 /// Publishes MarkerArrays (tool ellipsoid + colliding Gaussians) from contact snapshots.
+/// The name of a DDS QoS policy id (RosBridgeStats::qos_last_policy), e.g. "RELIABILITY".
+[[nodiscard]] std::string ros2_qos_policy_name(std::uint32_t id);
+
 class Ros2MarkerPublisher {
  public:
   /// Uses the device's participant; `tool_axes` are the tool's semi-axes, m.

@@ -1,0 +1,88 @@
+// The middleware-free pose intake of the ROS bridges: velocity from the sender's header stamps,
+// not from arrival times, so transport jitter never reaches the damping term; missing, backward
+// and impossible stamps fall back to arrival times and are counted.
+
+#include "gshaptics/net/ros_bridge.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace gshaptics {
+namespace {
+
+constexpr Nanos kMs = 1'000'000;
+
+struct Intake {
+  ManualClock clock{kMs};
+  RosBridgeStats stats;
+  StreamDevice device{network_device_params("test", 0.1), Eigen::Vector3d::Zero()};
+  RosPoseIntake intake{device, clock, stats};
+  Intake() { device.start(clock.now()); }
+  void send(double x, std::int64_t stamp_ns) {
+    RosTime t;
+    t.sec = std::int32_t(stamp_ns / 1'000'000'000);
+    t.nanosec = std::uint32_t(stamp_ns % 1'000'000'000);
+    intake.on_pose({x, 0.0, 0.0}, {0, 0, 0, 1}, t, 1);
+  }
+  double velocity() { return device.read(clock.now()).velocity.x(); }
+};
+
+TEST(RosPoseIntake, VelocityFromStampsIgnoresTransportJitter) {
+  const double v_true = 0.157;  // m/s, sent at 1 kHz with exact stamps
+  const std::int64_t t0 = 1'700'000'000LL * 1'000'000'000LL;
+  std::mt19937_64 rng(4);
+  std::uniform_int_distribution<Nanos> delay(0, 5 * kMs);
+  Intake jittered, on_time;
+  Nanos last_arrival = 0;
+  double worst = 0, worst_arrival_based = 0;
+  for (int k = 0; k < 2000; ++k) {
+    const std::int64_t stamp = t0 + k * kMs;
+    const double x = v_true * k * 1e-3;
+    // The same stream on time, and with 0-5 ms of random delay (order kept, as DDS does).
+    on_time.clock.set(Nanos(k + 1) * kMs);
+    on_time.send(x, stamp);
+    const Nanos arrival = std::max(last_arrival + 1, Nanos(k + 1) * kMs + delay(rng));
+    const Nanos prev_arrival = last_arrival;
+    last_arrival = arrival;
+    jittered.clock.set(arrival);
+    jittered.send(x, stamp);
+    if (k < 50) continue;  // the 2 ms filter has settled
+    worst = std::max(worst, std::fabs(jittered.velocity() - v_true) / v_true);
+    ASSERT_NEAR(on_time.velocity(), v_true, 1e-6 * v_true) << k;
+    // What differentiating by arrival time would give.
+    worst_arrival_based = std::max(worst_arrival_based, std::fabs(v_true * 1e-3 / (double(arrival - prev_arrival) * 1e-9) - v_true) / v_true);
+  }
+  EXPECT_LT(worst, 0.10);             // within 10 % of the true speed on every tick (exactly it here)
+  EXPECT_GT(worst_arrival_based, 1.0);  // arrival times alone are off by more than 100 %
+  EXPECT_EQ(jittered.stats.stamp_fallbacks.load(), 0u);
+  EXPECT_EQ(jittered.stats.stamp_rejected.load(), 0u);
+}
+
+TEST(RosPoseIntake, MissingBackwardAndImpossibleStampsFallBackAndAreCounted) {
+  Intake in;
+  const std::int64_t t0 = 1'700'000'000LL * 1'000'000'000LL;
+  in.clock.set(1 * kMs);
+  in.send(0.000, t0);
+  in.clock.set(2 * kMs);
+  in.send(0.001, 0);  // no stamp (as `rostopic pub` without `now`)
+  EXPECT_EQ(in.stats.stamp_fallbacks.load(), 1u);
+  in.clock.set(3 * kMs);
+  in.send(0.002, t0 - 5 * kMs);  // goes backwards
+  EXPECT_EQ(in.stats.stamp_fallbacks.load(), 2u);
+  in.clock.set(4 * kMs);
+  in.send(0.003, t0 + 10'000 * kMs);  // 10 s ahead in 1 ms of arrival: impossible
+  EXPECT_EQ(in.stats.stamp_rejected.load(), 1u);
+  // Arrival times gave the velocity meanwhile: 1 mm per 1 ms (the 2 ms filter still rising).
+  EXPECT_GT(in.velocity(), 0.6);
+  EXPECT_LT(in.velocity(), 1.0 + 1e-9);
+  in.clock.set(5 * kMs);
+  in.send(0.004, t0 + 10'001 * kMs);  // stamps usable again
+  EXPECT_EQ(in.stats.stamp_fallbacks.load(), 2u);
+  EXPECT_EQ(in.stats.stamp_rejected.load(), 1u);
+  EXPECT_GT(in.velocity(), 0.75);
+  EXPECT_LT(in.velocity(), 1.0 + 1e-9);
+}
+
+}  // namespace
+}  // namespace gshaptics
