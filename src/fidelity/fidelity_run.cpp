@@ -239,7 +239,7 @@ std::string stiffness_ratios(const std::vector<FidelityRow>& rows) {
   return t;
 }
 
-std::string press_table(const std::vector<FidelityRow>& rows, bool push) {
+std::string press_table(const std::vector<FidelityRow>& rows) {
   std::string t =
       "| shape | feature | spacing mm | tool mm | runs | onset mm (median / max) | stiffness N/mm (median) | "
       "hold-through mm (min) | never lost | direction error deg p50 / p95 / max | shallow (delta <= 2 mm) p95 | W min (mJ) | W < 0 | tick us p50 / p99 |\n"
@@ -251,7 +251,6 @@ std::string press_table(const std::vector<FidelityRow>& rows, bool push) {
                      r.never_lost, r.runs, num(r.dir_p50, "{:.1f}"), num(r.dir_p95, "{:.1f}"),
                      num(r.dir_max, "{:.1f}"), num(r.shallow_dir_p95, "{:.1f}"), num(r.energy_min_j * 1e3, "{:.3f}"), r.active_cycles,
                      num(r.tick_p50_us, "{:.1f}"), num(r.tick_p99_us, "{:.1f}"));
-  (void)push;
   return t;
 }
 
@@ -288,13 +287,13 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
       rep.ticks, o.rate_hz, rep.seconds, o.seed);
   md += fmt::format("## Press ({} sites per shape: 2 cm/s to {:g} mm, hold 0.5 s, retract)\n\n", o.press_sites,
                     o.press_depth * 1e3);
-  md += press_table(rep.press, false) + "\n";
+  md += press_table(rep.press) + "\n";
   md += "### Stiffness across densities (1.00 = the wall does not depend on the training run)\n\n";
   md += stiffness_ratios(rep.press) + "\n";
   if (!rep.push.empty()) {
     md += fmt::format("## Push-through ({} face sites: 2 cm/s to {:g} mm past the surface, retract)\n\n",
                       o.push_sites, o.push_depth * 1e3);
-    md += press_table(rep.push, true) + "\n";
+    md += press_table(rep.push) + "\n";
   }
   if (!rep.slide.empty()) {
     md += "## Slide (10 cm at 5 cm/s, 2 mm past the surface; the first and last 5 mm not scored)\n\n";
