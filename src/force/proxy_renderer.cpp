@@ -312,7 +312,11 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     shade_valid_ = true;
   }
   Eigen::Vector3d n = shade_;
-  if (!(n.dot(e) > 0)) n = e.norm() > 0 ? Eigen::Vector3d(e.normalized()) : (np > 0 ? planes[0].normal : Eigen::Vector3d::UnitZ());
+  if (!(n.dot(e) > 0)) {
+    // (planes[] is filled only when the proxy moved this tick; a sticking proxy keeps normal_.)
+    const Eigen::Vector3d fallback = !sticking_ && np > 0 ? planes[0].normal : normal_;
+    n = e.norm() > 0 ? Eigen::Vector3d(e.normalized()) : fallback;
+  }
   normal_ = n;
   in_contact_ = true;
   double k = params_.stiffness;
