@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <filesystem>
 #include <memory>
 
 #include "commands.h"
@@ -21,16 +22,19 @@ void register_convert(CLI::App& app) {
       "Convert a scene (any format gshaptics reads) to INRIA PLY (.ply) or .splat, optionally "
       "dropping Gaussians with opacity <= T and applying --up / a registration. Colour and SH "
       "are kept where the output format has room (.splat keeps band 0 only). SPZ output is not "
-      "supported (no SPZ encoder in Debian).");
+      "supported (no SPZ encoder in Debian). The output is written in its format's coordinate "
+      "convention (RDF, y down, for .ply and .splat): converting an SPZ (RUB) turns it, so that "
+      "source and output give the same world under --up auto.");
   cmd->add_option("input", o->scene, "Scene file to read")->required();
   cmd->add_option("output", *out, "File to write (.ply or .splat), written atomically")->required();
   cmd->add_option("--min-opacity", *min_opacity, "Keep Gaussians with opacity > T (default: keep all)")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(check::range(0.0, 1.0));
   cmd->add_option("--registration", o->registration_file, "JSON similarity transform to apply (eq. 3)");
   cmd->add_option("--up", o->up, "Turn the scene's up axis to +z first (none, auto, y-down, y-up, ...)")
       ->capture_default_str()
       ->check(CLI::IsMember({"none", "auto", "y-down", "y-up", "z-up", "z-down", "x-up", "x-down"}));
   cmd->callback([o, out, min_opacity] {
+    const SceneFrame to = output_frame(*out);  // checks the extension before the load
     const LoadedScene s = load_with_progress(o->scene, false, /*keep_color=*/true);
     GaussianScene scene = s.scene;
     if (*min_opacity >= 0.f) {
@@ -39,15 +43,21 @@ void register_convert(CLI::App& app) {
       fmt::print("filter     opacity > {:.2f}: kept {} of {}\n", *min_opacity, rep.after, rep.before);
     }
     const WorldConfig cfg = world_config_from(*o);
-    const SimilarityTransform to_world = with_up_axis(cfg.registration, cfg.up, scene.frame);
-    if (!to_world.is_identity()) {
-      scene = transform_scene(scene, to_world);
-      if (scene.sh_rest_count > 0 && !to_world.rotation.isApprox(Eigen::Quaterniond::Identity()))
-        fmt::print(stderr, "warning: SH bands above 0 are not rotated with the scene\n");
-    }
+    if (rotates_twice(cfg.registration, cfg.up))
+      fmt::print(stderr, "warning: --up {} and the registration's rotation both turn the scene\n",
+                 to_string(cfg.up));
+    // The written file is in its format's own convention, so that it gives the same world under
+    // --up auto as the source does under these options.
+    const SimilarityTransform t = conversion_transform(cfg.registration, cfg.up, scene.frame, to);
+    if (!t.is_identity()) scene = transform_scene(scene, t);
+    scene.frame = to;
     write_scene(*out, scene);
-    fmt::print("wrote      {} ({} Gaussians{})\n", *out, scene.size(),
-               scene.colors_dc.empty() ? ", no colour" : "");
+    fmt::print("wrote      {} ({} Gaussians{}), in {}'s convention ({}): `--up auto` on it gives the "
+               "world the source gives{}\n",
+               *out, scene.size(), scene.colors_dc.empty() ? ", no colour" : "",
+               std::filesystem::path(*out).extension().string(), to_string(to),
+               cfg.up == UpAxis::kNone && cfg.registration.is_identity() ? " with --up auto"
+                                                                          : " with these options");
   });
 }
 

@@ -31,15 +31,15 @@ void register_synth(CLI::App& app) {
   cmd->add_option("out", o->out, "Output .ply (and OUT.ply.json)")->required();
   SynthParams& p = o->params;
   cmd->add_option("--spacing", p.spacing, "Gaussian spacing on the surface, m")->capture_default_str()
-      ->check(CLI::Range(5e-4, 0.05));
+      ->check(check::range(5e-4, 0.05));
   cmd->add_option("--seed", p.seed, "Random seed")->capture_default_str();
   cmd->add_option("--normal-jitter", p.normal_jitter, "Std of the position along the normal, m")
-      ->capture_default_str()->check(CLI::Range(0.0, 0.05));
-  cmd->add_option("--tilt", p.tilt_deg, "Std of the disc tilt, degrees")->capture_default_str()->check(CLI::Range(0.0, 45.0));
+      ->capture_default_str()->check(check::range(0.0, 0.05));
+  cmd->add_option("--tilt", p.tilt_deg, "Std of the disc tilt, degrees")->capture_default_str()->check(check::range(0.0, 45.0));
   cmd->add_option("--low-opacity-share", p.low_opacity_share, "Share with opacity below 0.2")
-      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
+      ->capture_default_str()->check(check::range(0.0, 1.0));
   cmd->add_option("--floater-share", p.floater_share, "Floaters per surface Gaussian")
-      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
+      ->capture_default_str()->check(check::range(0.0, 1.0));
   cmd->callback([o] {
     const ShapeKind kind = parse_shape(o->shape, "synth");
     if (std::filesystem::path(o->out).extension() != ".ply")
@@ -78,7 +78,7 @@ void register_fidelity(CLI::App& app) {
   cmd->add_option("--seed", o->seed, "Seed of the scenes and sites")->capture_default_str();
   cmd->add_flag("--no-plot", o->no_plot, "Skip the figures (matplotlib)");
   cmd->add_option("--floater-share", o->synth.floater_share, "Floaters per surface Gaussian in the scenes")
-      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
+      ->capture_default_str()->check(check::range(0.0, 1.0));
   add_force_options(*cmd, o->force);
   cmd->callback([o] {
     FidelityOptions fo = o->quick ? quick_fidelity_options() : FidelityOptions{};

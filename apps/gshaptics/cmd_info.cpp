@@ -6,6 +6,7 @@
 
 #include "commands.h"
 #include "common.h"
+#include "gshaptics/scene/registration.h"
 #include "gshaptics/scene/scene_stats.h"
 
 namespace gshaptics::cli {
@@ -20,10 +21,11 @@ void register_info(CLI::App& app) {
   auto opts = std::make_shared<SceneOptions>();
   CLI::App* cmd = app.add_subcommand(
       "info", "Print a scene's format, counts, load report, bounds, opacity and scale percentiles "
-              "and the opacity filter's reduction");
-  cmd->add_option("scene", opts->scene, "Scene file (.ply or .splat)")->required();
-  cmd->add_option("--min-opacity", opts->min_opacity, "Filter threshold to report")
-      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
+              "and the opacity filter's reduction; then preview the world that --up and a "
+              "registration make of it (bounds, size, up axis) and suggest --up, --reg-scale and "
+              "a tool radius for a desktop device and for room scale");
+  cmd->add_option("scene", opts->scene, "Scene file (.ply, .compressed.ply, .splat or .spz)")->required();
+  add_world_options(*cmd, *opts);
   cmd->callback([opts] {
     const LoadedScene s = load_with_progress(opts->scene);
     const LoadReport& r = s.report;
@@ -53,10 +55,43 @@ void register_info(CLI::App& app) {
                st.scale_pct[0], st.scale_pct[1], st.scale_pct[2], st.scale_pct[3]);
     fmt::print("           largest axis pct 1/50/99/99.9: {:.4g} / {:.4g} / {:.4g} / {:.4g}\n",
                st.max_scale_pct[0], st.max_scale_pct[1], st.max_scale_pct[2], st.max_scale_pct[3]);
-    std::size_t kept = 0;
-    for (float a : s.scene.opacities) kept += a > opts->min_opacity ? 1 : 0;
-    fmt::print("filter     opacity > {:.2f} keeps {} of {} ({:.1f}%)\n", opts->min_opacity, kept,
-               s.scene.size(), 100.0 * double(kept) / double(s.scene.size()));
+    const WorldConfig cfg = world_config_from(*opts);
+    const SimilarityTransform to_world = with_up_axis(cfg.registration, cfg.up, s.scene.frame);
+    const Eigen::Vector3d up = world_up(cfg.registration, cfg.up, s.scene.frame);
+    const WorldPreview w = preview_world(s.scene, cfg.min_opacity, to_world, up);
+    const double kept_share = double(w.kept) / double(std::max<std::size_t>(1, s.scene.size()));
+    fmt::print("filter     opacity > {:.2f} keeps {} of {} ({:.1f}%)\n", cfg.min_opacity, w.kept,
+               s.scene.size(), 100.0 * kept_share);
+    if (kept_share < 0.5)
+      fmt::print("warning    the filter keeps only {:.0f}%: thin or semi-transparent parts may not be "
+                 "touchable; a lower --min-opacity (0.1) keeps more\n", 100 * kept_share);
+    if (w.kept == 0) return;
+    const bool transformed = !to_world.is_identity();
+    fmt::print("\nworld      {} (kept Gaussians' centres, world frame)\n",
+               transformed ? fmt::format("after --up {}{}", to_string(cfg.up),
+                                         cfg.registration.is_identity() ? "" : " and the registration")
+                           : std::string("= the file's own axes (no --up, no registration)"));
+    fmt::print("up         [{:.2f}, {:.2f}, {:.2f}]{}\n", up.x(), up.y(), up.z(),
+               cfg.up == UpAxis::kNone ? fmt::format(" (the file's convention, {})", to_string(s.scene.frame))
+                                       : std::string());
+    fmt::print("bounds     min {} max {}\n", v3(w.bbox_min), v3(w.bbox_max));
+    fmt::print("1-99 pct   {} .. {}, size {:.4g} units{}\n", v3(w.p01), v3(w.p99), w.robust_size,
+               cfg.registration.is_identity() ? fmt::format(" (if the units are metres: {:.2f} m)", w.robust_size)
+                                              : std::string(" (metres, if the registration is metric)"));
+    if (rotates_twice(cfg.registration, cfg.up))
+      fmt::print("warning    --up {} and the registration's rotation both turn the scene; a registration "
+                 "that already turns it upright wants --up none\n", to_string(cfg.up));
+    fmt::print("\nsuggest\n");
+    if (cfg.up == UpAxis::kNone && cfg.registration.is_identity())
+      fmt::print("  --up auto            the file's convention ({}) turned to +z, so a probe comes from above\n",
+                 s.scene.frame == SceneFrame::kRub ? "SPZ: y up" : "PLY/.splat: y down");
+    const ScaleAdvice desk = desktop_scale_advice(w.robust_size);
+    const ScaleAdvice room = room_scale_advice(w.robust_size);
+    const double s0 = cfg.registration.scale;
+    fmt::print("  desktop device       --reg-scale {:.4g} --tool-radius {:.4g} --device-profile desktop: {}\n",
+               s0 * desk.reg_scale, desk.tool_radius, desk.reason);
+    fmt::print("  room scale           --reg-scale {:.4g} --tool-radius {:.4g}: {}\n", s0 * room.reg_scale,
+               room.tool_radius, room.reason);
   });
 }
 

@@ -50,7 +50,7 @@ void add_topic_options(CLI::App& cmd, RosBridgeOptions& t) {
                "Write wrenches and markers BEST_EFFORT instead of RELIABLE keep-last --depth (reliable "
                "serves either kind of subscriber)");
   cmd.add_option("--depth", t.depth, "Keep-last depth of the streams")->capture_default_str()->check(CLI::Range(1, 1000));
-  cmd.add_option("--marker-rate", t.marker_hz, "MarkerArrays per second")->capture_default_str()->check(CLI::Range(1.0, 200.0));
+  cmd.add_option("--marker-rate", t.marker_hz, "MarkerArrays per second")->capture_default_str()->check(check::range(1.0, 200.0));
 }
 
 std::unique_ptr<RosBridgeDevice> make_bridge(const NodeOptions& o) {
@@ -89,12 +89,14 @@ void register_node(CLI::App& app) {
   auto* f2 = cmd->add_flag("--ros2", o->ros2, "Speak ROS 2 over DDS (Cyclone DDS; ROS 2 Humble message layouts)");
   auto* f1 = cmd->add_flag("--ros1", o->ros1, "Speak ROS 1 (roscpp; master at ROS_MASTER_URI)");
   f2->excludes(f1);
-  cmd->add_option("--domain", o->topics.domain, "ROS 2: DDS domain id (ROS_DOMAIN_ID); -1: the DDS default");
+  cmd->add_option("--domain", o->topics.domain, "ROS 2: DDS domain id (ROS_DOMAIN_ID); -1: the DDS default")->check(CLI::Range(-1, 232));
   add_topic_options(*cmd, o->topics);
   cmd->callback([o] {
     if (!o->ros2 && !o->ros1) throw InputError("node: give --ros2 or --ros1");
     const SceneOptions so = with_bundled_defaults(o->run.scene, "node");
+    prepare_run_out_dir(o->run, so);
     const PreparedWorld pw = prepare_world(so, o->run.quiet);
+    warn_if_outside_profile(pw, o->run.force);
     RuntimeSetup setup;
     setup.tool_radius = o->run.tool_radius > 0 ? o->run.tool_radius : 0.01 * robust_extent(pw.world);
     setup.planned = o->run.duration;
@@ -181,18 +183,19 @@ void register_device_sim(CLI::App& app) {
   cmd->add_option("scene", o->scene.scene, "Scene file (default: bundled data/truck.splat)");
   add_world_options(*cmd, o->scene);
   cmd->add_flag("--ros2", o->ros2, "Speak ROS 2 over DDS (the only transport of device-sim)")->required();
-  cmd->add_option("--domain", o->topics.domain, "DDS domain id (ROS_DOMAIN_ID); -1: the DDS default");
+  cmd->add_option("--domain", o->topics.domain, "DDS domain id (ROS_DOMAIN_ID); -1: the DDS default")->check(CLI::Range(-1, 232));
   add_topic_options(*cmd, o->topics);
-  cmd->add_option("--rate", o->rate, "Device rate, Hz")->capture_default_str()->check(CLI::Range(10.0, 20000.0));
-  cmd->add_option("--duration", o->duration, "Run length, s (default: one pass of the trajectory)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--rate", o->rate, "Device rate, Hz")->capture_default_str()->check(check::range(10.0, 20000.0));
+  cmd->add_option("--duration", o->duration, "Run length, s (default: one pass of the trajectory)")->check(check::positive());
   cmd->add_option("--sites", o->sites, "Contact sites")->capture_default_str()->check(CLI::Range(1, 100));
   cmd->add_option("--seed", o->seed, "Seed of the site choice")->capture_default_str();
-  cmd->add_option("--tool-radius", o->tool_radius, "Tool radius (default: 1% of the scene's extent)");
-  cmd->add_option("--wait", o->wait, "Wait this long for a node to match, s")->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd->add_option("--tool-radius", o->tool_radius, "Tool radius (default: 1% of the scene's extent)")->check(check::positive());
+  cmd->add_option("--wait", o->wait, "Wait this long for a node to match, s")->capture_default_str()->check(check::non_negative());
   cmd->add_option("--out", o->out_dir, "Output folder (default: runs/<scene name>)");
   cmd->add_flag("--quiet", o->quiet, "No progress line");
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->scene, "device-sim");
+    const std::string out_dir = prepare_out_dir(o->out_dir, so.scene, {"device_log.csv", "device_summary.json"});
     const PreparedWorld pw = prepare_world(so, o->quiet);
     ProbeTrajectory traj = make_probe_trajectory(pw, is_registered(so), o->sites, o->seed, o->tool_radius);
     const double duration = o->duration > 0 ? o->duration : traj.duration() + 0.5;
@@ -218,9 +221,6 @@ void register_device_sim(CLI::App& app) {
                        duration, sent, received, force);
         });
 
-    std::string out_dir = o->out_dir;
-    if (out_dir.empty()) out_dir = "runs/" + std::filesystem::path(so.scene).stem().string();
-    std::filesystem::create_directories(out_dir);
     write_tick_log_csv(out_dir + "/device_log.csv", r.ticks, kDeviceLogColumns);
     const std::vector<double>& lat = r.latencies_us;
     nlohmann::json sj;

@@ -20,12 +20,12 @@ void register_poses(CLI::App& app) {
       "`gshaptics query --poses`. Near-surface by default: centred within one tool radius of a "
       "kept Gaussian. Tool radii are fractions of the scene's 1-99 percentile extent.");
   cmd->add_option("scene", o->scene, "Scene file (.ply or .splat)")->required();
-  cmd->add_option("--count", p->count, "Number of poses")->capture_default_str();
+  cmd->add_option("--count", p->count, "Number of poses")->capture_default_str()->check(CLI::Range(1, 100000000));
   cmd->add_option("--seed", p->seed, "Random seed")->capture_default_str();
   cmd->add_option("--radius-min", p->radius_min, "Smallest tool radius (fraction of extent)")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(check::positive());
   cmd->add_option("--radius-max", p->radius_max, "Largest tool radius (fraction of extent)")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(check::positive());
   cmd->add_flag("--uniform", *uniform, "Centres uniform in the 1-99 percentile box instead");
   cmd->add_flag("--anisotropic", p->anisotropic, "Random ellipsoids (axis ratios down to 1/3)");
   add_world_options(*cmd, *o);
@@ -38,6 +38,7 @@ void register_poses(CLI::App& app) {
     fmt::print("# {} poses on {} (seed {}, tool radius {}..{} of extent {:.6g}, {})\n",
                params.count, o->scene, params.seed, params.radius_min, params.radius_max,
                robust_extent(world), params.near_surface ? "near surface" : "uniform");
+    fmt::print("{}\n", frame_comment(*o));
     for (const ToolEllipsoid& t : sample_poses(world, params))
       fmt::print("{:.9g} {:.9g} {:.9g} {:.9g} {:.9g} {:.9g} {:.9g} {:.9g} {:.9g} {:.9g}\n",
                  t.center.x(), t.center.y(), t.center.z(), t.semi_axes.x(), t.semi_axes.y(),

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -87,6 +88,10 @@ void register_query(CLI::App& app) {
       throw InputError("query: give --tool-center and --tool-axes, or --poses FILE");
     if (!o->poses.empty() && !o->center.empty())
       throw InputError("query: --poses and --tool-center are exclusive");
+    if (!o->poses.empty() && std::filesystem::is_directory(o->poses))
+      throw InputError(o->poses + ": is a folder, expected a pose file");
+    if (!o->poses.empty() && !std::filesystem::exists(o->poses))
+      throw InputError(o->poses + ": no such pose file");
     const LoadedScene s = load_with_progress(o->scene.scene);
     const WorldConfig cfg = world_config_from(o->scene);
     const CollisionWorld world = CollisionWorld::build(s.scene, cfg);
@@ -109,6 +114,9 @@ void register_query(CLI::App& app) {
     int line_no = 0;
     while (std::getline(in, line)) {
       ++line_no;
+      for (const std::string& m : frame_mismatches(line, o->scene))
+        std::fprintf(stderr, "gshaptics: warning: %s: the poses are in another world frame: %s\n",
+                     o->poses.c_str(), m.c_str());
       const auto hash = line.find('#');
       if (hash != std::string::npos) line.erase(hash);
       std::istringstream ls(line);

@@ -26,7 +26,9 @@ void register_run(CLI::App& app) {
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->scene, "run");
     check_device_option(o->device, /*allow_mouse=*/false);  // before the (slow) scene load
+    prepare_run_out_dir(*o, so);
     const PreparedWorld pw = prepare_world(so, o->quiet);
+    warn_if_outside_profile(pw, o->force);
     RuntimeSetup setup = make_runtime_setup(*o, so, pw, false);
     HapticRuntime rt(pw.world, *setup.device, setup.config);
     const bool interrupted = run_live(rt, setup.planned, o->quiet);

@@ -54,8 +54,7 @@ std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const Ru
     lo.push_back(percentile(ax[k], 1));
     hi.push_back(percentile(ax[k], 99));
   }
-  const Eigen::Vector3d up = is_registered(so) ? Eigen::Vector3d::UnitZ()
-                                               : up_of(pw.scene.report.frame);
+  const Eigen::Vector3d up = pw.world.up();
   nlohmann::json j;
   j["type"] = "hello";
   j["protocol"] = 1;
@@ -102,11 +101,12 @@ void register_serve(CLI::App& app) {
   cmd->add_option("--port", o->port, "HTTP/WebSocket port (0: any free port)")->capture_default_str()
       ->check(CLI::Range(0, 65535));
   cmd->add_option("--display-rate", o->display_rate, "State frames per second to each browser")
-      ->capture_default_str()->check(CLI::Range(1.0, 120.0));
+      ->capture_default_str()->check(check::range(1.0, 120.0));
   cmd->add_option("--web-root", o->web_root, "Folder of the page (default: the source tree's web/)");
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->run.scene, "serve");
     check_device_option(o->run.device, /*allow_mouse=*/true);
+    prepare_run_out_dir(o->run, so);
     ViewerConfig vc;
     vc.host = o->host;
     vc.port = std::uint16_t(o->port);
@@ -120,6 +120,7 @@ void register_serve(CLI::App& app) {
                        "`npm ci --prefix " + vc.web_root + "` (scripts/setup.sh does)");
 
     const PreparedWorld pw = prepare_world(so, o->run.quiet);
+    warn_if_outside_profile(pw, o->run.force);
     RuntimeSetup setup = make_runtime_setup(o->run, so, pw, true);
     vc.hello_json = hello_json(pw, so, setup, o->display_rate);
     HapticRuntime rt(pw.world, *setup.device, setup.config);

@@ -45,9 +45,10 @@ void register_simulate(CLI::App& app) {
       ->check(CLI::Range(1, 100));
   cmd->add_option("--seed", o->seed, "Seed of the site choice")->capture_default_str();
   cmd->add_option("--tool-radius", o->tool_radius,
-                  "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)");
+                  "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)")
+      ->check(check::positive());
   cmd->add_option("--rate", o->rate, "Servo rate of the simulation, Hz")->capture_default_str()
-      ->check(CLI::Range(100.0, 20000.0));
+      ->check(check::range(100.0, 20000.0));
   add_force_options(*cmd, o->force);
   cmd->add_flag("--no-plot", o->no_plot, "Do not draw probe_run.png (needs /usr/bin/python3 with matplotlib)");
   cmd->add_flag("--quiet", o->quiet, "No progress bars");
@@ -55,7 +56,10 @@ void register_simulate(CLI::App& app) {
 
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->scene, "simulate");
+    const std::string out_dir =
+        prepare_out_dir(o->out_dir, so.scene, {"probe_log.csv", "summary.json", "probe_run.png"});
     const PreparedWorld pw = prepare_world(so, o->quiet);
+    warn_if_outside_profile(pw, o->force);
     const CollisionWorld& world = pw.world;
     const WorldConfig& cfg = pw.config;
     const LoadedScene& s = pw.scene;
@@ -72,9 +76,6 @@ void register_simulate(CLI::App& app) {
     const ProbeRunResult run = run_probe(world, traj, rp, [&](double f) { bar(f); });
     bar.done();
 
-    std::string out_dir = o->out_dir;
-    if (out_dir.empty()) out_dir = "runs/" + std::filesystem::path(so.scene).stem().string();
-    std::filesystem::create_directories(out_dir);
     const std::string csv = out_dir + "/probe_log.csv";
     const std::string summary_path = out_dir + "/summary.json";
     const std::string png = out_dir + "/probe_run.png";
@@ -118,6 +119,7 @@ void register_simulate(CLI::App& app) {
     fmt::print("log        {}\nsummary    {}\n", csv, summary_path);
     if (run.episodes.empty()) {
       fmt::print(stderr, "error: the probe run made no contact\n");
+      print_no_contact_hints(pw, so, traj.tool_radius());
       set_exit_code(1);
     }
     if (o->no_plot) return;

@@ -2,7 +2,10 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
+#include <functional>
 #include <filesystem>
 #include <sstream>
 
@@ -10,12 +13,45 @@
 
 namespace gshaptics::cli {
 
+namespace check {
+namespace {
+CLI::Validator finite_number(const std::string& what, std::function<bool(double)> ok) {
+  return CLI::Validator(
+      [what, ok](std::string& text) -> std::string {
+        double x = 0;
+        std::size_t used = 0;
+        try {
+          x = std::stod(text, &used);
+        } catch (...) {
+          used = 0;
+        }
+        if (used == 0 || text.find_first_not_of(" \t", used) != std::string::npos)
+          return "expected a number, got '" + text + "'";
+        if (!std::isfinite(x) || !ok(x)) return "must be " + what + ", got '" + text + "'";
+        return std::string();
+      },
+      what);
+}
+}  // namespace
+
+CLI::Validator positive() {
+  return finite_number("a finite number > 0", [](double x) { return x > 0; });
+}
+CLI::Validator non_negative() {
+  return finite_number("a finite number >= 0", [](double x) { return x >= 0; });
+}
+CLI::Validator range(double lo, double hi) {
+  return finite_number(fmt::format("a finite number in [{:g}, {:g}]", lo, hi),
+                       [lo, hi](double x) { return x >= lo && x <= hi; });
+}
+}  // namespace check
+
 void add_world_options(CLI::App& app, SceneOptions& o) {
   app.add_option("--min-opacity", o.min_opacity,
                  "Keep Gaussians with opacity > T (paper Sec. III-A: 0.1..0.3)")
-      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
+      ->capture_default_str()->check(check::range(0.0, 1.0));
   app.add_option("--sigma", o.sigma, "Collision ellipsoid at K sigma (semi-axes K * scale)")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(check::positive());
   app.add_option("--registration", o.registration_file,
                  "JSON similarity transform scene->world: {\"scale\": s, \"rotation\": [w,x,y,z] "
                  "or \"matrix\": 3x3, \"translation\": [x,y,z]} (paper eq. 3)");
@@ -69,6 +105,66 @@ WorldConfig world_config_from(const SceneOptions& o) {
   cfg.up = parse_up_axis(o.up, "--up");
   cfg.registration = registration_from(o);
   return cfg;
+}
+
+std::string default_out_dir(const std::string& scene) {
+  const std::filesystem::path p(scene);
+  std::string ext = p.extension().string();
+  if (!ext.empty()) ext = "-" + ext.substr(1);
+  return "runs/" + p.stem().string() + ext;
+}
+
+std::string prepare_out_dir(const std::string& dir, const std::string& scene,
+                            const std::vector<std::string>& owned, const std::string& option) {
+  namespace fs = std::filesystem;
+  const std::string out = dir.empty() ? default_out_dir(scene) : dir;
+  std::error_code ec;
+  if (fs::exists(out, ec) && !fs::is_directory(out, ec))
+    throw InputError(option + " " + out + ": exists and is not a folder");
+  fs::create_directories(out, ec);
+  if (ec) throw InputError(option + " " + out + ": cannot create the folder (" + ec.message() + ")");
+  if (::access(out.c_str(), W_OK | X_OK) != 0)
+    throw InputError(option + " " + out + ": the folder is not writable");
+  for (const std::string& name : owned) {
+    const fs::path f = fs::path(out) / name;
+    if (fs::is_directory(f, ec))
+      throw InputError(option + " " + out + ": '" + name + "' is a folder where this run writes a file");
+    fs::remove(f, ec);
+  }
+  return out;
+}
+
+namespace {
+std::vector<std::pair<std::string, std::string>> frame_items(const SceneOptions& o) {
+  return {{"up", o.up},
+          {"registration", o.registration_file},
+          {"reg-scale", o.reg_scale},
+          {"reg-rotation", o.reg_rotation},
+          {"reg-translation", o.reg_translation}};
+}
+}  // namespace
+
+std::string frame_comment(const SceneOptions& o) {
+  std::string s = "# frame:";
+  for (const auto& [k, v] : frame_items(o)) s += " " + k + "=" + v;
+  return s;
+}
+
+std::vector<std::string> frame_mismatches(const std::string& line, const SceneOptions& o) {
+  std::vector<std::string> out;
+  if (line.rfind("# frame:", 0) != 0) return out;
+  std::istringstream ss(line.substr(8));
+  std::string item;
+  std::vector<std::pair<std::string, std::string>> file;
+  while (ss >> item) {
+    const auto eq = item.find('=');
+    if (eq != std::string::npos) file.emplace_back(item.substr(0, eq), item.substr(eq + 1));
+  }
+  for (const auto& [k, here] : frame_items(o))
+    for (const auto& [fk, fv] : file)
+      if (fk == k && fv != here)
+        out.push_back("--" + k + ": poses made with '" + fv + "', this query has '" + here + "'");
+  return out;
 }
 
 LoadedScene load_with_progress(const std::string& path, bool quiet, bool keep_color) {

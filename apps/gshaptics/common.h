@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/error.h"
@@ -12,6 +13,14 @@
 #include "gshaptics/io/scene_loader.h"
 
 namespace gshaptics::cli {
+
+/// Option validators that also reject NaN and infinities (CLI11's numeric ones let NaN through),
+/// with one short message: "--rate: must be a finite number in [10, 20000], got 'nan'".
+namespace check {
+CLI::Validator positive();                   ///< finite and > 0
+CLI::Validator non_negative();               ///< finite and >= 0
+CLI::Validator range(double lo, double hi);  ///< finite and in [lo, hi]
+}  // namespace check
 
 /// Options every scene-consuming command shares.
 struct SceneOptions {
@@ -36,6 +45,25 @@ SimilarityTransform registration_from(const SceneOptions& o);
 
 /// World configuration from the shared options (opacity filter, sigma, --up, registration).
 WorldConfig world_config_from(const SceneOptions& o);
+
+/// The default output folder of a run on `scene`: runs/<name>-<extension> ("runs/biker-spz"), so
+/// that biker.spz and biker.ply never share one.
+std::string default_out_dir(const std::string& scene);
+
+/// Checks an output folder before any work starts and creates it: InputError naming `option`
+/// when the path is a file, cannot be created or is not writable. Then removes the files of
+/// `owned` (names inside the folder) that a previous run left, so one run's outputs are never
+/// mixed with another's. Returns the folder (the default one for `scene` when `dir` is empty).
+std::string prepare_out_dir(const std::string& dir, const std::string& scene,
+                            const std::vector<std::string>& owned, const std::string& option = "--out");
+
+/// The frame options as one comment line that pose files carry ("# frame: up=auto
+/// registration=... reg-scale=... reg-rotation=... reg-translation=..."), so that `query --poses`
+/// can tell when it reads poses made in another world frame.
+std::string frame_comment(const SceneOptions& o);
+/// The options of a frame comment line that differ from `o` ("up: file auto, here none"); empty
+/// when they agree or `line` is not a frame comment.
+std::vector<std::string> frame_mismatches(const std::string& line, const SceneOptions& o);
 
 /// Loads a scene with a progress bar on stderr for files over a few MB.
 LoadedScene load_with_progress(const std::string& path, bool quiet = false, bool keep_color = false);

@@ -37,7 +37,10 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version exit 0 through CLI11; every input error is one line and exit 2.
+    if (e.get_exit_code() == 0) return app.exit(e);
+    std::fprintf(stderr, "gshaptics: error: %s (see --help)\n", e.what());
+    return 2;
   } catch (const gshaptics::InputError& e) {
     std::fprintf(stderr, "gshaptics: error: %s\n", e.what());
     return 2;

@@ -6,6 +6,8 @@
 #include <filesystem>
 
 #include "gshaptics/error.h"
+#include "gshaptics/scene/scene_stats.h"
+#include "gshaptics/servo/device_profile.h"
 #include "gshaptics/sim/pose_sampler.h"
 
 namespace gshaptics::cli {
@@ -28,24 +30,45 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
       ->check(CLI::IsMember({"proxy", "paper"}));
   ForceParams& force = o.force;
   cmd.add_option("--k-base", force.k_base, "paper: base stiffness k_base, N per contact (eq. 9)")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
+      ->capture_default_str()->check(check::non_negative());
   cmd.add_option("--damping", force.damping, "paper: damping D, N s/m (eq. 10)")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
+      ->capture_default_str()->check(check::non_negative());
   cmd.add_option("--f-max", force.f_max, "Force limit F_max, N (every model; paper eq. 11)")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(check::positive());
   cmd.add_option("--tau-normal", force.tau_normal, "paper: time constant of the normal EMA, s")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
+      ->capture_default_str()->check(check::non_negative());
   cmd.add_option("--tau-opacity", force.tau_opacity, "paper: time constant of the opacity EMA, s")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
+      ->capture_default_str()->check(check::non_negative());
   ProxyParams& p = o.proxy;
   cmd.add_option("--stiffness", p.stiffness, "proxy: coupling stiffness k_c, N/m")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(check::positive());
   cmd.add_option("--coupling-damping", p.damping, "proxy: coupling damping b_c, N s/m (passive above k_c T / 2)")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd.add_option("--mu-s", p.mu_s, "proxy: static friction coefficient (0: off)")->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd.add_option("--mu-k", p.mu_k, "proxy: kinetic friction coefficient (<= --mu-s)")->capture_default_str()->check(CLI::NonNegativeNumber);
+      ->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--mu-s", p.mu_s, "proxy: static friction coefficient (0: off)")->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--mu-k", p.mu_k, "proxy: kinetic friction coefficient (<= --mu-s)")->capture_default_str()->check(check::non_negative());
   cmd.add_flag("--opacity-stiffness", p.opacity_stiffness, "proxy: scale k_c by the blocking Gaussians' opacity (paper eq. 9)");
   cmd.add_option("--substeps", p.substeps, "proxy: sweeps per tick")->capture_default_str()->check(CLI::Range(1, 16));
+  cmd.add_option("--device-profile", o.profile,
+                 "Device class: desktop (Touch class: --f-max 3.3, --stiffness 1000, 160x120x70 mm "
+                 "workspace) or room (--f-max 30, --stiffness 1000); explicit options win")
+      ->check(CLI::IsMember({"desktop", "room"}));
+  cmd.parse_complete_callback([&cmd, &o] {
+    if (o.profile.empty()) return;
+    const DeviceProfile& p = device_profile(o.profile, "--device-profile");
+    if (cmd.count("--f-max") == 0) o.force.f_max = p.f_max;
+    if (cmd.count("--stiffness") == 0) o.proxy.stiffness = p.stiffness;
+  });
+}
+
+void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o) {
+  if (o.profile.empty()) return;
+  const DeviceProfile& p = device_profile(o.profile, "--device-profile");
+  const double size = robust_extent(w.world);
+  if (fits_workspace(p, size)) return;
+  fmt::print(stderr,
+             "warning: the world is {:.3g} m across, larger than a {} device's {:.0f} mm workspace; "
+             "scale it with --reg-scale {:.3g} (x the current scale) to fit it in 0.12 m\n",
+             size, p.name, 1000 * p.workspace.maxCoeff(), desktop_scale_advice(size).reg_scale);
 }
 
 SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command) {
@@ -71,9 +94,16 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet) {
              s.report.loaded, s.report.skipped());
   fmt::print("filter     opacity > {:.2f}: kept {} ({:.1f}%)\n", cfg.min_opacity, br.filter.after,
              100 * br.filter.kept_fraction());
-  fmt::print("world      {} Gaussians, BVH built in {:.0f} ms, {:.1f} MB{}\n", world.size(),
-             br.build_seconds * 1e3, double(br.memory_bytes) / 1e6,
-             so.registration_file.empty() ? "" : ", registration " + so.registration_file);
+  const Eigen::Vector3d up = world.up();
+  fmt::print("world      {} Gaussians, BVH built in {:.0f} ms, {:.1f} MB, up [{:.2f}, {:.2f}, {:.2f}]{}\n",
+             world.size(), br.build_seconds * 1e3, double(br.memory_bytes) / 1e6, up.x(), up.y(),
+             up.z(), so.registration_file.empty() ? "" : ", registration " + so.registration_file);
+  if (rotates_twice(cfg.registration, cfg.up))
+    fmt::print(stderr,
+               "warning: --up {} and the registration's rotation both turn the scene, so the world's "
+               "up ends at [{:.2f}, {:.2f}, {:.2f}]. A registration that already turns the scene "
+               "upright (like the bundled Truck's) wants --up none.\n",
+               to_string(cfg.up), up.x(), up.y(), up.z());
   return {std::move(s), cfg, br, std::move(world)};
 }
 
@@ -82,9 +112,9 @@ ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, i
   ProbeParams pp;
   pp.sites = sites;
   pp.seed = seed;
-  // A registered (or --up turned) world is z-up; otherwise the probe goes along the file's own
-  // up axis (-y for PLY/.splat, +y for SPZ).
-  pp.up = registered ? Eigen::Vector3d(0, 0, 1) : up_of(w.scene.report.frame);
+  // The world's up from the actual transform: the file's convention carried through --up and the
+  // registration (a --reg-scale alone rotates nothing, so it changes nothing here).
+  pp.up = w.world.up();
   const double extent = robust_extent(w.world);
   pp.tool_radius = tool_radius > 0 ? tool_radius : 0.01 * extent;
   if (!registered && extent > 30.0)
@@ -102,6 +132,29 @@ ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, i
     fmt::print(stderr, "warning: only {} of {} sites are reachable on this scene\n",
                traj.sites().size(), sites);
   return traj;
+}
+
+void print_no_contact_hints(const PreparedWorld& w, const SceneOptions& so, double tool_radius) {
+  const double extent = robust_extent(w.world);
+  const Eigen::Vector3d up = w.world.up();
+  std::fflush(stdout);
+  fmt::print(stderr, "likely causes, from this run's numbers:\n");
+  if (!is_registered(so) && (extent > 30.0 || extent < 0.05))
+    fmt::print(stderr,
+               "  units      the scene spans {:.4g} units and is not registered; the simulated hand "
+               "works in metres, so register it into metres (`gshaptics info {}` suggests a "
+               "--reg-scale)\n", extent, so.scene);
+  fmt::print(stderr,
+             "  up axis    the probe came down along -[{:.2f}, {:.2f}, {:.2f}] (--up {}); if the scene "
+             "is upside down or on its side, try another --up (auto, y-up, y-down, z-up, ...)\n",
+             up.x(), up.y(), up.z(), so.up);
+  const double kept = w.report.filter.kept_fraction();
+  if (kept < 0.5)
+    fmt::print(stderr, "  opacity    the filter (opacity > {:.2f}) kept only {:.0f}% of the Gaussians; "
+                       "try --min-opacity 0.1\n", w.config.min_opacity, 100 * kept);
+  if (tool_radius < 0.002 * extent || tool_radius > 0.1 * extent)
+    fmt::print(stderr, "  tool size  the tool radius {:.4g} is {:.2g}% of the scene's size {:.4g}; 0.5-5% "
+                       "usually touches\n", tool_radius, 100 * tool_radius / extent, extent);
 }
 
 std::string find_tool_script(const std::string& name) {

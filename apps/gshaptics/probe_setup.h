@@ -18,18 +18,21 @@ struct ForceModelOptions {
   std::string model = "proxy";  ///< make_force_renderer() name
   ForceParams force;            ///< the paper model's parameters, and F_max for every model
   ProxyParams proxy;
+  std::string profile;  ///< --device-profile: "" (none), desktop or room
 };
 
 /// Adds --force-model, the paper model's --k-base, --damping, --tau-normal, --tau-opacity, the
 /// proxy's --stiffness, --coupling-damping, --mu-s, --mu-k, --opacity-stiffness, --substeps, and
 /// --f-max.
+/// And --device-profile, whose values fill --f-max and --stiffness unless they are given.
 void add_force_options(CLI::App& cmd, ForceModelOptions& o);
+
 
 /// Without SCENE: the bundled Truck and its registration. Throws InputError naming `command`
 /// when the bundled scene is missing.
 SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command);
 
-/// True when the world frame is z-up: a registration or --up was given.
+/// True when a registration or --up was given (the world is then meant to be in metres).
 bool is_registered(const SceneOptions& so);
 
 /// A loaded scene turned into a world, with the lines `simulate` and `run` print about it.
@@ -41,10 +44,19 @@ struct PreparedWorld {
 };
 PreparedWorld prepare_world(const SceneOptions& so, bool quiet);
 
+/// Warns when the world is larger than the --device-profile's workspace, with the --reg-scale
+/// that fits it.
+void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o);
+
 /// The seeded probe trajectory; tool_radius <= 0 picks 1 % of the scene's robust extent.
 /// Speeds scale with the tool so that any scene unit gives a similar run. Prints one line.
+/// The probe approaches along -CollisionWorld::up(), the registered world's up.
 ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, int sites,
                                       std::uint64_t seed, double tool_radius);
+
+/// After a probe run that made no contact: the likely causes, from the numbers at hand (units,
+/// up axis, opacity filter, tool size), one line each, printed to stderr.
+void print_no_contact_hints(const PreparedWorld& w, const SceneOptions& so, double tool_radius);
 
 /// Path of a script in tools/ (source tree) or share/gshaptics (installed), "" when absent.
 std::string find_tool_script(const std::string& name);

@@ -87,28 +87,29 @@ const std::atomic<int>& StopSignals::flag() noexcept { return g_signal; }
 void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& devices) {
   cmd.add_option("scene", o.scene.scene, "Scene file (default: bundled data/truck.splat, registered z-up in metres)");
   cmd.add_option("--device", o.device, devices)->capture_default_str();
-  cmd.add_option("--rate", o.rate, "Servo rate, Hz")->capture_default_str()->check(CLI::Range(10.0, 20000.0));
+  cmd.add_option("--rate", o.rate, "Servo rate, Hz")->capture_default_str()->check(check::range(10.0, 20000.0));
   cmd.add_option("--duration", o.duration,
                  "Run length, s (default: one pass of the probe trajectory for sim, the log's "
                  "length for replay, until Ctrl-C for mouse; a longer sim run repeats the trajectory)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(check::positive());
   cmd.add_flag("--inline", o.inline_query, "Run the query inside the servo tick instead of on the worker thread");
   cmd.add_option("--sites", o.sites, "Contact sites of the simulated probe")->capture_default_str()
       ->check(CLI::Range(1, 100));
   cmd.add_option("--seed", o.seed, "Seed of the site choice")->capture_default_str();
   cmd.add_option("--tool-radius", o.tool_radius,
-                 "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)");
+                 "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)")
+      ->check(check::positive());
   add_force_options(cmd, o.force);
   cmd.add_option("--hold-timeout", o.safety.hold_timeout, "Hold a late result at full force this long, s")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
+      ->capture_default_str()->check(check::non_negative());
   cmd.add_option("--fade-time", o.safety.fade_time, "Then fade it to zero over this long, s")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
+      ->capture_default_str()->check(check::non_negative());
   cmd.add_option("--ramp-time", o.safety.ramp_time, "Soft start after start and every resume, s")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
+      ->capture_default_str()->check(check::non_negative());
   cmd.add_option("--max-force-rate", o.safety.max_force_rate, "Force-rate limit, N/s")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(check::positive());
   cmd.add_option("--device-timeout", o.safety.device_timeout, "Watchdog: zero force when device data is older, s")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(check::positive());
   cmd.add_option("--rt-priority", o.realtime.servo_priority,
                  "SCHED_FIFO priority of the servo thread (worker: 10 lower); 0: normal scheduling")
       ->capture_default_str()->check(CLI::Range(0, 99));
@@ -116,7 +117,7 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
   cmd.add_option("--spin-us", o.spin_us,
                  "Sleep until this many microseconds before each deadline, then spin: lower "
                  "jitter for one busy core")
-      ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
+      ->capture_default_str()->check(check::range(0.0, 1000.0));
   cmd.add_flag("--mlock", o.realtime.lock_memory, "Lock all memory (mlockall) against page faults");
   cmd.add_option("--out", o.out_dir, "Output folder (default: runs/<scene name>)");
   cmd.add_flag("--no-plot", o.no_plot, "Do not draw run.png (needs /usr/bin/python3 with matplotlib)");
@@ -150,8 +151,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     if (s.tool_radius <= 0) s.tool_radius = 0.01 * extent;
     // Start above the most upward-facing probe site on the object (or above the middle of the
     // scene when none is found), so that lowering the tool touches the object.
-    const Eigen::Vector3d up = is_registered(so) ? Eigen::Vector3d::UnitZ()
-                                                 : up_of(pw.scene.report.frame);
+    const Eigen::Vector3d up = pw.world.up();
     Eigen::Vector3d start = Eigen::Vector3d::Zero();
     for (const auto& g : pw.world.gaussians()) start += Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
     start /= double(std::max<std::size_t>(1, pw.world.size()));
@@ -243,6 +243,10 @@ bool run_live(HapticRuntime& rt, double planned, bool quiet, const std::function
   return stop_sent;
 }
 
+void prepare_run_out_dir(RuntimeOptions& o, const SceneOptions& so) {
+  o.out_dir = prepare_out_dir(o.out_dir, so.scene, {"servo_log.csv", "run_summary.json", "run.png"});
+}
+
 bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
                        const PreparedWorld& pw, const RuntimeSetup& setup, bool interrupted,
                        const std::string& command, const nlohmann::json& extra) {
@@ -250,8 +254,7 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
   const auto& records = rt.log().records();
   const std::vector<ContactEpisode> episodes = find_episodes(records);
 
-  std::string out_dir = o.out_dir;
-  if (out_dir.empty()) out_dir = "runs/" + std::filesystem::path(so.scene).stem().string();
+  const std::string out_dir = o.out_dir.empty() ? default_out_dir(so.scene) : o.out_dir;
   std::filesystem::create_directories(out_dir);
   const std::string csv = out_dir + "/servo_log.csv";
   const std::string summary_path = out_dir + "/run_summary.json";
@@ -294,6 +297,7 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
              "rate-limited {} ticks; peak force {:.2f} N\n", s.watchdog_ticks, s.invalid_pose_ticks,
              s.outside_workspace_ticks, s.force_limited_ticks, s.rate_limited_ticks, s.peak_force);
   fmt::print("episodes   {} contact episodes\n", episodes.size());
+  if (episodes.empty() && o.device == "sim" && !interrupted) print_no_contact_hints(pw, so, setup.tool_radius);
   if (rt.log().dropped() > 0)
     fmt::print(stderr, "warning: the tick log kept the first {} ticks; {} more were not logged\n",
                records.size(), rt.log().dropped());

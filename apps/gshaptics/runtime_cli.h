@@ -79,6 +79,10 @@ RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, d
 /// and turns SIGINT/SIGTERM into a clean stop. Returns true when a signal ended it.
 bool run_live(HapticRuntime& rt, double planned, bool quiet, const std::function<std::string()>& extra = {});
 
+/// Resolves and checks `o.out_dir` before any work (see prepare_out_dir) and clears the files a
+/// run writes there.
+void prepare_run_out_dir(RuntimeOptions& o, const SceneOptions& so);
+
 /// Writes servo_log.csv and run_summary.json (and run.png unless no_plot) into the output
 /// folder and prints the summary. Returns false when plotting failed.
 /// `extra` is merged into run_summary.json.

@@ -31,6 +31,7 @@ CollisionWorld CollisionWorld::build(const GaussianScene& scene, const WorldConf
   w.config_ = config;
   w.scene_to_world_ = with_up_axis(config.registration, config.up, scene.frame);
   w.scene_to_world_.rotation.normalize();
+  w.up_ = world_up(config.registration, config.up, scene.frame);
   const SimilarityTransform& reg = w.scene_to_world_;
   std::size_t kept = 0;
   for (float a : scene.opacities) kept += a > config.min_opacity ? 1 : 0;

@@ -77,6 +77,15 @@ void write_splat(const std::string& path, const GaussianScene& s) {
   write_file_atomically(path, std::string_view(body.data(), body.size()));
 }
 
+SceneFrame output_frame(const std::string& path) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  if (ext == ".ply" || ext == ".splat") return SceneFrame::kRdf;
+  if (ext == ".spz")
+    throw file_error(path, "writing SPZ is not supported: no SPZ encoder is packaged in Debian; "
+                           "write .ply or .splat");
+  throw file_error(path, "unknown output extension '" + ext + "' (expected .ply or .splat)");
+}
+
 void write_scene(const std::string& path, const GaussianScene& scene) {
   const std::string ext = std::filesystem::path(path).extension().string();
   if (ext == ".ply") return write_inria_ply(path, scene);

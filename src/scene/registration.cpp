@@ -6,11 +6,13 @@
 #include <sstream>
 
 #include "gshaptics/error.h"
+#include "gshaptics/scene/sh_rotation.h"
 
 namespace gshaptics {
 
 bool SimilarityTransform::is_identity() const {
-  return scale == 1.0 && translation.isZero(0) && rotation.coeffs() == Eigen::Quaterniond::Identity().coeffs();
+  return scale == 1.0 && translation.isZero(0) && rotation.x() == 0 && rotation.y() == 0 &&
+         rotation.z() == 0;
 }
 
 std::string SimilarityTransform::to_json() const {
@@ -103,7 +105,12 @@ GaussianScene transform_scene(const GaussianScene& scene, const SimilarityTransf
   GaussianScene out = scene;
   SimilarityTransform unit = t;
   unit.rotation.normalize();
+  const int k = out.sh_rest_count / 3;
+  const bool rotate_sh = out.sh_rest_count > 0 && out.sh_rest.size() == out.size() * std::size_t(out.sh_rest_count) &&
+                         unit.rotation.angularDistance(Eigen::Quaterniond::Identity()) > 0;
+  const ShRotation sh(unit.rotation);
   for (std::size_t i = 0; i < out.size(); ++i) {
+    if (rotate_sh) sh.apply(out.sh_rest.data() + i * std::size_t(out.sh_rest_count), k);
     out.means[i] = unit.apply(scene.means[i].cast<double>()).cast<float>();
     out.scales[i] = (unit.scale * scene.scales[i].cast<double>()).cast<float>();
     const Eigen::Quaterniond w = unit.apply_rotation(scene.rotations[i]);
@@ -155,6 +162,35 @@ SimilarityTransform with_up_axis(const SimilarityTransform& registration, UpAxis
   if (u.squaredNorm() == 0) return t;
   const Eigen::Quaterniond r_up = Eigen::Quaterniond::FromTwoVectors(u, Eigen::Vector3d::UnitZ());
   t.rotation = (t.rotation * r_up).normalized();
+  return t;
+}
+
+Eigen::Vector3d world_up(const SimilarityTransform& registration, UpAxis up, SceneFrame frame) {
+  const Eigen::Vector3d scene_up = up == UpAxis::kNone ? up_of(frame) : up_vector(up, frame);
+  const SimilarityTransform t = with_up_axis(registration, up, frame);
+  return (t.rotation.normalized() * scene_up).normalized();
+}
+
+bool rotates_twice(const SimilarityTransform& registration, UpAxis up) {
+  if (up == UpAxis::kNone) return false;
+  return registration.rotation.normalized().angularDistance(Eigen::Quaterniond::Identity()) > 1e-6;
+}
+
+SimilarityTransform conversion_transform(const SimilarityTransform& registration, UpAxis up,
+                                         SceneFrame from, SceneFrame to) {
+  SimilarityTransform t = with_up_axis(registration, up, from);
+  const Eigen::Vector3d u = world_up(registration, up, from);
+  const Eigen::Quaterniond align = Eigen::Quaterniond::FromTwoVectors(u, Eigen::Vector3d::UnitZ());
+  const Eigen::Quaterniond back = frame_to_z_up(to).conjugate();
+  t.rotation = (back * align * t.rotation).normalized();
+  t.translation = back * (align * t.translation);
+  // Snap the rotation to exact axis permutations when it is one (within float noise), so that
+  // converting between conventions moves no coordinate by a rounding error.
+  Eigen::Matrix3d m = t.rotation.toRotationMatrix();
+  if ((m.array().abs() - m.array().abs().round()).abs().maxCoeff() < 1e-9) {
+    m = m.array().round().matrix();
+    t.rotation = Eigen::Quaterniond(m).normalized();
+  }
   return t;
 }
 

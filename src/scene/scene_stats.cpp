@@ -49,4 +49,53 @@ SceneStats compute_scene_stats(const GaussianScene& scene) {
   return s;
 }
 
+WorldPreview preview_world(const GaussianScene& scene, float min_opacity,
+                           const SimilarityTransform& scene_to_world, const Eigen::Vector3d& up) {
+  WorldPreview w;
+  w.up = up.normalized();
+  std::vector<Eigen::Vector3d> p;
+  p.reserve(scene.size());
+  for (std::size_t i = 0; i < scene.size(); ++i)
+    if (scene.opacities[i] > min_opacity) p.push_back(scene_to_world.apply(scene.means[i].cast<double>()));
+  w.kept = p.size();
+  if (p.empty()) return w;
+  std::vector<float> v(p.size());
+  for (int k = 0; k < 3; ++k) {
+    for (std::size_t i = 0; i < p.size(); ++i) v[i] = float(p[i][k]);
+    std::sort(v.begin(), v.end());
+    w.bbox_min[k] = v.front();
+    w.bbox_max[k] = v.back();
+    w.p01[k] = sorted_percentile(v, 1);
+    w.p99[k] = sorted_percentile(v, 99);
+  }
+  w.robust_size = (w.p99 - w.p01).maxCoeff();
+  return w;
+}
+
+ScaleAdvice desktop_scale_advice(double robust_size) {
+  ScaleAdvice a;
+  if (!(robust_size > 0)) return a;
+  a.reg_scale = 0.12 / robust_size;
+  a.tool_radius = 0.0012;
+  a.reason = "fits the object's 1-99 pct size in 0.12 m of a ~0.16 m desktop workspace; tool 1 % of that";
+  return a;
+}
+
+ScaleAdvice room_scale_advice(double robust_size) {
+  ScaleAdvice a;
+  if (!(robust_size > 0)) return a;
+  if (robust_size >= 0.2 && robust_size <= 20) {
+    a.reg_scale = 1;
+    a.reason = "the size is plausible in metres, so the units are probably metres already";
+  } else {
+    const double e = std::round(std::log10(std::sqrt(0.5 * 5) / robust_size));
+    a.reg_scale = std::pow(10.0, e);
+    const char* unit = e == -2 ? "centimetres" : e == -3 ? "millimetres" : e == -1 ? "decimetres" : nullptr;
+    a.reason = unit ? std::string("the size is not plausible in metres; the units look like ") + unit
+                    : "the size is not plausible in metres; this power of ten brings it to 0.5..5 m";
+  }
+  a.tool_radius = 0.01 * robust_size * a.reg_scale;
+  return a;
+}
+
 }  // namespace gshaptics

@@ -66,6 +66,9 @@ class CollisionWorld {
   /// The whole scene -> world transform the world was built with: `config().up` then
   /// `config().registration` (with_up_axis). A renderer of the original file places it with this.
   [[nodiscard]] const SimilarityTransform& scene_to_world() const { return scene_to_world_; }
+  /// The world's up direction (world_up of the config and the scene's file convention), unit.
+  /// Probes approach along -up; viewers show it as up.
+  [[nodiscard]] const Eigen::Vector3d& up() const { return up_; }
   /// Bounds of all ellipsoids (world frame).
   [[nodiscard]] const Eigen::Vector3d& bounds_lo() const { return lo_; }
   [[nodiscard]] const Eigen::Vector3d& bounds_hi() const { return hi_; }
@@ -75,6 +78,7 @@ class CollisionWorld {
  private:
   WorldConfig config_;
   SimilarityTransform scene_to_world_;
+  Eigen::Vector3d up_ = Eigen::Vector3d::UnitZ();
   std::vector<CollisionGaussian> gaussians_;
   Bvh bvh_;
   Eigen::Vector3d lo_ = Eigen::Vector3d::Zero(), hi_ = Eigen::Vector3d::Zero();

@@ -21,6 +21,12 @@ void write_inria_ply(const std::string& path, const GaussianScene& scene,
 /// A = opacity), quaternion bytes (q * 128 + 128, w first). Higher SH bands are dropped.
 void write_splat(const std::string& path, const GaussianScene& scene);
 
+/// The coordinate convention a written file is read in: RDF for .ply and .splat (the 3DGS
+/// convention every reader of those formats assumes). Throws InputError naming `path` for an
+/// extension that has no writer. Writers do not convert: give them a scene already in this
+/// frame (conversion_transform in scene/registration.h).
+[[nodiscard]] SceneFrame output_frame(const std::string& path);
+
 /// Chooses the writer from the extension (.ply, .splat). SPZ has no writer here: an InputError
 /// says so (no SPZ encoder is packaged in Debian; Niantic's reference library is not).
 void write_scene(const std::string& path, const GaussianScene& scene);

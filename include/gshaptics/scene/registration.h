@@ -53,9 +53,30 @@ enum class UpAxis { kNone, kAuto, kYDown, kYUp, kZUp, kZDown, kXUp, kXDown };
 [[nodiscard]] SimilarityTransform with_up_axis(const SimilarityTransform& registration, UpAxis up,
                                                SceneFrame frame);
 
+/// The world's up direction (unit vector, world frame) after with_up_axis(registration, up,
+/// frame): the scene's up -- the axis `up` names, or the file's convention (up_of) for kNone and
+/// kAuto -- carried through the whole rotation. A registration that already turns the scene
+/// z-up (the bundled Truck's) gives +z with UpAxis::kNone; so does kAuto without a registration.
+[[nodiscard]] Eigen::Vector3d world_up(const SimilarityTransform& registration, UpAxis up,
+                                       SceneFrame frame);
+
+/// True when both `up` (not kNone) and the registration's rotation turn the scene (rotation
+/// angle above 1e-6 rad): the scene is then rotated twice, which is rarely meant.
+[[nodiscard]] bool rotates_twice(const SimilarityTransform& registration, UpAxis up);
+
+/// The transform `convert` applies so that the written file, read in its own format's
+/// convention `to`, gives the same world under --up auto as the source (convention `from`)
+/// gives under `up` and `registration`:
+///   T = R_z(to)^-1 * A * with_up_axis(registration, up, from),
+/// where R_z(to) = frame_to_z_up(to) and A turns world_up(...) to +z by the shortest arc (the
+/// identity when the world is already z-up). Converting SPZ (RUB) to PLY (RDF) with no options
+/// is then the half turn about x, (x, y, z) -> (x, -y, -z).
+[[nodiscard]] SimilarityTransform conversion_transform(const SimilarityTransform& registration,
+                                                       UpAxis up, SceneFrame from, SceneFrame to);
+
 /// Applies a registration to every Gaussian (eq. 3): means s R mu + t, rotations R q, scales
-/// s * scale. Colour is copied; SH bands above 0 are not rotated (view-dependent colour then
-/// turns with the scene only approximately).
+/// s * scale. Colour is copied and SH bands 1-3 are rotated with the scene (ShRotation), so the
+/// view-dependent colour turns with it exactly.
 [[nodiscard]] GaussianScene transform_scene(const GaussianScene& scene, const SimilarityTransform& t);
 
 /// Parses `{"scale": s, "rotation": [w, x, y, z], "translation": [x, y, z]}`; every key is

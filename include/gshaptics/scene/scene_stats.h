@@ -4,6 +4,9 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <string>
+
+#include "gshaptics/scene/registration.h"
 
 #include "gshaptics/io/gaussian_scene.h"
 
@@ -23,5 +26,35 @@ struct SceneStats {
 
 /// Computes the statistics; an empty scene gives zeros.
 [[nodiscard]] SceneStats compute_scene_stats(const GaussianScene& scene);
+
+/// The world a scene becomes, seen before any BVH is built (`gshaptics info --up/--registration`).
+/// Positions are the centres of the Gaussians kept by the opacity filter, in the world frame.
+struct WorldPreview {
+  std::size_t kept = 0;
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();  ///< the world's up (unit), as given
+  Eigen::Vector3d bbox_min = Eigen::Vector3d::Zero(), bbox_max = Eigen::Vector3d::Zero();
+  Eigen::Vector3d p01 = Eigen::Vector3d::Zero(), p99 = Eigen::Vector3d::Zero();  ///< per world axis
+  double robust_size = 0;  ///< largest 1-99 percentile extent over the world axes (world units)
+};
+
+/// Previews the world of `scene` under an opacity threshold (keep alpha > min_opacity) and the
+/// whole scene -> world transform, with `up` the world's up (world_up in registration.h).
+[[nodiscard]] WorldPreview preview_world(const GaussianScene& scene, float min_opacity,
+                                         const SimilarityTransform& scene_to_world,
+                                         const Eigen::Vector3d& up);
+
+/// A registration scale and tool radius for a device class, with the reasoning in one line.
+struct ScaleAdvice {
+  double reg_scale = 1;    ///< --reg-scale: world metres per current world unit
+  double tool_radius = 0;  ///< tool radius after that scale, m (1 % of the object's size)
+  std::string reason;
+};
+
+/// For a desktop device (a workspace of about 16 x 12 x 7 cm, a Touch or a Falcon): the object's
+/// robust size fits in 0.12 m. `robust_size` in current world units.
+[[nodiscard]] ScaleAdvice desktop_scale_advice(double robust_size);
+/// For room scale (a tracked VR controller, an arm): keep the size when it is plausible in metres
+/// (0.2..20), else the power of ten (centimetres, millimetres, ...) that brings it to 0.5..5 m.
+[[nodiscard]] ScaleAdvice room_scale_advice(double robust_size);
 
 }  // namespace gshaptics
