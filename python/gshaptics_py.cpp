@@ -21,6 +21,8 @@
 #include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/scene/registration.h"
 #include "gshaptics/sim/probe_run.h"
+#include "gshaptics/servo/device_profile.h"
+#include "gshaptics/sim/pose_sampler.h"
 
 namespace py = pybind11;
 using namespace gshaptics;
@@ -205,13 +207,15 @@ PYBIND11_MODULE(gshaptics, m) {
         rep["skipped_bad_scale"] = r.skipped_bad_scale;
         rep["sh_degree"] = r.sh_degree;
         rep["ignored_properties"] = r.ignored_properties;
+        rep["frame"] = sp->frame == SceneFrame::kRub ? "RUB" : "RDF";
         obj.attr("report") = rep;
         return obj;
       },
       py::arg("path"),
-      "Loads an INRIA PLY or .splat file (format detected from content). Raises InputError "
-      "(a ValueError) naming the file for missing, truncated, malformed or unsupported files. "
-      "The load report is in `.report` (dict).")
+      "Loads a scene: INRIA PLY, compressed PLY (SuperSplat/PlayCanvas), antimatter15 .splat or "
+      "Niantic SPZ (gzip or zstd), detected from the content. Raises InputError (a ValueError) "
+      "naming the file for missing, truncated, malformed or unsupported files. The load report "
+      "is in `.report` (dict, with 'frame': 'RDF' for PLY/.splat, 'RUB' for SPZ).")
       .def("__len__", &GaussianScene::size)
       .def_property_readonly("means", [](const GaussianScene& s) { return rows_to_array<float>(s.means, 3); },
                              "(N, 3) float32 centres mu_i, scene frame")
@@ -266,6 +270,12 @@ PYBIND11_MODULE(gshaptics, m) {
       .def_property_readonly("bounds", [](const PyWorld& w) {
         return py::make_tuple(w.world->bounds_lo(), w.world->bounds_hi());
       }, "(lo (3,), hi (3,)) of all ellipsoids, world frame")
+      .def_property_readonly("up", [](const PyWorld& w) { return w.world->up(); },
+                             "(3,) the world's up (unit): the file's convention carried through `up` "
+                             "and the registration; run_probe approaches along -up")
+      .def_property_readonly("robust_extent", [](const PyWorld& w) { return robust_extent(*w.world); },
+                             "largest 1-99 percentile extent of the centres, world units (the CLI's "
+                             "default tool radius is 1 % of it)")
       .def("query", [](const PyWorld& w, const py::object& center, const py::object& axes, const py::object& rotation) {
              const ToolEllipsoid tool = make_tool(vec3(center, "center"), vec3(axes, "axes"), vec4(rotation, "rotation"));
              ContactQuery q(*w.world);
@@ -302,17 +312,28 @@ PYBIND11_MODULE(gshaptics, m) {
              return out;
            },
            py::arg("poses"), "One query per row of an (M, 10) array; the GIL is released meanwhile.")
-      .def("run_probe", [](const PyWorld& w, int sites, std::uint64_t seed, double tool_radius,
-                           const py::object& up, double rate_hz, const std::string& force_model) {
+      .def("run_probe", [](const PyWorld& w, int sites, std::uint64_t seed, const py::object& tool_radius_obj,
+                           const py::object& up, double rate_hz, const std::string& force_model,
+                           const py::object& device_profile_obj) {
+             // The CLI's defaults: 1 % of the robust extent, the world's own up.
+             const double tool_radius = tool_radius_obj.is_none() ? 0.01 * robust_extent(*w.world)
+                                                                  : tool_radius_obj.cast<double>();
+             if (!std::isfinite(tool_radius) || !(tool_radius > 0))
+               throw py::value_error("tool_radius: must be a finite number > 0");
              ProbeParams pp;
              pp.sites = sites;
              pp.seed = seed;
              pp.tool_radius = tool_radius;
-             pp.up = vec3(up, "up");
+             pp.up = up.is_none() ? w.world->up() : vec3(up, "up");
              pp.approach_speed = 2 * tool_radius;
              pp.travel_speed = 8 * tool_radius;
              ProbeRunParams rp;
              rp.rate_hz = rate_hz;
+             if (!device_profile_obj.is_none()) {
+               const DeviceProfile& dp = device_profile(device_profile_obj.cast<std::string>(), "device_profile");
+               rp.force.f_max = dp.f_max;
+               rp.proxy.stiffness = dp.stiffness;
+             }
              if (!is_force_model(force_model))
                throw py::value_error("force_model: expected 'proxy' or 'paper', got '" + force_model + "'");
              rp.force_model = force_model;
@@ -355,11 +376,13 @@ PYBIND11_MODULE(gshaptics, m) {
              d["site_touch_times"] = vec_to_array(t_touch);
              return d;
            },
-           py::arg("sites") = 7, py::arg("seed") = 1, py::arg("tool_radius") = 0.05,
-           py::arg("up") = py::make_tuple(0.0, 0.0, 1.0), py::arg("rate_hz") = 1000.0,
-           py::arg("force_model") = "proxy",
+           py::arg("sites") = 7, py::arg("seed") = 1, py::arg("tool_radius") = py::none(),
+           py::arg("up") = py::none(), py::arg("rate_hz") = 1000.0,
+           py::arg("force_model") = "proxy", py::arg("device_profile") = py::none(),
            "The simulated probe run of `gshaptics simulate` (admittance device, simulated hand, "
-           "inline query + force model each tick). Returns a dict of per-tick arrays (time (T,), "
+           "inline query + force model each tick), with its defaults: tool_radius None is 1 % of "
+           "the robust extent, up None is the world's up (CollisionWorld.up), device_profile None "
+           "keeps the model defaults ('desktop': 3.3 N, 1000 N/m; 'room'). Returns a dict of per-tick arrays (time (T,), "
            "position/velocity/force/user_force (T, 3), candidates/prefiltered/contacts (T,), "
            "query_us (T,)) and site_touch_times.");
 

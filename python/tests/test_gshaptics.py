@@ -209,3 +209,32 @@ def test_run_probe_with_either_force_model(data_dir):
         assert run["contacts"].max() > 0 and np.abs(run["force"]).max() > 0
     with pytest.raises(ValueError):
         world.run_probe(sites=2, force_model="spring")
+
+
+def test_run_probe_defaults_match_the_cli(data_dir, scenes_dir):
+    # The CLI's defaults: tool radius 1 % of the robust extent, the world's own up (here the
+    # PLY's y-down convention: the probe comes down along +y, i.e. up = -y).
+    scene = gshaptics.Scene.load(os.path.join(scenes_dir, "donut.ply"))
+    assert scene.report["frame"] == "RDF"
+    world = gshaptics.CollisionWorld(scene)
+    np.testing.assert_allclose(world.up, (0, -1, 0), atol=1e-12)
+    run = world.run_probe(sites=2)
+    assert run["contacts"].max() > 0
+    # The probe starts above the object along the world's up: its first positions have the
+    # smallest y of the run (up is -y).
+    assert run["position"][0, 1] < np.median(run["position"][:, 1])
+    upright = gshaptics.CollisionWorld(scene, up="auto")
+    np.testing.assert_allclose(upright.up, (0, 0, 1), atol=1e-9)
+    assert upright.robust_extent == pytest.approx(world.robust_extent, rel=1e-5)
+    with pytest.raises(ValueError):
+        world.run_probe(sites=1, tool_radius=float("nan"))
+
+
+def test_run_probe_desktop_profile_limits_the_force(data_dir):
+    scene = gshaptics.Scene.load(os.path.join(data_dir, "truck.splat"))
+    world = gshaptics.CollisionWorld(scene, registration=os.path.join(data_dir, "truck.registration.json"))
+    run = world.run_probe(sites=2, tool_radius=0.05, device_profile="desktop")
+    peak = np.linalg.norm(run["force"], axis=1).max()
+    assert 1.0 < peak <= 3.3 + 1e-9
+    with pytest.raises(ValueError):
+        world.run_probe(sites=1, device_profile="glove")
