@@ -34,6 +34,37 @@ TEST(SceneLoader, DetectsFormatFromContentNotExtension) {
             SceneFormat::kCompressedPly);
 }
 
+TEST(SpzAsGzip, V4IsRepackedAsV3WithTheSameGaussians) {
+  GSHAPTICS_REQUIRE_SCENES();
+  const auto v4 = test::read_bytes(test::scene_path("biker.spz"));
+  ASSERT_EQ(v4[0], 'N');  // the real file is v4 (NGSP header, zstd streams)
+  const std::vector<std::uint8_t> gz = spz_as_gzip(v4, "biker.spz");
+  ASSERT_GE(gz.size(), 2u);
+  EXPECT_EQ(gz[0], 0x1f);
+  EXPECT_EQ(gz[1], 0x8b);
+  const LoadOptions colour = test::with_color();
+  const LoadedScene a = read_spz(v4, "v4", colour);
+  const LoadedScene b = read_spz(gz, "v3", colour);
+  EXPECT_EQ(b.report.version, 3);
+  ASSERT_EQ(a.scene.size(), b.scene.size());
+  for (std::size_t i = 0; i < a.scene.size(); ++i) {  // the same bytes, so bit-identical values
+    ASSERT_EQ(a.scene.means[i], b.scene.means[i]) << i;
+    ASSERT_EQ(a.scene.scales[i], b.scene.scales[i]) << i;
+    ASSERT_EQ(a.scene.rotations[i], b.scene.rotations[i]) << i;
+    ASSERT_EQ(a.scene.opacities[i], b.scene.opacities[i]) << i;
+    ASSERT_EQ(a.scene.colors_dc[i], b.scene.colors_dc[i]) << i;
+  }
+  // A gzip (v2/v3) file comes back unchanged; garbage is an error naming the file.
+  EXPECT_EQ(spz_as_gzip(gz, "v3"), gz);
+  std::vector<std::uint8_t> broken(v4.begin(), v4.begin() + 40);
+  try {
+    (void)spz_as_gzip(broken, "broken.spz");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("broken.spz"), std::string::npos);
+  }
+}
+
 TEST(SceneLoader, EmptyMissingAndDirectoryAreErrors) {
   const std::string empty = test::temp_path(".ply");
   test::write_bytes(empty, {});

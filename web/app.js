@@ -18,9 +18,33 @@ const view = {
 };
 window.gshaptics = view; // for tests and the console
 
+// Errors show in the page, not only in the console: a scene the renderer cannot read, a server
+// that stopped, a script error.
+function showError(text) {
+  const el = $("error");
+  el.hidden = false;
+  el.textContent = text;
+  document.body.dataset.error = text;
+}
+addEventListener("error", (e) => showError(`page error: ${e.message}`));
+addEventListener("unhandledrejection", (e) => showError(`page error: ${e.reason && e.reason.message ? e.reason.message : e.reason}`));
+
+function setLoading(text, fraction) {
+  const el = $("loading");
+  if (text === null) { el.hidden = true; return; }
+  el.hidden = false;
+  $("loading-text").textContent = text;
+  if (fraction !== undefined) $("loading-bar").style.width = `${Math.round(100 * Math.min(1, fraction))}%`;
+}
+
 const ws = new WebSocket(`ws://${location.host}/ws`);
-ws.onopen = () => { $("status").textContent = "connected"; };
-ws.onclose = () => { $("status").textContent = "disconnected"; $("status").style.color = "#e77"; };
+ws.onopen = () => { $("status").textContent = "connected"; setLoading("waiting for the scene description…"); };
+ws.onclose = () => {
+  $("status").textContent = "disconnected";
+  $("status").style.color = "#e77";
+  showError("The connection to gshaptics closed: the server stopped (Ctrl-C, end of --duration) or " +
+    "the network dropped. Restart `gshaptics serve` and reload.");
+};
 ws.onmessage = (ev) => {
   const m = JSON.parse(ev.data);
   if (m.type === "hello") init(m);
@@ -35,7 +59,6 @@ function init(h) {
     `${h.gaussians_in_file.toLocaleString()} Gaussians collide (opacity filter); device: ${h.device}`;
   const lo = vec(h.bounds.min), hi = vec(h.bounds.max);
   const extent = hi.clone().sub(lo).length();
-  const toolStart = view.last ? vec(view.last.tool.center) : lo.clone().add(hi).multiplyScalar(0.5);
   view.up = vec(h.up).normalize();
   view.upChoices = [view.up.clone(), new THREE.Vector3(0, 0, 1), new THREE.Vector3(0, 1, 0), new THREE.Vector3(0, -1, 0)];
 
@@ -43,11 +66,12 @@ function init(h) {
   const camera = new THREE.PerspectiveCamera(55, innerWidth / innerHeight, extent * 1e-3, extent * 50);
   camera.up.copy(view.up);
   const side = new THREE.Vector3(1, 0.7, 0).applyQuaternion(new THREE.Quaternion().setFromUnitVectors(new THREE.Vector3(0, 0, 1), view.up));
-  // Look at the surface below where the tool starts, from the side and above, close enough to
-  // see single contacts (the user zooms out with the wheel).
-  const r = h.tool.axes[0];
-  const center = (h.tool_start ? vec(h.tool_start) : toolStart).addScaledVector(view.up, -10 * r);
-  camera.position.copy(center).addScaledVector(side.normalize(), 22 * r).addScaledVector(view.up, 10 * r);
+  // Frame the whole scene first (its 1-99 % box fits the view, seen from the side and above);
+  // then the view follows the tool (F toggles), keeping this distance until the user zooms.
+  const center = lo.clone().add(hi).multiplyScalar(0.5);
+  const dist = 0.5 * extent / Math.tan(THREE.MathUtils.degToRad(55 / 2)) * 0.9;
+  camera.position.copy(center).addScaledVector(side.normalize(), dist).addScaledVector(view.up, 0.45 * dist);
+  view.follow = true;
   const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
   renderer.setSize(innerWidth, innerHeight);
   $("view").appendChild(renderer.domElement);
@@ -57,7 +81,21 @@ function init(h) {
   controls.update();
 
   // The scene file as stored, placed by the registration: x_world = s R x_file + t (paper eq. 3).
-  const splat = new SplatMesh({ url: h.scene_url, fileType: h.file_type });
+  setLoading(`loading ${h.scene_name}…`, 0);
+  const splat = new SplatMesh({
+    url: h.scene_url, fileType: h.file_type,
+    onProgress: (e) => {
+      if (e && e.total > 0) setLoading(`loading ${h.scene_name}: ${(e.loaded / 1e6).toFixed(1)} of ${(e.total / 1e6).toFixed(1)} MB`, e.loaded / e.total);
+    },
+  });
+  splat.initialized.then(() => {
+    setLoading(null);
+    document.body.dataset.sceneLoaded = "1";
+  }).catch((err) => {
+    setLoading(null);
+    showError(`The scene ${h.scene_name} could not be shown: ${err && err.message ? err.message : err}. ` +
+      "The haptic loop still runs; the contacts and the force are drawn without the splats.");
+  });
   const reg = h.registration;
   splat.scale.setScalar(reg.scale);
   splat.quaternion.set(reg.rotation[1], reg.rotation[2], reg.rotation[3], reg.rotation[0]);
@@ -98,17 +136,29 @@ function init(h) {
   });
   if (h.mouse) setupMouseDevice(h);
   $("help").innerHTML = h.mouse
-    ? "Drag the blue tool; arrows: view plane, W/S: depth, Q/E: up/down (Shift 5x), U: camera up axis; drag elsewhere orbits."
-    : "The device drives the tool. U: camera up axis; drag orbits.";
+    ? "Drag the blue tool; arrows: view plane, W/S: depth, Q/E: up/down (Shift 5x), U: camera up axis, F: follow on/off; drag elsewhere orbits."
+    : "The device drives the tool. U: camera up axis; F: follow the tool on/off; drag orbits.";
+  addEventListener("keydown", (e) => {
+    if (e.key.toLowerCase() === "f") view.follow = !view.follow;
+  });
   renderer.setAnimationLoop(() => { controls.update(); renderer.render(scene, camera); });
 }
 
 const tmpM = new THREE.Matrix4(), tmpQ = new THREE.Quaternion(), tmpP = new THREE.Vector3(), tmpS = new THREE.Vector3();
 
+const followDelta = new THREE.Vector3();
+
 function update(m) {
   view.last = m;
   const c = vec(m.tool.center);
   view.tool.position.copy(c);
+  // Follow: the orbit centre glides to the tool, and the camera moves with it, so the tool stays
+  // in the middle of the view at the distance the user chose. Not while the tool is dragged.
+  if (view.follow && !view.dragging) {
+    followDelta.copy(c).sub(view.controls.target).multiplyScalar(0.15);
+    view.controls.target.add(followDelta);
+    view.camera.position.add(followDelta);
+  }
   const q = m.tool.rotation;
   view.tool.quaternion.set(q[1], q[2], q[3], q[0]);
   if (view.target === null) view.target = c.clone();

@@ -66,7 +66,7 @@ void register_info(CLI::App& app) {
       fmt::print("warning    the filter keeps only {:.0f}%: thin or semi-transparent parts may not be "
                  "touchable; a lower --min-opacity (0.1) keeps more\n", 100 * kept_share);
     if (w.kept == 0) return;
-    const bool transformed = !to_world.is_identity();
+    const bool transformed = cfg.up != UpAxis::kNone || !cfg.registration.is_identity();
     fmt::print("\nworld      {} (kept Gaussians' centres, world frame)\n",
                transformed ? fmt::format("after --up {}{}", to_string(cfg.up),
                                          cfg.registration.is_identity() ? "" : " and the registration")

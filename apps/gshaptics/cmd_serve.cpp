@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <memory>
 #include <nlohmann/json.hpp>
 
@@ -123,6 +125,15 @@ void register_serve(CLI::App& app) {
     warn_if_outside_profile(pw, o->run.force);
     RuntimeSetup setup = make_runtime_setup(o->run, so, pw, true);
     vc.hello_json = hello_json(pw, so, setup, o->display_rate);
+    if (pw.scene.report.format == SceneFormat::kSpz && pw.scene.report.version >= 4) {
+      // The page's splat renderer (Spark 2.2) reads SPZ as one gzip stream only: re-pack v4.
+      std::ifstream in(so.scene, std::ios::binary);
+      const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      const std::vector<std::uint8_t> gz = spz_as_gzip(bytes, so.scene);
+      vc.scene_bytes = std::make_shared<const std::string>(gz.begin(), gz.end());
+      fmt::print("viewer     SPZ v{} re-packed for the page as gzip SPZ v3 ({:.1f} MB, same data)\n",
+                 pw.scene.report.version, double(gz.size()) / 1e6);
+    }
     HapticRuntime rt(pw.world, *setup.device, setup.config);
     ContactSnapshotObserver snapshots(o->display_rate, MonotonicClock::instance());
     rt.set_observer(&snapshots);
@@ -138,7 +149,23 @@ void register_serve(CLI::App& app) {
     fmt::print("\nviewer     {} frames sent, {} dropped for slow clients, {} tool messages ({} malformed)\n",
                server.stats().frames_sent.load(), server.stats().frames_dropped.load(),
                server.stats().tool_messages.load(), server.stats().bad_messages.load());
-    if (!write_run_outputs(rt, o->run, so, pw, setup, interrupted, "serve")) set_exit_code(1);
+    nlohmann::json extra = nlohmann::json::object();
+    if (setup.mouse != nullptr) {
+      // With the page as the device, the watchdog counts the time no page steered the tool.
+      const RuntimeSummary s = rt.summary();
+      const double idle = double(s.watchdog_ticks) / std::max(1.0, s.rate_hz);
+      extra["device_idle_s"] = idle;
+      if (idle > 0.5) {
+        const std::string note = fmt::format(
+            "device idle for {:.1f} of {:.1f} s: no page was steering the tool (none open, or a "
+            "hidden tab), so the watchdog held the force at zero and no new pose reached the "
+            "collision worker (hence the old result age). Not a fault.", idle, s.duration_s);
+        extra["device_idle_note"] = note;
+      }
+    }
+    if (!write_run_outputs(rt, o->run, so, pw, setup, interrupted, "serve", extra)) set_exit_code(1);
+    if (extra.contains("device_idle_note"))
+      fmt::print("note       {}\n", extra["device_idle_note"].get<std::string>());
   });
 }
 

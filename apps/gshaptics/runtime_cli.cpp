@@ -152,10 +152,16 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     // Start above the most upward-facing probe site on the object (or above the middle of the
     // scene when none is found), so that lowering the tool touches the object.
     const Eigen::Vector3d up = pw.world.up();
+    // Fallback: above the middle of the scene, 12 tool radii over its highest Gaussian.
     Eigen::Vector3d start = Eigen::Vector3d::Zero();
-    for (const auto& g : pw.world.gaussians()) start += Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+    double top = -1e300;
+    for (const auto& g : pw.world.gaussians()) {
+      const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
+      start += c;
+      top = std::max(top, c.dot(up));
+    }
     start /= double(std::max<std::size_t>(1, pw.world.size()));
-    start += 0.5 * extent * up;
+    start += (top - start.dot(up) + 12.0 * s.tool_radius) * up;
     try {
       ProbeParams pp;
       pp.sites = 7;

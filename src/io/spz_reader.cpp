@@ -108,7 +108,52 @@ void decode(const Streams& s, std::uint64_t n, int fractional_bits, const std::s
   (void)path;
 }
 
+// One gzip member holding `data` (zlib, window 15 + 16 = gzip wrapper).
+std::vector<std::uint8_t> gzip(const std::vector<std::uint8_t>& data, const std::string& path) {
+  z_stream zs{};
+  if (deflateInit2(&zs, 6, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY) != Z_OK)
+    throw file_error(path, "zlib: deflateInit2 failed");
+  std::vector<std::uint8_t> out(deflateBound(&zs, uLong(data.size())) + 32);
+  zs.next_in = const_cast<Bytef*>(data.data());
+  zs.avail_in = uInt(data.size());
+  zs.next_out = out.data();
+  zs.avail_out = uInt(out.size());
+  const int rc = deflate(&zs, Z_FINISH);
+  out.resize(zs.total_out);
+  deflateEnd(&zs);
+  if (rc != Z_STREAM_END) throw file_error(path, "zlib: deflate did not finish");
+  return out;
+}
+
 }  // namespace
+
+std::vector<std::uint8_t> spz_as_gzip(std::span<const std::uint8_t> bytes, const std::string& path) {
+  if (bytes.size() >= 2 && bytes[0] == 0x1f && bytes[1] == 0x8b)
+    return std::vector<std::uint8_t>(bytes.begin(), bytes.end());
+  // Decode once: this validates every stream (sizes, zstd frames) before anything is re-packed.
+  (void)read_spz(bytes, path, LoadOptions{});
+  const int n_streams = bytes[15];
+  const int used = bytes[12] > 0 ? 6 : 5;
+  const std::uint32_t toc = u32_at(bytes.data() + 16);
+  std::vector<std::uint8_t> raw(16);
+  std::memcpy(raw.data(), bytes.data(), 16);
+  const std::uint32_t v3 = 3;
+  std::memcpy(raw.data() + 4, &v3, 4);
+  raw[15] = 0;  // v3: reserved (v4 keeps the stream count here)
+  std::uint64_t offset = std::uint64_t(toc) + 16ull * std::uint64_t(n_streams);
+  for (int k = 0; k < n_streams; ++k) {
+    const std::uint64_t csize = u64_at(bytes.data() + toc + 16 * std::uint64_t(k));
+    const std::uint64_t usize = u64_at(bytes.data() + toc + 16 * std::uint64_t(k) + 8);
+    if (k < used) {
+      const std::size_t at = raw.size();
+      raw.resize(at + usize);
+      const std::size_t got = ZSTD_decompress(raw.data() + at, usize, bytes.data() + offset, csize);
+      if (ZSTD_isError(got) || got != usize) throw file_error_at(path, offset, "SPZ v4: stream is corrupt");
+    }
+    offset += csize;
+  }
+  return gzip(raw, path);
+}
 
 LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& path,
     const LoadOptions& options) {

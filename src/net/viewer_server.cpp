@@ -267,7 +267,10 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
     if (target == "/" || target == "/index.html") return file(srv.config.web_root + "/index.html");
     if (target == "/api/hello") return text(http::status::ok, srv.config.hello_json, "application/json");
     if (target == "/favicon.ico") return text(http::status::no_content, "");
-    if (target == "/scene") return file(srv.config.scene_path);
+    if (target == "/scene") {
+      if (srv.config.scene_bytes) return text(http::status::ok, *srv.config.scene_bytes, "application/octet-stream");
+      return file(srv.config.scene_path);
+    }
     const bool allowed = target.rfind("/node_modules/three/", 0) == 0 ||
                          target.rfind("/node_modules/@sparkjsdev/spark/", 0) == 0 ||
                          target == "/app.js" || target == "/style.css";

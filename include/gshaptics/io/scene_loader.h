@@ -98,4 +98,12 @@ struct LoadOptions {
 [[nodiscard]] LoadedScene read_splat(std::span<const std::uint8_t> bytes, const std::string& path,
     const LoadOptions& options = {});
 
+/// An SPZ file in the form every SPZ reader knows (Niantic's v2/v3: one gzip stream), for
+/// viewers that read only that one (Spark 2.2): a v4 file (NGSP header + zstd streams) is
+/// re-packed as version 3 -- the same header fields and the same attribute bytes in the same
+/// order, gzip-compressed -- so nothing is re-quantised. A v2/v3 file is returned as it is.
+/// Throws InputError naming `path` for a file that is not valid SPZ.
+[[nodiscard]] std::vector<std::uint8_t> spz_as_gzip(std::span<const std::uint8_t> bytes,
+                                                   const std::string& path);
+
 }  // namespace gshaptics

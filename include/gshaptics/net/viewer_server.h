@@ -31,6 +31,9 @@ struct ViewerConfig {
   std::uint16_t port = 8080;  ///< 0: any free port (see ViewerServer::port())
   std::string web_root;       ///< folder with index.html, app.js and node_modules/
   std::string scene_path;     ///< the original scene file, served at /scene
+  /// When set, served at /scene instead of the file: the scene re-packed in a form the page's
+  /// splat renderer reads (spz_as_gzip for SPZ v4).
+  std::shared_ptr<const std::string> scene_bytes;
   double display_hz = 30;     ///< state frames per second
   /// Sent once in the hello message: scene format, registration, tool, limits, bounds.
   std::string hello_json = "{}";
