@@ -135,6 +135,31 @@ class ProbeUpAxis(unittest.TestCase):
         self.assertIn("both turn the scene", p.stderr)
 
 
+class UnreachableSites(unittest.TestCase):
+    def test_upside_down_scene_names_the_up_axis(self):
+        # `firepit --up y-up` only said "6 of 7 sites reachable".
+        with tempfile.TemporaryDirectory() as d:
+            p = run("simulate", scene_file("firepit.ply"), "--up", "y-up", "--no-plot", "--quiet",
+                    "--out", d, check=False)
+        self.assertIn("reachable", p.stderr)
+        self.assertIn("upside down", p.stderr)
+        self.assertIn("--up", p.stderr)
+
+
+class Serve(unittest.TestCase):
+    def test_idle_page_is_explained_and_spz_v4_is_repacked(self):
+        # No page connects: the summary says the device was idle (it said "watchdog 70367").
+        with tempfile.TemporaryDirectory() as d:
+            p = run("serve", scene_file("biker.spz"), "--up", "auto", "--port", "0", "--duration", "2",
+                    "--quiet", "--no-plot", "--out", d, timeout=120)
+            self.assertIn("re-packed for the page as gzip SPZ v3", p.stdout)
+            self.assertIn("device idle", p.stdout)
+            with open(os.path.join(d, "run_summary.json")) as f:
+                summary = json.load(f)
+        self.assertGreater(summary["device_idle_s"], 1.0)
+        self.assertIn("Not a fault", summary["device_idle_note"])
+
+
 class InfoPreview(unittest.TestCase):
     def test_registration_preview(self):
         # `info --up auto` and `info --registration F` were rejected.

@@ -129,8 +129,11 @@ ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, i
   fmt::print("probe      {} sites, tool radius {:.4g}, up [{:.2f}, {:.2f}, {:.2f}], {:.1f} s per pass\n",
              traj.sites().size(), pp.tool_radius, pp.up.x(), pp.up.y(), pp.up.z(), traj.duration());
   if (int(traj.sites().size()) < sites)
-    fmt::print(stderr, "warning: only {} of {} sites are reachable on this scene\n",
-               traj.sites().size(), sites);
+    fmt::print(stderr,
+               "warning: only {} of {} sites are reachable from above (world up [{:.2f}, {:.2f}, "
+               "{:.2f}]); if the scene is upside down or on its side, the probe meets its underside: "
+               "try another --up (`gshaptics info SCENE --up AXIS` previews it)\n",
+               traj.sites().size(), sites, pp.up.x(), pp.up.y(), pp.up.z());
   return traj;
 }
 
