@@ -189,12 +189,20 @@ TEST_F(RealTime, StalledWorkerFadesAndRecovers) {
   EXPECT_GE(s.faded_ticks, 50u);  // 150 ms stall - 40 ms hold and fade
   EXPECT_GE(s.stale_ticks, 140u);
   expect_invariants(rt);
-  // After the stall, fresh results flow again.
+  // After the stall, fresh results flow again and the force is no longer faded. On a busy
+  // machine the worker shares its core, so not every tick gets a new result: ask for one every
+  // 16 ms on average, and almost no faded tick (the stall alone fades ~110 ticks).
   const auto& recs = rt.log().records();
-  std::size_t fresh_after = 0;
-  for (const auto& r : recs)
-    if (r.time > 2.2 && (r.flags & kFlagHeld) == 0) ++fresh_after;
-  EXPECT_GT(fresh_after, 500u);
+  std::size_t fresh_after = 0, faded_after = 0, after = 0;
+  for (const auto& r : recs) {
+    if (r.time <= 2.2) continue;
+    ++after;
+    if ((r.flags & kFlagHeld) == 0) ++fresh_after;
+    if ((r.flags & kFlagFaded) != 0) ++faded_after;
+  }
+  EXPECT_GT(after, 300u);
+  EXPECT_GT(fresh_after, 50u);
+  EXPECT_LT(faded_after, after / 20 + 1);
 }
 
 TEST_F(RealTime, StalledDeviceTripsTheWatchdog) {

@@ -51,6 +51,49 @@ HttpReply http_get(std::uint16_t port, const std::string& target) {
   return {int(parser.get().result_int()), parser.get().body()};
 }
 
+struct Reply {
+  int status = 0;
+  std::string body, set_cookie;
+};
+
+/// One GET with chosen headers (Host defaults to 127.0.0.1:PORT, as a browser sends it).
+Reply request(std::uint16_t port, const std::string& target,
+              const std::vector<std::pair<std::string, std::string>>& headers = {}) {
+  asio::io_context io;
+  tcp::resolver resolver(io);
+  beast::tcp_stream stream(io);
+  stream.connect(resolver.resolve("127.0.0.1", std::to_string(port)));
+  http::request<http::empty_body> req{http::verb::get, target, 11};
+  req.set(http::field::host, "127.0.0.1:" + std::to_string(port));
+  for (const auto& [k, v] : headers) req.set(k, v);
+  http::write(stream, req);
+  beast::flat_buffer buffer;
+  http::response_parser<http::string_body> parser;
+  parser.body_limit(64u << 20);
+  http::read(stream, buffer, parser);
+  beast::error_code ec;
+  stream.socket().shutdown(tcp::socket::shutdown_both, ec);
+  return {int(parser.get().result_int()), parser.get().body(), std::string(parser.get()[http::field::set_cookie])};
+}
+
+/// A WebSocket handshake with chosen headers: true when the server upgraded the connection.
+bool ws_handshake(std::uint16_t port, const std::vector<std::pair<std::string, std::string>>& headers,
+                 std::string host = "") {
+  asio::io_context io;
+  tcp::resolver resolver(io);
+  websocket::stream<beast::tcp_stream> ws(io);
+  beast::get_lowest_layer(ws).connect(resolver.resolve("127.0.0.1", std::to_string(port)));
+  ws.set_option(websocket::stream_base::decorator([&headers](websocket::request_type& r) {
+    for (const auto& [k, v] : headers) r.set(k, v);
+  }));
+  websocket::response_type res;
+  beast::error_code ec;
+  ws.handshake(res, host.empty() ? "127.0.0.1:" + std::to_string(port) : host, "/ws", ec);
+  if (ec) return false;
+  ws.close(websocket::close_code::normal, ec);
+  return true;
+}
+
 class Viewer : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -73,6 +116,7 @@ class Viewer : public ::testing::Test {
     vc.web_root = std::string(GSHAPTICS_SOURCE_DIR) + "/web";
     vc.scene_path = test::data_path("truck.splat");
     vc.hello_json = R"({"type":"hello","protocol":1,"scene_url":"/scene"})";
+    vc.token = token_;
     server_ = std::make_unique<ViewerServer>(vc, *runtime_, *world_, *snapshots_, mouse_.get(),
                                              MonotonicClock::instance());
     runtime_->start();
@@ -85,6 +129,7 @@ class Viewer : public ::testing::Test {
   }
 
   static const CollisionWorld* world_;
+  std::string token_;
   std::unique_ptr<StreamDevice> mouse_;
   std::unique_ptr<HapticRuntime> runtime_;
   std::unique_ptr<ContactSnapshotObserver> snapshots_;
@@ -159,6 +204,198 @@ TEST_F(Viewer, WebSocketHelloThenStatesAndTheMouseSteersIntoContact) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_EQ(server_->stats().bad_messages.load(), 2u);
   ws.close(websocket::close_code::normal);
+}
+
+TEST_F(Viewer, ForeignHostAndOriginAreRefused) {
+  const std::uint16_t port = server_->port();
+  const std::string self = "http://127.0.0.1:" + std::to_string(port);
+  // DNS rebinding: the browser sends the attacker's name as Host.
+  EXPECT_EQ(request(port, "/api/hello", {{"Host", "evil.example:" + std::to_string(port)}}).status, 403);
+  EXPECT_EQ(request(port, "/scene", {{"Host", "evil.example"}}).status, 403);
+  EXPECT_EQ(server_->stats().refused_host.load(), 2u);
+  EXPECT_EQ(request(port, "/api/hello").status, 200);
+  EXPECT_EQ(request(port, "/api/hello", {{"Host", "localhost:" + std::to_string(port)}}).status, 200);
+  // Cross-site WebSocket hijacking: a foreign page's Origin.
+  EXPECT_FALSE(ws_handshake(port, {{"Origin", "http://evil.example"}}));
+  EXPECT_FALSE(ws_handshake(port, {{"Origin", "http://localhost:" + std::to_string(port)}}));  // Host is 127.0.0.1
+  EXPECT_EQ(server_->stats().refused_origin.load(), 2u);
+  EXPECT_TRUE(ws_handshake(port, {{"Origin", self}}));  // the page this server served
+  EXPECT_TRUE(ws_handshake(port, {}));                  // not a browser
+  EXPECT_FALSE(ws_handshake(port, {{"Origin", "http://evil.example"}}, "evil.example"));
+  const json hello = json::parse(request(port, "/api/hello").body);
+  EXPECT_EQ(hello["server"]["refused_origin"], 2);
+  EXPECT_EQ(hello["server"]["refused_host"], 3);  // the last handshake fails the Host check first
+}
+
+TEST_F(Viewer, OversizeFramesFloodsAndConnectionsStayWithinTheLimits) {
+  const std::uint16_t port = server_->port();
+  const RuntimeStats& rs = runtime_->stats();
+  const std::uint64_t ticks0 = rs.ticks.load();
+  const auto t0 = std::chrono::steady_clock::now();
+  asio::io_context io;
+  tcp::resolver resolver(io);
+  const auto open_ws = [&] {
+    auto ws = std::make_unique<websocket::stream<beast::tcp_stream>>(io);
+    beast::get_lowest_layer(*ws).connect(resolver.resolve("127.0.0.1", std::to_string(port)));
+    ws->handshake("127.0.0.1:" + std::to_string(port), "/ws");
+    return ws;
+  };
+  // An oversize frame closes its connection.
+  {
+    auto ws = open_ws();
+    beast::error_code ec;
+    ws->write(asio::buffer(std::string(64 * 1024, 'x')), ec);
+    beast::flat_buffer buf;
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (!ec && std::chrono::steady_clock::now() < until) {
+      ws->read(buf, ec);
+      buf.consume(buf.size());
+    }
+    EXPECT_TRUE(ec) << "the server kept an oversize sender";
+    while (server_->stats().oversize_frames.load() == 0 && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));  // Beast closes before our handler runs
+    EXPECT_EQ(server_->stats().oversize_frames.load(), 1u);
+  }
+  // A flood: 5000 messages as fast as possible. Over the rate they are dropped, then the
+  // connection is closed; the tool never sees them.
+  {
+    auto ws = open_ws();
+    beast::error_code ec;
+    const std::string msg = json{{"type", "tool"}, {"center", {0.0, 0.0, 3.0}}}.dump();
+    for (int i = 0; i < 5000 && !ec; ++i) ws->write(asio::buffer(msg), ec);
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (server_->stats().flood_closed.load() == 0 && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    EXPECT_GT(server_->stats().rate_limited.load(), 100u);
+    EXPECT_EQ(server_->stats().flood_closed.load(), 1u);
+    EXPECT_LE(server_->stats().tool_messages.load(), 2 * 200u + 10u);  // about one second's burst
+  }
+  // 100 connections: at most max_connections (32) are held, the rest refused at once.
+  {
+    std::vector<std::unique_ptr<beast::tcp_stream>> conns;
+    for (int i = 0; i < 100; ++i) {
+      auto c = std::make_unique<beast::tcp_stream>(io);
+      beast::error_code ec;
+      c->connect(resolver.resolve("127.0.0.1", std::to_string(port)), ec);
+      conns.push_back(std::move(c));
+    }
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (server_->stats().refused_connections.load() < 68 && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    EXPECT_GE(server_->stats().refused_connections.load(), 68u);
+    conns.clear();
+    // Capacity comes back when they close.
+    const auto until2 = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    int status = 0;
+    while (status != 200 && std::chrono::steady_clock::now() < until2) {
+      try {
+        status = request(port, "/api/hello").status;
+      } catch (const std::exception&) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+    }
+    EXPECT_EQ(status, 200);
+  }
+  // The servo loop kept its rate through all of it (a window of at least 2 s around it, so the
+  // figure is a rate, not the noise of a few ticks).
+  while (std::chrono::steady_clock::now() - t0 < std::chrono::seconds(2))
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double rate = double(rs.ticks.load() - ticks0) / wall;
+  EXPECT_GT(rate, 0.8 * runtime_->config().rate_hz) << rate << " Hz over " << wall << " s";
+}
+
+class ViewerWithToken : public Viewer {
+ protected:
+  static constexpr const char* kToken = "0123456789abcdef0123456789abcdef";
+  void SetUp() override {
+    token_ = kToken;
+    Viewer::SetUp();
+  }
+};
+
+TEST_F(ViewerWithToken, RefusedWithoutAcceptedWithAndCarriedAsCookie) {
+  const std::uint16_t port = server_->port();
+  EXPECT_EQ(request(port, "/").status, 401);
+  EXPECT_EQ(request(port, "/api/hello?token=wrong").status, 401);
+  EXPECT_EQ(request(port, "/api/hello?token=0123456789abcdef0123456789abcdeX").status, 401);
+  EXPECT_EQ(server_->stats().refused_token.load(), 3u);
+  const Reply page = request(port, std::string("/?token=") + kToken);
+  EXPECT_EQ(page.status, 200);
+  EXPECT_NE(page.set_cookie.find(std::string("gshaptics_token=") + kToken), std::string::npos);
+  EXPECT_NE(page.set_cookie.find("HttpOnly"), std::string::npos);
+  EXPECT_EQ(request(port, "/scene", {{"Cookie", std::string("a=b; gshaptics_token=") + kToken}}).status, 200);
+  EXPECT_EQ(request(port, "/api/hello", {{"Authorization", std::string("token ") + kToken}}).status, 200);
+  EXPECT_EQ(request(port, "/api/hello", {{"X-Gshaptics-Token", kToken}}).status, 200);
+  EXPECT_FALSE(ws_handshake(port, {}));
+  EXPECT_TRUE(ws_handshake(port, {{"Cookie", std::string("gshaptics_token=") + kToken}}));
+}
+
+TEST(ViewerSecurity, OriginPolicy) {
+  const OriginPolicy lo("127.0.0.1", 8080);
+  EXPECT_TRUE(lo.host_ok("127.0.0.1:8080"));
+  EXPECT_TRUE(lo.host_ok("LOCALHOST:8080"));
+  EXPECT_TRUE(lo.host_ok("[::1]:8080"));
+  EXPECT_TRUE(lo.host_ok("localhost"));
+  EXPECT_FALSE(lo.host_ok("localhost:8081"));
+  EXPECT_FALSE(lo.host_ok("evil.example:8080"));
+  EXPECT_FALSE(lo.host_ok("127.0.0.1.evil.example:8080"));
+  EXPECT_FALSE(lo.host_ok(""));
+  EXPECT_TRUE(lo.origin_ok("", "127.0.0.1:8080"));
+  EXPECT_TRUE(lo.origin_ok("http://127.0.0.1:8080", "127.0.0.1:8080"));
+  EXPECT_FALSE(lo.origin_ok("http://127.0.0.1:8080", "evil.example:8080"));
+  EXPECT_FALSE(lo.origin_ok("https://127.0.0.1:8080", "127.0.0.1:8080"));
+  EXPECT_FALSE(lo.origin_ok("null", "127.0.0.1:8080"));
+  const OriginPolicy lab("192.168.1.5", 8080, {"http://lab-pc:9000"});
+  EXPECT_TRUE(lab.host_ok("192.168.1.5:8080"));
+  EXPECT_TRUE(lab.host_ok("lab-pc:9000"));
+  EXPECT_FALSE(lab.host_ok("evil.example:8080"));
+  EXPECT_TRUE(lab.origin_ok("http://lab-pc:9000", "192.168.1.5:8080"));
+  const OriginPolicy any("0.0.0.0", 8080);
+  EXPECT_TRUE(any.host_ok("my-machine:8080"));  // every name: the token protects it
+  EXPECT_TRUE(is_loopback_host("127.0.0.1") && is_loopback_host("::1") && is_loopback_host("localhost"));
+  EXPECT_FALSE(is_loopback_host("0.0.0.0") || is_loopback_host("192.168.1.5"));
+}
+
+// A string whose every byte read is counted.
+struct CountingBytes {
+  std::string s;
+  mutable int reads = 0;
+  [[nodiscard]] std::size_t size() const { return s.size(); }
+  char operator[](std::size_t i) const {
+    ++reads;
+    return s[i];
+  }
+};
+
+TEST(ViewerSecurity, TokenComparisonReadsEveryByte) {
+  CountingBytes expected{"0123456789abcdef0123456789abcdef"};
+  EXPECT_TRUE(constant_time_equal(std::string("0123456789abcdef0123456789abcdef"), expected));
+  EXPECT_EQ(expected.reads, 32);
+  expected.reads = 0;
+  EXPECT_FALSE(constant_time_equal(std::string("X123456789abcdef0123456789abcdef"), expected));
+  EXPECT_EQ(expected.reads, 32);  // differs at byte 0 and still reads all 32
+  expected.reads = 0;
+  EXPECT_FALSE(constant_time_equal(std::string(""), expected));
+  EXPECT_EQ(expected.reads, 32);
+  EXPECT_FALSE(constant_time_equal(std::string("0123456789abcdef0123456789abcdef0"), expected.s));
+  EXPECT_FALSE(constant_time_equal(std::string("0123456789abcdef"), expected.s));
+  EXPECT_EQ(make_access_token().size(), 32u);
+  EXPECT_NE(make_access_token(), make_access_token());
+}
+
+TEST(ViewerSecurity, TokenSourcesAndRateLimiter) {
+  EXPECT_EQ(request_token("/?a=1&token=abc", "", "", ""), "abc");
+  EXPECT_EQ(request_token("/x", "token  def ", "", ""), "def");
+  EXPECT_EQ(request_token("/x", "", "ghi", ""), "ghi");
+  EXPECT_EQ(request_token("/x", "", "", "a=b; gshaptics_token=jkl; c=d"), "jkl");
+  EXPECT_EQ(request_token("/x", "Bearer zzz", "", "other=1"), "");
+  MessageRateLimiter lim(10);
+  int allowed = 0;
+  for (int i = 0; i < 100; ++i) allowed += lim.allow(0.0) ? 1 : 0;  // a burst at one instant
+  EXPECT_EQ(allowed, 10);
+  EXPECT_FALSE(lim.allow(0.05));  // half a token back
+  EXPECT_TRUE(lim.allow(0.2));
 }
 
 TEST(ViewerState, ContactsEncodeTheWorldGeometry) {

@@ -27,6 +27,10 @@ struct ServeOptions {
   int port = 8080;
   double display_rate = 30;
   std::string web_root;
+  std::vector<std::string> allow_origins;
+  std::string token;
+  bool no_token = false;
+  ViewerLimits limits;
 };
 
 std::string find_web_root() {
@@ -105,6 +109,20 @@ void register_serve(CLI::App& app) {
   cmd->add_option("--display-rate", o->display_rate, "State frames per second to each browser")
       ->capture_default_str()->check(check::range(1.0, 120.0));
   cmd->add_option("--web-root", o->web_root, "Folder of the page (default: the source tree's web/)");
+  cmd->add_option("--allow-origin", o->allow_origins,
+                  "Also let pages at this exact Origin open the WebSocket (http://HOST:PORT; repeatable)");
+  cmd->add_option("--token", o->token,
+                  "Access token every request must carry (?token=, header or cookie). Default: none "
+                  "on loopback; a random one, printed in the URL, on any other --host");
+  cmd->add_flag("--no-token", o->no_token, "Off loopback, serve without a token (anyone on the network may steer the tool)");
+  cmd->add_option("--max-connections", o->limits.max_connections, "Open HTTP/WebSocket connections at most")
+      ->capture_default_str()->check(CLI::Range(1, 10000));
+  cmd->add_option("--max-message-rate", o->limits.max_messages_per_s, "Messages per second per WebSocket at most")
+      ->capture_default_str()->check(check::range(1.0, 100000.0));
+  cmd->add_option("--max-frame-bytes", o->limits.max_frame_bytes, "Largest WebSocket message a client may send")
+      ->capture_default_str()->check(CLI::Range(64, 1 << 20));
+  cmd->add_option("--idle-timeout", o->limits.idle_timeout_s, "Close a WebSocket peer that answers no ping this long, s")
+      ->capture_default_str()->check(check::range(1.0, 3600.0));
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->run.scene, "serve");
     check_device_option(o->run.device, /*allow_mouse=*/true);
@@ -113,6 +131,17 @@ void register_serve(CLI::App& app) {
     vc.host = o->host;
     vc.port = std::uint16_t(o->port);
     vc.display_hz = o->display_rate;
+    vc.allow_origins = o->allow_origins;
+    vc.limits = o->limits;
+    if (!o->token.empty() && o->no_token) throw InputError("serve: --token and --no-token are exclusive");
+    if (!o->token.empty() && o->token.size() < 16)
+      throw InputError("serve: --token: use at least 16 characters");
+    vc.token = o->token;
+    const bool loopback = is_loopback_host(o->host);
+    if (!loopback && vc.token.empty() && !o->no_token) vc.token = make_access_token();
+    if (!loopback && o->no_token)
+      fmt::print(stderr, "warning: serving on {} without a token: anyone who can reach this port can "
+                         "read the scene and steer the tool (the device's target)\n", o->host);
     vc.web_root = o->web_root.empty() ? find_web_root() : o->web_root;
     vc.scene_path = so.scene;
     if (vc.web_root.empty()) throw InputError("serve: web/index.html not found; pass --web-root");
@@ -139,17 +168,24 @@ void register_serve(CLI::App& app) {
     rt.set_observer(&snapshots);
     ViewerServer server(vc, rt, pw.world, snapshots, setup.mouse, MonotonicClock::instance());
     server.start();
-    fmt::print("viewer     http://{}:{}/  (Ctrl-C to stop)\n", vc.host, server.port());
+    fmt::print("viewer     http://{}:{}/{}  (Ctrl-C to stop)\n", vc.host, server.port(),
+               vc.token.empty() ? std::string() : "?token=" + vc.token);
     std::fflush(stdout);
     const bool interrupted = run_live(rt, setup.planned, o->run.quiet, [&server] {
       return fmt::format(" | clients {} | frames {}", server.stats().clients.load(),
                          server.stats().frames_sent.load());
     });
     server.stop();
+    const ViewerStats& vs = server.stats();
     fmt::print("\nviewer     {} frames sent, {} dropped for slow clients, {} tool messages ({} malformed)\n",
-               server.stats().frames_sent.load(), server.stats().frames_dropped.load(),
-               server.stats().tool_messages.load(), server.stats().bad_messages.load());
+               vs.frames_sent.load(), vs.frames_dropped.load(), vs.tool_messages.load(), vs.bad_messages.load());
+    fmt::print("refused    host {}, origin {}, token {}, connections {}; limits: {} oversize frames, {} "
+               "messages over the rate, {} floods closed, {} idle peers closed\n",
+               vs.refused_host.load(), vs.refused_origin.load(), vs.refused_token.load(),
+               vs.refused_connections.load(), vs.oversize_frames.load(), vs.rate_limited.load(),
+               vs.flood_closed.load(), vs.idle_closed.load());
     nlohmann::json extra = nlohmann::json::object();
+    extra["viewer"] = to_json(vs);
     if (setup.mouse != nullptr) {
       // With the page as the device, the watchdog counts the time no page steered the tool.
       const RuntimeSummary s = rt.summary();

@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 #include <list>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <thread>
 
 #include "gshaptics/error.h"
@@ -92,6 +93,22 @@ std::string ViewerServer::state_json(const TickRecord& tick, const ContactSnapsh
   return s;
 }
 
+nlohmann::json to_json(const ViewerStats& s) {
+  return {{"frames_sent", s.frames_sent.load()},
+          {"frames_dropped", s.frames_dropped.load()},
+          {"tool_messages", s.tool_messages.load()},
+          {"bad_messages", s.bad_messages.load()},
+          {"clients", s.clients.load()},
+          {"refused_host", s.refused_host.load()},
+          {"refused_origin", s.refused_origin.load()},
+          {"refused_token", s.refused_token.load()},
+          {"refused_connections", s.refused_connections.load()},
+          {"oversize_frames", s.oversize_frames.load()},
+          {"rate_limited", s.rate_limited.load()},
+          {"flood_closed", s.flood_closed.load()},
+          {"idle_closed", s.idle_closed.load()}};
+}
+
 // ---------------------------------------------------------------------------------------------
 
 struct WsSession;
@@ -123,14 +140,26 @@ struct ViewerServer::Impl {
   bool have_mouse_target = false;
   std::uint16_t bound_port = 0;
   bool stopping = false;
+  std::optional<OriginPolicy> policy;
+  std::uint32_t open_connections = 0;  // HTTP and WebSocket sessions alive (server thread only)
+  double now_s() const { return to_seconds(clock.now()); }
 };
 
 /// One WebSocket client. Keeps at most one frame queued: a newer state replaces an unsent one.
 struct WsSession : std::enable_shared_from_this<WsSession> {
-  WsSession(tcp::socket socket, ViewerServer::Impl& server) : ws(std::move(socket)), srv(server) {}
+  WsSession(tcp::socket socket, ViewerServer::Impl& server)
+      : ws(std::move(socket)), srv(server), limiter(server.config.limits.max_messages_per_s) {
+    ++srv.open_connections;
+  }
+  ~WsSession() { --srv.open_connections; }
 
   void run(http::request<http::string_body> req) {
-    ws.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    websocket::stream_base::timeout t{};
+    t.handshake_timeout = std::chrono::seconds(30);
+    t.idle_timeout = std::chrono::milliseconds(std::int64_t(1000 * srv.config.limits.idle_timeout_s));
+    t.keep_alive_pings = true;  // idle means a peer that answers no ping, not a quiet page
+    ws.set_option(t);
+    ws.read_message_max(srv.config.limits.max_frame_bytes);
     ws.async_accept(req, [self = shared_from_this()](beast::error_code ec) {
       if (ec) return;
       self->srv.stats.clients.fetch_add(1);
@@ -142,10 +171,25 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   void read() {
     ws.async_read(buffer, [self = shared_from_this()](beast::error_code ec, std::size_t) {
       if (ec) {
+        if (ec == websocket::error::message_too_big) self->srv.stats.oversize_frames.fetch_add(1);
+        if (ec == beast::error::timeout) self->srv.stats.idle_closed.fetch_add(1);
         self->close();
+        self->shutdown();
         return;
       }
-      self->srv.on_tool_message(beast::buffers_to_string(self->buffer.data()));
+      if (self->limiter.allow(self->srv.now_s())) {
+        self->dropped_in_a_row = 0;
+        self->srv.on_tool_message(beast::buffers_to_string(self->buffer.data()));
+      } else {
+        self->srv.stats.rate_limited.fetch_add(1);
+        // A second's worth of messages over the limit in a row: a flood, not a fast page.
+        if (++self->dropped_in_a_row > self->srv.config.limits.max_messages_per_s) {
+          self->srv.stats.flood_closed.fetch_add(1);
+          self->close();
+          self->shutdown();
+          return;
+        }
+      }
       self->buffer.consume(self->buffer.size());
       self->read();
     });
@@ -188,11 +232,16 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   beast::flat_buffer buffer;
   std::shared_ptr<const std::string> pending;
   bool writing = false, open = false;
+  MessageRateLimiter limiter;
+  double dropped_in_a_row = 0;
 };
 
 /// One HTTP connection: files, the scene, the hello JSON, or an upgrade to a WebSocket.
 struct HttpSession : std::enable_shared_from_this<HttpSession> {
-  HttpSession(tcp::socket socket, ViewerServer::Impl& server) : stream(std::move(socket)), srv(server) {}
+  HttpSession(tcp::socket socket, ViewerServer::Impl& server) : stream(std::move(socket)), srv(server) {
+    ++srv.open_connections;
+  }
+  ~HttpSession() { --srv.open_connections; }
 
   void read() {
     req = {};
@@ -220,6 +269,7 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
     http::response<http::string_body> res{status, req.version()};
     res.set(http::field::content_type, type);
     res.set(http::field::cache_control, "no-store");
+    if (!set_cookie.empty()) res.set(http::field::set_cookie, set_cookie);
     res.keep_alive(req.keep_alive());
     res.body() = body;
     res.prepare_payload();
@@ -238,13 +288,55 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
     http::response<http::file_body> res{std::piecewise_construct, std::make_tuple(std::move(body)),
                                         std::make_tuple(http::status::ok, req.version())};
     res.set(http::field::content_type, mime_type(path));
+    if (!set_cookie.empty()) res.set(http::field::set_cookie, set_cookie);
     res.content_length(size);
     res.keep_alive(req.keep_alive());
     send(std::move(res));
   }
 
+  /// The Host check, then the token; false (with the refusal sent) when the request may not pass.
+  bool admitted() {
+    const std::string_view host(req[http::field::host].data(), req[http::field::host].size());
+    if (!srv.policy->host_ok(host)) {
+      srv.stats.refused_host.fetch_add(1);
+      text(http::status::forbidden, "gshaptics: this server answers only to its own host name\n");
+      return false;
+    }
+    if (!srv.config.token.empty()) {
+      const auto sv = [this](http::field f) {
+        const auto v = req[f];
+        return std::string_view(v.data(), v.size());
+      };
+      const auto custom = req["X-Gshaptics-Token"];
+      const std::string given = request_token(std::string_view(req.target().data(), req.target().size()),
+                                              sv(http::field::authorization),
+                                              std::string_view(custom.data(), custom.size()),
+                                              sv(http::field::cookie));
+      if (!constant_time_equal(given, srv.config.token)) {
+        srv.stats.refused_token.fetch_add(1);
+        text(http::status::unauthorized,
+             "gshaptics: this server needs its access token: open the URL it printed "
+             "(http://HOST:PORT/?token=...)\n");
+        return false;
+      }
+      // The page's own requests (modules, the scene, the WebSocket) then carry it as a cookie.
+      set_cookie = "gshaptics_token=" + srv.config.token + "; Path=/; HttpOnly; SameSite=Strict";
+    }
+    return true;
+  }
+
   void handle() {
+    set_cookie.clear();
+    if (!admitted()) return;
     if (websocket::is_upgrade(req)) {
+      const auto origin = req[http::field::origin];
+      const auto host = req[http::field::host];
+      if (!srv.policy->origin_ok(std::string_view(origin.data(), origin.size()),
+                                 std::string_view(host.data(), host.size()))) {
+        srv.stats.refused_origin.fetch_add(1);
+        text(http::status::forbidden, "gshaptics: WebSocket from a foreign page (Origin) refused\n");
+        return;
+      }
       if (req.target() != "/ws") {
         text(http::status::not_found, "WebSocket endpoint is /ws\n");
         return;
@@ -265,7 +357,12 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
       return;
     }
     if (target == "/" || target == "/index.html") return file(srv.config.web_root + "/index.html");
-    if (target == "/api/hello") return text(http::status::ok, srv.config.hello_json, "application/json");
+    if (target == "/api/hello") {
+      nlohmann::json j = nlohmann::json::parse(srv.config.hello_json, nullptr, false);
+      if (j.is_discarded() || !j.is_object()) j = nlohmann::json::object();
+      j["server"] = to_json(srv.stats);
+      return text(http::status::ok, j.dump(), "application/json");
+    }
     if (target == "/favicon.ico") return text(http::status::no_content, "");
     if (target == "/scene") {
       if (srv.config.scene_bytes) return text(http::status::ok, *srv.config.scene_bytes, "application/octet-stream");
@@ -282,12 +379,21 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
   ViewerServer::Impl& srv;
   beast::flat_buffer buffer;
   http::request<http::string_body> req;
+  std::string set_cookie;
 };
 
 void ViewerServer::Impl::accept() {
   acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
     if (stopping) return;
-    if (!ec) std::make_shared<HttpSession>(std::move(socket), *this)->read();
+    if (!ec) {
+      if (open_connections >= config.limits.max_connections) {
+        stats.refused_connections.fetch_add(1);
+        beast::error_code ignored;
+        socket.close(ignored);
+      } else {
+        std::make_shared<HttpSession>(std::move(socket), *this)->read();
+      }
+    }
     accept();
   });
 }
@@ -363,6 +469,7 @@ void ViewerServer::start() {
   if (ec)
     throw InputError(fmt::format("viewer: cannot listen on {}:{}: {}", m.config.host, m.config.port, ec.message()));
   m.bound_port = m.acceptor.local_endpoint().port();
+  m.policy.emplace(m.config.host, m.bound_port, m.config.allow_origins);
   m.accept();
   m.tick_display();
   m.thread = std::thread([&m] { m.io.run(); });

@@ -18,6 +18,9 @@
 #include <memory>
 #include <nlohmann/json_fwd.hpp>
 #include <string>
+#include <vector>
+
+#include "gshaptics/net/viewer_security.h"
 
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/net/contact_snapshot.h"
@@ -37,6 +40,13 @@ struct ViewerConfig {
   double display_hz = 30;     ///< state frames per second
   /// Sent once in the hello message: scene format, registration, tool, limits, bounds.
   std::string hello_json = "{}";
+  /// Pages at these exact Origins may open the WebSocket too ("http://lab-pc:8080"); the page
+  /// this server serves always may (OriginPolicy).
+  std::vector<std::string> allow_origins;
+  /// When not empty, every request must carry it (request_token: query, header or cookie);
+  /// compared in constant time. `gshaptics serve` makes one off loopback.
+  std::string token;
+  ViewerLimits limits;
 };
 
 /// Counters of the server (any thread may read).
@@ -47,7 +57,19 @@ struct ViewerStats {
   std::atomic<std::uint64_t> tool_messages{0};
   std::atomic<std::uint64_t> bad_messages{0};
   std::atomic<std::uint32_t> clients{0};
+  // Refusals and limit breaches (every one counted; none reaches the runtime).
+  std::atomic<std::uint64_t> refused_host{0};         ///< Host header not this server (403)
+  std::atomic<std::uint64_t> refused_origin{0};       ///< WebSocket from a foreign Origin (403)
+  std::atomic<std::uint64_t> refused_token{0};        ///< missing or wrong token (401)
+  std::atomic<std::uint64_t> refused_connections{0};  ///< over ViewerLimits::max_connections
+  std::atomic<std::uint64_t> oversize_frames{0};      ///< over max_frame_bytes: connection closed
+  std::atomic<std::uint64_t> rate_limited{0};         ///< messages over max_messages_per_s, dropped
+  std::atomic<std::uint64_t> flood_closed{0};         ///< connections closed for a sustained flood
+  std::atomic<std::uint64_t> idle_closed{0};          ///< peers silent past idle_timeout_s
 };
+
+/// The counters as JSON (the summary's and /api/hello's "server" object).
+[[nodiscard]] nlohmann::json to_json(const ViewerStats& stats);
 
 class ViewerServer {
  public:
@@ -59,7 +81,8 @@ class ViewerServer {
   ViewerServer& operator=(const ViewerServer&) = delete;
 
   /// Binds and starts the server thread. Throws InputError when the address cannot be bound
-  /// (port in use, bad host) or web_root has no index.html.
+  /// (port in use, bad host) or web_root has no index.html. Every request passes the Host check,
+  /// then the token (when set); WebSocket upgrades also the Origin check (OriginPolicy).
   void start();
   /// Stops accepting, closes connections, joins the thread.
   void stop();
