@@ -262,6 +262,55 @@ class NoContactHints(unittest.TestCase):
         self.assertIn("up axis", p.stderr)
 
 
+class OutputFailures(unittest.TestCase):
+    """A full disk or a folder that turns read-only while a run works: the run completes, the
+    error is reported, the exit status says so, and no partial file is left."""
+
+    def test_file_size_limit_mid_write(self):
+        import resource
+        import signal
+
+        def limit():  # writes past 64 KiB fail (EFBIG), as on a full disk (ENOSPC)
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (64 * 1024, 64 * 1024))
+
+        with tempfile.TemporaryDirectory() as d:
+            p = subprocess.run([EXE, "run", "--duration", "1.5", "--no-plot", "--quiet", "--out", d],
+                               capture_output=True, text=True, timeout=300, preexec_fn=limit)
+            self.assertEqual(p.returncode, 4, p.stderr)
+            self.assertIn("the run completed, but", p.stderr)
+            self.assertIn("servo_log.csv", p.stderr)
+            self.assertIn("ticks ", p.stdout)  # the run's own summary was still printed
+            names = os.listdir(d)
+            self.assertNotIn("servo_log.csv", names)
+            self.assertFalse([n for n in names if n.endswith(".tmp")], names)
+            self.assertIn("run_summary.json", names)  # small enough to fit
+
+    def test_folder_turns_unwritable_mid_run(self):
+        # A symbolic link to the output folder is re-pointed, mid-run, at a folder nobody may
+        # write to (not even root: /proc/self).
+        with tempfile.TemporaryDirectory() as d:
+            real = os.path.join(d, "real")
+            os.mkdir(real)
+            link = os.path.join(d, "out")
+            os.symlink(real, link)
+            proc = subprocess.Popen([EXE, "run", "--duration", "2", "--no-plot", "--quiet", "--out", link],
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            seen = []
+            for line in proc.stdout:  # the runtime line is flushed when the servo loop starts
+                seen.append(line)
+                if line.startswith("runtime "):
+                    break
+            self.assertTrue(seen and seen[-1].startswith("runtime "), "".join(seen))
+            tmp = os.path.join(d, "swap")
+            os.symlink("/proc/self", tmp)
+            os.replace(tmp, link)
+            out, err = proc.communicate(timeout=300)
+            self.assertEqual(proc.returncode, 4, err)
+            self.assertIn("the run completed, but", err)
+            self.assertEqual(os.listdir(real), [])
+
+
 class DeviceProfiles(unittest.TestCase):
     def peak(self, d):
         with open(os.path.join(d, "summary.json")) as f:

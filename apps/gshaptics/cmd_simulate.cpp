@@ -79,7 +79,12 @@ void register_simulate(CLI::App& app) {
     const std::string csv = out_dir + "/probe_log.csv";
     const std::string summary_path = out_dir + "/summary.json";
     const std::string png = out_dir + "/probe_run.png";
-    write_tick_log_csv(csv, run.ticks, kProbeLogColumns);
+    std::vector<std::string> write_errors;  // the run is done: report a lost output, keep going
+    try {
+      write_tick_log_csv(csv, run.ticks, kProbeLogColumns);
+    } catch (const std::exception& e) {
+      write_errors.push_back(e.what());
+    }
 
     nlohmann::json sj;
     sj["scene"] = so.scene;
@@ -111,11 +116,20 @@ void register_simulate(CLI::App& app) {
                        {"surface_point", {st.surface_point.x(), st.surface_point.y(), st.surface_point.z()}},
                        {"normal", {st.normal.x(), st.normal.y(), st.normal.z()}}});
     sj["sites"] = sites;
-    write_file_atomically(summary_path, sj.dump(2) + "\n");
+    try {
+      write_file_atomically(summary_path, sj.dump(2) + "\n");
+    } catch (const std::exception& e) {
+      write_errors.push_back(e.what());
+    }
 
     fmt::print("\nquery time p50 {:.1f} us, p99 {:.1f} us, max {:.1f} us; {} of {} ticks over 1 ms\n",
                run.query_time.p50_us, run.query_time.p99_us, run.query_time.max_us,
                run.query_time.over_1ms, run.ticks.size());
+    if (!write_errors.empty()) {
+      for (const std::string& e : write_errors) fmt::print(stderr, "error: the run completed, but {}\n", e);
+      set_exit_code(kExitOutputsLost);
+      return;
+    }
     fmt::print("log        {}\nsummary    {}\n", csv, summary_path);
     if (run.episodes.empty()) {
       fmt::print(stderr, "error: the probe run made no contact\n");

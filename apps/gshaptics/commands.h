@@ -14,6 +14,8 @@ void register_convert(CLI::App& app);
 void register_synth(CLI::App& app);
 void register_fidelity(CLI::App& app);
 /// Exit status a command set while running (0 unless it reported a failure).
+/// Exit status of a run that completed but could not write its outputs (disk full, read-only).
+inline constexpr int kExitOutputsLost = 4;
 int exit_code();
 void set_exit_code(int code);
 }  // namespace gshaptics::cli

@@ -7,9 +7,11 @@
 #include <chrono>
 #include <csignal>
 #include <filesystem>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "commands.h"
 #include "gshaptics/error.h"
 #include "gshaptics/servo/replay_device.h"
 #include "gshaptics/servo/tick_log.h"
@@ -261,11 +263,24 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
   const std::vector<ContactEpisode> episodes = find_episodes(records);
 
   const std::string out_dir = o.out_dir.empty() ? default_out_dir(so.scene) : o.out_dir;
-  std::filesystem::create_directories(out_dir);
   const std::string csv = out_dir + "/servo_log.csv";
   const std::string summary_path = out_dir + "/run_summary.json";
   const std::string png = out_dir + "/run.png";
-  write_tick_log_csv(csv, records, kServoLogColumns);
+  // The run is over (the servo loop only filled memory): a full disk or a folder made read-only
+  // meanwhile loses these files, never the run. Each failure is reported and sets exit status 4.
+  std::vector<std::string> write_errors;
+  const auto attempt = [&write_errors](const std::function<void()>& write) {
+    try {
+      write();
+    } catch (const std::exception& e) {
+      write_errors.push_back(e.what());
+    }
+  };
+  attempt([&] {
+    std::error_code ec;
+    std::filesystem::create_directories(out_dir, ec);
+    write_tick_log_csv(csv, records, kServoLogColumns);
+  });
 
   nlohmann::json sj;
   sj["scene"] = so.scene;
@@ -286,7 +301,7 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
                    {"peak_force", e.peak_force}});
   sj["episodes"] = eps;
   for (const auto& [k, v] : extra.items()) sj[k] = v;
-  write_file_atomically(summary_path, sj.dump(2) + "\n");
+  attempt([&] { write_file_atomically(summary_path, sj.dump(2) + "\n"); });
 
   fmt::print("\nticks      {} in {:.2f} s: {:.1f} Hz achieved ({:.0f} Hz set); {} deadline misses, "
              "{} periods skipped\n", s.ticks, s.duration_s, s.achieved_rate_hz, s.rate_hz,
@@ -307,6 +322,11 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
   if (rt.log().dropped() > 0)
     fmt::print(stderr, "warning: the tick log kept the first {} ticks; {} more were not logged\n",
                records.size(), rt.log().dropped());
+  if (!write_errors.empty()) {
+    for (const std::string& e : write_errors) fmt::print(stderr, "error: the run completed, but {}\n", e);
+    set_exit_code(kExitOutputsLost);
+    return true;
+  }
   fmt::print("log        {}\nsummary    {}\n", csv, summary_path);
   if (o.no_plot || records.empty()) return true;
   if (!plot_run(csv, summary_path, png, command)) return false;

@@ -1,6 +1,8 @@
 #include "gshaptics/io/atomic_file.h"
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <system_error>
@@ -14,12 +16,15 @@ void write_file_atomically(const std::string& path, std::initializer_list<std::s
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throw file_error(path, "cannot open '" + tmp + "' for writing");
+    errno = 0;
     for (std::string_view p : parts) out.write(p.data(), std::streamsize(p.size()));
     out.flush();
+    const int err = errno;
+    if (out) out.close();
     if (!out) {
-      out.close();
       std::remove(tmp.c_str());
-      throw file_error(path, "write failed (disk full?)");
+      throw file_error(path, std::string("write failed (") + (err ? std::strerror(err) : "stream error") +
+                                 "); nothing was written");
     }
   }
   std::error_code ec;
