@@ -121,6 +121,10 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
                  "jitter for one busy core")
       ->capture_default_str()->check(check::range(0.0, 1000.0));
   cmd.add_flag("--mlock", o.realtime.lock_memory, "Lock all memory (mlockall) against page faults");
+  cmd.add_option("--log-seconds", o.log_seconds,
+                 "Keep only the first S seconds of the per-tick log (reserved up front; default: the "
+                 "whole run, or 10 min when open-ended). Long runs: caps the log's memory")
+      ->check(check::positive());
   cmd.add_option("--out", o.out_dir, "Output folder (default: runs/<scene name>)");
   cmd.add_flag("--no-plot", o.no_plot, "Do not draw run.png (needs /usr/bin/python3 with matplotlib)");
   cmd.add_flag("--quiet", o.quiet, "No progress bar or live status line");
@@ -220,6 +224,7 @@ RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, d
   rc.realtime.worker_priority = std::max(0, o.realtime.servo_priority - 10);
   rc.realtime.pin_threads = !o.no_pin;
   rc.realtime.spin_s = o.spin_us * 1e-6;
+  if (o.log_seconds > 0) rc.log_capacity = std::size_t(std::ceil(o.log_seconds * o.rate));
   return rc;
 }
 

@@ -47,6 +47,7 @@ struct RuntimeOptions {
   RealtimeOptions realtime;
   bool no_pin = false;
   double spin_us = 0;
+  double log_seconds = 0;  ///< 0: the whole run (the runtime's default)
   std::string out_dir;
   bool no_plot = false;
   bool quiet = false;
