@@ -29,28 +29,6 @@ namespace websocket = beast::websocket;
 using tcp = asio::ip::tcp;
 using nlohmann::json;
 
-struct HttpReply {
-  int status = 0;
-  std::string body;
-};
-
-HttpReply http_get(std::uint16_t port, const std::string& target) {
-  asio::io_context io;
-  tcp::resolver resolver(io);
-  beast::tcp_stream stream(io);
-  stream.connect(resolver.resolve("127.0.0.1", std::to_string(port)));
-  http::request<http::empty_body> req{http::verb::get, target, 11};
-  req.set(http::field::host, "127.0.0.1");
-  http::write(stream, req);
-  beast::flat_buffer buffer;
-  http::response_parser<http::string_body> parser;
-  parser.body_limit(64u << 20);
-  http::read(stream, buffer, parser);
-  beast::error_code ec;
-  stream.socket().shutdown(tcp::socket::shutdown_both, ec);
-  return {int(parser.get().result_int()), parser.get().body()};
-}
-
 struct Reply {
   int status = 0;
   std::string body, set_cookie;
@@ -140,16 +118,16 @@ const CollisionWorld* Viewer::world_ = nullptr;
 TEST_F(Viewer, HttpRoutes) {
   const std::uint16_t port = server_->port();
   ASSERT_NE(port, 0);
-  const HttpReply page = http_get(port, "/");
+  const Reply page = request(port, "/");
   EXPECT_EQ(page.status, 200);
   EXPECT_NE(page.body.find("importmap"), std::string::npos);
-  const HttpReply hello = http_get(port, "/api/hello");
+  const Reply hello = request(port, "/api/hello");
   EXPECT_EQ(json::parse(hello.body)["type"], "hello");
-  const HttpReply scene = http_get(port, "/scene");
+  const Reply scene = request(port, "/scene");
   EXPECT_EQ(scene.status, 200);
   EXPECT_EQ(scene.body.size(), std::filesystem::file_size(test::data_path("truck.splat")));
-  EXPECT_EQ(http_get(port, "/../CMakeLists.txt").status, 400);
-  EXPECT_EQ(http_get(port, "/package.json").status, 404);  // only the page and its packages
+  EXPECT_EQ(request(port, "/../CMakeLists.txt").status, 400);
+  EXPECT_EQ(request(port, "/package.json").status, 404);  // only the page and its packages
 }
 
 TEST_F(Viewer, WebSocketHelloThenStatesAndTheMouseSteersIntoContact) {
