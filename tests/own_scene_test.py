@@ -311,6 +311,33 @@ class OutputFailures(unittest.TestCase):
             self.assertEqual(os.listdir(real), [])
 
 
+class WorkspaceMappingCli(unittest.TestCase):
+    def test_replayed_desktop_motion_is_scaled_into_the_scene(self):
+        # A desktop device's 4 cm motion (device coordinates), mapped x20 onto the Truck.
+        with tempfile.TemporaryDirectory() as d:
+            log = os.path.join(d, "desk.csv")
+            with open(log, "w") as f:
+                f.write("time_s,x,y,z\n")
+                for i in range(1001):
+                    t = i * 0.001
+                    f.write(f"{t:.3f},{0.04 * t:.6f},0,0.05\n")
+            p = run("run", "--device", f"replay:{log}", "--workspace-scale", "20", "--workspace-offset",
+                    "0,0,1", "--no-plot", "--quiet", "--out", d + "/out")
+            self.assertIn("workspace  device x 20", p.stdout)
+            with open(os.path.join(d, "out", "servo_log.csv")) as f:
+                rows = [l.split(",") for l in f.read().strip().splitlines()]
+            col = {n: i for i, n in enumerate(rows[0])}
+            late = [r for r in rows[1:] if 0.5 <= float(r[col["time_s"]]) <= 0.9]
+            self.assertGreater(len(late), 100)
+            for r in late:
+                t = float(r[col["time_s"]])
+                self.assertAlmostEqual(float(r[col["x"]]), 20 * 0.04 * t, delta=0.02)
+                self.assertAlmostEqual(float(r[col["z"]]), 20 * 0.05 + 1, delta=1e-6)
+        p = run("serve", "--workspace-scale", "20", "--port", "0", check=False)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("mouse device", p.stderr)
+
+
 class DeviceProfiles(unittest.TestCase):
     def peak(self, d):
         with open(os.path.join(d, "summary.json")) as f:

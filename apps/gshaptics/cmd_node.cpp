@@ -103,8 +103,9 @@ void register_node(CLI::App& app) {
     auto device = make_bridge(*o);
     RosBridgeDevice& net = *device;
     setup.device = std::move(device);
+    wrap_in_workspace_mapping(o->run, setup);  // a desktop device's driver publishes device coordinates
     setup.config = runtime_config_from(o->run, setup.tool_radius, setup.planned);
-    HapticRuntime rt(pw.world, net, setup.config);
+    HapticRuntime rt(pw.world, *setup.device, setup.config);
     ContactSnapshotObserver snapshots(o->topics.marker_hz, MonotonicClock::instance());
     rt.set_observer(&snapshots);
     fmt::print("node       {}: pose {} (+ twist {}) in, wrench {} at {:.0f} Hz and markers {} at {:.0f} Hz "

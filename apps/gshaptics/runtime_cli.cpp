@@ -15,6 +15,7 @@
 #include "gshaptics/error.h"
 #include "gshaptics/servo/replay_device.h"
 #include "gshaptics/servo/tick_log.h"
+#include "gshaptics/servo/workspace_mapping.h"
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/sim/simulated_device.h"
 #include "gshaptics/sim/pose_sampler.h"
@@ -121,6 +122,19 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
                  "jitter for one busy core")
       ->capture_default_str()->check(check::range(0.0, 1000.0));
   cmd.add_flag("--mlock", o.realtime.lock_memory, "Lock all memory (mlockall) against page faults");
+  cmd.add_option("--workspace-scale", o.workspace_scale,
+                  "Map the device's workspace onto the scene: world metres per device metre (a 16 cm "
+                  "desktop workspace over a 3 m scene: 20). Forces are not scaled: 1 N in the scene "
+                  "is 1 N in the hand, so the hand feels --stiffness times this scale");
+  cmd.add_option("--workspace-offset", o.workspace_offset, "World point X,Y,Z of the device's origin (with --workspace-scale)");
+  cmd.add_option("--clutch-button", o.clutch_button,
+                 "Device button (0-31) that holds the clutch: re-centre the hand without moving the tool")
+      ->check(CLI::Range(0, 31));
+  cmd.add_option("--bubble-radius", o.bubble_radius,
+                 "Rate control: beyond this device distance from its origin, m, the mapping drifts outward")
+      ->check(check::non_negative());
+  cmd.add_option("--bubble-gain", o.bubble_gain, "Rate control gain: world m/s per device m beyond --bubble-radius")
+      ->check(check::non_negative());
   cmd.add_option("--log-seconds", o.log_seconds,
                  "Keep only the first S seconds of the per-tick log (reserved up front; default: the "
                  "whole run, or 10 min when open-ended). Long runs: caps the log's memory")
@@ -139,6 +153,34 @@ void check_device_option(const std::string& device, bool allow_mouse) {
   if (device == "sim" || (allow_mouse && device == "mouse")) return;
   throw InputError("--device: expected 'sim', " + std::string(allow_mouse ? "'mouse', " : "") +
                    "or 'replay:FILE', got '" + device + "'");
+}
+
+void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s) {
+  const bool any = !o.workspace_scale.empty() || !o.workspace_offset.empty() || o.clutch_button >= 0 ||
+                   o.bubble_radius > 0 || o.bubble_gain > 0;
+  if (!any) return;
+  if (s.mouse != nullptr)
+    throw InputError("--workspace-*: the mouse device already works in world coordinates");
+  WorkspaceMappingParams p;
+  if (!o.workspace_scale.empty()) {
+    std::size_t used = 0;
+    try {
+      p.scale = std::stod(o.workspace_scale, &used);
+    } catch (...) {
+      used = 0;
+    }
+    if (used != o.workspace_scale.size() || !std::isfinite(p.scale) || !(p.scale > 0))
+      throw InputError("--workspace-scale: must be a finite number > 0, got '" + o.workspace_scale + "'");
+  }
+  if (!o.workspace_offset.empty()) p.offset = parse_vec3(o.workspace_offset, "--workspace-offset");
+  p.clutch_button = o.clutch_button;
+  p.bubble_radius = o.bubble_radius;
+  p.bubble_gain = o.bubble_gain;
+  s.inner = std::move(s.device);
+  s.device = std::make_unique<MappedDevice>(*s.inner, p);
+  fmt::print("workspace  device x {:.4g} + [{:.3f}, {:.3f}, {:.3f}] -> world{}{}\n", p.scale, p.offset.x(),
+             p.offset.y(), p.offset.z(), p.clutch_button >= 0 ? fmt::format(", clutch button {}", p.clutch_button) : "",
+             p.bubble_radius > 0 ? fmt::format(", bubble {:.3g} m", p.bubble_radius) : "");
 }
 
 RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
@@ -202,6 +244,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     fmt::print("replay     {}: {:.2f} s, tool radius {:.4g}\n", file, replay->duration(), s.tool_radius);
     s.device = std::move(replay);
   }
+  wrap_in_workspace_mapping(o, s);
   s.config = runtime_config_from(o, s.tool_radius, s.planned);
   fmt::print("runtime    {} at {:.0f} Hz, {} query, {}\n", s.device->info().name, o.rate,
              o.inline_query ? "inline" : "decoupled (worker thread)",

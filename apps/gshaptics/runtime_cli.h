@@ -48,6 +48,9 @@ struct RuntimeOptions {
   bool no_pin = false;
   double spin_us = 0;
   double log_seconds = 0;  ///< 0: the whole run (the runtime's default)
+  std::string workspace_scale, workspace_offset;  ///< "" : no workspace mapping
+  int clutch_button = -1;
+  double bubble_radius = 0, bubble_gain = 0;
   std::string out_dir;
   bool no_plot = false;
   bool quiet = false;
@@ -60,6 +63,7 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
 /// The device a --device value names, made for a world. `mouse` is set for --device mouse
 /// (allowed only when `allow_mouse`).
 struct RuntimeSetup {
+  std::unique_ptr<HapticDevice> inner;  ///< the device under a workspace mapping, when one is set
   std::unique_ptr<HapticDevice> device;
   StreamDevice* mouse = nullptr;
   Eigen::Vector3d mouse_start = Eigen::Vector3d::Zero();  ///< where the mouse device starts
@@ -71,6 +75,10 @@ struct RuntimeSetup {
 void check_device_option(const std::string& device, bool allow_mouse);
 RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
                                 bool allow_mouse);
+
+/// With any --workspace-* / --clutch-button / --bubble-* option, puts `s.device` under a
+/// WorkspaceMapping (the original moves to `s.inner`). InputError for the mouse device.
+void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s);
 
 /// The runtime configuration from the options, for a tool of `tool_radius` and a run of
 /// `planned` seconds (0: open-ended).
