@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
   gshaptics::cli::register_convert(app);
   gshaptics::cli::register_synth(app);
   gshaptics::cli::register_fidelity(app);
+  gshaptics::cli::register_devices(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
