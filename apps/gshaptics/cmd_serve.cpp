@@ -5,13 +5,12 @@
 #include <fmt/format.h>
 
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <memory>
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
 #include "gshaptics/error.h"
+#include "gshaptics/io/mapped_file.h"
 #include "gshaptics/net/viewer_server.h"
 #include "gshaptics/percentile.h"
 #include "gshaptics/sim/pose_sampler.h"
@@ -156,9 +155,7 @@ void register_serve(CLI::App& app) {
     vc.hello_json = hello_json(pw, so, setup, o->display_rate);
     if (pw.scene.report.format == SceneFormat::kSpz && pw.scene.report.version >= 4) {
       // The page's splat renderer (Spark 2.2) reads SPZ as one gzip stream only: re-pack v4.
-      std::ifstream in(so.scene, std::ios::binary);
-      const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-      const std::vector<std::uint8_t> gz = spz_as_gzip(bytes, so.scene);
+      const std::vector<std::uint8_t> gz = spz_as_gzip(MappedFile(so.scene).bytes(), so.scene);
       vc.scene_bytes = std::make_shared<const std::string>(gz.begin(), gz.end());
       fmt::print("viewer     SPZ v{} re-packed for the page as gzip SPZ v3 ({:.1f} MB, same data)\n",
                  pw.scene.report.version, double(gz.size()) / 1e6);

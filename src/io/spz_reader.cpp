@@ -125,33 +125,77 @@ std::vector<std::uint8_t> gzip(const std::vector<std::uint8_t>& data, const std:
   return out;
 }
 
+// The v4 layout: an uncompressed 32-byte header, a table of contents of (compressed size,
+// uncompressed size) pairs, then one zstd frame per attribute stream. Validates the header and
+// every stream it uses, and decompresses them.
+struct V4Streams {
+  std::uint32_t version = 0;
+  std::uint64_t n = 0;
+  int sh_degree = 0, frac = 0, used = 0;
+  std::vector<std::uint8_t> data[6];
+};
+
+V4Streams read_v4_streams(std::span<const std::uint8_t> bytes, const std::string& path) {
+  if (bytes.size() < 32) throw file_error(path, "SPZ v4: header truncated (" + std::to_string(bytes.size()) + " of 32 bytes)");
+  const std::uint32_t version = u32_at(bytes.data() + 4);
+  const std::uint64_t n = u32_at(bytes.data() + 8);
+  const int sh_degree = bytes[12], frac = bytes[13], n_streams = bytes[15];
+  const std::uint32_t toc = u32_at(bytes.data() + 16);
+  if (version < 4) throw file_error(path, "SPZ: 'NGSP' header with version " + std::to_string(version) + " (expected 4)");
+  if (version > 4) throw file_error(path, "SPZ version " + std::to_string(version) + " is not supported (up to 4)");
+  if (sh_degree > 3 || frac > 24) throw file_error(path, "SPZ v4: bad header (SH degree " + std::to_string(sh_degree) + ", fractional bits " + std::to_string(frac) + ")");
+  if (n_streams < 5) throw file_error(path, "SPZ v4: " + std::to_string(n_streams) + " streams, expected at least 5");
+  if (n == 0) throw file_error(path, "SPZ declares 0 points");
+  const std::uint64_t toc_end = std::uint64_t(toc) + 16ull * std::uint64_t(n_streams);
+  if (toc < 32 || toc_end > bytes.size()) throw file_error_at(path, toc, "SPZ v4: table of contents outside the file");
+  // Uncompressed sizes the header implies, per stream.
+  const std::uint64_t want[6] = {9 * n, n, 3 * n, 3 * n, 4 * n, 3 * n * std::uint64_t(sh_coeffs(sh_degree))};
+  const int used = sh_degree > 0 ? 6 : 5;
+  if (n_streams < used) throw file_error(path, "SPZ v4: SH degree " + std::to_string(sh_degree) + " needs 6 streams, the file has " + std::to_string(n_streams));
+  std::uint64_t offset = toc_end;
+  std::vector<std::uint8_t> data[6];
+  for (int k = 0; k < n_streams; ++k) {
+    const std::uint64_t csize = u64_at(bytes.data() + toc + 16 * std::uint64_t(k));
+    const std::uint64_t usize = u64_at(bytes.data() + toc + 16 * std::uint64_t(k) + 8);
+    if (csize > bytes.size() || offset + csize > bytes.size())
+      throw file_error_at(path, offset, "SPZ v4: stream " + std::to_string(k) + " (" + std::to_string(csize) + " bytes) runs past the end of the file (truncated?)");
+    if (k < used) {
+      if (usize != want[k])
+        throw file_error(path, "SPZ v4: stream " + std::to_string(k) + " holds " + std::to_string(usize) +
+                                   " bytes, " + std::to_string(n) + " points need " + std::to_string(want[k]));
+      data[k].resize(usize);
+      const std::size_t got = ZSTD_decompress(data[k].data(), data[k].size(), bytes.data() + offset, csize);
+      if (ZSTD_isError(got) || got != usize)
+        throw file_error_at(path, offset, "SPZ v4: stream " + std::to_string(k) + " is corrupt (zstd: " +
+                                              (ZSTD_isError(got) ? ZSTD_getErrorName(got) : "short") + ")");
+    }
+    offset += csize;
+  }
+  V4Streams v;
+  v.version = version;
+  v.n = n;
+  v.sh_degree = sh_degree;
+  v.frac = frac;
+  v.used = used;
+  for (int k = 0; k < 6; ++k) v.data[k] = std::move(data[k]);
+  return v;
+}
+
 }  // namespace
 
 std::vector<std::uint8_t> spz_as_gzip(std::span<const std::uint8_t> bytes, const std::string& path) {
   if (bytes.size() >= 2 && bytes[0] == 0x1f && bytes[1] == 0x8b)
     return std::vector<std::uint8_t>(bytes.begin(), bytes.end());
-  // Decode once: this validates every stream (sizes, zstd frames) before anything is re-packed.
-  (void)read_spz(bytes, path, LoadOptions{});
-  const int n_streams = bytes[15];
-  const int used = bytes[12] > 0 ? 6 : 5;
-  const std::uint32_t toc = u32_at(bytes.data() + 16);
-  std::vector<std::uint8_t> raw(16);
-  std::memcpy(raw.data(), bytes.data(), 16);
+  if (bytes.size() < 4 || u32_at(bytes.data()) != kMagic)
+    throw file_error(path, "not an SPZ file (neither an 'NGSP' header nor a gzip stream)");
+  const V4Streams v = read_v4_streams(bytes, path);  // validates every stream it re-packs
+  // v3: the same 16 header bytes with version 3 and byte 15 reserved (v4 keeps the stream count
+  // there), then the attribute arrays in the v4 stream order.
+  std::vector<std::uint8_t> raw(bytes.begin(), bytes.begin() + 16);
   const std::uint32_t v3 = 3;
   std::memcpy(raw.data() + 4, &v3, 4);
-  raw[15] = 0;  // v3: reserved (v4 keeps the stream count here)
-  std::uint64_t offset = std::uint64_t(toc) + 16ull * std::uint64_t(n_streams);
-  for (int k = 0; k < n_streams; ++k) {
-    const std::uint64_t csize = u64_at(bytes.data() + toc + 16 * std::uint64_t(k));
-    const std::uint64_t usize = u64_at(bytes.data() + toc + 16 * std::uint64_t(k) + 8);
-    if (k < used) {
-      const std::size_t at = raw.size();
-      raw.resize(at + usize);
-      const std::size_t got = ZSTD_decompress(raw.data() + at, usize, bytes.data() + offset, csize);
-      if (ZSTD_isError(got) || got != usize) throw file_error_at(path, offset, "SPZ v4: stream is corrupt");
-    }
-    offset += csize;
-  }
+  raw[15] = 0;
+  for (int k = 0; k < v.used; ++k) raw.insert(raw.end(), v.data[k].begin(), v.data[k].end());
   return gzip(raw, path);
 }
 
@@ -164,41 +208,11 @@ LoadedScene read_spz(std::span<const std::uint8_t> bytes, const std::string& pat
   out.report.frame = out.scene.frame = SceneFrame::kRub;
   if (bytes.size() >= 4 && u32_at(bytes.data()) == kMagic) {
     // v4: plain header + table of contents + zstd streams.
-    if (bytes.size() < 32) throw file_error(path, "SPZ v4: header truncated (" + std::to_string(bytes.size()) + " of 32 bytes)");
-    const std::uint32_t version = u32_at(bytes.data() + 4);
-    const std::uint64_t n = u32_at(bytes.data() + 8);
-    const int sh_degree = bytes[12], frac = bytes[13], n_streams = bytes[15];
-    const std::uint32_t toc = u32_at(bytes.data() + 16);
-    if (version < 4) throw file_error(path, "SPZ: 'NGSP' header with version " + std::to_string(version) + " (expected 4)");
-    if (version > 4) throw file_error(path, "SPZ version " + std::to_string(version) + " is not supported (up to 4)");
-    if (sh_degree > 3 || frac > 24) throw file_error(path, "SPZ v4: bad header (SH degree " + std::to_string(sh_degree) + ", fractional bits " + std::to_string(frac) + ")");
-    if (n_streams < 5) throw file_error(path, "SPZ v4: " + std::to_string(n_streams) + " streams, expected at least 5");
-    if (n == 0) throw file_error(path, "SPZ declares 0 points");
-    const std::uint64_t toc_end = std::uint64_t(toc) + 16ull * std::uint64_t(n_streams);
-    if (toc < 32 || toc_end > bytes.size()) throw file_error_at(path, toc, "SPZ v4: table of contents outside the file");
-    // Uncompressed sizes the header implies, per stream.
-    const std::uint64_t want[6] = {9 * n, n, 3 * n, 3 * n, 4 * n, 3 * n * std::uint64_t(sh_coeffs(sh_degree))};
-    const int used = sh_degree > 0 ? 6 : 5;
-    if (n_streams < used) throw file_error(path, "SPZ v4: SH degree " + std::to_string(sh_degree) + " needs 6 streams, the file has " + std::to_string(n_streams));
-    std::uint64_t offset = toc_end;
-    std::vector<std::uint8_t> data[6];
-    for (int k = 0; k < n_streams; ++k) {
-      const std::uint64_t csize = u64_at(bytes.data() + toc + 16 * std::uint64_t(k));
-      const std::uint64_t usize = u64_at(bytes.data() + toc + 16 * std::uint64_t(k) + 8);
-      if (csize > bytes.size() || offset + csize > bytes.size())
-        throw file_error_at(path, offset, "SPZ v4: stream " + std::to_string(k) + " (" + std::to_string(csize) + " bytes) runs past the end of the file (truncated?)");
-      if (k < used) {
-        if (usize != want[k])
-          throw file_error(path, "SPZ v4: stream " + std::to_string(k) + " holds " + std::to_string(usize) +
-                                     " bytes, " + std::to_string(n) + " points need " + std::to_string(want[k]));
-        data[k].resize(usize);
-        const std::size_t got = ZSTD_decompress(data[k].data(), data[k].size(), bytes.data() + offset, csize);
-        if (ZSTD_isError(got) || got != usize)
-          throw file_error_at(path, offset, "SPZ v4: stream " + std::to_string(k) + " is corrupt (zstd: " +
-                                                (ZSTD_isError(got) ? ZSTD_getErrorName(got) : "short") + ")");
-      }
-      offset += csize;
-    }
+    V4Streams v = read_v4_streams(bytes, path);
+    const std::uint64_t n = v.n;
+    const int sh_degree = v.sh_degree, frac = v.frac;
+    const std::uint32_t version = v.version;
+    auto& data = v.data;
     out.report.version = int(version);
     out.report.sh_degree = sh_degree;
     out.report.in_file = n;

@@ -141,6 +141,7 @@ struct ViewerServer::Impl {
   std::uint16_t bound_port = 0;
   bool stopping = false;
   std::optional<OriginPolicy> policy;
+  nlohmann::json hello;  // config.hello_json parsed once (an object; empty when it is not one)
   std::uint32_t open_connections = 0;  // HTTP and WebSocket sessions alive (server thread only)
   double now_s() const { return to_seconds(clock.now()); }
 };
@@ -358,8 +359,7 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
     }
     if (target == "/" || target == "/index.html") return file(srv.config.web_root + "/index.html");
     if (target == "/api/hello") {
-      nlohmann::json j = nlohmann::json::parse(srv.config.hello_json, nullptr, false);
-      if (j.is_discarded() || !j.is_object()) j = nlohmann::json::object();
+      nlohmann::json j = srv.hello;
       j["server"] = to_json(srv.stats);
       return text(http::status::ok, j.dump(), "application/json");
     }
@@ -470,6 +470,8 @@ void ViewerServer::start() {
     throw InputError(fmt::format("viewer: cannot listen on {}:{}: {}", m.config.host, m.config.port, ec.message()));
   m.bound_port = m.acceptor.local_endpoint().port();
   m.policy.emplace(m.config.host, m.bound_port, m.config.allow_origins);
+  m.hello = nlohmann::json::parse(m.config.hello_json, nullptr, false);
+  if (m.hello.is_discarded() || !m.hello.is_object()) m.hello = nlohmann::json::object();
   m.accept();
   m.tick_display();
   m.thread = std::thread([&m] { m.io.run(); });
