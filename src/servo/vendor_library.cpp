@@ -43,6 +43,7 @@ VendorLibraryProbe probe(const Spec& spec, void* (*opened)(void*, VendorLibraryP
     return p;
   }
   p.available = true;
+  p.handle = h;
   if (opened != nullptr) opened(h, p);
   // Kept loaded: vendor libraries start threads that must not outlive their code.
   return p;
@@ -58,8 +59,9 @@ void* count_dhd(void* h, VendorLibraryProbe& p) {
 
 VendorLibraryProbe probe_dhd_library() {
   return probe({"dhd", "libdhd.so", "GSHAPTICS_DHD_LIBRARY",
-                {"dhdGetDeviceCount", "dhdOpen", "dhdClose", "dhdGetPosition", "dhdGetLinearVelocity",
-                 "dhdSetForce", "dhdGetButton", "dhdErrorGetLastStr"},
+                {"dhdGetDeviceCount", "dhdOpenID", "dhdClose", "dhdGetPosition", "dhdGetLinearVelocity",
+                 "dhdSetForce", "dhdGetButton", "dhdEnableForce", "dhdGetStatus", "dhdGetSystemName",
+                 "dhdErrorGetLastStr"},
                 "Install the Force Dimension SDK (forcedimension.com, Linux x86_64) and put its "
                 "lib/release/lin-x86_64-gcc on LD_LIBRARY_PATH, or set GSHAPTICS_DHD_LIBRARY to libdhd.so."},
                count_dhd);
@@ -68,8 +70,9 @@ VendorLibraryProbe probe_dhd_library() {
 VendorLibraryProbe probe_openhaptics_library() {
   return probe({"openhaptics", "libHD.so", "GSHAPTICS_HD_LIBRARY",
                 {"hdInitDevice", "hdDisableDevice", "hdGetError", "hdBeginFrame", "hdEndFrame",
-                 "hdGetDoublev", "hdSetDoublev", "hdStartScheduler", "hdStopScheduler",
-                 "hdScheduleAsynchronous"},
+                 "hdGetDoublev", "hdGetIntegerv", "hdSetDoublev", "hdEnable", "hdCheckCalibration",
+                 "hdUpdateCalibration", "hdStartScheduler", "hdStopScheduler", "hdScheduleAsynchronous",
+                 "hdUnschedule"},
                 "Install 3D Systems' OpenHaptics for Linux and the Touch device driver (libHD.so in "
                 "/usr/lib), or set GSHAPTICS_HD_LIBRARY to libHD.so."},
                nullptr);

@@ -20,18 +20,19 @@ struct VendorLibraryProbe {
   /// When not available: the file, the places searched (the override variable, LD_LIBRARY_PATH,
   /// the ld.so cache and default directories, as dlopen(3) searches) and what to install.
   std::string why;
+  /// The dlopen handle when available (kept loaded for the life of the process: vendor libraries
+  /// start threads that must not outlive their code); nullptr otherwise.
+  void* handle = nullptr;
 };
 
 /// Force Dimension's DHD library: $GSHAPTICS_DHD_LIBRARY, else "libdhd.so" through dlopen's
-/// search. Needs dhdGetDeviceCount, dhdOpen, dhdClose, dhdGetPosition, dhdGetLinearVelocity,
-/// dhdSetForce, dhdGetButton, dhdErrorGetLastStr (C linkage, Force Dimension SDK dhdc.h); calls
-/// dhdGetDeviceCount() for `devices`.
+/// search. Needs the functions DhdDevice calls (vendor_devices.h; C linkage, Force Dimension SDK
+/// dhdc.h); calls dhdGetDeviceCount() for `devices`.
 [[nodiscard]] VendorLibraryProbe probe_dhd_library();
 
-/// 3D Systems' OpenHaptics HD library: $GSHAPTICS_HD_LIBRARY, else "libHD.so". Needs
-/// hdInitDevice, hdDisableDevice, hdGetError, hdBeginFrame, hdEndFrame, hdGetDoublev,
-/// hdSetDoublev, hdStartScheduler, hdStopScheduler, hdScheduleAsynchronous (OpenHaptics
-/// Programmer's Guide, HDAPI). The HD API has no device count: `devices` stays -1.
+/// 3D Systems' OpenHaptics HD library: $GSHAPTICS_HD_LIBRARY, else "libHD.so". Needs the
+/// functions OpenHapticsDevice calls (vendor_devices.h; OpenHaptics HDAPI, hd.h). The HD API has
+/// no device count: `devices` stays -1.
 [[nodiscard]] VendorLibraryProbe probe_openhaptics_library();
 
 }  // namespace gshaptics

@@ -1,0 +1,159 @@
+#pragma once
+/// @file
+/// Desktop haptic devices through their vendors' C libraries, loaded at run time (dlopen, see
+/// vendor_library.h), so nothing proprietary is needed to build gshaptics:
+///   - Force Dimension devices (omega.x, delta.x, sigma.x, Novint Falcon) through the DHD API;
+///   - 3D Systems devices (Touch, Touch X, Phantom Premium) through the OpenHaptics HD API.
+///
+/// Only the C functions and constants used are declared, each as documented by the vendor:
+/// Force Dimension SDK reference (dhdc.h: dhdOpenID, dhdGetPosition [m], dhdGetLinearVelocity
+/// [m/s], dhdSetForce [N], dhdGetButton, dhdEnableForce, dhdGetStatus with DHD_STATUS_* indices
+/// 0..9 stable since SDK 3.2); OpenHaptics Toolkit API Reference (hd.h, hdDefines.h:
+/// HD_CURRENT_POSITION 0x2050 [mm], HD_CURRENT_VELOCITY 0x2051 [mm/s], HD_CURRENT_BUTTONS
+/// 0x2000, HD_CURRENT_FORCE 0x2700 [N], HD_USABLE_WORKSPACE_DIMENSIONS 0x2551 [mm],
+/// HD_NOMINAL_MAX_FORCE 0x2603 [N], HD_UPDATE_RATE 0x2600 [Hz], HD_FORCE_OUTPUT 0x4000,
+/// HD_CALIBRATION_* 0x5000-0x5002).
+///
+/// Frames. Every device here reports in one *device frame*: right-handed, metres, origin at the
+/// vendor's workspace centre, x to the user's right, y away from the user, z up. A
+/// WorkspaceMapping then places that frame in the world. The vendor frames are:
+///   - DHD: x towards the user, y to the right, z up, metres  -> device (y_d, -x_d, z_d);
+///   - HD:  x to the right, y up, z towards the user, millimetres -> device (x_h, -z_h, y_h)/1000.
+/// Forces use the same axis changes and are never scaled (N in, N out).
+///
+/// Threading: DhdDevice calls the DHD library from the servo thread (read: position, velocity,
+/// buttons; write: force), as Force Dimension's own examples and CHAI3D do: those calls are the
+/// device's USB transfer, the tick's only I/O. OpenHapticsDevice runs inside OpenHaptics' own
+/// servo scheduler (hdScheduleAsynchronous) and exchanges samples and forces with the runtime's
+/// servo thread through wait-free triple buffers; its callback zeroes the force by itself when the
+/// runtime has not written for `command_timeout` (a stalled or dead servo thread).
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+
+#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/servo/triple_buffer.h"
+
+namespace gshaptics {
+
+/// DHD frame (x to the user, y right, z up) -> device frame. Also for velocities and forces.
+[[nodiscard]] Eigen::Vector3d dhd_to_device(const Eigen::Vector3d& v) noexcept;
+/// Device frame -> DHD frame.
+[[nodiscard]] Eigen::Vector3d device_to_dhd(const Eigen::Vector3d& v) noexcept;
+/// HD frame (x right, y up, z to the user), millimetres -> device frame, metres.
+[[nodiscard]] Eigen::Vector3d hd_mm_to_device_m(const Eigen::Vector3d& mm) noexcept;
+/// A force (N) in the device frame -> HD frame (N; no unit change).
+[[nodiscard]] Eigen::Vector3d device_force_to_hd(const Eigen::Vector3d& f) noexcept;
+
+/// A Force Dimension device through libdhd (DHD API).
+class DhdDevice final : public HapticDevice {
+ public:
+  /// Loads the library (probe_dhd_library). `index`: which device, 0-based as dhdOpenID counts
+  /// them. Throws InputError when the library is missing (the probe's explanation: file, places
+  /// searched, what to install) or reports fewer devices than index + 1.
+  explicit DhdDevice(int index = 0);
+  ~DhdDevice() override;
+  DhdDevice(const DhdDevice&) = delete;
+  DhdDevice& operator=(const DhdDevice&) = delete;
+
+  [[nodiscard]] const DeviceInfo& info() const noexcept override { return info_; }
+  /// dhdOpenID, reads the status (power, connected, reset/calibration, error), commands zero
+  /// force, then dhdEnableForce(on). Throws InputError naming the index and dhdErrorGetLastStr().
+  void start(Nanos now) override;
+  /// Position, velocity and buttons 0-3. A failed read returns the previous sample (same
+  /// sequence), so the runtime's watchdog zeroes the force if the device stops answering.
+  [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
+  void write(const Wrench& wrench, Nanos now) noexcept override;
+  /// Zero force, force off, dhdClose.
+  void stop(Nanos now) noexcept override;
+  /// What dhdGetStatus said at start ("powered, connected, force on" or what is wrong).
+  [[nodiscard]] const std::string& status() const noexcept { return status_; }
+
+  struct Api;  // the DHD functions, resolved with dlsym
+
+ private:
+  const Api* api_ = nullptr;
+  int index_ = 0;
+  char id_ = -1;
+  bool open_ = false;
+  DeviceInfo info_;
+  DeviceSample last_;
+  std::string status_;
+};
+
+/// A 3D Systems device through libHD (OpenHaptics HD API).
+struct OpenHapticsParams {
+  /// The device name as configured in the vendor's Touch Setup; empty: HD_DEFAULT_DEVICE.
+  std::string device_name;
+  /// The servo thread has not written a force for this long: the HD callback commands zero. s.
+  double command_timeout = 0.05;
+};
+
+namespace detail {
+/// What the HD callback hands the servo thread (device frame, m, m/s).
+struct HdSample {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+  std::uint32_t buttons = 0;
+};
+/// What the servo thread hands the HD callback.
+struct HdCommand {
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< HD frame, N
+  std::int64_t wall_ns = 0;                         ///< steady clock when written
+};
+}  // namespace detail
+
+class OpenHapticsDevice final : public HapticDevice {
+ public:
+  /// Loads the library (probe_openhaptics_library); throws InputError when it is missing.
+  explicit OpenHapticsDevice(const OpenHapticsParams& params = {});
+  ~OpenHapticsDevice() override;
+  OpenHapticsDevice(const OpenHapticsDevice&) = delete;
+  OpenHapticsDevice& operator=(const OpenHapticsDevice&) = delete;
+
+  [[nodiscard]] const DeviceInfo& info() const noexcept override { return info_; }
+  /// hdInitDevice; reads the usable workspace, nominal max force and update rate; checks the
+  /// calibration (updates it when the device can do so itself; InputError asking to put the
+  /// stylus in the inkwell when it needs the user); enables force output and starts the
+  /// scheduler with the servo callback. Throws InputError with the HD error code.
+  void start(Nanos now) override;
+  [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
+  void write(const Wrench& wrench, Nanos now) noexcept override;
+  /// Zero force (waits up to 50 ms for the callback to apply it), stops the scheduler,
+  /// unschedules the callback, disables the device.
+  void stop(Nanos now) noexcept override;
+  [[nodiscard]] const std::string& status() const noexcept { return status_; }
+  /// Nominal max force, N (HD_NOMINAL_MAX_FORCE), after start; 0 before.
+  [[nodiscard]] double max_force() const noexcept { return max_force_; }
+  /// HD callbacks run so far, and how many of them zeroed a stale command.
+  [[nodiscard]] std::uint64_t callbacks() const noexcept { return callbacks_.load(std::memory_order_relaxed); }
+  [[nodiscard]] std::uint64_t stale_commands() const noexcept { return stale_.load(std::memory_order_relaxed); }
+
+  struct Api;
+  /// The HD scheduler callback's body (public for the C trampoline only).
+  unsigned int servo_callback() noexcept;
+
+ private:
+  using Sample = detail::HdSample;
+  using Command = detail::HdCommand;
+  const Api* api_ = nullptr;
+  OpenHapticsParams params_;
+  unsigned int handle_ = 0xFFFFFFFFu;
+  unsigned long schedule_ = 0;
+  bool scheduled_ = false;
+  DeviceInfo info_;
+  std::string status_;
+  double max_force_ = 0;
+  TripleBuffer<Sample> samples_{Sample{}};
+  TripleBuffer<Command> commands_{Command{}};
+  std::atomic<bool> running_{false};
+  std::atomic<std::uint64_t> callbacks_{0}, stale_{0}, hd_errors_{0};
+  std::atomic<bool> zero_applied_{false};
+  // Callback thread only:
+  std::uint64_t produced_ = 0;
+  // Servo thread only:
+  DeviceSample last_;
+};
+
+}  // namespace gshaptics
