@@ -1,0 +1,122 @@
+#pragma once
+/// @file
+/// Haply Inverse3 through its Inverse Service: JSON over a local WebSocket, no SDK to link.
+///
+/// Protocol followed (Inverse Service 3.1 JSON format, as in Haply's public Python tutorials for
+/// the service, "ws://localhost:10001", and Isaac Lab's isaaclab/devices/haply/se3_haply.py,
+/// v2.3.2): the service sends state messages
+///   {"inverse3": [{"device_id": "...", "config": {"handedness": "left|right"},   (first message)
+///                  "state": {"cursor_position": {"x","y","z"}, "cursor_velocity": {...}}}],
+///    "wireless_verse_grip": [{"device_id": "...", "state": {"orientation": {"w","x","y","z"},
+///                             "buttons": {"a": bool, "b": bool, "c": bool}}}]}
+/// and expects one command per state message (lock-step: a state follows each command):
+///   {"inverse3": [{"device_id": "...", "commands": {"set_cursor_force": {"values": {"x","y","z"}}}}]}
+/// Units: metres, metres per second, newtons. Frame: the service's device frame, taken as the
+/// gshaptics device frame (x right, y away from the user, z up; vendor_devices.h) - this matches
+/// the service's default basis as documented for desk use; a unit set to another basis in Haply
+/// Hub is corrected with the workspace mapping's rotation.
+///
+/// Behaviour:
+///   - the client runs its own I/O thread; the servo thread exchanges samples and forces with it
+///     through wait-free triple buffers (read()/write() never block);
+///   - the service's rate is measured (messages per second);
+///   - the link lost (service restart, no message for `read_timeout`): no new samples, so the
+///     runtime's watchdog zeroes the force; the client reconnects every `reconnect_interval`,
+///     and after a reconnect it sends zero force until the servo thread writes a new command;
+///   - a force not refreshed by the servo thread for `command_timeout` is sent as zero;
+///   - a malformed message is counted and skipped, the connection kept (a zero-force command
+///     keeps the lock-step going);
+///   - stop() sends zero force, closes and joins.
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/servo/triple_buffer.h"
+
+namespace gshaptics {
+
+struct HaplyParams {
+  std::string host = "127.0.0.1";
+  int port = 10001;         ///< the Inverse Service's WebSocket port (service 3.1)
+  std::string path = "/";
+  int index = 0;            ///< which Inverse3 of the service's list
+  double connect_timeout = 3.0;     ///< start() waits this long for the first state, s
+  double read_timeout = 0.5;        ///< no message for this long: the link is dead, s
+  double reconnect_interval = 0.25; ///< s
+  double command_timeout = 0.05;    ///< a force older than this is sent as zero, s
+};
+
+/// Counters of the link (any thread; relaxed).
+struct HaplyStats {
+  std::uint64_t messages = 0;    ///< state messages received
+  std::uint64_t malformed = 0;   ///< messages that were not the documented JSON
+  std::uint64_t commands = 0;    ///< force commands sent
+  std::uint64_t connects = 0;    ///< successful (re)connections
+  std::uint64_t zero_after_connect = 0;  ///< commands sent as zero because of a fresh (re)connection
+  double rate_hz = 0;            ///< state messages per second, over windows of 0.25 s
+  bool connected = false;
+};
+
+namespace detail {
+struct HaplySample {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
+  std::uint32_t buttons = 0;
+};
+struct HaplyCommand {
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< device frame, N
+  std::int64_t wall_ns = 0;                         ///< steady clock when written
+};
+}  // namespace detail
+
+class HaplyDevice final : public HapticDevice {
+ public:
+  /// Throws InputError for an invalid port, index or timeouts.
+  explicit HaplyDevice(const HaplyParams& params = {});
+  ~HaplyDevice() override;
+  HaplyDevice(const HaplyDevice&) = delete;
+  HaplyDevice& operator=(const HaplyDevice&) = delete;
+
+  [[nodiscard]] const DeviceInfo& info() const noexcept override { return info_; }
+  /// Starts the I/O thread and waits up to connect_timeout for the first state of Inverse3
+  /// number `index`. Throws InputError naming the URL and what was missing (no service, no
+  /// device in its list).
+  void start(Nanos now) override;
+  [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
+  void write(const Wrench& wrench, Nanos now) noexcept override;
+  void stop(Nanos now) noexcept override;
+
+  [[nodiscard]] HaplyStats stats() const noexcept;
+  /// The URL connected to, "ws://host:port/path".
+  [[nodiscard]] std::string url() const;
+  /// The Inverse3's device_id and handedness from the service's first message ("" before).
+  [[nodiscard]] std::string device_id() const;
+  [[nodiscard]] std::string handedness() const;
+
+ private:
+  void io_main() noexcept;
+  struct Link;  // Boost.Beast state, I/O thread only
+
+  HaplyParams params_;
+  DeviceInfo info_;
+  TripleBuffer<detail::HaplySample> samples_{detail::HaplySample{}};
+  TripleBuffer<detail::HaplyCommand> commands_{detail::HaplyCommand{}};
+  std::thread io_;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> have_state_{false};
+  std::atomic<std::uint64_t> messages_{0}, malformed_{0}, commands_sent_{0}, connects_{0}, zero_after_connect_{0};
+  std::atomic<double> rate_hz_{0};
+  std::atomic<bool> connected_{false};
+  mutable std::mutex text_mutex_;  // the I/O thread's rare text (ids, last problem); never the servo thread
+  std::string device_id_, handedness_, problem_;
+  // Servo thread only:
+  DeviceSample last_;
+};
+
+}  // namespace gshaptics

@@ -1,0 +1,300 @@
+#include "gshaptics/net/haply_device.h"
+
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/websocket.hpp>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+
+#include "gshaptics/error.h"
+
+namespace gshaptics {
+
+namespace net = boost::asio;
+namespace beast = boost::beast;
+namespace websocket = beast::websocket;
+using tcp = net::ip::tcp;
+using json = nlohmann::json;
+
+namespace {
+
+std::int64_t steady_ns() noexcept {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+bool read_xyz(const json& j, Eigen::Vector3d& out) {
+  if (!j.is_object()) return false;
+  for (int i = 0; i < 3; ++i) {
+    const char* k = i == 0 ? "x" : i == 1 ? "y" : "z";
+    auto it = j.find(k);
+    if (it == j.end() || !it->is_number()) return false;
+    out[i] = it->get<double>();
+  }
+  return out.allFinite();
+}
+
+/// Runs `ioc` until `done` or `seconds` pass or `stop`; true when done.
+bool run_until(net::io_context& ioc, const bool& done, double seconds, const std::atomic<bool>& stop) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (!done && !stop.load(std::memory_order_relaxed) && std::chrono::steady_clock::now() < end) {
+    ioc.run_for(std::chrono::milliseconds(5));
+    if (ioc.stopped()) ioc.restart();
+  }
+  return done;
+}
+
+}  // namespace
+
+HaplyDevice::HaplyDevice(const HaplyParams& params) : params_(params) {
+  if (params.port <= 0 || params.port > 65535) throw InputError(fmt::format("haply: port {} is not a TCP port", params.port));
+  if (params.index < 0) throw InputError(fmt::format("--device haply:{}: the index must be >= 0", params.index));
+  for (double t : {params.connect_timeout, params.read_timeout, params.reconnect_interval, params.command_timeout})
+    if (!(t > 0) || !std::isfinite(t)) throw InputError("haply: timeouts must be finite and > 0");
+  info_.name = fmt::format("haply:{} ({})", params.index, url());
+  info_.max_rate_hz = 10000;
+}
+
+HaplyDevice::~HaplyDevice() { stop(0); }
+
+std::string HaplyDevice::url() const { return fmt::format("ws://{}:{}{}", params_.host, params_.port, params_.path); }
+
+std::string HaplyDevice::device_id() const {
+  std::lock_guard<std::mutex> lock(text_mutex_);
+  return device_id_;
+}
+std::string HaplyDevice::handedness() const {
+  std::lock_guard<std::mutex> lock(text_mutex_);
+  return handedness_;
+}
+
+HaplyStats HaplyDevice::stats() const noexcept {
+  HaplyStats s;
+  s.messages = messages_.load(std::memory_order_relaxed);
+  s.malformed = malformed_.load(std::memory_order_relaxed);
+  s.commands = commands_sent_.load(std::memory_order_relaxed);
+  s.connects = connects_.load(std::memory_order_relaxed);
+  s.zero_after_connect = zero_after_connect_.load(std::memory_order_relaxed);
+  s.rate_hz = rate_hz_.load(std::memory_order_relaxed);
+  s.connected = connected_.load(std::memory_order_relaxed);
+  return s;
+}
+
+void HaplyDevice::start(Nanos) {
+  if (io_.joinable()) throw InputError("haply: already started");
+  stop_.store(false);
+  io_ = std::thread([this] { io_main(); });
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(params_.connect_timeout);
+  while (!have_state_.load(std::memory_order_acquire) && std::chrono::steady_clock::now() < end)
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  if (have_state_.load(std::memory_order_acquire)) return;
+  std::string problem;
+  {
+    std::lock_guard<std::mutex> lock(text_mutex_);
+    problem = problem_;
+  }
+  stop(0);
+  throw InputError(fmt::format("--device haply:{}: no cursor state from the Inverse Service at {} within {:g} s: {}. "
+                               "Start Haply Hub / the Inverse Service (it listens on port 10001), connect and "
+                               "power the Inverse3, or give --haply-url.",
+                               params_.index, url(), params_.connect_timeout,
+                               problem.empty() ? "no answer" : problem));
+}
+
+void HaplyDevice::io_main() noexcept {
+  const auto set_problem = [this](const std::string& p) {
+    std::lock_guard<std::mutex> lock(text_mutex_);
+    // A device missing from the service's list says more than the link loss that follows it
+    // (without a device there is nothing to command, so the lock-step stops).
+    if (problem_.rfind("the service lists", 0) != 0 || p.rfind("the service lists", 0) == 0) problem_ = p;
+  };
+  std::int64_t window_start = steady_ns();
+  std::uint64_t window_count = 0;
+  while (!stop_.load(std::memory_order_relaxed)) {
+    net::io_context ioc;
+    websocket::stream<beast::tcp_stream> ws(ioc);
+    bool ok = false, done = false;
+    beast::error_code ec;
+    // Connect and handshake.
+    try {
+      tcp::resolver resolver(ioc);
+      const auto endpoints = resolver.resolve(params_.host, std::to_string(params_.port));
+      beast::get_lowest_layer(ws).async_connect(endpoints, [&](beast::error_code e, const tcp::endpoint&) {
+        ec = e;
+        done = true;
+      });
+      if (run_until(ioc, done, params_.connect_timeout, stop_) && !ec) {
+        beast::get_lowest_layer(ws).socket().set_option(tcp::no_delay(true));
+        done = false;
+        ws.async_handshake(fmt::format("{}:{}", params_.host, params_.port), params_.path,
+                           [&](beast::error_code e) {
+                             ec = e;
+                             done = true;
+                           });
+        ok = run_until(ioc, done, params_.connect_timeout, stop_) && !ec;
+      }
+      if (!ok) set_problem(ec ? "connecting: " + ec.message() : std::string("connecting: timed out"));
+    } catch (const std::exception& e) {
+      set_problem(std::string("connecting: ") + e.what());
+    }
+    if (ok) {
+      connects_.fetch_add(1, std::memory_order_relaxed);
+      connected_.store(true, std::memory_order_relaxed);
+      const std::int64_t connected_at = steady_ns();
+      std::string id;
+      beast::flat_buffer buffer;
+      std::string out;
+      // Reads and writes are never abandoned half-way on stop (Beast allows one of each in
+      // flight): stop is seen between lock-step cycles, within one service period.
+      const std::atomic<bool> never{false};
+      while (!stop_.load(std::memory_order_relaxed)) {
+        done = false;
+        buffer.consume(buffer.size());
+        ws.async_read(buffer, [&](beast::error_code e, std::size_t) {
+          ec = e;
+          done = true;
+        });
+        if (!run_until(ioc, done, params_.read_timeout, never) || ec) {
+          set_problem(done ? "link lost: " + ec.message() : std::string("link lost: no message within the read timeout"));
+          break;
+        }
+        messages_.fetch_add(1, std::memory_order_relaxed);
+        ++window_count;
+        const std::int64_t t = steady_ns();
+        if (t - window_start >= 250'000'000) {
+          rate_hz_.store(double(window_count) * 1e9 / double(t - window_start), std::memory_order_relaxed);
+          window_start = t;
+          window_count = 0;
+        }
+        // Parse the documented state message.
+        bool good = false;
+        detail::HaplySample s;
+        const json j = json::parse(beast::buffers_to_string(buffer.data()), nullptr, /*allow_exceptions=*/false);
+        if (j.is_object()) {
+          const auto inv = j.find("inverse3");
+          if (inv != j.end() && inv->is_array()) {
+            if (std::size_t(params_.index) < inv->size()) {
+              const json& d = (*inv)[std::size_t(params_.index)];
+              if (d.is_object()) {
+                if (id.empty() && d.contains("device_id")) {
+                  const json& did = d["device_id"];
+                  id = did.is_string() ? did.get<std::string>() : did.dump();
+                  std::lock_guard<std::mutex> lock(text_mutex_);
+                  device_id_ = id;
+                  if (d.contains("config") && d["config"].is_object() && d["config"].contains("handedness") &&
+                      d["config"]["handedness"].is_string())
+                    handedness_ = d["config"]["handedness"].get<std::string>();
+                }
+                const auto st = d.find("state");
+                if (st != d.end() && st->is_object() && st->contains("cursor_position")) {
+                  good = read_xyz((*st)["cursor_position"], s.position);
+                  if (good && st->contains("cursor_velocity") && !read_xyz((*st)["cursor_velocity"], s.velocity))
+                    good = false;
+                }
+              }
+            } else {
+              set_problem(fmt::format("the service lists {} Inverse3 device(s), none with index {}", inv->size(),
+                                      params_.index));
+              good = true;  // a valid message; just no device for us: keep the link, no sample
+              s.position.setConstant(std::nan(""));
+            }
+          }
+          const auto grip = j.find("wireless_verse_grip");
+          if (good && grip != j.end() && grip->is_array() && !grip->empty() && (*grip)[0].is_object()) {
+            const json& gs = (*grip)[0].value("state", json::object());
+            if (gs.contains("orientation") && gs["orientation"].is_object()) {
+              const json& q = gs["orientation"];
+              if (q.value("w", json()).is_number() && q.value("x", json()).is_number() &&
+                  q.value("y", json()).is_number() && q.value("z", json()).is_number()) {
+                Eigen::Quaterniond o(q["w"].get<double>(), q["x"].get<double>(), q["y"].get<double>(),
+                                     q["z"].get<double>());
+                if (o.coeffs().allFinite() && o.norm() > 0.5) s.orientation = o.normalized();
+              }
+            }
+            if (gs.contains("buttons") && gs["buttons"].is_object()) {
+              const char* names[] = {"a", "b", "c"};
+              for (int b = 0; b < 3; ++b)
+                if (gs["buttons"].value(names[b], false)) s.buttons |= 1u << b;
+            }
+          }
+        }
+        if (!good) {
+          malformed_.fetch_add(1, std::memory_order_relaxed);
+        } else if (s.position.allFinite()) {
+          samples_.write(s);
+          have_state_.store(true, std::memory_order_release);
+        }
+        // Answer with one command (lock-step), zero unless fresh and written after this connection.
+        const detail::HaplyCommand& c = commands_.read();
+        Eigen::Vector3d f = c.force;
+        if (c.wall_ns < connected_at) {
+          if (!f.isZero()) zero_after_connect_.fetch_add(1, std::memory_order_relaxed);
+          f.setZero();
+        } else if (steady_ns() - c.wall_ns > std::int64_t(params_.command_timeout * 1e9)) {
+          f.setZero();
+        }
+        if (id.empty()) continue;  // nothing to address yet (the service sends state regardless)
+        out = fmt::format(R"({{"inverse3":[{{"device_id":{},"commands":{{"set_cursor_force":{{"values":{{"x":{},"y":{},"z":{}}}}}}}}}]}})",
+                          json(id).dump(), f.x(), f.y(), f.z());
+        done = false;
+        ws.text(true);
+        ws.async_write(net::buffer(out), [&](beast::error_code e, std::size_t) {
+          ec = e;
+          done = true;
+        });
+        if (!run_until(ioc, done, params_.read_timeout, never) || ec) {
+          set_problem("link lost while sending: " + (done ? ec.message() : std::string("timed out")));
+          break;
+        }
+        commands_sent_.fetch_add(1, std::memory_order_relaxed);
+      }
+      // Leaving: a last zero-force command when we are stopping on a live link, then close.
+      if (stop_.load(std::memory_order_relaxed) && !id.empty() && done && !ec) {
+        out = fmt::format(R"({{"inverse3":[{{"device_id":{},"commands":{{"set_cursor_force":{{"values":{{"x":0,"y":0,"z":0}}}}}}}}]}})",
+                          json(id).dump());
+        bool sent = false;
+        ws.async_write(net::buffer(out), [&](beast::error_code, std::size_t) { sent = true; });
+        if (run_until(ioc, sent, 0.2, never)) commands_sent_.fetch_add(1, std::memory_order_relaxed);
+        bool closed = false;
+        ws.async_close(websocket::close_code::normal, [&](beast::error_code) { closed = true; });
+        run_until(ioc, closed, 0.2, never);
+      }
+      connected_.store(false, std::memory_order_relaxed);
+    }
+    beast::get_lowest_layer(ws).close();
+    ioc.run_for(std::chrono::milliseconds(1));  // let aborted handlers run
+    if (stop_.load(std::memory_order_relaxed)) break;
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(params_.reconnect_interval);
+    while (!stop_.load(std::memory_order_relaxed) && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+}
+
+DeviceSample HaplyDevice::read(Nanos now) noexcept {
+  detail::HaplySample s;
+  if (samples_.read_if_new(s)) {
+    last_.sequence += 1;
+    last_.stamp = now;
+    last_.position = s.position;
+    last_.velocity = s.velocity;
+    last_.orientation = s.orientation;
+    last_.buttons = s.buttons;
+  }
+  return last_;
+}
+
+void HaplyDevice::write(const Wrench& wrench, Nanos) noexcept {
+  commands_.write(detail::HaplyCommand{wrench.force, steady_ns()});
+}
+
+void HaplyDevice::stop(Nanos) noexcept {
+  commands_.write(detail::HaplyCommand{Eigen::Vector3d::Zero(), steady_ns()});
+  stop_.store(true, std::memory_order_relaxed);
+  if (io_.joinable()) io_.join();
+}
+
+}  // namespace gshaptics

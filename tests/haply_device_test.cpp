@@ -1,0 +1,167 @@
+// The Haply Inverse3 client against a fake Inverse Service (support/fake_inverse_service.h) that
+// serves the documented messages: positions in, forces out (units and axes), the service
+// restarting mid-contact (the force goes to zero, the client reconnects and starts at zero),
+// malformed JSON (counted, connection kept), and a missing service or device (clear errors).
+
+#include "gshaptics/net/haply_device.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
+
+#include "gshaptics/error.h"
+#include "gshaptics/servo/haptic_runtime.h"
+#include "gshaptics/servo/workspace_mapping.h"
+#include "support/fake_inverse_service.h"
+#include "support/scenes.h"
+
+namespace gshaptics {
+namespace {
+
+template <class F>
+bool eventually(F done, double seconds = 5.0) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < end) {
+    if (done()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return done();
+}
+
+HaplyParams params_for(const test::FakeInverseService& service) {
+  HaplyParams p;
+  p.port = service.port();
+  p.connect_timeout = 3.0;
+  p.read_timeout = 0.3;
+  p.reconnect_interval = 0.05;
+  return p;
+}
+
+TEST(HaplyDevice, PositionsInForcesOutInMetresAndNewtons) {
+  test::FakeInverseService service;
+  service.set_position({0.01, -0.02, 0.15});
+  service.set_velocity({0.1, 0.0, -0.3});
+  service.set_buttons(true, false, true);
+  HaplyDevice dev(params_for(service));
+  dev.start(0);
+  EXPECT_EQ(dev.device_id(), "INV3-0");
+  EXPECT_EQ(dev.handedness(), "right");
+  DeviceSample s;
+  ASSERT_TRUE(eventually([&] {
+    s = dev.read(42);
+    return s.sequence > 0;
+  }));
+  EXPECT_EQ(s.stamp, 42);
+  EXPECT_TRUE(s.position.isApprox(Eigen::Vector3d(0.01, -0.02, 0.15)));  // metres, axes as served
+  EXPECT_TRUE(s.velocity.isApprox(Eigen::Vector3d(0.1, 0.0, -0.3)));
+  EXPECT_EQ(s.buttons, 0b101u);
+  // New state keeps arriving (lock-step): the sequence advances.
+  const std::uint64_t seq = s.sequence;
+  ASSERT_TRUE(eventually([&] { return dev.read(43).sequence > seq + 5; }));
+  Wrench w;
+  w.force = {0.5, -1.0, 2.0};
+  ASSERT_TRUE(eventually([&] {
+    dev.write(w, 0);
+    return service.last_force().isApprox(w.force);  // newtons, axes unchanged
+  }));
+  EXPECT_TRUE(eventually([&] { return dev.stats().rate_hz > 50.0; })) << dev.stats().rate_hz;
+  dev.stop(0);
+  EXPECT_EQ(service.last_force(), Eigen::Vector3d::Zero());  // the last command on stop
+  EXPECT_EQ(service.bad_commands(), 0);
+}
+
+TEST(HaplyDevice, StaleCommandIsSentAsZero) {
+  test::FakeInverseService service;
+  HaplyParams p = params_for(service);
+  p.command_timeout = 0.02;
+  HaplyDevice dev(p);
+  dev.start(0);
+  Wrench w;
+  w.force = {0, 0, 1.5};
+  ASSERT_TRUE(eventually([&] {
+    dev.write(w, 0);
+    return service.last_force().z() > 1.0;
+  }));
+  EXPECT_TRUE(eventually([&] { return service.last_force().isZero(); }));  // the servo went silent
+  dev.stop(0);
+}
+
+TEST(HaplyDevice, ServiceRestartMidContactZeroesThenReconnectsAtZero) {
+  test::FakeInverseService service;
+  const CollisionWorld& world = test::truck_world();
+  const CollisionGaussian* g = nullptr;
+  for (const CollisionGaussian& c : world.gaussians())
+    if (c.opacity > 0.9f && (g == nullptr || c.semi_axes[0] > g->semi_axes[0])) g = &c;
+  ASSERT_NE(g, nullptr);
+  HaplyDevice haply(params_for(service));
+  WorkspaceMappingParams mp;
+  mp.offset = {g->center[0], g->center[1], g->center[2]};  // the cursor (at 0) sits on a Gaussian
+  MappedDevice dev(haply, mp);
+  RuntimeConfig c;
+  c.rate_hz = 1000;
+  c.duration = 60;
+  c.tool.semi_axes = Eigen::Vector3d::Constant(0.05);
+  c.realtime.servo_priority = 0;
+  c.realtime.worker_priority = 0;
+  HapticRuntime rt(world, dev, c);
+  rt.start();
+  ASSERT_TRUE(eventually([&] { return service.last_force().norm() > 0.05; })) << "no contact force";
+  EXPECT_EQ(service.connections(), 1);
+  service.restart(0.3);  // the service goes away for 300 ms
+  ASSERT_TRUE(eventually([&] { return service.first_forces().size() >= 2; }, 10.0)) << "no reconnect";
+  // The first command on the new connection carries zero force; then contact force returns.
+  ASSERT_GE(service.first_forces().size(), 2u);
+  EXPECT_EQ(service.first_forces()[1], Eigen::Vector3d::Zero());
+  EXPECT_TRUE(eventually([&] { return service.last_force().norm() > 0.05; })) << "force did not come back";
+  rt.request_stop();
+  rt.wait();
+  EXPECT_GT(rt.summary().watchdog_ticks, 0u);  // the outage zeroed the force on the servo side
+  EXPECT_GE(haply.stats().connects, 2u);
+  haply.stop(0);
+  EXPECT_EQ(service.last_force(), Eigen::Vector3d::Zero());
+}
+
+TEST(HaplyDevice, MalformedJsonIsCountedAndTheConnectionKept) {
+  test::FakeInverseService service;
+  service.set_malformed_every(10);
+  HaplyDevice dev(params_for(service));
+  dev.start(0);
+  ASSERT_TRUE(eventually([&] { return dev.stats().malformed >= 5; }));
+  const HaplyStats s = dev.stats();
+  EXPECT_EQ(s.connects, 1u);
+  EXPECT_EQ(service.connections(), 1);
+  EXPECT_GT(s.messages, 40u);
+  std::uint64_t seq = dev.read(0).sequence;
+  EXPECT_TRUE(eventually([&] { return dev.read(0).sequence > seq + 10; }));  // state still flows
+  dev.stop(0);
+}
+
+TEST(HaplyDevice, NoServiceOrNoDeviceIsAClearError) {
+  HaplyParams p;
+  p.port = 1;  // nothing listens there
+  p.connect_timeout = 0.5;
+  HaplyDevice absent(p);
+  try {
+    absent.start(0);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("ws://127.0.0.1:1/"), std::string::npos) << m;
+    EXPECT_NE(m.find("Inverse Service"), std::string::npos) << m;
+  }
+  test::FakeInverseService service;
+  service.set_devices(0);
+  HaplyParams q = params_for(service);
+  q.connect_timeout = 0.5;
+  HaplyDevice none(q);
+  try {
+    none.start(0);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("lists 0 Inverse3"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace gshaptics
