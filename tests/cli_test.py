@@ -287,6 +287,61 @@ class Run(unittest.TestCase):
         self.assertIn("'y'", p.stderr)
 
 
+class Devices(unittest.TestCase):
+    """`gshaptics devices` and the desktop devices on run: what is missing and why, without
+    hardware; the DHD device end to end through a stand-in libdhd (GSHAPTICS_TEST_FAKE_DHD)."""
+
+    def env(self, **extra):
+        e = dict(os.environ)
+        e.update({"GSHAPTICS_DHD_LIBRARY": "/nonexistent/libdhd.so",
+                  "GSHAPTICS_HD_LIBRARY": "/nonexistent/libHD.so"})
+        e.update(extra)
+        return e
+
+    def test_devices_without_hardware_says_what_is_missing(self):
+        p = subprocess.run([EXE, "devices", "--haply-url", "ws://127.0.0.1:1/"], capture_output=True,
+                           text=True, timeout=60, env=self.env())
+        self.assertEqual(p.returncode, 0, p.stderr)
+        rows = {line.split()[0]: line for line in p.stdout.splitlines()[1:] if line.strip()}
+        self.assertIn(" yes ", rows["sim"])
+        self.assertIn(" no ", rows["dhd[:N]"])
+        self.assertIn("libdhd.so not found", rows["dhd[:N]"])
+        self.assertIn("Force Dimension SDK", rows["dhd[:N]"])
+        self.assertIn(" no ", rows["openhaptics[:NAME]"])
+        self.assertIn("libHD.so not found", rows["openhaptics[:NAME]"])
+        self.assertIn("OpenHaptics", rows["openhaptics[:NAME]"])
+        if "haply[:N]" in rows:
+            self.assertIn("ws://127.0.0.1:1/", rows["haply[:N]"])
+            self.assertIn("Inverse Service", rows["haply[:N]"])
+
+    def test_missing_device_library_is_an_error_before_the_run(self):
+        with tempfile.TemporaryDirectory() as d:
+            p = subprocess.run([EXE, "run", "--device", "dhd", "--duration", "1", "--out", d, "--quiet"],
+                               capture_output=True, text=True, timeout=120, env=self.env())
+            self.assertEqual(p.returncode, 2)
+            self.assertIn("--device dhd: libdhd.so not found", p.stderr)
+            self.assertFalse(os.path.exists(os.path.join(d, "run_summary.json")))
+        p = run("run", "--device", "dhd:x", check=False)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("must be a number", p.stderr)
+
+    def test_run_drives_a_dhd_device_through_its_library(self):
+        fake = os.environ.get("GSHAPTICS_TEST_FAKE_DHD")
+        if not fake:
+            self.skipTest("GSHAPTICS_TEST_FAKE_DHD (the stand-in libdhd) not given")
+        with tempfile.TemporaryDirectory() as d:
+            p = subprocess.run([EXE, "run", "--device", "dhd:1", "--duration", "0.5", "--out", d, "--quiet",
+                                "--no-plot", "--workspace-scale", "10"],
+                               capture_output=True, text=True, timeout=120,
+                               env=self.env(GSHAPTICS_DHD_LIBRARY=fake))
+            self.assertEqual(p.returncode, 0, p.stderr)
+            self.assertIn("fake omega.3 (dhd:1): powered, connected, calibrated", p.stdout)
+            s = load_json(os.path.join(d, "run_summary.json"))
+            self.assertIn("fake omega.3", json.dumps(s))
+            self.assertIn("fake omega.3 (dhd:1)", s["device"])
+            self.assertGreater(s["runtime"]["ticks"], 100)
+
+
 class Node(unittest.TestCase):
     """Argument and start-up errors of the network commands (the bridges' own tests run them)."""
 

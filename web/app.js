@@ -127,6 +127,17 @@ function init(h) {
     if (o.material) Object.assign(o.material, { depthTest: false, transparent: true });
   });
   scene.add(arrow);
+  // A desktop device's workspace, mapped into the scene (its placement at start; the clutch and
+  // bubble navigation move it during the run).
+  if (h.workspace_box) {
+    const box = new THREE.Box3(vec(h.workspace_box.min), vec(h.workspace_box.max));
+    const helper = new THREE.Box3Helper(box, 0x88aaff);
+    helper.renderOrder = 998;
+    helper.material.depthTest = false;
+    helper.material.transparent = true;
+    helper.name = "workspace";
+    scene.add(helper);
+  }
 
   Object.assign(view, { scene, camera, renderer, controls, splat, tool, proxy, contacts, arrow, extent });
   addEventListener("resize", () => {

@@ -32,6 +32,32 @@ namespace gshaptics::cli {
 
 namespace {
 
+/// A local device that drives the runtime, with every commanded wrench also handed to the ROS
+/// bridge, which publishes it (WrenchStamped) for whoever listens: a viewer in a headset, a
+/// logger. The bridge's own pose input is not used.
+class PublishingDevice final : public HapticDevice {
+ public:
+  PublishingDevice(HapticDevice& local, HapticDevice& bridge) : local_(local), bridge_(bridge) {}
+  const DeviceInfo& info() const noexcept override { return local_.info(); }
+  void start(Nanos now) override {
+    bridge_.start(now);
+    local_.start(now);
+  }
+  DeviceSample read(Nanos now) noexcept override { return local_.read(now); }
+  void write(const Wrench& w, Nanos now) noexcept override {
+    local_.write(w, now);
+    bridge_.write(w, now);
+  }
+  void stop(Nanos now) noexcept override {
+    local_.stop(now);
+    bridge_.stop(now);
+  }
+
+ private:
+  HapticDevice& local_;
+  HapticDevice& bridge_;
+};
+
 struct NodeOptions {
   RuntimeOptions run;
   bool ros2 = false, ros1 = false;
@@ -85,7 +111,11 @@ void register_node(CLI::App& app) {
       "colliding Gaussians go out as a MarkerArray (ROS 1: the same topics through roscpp and "
       "the master at ROS_MASTER_URI). Runs until Ctrl-C or --duration; writes the run's log and "
       "summary like `run`. The device side: `gshaptics device-sim --ros2` or your driver.");
-  add_runtime_options(*cmd, o->run, "(unused: the device is the network)");
+  o->run.device = "ros";
+  add_runtime_options(*cmd, o->run,
+                      "ros: the device's pose arrives over ROS (default); haply[:N], dhd[:N], "
+                      "openhaptics[:NAME]: a desktop device on this machine drives the runtime, and "
+                      "the node publishes its wrench and markers (e.g. for a headset's viewer)");
   auto* f2 = cmd->add_flag("--ros2", o->ros2, "Speak ROS 2 over DDS (Cyclone DDS; ROS 2 Humble message layouts)");
   auto* f1 = cmd->add_flag("--ros1", o->ros1, "Speak ROS 1 (roscpp; master at ROS_MASTER_URI)");
   f2->excludes(f1);
@@ -93,6 +123,10 @@ void register_node(CLI::App& app) {
   add_topic_options(*cmd, o->topics);
   cmd->callback([o] {
     if (!o->ros2 && !o->ros1) throw InputError("node: give --ros2 or --ros1");
+    if (o->run.device != "ros" && !is_hardware_device(o->run.device))
+      throw InputError("--device: node takes 'ros' (default), 'haply[:N]', 'dhd[:N]' or 'openhaptics[:NAME]', got '" +
+                       o->run.device + "'");
+    if (o->run.device != "ros") check_device_option(o->run.device, false);
     const SceneOptions so = with_bundled_defaults(o->run.scene, "node");
     prepare_run_out_dir(o->run, so);
     const PreparedWorld pw = prepare_world(so, o->run.quiet);
@@ -102,8 +136,23 @@ void register_node(CLI::App& app) {
     setup.planned = o->run.duration;
     auto device = make_bridge(*o);
     RosBridgeDevice& net = *device;
-    setup.device = std::move(device);
-    wrap_in_workspace_mapping(o->run, setup);  // a desktop device's driver publishes device coordinates
+    const bool local = is_hardware_device(o->run.device);
+    std::unique_ptr<HapticDevice> bridge_owner;
+    if (local) {
+      // The local device drives the runtime; the bridge only publishes (wrench, markers).
+      setup.device = make_hardware_device(o->run);
+      setup.device->start(0);  // a missing device is an error before anything starts
+      setup.device->stop(0);
+      wrap_in_workspace_mapping(o->run, setup, /*hardware=*/true, tool_start_point(pw, setup.tool_radius),
+                                pw.world.up());
+      bridge_owner = std::move(device);
+      auto tee = std::make_unique<PublishingDevice>(*setup.device, net);
+      setup.inner_keep = std::move(setup.device);
+      setup.device = std::move(tee);
+    } else {
+      setup.device = std::move(device);
+      wrap_in_workspace_mapping(o->run, setup);  // a desktop device's driver publishes device coordinates
+    }
     setup.config = runtime_config_from(o->run, setup.tool_radius, setup.planned);
     HapticRuntime rt(pw.world, *setup.device, setup.config);
     ContactSnapshotObserver snapshots(o->topics.marker_hz, MonotonicClock::instance());

@@ -22,7 +22,8 @@ void register_run(CLI::App& app) {
   add_runtime_options(*cmd, *o,
                       "sim: simulated admittance device with a simulated hand probing the scene; "
                       "replay:FILE: play a pose log (CSV with time_s,x,y,z[,vx,vy,vz][,qw,qx,qy,qz], "
-                      "e.g. a servo_log.csv or probe_log.csv)");
+                      "e.g. a servo_log.csv or probe_log.csv); haply[:N], dhd[:N], openhaptics[:NAME]: "
+                      "a desktop haptic device (`gshaptics devices` says which this machine has)");
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->scene, "run");
     check_device_option(o->device, /*allow_mouse=*/false);  // before the (slow) scene load

@@ -80,6 +80,10 @@ std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const Ru
   j["rate_hz"] = setup.config.rate_hz;
   j["display_hz"] = display_hz;
   j["step"] = 0.5 * setup.tool_radius;
+  if (setup.workspace_box) {
+    const Eigen::Vector3d a = setup.workspace_box->min(), b = setup.workspace_box->max();
+    j["workspace_box"] = {{"min", {a.x(), a.y(), a.z()}}, {"max", {b.x(), b.y(), b.z()}}};
+  }
   if (setup.mouse != nullptr) {
     const Eigen::Vector3d p = setup.mouse_start;
     j["tool_start"] = {p.x(), p.y(), p.z()};
@@ -101,7 +105,8 @@ void register_serve(CLI::App& app) {
       "log and summary like `run`.");
   add_runtime_options(*cmd, o->run,
                       "mouse: the tool follows the browser (drag, keys); sim: simulated hand "
-                      "probing the scene; replay:FILE: play a pose log");
+                      "probing the scene; replay:FILE: play a pose log; haply[:N], dhd[:N], "
+                      "openhaptics[:NAME]: a desktop haptic device (`gshaptics devices`)");
   cmd->add_option("--host", o->host, "Address to listen on (127.0.0.1: this machine only)")->capture_default_str();
   cmd->add_option("--port", o->port, "HTTP/WebSocket port (0: any free port)")->capture_default_str()
       ->check(CLI::Range(0, 65535));

@@ -15,10 +15,14 @@
 #include "gshaptics/error.h"
 #include "gshaptics/servo/replay_device.h"
 #include "gshaptics/servo/tick_log.h"
+#include "gshaptics/servo/vendor_devices.h"
 #include "gshaptics/servo/workspace_mapping.h"
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/sim/simulated_device.h"
 #include "gshaptics/sim/pose_sampler.h"
+#ifdef GSHAPTICS_HAVE_VIEWER
+#include "gshaptics/net/haply_device.h"
+#endif
 
 namespace gshaptics::cli {
 
@@ -135,6 +139,8 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
       ->check(check::non_negative());
   cmd.add_option("--bubble-gain", o.bubble_gain, "Rate control gain: world m/s per device m beyond --bubble-radius")
       ->check(check::non_negative());
+  cmd.add_option("--haply-url", o.haply_url, "The Haply Inverse Service's WebSocket (--device haply)")
+      ->capture_default_str();
   cmd.add_option("--log-seconds", o.log_seconds,
                  "Keep only the first S seconds of the per-tick log (reserved up front; default: the "
                  "whole run, or 10 min when open-ended). Long runs: caps the log's memory")
@@ -145,20 +151,134 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
   add_world_options(cmd, o.scene);
 }
 
+namespace {
+/// "kind[:ARG]" -> ARG ("" when absent).
+std::string device_arg(const std::string& device, const std::string& kind) {
+  return device.size() > kind.size() ? device.substr(kind.size() + 1) : std::string();
+}
+int device_index(const std::string& device, const std::string& kind) {
+  const std::string a = device_arg(device, kind);
+  if (a.empty()) return 0;
+  std::size_t used = 0;
+  int i = -1;
+  try {
+    i = std::stoi(a, &used);
+  } catch (...) {
+    used = 0;
+  }
+  if (used != a.size() || i < 0 || i > 63)
+    throw InputError("--device " + device + ": the index after '" + kind + ":' must be a number 0-63");
+  return i;
+}
+bool has_kind(const std::string& device, const std::string& kind) {
+  return device == kind || device.rfind(kind + ":", 0) == 0;
+}
+}  // namespace
+
+bool is_hardware_device(const std::string& device) {
+  return has_kind(device, "haply") || has_kind(device, "dhd") || has_kind(device, "openhaptics");
+}
+
 void check_device_option(const std::string& device, bool allow_mouse) {
   if (device.rfind("replay:", 0) == 0) {
     if (device.size() == 7) throw InputError("--device replay:FILE: no file given");
     return;
   }
+  if (has_kind(device, "haply")) {
+#ifndef GSHAPTICS_HAVE_VIEWER
+    throw InputError("--device haply: this build has no WebSocket client (built without Boost.Beast)");
+#endif
+    (void)device_index(device, "haply");
+    return;
+  }
+  if (has_kind(device, "dhd")) {
+    (void)device_index(device, "dhd");
+    return;
+  }
+  if (has_kind(device, "openhaptics")) return;
   if (device == "sim" || (allow_mouse && device == "mouse")) return;
   throw InputError("--device: expected 'sim', " + std::string(allow_mouse ? "'mouse', " : "") +
-                   "or 'replay:FILE', got '" + device + "'");
+                   "'replay:FILE', 'haply[:N]', 'dhd[:N]' or 'openhaptics[:NAME]', got '" + device +
+                   "' (`gshaptics devices` lists what this machine has)");
 }
 
-void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s) {
+std::unique_ptr<HapticDevice> make_hardware_device(const RuntimeOptions& o) {
+  const std::string& d = o.device;
+  if (has_kind(d, "dhd")) {
+    auto dev = std::make_unique<DhdDevice>(device_index(d, "dhd"));
+    return dev;
+  }
+  if (has_kind(d, "openhaptics")) {
+    OpenHapticsParams p;
+    p.device_name = device_arg(d, "openhaptics");
+    return std::make_unique<OpenHapticsDevice>(p);
+  }
+#ifdef GSHAPTICS_HAVE_VIEWER
+  if (has_kind(d, "haply")) {
+    HaplyParams p;
+    p.index = device_index(d, "haply");
+    // ws://HOST:PORT/PATH
+    const std::string& u = o.haply_url;
+    const std::string scheme = "ws://";
+    if (u.rfind(scheme, 0) != 0) throw InputError("--haply-url: expected ws://HOST:PORT/PATH, got '" + u + "'");
+    const std::string rest = u.substr(scheme.size());
+    const std::size_t slash = rest.find('/');
+    const std::string hostport = rest.substr(0, slash);
+    p.path = slash == std::string::npos ? "/" : rest.substr(slash);
+    const std::size_t colon = hostport.rfind(':');
+    p.host = hostport.substr(0, colon);
+    if (colon != std::string::npos) {
+      std::size_t used = 0;
+      try {
+        p.port = std::stoi(hostport.substr(colon + 1), &used);
+      } catch (...) {
+        used = 0;
+      }
+      if (used == 0 || used != hostport.size() - colon - 1)
+        throw InputError("--haply-url: bad port in '" + u + "'");
+    }
+    if (p.host.empty()) throw InputError("--haply-url: no host in '" + u + "'");
+    return std::make_unique<HaplyDevice>(p);
+  }
+#endif
+  throw InputError("--device " + d + ": not a hardware device in this build");
+}
+
+Eigen::Vector3d tool_start_point(const PreparedWorld& pw, double tool_radius) {
+  const Eigen::Vector3d up = pw.world.up();
+  // Fallback: above the middle of the scene, 12 tool radii over its highest Gaussian.
+  Eigen::Vector3d start = Eigen::Vector3d::Zero();
+  double top = -1e300;
+  for (const auto& g : pw.world.gaussians()) {
+    const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
+    start += c;
+    top = std::max(top, c.dot(up));
+  }
+  start /= double(std::max<std::size_t>(1, pw.world.size()));
+  start += (top - start.dot(up) + 12.0 * tool_radius) * up;
+  try {
+    ProbeParams pp;
+    pp.sites = 7;
+    pp.up = up;
+    pp.tool_radius = tool_radius;
+    const ProbeTrajectory traj = generate_probe_trajectory(pw.world, pp);
+    double best = -2;
+    for (const auto& site : traj.sites())
+      if (site.normal.dot(up) > best) {
+        best = site.normal.dot(up);
+        start = site.surface_point + 12.0 * tool_radius * up;
+      }
+  } catch (const InputError&) {
+    // No site on this scene: keep the point above its middle.
+  }
+  return start;
+}
+
+void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool hardware,
+                               const Eigen::Vector3d& default_offset, const Eigen::Vector3d& world_up) {
   const bool any = !o.workspace_scale.empty() || !o.workspace_offset.empty() || o.clutch_button >= 0 ||
                    o.bubble_radius > 0 || o.bubble_gain > 0;
-  if (!any) return;
+  if (!any && !hardware) return;
   if (s.mouse != nullptr)
     throw InputError("--workspace-*: the mouse device already works in world coordinates");
   WorkspaceMappingParams p;
@@ -172,16 +292,45 @@ void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s) {
     if (used != o.workspace_scale.size() || !std::isfinite(p.scale) || !(p.scale > 0))
       throw InputError("--workspace-scale: must be a finite number > 0, got '" + o.workspace_scale + "'");
   }
+  if (hardware) {
+    // The device frame's z (up at the desk) becomes the world's up; the tool starts at the offset.
+    p.rotation = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), world_up.normalized());
+    p.offset = default_offset;
+  }
   if (!o.workspace_offset.empty()) p.offset = parse_vec3(o.workspace_offset, "--workspace-offset");
   p.clutch_button = o.clutch_button;
   p.bubble_radius = o.bubble_radius;
   p.bubble_gain = o.bubble_gain;
   s.inner = std::move(s.device);
-  s.device = std::make_unique<MappedDevice>(*s.inner, p);
+  auto mapped = std::make_unique<MappedDevice>(*s.inner, p);
+  const Eigen::AlignedBox3d& ws = s.inner->info().workspace;
+  if (ws.sizes().allFinite() && ws.sizes().maxCoeff() < 1e3) s.workspace_box = mapped->mapping().world_box(ws);
+  s.device = std::move(mapped);
   fmt::print("workspace  device x {:.4g} + [{:.3f}, {:.3f}, {:.3f}] -> world{}{}\n", p.scale, p.offset.x(),
              p.offset.y(), p.offset.z(), p.clutch_button >= 0 ? fmt::format(", clutch button {}", p.clutch_button) : "",
              p.bubble_radius > 0 ? fmt::format(", bubble {:.3g} m", p.bubble_radius) : "");
 }
+
+namespace {
+void print_hardware_status(const HapticDevice& d) {
+  std::string status;
+  if (const auto* dhd = dynamic_cast<const DhdDevice*>(&d)) status = dhd->status();
+  if (const auto* hd = dynamic_cast<const OpenHapticsDevice*>(&d))
+    status = fmt::format("{}, nominal max force {:.2g} N", hd->status(), hd->max_force());
+#ifdef GSHAPTICS_HAVE_VIEWER
+  if (const auto* h = dynamic_cast<const HaplyDevice*>(&d))
+    status = fmt::format("Inverse3 {} ({}-handed) at {}{}", h->device_id(),
+                         h->handedness().empty() ? "?" : h->handedness(), h->url(),
+                         h->stats().rate_hz > 0 ? fmt::format(", service {:.0f} Hz", h->stats().rate_hz) : "");
+#endif
+  const Eigen::AlignedBox3d& ws = d.info().workspace;
+  const std::string box = ws.sizes().allFinite() && ws.sizes().maxCoeff() < 1e3
+                              ? fmt::format(", workspace {:.0f} x {:.0f} x {:.0f} mm", ws.sizes().x() * 1e3,
+                                            ws.sizes().y() * 1e3, ws.sizes().z() * 1e3)
+                              : std::string();
+  fmt::print("device     {}: {}{}, up to {:.0f} Hz\n", d.info().name, status, box, d.info().max_rate_hz);
+}
+}  // namespace
 
 RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
                                 bool allow_mouse) {
@@ -199,32 +348,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     if (s.tool_radius <= 0) s.tool_radius = 0.01 * extent;
     // Start above the most upward-facing probe site on the object (or above the middle of the
     // scene when none is found), so that lowering the tool touches the object.
-    const Eigen::Vector3d up = pw.world.up();
-    // Fallback: above the middle of the scene, 12 tool radii over its highest Gaussian.
-    Eigen::Vector3d start = Eigen::Vector3d::Zero();
-    double top = -1e300;
-    for (const auto& g : pw.world.gaussians()) {
-      const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
-      start += c;
-      top = std::max(top, c.dot(up));
-    }
-    start /= double(std::max<std::size_t>(1, pw.world.size()));
-    start += (top - start.dot(up) + 12.0 * s.tool_radius) * up;
-    try {
-      ProbeParams pp;
-      pp.sites = 7;
-      pp.up = up;
-      pp.tool_radius = s.tool_radius;
-      const ProbeTrajectory traj = generate_probe_trajectory(pw.world, pp);
-      double best = -2;
-      for (const auto& site : traj.sites())
-        if (site.normal.dot(up) > best) {
-          best = site.normal.dot(up);
-          start = site.surface_point + 12.0 * s.tool_radius * up;
-        }
-    } catch (const InputError&) {
-      // No site on this scene: keep the point above its middle.
-    }
+    const Eigen::Vector3d start = tool_start_point(pw, s.tool_radius);
     StreamDeviceParams sp;
     sp.name = "mouse (browser)";
     auto dev = std::make_unique<StreamDevice>(sp, start);
@@ -233,6 +357,22 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     s.device = std::move(dev);
     fmt::print("mouse      tool radius {:.4g}, starts at [{:.3f}, {:.3f}, {:.3f}]\n", s.tool_radius,
                start.x(), start.y(), start.z());
+  } else if (is_hardware_device(o.device)) {
+    if (s.tool_radius <= 0) s.tool_radius = 0.01 * robust_extent(pw.world);
+    s.device = make_hardware_device(o);
+    s.device->start(0);  // open now: a missing device is an error before the runtime starts
+    s.device->stop(0);
+    print_hardware_status(*s.device);
+    if (o.workspace_scale.empty()) {
+      const Eigen::AlignedBox3d& ws = s.device->info().workspace;
+      const double reach = ws.sizes().allFinite() && ws.sizes().maxCoeff() < 1e3 ? ws.sizes().minCoeff() : 0.12;
+      const double size = robust_extent(pw.world);
+      if (size > 2 * reach)
+        fmt::print("hint       the scene is {:.3g} units across, the device reaches {:.3g} m: --workspace-scale {:.3g} "
+                   "spans it (forces stay unscaled, so the hand feels the stiffness times that scale), or "
+                   "move with --clutch-button / --bubble-radius\n", size, reach, size / reach);
+    }
+    wrap_in_workspace_mapping(o, s, /*hardware=*/true, tool_start_point(pw, s.tool_radius), pw.world.up());
   } else {
     const std::string file = o.device.substr(7);
     PoseLog log = load_pose_log(file);
@@ -244,7 +384,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     fmt::print("replay     {}: {:.2f} s, tool radius {:.4g}\n", file, replay->duration(), s.tool_radius);
     s.device = std::move(replay);
   }
-  wrap_in_workspace_mapping(o, s);
+  if (!is_hardware_device(o.device)) wrap_in_workspace_mapping(o, s);
   s.config = runtime_config_from(o, s.tool_radius, s.planned);
   fmt::print("runtime    {} at {:.0f} Hz, {} query, {}\n", s.device->info().name, o.rate,
              o.inline_query ? "inline" : "decoupled (worker thread)",

@@ -7,6 +7,7 @@
 #include <csignal>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -51,6 +52,7 @@ struct RuntimeOptions {
   std::string workspace_scale, workspace_offset;  ///< "" : no workspace mapping
   int clutch_button = -1;
   double bubble_radius = 0, bubble_gain = 0;
+  std::string haply_url = "ws://127.0.0.1:10001/";  ///< the Haply Inverse Service
   std::string out_dir;
   bool no_plot = false;
   bool quiet = false;
@@ -65,20 +67,36 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
 struct RuntimeSetup {
   std::unique_ptr<HapticDevice> inner;  ///< the device under a workspace mapping, when one is set
   std::unique_ptr<HapticDevice> device;
+  /// A device that another wrapper around it uses (node: the mapped local device under the tee
+  /// that also publishes its wrench); kept alive with the setup.
+  std::unique_ptr<HapticDevice> inner_keep;
   StreamDevice* mouse = nullptr;
   Eigen::Vector3d mouse_start = Eigen::Vector3d::Zero();  ///< where the mouse device starts
+  /// The device's workspace in the world at start (hardware devices with a known workspace).
+  std::optional<Eigen::AlignedBox3d> workspace_box;
   double tool_radius = 0;
   double planned = 0;  ///< s, 0: open-ended
   RuntimeConfig config;
 };
 /// Checks --device before the scene loads (throws InputError naming the option).
 void check_device_option(const std::string& device, bool allow_mouse);
+/// True for the desktop haptic devices: haply[:N], dhd[:N], openhaptics[:NAME].
+[[nodiscard]] bool is_hardware_device(const std::string& device);
+/// Opens the hardware device a --device value names (InputError: what is missing, what to install).
+[[nodiscard]] std::unique_ptr<HapticDevice> make_hardware_device(const RuntimeOptions& o);
+/// Where a tool starts over a world: above its most upward-facing probe site (or above its
+/// middle), 12 tool radii up. World frame.
+[[nodiscard]] Eigen::Vector3d tool_start_point(const PreparedWorld& pw, double tool_radius);
 RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
                                 bool allow_mouse);
 
-/// With any --workspace-* / --clutch-button / --bubble-* option, puts `s.device` under a
-/// WorkspaceMapping (the original moves to `s.inner`). InputError for the mouse device.
-void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s);
+/// With any --workspace-* / --clutch-button / --bubble-* option, or always for a hardware device
+/// (`hardware`), puts `s.device` under a WorkspaceMapping (the original moves to `s.inner`).
+/// A hardware device's frame (z up) is turned to the world's up and its origin placed at
+/// `default_offset` unless --workspace-offset says otherwise. InputError for the mouse device.
+void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool hardware = false,
+                               const Eigen::Vector3d& default_offset = Eigen::Vector3d::Zero(),
+                               const Eigen::Vector3d& world_up = Eigen::Vector3d::UnitZ());
 
 /// The runtime configuration from the options, for a tool of `tool_radius` and a run of
 /// `planned` seconds (0: open-ended).

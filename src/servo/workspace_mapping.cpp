@@ -1,5 +1,7 @@
 #include "gshaptics/servo/workspace_mapping.h"
 
+#include <cstdio>
+
 #include <cmath>
 
 #include "gshaptics/error.h"
@@ -64,7 +66,9 @@ Eigen::AlignedBox3d WorkspaceMapping::world_box(const Eigen::AlignedBox3d& devic
 
 MappedDevice::MappedDevice(HapticDevice& inner, const WorkspaceMappingParams& params)
     : inner_(inner), mapping_(params), info_(inner.info()) {
-  info_.name = inner.info().name + " (mapped x" + std::to_string(params.scale) + ")";
+  char scale[32];
+  std::snprintf(scale, sizeof scale, "%.4g", params.scale);
+  info_.name = inner.info().name + " (mapped x" + scale + ")";
   // The mapping drifts (clutch, bubble), so the inner device's workspace is no fixed world box:
   // read() checks it in device coordinates instead, and leaves the world box unbounded.
   info_.workspace = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1e300), Eigen::Vector3d::Constant(1e300));
