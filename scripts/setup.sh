@@ -10,6 +10,7 @@ PACKAGES=(cmake g++ make pkg-config libeigen3-dev libcli11-dev nlohmann-json3-de
           python3-pytest pybind11-dev clang libclang-rt-14-dev
           libboost-dev chromium
           cyclonedds-dev cyclonedds-tools
+          libfastrtps-dev fastddsgen default-jre-headless
           libroscpp-dev ros-core libgeometry-msgs-dev libvisualization-msgs-dev
           python3-rostopic python3-geometry-msgs python3-visualization-msgs)
 # The viewer's front-end packages come from npm (web/package-lock.json); Node.js from Debian
