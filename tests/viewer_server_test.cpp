@@ -81,6 +81,11 @@ class Viewer : public ::testing::Test {
   void SetUp() override {
     StreamDeviceParams sp;
     sp.name = "mouse";
+    if (xr_) {  // as `serve --device xr` makes it
+      sp.name = "xr controller";
+      sp.input_timeout = 0.25;
+      sp.alive_before_first_target = false;
+    }
     mouse_ = std::make_unique<StreamDevice>(sp, Eigen::Vector3d(0, 0, 4));
     RuntimeConfig rc;
     rc.tool.semi_axes = Eigen::Vector3d::Constant(0.08);
@@ -95,6 +100,7 @@ class Viewer : public ::testing::Test {
     vc.scene_path = test::data_path("truck.splat");
     vc.hello_json = R"({"type":"hello","protocol":1,"scene_url":"/scene"})";
     vc.token = token_;
+    vc.repeat_targets = !xr_;
     server_ = std::make_unique<ViewerServer>(vc, *runtime_, *world_, *snapshots_, mouse_.get(),
                                              MonotonicClock::instance());
     runtime_->start();
@@ -108,6 +114,7 @@ class Viewer : public ::testing::Test {
 
   static const CollisionWorld* world_;
   std::string token_;
+  bool xr_ = false;
   std::unique_ptr<StreamDevice> mouse_;
   std::unique_ptr<HapticRuntime> runtime_;
   std::unique_ptr<ContactSnapshotObserver> snapshots_;
@@ -281,6 +288,64 @@ TEST_F(Viewer, OversizeFramesFloodsAndConnectionsStayWithinTheLimits) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double rate = double(rs.ticks.load() - ticks0) / wall;
   EXPECT_GT(rate, 0.8 * runtime_->config().rate_hz) << rate << " Hz over " << wall << " s";
+}
+
+class ViewerXr : public Viewer {
+ protected:
+  void SetUp() override {
+    xr_ = true;
+    Viewer::SetUp();
+  }
+};
+
+TEST_F(ViewerXr, ControllerPoseSteersWithOrientationAndItsSilenceFadesTheForce) {
+  asio::io_context io;
+  tcp::resolver resolver(io);
+  websocket::stream<beast::tcp_stream> ws(io);
+  beast::get_lowest_layer(ws).connect(resolver.resolve("127.0.0.1", std::to_string(server_->port())));
+  ws.handshake("127.0.0.1", "/ws");
+  beast::flat_buffer buf;
+  ws.read(buf);
+  buf.consume(buf.size());
+  const auto read_state = [&] {
+    ws.read(buf);
+    json j = json::parse(beast::buffers_to_string(buf.data()));
+    buf.consume(buf.size());
+    return j;
+  };
+  const auto force = [](const json& j) {
+    return std::hypot(double(j["force"][0]), double(j["force"][1]), double(j["force"][2]));
+  };
+  // Before any controller pose: no data, so no force (the device is not alive).
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(force(read_state()), 0.0);
+  // A controller pose with an orientation (w first, not normalised), at the headset's rate.
+  const json rot = {2.0, 0.0, 0.0, 2.0};  // 90 degrees about z
+  const auto t0 = std::chrono::steady_clock::now();
+  json last;
+  bool touched = false;
+  for (int i = 0; std::chrono::steady_clock::now() - t0 < std::chrono::seconds(20); ++i) {
+    const double z = std::max(0.5, 1.6 - 0.05 * i);
+    ws.write(asio::buffer(json{{"type", "tool"}, {"center", {0.0, 0.0, z}}, {"rotation", rot}}.dump()));
+    last = read_state();
+    if (last["counts"]["contacts"].get<int>() > 0 && force(last) > 0) {
+      touched = true;
+      break;
+    }
+  }
+  ASSERT_TRUE(touched) << last.dump().substr(0, 300);
+  EXPECT_NEAR(last["tool"]["rotation"][0].get<double>(), std::sqrt(0.5), 1e-6);
+  EXPECT_NEAR(last["tool"]["rotation"][3].get<double>(), std::sqrt(0.5), 1e-6);
+  // A rotation that is not a quaternion is counted and ignored.
+  ws.write(asio::buffer(json{{"type", "tool"}, {"center", {0.0, 0.0, 0.5}}, {"rotation", {0, 0, 0}}}.dump()));
+  // The controller stops reporting (the session ended, tracking lost) while the page stays
+  // connected: the server does not repeat its pose, the device times out, the force goes to zero.
+  const auto t1 = std::chrono::steady_clock::now();
+  double f = force(last);
+  while (f > 0 && std::chrono::steady_clock::now() - t1 < std::chrono::seconds(10)) f = force(read_state());
+  EXPECT_EQ(f, 0.0);
+  EXPECT_GE(std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count(), 0.2);
+  EXPECT_EQ(server_->stats().bad_messages.load(), 1u);
+  ws.close(websocket::close_code::normal);
 }
 
 class ViewerWithToken : public Viewer {

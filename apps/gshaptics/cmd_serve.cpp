@@ -75,7 +75,8 @@ std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const Ru
   j["bounds"] = {{"min", lo}, {"max", hi}};
   j["tool"] = {{"axes", {setup.tool_radius, setup.tool_radius, setup.tool_radius}}};
   j["device"] = setup.device->info().name;
-  j["mouse"] = setup.mouse != nullptr;
+  j["mouse"] = setup.mouse != nullptr && !setup.xr;
+  j["xr"] = setup.xr;
   j["f_max"] = setup.config.force.f_max;
   j["rate_hz"] = setup.config.rate_hz;
   j["display_hz"] = display_hz;
@@ -104,7 +105,8 @@ void register_serve(CLI::App& app) {
       "page steer the tool (drag the tool, arrows/WASD/QE keys). Ctrl-C stops and writes the run's "
       "log and summary like `run`.");
   add_runtime_options(*cmd, o->run,
-                      "mouse: the tool follows the browser (drag, keys); sim: simulated hand "
+                      "mouse: the tool follows the browser (drag, keys); xr: the VR controller of "
+                      "the page's WebXR session (vibration as feedback); sim: simulated hand "
                       "probing the scene; replay:FILE: play a pose log; haply[:N], dhd[:N], "
                       "openhaptics[:NAME]: a desktop haptic device (`gshaptics devices`)");
   cmd->add_option("--host", o->host, "Address to listen on (127.0.0.1: this machine only)")->capture_default_str();
@@ -158,6 +160,7 @@ void register_serve(CLI::App& app) {
     warn_if_outside_profile(pw, o->run.force);
     RuntimeSetup setup = make_runtime_setup(o->run, so, pw, true);
     vc.hello_json = hello_json(pw, so, setup, o->display_rate);
+    vc.repeat_targets = !setup.xr;  // a VR controller that stops reporting must time out
     if (pw.scene.report.format == SceneFormat::kSpz && pw.scene.report.version >= 4) {
       // The page's splat renderer (Spark 2.2) reads SPZ as one gzip stream only: re-pack v4.
       const std::vector<std::uint8_t> gz = spz_as_gzip(MappedFile(so.scene).bytes(), so.scene);

@@ -196,8 +196,8 @@ void check_device_option(const std::string& device, bool allow_mouse) {
     return;
   }
   if (has_kind(device, "openhaptics")) return;
-  if (device == "sim" || (allow_mouse && device == "mouse")) return;
-  throw InputError("--device: expected 'sim', " + std::string(allow_mouse ? "'mouse', " : "") +
+  if (device == "sim" || (allow_mouse && (device == "mouse" || device == "xr"))) return;
+  throw InputError("--device: expected 'sim', " + std::string(allow_mouse ? "'mouse', 'xr', " : "") +
                    "'replay:FILE', 'haply[:N]', 'dhd[:N]' or 'openhaptics[:NAME]', got '" + device +
                    "' (`gshaptics devices` lists what this machine has)");
 }
@@ -357,6 +357,23 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     s.device = std::move(dev);
     fmt::print("mouse      tool radius {:.4g}, starts at [{:.3f}, {:.3f}, {:.3f}]\n", s.tool_radius,
                start.x(), start.y(), start.z());
+  } else if (o.device == "xr") {
+    // A VR controller in the page's WebXR session: 6-DoF targets at the headset's frame rate
+    // (72-120 Hz), interpolated to the servo rate like the mouse; no force before the first
+    // controller pose, and none once the controller stops reporting for 0.25 s.
+    if (s.tool_radius <= 0) s.tool_radius = 0.01 * robust_extent(pw.world);
+    const Eigen::Vector3d start = tool_start_point(pw, s.tool_radius);
+    StreamDeviceParams sp;
+    sp.name = "xr controller (WebXR)";
+    sp.input_timeout = 0.25;
+    sp.alive_before_first_target = false;
+    auto dev = std::make_unique<StreamDevice>(sp, start);
+    s.mouse_start = start;
+    s.mouse = dev.get();
+    s.xr = true;
+    s.device = std::move(dev);
+    fmt::print("xr         tool radius {:.4g}; enter VR in the page; the right controller is the tool\n",
+               s.tool_radius);
   } else if (is_hardware_device(o.device)) {
     if (s.tool_radius <= 0) s.tool_radius = 0.01 * robust_extent(pw.world);
     s.device = make_hardware_device(o);

@@ -70,7 +70,8 @@ struct RuntimeSetup {
   /// A device that another wrapper around it uses (node: the mapped local device under the tee
   /// that also publishes its wrench); kept alive with the setup.
   std::unique_ptr<HapticDevice> inner_keep;
-  StreamDevice* mouse = nullptr;
+  StreamDevice* mouse = nullptr;  ///< the device the page steers (mouse or XR controller)
+  bool xr = false;                ///< --device xr: the page's VR controller steers it
   Eigen::Vector3d mouse_start = Eigen::Vector3d::Zero();  ///< where the mouse device starts
   /// The device's workspace in the world at start (hardware devices with a known workspace).
   std::optional<Eigen::AlignedBox3d> workspace_box;

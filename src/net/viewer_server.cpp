@@ -137,6 +137,7 @@ struct ViewerServer::Impl {
   TickRecord tick;
   ContactSnapshot snapshot;
   Eigen::Vector3d mouse_target = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond mouse_rotation = Eigen::Quaterniond::Identity();
   bool have_mouse_target = false;
   std::uint16_t bound_port = 0;
   bool stopping = false;
@@ -399,7 +400,7 @@ void ViewerServer::Impl::accept() {
 }
 
 void ViewerServer::Impl::on_tool_message(const std::string& text) {
-  // {"type":"tool","center":[x,y,z]}; anything else is counted and ignored.
+  // {"type":"tool","center":[x,y,z][,"rotation":[w,x,y,z]]}; anything else is counted and ignored.
   const auto j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (!j.is_object() || j.value("type", "") != "tool" || !j.contains("center") ||
       !j["center"].is_array() || j["center"].size() != 3) {
@@ -414,11 +415,27 @@ void ViewerServer::Impl::on_tool_message(const std::string& text) {
     }
     c[k] = j["center"][std::size_t(k)].get<double>();
   }
+  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+  if (j.contains("rotation")) {  // the tool's orientation (a tracked controller), w first
+    const auto& r = j["rotation"];
+    if (!r.is_array() || r.size() != 4 || !r[0].is_number() || !r[1].is_number() || !r[2].is_number() ||
+        !r[3].is_number()) {
+      stats.bad_messages.fetch_add(1);
+      return;
+    }
+    q = Eigen::Quaterniond(r[0].get<double>(), r[1].get<double>(), r[2].get<double>(), r[3].get<double>());
+    if (!q.coeffs().allFinite() || q.norm() < 1e-6) {
+      stats.bad_messages.fetch_add(1);
+      return;
+    }
+    q.normalize();
+  }
   stats.tool_messages.fetch_add(1);
   // A NaN pose is passed on: the runtime's safety layer drops and counts it.
   mouse_target = c;
+  mouse_rotation = q;
   have_mouse_target = true;
-  if (mouse != nullptr) mouse->set_target(c, Eigen::Quaterniond::Identity(), clock.now());
+  if (mouse != nullptr) mouse->set_target(c, q, clock.now());
 }
 
 void ViewerServer::Impl::tick_display() {
@@ -426,8 +443,8 @@ void ViewerServer::Impl::tick_display() {
   // While a browser is connected, the mouse device is alive even when the page is too busy
   // rendering (software GL: ~1 frame/s) to send: repeat its last target. When every page is
   // gone, the targets stop and the runtime's watchdog zeroes the force.
-  if (mouse != nullptr && have_mouse_target && stats.clients.load() > 0)
-    mouse->set_target(mouse_target, Eigen::Quaterniond::Identity(), clock.now());
+  if (config.repeat_targets && mouse != nullptr && have_mouse_target && stats.clients.load() > 0)
+    mouse->set_target(mouse_target, mouse_rotation, clock.now());
   if (runtime.latest_tick(tick)) {
     contacts.take(snapshot);
     auto frame = std::make_shared<const std::string>(ViewerServer::state_json(

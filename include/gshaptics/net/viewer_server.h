@@ -8,7 +8,8 @@
 /// Protocol (JSON text frames on ws://HOST:PORT/ws; documented in docs/viewer_protocol.md):
 ///   server -> client, once: {"type":"hello", scene, registration, tool, force limit, bounds...}
 ///   server -> client, at display rate: {"type":"state", tool pose, force, counts, stats, contacts}
-///   client -> server: {"type":"tool","center":[x,y,z]} (mouse device; also a keep-alive)
+///   client -> server: {"type":"tool","center":[x,y,z][,"rotation":[w,x,y,z]]} (the mouse or XR
+///   controller device; also a keep-alive)
 ///
 /// Threading contract: all network work runs on one server thread started by start(); it is
 /// the single reader of HapticRuntime::latest_tick() and ContactSnapshotObserver::take(), and
@@ -47,6 +48,10 @@ struct ViewerConfig {
   /// compared in constant time. `gshaptics serve` makes one off loopback.
   std::string token;
   ViewerLimits limits;
+  /// While a page is connected, re-send the steered device's last target at the display rate
+  /// (the mouse device: a page busy rendering still holds the tool). false for a tracked device
+  /// (a VR controller): when its page stops reporting, the device times out and the force fades.
+  bool repeat_targets = true;
 };
 
 /// Counters of the server (any thread may read).
