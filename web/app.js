@@ -6,6 +6,7 @@
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
 import { SparkRenderer, SplatMesh } from "@sparkjsdev/spark";
+import { maybeEmulateXR, qualityFromUrl, setupXR, vibrate } from "./xr.js";
 
 const $ = (id) => document.getElementById(id);
 const MAX_SHOWN = 2048;
@@ -17,6 +18,11 @@ const view = {
   history: [], last: null, dragging: false, dragPlane: new THREE.Plane(), dragOffset: new THREE.Vector3(),
 };
 window.gshaptics = view; // for tests and the console
+view.quality = qualityFromUrl();
+view.perf = { fps: 0, frames: 0, since: performance.now(), splats: 0 };
+// ?xr-emulate=quest3: an emulated headset (IWER) before anything asks for navigator.xr.
+const xrEmulation = maybeEmulateXR().then((d) => { window.gshapticsXR = d; return d; })
+  .catch((e) => { showError(`XR emulation failed: ${e.message}`); return null; });
 
 // Errors show in the page, not only in the console: a scene the renderer cannot read, a server
 // that stopped, a script error.
@@ -47,7 +53,7 @@ ws.onclose = () => {
 };
 ws.onmessage = (ev) => {
   const m = JSON.parse(ev.data);
-  if (m.type === "hello") init(m);
+  if (m.type === "hello") xrEmulation.then(() => init(m));
   else if (m.type === "state" && view.hello) update(m);
 };
 
@@ -73,9 +79,16 @@ function init(h) {
   camera.position.copy(center).addScaledVector(side.normalize(), dist).addScaledVector(view.up, 0.45 * dist);
   view.follow = true;
   const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
+  renderer.setPixelRatio(Math.min(devicePixelRatio, 2) * view.quality.scale);
   renderer.setSize(innerWidth, innerHeight);
   $("view").appendChild(renderer.domElement);
-  scene.add(new SparkRenderer({ renderer }));
+  const quality = view.quality;
+  scene.add(new SparkRenderer({ renderer, maxStdDev: quality.maxStdDev,
+    ...(quality.splats > 0 ? { lodSplatCount: quality.splats } : {}) }));
+  // Everything in the world frame hangs under one root: identity on the desktop; in VR it turns
+  // the scene's up onto the headset's up and places the scene around the user (xr.js).
+  const root = new THREE.Group();
+  scene.add(root);
   const controls = new OrbitControls(camera, renderer.domElement);
   controls.target.copy(center);
   controls.update();
@@ -83,12 +96,14 @@ function init(h) {
   // The scene file as stored, placed by the registration: x_world = s R x_file + t (paper eq. 3).
   setLoading(`loading ${h.scene_name}…`, 0);
   const splat = new SplatMesh({
-    url: h.scene_url, fileType: h.file_type,
+    url: h.scene_url, fileType: h.file_type, ...(quality.splats > 0 ? { lod: true } : {}),
     onProgress: (e) => {
       if (e && e.total > 0) setLoading(`loading ${h.scene_name}: ${(e.loaded / 1e6).toFixed(1)} of ${(e.total / 1e6).toFixed(1)} MB`, e.loaded / e.total);
     },
   });
   splat.initialized.then(() => {
+    view.perf.splats = splat.numSplats || (splat.packedSplats && splat.packedSplats.numSplats) || h.gaussians_in_file;
+    view.perf.budget = quality.splats;
     setLoading(null);
     document.body.dataset.sceneLoaded = "1";
   }).catch((err) => {
@@ -100,33 +115,33 @@ function init(h) {
   splat.scale.setScalar(reg.scale);
   splat.quaternion.set(reg.rotation[1], reg.rotation[2], reg.rotation[3], reg.rotation[0]);
   splat.position.set(...reg.translation);
-  scene.add(splat);
+  root.add(splat);
 
   const tool = new THREE.Mesh(new THREE.SphereGeometry(1, 16, 10),
     new THREE.MeshBasicMaterial({ color: 0x66ccff, wireframe: true, transparent: true, opacity: 0.45, depthTest: false }));
   tool.scale.set(...h.tool.axes);
   tool.renderOrder = 1000; // overlays: drawn after the splats, visible inside the surface
-  scene.add(tool);
+  root.add(tool);
   // The proxy (god-object): a ghost of the tool where the force model holds it, on the surface.
   const proxy = new THREE.Mesh(new THREE.SphereGeometry(1, 16, 10),
     new THREE.MeshBasicMaterial({ color: 0x99ff99, wireframe: true, transparent: true, opacity: 0.35, depthTest: false }));
   proxy.scale.set(...h.tool.axes);
   proxy.renderOrder = 999;
   proxy.visible = false;
-  scene.add(proxy);
+  root.add(proxy);
   const contacts = new THREE.InstancedMesh(new THREE.SphereGeometry(1, 10, 6),
     new THREE.MeshBasicMaterial({ color: 0xff2244, transparent: true, opacity: 0.85, depthTest: false }), MAX_SHOWN);
   contacts.count = 0;
   contacts.renderOrder = 1001;
   contacts.frustumCulled = false; // its bounding sphere would be cached from the first (empty) frame
-  scene.add(contacts);
+  root.add(contacts);
   const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0, 0xffaa00);
   arrow.visible = false;
   arrow.traverse((o) => {
     o.renderOrder = 1002;
     if (o.material) Object.assign(o.material, { depthTest: false, transparent: true });
   });
-  scene.add(arrow);
+  root.add(arrow);
   // A desktop device's workspace, mapped into the scene (its placement at start; the clutch and
   // bubble navigation move it during the run).
   if (h.workspace_box) {
@@ -136,10 +151,10 @@ function init(h) {
     helper.material.depthTest = false;
     helper.material.transparent = true;
     helper.name = "workspace";
-    scene.add(helper);
+    root.add(helper);
   }
 
-  Object.assign(view, { scene, camera, renderer, controls, splat, tool, proxy, contacts, arrow, extent });
+  Object.assign(view, { scene, camera, renderer, controls, splat, tool, proxy, contacts, arrow, extent, root });
   addEventListener("resize", () => {
     camera.aspect = innerWidth / innerHeight;
     camera.updateProjectionMatrix();
@@ -152,7 +167,31 @@ function init(h) {
   addEventListener("keydown", (e) => {
     if (e.key.toLowerCase() === "f") view.follow = !view.follow;
   });
-  renderer.setAnimationLoop(() => { controls.update(); renderer.render(scene, camera); });
+  renderer.setAnimationLoop((time, frame) => {
+    if (frame && view.onXRFrame) view.onXRFrame(frame);
+    else controls.update();
+    renderer.render(scene, camera);
+    countFrame();
+  });
+  setupXR(view, ws, { steer: !!h.xr }).then((ok) => {
+    view.xrAvailable = ok;
+    if (h.xr) $("help").innerHTML = ok
+      ? "Enter VR (button below): the right controller is the tool and vibrates on contact; left grip drags the world, left trigger resets it."
+      : "--device xr: this browser offers no immersive VR session (open the page in a headset's browser).";
+  }).catch((e) => showError(`WebXR: ${e.message}`));
+}
+
+function countFrame() {
+  const p = view.perf, now = performance.now();
+  p.frames++;
+  if (now - p.since >= 1000) {
+    p.fps = (1000 * p.frames) / (now - p.since);
+    p.frames = 0;
+    p.since = now;
+    const el = $("perf");
+    if (el) el.textContent = `${p.fps.toFixed(1)} fps${view.xr && view.xr.active ? " (VR)" : ""} / ` +
+      `${p.splats.toLocaleString()}${p.budget ? `, LoD budget ${p.budget.toLocaleString()}` : ""} (${view.quality.name})`;
+  }
 }
 
 const tmpM = new THREE.Matrix4(), tmpQ = new THREE.Quaternion(), tmpP = new THREE.Vector3(), tmpS = new THREE.Vector3();
@@ -214,6 +253,7 @@ function update(m) {
   $("tool").textContent = m.tool.center.map((x) => x.toFixed(3)).join(", ");
   document.body.dataset.contacts = m.counts.contacts;
   document.body.dataset.force = fm.toFixed(4);
+  vibrate(view, m, fm);
 
   view.history.push([m.counts.contacts, fm]);
   if (view.history.length > PLOT_SAMPLES) view.history.shift();

@@ -30,14 +30,6 @@ std::string describe(const HapticDevice& d) {
   return fmt::format("{}: {}up to {:.0f} Hz", d.info().name, box, d.info().max_rate_hz);
 }
 
-/// Opens a device briefly (start, then stop at zero force) and says what it is.
-std::string open_and_describe(HapticDevice& d, const std::string& extra = {}) {
-  d.start(0);
-  std::string s = describe(d);
-  if (!extra.empty()) s += ", " + extra;
-  d.stop(0);
-  return s;
-}
 }  // namespace
 
 void register_devices(CLI::App& app) {

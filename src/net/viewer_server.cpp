@@ -371,7 +371,9 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
     }
     const bool allowed = target.rfind("/node_modules/three/", 0) == 0 ||
                          target.rfind("/node_modules/@sparkjsdev/spark/", 0) == 0 ||
-                         target == "/app.js" || target == "/style.css";
+                         // WebXR emulation (?xr-emulate=...): IWER's self-contained build
+                         target.rfind("/node_modules/iwer/build/", 0) == 0 ||
+                         target == "/app.js" || target == "/xr.js" || target == "/style.css";
     if (!allowed) return text(http::status::not_found, "not found\n");
     file(srv.config.web_root + target);
   }
