@@ -184,6 +184,7 @@ function init(h) {
 function countFrame() {
   const p = view.perf, now = performance.now();
   p.frames++;
+  p.total = (p.total || 0) + 1;
   if (now - p.since >= 1000) {
     p.fps = (1000 * p.frames) / (now - p.since);
     p.frames = 0;
