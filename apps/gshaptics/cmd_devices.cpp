@@ -47,6 +47,7 @@ void register_devices(CLI::App& app) {
     row("replay:FILE", true, "a pose log (CSV time_s,x,y,z[,...]) played back (run, serve)");
 #ifdef GSHAPTICS_HAVE_VIEWER
     row("mouse", true, "the browser page steers the tool (serve)");
+    row("xr", true, "a VR controller in the page's WebXR session steers the tool, vibration as feedback (serve)");
 #else
     row("mouse", false, "built without the viewer (Boost.Beast); reconfigure with it");
 #endif
