@@ -47,7 +47,7 @@ double peak_rss_mb() {
 }
 
 struct BenchOptions {
-  std::string scenes = "truck,truck-probe,karangkidul,karangkidul-4M,karangkidul-10M";
+  std::string scenes = "truck,truck-probe,truck-probe-cached,karangkidul,karangkidul-4M,karangkidul-10M";
   std::size_t poses = 2000;
   std::size_t peer_poses = 300;
   std::size_t reference_poses = 20;
@@ -78,6 +78,7 @@ struct BenchScene {
   double radius_min = 0, radius_max = 0;  // tool radius, fraction of the base scene's extent
   int tiles = 1;
   bool probe = false;
+  double cache_margin = 0;  // candidate cache margin, fraction of the tool radius (0: none)
 };
 
 // Copies of `base` side by side on a grid in the x-z plane (y is up/down in 3DGS scenes), each
@@ -128,7 +129,8 @@ void register_bench(CLI::App& app) {
       "near-surface pose sets of real scenes, side by side with the paper's method and FCL on "
       "the same poses, checked against the float64 brute-force reference. Scenes: truck (bundled, "
       "registered; tool radius 1-2% of extent), truck-probe (every 1 kHz tick of the probe "
-      "trajectory), karangkidul (0.5-1.5%), karangkidul-4M and -10M (tiled in memory).");
+      "trajectory), truck-probe-cached (the same with the servo loop's candidate cache, margin a "
+      "quarter of the tool radius), karangkidul (0.5-1.5%), karangkidul-4M and -10M (tiled in memory).");
   cmd->add_option("--scenes", o->scenes, "Comma-separated scene sets")->capture_default_str();
   cmd->add_option("--poses", o->poses, "Poses per scene for gshaptics")->capture_default_str();
   cmd->add_option("--peer-poses", o->peer_poses, "Of those, poses run by the peers too")->capture_default_str();
@@ -151,12 +153,13 @@ void register_bench(CLI::App& app) {
     while (std::getline(ss, name, ',')) {
       BenchScene b;
       b.name = name;
-      if (name == "truck" || name == "truck-probe") {
+      if (name == "truck" || name == "truck-probe" || name == "truck-probe-cached") {
         b.file = "truck.splat";
         b.config.registration = load_registration_file(bundled_registration());
         b.radius_min = 0.01;
         b.radius_max = 0.02;
-        b.probe = name == "truck-probe";
+        b.probe = name != "truck";
+        if (name == "truck-probe-cached") b.cache_margin = 0.25;
       } else if (name.rfind("karangkidul", 0) == 0) {
         b.file = "karangkidul_crop.ply";
         b.radius_min = 0.005;
@@ -166,7 +169,7 @@ void register_bench(CLI::App& app) {
         if (name != "karangkidul" && b.tiles == 1) throw InputError("bench: unknown scene set '" + name + "'");
       } else {
         throw InputError("bench: unknown scene set '" + name +
-                         "' (truck, truck-probe, karangkidul, karangkidul-4M, karangkidul-10M)");
+                         "' (truck, truck-probe, truck-probe-cached, karangkidul, karangkidul-4M, karangkidul-10M)");
       }
       sets.push_back(std::move(b));
     }
@@ -213,8 +216,11 @@ void register_bench(CLI::App& app) {
         poses = sample_poses(world, p);
       }
 
-      // gshaptics: query + force model per pose, as in a servo tick.
-      ContactQuery query(world);
+      // gshaptics: query + force model per pose, as in a servo tick (the servo loop's candidate
+      // cache on truck-probe-cached: margin a quarter of the tool radius).
+      QueryOptions qo;
+      if (b.cache_margin > 0 && !poses.empty()) qo.cache_margin = b.cache_margin * poses.front().semi_axes.maxCoeff();
+      ContactQuery query(world, qo);
       ForceModel force;
       std::vector<double> ours_us;
       ours_us.reserve(poses.size());

@@ -7,10 +7,13 @@
 
 #include <algorithm>
 #include <map>
+#include <cstring>
 #include <random>
 
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/sim/pose_sampler.h"
+#include "gshaptics/sim/probe_run.h"
+#include "gshaptics/sim/probe_trajectory.h"
 #include "support/reference.h"
 #include "support/scenes.h"
 
@@ -206,6 +209,117 @@ TEST(ContactQuery, GoldenSectionOptionAgreesOnContacts) {
   }
   EXPECT_GT(total, 100u);
   EXPECT_LE(differ, total / 100);  // 30 golden steps can call a few grazing pairs wrongly
+}
+
+}  // namespace
+}  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+// The candidate cache must not change a single bit: same contacts (index, slot, opacity, K_min,
+// centre) in the same order, same counts and status, whatever the sequence of tools.
+void expect_bit_identical(const ContactSet& a, const ContactSet& b, const std::string& what) {
+  ASSERT_EQ(a.contacts().size(), b.contacts().size()) << what;
+  EXPECT_EQ(a.counts.candidates, b.counts.candidates) << what;
+  EXPECT_EQ(a.counts.prefiltered, b.counts.prefiltered) << what;
+  EXPECT_EQ(a.counts.contacts, b.counts.contacts) << what;
+  for (std::size_t i = 0; i < a.contacts().size(); ++i) {
+    const Contact& x = a.contacts()[i];
+    const Contact& y = b.contacts()[i];
+    ASSERT_EQ(x.index, y.index) << what << " #" << i;
+    EXPECT_EQ(x.slot, y.slot) << what;
+    EXPECT_EQ(x.opacity, y.opacity) << what;
+    EXPECT_EQ(std::memcmp(&x.k_min, &y.k_min, sizeof(double)), 0) << what << ": K_min " << x.k_min << " vs " << y.k_min;
+    EXPECT_EQ(x.center, y.center) << what;
+  }
+}
+
+// Runs a tool sequence through a plain and a cached query; returns the cache's statistics.
+CandidateCacheStats run_both(const CollisionWorld& world, const std::vector<ToolEllipsoid>& tools, double margin,
+                             const std::string& what) {
+  ContactQuery plain(world);
+  QueryOptions o;
+  o.cache_margin = margin;
+  ContactQuery cached(world, o);
+  for (std::size_t i = 0; i < tools.size(); ++i) {
+    const QueryStatus sp = plain.run(tools[i]);
+    const QueryStatus sc = cached.run(tools[i]);
+    EXPECT_EQ(sp, sc) << what << " tick " << i;
+    expect_bit_identical(plain.result(), cached.result(), what + " tick " + std::to_string(i));
+    if (::testing::Test::HasFailure()) break;
+  }
+  return cached.cache_stats();
+}
+
+TEST(CandidateCache, ReplayedProbeTrajectoryIsBitIdenticalAndMostlyHits) {
+  const CollisionWorld& world = test::truck_world();
+  ProbeParams pp;
+  pp.tool_radius = 0.01 * robust_extent(world);
+  pp.approach_speed = 2 * pp.tool_radius;
+  pp.travel_speed = 8 * pp.tool_radius;
+  pp.sites = 3;
+  const ProbeTrajectory traj = generate_probe_trajectory(world, pp);
+  const ProbeRunResult run = run_probe(world, traj, {});
+  std::vector<ToolEllipsoid> tools;
+  for (const TickRecord& r : run.ticks) tools.push_back(ToolEllipsoid::sphere(r.position, pp.tool_radius));
+  ASSERT_GT(tools.size(), 1000u);
+  const CandidateCacheStats s = run_both(world, tools, 0.25 * pp.tool_radius, "truck probe");
+  EXPECT_EQ(s.hits + s.refills, tools.size());
+  EXPECT_GT(double(s.hits), 0.8 * double(tools.size()));  // 1 kHz ticks move far less than the margin
+}
+
+TEST(CandidateCache, RandomJumpsAndShapesLeavingTheMarginAreBitIdentical) {
+  const CollisionWorld& world = test::truck_world();
+  // A random walk with small steps, large jumps, and changes of tool shape and orientation.
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  PoseSamplerParams p;
+  p.count = 200;
+  p.seed = 3;
+  p.anisotropic = true;
+  const std::vector<ToolEllipsoid> anchors = sample_poses(world, p);
+  std::vector<ToolEllipsoid> tools;
+  for (const ToolEllipsoid& a : anchors) {
+    ToolEllipsoid t = a;
+    for (int k = 0; k < 10; ++k) {  // small moves around the anchor, some beyond the margin
+      t.center += Eigen::Vector3d(u(rng), u(rng), u(rng)) * 0.2 * a.semi_axes.maxCoeff();
+      if (k == 5) t.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(u(rng) * 3, Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized()));
+      if (k == 7) t.semi_axes *= 0.6;
+      tools.push_back(t);
+    }
+  }
+  const CandidateCacheStats s = run_both(world, tools, 0.1 * anchors[0].semi_axes.maxCoeff(), "truck walk");
+  EXPECT_GT(s.hits, 0u);
+  EXPECT_GT(s.refills, anchors.size());  // every jump to a new anchor refilled
+}
+
+TEST(CandidateCache, RealSceneAndATinyCacheThatOverflows) {
+  GSHAPTICS_REQUIRE_SCENES();
+  const LoadedScene s = load_scene(test::scene_path("karangkidul_crop.ply"));
+  const CollisionWorld world = CollisionWorld::build(s.scene, {});
+  PoseSamplerParams p;
+  p.count = 300;
+  p.seed = 11;
+  p.radius_min = 0.005;
+  p.radius_max = 0.015;
+  std::vector<ToolEllipsoid> tools;
+  for (const ToolEllipsoid& a : sample_poses(world, p))
+    for (int k = 0; k < 5; ++k) tools.push_back(ToolEllipsoid::sphere(a.center + Eigen::Vector3d(0, 0, 0.02 * k * a.semi_axes.x()), a.semi_axes.x()));
+  const CandidateCacheStats big = run_both(world, tools, 0.1 * tools[0].semi_axes.x(), "karangkidul_crop");
+  EXPECT_GT(big.hits, 0u);
+  // A cache of 2 leaves overflows on almost every refill and falls back to the traversal.
+  ContactQuery plain(world);
+  QueryOptions o;
+  o.cache_margin = 0.1 * tools[0].semi_axes.x();
+  o.cache_leaves = 2;
+  ContactQuery tiny(world, o);
+  for (std::size_t i = 0; i < 200; ++i) {
+    plain.run(tools[i]);
+    tiny.run(tools[i]);
+    expect_bit_identical(plain.result(), tiny.result(), "tiny cache tick " + std::to_string(i));
+  }
+  EXPECT_GT(tiny.cache_stats().overflows, 0u);
 }
 
 }  // namespace

@@ -100,6 +100,11 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
                  "length for replay, until Ctrl-C for mouse; a longer sim run repeats the trajectory)")
       ->check(check::positive());
   cmd.add_flag("--inline", o.inline_query, "Run the query inside the servo tick instead of on the worker thread");
+  cmd.add_option("--candidate-cache", o.candidate_cache,
+                 "Servo-loop candidate cache of the paper model's contact query: margin as a fraction of the "
+                 "tool radius (the BVH leaves near the tool are reused while the tool stays within it; "
+                 "results are bit-identical); 0: off")
+      ->capture_default_str()->check(check::range(0.0, 10.0));
   cmd.add_option("--sites", o.sites, "Contact sites of the simulated probe")->capture_default_str()
       ->check(CLI::Range(1, 100));
   cmd.add_option("--seed", o.seed, "Seed of the site choice")->capture_default_str();
@@ -425,6 +430,7 @@ RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, d
   rc.realtime.pin_threads = !o.no_pin;
   rc.realtime.spin_s = o.spin_us * 1e-6;
   if (o.log_seconds > 0) rc.log_capacity = std::size_t(std::ceil(o.log_seconds * o.rate));
+  rc.query.cache_margin = o.candidate_cache * tool_radius;
   return rc;
 }
 

@@ -40,6 +40,7 @@ struct RuntimeOptions {
   double rate = 1000;
   double duration = 0;
   bool inline_query = false;
+  double candidate_cache = 0.25;  ///< candidate cache margin, fraction of the tool radius
   int sites = 7;
   std::uint64_t seed = 1;
   double tool_radius = 0;

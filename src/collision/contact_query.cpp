@@ -11,7 +11,9 @@ ContactQuery::ContactQuery(const CollisionWorld& world, const QueryOptions& opti
     : world_(&world),
       options_(options),
       result_(std::max<std::size_t>(1, std::min(options.max_contacts, world.size()))),
-      leaves_(kLeafScratch) {}
+      leaves_(kLeafScratch) {
+  if (options.cache_margin > 0) cache_.reserve(options.cache_leaves);
+}
 
 namespace {
 
@@ -154,8 +156,7 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
   };
   std::size_t n_leaves = 0;
   const std::size_t max_leaves = leaves_.size();
-  world_->bvh().for_each_overlapping_leaf(box_lo, box_hi, [&](std::uint32_t first,
-                                                              std::uint32_t count) {
+  const auto on_leaf = [&](std::uint32_t first, std::uint32_t count) {
     if (n_leaves == max_leaves) {
       test_leaf(first, count);
       return;
@@ -164,7 +165,50 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
     const char* end = reinterpret_cast<const char*>(gs + first + count);
     for (; p < end; p += 64) __builtin_prefetch(p);
     leaves_[n_leaves++] = {first, count};
-  });
+  };
+  bool cached = false;
+  if (options_.cache_margin > 0) {
+    const bool inside = cache_valid_ && box_lo[0] >= cache_lo_[0] && box_lo[1] >= cache_lo_[1] &&
+                        box_lo[2] >= cache_lo_[2] && box_hi[0] <= cache_hi_[0] && box_hi[1] <= cache_hi_[1] &&
+                        box_hi[2] <= cache_hi_[2];
+    if (inside) {
+      ++cache_stats_.hits;
+      cached = true;
+    } else {
+      // Refill: every leaf overlapping the grown box, in traversal (depth-first) order. Any leaf
+      // overlapping a tool box inside the grown box overlaps the grown box, so it is in the list.
+      ++cache_stats_.refills;
+      const double m = options_.cache_margin;
+      for (int k = 0; k < 3; ++k) {
+        cache_lo_[k] = round_down_to_float(double(box_lo[k]) - m);
+        cache_hi_[k] = round_up_to_float(double(box_hi[k]) + m);
+      }
+      cache_.clear();
+      bool overflow = false;
+      const std::size_t cap = cache_.capacity();
+      world_->bvh().for_each_overlapping_leaf_node(cache_lo_, cache_hi_, [&](const BvhNode& leaf) {
+        if (cache_.size() == cap) {
+          overflow = true;
+          return false;
+        }
+        cache_.push_back(leaf);
+        return true;
+      });
+      cache_valid_ = !overflow;
+      cached = cache_valid_;
+      if (overflow) ++cache_stats_.overflows;
+    }
+  }
+  if (cached) {
+    // The traversal's own box test, on the cached leaves, in the same order.
+    for (const BvhNode& n : cache_) {
+      const bool overlap = !(n.lo[0] > box_hi[0] || n.hi[0] < box_lo[0] || n.lo[1] > box_hi[1] ||
+                             n.hi[1] < box_lo[1] || n.lo[2] > box_hi[2] || n.hi[2] < box_lo[2]);
+      if (overlap) on_leaf(n.first, n.count);
+    }
+  } else {
+    world_->bvh().for_each_overlapping_leaf(box_lo, box_hi, on_leaf);
+  }
   for (std::size_t i = 0; i < n_leaves; ++i) test_leaf(leaves_[i].first, leaves_[i].second);
   if (batch.count > 0) flush();
   result_.counts = counts;

@@ -76,6 +76,31 @@ class Bvh {
     }
   }
 
+  /// As for_each_overlapping_leaf, calling `on_leaf(const BvhNode& leaf)` with the leaf node
+  /// itself (its box and slot range), in the same depth-first order; returning false stops.
+  template <typename OnLeaf>
+  void for_each_overlapping_leaf_node(const float box_lo[3], const float box_hi[3],
+                                      OnLeaf&& on_leaf) const noexcept {
+    if (nodes_.empty()) return;
+    std::uint32_t stack[kMaxDepth];
+    int top = 0;
+    std::uint32_t i = 0;
+    const BvhNode* nodes = nodes_.data();
+    for (;;) {
+      const BvhNode& n = nodes[i];
+      const bool overlap = !(n.lo[0] > box_hi[0] || n.hi[0] < box_lo[0] || n.lo[1] > box_hi[1] ||
+                             n.hi[1] < box_lo[1] || n.lo[2] > box_hi[2] || n.hi[2] < box_lo[2]);
+      if (overlap && n.count == 0) {
+        stack[top++] = n.first;
+        i = i + 1;
+        continue;
+      }
+      if (overlap && !on_leaf(n)) return;
+      if (top == 0) break;
+      i = stack[--top];
+    }
+  }
+
   /// Traversal stack size; the median split bounds the depth by log2(N) + 2 < kMaxDepth.
   static constexpr int kMaxDepth = 96;
 

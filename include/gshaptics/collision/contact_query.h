@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "gshaptics/broadphase/bvh.h"
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/collision/tool_ellipsoid.h"
 #include "gshaptics/narrowphase/k_min.h"
@@ -49,6 +50,24 @@ struct QueryOptions {
   /// the world's size (48 bytes each). Past it a query reports kContactOverflow. The densest
   /// poses of the bundled and benchmark scenes reach about 11k contacts.
   std::size_t max_contacts = 1u << 15;
+  /// Candidate cache for a servo loop, whose queries are ~1 ms apart and nearly identical.
+  /// When > 0 (world units), a broad phase collects the BVH leaves whose boxes overlap the tool's
+  /// box grown by this margin on every side; the next queries whose tool box lies inside that
+  /// grown box reuse the list, testing each cached leaf's box against their own box exactly as
+  /// the traversal would (leaves stay in the traversal's depth-first order). So contacts, K_min,
+  /// counts and their order are bit-identical to an uncached query; only the traversal is saved.
+  /// A tool whose box leaves the grown box (whatever its shape) refills the cache. 0: no cache.
+  double cache_margin = 0;
+  /// Leaves the cache holds (32 bytes each, reserved up front); a grown box overlapping more
+  /// is not cached (that query traverses as usual).
+  std::size_t cache_leaves = 4096;
+};
+
+/// What the candidate cache did (QueryOptions::cache_margin).
+struct CandidateCacheStats {
+  std::uint64_t hits = 0;      ///< queries answered from the cached leaf list
+  std::uint64_t refills = 0;   ///< queries that traversed the BVH with the grown box
+  std::uint64_t overflows = 0; ///< refills whose grown box overlapped more than cache_leaves leaves
 };
 
 /// Contacts of one query, reused tick after tick; clear() keeps the capacity.
@@ -89,6 +108,9 @@ class ContactQuery {
   [[nodiscard]] bool any_contact(const ToolEllipsoid& tool, std::uint32_t exclude_slot = UINT32_MAX) noexcept;
 
   [[nodiscard]] const ContactSet& result() const noexcept { return result_; }
+  [[nodiscard]] const CandidateCacheStats& cache_stats() const noexcept { return cache_stats_; }
+  /// Forgets the cached candidates (the next run() traverses).
+  void invalidate_cache() noexcept { cache_valid_ = false; }
   [[nodiscard]] const CollisionWorld& world() const noexcept { return *world_; }
   [[nodiscard]] const QueryOptions& options() const noexcept { return options_; }
 
@@ -99,6 +121,11 @@ class ContactQuery {
   PairBatch batch_;  // narrow-phase scratch, reused every query
   static constexpr std::size_t kLeafScratch = 4096;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> leaves_;  // overlapping leaves (first, count)
+  // Candidate cache: the leaves (with their boxes) overlapping the grown box [cache_lo_, cache_hi_].
+  std::vector<BvhNode> cache_;
+  float cache_lo_[3] = {0, 0, 0}, cache_hi_[3] = {0, 0, 0};
+  bool cache_valid_ = false;
+  CandidateCacheStats cache_stats_;
 };
 
 }  // namespace gshaptics
