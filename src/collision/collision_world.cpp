@@ -72,9 +72,13 @@ CollisionWorld CollisionWorld::build(const GaussianScene& scene, const WorldConf
     unordered.push_back(g);
   }
   w.bvh_ = Bvh::build(lo, hi, config.leaf_size);
-  w.gaussians_.resize(unordered.size());
-  const auto& order = w.bvh_.order();
-  for (std::size_t k = 0; k < order.size(); ++k) w.gaussians_[k] = unordered[order[k]];
+  {
+    auto records = std::make_shared<std::vector<CollisionGaussian>>(unordered.size());
+    const auto& order = w.bvh_.order();
+    for (std::size_t k = 0; k < order.size(); ++k) (*records)[k] = unordered[order[k]];
+    w.gaussians_ = std::span<const CollisionGaussian>(*records);
+    w.storage_ = std::move(records);
+  }
   w.bvh_.release_order();  // records are now in BVH order: the permutation is not needed
 
   if (report != nullptr) {
@@ -87,8 +91,8 @@ CollisionWorld CollisionWorld::build(const GaussianScene& scene, const WorldConf
 }
 
 std::size_t CollisionWorld::memory_bytes() const {
-  return gaussians_.capacity() * sizeof(CollisionGaussian) +
-         bvh_.nodes().capacity() * sizeof(BvhNode) + bvh_.order().capacity() * sizeof(std::uint32_t);
+  return gaussians_.size() * sizeof(CollisionGaussian) + bvh_.nodes().size() * sizeof(BvhNode) +
+         bvh_.order().capacity() * sizeof(std::uint32_t);
 }
 
 }  // namespace gshaptics

@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <type_traits>
 #include <vector>
@@ -35,7 +36,12 @@ class Bvh {
   static Bvh build(std::span<const Eigen::Vector3d> lo, std::span<const Eigen::Vector3d> hi,
                    int leaf_size = 4);
 
-  [[nodiscard]] const std::vector<BvhNode>& nodes() const { return nodes_; }
+  /// A BVH over nodes stored elsewhere (a memory-mapped world cache), kept alive by `owner`.
+  /// The nodes must be a valid preorder layout of depth `depth` (as build() makes).
+  static Bvh from_nodes(std::span<const BvhNode> nodes, int depth, std::shared_ptr<const void> owner);
+
+  /// The nodes (immutable, shared by copies of this BVH).
+  [[nodiscard]] std::span<const BvhNode> nodes() const { return nodes_; }
   [[nodiscard]] const std::vector<std::uint32_t>& order() const { return order_; }
   [[nodiscard]] int depth() const { return depth_; }
   /// Frees `order()` once the caller has permuted its primitives into slot order.
@@ -105,7 +111,8 @@ class Bvh {
   static constexpr int kMaxDepth = 96;
 
  private:
-  std::vector<BvhNode> nodes_;
+  std::span<const BvhNode> nodes_;
+  std::shared_ptr<const void> owner_;  // keeps nodes_ alive: a vector, or a mapped file
   std::vector<std::uint32_t> order_;
   int depth_ = 0;
 };

@@ -8,6 +8,8 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
+#include <span>
 #include <vector>
 
 #include "gshaptics/broadphase/bvh.h"
@@ -60,7 +62,9 @@ class CollisionWorld {
                               WorldBuildReport* report = nullptr);
 
   [[nodiscard]] std::size_t size() const { return gaussians_.size(); }
-  [[nodiscard]] const std::vector<CollisionGaussian>& gaussians() const { return gaussians_; }
+  /// The records in BVH order (immutable; shared by copies of this world, and mapped straight
+  /// from the file when the world came from a world cache).
+  [[nodiscard]] std::span<const CollisionGaussian> gaussians() const { return gaussians_; }
   [[nodiscard]] const Bvh& bvh() const { return bvh_; }
   [[nodiscard]] const WorldConfig& config() const { return config_; }
   /// The whole scene -> world transform the world was built with: `config().up` then
@@ -79,7 +83,9 @@ class CollisionWorld {
   WorldConfig config_;
   SimilarityTransform scene_to_world_;
   Eigen::Vector3d up_ = Eigen::Vector3d::UnitZ();
-  std::vector<CollisionGaussian> gaussians_;
+  friend struct WorldCacheAccess;  // world_cache.cpp assembles a world from a mapped file
+  std::span<const CollisionGaussian> gaussians_;
+  std::shared_ptr<const void> storage_;  // keeps gaussians_ alive: a vector, or a mapped file
   Bvh bvh_;
   Eigen::Vector3d lo_ = Eigen::Vector3d::Zero(), hi_ = Eigen::Vector3d::Zero();
 };
