@@ -232,6 +232,7 @@ void register_device_sim(CLI::App& app) {
       "device_summary.json.");
   cmd->add_option("scene", o->scene.scene, "Scene file (default: bundled data/truck.splat)");
   add_world_options(*cmd, o->scene);
+  add_world_cache_option(*cmd, o->scene);
   cmd->add_flag("--ros2", o->ros2, "Speak ROS 2 over DDS (the only transport of device-sim)")->required();
   cmd->add_option("--domain", o->topics.domain, "DDS domain id (ROS_DOMAIN_ID); -1: the DDS default")->check(CLI::Range(-1, 232));
   add_topic_options(*cmd, o->topics);

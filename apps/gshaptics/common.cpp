@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <fmt/format.h>
 #include <functional>
@@ -64,6 +65,25 @@ void add_world_options(CLI::App& app, SceneOptions& o) {
                  "z-down, x-up, x-down")
       ->capture_default_str()
       ->check(CLI::IsMember({"none", "auto", "y-down", "y-up", "z-up", "z-down", "x-up", "x-down"}));
+}
+
+void add_world_cache_option(CLI::App& app, SceneOptions& o) {
+  app.add_option("--world-cache", o.world_cache,
+                 "Keep the built collision world in DIR (or 'auto': ~/.cache/gshaptics/worlds) and "
+                 "open it from there next time with mmap, skipping load, filter and BVH build; keyed "
+                 "by the scene's content and every world option, checked on open, rebuilt when stale "
+                 "or damaged; a folder that cannot be written only costs the rebuild");
+}
+
+std::string world_cache_dir(const SceneOptions& o) {
+  if (o.world_cache.empty() || o.world_cache == "off") return "";
+  if (o.world_cache != "auto") return o.world_cache;
+  const char* xdg = std::getenv("XDG_CACHE_HOME");
+  const char* home = std::getenv("HOME");
+  const std::string base = xdg != nullptr && *xdg ? std::string(xdg)
+                           : home != nullptr && *home ? std::string(home) + "/.cache"
+                                                      : std::string("/tmp");
+  return base + "/gshaptics/worlds";
 }
 
 std::string data_file(const std::string& name) {

@@ -30,10 +30,16 @@ struct SceneOptions {
   std::string registration_file;
   std::string reg_scale, reg_rotation, reg_translation;  // empty: not given
   std::string up = "none";  // scene up axis turned to world +z before the registration
+  std::string world_cache;  // folder of world caches, "auto", or "" (none)
 };
 
 /// Adds --min-opacity, --sigma, --registration and the --reg-* overrides.
 void add_world_options(CLI::App& app, SceneOptions& o);
+/// Adds --world-cache (the commands that build a world for a run: run, serve, node, simulate).
+void add_world_cache_option(CLI::App& app, SceneOptions& o);
+/// The world-cache folder of --world-cache ("auto": $XDG_CACHE_HOME/gshaptics/worlds, else
+/// ~/.cache/gshaptics/worlds); "" when off.
+std::string world_cache_dir(const SceneOptions& o);
 
 /// Path of the bundled scene (data/truck.splat) and its registration, or "" when not found.
 std::string bundled_scene();

@@ -1,5 +1,11 @@
 #include "probe_setup.h"
 
+#include <chrono>
+#include <filesystem>
+#include <optional>
+
+#include "gshaptics/collision/world_cache.h"
+
 #include <fmt/format.h>
 
 #include <cstdlib>
@@ -86,10 +92,46 @@ bool is_registered(const SceneOptions& so) {
 }
 
 PreparedWorld prepare_world(const SceneOptions& so, bool quiet) {
-  LoadedScene s = load_with_progress(so.scene, quiet);
   const WorldConfig cfg = world_config_from(so);
+  const std::string cache_dir = world_cache_dir(so);
+  WorldCacheKey key;
+  std::string cache_file;
+  if (!cache_dir.empty()) {
+    const auto t0 = std::chrono::steady_clock::now();
+    key = world_cache_key(so.scene, cfg);
+    cache_file = world_cache_file(cache_dir, so.scene, key);
+    std::string why;
+    std::optional<CachedWorld> hit = open_world_cache(cache_file, key, &why);
+    const double ms = 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (hit) {
+      LoadedScene s;
+      s.report = hit->source;
+      s.report.path = so.scene;
+      WorldBuildReport br;
+      br.filter = {cfg.min_opacity, std::size_t(s.report.loaded), hit->world.size()};
+      br.memory_bytes = hit->world.memory_bytes();
+      const Eigen::Vector3d up = hit->world.up();
+      fmt::print("scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
+                 s.report.loaded, s.report.skipped());
+      fmt::print("world      {} Gaussians from the world cache {} (hashed and mapped in {:.0f} ms), up [{:.2f}, "
+                 "{:.2f}, {:.2f}]\n", hit->world.size(), cache_file, ms, up.x(), up.y(), up.z());
+      return {std::move(s), cfg, br, std::move(hit->world)};
+    }
+    if (why != "no cache file") fmt::print(stderr, "warning: world cache {}: {}; rebuilding\n", cache_file, why);
+  }
+  LoadedScene s = load_with_progress(so.scene, quiet);
   WorldBuildReport br;
   CollisionWorld world = CollisionWorld::build(s.scene, cfg, &br);
+  if (!cache_file.empty()) {
+    try {
+      std::error_code ec;
+      std::filesystem::create_directories(cache_dir, ec);
+      write_world_cache(world, key, cache_file, s.report);
+      fmt::print("cache      world written to {}\n", cache_file);
+    } catch (const InputError& e) {
+      fmt::print(stderr, "warning: {} (the world is rebuilt each time)\n", e.what());
+    }
+  }
   fmt::print("scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
              s.report.loaded, s.report.skipped());
   fmt::print("filter     opacity > {:.2f}: kept {} ({:.1f}%)\n", cfg.min_opacity, br.filter.after,

@@ -154,6 +154,7 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
   cmd.add_flag("--no-plot", o.no_plot, "Do not draw run.png (needs /usr/bin/python3 with matplotlib)");
   cmd.add_flag("--quiet", o.quiet, "No progress bar or live status line");
   add_world_options(cmd, o.scene);
+  add_world_cache_option(cmd, o.scene);
 }
 
 namespace {
