@@ -287,6 +287,51 @@ class Run(unittest.TestCase):
         self.assertIn("'y'", p.stderr)
 
 
+class WorldCache(unittest.TestCase):
+    """--world-cache: the second run opens the world from the cache; a damaged cache is detected
+    and rebuilt; a folder that cannot be written only costs the rebuild."""
+
+    def sim(self, cache, out):
+        return run("simulate", "--world-cache", cache, "--quiet", "--no-plot", "--out", out, "--sites", "1")
+
+    def test_hit_damage_and_unwritable_folder(self):
+        with tempfile.TemporaryDirectory() as d:
+            cache = os.path.join(d, "cache")
+            first = self.sim(cache, os.path.join(d, "a"))
+            self.assertIn("cache      world written to", first.stdout)
+            files = [f for f in os.listdir(cache) if f.endswith(".gshworld")]
+            self.assertEqual(len(files), 1)
+            self.assertTrue(files[0].startswith("truck-"))
+            second = self.sim(cache, os.path.join(d, "b"))
+            self.assertIn("from the world cache", second.stdout)
+            a = load_json(os.path.join(d, "a", "summary.json"))
+            b = load_json(os.path.join(d, "b", "summary.json"))
+            self.assertEqual(a["gaussians_kept"], b["gaussians_kept"])
+            self.assertEqual(a["gaussians_loaded"], b["gaussians_loaded"])
+            # The same world gives the same run: every column but the measured query time.
+            ra, rb = read_log(os.path.join(d, "a", "probe_log.csv")), read_log(os.path.join(d, "b", "probe_log.csv"))
+            self.assertEqual(len(ra), len(rb))
+            for x, y in zip(ra, rb):
+                x.pop("query_us")
+                y.pop("query_us")
+                self.assertEqual(x, y)
+            # A flipped byte in the cached records: detected, rebuilt, rewritten.
+            path = os.path.join(cache, files[0])
+            with open(path, "r+b") as f:
+                f.seek(4096 + 80 * 100 + 3)
+                byte = f.read(1)
+                f.seek(4096 + 80 * 100 + 3)
+                f.write(bytes([byte[0] ^ 0x10]))
+            third = self.sim(cache, os.path.join(d, "c"))
+            self.assertIn("payload hash mismatch; rebuilding", third.stderr)
+            self.assertIn("cache      world written to", third.stdout)
+            # A cache "folder" that is a file: a warning, and the run still completes.
+            blocker = os.path.join(d, "blocker")
+            open(blocker, "w").close()
+            fourth = self.sim(blocker, os.path.join(d, "e"))
+            self.assertIn("the world is rebuilt each time", fourth.stderr)
+
+
 class Devices(unittest.TestCase):
     """`gshaptics devices` and the desktop devices on run: what is missing and why, without
     hardware; the DHD device end to end through a stand-in libdhd (GSHAPTICS_TEST_FAKE_DHD)."""
