@@ -23,6 +23,7 @@
 #include "gshaptics/percentile.h"
 #include "gshaptics/sim/pose_sampler.h"
 #include "gshaptics/collision/world_cache.h"
+#include "gshaptics/servo/query_pool.h"
 #include "gshaptics/sim/probe_trajectory.h"
 #include "gshaptics/sim/probe_run.h"
 #ifdef GSHAPTICS_HAVE_PEERS
@@ -50,6 +51,8 @@ double peak_rss_mb() {
 struct BenchOptions {
   std::string scenes = "truck,truck-probe,truck-probe-cached,karangkidul,karangkidul-4M,karangkidul-10M";
   std::size_t poses = 2000;
+  int query_threads = 1;
+  std::size_t parallel_min_candidates = 2048;
   std::size_t peer_poses = 300;
   std::size_t reference_poses = 20;
   std::uint64_t seed = 1;
@@ -134,6 +137,10 @@ void register_bench(CLI::App& app) {
       "quarter of the tool radius), karangkidul (0.5-1.5%), karangkidul-4M and -10M (tiled in memory).");
   cmd->add_option("--scenes", o->scenes, "Comma-separated scene sets")->capture_default_str();
   cmd->add_option("--poses", o->poses, "Poses per scene for gshaptics")->capture_default_str();
+  cmd->add_option("--query-threads", o->query_threads,
+                  "Threads sharing a large query's narrow phase (the caller included; 1: none)")->capture_default_str();
+  cmd->add_option("--parallel-min-candidates", o->parallel_min_candidates,
+                  "Queries with fewer candidates stay on one thread")->capture_default_str();
   cmd->add_option("--peer-poses", o->peer_poses, "Of those, poses run by the peers too")->capture_default_str();
   cmd->add_option("--reference-poses", o->reference_poses,
                   "Of those, poses checked against the brute-force reference (fewer on tiled scenes)")
@@ -243,6 +250,11 @@ void register_bench(CLI::App& app) {
       QueryOptions qo;
       if (b.cache_margin > 0 && !poses.empty()) qo.cache_margin = b.cache_margin * poses.front().semi_axes.maxCoeff();
       ContactQuery query(world, qo);
+      std::unique_ptr<QueryPool> pool;
+      if (o->query_threads > 1) {
+        pool = std::make_unique<QueryPool>(o->query_threads);
+        query.set_executor(pool.get(), o->parallel_min_candidates);
+      }
       ForceModel force;
       std::vector<double> ours_us;
       ours_us.reserve(poses.size());

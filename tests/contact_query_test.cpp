@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <map>
 #include <cstring>
 #include <random>
@@ -320,6 +321,63 @@ TEST(CandidateCache, RealSceneAndATinyCacheThatOverflows) {
     expect_bit_identical(plain.result(), tiny.result(), "tiny cache tick " + std::to_string(i));
   }
   EXPECT_GT(tiny.cache_stats().overflows, 0u);
+}
+
+}  // namespace
+}  // namespace gshaptics
+
+#include "gshaptics/servo/query_pool.h"
+
+namespace gshaptics {
+namespace {
+
+TEST(QueryPool, EveryPartRunsOncePerRun) {
+  for (int parts : {1, 2, 3}) {
+    QueryPool pool(parts);
+    std::vector<std::atomic<int>> hits(static_cast<std::size_t>(parts));
+    for (int r = 0; r < 500; ++r)
+      pool.run([](void* ctx, int part) { (*static_cast<std::vector<std::atomic<int>>*>(ctx))[std::size_t(part)]++; }, &hits);
+    for (int p = 0; p < parts; ++p) EXPECT_EQ(hits[std::size_t(p)].load(), 500) << parts << " parts, part " << p;
+  }
+  EXPECT_EQ(default_query_threads(2), 1);
+  EXPECT_EQ(default_query_threads(4), 2);
+  EXPECT_EQ(default_query_threads(8), 4);
+  EXPECT_EQ(default_query_threads(16), 4);
+}
+
+TEST(ParallelNarrowPhase, ThreadedQueriesAreBitIdentical) {
+  const CollisionWorld& world = test::truck_world();
+  PoseSamplerParams p;
+  p.count = 150;
+  p.seed = 5;
+  p.radius_min = 0.01;
+  p.radius_max = 0.05;  // up to thousands of contacts
+  p.anisotropic = true;
+  const std::vector<ToolEllipsoid> tools = sample_poses(world, p);
+  for (int parts : {2, 3}) {
+    QueryPool pool(parts);
+    ContactQuery plain(world), threaded(world);
+    threaded.set_executor(&pool, /*min_candidates=*/0);
+    for (std::size_t i = 0; i < tools.size(); ++i) {
+      EXPECT_EQ(plain.run(tools[i]), threaded.run(tools[i]));
+      expect_bit_identical(plain.result(), threaded.result(), std::to_string(parts) + " parts, pose " + std::to_string(i));
+      if (::testing::Test::HasFailure()) return;
+    }
+    EXPECT_GT(threaded.parallel_queries(), tools.size() / 2);
+    // With the candidate cache too, on a walk.
+    QueryOptions o;
+    o.cache_margin = 0.02;
+    ContactQuery both(world, o);
+    both.set_executor(&pool, 0);
+    for (std::size_t i = 0; i < tools.size(); ++i) {
+      ToolEllipsoid t = tools[i / 3];
+      t.center.x() += 0.005 * double(i % 3);
+      plain.run(t);
+      both.run(t);
+      expect_bit_identical(plain.result(), both.result(), "cache + threads " + std::to_string(i));
+      if (::testing::Test::HasFailure()) return;
+    }
+  }
 }
 
 }  // namespace

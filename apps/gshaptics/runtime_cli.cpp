@@ -13,6 +13,7 @@
 
 #include "commands.h"
 #include "gshaptics/error.h"
+#include "gshaptics/servo/query_pool.h"
 #include "gshaptics/servo/replay_device.h"
 #include "gshaptics/servo/tick_log.h"
 #include "gshaptics/servo/vendor_devices.h"
@@ -105,6 +106,11 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
                  "tool radius (the BVH leaves near the tool are reused while the tool stays within it; "
                  "results are bit-identical); 0: off")
       ->capture_default_str()->check(check::range(0.0, 10.0));
+  cmd.add_option("--query-threads", o.query_threads,
+                 "Threads sharing the narrow phase of a large query (>= 2048 candidates; the paper model), "
+                 "the collision worker included; 0: all cores but the servo's and the worker's, at most 4 "
+                 "(1 on this 2-core machine)")
+      ->capture_default_str()->check(CLI::Range(0, 64));
   cmd.add_option("--sites", o.sites, "Contact sites of the simulated probe")->capture_default_str()
       ->check(CLI::Range(1, 100));
   cmd.add_option("--seed", o.seed, "Seed of the site choice")->capture_default_str();
@@ -432,6 +438,7 @@ RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, d
   rc.realtime.spin_s = o.spin_us * 1e-6;
   if (o.log_seconds > 0) rc.log_capacity = std::size_t(std::ceil(o.log_seconds * o.rate));
   rc.query.cache_margin = o.candidate_cache * tool_radius;
+  rc.query_threads = o.query_threads > 0 ? o.query_threads : default_query_threads(std::thread::hardware_concurrency());
   return rc;
 }
 

@@ -41,6 +41,7 @@ struct RuntimeOptions {
   double duration = 0;
   bool inline_query = false;
   double candidate_cache = 0.25;  ///< candidate cache margin, fraction of the tool radius
+  int query_threads = 0;          ///< 0: default_query_threads()
   int sites = 7;
   std::uint64_t seed = 1;
   double tool_radius = 0;

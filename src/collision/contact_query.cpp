@@ -209,10 +209,114 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
   } else {
     world_->bvh().for_each_overlapping_leaf(box_lo, box_hi, on_leaf);
   }
+  // Parallel narrow phase: every overlapping leaf is in the list (none was tested early), the
+  // query is large enough, and the method is the batched one.
+  if (executor_ != nullptr && !golden && batch.count == 0 && counts.candidates == 0) {
+    std::uint64_t total = 0;
+    for (std::size_t i = 0; i < n_leaves; ++i) total += leaves_[i].second;
+    if (total >= min_parallel_candidates_ && n_leaves >= parts_.size()) {
+      ++parallel_queries_;
+      run_parts(n_leaves, tool, batch_tool);
+      for (const auto& part : parts_) {
+        counts.candidates += part->counts.candidates;
+        counts.prefiltered += part->counts.prefiltered;
+        counts.contacts += part->counts.contacts;
+        for (const Contact& c : part->contacts)
+          if (!result_.push(c)) status = QueryStatus::kContactOverflow;
+        if (part->overflow) status = QueryStatus::kContactOverflow;
+      }
+      result_.counts = counts;
+      return status;
+    }
+  }
   for (std::size_t i = 0; i < n_leaves; ++i) test_leaf(leaves_[i].first, leaves_[i].second);
   if (batch.count > 0) flush();
   result_.counts = counts;
   return status;
+}
+
+void ContactQuery::set_executor(ParallelExecutor* executor, std::size_t min_candidates) {
+  executor_ = executor;
+  min_parallel_candidates_ = min_candidates;
+  parts_.clear();
+  if (executor == nullptr) return;
+  const std::size_t cap = std::max<std::size_t>(1, std::min(options_.max_contacts, world_->size()));
+  for (int i = 0; i < executor->parts(); ++i) {
+    auto part = std::make_unique<Part>();
+    part->contacts.reserve(cap);
+    parts_.push_back(std::move(part));
+  }
+}
+
+void contact_query_part(void* ctx, int part) {
+  auto* q = static_cast<ContactQuery*>(ctx);
+  q->run_part(*q->parts_[std::size_t(part)], *q->part_tool_, *q->part_batch_tool_);
+}
+
+void ContactQuery::run_parts(std::size_t n_leaves, const ToolEllipsoid& tool, const BatchTool& batch_tool) noexcept {
+  // Contiguous runs of leaves with about equal numbers of candidates.
+  std::uint64_t total = 0;
+  for (std::size_t i = 0; i < n_leaves; ++i) total += leaves_[i].second;
+  const std::size_t n_parts = parts_.size();
+  std::size_t leaf = 0;
+  std::uint64_t seen = 0;
+  for (std::size_t p = 0; p < n_parts; ++p) {
+    Part& part = *parts_[p];
+    part.leaf_begin = leaf;
+    const std::uint64_t until = total * (p + 1) / n_parts;
+    while (leaf < n_leaves && (seen < until || p + 1 == n_parts)) seen += leaves_[leaf++].second;
+    part.leaf_end = leaf;
+  }
+  part_tool_ = &tool;
+  part_batch_tool_ = &batch_tool;
+  executor_->run(&contact_query_part, this);
+}
+
+// One part's narrow phase: the sequential loop of run() over its leaves, into its own scratch.
+void ContactQuery::run_part(Part& part, const ToolEllipsoid& tool, const BatchTool& batch_tool) noexcept {
+  part.contacts.clear();
+  part.counts = {};
+  part.overflow = false;
+  const double r_tool = tool.bounding_radius();
+  const double c_tool[3] = {tool.center.x(), tool.center.y(), tool.center.z()};
+  const CollisionGaussian* gs = world_->gaussians().data();
+  PairBatch& batch = part.batch;
+  std::uint32_t slot[kBatchLanes];
+  batch.count = 0;
+  const auto flush = [&] {
+    pad_lanes(batch);
+    k_min_batch(batch, batch_tool, options_.narrow_phase.stop_when_separated);
+    for (int l = 0; l < batch.count; ++l)
+      if (!batch.separated[l] && batch.k_min[l] > 0) {
+        const CollisionGaussian& g = gs[slot[l]];
+        ++part.counts.contacts;
+        Contact contact;
+        contact.index = g.source_index;
+        contact.slot = slot[l];
+        contact.opacity = g.opacity;
+        contact.k_min = batch.k_min[l];
+        contact.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+        if (part.contacts.size() < part.contacts.capacity()) part.contacts.push_back(contact);
+        else part.overflow = true;
+      }
+    batch.count = 0;
+  };
+  for (std::size_t i = part.leaf_begin; i < part.leaf_end; ++i) {
+    const std::uint32_t first = leaves_[i].first, count = leaves_[i].second;
+    part.counts.candidates += count;
+    for (std::uint32_t k = first; k < first + count; ++k) {
+      const CollisionGaussian& g = gs[k];
+      const double d[3] = {g.center[0] - c_tool[0], g.center[1] - c_tool[1], g.center[2] - c_tool[2]};
+      const double reach = double(g.bounding_radius()) + r_tool;
+      const bool pass = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= reach * reach;  // eq. 4
+      part.counts.prefiltered += pass ? 1 : 0;
+      slot[batch.count] = k;
+      load_lane(batch, batch.count, g, d);
+      batch.count += pass ? 1 : 0;
+      if (batch.count == kBatchLanes) flush();
+    }
+  }
+  if (batch.count > 0) flush();
 }
 
 }  // namespace gshaptics

@@ -44,6 +44,16 @@ HapticRuntime::HapticRuntime(const CollisionWorld& world, HapticDevice& device,
   worker_ = std::make_unique<CollisionWorker>(
       config.tool, make_force_renderer(config.force_model, world, config.force, config.query, config.proxy),
       1.0 / config.rate_hz, clock);
+  if (config.query_threads > 1) {
+    // Pool workers on the CPUs below the worker's and the servo's (those take the last two).
+    const int cpus = int(std::max(1u, std::thread::hardware_concurrency()));
+    std::vector<int> pin;
+    if (config.realtime.pin_threads)
+      for (int k = 0; k < config.query_threads - 1 && k < cpus - 2; ++k) pin.push_back(cpus - 3 - k);
+    query_pool_ = std::make_unique<QueryPool>(config.query_threads, pin);
+    for (const std::string& w : query_pool_->warnings()) warnings_.push_back(w);
+    worker_->renderer().set_executor(query_pool_.get(), config.parallel_min_candidates);
+  }
   servo_ = std::make_unique<ServoController>(device, config.safety, config.force.f_max, period_, poses_, results_,
                                              stats_, &log_, clock, &monitor_);
 }

@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <utility>
 #include <vector>
@@ -92,6 +93,16 @@ class ContactSet {
   std::vector<Contact> contacts_;
 };
 
+/// Runs `fn(ctx, i)` for every part i in [0, parts()), possibly on several threads, and returns
+/// when all are done; part 0 runs on the calling thread. Implemented by servo/query_pool.h's
+/// QueryPool (the core has no threads). Must not allocate, lock or throw.
+class ParallelExecutor {
+ public:
+  virtual ~ParallelExecutor() = default;
+  [[nodiscard]] virtual int parts() const noexcept = 0;
+  virtual void run(void (*fn)(void* ctx, int part), void* ctx) noexcept = 0;
+};
+
 /// Runs collision queries of one tool against a shared world.
 class ContactQuery {
  public:
@@ -109,6 +120,14 @@ class ContactQuery {
 
   [[nodiscard]] const ContactSet& result() const noexcept { return result_; }
   [[nodiscard]] const CandidateCacheStats& cache_stats() const noexcept { return cache_stats_; }
+  /// Splits the narrow phase of queries with at least `min_candidates` candidates across the
+  /// executor's parts (contiguous runs of BVH leaves, merged back in order: the contacts, K_min
+  /// and counts are bit-identical to a single-threaded query, since every lane of the batched
+  /// kernel is independent of the others). nullptr: single-threaded. Reserves each part's
+  /// scratch here (not on the hot path). The executor must outlive this query.
+  void set_executor(ParallelExecutor* executor, std::size_t min_candidates = 2048);
+  /// Queries whose narrow phase was split (for statistics).
+  [[nodiscard]] std::uint64_t parallel_queries() const noexcept { return parallel_queries_; }
   /// Forgets the cached candidates (the next run() traverses).
   void invalidate_cache() noexcept { cache_valid_ = false; }
   [[nodiscard]] const CollisionWorld& world() const noexcept { return *world_; }
@@ -126,6 +145,23 @@ class ContactQuery {
   float cache_lo_[3] = {0, 0, 0}, cache_hi_[3] = {0, 0, 0};
   bool cache_valid_ = false;
   CandidateCacheStats cache_stats_;
+  // Parallel narrow phase: one scratch per part (part 0: the caller).
+  struct Part {
+    PairBatch batch;
+    std::vector<Contact> contacts;  // reserved to max_contacts
+    QueryCounts counts;
+    bool overflow = false;
+    std::size_t leaf_begin = 0, leaf_end = 0;
+  };
+  ParallelExecutor* executor_ = nullptr;
+  std::size_t min_parallel_candidates_ = 2048;
+  std::vector<std::unique_ptr<Part>> parts_;
+  std::uint64_t parallel_queries_ = 0;
+  void run_parts(std::size_t n_leaves, const ToolEllipsoid& tool, const BatchTool& batch_tool) noexcept;
+  void run_part(Part& part, const ToolEllipsoid& tool, const BatchTool& batch_tool) noexcept;
+  friend void contact_query_part(void* ctx, int part);
+  const ToolEllipsoid* part_tool_ = nullptr;
+  const BatchTool* part_batch_tool_ = nullptr;
 };
 
 }  // namespace gshaptics

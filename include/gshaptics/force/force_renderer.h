@@ -42,6 +42,12 @@ class ForceRenderer {
   [[nodiscard]] virtual std::span<const Contact> contacts() const noexcept = 0;
   /// Forgets all per-device state (a new run, a teleport).
   virtual void reset() noexcept = 0;
+  /// Shares large queries' narrow phase with `executor` (ContactQuery::set_executor); renderers
+  /// without a contact query ignore it. Called before the loop starts, never on the hot path.
+  virtual void set_executor(ParallelExecutor* executor, std::size_t min_candidates) {
+    (void)executor;
+    (void)min_candidates;
+  }
 };
 
 /// The paper's renderer: ContactQuery (broad + narrow phase, eq. 4-6) then ForceModel (eq. 7-11)
@@ -54,6 +60,9 @@ class PaperRenderer final : public ForceRenderer {
   RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
   [[nodiscard]] std::span<const Contact> contacts() const noexcept override { return query_.result().contacts(); }
   void reset() noexcept override { model_.reset(); }
+  void set_executor(ParallelExecutor* executor, std::size_t min_candidates) override {
+    query_.set_executor(executor, min_candidates);
+  }
   [[nodiscard]] const ForceModel& model() const noexcept { return model_; }
 
  private:

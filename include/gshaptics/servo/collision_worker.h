@@ -86,6 +86,8 @@ class CollisionWorker {
   [[nodiscard]] const LatencyHistogram& latency() const noexcept { return latency_; }
   [[nodiscard]] std::uint64_t steps() const noexcept { return steps_.load(std::memory_order_relaxed); }
   [[nodiscard]] const ForceRenderer& renderer() const noexcept { return *renderer_; }
+  /// For set-up before the loop starts (e.g. ForceRenderer::set_executor).
+  [[nodiscard]] ForceRenderer& renderer() noexcept { return *renderer_; }
 
  private:
   std::unique_ptr<ForceRenderer> renderer_;

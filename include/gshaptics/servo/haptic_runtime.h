@@ -23,6 +23,7 @@
 #include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/servo/collision_worker.h"
 #include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/servo/query_pool.h"
 #include "gshaptics/servo/runtime_stats.h"
 #include "gshaptics/servo/safety.h"
 #include "gshaptics/servo/servo_controller.h"
@@ -52,6 +53,12 @@ struct RuntimeConfig {
   ForceParams force;                  ///< the paper model's parameters, and F_max for every model
   ProxyParams proxy;                  ///< the proxy model's parameters
   QueryOptions query;
+  /// Threads sharing one large query's narrow phase (the paper model's contact query), the
+  /// collision worker included: 1: none besides it. Workers are pinned to the CPUs below the
+  /// worker's and the servo's when pinning is on. See servo/query_pool.h.
+  int query_threads = 1;
+  /// Queries with fewer candidates stay on one thread (waking workers costs microseconds).
+  std::size_t parallel_min_candidates = 2048;
   SafetyParams safety;
   RealtimeOptions realtime;
   /// Ticks kept in the per-tick log (reserved up front). 0: duration * rate + 1 s worth when a
@@ -107,6 +114,7 @@ class HapticRuntime {
   TripleBuffer<TickRecord> monitor_;
   TickRecord latest_;
   bool have_latest_ = false;
+  std::unique_ptr<QueryPool> query_pool_;  // declared before the worker: outlives its use
   std::unique_ptr<CollisionWorker> worker_;
   std::unique_ptr<ServoController> servo_;
   std::thread servo_thread_, worker_thread_;
