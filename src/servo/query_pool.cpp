@@ -4,13 +4,14 @@
 #include <sched.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstring>
 
 #include "gshaptics/error.h"
 
 namespace gshaptics {
 
-QueryPool::QueryPool(int parts, const std::vector<int>& cpus) : parts_(std::max(1, parts)) {
+QueryPool::QueryPool(int parts, const std::vector<int>& cpus, int spin_us) : parts_(std::max(1, parts)), spin_us_(std::max(0, spin_us)) {
   if (parts < 1 || parts > 64) throw InputError("query threads: must be 1..64, got " + std::to_string(parts));
   for (int p = 1; p < parts_; ++p) {
     threads_.emplace_back([this, p] { worker(p); });
@@ -36,6 +37,14 @@ QueryPool::~QueryPool() {
 void QueryPool::worker(int part) noexcept {
   std::uint64_t seen = 0;
   for (;;) {
+    // Spin a little first: queries come in bursts (a servo loop's neighbours, a benchmark), and
+    // a futex wake costs tens of microseconds on a busy machine. Then sleep.
+    const auto spin_until = std::chrono::steady_clock::now() + std::chrono::microseconds(spin_us_);
+    while (epoch_.load(std::memory_order_acquire) == seen && std::chrono::steady_clock::now() < spin_until) {
+#if defined(__x86_64__)
+      __builtin_ia32_pause();
+#endif
+    }
     epoch_.wait(seen, std::memory_order_acquire);
     const std::uint64_t now = epoch_.load(std::memory_order_acquire);
     if (now == seen) continue;  // spurious wake

@@ -26,7 +26,8 @@ class QueryPool final : public ParallelExecutor {
   /// `parts`: threads sharing a query, the caller included (>= 1; 1: no worker thread).
   /// `cpus`: CPU of each worker (parts - 1 entries) to pin to; empty: not pinned. A refused pin
   /// is reported in warnings(), not an error.
-  explicit QueryPool(int parts, const std::vector<int>& cpus = {});
+  /// `spin_us`: after each job a worker spins this long for the next one before sleeping.
+  explicit QueryPool(int parts, const std::vector<int>& cpus = {}, int spin_us = 100);
   ~QueryPool() override;
   QueryPool(const QueryPool&) = delete;
   QueryPool& operator=(const QueryPool&) = delete;
@@ -38,6 +39,7 @@ class QueryPool final : public ParallelExecutor {
  private:
   void worker(int part) noexcept;
   int parts_;
+  int spin_us_;
   std::vector<std::thread> threads_;
   std::atomic<std::uint64_t> epoch_{0};
   std::atomic<int> done_{0};
