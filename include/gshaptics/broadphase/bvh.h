@@ -53,33 +53,14 @@ class Bvh {
   template <typename OnLeaf>
   void for_each_overlapping_leaf(const float box_lo[3], const float box_hi[3],
                                  OnLeaf&& on_leaf) const noexcept {
-    if (nodes_.empty()) return;
-    std::uint32_t stack[kMaxDepth];
-    int top = 0;
-    std::uint32_t i = 0;
-    const BvhNode* nodes = nodes_.data();
-    for (;;) {
-      const BvhNode& n = nodes[i];
-      const bool overlap = !(n.lo[0] > box_hi[0] || n.hi[0] < box_lo[0] || n.lo[1] > box_hi[1] ||
-                             n.hi[1] < box_lo[1] || n.lo[2] > box_hi[2] || n.hi[2] < box_lo[2]);
-      if (overlap && n.count == 0) {
-        // Preorder layout: the left child is next in memory; the right one waits on the stack
-        // and is fetched early, since traversal is bound by the latency of node loads.
-        __builtin_prefetch(&nodes[n.first]);
-        stack[top++] = n.first;
-        i = i + 1;
-        continue;
+    for_each_overlapping_leaf_node(box_lo, box_hi, [&](const BvhNode& n) {
+      if constexpr (std::is_same_v<decltype(on_leaf(n.first, n.count)), bool>) {
+        return on_leaf(n.first, n.count);
+      } else {
+        on_leaf(n.first, n.count);
+        return true;
       }
-      if (overlap) {
-        if constexpr (std::is_same_v<decltype(on_leaf(n.first, n.count)), bool>) {
-          if (!on_leaf(n.first, n.count)) return;
-        } else {
-          on_leaf(n.first, n.count);
-        }
-      }
-      if (top == 0) break;
-      i = stack[--top];
-    }
+    });
   }
 
   /// As for_each_overlapping_leaf, calling `on_leaf(const BvhNode& leaf)` with the leaf node
@@ -97,6 +78,9 @@ class Bvh {
       const bool overlap = !(n.lo[0] > box_hi[0] || n.hi[0] < box_lo[0] || n.lo[1] > box_hi[1] ||
                              n.hi[1] < box_lo[1] || n.lo[2] > box_hi[2] || n.hi[2] < box_lo[2]);
       if (overlap && n.count == 0) {
+        // Preorder layout: the left child is next in memory; the right one waits on the stack
+        // and is fetched early, since traversal is bound by the latency of node loads.
+        __builtin_prefetch(&nodes[n.first]);
         stack[top++] = n.first;
         i = i + 1;
         continue;
