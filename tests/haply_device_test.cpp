@@ -14,20 +14,13 @@
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/workspace_mapping.h"
 #include "support/fake_inverse_service.h"
+#include "support/device_harness.h"
 #include "support/scenes.h"
 
 namespace gshaptics {
 namespace {
 
-template <class F>
-bool eventually(F done, double seconds = 5.0) {
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-  while (std::chrono::steady_clock::now() < end) {
-    if (done()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
-  return done();
-}
+using test::eventually;
 
 HaplyParams params_for(const test::FakeInverseService& service) {
   HaplyParams p;
@@ -90,20 +83,13 @@ TEST(HaplyDevice, StaleCommandIsSentAsZero) {
 TEST(HaplyDevice, ServiceRestartMidContactZeroesThenReconnectsAtZero) {
   test::FakeInverseService service;
   const CollisionWorld& world = test::truck_world();
-  const CollisionGaussian* g = nullptr;
-  for (const CollisionGaussian& c : world.gaussians())
-    if (c.opacity > 0.9f && (g == nullptr || c.semi_axes[0] > g->semi_axes[0])) g = &c;
-  ASSERT_NE(g, nullptr);
+  const Eigen::Vector3d on_surface = test::contact_point(world);
+  ASSERT_FALSE(on_surface.isZero());
   HaplyDevice haply(params_for(service));
   WorkspaceMappingParams mp;
-  mp.offset = {g->center[0], g->center[1], g->center[2]};  // the cursor (at 0) sits on a Gaussian
+  mp.offset = on_surface;  // the cursor (at 0) sits on a Gaussian
   MappedDevice dev(haply, mp);
-  RuntimeConfig c;
-  c.rate_hz = 1000;
-  c.duration = 60;
-  c.tool.semi_axes = Eigen::Vector3d::Constant(0.05);
-  c.realtime.servo_priority = 0;
-  c.realtime.worker_priority = 0;
+  const RuntimeConfig c = test::device_test_config(60);
   HapticRuntime rt(world, dev, c);
   rt.start();
   ASSERT_TRUE(eventually([&] { return service.last_force().norm() > 0.05; })) << "no contact force";

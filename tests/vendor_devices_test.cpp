@@ -16,10 +16,13 @@
 #include "gshaptics/error.h"
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/workspace_mapping.h"
+#include "support/device_harness.h"
 #include "support/scenes.h"
 
 namespace gshaptics {
 namespace {
+
+using test::eventually;
 
 // The libraries are looked up once per process: point both at the fakes before any test runs.
 const bool kEnvSet = [] {
@@ -70,17 +73,6 @@ struct FakeHd {
     return f;
   }
 };
-
-/// Waits (bounded by wall time) until `done()`.
-template <class F>
-bool eventually(F done, double seconds = 5.0) {
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-  while (std::chrono::steady_clock::now() < end) {
-    if (done()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
-  return done();
-}
 
 TEST(VendorFrames, DhdAndHdAxesAndUnits) {
   // DHD: x towards the user, y right, z up -> device: x right, y away, z up.
@@ -162,23 +154,16 @@ TEST(DhdDevice, RuntimeWatchdogZeroesTheForceWhenTheDeviceStopsAnswering) {
   FakeDhd fake;
   const CollisionWorld& world = test::truck_world();
   // Put the device origin on a Gaussian of the Truck: the tool is in contact from the start.
-  const CollisionGaussian* g = nullptr;
-  for (const CollisionGaussian& c : world.gaussians())
-    if (c.opacity > 0.9f && (g == nullptr || c.semi_axes[0] > g->semi_axes[0])) g = &c;
-  ASSERT_NE(g, nullptr);
+  const Eigen::Vector3d on_surface = test::contact_point(world);
+  ASSERT_FALSE(on_surface.isZero());
   fake.set_position(0, 0, 0);
   fake.set_velocity(0, 0, 0);
   fake.set_fail_reads(0);
   DhdDevice dhd(0);
   WorkspaceMappingParams mp;
-  mp.offset = {g->center[0], g->center[1], g->center[2]};
+  mp.offset = on_surface;
   MappedDevice dev(dhd, mp);
-  RuntimeConfig c;
-  c.rate_hz = 1000;
-  c.duration = 30;
-  c.tool.semi_axes = Eigen::Vector3d::Constant(0.05);
-  c.realtime.servo_priority = 0;
-  c.realtime.worker_priority = 0;
+  const RuntimeConfig c = test::device_test_config(30);
   HapticRuntime rt(world, dev, c);
   rt.start();
   ASSERT_TRUE(eventually([&] { return fake.force().norm() > 0.05; })) << "no contact force";
