@@ -8,7 +8,9 @@
 
 #include <cmath>
 #include <limits>
+#include <cstring>
 #include <random>
+#include <vector>
 
 namespace gshaptics {
 namespace {
@@ -56,7 +58,7 @@ void load(PairBatch& b, int lane, const Pair& p) {
 // Lanes past `count` hold NaN: the kernel must ignore them.
 void poison_unused(PairBatch& b) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (int l = b.count; l < kBatchLanes; ++l) {
+  for (int l = b.count; l < kBatchCapacity; ++l) {
     b.dx[l] = b.dy[l] = b.dz[l] = nan;
     for (auto& row : b.r) row[l] = float(nan);
     b.sx[l] = b.sy[l] = b.sz[l] = float(nan);
@@ -78,7 +80,7 @@ Tool random_tool(std::mt19937_64& rng, bool spherical) {
   return t;
 }
 
-// Every lane of full and partial batches matches the scalar search to the certified gap (1e-6)
+// Every lane of full and partial batches (1 to kBatchCapacity lanes) matches the scalar search to the certified gap (1e-6)
 // plus the scalar search's own tolerance.
 TEST(KMinBatch, MatchesScalarOnFullAndPartialBatches) {
   std::mt19937_64 rng(20261122);
@@ -87,8 +89,9 @@ TEST(KMinBatch, MatchesScalarOnFullAndPartialBatches) {
   for (int round = 0; round < 400; ++round) {
     const Tool tool = random_tool(rng, round % 2 == 0);
     const BatchTool bt = make_batch_tool(tool.R, tool.a);
-    b.count = round % 3 == 0 ? kBatchLanes : 1 + round % kBatchLanes;  // full and 1..15-lane batches
-    Pair pairs[kBatchLanes];
+    // Full batches, one-block batches and every size in between.
+    b.count = round % 3 == 0 ? kBatchCapacity : round % 3 == 1 ? 1 + round % kBatchLanes : 1 + (round * 37) % kBatchCapacity;
+    std::vector<Pair> pairs(std::size_t(b.count));
     for (int l = 0; l < b.count; ++l) load(b, l, pairs[l] = random_pair(rng, tool, l + round, 0));
     poison_unused(b);
     k_min_batch(b, bt, /*stop_when_separated=*/false);
@@ -160,6 +163,58 @@ TEST(KMinBatch, FlatSplatsAreRedoneAndStayExact) {
       ASSERT_NEAR(b.k_min[l], scalar(tool, pairs[l], false).k_min, 2e-6) << "round " << round << " lane " << l;
   }
   EXPECT_GT(redone, 0) << "no flat-splat lane took the scalar redo path";
+}
+
+// A pair's K_min does not depend on where it sits in a batch or on the other pairs, to the
+// last bit: the query's batches differ between a plain, a cached and a threaded query, whose
+// results must be identical. Round, flat and coincident pairs; alone, at every block offset and
+// deep in a full batch (where most lanes converge in the first steps and a few go on).
+TEST(KMinBatch, SameBitsWhereverThePairSits) {
+  std::mt19937_64 rng(11);
+  const Tool tool = random_tool(rng, false);
+  const BatchTool bt = make_batch_tool(tool.R, tool.a);
+  std::vector<Pair> probes;
+  for (int i = 0; i < 48; ++i) {
+    Pair p = random_pair(rng, tool, i, /*flat_every=*/3);
+    if (i % 16 == 5) p.d.setZero();
+    probes.push_back(p);
+  }
+  PairBatch b;
+  std::vector<double> alone(probes.size());
+  std::vector<std::uint8_t> alone_sep(probes.size());
+  for (std::size_t i = 0; i < probes.size(); ++i) {
+    b.count = 1;
+    load(b, 0, probes[i]);
+    poison_unused(b);
+    k_min_batch(b, bt, true);
+    alone[i] = b.k_min[0];
+    alone_sep[i] = b.separated[0];
+  }
+  int tails = 0;
+  for (int round = 0; round < 12; ++round) {
+    b.count = round % 2 == 0 ? kBatchCapacity : 17 + round * 13;
+    std::vector<int> where(probes.size(), -1);
+    for (int l = 0; l < b.count; ++l) load(b, l, random_pair(rng, tool, l + round, 4));
+    for (std::size_t i = 0; i < probes.size(); ++i) {
+      const int l = int((i * 53 + std::size_t(round) * 7) % std::size_t(b.count));
+      bool taken = false;
+      for (int w : where) taken = taken || w == l;
+      if (taken) continue;
+      where[i] = l;
+      load(b, l, probes[i]);
+    }
+    poison_unused(b);
+    k_min_batch(b, bt, true);
+    tails += b.tail;
+    for (std::size_t i = 0; i < probes.size(); ++i) {
+      if (where[i] < 0) continue;
+      const double k = b.k_min[where[i]];
+      ASSERT_EQ(std::memcmp(&k, &alone[i], sizeof k), 0)
+          << "pair " << i << " at lane " << where[i] << " of " << b.count << ": " << k << " vs " << alone[i];
+      ASSERT_EQ(b.separated[where[i]], alone_sep[i]) << "pair " << i;
+    }
+  }
+  EXPECT_GT(tails, 0) << "no lane went past the first steps: the tail path was not exercised";
 }
 
 // Coincident centres give K = 1 exactly (K(lambda) = 1 for all lambda), in any lane.

@@ -17,24 +17,78 @@ ContactQuery::ContactQuery(const CollisionWorld& world, const QueryOptions& opti
 
 namespace {
 
-// Fills lane `l` of a batch from a stored Gaussian.
-inline void load_lane(PairBatch& b, int l, const CollisionGaussian& g, const double d[3]) noexcept {
-  b.dx[l] = d[0];
-  b.dy[l] = d[1];
-  b.dz[l] = d[2];
-  for (int k = 0; k < 9; ++k) b.r[k][l] = g.rotation[k];
-  b.sx[l] = g.semi_axes[0];
-  b.sy[l] = g.semi_axes[1];
-  b.sz[l] = g.semi_axes[2];
+// Fills the rotation and semi-axes of lanes [0, count) of a batch from the stored Gaussians
+// named by `slot` (the offsets are written by the pre-filter). Done per batch, after the
+// pre-filter, so only the Gaussians that passed it are copied.
+inline void gather_lanes(PairBatch& b, const CollisionGaussian* gs, const std::uint32_t* slot) noexcept {
+  for (int l = 0; l < b.count; ++l) {
+    const CollisionGaussian& g = gs[slot[l]];
+    for (int k = 0; k < 9; ++k) b.r[k][l] = g.rotation[k];
+    b.sx[l] = g.semi_axes[0];
+    b.sy[l] = g.semi_axes[1];
+    b.sz[l] = g.semi_axes[2];
+  }
 }
 
-// Pads unused lanes with coincident, unit Gaussians (inactive in the kernel, no NaN/denormals).
-inline void pad_lanes(PairBatch& b) noexcept {
-  for (int l = b.count; l < kBatchLanes; ++l) {
-    b.dx[l] = b.dy[l] = b.dz[l] = 0;
-    for (int k = 0; k < 9; ++k) b.r[k][l] = (k % 4 == 0) ? 1.f : 0.f;
-    b.sx[l] = b.sy[l] = b.sz[l] = 1;
+// The bounding-sphere pre-filter (paper eq. 4) over the candidates [first, first + count):
+// those passing are appended to lanes [n, ...) of `b` (offset and world record); returns the new
+// lane count. The caller guarantees n + count <= kBatchCapacity. Branch-free compaction (a lane
+// is always written and kept only if it passed: about half do, which a branch would mispredict),
+// with every running value in a register.
+inline int prefilter(const CollisionGaussian* __restrict gs, std::uint32_t first, std::uint32_t count,
+                     const double c[3], double r_tool, std::uint32_t exclude_slot, PairBatch& b,
+                     std::uint32_t* __restrict slot, int n) noexcept {
+  const double cx = c[0], cy = c[1], cz = c[2];
+  double* __restrict dx = b.dx;
+  double* __restrict dy = b.dy;
+  double* __restrict dz = b.dz;
+  for (std::uint32_t k = first; k < first + count; ++k) {
+    const CollisionGaussian& g = gs[k];
+    const double x = g.center[0] - cx, y = g.center[1] - cy, z = g.center[2] - cz;
+    const double reach = double(g.bounding_radius()) + r_tool;
+    slot[n] = k;
+    dx[n] = x;
+    dy[n] = y;
+    dz[n] = z;
+    n += (x * x + y * y + z * z <= reach * reach) & (k != exclude_slot) ? 1 : 0;
   }
+  return n;
+}
+
+using LeafRange = std::pair<std::uint32_t, std::uint32_t>;  // (first record, count)
+
+// The batched narrow phase over a list of BVH leaves: pre-filter, gather, K_min, in batches of
+// up to kBatchCapacity; emit(slot, k_min) for every contact, in leaf order. Shared by run()
+// and the parallel parts, so a part computes exactly what the single-threaded query does.
+template <typename Emit>
+void narrow_phase(const CollisionGaussian* gs, const LeafRange* leaves, std::size_t n_leaves,
+                  const double c[3], double r_tool, const BatchTool& tool, bool stop_when_separated,
+                  PairBatch& batch, std::uint32_t* slot, QueryCounts& counts, Emit&& emit) noexcept {
+  int n = 0;
+  std::uint32_t candidates = 0, prefiltered = 0;
+  const auto flush = [&] {
+    batch.count = n;
+    gather_lanes(batch, gs, slot);
+    k_min_batch(batch, tool, stop_when_separated);
+    for (int l = 0; l < n; ++l)
+      if (!batch.separated[l] && batch.k_min[l] > 0) emit(slot[l], batch.k_min[l]);
+    prefiltered += std::uint32_t(n);
+    n = 0;
+  };
+  for (std::size_t i = 0; i < n_leaves; ++i) {
+    std::uint32_t first = leaves[i].first, count = leaves[i].second;
+    candidates += count;
+    while (count > 0) {  // a leaf larger than a batch (a big WorldConfig::leaf_size) in pieces
+      const std::uint32_t take = count < std::uint32_t(kBatchCapacity) ? count : std::uint32_t(kBatchCapacity);
+      if (n + int(take) > kBatchCapacity) flush();
+      n = prefilter(gs, first, take, c, r_tool, UINT32_MAX, batch, slot, n);
+      first += take;
+      count -= take;
+    }
+  }
+  if (n > 0) flush();
+  counts.candidates += candidates;
+  counts.prefiltered += prefiltered;
 }
 
 // The tool's rotation and its exact axis-aligned box, rounded outward to float (the BVH's
@@ -57,34 +111,34 @@ struct ToolBox {
 bool ContactQuery::any_contact(const ToolEllipsoid& tool, std::uint32_t exclude_slot) noexcept {
   if (!tool.valid()) return false;
   const ToolBox box(tool);
-  const Eigen::Matrix3d& R_tool = box.rotation;
-  const float* box_lo = box.lo;
-  const float* box_hi = box.hi;
   const double r_tool = tool.bounding_radius();
+  const double c_tool[3] = {tool.center.x(), tool.center.y(), tool.center.z()};
   const CollisionGaussian* gs = world_->gaussians().data();
-  const BatchTool batch_tool = make_batch_tool(R_tool, tool.semi_axes);
+  const BatchTool batch_tool = make_batch_tool(box.rotation, tool.semi_axes);
   PairBatch& batch = batch_;
-  batch.count = 0;
+  std::uint32_t* slot = slot_;
+  // Small batches: the answer is wanted at the first contact, not after a full batch.
+  constexpr int kEarly = 2 * kBatchLanes;
+  int n = 0;
   bool found = false;
   const auto flush = [&] {
-    pad_lanes(batch);
+    batch.count = n;
+    gather_lanes(batch, gs, slot);
     k_min_batch(batch, batch_tool, /*stop_when_separated=*/true);
-    for (int l = 0; l < batch.count; ++l) found = found || (!batch.separated[l] && batch.k_min[l] > 0);
-    batch.count = 0;
+    for (int l = 0; l < n; ++l) found = found || (!batch.separated[l] && batch.k_min[l] > 0);
+    n = 0;
   };
-  world_->bvh().for_each_overlapping_leaf(box_lo, box_hi, [&](std::uint32_t first, std::uint32_t count) {
-    for (std::uint32_t k = first; k < first + count; ++k) {
-      const CollisionGaussian& g = gs[k];
-      const double d[3] = {g.center[0] - tool.center[0], g.center[1] - tool.center[1], g.center[2] - tool.center[2]};
-      const double reach = double(g.bounding_radius()) + r_tool;
-      load_lane(batch, batch.count, g, d);
-      batch.count += d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= reach * reach && k != exclude_slot ? 1 : 0;  // eq. 4
-      if (batch.count == kBatchLanes) flush();
-      if (found) return false;
+  world_->bvh().for_each_overlapping_leaf(box.lo, box.hi, [&](std::uint32_t first, std::uint32_t count) {
+    while (count > 0 && !found) {
+      const std::uint32_t take = count < std::uint32_t(kEarly) ? count : std::uint32_t(kEarly);
+      n = prefilter(gs, first, take, c_tool, r_tool, exclude_slot, batch, slot, n);
+      if (n >= kEarly - int(take)) flush();  // the next piece may not fit: test now
+      first += take;
+      count -= take;
     }
-    return true;
+    return !found;
   });
-  if (!found && batch.count > 0) flush();
+  if (!found && n > 0) flush();
   return found;
 }
 
@@ -99,13 +153,9 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
   const double c_tool[3] = {tool.center.x(), tool.center.y(), tool.center.z()};
   const CollisionGaussian* gs = world_->gaussians().data();
   const bool golden = options_.narrow_phase.minimiser == Minimiser::kGoldenSection;
-  const ToolFrame frame = ToolFrame::from(R_tool, tool.semi_axes);
   const BatchTool batch_tool = make_batch_tool(R_tool, tool.semi_axes);
   QueryStatus status = QueryStatus::kOk;
   QueryCounts counts;
-  PairBatch& batch = batch_;
-  std::uint32_t slot[kBatchLanes];
-  batch.count = 0;
 
   const auto emit = [&](std::uint32_t record, double k) {
     const CollisionGaussian& g = gs[record];
@@ -118,48 +168,43 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
     contact.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
     if (!result_.push(contact)) status = QueryStatus::kContactOverflow;
   };
-  const auto flush = [&] {
-    pad_lanes(batch);
-    k_min_batch(batch, batch_tool, options_.narrow_phase.stop_when_separated);
-    for (int l = 0; l < batch.count; ++l)
-      if (!batch.separated[l] && batch.k_min[l] > 0) emit(slot[l], batch.k_min[l]);
-    batch.count = 0;
-  };
-
-  // Two passes: the traversal collects the overlapping leaves and starts fetching their
-  // records, then the leaves are tested, so the record loads overlap instead of queuing
-  // behind each other. A leaf that does not fit the scratch list is tested at once.
-  const auto test_leaf = [&](std::uint32_t first, std::uint32_t count) {
-    counts.candidates += count;
-    for (std::uint32_t k = first; k < first + count; ++k) {
-      const CollisionGaussian& g = gs[k];
-      const double d[3] = {g.center[0] - c_tool[0], g.center[1] - c_tool[1], g.center[2] - c_tool[2]};
-      const double reach = double(g.bounding_radius()) + r_tool;
-      const bool pass = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= reach * reach;  // eq. 4
-      counts.prefiltered += pass ? 1 : 0;
-      if (golden) {  // the paper's method, one pair at a time
-        if (!pass) continue;
+  // The paper's method: the sphere test, then one golden-section search per pair.
+  const ToolFrame frame = ToolFrame::from(R_tool, tool.semi_axes);
+  const auto golden_leaves = [&](const LeafRange* leaves, std::size_t n) {
+    for (std::size_t i = 0; i < n; ++i) {
+      counts.candidates += leaves[i].second;
+      for (std::uint32_t k = leaves[i].first; k < leaves[i].first + leaves[i].second; ++k) {
+        const CollisionGaussian& g = gs[k];
+        const double d[3] = {g.center[0] - c_tool[0], g.center[1] - c_tool[1], g.center[2] - c_tool[2]};
+        const double reach = double(g.bounding_radius()) + r_tool;
+        if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > reach * reach) continue;  // eq. 4
+        ++counts.prefiltered;
         const Eigen::Vector3d s(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
         const KMinResult r = k_min(pair_coefficients(frame, Eigen::Vector3d(d[0], d[1], d[2]),
                                                      rotation_matrix(g), s),
                                    options_.narrow_phase);
         if (r.k_min > 0) emit(k, r.k_min);
-        continue;
       }
-      // Branch-free compaction: the lane is always written and kept only if it passed (about
-      // half do, which a branch would mispredict).
-      slot[batch.count] = k;
-      load_lane(batch, batch.count, g, d);
-      batch.count += pass ? 1 : 0;
-      if (batch.count == kBatchLanes) flush();
     }
   };
+  const auto test_leaves = [&](const LeafRange* leaves, std::size_t n) {
+    if (golden) golden_leaves(leaves, n);
+    else
+      narrow_phase(gs, leaves, n, c_tool, r_tool, batch_tool, options_.narrow_phase.stop_when_separated,
+                   batch_, slot_, counts, emit);
+  };
+
+  // Two passes: the traversal collects the overlapping leaves and starts fetching their
+  // records, then the leaves are tested, so the record loads overlap instead of queuing
+  // behind each other. When the list is full, the leaves in it are tested at once.
   std::size_t n_leaves = 0;
+  bool spilled = false;
   const std::size_t max_leaves = leaves_.size();
   const auto on_leaf = [&](std::uint32_t first, std::uint32_t count) {
     if (n_leaves == max_leaves) {
-      test_leaf(first, count);
-      return;
+      test_leaves(leaves_.data(), n_leaves);
+      n_leaves = 0;
+      spilled = true;
     }
     const char* p = reinterpret_cast<const char*>(gs + first);
     const char* end = reinterpret_cast<const char*>(gs + first + count);
@@ -211,7 +256,7 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
   }
   // Parallel narrow phase: every overlapping leaf is in the list (none was tested early), the
   // query is large enough, and the method is the batched one.
-  if (executor_ != nullptr && !golden && batch.count == 0 && counts.candidates == 0) {
+  if (executor_ != nullptr && !golden && !spilled) {
     std::uint64_t total = 0;
     for (std::size_t i = 0; i < n_leaves; ++i) total += leaves_[i].second;
     if (total >= min_parallel_candidates_ && n_leaves >= parts_.size()) {
@@ -229,8 +274,7 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
       return status;
     }
   }
-  for (std::size_t i = 0; i < n_leaves; ++i) test_leaf(leaves_[i].first, leaves_[i].second);
-  if (batch.count > 0) flush();
+  test_leaves(leaves_.data(), n_leaves);
   result_.counts = counts;
   return status;
 }
@@ -272,51 +316,28 @@ void ContactQuery::run_parts(std::size_t n_leaves, const ToolEllipsoid& tool, co
   executor_->run(&contact_query_part, this);
 }
 
-// One part's narrow phase: the sequential loop of run() over its leaves, into its own scratch.
+// One part's narrow phase: the shared leaf loop over its leaves, into its own scratch.
 void ContactQuery::run_part(Part& part, const ToolEllipsoid& tool, const BatchTool& batch_tool) noexcept {
   part.contacts.clear();
   part.counts = {};
   part.overflow = false;
-  const double r_tool = tool.bounding_radius();
   const double c_tool[3] = {tool.center.x(), tool.center.y(), tool.center.z()};
   const CollisionGaussian* gs = world_->gaussians().data();
-  PairBatch& batch = part.batch;
-  std::uint32_t slot[kBatchLanes];
-  batch.count = 0;
-  const auto flush = [&] {
-    pad_lanes(batch);
-    k_min_batch(batch, batch_tool, options_.narrow_phase.stop_when_separated);
-    for (int l = 0; l < batch.count; ++l)
-      if (!batch.separated[l] && batch.k_min[l] > 0) {
-        const CollisionGaussian& g = gs[slot[l]];
-        ++part.counts.contacts;
-        Contact contact;
-        contact.index = g.source_index;
-        contact.slot = slot[l];
-        contact.opacity = g.opacity;
-        contact.k_min = batch.k_min[l];
-        contact.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
-        if (part.contacts.size() < part.contacts.capacity()) part.contacts.push_back(contact);
-        else part.overflow = true;
-      }
-    batch.count = 0;
+  const auto emit = [&](std::uint32_t record, double k) {
+    const CollisionGaussian& g = gs[record];
+    ++part.counts.contacts;
+    Contact contact;
+    contact.index = g.source_index;
+    contact.slot = record;
+    contact.opacity = g.opacity;
+    contact.k_min = k;
+    contact.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+    if (part.contacts.size() < part.contacts.capacity()) part.contacts.push_back(contact);
+    else part.overflow = true;
   };
-  for (std::size_t i = part.leaf_begin; i < part.leaf_end; ++i) {
-    const std::uint32_t first = leaves_[i].first, count = leaves_[i].second;
-    part.counts.candidates += count;
-    for (std::uint32_t k = first; k < first + count; ++k) {
-      const CollisionGaussian& g = gs[k];
-      const double d[3] = {g.center[0] - c_tool[0], g.center[1] - c_tool[1], g.center[2] - c_tool[2]};
-      const double reach = double(g.bounding_radius()) + r_tool;
-      const bool pass = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= reach * reach;  // eq. 4
-      part.counts.prefiltered += pass ? 1 : 0;
-      slot[batch.count] = k;
-      load_lane(batch, batch.count, g, d);
-      batch.count += pass ? 1 : 0;
-      if (batch.count == kBatchLanes) flush();
-    }
-  }
-  if (batch.count > 0) flush();
+  narrow_phase(gs, leaves_.data() + part.leaf_begin, part.leaf_end - part.leaf_begin, c_tool,
+               tool.bounding_radius(), batch_tool, options_.narrow_phase.stop_when_separated, part.batch,
+               part.slot, part.counts, emit);
 }
 
 }  // namespace gshaptics

@@ -138,6 +138,7 @@ class ContactQuery {
   QueryOptions options_;
   ContactSet result_;
   PairBatch batch_;  // narrow-phase scratch, reused every query
+  std::uint32_t slot_[kBatchCapacity];  // the world record of each lane of batch_
   static constexpr std::size_t kLeafScratch = 4096;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> leaves_;  // overlapping leaves (first, count)
   // Candidate cache: the leaves (with their boxes) overlapping the grown box [cache_lo_, cache_hi_].
@@ -148,6 +149,7 @@ class ContactQuery {
   // Parallel narrow phase: one scratch per part (part 0: the caller).
   struct Part {
     PairBatch batch;
+    std::uint32_t slot[kBatchCapacity];
     std::vector<Contact> contacts;  // reserved to max_contacts
     QueryCounts counts;
     bool overflow = false;

@@ -1,8 +1,18 @@
 #pragma once
 /// @file
-/// K_min for a batch of up to kBatchLanes (16) tool/Gaussian pairs at once: the same cancellation-free form
-/// and bracketed Newton iteration as k_min(), written branch-free over structure-of-arrays lanes
-/// so the compiler vectorises it (AVX-512, AVX2 or SSE2 clones chosen at run time).
+/// K_min for a batch of up to kBatchCapacity (256) tool/Gaussian pairs at once: the same
+/// cancellation-free form and bracketed Newton iteration as k_min(), written branch-free over
+/// structure-of-arrays lanes so the compiler vectorises it (AVX-512, AVX2 or SSE2 clones chosen
+/// at run time).
+///
+/// The batch is solved in stages, each a pass over all its pairs in blocks of kBatchLanes (16):
+/// coefficients, the starting point and two Newton steps for every pair, then the few pairs
+/// still unconverged (about one in ten on real scenes) gathered into blocks of their own and
+/// iterated to the end, then the double-precision certificate. Every pass works on independent
+/// blocks, so the CPU overlaps them (throughput-bound) instead of waiting on one block's chain of
+/// divisions (latency-bound); and a converged pair stops costing iterations (the "lane refill"
+/// of issue 19). Every pair goes through exactly the same arithmetic wherever it sits in a batch:
+/// its result does not depend on the batch's size or on the other pairs, to the last bit.
 
 #include <cstdint>
 
@@ -10,23 +20,29 @@
 
 namespace gshaptics {
 
-/// Lanes of one batch; a multiple of every SIMD width we target.
+/// Width of the kernel's blocks: a multiple of every SIMD width we target. Batches are padded to
+/// a multiple of it inside the kernel.
 inline constexpr int kBatchLanes = 16;
+/// Pairs in one batch (a multiple of kBatchLanes). The inputs, outputs and the kernel's stack
+/// scratch of a full batch are about 50 KB.
+inline constexpr int kBatchCapacity = 256;
 
-/// Inputs and outputs of one batch, structure of arrays. Lanes >= `count` are ignored.
+/// Inputs and outputs of one batch, structure of arrays. Lanes >= `count` are ignored (the
+/// kernel overwrites the padding it needs).
 struct alignas(64) PairBatch {
   // Gaussian offset from the tool centre, world frame: d = c_G - c_T.
-  double dx[kBatchLanes], dy[kBatchLanes], dz[kBatchLanes];
+  double dx[kBatchCapacity], dy[kBatchCapacity], dz[kBatchCapacity];
   // Gaussian rotation R_G (world frame), row-major per lane: r[3 * row + col][lane]. Single
   // precision as stored in the world; widened inside the kernel, vectorised.
-  float r[9][kBatchLanes];
-  float sx[kBatchLanes], sy[kBatchLanes], sz[kBatchLanes];  ///< Gaussian semi-axes
+  float r[9][kBatchCapacity];
+  float sx[kBatchCapacity], sy[kBatchCapacity], sz[kBatchCapacity];  ///< Gaussian semi-axes
   // outputs
-  double k_min[kBatchLanes];        ///< K_min; when separated, a negative upper bound of it
-  std::uint8_t separated[kBatchLanes];  ///< 1 when separation was proven early
-  int count = 0;    ///< lanes in use (input)
+  double k_min[kBatchCapacity];        ///< K_min; when separated, a negative upper bound of it
+  std::uint8_t separated[kBatchCapacity];  ///< 1 when separation was proven early
+  int count = 0;    ///< lanes in use (input), 0..kBatchCapacity
   int redone = 0;   ///< output: lanes whose float search was not certified and were solved again
                     ///< by the scalar double search (flat splats; for tests and profiling)
+  int tail = 0;     ///< output: lanes still iterating after the first two Newton steps (profiling)
 };
 
 /// Per-tick tool constants for the batch kernel.
@@ -40,9 +56,10 @@ struct BatchTool {
 /// Tool constants from its rotation (world frame) and semi-axes (all > 0).
 [[nodiscard]] BatchTool make_batch_tool(const Eigen::Matrix3d& R_tool, const Eigen::Vector3d& a_tool) noexcept;
 
-/// Solves every lane of `batch` (same mathematics as pair_coefficients() + k_min()).
-/// With `stop_when_separated`, a lane stops at the first lambda where K < 0. noexcept, no
-/// allocation.
+/// Solves every lane < batch.count (same mathematics as pair_coefficients() + k_min(); each
+/// reported K_min is certified within 1e-6 of the true minimum). With `stop_when_separated`, a
+/// lane stops at the first lambda where K < 0. Writes the padding lanes up to the next multiple
+/// of kBatchLanes. noexcept, no allocation (about 30 KB of stack for a full batch).
 void k_min_batch(PairBatch& batch, const BatchTool& tool, bool stop_when_separated) noexcept;
 
 }  // namespace gshaptics
