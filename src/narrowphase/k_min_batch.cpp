@@ -201,13 +201,16 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
       const double m_c = mu[l];
       double p_c, dphi_c, phi_t, phi_tt;
       detail::derivatives<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], m_c, p_c, dphi_c, phi_t, phi_tt);
-      const double step = phi_tt < 0 ? detail::min_of<double>(detail::max_of<double>(-phi_t / phi_tt, -0.5), 0.5) : 0.0;
+      // The polishing step only moves the point where the bound is evaluated, so its ratio is
+      // taken in float (a cheap division); the bound itself is evaluated in double.
+      const float step_f = float(-phi_t) / float(phi_tt);
+      const double step = phi_tt < 0 ? detail::min_of<double>(detail::max_of<double>(double(step_f), -0.5), 0.5) : 0.0;
       const double m2 = m_c * detail::exp_small<double>(step);
       double p2, dphi2, t2, tt2;
       detail::derivatives<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], m2, p2, dphi2, t2, tt2);
-      const double lam2 = m2 / (1 + m2);
-      const double dphi_dlambda = dphi2 * (1 + m2) * (1 + m2);
-      const double gap = dphi_dlambda > 0 ? dphi_dlambda * (1 - lam2) : -dphi_dlambda * lam2;
+      // With lambda = m / (1 + m): dphi/dlambda = dphi/dmu (1 + m)^2, 1 - lambda = 1 / (1 + m),
+      // so the bound's two cases need no division.
+      const double gap = dphi2 > 0 ? dphi2 * (1 + m2) : -dphi2 * (1 + m2) * m2;
       const double phi = detail::max_of<double>(p_c, p2);
       // A lane stopped as separated reports 1 - (largest phi it saw), a negative upper bound of
       // its K_min (as the scalar search does); its last iterate has moved on from that point.
