@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <fstream>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -46,6 +47,25 @@ double peak_rss_mb() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
   return double(u.ru_maxrss) / 1024.0;
+}
+
+// A "VmXXX:  N kB" line of /proc/self/status in MB (0 when unreadable).
+double status_mb(const char* field) {
+  std::ifstream f("/proc/self/status");
+  std::string line;
+  const std::string key = std::string(field) + ":";
+  while (std::getline(f, line))
+    if (line.rfind(key, 0) == 0) return std::stod(line.substr(key.size())) / 1024.0;
+  return 0;
+}
+
+// Resets the peak RSS (VmHWM) to the current RSS (Linux: /proc/self/clear_refs, "5"), so the
+// next status_mb("VmHWM") is the peak of what runs in between. False when not permitted.
+bool reset_peak_rss() {
+  std::ofstream f("/proc/self/clear_refs");
+  f << "5";
+  f.flush();
+  return bool(f);
 }
 
 struct BenchOptions {
@@ -134,7 +154,7 @@ void register_bench(CLI::App& app) {
       "the same poses, checked against the float64 brute-force reference. Scenes: truck (bundled, "
       "registered; tool radius 1-2% of extent), truck-probe (every 1 kHz tick of the probe "
       "trajectory), truck-probe-cached (the same with the servo loop's candidate cache, margin a "
-      "quarter of the tool radius), karangkidul (0.5-1.5%), karangkidul-4M and -10M (tiled in memory).");
+      "quarter of the tool radius), karangkidul (0.5-1.5%), karangkidul-4M, -10M and -15M (tiled in memory; -15M is not in the default list, it is the build-memory case).");
   cmd->add_option("--scenes", o->scenes, "Comma-separated scene sets")->capture_default_str();
   cmd->add_option("--poses", o->poses, "Poses per scene for gshaptics")->capture_default_str();
   cmd->add_option("--query-threads", o->query_threads,
@@ -174,20 +194,21 @@ void register_bench(CLI::App& app) {
         b.radius_max = 0.015;
         if (name == "karangkidul-4M") b.tiles = 5;   // 5 x 885k kept = 4.4M
         if (name == "karangkidul-10M") b.tiles = 12; // 12 x 885k kept = 10.6M
+        if (name == "karangkidul-15M") b.tiles = 17; // 17 x 885k kept = 15.0M (build memory)
         if (name != "karangkidul" && b.tiles == 1) throw InputError("bench: unknown scene set '" + name + "'");
       } else {
         throw InputError("bench: unknown scene set '" + name +
-                         "' (truck, truck-probe, truck-probe-cached, karangkidul, karangkidul-4M, karangkidul-10M)");
+                         "' (truck, truck-probe, truck-probe-cached, karangkidul, karangkidul-4M, karangkidul-10M, karangkidul-15M)");
       }
       sets.push_back(std::move(b));
     }
 
     std::vector<std::string> rows;
     const std::string header =
-        "| scene | Gaussians kept | build s | from cache s | world B/G | peak RSS MB | poses | p50 us | p99 us | "
+        "| scene | Gaussians kept | build s | from cache s | world B/G | build peak MB | peak RSS MB | poses | p50 us | p99 us | "
         "p99.9 us | max us | candidates | contacts mean / max | paper p50 / p99 us | FCL p50 / p99 "
         "us | p99 ratio paper / FCL | exactness ours / paper / FCL |";
-    const std::string rule = "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|";
+    const std::string rule = "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|";
     for (BenchScene& b : sets) {
       fmt::print(stderr, "bench: {}\n", b.name);
       const GaussianScene& base = load(b.file);
@@ -197,10 +218,18 @@ void register_bench(CLI::App& app) {
       const auto t_load = Clock::now();
       LoadedScene fresh = b.tiles == 1 ? load_scene(scene_file(b.file)) : LoadedScene{};
       const double load_s = b.tiles == 1 ? us_since(t_load) * 1e-6 : 0.0;
-      const GaussianScene tiled = b.tiles > 1 ? tile_scene(base, b.tiles, 400.0) : GaussianScene{};
-      const GaussianScene& scene = b.tiles > 1 ? tiled : fresh.scene;
+      GaussianScene tiled = b.tiles > 1 ? tile_scene(base, b.tiles, 400.0) : GaussianScene{};
+      GaussianScene& scene = b.tiles > 1 ? tiled : fresh.scene;
       WorldBuildReport report;
-      const CollisionWorld world = CollisionWorld::build(scene, b.config, &report);
+      // Peak RSS of the build: reset the high-water mark, build, read it (the scene and what the
+      // process held before are in it; "build peak MB").
+      const bool hwm_reset = reset_peak_rss();
+      const double rss_before = status_mb("VmRSS");
+      // consumed, as the CLI does
+      const CollisionWorld world = CollisionWorld::build(std::move(scene), b.config, &report);
+      const double build_peak_mb = hwm_reset ? status_mb("VmHWM") : -1.0;
+      fmt::print(stderr, "bench: {}: build peak RSS {:.0f} MB ({:.0f} MB held before the build)\n", b.name,
+                 build_peak_mb, rss_before);
       const double startup_s = load_s + report.build_seconds;
       // Start-up from the world cache: key (hashing the scene file; for a tiled scene, the key
       // of its source plus the tiling), open with mmap, check the payload hash. Written to a
@@ -315,7 +344,11 @@ void register_bench(CLI::App& app) {
       {
         const std::size_t n_ref = std::min(b.tiles > 1 ? std::size_t(2) : o->reference_poses, subset.size() ? subset.size() : poses.size());
         fmt::print(stderr, "bench: {}: reference on {} poses\n", b.name, n_ref);
-        const auto ref_world = test::reference_world(scene, b.config.min_opacity, b.config.sigma, b.config.registration);
+        // The build consumed its scene: the reference starts again from the loaded file (tiled
+        // again for the tiled sets).
+        const GaussianScene ref_tiled = b.tiles > 1 ? tile_scene(base, b.tiles, 400.0) : GaussianScene{};
+        const auto ref_world = test::reference_world(b.tiles > 1 ? ref_tiled : base, b.config.min_opacity,
+                                                     b.config.sigma, b.config.registration);
         const auto check = [&](Exactness& ex, const std::vector<std::uint32_t>& got,
                                const std::vector<test::RefContact>& ref, const ToolEllipsoid& tool) {
           std::vector<std::uint32_t> ref_ids;
@@ -349,10 +382,10 @@ void register_bench(CLI::App& app) {
       }
 #endif
       rows.push_back(fmt::format(
-          "| {} | {} | {:.2f} | {:.3f} | {:.0f} | {:.0f} | {} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.0f} | "
+          "| {} | {} | {:.2f} | {:.3f} | {:.0f} | {:.0f} | {:.0f} | {} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.0f} | "
           "{:.0f} / {} ({} over 2000) | {} | {} | {} | {} (max dK {:.1e}) / {} / {} |",
           b.name, world.size(), startup_s, cache_s, double(world.memory_bytes()) / double(world.size()),
-          peak_rss_mb(), poses.size(), ours.p50, ours.p99, ours.p999, ours.max,
+          build_peak_mb, peak_rss_mb(), poses.size(), ours.p50, ours.p99, ours.p999, ours.max,
           candidates / double(poses.size()), contacts / double(poses.size()), max_contacts,
           over_2000, paper_cell, fcl_cell, ratio_cell, ex_ours.str(), ex_ours.max_k_error,
           ex_paper.str(), ex_fcl.str()));

@@ -121,7 +121,9 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet) {
   }
   LoadedScene s = load_with_progress(so.scene, quiet);
   WorldBuildReport br;
-  CollisionWorld world = CollisionWorld::build(s.scene, cfg, &br);
+  // The Gaussians are not needed after the build (a cached world has none either): consuming
+  // them lowers the peak memory of a large scene's build.
+  CollisionWorld world = CollisionWorld::build(std::move(s.scene), cfg, &br);
   if (!cache_file.empty()) {
     try {
       std::error_code ec;

@@ -31,92 +31,89 @@ Bvh Bvh::from_nodes(std::span<const BvhNode> nodes, int depth, std::shared_ptr<c
 Bvh Bvh::build(std::span<const Eigen::Vector3d> lo, std::span<const Eigen::Vector3d> hi,
                int leaf_size) {
   if (lo.size() != hi.size()) throw std::invalid_argument("Bvh::build: lo/hi size mismatch");
-  if (lo.size() >= std::numeric_limits<std::uint32_t>::max())
+  std::vector<BvhBox> boxes(lo.size());
+  for (std::size_t i = 0; i < lo.size(); ++i)
+    for (int a = 0; a < 3; ++a) {
+      boxes[i].lo[a] = round_down_to_float(lo[i][a]);
+      boxes[i].hi[a] = round_up_to_float(hi[i][a]);
+    }
+  return build(boxes, leaf_size);
+}
+
+Bvh Bvh::build(std::span<const BvhBox> boxes, int leaf_size) {
+  if (boxes.size() >= std::numeric_limits<std::uint32_t>::max())
     throw std::invalid_argument("Bvh::build: too many primitives");
   leaf_size = std::max(1, leaf_size);
   Bvh bvh;
-  std::vector<BvhNode> nodes;  // built here, then laid out in preorder into shared storage
-  const std::size_t n = lo.size();
+  const std::size_t n = boxes.size();
   bvh.order_.resize(n);
   for (std::size_t i = 0; i < n; ++i) bvh.order_[i] = std::uint32_t(i);
   if (n == 0) return bvh;
-  std::vector<Eigen::Vector3d> centroid(n);
-  for (std::size_t i = 0; i < n; ++i) centroid[i] = 0.5 * (lo[i] + hi[i]);
-  nodes.reserve(2 * (2 * n / std::size_t(leaf_size) + 1));  // leaves hold >= leaf/2
-
+  // Nodes are created in depth-first preorder (left subtree before right), so a left child
+  // directly follows its parent and the traversal walks mostly forward through memory; a
+  // parent learns its right child's index when that child is created.
+  auto nodes = std::make_shared<std::vector<BvhNode>>();
+  nodes->reserve(2 * (2 * n / std::size_t(leaf_size) + 1));  // leaves hold >= leaf/2
   struct Task {
-    std::uint32_t node, begin, end;
+    std::uint32_t begin, end;
+    std::uint32_t parent;  // node whose right-child index is this node, or ~0 (left or root)
     int depth;
   };
   std::vector<Task> tasks;
-  nodes.push_back({});
-  tasks.push_back({0, 0, std::uint32_t(n), 1});
+  tasks.push_back({0, std::uint32_t(n), ~0u, 1});
+  const BvhBox* b = boxes.data();
+  std::uint32_t* order = bvh.order_.data();
   while (!tasks.empty()) {
     const Task t = tasks.back();
     tasks.pop_back();
     bvh.depth_ = std::max(bvh.depth_, t.depth);
-    Eigen::Vector3d blo = Eigen::Vector3d::Constant(INFINITY), bhi = -blo;
-    Eigen::Vector3d clo = blo, chi = bhi;
-    for (std::uint32_t k = t.begin; k < t.end; ++k) {
-      const std::uint32_t p = bvh.order_[k];
-      blo = blo.cwiseMin(lo[p]);
-      bhi = bhi.cwiseMax(hi[p]);
-      clo = clo.cwiseMin(centroid[p]);
-      chi = chi.cwiseMax(centroid[p]);
-    }
-    BvhNode& node = nodes[t.node];
+    const auto index = std::uint32_t(nodes->size());
+    if (t.parent != ~0u) (*nodes)[t.parent].first = index;
+    BvhNode node{};
+    // Node bounds and the bounds of the centroids (as lo + hi: twice the centroid, same order).
+    float blo[3], bhi[3], clo[3], chi[3];
     for (int a = 0; a < 3; ++a) {
-      node.lo[a] = round_down_to_float(blo[a]);
-      node.hi[a] = round_up_to_float(bhi[a]);
+      blo[a] = clo[a] = INFINITY;
+      bhi[a] = chi[a] = -INFINITY;
+    }
+    for (std::uint32_t k = t.begin; k < t.end; ++k) {
+      const BvhBox& x = b[order[k]];
+      for (int a = 0; a < 3; ++a) {
+        blo[a] = std::min(blo[a], x.lo[a]);
+        bhi[a] = std::max(bhi[a], x.hi[a]);
+        const float c = x.lo[a] + x.hi[a];
+        clo[a] = std::min(clo[a], c);
+        chi[a] = std::max(chi[a], c);
+      }
+    }
+    for (int a = 0; a < 3; ++a) {
+      node.lo[a] = blo[a];
+      node.hi[a] = bhi[a];
     }
     const std::uint32_t count = t.end - t.begin;
     if (count <= std::uint32_t(leaf_size)) {
       node.first = t.begin;
       node.count = count;
+      nodes->push_back(node);
       continue;
     }
     int axis = 0;
-    (chi - clo).maxCoeff(&axis);
+    for (int a = 1; a < 3; ++a)
+      if (chi[a] - clo[a] > chi[axis] - clo[axis]) axis = a;
     const std::uint32_t mid = t.begin + count / 2;
-    std::nth_element(bvh.order_.begin() + t.begin, bvh.order_.begin() + mid,
-                     bvh.order_.begin() + t.end, [&](std::uint32_t a, std::uint32_t b) {
-                       return centroid[a][axis] < centroid[b][axis];
-                     });
-    const auto left = std::uint32_t(nodes.size());
-    node.first = left;
-    node.count = 0;
-    nodes.push_back({});  // may reallocate: `node` is not used after this point
-    nodes.push_back({});
-    tasks.push_back({left, t.begin, mid, t.depth + 1});
-    tasks.push_back({left + 1, mid, t.end, t.depth + 1});
+    std::nth_element(order + t.begin, order + mid, order + t.end, [&](std::uint32_t p, std::uint32_t q) {
+      return b[p].lo[axis] + b[p].hi[axis] < b[q].lo[axis] + b[q].hi[axis];
+    });
+    node.count = 0;  // inner: `first` (the right child) is set when that child is made
+    nodes->push_back(node);
+    tasks.push_back({mid, t.end, index, t.depth + 1});  // right, after the whole left subtree
+    tasks.push_back({t.begin, mid, ~0u, t.depth + 1});  // left: next, at index + 1
   }
   if (bvh.depth_ >= kMaxDepth) throw std::logic_error("Bvh::build: depth exceeds traversal stack");
-
-  // Re-lay the nodes out in depth-first preorder: a left child directly follows its parent,
-  // so the traversal walks mostly forward through memory; inner nodes keep only the right
-  // child's index.
-  std::vector<BvhNode> ordered;
-  ordered.reserve(nodes.size());
-  struct Item {
-    std::uint32_t old_index;
-    std::uint32_t parent_slot;  // slot of the parent whose right-child index to fill, or ~0
-  };
-  std::vector<Item> todo{{0, ~0u}};
-  while (!todo.empty()) {
-    const Item item = todo.back();
-    todo.pop_back();
-    const auto slot = std::uint32_t(ordered.size());
-    if (item.parent_slot != ~0u) ordered[item.parent_slot].first = slot;
-    const BvhNode node = nodes[item.old_index];
-    ordered.push_back(node);
-    if (node.count == 0) {
-      todo.push_back({node.first + 1, slot});  // right: index patched when it is emitted
-      todo.push_back({node.first, ~0u});       // left: emitted next, at slot + 1
-    }
-  }
-  auto storage = std::make_shared<const std::vector<BvhNode>>(std::move(ordered));
-  bvh.nodes_ = std::span<const BvhNode>(*storage);
-  bvh.owner_ = std::move(storage);
+  // No shrink_to_fit: it would copy; the reserved tail past size() was never touched, so it
+  // holds address space, not memory.
+  bvh.nodes_ = std::span<const BvhNode>(*nodes);
+  bvh.owner_ = std::move(nodes);
   return bvh;
 }
 

@@ -27,6 +27,14 @@ static_assert(sizeof(BvhNode) == 32);
 [[nodiscard]] float round_down_to_float(double x) noexcept;
 [[nodiscard]] float round_up_to_float(double x) noexcept;
 
+/// A primitive's box for the build: the double box rounded outward to float (the nodes'
+/// precision; since rounding is monotone, a node's box is the same whether its children's
+/// boxes are rounded first or not).
+struct BvhBox {
+  float lo[3], hi[3];
+};
+static_assert(sizeof(BvhBox) == 24);
+
 /// A BVH over N boxes. `order[k]` is the input index of the primitive in slot k; a leaf covers
 /// slots [first, first + count). Nodes are stored in depth-first preorder. Built by median split along the longest axis of the centroid
 /// bounds (O(N log N)); leaves hold at most `leaf_size` primitives.
@@ -35,6 +43,11 @@ class Bvh {
   /// Builds over boxes [lo[i], hi[i]] (world frame). Throws std::invalid_argument on size mismatch.
   static Bvh build(std::span<const Eigen::Vector3d> lo, std::span<const Eigen::Vector3d> hi,
                    int leaf_size = 4);
+  /// Builds over float boxes (already rounded outward), straight into preorder: the build's
+  /// memory is the boxes (24 B), the order (4 B) and the nodes (32 B per node, about a third of
+  /// a node per primitive at leaf size 8). Throws std::invalid_argument for more than 2^32 - 2
+  /// boxes.
+  static Bvh build(std::span<const BvhBox> boxes, int leaf_size = 4);
 
   /// A BVH over nodes stored elsewhere (a memory-mapped world cache), kept alive by `owner`.
   /// The nodes must be a valid preorder layout of depth `depth` (as build() makes).
@@ -46,6 +59,9 @@ class Bvh {
   [[nodiscard]] int depth() const { return depth_; }
   /// Frees `order()` once the caller has permuted its primitives into slot order.
   void release_order() { std::vector<std::uint32_t>().swap(order_); }
+  /// The order, for a caller that permutes its primitives in place using it as scratch (then
+  /// calls release_order()).
+  [[nodiscard]] std::vector<std::uint32_t>& mutable_order() { return order_; }
 
   /// Calls `on_leaf(first, count)` for every leaf whose box overlaps [box_lo, box_hi]. When
   /// `on_leaf` returns bool, returning false stops the traversal (early exit).
