@@ -57,6 +57,18 @@ inline int prefilter(const CollisionGaussian* __restrict gs, std::uint32_t first
 
 using LeafRange = std::pair<std::uint32_t, std::uint32_t>;  // (first record, count)
 
+// The contact a world record with K_min `k` reports.
+inline Contact make_contact(const CollisionGaussian* gs, std::uint32_t record, double k) noexcept {
+  const CollisionGaussian& g = gs[record];
+  Contact contact;
+  contact.index = g.source_index;
+  contact.slot = record;
+  contact.opacity = g.opacity;
+  contact.k_min = k;
+  contact.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+  return contact;
+}
+
 // The batched narrow phase over a list of BVH leaves: pre-filter, gather, K_min, in batches of
 // up to kBatchCapacity; emit(slot, k_min) for every contact, in leaf order. Shared by run()
 // and the parallel parts, so a part computes exactly what the single-threaded query does.
@@ -158,15 +170,8 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
   QueryCounts counts;
 
   const auto emit = [&](std::uint32_t record, double k) {
-    const CollisionGaussian& g = gs[record];
     ++counts.contacts;
-    Contact contact;
-    contact.index = g.source_index;
-    contact.slot = record;
-    contact.opacity = g.opacity;
-    contact.k_min = k;
-    contact.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
-    if (!result_.push(contact)) status = QueryStatus::kContactOverflow;
+    if (!result_.push(make_contact(gs, record, k))) status = QueryStatus::kContactOverflow;
   };
   // The paper's method: the sphere test, then one golden-section search per pair.
   const ToolFrame frame = ToolFrame::from(R_tool, tool.semi_axes);
@@ -324,15 +329,8 @@ void ContactQuery::run_part(Part& part, const ToolEllipsoid& tool, const BatchTo
   const double c_tool[3] = {tool.center.x(), tool.center.y(), tool.center.z()};
   const CollisionGaussian* gs = world_->gaussians().data();
   const auto emit = [&](std::uint32_t record, double k) {
-    const CollisionGaussian& g = gs[record];
     ++part.counts.contacts;
-    Contact contact;
-    contact.index = g.source_index;
-    contact.slot = record;
-    contact.opacity = g.opacity;
-    contact.k_min = k;
-    contact.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
-    if (part.contacts.size() < part.contacts.capacity()) part.contacts.push_back(contact);
+    if (part.contacts.size() < part.contacts.capacity()) part.contacts.push_back(make_contact(gs, record, k));
     else part.overflow = true;
   };
   narrow_phase(gs, leaves_.data() + part.leaf_begin, part.leaf_end - part.leaf_begin, c_tool,
