@@ -8,25 +8,12 @@
 // By default a CPU-burning process runs beside the test, as on a machine doing something else.
 // Every wait is bounded by wall time; the whole test must finish within BUDGET_MS.
 
-import { spawn, spawnSync } from "node:child_process";
-import { existsSync, mkdirSync, readFileSync } from "node:fs";
+import { spawnSync } from "node:child_process";
 import { join } from "node:path";
-import { chromium } from "playwright-core";
+import { checkServeAndLog, fail, finish, openPage, setup, startServe, waitFor } from "./harness.mjs";
 
-const [exe, outDir, flag] = process.argv.slice(2);
-const BUDGET_MS = 120000;
-const t0 = Date.now();
-const left = () => Math.max(1000, BUDGET_MS - (Date.now() - t0));
-if (!exe || !outDir) {
-  console.error("usage: viewer_e2e.mjs PATH/TO/gshaptics OUT_DIR");
-  process.exit(2);
-}
-const CHROMIUM = "/usr/bin/chromium";
-if (!existsSync(CHROMIUM)) {
-  console.log(`SKIP: ${CHROMIUM} not installed (scripts/setup.sh installs Debian's chromium)`);
-  process.exit(77);
-}
-mkdirSync(outDir, { recursive: true });
+const ctx = setup("viewer_e2e.mjs");
+const { exe, outDir, burner, t0, left } = ctx;
 
 // The small scene: a 0.1 m sphere of Gaussians in metres, z up.
 const scene = join(outDir, "sphere.ply");
@@ -35,45 +22,17 @@ if (synth.status !== 0) {
   console.error(`FAIL: gshaptics synth: ${synth.stderr}`);
   process.exit(1);
 }
-// Another CPU-heavy process on this machine for the whole test.
-const burner = flag === "--no-load" ? null
-  : spawn(process.execPath, ["-e", "const e = Date.now() + 600000; while (Date.now() < e) {}"], { stdio: "ignore" });
 
-function fail(msg) {
-  console.error(`FAIL: ${msg}`);
-  process.exitCode = 1;
-}
-
-const server = spawn(exe, ["serve", scene, "--up", "z-up", "--tool-radius", "0.008", "--port", "0", "--quiet", "--no-plot", "--out", outDir],
-  { stdio: ["ignore", "pipe", "pipe"] });
-let stdout = "", stderr = "";
-server.stdout.on("data", (d) => { stdout += d; });
-server.stderr.on("data", (d) => { stderr += d; });
-const exited = new Promise((resolve) => server.on("exit", (code, sig) => resolve({ code, sig })));
-
-async function waitFor(pred, ms, what) {
-  const t0 = Date.now();
-  while (Date.now() - t0 < ms) {
-    const v = await pred();
-    if (v) return v;
-    await new Promise((r) => setTimeout(r, 200));
-  }
-  throw new Error(`timed out after ${ms} ms waiting for ${what}`);
-}
+const serve = startServe(exe, [scene, "--up", "z-up", "--tool-radius", "0.008", "--port", "0", "--quiet", "--no-plot", "--out", outDir]);
+const { server, out, exited } = serve;
 
 let browser;
 try {
-  const url = await waitFor(() => (stdout.match(/viewer\s+(http:\/\/\S+)/) || [])[1], left(), "the server URL");
+  const url = await serve.url(left());
   console.log(`server at ${url}`);
-  browser = await chromium.launch({
-    executablePath: CHROMIUM,
-    args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-      "--disable-background-networking", "--disable-component-update", "--disable-sync",
-      "--use-angle=swiftshader", "--enable-unsafe-swiftshader"],
-  });
-  const page = await browser.newPage({ viewport: { width: 480, height: 320 } });
-  page.on("console", (m) => { if (m.type() === "error") console.log(`page error: ${m.text()}`); });
-  page.on("pageerror", (e) => console.log(`page exception: ${e.message}`));
+  const opened = await openPage({ width: 480, height: 320 });
+  browser = opened.browser;
+  const page = opened.page;
   await page.goto(url, { timeout: left() });
   await page.waitForFunction(() => document.getElementById("status").textContent === "connected", null, { timeout: left() });
   await page.waitForFunction(() => window.gshaptics && window.gshaptics.last !== null, null, { timeout: left() });
@@ -127,28 +86,8 @@ try {
 }
 
 const { code } = await exited;
-if (code !== 0) fail(`gshaptics serve exited with ${code}: ${stderr.slice(-500)}`);
 // The runtime's own log agrees: ticks with contacts and a non-zero force sent to the device.
-const logPath = join(outDir, "servo_log.csv");
-if (!existsSync(logPath)) {
-  fail(`no ${logPath}`);
-} else {
-  const [header, ...rows] = readFileSync(logPath, "utf8").trim().split("\n");
-  const col = Object.fromEntries(header.split(",").map((n, i) => [n, i]));
-  let withContact = 0, maxF = 0;
-  for (const r of rows) {
-    const v = r.split(",").map(Number);
-    if (v[col.contacts] > 0) withContact++;
-    maxF = Math.max(maxF, Math.hypot(v[col.fx], v[col.fy], v[col.fz]));
-  }
-  console.log(`runtime log: ${rows.length} ticks, ${withContact} with contacts, max |F| ${maxF.toFixed(3)} N`);
-  if (!(withContact > 0)) fail("the runtime's log has no tick with contacts");
-  if (!(maxF > 0)) fail("the runtime's log never sent a force");
-  const last = rows[rows.length - 1].split(",").map(Number);
-  if (Math.hypot(last[col.fx], last[col.fy], last[col.fz]) !== 0) fail("the device was not left at zero force");
-}
-if (!stdout.includes("frames sent")) fail("serve did not report its viewer statistics");
-const wall = (Date.now() - t0) / 1000;
-console.log(`wall time ${wall.toFixed(1)} s${burner ? " with a CPU-burning process beside it" : ""} (budget ${BUDGET_MS / 1000} s)`);
-if (wall * 1000 > BUDGET_MS) fail(`took ${wall.toFixed(1)} s, over the ${BUDGET_MS / 1000} s budget`);
-console.log(process.exitCode ? "viewer e2e: FAILED" : "viewer e2e: OK");
+const log = checkServeAndLog(ctx, code, out);
+if (log) console.log(`runtime log: ${log.ticks} ticks, ${log.withContact} with contacts, max |F| ${log.maxF.toFixed(3)} N`);
+if (!out.stdout.includes("frames sent")) fail("serve did not report its viewer statistics");
+finish(ctx, "viewer e2e");

@@ -14,63 +14,22 @@
 // By default a CPU-burning process runs beside the test, as on a machine doing something else.
 // Every wait is bounded by wall time; the whole test must finish within BUDGET_MS.
 
-import { spawn } from "node:child_process";
-import { existsSync, mkdirSync, readFileSync, writeFileSync } from "node:fs";
+import { readFileSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
-import { chromium } from "playwright-core";
+import { checkServeAndLog, fail, finish, openPage, setup, sleep, startServe, waitFor } from "./harness.mjs";
 
-const [exe, outDir, flag] = process.argv.slice(2);
-const BUDGET_MS = 120000;
-const t0 = Date.now();
-const left = () => Math.max(1000, BUDGET_MS - (Date.now() - t0));
-const CHROMIUM = "/usr/bin/chromium";
-if (!exe || !outDir) {
-  console.error("usage: xr_e2e.mjs PATH/TO/gshaptics OUT_DIR");
-  process.exit(2);
-}
-if (!existsSync(CHROMIUM)) {
-  console.log(`SKIP: ${CHROMIUM} not installed (scripts/setup.sh installs Debian's chromium)`);
-  process.exit(77);
-}
-mkdirSync(outDir, { recursive: true });
-const burner = flag === "--no-load" ? null
-  : spawn(process.execPath, ["-e", "const e = Date.now() + 600000; while (Date.now() < e) {}"], { stdio: "ignore" });
-function fail(msg) {
-  console.error(`FAIL: ${msg}`);
-  process.exitCode = 1;
-}
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
-
-const server = spawn(exe, ["serve", "--device", "xr", "--port", "0", "--quiet", "--no-plot", "--out", outDir],
-  { stdio: ["ignore", "pipe", "pipe"] });
-let stdout = "", stderr = "";
-server.stdout.on("data", (d) => { stdout += d; });
-server.stderr.on("data", (d) => { stderr += d; });
-const exited = new Promise((resolve) => server.on("exit", (code, sig) => resolve({ code, sig })));
-
-async function waitFor(pred, ms, what) {
-  const start = Date.now();
-  while (Date.now() - start < ms) {
-    const v = await pred();
-    if (v) return v;
-    await sleep(100);
-  }
-  throw new Error(`timed out after ${ms} ms waiting for ${what}`);
-}
+const ctx = setup("xr_e2e.mjs");
+const { exe, outDir, burner, t0, left } = ctx;
+const serve = startServe(exe, ["--device", "xr", "--port", "0", "--quiet", "--no-plot", "--out", outDir]);
+const { server, out, exited } = serve;
 
 let browser;
 const report = {};
 try {
-  const url = await waitFor(() => (stdout.match(/viewer\s+(http:\/\/\S+)/) || [])[1], left(), "the server URL");
-  browser = await chromium.launch({
-    executablePath: CHROMIUM,
-    args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-      "--disable-background-networking", "--disable-component-update", "--disable-sync",
-      "--use-angle=swiftshader", "--enable-unsafe-swiftshader"],
-  });
-  const page = await browser.newPage({ viewport: { width: 320, height: 240 } });
-  page.on("console", (m) => { if (m.type() === "error") console.log(`page error: ${m.text()}`); });
-  page.on("pageerror", (e) => console.log(`page exception: ${e.message}`));
+  const url = await serve.url(left());
+  const opened = await openPage({ width: 320, height: 240 });
+  browser = opened.browser;
+  const page = opened.page;
   await page.goto(`${url}?xr-emulate=quest3&quality=low&splat-budget=3000`, { timeout: left() });
   await page.waitForFunction(() => window.gshaptics && window.gshaptics.xrAvailable === true, null, { timeout: left() });
   await page.waitForFunction(() => document.body.dataset.sceneLoaded === "1" || document.body.dataset.error, null, { timeout: left() });
@@ -162,34 +121,16 @@ try {
 }
 
 const { code } = await exited;
-if (code !== 0) fail(`gshaptics serve exited with ${code}: ${stderr.slice(-500)}`);
-const logPath = join(outDir, "servo_log.csv");
-if (!existsSync(logPath)) {
-  fail(`no ${logPath}`);
-} else {
-  const [header, ...rows] = readFileSync(logPath, "utf8").trim().split("\n");
-  const col = Object.fromEntries(header.split(",").map((n, i) => [n, i]));
-  let withContact = 0, maxF = 0;
-  for (const row of rows) {
-    const v = row.split(",").map(Number);
-    if (v[col.contacts] > 0) withContact++;
-    maxF = Math.max(maxF, Math.hypot(v[col.fx], v[col.fy], v[col.fz]));
-  }
-  const last = rows[rows.length - 1].split(",").map(Number);
+const log = checkServeAndLog(ctx, code, out);
+if (log) {
   const summary = JSON.parse(readFileSync(join(outDir, "run_summary.json"), "utf8"));
-  Object.assign(report, { log_ticks: rows.length, log_contact_ticks: withContact, log_max_force: maxF,
+  Object.assign(report, { log_ticks: log.ticks, log_contact_ticks: log.withContact, log_max_force: log.maxF,
     watchdog_ticks: summary.runtime.watchdog_ticks });
-  console.log(`runtime log: ${rows.length} ticks, ${withContact} with contacts, max |F| ${maxF.toFixed(3)} N, ` +
+  console.log(`runtime log: ${log.ticks} ticks, ${log.withContact} with contacts, max |F| ${log.maxF.toFixed(3)} N, ` +
     `watchdog ${summary.runtime.watchdog_ticks} ticks`);
-  if (!(withContact > 0)) fail("the runtime's log has no tick with contacts");
-  if (!(maxF > 0)) fail("the runtime's log never sent a force");
-  if (Math.hypot(last[col.fx], last[col.fy], last[col.fz]) !== 0) fail("the device was not left at zero force");
   if (!(summary.runtime.watchdog_ticks > 0)) fail("the XR device's watchdog never tripped");
   if (!summary.device.startsWith("xr controller")) fail(`device is ${summary.device}`);
 }
-const wall = (Date.now() - t0) / 1000;
-report.wall_s = wall;
+report.wall_s = (Date.now() - t0) / 1000;
 writeFileSync(join(outDir, "xr_e2e.json"), JSON.stringify(report, null, 2) + "\n");
-console.log(`wall time ${wall.toFixed(1)} s${burner ? " with a CPU-burning process beside it" : ""} (budget ${BUDGET_MS / 1000} s)`);
-if (wall * 1000 > BUDGET_MS) fail(`took ${wall.toFixed(1)} s, over the ${BUDGET_MS / 1000} s budget`);
-console.log(process.exitCode ? "xr e2e: FAILED" : "xr e2e: OK");
+finish(ctx, "xr e2e");
