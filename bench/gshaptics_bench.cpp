@@ -69,7 +69,7 @@ bool reset_peak_rss() {
 }
 
 struct BenchOptions {
-  std::string scenes = "truck,truck-probe,truck-probe-cached,karangkidul,karangkidul-4M,karangkidul-10M";
+  std::string scenes = "truck,truck-probe,truck-probe-cached,truck-hard,firepit-hard,karangkidul,karangkidul-4M,karangkidul-10M";
   std::size_t poses = 2000;
   int query_threads = 1;
   std::size_t parallel_min_candidates = 2048;
