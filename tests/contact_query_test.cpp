@@ -12,6 +12,7 @@
 #include <random>
 
 #include "gshaptics/io/scene_loader.h"
+#include "gshaptics/scene/registration.h"
 #include "gshaptics/sim/pose_sampler.h"
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/sim/probe_trajectory.h"
@@ -321,6 +322,52 @@ TEST(CandidateCache, RealSceneAndATinyCacheThatOverflows) {
     expect_bit_identical(plain.result(), tiny.result(), "tiny cache tick " + std::to_string(i));
   }
   EXPECT_GT(tiny.cache_stats().overflows, 0u);
+}
+
+// The narrow phase's batches do not depend on the BVH's leaf size: a world whose leaves are
+// larger than a batch (~420 records > kBatchCapacity, so each leaf is split across batches) gives the same
+// contacts, each with the same K_min to the last bit, as the default world (in another order:
+// the records are ordered by another BVH). And any_contact() agrees with run() on both.
+TEST(ContactQuery, LeavesLargerThanABatchAndAnyContactAgree) {
+  const LoadedScene s = load_scene(test::data_path("truck.splat"));
+  WorldConfig config;
+  config.registration = load_registration_file(test::data_path("truck.registration.json"));
+  const CollisionWorld small = CollisionWorld::build(s.scene, config);
+  config.leaf_size = 600;  // Truck: leaves of ~420 records, each split over two batches
+  const CollisionWorld big = CollisionWorld::build(s.scene, config);
+  ASSERT_GT(config.leaf_size, kBatchCapacity);
+  PoseSamplerParams p;
+  p.count = 150;
+  p.seed = 19;
+  p.radius_min = 0.01;
+  p.radius_max = 0.04;
+  p.anisotropic = true;
+  ContactQuery qs(small), qb(big);
+  std::size_t contacts = 0, free_poses = 0;
+  for (const ToolEllipsoid& t : sample_poses(small, p)) {
+    qs.run(t);
+    qb.run(t);
+    ASSERT_EQ(qs.result().contacts().size(), qb.result().contacts().size());
+    std::map<std::uint32_t, double> k_small;
+    for (const Contact& c : qs.result().contacts()) k_small[c.index] = c.k_min;
+    for (const Contact& c : qb.result().contacts()) {
+      ASSERT_EQ(k_small.count(c.index), 1u) << "Gaussian " << c.index;
+      ASSERT_EQ(std::memcmp(&k_small[c.index], &c.k_min, sizeof(double)), 0) << "Gaussian " << c.index;
+    }
+    // (The candidate and pre-filter counts differ: larger leaves hand over more candidates.)
+    const bool any = !qs.result().contacts().empty();
+    EXPECT_EQ(qs.any_contact(t), any);
+    EXPECT_EQ(qb.any_contact(t), any);
+    contacts += qs.result().contacts().size();
+    free_poses += any ? 0 : 1;
+  }
+  EXPECT_GT(contacts, 10000u);  // large queries: many batches per query
+  // The near-surface poses are mostly in contact; lift a few clear of everything for the
+  // "free" answer.
+  const Eigen::Vector3d above = small.bounds_hi() + Eigen::Vector3d::Constant(1.0);
+  const ToolEllipsoid clear = ToolEllipsoid::sphere(above, 0.05);
+  EXPECT_FALSE(qs.any_contact(clear));
+  EXPECT_FALSE(qb.any_contact(clear));
 }
 
 }  // namespace
