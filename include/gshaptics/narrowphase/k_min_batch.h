@@ -24,7 +24,7 @@ namespace gshaptics {
 /// a multiple of it inside the kernel.
 inline constexpr int kBatchLanes = 16;
 /// Pairs in one batch (a multiple of kBatchLanes). The inputs, outputs and the kernel's stack
-/// scratch of a full batch are about 50 KB.
+/// scratch of a full batch are about 65 KB.
 inline constexpr int kBatchCapacity = 256;
 
 /// Inputs and outputs of one batch, structure of arrays. Lanes >= `count` are ignored (the
@@ -59,7 +59,8 @@ struct BatchTool {
 /// Solves every lane < batch.count (same mathematics as pair_coefficients() + k_min(); each
 /// reported K_min is certified within 1e-6 of the true minimum). With `stop_when_separated`, a
 /// lane stops at the first lambda where K < 0. Writes the padding lanes up to the next multiple
-/// of kBatchLanes. noexcept, no allocation (about 30 KB of stack for a full batch).
+/// of kBatchLanes. noexcept, no allocation (about 45 KB of stack: the coefficients, the float
+/// search state and the packed tail of a full batch).
 void k_min_batch(PairBatch& batch, const BatchTool& tool, bool stop_when_separated) noexcept;
 
 }  // namespace gshaptics
