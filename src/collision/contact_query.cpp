@@ -174,7 +174,8 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
     if (!result_.push(make_contact(gs, record, k))) status = QueryStatus::kContactOverflow;
   };
   // The paper's method: the sphere test, then one golden-section search per pair.
-  const ToolFrame frame = ToolFrame::from(R_tool, tool.semi_axes);
+  // (Its tool frame is only built for that method: the batched path has BatchTool.)
+  const ToolFrame frame = golden ? ToolFrame::from(R_tool, tool.semi_axes) : ToolFrame{};
   const auto golden_leaves = [&](const LeafRange* leaves, std::size_t n) {
     for (std::size_t i = 0; i < n; ++i) {
       counts.candidates += leaves[i].second;
