@@ -185,42 +185,81 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
       sep[l] = tsep[j];
     }
   }
-  // Certificate in double. From the float point, one double Newton step (in t) polishes the
-  // location; there phi' = dphi/dlambda gives, by concavity of phi in lambda, the tangent bound
-  //   max phi <= phi(lambda') + |phi'| * (1 - lambda' if phi' > 0 else lambda').
-  // A lane is accepted when that gap is below kCertifiedGap, so its K_min is within the gap of
-  // the true minimum whatever the float iterations did. Otherwise (rare: flat splats whose phi
-  // is flat over many e-folds of mu, where float curvature is noise) the lane is redone by the
-  // scalar double search.
-  alignas(64) double redo[C];  // double, like the lane's other values: mixed widths defeat the vectoriser
+  // Certificate in double, by concavity of phi in lambda: at any lambda', with
+  // phi' = dphi/dlambda there, the tangent bound
+  //   max phi <= phi(lambda') + |phi'| * (1 - lambda' if phi' > 0 else lambda')
+  // holds. A lane is accepted when that gap is below kCertifiedGap, so its K_min is within the
+  // gap of the true minimum whatever the float iterations did.
+  // Stage 1, every lane: phi and its slope at the last float point (three in four lanes of real
+  // scenes are certified right there; a lane stopped as separated needs no certificate).
+  // Stage 2, the others packed together: one double Newton step (in t) polishes the location
+  // and the bound is taken there. A lane that still fails (rare: flat splats whose phi is flat
+  // over many e-folds of mu, where float curvature is noise) is redone by the scalar double
+  // search. With lambda = m / (1 + m): dphi/dlambda = dphi/dmu (1 + m)^2 and
+  // 1 - lambda = 1 / (1 + m), so the bound's two cases need no division.
+  // Which stage decides depends on the lane's own values only, so its result does not depend
+  // on its position in the batch.
+  alignas(64) double phi_c[C], redo[C];  // double, like the lane's other values: mixed widths defeat the vectoriser
   for (int base = 0; base < n_pad; base += L) {
 #pragma omp simd
     for (int j = 0; j < L; ++j) {
       const int l = base + j;
-      // Start from the last float point (a converged lane stays at or next to its best point;
-      // if it did not, the certificate fails and the lane is redone).
       const double m_c = mu[l];
-      double p_c, dphi_c, phi_t, phi_tt;
-      detail::derivatives<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], m_c, p_c, dphi_c, phi_t, phi_tt);
-      // The polishing step only moves the point where the bound is evaluated, so its ratio is
-      // taken in float (a cheap division); the bound itself is evaluated in double.
-      const float step_f = float(-phi_t) / float(phi_tt);
-      const double step = phi_tt < 0 ? detail::min_of<double>(detail::max_of<double>(double(step_f), -0.5), 0.5) : 0.0;
-      const double m2 = m_c * detail::exp_small<double>(step);
-      double p2, dphi2, t2, tt2;
-      detail::derivatives<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], m2, p2, dphi2, t2, tt2);
-      // With lambda = m / (1 + m): dphi/dlambda = dphi/dmu (1 + m)^2, 1 - lambda = 1 / (1 + m),
-      // so the bound's two cases need no division.
-      const double gap = dphi2 > 0 ? dphi2 * (1 + m2) : -dphi2 * (1 + m2) * m2;
-      const double phi = detail::max_of<double>(p_c, p2);
+      double p_c, dphi_c;
+      detail::phi_and_slope<double>(q0[l], q1[l], q2[l], e1[l], e2[l], e3[l], m_c, p_c, dphi_c);
+      const double gap = dphi_c > 0 ? dphi_c * (1 + m_c) : -dphi_c * (1 + m_c) * m_c;
       // A lane stopped as separated reports 1 - (largest phi it saw), a negative upper bound of
       // its K_min (as the scalar search does); its last iterate has moved on from that point.
       const bool separated = sep[l] > 0;
-      const double k_at = separated ? 1.0 - double(best_phi[l]) : 1.0 - phi;
-      b.k_min[l] = q0[l] > 0 ? k_at : 1.0;
+      phi_c[l] = p_c;
+      b.k_min[l] = q0[l] > 0 ? (separated ? 1.0 - double(best_phi[l]) : 1.0 - p_c) : 1.0;
       redo[l] = ((q0[l] > 0) & !(gap < kCertifiedGap) & !separated) ? 1.0 : 0.0;
     }
   }
+  int n_polish = 0;
+  for (int l = 0; l < n; ++l) {
+    tail[n_polish] = l;
+    n_polish += redo[l] > 0 ? 1 : 0;
+  }
+  if (n_polish > 0) {
+    const int p_pad = (n_polish + L - 1) / L * L;
+    alignas(64) double pq0[C], pq1[C], pq2[C], pe1[C], pe2[C], pe3[C], pmu[C], pphi[C], pk[C], predo[C];
+    for (int j = 0; j < p_pad; ++j) {
+      const int l = tail[j < n_polish ? j : 0];
+      pq0[j] = q0[l];
+      pq1[j] = q1[l];
+      pq2[j] = q2[l];
+      pe1[j] = e1[l];
+      pe2[j] = e2[l];
+      pe3[j] = e3[l];
+      pmu[j] = mu[l];
+      pphi[j] = phi_c[l];
+    }
+    for (int base = 0; base < p_pad; base += L) {
+#pragma omp simd
+      for (int j = base; j < base + L; ++j) {
+        const double m_c = pmu[j];
+        double p_c, dphi_c, phi_t, phi_tt;
+        detail::derivatives<double>(pq0[j], pq1[j], pq2[j], pe1[j], pe2[j], pe3[j], m_c, p_c, dphi_c, phi_t, phi_tt);
+        // The polishing step only moves the point where the bound is evaluated, so its ratio
+        // is taken in float (a cheap division); the bound itself is evaluated in double.
+        const float step_f = float(-phi_t) / float(phi_tt);
+        const double step = phi_tt < 0 ? detail::min_of<double>(detail::max_of<double>(double(step_f), -0.5), 0.5) : 0.0;
+        const double m2 = m_c * detail::exp_small<double>(step);
+        double p2, dphi2;
+        detail::phi_and_slope<double>(pq0[j], pq1[j], pq2[j], pe1[j], pe2[j], pe3[j], m2, p2, dphi2);
+        const double gap = dphi2 > 0 ? dphi2 * (1 + m2) : -dphi2 * (1 + m2) * m2;
+        pk[j] = 1.0 - detail::max_of<double>(pphi[j], p2);
+        predo[j] = gap < kCertifiedGap ? 0.0 : 1.0;
+      }
+    }
+    for (int j = 0; j < n_polish; ++j) {
+      const int l = tail[j];
+      b.k_min[l] = pk[j];
+      redo[l] = predo[j];
+    }
+  }
+  b.polished = n_polish;
   for (int l = 0; l < n; ++l) b.separated[l] = sep[l] > 0 ? 1 : 0;
   b.redone = 0;
   for (int l = 0; l < n; ++l) {

@@ -43,6 +43,8 @@ struct alignas(64) PairBatch {
   int redone = 0;   ///< output: lanes whose float search was not certified and were solved again
                     ///< by the scalar double search (flat splats; for tests and profiling)
   int tail = 0;     ///< output: lanes still iterating after the first two Newton steps (profiling)
+  int polished = 0; ///< output: lanes the certificate did not accept at the float point, so it
+                    ///< took a double Newton step first (profiling)
 };
 
 /// Per-tick tool constants for the batch kernel.

@@ -126,6 +126,19 @@ inline void derivatives(T q0, T q1, T q2, T e1, T e2, T e3, T mu, T& phi, T& dph
   phi_tt = mu * dphi + mu * mu * d2phi;
 }
 
+// phi at mu and its mu-derivative only (the certificate's slope test).
+template <typename T>
+inline void phi_and_slope(T q0, T q1, T q2, T e1, T e2, T e3, T mu, T& phi, T& dphi) noexcept {
+  const T G = q0 + mu * (q1 + mu * q2), G1 = q1 + 2 * mu * q2;
+  const T H = 1 + mu * (e1 + mu * (e2 + mu * e3));
+  const T H1 = e1 + mu * (2 * e2 + 3 * mu * e3);
+  const T N = mu * G, N1 = G + mu * G1;
+  const T D = H * (1 + mu), D1 = H1 * (1 + mu) + H;
+  const T inv_d = 1 / D;
+  phi = N * inv_d;
+  dphi = (N1 - phi * D1) * inv_d;
+}
+
 // phi and the t-derivatives of psi = ln(phi), from positive sums only: with N = sum n_k mu^k and
 // D = sum d_k mu^k, psi_t = E_N[k] - E_D[k] and psi_tt = Var_N[k] - Var_D[k] (the exponent's
 // mean and variance under the weights n_k mu^k and d_k mu^k). Unlike phi_tt these keep their
