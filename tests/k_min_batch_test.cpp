@@ -3,9 +3,11 @@
 // lanes that must not matter.
 
 #include "gshaptics/narrowphase/k_min_batch.h"
+#include "support/reference.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <cstring>
@@ -99,7 +101,12 @@ TEST(KMinBatch, MatchesScalarOnFullAndPartialBatches) {
       const KMinResult ref = scalar(tool, pairs[l], false);
       ASSERT_EQ(b.separated[l], 0) << "round " << round << " lane " << l;
       ASSERT_TRUE(std::isfinite(b.k_min[l])) << "round " << round << " lane " << l;
-      ASSERT_NEAR(b.k_min[l], ref.k_min, 2e-6) << "round " << round << " lane " << l << " of " << b.count;
+      // A spherical tool's coefficients are evaluated in the Gaussian's frame, the scalar ones
+      // in the tool's: they round differently (SphericalToolAgainstReference holds both to the
+      // extended-precision K). Absolute for contacts (K <= 1), relative for far pairs.
+      const double tol = bt.sphere ? 5e-6 : 2e-6;
+      ASSERT_NEAR(b.k_min[l], ref.k_min, tol * std::max(1.0, std::fabs(ref.k_min)))
+          << "round " << round << " lane " << l << " of " << b.count;
       ++compared;
       overlapping += ref.k_min > 0 ? 1 : 0;
     }
@@ -159,8 +166,13 @@ TEST(KMinBatch, FlatSplatsAreRedoneAndStayExact) {
     k_min_batch(b, bt, false);
     redone += b.redone;
     ASSERT_LE(b.redone, b.count);
-    for (int l = 0; l < b.count; ++l)
-      ASSERT_NEAR(b.k_min[l], scalar(tool, pairs[l], false).k_min, 2e-6) << "round " << round << " lane " << l;
+    for (int l = 0; l < b.count; ++l) {
+      // The tool is spherical: its coefficients are rounded differently from the scalar ones
+      // (Gaussian frame vs tool frame; see MatchesScalarOnFullAndPartialBatches). Far pairs
+      // have K of -1e3 and below, where that rounding (~1e-8 relative) outweighs the gap.
+      const double ref = scalar(tool, pairs[l], false).k_min;
+      ASSERT_NEAR(b.k_min[l], ref, 5e-6 * std::max(1.0, std::fabs(ref))) << "round " << round << " lane " << l;
+    }
   }
   EXPECT_GT(redone, 0) << "no flat-splat lane took the scalar redo path";
 }
@@ -231,6 +243,53 @@ TEST(KMinBatch, CoincidentCentresGiveOne) {
   poison_unused(b);
   k_min_batch(b, make_batch_tool(tool.R, tool.a), true);
   for (int l = 0; l < b.count; l += 2) EXPECT_EQ(b.k_min[l], 1.0) << l;
+}
+
+// The spherical tool's own coefficient form (BatchTool::sphere, Gaussian frame) and the general
+// one (tool frame) against the extended-precision K of DESIGN.md Sec. 2, on the hard end of
+// the pairs: Gaussians up to 300 tool radii, offsets around contact. Their rounding differs
+// (the Gaussians' rotations are stored in float and are orthonormal only to ~1e-7), but both
+// are within 5e-6 of the truth for K in [-1, 1], and the spherical form is not worse.
+TEST(KMinBatch, SphericalToolAgainstReference) {
+  std::mt19937_64 rng(8);
+  PairBatch sphere_batch, general_batch;
+  double worst_sphere = 0, worst_general = 0, sum_sphere = 0, sum_general = 0;
+  int compared = 0;
+  for (int round = 0; round < 60; ++round) {
+    const Tool tool = random_tool(rng, true);
+    const BatchTool bt = make_batch_tool(tool.R, tool.a);
+    ASSERT_TRUE(bt.sphere);
+    BatchTool general = bt;
+    general.sphere = false;
+    sphere_batch.count = kBatchLanes * 4;
+    std::vector<Pair> pairs(std::size_t(sphere_batch.count));
+    std::vector<Eigen::Matrix3d> exact_rotation(pairs.size());
+    for (int l = 0; l < sphere_batch.count; ++l) {
+      pairs[l] = random_pair(rng, tool, l, 0);
+      exact_rotation[l] = random_rotation(rng);  // what the float matrix rounds
+      pairs[l].R = exact_rotation[l].cast<float>().cast<double>();
+      load(sphere_batch, l, pairs[l]);
+    }
+    general_batch = sphere_batch;
+    k_min_batch(sphere_batch, bt, false);
+    k_min_batch(general_batch, general, false);
+    const test::LMatrix3 cov_t = test::covariance(tool.R, tool.a);
+    for (int l = 0; l < sphere_batch.count; ++l) {
+      const double ref = test::reference_k_min(test::covariance(exact_rotation[l], pairs[l].s), cov_t, pairs[l].d);
+      if (ref < -1 || ref > 1) continue;
+      const double es = std::fabs(sphere_batch.k_min[l] - ref), eg = std::fabs(general_batch.k_min[l] - ref);
+      ASSERT_LT(es, 5e-6) << "round " << round << " lane " << l << " K " << ref;
+      ASSERT_LT(eg, 5e-6) << "round " << round << " lane " << l << " K " << ref;
+      worst_sphere = std::max(worst_sphere, es);
+      worst_general = std::max(worst_general, eg);
+      sum_sphere += es;
+      sum_general += eg;
+      ++compared;
+    }
+  }
+  ASSERT_GT(compared, 1000);
+  EXPECT_LE(sum_sphere, 2 * sum_general) << "mean error, spherical form vs general form";
+  EXPECT_LE(worst_sphere, 2 * worst_general + 1e-7);
 }
 
 }  // namespace

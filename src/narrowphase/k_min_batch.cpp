@@ -24,6 +24,7 @@ BatchTool make_batch_tool(const Eigen::Matrix3d& R_tool, const Eigen::Vector3d& 
   t.inv_adj_a[1] = t.inv_a[0] * t.inv_a[2];
   t.inv_adj_a[2] = t.inv_a[0] * t.inv_a[1];
   t.inv_volume = t.inv_a[0] * t.inv_a[1] * t.inv_a[2];
+  t.sphere = a_tool[0] == a_tool[1] && a_tool[1] == a_tool[2];
   return t;
 }
 
@@ -41,6 +42,38 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
   // Every stage below loops over blocks of L lanes with a fixed-length inner loop, so each lane
   // runs through the same vector code whatever its position (no remainder loops).
   alignas(64) double q0[C], q1[C], q2[C], e1[C], e2[C], e3[C];
+  if (t.sphere) {
+    // A spherical tool of radius a (ia = 1/a): with the Gaussian's semi-axes and the offset in
+    // its own frame, both in tool radii (u_j = s_j ia, w = R_G^T d ia), the coefficients of
+    // pair_coefficients become positive sums:
+    //   q0 = |w|^2, e1 = sum u_j^2, e2 = sum (u_k u_l)^2, e3 = (u_0 u_1 u_2)^2,
+    //   q1 = sum_j u_j^2 (|w|^2 - w_j^2) = sum_j u_j^2 (w_k^2 + w_l^2),
+    //   q2 = sum_j (u_k u_l)^2 w_j^2     ({j, k, l} = {0, 1, 2}),
+    // because the tool's frame drops out (Q = R_t^T R_G only rotates v, and the Gaussian frame
+    // is as good as the tool's). q0 is taken from d itself, the most direct value.
+    const double ia = t.inv_a[0];
+    for (int base = 0; base < n_pad; base += L) {
+#pragma omp simd
+      for (int j = 0; j < L; ++j) {
+        const int l = base + j;
+        const double dx = b.dx[l] * ia, dy = b.dy[l] * ia, dz = b.dz[l] * ia;
+        // w_j = column j of R_G (row-major r[3 * row + col]) dotted with d / a.
+        const double w0 = b.r[0][l] * dx + b.r[3][l] * dy + b.r[6][l] * dz;
+        const double w1 = b.r[1][l] * dx + b.r[4][l] * dy + b.r[7][l] * dz;
+        const double w2 = b.r[2][l] * dx + b.r[5][l] * dy + b.r[8][l] * dz;
+        const double u0 = b.sx[l] * ia, u1 = b.sy[l] * ia, u2 = b.sz[l] * ia;
+        const double uu0 = u0 * u0, uu1 = u1 * u1, uu2 = u2 * u2;
+        const double ww0 = w0 * w0, ww1 = w1 * w1, ww2 = w2 * w2;
+        const double sg0 = uu1 * uu2, sg1 = uu0 * uu2, sg2 = uu0 * uu1;  // (u_k u_l)^2
+        q0[l] = dx * dx + dy * dy + dz * dz;
+        q1[l] = uu0 * (ww1 + ww2) + uu1 * (ww0 + ww2) + uu2 * (ww0 + ww1);
+        q2[l] = sg0 * ww0 + sg1 * ww1 + sg2 * ww2;
+        e1[l] = uu0 + uu1 + uu2;
+        e2[l] = sg0 + sg1 + sg2;
+        e3[l] = sg0 * uu0;
+      }
+    }
+  } else {
   // Coefficients (see pair_coefficients): in the tool frame d_t = R_t^T d and Q = R_t^T R_G;
   // v = inv_a * d_t, F_j = s_j inv_a * Q_j, G_j = sigma_j inv_adj_a * Q_j,
   // q2 = sum (sigma_j (Q_j . d_t) inv_volume)^2.
@@ -84,6 +117,7 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
       const double det_f = s0 * s1 * s2 * t.inv_volume;
       e3[l] = det_f * det_f;
     }
+  }
   }
 
   // Newton iterations in float (twice the lanes per instruction, cheaper divisions), then K_min

@@ -6,7 +6,8 @@
 /// at run time).
 ///
 /// The batch is solved in stages, each a pass over all its pairs in blocks of kBatchLanes (16):
-/// coefficients, the starting point and two Newton steps for every pair, then the few pairs
+/// coefficients (for a spherical tool in the Gaussian's frame, a third of the flops; see
+/// BatchTool::sphere), the starting point and two Newton steps for every pair, then the few pairs
 /// still unconverged (about one in ten on real scenes) gathered into blocks of their own and
 /// iterated to the end, then the double-precision certificate. Every pass works on independent
 /// blocks, so the CPU overlaps them (throughput-bound) instead of waiting on one block's chain of
@@ -53,6 +54,10 @@ struct BatchTool {
   double inv_a[3];      ///< 1 / a
   double inv_adj_a[3];  ///< (1/(a_y a_z), 1/(a_x a_z), 1/(a_x a_y))
   double inv_volume;    ///< 1 / (a_x a_y a_z)
+  /// The tool is a sphere (a_x == a_y == a_z exactly, as ToolEllipsoid::sphere makes it): the
+  /// kernel then takes the coefficients in the Gaussian's own frame, where they need neither the
+  /// tool's rotation nor the Gaussian's axes in the tool frame (about a third of the flops).
+  bool sphere = false;
 };
 
 /// Tool constants from its rotation (world frame) and semi-axes (all > 0).
