@@ -46,6 +46,7 @@ struct Pairs {
   std::vector<PairCoefficients> coeffs;
   std::vector<PairBatch> batches;
   BatchTool tool;
+  double radius = 0;  ///< the spherical tool's radius
 };
 
 const Pairs& pairs() {
@@ -54,6 +55,7 @@ const Pairs& pairs() {
     const Fixture& f = fixture("karangkidul_crop.ply", 0.005, 0.015);
     const ToolEllipsoid& t0 = f.poses[0];
     out.tool = make_batch_tool(Eigen::Matrix3d::Identity(), t0.semi_axes);
+    out.radius = t0.semi_axes.x();
     const ToolFrame frame = ToolFrame::from(Eigen::Matrix3d::Identity(), t0.semi_axes);
     PairBatch b{};
     for (std::size_t i = 0; i < 200 && out.coeffs.size() < 20000; ++i) {
@@ -66,7 +68,7 @@ const Pairs& pairs() {
         out.coeffs.push_back(pair_coefficients(frame, d, rotation_matrix(g), s));
         const int l = b.count++;
         b.dx[l] = d.x(); b.dy[l] = d.y(); b.dz[l] = d.z();
-        for (int k = 0; k < 9; ++k) b.r[k][l] = g.rotation[k];
+        for (int k = 0; k < 4; ++k) b.q[k][l] = g.quaternion[k];
         b.sx[l] = g.semi_axes[0]; b.sy[l] = g.semi_axes[1]; b.sz[l] = g.semi_axes[2];
         if (b.count == kBatchCapacity) { out.batches.push_back(b); b.count = 0; }
       }
@@ -100,6 +102,24 @@ void BM_NarrowPhaseBatch(benchmark::State& state) {
   state.SetItemsProcessed(std::int64_t(state.iterations()) * kBatchCapacity);
 }
 BENCHMARK(BM_NarrowPhaseBatch);
+
+// The same pairs against an ellipsoidal tool (semi-axes 1, 0.7, 0.5 of the sphere's radius,
+// turned): the general coefficient form, in the tool's frame (BM_NarrowPhaseBatch's spherical
+// tool takes the Gaussian-frame form).
+void BM_NarrowPhaseBatchEllipsoid(benchmark::State& state) {
+  Pairs p = pairs();
+  const Eigen::Vector3d a = p.radius * Eigen::Vector3d(1.0, 0.7, 0.5);
+  const BatchTool tool =
+      make_batch_tool(Eigen::AngleAxisd(0.6, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix(), a);
+  std::size_t i = 0;
+  for (auto _ : state) {
+    k_min_batch(p.batches[i], tool, true);
+    benchmark::DoNotOptimize(p.batches[i].k_min[0]);
+    if (++i == p.batches.size()) i = 0;
+  }
+  state.SetItemsProcessed(std::int64_t(state.iterations()) * kBatchCapacity);
+}
+BENCHMARK(BM_NarrowPhaseBatchEllipsoid);
 
 void BM_BroadPhase(benchmark::State& state, const char* scene, double rmin, double rmax) {
   const Fixture& f = fixture(scene, rmin, rmax);

@@ -23,10 +23,27 @@ Eigen::Matrix3d random_rotation(std::mt19937_64& rng) {
 }
 
 struct Pair {
-  Eigen::Vector3d d;  // Gaussian centre - tool centre, world
-  Eigen::Matrix3d R;  // Gaussian rotation, rounded to float as the world stores it
-  Eigen::Vector3d s;  // Gaussian semi-axes, rounded to float
+  Eigen::Vector3d d;   // Gaussian centre - tool centre, world
+  Eigen::Vector4f q;   // Gaussian rotation (w, x, y, z), unit, rounded to float as the world stores it
+  Eigen::Matrix3d R;   // the matrix the kernel makes of q (rotation_from_quaternion)
+  Eigen::Vector3d s;   // Gaussian semi-axes, rounded to float
 };
+
+// A uniformly random rotation as a unit quaternion (w, x, y, z), in double.
+Eigen::Vector4d random_quaternion(std::mt19937_64& rng) {
+  std::normal_distribution<double> n(0, 1);
+  const Eigen::Vector4d q(n(rng), n(rng), n(rng), n(rng));
+  return q.normalized();
+}
+
+// Rounds a unit quaternion to float as the world does and gives the pair its matrix.
+void set_rotation(Pair& p, const Eigen::Vector4d& q) {
+  p.q = q.cast<float>();
+  double r[9];
+  rotation_from_quaternion<double>(p.q[0], p.q[1], p.q[2], p.q[3], r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) p.R(i, j) = r[3 * i + j];
+}
 
 struct Tool {
   Eigen::Matrix3d R;
@@ -38,7 +55,7 @@ struct Tool {
 Pair random_pair(std::mt19937_64& rng, const Tool& tool, int i, int flat_every) {
   std::uniform_real_distribution<double> logu(-3, 0), u(0, 1);
   Pair p;
-  p.R = random_rotation(rng).cast<float>().cast<double>();
+  set_rotation(p, random_quaternion(rng));
   for (int k = 0; k < 3; ++k) p.s[k] = double(float(std::pow(10.0, logu(rng))));
   if (flat_every > 0 && i % flat_every == 0) p.s[i % 3] = double(float(1e-7 * p.s.maxCoeff()));
   const double reach = p.s.maxCoeff() + tool.a.maxCoeff();
@@ -50,8 +67,7 @@ void load(PairBatch& b, int lane, const Pair& p) {
   b.dx[lane] = p.d.x();
   b.dy[lane] = p.d.y();
   b.dz[lane] = p.d.z();
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) b.r[3 * r + c][lane] = float(p.R(r, c));
+  for (int k = 0; k < 4; ++k) b.q[k][lane] = p.q[k];
   b.sx[lane] = float(p.s.x());
   b.sy[lane] = float(p.s.y());
   b.sz[lane] = float(p.s.z());
@@ -62,7 +78,7 @@ void poison_unused(PairBatch& b) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   for (int l = b.count; l < kBatchCapacity; ++l) {
     b.dx[l] = b.dy[l] = b.dz[l] = nan;
-    for (auto& row : b.r) row[l] = float(nan);
+    for (auto& row : b.q) row[l] = float(nan);
     b.sx[l] = b.sy[l] = b.sz[l] = float(nan);
   }
 }
@@ -248,7 +264,7 @@ TEST(KMinBatch, CoincidentCentresGiveOne) {
 // The spherical tool's own coefficient form (BatchTool::sphere, Gaussian frame) and the general
 // one (tool frame) against the extended-precision K of DESIGN.md Sec. 2, on the hard end of
 // the pairs: Gaussians up to 300 tool radii, offsets around contact. Their rounding differs
-// (the Gaussians' rotations are stored in float and are orthonormal only to ~1e-7), but both
+// (the Gaussians' quaternions are stored in float, a rotation error of ~1e-7), but both
 // are within 5e-6 of the truth for K in [-1, 1], and the spherical form is not worse.
 TEST(KMinBatch, SphericalToolAgainstReference) {
   std::mt19937_64 rng(8);
@@ -266,8 +282,9 @@ TEST(KMinBatch, SphericalToolAgainstReference) {
     std::vector<Eigen::Matrix3d> exact_rotation(pairs.size());
     for (int l = 0; l < sphere_batch.count; ++l) {
       pairs[l] = random_pair(rng, tool, l, 0);
-      exact_rotation[l] = random_rotation(rng);  // what the float matrix rounds
-      pairs[l].R = exact_rotation[l].cast<float>().cast<double>();
+      const Eigen::Vector4d q = random_quaternion(rng);  // what the float quaternion rounds
+      exact_rotation[l] = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).toRotationMatrix();
+      set_rotation(pairs[l], q);
       load(sphere_batch, l, pairs[l]);
     }
     general_batch = sphere_batch;

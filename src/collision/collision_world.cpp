@@ -1,16 +1,21 @@
 #include "gshaptics/collision/collision_world.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
 #include "gshaptics/error.h"
+#include "gshaptics/narrowphase/k_min_batch.h"
 
 namespace gshaptics {
 
 Eigen::Matrix3d rotation_matrix(const CollisionGaussian& g) noexcept {
+  double r[9];
+  rotation_from_quaternion<double>(g.quaternion[0], g.quaternion[1], g.quaternion[2], g.quaternion[3], r[0], r[1], r[2], r[3], r[4],
+                                   r[5], r[6], r[7], r[8]);
   Eigen::Matrix3d R;
   for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) R(i, j) = g.rotation[3 * i + j];
+    for (int j = 0; j < 3; ++j) R(i, j) = r[3 * i + j];
   return R;
 }
 
@@ -67,12 +72,14 @@ CollisionWorld CollisionWorld::build_impl(const GaussianScene& scene, GaussianSc
     if (!(scene.opacities[i] > config.min_opacity)) continue;
     CollisionGaussian& g = (*records)[j++];
     const Eigen::Vector3d c = reg.apply(scene.means[i].cast<double>());
-    const Eigen::Quaterniond q = reg.apply_rotation(scene.rotations[i]);
+    const Eigen::Quaterniond q = reg.apply_rotation(scene.rotations[i]).normalized();
     for (int k = 0; k < 3; ++k) g.center[k] = c[k];
-    const Eigen::Matrix3d R = q.toRotationMatrix();
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) g.rotation[3 * a + b] = float(R(a, b));
+    g.quaternion[0] = float(q.w());
+    g.quaternion[1] = float(q.x());
+    g.quaternion[2] = float(q.y());
+    g.quaternion[3] = float(q.z());
     for (int k = 0; k < 3; ++k) g.semi_axes[k] = float(axis_scale * double(scene.scales[i][k]));
+    g.radius = std::max(g.semi_axes[0], std::max(g.semi_axes[1], g.semi_axes[2]));
     g.opacity = scene.opacities[i];
     g.source_index = scene.source_index[i];
   }

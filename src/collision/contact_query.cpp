@@ -23,7 +23,7 @@ namespace {
 inline void gather_lanes(PairBatch& b, const CollisionGaussian* gs, const std::uint32_t* slot) noexcept {
   for (int l = 0; l < b.count; ++l) {
     const CollisionGaussian& g = gs[slot[l]];
-    for (int k = 0; k < 9; ++k) b.r[k][l] = g.rotation[k];
+    for (int k = 0; k < 4; ++k) b.q[k][l] = g.quaternion[k];
     b.sx[l] = g.semi_axes[0];
     b.sy[l] = g.semi_axes[1];
     b.sz[l] = g.semi_axes[2];

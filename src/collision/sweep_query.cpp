@@ -196,8 +196,9 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
       // Slab bound along the motion: the ellipsoid's extent along it is sqrt(sum (a_j m.R_j)^2),
       // tight for flat Gaussians met face-on, where the sphere bound is loose.
       double h2 = 0;
+      const Eigen::Matrix3d R = rotation_matrix(g);
       for (int j = 0; j < 3; ++j) {
-        const double mr = m_hat[0] * g.rotation[j] + m_hat[1] * g.rotation[3 + j] + m_hat[2] * g.rotation[6 + j];
+        const double mr = m_hat[0] * R(0, j) + m_hat[1] * R(1, j) + m_hat[2] * R(2, j);
         h2 += double(g.semi_axes[j]) * g.semi_axes[j] * mr * mr;
       }
       t_lb = std::max(t_lb, (rel.dot(m_hat) - std::sqrt(h2) - h_tool) / len);

@@ -19,7 +19,7 @@ namespace gshaptics {
 namespace {
 
 constexpr char kMagic[8] = {'G', 'S', 'H', 'W', 'O', 'R', 'L', 'D'};
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 2;  // 2: 64-byte records with a quaternion
 constexpr std::uint64_t kHeaderBytes = 4096;
 
 // The header as stored (plain data, fixed layout, padded to kHeaderBytes in the file).

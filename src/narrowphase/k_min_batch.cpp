@@ -36,7 +36,8 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
   // Padding lanes: coincident, unit Gaussians (inactive in the kernel, no NaN/denormals).
   for (int l = n; l < n_pad; ++l) {
     b.dx[l] = b.dy[l] = b.dz[l] = 0;
-    for (int k = 0; k < 9; ++k) b.r[k][l] = (k % 4 == 0) ? 1.f : 0.f;
+    b.q[0][l] = 1.f;
+    b.q[1][l] = b.q[2][l] = b.q[3][l] = 0.f;
     b.sx[l] = b.sy[l] = b.sz[l] = 1;
   }
   // Every stage below loops over blocks of L lanes with a fixed-length inner loop, so each lane
@@ -57,10 +58,12 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
       for (int j = 0; j < L; ++j) {
         const int l = base + j;
         const double dx = b.dx[l] * ia, dy = b.dy[l] * ia, dz = b.dz[l] * ia;
+        double r0, r1, r2, r3, r4, r5, r6, r7, r8;
+        rotation_from_quaternion<double>(b.q[0][l], b.q[1][l], b.q[2][l], b.q[3][l], r0, r1, r2, r3, r4, r5, r6, r7, r8);
         // w_j = column j of R_G (row-major r[3 * row + col]) dotted with d / a.
-        const double w0 = b.r[0][l] * dx + b.r[3][l] * dy + b.r[6][l] * dz;
-        const double w1 = b.r[1][l] * dx + b.r[4][l] * dy + b.r[7][l] * dz;
-        const double w2 = b.r[2][l] * dx + b.r[5][l] * dy + b.r[8][l] * dz;
+        const double w0 = r0 * dx + r3 * dy + r6 * dz;
+        const double w1 = r1 * dx + r4 * dy + r7 * dz;
+        const double w2 = r2 * dx + r5 * dy + r8 * dz;
         const double u0 = b.sx[l] * ia, u1 = b.sy[l] * ia, u2 = b.sz[l] * ia;
         const double uu0 = u0 * u0, uu1 = u1 * u1, uu2 = u2 * u2;
         const double ww0 = w0 * w0, ww1 = w1 * w1, ww2 = w2 * w2;
@@ -83,6 +86,9 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
       const int l = base + j;
       // Written out (no inner loops) so that the lane loop is the only loop and vectorises.
       const double dx = b.dx[l], dy = b.dy[l], dz = b.dz[l];
+      double r0, r1, r2, r3, r4, r5, r6, r7, r8;
+      rotation_from_quaternion<double>(b.q[0][l], b.q[1][l], b.q[2][l], b.q[3][l], r0, r1, r2, r3, r4, r5, r6, r7, r8);
+      const double r[9] = {r0, r1, r2, r3, r4, r5, r6, r7, r8};
       const double dtx = t.rt[0] * dx + t.rt[1] * dy + t.rt[2] * dz;
       const double dty = t.rt[3] * dx + t.rt[4] * dy + t.rt[5] * dz;
       const double dtz = t.rt[6] * dx + t.rt[7] * dy + t.rt[8] * dz;
@@ -92,9 +98,9 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
       double a1 = 0, a2 = 0, c1 = 0, c2 = 0;
 #define GSH_AXIS(j, sj, sgj)                                                                   \
   {                                                                                           \
-    const double qx = t.rt[0] * b.r[j][l] + t.rt[1] * b.r[3 + j][l] + t.rt[2] * b.r[6 + j][l]; \
-    const double qy = t.rt[3] * b.r[j][l] + t.rt[4] * b.r[3 + j][l] + t.rt[5] * b.r[6 + j][l]; \
-    const double qz = t.rt[6] * b.r[j][l] + t.rt[7] * b.r[3 + j][l] + t.rt[8] * b.r[6 + j][l]; \
+    const double qx = t.rt[0] * r[j] + t.rt[1] * r[3 + j] + t.rt[2] * r[6 + j]; \
+    const double qy = t.rt[3] * r[j] + t.rt[4] * r[3 + j] + t.rt[5] * r[6 + j]; \
+    const double qz = t.rt[6] * r[j] + t.rt[7] * r[3 + j] + t.rt[8] * r[6 + j]; \
     const double fx = sj * t.inv_a[0] * qx, fy = sj * t.inv_a[1] * qy, fz = sj * t.inv_a[2] * qz; \
     const double gx = sgj * t.inv_adj_a[0] * qx, gy = sgj * t.inv_adj_a[1] * qy,               \
                  gz = sgj * t.inv_adj_a[2] * qz;                                              \

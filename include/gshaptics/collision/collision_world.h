@@ -31,20 +31,22 @@ struct WorldConfig {
 };
 
 /// One Gaussian as a collision ellipsoid {c + R diag(a) u : |u| <= 1} in the world frame.
-/// The rotation is stored as a matrix so the narrow phase needs no quaternion conversion.
-struct CollisionGaussian {
+/// One record is one 64-byte cache line: the query's pre-filter and narrow phase touch one line
+/// per candidate. The rotation is kept as a unit quaternion; the narrow phase turns it into
+/// the matrix (rotation_from_quaternion) vectorised, and rotation_matrix() gives the same one.
+struct alignas(64) CollisionGaussian {
   double center[3];       ///< c_i = s R_g mu_i + t (world units)
-  float rotation[9];      ///< world rotation R_g R_i, row-major; columns are the ellipsoid's axes
+  /// World rotation R_g R_i as a unit quaternion (w, x, y, z), normalised in double before it
+  /// was rounded to float; the matrix's columns are the ellipsoid's axes.
+  float quaternion[4];
   float semi_axes[3];     ///< a_i = k * s * scale_i (world units)
+  float radius;           ///< r_i of paper eq. 4: the largest semi-axis
   float opacity;          ///< alpha_i
   std::uint32_t source_index;  ///< index of the Gaussian in the original scene file
   /// r_i of paper eq. 4: the largest semi-axis.
-  [[nodiscard]] float bounding_radius() const noexcept {
-    const float m = semi_axes[0] > semi_axes[1] ? semi_axes[0] : semi_axes[1];
-    return m > semi_axes[2] ? m : semi_axes[2];
-  }
+  [[nodiscard]] float bounding_radius() const noexcept { return radius; }
 };
-static_assert(sizeof(CollisionGaussian) == 80);
+static_assert(sizeof(CollisionGaussian) == 64);
 
 /// What building the world did.
 struct WorldBuildReport {
@@ -61,13 +63,13 @@ class CollisionWorld {
   ///
   /// Built in place: the records are written once into their final storage, the BVH is built
   /// over 24-byte float boxes and the records are then permuted into BVH order within that
-  /// storage. Peak memory besides the scene: ~121 bytes per kept Gaussian (records 80, boxes 24,
+  /// storage. Peak memory besides the scene: ~105 bytes per kept Gaussian (records 64, boxes 24,
   /// BVH order 4, nodes ~13).
   static CollisionWorld build(const GaussianScene& scene, const WorldConfig& config,
                               WorldBuildReport* report = nullptr);
   /// As above, consuming the scene: its per-Gaussian arrays are freed as soon as the records
   /// are written, before the boxes and the BVH, so the peak is the larger of scene + records
-  /// (48 + 80 bytes per Gaussian for the collision fields) and the BVH build (~121 bytes).
+  /// (48 + 64 bytes per Gaussian for the collision fields) and the BVH build (~105 bytes).
   /// `scene` is left with its metadata (frame, report fields) and no Gaussians.
   static CollisionWorld build(GaussianScene&& scene, const WorldConfig& config,
                               WorldBuildReport* report = nullptr);
@@ -103,7 +105,8 @@ class CollisionWorld {
   Eigen::Vector3d lo_ = Eigen::Vector3d::Zero(), hi_ = Eigen::Vector3d::Zero();
 };
 
-/// Rotation matrix of a stored Gaussian (world frame).
+/// Rotation matrix of a stored Gaussian (world frame), from its quaternion exactly as the batch
+/// kernel makes it (rotation_from_quaternion).
 [[nodiscard]] Eigen::Matrix3d rotation_matrix(const CollisionGaussian& g) noexcept;
 
 /// Half-extents of the exact axis-aligned box of a rotated ellipsoid: sqrt(sum_k R_jk^2 a_k^2).

@@ -12,7 +12,7 @@
 /// byte anywhere). Any failure returns no world and says why; the caller rebuilds.
 ///
 /// File layout (little-endian, this machine's float formats): a 4096-byte header, the records
-/// (80 bytes each) at 4096, the BVH nodes (32 bytes each) after them at a 4096-aligned offset.
+/// (64 bytes each) at 4096, the BVH nodes (32 bytes each) after them at a 4096-aligned offset.
 
 #include <cstdint>
 #include <optional>
