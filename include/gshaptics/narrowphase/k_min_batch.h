@@ -76,6 +76,7 @@ struct alignas(64) PairBatch {
 /// Per-tick tool constants for the batch kernel.
 struct BatchTool {
   double rt[9];         ///< R_tool^T, row-major
+  double qt[4];         ///< R_tool^T as a unit quaternion (w, x, y, z): the tool's, conjugated
   double inv_a[3];      ///< 1 / a
   double inv_adj_a[3];  ///< (1/(a_y a_z), 1/(a_x a_z), 1/(a_x a_y))
   double inv_volume;    ///< 1 / (a_x a_y a_z)
