@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <type_traits>
 
 namespace gshaptics {
 
@@ -14,6 +15,35 @@ constexpr int C = kBatchCapacity;
 static_assert(C % L == 0);
 // Largest certified distance of a reported K_min from the true minimum (the tolerance is 1e-5).
 constexpr double kCertifiedGap = 1e-6;
+
+// The lanes l < n whose flag is > 0, in order, into idx (branch-free); returns their count.
+template <typename T>
+inline int select_lanes(const T* flag, int n, int* idx) noexcept {
+  int count = 0;
+  for (int l = 0; l < n; ++l) {
+    idx[count] = l;
+    count += flag[l] > 0 ? 1 : 0;
+  }
+  return count;
+}
+
+// One array of a lane copy: dst[j] = src[lane].
+template <typename D, typename S>
+struct LaneCopy {
+  D* dst;
+  const S* src;
+};
+
+// Packs the selected lanes into blocks of their own, every array in one loop: dst[j] =
+// src[idx[j]] for j < count, and the padding lanes count <= j < pad copy lane idx[0] (a live
+// lane: the padding computes nothing new and holds no NaN).
+template <typename... Copies>
+inline void pack_lanes(const int* idx, int count, int pad, Copies... c) noexcept {
+  for (int j = 0; j < pad; ++j) {
+    const int l = idx[j < count ? j : 0];
+    ((c.dst[j] = static_cast<std::remove_reference_t<decltype(c.dst[0])>>(c.src[l])), ...);
+  }
+}
 }
 
 BatchTool make_batch_tool(const Eigen::Matrix3d& R_tool, const Eigen::Vector3d& a_tool) noexcept {
@@ -186,33 +216,16 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
   // live lane, so they compute nothing new and hold no NaN). The blocks are independent, so
   // their iterations overlap in the CPU.
   alignas(64) int tail[C];
-  int n_tail = 0;
-  for (int l = 0; l < n; ++l) {
-    tail[n_tail] = l;
-    n_tail += active[l] > 0 ? 1 : 0;
-  }
+  const int n_tail = select_lanes(active, n, tail);
   b.tail = n_tail;
   if (n_tail > 0) {
     const int t_pad = (n_tail + L - 1) / L * L;
     alignas(64) float tq0[C], tq1[C], tq2[C], te1[C], te2[C], te3[C];
     alignas(64) float tmu[C], tlo[C], thi[C], tbp[C], tbm[C], tup[C], tact[C], tsep[C];
-    for (int j = 0; j < t_pad; ++j) {
-      const int l = tail[j < n_tail ? j : 0];
-      tq0[j] = fq0[l];
-      tq1[j] = fq1[l];
-      tq2[j] = fq2[l];
-      te1[j] = fe1[l];
-      te2[j] = fe2[l];
-      te3[j] = fe3[l];
-      tmu[j] = mu[l];
-      tlo[j] = lo[l];
-      thi[j] = hi[l];
-      tbp[j] = best_phi[l];
-      tbm[j] = best_mu[l];
-      tup[j] = uphill[l];
-      tact[j] = j < n_tail ? 1.f : 0.f;
-      tsep[j] = sep[l];
-    }
+    pack_lanes(tail, n_tail, t_pad, LaneCopy{tq0, fq0}, LaneCopy{tq1, fq1}, LaneCopy{tq2, fq2}, LaneCopy{te1, fe1},
+               LaneCopy{te2, fe2}, LaneCopy{te3, fe3}, LaneCopy{tmu, mu}, LaneCopy{tlo, lo}, LaneCopy{thi, hi},
+               LaneCopy{tbp, best_phi}, LaneCopy{tbm, best_mu}, LaneCopy{tup, uphill}, LaneCopy{tsep, sep});
+    for (int j = 0; j < t_pad; ++j) tact[j] = j < n_tail ? 1.f : 0.f;
     int live = t_pad;  // blocks past `live` are all inactive
     for (int it = kInPlaceSteps; it < detail::kMaxNewton && live > 0; ++it) {
       for (int base = 0; base < live; base += L) {
@@ -267,25 +280,12 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
       redo[l] = ((q0[l] > 0) & !(gap < kCertifiedGap) & !separated) ? 1.0 : 0.0;
     }
   }
-  int n_polish = 0;
-  for (int l = 0; l < n; ++l) {
-    tail[n_polish] = l;
-    n_polish += redo[l] > 0 ? 1 : 0;
-  }
+  const int n_polish = select_lanes(redo, n, tail);
   if (n_polish > 0) {
     const int p_pad = (n_polish + L - 1) / L * L;
     alignas(64) double pq0[C], pq1[C], pq2[C], pe1[C], pe2[C], pe3[C], pmu[C], pphi[C], pk[C], predo[C];
-    for (int j = 0; j < p_pad; ++j) {
-      const int l = tail[j < n_polish ? j : 0];
-      pq0[j] = q0[l];
-      pq1[j] = q1[l];
-      pq2[j] = q2[l];
-      pe1[j] = e1[l];
-      pe2[j] = e2[l];
-      pe3[j] = e3[l];
-      pmu[j] = mu[l];
-      pphi[j] = phi_c[l];
-    }
+    pack_lanes(tail, n_polish, p_pad, LaneCopy{pq0, q0}, LaneCopy{pq1, q1}, LaneCopy{pq2, q2}, LaneCopy{pe1, e1},
+               LaneCopy{pe2, e2}, LaneCopy{pe3, e3}, LaneCopy{pmu, mu}, LaneCopy{pphi, phi_c});
     for (int base = 0; base < p_pad; base += L) {
 #pragma omp simd
       for (int j = base; j < base + L; ++j) {
