@@ -10,6 +10,7 @@
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_model.h"
+#include "gshaptics/servo/query_pool.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/narrowphase/k_min_batch.h"
 #include "gshaptics/sim/pose_sampler.h"
@@ -185,9 +186,12 @@ BENCHMARK_CAPTURE(BM_QueryHot, karangkidul, "karangkidul_crop.ply", 0.005, 0.015
 
 // Only the poses with >= 2000 contacts (the p99 of the near-surface sets; target p99 <= 500
 // us, issue 19), query alone; ns per contact in the counters.
+// Argument: threads sharing each query (QueryPool; 1: none), every query split.
 void BM_QueryHeavy(benchmark::State& state, const char* scene, double rmin, double rmax) {
   const Fixture& f = fixture(scene, rmin, rmax);
   ContactQuery q(*f.world);
+  const int threads = int(state.range(0));
+  std::unique_ptr<QueryPool> pool;
   std::vector<ToolEllipsoid> heavy;
   for (const ToolEllipsoid& t : f.poses) {
     q.run(t);
@@ -196,6 +200,10 @@ void BM_QueryHeavy(benchmark::State& state, const char* scene, double rmin, doub
   if (heavy.empty()) {
     state.SkipWithError("no pose with >= 2000 contacts");
     return;
+  }
+  if (threads > 1) {
+    pool = std::make_unique<QueryPool>(threads);
+    q.set_executor(pool.get(), 0);
   }
   std::size_t i = 0;
   std::int64_t contacts = 0, candidates = 0;
@@ -210,7 +218,7 @@ void BM_QueryHeavy(benchmark::State& state, const char* scene, double rmin, doub
   state.counters["candidates/query"] = double(candidates) / double(state.iterations());
   state.counters["poses"] = double(heavy.size());
 }
-BENCHMARK_CAPTURE(BM_QueryHeavy, truck, "truck.splat", 0.01, 0.02)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_QueryHeavy, truck, "truck.splat", 0.01, 0.02)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace gshaptics

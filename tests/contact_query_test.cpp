@@ -378,18 +378,36 @@ TEST(ContactQuery, LeavesLargerThanABatchAndAnyContactAgree) {
 namespace gshaptics {
 namespace {
 
-TEST(QueryPool, EveryPartRunsOncePerRun) {
-  for (int parts : {1, 2, 3}) {
-    QueryPool pool(parts);
-    std::vector<std::atomic<int>> hits(static_cast<std::size_t>(parts));
-    for (int r = 0; r < 500; ++r)
-      pool.run([](void* ctx, int part) { (*static_cast<std::vector<std::atomic<int>>*>(ctx))[std::size_t(part)]++; }, &hits);
-    for (int p = 0; p < parts; ++p) EXPECT_EQ(hits[std::size_t(p)].load(), 500) << parts << " parts, part " << p;
+TEST(QueryPool, EveryTaskRunsOncePerRun) {
+  for (int threads : {1, 2, 3}) {
+    for (int spin_us : {0, 100}) {  // sleeping workers (woken every run) and spinning ones
+      QueryPool pool(threads, {}, spin_us);
+      for (int tasks : {1, 2, 5, 17}) {
+        std::vector<std::atomic<int>> hits(static_cast<std::size_t>(tasks));
+        for (int r = 0; r < 300; ++r)
+          pool.run([](void* ctx, int t) { (*static_cast<std::vector<std::atomic<int>>*>(ctx))[std::size_t(t)]++; },
+                   &hits, tasks);
+        for (int t = 0; t < tasks; ++t)
+          EXPECT_EQ(hits[std::size_t(t)].load(), 300) << threads << " threads, " << tasks << " tasks, task " << t;
+      }
+    }
   }
   EXPECT_EQ(default_query_threads(2), 1);
   EXPECT_EQ(default_query_threads(4), 2);
   EXPECT_EQ(default_query_threads(8), 4);
   EXPECT_EQ(default_query_threads(16), 4);
+}
+
+// A pool used and destroyed before its worker threads got to run: the workers must still see
+// the jobs and the stop as new (a worker that took the stop for the state it started in would
+// sleep forever and the destructor would hang; this failed 3 times in 4 before the fix).
+TEST(QueryPool, DestroyedBeforeItsWorkersStart) {
+  std::atomic<int> hits{0};
+  for (int i = 0; i < 100; ++i) {
+    QueryPool pool(3, {}, /*spin_us=*/0);
+    pool.run([](void* ctx, int) { ++*static_cast<std::atomic<int>*>(ctx); }, &hits, 5);
+  }
+  EXPECT_EQ(hits.load(), 500);
 }
 
 TEST(ParallelNarrowPhase, ThreadedQueriesAreBitIdentical) {

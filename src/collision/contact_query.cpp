@@ -57,6 +57,15 @@ inline int prefilter(const CollisionGaussian* __restrict gs, std::uint32_t first
 
 using LeafRange = std::pair<std::uint32_t, std::uint32_t>;  // (first record, count)
 
+// Starts fetching the records of leaves [0, n) into this core's caches.
+inline void prefetch_leaves(const CollisionGaussian* gs, const LeafRange* leaves, std::size_t n) noexcept {
+  for (std::size_t i = 0; i < n; ++i) {
+    const char* p = reinterpret_cast<const char*>(gs + leaves[i].first);
+    const char* end = reinterpret_cast<const char*>(gs + leaves[i].first + leaves[i].second);
+    for (; p < end; p += 64) __builtin_prefetch(p);
+  }
+}
+
 // The contact a world record with K_min `k` reports.
 inline Contact make_contact(const CollisionGaussian* gs, std::uint32_t record, double k) noexcept {
   const CollisionGaussian& g = gs[record];
@@ -203,19 +212,30 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
   // Two passes: the traversal collects the overlapping leaves and starts fetching their
   // records, then the leaves are tested, so the record loads overlap instead of queuing
   // behind each other. When the list is full, the leaves in it are tested at once.
+  // With a parallel executor, the traversal fetches only the parallel threshold's candidates
+  // divided by the tasks (at most the first task's share of any query that goes parallel): the
+  // rest is fetched by the thread that tests it, into its own core's caches, not the caller's.
   std::size_t n_leaves = 0;
   bool spilled = false;
   const std::size_t max_leaves = leaves_.size();
+  const std::uint64_t prefetch_limit =
+      executor_ != nullptr && !golden ? min_parallel_candidates_ / parts_.size() : std::uint64_t(-1);
+  std::uint64_t fetched = 0;      // candidates whose records the traversal fetched
+  std::size_t fetched_leaves = 0;  // leaves [0, fetched_leaves) of the list were fetched
   const auto on_leaf = [&](std::uint32_t first, std::uint32_t count) {
     if (n_leaves == max_leaves) {
+      prefetch_leaves(gs, leaves_.data() + fetched_leaves, n_leaves - fetched_leaves);
       test_leaves(leaves_.data(), n_leaves);
       n_leaves = 0;
+      fetched_leaves = 0;
       spilled = true;
     }
-    const char* p = reinterpret_cast<const char*>(gs + first);
-    const char* end = reinterpret_cast<const char*>(gs + first + count);
-    for (; p < end; p += 64) __builtin_prefetch(p);
     leaves_[n_leaves++] = {first, count};
+    if (fetched < prefetch_limit) {
+      prefetch_leaves(gs, &leaves_[n_leaves - 1], 1);
+      fetched += count;
+      fetched_leaves = n_leaves;
+    }
   };
   bool cached = false;
   if (options_.cache_margin > 0) {
@@ -280,6 +300,7 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
       return status;
     }
   }
+  prefetch_leaves(gs, leaves_.data() + fetched_leaves, n_leaves - fetched_leaves);
   test_leaves(leaves_.data(), n_leaves);
   result_.counts = counts;
   return status;
@@ -291,7 +312,7 @@ void ContactQuery::set_executor(ParallelExecutor* executor, std::size_t min_cand
   parts_.clear();
   if (executor == nullptr) return;
   const std::size_t cap = std::max<std::size_t>(1, std::min(options_.max_contacts, world_->size()));
-  for (int i = 0; i < executor->parts(); ++i) {
+  for (int i = 0; i < executor->threads() * kTasksPerThread; ++i) {
     auto part = std::make_unique<Part>();
     part->contacts.reserve(cap);
     parts_.push_back(std::move(part));
@@ -319,7 +340,7 @@ void ContactQuery::run_parts(std::size_t n_leaves, const ToolEllipsoid& tool, co
   }
   part_tool_ = &tool;
   part_batch_tool_ = &batch_tool;
-  executor_->run(&contact_query_part, this);
+  executor_->run(&contact_query_part, this, int(n_parts));
 }
 
 // One part's narrow phase: the shared leaf loop over its leaves, into its own scratch.
@@ -334,6 +355,7 @@ void ContactQuery::run_part(Part& part, const ToolEllipsoid& tool, const BatchTo
     if (part.contacts.size() < part.contacts.capacity()) part.contacts.push_back(make_contact(gs, record, k));
     else part.overflow = true;
   };
+  prefetch_leaves(gs, leaves_.data() + part.leaf_begin, part.leaf_end - part.leaf_begin);
   narrow_phase(gs, leaves_.data() + part.leaf_begin, part.leaf_end - part.leaf_begin, c_tool,
                tool.bounding_radius(), batch_tool, options_.narrow_phase.stop_when_separated, part.batch,
                part.slot, part.counts, emit);

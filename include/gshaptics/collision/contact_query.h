@@ -93,14 +93,18 @@ class ContactSet {
   std::vector<Contact> contacts_;
 };
 
-/// Runs `fn(ctx, i)` for every part i in [0, parts()), possibly on several threads, and returns
-/// when all are done; part 0 runs on the calling thread. Implemented by servo/query_pool.h's
-/// QueryPool (the core has no threads). Must not allocate, lock or throw.
+/// Runs `fn(ctx, t)` once for every task t in [0, tasks) and returns when all are done. The
+/// calling thread takes part: tasks are claimed one at a time by whichever thread is free, so a
+/// worker that is slow to wake costs nothing (the caller runs its tasks) and the split adapts to
+/// how busy each core is. Implemented by servo/query_pool.h's QueryPool (the core has no
+/// threads). Must not allocate, lock or throw.
 class ParallelExecutor {
  public:
   virtual ~ParallelExecutor() = default;
-  [[nodiscard]] virtual int parts() const noexcept = 0;
-  virtual void run(void (*fn)(void* ctx, int part), void* ctx) noexcept = 0;
+  /// Threads that may share a run, the caller included (>= 1).
+  [[nodiscard]] virtual int threads() const noexcept = 0;
+  /// `tasks`: 1..65535.
+  virtual void run(void (*fn)(void* ctx, int task), void* ctx, int tasks) noexcept = 0;
 };
 
 /// Runs collision queries of one tool against a shared world.
@@ -120,12 +124,17 @@ class ContactQuery {
 
   [[nodiscard]] const ContactSet& result() const noexcept { return result_; }
   [[nodiscard]] const CandidateCacheStats& cache_stats() const noexcept { return cache_stats_; }
-  /// Splits the narrow phase of queries with at least `min_candidates` candidates across the
-  /// executor's parts (contiguous runs of BVH leaves, merged back in order: the contacts, K_min
+  /// Splits the narrow phase of queries with at least `min_candidates` candidates into
+  /// kTasksPerThread tasks per executor thread (contiguous runs of BVH leaves with about equal
+  /// candidates, claimed by whichever thread is free, merged back in order: the contacts, K_min
   /// and counts are bit-identical to a single-threaded query, since every lane of the batched
-  /// kernel is independent of the others). nullptr: single-threaded. Reserves each part's
-  /// scratch here (not on the hot path). The executor must outlive this query.
+  /// kernel is independent of the others). nullptr: single-threaded. Reserves each task's
+  /// scratch here (not on the hot path; max_contacts contacts each). The executor must outlive
+  /// this query.
   void set_executor(ParallelExecutor* executor, std::size_t min_candidates = 2048);
+  /// Tasks per executor thread: more tasks than threads, so a thread that is late (asleep) or
+  /// slow (another job on its core) leaves its share to the others.
+  static constexpr int kTasksPerThread = 3;
   /// Queries whose narrow phase was split (for statistics).
   [[nodiscard]] std::uint64_t parallel_queries() const noexcept { return parallel_queries_; }
   /// Forgets the cached candidates (the next run() traverses).
@@ -146,7 +155,7 @@ class ContactQuery {
   float cache_lo_[3] = {0, 0, 0}, cache_hi_[3] = {0, 0, 0};
   bool cache_valid_ = false;
   CandidateCacheStats cache_stats_;
-  // Parallel narrow phase: one scratch per part (part 0: the caller).
+  // Parallel narrow phase: one scratch per task.
   struct Part {
     PairBatch batch;
     std::uint32_t slot[kBatchCapacity];

@@ -2,14 +2,19 @@
 /// @file
 /// A small pool of worker threads for the parallel narrow phase of large queries
 /// (ContactQuery::set_executor). Created at start, optionally pinned; run() does not allocate,
-/// lock or throw: the caller publishes a job through an atomic epoch, the workers wake
-/// (std::atomic wait/notify: a futex, no mutex), run their part, and count themselves done; the
-/// caller runs part 0 itself, then spins until every part is done.
+/// lock or throw. The caller publishes a job (function, context, task count) through one atomic
+/// word, wakes the workers (a futex, no mutex; no system call when every worker is
+/// spinning), and then claims tasks itself like any worker: a task is claimed by
+/// a compare-and-swap on that word, which also carries the job's number, so a worker that wakes
+/// late can never run a task of a finished job. The caller returns when every task is done; it
+/// waits only for tasks a worker has actually started.
 ///
-/// Waking a sleeping worker costs a few microseconds (a futex wake and a context switch), so the
-/// pool pays for queries of a few thousand candidates and more, which is what
-/// set_executor's `min_candidates` is for. Defaults for a haptics PC: leave one core to the servo
-/// thread and one to the collision worker, and use up to 3 more (see default_query_threads).
+/// Waking a sleeping worker costs a few to tens of microseconds (a futex wake and a context
+/// switch); because the caller does not wait for it, a late worker makes a query no slower than
+/// running it alone, only less faster. A worker spins `spin_us` after each job before sleeping:
+/// a servo loop's queries are 1 ms apart, so a spin of more than 1000 us keeps a pinned worker
+/// hot on a core of its own. Defaults for a haptics PC: leave one core to the servo thread and one
+/// to the collision worker, and use up to 3 more (see default_query_threads).
 
 #include <atomic>
 #include <cstdint>
@@ -23,27 +28,36 @@ namespace gshaptics {
 
 class QueryPool final : public ParallelExecutor {
  public:
-  /// `parts`: threads sharing a query, the caller included (>= 1; 1: no worker thread).
-  /// `cpus`: CPU of each worker (parts - 1 entries) to pin to; empty: not pinned. A refused pin
-  /// is reported in warnings(), not an error.
+  /// `threads`: threads sharing a query, the caller included (1..64; 1: no worker thread).
+  /// `cpus`: CPU of each worker (threads - 1 entries) to pin to; empty: not pinned. A refused
+  /// pin is reported in warnings(), not an error.
   /// `spin_us`: after each job a worker spins this long for the next one before sleeping.
-  explicit QueryPool(int parts, const std::vector<int>& cpus = {}, int spin_us = 100);
+  /// Errors: InputError for `threads` outside 1..64.
+  explicit QueryPool(int threads, const std::vector<int>& cpus = {}, int spin_us = 100);
   ~QueryPool() override;
   QueryPool(const QueryPool&) = delete;
   QueryPool& operator=(const QueryPool&) = delete;
 
-  [[nodiscard]] int parts() const noexcept override { return parts_; }
-  void run(void (*fn)(void* ctx, int part), void* ctx) noexcept override;
+  [[nodiscard]] int threads() const noexcept override { return threads_count_; }
+  void run(void (*fn)(void* ctx, int task), void* ctx, int tasks) noexcept override;
   [[nodiscard]] const std::vector<std::string>& warnings() const noexcept { return warnings_; }
 
  private:
-  void worker(int part) noexcept;
-  int parts_;
+  void worker() noexcept;
+  // Claims and runs tasks of the current job until none is left.
+  void run_tasks() noexcept;
+  int threads_count_;
   int spin_us_;
   std::vector<std::thread> threads_;
-  std::atomic<std::uint64_t> epoch_{0};
+  // The job word: job number (32 bits) | task count (16) | next unclaimed task (16).
+  std::atomic<std::uint64_t> job_{0};
   std::atomic<int> done_{0};
   std::atomic<bool> stop_{false};
+  // Sleeping: workers futex-wait on wake_ (bumped by every publish) and count themselves in
+  // sleepers_, so a publish makes a system call only when somebody sleeps.
+  std::atomic<std::uint32_t> wake_{0};
+  std::atomic<int> sleepers_{0};
+  void publish(std::uint64_t word) noexcept;
   void (*fn_)(void*, int) = nullptr;
   void* ctx_ = nullptr;
   std::vector<std::string> warnings_;
