@@ -5,6 +5,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "../internal/huge_pages.h"
+
 namespace gshaptics {
 
 float round_down_to_float(double x) noexcept {
@@ -52,7 +54,7 @@ Bvh Bvh::build(std::span<const BvhBox> boxes, int leaf_size) {
   // Nodes are created in depth-first preorder (left subtree before right), so a left child
   // directly follows its parent and the traversal walks mostly forward through memory; a
   // parent learns its right child's index when that child is created.
-  auto nodes = std::make_shared<std::vector<BvhNode>>();
+  auto nodes = std::make_shared<std::vector<BvhNode, internal::HugePageAllocator<BvhNode>>>();
   nodes->reserve(2 * (2 * n / std::size_t(leaf_size) + 1));  // leaves hold >= leaf/2
   struct Task {
     std::uint32_t begin, end;

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "../internal/huge_pages.h"
 #include "gshaptics/error.h"
 #include "gshaptics/narrowphase/k_min_batch.h"
 
@@ -64,7 +65,7 @@ CollisionWorld CollisionWorld::build_impl(const GaussianScene& scene, GaussianSc
   // In place: the records are written once into their final storage; then (the scene freed
   // if it is consumed) their float boxes; the BVH over the boxes; then the records are
   // permuted into BVH order within their storage.
-  auto records = std::make_shared<std::vector<CollisionGaussian>>(kept);
+  auto records = std::make_shared<std::vector<CollisionGaussian, internal::HugePageAllocator<CollisionGaussian>>>(kept);
   const double axis_scale = config.sigma * reg.scale;
   const std::size_t n_scene = scene.size();
   std::size_t j = 0;
@@ -115,7 +116,7 @@ CollisionWorld CollisionWorld::build_impl(const GaussianScene& scene, GaussianSc
   // permutation; a slot done is marked by order[k] = k, so no extra memory is needed.
   {
     std::vector<std::uint32_t>& order = w.bvh_.mutable_order();
-    std::vector<CollisionGaussian>& r = *records;
+    auto& r = *records;
     for (std::size_t start = 0; start < order.size(); ++start) {
       if (order[start] == start) continue;
       const CollisionGaussian first = r[start];
