@@ -5,7 +5,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "../internal/huge_pages.h"
+#include "../huge_pages.h"
 
 namespace gshaptics {
 
