@@ -9,12 +9,15 @@
 /// late can never run a task of a finished job. The caller returns when every task is done; it
 /// waits only for tasks a worker has actually started.
 ///
-/// Waking a sleeping worker costs a few to tens of microseconds (a futex wake and a context
-/// switch); because the caller does not wait for it, a late worker makes a query no slower than
-/// running it alone, only less faster. A worker spins `spin_us` after each job before sleeping:
-/// a servo loop's queries are 1 ms apart, so a spin of more than 1000 us keeps a pinned worker
-/// hot on a core of its own. Defaults for a haptics PC: leave one core to the servo thread and one
-/// to the collision worker, and use up to 3 more (see default_query_threads).
+/// Waking a sleeping worker costs a few to tens of microseconds (a futex wake, and on a virtual
+/// machine an inter-processor interrupt); the caller does not wait for the wake, but a worker that
+/// arrives late may still claim the last task and be waited for. So a worker spins `spin_us`
+/// after each job before it sleeps, 2000 us by default: two servo periods at 1 kHz, so a pool
+/// serving a servo loop's large queries never sleeps between them (on this project's 2-core VM,
+/// truck's p99 with 2 threads was 88-96 us with a 100 us spin and 64-68 us with the worker always
+/// spinning; bench/RESULTS.md). Spinning takes the worker's core, which on a haptics PC is its
+/// own. Defaults for such a PC: leave one core to the servo thread and one to the collision
+/// worker, and use up to 3 more (see default_query_threads).
 
 #include <atomic>
 #include <cstdint>
@@ -33,7 +36,7 @@ class QueryPool final : public ParallelExecutor {
   /// pin is reported in warnings(), not an error.
   /// `spin_us`: after each job a worker spins this long for the next one before sleeping.
   /// Errors: InputError for `threads` outside 1..64.
-  explicit QueryPool(int threads, const std::vector<int>& cpus = {}, int spin_us = 100);
+  explicit QueryPool(int threads, const std::vector<int>& cpus = {}, int spin_us = 2000);
   ~QueryPool() override;
   QueryPool(const QueryPool&) = delete;
   QueryPool& operator=(const QueryPool&) = delete;
