@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <vector>
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/error.h"
@@ -149,6 +150,36 @@ TEST_F(CacheFixture, TruncatedFlippedAndForeignFilesAreDetected) {
   // And the good file still opens after all that.
   test::write_bytes(path, good);
   EXPECT_TRUE(open_world_cache(path, key, &why).has_value()) << why;
+}
+
+// The chunked, threaded hash: the same value on 1, 2 or 3 threads, at chunk boundaries and off
+// them; every size distinct; one flipped byte anywhere changes it.
+TEST(ContentHash, SameValueWhateverTheThreadsAndEveryByteCounts) {
+  constexpr std::size_t kMiB = std::size_t(1) << 20;
+  std::vector<std::uint8_t> data(20 * kMiB + 3);
+  std::uint64_t x = 0x9E3779B97F4A7C15ull;
+  for (std::uint8_t& b : data) {
+    x ^= x << 13;
+    x ^= x >> 7;
+    x ^= x << 17;
+    b = std::uint8_t(x);
+  }
+  std::vector<std::uint64_t> seen;
+  for (std::size_t n : {std::size_t(0), std::size_t(1), 8 * kMiB - 1, 8 * kMiB, 8 * kMiB + 1, data.size()}) {
+    const std::uint64_t h = content_hash(data.data(), n, 1);
+    EXPECT_EQ(content_hash(data.data(), n, 2), h) << n;
+    EXPECT_EQ(content_hash(data.data(), n, 3), h) << n;
+    EXPECT_EQ(content_hash(data.data(), n), h) << n;
+    for (std::uint64_t other : seen) EXPECT_NE(other, h) << n;
+    seen.push_back(h);
+  }
+  const std::uint64_t whole = content_hash(data.data(), data.size(), 2);
+  for (std::size_t at : {std::size_t(0), 8 * kMiB, data.size() - 1}) {
+    data[at] ^= 0x10;
+    EXPECT_NE(content_hash(data.data(), data.size(), 2), whole) << at;
+    data[at] ^= 0x10;
+  }
+  EXPECT_EQ(content_hash(data.data(), data.size(), 2), whole);
 }
 
 TEST_F(CacheFixture, AnUnwritableFolderIsAnErrorNamingTheFile) {

@@ -5,11 +5,16 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <system_error>
+#include <thread>
+#include <vector>
 
 #include "gshaptics/error.h"
 #include "gshaptics/io/mapped_file.h"
@@ -19,7 +24,7 @@ namespace gshaptics {
 namespace {
 
 constexpr char kMagic[8] = {'G', 'S', 'H', 'W', 'O', 'R', 'L', 'D'};
-constexpr std::uint32_t kVersion = 2;  // 2: 64-byte records with a quaternion
+constexpr std::uint32_t kVersion = 3;  // 2: 64-byte records with a quaternion; 3: chunked payload hash
 constexpr std::uint64_t kHeaderBytes = 4096;
 
 // The header as stored (plain data, fixed layout, padded to kHeaderBytes in the file).
@@ -32,7 +37,7 @@ struct Header {
   std::uint64_t scene_hash, scene_bytes, params_hash;
   std::uint64_t n_records, n_nodes;
   std::uint64_t records_offset, nodes_offset, file_bytes;
-  std::uint64_t payload_hash;  // XXH3-64 of [kHeaderBytes, file_bytes)
+  std::uint64_t payload_hash;  // content_hash() of [kHeaderBytes, file_bytes)
   double scene_to_world[8];    // scale, rotation w x y z, translation x y z
   double up[3], lo[3], hi[3];
   // The build parameters, for information (the key holds their hash).
@@ -107,7 +112,29 @@ struct WorldCacheAccess {
   }
 };
 
-std::uint64_t content_hash(const void* data, std::size_t bytes) noexcept { return XXH3_64bits(data, bytes); }
+std::uint64_t content_hash(const void* data, std::size_t bytes, unsigned threads) {
+  constexpr std::size_t kChunk = std::size_t(8) << 20;
+  const std::size_t n = (bytes + kChunk - 1) / kChunk;
+  std::vector<std::uint64_t> digest(n + 1);
+  const auto* p = static_cast<const std::uint8_t*>(data);
+  std::atomic<std::size_t> next{0};
+  const auto work = [&] {
+    for (std::size_t i = next.fetch_add(1); i < n; i = next.fetch_add(1))
+      digest[i] = XXH3_64bits(p + i * kChunk, std::min(kChunk, bytes - i * kChunk));
+  };
+  std::size_t t = threads > 0 ? threads : std::max(1u, std::thread::hardware_concurrency());
+  t = std::min<std::size_t>({t, 8, std::max<std::size_t>(n, 1)});
+  std::vector<std::thread> helpers;
+  try {
+    for (std::size_t k = 1; k < t; ++k) helpers.emplace_back(work);
+  } catch (const std::system_error&) {
+    // No thread to be had: the chunks left are hashed on this one.
+  }
+  work();
+  for (std::thread& h : helpers) h.join();
+  digest[n] = bytes;
+  return XXH3_64bits(digest.data(), digest.size() * sizeof(std::uint64_t));
+}
 
 std::uint64_t world_config_hash(const WorldConfig& c) noexcept {
   // Field by field (no padding bytes in the hash).
@@ -168,16 +195,8 @@ void write_world_cache(const CollisionWorld& world, const WorldCacheKey& key, co
   h.nodes_offset = align_up(h.records_offset + h.n_records * sizeof(CollisionGaussian));
   h.file_bytes = h.nodes_offset + h.n_nodes * sizeof(BvhNode);
   WorldCacheAccess::fill(h, world);
-  // Payload hash over exactly the bytes written after the header (padding included, as zeros).
   const std::size_t pad = std::size_t(h.nodes_offset - (h.records_offset + h.n_records * sizeof(CollisionGaussian)));
   const std::string zeros(std::max<std::size_t>(pad, kHeaderBytes - sizeof(Header)), '\0');
-  XXH3_state_t* st = XXH3_createState();
-  XXH3_64bits_reset(st);
-  XXH3_64bits_update(st, world.gaussians().data(), world.size() * sizeof(CollisionGaussian));
-  XXH3_64bits_update(st, zeros.data(), pad);
-  XXH3_64bits_update(st, world.bvh().nodes().data(), world.bvh().nodes().size() * sizeof(BvhNode));
-  h.payload_hash = XXH3_64bits_digest(st);
-  XXH3_freeState(st);
 
   const std::string tmp = path + ".tmp" + std::to_string(::getpid());
   {
@@ -192,6 +211,22 @@ void write_world_cache(const CollisionWorld& world, const WorldCacheKey& key, co
               std::streamsize(world.bvh().nodes().size() * sizeof(BvhNode)));
     out.flush();
     if (!out) {
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      throw file_error(path, "writing the world cache failed (disk full?)");
+    }
+  }
+  // The payload hash over exactly the bytes written after the header (padding included), read
+  // back from the file as open_world_cache will read them, then the header written again.
+  {
+    const MappedFile written(tmp);
+    h.payload_hash = written.bytes().size() == h.file_bytes
+                         ? content_hash(written.bytes().data() + kHeaderBytes, h.file_bytes - kHeaderBytes)
+                         : 0;
+    std::fstream out(tmp, std::ios::binary | std::ios::in | std::ios::out);
+    out.write(reinterpret_cast<const char*>(&h), sizeof h);
+    out.flush();
+    if (!out || written.bytes().size() != h.file_bytes) {
       std::error_code ec;
       std::filesystem::remove(tmp, ec);
       throw file_error(path, "writing the world cache failed (disk full?)");
@@ -237,7 +272,7 @@ std::optional<CachedWorld> open_world_cache(const std::string& path, const World
                          h.nodes_offset + h.n_nodes * sizeof(BvhNode) == h.file_bytes && h.depth > 0 &&
                          h.depth < Bvh::kMaxDepth;
   if (!layout_ok) return fail("corrupt: inconsistent layout");
-  if (XXH3_64bits(bytes.data() + kHeaderBytes, bytes.size() - kHeaderBytes) != h.payload_hash)
+  if (content_hash(bytes.data() + kHeaderBytes, bytes.size() - kHeaderBytes) != h.payload_hash)
     return fail("corrupt: payload hash mismatch");
   // The header's own fields are covered by the key and layout checks; a flipped bit in the
   // transform or bounds would still pass, so they are checked for finiteness at least.

@@ -33,8 +33,12 @@ struct WorldCacheKey {
 
 /// XXH3-64 of the build parameters and the cache format version.
 [[nodiscard]] std::uint64_t world_config_hash(const WorldConfig& config) noexcept;
-/// XXH3-64 of a byte range (the scene-content half of a key).
-[[nodiscard]] std::uint64_t content_hash(const void* data, std::size_t bytes) noexcept;
+/// Hash of a byte range (the scene-content half of a key, and the cache's payload check): the
+/// XXH3-64 of every 8 MiB chunk, computed on up to `threads` threads (0: every core, at most 8),
+/// then the XXH3-64 of those digests and the size. The value does not depend on the thread
+/// count. In parallel because the first pass over freshly mapped pages is what a cache open costs
+/// on a virtual machine (bench/RESULTS.md). Throws std::bad_alloc only.
+[[nodiscard]] std::uint64_t content_hash(const void* data, std::size_t bytes, unsigned threads = 0);
 /// The key of `scene_path` (memory-mapped and hashed: ~0.1 s per GB from the page cache) built
 /// with `config`. Throws InputError naming the file when it cannot be read.
 [[nodiscard]] WorldCacheKey world_cache_key(const std::string& scene_path, const WorldConfig& config);
