@@ -199,6 +199,11 @@ void write_world_cache(const CollisionWorld& world, const WorldCacheKey& key, co
   const std::string zeros(std::max<std::size_t>(pad, kHeaderBytes - sizeof(Header)), '\0');
 
   const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+  const auto discard = [&](const std::string& why) {  // nothing half-written is left behind
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw file_error(path, why);
+  };
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throw file_error(path, "cannot write the world cache here (" + std::string(std::strerror(errno)) + ")");
@@ -210,27 +215,24 @@ void write_world_cache(const CollisionWorld& world, const WorldCacheKey& key, co
     out.write(reinterpret_cast<const char*>(world.bvh().nodes().data()),
               std::streamsize(world.bvh().nodes().size() * sizeof(BvhNode)));
     out.flush();
-    if (!out) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw file_error(path, "writing the world cache failed (disk full?)");
-    }
+    if (!out) discard("writing the world cache failed (disk full?)");
   }
   // The payload hash over exactly the bytes written after the header (padding included), read
-  // back from the file as open_world_cache will read them, then the header written again.
-  {
+  // back from the file as open_world_cache will read them; then the header is written again.
+  bool complete = false;
+  try {
     const MappedFile written(tmp);
-    h.payload_hash = written.bytes().size() == h.file_bytes
-                         ? content_hash(written.bytes().data() + kHeaderBytes, h.file_bytes - kHeaderBytes)
-                         : 0;
+    complete = written.bytes().size() == h.file_bytes;
+    if (complete) h.payload_hash = content_hash(written.bytes().data() + kHeaderBytes, h.file_bytes - kHeaderBytes);
+  } catch (const InputError&) {
+    complete = false;
+  }
+  if (!complete) discard("writing the world cache failed (the file read back is short: disk full?)");
+  {
     std::fstream out(tmp, std::ios::binary | std::ios::in | std::ios::out);
     out.write(reinterpret_cast<const char*>(&h), sizeof h);
     out.flush();
-    if (!out || written.bytes().size() != h.file_bytes) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw file_error(path, "writing the world cache failed (disk full?)");
-    }
+    if (!out) discard("writing the world cache failed (disk full?)");
   }
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
