@@ -280,6 +280,8 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
       redo[l] = ((q0[l] > 0) & !(gap < kCertifiedGap) & !separated) ? 1.0 : 0.0;
     }
   }
+  for (int l = 0; l < n; ++l) b.separated[l] = sep[l] > 0 ? 1 : 0;
+  b.redone = 0;
   const int n_polish = select_lanes(redo, n, tail);
   if (n_polish > 0) {
     const int p_pad = (n_polish + L - 1) / L * L;
@@ -304,25 +306,23 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
         predo[j] = gap < kCertifiedGap ? 0.0 : 1.0;
       }
     }
+    for (int j = 0; j < n_polish; ++j) b.k_min[tail[j]] = pk[j];
+    // Only a polished lane can still be uncertified: the scalar double search redoes it. (A
+    // loop over the polished lanes, not over the batch: reading back the certificate's wide
+    // stores one lane at a time stalled on store forwarding.)
     for (int j = 0; j < n_polish; ++j) {
+      if (predo[j] == 0) continue;
       const int l = tail[j];
-      b.k_min[l] = pk[j];
-      redo[l] = predo[j];
+      ++b.redone;
+      double lambda;
+      bool separated;
+      int iterations;
+      b.k_min[l] = detail::newton_k_min({q0[l], q1[l], q2[l], e1[l], e2[l], e3[l]}, stop_when_separated,
+                                        lambda, separated, iterations);
+      b.separated[l] = separated ? 1 : 0;
     }
   }
   b.polished = n_polish;
-  for (int l = 0; l < n; ++l) b.separated[l] = sep[l] > 0 ? 1 : 0;
-  b.redone = 0;
-  for (int l = 0; l < n; ++l) {
-    if (redo[l] == 0) continue;
-    ++b.redone;
-    double lambda;
-    bool separated;
-    int iterations;
-    b.k_min[l] = detail::newton_k_min({q0[l], q1[l], q2[l], e1[l], e2[l], e3[l]}, stop_when_separated,
-                                      lambda, separated, iterations);
-    b.separated[l] = separated ? 1 : 0;
-  }
 }
 
 }  // namespace gshaptics
