@@ -16,13 +16,20 @@ static_assert(C % L == 0);
 // Largest certified distance of a reported K_min from the true minimum (the tolerance is 1e-5).
 constexpr double kCertifiedGap = 1e-6;
 
-// The lanes l < n whose flag is > 0, in order, into idx (branch-free); returns their count.
+// The lanes l < n whose flag is > 0, in order, into idx; returns their count. A block's flags
+// become a bit mask (one vector compare), then only its set bits are visited: the selected
+// lanes are the few unconverged or uncertified ones.
 template <typename T>
 inline int select_lanes(const T* flag, int n, int* idx) noexcept {
   int count = 0;
-  for (int l = 0; l < n; ++l) {
-    idx[count] = l;
-    count += flag[l] > 0 ? 1 : 0;
+  for (int base = 0; base < n; base += L) {
+    std::uint32_t mask = 0;
+    for (int j = 0; j < L; ++j) mask |= (flag[base + j] > 0 ? 1u : 0u) << j;
+    if (n - base < L) mask &= (1u << (n - base)) - 1u;
+    while (mask != 0) {
+      idx[count++] = base + __builtin_ctz(mask);
+      mask &= mask - 1u;
+    }
   }
   return count;
 }
