@@ -94,10 +94,11 @@ inline T exp_small(T x) noexcept {
 }
 
 // The float search's exp(x), |x| <= kMaxStep: 2^n 2^f with x log2(e) = n + f, |f| <= 1/2, 2^f
-// by its degree-6 Taylor polynomial (relative error < 2e-7, float's own) and 2^n put straight
-// into the exponent bits. A shorter chain of dependent operations than exp_small's polynomial
-// and squarings, which sits on every float Newton step's critical path. Branch-free and
-// vectorisable (round, convert, integer add).
+// by its degree-6 Taylor polynomial and 2^n put straight into the exponent bits. Relative error
+// < 1e-6 (mostly the rounding of x log2(e)): it only places the next iterate, whose phi is then
+// evaluated where it landed. A shorter chain of dependent operations than exp_small's
+// polynomial and squarings, which sits on every float Newton step's critical path. Branch-free
+// and vectorisable (round, convert, integer add).
 inline float exp_step(float x) noexcept {
   const float y = x * 1.44269504f;  // log2(e)
   const float n = std::nearbyint(y);
