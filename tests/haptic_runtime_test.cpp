@@ -58,16 +58,28 @@ class FaultyDevice final : public HapticDevice {
 };
 
 /// Stalls the collision worker once (fault injection through the observer hook).
+// Stalls the worker once, at its first result `at_seconds` (wall time) after its first result:
+// a wall-time trigger, so the stall happens at the same point of the run however few results a
+// busy machine lets the worker produce.
 class StallingObserver final : public ResultObserver {
  public:
-  explicit StallingObserver(std::uint64_t at_step, double seconds) : at_(at_step), seconds_(seconds) {}
+  explicit StallingObserver(double at_seconds, double seconds) : at_(at_seconds), seconds_(seconds) {}
   void on_result(const PoseCommand&, std::span<const Contact>, const CollisionResult&) noexcept override {
-    if (++steps_ == at_) std::this_thread::sleep_for(std::chrono::duration<double>(seconds_));
+    const auto now = std::chrono::steady_clock::now();
+    if (!started_) {
+      start_ = now;
+      started_ = true;
+    }
+    if (!stalled_ && std::chrono::duration<double>(now - start_).count() >= at_) {
+      stalled_ = true;
+      std::this_thread::sleep_for(std::chrono::duration<double>(seconds_));
+    }
   }
 
  private:
-  std::uint64_t at_, steps_ = 0;
-  double seconds_;
+  double at_, seconds_;
+  bool started_ = false, stalled_ = false;
+  std::chrono::steady_clock::time_point start_;
 };
 
 class RealTime : public ::testing::Test {
@@ -179,7 +191,7 @@ TEST_F(RealTime, InlineModeRendersEveryTickFresh) {
 
 TEST_F(RealTime, StalledWorkerFadesAndRecovers) {
   SimulatedDevice device(*trajectory_);
-  StallingObserver stall(/*at_step=*/1500, /*seconds=*/0.15);  // fault at ~1.5 s for 150 ms
+  StallingObserver stall(/*at_seconds=*/1.4, /*seconds=*/0.15);  // fault at ~1.4 s for 150 ms
   HapticRuntime rt(*world_, device, config(1000, 3.0));
   rt.set_observer(&stall);
   rt.start();
@@ -255,7 +267,9 @@ TEST_F(RealTime, SteadyStateAllocatesNothing) {
   const std::size_t after = test::allocation_count();
   rt.wait();
   EXPECT_EQ(after - before, 0u);  // servo and worker threads, about 900 ticks
-  EXPECT_GT(rt.summary().queries, 500u);
+  // The worker really ran through the window (one query per tick on a quiet machine; a busy one
+  // that shares the worker's core gave ~400 in 1.5 s): the zero above is not an idle worker's.
+  EXPECT_GT(rt.summary().queries, 100u);
 }
 
 TEST_F(RealTime, RejectsARateAboveTheDevicesLimit) {
