@@ -91,8 +91,15 @@ void narrow_phase(const CollisionGaussian* gs, const LeafRange* leaves, std::siz
     batch.count = n;
     gather_lanes(batch, gs, slot);
     k_min_batch(batch, tool, stop_when_separated);
-    for (int l = 0; l < n; ++l)
-      if (!batch.separated[l] && batch.k_min[l] > 0) emit(slot[l], batch.k_min[l]);
+    // The contact lanes first (branch-free: contacts and separated pairs mix unpredictably),
+    // then one straight loop over them, whose record loads overlap.
+    int hit[kBatchCapacity];
+    int m = 0;
+    for (int l = 0; l < n; ++l) {
+      hit[m] = l;
+      m += (batch.separated[l] == 0) & (batch.k_min[l] > 0) ? 1 : 0;
+    }
+    for (int j = 0; j < m; ++j) emit(slot[hit[j]], batch.k_min[hit[j]]);
     prefiltered += std::uint32_t(n);
     n = 0;
   };
