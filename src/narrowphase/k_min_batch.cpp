@@ -17,8 +17,8 @@ static_assert(C % L == 0);
 constexpr double kCertifiedGap = 1e-6;
 
 // The lanes l < n whose flag is > 0, in order, into idx; returns their count. A block's flags
-// become a bit mask (one vector compare), then only its set bits are visited: the selected
-// lanes are the few unconverged or uncertified ones.
+// become a bit mask, then only its set bits are visited: the selected lanes are the few
+// unconverged or uncertified ones.
 template <typename T>
 inline int select_lanes(const T* flag, int n, int* idx) noexcept {
   int count = 0;

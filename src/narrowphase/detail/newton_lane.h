@@ -16,8 +16,8 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
-#include <type_traits>
 #include <limits>
+#include <type_traits>
 
 #include "gshaptics/narrowphase/k_min.h"
 
