@@ -50,6 +50,55 @@ TEST(Bvh, NoFalseNegativesAgainstBruteForceWithHugeSizeSpread) {
   }
 }
 
+// The level-order traversal reports exactly the depth-first traversal's leaves, in its order,
+// whatever the scratch (small scratch forces the depth-first finish at various levels), and stops
+// where it does.
+TEST(Bvh, LevelOrderReportsTheDepthFirstLeavesInOrder) {
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> pos(-100, 100), logsize(-3, 1.5);
+  const int n = 30000;
+  std::vector<Eigen::Vector3d> lo(n), hi(n);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d c(pos(rng), pos(rng), pos(rng) * 0.1);
+    Eigen::Vector3d h;
+    for (int k = 0; k < 3; ++k) h[k] = std::pow(10.0, logsize(rng) - 1);
+    lo[std::size_t(i)] = c - h;
+    hi[std::size_t(i)] = c + h;
+  }
+  const Bvh bvh = Bvh::build(lo, hi, 8);
+  std::vector<std::uint32_t> scratch(2 * 4096);
+  int fallbacks_exercised = 0, reported = 0;
+  for (int q = 0; q < 400; ++q) {
+    const Eigen::Vector3d c(pos(rng), pos(rng), pos(rng) * 0.1);
+    const Eigen::Vector3d h = Eigen::Vector3d::Constant(std::pow(10.0, logsize(rng)));
+    float qlo[3], qhi[3];
+    for (int k = 0; k < 3; ++k) {
+      qlo[k] = round_down_to_float(c[k] - h[k]);
+      qhi[k] = round_up_to_float(c[k] + h[k]);
+    }
+    std::vector<const BvhNode*> dfs;
+    bvh.for_each_overlapping_leaf_node(qlo, qhi, [&](const BvhNode& leaf) { dfs.push_back(&leaf); });
+    for (std::size_t half : {std::size_t(1), std::size_t(2), std::size_t(5), std::size_t(64), std::size_t(4096)}) {
+      std::vector<const BvhNode*> level;
+      bvh.for_each_overlapping_leaf_node_by_level(qlo, qhi, std::span(scratch.data(), 2 * half),
+                                                  [&](const BvhNode& leaf) { level.push_back(&leaf); });
+      ASSERT_EQ(level, dfs) << "query " << q << ", scratch 2 x " << half;
+      if (half < dfs.size()) ++fallbacks_exercised;
+    }
+    reported += int(dfs.size());
+    // Early stop after the first `stop` leaves: the same prefix.
+    const std::size_t stop = dfs.size() / 2 + 1;
+    std::vector<const BvhNode*> prefix;
+    bvh.for_each_overlapping_leaf_node_by_level(qlo, qhi, scratch, [&](const BvhNode& leaf) {
+      prefix.push_back(&leaf);
+      return prefix.size() < stop;
+    });
+    ASSERT_EQ(prefix, std::vector<const BvhNode*>(dfs.begin(), dfs.begin() + std::ptrdiff_t(std::min(stop, dfs.size()))));
+  }
+  EXPECT_GT(fallbacks_exercised, 100);
+  EXPECT_GT(reported, 4000);  // the queries reach leaves: not a comparison of empty lists
+}
+
 TEST(Bvh, EveryPrimitiveInExactlyOneLeaf) {
   std::mt19937_64 rng(2);
   std::uniform_real_distribution<double> u(0, 1);
@@ -81,6 +130,8 @@ TEST(Bvh, EmptyInputIsAValidEmptyTree) {
   const float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
   int leaves = 0;
   bvh.for_each_overlapping_leaf(lo, hi, [&](std::uint32_t, std::uint32_t) { ++leaves; });
+  std::vector<std::uint32_t> scratch(8);
+  bvh.for_each_overlapping_leaf_node_by_level(lo, hi, scratch, [&](const BvhNode&) { ++leaves; });
   EXPECT_EQ(leaves, 0);
 }
 

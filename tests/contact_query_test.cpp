@@ -296,6 +296,54 @@ TEST(CandidateCache, RandomJumpsAndShapesLeavingTheMarginAreBitIdentical) {
   EXPECT_GT(s.refills, anchors.size());  // every jump to a new anchor refilled
 }
 
+// Level-order and depth-first traversals give the same contacts, K_min and order to the last
+// bit, plain and cached, on both real scenes; tools up to 20x larger overflow the level scratch
+// and finish depth first.
+TEST(ContactQuery, LevelOrderAndDepthFirstTraversalsAreBitIdentical) {
+  GSHAPTICS_REQUIRE_SCENES();
+  const LoadedScene s = load_scene(test::scene_path("karangkidul_crop.ply"));
+  const CollisionWorld crop = CollisionWorld::build(s.scene, {});
+  for (const CollisionWorld* world : {&test::truck_world(), &crop}) {
+    const bool is_truck = world == &test::truck_world();
+    PoseSamplerParams p;
+    p.count = 150;
+    p.seed = 5;
+    p.anisotropic = true;
+    p.radius_min = is_truck ? 0.01 : 0.005;
+    p.radius_max = is_truck ? 0.02 : 0.015;
+    std::vector<ToolEllipsoid> tools = sample_poses(*world, p);
+    for (std::size_t i = 0; i < 30; ++i) {  // big tools: thousands of leaves
+      ToolEllipsoid t = tools[i];
+      t.semi_axes *= 2.0 + double(i) * 0.6;
+      tools.push_back(t);
+    }
+    for (const double margin : {0.0, 0.1 * tools[0].semi_axes.maxCoeff()}) {
+      QueryOptions depth_first, level_order;
+      depth_first.traversal = Traversal::kDepthFirst;
+      level_order.traversal = Traversal::kLevelOrder;
+      depth_first.cache_margin = level_order.cache_margin = margin;
+      ContactQuery a(*world, depth_first), b(*world, level_order);
+      ASSERT_FALSE(a.level_order());
+      ASSERT_TRUE(b.level_order());
+      std::uint64_t leaves_max = 0;
+      for (std::size_t i = 0; i < tools.size(); ++i) {
+        EXPECT_EQ(a.run(tools[i]), b.run(tools[i]));
+        expect_bit_identical(a.result(), b.result(), std::string(is_truck ? "truck" : "crop") + " pose " + std::to_string(i));
+        leaves_max = std::max<std::uint64_t>(leaves_max, a.result().counts.candidates / 8);
+        if (::testing::Test::HasFailure()) return;
+      }
+      EXPECT_GT(leaves_max, 2048u);  // some query overflowed the level scratch (2 x 2048)
+    }
+  }
+}
+
+TEST(ContactQuery, AutomaticTraversalFollowsTheL2Cache) {
+  const CollisionWorld& world = test::truck_world();
+  ContactQuery q(world);
+  EXPECT_EQ(q.level_order(), world.bvh().nodes().size_bytes() > l2_cache_bytes());
+  EXPECT_GE(l2_cache_bytes(), 1024u);
+}
+
 TEST(CandidateCache, RealSceneAndATinyCacheThatOverflows) {
   GSHAPTICS_REQUIRE_SCENES();
   const LoadedScene s = load_scene(test::scene_path("karangkidul_crop.ply"));

@@ -1,5 +1,7 @@
 #include "gshaptics/collision/contact_query.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 
 #include "gshaptics/broadphase/bvh.h"
@@ -11,8 +13,28 @@ ContactQuery::ContactQuery(const CollisionWorld& world, const QueryOptions& opti
     : world_(&world),
       options_(options),
       result_(std::max<std::size_t>(1, std::min(options.max_contacts, world.size()))),
-      leaves_(kLeafScratch) {
+      leaves_(kLeafScratch),
+      levels_(kLevelScratch) {
   if (options.cache_margin > 0) cache_.reserve(options.cache_leaves);
+  switch (options.traversal) {
+    case Traversal::kDepthFirst: level_order_ = false; break;
+    case Traversal::kLevelOrder: level_order_ = true; break;
+    case Traversal::kAuto: level_order_ = world.bvh().nodes().size_bytes() > l2_cache_bytes(); break;
+  }
+}
+
+std::size_t l2_cache_bytes() noexcept {
+  static const std::size_t bytes = [] {
+    const long n = sysconf(_SC_LEVEL2_CACHE_SIZE);
+    return n > 0 ? std::size_t(n) : std::size_t(1) << 20;
+  }();
+  return bytes;
+}
+
+template <typename OnLeaf>
+void ContactQuery::traverse(const float lo[3], const float hi[3], OnLeaf&& on_leaf) noexcept {
+  if (level_order_) world_->bvh().for_each_overlapping_leaf_node_by_level(lo, hi, levels_, on_leaf);
+  else world_->bvh().for_each_overlapping_leaf_node(lo, hi, on_leaf);
 }
 
 namespace {
@@ -264,7 +286,7 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
       cache_.clear();
       bool overflow = false;
       const std::size_t cap = cache_.capacity();
-      world_->bvh().for_each_overlapping_leaf_node(cache_lo_, cache_hi_, [&](const BvhNode& leaf) {
+      traverse(cache_lo_, cache_hi_, [&](const BvhNode& leaf) {
         if (cache_.size() == cap) {
           overflow = true;
           return false;
@@ -285,7 +307,7 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
       if (overlap) on_leaf(n.first, n.count);
     }
   } else {
-    world_->bvh().for_each_overlapping_leaf(box_lo, box_hi, on_leaf);
+    traverse(box_lo, box_hi, [&](const BvhNode& n) { on_leaf(n.first, n.count); });
   }
   // Parallel narrow phase: every overlapping leaf is in the list (none was tested early), the
   // query is large enough, and the method is the batched one.

@@ -9,6 +9,7 @@
 #include <memory>
 #include <span>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace gshaptics {
@@ -85,14 +86,106 @@ class Bvh {
   void for_each_overlapping_leaf_node(const float box_lo[3], const float box_hi[3],
                                       OnLeaf&& on_leaf) const noexcept {
     if (nodes_.empty()) return;
+    depth_first_from(0, box_lo, box_hi, on_leaf);
+  }
+
+  /// As for_each_overlapping_leaf_node (the same leaves, in the same depth-first order, the same
+  /// early stop), but the tree is loaded level by level: the children of all of a level's
+  /// overlapping nodes are fetched together before any of them is read, so a traversal over
+  /// nodes that are not in the caches waits about one memory latency per level instead of about
+  /// one per node visited (breadth-first traversal for memory-level parallelism). The leaves are
+  /// reported after the last level. Preorder makes the depth-first order free: each level's
+  /// list is kept sorted by node index, since a node's children (or a leaf itself) replace it in
+  /// place. `scratch` holds two levels (its halves); a level that could outgrow a half is
+  /// finished depth first from each of its nodes, which keeps the order. Allocation-free.
+  template <typename OnLeaf>
+  void for_each_overlapping_leaf_node_by_level(const float box_lo[3], const float box_hi[3],
+                                               std::span<std::uint32_t> scratch,
+                                               OnLeaf&& on_leaf) const noexcept {
+    if (nodes_.empty()) return;
+    const std::size_t cap = scratch.size() / 2;
+    if (cap < 2 || nodes_.size() > kLeafTag) {
+      depth_first_from(0, box_lo, box_hi, on_leaf);
+      return;
+    }
+    const BvhNode* nodes = nodes_.data();
+    std::uint32_t* level = scratch.data();
+    std::uint32_t* next = level + cap;
+    std::size_t n_level = 1;
+    level[0] = 0;
+    // Entries tagged kLeafTag are leaves already known to overlap; the others are still to test.
+    for (std::size_t untested = 1; untested > 0;) {
+      if (n_level + untested > cap) {  // the next level might not fit: finish depth first
+        for (std::size_t k = 0; k < n_level; ++k) {
+          const std::uint32_t i = level[k];
+          if (i & kLeafTag) {
+            if (!call_on_leaf(on_leaf, nodes[i & ~kLeafTag])) return;
+          } else if (!depth_first_from(i, box_lo, box_hi, on_leaf)) {
+            return;
+          }
+        }
+        return;
+      }
+      std::size_t n_next = 0;
+      const bool carries_leaves = untested != n_level;
+      untested = 0;
+      for (std::size_t k = 0; k < n_level; ++k) {
+        const std::uint32_t i = level[k];
+        if (carries_leaves && (i & kLeafTag)) {
+          next[n_next++] = i;
+          continue;
+        }
+        const BvhNode& n = nodes[i];
+        if (!overlaps(n, box_lo, box_hi)) continue;
+        if (n.count != 0) {
+          next[n_next++] = i | kLeafTag;
+          continue;
+        }
+        __builtin_prefetch(&nodes[i + 1]);
+        __builtin_prefetch(&nodes[n.first]);
+        next[n_next++] = i + 1;  // preorder: the left child follows its parent
+        next[n_next++] = n.first;
+        untested += 2;
+      }
+      std::swap(level, next);
+      n_level = n_next;
+    }
+    for (std::size_t k = 0; k < n_level; ++k)
+      if (!call_on_leaf(on_leaf, nodes[level[k] & ~kLeafTag])) return;
+  }
+
+  /// Traversal stack size; the median split bounds the depth by log2(N) + 2 < kMaxDepth.
+  static constexpr int kMaxDepth = 96;
+
+ private:
+  static constexpr std::uint32_t kLeafTag = 0x80000000u;  // level-order traversal: a known leaf
+
+  static bool overlaps(const BvhNode& n, const float box_lo[3], const float box_hi[3]) noexcept {
+    return !(n.lo[0] > box_hi[0] || n.hi[0] < box_lo[0] || n.lo[1] > box_hi[1] || n.hi[1] < box_lo[1] ||
+             n.lo[2] > box_hi[2] || n.hi[2] < box_lo[2]);
+  }
+
+  template <typename OnLeaf>
+  static bool call_on_leaf(OnLeaf& on_leaf, const BvhNode& n) noexcept {
+    if constexpr (std::is_same_v<decltype(on_leaf(n)), bool>) {
+      return on_leaf(n);
+    } else {
+      on_leaf(n);
+      return true;
+    }
+  }
+
+  // Depth-first over the subtree rooted at `root`; false when on_leaf stopped it.
+  template <typename OnLeaf>
+  bool depth_first_from(std::uint32_t root, const float box_lo[3], const float box_hi[3],
+                        const OnLeaf& on_leaf) const noexcept {
     std::uint32_t stack[kMaxDepth];
     int top = 0;
-    std::uint32_t i = 0;
+    std::uint32_t i = root;
     const BvhNode* nodes = nodes_.data();
     for (;;) {
       const BvhNode& n = nodes[i];
-      const bool overlap = !(n.lo[0] > box_hi[0] || n.hi[0] < box_lo[0] || n.lo[1] > box_hi[1] ||
-                             n.hi[1] < box_lo[1] || n.lo[2] > box_hi[2] || n.hi[2] < box_lo[2]);
+      const bool overlap = overlaps(n, box_lo, box_hi);
       if (overlap && n.count == 0) {
         // Preorder layout: the left child is next in memory; the right one waits on the stack
         // and is fetched early, since traversal is bound by the latency of node loads.
@@ -101,16 +194,12 @@ class Bvh {
         i = i + 1;
         continue;
       }
-      if (overlap && !on_leaf(n)) return;
-      if (top == 0) break;
+      if (overlap && !call_on_leaf(on_leaf, n)) return false;
+      if (top == 0) return true;
       i = stack[--top];
     }
   }
 
-  /// Traversal stack size; the median split bounds the depth by log2(N) + 2 < kMaxDepth.
-  static constexpr int kMaxDepth = 96;
-
- private:
   std::span<const BvhNode> nodes_;
   std::shared_ptr<const void> owner_;  // keeps nodes_ alive: a vector, or a mapped file
   std::vector<std::uint32_t> order_;
