@@ -101,8 +101,11 @@ TEST(CollisionWorldBuild, FloatAndDoubleBoxBuildsAgree) {
     }
   }
   // Preorder: an inner node's left child follows it, its right child comes after.
-  for (std::size_t k = 0; k < b.nodes().size(); ++k)
-    if (b.nodes()[k].count == 0) ASSERT_GT(b.nodes()[k].first, k + 1);
+  for (std::size_t k = 0; k < b.nodes().size(); ++k) {
+    if (b.nodes()[k].count == 0) {
+      ASSERT_GT(b.nodes()[k].first, k + 1);
+    }
+  }
 }
 
 }  // namespace

@@ -60,9 +60,9 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
       ->check(CLI::IsMember({"desktop", "room"}));
   cmd.parse_complete_callback([&cmd, &o] {
     if (o.profile.empty()) return;
-    const DeviceProfile& p = device_profile(o.profile, "--device-profile");
-    if (cmd.count("--f-max") == 0) o.force.f_max = p.f_max;
-    if (cmd.count("--stiffness") == 0) o.proxy.stiffness = p.stiffness;
+    const DeviceProfile& profile = device_profile(o.profile, "--device-profile");
+    if (cmd.count("--f-max") == 0) o.force.f_max = profile.f_max;
+    if (cmd.count("--stiffness") == 0) o.proxy.stiffness = profile.stiffness;
   });
 }
 
