@@ -387,6 +387,34 @@ class Devices(unittest.TestCase):
             self.assertGreater(s["runtime"]["ticks"], 100)
 
 
+class Latency(unittest.TestCase):
+    """`gshaptics latency`: the gap profile of a spinning thread, as text and JSON."""
+
+    def test_json_profile_is_consistent(self):
+        p = run("latency", "--seconds", "0.2", "--json")
+        prof = json.loads(p.stdout)
+        self.assertGreaterEqual(prof["seconds"], 0.2)
+        self.assertLess(prof["seconds"], 5.0)
+        self.assertEqual(prof["threshold_us"], 5)
+        self.assertAlmostEqual(prof["per_second"], prof["count"] / prof["seconds"], delta=0.1 + 1e-3 * prof["per_second"])
+        self.assertGreaterEqual(prof["lost_fraction"], 0.0)
+        self.assertLess(prof["lost_fraction"], 1.0)
+        if prof["count"] > 0:
+            self.assertGreater(prof["median_us"], 5.0)
+            self.assertLessEqual(prof["median_us"], prof["p99_us"])
+            self.assertLessEqual(prof["p99_us"], prof["max_us"])
+            self.assertGreater(prof["hit_probability_50us"], prof["hit_probability_10us"])
+        else:
+            self.assertEqual(prof["hit_probability_1ms"], 0.0)
+
+    def test_text_report_and_bad_cpu(self):
+        p = run("latency", "--seconds", "0.1", "--cpu", "0")
+        self.assertIn("CPU 0 (normal scheduling)", p.stdout)
+        bad = run("latency", "--cpu", "100000", check=False)
+        self.assertEqual(bad.returncode, 2)
+        self.assertIn("--cpu 100000", bad.stderr)
+
+
 class Node(unittest.TestCase):
     """Argument and start-up errors of the network commands (the bridges' own tests run them)."""
 

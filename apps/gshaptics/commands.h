@@ -14,6 +14,7 @@ void register_convert(CLI::App& app);
 void register_synth(CLI::App& app);
 void register_fidelity(CLI::App& app);
 void register_devices(CLI::App& app);
+void register_latency(CLI::App& app);
 /// Exit status of a run that completed but could not write its outputs (disk full, read-only).
 inline constexpr int kExitOutputsLost = 4;
 /// Exit status a command set while running (0 unless it reported a failure).

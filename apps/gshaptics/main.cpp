@@ -35,6 +35,7 @@ int main(int argc, char** argv) {
   gshaptics::cli::register_synth(app);
   gshaptics::cli::register_fidelity(app);
   gshaptics::cli::register_devices(app);
+  gshaptics::cli::register_latency(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
