@@ -101,12 +101,16 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
       for (int j = 0; j < L; ++j) {
         const int l = base + j;
         const double dx = b.dx[l] * ia, dy = b.dy[l] * ia, dz = b.dz[l] * ia;
-        double r0, r1, r2, r3, r4, r5, r6, r7, r8;
-        rotation_from_quaternion<double>(b.q[0][l], b.q[1][l], b.q[2][l], b.q[3][l], r0, r1, r2, r3, r4, r5, r6, r7, r8);
-        // w_j = column j of R_G (row-major r[3 * row + col]) dotted with d / a.
-        const double w0 = r0 * dx + r3 * dy + r6 * dz;
-        const double w1 = r1 * dx + r4 * dy + r7 * dz;
-        const double w2 = r2 * dx + r5 * dy + r8 * dz;
+        // w = R_G^T d / a by the quaternion itself, without the matrix: with the same near-unit
+        // correction s = 2 (2 - |q|^2) as rotation_from_quaternion, R = I + s (w [v]x + [v]x^2)
+        // for q = (w, v), so R^T d = d + s (v x (v x d) - w (v x d)).
+        const double qw = b.q[0][l], qx = b.q[1][l], qy = b.q[2][l], qz = b.q[3][l];
+        const double s = 2 * (2 - (qw * qw + qx * qx + qy * qy + qz * qz));
+        const double cx = qy * dz - qz * dy, cy = qz * dx - qx * dz, cz = qx * dy - qy * dx;  // v x d
+        const double ex = qy * cz - qz * cy, ey = qz * cx - qx * cz, ez = qx * cy - qy * cx;  // v x (v x d)
+        const double w0 = dx + s * (ex - qw * cx);
+        const double w1 = dy + s * (ey - qw * cy);
+        const double w2 = dz + s * (ez - qw * cz);
         const double u0 = b.sx[l] * ia, u1 = b.sy[l] * ia, u2 = b.sz[l] * ia;
         const double uu0 = u0 * u0, uu1 = u1 * u1, uu2 = u2 * u2;
         const double ww0 = w0 * w0, ww1 = w1 * w1, ww2 = w2 * w2;
