@@ -23,8 +23,12 @@ template <typename T>
 inline int select_lanes(const T* flag, int n, int* idx) noexcept {
   int count = 0;
   for (int base = 0; base < n; base += L) {
+    // A reduction the vectoriser takes (a compare, a blend of the lane bits, an OR tree): the
+    // flags were just written by wide stores, which scalar loads of single lanes could not
+    // forward from.
     std::uint32_t mask = 0;
-    for (int j = 0; j < L; ++j) mask |= (flag[base + j] > 0 ? 1u : 0u) << j;
+#pragma omp simd reduction(| : mask)
+    for (int j = 0; j < L; ++j) mask |= flag[base + j] > 0 ? (1u << j) : 0u;
     if (n - base < L) mask &= (1u << (n - base)) - 1u;
     while (mask != 0) {
       idx[count++] = base + __builtin_ctz(mask);
