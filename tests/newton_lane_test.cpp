@@ -54,5 +54,33 @@ TEST(NewtonLane, LogMidpointIsInsideTheBracketNearItsLogMiddle) {
   EXPECT_EQ(log_midpoint<double>(1.0, 4.0), 2.0);
 }
 
+TEST(NewtonLane, ApproxSqrtRatioIsWithinTenPercentAndClamped) {
+  std::mt19937 rng(11);
+  // num and den over the whole positive normal float range; the result is sqrt(num / den)
+  // within 0.13 in log2 (9 %: half the difference of two piecewise-linear log2s, each off by at
+  // most 0.086, then read back through the same piecewise-linear map), or the float search's
+  // clamp where the ratio leaves it.
+  std::uniform_real_distribution<double> e(-125.0, 127.0);
+  const double lo = 2.0 * NewtonLimits<float>::kMuMin, hi = 0.5 * NewtonLimits<float>::kMuMax;
+  double worst = 0;
+  for (int i = 0; i < 200000; ++i) {
+    const float num = float(std::exp2(e(rng))), den = float(std::exp2(e(rng)));
+    const double want = std::sqrt(double(num) / double(den));
+    const double got = approx_sqrt_ratio(num, den);
+    ASSERT_GE(got, float(lo)) << num << " / " << den;
+    ASSERT_LE(got, float(hi)) << num << " / " << den;
+    if (want > lo * 1.1 && want < hi / 1.1) {
+      worst = std::max(worst, std::fabs(std::log2(got / want)));
+    } else if (want < lo / 1.1) {
+      ASSERT_EQ(got, float(lo));
+    } else if (want > hi * 1.1) {
+      ASSERT_EQ(got, float(hi));
+    }
+  }
+  EXPECT_LT(worst, 0.13);
+  EXPECT_GT(worst, 0.01);  // it is an approximation, and the test sees it
+  EXPECT_EQ(approx_sqrt_ratio(4.0f, 1.0f), 2.0f);  // exact on powers of four
+}
+
 }  // namespace
 }  // namespace gshaptics::detail

@@ -134,17 +134,41 @@ inline T log_midpoint(T lo, T hi) noexcept {
 // spheres), with delta along the offset (v^T M v / |v|^2) and the smallest eigenvalue of M
 // (~ e3 / e2; flat splats put the optimum there). A third guess from the largest eigenvalue
 // (~ e1) never changed the iteration count on truck and karangkidul_crop pairs, so it is gone.
+// sqrt(num / den) for num, den > 0, within 9 %, clamped like clamp_mu<float>: a positive
+// float's bit pattern is a piecewise-linear log2 of its value (as in log_midpoint), so half the
+// difference of the two patterns, re-biased, is the square root of the ratio. Integer
+// operations only: the float start point needs no more (Newton takes it from there), and this
+// replaces two divisions and two square roots on the start's critical path.
+inline float approx_sqrt_ratio(float num, float den) noexcept {
+  constexpr std::int32_t kOne = 0x3f800000;  // 1.0f
+  const std::int32_t lo = std::bit_cast<std::int32_t>(2 * NewtonLimits<float>::kMuMin);
+  const std::int32_t hi = std::bit_cast<std::int32_t>(0.5f * NewtonLimits<float>::kMuMax);
+  const std::int32_t r = kOne + ((std::bit_cast<std::int32_t>(num) - std::bit_cast<std::int32_t>(den)) >> 1);
+  return std::bit_cast<float>(r < lo ? lo : (r > hi ? hi : r));
+}
+
 template <typename T>
 inline T initial_mu(T q0, T q1, T q2, T e1, T e2, T e3) noexcept {
-  const T qq = q0 > 0 ? q0 : T(1);
-  const T d_offset = max_of<T>(q0 * e1 - q1, 0) / qq;
-  const T d_small = e2 > 0 ? e3 / e2 : T(0);
-  const T tiny = std::numeric_limits<T>::min();
-  const T m1 = clamp_mu<T>(1 / std::sqrt(max_of<T>(d_offset, tiny)));
-  const T m2 = clamp_mu<T>(1 / std::sqrt(max_of<T>(d_small, tiny)));
-  const T p1 = phi_at_mu<T>(q0, q1, q2, e1, e2, e3, m1);
-  const T p2 = phi_at_mu<T>(q0, q1, q2, e1, e2, e3, m2);
-  return p2 > p1 ? m2 : m1;
+  if constexpr (std::is_same_v<T, float>) {
+    // The same two candidates as below, from bit patterns (approx_sqrt_ratio).
+    const float tiny = std::numeric_limits<float>::min();
+    const float qq = q0 > 0 ? q0 : 1.0f;
+    const float m1 = approx_sqrt_ratio(qq, max_of<float>(q0 * e1 - q1, tiny));
+    const float m2 = e2 > 0 ? approx_sqrt_ratio(e2, max_of<float>(e3, tiny)) : 0.5f * NewtonLimits<float>::kMuMax;
+    const float p1 = phi_at_mu<float>(q0, q1, q2, e1, e2, e3, m1);
+    const float p2 = phi_at_mu<float>(q0, q1, q2, e1, e2, e3, m2);
+    return p2 > p1 ? m2 : m1;
+  } else {
+    const T qq = q0 > 0 ? q0 : T(1);
+    const T d_offset = max_of<T>(q0 * e1 - q1, 0) / qq;
+    const T d_small = e2 > 0 ? e3 / e2 : T(0);
+    const T tiny = std::numeric_limits<T>::min();
+    const T m1 = clamp_mu<T>(1 / std::sqrt(max_of<T>(d_offset, tiny)));
+    const T m2 = clamp_mu<T>(1 / std::sqrt(max_of<T>(d_small, tiny)));
+    const T p1 = phi_at_mu<T>(q0, q1, q2, e1, e2, e3, m1);
+    const T p2 = phi_at_mu<T>(q0, q1, q2, e1, e2, e3, m2);
+    return p2 > p1 ? m2 : m1;
+  }
 }
 
 // phi at mu, its mu-derivative, and its first two derivatives in t = ln(mu). At large mu the
