@@ -190,7 +190,7 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
   // branch-free, so each loop over lanes is if-converted and vectorised.
   using Lim = detail::NewtonLimits<float>;
   alignas(64) float fq0[C], fq1[C], fq2[C], fe1[C], fe2[C], fe3[C];
-  alignas(64) float mu[C], lo[C], hi[C], best_phi[C], best_mu[C], uphill[C], active[C], sep[C];
+  alignas(64) float mu[C], lo[C], hi[C], best_phi[C], uphill[C], active[C], sep[C];
   const float want_sep = stop_when_separated ? 1.f : 0.f;
   for (int base = 0; base < n_pad; base += L) {
 #pragma omp simd
@@ -206,7 +206,6 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
       lo[l] = Lim::kMuMin;
       hi[l] = Lim::kMuMax;
       best_phi[l] = 0.f;
-      best_mu[l] = mu[l];
       uphill[l] = float(detail::kUphillStep);
       active[l] = ((l < n) & (fq0[l] > 0)) ? 1.f : 0.f;  // coincident centres: K == 1
       sep[l] = 0.f;
@@ -220,10 +219,11 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
 #pragma omp simd
     for (int j = 0; j < L; ++j) {
       const int l = base + j;
+      float unused_mu = 0.f;  // where the best phi was: not tracked (kTrackBestMu = false)
       for (int it = 0; it < kInPlaceSteps; ++it)
-        detail::newton_step<float>(mu[l], lo[l], hi[l], best_phi[l], best_mu[l], uphill[l], active[l],
-                                   sep[l], fq0[l], fq1[l], fq2[l], fe1[l], fe2[l], fe3[l], want_sep,
-                                   1e-3f);
+        detail::newton_step<float, false>(mu[l], lo[l], hi[l], best_phi[l], unused_mu, uphill[l], active[l],
+                                          sep[l], fq0[l], fq1[l], fq2[l], fe1[l], fe2[l], fe3[l], want_sep,
+                                          1e-3f);
     }
   }
   // The rest: the lanes still active, packed into blocks of their own and iterated together to
@@ -236,18 +236,24 @@ void k_min_batch(PairBatch& b, const BatchTool& t, bool stop_when_separated) noe
   if (n_tail > 0) {
     const int t_pad = (n_tail + L - 1) / L * L;
     alignas(64) float tq0[C], tq1[C], tq2[C], te1[C], te2[C], te3[C];
-    alignas(64) float tmu[C], tlo[C], thi[C], tbp[C], tbm[C], tup[C], tact[C], tsep[C];
+    alignas(64) float tmu[C], tlo[C], thi[C], tbp[C], tup[C], tact[C], tsep[C];
     pack_lanes(tail, n_tail, t_pad, LaneCopy{tq0, fq0}, LaneCopy{tq1, fq1}, LaneCopy{tq2, fq2}, LaneCopy{te1, fe1},
                LaneCopy{te2, fe2}, LaneCopy{te3, fe3}, LaneCopy{tmu, mu}, LaneCopy{tlo, lo}, LaneCopy{thi, hi},
-               LaneCopy{tbp, best_phi}, LaneCopy{tbm, best_mu}, LaneCopy{tup, uphill}, LaneCopy{tsep, sep});
-    for (int j = 0; j < t_pad; ++j) tact[j] = j < n_tail ? 1.f : 0.f;
+               LaneCopy{tbp, best_phi}, LaneCopy{tup, uphill});
+    // An active lane has not been stopped as separated, so the tail starts with sep = 0.
+    for (int j = 0; j < t_pad; ++j) {
+      tact[j] = j < n_tail ? 1.f : 0.f;
+      tsep[j] = 0.f;
+    }
     int live = t_pad;  // blocks past `live` are all inactive
     for (int it = kInPlaceSteps; it < detail::kMaxNewton && live > 0; ++it) {
       for (int base = 0; base < live; base += L) {
 #pragma omp simd
-        for (int j = base; j < base + L; ++j)
-          detail::newton_step<float>(tmu[j], tlo[j], thi[j], tbp[j], tbm[j], tup[j], tact[j], tsep[j],
-                                     tq0[j], tq1[j], tq2[j], te1[j], te2[j], te3[j], want_sep, 1e-3f);
+        for (int j = base; j < base + L; ++j) {
+          float unused_mu = 0.f;
+          detail::newton_step<float, false>(tmu[j], tlo[j], thi[j], tbp[j], unused_mu, tup[j], tact[j], tsep[j],
+                                            tq0[j], tq1[j], tq2[j], te1[j], te2[j], te3[j], want_sep, 1e-3f);
+        }
       }
       // Kept out of the loop above: an omp simd reduction there defeats GCC 12's vectoriser.
       while (live > 0) {

@@ -227,8 +227,9 @@ inline void log_derivatives(T q0, T q1, T q2, T e1, T e2, T e3, T mu, T& phi, T&
 // reference (not as a struct) and each is read once and written once, unconditionally: both
 // keep GCC able to if-convert and vectorise a loop over structure-of-arrays lanes.
 // `sep_margin`: a lane stops as separated when phi > 1 + sep_margin (float iterations use a
-// margin; the final decision is then made in double).
-template <typename T>
+// margin; the final decision is then made in double). kTrackBestMu = false leaves s_best_mu
+// alone (the batch kernel never reads where the best phi was, only its value).
+template <typename T, bool kTrackBestMu = true>
 inline void newton_step(T& s_mu, T& s_lo, T& s_hi, T& s_best_phi, T& s_best_mu, T& s_uphill,
                         T& s_active, T& s_separated, T q0, T q1, T q2, T e1, T e2, T e3,
                         T stop_when_separated, T sep_margin) noexcept {
@@ -271,7 +272,7 @@ inline void newton_step(T& s_mu, T& s_lo, T& s_hi, T& s_best_phi, T& s_best_mu, 
   const T out_up = act ? uphill : up0;
   const T out_active = (act & !now_sep & !converged) ? T(1) : T(0);
   s_best_phi = out_best_phi;
-  s_best_mu = out_best_mu;
+  if constexpr (kTrackBestMu) s_best_mu = out_best_mu;
   s_separated = out_sep;
   s_lo = out_lo;
   s_hi = out_hi;
