@@ -70,7 +70,7 @@ void register_latency(CLI::App& app) {
     const double tick_hit = p.hit_probability(1000.0);
     if (o->json) {
       fmt::print(
-          "{{\"cpu\": {}, \"priority\": {}, \"seconds\": {:.3f}, \"threshold_us\": {}, \"count\": {}, "
+          "{{\"cpu\": {}, \"priority\": {}, \"seconds\": {:.6f}, \"threshold_us\": {}, \"count\": {}, "
           "\"per_second\": {:.1f}, \"median_us\": {:.2f}, \"p99_us\": {:.2f}, \"max_us\": {:.2f}, "
           "\"lost_fraction\": {:.5f}, \"hit_probability_10us\": {:.5f}, \"hit_probability_50us\": {:.5f}, "
           "\"hit_probability_1ms\": {:.5f}}}\n",
