@@ -493,5 +493,43 @@ TEST(ParallelNarrowPhase, ThreadedQueriesAreBitIdentical) {
   }
 }
 
+// A full contact set keeps the first contacts in order, plain or threaded, and says so; the
+// count still says how many there were. Both append a batch's contacts at once.
+TEST(ParallelNarrowPhase, OverflowKeepsTheFirstContactsInOrder) {
+  const CollisionWorld& world = test::truck_world();
+  PoseSamplerParams p;
+  p.count = 60;
+  p.seed = 9;
+  p.radius_min = 0.02;
+  p.radius_max = 0.05;
+  const std::vector<ToolEllipsoid> tools = sample_poses(world, p);
+  QueryPool pool(2);
+  ContactQuery full(world);
+  int overflowed = 0;
+  for (std::size_t cap : {std::size_t(1), std::size_t(100), std::size_t(1000)}) {
+    QueryOptions o;
+    o.max_contacts = cap;
+    ContactQuery plain(world, o), threaded(world, o);
+    threaded.set_executor(&pool, /*min_candidates=*/0);
+    for (std::size_t i = 0; i < tools.size(); ++i) {
+      full.run(tools[i]);
+      const std::size_t n = full.result().contacts().size();
+      for (ContactQuery* q : {&plain, &threaded}) {
+        const QueryStatus st = q->run(tools[i]);
+        const std::span<const Contact> got = q->result().contacts();
+        EXPECT_EQ(st, n > cap ? QueryStatus::kContactOverflow : QueryStatus::kOk) << "pose " << i;
+        ASSERT_EQ(got.size(), std::min(n, cap)) << "pose " << i;
+        EXPECT_EQ(q->result().counts.contacts, full.result().counts.contacts);
+        for (std::size_t j = 0; j < got.size(); ++j) {
+          ASSERT_EQ(got[j].slot, full.result().contacts()[j].slot) << "pose " << i << " contact " << j;
+          ASSERT_EQ(got[j].k_min, full.result().contacts()[j].k_min) << "pose " << i << " contact " << j;
+        }
+        overflowed += n > cap ? 1 : 0;
+      }
+    }
+  }
+  EXPECT_GT(overflowed, 20);  // the poses really overflowed the smaller sets
+}
+
 }  // namespace
 }  // namespace gshaptics

@@ -100,8 +100,20 @@ inline Contact make_contact(const CollisionGaussian* gs, std::uint32_t record, d
   return contact;
 }
 
+// Appends a batch's m contacts (lanes[j]: the batch lane of contact j) to `out`, claiming the
+// room once so the set's size is not reloaded and stored per contact; returns false when they
+// did not all fit (the first ones are kept).
+inline bool append_contacts(ContactSet& out, const CollisionGaussian* gs, const std::uint32_t* slot,
+                            const double* k, const int* lanes, int m) noexcept {
+  std::size_t granted;
+  Contact* dst = out.append(std::size_t(m), granted);
+  for (std::size_t j = 0; j < granted; ++j) dst[j] = make_contact(gs, slot[lanes[j]], k[lanes[j]]);
+  return granted == std::size_t(m);
+}
+
 // The batched narrow phase over a list of BVH leaves: pre-filter, gather, K_min, in batches of
-// up to kBatchCapacity; emit(slot, k_min) for every contact, in leaf order. Shared by run()
+// up to kBatchCapacity; emit(slot, k_min, lanes, m) for each batch's m contacts (lanes[j] is the
+// batch lane of contact j), in leaf order. Shared by run()
 // and the parallel parts, so a part computes exactly what the single-threaded query does.
 template <typename Emit>
 void narrow_phase(const CollisionGaussian* gs, const LeafRange* leaves, std::size_t n_leaves,
@@ -121,7 +133,8 @@ void narrow_phase(const CollisionGaussian* gs, const LeafRange* leaves, std::siz
       hit[m] = l;
       m += (batch.separated[l] == 0) & (batch.k_min[l] > 0) ? 1 : 0;
     }
-    for (int j = 0; j < m; ++j) emit(slot[hit[j]], batch.k_min[hit[j]]);
+    emit(static_cast<const std::uint32_t*>(slot), static_cast<const double*>(batch.k_min),
+         static_cast<const int*>(hit), m);
     prefiltered += std::uint32_t(n);
     n = 0;
   };
@@ -211,6 +224,11 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
     ++counts.contacts;
     if (!result_.push(make_contact(gs, record, k))) status = QueryStatus::kContactOverflow;
   };
+  // A batch's contacts at once (append_contacts).
+  const auto emit_batch = [&](const std::uint32_t* slot, const double* k, const int* lanes, int m) {
+    counts.contacts += std::uint32_t(m);
+    if (!append_contacts(result_, gs, slot, k, lanes, m)) status = QueryStatus::kContactOverflow;
+  };
   // The paper's method: the sphere test, then one golden-section search per pair.
   // (Its tool frame is only built for that method: the batched path has BatchTool.)
   const ToolFrame frame = golden ? ToolFrame::from(R_tool, tool.semi_axes) : ToolFrame{};
@@ -235,7 +253,7 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
     if (golden) golden_leaves(leaves, n);
     else
       narrow_phase(gs, leaves, n, c_tool, r_tool, batch_tool, options_.narrow_phase.stop_when_separated,
-                   batch_, slot_, counts, emit);
+                   batch_, slot_, counts, emit_batch);
   };
 
   // Two passes: the traversal collects the overlapping leaves and starts fetching their
@@ -321,8 +339,11 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
         counts.candidates += part->counts.candidates;
         counts.prefiltered += part->counts.prefiltered;
         counts.contacts += part->counts.contacts;
-        for (const Contact& c : part->contacts)
-          if (!result_.push(c)) status = QueryStatus::kContactOverflow;
+        const std::span<const Contact> from = part->contacts.contacts();
+        std::size_t granted;
+        Contact* dst = result_.append(from.size(), granted);
+        std::copy(from.begin(), from.begin() + std::ptrdiff_t(granted), dst);
+        if (granted < from.size()) status = QueryStatus::kContactOverflow;
         if (part->overflow) status = QueryStatus::kContactOverflow;
       }
       result_.counts = counts;
@@ -343,7 +364,7 @@ void ContactQuery::set_executor(ParallelExecutor* executor, std::size_t min_cand
   const std::size_t cap = std::max<std::size_t>(1, std::min(options_.max_contacts, world_->size()));
   for (int i = 0; i < executor->threads() * kTasksPerThread; ++i) {
     auto part = std::make_unique<Part>();
-    part->contacts.reserve(cap);
+    part->contacts = ContactSet(cap);
     parts_.push_back(std::move(part));
   }
 }
@@ -379,10 +400,9 @@ void ContactQuery::run_part(Part& part, const ToolEllipsoid& tool, const BatchTo
   part.overflow = false;
   const double c_tool[3] = {tool.center.x(), tool.center.y(), tool.center.z()};
   const CollisionGaussian* gs = world_->gaussians().data();
-  const auto emit = [&](std::uint32_t record, double k) {
-    ++part.counts.contacts;
-    if (part.contacts.size() < part.contacts.capacity()) part.contacts.push_back(make_contact(gs, record, k));
-    else part.overflow = true;
+  const auto emit = [&](const std::uint32_t* slot, const double* k, const int* lanes, int m) {
+    part.counts.contacts += std::uint32_t(m);
+    if (!append_contacts(part.contacts, gs, slot, k, lanes, m)) part.overflow = true;
   };
   prefetch_leaves(gs, leaves_.data() + part.leaf_begin, part.leaf_end - part.leaf_begin);
   narrow_phase(gs, leaves_.data() + part.leaf_begin, part.leaf_end - part.leaf_begin, c_tool,

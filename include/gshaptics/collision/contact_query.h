@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <algorithm>
 #include <memory>
 #include <span>
 #include <utility>
@@ -88,26 +89,50 @@ struct CandidateCacheStats {
   std::uint64_t overflows = 0; ///< refills whose grown box overlapped more than cache_leaves leaves
 };
 
-/// Contacts of one query, reused tick after tick; clear() keeps the capacity.
+/// Contacts of one query, reused tick after tick; clear() keeps the capacity. Storage is
+/// allocated once, at construction; nothing after that allocates.
 class ContactSet {
  public:
-  explicit ContactSet(std::size_t capacity = 1u << 15) { contacts_.reserve(capacity); }
+  explicit ContactSet(std::size_t capacity = 1u << 15)
+      : data_(new Contact[capacity]), capacity_(capacity) {}
+  ContactSet(const ContactSet& o) : ContactSet(o.capacity_) {
+    std::copy(o.data_.get(), o.data_.get() + o.size_, data_.get());
+    size_ = o.size_;
+    counts = o.counts;
+  }
+  ContactSet& operator=(const ContactSet& o) {
+    if (this != &o) *this = ContactSet(o);
+    return *this;
+  }
+  ContactSet(ContactSet&&) noexcept = default;
+  ContactSet& operator=(ContactSet&&) noexcept = default;
   void clear() noexcept {
-    contacts_.clear();
+    size_ = 0;
     counts = {};
   }
-  [[nodiscard]] std::span<const Contact> contacts() const noexcept { return contacts_; }
-  [[nodiscard]] std::size_t capacity() const noexcept { return contacts_.capacity(); }
+  [[nodiscard]] std::span<const Contact> contacts() const noexcept { return {data_.get(), size_}; }
+  [[nodiscard]] std::size_t capacity() const noexcept { return capacity_; }
   /// Appends without reallocating; returns false when full.
   bool push(const Contact& c) noexcept {
-    if (contacts_.size() == contacts_.capacity()) return false;
-    contacts_.push_back(c);
+    if (size_ == capacity_) return false;
+    data_[size_++] = c;
     return true;
+  }
+  /// Makes room for up to `n` more contacts at the end and returns where they start; `granted`
+  /// (<= n) is how many fit. The caller fills all `granted` of them (their fields are left
+  /// as they were).
+  Contact* append(std::size_t n, std::size_t& granted) noexcept {
+    granted = std::min(n, capacity_ - size_);
+    Contact* out = data_.get() + size_;
+    size_ += granted;
+    return out;
   }
   QueryCounts counts;
 
  private:
-  std::vector<Contact> contacts_;
+  std::unique_ptr<Contact[]> data_;
+  std::size_t size_ = 0;
+  std::size_t capacity_ = 0;
 };
 
 /// Runs `fn(ctx, t)` once for every task t in [0, tasks) and returns when all are done. The
@@ -185,7 +210,7 @@ class ContactQuery {
   struct Part {
     PairBatch batch;
     std::uint32_t slot[kBatchCapacity];
-    std::vector<Contact> contacts;  // reserved to max_contacts
+    ContactSet contacts{1};  // max_contacts, set by set_executor
     QueryCounts counts;
     bool overflow = false;
     std::size_t leaf_begin = 0, leaf_end = 0;
