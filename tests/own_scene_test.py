@@ -331,7 +331,9 @@ class WorkspaceMappingCli(unittest.TestCase):
             late = [r for r in rows[1:] if 0.5 <= float(r[col["time_s"]]) <= 0.9]
             self.assertGreater(len(late), 100)
             for r in late:
-                t = float(r[col["time_s"]])
+                # The device is read when the tick wakes: its scheduled time plus the logged
+                # jitter (tens of ms on a busy machine), not the scheduled time alone.
+                t = float(r[col["time_s"]]) + 1e-6 * float(r[col["jitter_us"]])
                 self.assertAlmostEqual(float(r[col["x"]]), 20 * 0.04 * t, delta=0.02)
                 self.assertAlmostEqual(float(r[col["z"]]), 20 * 0.05 + 1, delta=1e-6)
         p = run("serve", "--workspace-scale", "20", "--port", "0", check=False)
