@@ -130,10 +130,6 @@ inline T log_midpoint(T lo, T hi) noexcept {
   else return std::sqrt(lo * hi);
 }
 
-// The starting point: the better of two one-axis optima mu* = 1 / sqrt(delta) (exact for two
-// spheres), with delta along the offset (v^T M v / |v|^2) and the smallest eigenvalue of M
-// (~ e3 / e2; flat splats put the optimum there). A third guess from the largest eigenvalue
-// (~ e1) never changed the iteration count on truck and karangkidul_crop pairs, so it is gone.
 // sqrt(num / den) for num, den > 0, within 9 %, clamped like clamp_mu<float>: a positive
 // float's bit pattern is a piecewise-linear log2 of its value (as in log_midpoint), so half the
 // difference of the two patterns, re-biased, is the square root of the ratio. Integer
@@ -147,6 +143,10 @@ inline float approx_sqrt_ratio(float num, float den) noexcept {
   return std::bit_cast<float>(r < lo ? lo : (r > hi ? hi : r));
 }
 
+// The starting point: the better of two one-axis optima mu* = 1 / sqrt(delta) (exact for two
+// spheres), with delta along the offset (v^T M v / |v|^2) and the smallest eigenvalue of M
+// (~ e3 / e2; flat splats put the optimum there). A third guess from the largest eigenvalue
+// (~ e1) never changed the iteration count on truck and karangkidul_crop pairs, so it is gone.
 template <typename T>
 inline T initial_mu(T q0, T q1, T q2, T e1, T e2, T e3) noexcept {
   if constexpr (std::is_same_v<T, float>) {
