@@ -9,10 +9,15 @@
 #include <chrono>
 #include <cmath>
 #include <csignal>
+#include <cerrno>
 #include <thread>
+
+#include <pthread.h>
+#include <sched.h>
 
 #include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
+#include "gshaptics/servo/realtime_thread.h"
 #include "gshaptics/sim/simulated_device.h"
 #include "support/allocation_counter.h"
 #include "support/scenes.h"
@@ -280,6 +285,17 @@ TEST_F(RealTime, RejectsARateAboveTheDevicesLimit) {
   c.rate_hz = 1000;
   c.tool.semi_axes.x() = 0;
   EXPECT_THROW(HapticRuntime(*world_, device, c), InputError);
+}
+
+TEST(RealtimeThread, PinsToAnOnlineCpuAndNamesTheErrorOtherwise) {
+  std::thread t([] {
+    ASSERT_EQ(pin_thread_to_cpu(pthread_self(), 0), 0);
+    std::this_thread::yield();
+    EXPECT_EQ(sched_getcpu(), 0);  // the kernel moved it there
+    EXPECT_EQ(pin_thread_to_cpu(pthread_self(), -1), EINVAL);
+    EXPECT_EQ(set_fifo_priority(pthread_self(), 0), EINVAL);  // SCHED_FIFO priorities are 1-99
+  });
+  t.join();
 }
 
 }  // namespace

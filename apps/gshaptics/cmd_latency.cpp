@@ -4,7 +4,6 @@
 
 #include <fmt/format.h>
 #include <pthread.h>
-#include <sched.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -14,6 +13,7 @@
 #include "commands.h"
 #include "gshaptics/error.h"
 #include "gshaptics/servo/interruptions.h"
+#include "gshaptics/servo/realtime_thread.h"
 
 namespace gshaptics::cli {
 
@@ -51,15 +51,10 @@ void register_latency(CLI::App& app) {
     std::string warning;
     InterruptionProfile p;
     std::thread t([&] {
-      cpu_set_t set;
-      CPU_ZERO(&set);
-      CPU_SET(cpu, &set);
-      if (int e = pthread_setaffinity_np(pthread_self(), sizeof set, &set); e != 0)
+      if (int e = pin_thread_to_cpu(pthread_self(), cpu); e != 0)
         warning += fmt::format("pinning to CPU {} refused: {}; ", cpu, std::strerror(e));
       if (o->priority > 0) {
-        sched_param sp{};
-        sp.sched_priority = o->priority;
-        if (int e = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp); e != 0)
+        if (int e = set_fifo_priority(pthread_self(), o->priority); e != 0)
           warning += fmt::format("SCHED_FIFO {} refused: {} (grant CAP_SYS_NICE or an rtprio limit); ",
                                  o->priority, std::strerror(e));
       }

@@ -11,6 +11,7 @@
 #include <cstring>
 
 #include "gshaptics/error.h"
+#include "gshaptics/servo/realtime_thread.h"
 
 namespace gshaptics {
 
@@ -75,9 +76,7 @@ void HapticRuntime::apply_realtime() {
                         "; page faults may delay ticks (raise RLIMIT_MEMLOCK, e.g. ulimit -l)");
   const auto set_priority = [&](std::thread& t, int prio, const char* who) {
     if (prio <= 0 || !t.joinable()) return;
-    sched_param sp{};
-    sp.sched_priority = prio;
-    const int e = pthread_setschedparam(t.native_handle(), SCHED_FIFO, &sp);
+    const int e = set_fifo_priority(t.native_handle(), prio);
     if (e != 0)
       warnings_.push_back(std::string("real-time priority (SCHED_FIFO ") + std::to_string(prio) +
                           ") for the " + who + " thread refused: " + errno_text(e) +
@@ -94,10 +93,7 @@ void HapticRuntime::apply_realtime() {
     }
     const auto pin = [&](std::thread& t, long cpu, const char* who) {
       if (!t.joinable()) return;
-      cpu_set_t set;
-      CPU_ZERO(&set);
-      CPU_SET(int(cpu), &set);
-      const int e = pthread_setaffinity_np(t.native_handle(), sizeof set, &set);
+      const int e = pin_thread_to_cpu(t.native_handle(), int(cpu));
       if (e != 0)
         warnings_.push_back(std::string("CPU pinning of the ") + who + " thread to CPU " +
                             std::to_string(cpu) + " refused: " + errno_text(e));

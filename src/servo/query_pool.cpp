@@ -11,6 +11,7 @@
 #include <cstring>
 
 #include "gshaptics/error.h"
+#include "gshaptics/servo/realtime_thread.h"
 
 namespace gshaptics {
 
@@ -57,10 +58,7 @@ QueryPool::QueryPool(int threads, const std::vector<int>& cpus, int spin_us)
   for (int p = 1; p < threads_count_; ++p) {
     threads_.emplace_back([this] { worker(); });
     if (std::size_t(p - 1) < cpus.size()) {
-      cpu_set_t set;
-      CPU_ZERO(&set);
-      CPU_SET(cpus[std::size_t(p - 1)], &set);
-      const int err = pthread_setaffinity_np(threads_.back().native_handle(), sizeof set, &set);
+      const int err = pin_thread_to_cpu(threads_.back().native_handle(), cpus[std::size_t(p - 1)]);
       if (err != 0)
         warnings_.push_back("query thread " + std::to_string(p) + ": not pinned to CPU " +
                             std::to_string(cpus[std::size_t(p - 1)]) + ": " + std::strerror(err));
