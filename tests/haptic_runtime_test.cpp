@@ -130,7 +130,11 @@ class RealTime : public ::testing::Test {
       bad_rate += (r.force - prev).norm() <= sp.max_force_rate * dt + 1e-9 ? 0 : 1;
       // Soft start: at time t no more than the ramp allows of f_max (the jitter may add).
       const double ramp = std::min(1.0, (t + double(r.jitter_us) * 1e-6 + 1e-6) / sp.ramp_time);
-      bad_ramp += fm <= ramp * f_max + 1e-9 && fm <= ramp * r.desired.norm() + 1e-6 ? 0 : 1;
+      // A rate-limited tick lies between the last force and the target, so it may stay above a
+      // target that dropped faster than the rate limit allows, but not above the last force.
+      const bool below_request = fm <= ramp * r.desired.norm() + 1e-6 ||
+                                 ((r.flags & kFlagRateLimited) != 0 && fm <= prev.norm() + 1e-9);
+      bad_ramp += fm <= ramp * f_max + 1e-9 && below_request ? 0 : 1;
       if (r.flags & (kFlagWatchdog | kFlagInvalidPose | kFlagOutsideWorkspace | kFlagFaded | kFlagNoResult))
         bad_gate += fm == 0 ? 0 : 1;
       prev = r.force;

@@ -81,6 +81,19 @@ TEST(Safety, SoftStartRampsOverHalfASecond) {
   EXPECT_DOUBLE_EQ(full.force.y(), 8.0);
 }
 
+TEST(Safety, SoftStartBoundsALimitedForceByTheRamp) {
+  SafetyParams p = no_ramp();
+  p.ramp_time = 0.5;
+  SafetyFilter s(p, /*f_max=*/5);
+  s.reset(0);
+  // A request of 40 N at a quarter of the ramp: 0.25 * 5 N, not min(0.25 * 40, 5) = 5 N.
+  const SafetyOutput o = s.apply(fresh(125 * kMs, {0, 40, 0}), kDt);
+  EXPECT_TRUE(o.flags & kFlagRamping);
+  EXPECT_TRUE(o.flags & kFlagForceLimited);
+  EXPECT_NEAR(o.force.y(), 0.25 * 5, 1e-9);
+  EXPECT_NEAR(o.scale, 0.25, 1e-12);
+}
+
 TEST(Safety, ForceLimitKeepsDirection) {
   SafetyParams p = no_ramp();
   SafetyFilter s(p, /*f_max=*/5);

@@ -45,19 +45,21 @@ SafetyOutput SafetyFilter::apply(const SafetyInput& in, double dt) noexcept {
     }
   }
 
-  // 3. Soft start.
+  // 3. Soft start: a share of the force once it is limited (4.), so the ramp bounds it by
+  // ramp * f_max too. (Scaling first let a request above f_max reach f_max mid-ramp.)
+  double ramp = 1.0;
   if (params_.ramp_time > 0) {
     const double r = to_seconds(in.now - ramp_start_) / params_.ramp_time;
     if (r < 1.0) {
       out.flags |= kFlagRamping;
-      scale *= std::clamp(r, 0.0, 1.0);
+      ramp = std::clamp(r, 0.0, 1.0);
     }
   }
   if (in.stopping) {
     out.flags |= kFlagStopping;
     scale = 0.0;
   }
-  out.scale = scale;
+  out.scale = scale * ramp;
 
   Eigen::Vector3d target = scale * in.desired;
   if (!target.allFinite()) target.setZero();
@@ -68,6 +70,7 @@ SafetyOutput SafetyFilter::apply(const SafetyInput& in, double dt) noexcept {
     target *= f_max_ / n;
     out.flags |= kFlagForceLimited;
   }
+  target *= ramp;
 
   // 5. Force-rate limit.
   const Eigen::Vector3d step = target - last_;

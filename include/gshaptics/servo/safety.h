@@ -6,7 +6,8 @@
 ///      a pose outside the device's workspace -> zero force at once, and the soft start re-arms;
 ///   2. staleness: the newest collision result is held while it is at most `hold_timeout` old,
 ///      then faded linearly to zero over `fade_time` (the paper's asynchronous hold, bounded);
-///   3. soft start: force scaled by a ramp 0 -> 1 over `ramp_time` after start and every resume;
+///   3. soft start: force scaled by a ramp 0 -> 1 over `ramp_time` after start and every resume,
+///      applied to the limited force (so |F| <= ramp * f_max while it ramps);
 ///   4. force limit: |F| <= f_max, the device's force limit, which the force model also clamps
 ///      to (ForceParams::f_max, paper eq. 11): one value, given to both;
 ///   5. force-rate limit: |F(t) - F(t - dt)| <= max_force_rate * dt.
