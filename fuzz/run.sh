@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (clang, ASan + UBSan) and fuzzes every scene reader for
-# SECONDS each (default 60), starting from seeds cut out of the real scenes. Exits non-zero on
-# any finding (crash, sanitizer report, leak, timeout, out-of-memory). Artifacts: build-fuzz/.
-# Usage: fuzz/run.sh [SECONDS] [FORMAT...]   (formats: ply compressed_ply splat spz)
+# Builds the libFuzzer targets (clang, ASan + UBSan) and fuzzes every scene reader and every
+# parser of a peer's WebSocket message for SECONDS each (default 60), starting from seeds cut out
+# of the real scenes and from the documented messages. Exits non-zero on any finding (crash,
+# sanitizer report, leak, timeout, out-of-memory, an escaped exception). Artifacts: build-fuzz/.
+# Usage: fuzz/run.sh [SECONDS] [TARGET...]
+#   (targets: ply compressed_ply splat spz viewer_message haply_message)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SECONDS_EACH=${1:-60}
 shift || true
-FORMATS=("${@:-ply compressed_ply splat spz}")
+FORMATS=("${@:-ply compressed_ply splat spz viewer_message haply_message}")
 FORMATS=(${FORMATS[@]})
 SCENES=${GSHAPTICS_SCENES_DIR:-$(pwd)/../shared/data/scenes}
 OUT=build-fuzz
@@ -38,11 +40,22 @@ done
 # Seeds: a plain (unsanitized) helper writes small valid files of every format.
 $CXX "fuzz/make_seeds.cpp" "${SOURCES[@]}" -lz -lzstd -o "$OUT/make_seeds"
 "$OUT/make_seeds" "$SCENES" "$OUT/seeds"
+# The messages' seeds: the documented forms (haply: a first byte picks the device index).
+mkdir -p "$OUT/seeds/viewer_message" "$OUT/seeds/haply_message"
+printf '%s' '{"type":"tool","center":[0.1,-0.2,0.3]}' > "$OUT/seeds/viewer_message/plain.json"
+printf '%s' '{"type":"tool","center":[0,0,0.5],"rotation":[0.7071,0,0,0.7071]}' > "$OUT/seeds/viewer_message/rotated.json"
+printf '%s' '0{"inverse3":[{"device_id":"INV3-0","config":{"handedness":"right"},"state":{"cursor_position":{"x":0.01,"y":-0.02,"z":0.15},"cursor_velocity":{"x":0.1,"y":0,"z":-0.3}}}],"wireless_verse_grip":[{"device_id":"VG","state":{"orientation":{"w":1,"x":0,"y":0,"z":0},"buttons":{"a":true,"b":false,"c":true}}}]}' \
+  > "$OUT/seeds/haply_message/state.json"
+printf '%s' '1{"inverse3":[{"state":{"cursor_position":{"x":0,"y":0,"z":0}}}]}' > "$OUT/seeds/haply_message/short_list.json"
 
 status=0
 for f in "${FORMATS[@]}"; do
   def=$(echo "$f" | tr a-z A-Z)
-  $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_loader.cpp "${objs[@]}" -lz -lzstd -o "$OUT/fuzz_$f"
+  case "$f" in
+    *_message) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_messages.cpp src/net/peer_messages.cpp \
+                 -o "$OUT/fuzz_$f" ;;
+    *) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_loader.cpp "${objs[@]}" -lz -lzstd -o "$OUT/fuzz_$f" ;;
+  esac
   mkdir -p "$OUT/corpus/$f" "$OUT/artifacts/$f"
   echo "fuzz: $f for ${SECONDS_EACH}s"
   if ! "$OUT/fuzz_$f" "$OUT/corpus/$f" "$OUT/seeds/$f" -max_total_time="$SECONDS_EACH" -max_len=65536 \

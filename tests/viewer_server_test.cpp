@@ -181,13 +181,15 @@ TEST_F(Viewer, WebSocketHelloThenStatesAndTheMouseSteersIntoContact) {
   // A malformed message is counted and ignored; the connection stays up.
   ws.write(asio::buffer(std::string("{\"type\":\"tool\",\"center\":[1,\"x\",2]}")));
   ws.write(asio::buffer(std::string("not json")));
+  // A field of the wrong type (this one used to throw out of the I/O thread and end the process).
+  ws.write(asio::buffer(std::string("{\"type\":5,\"center\":[0,0,0]}")));
   ws.read(buf);
   EXPECT_EQ(json::parse(beast::buffers_to_string(buf.data()))["type"], "state");
   buf.consume(buf.size());
   const auto t1 = std::chrono::steady_clock::now();
-  while (server_->stats().bad_messages.load() < 2 && std::chrono::steady_clock::now() - t1 < std::chrono::seconds(5))
+  while (server_->stats().bad_messages.load() < 3 && std::chrono::steady_clock::now() - t1 < std::chrono::seconds(5))
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  EXPECT_EQ(server_->stats().bad_messages.load(), 2u);
+  EXPECT_EQ(server_->stats().bad_messages.load(), 3u);
   ws.close(websocket::close_code::normal);
 }
 

@@ -11,6 +11,7 @@
 #include <cmath>
 
 #include "gshaptics/error.h"
+#include "gshaptics/net/peer_messages.h"
 
 namespace gshaptics {
 
@@ -25,17 +26,6 @@ namespace {
 std::int64_t steady_ns() noexcept {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-bool read_xyz(const json& j, Eigen::Vector3d& out) {
-  if (!j.is_object()) return false;
-  for (int i = 0; i < 3; ++i) {
-    const char* k = i == 0 ? "x" : i == 1 ? "y" : "z";
-    auto it = j.find(k);
-    if (it == j.end() || !it->is_number()) return false;
-    out[i] = it->get<double>();
-  }
-  return out.allFinite();
 }
 
 /// Runs `ioc` until `done` or `seconds` pass or `stop`; true when done.
@@ -117,6 +107,7 @@ void HaplyDevice::io_main() noexcept {
   while (!stop_.load(std::memory_order_relaxed)) {
     net::io_context ioc;
     websocket::stream<beast::tcp_stream> ws(ioc);
+    ws.read_message_max(1 << 20);  // a state message is ~1 KB; bounds what one message may allocate
     bool ok = false, done = false;
     beast::error_code ec;
     // Connect and handshake.
@@ -170,57 +161,24 @@ void HaplyDevice::io_main() noexcept {
           window_start = t;
           window_count = 0;
         }
-        // Parse the documented state message.
-        bool good = false;
+        // Parse the documented state message (peer_messages.h: never throws).
+        const HaplyStateMessage state = parse_haply_state(
+            std::string_view(static_cast<const char*>(buffer.data().data()), buffer.data().size()), params_.index);
+        const bool good = state.valid;
         detail::HaplySample s;
-        const json j = json::parse(beast::buffers_to_string(buffer.data()), nullptr, /*allow_exceptions=*/false);
-        if (j.is_object()) {
-          const auto inv = j.find("inverse3");
-          if (inv != j.end() && inv->is_array()) {
-            if (std::size_t(params_.index) < inv->size()) {
-              const json& d = (*inv)[std::size_t(params_.index)];
-              if (d.is_object()) {
-                if (id.empty() && d.contains("device_id")) {
-                  const json& did = d["device_id"];
-                  id = did.is_string() ? did.get<std::string>() : did.dump();
-                  std::lock_guard<std::mutex> lock(text_mutex_);
-                  device_id_ = id;
-                  if (d.contains("config") && d["config"].is_object() && d["config"].contains("handedness") &&
-                      d["config"]["handedness"].is_string())
-                    handedness_ = d["config"]["handedness"].get<std::string>();
-                }
-                const auto st = d.find("state");
-                if (st != d.end() && st->is_object() && st->contains("cursor_position")) {
-                  good = read_xyz((*st)["cursor_position"], s.position);
-                  if (good && st->contains("cursor_velocity") && !read_xyz((*st)["cursor_velocity"], s.velocity))
-                    good = false;
-                }
-              }
-            } else {
-              set_problem(fmt::format("the service lists {} Inverse3 device(s), none with index {}", inv->size(),
-                                      params_.index));
-              good = true;  // a valid message; just no device for us: keep the link, no sample
-              s.position.setConstant(std::nan(""));
-            }
-          }
-          const auto grip = j.find("wireless_verse_grip");
-          if (good && grip != j.end() && grip->is_array() && !grip->empty() && (*grip)[0].is_object()) {
-            const json& gs = (*grip)[0].value("state", json::object());
-            if (gs.contains("orientation") && gs["orientation"].is_object()) {
-              const json& q = gs["orientation"];
-              if (q.value("w", json()).is_number() && q.value("x", json()).is_number() &&
-                  q.value("y", json()).is_number() && q.value("z", json()).is_number()) {
-                Eigen::Quaterniond o(q["w"].get<double>(), q["x"].get<double>(), q["y"].get<double>(),
-                                     q["z"].get<double>());
-                if (o.coeffs().allFinite() && o.norm() > 0.5) s.orientation = o.normalized();
-              }
-            }
-            if (gs.contains("buttons") && gs["buttons"].is_object()) {
-              const char* names[] = {"a", "b", "c"};
-              for (int b = 0; b < 3; ++b)
-                if (gs["buttons"].value(names[b], false)) s.buttons |= 1u << b;
-            }
-          }
+        s.position = state.position;
+        s.velocity = state.velocity;
+        s.orientation = state.orientation;
+        s.buttons = state.buttons;
+        if (state.devices_listed >= 0) {
+          set_problem(fmt::format("the service lists {} Inverse3 device(s), none with index {}", state.devices_listed,
+                                  params_.index));
+          s.position.setConstant(std::nan(""));  // a valid message; just no device for us: keep the link, no sample
+        } else if (id.empty() && state.device_id) {
+          id = *state.device_id;
+          std::lock_guard<std::mutex> lock(text_mutex_);
+          device_id_ = id;
+          handedness_ = state.handedness;
         }
         if (!good) {
           malformed_.fetch_add(1, std::memory_order_relaxed);
@@ -239,7 +197,7 @@ void HaplyDevice::io_main() noexcept {
         }
         if (id.empty()) continue;  // nothing to address yet (the service sends state regardless)
         out = fmt::format(R"({{"inverse3":[{{"device_id":{},"commands":{{"set_cursor_force":{{"values":{{"x":{},"y":{},"z":{}}}}}}}}}]}})",
-                          json(id).dump(), f.x(), f.y(), f.z());
+                          json(id).dump(-1, ' ', false, json::error_handler_t::replace), f.x(), f.y(), f.z());
         done = false;
         ws.text(true);
         ws.async_write(net::buffer(out), [&](beast::error_code e, std::size_t) {
@@ -255,7 +213,7 @@ void HaplyDevice::io_main() noexcept {
       // Leaving: a last zero-force command when we are stopping on a live link, then close.
       if (stop_.load(std::memory_order_relaxed) && !id.empty() && done && !ec) {
         out = fmt::format(R"({{"inverse3":[{{"device_id":{},"commands":{{"set_cursor_force":{{"values":{{"x":0,"y":0,"z":0}}}}}}}}]}})",
-                          json(id).dump());
+                          json(id).dump(-1, ' ', false, json::error_handler_t::replace));
         bool sent = false;
         ws.async_write(net::buffer(out), [&](beast::error_code, std::size_t) { sent = true; });
         if (run_until(ioc, sent, 0.2, never)) commands_sent_.fetch_add(1, std::memory_order_relaxed);

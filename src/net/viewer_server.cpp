@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "gshaptics/error.h"
+#include "gshaptics/net/peer_messages.h"
 
 namespace gshaptics {
 
@@ -403,35 +404,13 @@ void ViewerServer::Impl::accept() {
 
 void ViewerServer::Impl::on_tool_message(const std::string& text) {
   // {"type":"tool","center":[x,y,z][,"rotation":[w,x,y,z]]}; anything else is counted and ignored.
-  const auto j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (!j.is_object() || j.value("type", "") != "tool" || !j.contains("center") ||
-      !j["center"].is_array() || j["center"].size() != 3) {
+  const std::optional<ViewerToolMessage> m = parse_viewer_tool_message(text);
+  if (!m) {
     stats.bad_messages.fetch_add(1);
     return;
   }
-  Eigen::Vector3d c;
-  for (int k = 0; k < 3; ++k) {
-    if (!j["center"][std::size_t(k)].is_number()) {
-      stats.bad_messages.fetch_add(1);
-      return;
-    }
-    c[k] = j["center"][std::size_t(k)].get<double>();
-  }
-  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
-  if (j.contains("rotation")) {  // the tool's orientation (a tracked controller), w first
-    const auto& r = j["rotation"];
-    if (!r.is_array() || r.size() != 4 || !r[0].is_number() || !r[1].is_number() || !r[2].is_number() ||
-        !r[3].is_number()) {
-      stats.bad_messages.fetch_add(1);
-      return;
-    }
-    q = Eigen::Quaterniond(r[0].get<double>(), r[1].get<double>(), r[2].get<double>(), r[3].get<double>());
-    if (!q.coeffs().allFinite() || q.norm() < 1e-6) {
-      stats.bad_messages.fetch_add(1);
-      return;
-    }
-    q.normalize();
-  }
+  const Eigen::Vector3d c = m->center;
+  const Eigen::Quaterniond q = m->rotation;
   stats.tool_messages.fetch_add(1);
   // A NaN pose is passed on: the runtime's safety layer drops and counts it.
   mouse_target = c;
