@@ -131,6 +131,26 @@ TEST_F(CacheFixture, TruncatedFlippedAndForeignFilesAreDetected) {
     EXPECT_FALSE(open_world_cache(path, key, &why).has_value()) << at;
     EXPECT_EQ(why, "corrupt: payload hash mismatch") << at;
   }
+  // One flipped bit in any byte of the header block: the build parameters, frame, bounds and
+  // load report that no other check covers as well (in place, one byte at a time).
+  {
+    std::size_t refused = 0, header_hash = 0;
+    test::write_bytes(path, good);
+    std::fstream f(path, std::ios::binary | std::ios::in | std::ios::out);
+    for (std::size_t at = 0; at < 4096; ++at) {
+      f.seekp(std::streamoff(at));
+      f.put(char(good[at] ^ 0x10));
+      f.flush();
+      refused += open_world_cache(path, key, &why).has_value() ? 0 : 1;
+      header_hash += why == "corrupt: header hash mismatch" ? 1 : 0;
+      f.seekp(std::streamoff(at));
+      f.put(char(good[at]));
+      f.flush();
+    }
+    EXPECT_EQ(refused, 4096u);
+    EXPECT_GT(header_hash, 4000u);  // the rest: magic, version, layout sizes and length, checked first
+    ASSERT_TRUE(f.good());
+  }
   // The header: magic, version, a count.
   std::vector<std::uint8_t> bad = good;
   bad[0] = 'X';

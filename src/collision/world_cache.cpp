@@ -24,7 +24,7 @@ namespace gshaptics {
 namespace {
 
 constexpr char kMagic[8] = {'G', 'S', 'H', 'W', 'O', 'R', 'L', 'D'};
-constexpr std::uint32_t kVersion = 3;  // 2: 64-byte records with a quaternion; 3: chunked payload hash
+constexpr std::uint32_t kVersion = 4;  // 2: 64-byte records with a quaternion; 3: chunked payload hash; 4: header hash
 constexpr std::uint64_t kHeaderBytes = 4096;
 
 // The header as stored (plain data, fixed layout, padded to kHeaderBytes in the file).
@@ -48,11 +48,22 @@ struct Header {
   // The scene's load report (scalars).
   std::int32_t src_format, src_frame, src_version, src_sh_degree;
   std::uint64_t src_in_file, src_loaded, src_non_finite, src_zero_quaternion, src_bad_scale;
+  // XXH3-64 of the whole kHeaderBytes block as stored, with this field zero: no byte of the
+  // header (build parameters, frame, bounds, enums) is trusted unchecked.
+  std::uint64_t header_hash;
 };
 static_assert(sizeof(Header) <= kHeaderBytes);
 static_assert(std::is_trivially_copyable_v<Header>);
 
 std::uint64_t align_up(std::uint64_t x) { return (x + kHeaderBytes - 1) / kHeaderBytes * kHeaderBytes; }
+
+// Header::header_hash of a stored header block (kHeaderBytes bytes).
+std::uint64_t header_block_hash(const std::uint8_t* block) {
+  std::uint8_t copy[kHeaderBytes];
+  std::memcpy(copy, block, kHeaderBytes);
+  std::memset(copy + offsetof(Header, header_hash), 0, sizeof(Header::header_hash));
+  return XXH3_64bits(copy, kHeaderBytes);
+}
 
 void put_transform(double out[8], const SimilarityTransform& t) {
   out[0] = t.scale;
@@ -229,8 +240,14 @@ void write_world_cache(const CollisionWorld& world, const WorldCacheKey& key, co
   }
   if (!complete) discard("writing the world cache failed (the file read back is short: disk full?)");
   {
+    // The final header block, hashed exactly as stored (padding bytes included).
+    std::uint8_t block[kHeaderBytes] = {};
+    h.header_hash = 0;
+    std::memcpy(block, &h, sizeof h);
+    h.header_hash = header_block_hash(block);
+    std::memcpy(block + offsetof(Header, header_hash), &h.header_hash, sizeof h.header_hash);
     std::fstream out(tmp, std::ios::binary | std::ios::in | std::ios::out);
-    out.write(reinterpret_cast<const char*>(&h), sizeof h);
+    out.write(reinterpret_cast<const char*>(block), sizeof block);
     out.flush();
     if (!out) discard("writing the world cache failed (disk full?)");
   }
@@ -265,6 +282,7 @@ std::optional<CachedWorld> open_world_cache(const std::string& path, const World
     return fail("written by a build with other record layouts");
   if (h.file_bytes != bytes.size())
     return fail("truncated: " + std::to_string(bytes.size()) + " bytes of " + std::to_string(h.file_bytes));
+  if (header_block_hash(bytes.data()) != h.header_hash) return fail("corrupt: header hash mismatch");
   if (h.scene_hash != key.scene_hash || h.scene_bytes != key.scene_bytes) return fail("stale: built from another scene");
   if (h.params_hash != key.params_hash) return fail("stale: built with other parameters");
   const bool layout_ok = h.records_offset == kHeaderBytes && h.n_records > 0 &&
@@ -276,8 +294,8 @@ std::optional<CachedWorld> open_world_cache(const std::string& path, const World
   if (!layout_ok) return fail("corrupt: inconsistent layout");
   if (content_hash(bytes.data() + kHeaderBytes, bytes.size() - kHeaderBytes) != h.payload_hash)
     return fail("corrupt: payload hash mismatch");
-  // The header's own fields are covered by the key and layout checks; a flipped bit in the
-  // transform or bounds would still pass, so they are checked for finiteness at least.
+  // The header hash guards against damage, not against a file made to pass it: the values the
+  // world uses as numbers are checked for finiteness too.
   for (double v : h.scene_to_world)
     if (!std::isfinite(v)) return fail("corrupt: header transform");
   LoadReport src;

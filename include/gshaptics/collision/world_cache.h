@@ -7,9 +7,10 @@
 /// A cache is keyed by the scene's content (XXH3-64 of the file's bytes, and its size) and by
 /// every build parameter (WorldConfig: opacity threshold, sigma, up axis, registration, leaf
 /// size) plus the format version. Opening checks, before trusting anything: the header's magic and
-/// version, that the file is as long as the header says (a truncated file), the key (another
-/// scene, changed parameters), the layout's bounds, and XXH3-64 of the whole payload (a flipped
-/// byte anywhere). Any failure returns no world and says why; the caller rebuilds.
+/// version, that the file is as long as the header says (a truncated file), XXH3-64 of the
+/// header block (a flipped byte in the header), the key (another scene, changed parameters), the
+/// layout's bounds, and XXH3-64 of the whole payload (a flipped byte in the records, the nodes or
+/// the padding). Any failure returns no world and says why; the caller rebuilds.
 ///
 /// File layout (little-endian, this machine's float formats): a 4096-byte header, the records
 /// (64 bytes each) at 4096, the BVH nodes (32 bytes each) after them at a 4096-aligned offset.
