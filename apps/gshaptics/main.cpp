@@ -13,7 +13,9 @@ int main(int argc, char** argv) {
       "gshaptics: direct haptic rendering of 3D Gaussian Splatting scenes.\n"
       "Loads a trained 3DGS scene, filters it by opacity, registers it into the device's world "
       "frame, finds the Gaussians overlapping a tool ellipsoid (BVH broad phase + exact "
-      "Gilitschenski-Hanebeck K_min narrow phase) and renders the paper's penalty force.",
+      "Gilitschenski-Hanebeck K_min narrow phase) and renders the contact force: a god-object proxy on "
+      "the Gaussians with virtual coupling and optional friction (default), or the paper's penalty "
+      "force (--force-model paper).",
       "gshaptics"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "gshaptics 0.1.0");
