@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (clang, ASan + UBSan) and fuzzes every scene reader and every
-# parser of a peer's WebSocket message for SECONDS each (default 60), starting from seeds cut out
-# of the real scenes and from the documented messages. Exits non-zero on any finding (crash,
+# Builds the libFuzzer targets (clang, ASan + UBSan) and fuzzes every scene reader, every parser
+# of a peer's WebSocket message and the parsers of the text files a user gives (registration
+# JSON, pose log) for SECONDS each (default 60), starting from seeds cut out of the real scenes
+# and from the documented forms. Exits non-zero on any finding (crash,
 # sanitizer report, leak, timeout, out-of-memory, an escaped exception). Artifacts: build-fuzz/.
 # Usage: fuzz/run.sh [SECONDS] [TARGET...]
-#   (targets: ply compressed_ply splat spz viewer_message haply_message)
+#   (targets: ply compressed_ply splat spz viewer_message haply_message registration pose_log)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SECONDS_EACH=${1:-60}
 shift || true
-FORMATS=("${@:-ply compressed_ply splat spz viewer_message haply_message}")
+FORMATS=("${@:-ply compressed_ply splat spz viewer_message haply_message registration pose_log}")
 FORMATS=(${FORMATS[@]})
 SCENES=${GSHAPTICS_SCENES_DIR:-$(pwd)/../shared/data/scenes}
 OUT=build-fuzz
@@ -47,6 +48,13 @@ printf '%s' '{"type":"tool","center":[0,0,0.5],"rotation":[0.7071,0,0,0.7071]}' 
 printf '%s' '0{"inverse3":[{"device_id":"INV3-0","config":{"handedness":"right"},"state":{"cursor_position":{"x":0.01,"y":-0.02,"z":0.15},"cursor_velocity":{"x":0.1,"y":0,"z":-0.3}}}],"wireless_verse_grip":[{"device_id":"VG","state":{"orientation":{"w":1,"x":0,"y":0,"z":0},"buttons":{"a":true,"b":false,"c":true}}}]}' \
   > "$OUT/seeds/haply_message/state.json"
 printf '%s' '1{"inverse3":[{"state":{"cursor_position":{"x":0,"y":0,"z":0}}}]}' > "$OUT/seeds/haply_message/short_list.json"
+# The text files' seeds: the bundled registration, a pose log with every column.
+mkdir -p "$OUT/seeds/registration" "$OUT/seeds/pose_log"
+cp data/truck.registration.json "$OUT/seeds/registration/"
+printf '%s\n' '{"matrix": [[1,0,0],[0,0,-1],[0,1,0]], "translation": [0, 0, 0.5]}' > "$OUT/seeds/registration/matrix.json"
+printf 'time_s,x,y,z,vx,vy,vz,qw,qx,qy,qz\n0,0,0,0.1,0,0,0,1,0,0,0\n0.001,0.01,0,0.1,1,0,0,1,0,0,0\n' \
+  > "$OUT/seeds/pose_log/full.csv"
+printf 'time_s,x,y,z\n0,0,0,0\n0.5,1e-3,nan,0\n' > "$OUT/seeds/pose_log/minimal.csv"
 
 status=0
 for f in "${FORMATS[@]}"; do
@@ -54,6 +62,10 @@ for f in "${FORMATS[@]}"; do
   case "$f" in
     *_message) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_messages.cpp src/net/peer_messages.cpp \
                  -o "$OUT/fuzz_$f" ;;
+    registration) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_text.cpp src/scene/registration.cpp \
+                    src/scene/sh_rotation.cpp src/io/gaussian_scene.cpp src/error.cpp -o "$OUT/fuzz_$f" ;;
+    pose_log) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_text.cpp src/servo/replay_device.cpp \
+                src/error.cpp -o "$OUT/fuzz_$f" ;;
     *) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_loader.cpp "${objs[@]}" -lz -lzstd -o "$OUT/fuzz_$f" ;;
   esac
   mkdir -p "$OUT/corpus/$f" "$OUT/artifacts/$f"

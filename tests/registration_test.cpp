@@ -41,6 +41,8 @@ TEST(Registration, MatrixNestedOrFlat) {
 
 TEST(Registration, BadInputNamesTheFieldAndSource) {
   EXPECT_NE(error_of("{").find("reg.json: not valid JSON"), std::string::npos);
+  // A number beyond double: nlohmann throws out_of_range, not parse_error (found by fuzz/run.sh registration).
+  EXPECT_NE(error_of(R"({"scale": 1e400})").find("reg.json: not valid JSON"), std::string::npos);
   EXPECT_NE(error_of(R"({"scale": -1})").find("'scale' must be > 0"), std::string::npos);
   EXPECT_NE(error_of(R"({"scale": "big"})").find("'scale' must be a number"), std::string::npos);
   EXPECT_NE(error_of(R"({"rotation": [0,0,0,0]})").find("zero norm"), std::string::npos);

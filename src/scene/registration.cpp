@@ -38,7 +38,7 @@ SimilarityTransform parse_registration_json(const std::string& text, const std::
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // parse_error, or out_of_range for a number too large
     throw InputError(source + ": not valid JSON: " + e.what());
   }
   if (!j.is_object()) throw InputError(source + ": expected a JSON object");

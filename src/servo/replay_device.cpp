@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <sstream>
 
 #include "gshaptics/error.h"
 
@@ -31,6 +32,14 @@ std::vector<std::string> split_csv(const std::string& line) {
 PoseLog load_pose_log(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw file_error(path, "cannot open the pose log");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw file_error(path, "cannot read the pose log");
+  return parse_pose_log(text.str(), path);
+}
+
+PoseLog parse_pose_log(const std::string& text, const std::string& path) {
+  std::istringstream in(text);
   std::string line;
   if (!std::getline(in, line)) throw file_error(path, "empty file: expected a CSV header with time_s,x,y,z");
   const std::vector<std::string> header = split_csv(line);

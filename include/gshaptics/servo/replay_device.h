@@ -30,6 +30,8 @@ struct PoseLog {
 /// qw, qx, qy, qz optional; others ignored. Times must increase. Throws InputError naming the
 /// file, line and column for a missing column, a malformed number or a time that goes back.
 [[nodiscard]] PoseLog load_pose_log(const std::string& path);
+/// The same from the file's text; `path` names it in errors. Throws InputError only.
+[[nodiscard]] PoseLog parse_pose_log(const std::string& text, const std::string& path);
 
 /// Plays a PoseLog: linear interpolation of position (and normalised-lerp of orientation)
 /// between rows; velocity from the log or by finite differences. Time zero of the log is the
