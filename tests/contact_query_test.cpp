@@ -158,11 +158,8 @@ TEST(ContactQuery, FlatSplatPlateausStillGiveExactKMin) {
   const LoadedScene s = load_scene(test::scene_path("karangkidul_crop.ply"));
   const CollisionWorld world = CollisionWorld::build(s.scene, {});
   const auto ref_world = test::reference_world(s.scene, kDefaultMinOpacity, 1.0, {});
-  PoseSamplerParams p;
-  p.count = 2000;
-  p.radius_min = 0.005;
-  p.radius_max = 0.015;
-  const std::vector<ToolEllipsoid> poses = sample_poses(world, p);
+  const std::vector<ToolEllipsoid> poses =
+      sample_poses(world, {.count = 2000, .radius_min = 0.005, .radius_max = 0.015});
   ContactQuery query(world);
   for (std::size_t i = 0; i < 40; ++i) {
     ASSERT_EQ(query.run(poses[i]), QueryStatus::kOk);
@@ -276,11 +273,7 @@ TEST(CandidateCache, RandomJumpsAndShapesLeavingTheMarginAreBitIdentical) {
   // A random walk with small steps, large jumps, and changes of tool shape and orientation.
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> u(-1, 1);
-  PoseSamplerParams p;
-  p.count = 200;
-  p.seed = 3;
-  p.anisotropic = true;
-  const std::vector<ToolEllipsoid> anchors = sample_poses(world, p);
+  const std::vector<ToolEllipsoid> anchors = sample_poses(world, {.count = 200, .seed = 3, .anisotropic = true});
   std::vector<ToolEllipsoid> tools;
   for (const ToolEllipsoid& a : anchors) {
     ToolEllipsoid t = a;
@@ -348,13 +341,8 @@ TEST(CandidateCache, RealSceneAndATinyCacheThatOverflows) {
   GSHAPTICS_REQUIRE_SCENES();
   const LoadedScene s = load_scene(test::scene_path("karangkidul_crop.ply"));
   const CollisionWorld world = CollisionWorld::build(s.scene, {});
-  PoseSamplerParams p;
-  p.count = 300;
-  p.seed = 11;
-  p.radius_min = 0.005;
-  p.radius_max = 0.015;
   std::vector<ToolEllipsoid> tools;
-  for (const ToolEllipsoid& a : sample_poses(world, p))
+  for (const ToolEllipsoid& a : sample_poses(world, {.count = 300, .seed = 11, .radius_min = 0.005, .radius_max = 0.015}))
     for (int k = 0; k < 5; ++k) tools.push_back(ToolEllipsoid::sphere(a.center + Eigen::Vector3d(0, 0, 0.02 * k * a.semi_axes.x()), a.semi_axes.x()));
   const CandidateCacheStats big = run_both(world, tools, 0.1 * tools[0].semi_axes.x(), "karangkidul_crop");
   EXPECT_GT(big.hits, 0u);
@@ -384,15 +372,10 @@ TEST(ContactQuery, LeavesLargerThanABatchAndAnyContactAgree) {
   config.leaf_size = 600;  // Truck: leaves of ~420 records, each split over two batches
   const CollisionWorld big = CollisionWorld::build(s.scene, config);
   ASSERT_GT(config.leaf_size, kBatchCapacity);
-  PoseSamplerParams p;
-  p.count = 150;
-  p.seed = 19;
-  p.radius_min = 0.01;
-  p.radius_max = 0.04;
-  p.anisotropic = true;
   ContactQuery qs(small), qb(big);
   std::size_t contacts = 0, free_poses = 0;
-  for (const ToolEllipsoid& t : sample_poses(small, p)) {
+  for (const ToolEllipsoid& t :
+       sample_poses(small, {.count = 150, .seed = 19, .radius_min = 0.01, .radius_max = 0.04, .anisotropic = true})) {
     qs.run(t);
     qb.run(t);
     ASSERT_EQ(qs.result().contacts().size(), qb.result().contacts().size());
@@ -460,13 +443,8 @@ TEST(QueryPool, DestroyedBeforeItsWorkersStart) {
 
 TEST(ParallelNarrowPhase, ThreadedQueriesAreBitIdentical) {
   const CollisionWorld& world = test::truck_world();
-  PoseSamplerParams p;
-  p.count = 150;
-  p.seed = 5;
-  p.radius_min = 0.01;
-  p.radius_max = 0.05;  // up to thousands of contacts
-  p.anisotropic = true;
-  const std::vector<ToolEllipsoid> tools = sample_poses(world, p);
+  const std::vector<ToolEllipsoid> tools =  // radii up to 5 %: up to thousands of contacts
+      sample_poses(world, {.count = 150, .seed = 5, .radius_min = 0.01, .radius_max = 0.05, .anisotropic = true});
   for (int parts : {2, 3}) {
     QueryPool pool(parts);
     ContactQuery plain(world), threaded(world);
@@ -497,12 +475,8 @@ TEST(ParallelNarrowPhase, ThreadedQueriesAreBitIdentical) {
 // count still says how many there were. Both append a batch's contacts at once.
 TEST(ParallelNarrowPhase, OverflowKeepsTheFirstContactsInOrder) {
   const CollisionWorld& world = test::truck_world();
-  PoseSamplerParams p;
-  p.count = 60;
-  p.seed = 9;
-  p.radius_min = 0.02;
-  p.radius_max = 0.05;
-  const std::vector<ToolEllipsoid> tools = sample_poses(world, p);
+  const std::vector<ToolEllipsoid> tools =
+      sample_poses(world, {.count = 60, .seed = 9, .radius_min = 0.02, .radius_max = 0.05});
   QueryPool pool(2);
   ContactQuery full(world);
   int overflowed = 0;
