@@ -76,19 +76,19 @@ TEST(PeerMessages, HaplyStateReadsTheDocumentedFields) {
   const HaplyStateMessage first = parse_haply_state(text, 0);
   ASSERT_TRUE(first.valid);
   EXPECT_EQ(first.devices_listed, -1);
-  EXPECT_EQ(first.position, Eigen::Vector3d(0.01, -0.02, 0.15));
-  EXPECT_EQ(first.velocity, Eigen::Vector3d(0.1, 0.0, -0.3));
-  EXPECT_NEAR(first.orientation.y(), 0.6, 1e-15);
-  EXPECT_NEAR(first.orientation.z(), 0.8, 1e-15);
-  EXPECT_EQ(first.buttons, 0b101u);
+  EXPECT_EQ(first.sample.position, Eigen::Vector3d(0.01, -0.02, 0.15));
+  EXPECT_EQ(first.sample.velocity, Eigen::Vector3d(0.1, 0.0, -0.3));
+  EXPECT_NEAR(first.sample.orientation.y(), 0.6, 1e-15);
+  EXPECT_NEAR(first.sample.orientation.z(), 0.8, 1e-15);
+  EXPECT_EQ(first.sample.buttons, 0b101u);
   ASSERT_TRUE(first.device_id.has_value());
   EXPECT_EQ(*first.device_id, "INV3-A");
   EXPECT_EQ(first.handedness, "left");
 
   const HaplyStateMessage second = parse_haply_state(text, 1);
   ASSERT_TRUE(second.valid);
-  EXPECT_EQ(second.position, Eigen::Vector3d(1, 2, 3));
-  EXPECT_EQ(second.velocity, Eigen::Vector3d::Zero());  // no cursor_velocity: zero
+  EXPECT_EQ(second.sample.position, Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(second.sample.velocity, Eigen::Vector3d::Zero());  // no cursor_velocity: zero
   EXPECT_EQ(second.handedness, "");
 
   const HaplyStateMessage missing = parse_haply_state(text, 5);  // the service lists two
@@ -105,8 +105,8 @@ TEST(PeerMessages, HaplyFieldsOfTheWrongTypeAreSkippedOrRefused) {
   HaplyStateMessage m = parse_haply_state(j.dump(), 0);
   ASSERT_TRUE(m.valid);  // the grip is optional: its bad fields are skipped
   EXPECT_EQ(*m.device_id, "17");
-  EXPECT_EQ(m.buttons, 0b100u);  // only a real `true` presses a button
-  EXPECT_TRUE(m.orientation.isApprox(Eigen::Quaterniond::Identity()));
+  EXPECT_EQ(m.sample.buttons, 0b100u);  // only a real `true` presses a button
+  EXPECT_TRUE(m.sample.orientation.isApprox(Eigen::Quaterniond::Identity()));
 
   j = haply_state();
   j["inverse3"][0]["state"]["cursor_velocity"]["y"] = "fast";

@@ -165,11 +165,7 @@ void HaplyDevice::io_main() noexcept {
         const HaplyStateMessage state = parse_haply_state(
             std::string_view(static_cast<const char*>(buffer.data().data()), buffer.data().size()), params_.index);
         const bool good = state.valid;
-        detail::HaplySample s;
-        s.position = state.position;
-        s.velocity = state.velocity;
-        s.orientation = state.orientation;
-        s.buttons = state.buttons;
+        HaplySample s = state.sample;
         if (state.devices_listed >= 0) {
           set_problem(fmt::format("the service lists {} Inverse3 device(s), none with index {}", state.devices_listed,
                                   params_.index));
@@ -233,7 +229,7 @@ void HaplyDevice::io_main() noexcept {
 }
 
 DeviceSample HaplyDevice::read(Nanos now) noexcept {
-  detail::HaplySample s;
+  HaplySample s;
   if (samples_.read_if_new(s)) {
     last_.sequence += 1;
     last_.stamp = now;

@@ -96,8 +96,8 @@ HaplyStateMessage parse_haply_state(std::string_view text, int index) noexcept {
     if (hand != nullptr && hand->is_string()) m.handedness = hand->get_ref<const std::string&>();
   }
   const json* state = member(device, "state");
-  if (!finite_xyz(state == nullptr ? nullptr : member(*state, "cursor_position"), m.position)) return m;
-  if (const json* v = member(*state, "cursor_velocity"); v != nullptr && !finite_xyz(v, m.velocity)) return m;
+  if (!finite_xyz(state == nullptr ? nullptr : member(*state, "cursor_position"), m.sample.position)) return m;
+  if (const json* v = member(*state, "cursor_velocity"); v != nullptr && !finite_xyz(v, m.sample.velocity)) return m;
   m.valid = true;
   // The first wireless VerseGrip, if any: orientation and buttons (optional; never invalidate).
   const json* grips = member(j, "wireless_verse_grip");
@@ -115,14 +115,14 @@ HaplyStateMessage parse_haply_state(std::string_view text, int index) noexcept {
     }
     if (ok) {
       const Eigen::Quaterniond rot(q[0], q[1], q[2], q[3]);
-      if (rot.coeffs().allFinite() && rot.norm() > 0.5) m.orientation = rot.normalized();
+      if (rot.coeffs().allFinite() && rot.norm() > 0.5) m.sample.orientation = rot.normalized();
     }
   }
   if (const json* buttons = member(*grip_state, "buttons")) {
     const char* names[] = {"a", "b", "c"};
     for (std::uint32_t b = 0; b < 3; ++b) {
       const json* v = member(*buttons, names[b]);
-      if (v != nullptr && v->is_boolean() && v->get<bool>()) m.buttons |= 1u << b;
+      if (v != nullptr && v->is_boolean() && v->get<bool>()) m.sample.buttons |= 1u << b;
     }
   }
   return m;

@@ -35,6 +35,7 @@
 #include <string>
 #include <thread>
 
+#include "gshaptics/net/peer_messages.h"
 #include "gshaptics/servo/haptic_device.h"
 #include "gshaptics/servo/triple_buffer.h"
 
@@ -63,12 +64,6 @@ struct HaplyStats {
 };
 
 namespace detail {
-struct HaplySample {
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
-  std::uint32_t buttons = 0;
-};
 struct HaplyCommand {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< device frame, N
   std::int64_t wall_ns = 0;                         ///< steady clock when written
@@ -105,7 +100,7 @@ class HaplyDevice final : public HapticDevice {
 
   HaplyParams params_;
   DeviceInfo info_;
-  TripleBuffer<detail::HaplySample> samples_{detail::HaplySample{}};
+  TripleBuffer<HaplySample> samples_{HaplySample{}};
   TripleBuffer<detail::HaplyCommand> commands_{detail::HaplyCommand{}};
   std::thread io_;
   std::atomic<bool> stop_{false};

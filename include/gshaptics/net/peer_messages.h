@@ -34,8 +34,18 @@ struct ViewerToolMessage {
 /// finite numbers of norm >= 1e-6). Never throws.
 [[nodiscard]] std::optional<ViewerToolMessage> parse_viewer_tool_message(std::string_view text) noexcept;
 
+/// One Inverse3 cursor sample (the service's device frame, m, m/s).
+struct HaplySample {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  ///< zero when the message has no cursor_velocity
+  /// The first wireless VerseGrip's orientation (w, x, y, z; normalised) when it sends four
+  /// finite numbers of norm > 0.5; otherwise identity.
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
+  std::uint32_t buttons = 0;  ///< VerseGrip buttons a, b, c as bits 0, 1, 2 (a button that is not `true` is up)
+};
+
 /// What one Haply Inverse Service state message says about Inverse3 number `index`
-/// (haply_device.h has the protocol; device frame, m, m/s).
+/// (haply_device.h has the protocol).
 struct HaplyStateMessage {
   /// The documented form: an object whose "inverse3" array holds an object at `index` with
   /// state.cursor_position {x,y,z} (and, if present, cursor_velocity {x,y,z}) finite numbers;
@@ -44,12 +54,7 @@ struct HaplyStateMessage {
   /// The "inverse3" array's length when it is shorter than index + 1 (the service lists no such
   /// device: a valid message with no sample); otherwise -1.
   long devices_listed = -1;
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
-  /// The first wireless VerseGrip's orientation (w, x, y, z; normalised) when it sends four
-  /// finite numbers of norm > 0.5; otherwise identity.
-  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
-  std::uint32_t buttons = 0;  ///< VerseGrip buttons a, b, c as bits 0, 1, 2 (a button that is not `true` is up)
+  HaplySample sample;  ///< read when `valid` and our device is listed
   /// The device's "device_id" (a string as is; another JSON value as its text) when present.
   std::optional<std::string> device_id;
   std::string handedness;  ///< config.handedness when it is a string, else empty
