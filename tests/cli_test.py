@@ -376,7 +376,7 @@ class Devices(unittest.TestCase):
             self.skipTest("GSHAPTICS_TEST_FAKE_DHD (the stand-in libdhd) not given")
         with tempfile.TemporaryDirectory() as d:
             p = subprocess.run([EXE, "run", "--device", "dhd:1", "--duration", "0.5", "--out", d, "--quiet",
-                                "--no-plot", "--workspace-scale", "10"],
+                                "--no-plot", "--workspace-scale", "10", "--f-max", "30"],
                                capture_output=True, text=True, timeout=120,
                                env=self.env(GSHAPTICS_DHD_LIBRARY=fake))
             self.assertEqual(p.returncode, 0, p.stderr)
@@ -385,6 +385,12 @@ class Devices(unittest.TestCase):
             self.assertIn("fake omega.3", json.dumps(s))
             self.assertIn("fake omega.3 (dhd:1)", s["device"])
             self.assertGreater(s["runtime"]["ticks"], 100)
+            # The omega.3's 12 N rating binds, not --f-max 30, and the summary says so.
+            self.assertEqual(s["runtime"]["force_limit_n"], 12.0)
+            self.assertEqual(s["runtime"]["force_limit_bound_by"], "device")
+            self.assertLessEqual(s["runtime"]["peak_force_n"], 12.0)
+            self.assertEqual(s["device_limits"]["max_force_n"], 12.0)
+            self.assertIn("limit      12 N, bound by the device (rating of omega.3", p.stdout)
 
 
 class Latency(unittest.TestCase):

@@ -5,6 +5,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
 namespace gshaptics {
 namespace {
 
@@ -164,6 +168,57 @@ TEST(Safety, NonFiniteDesiredForceIsDropped) {
   s.reset(0);
   const SafetyOutput o = s.apply(fresh(kMs, {std::nan(""), 0, 0}), kDt);
   EXPECT_EQ(o.force, Eigen::Vector3d::Zero());
+}
+
+// The device's peak force binds whatever the configured F_max says; a device without a limit
+// of its own (+inf) leaves the configured one.
+TEST(Safety, DevicePeakForceBindsBelowTheConfiguredLimit) {
+  SafetyFilter s(no_ramp(), 30.0);
+  s.set_device_limits(3.3, std::numeric_limits<double>::infinity());
+  s.reset(0);
+  EXPECT_DOUBLE_EQ(s.f_max(), 3.3);
+  EXPECT_TRUE(s.limits().bound_by_device);
+  const SafetyOutput o = s.apply(fresh(kMs, {0, 0, 25}), kDt);
+  EXPECT_NEAR(o.force.norm(), 3.3, 1e-12);
+  EXPECT_TRUE(o.flags & kFlagForceLimited);
+
+  SafetyFilter loose(no_ramp(), 2.0);
+  loose.set_device_limits(std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity());
+  EXPECT_DOUBLE_EQ(loose.f_max(), 2.0);
+  EXPECT_FALSE(loose.limits().bound_by_device);
+  SafetyFilter above(no_ramp(), 2.0);
+  above.set_device_limits(12.0, 12.0);  // the option is the tighter one
+  EXPECT_DOUBLE_EQ(above.f_max(), 2.0);
+  EXPECT_FALSE(above.limits().bound_by_device);
+}
+
+// The continuous limit (I^2 t): a short peak passes at the peak limit, a sustained push settles
+// at the continuous force, and the mean square over the window never exceeds its square.
+TEST(Safety, ContinuousLimitBoundsTheMeanSquareOverTheWindow) {
+  SafetyParams p = no_ramp();
+  p.continuous_window = 1.0;
+  SafetyFilter s(p, 30.0);
+  s.set_device_limits(3.3, 0.88);
+  s.reset(0);
+  double heat = 0, worst = 0;
+  const double a = -std::expm1(-kDt / p.continuous_window);
+  Eigen::Vector3d f;
+  std::uint64_t limited = 0;
+  for (int k = 1; k <= 6000; ++k) {  // 6 s pushing for 3.3 N
+    const SafetyOutput o = s.apply(fresh(k * kMs, {0, 0, 3.3}), kDt);
+    f = o.force;
+    heat += (f.squaredNorm() - heat) * a;
+    worst = std::max(worst, heat);
+    if (k == 20) EXPECT_NEAR(f.norm(), 3.3, 1e-12) << "a short peak passes";
+    limited += (o.flags & kFlagContinuousLimited) != 0;
+  }
+  EXPECT_LE(std::sqrt(worst), 0.88 * 1.001);
+  EXPECT_NEAR(f.norm(), 0.88, 1e-6) << "a sustained push settles at the continuous force";
+  EXPECT_NEAR(s.mean_square_force(), heat, 1e-9);
+  EXPECT_GT(limited, 5000u);
+  // After a rest the budget comes back: the peak passes again.
+  for (int k = 6001; k <= 12000; ++k) s.apply(fresh(k * kMs, {0, 0, 0}), kDt);
+  EXPECT_NEAR(s.apply(fresh(12001 * kMs, {0, 0, 3.3}), kDt).force.norm(), 3.3, 1e-12);
 }
 
 }  // namespace

@@ -8,7 +8,9 @@
 #include <dlfcn.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <string>
 #include <thread>
@@ -51,6 +53,25 @@ struct FakeDhd {
   void (*set_reset_mode)(int) = hook<void (*)(int)>(GSHAPTICS_FAKE_DHD, "fake_dhd_set_reset_mode");
   void (*force_raw)(double*) = hook<void (*)(double*)>(GSHAPTICS_FAKE_DHD, "fake_dhd_force");
   int (*force_enabled)() = hook<int (*)()>(GSHAPTICS_FAKE_DHD, "fake_dhd_force_enabled");
+  void (*set_powered)(int) = hook<void (*)(int)>(GSHAPTICS_FAKE_DHD, "fake_dhd_set_powered");
+  void (*set_system_type)(int) = hook<void (*)(int)>(GSHAPTICS_FAKE_DHD, "fake_dhd_set_system_type");
+  void (*set_software_limit)(double) = hook<void (*)(double)>(GSHAPTICS_FAKE_DHD, "fake_dhd_set_software_limit");
+  void (*set_saturation)(double) = hook<void (*)(double)>(GSHAPTICS_FAKE_DHD, "fake_dhd_set_saturation");
+  void (*set_io_delay_us)(double) = hook<void (*)(double)>(GSHAPTICS_FAKE_DHD, "fake_dhd_set_io_delay_us");
+  double (*peak_force)() = hook<double (*)()>(GSHAPTICS_FAKE_DHD, "fake_dhd_peak_force");
+  unsigned long (*saturated_writes)() = hook<unsigned long (*)()>(GSHAPTICS_FAKE_DHD, "fake_dhd_saturated_writes");
+  void (*reset_force_stats)() = hook<void (*)()>(GSHAPTICS_FAKE_DHD, "fake_dhd_reset_force_stats");
+  /// Back to the defaults: a powered, calibrated omega.3 without a software limit.
+  void defaults() const {
+    set_reset_mode(0);
+    set_powered(1);
+    set_system_type(33);
+    set_software_limit(-1);
+    set_saturation(12.0);
+    set_io_delay_us(0);
+    set_fail_reads(0);
+    reset_force_stats();
+  }
   Eigen::Vector3d force() const {
     Eigen::Vector3d f;
     force_raw(f.data());
@@ -67,6 +88,23 @@ struct FakeHd {
   void (*force_raw)(double*) = hook<void (*)(double*)>(GSHAPTICS_FAKE_HD, "fake_hd_force");
   unsigned long (*force_writes)() = hook<unsigned long (*)()>(GSHAPTICS_FAKE_HD, "fake_hd_force_writes");
   int (*frame_errors)() = hook<int (*)()>(GSHAPTICS_FAKE_HD, "fake_hd_frame_errors");
+  void (*clear_log)() = hook<void (*)()>(GSHAPTICS_FAKE_HD, "fake_hd_clear_log");
+  void (*set_calibration_style)(int) = hook<void (*)(int)>(GSHAPTICS_FAKE_HD, "fake_hd_set_calibration_style");
+  void (*set_in_inkwell)(int) = hook<void (*)(int)>(GSHAPTICS_FAKE_HD, "fake_hd_set_in_inkwell");
+  void (*set_limits)(double, double) = hook<void (*)(double, double)>(GSHAPTICS_FAKE_HD, "fake_hd_set_limits");
+  double (*peak_force)() = hook<double (*)()>(GSHAPTICS_FAKE_HD, "fake_hd_peak_force");
+  unsigned long (*over_continuous_frames)() = hook<unsigned long (*)()>(GSHAPTICS_FAKE_HD, "fake_hd_over_continuous_frames");
+  void (*reset_force_stats)() = hook<void (*)()>(GSHAPTICS_FAKE_HD, "fake_hd_reset_force_stats");
+  int (*force_output)() = hook<int (*)()>(GSHAPTICS_FAKE_HD, "fake_hd_force_output");
+  /// Back to the defaults: a calibrated Touch (3.3 N peak, 0.88 N continuous, inkwell style).
+  void defaults() const {
+    set_calibration(0x5000);
+    set_calibration_style(1 << 2);
+    set_in_inkwell(0);
+    set_limits(3.3, 0.88);
+    reset_force_stats();
+    clear_log();
+  }
   Eigen::Vector3d force() const {
     Eigen::Vector3d f;
     force_raw(f.data());
@@ -97,13 +135,20 @@ TEST(VendorFrames, DhdAndHdAxesAndUnits) {
 
 TEST(DhdDevice, CallOrderUnitsAxesButtonsAndStop) {
   FakeDhd fake;
+  fake.defaults();
   fake.clear_log();
-  fake.set_reset_mode(0);
   DhdDevice dev(1);
   dev.start(0);
-  EXPECT_EQ(std::string(fake.log()), "dhdOpenID(1) dhdGetStatus dhdSetForce(0) dhdEnableForce(on) ");
-  EXPECT_EQ(dev.status(), "powered, connected, calibrated");
+  // Open, status, zero force (the rate measurement writes zeros too), then enable force: the
+  // order of Force Dimension's examples.
+  const std::string log = fake.log();
+  EXPECT_EQ(log.rfind("dhdOpenID(1) dhdGetStatus dhdSetForce(0) ", 0), 0u) << log;
+  EXPECT_EQ(log.substr(log.size() - std::string("dhdSetForce(0) dhdEnableForce(on) ").size()),
+            "dhdSetForce(0) dhdEnableForce(on) ") << log;
+  EXPECT_EQ(log.find("dhdEnableForce(on)"), log.rfind("dhdEnableForce(on)"));
+  EXPECT_EQ(dev.status().rfind("powered, connected, calibrated", 0), 0u) << dev.status();
   EXPECT_NE(dev.info().name.find("fake omega.3"), std::string::npos);
+  EXPECT_EQ(dev.info().calibration, Calibration::kCalibrated);
   EXPECT_EQ(fake.force_enabled(), 1);
 
   fake.set_position(0.01, 0.02, 0.03);  // DHD frame, metres
@@ -134,14 +179,33 @@ TEST(DhdDevice, CallOrderUnitsAxesButtonsAndStop) {
   EXPECT_EQ(fake.force_enabled(), 0);
 }
 
-TEST(DhdDevice, ReportsResetModeAndMissingDevices) {
+TEST(DhdDevice, RefusesResetModeAndUnpoweredDevicesAndReportsMissingOnes) {
   FakeDhd fake;
-  fake.set_reset_mode(1);
-  DhdDevice dev(0);
-  dev.start(0);
-  EXPECT_NE(dev.status().find("RESET"), std::string::npos) << dev.status();
-  dev.stop(0);
+  fake.defaults();
+  const auto refused = [&](const char* expect) {
+    fake.clear_log();
+    DhdDevice dev(0);
+    try {
+      dev.start(0);
+      ADD_FAILURE() << "expected an InputError mentioning " << expect;
+      dev.stop(0);
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(expect), std::string::npos) << what;
+      EXPECT_NE(what.find("no force was rendered"), std::string::npos) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << "one line: " << what;
+    }
+    const std::string log = fake.log();
+    EXPECT_EQ(log.find("dhdEnableForce(on)"), std::string::npos) << log;
+    EXPECT_NE(log.find("dhdClose"), std::string::npos) << log;
+    EXPECT_EQ(fake.force_enabled(), 0);
+  };
+  fake.set_reset_mode(1);  // RESET mode: calibration pending
+  refused("RESET mode");
   fake.set_reset_mode(0);
+  fake.set_powered(0);
+  refused("not powered");
+  fake.defaults();
   try {
     DhdDevice absent(2);  // the fake reports two devices
     FAIL() << "expected an InputError";
@@ -152,6 +216,7 @@ TEST(DhdDevice, ReportsResetModeAndMissingDevices) {
 
 TEST(DhdDevice, RuntimeWatchdogZeroesTheForceWhenTheDeviceStopsAnswering) {
   FakeDhd fake;
+  fake.defaults();
   const CollisionWorld& world = test::truck_world();
   // Put the device origin on a Gaussian of the Truck: the tool is in contact from the start.
   const Eigen::Vector3d on_surface = test::contact_point(world);
@@ -179,14 +244,19 @@ TEST(DhdDevice, RuntimeWatchdogZeroesTheForceWhenTheDeviceStopsAnswering) {
 
 TEST(OpenHapticsDevice, CallOrderUnitsAxesAndZeroOnStop) {
   FakeHd fake;
-  fake.set_calibration(0x5000);
+  fake.defaults();
   fake.set_position_mm(10, 20, 30);  // HD frame, mm
   fake.set_velocity_mm(100, 0, -50);
   fake.set_buttons(0b11);
   OpenHapticsDevice dev;
   dev.start(0);
-  EXPECT_EQ(dev.status(), "calibrated");
+  EXPECT_EQ(dev.status().rfind("calibrated", 0), 0u) << dev.status();
   EXPECT_DOUBLE_EQ(dev.max_force(), 3.3);
+  EXPECT_DOUBLE_EQ(dev.info().max_force, 3.3);
+  EXPECT_DOUBLE_EQ(dev.info().max_continuous_force, 0.88);
+  EXPECT_DOUBLE_EQ(dev.info().max_stiffness, 1000.0);  // 1 N/mm
+  EXPECT_FALSE(dev.info().renders_torque);
+  EXPECT_EQ(dev.info().calibration, Calibration::kCalibrated);
   EXPECT_EQ(dev.info().max_rate_hz, 1000);
   // Usable workspace 160 x 120 x 70 mm (x, y up, z to the user) -> device x 0.16, y 0.07, z 0.12 m.
   EXPECT_TRUE(dev.info().workspace.sizes().isApprox(Eigen::Vector3d(0.16, 0.07, 0.12)));
@@ -212,8 +282,12 @@ TEST(OpenHapticsDevice, CallOrderUnitsAxesAndZeroOnStop) {
   EXPECT_EQ(fake.force(), Eigen::Vector3d::Zero());
   EXPECT_EQ(fake.frame_errors(), 0);
   const std::string log = fake.log();
-  const char* order[] = {"hdInitDevice", "hdCheckCalibration", "hdEnable(HD_FORCE_OUTPUT)",
-                         "hdScheduleAsynchronous(65535)", "hdStartScheduler", "callback-done",
+  // The vendor's sequence: the scheduler runs before the calibration is checked, inside a
+  // frame on the scheduler thread (hdScheduleSynchronous at the default priority); force output
+  // is enabled only after that.
+  EXPECT_EQ(log.find("outside a frame"), std::string::npos) << log;
+  const char* order[] = {"hdInitDevice", "hdStartScheduler", "hdScheduleSynchronous(32767)", "hdCheckCalibration",
+                         "hdScheduleAsynchronous(65535)", "hdEnable(HD_FORCE_OUTPUT)", "callback-done",
                          "hdStopScheduler", "hdUnschedule", "hdDisableDevice"};
   std::size_t at = 0;
   for (const char* step : order) {
@@ -225,7 +299,7 @@ TEST(OpenHapticsDevice, CallOrderUnitsAxesAndZeroOnStop) {
 
 TEST(OpenHapticsDevice, CallbackZeroesAStaleCommand) {
   FakeHd fake;
-  fake.set_calibration(0x5000);
+  fake.defaults();
   OpenHapticsParams p;
   p.command_timeout = 0.02;
   OpenHapticsDevice dev(p);
@@ -244,23 +318,228 @@ TEST(OpenHapticsDevice, CallbackZeroesAStaleCommand) {
 
 TEST(OpenHapticsDevice, CalibrationUpdatedOrAskedFor) {
   FakeHd fake;
+  fake.defaults();
   fake.set_calibration(0x5001);  // HD_CALIBRATION_NEEDS_UPDATE: the device does it itself
   {
     OpenHapticsDevice dev;
     dev.start(0);
-    EXPECT_EQ(dev.status(), "calibration updated");
+    EXPECT_EQ(dev.status().rfind("calibration updated", 0), 0u) << dev.status();
     EXPECT_NE(std::string(fake.log()).find("hdUpdateCalibration(4)"), std::string::npos);  // inkwell
     dev.stop(0);
   }
-  fake.set_calibration(0x5002);  // HD_CALIBRATION_NEEDS_MANUAL_INPUT: the user must act
-  OpenHapticsDevice dev;
-  try {
-    dev.start(0);
-    FAIL() << "expected an InputError";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("inkwell"), std::string::npos) << e.what();
+  // HD_CALIBRATION_NEEDS_MANUAL_INPUT and the stylus is not in the inkwell: refused after the
+  // wait, before force output is enabled.
+  fake.defaults();
+  fake.set_calibration(0x5002);
+  OpenHapticsParams p;
+  p.calibration_wait = 0.1;
+  {
+    OpenHapticsDevice dev(p);
+    try {
+      dev.start(0);
+      FAIL() << "expected an InputError";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("inkwell"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("no force was rendered"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(std::string(fake.log()).find("hdEnable(HD_FORCE_OUTPUT)"), std::string::npos) << fake.log();
+    EXPECT_EQ(fake.force_output(), 0);
+    EXPECT_EQ(dev.info().calibration, Calibration::kNeedsUser);
   }
-  fake.set_calibration(0x5000);
+  // The stylus rests in the inkwell: the Touch calibrates in the first servo frame, which only
+  // runs once the scheduler has started; a check made before that would still say "manual".
+  fake.set_in_inkwell(1);
+  {
+    OpenHapticsDevice dev(p);
+    dev.start(0);
+    EXPECT_EQ(dev.info().calibration, Calibration::kCalibrated);
+    EXPECT_EQ(fake.force_output(), 1);
+    dev.stop(0);
+  }
+  fake.defaults();
+}
+
+// The brief open-and-close that `run` does before every run used to leave the next session
+// without its final zero-force frame: each session must end at zero force.
+TEST(OpenHapticsDevice, StartStopStartStopEndsEverySessionAtZeroForce) {
+  FakeHd fake;
+  fake.defaults();
+  OpenHapticsDevice dev;
+  for (int session = 0; session < 3; ++session) {
+    dev.start(0);
+    Wrench w;
+    w.force = {0.2, 0.3 + 0.1 * session, 0.4};
+    ASSERT_TRUE(eventually([&] {
+      dev.write(w, 0);
+      return fake.force().norm() > 0.1;
+    })) << "session " << session;
+    dev.stop(0);
+    EXPECT_EQ(fake.force(), Eigen::Vector3d::Zero()) << "session " << session << " ended at a non-zero force";
+  }
+  EXPECT_EQ(dev.unconfirmed_stops(), 0u);
+  const std::string log = fake.log();
+  std::size_t done = 0;
+  for (std::size_t at = log.find("callback-done"); at != std::string::npos; at = log.find("callback-done", at + 1)) ++done;
+  EXPECT_EQ(done, 3u) << log;
+}
+
+/// A scene a 5 cm tool pushes deep into: the device sits on the Truck's largest opaque Gaussian.
+struct DeepContact {
+  const CollisionWorld& world = test::truck_world();
+  Eigen::Vector3d point = test::contact_point(world);
+};
+
+// The device-limit rule: the safety layer's limit is min(the device's, --f-max), whatever the
+// option says, and the continuous limit bounds the RMS force over the window.
+TEST(OpenHapticsDevice, A33NewtonTouchIsNeverCommandedAboveItsLimitsWhateverFMaxSays) {
+  FakeHd fake;
+  fake.defaults();
+  DeepContact scene;
+  ASSERT_FALSE(scene.point.isZero());
+  // HD frame position (mm) of the device origin; the mapping puts it on the Gaussian.
+  fake.set_position_mm(0, 0, 0);
+  fake.set_velocity_mm(0, 0, 0);
+  OpenHapticsDevice hd;
+  WorkspaceMappingParams mp;
+  mp.offset = scene.point;
+  MappedDevice dev(hd, mp);
+  RuntimeConfig c = test::device_test_config(1.5);
+  c.force.f_max = 30;  // the option asks for 30 N
+  c.safety.continuous_window = 0.5;
+  HapticRuntime rt(scene.world, dev, c);
+  rt.start();
+  rt.wait();
+  const RuntimeSummary s = rt.summary();
+  EXPECT_DOUBLE_EQ(s.force_limit, 3.3);
+  EXPECT_TRUE(s.force_limit_by_device);
+  EXPECT_DOUBLE_EQ(s.continuous_force_limit, 0.88);
+  EXPECT_GT(fake.peak_force(), 0.5) << "no contact force: the test does not test the limit";
+  EXPECT_LE(fake.peak_force(), 3.3 + 1e-9);
+  EXPECT_GT(s.continuous_limited_ticks, 0u);
+  // The RMS over the window, recomputed from the commanded forces, stays at the continuous force.
+  double heat = 0, worst = 0, t_prev = 0;
+  for (const TickRecord& r : rt.log().records()) {
+    const double a = -std::expm1(-std::max(r.time - t_prev, 1e-4) / c.safety.continuous_window);
+    t_prev = r.time;
+    heat += (r.force.squaredNorm() - heat) * a;
+    worst = std::max(worst, heat);
+  }
+  EXPECT_LE(std::sqrt(worst), 0.88 * 1.01);
+  // A sustained push settles at the continuous force: the last 0.3 s hold at most 0.88 N.
+  const auto& rec = rt.log().records();
+  ASSERT_GT(rec.size(), 400u);
+  for (std::size_t i = rec.size() - 300; i < rec.size(); ++i) EXPECT_LE(rec[i].force.norm(), 0.88 + 1e-9) << i;
+  EXPECT_EQ(fake.force(), Eigen::Vector3d::Zero());  // the run ended with a zero-force frame
+}
+
+TEST(DhdDevice, ATwelveNewtonDeviceIsNeverCommandedAboveTwelveWhateverFMaxSays) {
+  FakeDhd fake;
+  fake.defaults();
+  fake.set_position(0, 0, 0);
+  fake.set_velocity(0, 0, 0);
+  DeepContact scene;
+  ASSERT_FALSE(scene.point.isZero());
+  DhdDevice dhd(0);
+  WorkspaceMappingParams mp;
+  mp.offset = scene.point;
+  MappedDevice dev(dhd, mp);
+  RuntimeConfig c = test::device_test_config(0.8);
+  c.force.f_max = 30;
+  HapticRuntime rt(scene.world, dev, c);
+  rt.start();
+  rt.wait();
+  const RuntimeSummary s = rt.summary();
+  EXPECT_DOUBLE_EQ(s.force_limit, 12.0);
+  EXPECT_TRUE(s.force_limit_by_device);
+  EXPECT_GT(fake.peak_force(), 1.0) << "no contact force: the test does not test the limit";
+  EXPECT_LE(fake.peak_force(), 12.0 + 1e-9);
+  EXPECT_EQ(dhd.info().max_force, 12.0);
+  EXPECT_NE(dhd.info().limit_source.find("omega.3"), std::string::npos) << dhd.info().limit_source;
+  EXPECT_EQ(fake.force(), Eigen::Vector3d::Zero());
+  EXPECT_EQ(fake.force_enabled(), 0);
+}
+
+TEST(DhdDevice, SoftwareLimitTypeTableWorkspaceRateAndSaturation) {
+  FakeDhd fake;
+  fake.defaults();
+  {
+    fake.set_software_limit(5.0);  // dhdSetMaxForce(5) was called by someone: it binds
+    DhdDevice dev(0);
+    dev.start(0);
+    EXPECT_DOUBLE_EQ(dev.info().max_force, 5.0);
+    EXPECT_EQ(dev.info().limit_source, "dhdGetMaxForce");
+    dev.stop(0);
+  }
+  fake.defaults();
+  {
+    fake.set_system_type(63);  // delta.3: 20 N, a 400 x 260 mm cylinder
+    fake.set_io_delay_us(400);  // a slow USB link: about 2 kHz at most
+    DhdDevice dev(0);
+    dev.start(0);
+    EXPECT_DOUBLE_EQ(dev.info().max_force, 20.0);
+    EXPECT_TRUE(dev.info().workspace.sizes().isApprox(Eigen::Vector3d(0.4, 0.4, 0.26)));
+    EXPECT_LT(dev.info().max_rate_hz, 2600.0);
+    EXPECT_GT(dev.info().max_rate_hz, 100.0);
+    EXPECT_NE(dev.info().rate_source.find("measured"), std::string::npos) << dev.info().rate_source;
+    dev.stop(0);
+  }
+  fake.defaults();
+  {
+    fake.set_system_type(999);  // unknown: the family's lowest rating
+    DhdDevice dev(0);
+    dev.start(0);
+    EXPECT_DOUBLE_EQ(dev.info().max_force, 8.9);
+    // Saturated writes are counted: the motors saturate at 4 N here.
+    fake.set_saturation(4.0);
+    Wrench w;
+    w.force = {0, 0, 6};
+    dev.write(w, 0);
+    dev.write(w, 0);
+    w.force = {0, 0, 1};
+    dev.write(w, 0);
+    EXPECT_EQ(dev.saturated_writes(), 2u);
+    const std::vector<DeviceCounter> counters = dev.counters();
+    ASSERT_EQ(counters.size(), 1u);
+    EXPECT_EQ(counters[0].count, 2u);
+    dev.stop(0);
+  }
+  fake.defaults();
+}
+
+TEST(DhdDevice, WorkspaceGuardFiresOutsideTheDevicesWorkspace) {
+  FakeDhd fake;
+  fake.defaults();
+  DeepContact scene;
+  DhdDevice dhd(0);
+  // 0.2 m along DHD x: outside the omega.3's 160 mm cylinder.
+  fake.set_position(0.2, 0, 0);
+  fake.set_velocity(0, 0, 0);
+  RuntimeConfig c = test::device_test_config(0.2);
+  HapticRuntime rt(scene.world, dhd, c);
+  rt.start();
+  rt.wait();
+  EXPECT_GT(rt.summary().outside_workspace_ticks, 100u);
+  EXPECT_EQ(rt.summary().peak_force, 0.0);
+  fake.set_position(0, 0, 0);
+}
+
+TEST(DhdDevice, StartStopStartStopEndsEverySessionAtZeroForce) {
+  FakeDhd fake;
+  fake.defaults();
+  DhdDevice dev(1);
+  for (int session = 0; session < 3; ++session) {
+    fake.clear_log();
+    dev.start(0);
+    Wrench w;
+    w.force = {1, 2, 3};
+    dev.write(w, 0);
+    EXPECT_GT(fake.force().norm(), 1.0);
+    dev.stop(0);
+    EXPECT_EQ(fake.force(), Eigen::Vector3d::Zero()) << "session " << session;
+    EXPECT_EQ(fake.force_enabled(), 0);
+    const std::string log = fake.log();
+    EXPECT_NE(log.find("dhdSetForce(0) dhdEnableForce(off) dhdClose"), std::string::npos) << log;
+  }
 }
 
 }  // namespace

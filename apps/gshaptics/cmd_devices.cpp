@@ -89,7 +89,7 @@ void register_devices(CLI::App& app) {
       try {
         OpenHapticsDevice d;
         d.start(0);
-        const std::string s = describe(d) + fmt::format(", {}, nominal max force {:.2g} N", d.status(), d.max_force());
+        const std::string s = describe(d) + ", " + d.status();
         d.stop(0);
         row("openhaptics", true, s);
       } catch (const InputError& e) {

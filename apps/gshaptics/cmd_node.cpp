@@ -52,6 +52,9 @@ class PublishingDevice final : public HapticDevice {
     local_.stop(now);
     bridge_.stop(now);
   }
+  bool finished() const noexcept override { return local_.finished(); }
+  std::string status() const override { return local_.status(); }
+  std::vector<DeviceCounter> counters() const override { return local_.counters(); }
 
  private:
   HapticDevice& local_;

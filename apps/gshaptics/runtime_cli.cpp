@@ -69,8 +69,13 @@ nlohmann::json to_json(const RuntimeSummary& s) {
           {"outside_workspace_ticks", s.outside_workspace_ticks},
           {"force_limited_ticks", s.force_limited_ticks},
           {"rate_limited_ticks", s.rate_limited_ticks},
+          {"continuous_limited_ticks", s.continuous_limited_ticks},
           {"results_used", s.results_used},
-          {"peak_force_n", s.peak_force}};
+          {"peak_force_n", s.peak_force},
+          {"force_limit_n", s.force_limit},
+          {"force_limit_bound_by", s.force_limit_by_device ? "device" : "option"},
+          {"continuous_force_limit_n", std::isfinite(s.continuous_force_limit) ? nlohmann::json(s.continuous_force_limit)
+                                                                               : nlohmann::json(nullptr)}};
 }
 
 }  // namespace
@@ -127,6 +132,9 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
   cmd.add_option("--max-force-rate", o.safety.max_force_rate, "Force-rate limit, N/s")
       ->capture_default_str()->check(check::positive());
   cmd.add_option("--device-timeout", o.safety.device_timeout, "Watchdog: zero force when device data is older, s")
+      ->capture_default_str()->check(check::positive());
+  cmd.add_option("--continuous-window", o.safety.continuous_window,
+                 "Averaging window of the device's continuous-force limit (RMS force, I^2 t), s")
       ->capture_default_str()->check(check::positive());
   cmd.add_option("--rt-priority", o.realtime.servo_priority,
                  "SCHED_FIFO priority of the servo thread (worker: 10 lower); 0: normal scheduling")
@@ -325,22 +333,14 @@ void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool ha
 
 namespace {
 void print_hardware_status(const HapticDevice& d) {
-  std::string status;
-  if (const auto* dhd = dynamic_cast<const DhdDevice*>(&d)) status = dhd->status();
-  if (const auto* hd = dynamic_cast<const OpenHapticsDevice*>(&d))
-    status = fmt::format("{}, nominal max force {:.2g} N", hd->status(), hd->max_force());
-#ifdef GSHAPTICS_HAVE_VIEWER
-  if (const auto* h = dynamic_cast<const HaplyDevice*>(&d))
-    status = fmt::format("Inverse3 {} ({}-handed) at {}{}", h->device_id(),
-                         h->handedness().empty() ? "?" : h->handedness(), h->url(),
-                         h->stats().rate_hz > 0 ? fmt::format(", service {:.0f} Hz", h->stats().rate_hz) : "");
-#endif
+  const std::string status = d.status();
   const Eigen::AlignedBox3d& ws = d.info().workspace;
   const std::string box = ws.sizes().allFinite() && ws.sizes().maxCoeff() < 1e3
                               ? fmt::format(", workspace {:.0f} x {:.0f} x {:.0f} mm", ws.sizes().x() * 1e3,
                                             ws.sizes().y() * 1e3, ws.sizes().z() * 1e3)
                               : std::string();
-  fmt::print("device     {}: {}{}, up to {:.0f} Hz\n", d.info().name, status, box, d.info().max_rate_hz);
+  fmt::print("device     {}: {}{}, up to {:.0f} Hz ({})\n", d.info().name, status, box, d.info().max_rate_hz,
+             d.info().rate_source);
 }
 }  // namespace
 
@@ -514,6 +514,13 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
   sj["log_ticks"] = records.size();
   sj["log_dropped"] = rt.log().dropped();
   sj["warnings"] = rt.warnings();
+  const std::vector<DeviceCounter> device_counters = setup.device->counters();
+  nlohmann::json dc = nlohmann::json::object();
+  for (const DeviceCounter& c : device_counters) dc[c.name] = c.count;
+  sj["device_counters"] = dc;
+  sj["device_limits"] = {{"max_force_n", std::isfinite(setup.device->info().max_force) ? nlohmann::json(setup.device->info().max_force) : nlohmann::json(nullptr)},
+                         {"max_continuous_force_n", std::isfinite(setup.device->info().max_continuous_force) ? nlohmann::json(setup.device->info().max_continuous_force) : nlohmann::json(nullptr)},
+                         {"source", setup.device->info().limit_source}};
   nlohmann::json eps = nlohmann::json::array();
   for (const auto& e : episodes)
     eps.push_back({{"t_start", e.t_start}, {"t_end", e.t_end}, {"peak_contacts", e.peak_contacts},
@@ -536,6 +543,20 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
   fmt::print("safety     watchdog {}, invalid pose {}, outside workspace {}, force-limited {}, "
              "rate-limited {} ticks; peak force {:.2f} N\n", s.watchdog_ticks, s.invalid_pose_ticks,
              s.outside_workspace_ticks, s.force_limited_ticks, s.rate_limited_ticks, s.peak_force);
+  const DeviceInfo& di = setup.device->info();
+  fmt::print("limit      {:.3g} N, bound by {}{}{}\n", s.force_limit,
+             s.force_limit_by_device ? fmt::format("the device ({}; --f-max {:.3g} N)", di.limit_source, o.force.force.f_max)
+                                     : fmt::format("--f-max{}", std::isfinite(di.max_force)
+                                                                    ? fmt::format(" (the device allows {:.3g} N)", di.max_force)
+                                                                    : std::string()),
+             std::isfinite(s.continuous_force_limit)
+                 ? fmt::format("; continuous {:.3g} N (RMS over {:.3g} s)", s.continuous_force_limit, o.safety.continuous_window)
+                 : std::string(),
+             s.continuous_limited_ticks > 0
+                 ? fmt::format(": the continuous limit held the force down for {} ticks", s.continuous_limited_ticks)
+                 : std::string());
+  for (const DeviceCounter& c : device_counters)
+    if (c.count > 0) fmt::print("device     {}: {}\n", c.name, c.count);
   fmt::print("episodes   {} contact episodes\n", episodes.size());
   if (episodes.empty() && o.device == "sim" && !interrupted) print_no_contact_hints(pw, so, setup.tool_radius);
   if (rt.log().dropped() > 0)

@@ -251,4 +251,18 @@ void HaplyDevice::stop(Nanos) noexcept {
   if (io_.joinable()) io_.join();
 }
 
+std::string HaplyDevice::status() const {
+  const std::string id = device_id();
+  if (id.empty()) return {};
+  const std::string hand = handedness();
+  const HaplyStats st = stats();
+  return fmt::format("Inverse3 {} ({}-handed) at {}{}", id, hand.empty() ? "?" : hand, url(),
+                     st.rate_hz > 0 ? fmt::format(", service {:.0f} Hz", st.rate_hz) : "");
+}
+
+std::vector<DeviceCounter> HaplyDevice::counters() const {
+  const HaplyStats st = stats();
+  return {{"reconnects", st.connects > 0 ? st.connects - 1 : 0}, {"malformed messages", st.malformed}};
+}
+
 }  // namespace gshaptics

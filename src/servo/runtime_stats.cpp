@@ -35,7 +35,11 @@ RuntimeSummary summarize(const RuntimeStats& s, const LatencyHistogram& query, d
   r.outside_workspace_ticks = ld(s.outside_workspace_ticks);
   r.force_limited_ticks = ld(s.force_limited_ticks);
   r.rate_limited_ticks = ld(s.rate_limited_ticks);
+  r.continuous_limited_ticks = ld(s.continuous_limited_ticks);
   r.results_used = ld(s.results_used);
+  r.force_limit = s.force_limit.load(std::memory_order_relaxed);
+  r.continuous_force_limit = s.continuous_force_limit.load(std::memory_order_relaxed);
+  r.force_limit_by_device = s.force_limit_by_device.load(std::memory_order_relaxed);
   r.peak_force = s.peak_force.load(std::memory_order_relaxed);
   return r;
 }

@@ -5,7 +5,24 @@
 
 namespace gshaptics {
 
+void SafetyFilter::set_device_limits(double peak, double continuous) noexcept {
+  device_peak_ = peak > 0 ? peak : std::numeric_limits<double>::infinity();
+  continuous_ = continuous > 0 ? continuous : std::numeric_limits<double>::infinity();
+  f_max_ = std::min(option_f_max_, device_peak_);
+}
+
+ForceLimits SafetyFilter::limits() const noexcept {
+  ForceLimits l;
+  l.f_max = f_max_;
+  l.option_f_max = option_f_max_;
+  l.device_max = device_peak_;
+  l.continuous = continuous_;
+  l.bound_by_device = device_peak_ < option_f_max_;
+  return l;
+}
+
 void SafetyFilter::reset(Nanos now) noexcept {
+  heat_ = 0;
   last_.setZero();
   ramp_start_ = now;
   gated_ = false;
@@ -13,10 +30,13 @@ void SafetyFilter::reset(Nanos now) noexcept {
 
 SafetyOutput SafetyFilter::apply(const SafetyInput& in, double dt) noexcept {
   SafetyOutput out;
+  // The continuous-force average follows the force actually sent (exponential window).
+  const double decay = params_.continuous_window > 0 ? -std::expm1(-std::max(dt, 0.0) / params_.continuous_window) : 1.0;
   // 1. Device gate: zero at once (no rate limit: the data that would justify a force is gone).
   if (!in.device_ok) {
     out.flags = in.device_flags;
     last_.setZero();
+    heat_ -= heat_ * decay;
     gated_ = true;
     return out;
   }
@@ -70,6 +90,19 @@ SafetyOutput SafetyFilter::apply(const SafetyInput& in, double dt) noexcept {
     target *= f_max_ / n;
     out.flags |= kFlagForceLimited;
   }
+  // Continuous limit (I^2 t): above 80 % of the heat budget the allowed force tapers linearly
+  // from f_max to the continuous force, reached when the budget is used up, so a sustained push
+  // settles at the continuous force with the budget exactly used (no chatter at the threshold).
+  if (continuous_ < f_max_) {
+    const double budget = continuous_ * continuous_;
+    const double free_share = std::clamp((budget - heat_) / (0.2 * budget), 0.0, 1.0);
+    const double cap = continuous_ + (f_max_ - continuous_) * free_share;
+    const double m = target.norm();
+    if (m > cap) {
+      target *= cap / m;
+      out.flags |= kFlagContinuousLimited;
+    }
+  }
   target *= ramp;
 
   // 5. Force-rate limit.
@@ -81,6 +114,7 @@ SafetyOutput SafetyFilter::apply(const SafetyInput& in, double dt) noexcept {
     out.flags |= kFlagRateLimited;
   }
   last_ = target;
+  heat_ += (target.squaredNorm() - heat_) * decay;
   out.force = target;
   return out;
 }

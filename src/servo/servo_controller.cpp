@@ -1,6 +1,9 @@
 #include "gshaptics/servo/servo_controller.h"
 
 #include <cmath>
+#include <string>
+
+#include "gshaptics/error.h"
 
 namespace gshaptics {
 
@@ -24,6 +27,20 @@ ServoController::ServoController(HapticDevice& device, const SafetyParams& safet
 
 void ServoController::start(Nanos now) {
   device_.start(now);
+  // The device's own limits bind whatever the options say; vendor drivers know them only now.
+  const DeviceInfo& info = device_.info();
+  const double rate = 1e9 / double(period_);
+  if (rate > info.max_rate_hz * (1 + 1e-9)) {
+    device_.write(Wrench{}, now);
+    device_.stop(now);
+    throw InputError("runtime: rate " + std::to_string(rate) + " Hz is above what device '" + info.name +
+                     "' accepts (" + std::to_string(info.max_rate_hz) + " Hz, " + info.rate_source + ")");
+  }
+  safety_.set_device_limits(info.max_force, info.max_continuous_force);
+  const ForceLimits lim = safety_.limits();
+  stats_.force_limit.store(lim.f_max, std::memory_order_relaxed);
+  stats_.continuous_force_limit.store(lim.continuous, std::memory_order_relaxed);
+  stats_.force_limit_by_device.store(lim.bound_by_device, std::memory_order_relaxed);
   t0_ = now;
   prev_now_ = now;
   last_device_data_ = now;
@@ -86,6 +103,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   Wrench w;
   w.force = out.force;
   device_.write(w, now);
+  last_written_ = w.force;
   const Nanos end = clock_.now();
 
   // Statistics and log.
@@ -104,6 +122,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   bump(stats_.outside_workspace_ticks, (f & kFlagOutsideWorkspace) != 0);
   bump(stats_.force_limited_ticks, (f & kFlagForceLimited) != 0);
   bump(stats_.rate_limited_ticks, (f & kFlagRateLimited) != 0);
+  bump(stats_.continuous_limited_ticks, (f & kFlagContinuousLimited) != 0);
   bump(stats_.results_used, fresh);
   const double fm = out.force.norm();
   stats_.last_force.store(fm, std::memory_order_relaxed);
@@ -138,6 +157,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
 
 void ServoController::finish(Nanos now) noexcept {
   device_.write(Wrench{}, now);
+  last_written_.setZero();
   device_.stop(now);
   stats_.last_force.store(0.0, std::memory_order_relaxed);
 }

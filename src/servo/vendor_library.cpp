@@ -61,7 +61,7 @@ VendorLibraryProbe probe_dhd_library() {
   return probe({"dhd", "libdhd.so", "GSHAPTICS_DHD_LIBRARY",
                 {"dhdGetDeviceCount", "dhdOpenID", "dhdClose", "dhdGetPosition", "dhdGetLinearVelocity",
                  "dhdSetForce", "dhdGetButton", "dhdEnableForce", "dhdGetStatus", "dhdGetSystemName",
-                 "dhdErrorGetLastStr"},
+                 "dhdGetSystemType", "dhdErrorGetLastStr"},
                 "Install the Force Dimension SDK (forcedimension.com, Linux x86_64) and put its "
                 "lib/release/lin-x86_64-gcc on LD_LIBRARY_PATH, or set GSHAPTICS_DHD_LIBRARY to libdhd.so."},
                count_dhd);
@@ -72,7 +72,7 @@ VendorLibraryProbe probe_openhaptics_library() {
                 {"hdInitDevice", "hdDisableDevice", "hdGetError", "hdBeginFrame", "hdEndFrame",
                  "hdGetDoublev", "hdGetIntegerv", "hdSetDoublev", "hdEnable", "hdCheckCalibration",
                  "hdUpdateCalibration", "hdStartScheduler", "hdStopScheduler", "hdScheduleAsynchronous",
-                 "hdUnschedule"},
+                 "hdScheduleSynchronous", "hdUnschedule"},
                 "Install 3D Systems' OpenHaptics for Linux and the Touch device driver (libHD.so in "
                 "/usr/lib), or set GSHAPTICS_HD_LIBRARY to libHD.so."},
                nullptr);

@@ -77,6 +77,16 @@ MappedDevice::MappedDevice(HapticDevice& inner, const WorkspaceMappingParams& pa
 void MappedDevice::start(Nanos now) {
   last_ = now;
   inner_.start(now);
+  // Vendor drivers learn their limits in start(): take them over (forces are not scaled).
+  const DeviceInfo& in = inner_.info();
+  info_.max_rate_hz = in.max_rate_hz;
+  info_.rate_source = in.rate_source;
+  info_.max_force = in.max_force;
+  info_.max_continuous_force = in.max_continuous_force;
+  info_.max_stiffness = in.max_stiffness;
+  info_.limit_source = in.limit_source;
+  info_.renders_torque = in.renders_torque;
+  info_.calibration = in.calibration;
 }
 
 DeviceSample MappedDevice::read(Nanos now) noexcept {

@@ -1,14 +1,30 @@
 /* A stand-in for Force Dimension's libdhd.so exporting the C functions gshaptics looks up, so the
    run-time loading and the DHD device are tested without the vendor's library or hardware.
-   Reports two devices. Every call is appended to a log the test reads back (fake_dhd_log), and
-   the test sets the device state (fake_dhd_set_*). Units as the DHD API: metres, newtons. */
+   Written from the public DHD SDK header (dhdc.h, SDK 3.2 to 3.17): reports two devices of type
+   DHD_DEVICE_OMEGA3 (33), no software force limit (dhdGetMaxForce < 0), and saturates a force
+   above its motors' capacity (12 N by default), returning DHD_MOTOR_SATURATED (2) from
+   dhdSetForce as the SDK does. Every call is appended to a log the test reads back
+   (fake_dhd_log), forces are recorded (peak while force is enabled), and the test sets the
+   device state (fake_dhd_set_*). Units as the DHD API: metres, newtons. */
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <time.h>
 
 static char log_buf[1 << 16];
 static size_t log_len = 0;
 static double pos[3], vel[3], force[3];
-static int buttons = 0, force_enabled = 0, fail_reads = 0, reset_mode = 0, opened = -1;
+static int buttons = 0, force_enabled = 0, fail_reads = 0, reset_mode = 0, opened = -1, powered = 1;
+static int system_type = 33;
+static double software_limit = -1, saturation = 12.0, peak_seen = 0, io_delay_us = 0;
+static unsigned long saturated_writes = 0;
+
+static void io_delay(void) {
+  if (io_delay_us > 0) {
+    struct timespec t = {0, (long)(io_delay_us * 1000)};
+    nanosleep(&t, 0);
+  }
+}
 
 static void note(const char* s) {
   size_t n = strlen(s);
@@ -28,6 +44,14 @@ void fake_dhd_set_velocity(double x, double y, double z) { vel[0] = x; vel[1] = 
 void fake_dhd_set_buttons(int b) { buttons = b; }
 void fake_dhd_set_fail_reads(int f) { fail_reads = f; }
 void fake_dhd_set_reset_mode(int r) { reset_mode = r; }
+void fake_dhd_set_powered(int p) { powered = p; }
+void fake_dhd_set_system_type(int t) { system_type = t; }
+void fake_dhd_set_software_limit(double f) { software_limit = f; }
+void fake_dhd_set_saturation(double f) { saturation = f; }
+void fake_dhd_set_io_delay_us(double us) { io_delay_us = us; }
+double fake_dhd_peak_force(void) { return peak_seen; }
+unsigned long fake_dhd_saturated_writes(void) { return saturated_writes; }
+void fake_dhd_reset_force_stats(void) { peak_seen = 0; saturated_writes = 0; }
 void fake_dhd_force(double* f) { f[0] = force[0]; f[1] = force[1]; f[2] = force[2]; }
 int fake_dhd_force_enabled(void) { return force_enabled; }
 
@@ -45,6 +69,7 @@ int dhdClose(char id) { (void)id; note("dhdClose"); opened = -1; return 0; }
 int dhdGetPosition(double* x, double* y, double* z, char id) {
   (void)id;
   if (fail_reads) return -1;
+  io_delay();
   *x = pos[0]; *y = pos[1]; *z = pos[2];
   return 0;
 }
@@ -56,9 +81,17 @@ int dhdGetLinearVelocity(double* x, double* y, double* z, char id) {
 }
 int dhdSetForce(double x, double y, double z, char id) {
   (void)id;
+  double m = sqrt(x * x + y * y + z * z);
+  int ret = 0;
+  if (force_enabled && m > peak_seen) peak_seen = m;
+  if (m > saturation) { /* the motors give what they can */
+    x *= saturation / m; y *= saturation / m; z *= saturation / m;
+    saturated_writes++;
+    ret = 2; /* DHD_MOTOR_SATURATED */
+  }
   force[0] = x; force[1] = y; force[2] = z;
   if (x == 0 && y == 0 && z == 0) note("dhdSetForce(0)");
-  return 0;
+  return ret;
 }
 int dhdGetButton(int index, char id) { (void)id; return (buttons >> index) & 1; }
 int dhdEnableForce(unsigned char on, char id) {
@@ -71,11 +104,13 @@ int dhdGetStatus(int* status, char id) {
   (void)id;
   int i;
   for (i = 0; i < 17; ++i) status[i] = 0;
-  status[0] = 1; /* DHD_STATUS_POWER */
+  status[0] = powered; /* DHD_STATUS_POWER */
   status[1] = 1; /* DHD_STATUS_CONNECTED */
   status[3] = reset_mode; /* DHD_STATUS_RESET */
   note("dhdGetStatus");
   return 0;
 }
 const char* dhdGetSystemName(char id) { (void)id; return "fake omega.3"; }
+int dhdGetSystemType(char id) { (void)id; return system_type; }
+double dhdGetMaxForce(char id) { (void)id; return software_limit; }
 const char* dhdErrorGetLastStr(void) { return "no error"; }

@@ -88,6 +88,10 @@ class HaplyDevice final : public HapticDevice {
   void stop(Nanos now) noexcept override;
 
   [[nodiscard]] HaplyStats stats() const noexcept;
+  /// "Inverse3 ID (HAND-handed) at URL, service N Hz".
+  [[nodiscard]] std::string status() const override;
+  /// Reconnects and malformed messages of the session.
+  [[nodiscard]] std::vector<DeviceCounter> counters() const override;
   /// The URL connected to, "ws://host:port/path".
   [[nodiscard]] std::string url() const;
   /// The Inverse3's device_id and handedness from the service's first message ("" before).

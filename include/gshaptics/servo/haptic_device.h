@@ -11,7 +11,9 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <limits>
 #include <string>
+#include <vector>
 
 #include "gshaptics/servo/clock.h"
 
@@ -41,12 +43,45 @@ struct Wrench {
   Eigen::Vector3d torque = Eigen::Vector3d::Zero();  ///< N m (zero: the paper renders force only)
 };
 
-/// Static facts about a device.
+/// Whether a device's position sensing is calibrated (vendor libraries report it; simulated and
+/// networked devices have nothing to calibrate).
+enum class Calibration : std::uint8_t {
+  kNotApplicable,  ///< nothing to calibrate (simulated, replayed, streamed)
+  kCalibrated,     ///< the vendor library says it is calibrated
+  kNeedsUser,      ///< the user must act (inkwell, reset position): no force is rendered
+  kUnknown,        ///< the library does not say
+};
+
+/// Static facts about a device. The vendor drivers fill the limits in start() (that is when
+/// their libraries answer); read them after start.
 struct DeviceInfo {
   std::string name;
-  double max_rate_hz = 10000;  ///< highest servo rate the device accepts
+  double max_rate_hz = 10000;  ///< highest servo rate the device accepts, Hz
+  /// Where max_rate_hz comes from ("vendor library", "measured", "device type", "default").
+  std::string rate_source = "default";
   /// Where the tool centre may be, world frame, m. Outside it the runtime commands zero force.
   Eigen::AlignedBox3d workspace{Eigen::Vector3d::Constant(-1e300), Eigen::Vector3d::Constant(1e300)};
+  /// Peak force the device may be commanded, N; +inf: no limit of its own (simulated devices).
+  /// The safety layer's limit is min(this, the configured F_max), whatever the options say.
+  double max_force = std::numeric_limits<double>::infinity();
+  /// Force the device may hold continuously, N (its motors heat up above it); +inf: none known.
+  /// The safety layer bounds the time-averaged force by it (SafetyParams::continuous_window).
+  double max_continuous_force = std::numeric_limits<double>::infinity();
+  /// Highest stable stiffness the vendor gives, N/m; 0: not given.
+  double max_stiffness = 0;
+  /// Where max_force and max_continuous_force come from (e.g. "HD_NOMINAL_MAX_FORCE"), for the
+  /// run summary; empty: no limit of its own.
+  std::string limit_source;
+  /// The device renders torque (6-DoF output). When false the runtime sends force only.
+  bool renders_torque = false;
+  Calibration calibration = Calibration::kNotApplicable;
+};
+
+/// An event a device counted during a session (for the run summary), e.g. writes the device
+/// saturated or malformed network messages.
+struct DeviceCounter {
+  std::string name;
+  std::uint64_t count = 0;
 };
 
 /// A haptic device as the runtime sees it.
@@ -66,6 +101,12 @@ class HapticDevice {
   virtual void stop(Nanos now) noexcept = 0;
   /// True when the device has nothing more to give (a replay at its end); the runtime then stops.
   [[nodiscard]] virtual bool finished() const noexcept { return false; }
+  /// One line on the device's own state for people (vendor status, calibration, link); empty:
+  /// nothing to say. Not for the servo thread.
+  [[nodiscard]] virtual std::string status() const { return {}; }
+  /// What the device counted in its current or last session (saturated writes, stale commands,
+  /// reconnects); only non-zero counts need be listed. Not for the servo thread.
+  [[nodiscard]] virtual std::vector<DeviceCounter> counters() const { return {}; }
 };
 
 }  // namespace gshaptics

@@ -25,7 +25,11 @@ struct RuntimeStats {
   std::atomic<std::uint64_t> outside_workspace_ticks{0};
   std::atomic<std::uint64_t> force_limited_ticks{0};
   std::atomic<std::uint64_t> rate_limited_ticks{0};
+  std::atomic<std::uint64_t> continuous_limited_ticks{0};  ///< kFlagContinuousLimited
   std::atomic<std::uint64_t> results_used{0};     ///< distinct collision results rendered
+  std::atomic<double> force_limit{0};             ///< peak limit in force, N (set at start)
+  std::atomic<double> continuous_force_limit{0};  ///< the device's continuous force, N (+inf: none)
+  std::atomic<bool> force_limit_by_device{false}; ///< the device's limit is below the configured F_max
   std::atomic<std::uint32_t> last_contacts{0};
   std::atomic<double> last_force{0};              ///< |F| sent on the last tick, N
   std::atomic<double> peak_force{0};              ///< largest |F| sent, N
@@ -49,8 +53,11 @@ struct RuntimeSummary {
   std::uint64_t deadline_misses = 0, skipped_periods = 0, stale_ticks = 0, fading_ticks = 0,
                 faded_ticks = 0, fades = 0, no_result_ticks = 0, watchdog_ticks = 0,
                 invalid_pose_ticks = 0, outside_workspace_ticks = 0, force_limited_ticks = 0,
-                rate_limited_ticks = 0, results_used = 0;
+                rate_limited_ticks = 0, continuous_limited_ticks = 0, results_used = 0;
   double peak_force = 0;  ///< N
+  double force_limit = 0;  ///< peak limit applied: min(configured F_max, device's peak force), N
+  double continuous_force_limit = 0;  ///< the device's continuous force, N (+inf: none)
+  bool force_limit_by_device = false;  ///< the device's own limit bound (it is below F_max)
 };
 
 /// Builds the summary from the counters and the worker's latency histogram.

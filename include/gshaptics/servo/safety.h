@@ -8,8 +8,12 @@
 ///      then faded linearly to zero over `fade_time` (the paper's asynchronous hold, bounded);
 ///   3. soft start: force scaled by a ramp 0 -> 1 over `ramp_time` after start and every resume,
 ///      applied to the limited force (so |F| <= ramp * f_max while it ramps);
-///   4. force limit: |F| <= f_max, the device's force limit, which the force model also clamps
-///      to (ForceParams::f_max, paper eq. 11): one value, given to both;
+///   4. force limit: |F| <= f_max = min(the configured F_max, the device's own peak force
+///      (DeviceInfo::max_force)), whatever the options say; then the continuous limit: the
+///      force's mean square over an exponential window of `continuous_window` s is kept at or
+///      below the device's continuous force squared (DeviceInfo::max_continuous_force), the I^2 t
+///      motor protection of servo drives (heat ~ current^2 ~ force^2): short peaks up to f_max
+///      pass, a sustained push settles at the continuous force;
 ///   5. force-rate limit: |F(t) - F(t - dt)| <= max_force_rate * dt.
 /// A stop request ramps the force to zero through the rate limit, then the loop ends.
 ///
@@ -18,6 +22,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <limits>
 
 #include "gshaptics/force/force_model.h"
 #include "gshaptics/servo/clock.h"
@@ -31,6 +36,18 @@ struct SafetyParams {
   double fade_time = 0.020;       ///< linear fade after hold_timeout, s
   double ramp_time = 0.5;         ///< soft start, s
   double device_timeout = 0.010;  ///< watchdog: device data older than this zeroes the force, s
+  /// Time constant of the continuous-force (I^2 t) average, s. The RMS force over this window
+  /// stays at or below the device's continuous force.
+  double continuous_window = 2.0;
+};
+
+/// The force limits in force for a run, and what set them.
+struct ForceLimits {
+  double f_max = 30;            ///< peak limit applied, N
+  double option_f_max = 30;     ///< the configured F_max, N
+  double device_max = 0;        ///< the device's own peak force, N (+inf: none)
+  double continuous = 0;        ///< the device's continuous force, N (+inf: none)
+  bool bound_by_device = false; ///< f_max is the device's limit, below the configured one
 };
 
 /// Why a tick's force differs from the force model's (bit flags, several may be set).
@@ -46,6 +63,7 @@ enum SafetyFlag : std::uint32_t {
   kFlagInvalidPose = 1u << 8,   ///< NaN/Inf in the device sample: force zero, pose not used
   kFlagOutsideWorkspace = 1u << 9,  ///< tool centre outside the device workspace: force zero
   kFlagStopping = 1u << 10,     ///< stop requested: ramping down to zero
+  kFlagContinuousLimited = 1u << 11,  ///< held below f_max by the device's continuous-force budget
 };
 
 /// What the safety layer knows at one tick.
@@ -69,21 +87,32 @@ struct SafetyOutput {
 
 class SafetyFilter {
  public:
-  /// `f_max`: the device's force limit, N (> 0); the runtime passes ForceParams::f_max.
+  /// `f_max`: the configured force limit, N (> 0); the runtime passes ForceParams::f_max.
   explicit SafetyFilter(const SafetyParams& params = {}, double f_max = ForceParams{}.f_max)
-      : params_(params), f_max_(f_max) {}
-  /// Arms the soft start at `now` (call at start).
+      : params_(params), f_max_(f_max), option_f_max_(f_max) {}
+  /// The device's own limits (DeviceInfo::max_force, ::max_continuous_force; N, +inf: none):
+  /// the peak limit becomes min(configured F_max, device peak). Call after the device started
+  /// (vendor drivers learn their limits then); ServoController::start does.
+  void set_device_limits(double peak, double continuous) noexcept;
+  /// Arms the soft start at `now` and empties the continuous-force average (call at start).
   void reset(Nanos now) noexcept;
   /// One tick; `dt` is the time since the previous tick, s (> 0).
   SafetyOutput apply(const SafetyInput& in, double dt) noexcept;
   [[nodiscard]] const SafetyParams& params() const noexcept { return params_; }
+  /// The peak force limit in force, N: min(configured F_max, the device's peak force).
   [[nodiscard]] double f_max() const noexcept { return f_max_; }
+  [[nodiscard]] ForceLimits limits() const noexcept;
+  /// The continuous-force average: mean square force over the window, N^2.
+  [[nodiscard]] double mean_square_force() const noexcept { return heat_; }
   /// The force last sent, N.
   [[nodiscard]] const Eigen::Vector3d& last_force() const noexcept { return last_; }
 
  private:
   SafetyParams params_;
-  double f_max_;
+  double f_max_, option_f_max_;
+  double device_peak_ = std::numeric_limits<double>::infinity();
+  double continuous_ = std::numeric_limits<double>::infinity();
+  double heat_ = 0;  // mean square of the force sent over continuous_window, N^2
   Eigen::Vector3d last_ = Eigen::Vector3d::Zero();
   Nanos ramp_start_ = 0;
   bool gated_ = false;  // gate 1 closed on the previous tick: re-arm the ramp when it opens

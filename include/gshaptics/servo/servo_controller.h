@@ -29,8 +29,10 @@ class ServoController {
                   PoseChannel& poses, ResultChannel& results, RuntimeStats& stats, TickLog* log,
                   Clock& clock, TripleBuffer<TickRecord>* monitor = nullptr);
 
-  /// Starts the device and arms the soft start; `now` becomes the run's time zero. Throws what
-  /// the device's start() throws.
+  /// Starts the device, applies its own force limits to the safety layer (the limit becomes
+  /// min(f_max, DeviceInfo::max_force); the continuous limit DeviceInfo::max_continuous_force),
+  /// and arms the soft start; `now` becomes the run's time zero. Throws what the device's
+  /// start() throws.
   void start(Nanos now);
   /// One tick scheduled at `scheduled` (absolute, ns), run now. In the inline mode pass the
   /// worker: it runs between publishing the pose and reading the result. Returns the time the
@@ -48,6 +50,8 @@ class ServoController {
 
   [[nodiscard]] const SafetyFilter& safety() const noexcept { return safety_; }
   [[nodiscard]] Nanos start_time() const noexcept { return t0_; }
+  /// The force last written to the device, N (zero after finish()).
+  [[nodiscard]] const Eigen::Vector3d& last_written() const noexcept { return last_written_; }
 
  private:
   HapticDevice& device_;
@@ -63,6 +67,7 @@ class ServoController {
   std::uint64_t last_device_seq_ = 0, pose_seq_ = 0;
   bool have_device_data_ = false, stopping_ = false, was_fading_ = false;
   CollisionResult result_;
+  Eigen::Vector3d last_written_ = Eigen::Vector3d::Zero();
 };
 
 }  // namespace gshaptics

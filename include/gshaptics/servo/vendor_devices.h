@@ -46,6 +46,19 @@ namespace gshaptics {
 /// A force (N) in the device frame -> HD frame (N; no unit change).
 [[nodiscard]] Eigen::Vector3d device_force_to_hd(const Eigen::Vector3d& f) noexcept;
 
+/// What gshaptics knows of a DHD device type (dhdGetSystemType): the vendor's rated
+/// translational force and translational workspace (a cylinder, diameter x height, m), as Force
+/// Dimension's and Novint's product specifications give them.
+struct DhdDeviceType {
+  int system_type = -1;  ///< DHD_DEVICE_* (dhdc.h)
+  std::string name;
+  double rated_force = 0;         ///< N
+  double workspace_diameter = 0;  ///< m
+  double workspace_height = 0;    ///< m
+};
+/// The type table; an unknown code gets the family's lowest rating and smallest workspace.
+[[nodiscard]] const DhdDeviceType& dhd_device_type(int system_type) noexcept;
+
 /// A Force Dimension device through libdhd (DHD API).
 class DhdDevice final : public HapticDevice {
  public:
@@ -58,7 +71,10 @@ class DhdDevice final : public HapticDevice {
   DhdDevice& operator=(const DhdDevice&) = delete;
 
   [[nodiscard]] const DeviceInfo& info() const noexcept override { return info_; }
-  /// dhdOpenID, reads the status (power, connected, reset/calibration, error), commands zero
+  /// dhdOpenID; dhdGetStatus, and refuses (closes, InputError saying what to do) a device that
+  /// is not powered, not connected, in error or in RESET mode (not calibrated); takes the force
+  /// limit from the device type's rating (dhdGetSystemType), or dhdGetMaxForce when a lower
+  /// software limit is set, and the workspace from the type; measures the rate; commands zero
   /// force, then dhdEnableForce(on). Throws InputError naming the index and dhdErrorGetLastStr().
   void start(Nanos now) override;
   /// Position, velocity and buttons 0-3. A failed read returns the previous sample (same
@@ -67,8 +83,13 @@ class DhdDevice final : public HapticDevice {
   void write(const Wrench& wrench, Nanos now) noexcept override;
   /// Zero force, force off, dhdClose.
   void stop(Nanos now) noexcept override;
-  /// What dhdGetStatus said at start ("powered, connected, force on" or what is wrong).
-  [[nodiscard]] const std::string& status() const noexcept { return status_; }
+  /// What dhdGetStatus said at start, with the device type, its force rating and the rate.
+  [[nodiscard]] std::string status() const override;
+  /// "saturated writes" (dhdSetForce returned DHD_MOTOR_SATURATED).
+  [[nodiscard]] std::vector<DeviceCounter> counters() const override;
+  /// dhdSetForce calls that returned DHD_MOTOR_SATURATED in this session.
+  [[nodiscard]] std::uint64_t saturated_writes() const noexcept { return saturated_.load(std::memory_order_relaxed); }
+  [[nodiscard]] const DhdDeviceType& device_type() const noexcept { return type_; }
 
   struct Api;  // the DHD functions, resolved with dlsym
 
@@ -77,6 +98,8 @@ class DhdDevice final : public HapticDevice {
   int index_ = 0;
   char id_ = -1;
   bool open_ = false;
+  DhdDeviceType type_;
+  std::atomic<std::uint64_t> saturated_{0};
   DeviceInfo info_;
   DeviceSample last_;
   std::string status_;
@@ -88,6 +111,9 @@ struct OpenHapticsParams {
   std::string device_name;
   /// The servo thread has not written a force for this long: the HD callback commands zero. s.
   double command_timeout = 0.05;
+  /// A device that needs manual calibration (stylus in the inkwell) is waited for this long at
+  /// start, polling its calibration inside a servo frame; then start() refuses. s.
+  double calibration_wait = 5.0;
 };
 
 namespace detail {
@@ -113,22 +139,30 @@ class OpenHapticsDevice final : public HapticDevice {
   OpenHapticsDevice& operator=(const OpenHapticsDevice&) = delete;
 
   [[nodiscard]] const DeviceInfo& info() const noexcept override { return info_; }
-  /// hdInitDevice; reads the usable workspace, nominal max force and update rate; checks the
-  /// calibration (updates it when the device can do so itself; InputError asking to put the
-  /// stylus in the inkwell when it needs the user); enables force output and starts the
-  /// scheduler with the servo callback. Throws InputError with the HD error code.
+  /// hdInitDevice; reads the usable workspace, the nominal peak and continuous force, stiffness,
+  /// output DOF and update rate into info(); starts the scheduler; checks the calibration inside
+  /// a frame on the scheduler (hdScheduleSynchronous, as the vendor's Calibration example does),
+  /// updates it when the device can do so itself, waits up to calibration_wait for manual
+  /// input (inkwell) and otherwise refuses with InputError before any force is enabled; then
+  /// schedules the servo callback and enables force output. Every start() after a stop() is a
+  /// fresh session. Throws InputError with the HD error code.
   void start(Nanos now) override;
   [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
   void write(const Wrench& wrench, Nanos now) noexcept override;
   /// Zero force (waits up to 50 ms for the callback to apply it), stops the scheduler,
   /// unschedules the callback, disables the device.
   void stop(Nanos now) noexcept override;
-  [[nodiscard]] const std::string& status() const noexcept { return status_; }
-  /// Nominal max force, N (HD_NOMINAL_MAX_FORCE), after start; 0 before.
+  /// Calibration state and the nominal limits read at start.
+  [[nodiscard]] std::string status() const override;
+  /// "stale commands zeroed", "HD frame errors", "stops without a confirmed zero frame".
+  [[nodiscard]] std::vector<DeviceCounter> counters() const override;
+  /// Nominal max force, N (HD_NOMINAL_MAX_FORCE), after start; 0 before. Also info().max_force.
   [[nodiscard]] double max_force() const noexcept { return max_force_; }
   /// HD callbacks run so far, and how many of them zeroed a stale command.
   [[nodiscard]] std::uint64_t callbacks() const noexcept { return callbacks_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::uint64_t stale_commands() const noexcept { return stale_.load(std::memory_order_relaxed); }
+  /// Stops whose final zero-force frame the callback did not confirm within 50 ms.
+  [[nodiscard]] std::uint64_t unconfirmed_stops() const noexcept { return unconfirmed_stops_.load(std::memory_order_relaxed); }
 
   struct Api;
   /// The HD scheduler callback's body (public for the C trampoline only).
@@ -148,7 +182,7 @@ class OpenHapticsDevice final : public HapticDevice {
   TripleBuffer<Sample> samples_{Sample{}};
   TripleBuffer<Command> commands_{Command{}};
   std::atomic<bool> running_{false};
-  std::atomic<std::uint64_t> callbacks_{0}, stale_{0}, hd_errors_{0};
+  std::atomic<std::uint64_t> callbacks_{0}, stale_{0}, hd_errors_{0}, unconfirmed_stops_{0};
   std::atomic<bool> zero_applied_{false};
   // Callback thread only:
   std::uint64_t produced_ = 0;

@@ -75,6 +75,8 @@ class MappedDevice final : public HapticDevice {
   void write(const Wrench& wrench, Nanos now) noexcept override;
   void stop(Nanos now) noexcept override;
   [[nodiscard]] bool finished() const noexcept override { return inner_.finished(); }
+  [[nodiscard]] std::string status() const override { return inner_.status(); }
+  [[nodiscard]] std::vector<DeviceCounter> counters() const override { return inner_.counters(); }
   [[nodiscard]] const WorkspaceMapping& mapping() const noexcept { return mapping_; }
 
  private:
