@@ -190,6 +190,37 @@ class Simulate(unittest.TestCase):
         self.assertIn("query time p50", p.stdout)
         self.assertFalse(any(n.endswith(".tmp") for n in os.listdir(out)))
 
+    def test_simulate_and_a_replay_of_its_log_command_the_same_force(self):
+        """One servo step: `simulate` and `run --device replay:LOG --simulated-time` give the same
+        force tick by tick (within 1 % of the peak) and the same energy W, in both modes."""
+        for mode in (["--inline"], ["--decoupled", "--latency", "2"]):
+            sim_out, rep_out = tempfile.mkdtemp(), tempfile.mkdtemp()
+            run("simulate", "--sites", "2", "--out", sim_out, "--quiet", "--no-plot", *mode)
+            summary = load_json(os.path.join(sim_out, "summary.json"))
+            run("run", "--device", "replay:" + os.path.join(sim_out, "probe_log.csv"), "--simulated-time",
+                "--tool-radius", repr(summary["tool_radius"]), "--quiet", "--no-plot", "--out", rep_out, *mode)
+            a = read_log(os.path.join(sim_out, "probe_log.csv"))
+            b = read_log(os.path.join(rep_out, "servo_log.csv"))
+            force = lambda r: (float(r["fx"]), float(r["fy"]), float(r["fz"]))
+            peak = max(math.hypot(*force(r)) for r in a)
+            self.assertGreater(peak, 1.0, mode)
+            n = min(len(a), len(b)) - 1
+            self.assertGreater(n, 0.99 * len(a))
+            worst = max(math.dist(force(a[i]), force(b[i])) for i in range(n))
+            self.assertLessEqual(worst, 0.01 * peak, mode)
+
+            def energy(rows):
+                w = 0.0
+                for i in range(n - 1):
+                    f0, f1 = force(rows[i]), force(rows[i + 1])
+                    dx = [float(rows[i + 1][k]) - float(rows[i][k]) for k in "xyz"]
+                    w -= 0.5 * sum((f0[j] + f1[j]) * dx[j] for j in range(3))
+                return w
+            self.assertAlmostEqual(energy(a), energy(b), delta=0.01 * abs(energy(a)) + 1e-6)
+            rs = load_json(os.path.join(rep_out, "run_summary.json"))
+            self.assertTrue(rs["simulated_time"])
+            self.assertEqual(summary["mode"], "inline" if mode[0] == "--inline" else "decoupled, 2 ticks latency")
+
 
 def read_log(path):
     with open(path) as f:
@@ -209,7 +240,7 @@ class Run(unittest.TestCase):
         self.assertGreaterEqual(rt["ticks"] + rt["skipped_periods"], 5000)
         self.assertGreater(rt["ticks"], 4500)
         self.assertEqual(len(self.log), rt["ticks"])
-        self.assertEqual(self.summary["mode"], "decoupled")
+        self.assertEqual(self.summary["mode"], "inline")  # the runtime's default (kDefaultInlineQuery)
         for key in ("jitter_us", "result_age_us", "held", "fading", "flags", "desired_fx"):
             self.assertIn(key, self.log[0])
         self.assertEqual([float(self.log[-1][k]) for k in ("fx", "fy", "fz")], [0.0, 0.0, 0.0])

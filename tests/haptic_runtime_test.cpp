@@ -201,7 +201,9 @@ TEST_F(RealTime, InlineModeRendersEveryTickFresh) {
 TEST_F(RealTime, StalledWorkerFadesAndRecovers) {
   SimulatedDevice device(*trajectory_);
   StallingObserver stall(/*at_seconds=*/1.4, /*seconds=*/0.15);  // fault at ~1.4 s for 150 ms
-  HapticRuntime rt(*world_, device, config(1000, 3.0));
+  RuntimeConfig c = config(1000, 3.0);
+  c.inline_query = false;  // the worker thread is what stalls
+  HapticRuntime rt(*world_, device, c);
   rt.set_observer(&stall);
   rt.start();
   rt.wait();

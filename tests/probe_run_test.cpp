@@ -54,7 +54,10 @@ TEST_F(TruckRun, SevenSitesEachTouchedWithForceAwayFromTheSurface) {
     EXPECT_GT(s.normal.z(), -0.2);  // reachable from above
   }
   const ProbeRunResult run = run_probe(*world_, traj, {});
-  ASSERT_EQ(run.ticks.size(), std::size_t(std::ceil((traj.duration() + 0.5) * 1000)));
+  // Every tick of the trajectory and its 0.5 s rest, then the stop ramp (at most 0.1 s).
+  const std::size_t planned = std::size_t(std::ceil((traj.duration() + 0.5) * 1000));
+  ASSERT_GE(run.ticks.size(), planned);
+  ASSERT_LE(run.ticks.size(), planned + 102);
   // Each site: within its press window the tool touches and the rendered force points out of
   // the surface (positive along the site's outward normal).
   for (const auto& s : traj.sites()) {
@@ -73,11 +76,15 @@ TEST_F(TruckRun, SevenSitesEachTouchedWithForceAwayFromTheSurface) {
     EXPECT_GT(along_normal, 0.0) << "site " << s.gaussian_index;
   }
   EXPECT_GE(run.episodes.size(), 7u);
-  // Without contact there is never force (paper Sec. V-A b).
+  // Without contact the renderer asks for no force (paper Sec. V-A b), and the force commanded
+  // only falls (the safety layer's rate limit ramps it down within a tick or two).
+  double prev = 0;
   for (const auto& t : run.ticks) {
     if (t.counts.contacts == 0) {
-      ASSERT_EQ(t.force.norm(), 0.0);
+      ASSERT_EQ(t.desired.norm(), 0.0) << t.time;
+      ASSERT_LE(t.force.norm(), prev + 1e-12) << t.time;
     }
+    prev = t.force.norm();
   }
 }
 

@@ -60,6 +60,7 @@ void register_fidelity(CLI::App& app) {
     std::string scene_dir = "runs/fidelity/scenes";
     std::uint64_t seed = 1;
     ForceModelOptions force;
+    ExecutionOptions exec;
     SynthParams synth;
   };
   auto o = std::make_shared<Options>();
@@ -68,7 +69,8 @@ void register_fidelity(CLI::App& app) {
       "Measure the rendered force against analytic ground truth: ground-truth scenes of eight "
       "shapes at 2, 4 and 8 mm Gaussian spacing, presses at 20 sites (cube edges and corners "
       "included), slides and push-throughs with 5 and 10 mm sphere tools, played by an ideal "
-      "position-controlled device at 1 kHz. Writes a Markdown report with one table per scenario "
+      "position-controlled device at 1 kHz through the runtime's servo step (safety layer and "
+      "execution mode included; every press also in the other mode for its energy W). Writes a Markdown report with one table per scenario "
       "(onset, direction error, stiffness and its ratio across densities, hold-through, energy, "
       "tick cost) and figures. --quick runs a small subset (CI).");
   cmd->add_flag("--quick", o->quick, "One density, one tool, 4 sites, 4 shapes");
@@ -80,6 +82,7 @@ void register_fidelity(CLI::App& app) {
   cmd->add_option("--floater-share", o->synth.floater_share, "Floaters per surface Gaussian in the scenes")
       ->capture_default_str()->check(check::range(0.0, 1.0));
   add_force_options(*cmd, o->force);
+  add_execution_options(*cmd, o->exec, /*simulated=*/true);
   cmd->callback([o] {
     FidelityOptions fo = o->quick ? quick_fidelity_options() : FidelityOptions{};
     fo.force_model = o->force.model;
@@ -87,6 +90,8 @@ void register_fidelity(CLI::App& app) {
     fo.proxy = o->force.proxy;
     fo.seed = o->seed;
     fo.synth = o->synth;
+    fo.play.inline_query = o->exec.inline_query;
+    fo.play.latency_ticks = o->exec.latency_ticks;
     const std::filesystem::path out(o->out);
     if (out.extension() != ".md") throw InputError("fidelity: --out " + o->out + ": expected a .md file");
     const std::string data_dir =
@@ -99,6 +104,10 @@ void register_fidelity(CLI::App& app) {
     });
     write_fidelity_data(rep, data_dir);
     std::string command = "gshaptics fidelity --force-model " + fo.force_model + (o->quick ? " --quick" : "") +
+                          (o->exec.inline_query != RuntimeConfig{}.inline_query
+                               ? std::string(o->exec.inline_query ? " --inline" : " --decoupled")
+                               : std::string()) +
+                          (o->exec.latency_ticks != 1 ? fmt::format(" --latency {}", o->exec.latency_ticks) : std::string()) +
                           (o->synth.floater_share != SynthParams{}.floater_share
                                ? fmt::format(" --floater-share {:g}", o->synth.floater_share)
                                : std::string());

@@ -126,6 +126,7 @@ void register_node(CLI::App& app) {
   add_topic_options(*cmd, o->topics);
   cmd->callback([o] {
     if (!o->ros2 && !o->ros1) throw InputError("node: give --ros2 or --ros1");
+    if (o->run.simulated_time) throw InputError("--simulated-time: node runs in real time (use `run --simulated-time`)");
     if (o->run.device != "ros" && !is_hardware_device(o->run.device))
       throw InputError("--device: node takes 'ros' (default), 'haply[:N]', 'dhd[:N]' or 'openhaptics[:NAME]', got '" +
                        o->run.device + "'");

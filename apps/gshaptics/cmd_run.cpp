@@ -7,6 +7,7 @@
 
 #include "commands.h"
 #include "runtime_cli.h"
+#include "gshaptics/error.h"
 
 namespace gshaptics::cli {
 
@@ -27,10 +28,21 @@ void register_run(CLI::App& app) {
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->scene, "run");
     check_device_option(o->device, /*allow_mouse=*/false);  // before the (slow) scene load
+    if (o->simulated_time && o->device != "sim" && o->device.rfind("replay:", 0) != 0)
+      throw InputError("--simulated-time: only the sim and replay:FILE devices run on simulated time, not '" +
+                       o->device + "'");
     prepare_run_out_dir(*o, so);
     const PreparedWorld pw = prepare_world(so, o->quiet);
     warn_if_outside_profile(pw, o->force);
     RuntimeSetup setup = make_runtime_setup(*o, so, pw, false);
+    if (o->simulated_time) {
+      SimulatedRuntime sim(pw.world, *setup.device, setup.config);
+      Progress bar("simulating", !o->quiet);
+      sim.run([&](double f) { bar(f); });
+      bar.done();
+      if (!write_run_outputs(sim, *o, so, pw, setup, "run")) set_exit_code(1);
+      return;
+    }
     HapticRuntime rt(pw.world, *setup.device, setup.config);
     const bool interrupted = run_live(rt, setup.planned, o->quiet);
     if (!write_run_outputs(rt, *o, so, pw, setup, interrupted, "run")) set_exit_code(1);

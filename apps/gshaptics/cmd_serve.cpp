@@ -130,6 +130,7 @@ void register_serve(CLI::App& app) {
   cmd->add_option("--idle-timeout", o->limits.idle_timeout_s, "Close a WebSocket peer that answers no ping this long, s")
       ->capture_default_str()->check(check::range(1.0, 3600.0));
   cmd->callback([o] {
+    if (o->run.simulated_time) throw InputError("--simulated-time: serve runs in real time (use `run --simulated-time`)");
     const SceneOptions so = with_bundled_defaults(o->run.scene, "serve");
     check_device_option(o->run.device, /*allow_mouse=*/true);
     prepare_run_out_dir(o->run, so);

@@ -25,6 +25,8 @@ struct SimulateOptions {
   double tool_radius = 0;  // 0: 1% of the scene's robust extent
   double rate = 1000;
   ForceModelOptions force;
+  ExecutionOptions exec;
+  SafetyParams safety;
   bool no_plot = false;
   bool quiet = false;
 };
@@ -36,9 +38,10 @@ void register_simulate(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "simulate",
       "Simulated probe run (the main job): a seeded trajectory touches N sites on the object's "
-      "outer surface; a simulated hand drives a simulated admittance device; every 1 kHz tick "
-      "runs the collision query and force model inline. Writes probe_log.csv, summary.json and "
-      "probe_run.png (the paper's Fig. 5) to --out. Without SCENE, runs the bundled Truck.");
+      "outer surface; a simulated hand drives a simulated admittance device; every 1 kHz tick of "
+      "simulated time runs the servo step of a real-time run (safety layer included) in the "
+      "runtime's execution mode. Writes probe_log.csv, summary.json and probe_run.png (the "
+      "paper's Fig. 5) to --out. Without SCENE, runs the bundled Truck.");
   cmd->add_option("scene", o->scene.scene, "Scene file (default: bundled data/truck.splat, registered z-up in metres)");
   cmd->add_option("--out", o->out_dir, "Output folder (default: runs/<scene name>)");
   cmd->add_option("--sites", o->sites, "Contact sites to probe")->capture_default_str()
@@ -50,6 +53,7 @@ void register_simulate(CLI::App& app) {
   cmd->add_option("--rate", o->rate, "Servo rate of the simulation, Hz")->capture_default_str()
       ->check(check::range(100.0, 20000.0));
   add_force_options(*cmd, o->force);
+  add_execution_options(*cmd, o->exec, /*simulated=*/true);
   cmd->add_flag("--no-plot", o->no_plot, "Do not draw probe_run.png (needs /usr/bin/python3 with matplotlib)");
   cmd->add_flag("--quiet", o->quiet, "No progress bars");
   add_world_options(*cmd, o->scene);
@@ -65,7 +69,8 @@ void register_simulate(CLI::App& app) {
     const WorldConfig& cfg = pw.config;
     const LoadedScene& s = pw.scene;
     const ProbeTrajectory traj = make_probe_trajectory(pw, is_registered(so), o->sites, o->seed, o->tool_radius);
-    fmt::print("rate       {:.0f} Hz of simulated time (as fast as the CPU allows)\n", o->rate);
+    fmt::print("rate       {:.0f} Hz of simulated time (as fast as the CPU allows), {}\n", o->rate,
+               describe_execution(o->exec, true));
 
     std::fflush(stdout);  // the progress bar goes to stderr: keep the lines above first
     ProbeRunParams rp;
@@ -73,6 +78,9 @@ void register_simulate(CLI::App& app) {
     rp.force_model = o->force.model;
     rp.force = o->force.force;
     rp.proxy = o->force.proxy;
+    rp.inline_query = o->exec.inline_query;
+    rp.latency_ticks = o->exec.latency_ticks;
+    rp.safety = o->safety;
     Progress bar("simulating", !o->quiet);
     const ProbeRunResult run = run_probe(world, traj, rp, [&](double f) { bar(f); });
     bar.done();
@@ -95,6 +103,7 @@ void register_simulate(CLI::App& app) {
     sj["min_opacity"] = cfg.min_opacity;
     sj["tool_radius"] = traj.tool_radius();
     sj["rate_hz"] = o->rate;
+    sj["mode"] = describe_execution(o->exec, true);
     sj["ticks"] = run.ticks.size();
     sj["query_us"] = {{"p50", run.query_time.p50_us}, {"p99", run.query_time.p99_us},
                       {"max", run.query_time.max_us}, {"ticks_over_1ms", run.query_time.over_1ms}};

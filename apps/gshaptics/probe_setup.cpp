@@ -28,6 +28,26 @@ std::string shell_quote(const std::string& s) {
 
 }  // namespace
 
+void add_execution_options(CLI::App& cmd, ExecutionOptions& o, bool simulated) {
+  const bool inline_default = RuntimeConfig{}.inline_query;
+  cmd.add_flag_callback("--inline", [&o] { o.inline_query = true; },
+                        std::string("Run the query inside the servo tick") + (inline_default ? " (default)" : ""));
+  cmd.add_flag_callback("--decoupled", [&o] { o.inline_query = false; },
+                        std::string("Run the query on the collision worker (the paper's split; the force is one "
+                                    "to two ticks old)") + (inline_default ? "" : " (default)"));
+  if (simulated)
+    cmd.add_option("--latency", o.latency_ticks,
+                   "Simulated time, decoupled mode: ticks from a pose to the first tick that renders its result "
+                   "(a real-time run's worker answers within 1-2)")
+        ->capture_default_str()->check(CLI::Range(1, 100));
+}
+
+std::string describe_execution(const ExecutionOptions& o, bool simulated) {
+  if (o.inline_query) return "inline";
+  return simulated ? fmt::format("decoupled, {} tick{} latency", o.latency_ticks, o.latency_ticks == 1 ? "" : "s")
+                   : std::string("decoupled (worker thread)");
+}
+
 void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
   cmd.add_option("--force-model", o.model,
                  std::string("Force model: proxy (god-object on the Gaussians, virtual coupling in N/m) "

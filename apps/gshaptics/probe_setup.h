@@ -9,6 +9,7 @@
 #include "common.h"
 #include "gshaptics/force/force_model.h"
 #include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/sim/probe_trajectory.h"
 
 namespace gshaptics::cli {
@@ -20,6 +21,18 @@ struct ForceModelOptions {
   ProxyParams proxy;
   std::string profile;  ///< --device-profile: "" (none), desktop or room
 };
+
+/// How the servo step runs: inline (query inside the tick) or the decoupled worker, and, on
+/// simulated time, the worker's latency in ticks.
+struct ExecutionOptions {
+  bool inline_query = RuntimeConfig{}.inline_query;
+  int latency_ticks = RuntimeConfig{}.latency_ticks;
+};
+
+/// Adds --inline, --decoupled and (when `simulated`) --latency. The default is the runtime's.
+void add_execution_options(CLI::App& cmd, ExecutionOptions& o, bool simulated);
+/// "inline" or "decoupled (worker thread)" / "decoupled, N tick(s) latency" on simulated time.
+std::string describe_execution(const ExecutionOptions& o, bool simulated);
 
 /// Adds --force-model, the paper model's --k-base, --damping, --tau-normal, --tau-opacity, the
 /// proxy's --stiffness, --coupling-damping, --mu-s, --mu-k, --opacity-stiffness, --substeps, and

@@ -105,7 +105,10 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
                  "Run length, s (default: one pass of the probe trajectory for sim, the log's "
                  "length for replay, until Ctrl-C for mouse; a longer sim run repeats the trajectory)")
       ->check(check::positive());
-  cmd.add_flag("--inline", o.inline_query, "Run the query inside the servo tick instead of on the worker thread");
+  add_execution_options(cmd, o.exec, /*simulated=*/true);
+  cmd.add_flag("--simulated-time", o.simulated_time,
+               "Run on simulated time (as fast as the CPU allows, deterministic) through the same servo step: "
+               "sim and replay devices only; --latency sets the decoupled worker's latency in ticks");
   cmd.add_option("--candidate-cache", o.candidate_cache,
                  "Servo-loop candidate cache of the paper model's contact query: margin as a fraction of the "
                  "tool radius (the BVH leaves near the tool are reused while the tool stays within it; "
@@ -416,7 +419,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
   if (!is_hardware_device(o.device)) wrap_in_workspace_mapping(o, s);
   s.config = runtime_config_from(o, s.tool_radius, s.planned);
   fmt::print("runtime    {} at {:.0f} Hz, {} query, {}\n", s.device->info().name, o.rate,
-             o.inline_query ? "inline" : "decoupled (worker thread)",
+             describe_execution(o.exec, false),
              s.planned > 0 ? fmt::format("{:.1f} s", s.planned) : std::string("until the device ends or Ctrl-C"));
   std::fflush(stdout);
   return s;
@@ -425,7 +428,8 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
 RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, double planned) {
   RuntimeConfig rc;
   rc.rate_hz = o.rate;
-  rc.inline_query = o.inline_query;
+  rc.inline_query = o.exec.inline_query;
+  rc.latency_ticks = o.exec.latency_ticks;
   rc.duration = planned;
   rc.tool.semi_axes = Eigen::Vector3d::Constant(tool_radius);
   rc.force_model = o.force.model;
@@ -474,11 +478,31 @@ void prepare_run_out_dir(RuntimeOptions& o, const SceneOptions& so) {
   o.out_dir = prepare_out_dir(o.out_dir, so.scene, {"servo_log.csv", "run_summary.json", "run.png"});
 }
 
+namespace {
+bool write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector<std::string>& warnings,
+                   const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
+                   const RuntimeSetup& setup, bool interrupted, const std::string& command,
+                   const nlohmann::json& extra);
+}  // namespace
+
 bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
                        const PreparedWorld& pw, const RuntimeSetup& setup, bool interrupted,
                        const std::string& command, const nlohmann::json& extra) {
-  const RuntimeSummary s = rt.summary();
-  const auto& records = rt.log().records();
+  return write_outputs(rt.summary(), rt.log(), rt.warnings(), o, so, pw, setup, interrupted, command, extra);
+}
+
+bool write_run_outputs(const SimulatedRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
+                       const PreparedWorld& pw, const RuntimeSetup& setup, const std::string& command) {
+  nlohmann::json extra = {{"simulated_time", true}, {"latency_ticks", o.exec.inline_query ? 0 : o.exec.latency_ticks}};
+  return write_outputs(rt.summary(), rt.log(), {}, o, so, pw, setup, false, command, extra);
+}
+
+namespace {
+bool write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector<std::string>& warnings,
+                   const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
+                   const RuntimeSetup& setup, bool interrupted, const std::string& command,
+                   const nlohmann::json& extra) {
+  const auto& records = log.records();
   const std::vector<ContactEpisode> episodes = find_episodes(records);
 
   const std::string out_dir = o.out_dir.empty() ? default_out_dir(so.scene) : o.out_dir;
@@ -506,14 +530,14 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
   sj["registration"] = so.registration_file;
   sj["gaussians_kept"] = pw.world.size();
   sj["device"] = setup.device->info().name;
-  sj["mode"] = o.inline_query ? "inline" : "decoupled";
+  sj["mode"] = o.exec.inline_query ? "inline" : "decoupled";
   sj["tool_radius"] = setup.tool_radius;
   sj["interrupted"] = interrupted;
   sj["runtime"] = to_json(s);
   sj["query_us"] = {{"p50", s.query_p50_us}, {"p99", s.query_p99_us}, {"max", s.query_max_us}};
   sj["log_ticks"] = records.size();
-  sj["log_dropped"] = rt.log().dropped();
-  sj["warnings"] = rt.warnings();
+  sj["log_dropped"] = log.dropped();
+  sj["warnings"] = warnings;
   const std::vector<DeviceCounter> device_counters = setup.device->counters();
   nlohmann::json dc = nlohmann::json::object();
   for (const DeviceCounter& c : device_counters) dc[c.name] = c.count;
@@ -559,9 +583,9 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
     if (c.count > 0) fmt::print("device     {}: {}\n", c.name, c.count);
   fmt::print("episodes   {} contact episodes\n", episodes.size());
   if (episodes.empty() && o.device == "sim" && !interrupted) print_no_contact_hints(pw, so, setup.tool_radius);
-  if (rt.log().dropped() > 0)
+  if (log.dropped() > 0)
     fmt::print(stderr, "warning: the tick log kept the first {} ticks; {} more were not logged\n",
-               records.size(), rt.log().dropped());
+               records.size(), log.dropped());
   if (!write_errors.empty()) {
     for (const std::string& e : write_errors) fmt::print(stderr, "error: the run completed, but {}\n", e);
     set_exit_code(kExitOutputsLost);
@@ -573,5 +597,7 @@ bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const S
   fmt::print("figure     {}\n", png);
   return true;
 }
+
+}  // namespace
 
 }  // namespace gshaptics::cli

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "gshaptics/servo/haptic_runtime.h"
+#include "gshaptics/servo/simulated_runtime.h"
 #include "gshaptics/servo/stream_device.h"
 #include "probe_setup.h"
 
@@ -39,7 +40,8 @@ struct RuntimeOptions {
   std::string device = "sim";
   double rate = 1000;
   double duration = 0;
-  bool inline_query = false;
+  ExecutionOptions exec;
+  bool simulated_time = false;  ///< run on simulated time (SimulatedRuntime): sim and replay devices
   double candidate_cache = 0.25;  ///< candidate cache margin, fraction of the tool radius
   int query_threads = 0;          ///< 0: default_query_threads()
   int sites = 7;
@@ -119,5 +121,8 @@ void prepare_run_out_dir(RuntimeOptions& o, const SceneOptions& so);
 bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
                        const PreparedWorld& pw, const RuntimeSetup& setup, bool interrupted,
                        const std::string& command, const nlohmann::json& extra = nlohmann::json::object());
+/// The same for a run on simulated time (`run --simulated-time`).
+bool write_run_outputs(const SimulatedRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
+                       const PreparedWorld& pw, const RuntimeSetup& setup, const std::string& command);
 
 }  // namespace gshaptics::cli

@@ -15,6 +15,7 @@
 #include "gshaptics/io/atomic_file.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/percentile.h"
+#include "gshaptics/servo/haptic_runtime.h"
 
 namespace gshaptics {
 
@@ -28,8 +29,13 @@ double max_of(const std::vector<double>& v) { return v.empty() ? NAN : *std::max
 
 // Everything gathered for one row before it is summarised.
 struct Pool {
-  std::vector<double> onset, stiffness, hold, energy, dirs, shallow, tick_us, rsd, ton, mean_force;
-  int runs = 0, never_lost = 0, active = 0;
+  std::vector<double> onset, stiffness, hold, energy, energy_other, dirs, shallow, tick_us, rsd, ton, mean_force;
+  int runs = 0, never_lost = 0, active = 0, active_other = 0;
+
+  void add_other_mode(const PressMetrics& m) {
+    energy_other.push_back(m.energy_j);
+    active_other += m.energy_j < 0 ? 1 : 0;
+  }
 
   void add_press(const PressMetrics& m, const ScriptTrace& tr) {
     ++runs;
@@ -65,6 +71,8 @@ struct Pool {
     r.never_lost = never_lost;
     r.energy_min_j = min_of(energy);
     r.active_cycles = active;
+    r.energy_other_min_j = min_of(energy_other);
+    r.active_cycles_other = active_other;
     r.force_rsd = median(rsd);
     r.tangential_over_normal = median(ton);
     r.mean_force = median(mean_force);
@@ -126,6 +134,21 @@ std::string ensure_scene(const FidelityOptions& o, ShapeKind k, double spacing) 
 
 }  // namespace
 
+PlayOptions default_play_options() {
+  const RuntimeConfig c;
+  PlayOptions p;
+  p.inline_query = c.inline_query;
+  p.latency_ticks = c.latency_ticks;
+  p.safety = c.safety;
+  p.f_max = c.force.f_max;
+  return p;
+}
+
+std::string describe_mode(const PlayOptions& p) {
+  return p.inline_query ? std::string("inline")
+                        : fmt::format("decoupled, {} tick{} latency", p.latency_ticks, p.latency_ticks == 1 ? "" : "s");
+}
+
 FidelityOptions quick_fidelity_options() {
   FidelityOptions o;
   o.shapes = {ShapeKind::kPlane, ShapeKind::kSphere, ShapeKind::kCube, ShapeKind::kPlate2mm};
@@ -171,13 +194,18 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
                                            radius * 1e3, sites.size(), pushable ? ", push-throughs" : "",
                                            slidable ? ", a slide" : ""));
         const auto renderer = make_force_renderer(o.force_model, world, o.force, QueryOptions{}, o.proxy);
+        PlayOptions play = o.play, other = o.play;
+        play.f_max = other.f_max = o.force.f_max;
+        other.inline_query = !play.inline_query;
         std::map<std::string, Pool> by_feature;
         bool first_curve = true;
         for (const ContactSite& site : sites) {
           const Script s = press_script(shape, site, radius, o.press_depth, o.rate_hz);
-          const ScriptTrace tr = play_script(*renderer, s, o.rate_hz);
+          const ScriptTrace tr = play_script(*renderer, s, o.rate_hz, play);
           const PressMetrics m = press_metrics(shape, s, tr);
           by_feature[site.feature].add_press(m, tr);
+          if (o.compare_modes)
+            by_feature[site.feature].add_other_mode(press_metrics(shape, s, play_script(*renderer, s, o.rate_hz, other)));
           auto& d = directions[name];
           d.insert(d.end(), m.direction_deg.begin(), m.direction_deg.end());
           rep.ticks += s.ticks.size();
@@ -191,8 +219,9 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
           Pool pool;
           for (std::size_t i = 0; i < push_sites.size(); ++i) {
             const Script s = press_script(shape, push_sites[i], radius, o.push_depth, o.rate_hz);
-            const ScriptTrace tr = play_script(*renderer, s, o.rate_hz);
+            const ScriptTrace tr = play_script(*renderer, s, o.rate_hz, play);
             pool.add_press(press_metrics(shape, s, tr), tr);
+            if (o.compare_modes) pool.add_other_mode(press_metrics(shape, s, play_script(*renderer, s, o.rate_hz, other)));
             rep.ticks += s.ticks.size();
             if (i == 0) rep.curves.push_back(curve_of(s, tr, name, spacing, 5));
           }
@@ -200,7 +229,7 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
         }
         if (slidable) {
           const Script s = slide_script(shape, radius, o.rate_hz);
-          const ScriptTrace tr = play_script(*renderer, s, o.rate_hz);
+          const ScriptTrace tr = play_script(*renderer, s, o.rate_hz, play);
           Pool pool;
           pool.add_slide(slide_metrics(shape, s, tr), tr);
           rep.ticks += s.ticks.size();
@@ -242,14 +271,16 @@ std::string stiffness_ratios(const std::vector<FidelityRow>& rows) {
 std::string press_table(const std::vector<FidelityRow>& rows) {
   std::string t =
       "| shape | feature | spacing mm | tool mm | runs | onset mm (median / max) | stiffness N/mm (median) | "
-      "hold-through mm (min) | never lost | direction error deg p50 / p95 / max | shallow (delta <= 2 mm) p95 | W min (mJ) | W < 0 | tick us p50 / p99 |\n"
-      "|---|---|---:|---:|---:|---|---:|---:|---:|---|---:|---:|---:|---|\n";
+      "hold-through mm (min) | never lost | direction error deg p50 / p95 / max | shallow (delta <= 2 mm) p95 | W min (mJ) | W < 0 | "
+      "W min, other mode (mJ) | W < 0, other mode | tick us p50 / p99 |\n"
+      "|---|---|---:|---:|---:|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---|\n";
   for (const FidelityRow& r : rows)
-    t += fmt::format("| {} | {} | {:g} | {:g} | {} | {} / {} | {} | {} | {} / {} | {} / {} / {} | {} | {} | {} | {} / {} |\n",
+    t += fmt::format("| {} | {} | {:g} | {:g} | {} | {} / {} | {} | {} | {} / {} | {} / {} / {} | {} | {} | {} | {} | {} | {} / {} |\n",
                      r.shape, r.feature, r.spacing * 1e3, r.tool_radius * 1e3, r.runs, num(r.onset_mm_median),
                      num(r.onset_mm_max), num(r.stiffness_median, "{:.3f}"), num(r.hold_through_min_mm, "{:.1f}"),
                      r.never_lost, r.runs, num(r.dir_p50, "{:.1f}"), num(r.dir_p95, "{:.1f}"),
                      num(r.dir_max, "{:.1f}"), num(r.shallow_dir_p95, "{:.1f}"), num(r.energy_min_j * 1e3, "{:.3f}"), r.active_cycles,
+                     num(r.energy_other_min_j * 1e3, "{:.3f}"), std::isnan(r.energy_other_min_j) ? std::string("-") : std::to_string(r.active_cycles_other),
                      num(r.tick_p50_us, "{:.1f}"), num(r.tick_p99_us, "{:.1f}"));
   return t;
 }
@@ -277,14 +308,21 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
       "{} ticks at {:g} Hz in {:.0f} s. Scenes: Gaussians on analytic surfaces (`gshaptics synth`, seed {}; "
       "flat discs, log-normal sizes around the spacing, 0.5 mm normal jitter, 3 deg tilt, 15 % below the 0.2 "
       "opacity filter, 0.3 % floaters 5-30 mm off the surface), loaded as INRIA PLY, default world "
-      "(opacity > 0.2, 1 sigma). The device is ideal and position-controlled: it follows the script, the "
-      "force is recorded. delta = how far the tool's surface is past the true surface. Direction error: "
+      "(opacity > 0.2, 1 sigma). The device is ideal and position-controlled: it follows the script, and "
+      "the force the servo commands (the runtime's step: safety layer and execution mode included) is "
+      "recorded. delta = how far the tool's surface is past the true surface. Direction error: "
       "angle between F and the nearest direction of the true normal cone, over ticks with |F| >= 0.1 N. "
       "Stiffness: slope of |F| over delta in [1, 5] mm while loading. Hold-through: deepest delta up to "
       "which F points out (within 90 deg of the site normal) and stays >= 10 % of the peak reached so far. W = -sum F.v dt "
       "over the closed cycle (W < 0: the scene gave back more energy than it took). Tick: render() wall "
       "time including its collision queries.\n\n",
       rep.ticks, o.rate_hz, rep.seconds, o.seed);
+  PlayOptions other = o.play;
+  other.inline_query = !other.inline_query;
+  md += fmt::format("Execution mode: **{}**{}{}.\n\n", describe_mode(o.play),
+                    o.play.inline_query == default_play_options().inline_query ? " (the runtime's default)" : "",
+                    o.compare_modes ? fmt::format("; the W columns also give the same presses {}", describe_mode(other))
+                                    : std::string());
   md += fmt::format("## Press ({} sites per shape: 2 cm/s to {:g} mm, hold 0.5 s, retract)\n\n", o.press_sites,
                     o.press_depth * 1e3);
   md += press_table(rep.press) + "\n";

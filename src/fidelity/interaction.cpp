@@ -1,10 +1,12 @@
 #include "gshaptics/fidelity/interaction.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <functional>
 
 #include "gshaptics/error.h"
+#include "gshaptics/servo/simulated_runtime.h"
 
 namespace gshaptics {
 
@@ -143,23 +145,59 @@ Script slide_script(const AnalyticShape& shape, double r, double rate_hz, double
   return s;
 }
 
-ScriptTrace play_script(ForceRenderer& renderer, const Script& script, double rate_hz) {
+ScriptedDevice::ScriptedDevice(const Script& script, double rate_hz) : script_(script), period_s_(1.0 / rate_hz) {
+  if (script.ticks.empty()) throw InputError("scripted device: empty script");
+  info_.name = "scripted (ideal position device)";
+  info_.max_rate_hz = 1e6;
+}
+
+void ScriptedDevice::start(Nanos now) {
+  t0_ = now;
+  sequence_ = 0;
+  done_ = false;
+}
+
+DeviceSample ScriptedDevice::read(Nanos now) noexcept {
+  const double k = std::round(to_seconds(now - t0_) / period_s_);
+  const std::size_t last = script_.ticks.size() - 1;
+  const std::size_t i = k <= 0 ? 0 : std::min(last, std::size_t(k));
+  done_ = i >= last;
+  const ScriptTick& t = script_.ticks[i];
+  DeviceSample s;
+  s.sequence = ++sequence_;
+  s.stamp = now;
+  s.position = t.position;
+  s.velocity = t.velocity;
+  return s;
+}
+
+void ScriptedDevice::write(const Wrench&, Nanos) noexcept {}
+void ScriptedDevice::stop(Nanos) noexcept {}
+
+ScriptTrace play_script(ForceRenderer& renderer, const Script& script, double rate_hz, const PlayOptions& options) {
+  if (script.ticks.empty()) throw InputError("play script: empty script");
+  renderer.reset();
+  ScriptedDevice device(script, rate_hz);
+  RuntimeConfig c;
+  c.rate_hz = rate_hz;
+  c.inline_query = options.inline_query;
+  c.latency_ticks = options.latency_ticks;
+  c.safety = options.safety;
+  c.force.f_max = options.f_max;
+  c.tool.semi_axes = Eigen::Vector3d::Constant(script.tool_radius);
+  c.log_capacity = script.ticks.size() + std::size_t(std::ceil((c.stop_timeout + 0.01) * rate_hz)) + 2;
+  SimulatedRuntime rt(device, c, std::make_unique<BorrowedRenderer>(renderer));
+  rt.run();
+  const std::vector<TickRecord>& rec = rt.log().records();
   ScriptTrace tr;
   const std::size_t n = script.ticks.size();
-  tr.force.resize(n);
-  tr.render_us.resize(n);
-  tr.contacts.resize(n);
-  renderer.reset();
-  const double dt = 1.0 / rate_hz;
-  for (std::size_t i = 0; i < n; ++i) {
-    const ScriptTick& t = script.ticks[i];
-    const ToolEllipsoid tool = ToolEllipsoid::sphere(t.position, script.tool_radius);
-    const auto t0 = std::chrono::steady_clock::now();
-    const RenderOutput out = renderer.render(tool, t.velocity, dt);
-    const auto t1 = std::chrono::steady_clock::now();
-    tr.force[i] = out.force;
-    tr.render_us[i] = float(std::chrono::duration<double, std::micro>(t1 - t0).count());
-    tr.contacts[i] = out.counts.contacts;
+  tr.force.assign(n, Eigen::Vector3d::Zero());
+  tr.render_us.assign(n, 0.0f);
+  tr.contacts.assign(n, 0);
+  for (std::size_t i = 0; i < n && i < rec.size(); ++i) {
+    tr.force[i] = rec[i].force;
+    tr.render_us[i] = rec[i].query_us;
+    tr.contacts[i] = rec[i].counts.contacts;
   }
   return tr;
 }

@@ -22,7 +22,10 @@ ToolEllipsoid CollisionWorker::tool_at(const PoseCommand& pose) const noexcept {
 
 bool CollisionWorker::step(PoseChannel& poses, ResultChannel& results) noexcept {
   if (!poses.read_if_new(pose_)) return false;
-  const Nanos t0 = clock_.now();
+  // Render time is wall time (the monotonic clock), whatever clock drives the run: on simulated
+  // time it is still what the query costs.
+  MonotonicClock& wall = MonotonicClock::instance();
+  const Nanos t0 = wall.now();
   // dt of the renderer's filters: time between the poses this worker answered. Poses the
   // worker skipped (it was busy) still count, so filters follow real time.
   double dt = nominal_dt_;
@@ -39,10 +42,11 @@ bool CollisionWorker::step(PoseChannel& poses, ResultChannel& results) noexcept 
   r.status = f.status;
   r.proxy = f.proxy;
   r.constraints = f.constraints;
+  const Nanos t1 = wall.now();
   r.done = clock_.now();
-  r.query_us = float(double(r.done - t0) * 1e-3);
+  r.query_us = float(double(t1 - t0) * 1e-3);
   results.write(r);
-  latency_.record(r.done - t0);
+  latency_.record(t1 - t0);
   steps_.fetch_add(1, std::memory_order_relaxed);
   if (observer_ != nullptr) observer_->on_result(pose_, renderer_->contacts(), r);
   return true;

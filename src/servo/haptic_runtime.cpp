@@ -17,20 +17,17 @@ namespace gshaptics {
 
 namespace {
 
-std::size_t default_log_capacity(const RuntimeConfig& c) {
-  const double seconds = c.duration > 0 ? c.duration + 1.0 : 600.0;
-  return std::size_t(std::ceil(seconds * c.rate_hz));
-}
-
 std::string errno_text(int e) { return std::strerror(e); }
 
 }  // namespace
 
-HapticRuntime::HapticRuntime(const CollisionWorld& world, HapticDevice& device,
-                             const RuntimeConfig& config, Clock& clock)
-    : device_(device), config_(config), clock_(clock), period_(0),
-      log_(0) {
-  const DeviceInfo& info = device.info();
+std::size_t runtime_log_capacity(const RuntimeConfig& c) {
+  if (c.log_capacity > 0) return c.log_capacity;
+  const double seconds = c.duration > 0 ? c.duration + 1.0 : 600.0;
+  return std::size_t(std::ceil(seconds * c.rate_hz));
+}
+
+Nanos validate_runtime_config(const RuntimeConfig& config, const DeviceInfo& info) {
   if (!(config.rate_hz > 0) || !std::isfinite(config.rate_hz))
     throw InputError("runtime: rate_hz must be a positive number of Hz");
   if (config.rate_hz > info.max_rate_hz)
@@ -38,13 +35,29 @@ HapticRuntime::HapticRuntime(const CollisionWorld& world, HapticDevice& device,
                      info.name + "' accepts (" + std::to_string(info.max_rate_hz) + " Hz)");
   if (!(config.tool.semi_axes.minCoeff() > 0) || !config.tool.semi_axes.allFinite())
     throw InputError("runtime: tool semi-axes must be finite and > 0");
-  if (!(config.duration >= 0)) throw InputError("runtime: duration must be >= 0 s");
-  period_ = to_nanos(1.0 / config.rate_hz);
-  if (period_ <= 0) throw InputError("runtime: rate too high");
-  log_ = TickLog(config.log_capacity > 0 ? config.log_capacity : default_log_capacity(config));
-  worker_ = std::make_unique<CollisionWorker>(
-      config.tool, make_force_renderer(config.force_model, world, config.force, config.query, config.proxy),
-      1.0 / config.rate_hz, clock);
+  if (!(config.duration >= 0) || !std::isfinite(config.duration)) throw InputError("runtime: duration must be >= 0 s");
+  if (config.latency_ticks < 1) throw InputError("runtime: latency_ticks must be >= 1");
+  if (!(config.safety.continuous_window > 0)) throw InputError("runtime: the continuous-force window must be > 0 s");
+  const Nanos period = to_nanos(1.0 / config.rate_hz);
+  if (period <= 0) throw InputError("runtime: rate too high");
+  return period;
+}
+
+HapticRuntime::HapticRuntime(const CollisionWorld& world, HapticDevice& device,
+                             const RuntimeConfig& config, Clock& clock)
+    : HapticRuntime(device, config,
+                    (validate_runtime_config(config, device.info()),
+                     make_force_renderer(config.force_model, world, config.force, config.query, config.proxy)),
+                    clock) {}
+
+HapticRuntime::HapticRuntime(HapticDevice& device, const RuntimeConfig& config,
+                             std::unique_ptr<ForceRenderer> renderer, Clock& clock)
+    : device_(device), config_(config), clock_(clock), period_(0),
+      log_(0) {
+  period_ = validate_runtime_config(config, device.info());
+  if (!renderer) throw InputError("runtime: no force renderer given");
+  log_ = TickLog(runtime_log_capacity(config));
+  worker_ = std::make_unique<CollisionWorker>(config.tool, std::move(renderer), 1.0 / config.rate_hz, clock);
   if (config.query_threads > 1) {
     // Pool workers on the CPUs below the worker's and the servo's (those take the last two).
     const int cpus = int(std::max(1u, std::thread::hardware_concurrency()));

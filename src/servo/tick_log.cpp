@@ -22,12 +22,12 @@ struct Column {
 // The one declaration of the log's columns, in log order.
 const Column kColumns[] = {
     GSH_COL("time_s", kColumnsMotion, "%.6f", r.time),
-    GSH_COL("x", kColumnsMotion, "%.6f", r.position.x()),
-    GSH_COL("y", kColumnsMotion, "%.6f", r.position.y()),
-    GSH_COL("z", kColumnsMotion, "%.6f", r.position.z()),
-    GSH_COL("vx", kColumnsMotion, "%.5f", r.velocity.x()),
-    GSH_COL("vy", kColumnsMotion, "%.5f", r.velocity.y()),
-    GSH_COL("vz", kColumnsMotion, "%.5f", r.velocity.z()),
+    GSH_COL("x", kColumnsMotion, "%.9f", r.position.x()),
+    GSH_COL("y", kColumnsMotion, "%.9f", r.position.y()),
+    GSH_COL("z", kColumnsMotion, "%.9f", r.position.z()),
+    GSH_COL("vx", kColumnsMotion, "%.7f", r.velocity.x()),
+    GSH_COL("vy", kColumnsMotion, "%.7f", r.velocity.y()),
+    GSH_COL("vz", kColumnsMotion, "%.7f", r.velocity.z()),
     GSH_COL("candidates", kColumnsQuery, "%u", r.counts.candidates),
     GSH_COL("prefiltered", kColumnsQuery, "%u", r.counts.prefiltered),
     GSH_COL("contacts", kColumnsQuery, "%u", r.counts.contacts),

@@ -6,56 +6,36 @@
 
 #include "gshaptics/error.h"
 #include "gshaptics/percentile.h"
+#include "gshaptics/servo/simulated_runtime.h"
+#include "gshaptics/sim/simulated_device.h"
 
 namespace gshaptics {
 
 ProbeRunResult run_probe(const CollisionWorld& world, const ProbeTrajectory& trajectory,
                          const ProbeRunParams& params, const RunProgressFn& progress) {
   if (!(params.rate_hz > 0)) throw InputError("probe run: rate must be > 0 Hz");
-  const double dt = 1.0 / params.rate_hz;
-  const double duration = trajectory.duration() + 0.5;
-  const auto n_ticks = std::size_t(std::ceil(duration / dt));
+  SimulatedDeviceParams dp;
+  dp.device = params.device;
+  dp.user = params.user;
+  dp.loop = false;  // one pass, then rest
+  dp.max_step = 1.0 / params.rate_hz;
+  SimulatedDevice device(trajectory, dp);
+  RuntimeConfig c;
+  c.rate_hz = params.rate_hz;
+  c.duration = trajectory.duration() + 0.5;
+  c.inline_query = params.inline_query;
+  c.latency_ticks = params.latency_ticks;
+  c.tool.semi_axes = Eigen::Vector3d::Constant(trajectory.tool_radius());
+  c.force_model = params.force_model;
+  c.force = params.force;
+  c.proxy = params.proxy;
+  c.query = params.query;
+  c.safety = params.safety;
+  SimulatedRuntime rt(world, device, c);
+  rt.run(progress);
 
   ProbeRunResult out;
-  out.ticks.resize(n_ticks);  // all memory up front: the loop below does not allocate
-  const std::unique_ptr<ForceRenderer> renderer =
-      make_force_renderer(params.force_model, world, params.force, params.query, params.proxy);
-  DeviceState start;
-  Eigen::Vector3d target_v;
-  trajectory.sample(0.0, start.position, target_v);
-  AdmittanceDevice device(params.device, start);
-  Eigen::Vector3d rendered = Eigen::Vector3d::Zero();
-  const std::size_t report_every = std::max<std::size_t>(1, n_ticks / 100);
-
-  for (std::size_t k = 0; k < n_ticks; ++k) {
-    const double t = double(k) * dt;
-    const DeviceState& s = device.state();
-    // Servo tick: pose in -> collision queries + force model -> wrench out (paper Sec. IV).
-    const auto q0 = std::chrono::steady_clock::now();
-    const RenderOutput f = renderer->render(ToolEllipsoid::sphere(s.position, trajectory.tool_radius()), s.velocity, dt);
-    const auto q1 = std::chrono::steady_clock::now();
-    rendered = f.force;
-
-    Eigen::Vector3d target_p;
-    trajectory.sample(t, target_p, target_v);
-    const Eigen::Vector3d user = user_hand_force(params.user, s, target_p, target_v);
-
-    TickRecord& rec = out.ticks[k];
-    rec.time = t;
-    rec.position = s.position;
-    rec.velocity = s.velocity;
-    rec.counts = f.counts;
-    rec.proxy = f.proxy;
-    rec.constraints = f.constraints;
-    rec.desired = rendered;
-    rec.force = rendered;
-    rec.user_force = user;
-    rec.query_us = float(std::chrono::duration<double, std::micro>(q1 - q0).count());
-
-    device.step(user + rendered, dt);
-    if (progress && k % report_every == 0) progress(double(k) / double(n_ticks));
-  }
-  if (progress) progress(1.0);
+  out.ticks = rt.log().records();
   out.episodes = find_episodes(out.ticks);
   out.query_time = query_time_stats(out.ticks);
   return out;

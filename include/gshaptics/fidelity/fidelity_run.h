@@ -16,6 +16,11 @@
 
 namespace gshaptics {
 
+/// The runtime's default execution mode and safety layer (RuntimeConfig{}), as PlayOptions.
+[[nodiscard]] PlayOptions default_play_options();
+/// "inline" or "decoupled, N tick(s) latency".
+[[nodiscard]] std::string describe_mode(const PlayOptions& play);
+
 /// The matrix to run. Lengths in metres.
 struct FidelityOptions {
   std::string force_model = "proxy";  ///< make_force_renderer() name
@@ -32,6 +37,12 @@ struct FidelityOptions {
   SynthParams synth;          ///< how the scenes are drawn (spacing and seed are set per scene)
   double rate_hz = 1000;
   std::string scene_dir;      ///< where the generated scenes are written (and reused); required
+  /// How the servo step runs (SimulatedRuntime, as a real-time run): the mode every metric is
+  /// measured in. Default: the runtime's default mode.
+  PlayOptions play = default_play_options();
+  /// Also play every press in the other execution mode and report its energy W (the decoupled
+  /// worker's force age shows there).
+  bool compare_modes = true;
 };
 
 /// The CI subset: 4 mm spacing, 5 mm tool, 4 press sites, 2 push sites; plane, sphere, cube, 2 mm plate.
@@ -49,6 +60,8 @@ struct FidelityRow {
   int never_lost = 0;                  ///< runs that held to the deepest point
   double energy_min_j = NAN;
   int active_cycles = 0;               ///< runs with W < 0
+  double energy_other_min_j = NAN;     ///< the same presses in the other execution mode
+  int active_cycles_other = 0;
   // slides
   double force_rsd = NAN, tangential_over_normal = NAN, mean_force = NAN;
   // all

@@ -1,8 +1,9 @@
 #pragma once
 /// @file
 /// Scripted interactions of the fidelity benchmark, played by an ideal position-controlled
-/// device (it follows the script exactly; the rendered force is recorded, not applied), and the
-/// metrics that judge the rendered force against the analytic surface.
+/// device (it follows the script exactly; the commanded force is recorded, not applied) through
+/// the servo step of a real-time run (SimulatedRuntime: safety layer and execution mode
+/// included), and the metrics that judge the commanded force against the analytic surface.
 ///
 /// Penetration delta: how far the tool's surface is past the true surface. For a sphere tool of
 /// radius r whose centre is at distance s from the surface along the site's outward normal,
@@ -14,6 +15,9 @@
 
 #include "gshaptics/fidelity/analytic_shape.h"
 #include "gshaptics/force/force_renderer.h"
+#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/servo/haptic_runtime.h"
+#include "gshaptics/servo/safety.h"
 
 namespace gshaptics {
 
@@ -52,15 +56,46 @@ struct Script {
 [[nodiscard]] Script slide_script(const AnalyticShape& shape, double tool_radius, double rate_hz,
                                   double delta = 0.002, double length = 0.1, double speed = 0.05);
 
-/// What the renderer did on each tick of a script.
+/// What the servo commanded on each tick of a script.
 struct ScriptTrace {
-  std::vector<Eigen::Vector3d> force;  ///< N
-  std::vector<float> render_us;        ///< wall time of render(), microseconds
+  std::vector<Eigen::Vector3d> force;  ///< commanded force (after the safety layer), N
+  std::vector<float> render_us;        ///< wall time of the render the tick used, microseconds
   std::vector<std::uint32_t> contacts;
 };
 
-/// Plays `script` through `renderer` (reset first). Render times are measured per tick.
-[[nodiscard]] ScriptTrace play_script(ForceRenderer& renderer, const Script& script, double rate_hz);
+/// How a script is played: the servo's execution mode and safety layer (as a real-time run).
+struct PlayOptions {
+  bool inline_query = kDefaultInlineQuery;  ///< query inside the tick; false: the decoupled worker
+  int latency_ticks = 1;     ///< decoupled mode: ticks from a pose to its result (>= 1)
+  SafetyParams safety;
+  double f_max = ForceParams{}.f_max;  ///< the configured force limit, N
+};
+
+/// A HapticDevice that follows a script exactly (an ideal position-controlled device): tick k of
+/// the run reads script tick k; it finishes at the script's last tick.
+class ScriptedDevice final : public HapticDevice {
+ public:
+  ScriptedDevice(const Script& script, double rate_hz);
+  [[nodiscard]] const DeviceInfo& info() const noexcept override { return info_; }
+  void start(Nanos now) override;
+  [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
+  void write(const Wrench& wrench, Nanos now) noexcept override;
+  void stop(Nanos now) noexcept override;
+  [[nodiscard]] bool finished() const noexcept override { return done_; }
+
+ private:
+  const Script& script_;
+  DeviceInfo info_;
+  Nanos t0_ = 0;
+  double period_s_;
+  std::uint64_t sequence_ = 0;
+  bool done_ = false;
+};
+
+/// Plays `script` through `renderer` (reset first) on a ScriptedDevice in a SimulatedRuntime:
+/// one servo tick per script tick. Throws InputError for an empty script.
+[[nodiscard]] ScriptTrace play_script(ForceRenderer& renderer, const Script& script, double rate_hz,
+                                      const PlayOptions& options = {});
 
 /// Metrics of one press or push-through.
 struct PressMetrics {

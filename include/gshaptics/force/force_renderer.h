@@ -70,6 +70,25 @@ class PaperRenderer final : public ForceRenderer {
   ForceModel model_;
 };
 
+/// A renderer that forwards to one the caller owns and keeps (it must outlive this one): for
+/// handing a caller's renderer to a runtime that takes ownership of its renderer.
+class BorrowedRenderer final : public ForceRenderer {
+ public:
+  explicit BorrowedRenderer(ForceRenderer& inner) noexcept : inner_(inner) {}
+  [[nodiscard]] std::string_view name() const noexcept override { return inner_.name(); }
+  RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override {
+    return inner_.render(tool, velocity, dt);
+  }
+  [[nodiscard]] std::span<const Contact> contacts() const noexcept override { return inner_.contacts(); }
+  void reset() noexcept override { inner_.reset(); }
+  void set_executor(ParallelExecutor* executor, std::size_t min_candidates) override {
+    inner_.set_executor(executor, min_candidates);
+  }
+
+ private:
+  ForceRenderer& inner_;
+};
+
 /// The force-model names make_force_renderer() knows, for help texts: "paper".
 [[nodiscard]] std::string_view force_model_names() noexcept;
 

@@ -42,9 +42,20 @@ struct RealtimeOptions {
   double spin_s = 0;
 };
 
+/// The runtime's default execution mode, for every entry point (real-time runs, simulated runs,
+/// probe runs, the fidelity matrix): inline, the query inside the tick. Measured on the fidelity
+/// matrix (bench/RESULTS.md, "One servo step"): the decoupled worker's one tick of force age makes
+/// 154 of 1,100 press cycles active (W < 0), inline 4; and the renderers' p99 on the shared
+/// scenes (at most about 250 us) fits the 1 ms tick. Choose the decoupled worker
+/// (inline_query = false) for a renderer whose p99 does not fit the tick budget.
+inline constexpr bool kDefaultInlineQuery = true;
+
 struct RuntimeConfig {
   double rate_hz = 1000;    ///< servo rate, Hz (paper: 1 kHz)
-  bool inline_query = false;  ///< query inside the tick instead of on the worker thread
+  bool inline_query = kDefaultInlineQuery;  ///< query inside the tick instead of on the worker thread
+  /// Simulated time only (SimulatedRuntime), decoupled mode: ticks from a pose to the first tick
+  /// that renders its result (>= 1; HapticRuntime's worker thread answers within 1-2 ticks).
+  int latency_ticks = 1;
   double duration = 0;      ///< s; 0: until request_stop() or the device finishes
   /// Longest stop ramp: the force is zeroed at the latest this long after a stop request, s.
   double stop_timeout = 0.1;
@@ -66,11 +77,24 @@ struct RuntimeConfig {
   std::size_t log_capacity = 0;
 };
 
+/// Checks `config` against `device` (rate within its limit, tool axes > 0, duration >= 0,
+/// latency_ticks >= 1) and returns the servo period, ns. Throws InputError naming the setting.
+/// HapticRuntime and SimulatedRuntime both call it.
+Nanos validate_runtime_config(const RuntimeConfig& config, const DeviceInfo& device);
+
+/// The log capacity a run reserves: config.log_capacity, or duration * rate + 1 s worth when a
+/// duration is set, else 10 minutes' worth.
+std::size_t runtime_log_capacity(const RuntimeConfig& config);
+
 class HapticRuntime {
  public:
   /// Validates the config against the device (rate within its limit, tool axes > 0) and reserves
   /// all memory. Throws InputError naming the setting that is wrong.
   HapticRuntime(const CollisionWorld& world, HapticDevice& device, const RuntimeConfig& config,
+                Clock& clock = MonotonicClock::instance());
+  /// With the caller's own renderer (any ForceRenderer; config.force_model and its parameters
+  /// are then not used, config.force.f_max still sets the safety layer's limit).
+  HapticRuntime(HapticDevice& device, const RuntimeConfig& config, std::unique_ptr<ForceRenderer> renderer,
                 Clock& clock = MonotonicClock::instance());
   ~HapticRuntime();
   HapticRuntime(const HapticRuntime&) = delete;

@@ -1,8 +1,9 @@
 #pragma once
 /// @file
 /// The simulated probe run (the main job): a simulated user drives a simulated admittance
-/// device along a probe trajectory; every tick of simulated time (1 kHz by default) runs the
-/// collision query and the force model inline and renders the force on the device.
+/// device along a probe trajectory, on simulated time through SimulatedRuntime: the same servo
+/// step, safety layer and execution mode as a real-time run (servo/simulated_runtime.h), so the
+/// forces it reports are the ones the hand would get.
 
 #include <Eigen/Core>
 #include <functional>
@@ -13,6 +14,8 @@
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_model.h"
 #include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/servo/haptic_runtime.h"
+#include "gshaptics/servo/safety.h"
 #include "gshaptics/servo/tick_log.h"
 #include "gshaptics/sim/admittance_device.h"
 #include "gshaptics/sim/probe_trajectory.h"
@@ -41,6 +44,9 @@ struct ProbeRunParams {
   AdmittanceParams device;
   UserHandParams user;
   QueryOptions query;
+  SafetyParams safety;        ///< the servo's safety layer, as in a real-time run
+  bool inline_query = kDefaultInlineQuery;  ///< query inside the tick; false: the decoupled worker
+  int latency_ticks = 1;      ///< decoupled mode: ticks from a pose to its result (>= 1)
 };
 
 struct ProbeRunResult {
@@ -53,6 +59,8 @@ struct ProbeRunResult {
 using RunProgressFn = std::function<void(double)>;
 
 /// Runs the whole trajectory (plus 0.5 s) with a spherical tool of the trajectory's radius.
+/// `ticks` are the servo's records: `force` is what was commanded (after the safety layer),
+/// `desired` what the renderer asked for, `query_us` the wall time of the render.
 [[nodiscard]] ProbeRunResult run_probe(const CollisionWorld& world,
                                        const ProbeTrajectory& trajectory,
                                        const ProbeRunParams& params,
