@@ -17,7 +17,7 @@ int main(int argc, char** argv) {
   config.registration = load_registration_file(data + "/truck.registration.json");
   const CollisionWorld world = CollisionWorld::build(load_scene(data + "/truck.splat").scene, config);
   ContactQuery query(world);  // one per device: scratch and contact set, allocation-free run()
-  ForceModel force_model;     // paper's defaults: k_base, damping, F_max = 30 N
+  ForceModel force_model;     // paper's defaults: k_base, damping (no F_max clamp: a runtime's safety layer limits the force)
   const double dt = 1e-3, radius = 0.03;
   const Eigen::Vector3d velocity(0, 0, -0.1);
   Eigen::Vector3d tool(0, 0, world.bounds_hi().z() + radius);  // above the truck's roof

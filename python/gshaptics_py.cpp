@@ -15,6 +15,7 @@
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_model.h"
+#include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/narrowphase/k_min.h"
@@ -329,14 +330,16 @@ PYBIND11_MODULE(gshaptics, m) {
              pp.travel_speed = 8 * tool_radius;
              ProbeRunParams rp;
              rp.rate_hz = rate_hz;
+             ProxyParams proxy;
              if (!device_profile_obj.is_none()) {
                const DeviceProfile& dp = device_profile(device_profile_obj.cast<std::string>(), "device_profile");
-               rp.force.f_max = dp.f_max;
-               rp.proxy.stiffness = dp.stiffness;
+               rp.safety.f_max = dp.f_max;
+               proxy.stiffness = dp.stiffness;
              }
              if (!is_force_model(force_model))
                throw py::value_error("force_model: expected 'proxy' or 'paper', got '" + force_model + "'");
-             rp.force_model = force_model;
+             if (force_model == "paper") rp.renderer = PaperModelSpec{};
+             else rp.renderer = ProxyModelSpec{proxy};
              ProbeRunResult run;
              std::vector<ProbeSite> site_list;
              {
@@ -396,7 +399,7 @@ PYBIND11_MODULE(gshaptics, m) {
       .def_readwrite("tau_velocity", &ForceParams::tau_velocity, "s, velocity filter time constant");
 
   py::class_<ForceModel>(m, "ForceModel",
-      "The paper's penalty force with per-device filter state (DESIGN.md Sec. 4).")
+      "The paper's penalty force with per-device filter state (docs/design.md Sec. 5).")
       .def(py::init<const ForceParams&>(), py::arg("params") = ForceParams{})
       .def("update", [](ForceModel& fm, const QueryResult& r, const py::object& position,
                         const py::object& velocity, double dt) {
@@ -433,7 +436,8 @@ PYBIND11_MODULE(gshaptics, m) {
   py::class_<PyProxy>(m, "ProxyRenderer",
       "The proxy (god-object) force model on the Gaussians: the proxy never passes a Gaussian "
       "(continuous first contact), the device is coupled to it by k_c (N/m) and b_c (N s/m); "
-      "optional Coulomb friction (mu_s, mu_k). One per device; not thread-safe.")
+      "optional Coulomb friction (mu_s, mu_k); f_max clamps its output (default: none, as in a runtime "
+      "the safety layer limits the force). One per device; not thread-safe.")
       .def(py::init([](const PyWorld& w, double stiffness, double damping, double mu_s, double mu_k,
                        double f_max, bool opacity_stiffness) {
              ProxyParams p;

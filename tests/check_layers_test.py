@@ -22,7 +22,8 @@ def main():
         t = pathlib.Path(d)
         (t / "include/gshaptics/io").mkdir(parents=True)
         (t / "src/broadphase").mkdir(parents=True)
-        (t / "include/gshaptics/io/reader.h").write_text('#include "gshaptics/collision/world.h"\n')
+        (t / "include/gshaptics/io/reader.h").write_text(  # a file of the temporary tree (check_docs: ignore)
+            '#include "gshaptics/collision/world.h"\n')
         (t / "src/broadphase/bvh.cpp").write_text('#include "gshaptics/narrowphase/k.h"\n'
                                                   '#include "gshaptics/error.h"\n')
         bad = run(t)

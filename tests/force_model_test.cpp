@@ -1,4 +1,4 @@
-// Force model (paper eq. 7-11, DESIGN.md Sec. 4) on hand-made contact sets.
+// Force model (paper eq. 7-11, docs/design.md Sec. 5) on hand-made contact sets.
 
 #include "gshaptics/force/force_model.h"
 

@@ -113,7 +113,7 @@ class RealTime : public ::testing::Test {
   /// Checks the safety invariants on every logged tick.
   static void expect_invariants(const HapticRuntime& rt) {
     const SafetyParams& sp = rt.config().safety;
-    const double f_max = rt.config().force.f_max;
+    const double f_max = rt.config().safety.f_max;
     const auto& recs = rt.log().records();
     ASSERT_FALSE(recs.empty());
     Eigen::Vector3d prev = Eigen::Vector3d::Zero();

@@ -120,7 +120,7 @@ TEST(StepEquivalenceFidelity, PressScriptAndItsReplayAgree) {
   const ContactSite site{Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), "face"};
   const Script s = press_script(plane, site, 0.005, 0.01, 1000);
   for (const bool inline_query : {true, false}) {
-    auto renderer = make_force_renderer("proxy", world);
+    auto renderer = make_force_renderer(ProxyModelSpec{}, world);
     PlayOptions po;
     po.inline_query = inline_query;
     const ScriptTrace tr = play_script(*renderer, s, 1000, po);

@@ -262,7 +262,7 @@ TEST(KMinBatch, CoincidentCentresGiveOne) {
 }
 
 // The spherical tool's own coefficient form (BatchTool::sphere, Gaussian frame) and the general
-// one (tool frame) against the extended-precision K of DESIGN.md Sec. 2, on the hard end of
+// one (tool frame) against the extended-precision K of docs/design.md Sec. 3, on the hard end of
 // the pairs: Gaussians up to 300 tool radii, offsets around contact. Their rounding differs
 // (the Gaussians' quaternions are stored in float, a rotation error of ~1e-7), but both
 // are within 5e-6 of the truth for K in [-1, 1], and the spherical form is not worse.

@@ -3,6 +3,7 @@
 // after a start inside geometry, and an allocation-free tick.
 
 #include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/force/renderer_spec.h"
 
 #include <gtest/gtest.h>
 
@@ -286,8 +287,14 @@ TEST(ProxyRenderer, BadParametersAreErrors) {
   p.mu_s = 0.2;
   p.mu_k = 0.5;
   EXPECT_THROW(ProxyRenderer(w, p), InputError);
-  EXPECT_THROW((void)make_force_renderer("spring", w), InputError);
-  EXPECT_EQ(make_force_renderer("proxy", w)->name(), "proxy");
+  EXPECT_THROW((void)renderer_spec("spring"), InputError);
+  EXPECT_EQ(make_force_renderer(renderer_spec("proxy"), w)->name(), "proxy");
+  EXPECT_EQ(make_force_renderer(renderer_spec("paper"), w)->name(), "paper");
+  EXPECT_EQ(renderer_name(renderer_spec("paper")), "paper");
+  // A spec carries its model's own parameters to the renderer.
+  ProxyModelSpec bad;
+  bad.params.stiffness = -1;
+  EXPECT_THROW((void)make_force_renderer(bad, w), InputError);
 }
 
 }  // namespace

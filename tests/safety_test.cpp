@@ -22,6 +22,11 @@ SafetyParams no_ramp() {
   return p;
 }
 
+SafetyParams with_f_max(SafetyParams p, double f_max) {
+  p.f_max = f_max;
+  return p;
+}
+
 SafetyInput fresh(Nanos now, const Eigen::Vector3d& f) {
   SafetyInput in;
   in.now = now;
@@ -88,7 +93,7 @@ TEST(Safety, SoftStartRampsOverHalfASecond) {
 TEST(Safety, SoftStartBoundsALimitedForceByTheRamp) {
   SafetyParams p = no_ramp();
   p.ramp_time = 0.5;
-  SafetyFilter s(p, /*f_max=*/5);
+  SafetyFilter s(with_f_max(p, 5));
   s.reset(0);
   // A request of 40 N at a quarter of the ramp: 0.25 * 5 N, not min(0.25 * 40, 5) = 5 N.
   const SafetyOutput o = s.apply(fresh(125 * kMs, {0, 40, 0}), kDt);
@@ -100,7 +105,7 @@ TEST(Safety, SoftStartBoundsALimitedForceByTheRamp) {
 
 TEST(Safety, ForceLimitKeepsDirection) {
   SafetyParams p = no_ramp();
-  SafetyFilter s(p, /*f_max=*/5);
+  SafetyFilter s(with_f_max(p, 5));
   s.reset(0);
   const SafetyOutput o = s.apply(fresh(kMs, {30, 40, 0}), kDt);
   EXPECT_TRUE(o.flags & kFlagForceLimited);
@@ -173,7 +178,7 @@ TEST(Safety, NonFiniteDesiredForceIsDropped) {
 // The device's peak force binds whatever the configured F_max says; a device without a limit
 // of its own (+inf) leaves the configured one.
 TEST(Safety, DevicePeakForceBindsBelowTheConfiguredLimit) {
-  SafetyFilter s(no_ramp(), 30.0);
+  SafetyFilter s(with_f_max(no_ramp(), 30.0));
   s.set_device_limits(3.3, std::numeric_limits<double>::infinity());
   s.reset(0);
   EXPECT_DOUBLE_EQ(s.f_max(), 3.3);
@@ -182,11 +187,11 @@ TEST(Safety, DevicePeakForceBindsBelowTheConfiguredLimit) {
   EXPECT_NEAR(o.force.norm(), 3.3, 1e-12);
   EXPECT_TRUE(o.flags & kFlagForceLimited);
 
-  SafetyFilter loose(no_ramp(), 2.0);
+  SafetyFilter loose(with_f_max(no_ramp(), 2.0));
   loose.set_device_limits(std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity());
   EXPECT_DOUBLE_EQ(loose.f_max(), 2.0);
   EXPECT_FALSE(loose.limits().bound_by_device);
-  SafetyFilter above(no_ramp(), 2.0);
+  SafetyFilter above(with_f_max(no_ramp(), 2.0));
   above.set_device_limits(12.0, 12.0);  // the option is the tighter one
   EXPECT_DOUBLE_EQ(above.f_max(), 2.0);
   EXPECT_FALSE(above.limits().bound_by_device);
@@ -197,7 +202,7 @@ TEST(Safety, DevicePeakForceBindsBelowTheConfiguredLimit) {
 TEST(Safety, ContinuousLimitBoundsTheMeanSquareOverTheWindow) {
   SafetyParams p = no_ramp();
   p.continuous_window = 1.0;
-  SafetyFilter s(p, 30.0);
+  SafetyFilter s(with_f_max(p, 30.0));
   s.set_device_limits(3.3, 0.88);
   s.reset(0);
   double heat = 0, worst = 0;

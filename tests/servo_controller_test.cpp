@@ -72,7 +72,7 @@ class ServoTick : public ::testing::Test {
     tool_.semi_axes = Eigen::Vector3d::Constant(tool_radius);
     safety_ = safety;
     worker_ = std::make_unique<CollisionWorker>(floor_world(), tool_, force, QueryOptions{}, 1e-3, clock_);
-    servo_ = std::make_unique<ServoController>(device_, safety, force.f_max, kMs, poses_, results_, stats_, &log_, clock_);
+    servo_ = std::make_unique<ServoController>(device_, safety, kMs, poses_, results_, stats_, &log_, clock_);
     device_.sample.position = {0.0, 0.0, 0.012};  // pressing into the floor
     servo_->start(clock_.now());
   }

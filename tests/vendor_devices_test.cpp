@@ -404,7 +404,7 @@ TEST(OpenHapticsDevice, A33NewtonTouchIsNeverCommandedAboveItsLimitsWhateverFMax
   mp.offset = scene.point;
   MappedDevice dev(hd, mp);
   RuntimeConfig c = test::device_test_config(1.5);
-  c.force.f_max = 30;  // the option asks for 30 N
+  c.safety.f_max = 30;  // the option asks for 30 N
   c.safety.continuous_window = 0.5;
   HapticRuntime rt(scene.world, dev, c);
   rt.start();
@@ -444,7 +444,7 @@ TEST(DhdDevice, ATwelveNewtonDeviceIsNeverCommandedAboveTwelveWhateverFMaxSays) 
   mp.offset = scene.point;
   MappedDevice dev(dhd, mp);
   RuntimeConfig c = test::device_test_config(0.8);
-  c.force.f_max = 30;
+  c.safety.f_max = 30;
   HapticRuntime rt(scene.world, dev, c);
   rt.start();
   rt.wait();

@@ -77,7 +77,7 @@ std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const Ru
   j["device"] = setup.device->info().name;
   j["mouse"] = setup.mouse != nullptr && !setup.xr;
   j["xr"] = setup.xr;
-  j["f_max"] = setup.config.force.f_max;
+  j["f_max"] = setup.config.safety.f_max;
   j["rate_hz"] = setup.config.rate_hz;
   j["display_hz"] = display_hz;
   j["step"] = 0.5 * setup.tool_radius;

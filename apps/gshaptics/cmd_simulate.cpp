@@ -75,12 +75,11 @@ void register_simulate(CLI::App& app) {
     std::fflush(stdout);  // the progress bar goes to stderr: keep the lines above first
     ProbeRunParams rp;
     rp.rate_hz = o->rate;
-    rp.force_model = o->force.model;
-    rp.force = o->force.force;
-    rp.proxy = o->force.proxy;
+    rp.renderer = o->force.spec();
     rp.inline_query = o->exec.inline_query;
     rp.latency_ticks = o->exec.latency_ticks;
     rp.safety = o->safety;
+    rp.safety.f_max = o->force.f_max;
     Progress bar("simulating", !o->quiet);
     const ProbeRunResult run = run_probe(world, traj, rp, [&](double f) { bar(f); });
     bar.done();

@@ -48,6 +48,12 @@ std::string describe_execution(const ExecutionOptions& o, bool simulated) {
                    : std::string("decoupled (worker thread)");
 }
 
+RendererSpec ForceModelOptions::spec() const {
+  if (model == "paper") return PaperModelSpec{force};
+  if (model == "proxy") return ProxyModelSpec{proxy};
+  return renderer_spec(model);  // throws, naming the known models
+}
+
 void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
   cmd.add_option("--force-model", o.model,
                  std::string("Force model: proxy (god-object on the Gaussians, virtual coupling in N/m) "
@@ -59,7 +65,8 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
       ->capture_default_str()->check(check::non_negative());
   cmd.add_option("--damping", force.damping, "paper: damping D, N s/m (eq. 10)")
       ->capture_default_str()->check(check::non_negative());
-  cmd.add_option("--f-max", force.f_max, "Force limit F_max, N (every model; paper eq. 11)")
+  cmd.add_option("--f-max", o.f_max,
+                 "Force limit F_max, N: the safety layer's, for every model (a device's own lower limit binds too)")
       ->capture_default_str()->check(check::positive());
   cmd.add_option("--tau-normal", force.tau_normal, "paper: time constant of the normal EMA, s")
       ->capture_default_str()->check(check::non_negative());
@@ -81,7 +88,7 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
   cmd.parse_complete_callback([&cmd, &o] {
     if (o.profile.empty()) return;
     const DeviceProfile& profile = device_profile(o.profile, "--device-profile");
-    if (cmd.count("--f-max") == 0) o.force.f_max = profile.f_max;
+    if (cmd.count("--f-max") == 0) o.f_max = profile.f_max;
     if (cmd.count("--stiffness") == 0) o.proxy.stiffness = profile.stiffness;
   });
 }

@@ -8,7 +8,7 @@
 
 #include "common.h"
 #include "gshaptics/force/force_model.h"
-#include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/sim/probe_trajectory.h"
 
@@ -16,10 +16,13 @@ namespace gshaptics::cli {
 
 /// The force model a command renders with, and the parameters of each model.
 struct ForceModelOptions {
-  std::string model = "proxy";  ///< make_force_renderer() name
-  ForceParams force;            ///< the paper model's parameters, and F_max for every model
-  ProxyParams proxy;
+  std::string model = "proxy";  ///< renderer_spec() name
+  ForceParams force;            ///< the paper model's parameters
+  ProxyParams proxy;            ///< the proxy's parameters
+  double f_max = SafetyParams{}.f_max;  ///< --f-max: the safety layer's limit, N (every model)
   std::string profile;  ///< --device-profile: "" (none), desktop or room
+  /// The renderer the options name, with its parameters.
+  [[nodiscard]] RendererSpec spec() const;
 };
 
 /// How the servo step runs: inline (query inside the tick) or the decoupled worker, and, on

@@ -432,10 +432,9 @@ RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, d
   rc.latency_ticks = o.exec.latency_ticks;
   rc.duration = planned;
   rc.tool.semi_axes = Eigen::Vector3d::Constant(tool_radius);
-  rc.force_model = o.force.model;
-  rc.force = o.force.force;
-  rc.proxy = o.force.proxy;
+  rc.renderer = o.force.spec();
   rc.safety = o.safety;
+  rc.safety.f_max = o.force.f_max;
   rc.realtime = o.realtime;
   rc.realtime.worker_priority = std::max(0, o.realtime.servo_priority - 10);
   rc.realtime.pin_threads = !o.no_pin;
@@ -569,7 +568,7 @@ bool write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vecto
              s.outside_workspace_ticks, s.force_limited_ticks, s.rate_limited_ticks, s.peak_force);
   const DeviceInfo& di = setup.device->info();
   fmt::print("limit      {:.3g} N, bound by {}{}{}\n", s.force_limit,
-             s.force_limit_by_device ? fmt::format("the device ({}; --f-max {:.3g} N)", di.limit_source, o.force.force.f_max)
+             s.force_limit_by_device ? fmt::format("the device ({}; --f-max {:.3g} N)", di.limit_source, o.force.f_max)
                                      : fmt::format("--f-max{}", std::isfinite(di.max_force)
                                                                     ? fmt::format(" (the device allows {:.3g} N)", di.max_force)
                                                                     : std::string()),

@@ -182,8 +182,8 @@ def test_probe_run_on_bundled_truck(data_dir):
 def test_proxy_holds_the_bundled_truck_roof(data_dir):
     scene = gshaptics.Scene.load(os.path.join(data_dir, "truck.splat"))
     world = gshaptics.CollisionWorld(scene, registration=os.path.join(data_dir, "truck.registration.json"))
-    proxy = gshaptics.ProxyRenderer(world, stiffness=800.0)
-    r = 0.03
+    proxy = gshaptics.ProxyRenderer(world, stiffness=800.0, f_max=30.0)  # a clamp of its own (a runtime's
+    r = 0.03                                                               # safety layer limits by default)
     z_touch = None
     for k in range(3000):  # lowered 1 mm per tick from above the roof to 1 m below it
         z = 2.0 - 0.001 * k

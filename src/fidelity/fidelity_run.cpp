@@ -140,7 +140,6 @@ PlayOptions default_play_options() {
   p.inline_query = c.inline_query;
   p.latency_ticks = c.latency_ticks;
   p.safety = c.safety;
-  p.f_max = c.force.f_max;
   return p;
 }
 
@@ -160,9 +159,6 @@ FidelityOptions quick_fidelity_options() {
 }
 
 FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& progress) {
-  if (!is_force_model(o.force_model))
-    throw InputError("fidelity: force model '" + o.force_model + "' is not known (expected one of: " +
-                     std::string(force_model_names()) + ")");
   if (o.scene_dir.empty()) throw InputError("fidelity: scene_dir is required (where the scenes are written)");
   if (o.spacings.empty() || o.tool_radii.empty() || o.shapes.empty())
     throw InputError("fidelity: shapes, spacings and tool radii must not be empty");
@@ -193,9 +189,9 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
         if (progress) progress(fmt::format("{} at {:g} mm spacing, tool {:g} mm: {} presses{}{}", name, spacing * 1e3,
                                            radius * 1e3, sites.size(), pushable ? ", push-throughs" : "",
                                            slidable ? ", a slide" : ""));
-        const auto renderer = make_force_renderer(o.force_model, world, o.force, QueryOptions{}, o.proxy);
-        PlayOptions play = o.play, other = o.play;
-        play.f_max = other.f_max = o.force.f_max;
+        const auto renderer = make_force_renderer(o.renderer, world);
+        const PlayOptions& play = o.play;
+        PlayOptions other = o.play;
         other.inline_query = !play.inline_query;
         std::map<std::string, Pool> by_feature;
         bool first_curve = true;
@@ -302,7 +298,7 @@ std::string slide_table(const std::vector<FidelityRow>& rows) {
 void write_fidelity_markdown(const FidelityReport& rep, const std::string& path, const std::string& command,
                              const std::string& figures_prefix) {
   const FidelityOptions& o = rep.options;
-  std::string md = "# Haptic fidelity: force model `" + o.force_model + "` against analytic ground truth\n\n";
+  std::string md = "# Haptic fidelity: force model `" + std::string(renderer_name(o.renderer)) + "` against analytic ground truth\n\n";
   md += "Command: `" + command + "`\n\n";
   md += fmt::format(
       "{} ticks at {:g} Hz in {:.0f} s. Scenes: Gaussians on analytic surfaces (`gshaptics synth`, seed {}; "

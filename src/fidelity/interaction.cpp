@@ -183,7 +183,6 @@ ScriptTrace play_script(ForceRenderer& renderer, const Script& script, double ra
   c.inline_query = options.inline_query;
   c.latency_ticks = options.latency_ticks;
   c.safety = options.safety;
-  c.force.f_max = options.f_max;
   c.tool.semi_axes = Eigen::Vector3d::Constant(script.tool_radius);
   c.log_capacity = script.ticks.size() + std::size_t(std::ceil((c.stop_timeout + 0.01) * rate_hz)) + 2;
   SimulatedRuntime rt(device, c, std::make_unique<BorrowedRenderer>(renderer));

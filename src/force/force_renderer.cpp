@@ -2,25 +2,30 @@
 
 #include "gshaptics/error.h"
 #include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/force/renderer_spec.h"
 
 namespace gshaptics {
 
 std::string_view force_model_names() noexcept { return "proxy, paper"; }
 
-const ProxyParams& default_proxy_params() noexcept {
-  static const ProxyParams kDefault{};
-  return kDefault;
-}
-
 bool is_force_model(std::string_view name) noexcept { return name == "paper" || name == "proxy"; }
 
-std::unique_ptr<ForceRenderer> make_force_renderer(std::string_view name, const CollisionWorld& world,
-                                                   const ForceParams& force, const QueryOptions& query,
-                                                   const ProxyParams& proxy) {
-  if (name == "paper") return std::make_unique<PaperRenderer>(world, force, query);
-  if (name == "proxy") return std::make_unique<ProxyRenderer>(world, proxy, force.f_max);
+std::string_view renderer_name(const RendererSpec& spec) noexcept {
+  return std::holds_alternative<PaperModelSpec>(spec) ? "paper" : "proxy";
+}
+
+RendererSpec renderer_spec(std::string_view name) {
+  if (name == "paper") return PaperModelSpec{};
+  if (name == "proxy") return ProxyModelSpec{};
   throw InputError("force model '" + std::string(name) + "' is not known (expected one of: " +
                    std::string(force_model_names()) + ")");
+}
+
+std::unique_ptr<ForceRenderer> make_force_renderer(const RendererSpec& spec, const CollisionWorld& world,
+                                                   const QueryOptions& query) {
+  if (const auto* paper = std::get_if<PaperModelSpec>(&spec))
+    return std::make_unique<PaperRenderer>(world, paper->params, query);
+  return std::make_unique<ProxyRenderer>(world, std::get<ProxyModelSpec>(spec).params);
 }
 
 RenderOutput PaperRenderer::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {

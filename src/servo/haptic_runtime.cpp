@@ -47,7 +47,7 @@ HapticRuntime::HapticRuntime(const CollisionWorld& world, HapticDevice& device,
                              const RuntimeConfig& config, Clock& clock)
     : HapticRuntime(device, config,
                     (validate_runtime_config(config, device.info()),
-                     make_force_renderer(config.force_model, world, config.force, config.query, config.proxy)),
+                     make_force_renderer(config.renderer, world, config.query)),
                     clock) {}
 
 HapticRuntime::HapticRuntime(HapticDevice& device, const RuntimeConfig& config,
@@ -68,7 +68,7 @@ HapticRuntime::HapticRuntime(HapticDevice& device, const RuntimeConfig& config,
     for (const std::string& w : query_pool_->warnings()) warnings_.push_back(w);
     worker_->renderer().set_executor(query_pool_.get(), config.parallel_min_candidates);
   }
-  servo_ = std::make_unique<ServoController>(device, config.safety, config.force.f_max, period_, poses_, results_,
+  servo_ = std::make_unique<ServoController>(device, config.safety, period_, poses_, results_,
                                              stats_, &log_, clock, &monitor_);
 }
 

@@ -19,10 +19,10 @@ void bump(std::atomic<std::uint64_t>& a, bool cond) noexcept {
 
 }  // namespace
 
-ServoController::ServoController(HapticDevice& device, const SafetyParams& safety, double f_max, Nanos period,
+ServoController::ServoController(HapticDevice& device, const SafetyParams& safety, Nanos period,
                                  PoseChannel& poses, ResultChannel& results, RuntimeStats& stats,
                                  TickLog* log, Clock& clock, TripleBuffer<TickRecord>* monitor)
-    : device_(device), safety_(safety, f_max), period_(period), poses_(poses), results_(results),
+    : device_(device), safety_(safety), period_(period), poses_(poses), results_(results),
       stats_(stats), log_(log), clock_(clock), monitor_(monitor) {}
 
 void ServoController::start(Nanos now) {

@@ -11,7 +11,7 @@ namespace gshaptics {
 SimulatedRuntime::SimulatedRuntime(const CollisionWorld& world, HapticDevice& device, const RuntimeConfig& config)
     : SimulatedRuntime(device, config,
                        (validate_runtime_config(config, device.info()),
-                        make_force_renderer(config.force_model, world, config.force, config.query, config.proxy))) {}
+                        make_force_renderer(config.renderer, world, config.query))) {}
 
 SimulatedRuntime::SimulatedRuntime(HapticDevice& device, const RuntimeConfig& config,
                                    std::unique_ptr<ForceRenderer> renderer)
@@ -20,7 +20,7 @@ SimulatedRuntime::SimulatedRuntime(HapticDevice& device, const RuntimeConfig& co
   if (!renderer) throw InputError("simulated runtime: no force renderer given");
   log_ = TickLog(runtime_log_capacity(config));
   worker_ = std::make_unique<CollisionWorker>(config.tool, std::move(renderer), 1.0 / config.rate_hz, clock_);
-  servo_ = std::make_unique<ServoController>(device, config.safety, config.force.f_max, period_, poses_, results_,
+  servo_ = std::make_unique<ServoController>(device, config.safety, period_, poses_, results_,
                                              stats_, &log_, clock_);
   const std::size_t slots = std::size_t(config.latency_ticks) + 1;
   in_flight_.assign(slots, CollisionResult{});

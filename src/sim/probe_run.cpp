@@ -26,9 +26,7 @@ ProbeRunResult run_probe(const CollisionWorld& world, const ProbeTrajectory& tra
   c.inline_query = params.inline_query;
   c.latency_ticks = params.latency_ticks;
   c.tool.semi_axes = Eigen::Vector3d::Constant(trajectory.tool_radius());
-  c.force_model = params.force_model;
-  c.force = params.force;
-  c.proxy = params.proxy;
+  c.renderer = params.renderer;
   c.query = params.query;
   c.safety = params.safety;
   SimulatedRuntime rt(world, device, c);

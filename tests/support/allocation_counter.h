@@ -1,6 +1,6 @@
 #pragma once
 // Counts heap allocations in the whole test binary that links this (operator new is replaced),
-// for the "a servo tick does not allocate" tests (STYLE.md "Hot paths").
+// for the "a servo tick does not allocate" tests (docs/design.md Sec. 6: the servo tick does not allocate).
 
 #include <cstddef>
 

@@ -2,7 +2,7 @@
 // An independent, slow, obviously-correct float64 reference for the collision pipeline.
 // It shares nothing with the fast path beyond the loaders: no BVH, no sphere pre-filter, no
 // coefficient form. K(lambda) is evaluated with a dense 3x3 solve exactly as written in
-// DESIGN.md Sec. 2 and minimised by a 200-step golden-section search (convex on [0, 1]).
+// docs/design.md Sec. 3 and minimised by a 200-step golden-section search (convex on [0, 1]).
 
 #include <Eigen/Core>
 #include <cstdint>

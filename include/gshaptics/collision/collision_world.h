@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// The immutable collision representation of a scene: filtered, registered Gaussians as k-sigma
-/// ellipsoids plus the broad-phase BVH over their exact bounding boxes (DESIGN.md Sec. 1-3).
+/// ellipsoids plus the broad-phase BVH over their exact bounding boxes (docs/design.md Sec. 1-4).
 ///
 /// Threading: a CollisionWorld is immutable after build(); every const member is safe to call
 /// from several threads at once. Per-device mutable state lives in ContactQuery and ForceModel.

@@ -1,7 +1,7 @@
 #pragma once
 /// @file
-/// Continuous collision of a translating tool against the Gaussians (DESIGN notes Sec. 2b,
-/// docs/design.md): where along a straight motion the tool ellipsoid first touches a Gaussian
+/// Continuous collision of a translating tool against the Gaussians (docs/design.md Sec. 8):
+/// where along a straight motion the tool ellipsoid first touches a Gaussian
 /// ellipsoid, and the contact normal there. The basis of the proxy (god-object) renderer:
 /// however thin a shell and however long the step, the first contact along the way is found.
 ///

@@ -12,7 +12,7 @@
 
 #include "gshaptics/fidelity/interaction.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
-#include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/force/renderer_spec.h"
 
 namespace gshaptics {
 
@@ -23,9 +23,7 @@ namespace gshaptics {
 
 /// The matrix to run. Lengths in metres.
 struct FidelityOptions {
-  std::string force_model = "proxy";  ///< make_force_renderer() name
-  ForceParams force;                   ///< the paper model's parameters (and f_max for every model)
-  ProxyParams proxy;                   ///< the proxy model's parameters
+  RendererSpec renderer;               ///< the force renderer and its parameters (default: the proxy)
   std::vector<ShapeKind> shapes = all_shapes();
   std::vector<double> spacings = {0.002, 0.004, 0.008};  ///< Gaussian spacings (densities)
   std::vector<double> tool_radii = {0.005, 0.010};

@@ -67,8 +67,7 @@ struct ScriptTrace {
 struct PlayOptions {
   bool inline_query = kDefaultInlineQuery;  ///< query inside the tick; false: the decoupled worker
   int latency_ticks = 1;     ///< decoupled mode: ticks from a pose to its result (>= 1)
-  SafetyParams safety;
-  double f_max = ForceParams{}.f_max;  ///< the configured force limit, N
+  SafetyParams safety;  ///< the safety layer, F_max included
 };
 
 /// A HapticDevice that follows a script exactly (an ideal position-controlled device): tick k of

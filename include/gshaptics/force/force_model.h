@@ -1,12 +1,13 @@
 #pragma once
 /// @file
 /// Penalty force from a contact set (paper Sec. III-C, eq. 7-11), with the sign convention of
-/// DESIGN.md Sec. 4: the force pushes the tool from the contact centroid toward the tool centre.
+/// docs/design.md Sec. 5: the force pushes the tool from the contact centroid toward the tool centre.
 ///
 /// Threading: a ForceModel holds one device's filter state; use one per device and thread.
 /// update() never allocates, locks, logs or throws.
 
 #include <Eigen/Core>
+#include <limits>
 #include <span>
 
 #include "gshaptics/collision/contact_query.h"
@@ -19,7 +20,9 @@ namespace gshaptics {
 struct ForceParams {
   double k_base = 0.05;        ///< base stiffness, N per contact (eq. 9-10)
   double damping = 5.0;        ///< D, N s/m (eq. 10)
-  double f_max = 30.0;         ///< device force limit, N: eq. 11 clamp, also enforced by the runtime's safety layer
+  /// Eq. 11's clamp on the force magnitude, N. +inf by default: the runtime's safety layer
+  /// limits every renderer (SafetyParams::f_max and the device's own limit).
+  double f_max = std::numeric_limits<double>::infinity();
   double tau_normal = 0.010;   ///< time constant of the normal EMA, s
   double tau_opacity = 0.010;  ///< time constant of the opacity EMA, s
   double tau_velocity = 0.005; ///< time constant of the tool-velocity filter, s

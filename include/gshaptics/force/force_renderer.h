@@ -89,22 +89,10 @@ class BorrowedRenderer final : public ForceRenderer {
   ForceRenderer& inner_;
 };
 
-/// The force-model names make_force_renderer() knows, for help texts: "paper".
+/// The force-model names renderer_spec() knows, for help texts: "proxy, paper".
 [[nodiscard]] std::string_view force_model_names() noexcept;
 
-/// True when make_force_renderer() knows `name`.
+/// True when renderer_spec() knows `name`.
 [[nodiscard]] bool is_force_model(std::string_view name) noexcept;
-
-struct ProxyParams;
-/// ProxyParams{} (declared here so this header does not need the proxy's).
-[[nodiscard]] const ProxyParams& default_proxy_params() noexcept;
-
-/// The renderer named `name` (see force_model_names()) on `world`: "paper" uses `force` and
-/// `query`, "proxy" uses `proxy` and the force limit `force.f_max`. Throws InputError naming `name`
-/// when it is unknown, and what the renderer's constructor throws.
-[[nodiscard]] std::unique_ptr<ForceRenderer> make_force_renderer(std::string_view name, const CollisionWorld& world,
-                                                                 const ForceParams& force = {},
-                                                                 const QueryOptions& query = {},
-                                                                 const ProxyParams& proxy = default_proxy_params());
 
 }  // namespace gshaptics

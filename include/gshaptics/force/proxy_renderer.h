@@ -28,6 +28,7 @@
 /// search (at most 15 directions x 40 steps of the early-exit query).
 
 #include <Eigen/Core>
+#include <limits>
 #include <array>
 
 #include "gshaptics/collision/sweep_query.h"
@@ -61,11 +62,11 @@ struct ProxyParams {
 
 class ProxyRenderer final : public ForceRenderer {
  public:
-  /// `f_max`: the device's force limit, N (ForceParams::f_max, one value for every model).
+  /// `f_max`: a clamp on the output, N (+inf: none; the runtime's safety layer limits the force).
   /// Throws InputError for non-positive stiffness or f_max, negative damping or friction,
   /// mu_k > mu_s, substeps outside [1, 16] or a non-positive kernel.
   explicit ProxyRenderer(const CollisionWorld& world, const ProxyParams& params = {},
-                         double f_max = ForceParams{}.f_max);
+                         double f_max = std::numeric_limits<double>::infinity());
   [[nodiscard]] std::string_view name() const noexcept override { return "proxy"; }
   RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
   /// The Gaussians holding the proxy at the last tick (at most three).

@@ -5,7 +5,7 @@
 ///
 /// For ellipsoids {x : (x - c)^T Sigma^-1 (x - c) <= 1} (tool T, Gaussian G) and d = c_G - c_T:
 ///   K(lambda) = 1 - lambda (1 - lambda) d^T [lambda Sigma_G + (1 - lambda) Sigma_T]^-1 d
-/// (DESIGN.md Sec. 2; algebraically equal to the paper's eq. 6). They overlap iff
+/// (docs/design.md Sec. 3; algebraically equal to the paper's eq. 6). They overlap iff
 /// K_min = min_{lambda in [0,1]} K(lambda) >= 0; the paper counts K_min > 0 as contact.
 ///
 /// Normalising by the tool (Sigma_T = L L^T, M = L^-1 Sigma_G L^-T, v = L^-1 d) and writing

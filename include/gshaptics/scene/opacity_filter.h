@@ -8,7 +8,7 @@
 
 namespace gshaptics {
 
-/// Paper Sec. III-A recommends tau in 0.1 .. 0.3; DESIGN.md picks 0.2.
+/// Paper Sec. III-A recommends tau in 0.1 .. 0.3; the default is 0.2 (WorldConfig::min_opacity).
 inline constexpr float kDefaultMinOpacity = 0.2f;
 
 /// How much the filter removed.

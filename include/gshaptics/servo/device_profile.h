@@ -17,7 +17,7 @@ namespace gshaptics {
 /// (cited per profile); a specific device may differ, and explicit options override a profile.
 struct DeviceProfile {
   std::string name;
-  double f_max = 30;        ///< peak force, N (ForceParams::f_max, every model)
+  double f_max = 30;        ///< peak force, N (SafetyParams::f_max, every model)
   double stiffness = 1000;  ///< proxy coupling stiffness k_c, N/m (ProxyParams::stiffness)
   /// Workspace extents (width, height, depth), m; zero: no bound (room scale).
   Eigen::Vector3d workspace = Eigen::Vector3d::Zero();

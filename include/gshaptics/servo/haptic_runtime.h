@@ -20,7 +20,7 @@
 #include <thread>
 #include <vector>
 
-#include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/servo/collision_worker.h"
 #include "gshaptics/servo/haptic_device.h"
 #include "gshaptics/servo/query_pool.h"
@@ -60,9 +60,7 @@ struct RuntimeConfig {
   /// Longest stop ramp: the force is zeroed at the latest this long after a stop request, s.
   double stop_timeout = 0.1;
   ToolShape tool;
-  std::string force_model = "proxy";  ///< make_force_renderer() name: "proxy" (default) or "paper"
-  ForceParams force;                  ///< the paper model's parameters, and F_max for every model
-  ProxyParams proxy;                  ///< the proxy model's parameters
+  RendererSpec renderer;  ///< the force renderer and its parameters (default: the proxy)
   QueryOptions query;
   /// Threads sharing one large query's narrow phase (the paper model's contact query), the
   /// collision worker included: 1: none besides it. Workers are pinned to the CPUs below the
@@ -92,8 +90,7 @@ class HapticRuntime {
   /// all memory. Throws InputError naming the setting that is wrong.
   HapticRuntime(const CollisionWorld& world, HapticDevice& device, const RuntimeConfig& config,
                 Clock& clock = MonotonicClock::instance());
-  /// With the caller's own renderer (any ForceRenderer; config.force_model and its parameters
-  /// are then not used, config.force.f_max still sets the safety layer's limit).
+  /// With the caller's own renderer (any ForceRenderer; config.renderer is then not used).
   HapticRuntime(HapticDevice& device, const RuntimeConfig& config, std::unique_ptr<ForceRenderer> renderer,
                 Clock& clock = MonotonicClock::instance());
   ~HapticRuntime();

@@ -8,8 +8,9 @@
 ///      then faded linearly to zero over `fade_time` (the paper's asynchronous hold, bounded);
 ///   3. soft start: force scaled by a ramp 0 -> 1 over `ramp_time` after start and every resume,
 ///      applied to the limited force (so |F| <= ramp * f_max while it ramps);
-///   4. force limit: |F| <= f_max = min(the configured F_max, the device's own peak force
-///      (DeviceInfo::max_force)), whatever the options say; then the continuous limit: the
+///   4. force limit: |F| <= min(SafetyParams::f_max, the device's own peak force
+///      (DeviceInfo::max_force)), whatever the options say: F_max is the safety layer's, for
+///      every renderer; then the continuous limit: the
 ///      force's mean square over an exponential window of `continuous_window` s is kept at or
 ///      below the device's continuous force squared (DeviceInfo::max_continuous_force), the I^2 t
 ///      motor protection of servo drives (heat ~ current^2 ~ force^2): short peaks up to f_max
@@ -24,13 +25,13 @@
 #include <cstdint>
 #include <limits>
 
-#include "gshaptics/force/force_model.h"
 #include "gshaptics/servo/clock.h"
 
 namespace gshaptics {
 
 /// Limits and time-outs. Units: N, N/s, s.
 struct SafetyParams {
+  double f_max = 30;              ///< configured force limit F_max, N (> 0); the device's may be lower
   double max_force_rate = 5000;   ///< N/s: 5 N per 1 ms tick
   double hold_timeout = 0.020;    ///< age of the newest result (since its pose) held at full force, s
   double fade_time = 0.020;       ///< linear fade after hold_timeout, s
@@ -87,9 +88,8 @@ struct SafetyOutput {
 
 class SafetyFilter {
  public:
-  /// `f_max`: the configured force limit, N (> 0); the runtime passes ForceParams::f_max.
-  explicit SafetyFilter(const SafetyParams& params = {}, double f_max = ForceParams{}.f_max)
-      : params_(params), f_max_(f_max), option_f_max_(f_max) {}
+  explicit SafetyFilter(const SafetyParams& params = {})
+      : params_(params), f_max_(params.f_max), option_f_max_(params.f_max) {}
   /// The device's own limits (DeviceInfo::max_force, ::max_continuous_force; N, +inf: none):
   /// the peak limit becomes min(configured F_max, device peak). Call after the device started
   /// (vendor drivers learn their limits then); ServoController::start does.

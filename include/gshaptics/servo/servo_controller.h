@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// One servo tick (paper Sec. IV-V, DESIGN.md Sec. 5): read the device, publish its pose to the
+/// One servo tick (paper Sec. IV-V, docs/design.md Sec. 6): read the device, publish its pose to the
 /// collision worker, take the newest collision result, pass it through the safety layer and
 /// command the wrench. No threads here: HapticRuntime calls tick() from its servo thread, and
 /// tests call it with a ManualClock to check hold, fade, ramp, limits and the watchdog exactly.
@@ -22,15 +22,14 @@ namespace gshaptics {
 
 class ServoController {
  public:
-  /// `f_max` is the device's force limit, N (ForceParams::f_max, the force model's eq. 11
-  /// clamp). `period` is the servo period, ns (> 0). `log` may be null. When `monitor` is given, every
+  /// `safety.f_max` is the configured force limit, N. `period` is the servo period, ns (> 0). `log` may be null. When `monitor` is given, every
   /// tick's record is also written to it (for a display thread, which is its single reader).
-  ServoController(HapticDevice& device, const SafetyParams& safety, double f_max, Nanos period,
+  ServoController(HapticDevice& device, const SafetyParams& safety, Nanos period,
                   PoseChannel& poses, ResultChannel& results, RuntimeStats& stats, TickLog* log,
                   Clock& clock, TripleBuffer<TickRecord>* monitor = nullptr);
 
   /// Starts the device, applies its own force limits to the safety layer (the limit becomes
-  /// min(f_max, DeviceInfo::max_force); the continuous limit DeviceInfo::max_continuous_force),
+  /// min(safety.f_max, DeviceInfo::max_force); the continuous limit DeviceInfo::max_continuous_force),
   /// and arms the soft start; `now` becomes the run's time zero. Throws what the device's
   /// start() throws.
   void start(Nanos now);

@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// A single-producer / single-consumer triple buffer: the hand-off between the servo loop and the
-/// collision worker (DESIGN.md Sec. 5). The writer never waits for the reader and the reader
+/// collision worker (docs/design.md Sec. 6). The writer never waits for the reader and the reader
 /// never waits for the writer; the reader always gets the newest complete value.
 ///
 /// Threading contract: exactly one thread calls write() and exactly one thread calls read() /

@@ -38,9 +38,7 @@ struct QueryTimeStats {
 
 struct ProbeRunParams {
   double rate_hz = 1000;  ///< servo rate of the simulation (paper: 1 kHz)
-  std::string force_model = "proxy";  ///< make_force_renderer() name: "proxy" (default) or "paper"
-  ForceParams force;                  ///< the paper model's parameters, and F_max for every model
-  ProxyParams proxy;                  ///< the proxy model's parameters
+  RendererSpec renderer;              ///< the force renderer and its parameters (default: the proxy)
   AdmittanceParams device;
   UserHandParams user;
   QueryOptions query;

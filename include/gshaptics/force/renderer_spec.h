@@ -1,0 +1,43 @@
+#pragma once
+/// @file
+/// Which force renderer a run uses, with that renderer's own parameters: one value that every
+/// runtime, probe run, fidelity run and the Python module take (RuntimeConfig::renderer,
+/// ProbeRunParams::renderer, FidelityOptions::renderer). A caller's own ForceRenderer can be
+/// handed to HapticRuntime and SimulatedRuntime directly instead.
+///
+/// The force limit F_max is not here: it is the safety layer's (SafetyParams::f_max), and it
+/// binds every renderer together with the device's own limit.
+
+#include <memory>
+#include <string_view>
+#include <variant>
+
+#include "gshaptics/force/force_renderer.h"
+#include "gshaptics/force/proxy_renderer.h"
+
+namespace gshaptics {
+
+/// The god-object proxy with virtual coupling (ProxyRenderer; Zilles and Salisbury 1995,
+/// Colgate, Stanley and Brown 1995). The default.
+struct ProxyModelSpec {
+  ProxyParams params;
+};
+
+/// The paper's penalty model: contact query, then eq. 7-11 (PaperRenderer).
+struct PaperModelSpec {
+  ForceParams params;
+};
+
+using RendererSpec = std::variant<ProxyModelSpec, PaperModelSpec>;
+
+/// "proxy" or "paper", as on the command line.
+[[nodiscard]] std::string_view renderer_name(const RendererSpec& spec) noexcept;
+/// The named model with its default parameters. Throws InputError naming `name` and the known
+/// names (force_model_names()).
+[[nodiscard]] RendererSpec renderer_spec(std::string_view name);
+/// The renderer `spec` names, on `world`; `query` configures the paper model's contact query.
+/// Throws InputError for invalid parameters (what the renderer's constructor throws).
+[[nodiscard]] std::unique_ptr<ForceRenderer> make_force_renderer(const RendererSpec& spec, const CollisionWorld& world,
+                                                                 const QueryOptions& query = {});
+
+}  // namespace gshaptics
