@@ -26,7 +26,9 @@ install(FILES ${CMAKE_CURRENT_BINARY_DIR}/gshapticsConfig.cmake
 install(FILES tools/plot_probe_run.py tools/plot_fidelity.py tools/plot_push.py DESTINATION ${CMAKE_INSTALL_DATADIR}/gshaptics)
 # The viewer page and its npm packages (gshaptics serve looks in share/gshaptics/web), and the
 # DDS configurations.
-install(FILES web/index.html web/app.js web/style.css DESTINATION ${CMAKE_INSTALL_DATADIR}/gshaptics/web)
+install(DIRECTORY web/ DESTINATION ${CMAKE_INSTALL_DATADIR}/gshaptics/web
+  FILES_MATCHING PATTERN "*.html" PATTERN "*.js" PATTERN "*.css"
+  PATTERN "node_modules" EXCLUDE PATTERN "tests" EXCLUDE)
 install(DIRECTORY web/node_modules/three web/node_modules/@sparkjsdev
   DESTINATION ${CMAKE_INSTALL_DATADIR}/gshaptics/web/node_modules OPTIONAL)
 install(DIRECTORY config/ DESTINATION ${CMAKE_INSTALL_DATADIR}/gshaptics/config)

@@ -17,4 +17,8 @@ done
 cmake -S "$src/examples" -B "$work/build" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release > "$work/configure.log"
 cmake --build "$work/build" -j2 > "$work/build.log"
 "$work/build/gshaptics_embed" "$src/data"
+# The installed CLI serves the viewer page from the prefix, with every file the page loads.
+if [ -x "$work/prefix/bin/gshaptics" ] && [ -d "$src/web/node_modules/three" ]; then
+  /usr/bin/python3 "$src/tests/install_serve_check.py" "$work/prefix" "$src/data"
+fi
 echo "1 passed, 0 failed"

@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <memory>
+#include <vector>
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
@@ -32,9 +33,16 @@ struct ServeOptions {
   ViewerLimits limits;
 };
 
+/// The page's folder: beside an installed binary (PREFIX/bin/gshaptics -> PREFIX/share/gshaptics/web),
+/// then the configured install prefix, then the source tree (a binary run from its build tree).
 std::string find_web_root() {
-  for (const std::string& p : {std::string(GSHAPTICS_SOURCE_DIR) + "/web",
-                              std::string(GSHAPTICS_INSTALL_DATADIR) + "/web"})
+  std::vector<std::string> candidates;
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) candidates.push_back((exe.parent_path().parent_path() / "share/gshaptics/web").string());
+  candidates.push_back(std::string(GSHAPTICS_INSTALL_DATADIR) + "/web");
+  candidates.push_back(std::string(GSHAPTICS_SOURCE_DIR) + "/web");
+  for (const std::string& p : candidates)
     if (std::filesystem::exists(p + "/index.html")) return p;
   return "";
 }
@@ -114,7 +122,8 @@ void register_serve(CLI::App& app) {
       ->check(CLI::Range(0, 65535));
   cmd->add_option("--display-rate", o->display_rate, "State frames per second to each browser")
       ->capture_default_str()->check(check::range(1.0, 120.0));
-  cmd->add_option("--web-root", o->web_root, "Folder of the page (default: the source tree's web/)");
+  cmd->add_option("--web-root", o->web_root,
+                  "Folder of the page (default: share/gshaptics/web beside an installed binary, else the source tree's web/)");
   cmd->add_option("--allow-origin", o->allow_origins,
                   "Also let pages at this exact Origin open the WebSocket (http://HOST:PORT; repeatable)");
   cmd->add_option("--token", o->token,
@@ -174,6 +183,7 @@ void register_serve(CLI::App& app) {
     rt.set_observer(&snapshots);
     ViewerServer server(vc, rt, pw.world, snapshots, setup.mouse, MonotonicClock::instance());
     server.start();
+    fmt::print("page       {}\n", vc.web_root);
     fmt::print("viewer     http://{}:{}/{}  (Ctrl-C to stop)\n", vc.host, server.port(),
                vc.token.empty() ? std::string() : "?token=" + vc.token);
     std::fflush(stdout);
