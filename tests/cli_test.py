@@ -222,6 +222,67 @@ class Simulate(unittest.TestCase):
             self.assertEqual(summary["mode"], "inline" if mode[0] == "--inline" else "decoupled, 2 ticks latency")
 
 
+class DataSafety(unittest.TestCase):
+    """Issue 35: a failed run leaves the previous results untouched and creates no folder; every
+    check comes before the scene is loaded; a FIFO is refused, not waited on."""
+
+    def snapshot(self, d):
+        out = {}
+        for name in sorted(os.listdir(d)):
+            with open(os.path.join(d, name), "rb") as f:
+                out[name] = f.read()
+        return out
+
+    def test_a_failed_run_keeps_the_previous_results(self):
+        out = tempfile.mkdtemp()
+        run("simulate", "--sites", "1", "--quiet", "--no-plot", "--out", out)
+        before = self.snapshot(out)
+        self.assertIn("probe_log.csv", before)
+        work = tempfile.mkdtemp()
+        truncated = os.path.join(work, "truck.splat")
+        bundled = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data", "truck.splat")
+        with open(bundled, "rb") as src, open(truncated, "wb") as dst:
+            dst.write(src.read(1000))
+        failures = [
+            ("simulate", "--reg-scale", "-1", "--out", out),
+            ("simulate", "--registration", os.path.join(work, "missing.json"), "--out", out),
+            ("simulate", truncated, "--out", out),
+            ("run", "--device", "dhd", "--duration", "1", "--out", out),
+            ("run", "--workspace-scale", "nan", "--duration", "1", "--out", out),
+        ]
+        for args in failures:
+            p = run(*args, "--quiet", check=False)
+            self.assertNotEqual(p.returncode, 0, args)
+            self.assertEqual(self.snapshot(out), before, f"{args} changed the previous results")
+        # A failure creates no folder either.
+        fresh = os.path.join(work, "new", "folder")
+        p = run("simulate", os.path.join(work, "nonexistent.ply"), "--out", fresh, "--quiet", check=False)
+        self.assertEqual(p.returncode, 2)
+        self.assertFalse(os.path.exists(os.path.join(work, "new")))
+
+    def test_device_errors_come_before_the_scene_is_loaded(self):
+        # karangkidul_crop takes ~0.5 s to load: the error must come before, without a scene line.
+        for args, says in ((("--device", "dhd"), "libdhd.so not found"),
+                           (("--device", "replay:/nonexistent.csv"), "/nonexistent.csv"),
+                           (("--workspace-scale", "nan"), "--workspace-scale")):
+            p = run("run", *args, "--duration", "1", "--quiet", check=False)
+            self.assertEqual(p.returncode, 2, args)
+            self.assertIn(says, p.stderr)
+            self.assertNotIn("gaussians", p.stdout.lower(), f"{args}: the scene was loaded first")
+
+    def test_a_fifo_is_refused_not_waited_on(self):
+        d = tempfile.mkdtemp()
+        fifo = os.path.join(d, "scene.ply")
+        os.mkfifo(fifo)
+        p = subprocess.run([EXE, "info", fifo], capture_output=True, text=True, timeout=30)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("FIFO", p.stderr)
+        p = subprocess.run([EXE, "simulate", "--registration", fifo, "--quiet"], capture_output=True, text=True,
+                           timeout=30)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("FIFO", p.stderr)
+
+
 def read_log(path):
     with open(path) as f:
         return list(csv.DictReader(f))

@@ -425,10 +425,11 @@ TEST(OpenHapticsDevice, A33NewtonTouchIsNeverCommandedAboveItsLimitsWhateverFMax
     worst = std::max(worst, heat);
   }
   EXPECT_LE(std::sqrt(worst), 0.88 * 1.01);
-  // A sustained push settles at the continuous force: the last 0.3 s hold at most 0.88 N.
+  // A sustained push settles at the continuous force (from above, as the budget fills): the
+  // last 0.3 s within 1 % of 0.88 N.
   const auto& rec = rt.log().records();
   ASSERT_GT(rec.size(), 400u);
-  for (std::size_t i = rec.size() - 300; i < rec.size(); ++i) EXPECT_LE(rec[i].force.norm(), 0.88 + 1e-9) << i;
+  for (std::size_t i = rec.size() - 300; i < rec.size(); ++i) ASSERT_LE(rec[i].force.norm(), 0.88 * 1.01) << i;
   EXPECT_EQ(fake.force(), Eigen::Vector3d::Zero());  // the run ended with a zero-force frame
 }
 

@@ -21,7 +21,7 @@ import sys
 CODE_SUFFIXES = {".h", ".hpp", ".cpp", ".cc", ".c", ".py", ".js", ".sh", ".txt", ".cmake", ".md"}
 TOP = ("docs", "bench", "tools", "scripts", "tests", "include", "src", "web", "config", "data",
        "examples", "fuzz", "python", "apps", "cmake", ".ci")
-PATH = re.compile(r"(?<![\w./-])((?:%s)/[\w./+-]*\.[A-Za-z0-9]+)" % "|".join(re.escape(t) for t in TOP))
+PATH = re.compile(r"(?<![\w./$-])((?:%s)/[\w./+-]*\.[A-Za-z0-9]+)" % "|".join(re.escape(t) for t in TOP))
 LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)\)")
 SECTION = re.compile(r"docs/design\.md,?\s+Sec(?:tion|\.)\s*(\d+)(?:\s*-\s*(\d+))?")
 FOREIGN = re.compile(r"(?<![\w/.])(DESIGN|STYLE)\.md")

@@ -116,9 +116,9 @@ void register_node(CLI::App& app) {
       "summary like `run`. The device side: `gshaptics device-sim --ros2` or your driver.");
   o->run.device = "ros";
   add_runtime_options(*cmd, o->run,
-                      "ros: the device's pose arrives over ROS (default); haply[:N], dhd[:N], "
-                      "openhaptics[:NAME]: a desktop device on this machine drives the runtime, and "
-                      "the node publishes its wrench and markers (e.g. for a headset's viewer)");
+                      "ros: the device's pose arrives over ROS (default)" + registry_device_help(true) +
+                          ": a desktop device on this machine drives the runtime, and the node "
+                          "publishes its wrench and markers (e.g. for a headset's viewer)");
   auto* f2 = cmd->add_flag("--ros2", o->ros2, "Speak ROS 2 over DDS (Cyclone DDS; ROS 2 Humble message layouts)");
   auto* f1 = cmd->add_flag("--ros1", o->ros1, "Speak ROS 1 (roscpp; master at ROS_MASTER_URI)");
   f2->excludes(f1);
@@ -130,7 +130,7 @@ void register_node(CLI::App& app) {
     if (o->run.device != "ros" && !is_hardware_device(o->run.device))
       throw InputError("--device: node takes 'ros' (default), 'haply[:N]', 'dhd[:N]' or 'openhaptics[:NAME]', got '" +
                        o->run.device + "'");
-    if (o->run.device != "ros") check_device_option(o->run.device, false);
+    if (o->run.device != "ros") validate_runtime_options(o->run, false);  // before the scene load
     const SceneOptions so = with_bundled_defaults(o->run.scene, "node");
     prepare_run_out_dir(o->run, so);
     const PreparedWorld pw = prepare_world(so, o->run.quiet);
@@ -276,7 +276,8 @@ void register_device_sim(CLI::App& app) {
                        duration, sent, received, force);
         });
 
-    write_tick_log_csv(out_dir + "/device_log.csv", r.ticks, kDeviceLogColumns);
+    OutputStage stage(out_dir, {"device_log.csv", "device_summary.json"});
+    write_tick_log_csv(stage.path("device_log.csv"), r.ticks, kDeviceLogColumns);
     const std::vector<double>& lat = r.latencies_us;
     nlohmann::json sj;
     sj["scene"] = so.scene;
@@ -289,7 +290,8 @@ void register_device_sim(CLI::App& app) {
                         {"p50", percentile(lat, 50)},
                         {"p99", percentile(lat, 99)},
                         {"max", lat.empty() ? 0 : *std::max_element(lat.begin(), lat.end())}};
-    write_file_atomically(out_dir + "/device_summary.json", sj.dump(2) + "\n");
+    write_file_atomically(stage.path("device_summary.json"), sj.dump(2) + "\n");
+    stage.commit();
     fmt::print("\ndevice-sim {} poses sent, {} wrenches received, peak |F| {:.2f} N\n", r.poses_sent,
                r.wrenches_received, r.peak_force);
     fmt::print("latency    pose -> wrench round trip: p50 {:.0f} us, p99 {:.0f} us, max {:.0f} us ({} samples)\n",

@@ -16,18 +16,18 @@ void register_run(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "run",
       "Real-time haptic runtime: a servo thread at --rate (absolute deadlines, real-time priority "
-      "when granted) drives the device; a collision worker thread runs the query and force model "
-      "asynchronously (or --inline, inside the tick); the safety layer holds, fades, ramps and "
-      "limits the force. Live status on stderr; Ctrl-C stops cleanly with the device at zero "
-      "force. Writes servo_log.csv, run_summary.json and run.png (paper Fig. 5 + jitter row).");
+      "when granted) drives the device; the query and force renderer run inside the tick (or "
+      "--decoupled, on a collision worker thread); the safety layer holds, fades, ramps and limits "
+      "the force (min of --f-max and the device's own limit). Live status on stderr; Ctrl-C stops "
+      "cleanly with the device at zero force. --simulated-time runs sim and replay devices through "
+      "the same step on simulated time. Writes servo_log.csv, run_summary.json and run.png (paper "
+      "Fig. 5 + jitter row).");
   add_runtime_options(*cmd, *o,
-                      "sim: simulated admittance device with a simulated hand probing the scene; "
-                      "replay:FILE: play a pose log (CSV with time_s,x,y,z[,vx,vy,vz][,qw,qx,qy,qz], "
-                      "e.g. a servo_log.csv or probe_log.csv); haply[:N], dhd[:N], openhaptics[:NAME]: "
-                      "a desktop haptic device (`gshaptics devices` says which this machine has)");
+                      "sim: simulated admittance device with a simulated hand probing the scene" +
+                          registry_device_help(false) + " (`gshaptics devices` says which this machine has)");
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->scene, "run");
-    check_device_option(o->device, /*allow_mouse=*/false);  // before the (slow) scene load
+    validate_runtime_options(*o, /*allow_mouse=*/false);  // before the (slow) scene load
     if (o->simulated_time && o->device != "sim" && o->device.rfind("replay:", 0) != 0)
       throw InputError("--simulated-time: only the sim and replay:FILE devices run on simulated time, not '" +
                        o->device + "'");

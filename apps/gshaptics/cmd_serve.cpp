@@ -115,8 +115,7 @@ void register_serve(CLI::App& app) {
   add_runtime_options(*cmd, o->run,
                       "mouse: the tool follows the browser (drag, keys); xr: the VR controller of "
                       "the page's WebXR session (vibration as feedback); sim: simulated hand "
-                      "probing the scene; replay:FILE: play a pose log; haply[:N], dhd[:N], "
-                      "openhaptics[:NAME]: a desktop haptic device (`gshaptics devices`)");
+                      "probing the scene" + registry_device_help(false) + " (`gshaptics devices`)");
   cmd->add_option("--host", o->host, "Address to listen on (127.0.0.1: this machine only)")->capture_default_str();
   cmd->add_option("--port", o->port, "HTTP/WebSocket port (0: any free port)")->capture_default_str()
       ->check(CLI::Range(0, 65535));
@@ -141,7 +140,7 @@ void register_serve(CLI::App& app) {
   cmd->callback([o] {
     if (o->run.simulated_time) throw InputError("--simulated-time: serve runs in real time (use `run --simulated-time`)");
     const SceneOptions so = with_bundled_defaults(o->run.scene, "serve");
-    check_device_option(o->run.device, /*allow_mouse=*/true);
+    validate_runtime_options(o->run, /*allow_mouse=*/true);  // before the (slow) scene load
     prepare_run_out_dir(o->run, so);
     ViewerConfig vc;
     vc.host = o->host;

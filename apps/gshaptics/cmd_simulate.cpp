@@ -84,9 +84,10 @@ void register_simulate(CLI::App& app) {
     const ProbeRunResult run = run_probe(world, traj, rp, [&](double f) { bar(f); });
     bar.done();
 
-    const std::string csv = out_dir + "/probe_log.csv";
-    const std::string summary_path = out_dir + "/summary.json";
-    const std::string png = out_dir + "/probe_run.png";
+    OutputStage stage(out_dir, {"probe_log.csv", "summary.json", "probe_run.png"});
+    const std::string csv = stage.path("probe_log.csv");
+    const std::string summary_path = stage.path("summary.json");
+    const std::string png = stage.path("probe_run.png");
     std::vector<std::string> write_errors;  // the run is done: report a lost output, keep going
     try {
       write_tick_log_csv(csv, run.ticks, kProbeLogColumns);
@@ -136,21 +137,20 @@ void register_simulate(CLI::App& app) {
                run.query_time.over_1ms, run.ticks.size());
     if (!write_errors.empty()) {
       for (const std::string& e : write_errors) fmt::print(stderr, "error: the run completed, but {}\n", e);
+      fmt::print(stderr, "note: {} is left as it was\n", out_dir);
       set_exit_code(kExitOutputsLost);
       return;
     }
-    fmt::print("log        {}\nsummary    {}\n", csv, summary_path);
     if (run.episodes.empty()) {
       fmt::print(stderr, "error: the probe run made no contact\n");
       print_no_contact_hints(pw, so, traj.tool_radius());
       set_exit_code(1);
     }
-    if (o->no_plot) return;
-    if (!plot_run(csv, summary_path, png, "simulate")) {
-      set_exit_code(1);
-      return;
-    }
-    fmt::print("figure     {}\n", png);
+    const bool plotted = !o->no_plot && plot_run(csv, summary_path, png, "simulate");
+    if (!o->no_plot && !plotted) set_exit_code(1);
+    stage.commit();
+    fmt::print("log        {}\nsummary    {}\n", stage.final_path("probe_log.csv"), stage.final_path("summary.json"));
+    if (plotted) fmt::print("figure     {}\n", stage.final_path("probe_run.png"));
   });
 }
 

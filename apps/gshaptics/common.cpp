@@ -7,6 +7,9 @@
 #include <cstdio>
 #include <fmt/format.h>
 #include <functional>
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <sstream>
 
@@ -141,17 +144,63 @@ std::string prepare_out_dir(const std::string& dir, const std::string& scene,
   std::error_code ec;
   if (fs::exists(out, ec) && !fs::is_directory(out, ec))
     throw InputError(option + " " + out + ": exists and is not a folder");
-  fs::create_directories(out, ec);
-  if (ec) throw InputError(option + " " + out + ": cannot create the folder (" + ec.message() + ")");
-  if (::access(out.c_str(), W_OK | X_OK) != 0)
-    throw InputError(option + " " + out + ": the folder is not writable");
+  // The folder, or the nearest existing one above it (where it will be created), is writable.
+  fs::path probe = fs::absolute(out, ec);
+  while (!probe.empty() && !fs::exists(probe, ec) && probe.has_parent_path() && probe.parent_path() != probe)
+    probe = probe.parent_path();
+  if (!fs::is_directory(probe, ec))
+    throw InputError(option + " " + out + ": " + probe.string() + " is not a folder");
+  if (::access(probe.c_str(), W_OK | X_OK) != 0)
+    throw InputError(option + " " + out + ": " + (probe == fs::absolute(out, ec) ? std::string("the folder") : probe.string()) +
+                     " is not writable");
   for (const std::string& name : owned) {
     const fs::path f = fs::path(out) / name;
     if (fs::is_directory(f, ec))
       throw InputError(option + " " + out + ": '" + name + "' is a folder where this run writes a file");
-    fs::remove(f, ec);
   }
   return out;
+}
+
+OutputStage::OutputStage(std::string final_dir, std::vector<std::string> owned)
+    : final_(std::move(final_dir)), owned_(std::move(owned)) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  std::string pattern = (fs::temp_directory_path(ec) / "gshaptics-run-XXXXXX").string();
+  if (::mkdtemp(pattern.data()) == nullptr)
+    throw InputError("cannot create a temporary folder for the outputs (" + std::string(std::strerror(errno)) + ")");
+  stage_ = pattern;
+}
+
+OutputStage::~OutputStage() {
+  std::error_code ec;
+  std::filesystem::remove_all(stage_, ec);
+}
+
+void OutputStage::commit() {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(final_, ec);
+  if (ec) throw InputError(final_ + ": cannot create the output folder (" + ec.message() + ")");
+  for (const std::string& name : owned_) {
+    const fs::path from = fs::path(stage_) / name, to = fs::path(final_) / name;
+    if (!fs::exists(from, ec)) {
+      fs::remove(to, ec);  // this run did not write it: no stale file of another run stays
+      continue;
+    }
+    fs::rename(from, to, ec);
+    if (ec) {  // another file system: copy beside the target, then rename over it
+      const fs::path tmp = fs::path(final_) / ("." + name + ".tmp");
+      ec.clear();
+      fs::copy_file(from, tmp, fs::copy_options::overwrite_existing, ec);
+      if (!ec) fs::rename(tmp, to, ec);
+      if (ec) {
+        const std::string why = ec.message();
+        fs::remove(tmp, ec);
+        throw InputError(to.string() + ": cannot be written (" + why + ")");
+      }
+    }
+  }
+  committed_ = true;
 }
 
 namespace {

@@ -56,12 +56,39 @@ WorldConfig world_config_from(const SceneOptions& o);
 /// that biker.spz and biker.ply never share one.
 std::string default_out_dir(const std::string& scene);
 
-/// Checks an output folder before any work starts and creates it: InputError naming `option`
-/// when the path is a file, cannot be created or is not writable. Then removes the files of
-/// `owned` (names inside the folder) that a previous run left, so one run's outputs are never
-/// mixed with another's. Returns the folder (the default one for `scene` when `dir` is empty).
+/// Checks an output folder before any work starts, and changes nothing: InputError naming
+/// `option` when the path is a file, when one of `owned` (the names a run writes there) is a
+/// folder, or when the folder (or the nearest existing folder above it) is not writable. Returns
+/// the folder (the default one for `scene` when `dir` is empty). Outputs go through an
+/// OutputStage, so a run that fails leaves the previous run's results as they were and creates
+/// no folder.
 std::string prepare_out_dir(const std::string& dir, const std::string& scene,
                             const std::vector<std::string>& owned, const std::string& option = "--out");
+
+/// A run's outputs, written into a private folder first (under the system's temporary folder)
+/// and moved into the output folder only by commit(): each of `owned` that was written replaces
+/// the old one (rename; a copy then rename across file systems), each that was not is removed
+/// (a stale figure after a --no-plot re-run), so the folder holds one run's outputs. Destroyed
+/// without commit(), it removes its private folder and the output folder is untouched.
+class OutputStage {
+ public:
+  OutputStage(std::string final_dir, std::vector<std::string> owned);
+  ~OutputStage();
+  OutputStage(const OutputStage&) = delete;
+  OutputStage& operator=(const OutputStage&) = delete;
+  /// Where to write now: stage_dir() + "/" + name.
+  [[nodiscard]] const std::string& stage_dir() const noexcept { return stage_; }
+  [[nodiscard]] std::string path(const std::string& name) const { return stage_ + "/" + name; }
+  /// Where a file ends up.
+  [[nodiscard]] std::string final_path(const std::string& name) const { return final_ + "/" + name; }
+  /// Creates the output folder and moves the outputs in. Throws InputError naming the folder.
+  void commit();
+
+ private:
+  std::string final_, stage_;
+  std::vector<std::string> owned_;
+  bool committed_ = false;
+};
 
 /// The frame options as one comment line that pose files carry ("# frame: up=auto
 /// registration=... reg-scale=... reg-rotation=... reg-translation=..."), so that `query --poses`

@@ -174,97 +174,37 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
   add_world_cache_option(cmd, o.scene);
 }
 
-namespace {
-/// "kind[:ARG]" -> ARG ("" when absent).
-std::string device_arg(const std::string& device, const std::string& kind) {
-  return device.size() > kind.size() ? device.substr(kind.size() + 1) : std::string();
+std::string registry_device_help(bool hardware_only) {
+  std::string s;
+  for (const DeviceKind& k : device_registry().kinds())
+    if (!hardware_only || k.hardware) s += "; " + k.grammar + ": " + k.summary;
+  return s;
 }
-int device_index(const std::string& device, const std::string& kind) {
-  const std::string a = device_arg(device, kind);
-  if (a.empty()) return 0;
-  std::size_t used = 0;
-  int i = -1;
-  try {
-    i = std::stoi(a, &used);
-  } catch (...) {
-    used = 0;
-  }
-  if (used != a.size() || i < 0 || i > 63)
-    throw InputError("--device " + device + ": the index after '" + kind + ":' must be a number 0-63");
-  return i;
-}
-bool has_kind(const std::string& device, const std::string& kind) {
-  return device == kind || device.rfind(kind + ":", 0) == 0;
-}
-}  // namespace
 
 bool is_hardware_device(const std::string& device) {
-  return has_kind(device, "haply") || has_kind(device, "dhd") || has_kind(device, "openhaptics");
+  const DeviceKind* k = device_registry().find(device);
+  return k != nullptr && k->hardware;
 }
 
 void check_device_option(const std::string& device, bool allow_mouse) {
-  if (device.rfind("replay:", 0) == 0) {
-    if (device.size() == 7) throw InputError("--device replay:FILE: no file given");
-    return;
-  }
-  if (has_kind(device, "haply")) {
-#ifndef GSHAPTICS_HAVE_VIEWER
-    throw InputError("--device haply: this build has no WebSocket client (built without Boost.Beast)");
-#endif
-    (void)device_index(device, "haply");
-    return;
-  }
-  if (has_kind(device, "dhd")) {
-    (void)device_index(device, "dhd");
-    return;
-  }
-  if (has_kind(device, "openhaptics")) return;
+  // The kinds that need the scene (sim, mouse, xr) are made here; every other one is the registry's.
   if (device == "sim" || (allow_mouse && (device == "mouse" || device == "xr"))) return;
-  throw InputError("--device: expected 'sim', " + std::string(allow_mouse ? "'mouse', 'xr', " : "") +
-                   "'replay:FILE', 'haply[:N]', 'dhd[:N]' or 'openhaptics[:NAME]', got '" + device +
-                   "' (`gshaptics devices` lists what this machine has)");
+  if (device_registry().find(device) == nullptr) {
+#ifndef GSHAPTICS_HAVE_VIEWER
+    if (device == "haply" || device.rfind("haply:", 0) == 0)
+      throw InputError("--device haply: this build has no WebSocket client (built without Boost.Beast)");
+#endif
+    throw InputError("--device: expected 'sim', " + std::string(allow_mouse ? "'mouse', 'xr', " : "") +
+                     device_registry().grammars() + ", got '" + device +
+                     "' (`gshaptics devices` lists what this machine has)");
+  }
+  device_registry().check(device);
 }
 
 std::unique_ptr<HapticDevice> make_hardware_device(const RuntimeOptions& o) {
-  const std::string& d = o.device;
-  if (has_kind(d, "dhd")) {
-    auto dev = std::make_unique<DhdDevice>(device_index(d, "dhd"));
-    return dev;
-  }
-  if (has_kind(d, "openhaptics")) {
-    OpenHapticsParams p;
-    p.device_name = device_arg(d, "openhaptics");
-    return std::make_unique<OpenHapticsDevice>(p);
-  }
-#ifdef GSHAPTICS_HAVE_VIEWER
-  if (has_kind(d, "haply")) {
-    HaplyParams p;
-    p.index = device_index(d, "haply");
-    // ws://HOST:PORT/PATH
-    const std::string& u = o.haply_url;
-    const std::string scheme = "ws://";
-    if (u.rfind(scheme, 0) != 0) throw InputError("--haply-url: expected ws://HOST:PORT/PATH, got '" + u + "'");
-    const std::string rest = u.substr(scheme.size());
-    const std::size_t slash = rest.find('/');
-    const std::string hostport = rest.substr(0, slash);
-    p.path = slash == std::string::npos ? "/" : rest.substr(slash);
-    const std::size_t colon = hostport.rfind(':');
-    p.host = hostport.substr(0, colon);
-    if (colon != std::string::npos) {
-      std::size_t used = 0;
-      try {
-        p.port = std::stoi(hostport.substr(colon + 1), &used);
-      } catch (...) {
-        used = 0;
-      }
-      if (used == 0 || used != hostport.size() - colon - 1)
-        throw InputError("--haply-url: bad port in '" + u + "'");
-    }
-    if (p.host.empty()) throw InputError("--haply-url: no host in '" + u + "'");
-    return std::make_unique<HaplyDevice>(p);
-  }
-#endif
-  throw InputError("--device " + d + ": not a hardware device in this build");
+  DeviceOptions d;
+  d.haply_url = o.haply_url;
+  return open_device(o.device, d);
 }
 
 Eigen::Vector3d tool_start_point(const PreparedWorld& pw, double tool_radius) {
@@ -297,6 +237,30 @@ Eigen::Vector3d tool_start_point(const PreparedWorld& pw, double tool_radius) {
   return start;
 }
 
+namespace {
+double parse_workspace_scale(const std::string& text) {
+  double v = 0;
+  std::size_t used = 0;
+  try {
+    v = std::stod(text, &used);
+  } catch (...) {
+    used = 0;
+  }
+  if (used != text.size() || !std::isfinite(v) || !(v > 0))
+    throw InputError("--workspace-scale: must be a finite number > 0, got '" + text + "'");
+  return v;
+}
+}  // namespace
+
+void validate_runtime_options(const RuntimeOptions& o, bool allow_mouse) {
+  check_device_option(o.device, allow_mouse);
+  if (!o.workspace_scale.empty()) (void)parse_workspace_scale(o.workspace_scale);
+  if (!o.workspace_offset.empty()) (void)parse_vec3(o.workspace_offset, "--workspace-offset");
+  // A device's library and a replay file are checked now, before the scene is loaded.
+  if (is_hardware_device(o.device)) (void)make_hardware_device(o);
+  if (o.device.rfind("replay:", 0) == 0) (void)load_pose_log(o.device.substr(7));
+}
+
 void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool hardware,
                                const Eigen::Vector3d& default_offset, const Eigen::Vector3d& world_up) {
   const bool any = !o.workspace_scale.empty() || !o.workspace_offset.empty() || o.clutch_button >= 0 ||
@@ -305,16 +269,7 @@ void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool ha
   if (s.mouse != nullptr)
     throw InputError("--workspace-*: the mouse device already works in world coordinates");
   WorkspaceMappingParams p;
-  if (!o.workspace_scale.empty()) {
-    std::size_t used = 0;
-    try {
-      p.scale = std::stod(o.workspace_scale, &used);
-    } catch (...) {
-      used = 0;
-    }
-    if (used != o.workspace_scale.size() || !std::isfinite(p.scale) || !(p.scale > 0))
-      throw InputError("--workspace-scale: must be a finite number > 0, got '" + o.workspace_scale + "'");
-  }
+  if (!o.workspace_scale.empty()) p.scale = parse_workspace_scale(o.workspace_scale);
   if (hardware) {
     // The device frame's z (up at the desk) becomes the world's up; the tool starts at the offset.
     p.rotation = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), world_up.normalized());
@@ -505,9 +460,10 @@ bool write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vecto
   const std::vector<ContactEpisode> episodes = find_episodes(records);
 
   const std::string out_dir = o.out_dir.empty() ? default_out_dir(so.scene) : o.out_dir;
-  const std::string csv = out_dir + "/servo_log.csv";
-  const std::string summary_path = out_dir + "/run_summary.json";
-  const std::string png = out_dir + "/run.png";
+  OutputStage stage(out_dir, {"servo_log.csv", "run_summary.json", "run.png"});
+  const std::string csv = stage.path("servo_log.csv");
+  const std::string summary_path = stage.path("run_summary.json");
+  const std::string png = stage.path("run.png");
   // The run is over (the servo loop only filled memory): a full disk or a folder made read-only
   // meanwhile loses these files, never the run. Each failure is reported and sets exit status 4.
   std::vector<std::string> write_errors;
@@ -518,11 +474,7 @@ bool write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vecto
       write_errors.push_back(e.what());
     }
   };
-  attempt([&] {
-    std::error_code ec;
-    std::filesystem::create_directories(out_dir, ec);
-    write_tick_log_csv(csv, records, kServoLogColumns);
-  });
+  attempt([&] { write_tick_log_csv(csv, records, kServoLogColumns); });
 
   nlohmann::json sj;
   sj["scene"] = so.scene;
@@ -587,14 +539,21 @@ bool write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vecto
                records.size(), log.dropped());
   if (!write_errors.empty()) {
     for (const std::string& e : write_errors) fmt::print(stderr, "error: the run completed, but {}\n", e);
+    fmt::print(stderr, "note: {} is left as it was\n", out_dir);
     set_exit_code(kExitOutputsLost);
     return true;
   }
-  fmt::print("log        {}\nsummary    {}\n", csv, summary_path);
-  if (o.no_plot || records.empty()) return true;
-  if (!plot_run(csv, summary_path, png, command)) return false;
-  fmt::print("figure     {}\n", png);
-  return true;
+  const bool plotted = !o.no_plot && !records.empty() && plot_run(csv, summary_path, png, command);
+  try {
+    stage.commit();
+  } catch (const InputError& e) {
+    fmt::print(stderr, "error: the run completed, but {}\n", e.what());
+    set_exit_code(kExitOutputsLost);
+    return true;
+  }
+  fmt::print("log        {}\nsummary    {}\n", stage.final_path("servo_log.csv"), stage.final_path("run_summary.json"));
+  if (plotted) fmt::print("figure     {}\n", stage.final_path("run.png"));
+  return o.no_plot || records.empty() || plotted;
 }
 
 }  // namespace

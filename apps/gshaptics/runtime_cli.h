@@ -85,6 +85,13 @@ struct RuntimeSetup {
 };
 /// Checks --device before the scene loads (throws InputError naming the option).
 void check_device_option(const std::string& device, bool allow_mouse);
+/// Everything about the device that can be checked before the scene is loaded: the --device
+/// value, the workspace options, a hardware device's vendor library, a replay file. Throws
+/// InputError.
+void validate_runtime_options(const RuntimeOptions& o, bool allow_mouse);
+/// "; GRAMMAR: summary" for every kind of the device registry (only the hardware ones when
+/// `hardware_only`), for --device help texts.
+[[nodiscard]] std::string registry_device_help(bool hardware_only);
 /// True for the desktop haptic devices: haply[:N], dhd[:N], openhaptics[:NAME].
 [[nodiscard]] bool is_hardware_device(const std::string& device);
 /// Opens the hardware device a --device value names (InputError: what is missing, what to install).

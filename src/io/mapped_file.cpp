@@ -14,8 +14,19 @@
 
 namespace gshaptics {
 
+void require_regular_file(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) throw file_error(path, std::string("cannot open: ") + std::strerror(errno));
+  if (!S_ISREG(st.st_mode))
+    throw file_error(path, S_ISFIFO(st.st_mode) ? "a FIFO (named pipe), not a regular file"
+                           : S_ISDIR(st.st_mode) ? "a folder, not a regular file"
+                                                 : "not a regular file (a device or socket)");
+}
+
 MappedFile::MappedFile(const std::string& path) : path_(path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  // O_NONBLOCK: opening a FIFO for reading would otherwise wait for a writer (a hang); a
+  // regular file ignores the flag, and anything else is refused below.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) throw file_error(path, std::string("cannot open: ") + std::strerror(errno));
   struct stat st {};
   if (::fstat(fd, &st) != 0) {
@@ -25,7 +36,9 @@ MappedFile::MappedFile(const std::string& path) : path_(path) {
   }
   if (!S_ISREG(st.st_mode)) {
     ::close(fd);
-    throw file_error(path, "not a regular file");
+    throw file_error(path, S_ISFIFO(st.st_mode) ? "a FIFO (named pipe), not a regular file"
+                           : S_ISDIR(st.st_mode) ? "a folder, not a regular file"
+                                                 : "not a regular file (a device or socket)");
   }
   size_ = static_cast<std::size_t>(st.st_size);
   if (size_ > 0) {

@@ -265,4 +265,58 @@ std::vector<DeviceCounter> HaplyDevice::counters() const {
   return {{"reconnects", st.connects > 0 ? st.connects - 1 : 0}, {"malformed messages", st.malformed}};
 }
 
+void parse_haply_url(const std::string& u, HaplyParams& p) {
+  const std::string scheme = "ws://";
+  if (u.rfind(scheme, 0) != 0) throw InputError("--haply-url: expected ws://HOST:PORT/PATH, got '" + u + "'");
+  const std::string rest = u.substr(scheme.size());
+  const std::size_t slash = rest.find('/');
+  const std::string hostport = rest.substr(0, slash);
+  p.path = slash == std::string::npos ? "/" : rest.substr(slash);
+  const std::size_t colon = hostport.rfind(':');
+  p.host = hostport.substr(0, colon);
+  if (colon != std::string::npos) {
+    std::size_t used = 0;
+    try {
+      p.port = std::stoi(hostport.substr(colon + 1), &used);
+    } catch (...) {
+      used = 0;
+    }
+    if (used == 0 || used != hostport.size() - colon - 1 || p.port <= 0 || p.port > 65535)
+      throw InputError("--haply-url: bad port in '" + u + "'");
+  }
+  if (p.host.empty()) throw InputError("--haply-url: no host in '" + u + "'");
+}
+
+void register_haply_device(DeviceRegistry& registry) {
+  if (registry.find("haply") != nullptr) return;
+  DeviceKind k;
+  k.name = "haply";
+  k.grammar = "haply[:N]";
+  k.summary = "a Haply Inverse3 through the Haply Inverse Service (JSON over its local WebSocket)";
+  k.hardware = true;
+  k.check = [](const std::string& arg) { (void)device_index_arg("haply:" + arg, arg); };
+  k.open = [](const std::string& arg, const DeviceOptions& o) -> std::unique_ptr<HapticDevice> {
+    HaplyParams p;
+    p.index = device_index_arg("haply:" + arg, arg);
+    parse_haply_url(o.haply_url, p);
+    return std::make_unique<HaplyDevice>(p);
+  };
+  k.probe = [](const DeviceOptions& o) {
+    try {
+      HaplyParams p;
+      parse_haply_url(o.haply_url, p);
+      p.connect_timeout = 1.0;
+      HaplyDevice d(p);
+      d.start(0);
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));  // one rate window
+      const std::string note = d.status();
+      d.stop(0);
+      return std::vector<DeviceStatus>{{"haply:0", true, note}};
+    } catch (const InputError& e) {
+      return std::vector<DeviceStatus>{{"haply[:N]", false, e.what()}};
+    }
+  };
+  registry.add(std::move(k));
+}
+
 }  // namespace gshaptics

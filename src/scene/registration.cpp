@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "gshaptics/error.h"
+#include "gshaptics/io/mapped_file.h"
 #include "gshaptics/scene/sh_rotation.h"
 
 namespace gshaptics {
@@ -195,6 +196,7 @@ SimilarityTransform conversion_transform(const SimilarityTransform& registration
 }
 
 SimilarityTransform load_registration_file(const std::string& path) {
+  require_regular_file(path);
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open registration file");
   std::stringstream ss;

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "gshaptics/error.h"
+#include "gshaptics/io/mapped_file.h"
 
 namespace gshaptics {
 
@@ -30,6 +31,7 @@ std::vector<std::string> split_csv(const std::string& line) {
 }  // namespace
 
 PoseLog load_pose_log(const std::string& path) {
+  require_regular_file(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw file_error(path, "cannot open the pose log");
   std::ostringstream text;

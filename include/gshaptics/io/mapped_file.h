@@ -9,6 +9,10 @@
 
 namespace gshaptics {
 
+/// Throws InputError naming `path` when it does not exist or is not a regular file (a FIFO, a
+/// folder, a device): reading one would hang or fail obscurely. Stats the path, opens nothing.
+void require_regular_file(const std::string& path);
+
 /// A read-only view of a file's bytes, memory-mapped (POSIX mmap). Move-only.
 /// Throws InputError naming the file when it cannot be opened, is a directory, or cannot be mapped.
 class MappedFile {

@@ -36,6 +36,7 @@
 #include <thread>
 
 #include "gshaptics/net/peer_messages.h"
+#include "gshaptics/servo/device_registry.h"
 #include "gshaptics/servo/haptic_device.h"
 #include "gshaptics/servo/triple_buffer.h"
 
@@ -117,5 +118,11 @@ class HaplyDevice final : public HapticDevice {
   // Servo thread only:
   DeviceSample last_;
 };
+
+/// Parses "ws://HOST:PORT/PATH" into `p` (host, port, path). Throws InputError naming `url`.
+void parse_haply_url(const std::string& url, HaplyParams& p);
+
+/// Adds the "haply[:N]" kind (an Inverse3 through the Haply Inverse Service) to `registry`, once.
+void register_haply_device(DeviceRegistry& registry = device_registry());
 
 }  // namespace gshaptics
