@@ -387,6 +387,25 @@ TEST(OpenHapticsDevice, StartStopStartStopEndsEverySessionAtZeroForce) {
 struct DeepContact {
   const CollisionWorld& world = test::truck_world();
   Eigen::Vector3d point = test::contact_point(world);
+
+  struct Run {
+    RuntimeSummary summary;
+    std::vector<TickRecord> records;
+  };
+  /// Runs `device` (its origin mapped onto the Gaussian) for `seconds` in real time with the
+  /// configured limit --f-max 30 N.
+  Run run(HapticDevice& device, double seconds, double continuous_window = 2.0) const {
+    WorkspaceMappingParams mp;
+    mp.offset = point;
+    MappedDevice mapped(device, mp);
+    RuntimeConfig c = test::device_test_config(seconds);
+    c.safety.f_max = 30;  // the option asks for 30 N
+    c.safety.continuous_window = continuous_window;
+    HapticRuntime rt(world, mapped, c);
+    rt.start();
+    rt.wait();
+    return {rt.summary(), rt.log().records()};
+  }
 };
 
 // The device-limit rule: the safety layer's limit is min(the device's, --f-max), whatever the
@@ -400,16 +419,9 @@ TEST(OpenHapticsDevice, A33NewtonTouchIsNeverCommandedAboveItsLimitsWhateverFMax
   fake.set_position_mm(0, 0, 0);
   fake.set_velocity_mm(0, 0, 0);
   OpenHapticsDevice hd;
-  WorkspaceMappingParams mp;
-  mp.offset = scene.point;
-  MappedDevice dev(hd, mp);
-  RuntimeConfig c = test::device_test_config(1.5);
-  c.safety.f_max = 30;  // the option asks for 30 N
-  c.safety.continuous_window = 0.5;
-  HapticRuntime rt(scene.world, dev, c);
-  rt.start();
-  rt.wait();
-  const RuntimeSummary s = rt.summary();
+  const double window = 0.5;
+  const DeepContact::Run run = scene.run(hd, 1.5, window);
+  const RuntimeSummary& s = run.summary;
   EXPECT_DOUBLE_EQ(s.force_limit, 3.3);
   EXPECT_TRUE(s.force_limit_by_device);
   EXPECT_DOUBLE_EQ(s.continuous_force_limit, 0.88);
@@ -418,8 +430,8 @@ TEST(OpenHapticsDevice, A33NewtonTouchIsNeverCommandedAboveItsLimitsWhateverFMax
   EXPECT_GT(s.continuous_limited_ticks, 0u);
   // The RMS over the window, recomputed from the commanded forces, stays at the continuous force.
   double heat = 0, worst = 0, t_prev = 0;
-  for (const TickRecord& r : rt.log().records()) {
-    const double a = -std::expm1(-std::max(r.time - t_prev, 1e-4) / c.safety.continuous_window);
+  for (const TickRecord& r : run.records) {
+    const double a = -std::expm1(-std::max(r.time - t_prev, 1e-4) / window);
     t_prev = r.time;
     heat += (r.force.squaredNorm() - heat) * a;
     worst = std::max(worst, heat);
@@ -427,7 +439,7 @@ TEST(OpenHapticsDevice, A33NewtonTouchIsNeverCommandedAboveItsLimitsWhateverFMax
   EXPECT_LE(std::sqrt(worst), 0.88 * 1.01);
   // A sustained push settles at the continuous force (from above, as the budget fills): the
   // last 0.3 s within 1 % of 0.88 N.
-  const auto& rec = rt.log().records();
+  const auto& rec = run.records;
   ASSERT_GT(rec.size(), 400u);
   for (std::size_t i = rec.size() - 300; i < rec.size(); ++i) ASSERT_LE(rec[i].force.norm(), 0.88 * 1.01) << i;
   EXPECT_EQ(fake.force(), Eigen::Vector3d::Zero());  // the run ended with a zero-force frame
@@ -441,15 +453,7 @@ TEST(DhdDevice, ATwelveNewtonDeviceIsNeverCommandedAboveTwelveWhateverFMaxSays) 
   DeepContact scene;
   ASSERT_FALSE(scene.point.isZero());
   DhdDevice dhd(0);
-  WorkspaceMappingParams mp;
-  mp.offset = scene.point;
-  MappedDevice dev(dhd, mp);
-  RuntimeConfig c = test::device_test_config(0.8);
-  c.safety.f_max = 30;
-  HapticRuntime rt(scene.world, dev, c);
-  rt.start();
-  rt.wait();
-  const RuntimeSummary s = rt.summary();
+  const RuntimeSummary s = scene.run(dhd, 0.8).summary;
   EXPECT_DOUBLE_EQ(s.force_limit, 12.0);
   EXPECT_TRUE(s.force_limit_by_device);
   EXPECT_GT(fake.peak_force(), 1.0) << "no contact force: the test does not test the limit";
