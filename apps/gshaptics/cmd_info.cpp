@@ -71,7 +71,8 @@ void register_info(CLI::App& app) {
                transformed ? fmt::format("after --up {}{}", to_string(cfg.up),
                                          cfg.registration.is_identity() ? "" : " and the registration")
                            : std::string("= the file's own axes (no --up, no registration)"));
-    fmt::print("up         [{:.2f}, {:.2f}, {:.2f}]{}\n", up.x(), up.y(), up.z(),
+    const Eigen::Vector3d upp = for_print(up);
+    fmt::print("up         [{:.2f}, {:.2f}, {:.2f}]{}\n", upp.x(), upp.y(), upp.z(),
                cfg.up == UpAxis::kNone ? fmt::format(" (the file's convention, {})", to_string(s.scene.frame))
                                        : std::string());
     fmt::print("bounds     min {} max {}\n", v3(w.bbox_min), v3(w.bbox_max));

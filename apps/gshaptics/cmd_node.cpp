@@ -246,7 +246,7 @@ void register_device_sim(CLI::App& app) {
   cmd->add_option("--seed", o->seed, "Seed of the site choice")->capture_default_str();
   cmd->add_option("--tool-radius", o->tool_radius, "Tool radius (default: 1% of the scene's extent)")->check(check::positive());
   cmd->add_option("--wait", o->wait, "Wait this long for a node to match, s")->capture_default_str()->check(check::non_negative());
-  cmd->add_option("--out", o->out_dir, "Output folder (default: runs/<scene name>)");
+  cmd->add_option("--out", o->out_dir, "Output folder (default: runs/<name>-<extension>, e.g. runs/truck-splat)");
   cmd->add_flag("--quiet", o->quiet, "No progress line");
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->scene, "device-sim");

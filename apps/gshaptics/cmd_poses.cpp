@@ -19,7 +19,7 @@ void register_poses(CLI::App& app) {
       "Print seeded tool poses, one per line (cx cy cz ax ay az qw qx qy qz, world frame), for "
       "`gshaptics query --poses`. Near-surface by default: centred within one tool radius of a "
       "kept Gaussian. Tool radii are fractions of the scene's 1-99 percentile extent.");
-  cmd->add_option("scene", o->scene, "Scene file (.ply or .splat)")->required();
+  cmd->add_option("scene", o->scene, "Scene file (any format gshaptics reads: INRIA PLY, compressed PLY, .splat, SPZ)")->required();
   cmd->add_option("--count", p->count, "Number of poses")->capture_default_str()->check(CLI::Range(1, 100000000));
   cmd->add_option("--seed", p->seed, "Random seed")->capture_default_str();
   cmd->add_option("--radius-min", p->radius_min, "Smallest tool radius (fraction of extent)")
@@ -30,6 +30,8 @@ void register_poses(CLI::App& app) {
   cmd->add_flag("--anisotropic", p->anisotropic, "Random ellipsoids (axis ratios down to 1/3)");
   add_world_options(*cmd, *o);
   cmd->callback([o, p, uniform] {
+    if (p->radius_min > p->radius_max)
+      throw InputError(fmt::format("--radius-min {:g} is above --radius-max {:g}", p->radius_min, p->radius_max));
     const LoadedScene s = load_with_progress(o->scene);
     const WorldConfig cfg = world_config_from(*o);
     const CollisionWorld world = CollisionWorld::build(s.scene, cfg);

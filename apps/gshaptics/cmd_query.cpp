@@ -69,7 +69,7 @@ void register_query(CLI::App& app) {
       "{\"candidates\": n, \"prefiltered\": n, \"contacts\": [{\"index\", \"k_min\", \"opacity\", "
       "\"center\"}...], \"query_us\": t}. Contacts are sorted by index into the original file; "
       "centres are in the world frame (the scene's own frame without --registration).");
-  cmd->add_option("scene", o->scene.scene, "Scene file (.ply or .splat)")->required();
+  cmd->add_option("scene", o->scene.scene, "Scene file (any format gshaptics reads: INRIA PLY, compressed PLY, .splat, SPZ)")->required();
   cmd->add_option("--tool-center", o->center, "Tool centre X,Y,Z (world frame)");
   cmd->add_option("--tool-axes", o->axes, "Tool semi-axes A,B,C (world units, > 0)");
   cmd->add_option("--tool-rotation", o->rotation, "Tool rotation quaternion W,X,Y,Z")

@@ -43,7 +43,7 @@ void register_simulate(CLI::App& app) {
       "runtime's execution mode. Writes probe_log.csv, summary.json and probe_run.png (the "
       "paper's Fig. 5) to --out. Without SCENE, runs the bundled Truck.");
   cmd->add_option("scene", o->scene.scene, "Scene file (default: bundled data/truck.splat, registered z-up in metres)");
-  cmd->add_option("--out", o->out_dir, "Output folder (default: runs/<scene name>)");
+  cmd->add_option("--out", o->out_dir, "Output folder (default: runs/<name>-<extension>, e.g. runs/truck-splat)");
   cmd->add_option("--sites", o->sites, "Contact sites to probe")->capture_default_str()
       ->check(CLI::Range(1, 100));
   cmd->add_option("--seed", o->seed, "Seed of the site choice")->capture_default_str();

@@ -105,12 +105,15 @@ SimilarityTransform registration_from(const SceneOptions& o) {
   SimilarityTransform t;
   if (!o.registration_file.empty()) t = load_registration_file(o.registration_file);
   if (!o.reg_scale.empty()) {
+    std::size_t used = 0;
     try {
-      t.scale = std::stod(o.reg_scale);
+      t.scale = std::stod(o.reg_scale, &used);
     } catch (...) {
-      throw InputError("--reg-scale: expected a number, got '" + o.reg_scale + "'");
+      used = 0;
     }
-    if (!(t.scale > 0)) throw InputError("--reg-scale: must be > 0");
+    if (used == 0 || used != o.reg_scale.size() || !std::isfinite(t.scale))
+      throw InputError("--reg-scale: expected a finite number, got '" + o.reg_scale + "'");
+    if (!(t.scale > 0)) throw InputError("--reg-scale: must be > 0, got '" + o.reg_scale + "'");
   }
   if (!o.reg_rotation.empty()) {
     const Eigen::Vector4d q = parse_vec4(o.reg_rotation, "--reg-rotation");
@@ -128,6 +131,13 @@ WorldConfig world_config_from(const SceneOptions& o) {
   cfg.up = parse_up_axis(o.up, "--up");
   cfg.registration = registration_from(o);
   return cfg;
+}
+
+Eigen::Vector3d for_print(const Eigen::Vector3d& v, int decimals) {
+  const double f = std::pow(10.0, decimals);
+  Eigen::Vector3d r;
+  for (int k = 0; k < 3; ++k) r[k] = std::round(v[k] * f) / f + 0.0;  // -0.0 + 0.0 == +0.0
+  return r;
 }
 
 std::string default_out_dir(const std::string& scene) {

@@ -54,6 +54,10 @@ WorldConfig world_config_from(const SceneOptions& o);
 
 /// The default output folder of a run on `scene`: runs/<name>-<extension> ("runs/biker-spz"), so
 /// that biker.spz and biker.ply never share one.
+/// `v` rounded to `decimals` places with negative zeros made positive, for printing
+/// ("[0.00, -0.00, 1.00]" reads as a sign that is not there).
+Eigen::Vector3d for_print(const Eigen::Vector3d& v, int decimals = 2);
+
 std::string default_out_dir(const std::string& scene);
 
 /// Checks an output folder before any work starts, and changes nothing: InputError naming

@@ -165,7 +165,7 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet) {
              s.report.loaded, s.report.skipped());
   fmt::print("filter     opacity > {:.2f}: kept {} ({:.1f}%)\n", cfg.min_opacity, br.filter.after,
              100 * br.filter.kept_fraction());
-  const Eigen::Vector3d up = world.up();
+  const Eigen::Vector3d up = for_print(world.up());
   fmt::print("world      {} Gaussians, BVH built in {:.0f} ms, {:.1f} MB, up [{:.2f}, {:.2f}, {:.2f}]{}\n",
              world.size(), br.build_seconds * 1e3, double(br.memory_bytes) / 1e6, up.x(), up.y(),
              up.z(), so.registration_file.empty() ? "" : ", registration " + so.registration_file);
@@ -198,19 +198,20 @@ ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, i
   pp.travel_speed = 8.0 * pp.tool_radius;
   ProbeTrajectory traj = generate_probe_trajectory(w.world, pp);
   fmt::print("probe      {} sites, tool radius {:.4g}, up [{:.2f}, {:.2f}, {:.2f}], {:.1f} s per pass\n",
-             traj.sites().size(), pp.tool_radius, pp.up.x(), pp.up.y(), pp.up.z(), traj.duration());
+             traj.sites().size(), pp.tool_radius, for_print(pp.up).x(), for_print(pp.up).y(), for_print(pp.up).z(),
+             traj.duration());
   if (int(traj.sites().size()) < sites)
     fmt::print(stderr,
                "warning: only {} of {} sites are reachable from above (world up [{:.2f}, {:.2f}, "
                "{:.2f}]); if the scene is upside down or on its side, the probe meets its underside: "
                "try another --up (`gshaptics info SCENE --up AXIS` previews it)\n",
-               traj.sites().size(), sites, pp.up.x(), pp.up.y(), pp.up.z());
+               traj.sites().size(), sites, for_print(pp.up).x(), for_print(pp.up).y(), for_print(pp.up).z());
   return traj;
 }
 
 void print_no_contact_hints(const PreparedWorld& w, const SceneOptions& so, double tool_radius) {
   const double extent = robust_extent(w.world);
-  const Eigen::Vector3d up = w.world.up();
+  const Eigen::Vector3d up = for_print(w.world.up());
   std::fflush(stdout);
   fmt::print(stderr, "likely causes, from this run's numbers:\n");
   if (!is_registered(so) && (extent > 30.0 || extent < 0.05))

@@ -167,7 +167,7 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
                  "Keep only the first S seconds of the per-tick log (reserved up front; default: the "
                  "whole run, or 10 min when open-ended). Long runs: caps the log's memory")
       ->check(check::positive());
-  cmd.add_option("--out", o.out_dir, "Output folder (default: runs/<scene name>)");
+  cmd.add_option("--out", o.out_dir, "Output folder (default: runs/<name>-<extension>, e.g. runs/truck-splat)");
   cmd.add_flag("--no-plot", o.no_plot, "Do not draw run.png (needs /usr/bin/python3 with matplotlib)");
   cmd.add_flag("--quiet", o.quiet, "No progress bar or live status line");
   add_world_options(cmd, o.scene);

@@ -4,8 +4,8 @@ module, and plot contacts and force. Usage (after scripts/setup.sh):
 
     PYTHONPATH=build/python /usr/bin/python3 python/examples/probe_truck.py [out.png]
 """
+import argparse
 import os
-import sys
 
 import matplotlib
 
@@ -14,6 +14,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import gshaptics  # noqa: E402
+
+parser = argparse.ArgumentParser(description="Probe the bundled Truck through the gshaptics Python module "
+                                             "and plot contacts and force.")
+parser.add_argument("out", nargs="?", default="probe_truck_python.png", help="the figure to write (PNG)")
+args = parser.parse_args()
 
 here = os.path.dirname(os.path.abspath(__file__))
 data = os.path.join(here, "..", "..", "data")
@@ -42,7 +47,7 @@ ax[1].legend(loc="upper left")
 for tt in run["site_touch_times"]:
     for a in ax:
         a.axvline(tt, color="gray", ls=":", lw=0.8)
-out = sys.argv[1] if len(sys.argv) > 1 else "probe_truck_python.png"
+out = args.out
 fig.tight_layout()
 fig.savefig(out, dpi=100)
 print(f"figure: {out}")
