@@ -284,10 +284,7 @@ void register_bench(CLI::App& app) {
       // Pose set: near-surface poses, or every tick of the probe trajectory on the truck.
       std::vector<ToolEllipsoid> poses;
       if (b.probe) {
-        ProbeParams pp;
-        pp.tool_radius = 0.01 * robust_extent(world);
-        pp.approach_speed = 2 * pp.tool_radius;
-        pp.travel_speed = 8 * pp.tool_radius;
+        const ProbeParams pp = default_probe_params(world, default_tool_radius(world));
         const ProbeTrajectory traj = generate_probe_trajectory(world, pp);
         const ProbeRunResult run = run_probe(world, traj, {});
         for (const TickRecord& r : run.ticks) poses.push_back(ToolEllipsoid::sphere(r.position, pp.tool_radius));

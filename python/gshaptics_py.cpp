@@ -317,17 +317,12 @@ PYBIND11_MODULE(gshaptics, m) {
                            const py::object& up, double rate_hz, const std::string& force_model,
                            const py::object& device_profile_obj) {
              // The CLI's defaults: 1 % of the robust extent, the world's own up.
-             const double tool_radius = tool_radius_obj.is_none() ? 0.01 * robust_extent(*w.world)
+             const double tool_radius = tool_radius_obj.is_none() ? default_tool_radius(*w.world)
                                                                   : tool_radius_obj.cast<double>();
              if (!std::isfinite(tool_radius) || !(tool_radius > 0))
                throw py::value_error("tool_radius: must be a finite number > 0");
-             ProbeParams pp;
-             pp.sites = sites;
-             pp.seed = seed;
-             pp.tool_radius = tool_radius;
-             pp.up = up.is_none() ? w.world->up() : vec3(up, "up");
-             pp.approach_speed = 2 * tool_radius;
-             pp.travel_speed = 8 * tool_radius;
+             ProbeParams pp = default_probe_params(*w.world, tool_radius, sites, seed);
+             if (!up.is_none()) pp.up = vec3(up, "up");
              ProbeRunParams rp;
              rp.rate_hz = rate_hz;
              ProxyParams proxy;

@@ -136,7 +136,7 @@ void register_node(CLI::App& app) {
     const PreparedWorld pw = prepare_world(so, o->run.quiet);
     warn_if_outside_profile(pw, o->run.force);
     RuntimeSetup setup;
-    setup.tool_radius = o->run.tool_radius > 0 ? o->run.tool_radius : 0.01 * robust_extent(pw.world);
+    setup.tool_radius = o->run.tool_radius > 0 ? o->run.tool_radius : default_tool_radius(pw.world);
     setup.planned = o->run.duration;
     auto device = make_bridge(*o);
     RosBridgeDevice& net = *device;

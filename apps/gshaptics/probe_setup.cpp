@@ -180,22 +180,17 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet) {
 
 ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, int sites,
                                       std::uint64_t seed, double tool_radius) {
-  ProbeParams pp;
-  pp.sites = sites;
-  pp.seed = seed;
   // The world's up from the actual transform: the file's convention carried through --up and the
   // registration (a --reg-scale alone rotates nothing, so it changes nothing here).
-  pp.up = w.world.up();
   const double extent = robust_extent(w.world);
-  pp.tool_radius = tool_radius > 0 ? tool_radius : 0.01 * extent;
+  const ProbeParams pp =
+      default_probe_params(w.world, tool_radius > 0 ? tool_radius : default_tool_radius(w.world), sites, seed);
   if (!registered && extent > 30.0)
     fmt::print(stderr,
                "warning: the scene is not registered and spans {:.0f} units; the simulated hand and "
                "device work in metres and newtons, so they will move it like a {:.0f} m object. "
                "Register it into metres (--registration, --reg-scale, --up) for a realistic run.\n",
                extent, extent);
-  pp.approach_speed = 2.0 * pp.tool_radius;
-  pp.travel_speed = 8.0 * pp.tool_radius;
   ProbeTrajectory traj = generate_probe_trajectory(w.world, pp);
   fmt::print("probe      {} sites, tool radius {:.4g}, up [{:.2f}, {:.2f}, {:.2f}], {:.1f} s per pass\n",
              traj.sites().size(), pp.tool_radius, for_print(pp.up).x(), for_print(pp.up).y(), for_print(pp.up).z(),

@@ -314,8 +314,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     if (s.planned == 0) s.planned = traj.duration() + 0.5;
     s.device = std::make_unique<SimulatedDevice>(std::move(traj));
   } else if (o.device == "mouse") {
-    const double extent = robust_extent(pw.world);
-    if (s.tool_radius <= 0) s.tool_radius = 0.01 * extent;
+    if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
     // Start above the most upward-facing probe site on the object (or above the middle of the
     // scene when none is found), so that lowering the tool touches the object.
     const Eigen::Vector3d start = tool_start_point(pw, s.tool_radius);
@@ -331,7 +330,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     // A VR controller in the page's WebXR session: 6-DoF targets at the headset's frame rate
     // (72-120 Hz), interpolated to the servo rate like the mouse; no force before the first
     // controller pose, and none once the controller stops reporting for 0.25 s.
-    if (s.tool_radius <= 0) s.tool_radius = 0.01 * robust_extent(pw.world);
+    if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
     const Eigen::Vector3d start = tool_start_point(pw, s.tool_radius);
     StreamDeviceParams sp;
     sp.name = "xr controller (WebXR)";
@@ -345,7 +344,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     fmt::print("xr         tool radius {:.4g}; enter VR in the page; the right controller is the tool\n",
                s.tool_radius);
   } else if (is_hardware_device(o.device)) {
-    if (s.tool_radius <= 0) s.tool_radius = 0.01 * robust_extent(pw.world);
+    if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
     s.device = make_hardware_device(o);
     s.device->start(0);  // open now: a missing device is an error before the runtime starts
     s.device->stop(0);
@@ -363,7 +362,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
   } else {
     const std::string file = o.device.substr(7);
     PoseLog log = load_pose_log(file);
-    if (s.tool_radius <= 0) s.tool_radius = 0.01 * robust_extent(pw.world);
+    if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
     if (log.non_finite_rows > 0)
       fmt::print(stderr, "warning: {}: {} rows hold NaN/Inf; they are replayed as a faulty device\n",
                  file, log.non_finite_rows);

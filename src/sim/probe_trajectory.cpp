@@ -1,5 +1,7 @@
 #include "gshaptics/sim/probe_trajectory.h"
 
+#include "gshaptics/sim/pose_sampler.h"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -209,6 +211,19 @@ ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world, const Pro
   }
   go(wps.back().position, 0.3);
   return ProbeTrajectory(std::move(wps), std::move(sites), r);
+}
+
+double default_tool_radius(const CollisionWorld& world) { return 0.01 * robust_extent(world); }
+
+ProbeParams default_probe_params(const CollisionWorld& world, double tool_radius, int sites, std::uint64_t seed) {
+  ProbeParams pp;
+  pp.sites = sites;
+  pp.seed = seed;
+  pp.up = world.up();
+  pp.tool_radius = tool_radius;
+  pp.approach_speed = 2.0 * tool_radius;
+  pp.travel_speed = 8.0 * tool_radius;
+  return pp;
 }
 
 }  // namespace gshaptics

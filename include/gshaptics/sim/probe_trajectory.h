@@ -57,6 +57,16 @@ class ProbeTrajectory {
   double tool_radius_ = 0;
 };
 
+/// The default spherical tool radius for a world: 1 % of its robust extent (the 1-99 percentile
+/// box of the kept Gaussians' centres; robust_extent()), world units. The one place that
+/// default lives: the CLI, Python and the benchmarks use it.
+[[nodiscard]] double default_tool_radius(const CollisionWorld& world);
+
+/// The probe parameters of the main job for a tool of `tool_radius` (> 0): the world's own up,
+/// approach at 2 tool radii per second and travel at 8, the rest ProbeParams' defaults.
+[[nodiscard]] ProbeParams default_probe_params(const CollisionWorld& world, double tool_radius, int sites = 7,
+                                               std::uint64_t seed = 1);
+
 /// Finds `params.sites` sites on the outer surface of the object at the middle of the scene and
 /// links them into a path: above the object -> down to the approach point -> along -normal to
 /// first contact and `press_depth` beyond -> hold -> back out -> up. Sites are checked with the
