@@ -63,9 +63,9 @@ for f in "${FORMATS[@]}"; do
     *_message) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_messages.cpp src/net/peer_messages.cpp \
                  -o "$OUT/fuzz_$f" ;;
     registration) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_text.cpp src/scene/registration.cpp \
-                    src/scene/sh_rotation.cpp src/io/gaussian_scene.cpp src/error.cpp -o "$OUT/fuzz_$f" ;;
+                    src/scene/sh_rotation.cpp src/io/gaussian_scene.cpp src/io/mapped_file.cpp src/error.cpp -o "$OUT/fuzz_$f" ;;
     pose_log) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_text.cpp src/servo/replay_device.cpp \
-                src/error.cpp -o "$OUT/fuzz_$f" ;;
+                src/io/mapped_file.cpp src/error.cpp -o "$OUT/fuzz_$f" ;;
     *) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_loader.cpp "${objs[@]}" -lz -lzstd -o "$OUT/fuzz_$f" ;;
   esac
   mkdir -p "$OUT/corpus/$f" "$OUT/artifacts/$f"
