@@ -33,9 +33,11 @@ void register_convert(CLI::App& app) {
   cmd->add_option("--up", o->up, "Turn the scene's up axis to +z first (none, auto, y-down, y-up, ...)")
       ->capture_default_str()
       ->check(CLI::IsMember({"none", "auto", "y-down", "y-up", "z-up", "z-down", "x-up", "x-down"}));
-  cmd->callback([o, out, min_opacity] {
+  auto quiet = std::make_shared<bool>(false);
+  cmd->add_flag("--quiet", *quiet, "No progress bar");
+  cmd->callback([o, out, min_opacity, quiet] {
     const SceneFrame to = output_frame(*out);  // checks the extension before the load
-    const LoadedScene s = load_with_progress(o->scene, false, /*keep_color=*/true);
+    const LoadedScene s = load_with_progress(o->scene, *quiet, /*keep_color=*/true);
     GaussianScene scene = s.scene;
     if (*min_opacity >= 0.f) {
       OpacityFilterReport rep;

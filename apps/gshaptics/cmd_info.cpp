@@ -19,6 +19,7 @@ void set_exit_code(int code) { g_exit_code = code; }
 
 void register_info(CLI::App& app) {
   auto opts = std::make_shared<SceneOptions>();
+  auto quiet = std::make_shared<bool>(false);
   CLI::App* cmd = app.add_subcommand(
       "info", "Print a scene's format, counts, load report, bounds, opacity and scale percentiles "
               "and the opacity filter's reduction; then preview the world that --up and a "
@@ -26,8 +27,9 @@ void register_info(CLI::App& app) {
               "a tool radius for a desktop device and for room scale");
   cmd->add_option("scene", opts->scene, "Scene file (.ply, .compressed.ply, .splat or .spz)")->required();
   add_world_options(*cmd, *opts);
-  cmd->callback([opts] {
-    const LoadedScene s = load_with_progress(opts->scene);
+  cmd->add_flag("--quiet", *quiet, "No progress bar");
+  cmd->callback([opts, quiet] {
+    const LoadedScene s = load_with_progress(opts->scene, *quiet);
     const LoadReport& r = s.report;
     const SceneStats st = compute_scene_stats(s.scene);
     fmt::print("scene      {}\n", r.path);

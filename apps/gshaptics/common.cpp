@@ -59,7 +59,7 @@ void add_world_options(CLI::App& app, SceneOptions& o) {
   app.add_option("--registration", o.registration_file,
                  "JSON similarity transform scene->world: {\"scale\": s, \"rotation\": [w,x,y,z] "
                  "or \"matrix\": 3x3, \"translation\": [x,y,z]} (paper eq. 3)");
-  app.add_option("--reg-scale", o.reg_scale, "Registration scale s (overrides the file)");
+  app.add_option("--reg-scale", o.reg_scale, "Registration scale s (overrides the file)")->type_name("FLOAT");
   app.add_option("--reg-rotation", o.reg_rotation, "Registration rotation W,X,Y,Z (overrides)");
   app.add_option("--reg-translation", o.reg_translation, "Registration translation X,Y,Z (overrides)");
   app.add_option("--up", o.up,

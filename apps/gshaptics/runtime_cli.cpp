@@ -151,7 +151,7 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
   cmd.add_option("--workspace-scale", o.workspace_scale,
                   "Map the device's workspace onto the scene: world metres per device metre (a 16 cm "
                   "desktop workspace over a 3 m scene: 20). Forces are not scaled: 1 N in the scene "
-                  "is 1 N in the hand, so the hand feels --stiffness times this scale");
+                  "is 1 N in the hand, so the hand feels --stiffness times this scale")->type_name("FLOAT");
   cmd.add_option("--workspace-offset", o.workspace_offset, "World point X,Y,Z of the device's origin (with --workspace-scale)");
   cmd.add_option("--clutch-button", o.clutch_button,
                  "Device button (0-31) that holds the clutch: re-centre the hand without moving the tool")
