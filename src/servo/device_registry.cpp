@@ -20,6 +20,21 @@ bool names(std::string_view spec, const std::string& name) {
   return spec == name || (spec.size() > name.size() && spec.substr(0, name.size()) == name && spec[name.size()] == ':');
 }
 
+/// A probe row for a device made by `make`: started briefly (zero force) to report what it is,
+/// or the one-line reason it cannot be used.
+template <class Make>
+DeviceStatus started_briefly(const std::string& spec, Make make) {
+  try {
+    auto d = make();
+    d->start(0);
+    const std::string note = describe_device(*d) + ", " + d->status();
+    d->stop(0);
+    return {spec, true, note};
+  } catch (const InputError& e) {
+    return {spec, false, e.what()};
+  }
+}
+
 void register_builtin_devices(DeviceRegistry& r) {
   DeviceKind replay;
   replay.name = "replay";
@@ -54,18 +69,8 @@ void register_builtin_devices(DeviceRegistry& r) {
       return std::vector<DeviceStatus>{
           {"dhd[:N]", false, p.library + " loads (" + p.path + ") but reports no device: check the USB cable, "
                              "the power and the udev rules of the Force Dimension SDK"}};
-    for (int i = 0; i < p.devices; ++i) {
-      const std::string spec = "dhd:" + std::to_string(i);
-      try {
-        DhdDevice d(i);
-        d.start(0);
-        const std::string note = describe_device(d) + ", " + d.status();
-        d.stop(0);
-        rows.push_back({spec, true, note});
-      } catch (const InputError& e) {
-        rows.push_back({spec, false, e.what()});
-      }
-    }
+    for (int i = 0; i < p.devices; ++i)
+      rows.push_back(started_briefly("dhd:" + std::to_string(i), [i] { return std::make_unique<DhdDevice>(i); }));
     return rows;
   };
   r.add(std::move(dhd));
@@ -85,17 +90,10 @@ void register_builtin_devices(DeviceRegistry& r) {
   hd.probe = [](const DeviceOptions& o) {
     const VendorLibraryProbe p = probe_openhaptics_library();
     if (!p.available) return std::vector<DeviceStatus>{{"openhaptics[:NAME]", false, p.why}};
-    try {
-      OpenHapticsParams hp;
-      hp.calibration_wait = o.calibration_wait;
-      OpenHapticsDevice d(hp);
-      d.start(0);
-      const std::string note = describe_device(d) + ", " + d.status();
-      d.stop(0);
-      return std::vector<DeviceStatus>{{"openhaptics", true, note}};
-    } catch (const InputError& e) {
-      return std::vector<DeviceStatus>{{"openhaptics", false, e.what()}};
-    }
+    OpenHapticsParams hp;
+    hp.calibration_wait = o.calibration_wait;
+    return std::vector<DeviceStatus>{
+        started_briefly("openhaptics", [&hp] { return std::make_unique<OpenHapticsDevice>(hp); })};
   };
   r.add(std::move(hd));
 }
