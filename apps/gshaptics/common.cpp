@@ -210,7 +210,6 @@ void OutputStage::commit() {
       }
     }
   }
-  committed_ = true;
 }
 
 namespace {

@@ -91,7 +91,6 @@ class OutputStage {
  private:
   std::string final_, stage_;
   std::vector<std::string> owned_;
-  bool committed_ = false;
 };
 
 /// The frame options as one comment line that pose files carry ("# frame: up=auto

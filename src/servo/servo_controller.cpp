@@ -103,7 +103,6 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   Wrench w;
   w.force = out.force;
   device_.write(w, now);
-  last_written_ = w.force;
   const Nanos end = clock_.now();
 
   // Statistics and log.
@@ -157,7 +156,6 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
 
 void ServoController::finish(Nanos now) noexcept {
   device_.write(Wrench{}, now);
-  last_written_.setZero();
   device_.stop(now);
   stats_.last_force.store(0.0, std::memory_order_relaxed);
 }

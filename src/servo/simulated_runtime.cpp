@@ -24,7 +24,6 @@ SimulatedRuntime::SimulatedRuntime(HapticDevice& device, const RuntimeConfig& co
                                              stats_, &log_, clock_);
   const std::size_t slots = std::size_t(config.latency_ticks) + 1;
   in_flight_.assign(slots, CollisionResult{});
-  in_flight_valid_.assign(slots, false);
 }
 
 void SimulatedRuntime::run(const SimulatedProgressFn& progress) {
@@ -48,18 +47,14 @@ void SimulatedRuntime::run(const SimulatedProgressFn& progress) {
     } else {
       // The result the worker computed latency_ticks ago arrives now.
       const std::size_t due = std::size_t(k % slots);
-      if (in_flight_valid_[due]) {
+      if (in_flight_[due].pose_sequence != 0) {
         results_.write(in_flight_[due]);
-        in_flight_valid_[due] = false;
+        in_flight_[due] = CollisionResult{};
       }
       servo_->tick(deadline, nullptr);
       // The worker answers the pose this tick published; its result is rendered lat ticks on.
       const std::size_t slot = std::size_t((k + lat) % slots);
-      CollisionResult r;
-      if (worker_->step(poses_, staged_) && staged_.read_if_new(r)) {
-        in_flight_[slot] = r;
-        in_flight_valid_[slot] = true;
-      }
+      if (worker_->step(poses_, staged_)) (void)staged_.read_if_new(in_flight_[slot]);
     }
     if (stop_at < 0 && (stop_requested_ || deadline >= end_at || device_.finished() || deadline >= hard_end)) {
       servo_->request_stop();

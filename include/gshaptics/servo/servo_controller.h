@@ -49,8 +49,6 @@ class ServoController {
 
   [[nodiscard]] const SafetyFilter& safety() const noexcept { return safety_; }
   [[nodiscard]] Nanos start_time() const noexcept { return t0_; }
-  /// The force last written to the device, N (zero after finish()).
-  [[nodiscard]] const Eigen::Vector3d& last_written() const noexcept { return last_written_; }
 
  private:
   HapticDevice& device_;
@@ -66,7 +64,6 @@ class ServoController {
   std::uint64_t last_device_seq_ = 0, pose_seq_ = 0;
   bool have_device_data_ = false, stopping_ = false, was_fading_ = false;
   CollisionResult result_;
-  Eigen::Vector3d last_written_ = Eigen::Vector3d::Zero();
 };
 
 }  // namespace gshaptics

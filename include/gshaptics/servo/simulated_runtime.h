@@ -72,9 +72,9 @@ class SimulatedRuntime {
   TickLog log_;
   std::unique_ptr<CollisionWorker> worker_;
   std::unique_ptr<ServoController> servo_;
-  // Decoupled mode: results in flight, slot (k + latency) % (latency + 1) for tick k's pose.
+  // Decoupled mode: results in flight, slot (k + latency) % (latency + 1) for tick k's pose;
+  // pose_sequence 0 marks an empty slot.
   std::vector<CollisionResult> in_flight_;
-  std::vector<bool> in_flight_valid_;
   bool stop_requested_ = false, ran_ = false;
 };
 
