@@ -1,4 +1,4 @@
-// The proxy (god-object) renderer and the continuous first-contact query under it: analytic stop
+// The proxy (god-object) renderer as a whole: analytic stop
 // distances and normals, no tunnelling through a 1 mm plate, friction stick and slip, placement
 // after a start inside geometry, and an allocation-free tick.
 
@@ -14,77 +14,15 @@
 #include "gshaptics/error.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
 #include "support/allocation_counter.h"
+#include "support/gaussian_worlds.h"
 
 namespace gshaptics {
 namespace {
 
-// A world of Gaussians given as (centre, semi-axes, rotation); opacity 1.
-CollisionWorld world_of(const std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>>& gs) {
-  GaussianScene s;
-  std::uint32_t i = 0;
-  for (const auto& [c, a, q] : gs) s.push_back(c, a, Eigen::Vector4f(q.w(), q.x(), q.y(), q.z()), 1.0f, i++);
-  return CollisionWorld::build(s, WorldConfig{});
-}
+using test::add_layer;
+using test::world_of;
 
-// A flat layer of round discs (spacing h, radius h, thickness 0.05 h) at height z, normal +z.
-void add_layer(std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>>& gs, float z, float h,
-               float half) {
-  for (float x = -half; x <= half; x += h)
-    for (float y = -half; y <= half; y += h)
-      gs.emplace_back(Eigen::Vector3f(x, y, z), Eigen::Vector3f(h, h, 0.05f * h), Eigen::Quaternionf::Identity());
-}
-
-double overlap(const CollisionWorld& w, const ToolEllipsoid& t) {
-  ContactQuery q(w);
-  return q.any_contact(t) ? 1.0 : 0.0;
-}
-
-TEST(SweepQuery, FirstContactMatchesBisectionOnTheExactOverlapTest) {
-  std::mt19937_64 rng(9);
-  std::uniform_real_distribution<double> u(-1, 1), lg(-2.5, -1);
-  int hits = 0;
-  for (int i = 0; i < 300; ++i) {
-    const Eigen::Quaternionf q = Eigen::Quaternionf(float(u(rng)), float(u(rng)), float(u(rng)), float(u(rng))).normalized();
-    Eigen::Vector3f a(float(std::pow(10, lg(rng))), float(std::pow(10, lg(rng))), float(std::pow(10, lg(rng))));
-    if (i % 3 == 0) a.z() = 1e-6f;  // flat splats
-    const CollisionWorld w = world_of({{Eigen::Vector3f::Zero(), a, q}});
-    ToolEllipsoid tool;
-    tool.semi_axes = i % 2 ? Eigen::Vector3d::Constant(0.01)
-                           : Eigen::Vector3d(0.01, 0.02, 0.005);  // ellipsoidal tools too
-    tool.rotation = Eigen::Quaterniond(u(rng), u(rng), u(rng), u(rng)).normalized();
-    const Eigen::Vector3d dir = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
-    tool.center = -dir * 0.15 + Eigen::Vector3d(u(rng), u(rng), u(rng)) * 0.02;
-    const Eigen::Vector3d motion = dir * 0.3;
-    SweepQuery sweep(w);
-    const SweepHit hit = sweep.first_contact(tool, motion);
-    // Reference: the first overlapping sample on a fine grid, refined by bisection.
-    ToolEllipsoid t = tool;
-    double lo = 0, hi = -1;
-    for (int k = 1; k <= 3000; ++k) {
-      t.center = tool.center + motion * (k / 3000.0);
-      if (overlap(w, t) > 0) {
-        hi = k / 3000.0;
-        lo = (k - 1) / 3000.0;
-        break;
-      }
-    }
-    if (hi < 0) {
-      EXPECT_FALSE(hit.hit) << i;
-      continue;
-    }
-    for (int it = 0; it < 40; ++it) {
-      t.center = tool.center + motion * (0.5 * (lo + hi));
-      (overlap(w, t) > 0 ? hi : lo) = 0.5 * (lo + hi);
-    }
-    ++hits;
-    ASSERT_TRUE(hit.hit) << i;
-    EXPECT_NEAR(hit.t, lo, 2e-6) << i;        // 0.6 um of a 30 cm motion
-    EXPECT_LE(hit.t, hi + 1e-7) << i;  // never past the contact (the reference decides K_min > 0 to 1e-6)
-    EXPECT_NEAR(hit.normal.norm(), 1.0, 1e-9);
-    EXPECT_LT(hit.normal.dot(motion), 0) << i;  // it opposes the motion
-  }
-  EXPECT_GT(hits, 60);
-}
+double overlap(const CollisionWorld& w, const ToolEllipsoid& t) { return test::overlaps(w, t) ? 1.0 : 0.0; }
 
 TEST(ProxyRenderer, StopsOnASphereAtTheAnalyticDistanceWithItsNormal) {
   const float R = 0.02f;
@@ -109,7 +47,7 @@ TEST(ProxyRenderer, StopsOnASphereAtTheAnalyticDistanceWithItsNormal) {
 }
 
 TEST(ProxyRenderer, PlaneOfGaussiansStopDistanceNormalAndSlideDirection) {
-  std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>> gs;
+  std::vector<test::GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.08f);
   const CollisionWorld w = world_of(gs);
   ProxyParams p;
@@ -158,7 +96,7 @@ TEST(ProxyRenderer, PlaneOfGaussiansStopDistanceNormalAndSlideDirection) {
 
 TEST(ProxyRenderer, DoesNotTunnelThroughAOneMillimetrePlateInOneTick) {
   // Two layers of discs 1 mm apart: a 1 mm plate, hollow in between.
-  std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>> gs;
+  std::vector<test::GaussianSpec> gs;
   add_layer(gs, 0.0005f, 0.003f, 0.05f);
   add_layer(gs, -0.0005f, 0.003f, 0.05f);
   const CollisionWorld w = world_of(gs);
@@ -182,7 +120,7 @@ TEST(ProxyRenderer, DoesNotTunnelThroughAOneMillimetrePlateInOneTick) {
 }
 
 TEST(ProxyRenderer, FloatersDoNotCatchTheTool) {
-  std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>> gs;
+  std::vector<test::GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.05f);
   gs.emplace_back(Eigen::Vector3f(0, 0, 0.012f), Eigen::Vector3f::Constant(0.002f), Eigen::Quaternionf::Identity());
   const CollisionWorld w = world_of(gs);
@@ -204,7 +142,7 @@ TEST(ProxyRenderer, FloatersDoNotCatchTheTool) {
 }
 
 TEST(ProxyRenderer, FrictionSticksBelowMuSAndSlidesAtMuK) {
-  std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>> gs;
+  std::vector<test::GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.1f);
   const CollisionWorld w = world_of(gs);
   ProxyParams p;
@@ -239,7 +177,7 @@ TEST(ProxyRenderer, FrictionSticksBelowMuSAndSlidesAtMuK) {
 }
 
 TEST(ProxyRenderer, StartInsideGeometryPlacesTheProxyOutside) {
-  std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>> gs;
+  std::vector<test::GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.05f);
   const CollisionWorld w = world_of(gs);
   ProxyRenderer proxy(w);
@@ -277,7 +215,7 @@ TEST(ProxyRenderer, TickIsAllocationFreeAndNoexcept) {
 }
 
 TEST(ProxyRenderer, BadParametersAreErrors) {
-  std::vector<std::tuple<Eigen::Vector3f, Eigen::Vector3f, Eigen::Quaternionf>> gs;
+  std::vector<test::GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.01f);
   const CollisionWorld w = world_of(gs);
   ProxyParams p;

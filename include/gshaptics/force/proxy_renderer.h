@@ -23,16 +23,21 @@
 /// friction is on. Without friction the tangential offset of the proxy, which comes only from
 /// Gaussian-scale bumps of the shell, is not rendered.
 ///
+/// The renderer is the composition of four parts, each with its own header and tests:
+/// ProxySolver (next free position: sweep, slide, lift, placement, floaters), shaded_normal()
+/// (the contact normal), FrictionCone (stick or slide) and VirtualCoupling (the force).
+///
 /// Threading and hot path as ForceRenderer: one thread; render() allocates, locks, logs and
 /// throws nothing. Placing the proxy after a start inside geometry or a teleport runs a bounded
 /// search (at most 15 directions x 40 steps of the early-exit query).
 
 #include <Eigen/Core>
 #include <limits>
-#include <array>
 
-#include "gshaptics/collision/sweep_query.h"
 #include "gshaptics/force/force_renderer.h"
+#include "gshaptics/force/friction_cone.h"
+#include "gshaptics/force/proxy_solver.h"
+#include "gshaptics/force/virtual_coupling.h"
 
 namespace gshaptics {
 
@@ -70,50 +75,32 @@ class ProxyRenderer final : public ForceRenderer {
   [[nodiscard]] std::string_view name() const noexcept override { return "proxy"; }
   RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
   /// The Gaussians holding the proxy at the last tick (at most three).
-  [[nodiscard]] std::span<const Contact> contacts() const noexcept override { return {blockers_.data(), n_blockers_}; }
+  [[nodiscard]] std::span<const Contact> contacts() const noexcept override { return solver_.blockers(); }
   void reset() noexcept override;
 
-  [[nodiscard]] const Eigen::Vector3d& proxy_position() const noexcept { return proxy_; }
+  [[nodiscard]] const Eigen::Vector3d& proxy_position() const noexcept { return solver_.position(); }
   [[nodiscard]] const Eigen::Vector3d& contact_normal() const noexcept { return normal_; }
   [[nodiscard]] bool sticking() const noexcept { return sticking_; }
   /// Proxy placements by the search (start inside geometry, teleports) and failed searches.
-  [[nodiscard]] std::uint64_t placements() const noexcept { return placements_; }
-  [[nodiscard]] std::uint64_t lost() const noexcept { return lost_; }
+  [[nodiscard]] std::uint64_t placements() const noexcept { return solver_.placements(); }
+  [[nodiscard]] std::uint64_t lost() const noexcept { return solver_.lost(); }
   [[nodiscard]] const ProxyParams& params() const noexcept { return params_; }
 
-  /// The shaded normal at `center` for a tool of bounding radius `radius` (unit; zero when no
-  /// Gaussian is near).
+  /// The shaded normal at `center` for a tool of bounding radius `radius` with this renderer's
+  /// kernel (unit; zero when no Gaussian is near). See gshaptics::shaded_normal().
   [[nodiscard]] Eigen::Vector3d shaded_normal(const Eigen::Vector3d& center, double radius) const noexcept;
 
  private:
-  struct Plane {
-    Eigen::Vector3d normal, point;
-  };
-  void place(const ToolEllipsoid& tool) noexcept;
-  /// Whether the Gaussian in `slot` overlaps no other kept Gaussian (cached; one early-exit
-  /// query the first time a slot blocks).
-  bool isolated(std::uint32_t slot) noexcept;
-  Eigen::Vector3d constrained_goal(const Eigen::Vector3d& goal, const Plane* planes, int n) const noexcept;
-
   const CollisionWorld* world_;
   ProxyParams params_;
-  double f_max_;
-  SweepQuery sweep_;
-  ContactQuery free_query_;
-  Eigen::Vector3d proxy_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
+  ProxySolver solver_;
+  FrictionCone friction_;
+  VirtualCoupling coupling_;
+  Eigen::Vector3d last_device_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond last_rotation_ = Eigen::Quaterniond::Identity();
-  bool valid_ = false, in_contact_ = false, sticking_ = false, sliding_ = false, shade_valid_ = false;
+  bool in_contact_ = false, sticking_ = false, shade_valid_ = false;
   Eigen::Vector3d shade_ = Eigen::Vector3d::Zero(), shade_at_ = Eigen::Vector3d::Zero();
-  double opacity_ = 1.0;
-  std::array<Contact, 3> blockers_{};
-  std::size_t n_blockers_ = 0;
-  int last_constraints_ = 0;
-  std::uint64_t placements_ = 0, lost_ = 0;
-  static constexpr std::size_t kIsolationCache = 64;
-  std::array<std::uint32_t, kIsolationCache> cache_slot_{};
-  std::array<std::uint8_t, kIsolationCache> cache_state_{};  // 0: empty, 1: supported, 2: isolated
-  std::size_t cache_next_ = 0;
 };
 
 }  // namespace gshaptics

@@ -1,0 +1,108 @@
+#pragma once
+/// @file
+/// The god-object solver on the Gaussians (one of the proxy renderer's four parts): where the
+/// proxy, a copy of the tool that overlaps no Gaussian, goes next. Each tick it moves from its last
+/// free pose toward a goal (the device, or where friction puts it), stops at the first contact
+/// along the way (continuous: SweepQuery, so no shell is thin enough to tunnel through), then
+/// slides on the constraint planes of the Gaussians that block it (at most three, as in the
+/// god-object), within a fixed number of sweeps.
+///
+/// Sources: the god-object of Zilles & Salisbury (1995) and the virtual proxy of Ruspini,
+/// Kolarov & Khatib (1997): the constrained goal is the point of the planes' feasible side
+/// closest to the goal; point-cloud proxies (Leeper et al. 2012; Ryden & Chizeck 2012) for
+/// proxies on unstructured primitives.
+///
+/// Threading: one thread; move_toward() allocates, locks, logs and throws nothing. place() runs
+/// a bounded search (at most 15 directions x 40 steps of the early-exit query).
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <span>
+
+#include "gshaptics/collision/contact_query.h"
+#include "gshaptics/collision/sweep_query.h"
+
+namespace gshaptics {
+
+/// A constraint of the god-object: the proxy must stay on the side of `normal` (unit) through
+/// `point`: normal . (x - point) >= 0. World frame, m.
+struct ConstraintPlane {
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ(), point = Eigen::Vector3d::Zero();
+};
+
+/// The point of {x : n_i . (x - p_i) >= 0 for all i} closest to `goal`: the god-object's small
+/// quadratic program (Zilles & Salisbury 1995), solved by trying the projection onto the
+/// intersection of every subset of the planes (at most three) and keeping the nearest feasible
+/// one. Nearly parallel subsets are skipped. Returns `goal` when it is feasible, and the first
+/// plane's point when no projection is (an empty intersection).
+[[nodiscard]] Eigen::Vector3d closest_feasible_point(const Eigen::Vector3d& goal,
+                                                     std::span<const ConstraintPlane> planes) noexcept;
+
+/// Parameters of the solver (as the same-named fields of ProxyParams).
+struct ProxySolverParams {
+  int substeps = 4;          ///< sweeps per tick, in [1, 16]
+  double lift = 0.05;        ///< step-up out of a pocket between bumps, in tool radii (0: never)
+  bool pass_isolated = true;  ///< a Gaussian that overlaps no other kept one does not block
+  double shading_kernel = 0.5;  ///< kernel of the shaded normal that place() tries first, in tool radii
+};
+
+/// One tick's move of the proxy.
+struct ProxyMove {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< the proxy's new centre, world, m
+  int constraints = 0;        ///< planes holding it (0: free; 1 face, 2 edge, 3 corner)
+  /// The first plane's normal when the proxy moved onto a plane this tick (zero when it held
+  /// still or is free).
+  Eigen::Vector3d first_normal = Eigen::Vector3d::Zero();
+  std::uint32_t candidates = 0;  ///< Gaussians the sweeps looked at
+};
+
+class ProxySolver {
+ public:
+  /// The caller validates `params` (ProxyRenderer does).
+  ProxySolver(const CollisionWorld& world, const ProxySolverParams& params);
+
+  /// Forget the proxy: the next tick places it again.
+  void reset() noexcept;
+  [[nodiscard]] bool placed() const noexcept { return valid_; }
+
+  /// Put the proxy at the free pose nearest to `tool` (the tool itself when it is free):
+  /// outward along the shaded normal first, then the 6 axis and 8 diagonal directions, in steps
+  /// of a quarter tool radius up to 10 radii. Counts a placement, and a loss when no free pose
+  /// was found (the proxy then stays on the tool).
+  void place(const ToolEllipsoid& tool) noexcept;
+
+  /// Whether `tool` overlaps a kept Gaussian (the early-exit query).
+  [[nodiscard]] bool blocked(const ToolEllipsoid& tool) noexcept { return free_query_.any_contact(tool); }
+
+  /// Move the proxy (of `tool`'s shape and rotation) toward `goal`, or hold it where it is with
+  /// its blockers when `hold` (static friction). Floaters (pass_isolated) are swept through, at
+  /// most 8 a tick; the last tick's blockers are tested first.
+  ProxyMove move_toward(const ToolEllipsoid& tool, const Eigen::Vector3d& goal, bool hold) noexcept;
+
+  [[nodiscard]] const Eigen::Vector3d& position() const noexcept { return proxy_; }
+  /// The Gaussians holding the proxy after the last move (at most three; k_min is 0: they touch).
+  [[nodiscard]] std::span<const Contact> blockers() const noexcept { return {blockers_.data(), n_blockers_}; }
+  [[nodiscard]] std::uint64_t placements() const noexcept { return placements_; }
+  [[nodiscard]] std::uint64_t lost() const noexcept { return lost_; }
+  /// Whether the Gaussian in `slot` overlaps no other kept Gaussian (a floater; cached).
+  bool isolated(std::uint32_t slot) noexcept;
+
+ private:
+  const CollisionWorld* world_;
+  ProxySolverParams params_;
+  SweepQuery sweep_;
+  ContactQuery free_query_;
+  Eigen::Vector3d proxy_ = Eigen::Vector3d::Zero();
+  bool valid_ = false;
+  std::array<Contact, 3> blockers_{};
+  std::size_t n_blockers_ = 0;
+  int last_constraints_ = 0;
+  std::uint64_t placements_ = 0, lost_ = 0;
+  static constexpr std::size_t kIsolationCache = 64;
+  std::array<std::uint32_t, kIsolationCache> cache_slot_{};
+  std::array<std::uint8_t, kIsolationCache> cache_state_{};  // 0: empty, 1: supported, 2: isolated
+  std::size_t cache_next_ = 0;
+};
+
+}  // namespace gshaptics

@@ -1,0 +1,38 @@
+#pragma once
+/// @file
+/// Force shading on Gaussians, the proxy's contact normal (one of the proxy renderer's four
+/// parts; docs/design.md Sec. 7). Force shading after Morgenbesser & Srinivasan (1996): the force
+/// acts along a normal that varies smoothly across the surface instead of jumping between
+/// primitives.
+///
+/// The normal at p is the opacity-weighted sum over the Gaussians near p of
+///   w_i = alpha_i exp(-q_i / 2),  q_i = (p - c_i)^T A_i^-1 (p - c_i),  A_i = Sigma_i + s^2 I,
+/// times a unit direction that blends, by the Gaussian's flatness f = 1 - a_min / a_mid, the
+/// Gaussian's shortest axis turned toward p (a disc states its own normal) and the direction of
+/// A_i^-1 (p - c_i) (a round Gaussian only says where it is: the density gradient). The kernel
+/// width s widens every Gaussian so the field is smooth at the scale of the tool.
+///
+/// Threading: pure functions of an immutable world; no allocation, lock, log or throw.
+
+#include <Eigen/Core>
+#include <span>
+
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/collision/contact_query.h"
+
+namespace gshaptics {
+
+/// The shaded normal at `center` (world frame, m) for a tool of bounding radius `radius` (m)
+/// with a kernel of `kernel` radii (s = kernel x radius). Gaussians within radius + 3 s of the
+/// centre (by their BVH leaves) and with q <= 40 contribute. Returns a unit vector pointing
+/// from the Gaussians toward `center`, or zero when no Gaussian is near.
+[[nodiscard]] Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& center, double radius,
+                                            double kernel) noexcept;
+
+/// The length scale of the shading kernel for a tool of bounding radius `radius`: the radius,
+/// or the largest middle semi-axis of the `blockers` when that is larger. On sparse scenes a
+/// kernel smaller than the Gaussian spacing would see single Gaussians, not the surface.
+[[nodiscard]] double shading_scale(const CollisionWorld& world, std::span<const Contact> blockers,
+                                   double radius) noexcept;
+
+}  // namespace gshaptics

@@ -1,0 +1,192 @@
+#include "gshaptics/force/proxy_solver.h"
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+
+#include "gshaptics/force/shaded_normal.h"
+
+namespace gshaptics {
+
+Eigen::Vector3d closest_feasible_point(const Eigen::Vector3d& goal, std::span<const ConstraintPlane> planes) noexcept {
+  const int n = int(std::min<std::size_t>(planes.size(), 3));
+  const auto feasible = [&](const Eigen::Vector3d& x) {
+    for (int i = 0; i < n; ++i)
+      if (planes[i].normal.dot(x - planes[i].point) < -1e-12) return false;
+    return true;
+  };
+  if (feasible(goal)) return goal;
+  Eigen::Vector3d best = n > 0 ? planes[0].point : goal;
+  double best_d = INFINITY;
+  for (int mask = 1; mask < (1 << n); ++mask) {
+    Eigen::Matrix3d N = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    int m = 0;
+    for (int i = 0; i < n; ++i)
+      if (mask & (1 << i)) {
+        N.row(m) = planes[i].normal.transpose();
+        b[m] = planes[i].normal.dot(planes[i].point);
+        ++m;
+      }
+    Eigen::Vector3d x;
+    if (m == 1) {
+      x = goal - (N.row(0).dot(goal) - b[0]) * N.row(0).transpose();
+    } else {
+      // Fixed-size blocks (the unused rows of N are zero): no allocation on the servo tick.
+      const Eigen::Vector3d res = N * goal - b;
+      Eigen::Vector3d lambda = Eigen::Vector3d::Zero();
+      if (m == 2) {
+        const Eigen::Matrix2d G = N.topRows<2>() * N.topRows<2>().transpose();
+        if (!(std::fabs(G.determinant()) > 1e-10)) continue;  // (nearly) parallel planes
+        lambda.head<2>() = G.inverse() * res.head<2>();
+      } else {
+        const Eigen::Matrix3d G = N * N.transpose();
+        if (!(std::fabs(G.determinant()) > 1e-10)) continue;
+        lambda = G.inverse() * res;
+      }
+      x = goal - N.transpose() * lambda;
+    }
+    if (!feasible(x)) continue;
+    const double d = (x - goal).squaredNorm();
+    if (d < best_d) best_d = d, best = x;
+  }
+  return best;
+}
+
+ProxySolver::ProxySolver(const CollisionWorld& world, const ProxySolverParams& params)
+    : world_(&world), params_(params), sweep_(world), free_query_(world, [] {
+        QueryOptions q;
+        q.max_contacts = 1;  // any_contact() keeps no contact set
+        return q;
+      }()) {}
+
+void ProxySolver::reset() noexcept {
+  valid_ = false;
+  n_blockers_ = 0;
+  cache_state_.fill(0);
+}
+
+bool ProxySolver::isolated(std::uint32_t slot) noexcept {
+  for (std::size_t i = 0; i < kIsolationCache; ++i)
+    if (cache_state_[i] != 0 && cache_slot_[i] == slot) return cache_state_[i] == 2;
+  const CollisionGaussian& g = world_->gaussians()[slot];
+  ToolEllipsoid self;
+  self.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+  self.rotation = Eigen::Quaterniond(rotation_matrix(g)).normalized();
+  self.semi_axes = Eigen::Vector3d(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+  const bool alone = !free_query_.any_contact(self, slot);
+  cache_slot_[cache_next_] = slot;
+  cache_state_[cache_next_] = alone ? 2 : 1;
+  cache_next_ = (cache_next_ + 1) % kIsolationCache;
+  return alone;
+}
+
+void ProxySolver::place(const ToolEllipsoid& tool) noexcept {
+  ++placements_;
+  valid_ = true;
+  n_blockers_ = 0;
+  proxy_ = tool.center;
+  if (!free_query_.any_contact(tool)) return;
+  const double r = tool.bounding_radius();
+  Eigen::Vector3d dirs[15];
+  int nd = 0;
+  const Eigen::Vector3d ns = shaded_normal(*world_, tool.center, r, params_.shading_kernel);
+  if (ns.squaredNorm() > 0) dirs[nd++] = ns;
+  for (int a = 0; a < 3; ++a)
+    for (double sg : {1.0, -1.0}) dirs[nd++] = Eigen::Vector3d::Unit(a) * sg;
+  for (int k = 0; k < 8 && nd < 15; ++k)
+    dirs[nd++] = Eigen::Vector3d(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1).normalized();
+  double best = INFINITY;
+  ToolEllipsoid at = tool;
+  for (int i = 0; i < nd; ++i)
+    for (int step = 1; step <= 40; ++step) {
+      const double dist = 0.25 * r * step;
+      if (dist >= best) break;
+      at.center = tool.center + dirs[i] * dist;
+      if (!free_query_.any_contact(at)) {
+        best = dist;
+        proxy_ = at.center;
+        break;
+      }
+    }
+  if (!std::isfinite(best)) ++lost_;
+}
+
+ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vector3d& goal, bool hold) noexcept {
+  const double r = tool.bounding_radius();
+  ToolEllipsoid at = tool;
+  ConstraintPlane planes[3];
+  int np = hold ? std::max(1, last_constraints_) : 0;
+  std::uint32_t hints[3];
+  std::size_t n_hints = 0;
+  for (; n_hints < n_blockers_; ++n_hints) hints[n_hints] = blockers_[n_hints].slot;
+  if (!hold) n_blockers_ = 0;
+  Eigen::Vector3d p = proxy_;
+  const double eps = 1e-4 * r;  // the proxy stops this far short of a contact
+  std::uint32_t candidates = 0;
+  std::uint32_t ignore[8];
+  std::size_t n_ignore = 0;
+  int lifts = 0;
+  for (int s = 0; s < params_.substeps && !hold; ++s) {
+    const Eigen::Vector3d target = closest_feasible_point(goal, {planes, std::size_t(np)});
+    const Eigen::Vector3d u = target - p;
+    const double len = u.norm();
+    if (len <= 1e-9 * r) break;
+    at.center = p;
+    SweepHit hit = sweep_.first_contact(at, u, {ignore, n_ignore}, {hints, n_hints});
+    candidates += sweep_.counts().candidates;
+    // Floaters do not block: sweep again without them (at most 8 per tick).
+    while (hit.hit && params_.pass_isolated && n_ignore < 8 && isolated(hit.slot)) {
+      ignore[n_ignore++] = hit.slot;
+      hit = sweep_.first_contact(at, u, {ignore, n_ignore});
+      candidates += sweep_.counts().candidates;
+    }
+    if (!hit.hit) {
+      p = target;
+      if (np == 0) break;
+      continue;
+    }
+    p += u * std::max(0.0, hit.t - eps / len);
+    // Wedged between Gaussian-scale bumps (two planes already, and blocked at once): step up
+    // along the planes' mean normal by a small lift and start the planes afresh, so the proxy
+    // glides over the shell's noise instead of stopping in a pocket of it.
+    if (np >= 2 && hit.t * len < 1e-3 * r && lifts < 2) {
+      Eigen::Vector3d up = Eigen::Vector3d::Zero();
+      for (int i = 0; i < np; ++i) up += planes[i].normal;
+      up += hit.normal;
+      if (up.norm() > 0) {
+        const Eigen::Vector3d lift = up.normalized() * (params_.lift * r);
+        at.center = p;
+        const SweepHit lh = sweep_.first_contact(at, lift, {ignore, n_ignore});
+        if (!lh.hit) {
+          p += lift;
+          np = 0;
+          ++lifts;
+          continue;
+        }
+      }
+    }
+    const CollisionGaussian& g = world_->gaussians()[hit.slot];
+    if (n_blockers_ < blockers_.size()) {
+      Contact& c = blockers_[n_blockers_++];
+      c.index = g.source_index;
+      c.slot = hit.slot;
+      c.opacity = g.opacity;
+      c.k_min = 0;
+      c.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+    }
+    if (np == 3) break;
+    planes[np++] = {hit.normal, p};
+  }
+  proxy_ = p;
+  last_constraints_ = np;
+  ProxyMove out;
+  out.position = p;
+  out.constraints = np;
+  if (!hold && np > 0) out.first_normal = planes[0].normal;
+  out.candidates = candidates;
+  return out;
+}
+
+}  // namespace gshaptics

@@ -1,0 +1,304 @@
+// The proxy renderer's four parts on their own: the god-object's constrained goal against an
+// independent projection (Dykstra's algorithm), the solver on a plane, an edge and a corner, the
+// shaded normal on a plane and a sphere of Gaussians, the friction cone's stick/slide decision,
+// and the virtual coupling's force law.
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <random>
+
+#include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/force/friction_cone.h"
+#include "gshaptics/force/proxy_solver.h"
+#include "gshaptics/force/shaded_normal.h"
+#include "gshaptics/force/virtual_coupling.h"
+#include "support/allocation_counter.h"
+#include "support/gaussian_worlds.h"
+
+namespace gshaptics {
+namespace {
+
+using test::add_layer;
+using test::GaussianSpec;
+using test::world_of;
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180 / M_PI;
+}
+
+// The projection of `x` onto the intersection of half-spaces by Dykstra's alternating projections
+// (Boyle & Dykstra 1986): slow, independent of the subset enumeration it checks.
+Eigen::Vector3d dykstra(const Eigen::Vector3d& x, const std::vector<ConstraintPlane>& planes) {
+  const std::size_t n = planes.size();
+  std::vector<Eigen::Vector3d> inc(n, Eigen::Vector3d::Zero());
+  Eigen::Vector3d y = x;
+  for (int it = 0; it < 200000; ++it)
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d z = y + inc[i];
+      const double s = planes[i].normal.dot(z - planes[i].point);
+      const Eigen::Vector3d proj = s < 0 ? Eigen::Vector3d(z - s * planes[i].normal) : z;
+      inc[i] = z - proj;
+      y = proj;
+    }
+  return y;
+}
+
+TEST(ClosestFeasiblePoint, MatchesDykstrasProjectionOnOneTwoAndThreePlanes) {
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(-1, 1);
+  int projected = 0;
+  for (int i = 0; i < 60; ++i) {
+    const int n = 1 + i % 3;
+    std::vector<ConstraintPlane> planes(n);
+    for (auto& p : planes) {
+      // Normals in the upper half-space through points near the origin: a non-empty
+      // intersection (it contains everything far enough up), as the proxy's blockers give.
+      p.normal = Eigen::Vector3d(u(rng), u(rng), 0.3 + std::fabs(u(rng))).normalized();
+      p.point = 0.01 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    }
+    const Eigen::Vector3d goal = 0.02 * Eigen::Vector3d(u(rng), u(rng), u(rng)) - Eigen::Vector3d(0, 0, 0.01);
+    const Eigen::Vector3d x = closest_feasible_point(goal, planes);
+    const Eigen::Vector3d ref = dykstra(goal, planes);
+    EXPECT_LT((x - ref).norm(), 1e-7) << i << " n " << n;
+    for (const auto& p : planes) EXPECT_GE(p.normal.dot(x - p.point), -1e-12) << i;
+    if ((x - goal).norm() > 1e-9) ++projected;
+  }
+  EXPECT_GT(projected, 30);
+  // Two and three planes on the servo tick: no allocation.
+  const std::vector<ConstraintPlane> corner = {{Eigen::Vector3d::UnitX(), Eigen::Vector3d::Zero()},
+                                               {Eigen::Vector3d::UnitY(), Eigen::Vector3d::Zero()},
+                                               {Eigen::Vector3d::UnitZ(), Eigen::Vector3d::Zero()}};
+  const std::size_t before = test::allocation_count();
+  const Eigen::Vector3d c3 = closest_feasible_point({-1, -2, -3}, corner);
+  const Eigen::Vector3d c2 = closest_feasible_point({-1, -2, 3}, std::span(corner).first(2));
+  EXPECT_EQ(test::allocation_count() - before, 0u);
+  EXPECT_EQ(c3, Eigen::Vector3d::Zero());
+  EXPECT_EQ(c2, Eigen::Vector3d(0, 0, 3));
+  // A feasible goal is its own answer; no planes, no constraint.
+  EXPECT_EQ(closest_feasible_point({0, 0, 1}, std::vector<ConstraintPlane>{{Eigen::Vector3d::UnitZ(), Eigen::Vector3d::Zero()}}),
+            Eigen::Vector3d(0, 0, 1));
+  EXPECT_EQ(closest_feasible_point({0, 0, -1}, {}), Eigen::Vector3d(0, 0, -1));
+}
+
+// The inside of a box corner at the origin, made of flat discs (2 um half-thickness): the
+// floor z = 0 and the walls x = 0 and y = 0; free space is x, y, z > 0.
+std::vector<GaussianSpec> inside_corner(float h, float extent) {
+  std::vector<GaussianSpec> gs;
+  const Eigen::Vector3f flat(h, h, 0.001f * h);
+  const Eigen::Quaternionf to_x(Eigen::AngleAxisf(float(M_PI / 2), Eigen::Vector3f::UnitY()));
+  const Eigen::Quaternionf to_y(Eigen::AngleAxisf(float(M_PI / 2), Eigen::Vector3f::UnitX()));
+  for (float a = 0; a <= extent; a += h)
+    for (float b = 0; b <= extent; b += h) {
+      gs.emplace_back(Eigen::Vector3f(a, b, 0), flat, Eigen::Quaternionf::Identity());  // floor
+      gs.emplace_back(Eigen::Vector3f(0, a, b), flat, to_x);                            // wall x = 0
+      gs.emplace_back(Eigen::Vector3f(a, 0, b), flat, to_y);                            // wall y = 0
+    }
+  return gs;
+}
+
+TEST(ProxySolver, FaceEdgeAndCornerHoldOneTwoAndThreeConstraintsWithoutAllocating) {
+  const CollisionWorld w = world_of(inside_corner(0.002f, 0.04f));
+  ProxySolver solver(w, ProxySolverParams{});
+  const double r = 0.004;
+  struct Case {
+    Eigen::Vector3d start, goal;
+    int constraints;
+  };
+  // Goals 3 mm behind the floor; behind the floor and a wall; behind all three.
+  const Case cases[] = {{{0.02, 0.02, 0.01}, {0.021, 0.019, -0.003}, 1},
+                        {{0.02, 0.01, 0.01}, {0.021, -0.003, -0.003}, 2},
+                        {{0.01, 0.01, 0.01}, {-0.003, -0.003, -0.003}, 3}};
+  for (const Case& c : cases) {
+    solver.reset();
+    const ToolEllipsoid start = ToolEllipsoid::sphere(c.start, r);
+    solver.place(start);
+    ASSERT_EQ(solver.position(), c.start);
+    const std::size_t before = test::allocation_count();
+    ProxyMove m;
+    for (int k = 0; k < 5; ++k) m = solver.move_toward(start, c.goal, false);
+    EXPECT_EQ(test::allocation_count() - before, 0u) << c.constraints;
+    // (The count itself is not asserted: in a concave corner the lift out of "pockets between
+    // bumps" fires and the planes start afresh, so the corner ends a tick on 1-3 planes.)
+    EXPECT_GE(m.constraints, 1) << c.constraints;
+    // It never overlaps the walls, and rests on each one the goal is behind (r from its
+    // plane, plus at most the discs' 2 um half-thickness); along the others it reaches the goal.
+    ToolEllipsoid at = start;
+    at.center = m.position;
+    EXPECT_FALSE(test::overlaps(w, at)) << c.constraints;
+    for (int a = 0; a < 3; ++a) {
+      if (c.goal[a] < 0) {
+        EXPECT_GE(m.position[a], r - 1e-9) << c.constraints << " axis " << a;
+        EXPECT_LE(m.position[a], r + 2e-6 + 1e-6) << c.constraints << " axis " << a;
+      } else {
+        EXPECT_NEAR(m.position[a], c.goal[a], 2e-5) << c.constraints << " axis " << a;  // the discs' rims tilt the planes
+      }
+    }
+    EXPECT_GE(solver.blockers().size(), std::size_t(c.constraints == 3 ? 2 : 1));
+  }
+}
+
+TEST(ProxySolver, HoldKeepsThePositionAndTheBlockers) {
+  std::vector<GaussianSpec> gs;
+  add_layer(gs, 0.0f, 0.004f, 0.04f);
+  const CollisionWorld w = world_of(gs);
+  ProxySolver solver(w, ProxySolverParams{});
+  const ToolEllipsoid tool = ToolEllipsoid::sphere({0.001, 0.001, 0.01}, 0.005);
+  solver.place(tool);
+  const ProxyMove pressed = solver.move_toward(tool, {0.001, 0.001, -0.002}, false);
+  ASSERT_EQ(pressed.constraints, 1);
+  const auto blocker = solver.blockers()[0].slot;
+  const ProxyMove held = solver.move_toward(tool, {0.01, 0.01, -0.002}, true);
+  EXPECT_EQ(held.position, pressed.position);
+  EXPECT_EQ(held.constraints, 1);
+  ASSERT_EQ(solver.blockers().size(), 1u);
+  EXPECT_EQ(solver.blockers()[0].slot, blocker);
+  EXPECT_EQ(held.candidates, 0u);  // no sweep while held
+}
+
+TEST(ProxySolver, FloatersAreSweptThroughAndCountedAsIsolated) {
+  std::vector<GaussianSpec> gs;
+  add_layer(gs, 0.0f, 0.004f, 0.04f);
+  gs.emplace_back(Eigen::Vector3f(0, 0, 0.015f), Eigen::Vector3f::Constant(0.002f), Eigen::Quaternionf::Identity());
+  const CollisionWorld w = world_of(gs);
+  ProxySolverParams sp;
+  for (const bool pass : {true, false}) {
+    sp.pass_isolated = pass;
+    ProxySolver solver(w, sp);
+    const ToolEllipsoid tool = ToolEllipsoid::sphere({0, 0, 0.03}, 0.005);
+    solver.place(tool);
+    const ProxyMove m = solver.move_toward(tool, {0, 0, -0.001}, false);
+    if (pass) EXPECT_LT(m.position.z(), 0.0055);  // on the layer (tops 0.2 mm)
+    else EXPECT_GT(m.position.z(), 0.015 + 0.002 + 0.005 - 1e-4);  // on the floater
+  }
+  ProxySolver solver(w, ProxySolverParams{});
+  std::uint32_t floater = 0;
+  for (std::uint32_t s = 0; s < w.gaussians().size(); ++s)
+    if (w.gaussians()[s].center[2] > 0.01f) floater = s;
+  EXPECT_TRUE(solver.isolated(floater));
+  EXPECT_FALSE(solver.isolated(floater == 0 ? 1 : 0));
+}
+
+TEST(ShadedNormal, PointsAwayFromAPlaneOnBothSidesAndIsZeroFarAway) {
+  std::vector<GaussianSpec> gs;
+  add_layer(gs, 0.0f, 0.004f, 0.04f);
+  const CollisionWorld w = world_of(gs);
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-0.02, 0.02);
+  for (int i = 0; i < 40; ++i) {
+    const double side = i % 2 ? 1.0 : -1.0;
+    const Eigen::Vector3d p(u(rng), u(rng), side * (0.004 + std::fabs(u(rng)) * 0.1));
+    const Eigen::Vector3d n = shaded_normal(w, p, 0.005, 0.5);
+    ASSERT_NEAR(n.norm(), 1.0, 1e-12) << i;
+    EXPECT_LT(angle_deg(n, side * Eigen::Vector3d::UnitZ()), 1.0) << i;
+  }
+  EXPECT_EQ(shaded_normal(w, {0, 0, 0.5}, 0.005, 0.5), Eigen::Vector3d::Zero());
+}
+
+TEST(ShadedNormal, FollowsASphereOfGaussiansWithinAFewDegrees) {
+  AnalyticShape shape(ShapeKind::kSphere);
+  const SyntheticScene s = make_synthetic_scene(shape, SynthParams{});
+  const CollisionWorld w = CollisionWorld::build(s.scene, WorldConfig{});
+  double worst = 0;
+  int n = 0;
+  for (const SurfaceSample& q : shape.sample_surface(0.02)) {
+    const Eigen::Vector3d p = q.position + q.normal * 0.005;  // a 5 mm tool resting on it
+    worst = std::max(worst, angle_deg(shaded_normal(w, p, 0.005, 0.5), q.normal));
+    ++n;
+  }
+  EXPECT_GT(n, 20);
+  EXPECT_LT(worst, 5.0);
+}
+
+TEST(ShadedNormal, TheKernelScaleFollowsTheLargestBlocker) {
+  const CollisionWorld w = world_of({{Eigen::Vector3f::Zero(), Eigen::Vector3f(0.03f, 0.02f, 0.001f), Eigen::Quaternionf::Identity()},
+                                     {Eigen::Vector3f(0.1f, 0, 0), Eigen::Vector3f::Constant(0.001f), Eigen::Quaternionf::Identity()}});
+  Contact big, small;
+  big.slot = 0;
+  small.slot = 1;
+  for (std::uint32_t s = 0; s < 2; ++s) (w.gaussians()[s].center[0] > 0.05f ? small : big).slot = s;
+  EXPECT_EQ(shading_scale(w, {}, 0.005), 0.005);
+  EXPECT_EQ(shading_scale(w, {&small, 1}, 0.005), 0.005);
+  EXPECT_NEAR(shading_scale(w, {&big, 1}, 0.005), 0.02, 1e-9);  // the middle semi-axis
+}
+
+TEST(FrictionCone, SticksInsideTheConeAndSlidesOutsideIt) {
+  FrictionCone cone(0.5, 0.3);
+  const Eigen::Vector3d n = Eigen::Vector3d::UnitZ(), proxy(0, 0, 0.005);
+  const double r = 0.005;
+  // No contact: the goal is the device.
+  FrictionStep f = cone.update(false, n, {0.001, 0, 0.003}, proxy, Eigen::Vector3d::Zero(), r);
+  EXPECT_FALSE(f.sticking || f.sliding);
+  EXPECT_EQ(f.goal, Eigen::Vector3d(0.001, 0, 0.003));
+  // Depth 2 mm, offset 0.9 mm < 0.5 x 2 mm: sticks.
+  f = cone.update(true, n, {0.0009, 0, 0.003}, proxy, {0.0001, 0, 0}, r);
+  EXPECT_TRUE(f.sticking);
+  EXPECT_EQ(f.goal, proxy);
+  // Offset 1.1 mm > 1 mm: slides, kept mu_k x depth behind the device along its motion.
+  f = cone.update(true, n, {0.0011, 0, 0.003}, proxy, {0.0002, 0, 0}, r);
+  ASSERT_TRUE(f.sliding);
+  EXPECT_TRUE(cone.sliding());
+  EXPECT_NEAR((f.slip_dir - Eigen::Vector3d::UnitX()).norm(), 0, 1e-12);
+  EXPECT_NEAR((f.goal - Eigen::Vector3d(0.0011 - 0.3 * 0.002, 0, 0.003)).norm(), 0, 1e-12);
+  // While sliding the kinetic limit applies: 0.7 mm > 0.3 x 2 mm keeps it sliding even though
+  // it is inside the static cone; moving on keeps it sliding at any offset.
+  f = cone.update(true, n, {0.0007, 0, 0.003}, proxy, {-0.0001, 0, 0}, r);
+  EXPECT_TRUE(f.sliding);
+  f = cone.update(true, n, {0.0001, 0, 0.003}, proxy, {0.0001, 0, 0}, r);
+  EXPECT_TRUE(f.sliding);
+  // Stopped inside the kinetic cone: sticks again.
+  f = cone.update(true, n, {0.0005, 0, 0.003}, proxy, {-0.0001, 0, 0}, r);
+  EXPECT_TRUE(f.sticking);
+  // Off the surface (no depth): no friction.
+  f = cone.update(true, n, {0.0005, 0, 0.006}, proxy, Eigen::Vector3d::Zero(), r);
+  EXPECT_FALSE(f.sticking || f.sliding);
+  // mu_s = 0: friction off.
+  FrictionCone off(0, 0);
+  EXPECT_FALSE(off.update(true, n, {0.0001, 0, 0.003}, proxy, Eigen::Vector3d::Zero(), r).sticking);
+}
+
+TEST(VirtualCoupling, SpringDamperAlongTheNormalNeverPullsAndIsClamped) {
+  VirtualCoupling c(1000.0, 2.0, 10.0, false, 0.0);
+  const Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+  const FrictionStep none;
+  // 3 mm deep, moving in at 0.1 m/s: 3 N + 0.2 N along n; the tangential offset is not rendered.
+  Eigen::Vector3d f = c.force({0.001, 0, 0.003}, n, {0, 0, -0.1}, 1e-3, {}, none, 0);
+  EXPECT_NEAR((f - Eigen::Vector3d(0, 0, 3.2)).norm(), 0, 1e-12);
+  // Moving out fast: the damping would pull; the force stops at zero.
+  f = c.force({0, 0, 0.001}, n, {0, 0, 1.0}, 1e-3, {}, none, 0);
+  EXPECT_EQ(f, Eigen::Vector3d::Zero());
+  // Clamped to f_max along its own direction.
+  f = c.force({0, 0, 0.05}, n, Eigen::Vector3d::Zero(), 1e-3, {}, none, 0);
+  EXPECT_NEAR(f.norm(), 10.0, 1e-12);
+  // Sticking adds the spring's tangential part; sliding subtracts mu_k |F_n| along slip.
+  FrictionStep stick;
+  stick.sticking = true;
+  f = c.force({0.001, 0, 0.003}, n, Eigen::Vector3d::Zero(), 1e-3, {}, stick, 0.3);
+  EXPECT_NEAR((f - Eigen::Vector3d(1.0, 0, 3.0)).norm(), 0, 1e-12);
+  FrictionStep slide;
+  slide.sliding = true;
+  slide.slip_dir = Eigen::Vector3d::UnitX();
+  f = c.force({-0.001, 0, 0.003}, n, Eigen::Vector3d::Zero(), 1e-3, {}, slide, 0.3);
+  EXPECT_NEAR((f - Eigen::Vector3d(-0.9, 0, 3.0)).norm(), 0, 1e-12);
+}
+
+TEST(VirtualCoupling, OpacityStiffnessApproachesTheBlockersMeanOpacityWithItsTimeConstant) {
+  VirtualCoupling c(1000.0, 0.0, INFINITY, true, 0.02);
+  Contact a, b;
+  a.opacity = 0.4f;
+  b.opacity = 0.6f;
+  const Contact both[2] = {a, b};
+  const Eigen::Vector3d n = Eigen::Vector3d::UnitZ(), e(0, 0, 0.002);
+  // After 20 ms (one time constant) the factor has covered 1 - 1/e of the way from 1 to 0.5.
+  Eigen::Vector3d f;
+  for (int k = 0; k < 20; ++k) f = c.force(e, n, Eigen::Vector3d::Zero(), 1e-3, both, FrictionStep{}, 0);
+  const double expected = 0.5 + 0.5 * std::exp(-1.0);
+  EXPECT_NEAR(c.opacity_factor(), expected, 1e-7);  // (float opacities)
+  EXPECT_NEAR(f.z(), 2.0 * expected, 2e-7);
+  c.release();
+  EXPECT_EQ(c.opacity_factor(), 1.0);
+}
+
+}  // namespace
+}  // namespace gshaptics

@@ -1,0 +1,179 @@
+// The continuous first-contact query under the proxy (SweepQuery): exact first contact against
+// bisection on the exact overlap test, thin plates crossed in one motion, ellipsoidal tools,
+// grazing paths, ignore lists and hints.
+
+#include "gshaptics/collision/sweep_query.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <random>
+
+#include "support/gaussian_worlds.h"
+
+namespace gshaptics {
+namespace {
+
+using test::add_layer;
+using test::GaussianSpec;
+using test::world_of;
+
+TEST(SweepQuery, FirstContactMatchesBisectionOnTheExactOverlapTest) {
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-1, 1), lg(-2.5, -1);
+  int hits = 0;
+  for (int i = 0; i < 300; ++i) {
+    const Eigen::Quaternionf q = Eigen::Quaternionf(float(u(rng)), float(u(rng)), float(u(rng)), float(u(rng))).normalized();
+    Eigen::Vector3f a(float(std::pow(10, lg(rng))), float(std::pow(10, lg(rng))), float(std::pow(10, lg(rng))));
+    if (i % 3 == 0) a.z() = 1e-6f;  // flat splats
+    const CollisionWorld w = world_of({{Eigen::Vector3f::Zero(), a, q}});
+    ToolEllipsoid tool;
+    tool.semi_axes = i % 2 ? Eigen::Vector3d::Constant(0.01)
+                           : Eigen::Vector3d(0.01, 0.02, 0.005);  // ellipsoidal tools too
+    tool.rotation = Eigen::Quaterniond(u(rng), u(rng), u(rng), u(rng)).normalized();
+    const Eigen::Vector3d dir = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+    tool.center = -dir * 0.15 + Eigen::Vector3d(u(rng), u(rng), u(rng)) * 0.02;
+    const Eigen::Vector3d motion = dir * 0.3;
+    SweepQuery sweep(w);
+    const SweepHit hit = sweep.first_contact(tool, motion);
+    // Reference: the first overlapping sample on a fine grid, refined by bisection.
+    ToolEllipsoid t = tool;
+    double lo = 0, hi = -1;
+    for (int k = 1; k <= 3000; ++k) {
+      t.center = tool.center + motion * (k / 3000.0);
+      if (test::overlaps(w, t)) {
+        hi = k / 3000.0;
+        lo = (k - 1) / 3000.0;
+        break;
+      }
+    }
+    if (hi < 0) {
+      EXPECT_FALSE(hit.hit) << i;
+      continue;
+    }
+    for (int it = 0; it < 40; ++it) {
+      t.center = tool.center + motion * (0.5 * (lo + hi));
+      (test::overlaps(w, t) ? hi : lo) = 0.5 * (lo + hi);
+    }
+    ++hits;
+    ASSERT_TRUE(hit.hit) << i;
+    EXPECT_NEAR(hit.t, lo, 2e-6) << i;        // 0.6 um of a 30 cm motion
+    EXPECT_LE(hit.t, hi + 1e-7) << i;  // never past the contact (the reference decides K_min > 0 to 1e-6)
+    EXPECT_NEAR(hit.normal.norm(), 1.0, 1e-9);
+    EXPECT_LT(hit.normal.dot(motion), 0) << i;  // it opposes the motion
+  }
+  EXPECT_GT(hits, 60);
+}
+
+TEST(SweepQuery, AThinPlateIsHitWhenTheWholePlateIsCrossedInOneMotion) {
+  // Discs 2 um thick; the motion starts 10 mm above and ends 10 mm below: a one-tick crossing.
+  std::vector<GaussianSpec> gs;
+  for (float x = -0.03f; x <= 0.03f; x += 0.003f)
+    for (float y = -0.03f; y <= 0.03f; y += 0.003f)
+      gs.emplace_back(Eigen::Vector3f(x, y, 0), Eigen::Vector3f(0.003f, 0.003f, 1e-6f), Eigen::Quaternionf::Identity());
+  const CollisionWorld w = world_of(gs);
+  const double r = 0.004;
+  for (const double z0 : {0.014, 0.02, 0.1}) {
+    const ToolEllipsoid tool = ToolEllipsoid::sphere({0.0011, -0.0007, z0}, r);
+    const Eigen::Vector3d motion(0, 0, -2 * z0);
+    SweepQuery sweep(w);
+    const SweepHit hit = sweep.first_contact(tool, motion);
+    ASSERT_TRUE(hit.hit) << z0;
+    // First contact: the sphere's bottom on the discs' top, at most 1 um above z = 0.
+    const double z_hit = z0 + motion.z() * hit.t;
+    EXPECT_GE(z_hit, r - 1e-9) << z0;
+    EXPECT_LE(z_hit, r + 1e-6 + 1e-7) << z0;
+    EXPECT_GT(hit.normal.z(), 0.99) << z0;
+  }
+}
+
+TEST(SweepQuery, AnEllipsoidalToolTouchesAPlateAtItsSupportHeight) {
+  std::vector<GaussianSpec> gs;
+  for (float x = -0.05f; x <= 0.05f; x += 0.002f)
+    for (float y = -0.05f; y <= 0.05f; y += 0.002f)
+      gs.emplace_back(Eigen::Vector3f(x, y, 0), Eigen::Vector3f(0.002f, 0.002f, 1e-7f), Eigen::Quaternionf::Identity());
+  const CollisionWorld w = world_of(gs);
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int i = 0; i < 20; ++i) {
+    ToolEllipsoid tool;
+    tool.semi_axes = Eigen::Vector3d(0.01, 0.02, 0.005);
+    tool.rotation = Eigen::Quaterniond(u(rng), u(rng), u(rng), u(rng)).normalized();
+    tool.center = Eigen::Vector3d(0.005 * u(rng), 0.005 * u(rng), 0.05);
+    // The support height of the ellipsoid along z: sqrt(sum_i (R^T z)_i^2 a_i^2).
+    const Eigen::Vector3d zl = tool.rotation.toRotationMatrix().transpose() * Eigen::Vector3d::UnitZ();
+    const double support = std::sqrt(zl.cwiseProduct(tool.semi_axes).squaredNorm());
+    SweepQuery sweep(w);
+    const SweepHit hit = sweep.first_contact(tool, Eigen::Vector3d(0, 0, -0.1));
+    ASSERT_TRUE(hit.hit) << i;
+    const double z_hit = 0.05 - 0.1 * hit.t;
+    EXPECT_GE(z_hit, support - 1e-9) << i;
+    EXPECT_LE(z_hit, support + 1e-7 + 2e-7) << i;
+  }
+}
+
+TEST(SweepQuery, GrazingPathsTouchOnlyWithinReach) {
+  const float R = 0.01f;
+  const CollisionWorld w = world_of({{Eigen::Vector3f::Zero(), Eigen::Vector3f::Constant(R), Eigen::Quaternionf::Identity()}});
+  const double r = 0.005, reach = R + r;
+  SweepQuery sweep(w);
+  for (const double delta : {1e-4, 1e-5, 1e-6}) {
+    const Eigen::Vector3d motion(0.2, 0, 0);
+    const SweepHit miss = sweep.first_contact(ToolEllipsoid::sphere({-0.1, reach + delta, 0}, r), motion);
+    EXPECT_FALSE(miss.hit) << delta;
+    const double y = reach - delta;
+    const SweepHit hit = sweep.first_contact(ToolEllipsoid::sphere({-0.1, y, 0}, r), motion);
+    ASSERT_TRUE(hit.hit) << delta;
+    const double x_hit = -std::sqrt(reach * reach - y * y);  // where |centre| = R + r
+    EXPECT_NEAR(-0.1 + 0.2 * hit.t, x_hit, 2e-6) << delta;
+    EXPECT_LE(-0.1 + 0.2 * hit.t, x_hit + 1e-8) << delta;  // never past the contact
+  }
+}
+
+TEST(SweepQuery, TouchingAtTheStartBlocksOnlyMotionInward) {
+  const float R = 0.01f;
+  const CollisionWorld w = world_of({{Eigen::Vector3f::Zero(), Eigen::Vector3f::Constant(R), Eigen::Quaternionf::Identity()}});
+  SweepQuery sweep(w);
+  const ToolEllipsoid touching = ToolEllipsoid::sphere({0, 0, R + 0.005 - 1e-7}, 0.005);
+  const SweepHit in = sweep.first_contact(touching, {0, 0, -0.001});
+  ASSERT_TRUE(in.hit);
+  EXPECT_EQ(in.t, 0.0);
+  EXPECT_FALSE(sweep.first_contact(touching, {0, 0, 0.001}).hit);
+  EXPECT_FALSE(sweep.first_contact(touching, Eigen::Vector3d::Zero()).hit);
+  EXPECT_FALSE(sweep.first_contact(touching, {0, 0, NAN}).hit);
+}
+
+TEST(SweepQuery, IgnoredRecordsAndHintsChangeOnlyWhatTheyShould) {
+  // Two layers: ignoring the upper layer's first blocker still stops on the upper layer (its
+  // neighbours), ignoring the whole upper layer stops on the lower one; hints never change a hit.
+  std::vector<GaussianSpec> gs;
+  add_layer(gs, 0.01f, 0.004f, 0.02f);
+  const std::size_t upper = gs.size();
+  add_layer(gs, 0.0f, 0.004f, 0.02f);
+  const CollisionWorld w = world_of(gs);
+  SweepQuery sweep(w);
+  const ToolEllipsoid tool = ToolEllipsoid::sphere({0.0013, 0.0009, 0.03}, 0.003);
+  const Eigen::Vector3d motion(0, 0, -0.04);
+  const SweepHit first = sweep.first_contact(tool, motion);
+  ASSERT_TRUE(first.hit);
+  std::vector<std::uint32_t> all_upper;
+  for (std::uint32_t s = 0; s < w.gaussians().size(); ++s)
+    if (w.gaussians()[s].center[2] > 0.005f) all_upper.push_back(s);
+  ASSERT_EQ(all_upper.size(), upper);
+  const SweepHit lower = sweep.first_contact(tool, motion, all_upper);
+  ASSERT_TRUE(lower.hit);
+  EXPECT_LT(w.gaussians()[lower.slot].center[2], 0.005f);
+  EXPECT_GT(lower.t, first.t + 0.2);
+  std::mt19937_64 rng(2);
+  std::uniform_int_distribution<std::uint32_t> pick(0, std::uint32_t(w.gaussians().size() - 1));
+  for (int i = 0; i < 50; ++i) {
+    const std::uint32_t hints[3] = {pick(rng), pick(rng), first.slot};
+    const SweepHit h = sweep.first_contact(tool, motion, {}, {hints, std::size_t(i % 4)});
+    ASSERT_TRUE(h.hit);
+    EXPECT_DOUBLE_EQ(h.t, first.t) << i;
+  }
+}
+
+}  // namespace
+}  // namespace gshaptics
