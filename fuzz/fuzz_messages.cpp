@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <string_view>
 
-#include "gshaptics/net/peer_messages.h"
+#include "gshaptics/device/peer_messages.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);

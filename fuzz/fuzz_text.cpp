@@ -10,7 +10,7 @@
 #if defined(GSHAPTICS_FUZZ_REGISTRATION)
 #include "gshaptics/scene/registration.h"
 #elif defined(GSHAPTICS_FUZZ_POSE_LOG)
-#include "gshaptics/servo/replay_device.h"
+#include "gshaptics/device/replay_device.h"
 #else
 #error "define one of GSHAPTICS_FUZZ_{REGISTRATION,POSE_LOG}"
 #endif

@@ -60,11 +60,11 @@ status=0
 for f in "${FORMATS[@]}"; do
   def=$(echo "$f" | tr a-z A-Z)
   case "$f" in
-    *_message) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_messages.cpp src/net/peer_messages.cpp \
+    *_message) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_messages.cpp src/device/peer_messages.cpp \
                  -o "$OUT/fuzz_$f" ;;
     registration) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_text.cpp src/scene/registration.cpp \
                     src/scene/sh_rotation.cpp src/io/gaussian_scene.cpp src/io/mapped_file.cpp src/error.cpp -o "$OUT/fuzz_$f" ;;
-    pose_log) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_text.cpp src/servo/replay_device.cpp \
+    pose_log) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_text.cpp src/device/replay_device.cpp \
                 src/io/mapped_file.cpp src/error.cpp -o "$OUT/fuzz_$f" ;;
     *) $CXX $SAN -fsanitize=fuzzer -DGSHAPTICS_FUZZ_${def} fuzz/fuzz_loader.cpp "${objs[@]}" -lz -lzstd -o "$OUT/fuzz_$f" ;;
   esac

@@ -2,7 +2,7 @@
 // the device; unknown kinds and bad arguments are named with the known grammars; list() gives
 // one row per kind or device found. Runs without any vendor library on the machine.
 
-#include "gshaptics/servo/device_registry.h"
+#include "gshaptics/device/device_registry.h"
 
 #include <gtest/gtest.h>
 
@@ -11,8 +11,8 @@
 #include <string>
 
 #include "gshaptics/error.h"
-#ifdef GSHAPTICS_TEST_WITH_HAPLY
-#include "gshaptics/net/haply_device.h"
+#ifdef GSHAPTICS_HAVE_HAPLY
+#include "gshaptics/device/haply_device.h"
 #endif
 
 namespace gshaptics {
@@ -22,7 +22,7 @@ DeviceRegistry& registry() {
   // Nothing on the search path: the vendor kinds must say why they cannot open.
   ::unsetenv("GSHAPTICS_DHD_LIBRARY");
   ::unsetenv("GSHAPTICS_HD_LIBRARY");
-#ifdef GSHAPTICS_TEST_WITH_HAPLY
+#ifdef GSHAPTICS_HAVE_HAPLY
   register_haply_device();
   register_haply_device();  // idempotent
 #endif
@@ -48,7 +48,7 @@ TEST(DeviceRegistry, EveryKindOpensOrSaysWhyInOneLine) {
       EXPECT_NE(what.find(k.name), std::string::npos) << "the reason names the device: " << what;
     }
   }
-#ifdef GSHAPTICS_TEST_WITH_HAPLY
+#ifdef GSHAPTICS_HAVE_HAPLY
   EXPECT_NE(r.find("haply:2"), nullptr);
 #endif
   // Without the vendor libraries, the vendor kinds cannot open, and say what is missing.

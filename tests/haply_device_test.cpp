@@ -3,7 +3,7 @@
 // restarting mid-contact (the force goes to zero, the client reconnects and starts at zero),
 // malformed JSON (counted, connection kept), and a missing service or device (clear errors).
 
-#include "gshaptics/net/haply_device.h"
+#include "gshaptics/device/haply_device.h"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +12,7 @@
 
 #include "gshaptics/error.h"
 #include "gshaptics/servo/haptic_runtime.h"
-#include "gshaptics/servo/workspace_mapping.h"
+#include "gshaptics/device/workspace_mapping.h"
 #include "support/fake_inverse_service.h"
 #include "support/device_harness.h"
 #include "support/scenes.h"

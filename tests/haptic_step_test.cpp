@@ -15,7 +15,7 @@
 #include "gshaptics/fidelity/synthetic_scene.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/servo/haptic_runtime.h"
-#include "gshaptics/servo/replay_device.h"
+#include "gshaptics/device/replay_device.h"
 #include "gshaptics/servo/simulated_runtime.h"
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/sim/probe_trajectory.h"

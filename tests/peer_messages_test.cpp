@@ -4,7 +4,7 @@
 // The type-confusion sweep replaces every value of the documented messages, one at a time, by a
 // value of every other JSON type; the truncation sweep cuts them at every byte.
 
-#include "gshaptics/net/peer_messages.h"
+#include "gshaptics/device/peer_messages.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

@@ -1,7 +1,7 @@
 // Pose logs: parsing and its error messages, interpolation, finishing, and a round trip through
 // the runtime's own CSV log.
 
-#include "gshaptics/servo/replay_device.h"
+#include "gshaptics/device/replay_device.h"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 // The servo/worker hand-off: newest value wins, nothing is torn, and both sides never wait.
 
-#include "gshaptics/servo/triple_buffer.h"
+#include "gshaptics/device/triple_buffer.h"
 
 #include <gtest/gtest.h>
 

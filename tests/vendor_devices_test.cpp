@@ -3,7 +3,7 @@
 // call order, units (m vs mm), axes, buttons, calibration, and zero force on stop and on the
 // watchdog.
 
-#include "gshaptics/servo/vendor_devices.h"
+#include "gshaptics/device/vendor_devices.h"
 
 #include <dlfcn.h>
 #include <gtest/gtest.h>
@@ -17,7 +17,7 @@
 
 #include "gshaptics/error.h"
 #include "gshaptics/servo/haptic_runtime.h"
-#include "gshaptics/servo/workspace_mapping.h"
+#include "gshaptics/device/workspace_mapping.h"
 #include "support/device_harness.h"
 #include "support/scenes.h"
 

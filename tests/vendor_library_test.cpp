@@ -1,7 +1,7 @@
 // Vendor device libraries found at run time: a stand-in libdhd.so loads and reports its devices;
 // a missing library and a library without the symbols are explained (file, places, install).
 
-#include "gshaptics/servo/vendor_library.h"
+#include "gshaptics/device/vendor_library.h"
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
 // Workspace mapping: scale and offset, forces unscaled, the clutch re-centres without moving the
 // tool in the scene, bubble rate control drifts the mapping outward, and the mapped device.
 
-#include "gshaptics/servo/workspace_mapping.h"
+#include "gshaptics/device/workspace_mapping.h"
 
 #include <gtest/gtest.h>
 

@@ -8,9 +8,9 @@
 
 #include "commands.h"
 #include "gshaptics/error.h"
-#include "gshaptics/servo/device_registry.h"
+#include "gshaptics/device/device_registry.h"
 #ifdef GSHAPTICS_HAVE_VIEWER
-#include "gshaptics/net/haply_device.h"
+#include "gshaptics/device/haply_device.h"
 #endif
 
 namespace gshaptics::cli {

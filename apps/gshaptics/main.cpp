@@ -7,14 +7,8 @@
 
 #include "commands.h"
 #include "gshaptics/error.h"
-#ifdef GSHAPTICS_HAVE_VIEWER
-#include "gshaptics/net/haply_device.h"
-#endif
 
 int main(int argc, char** argv) {
-#ifdef GSHAPTICS_HAVE_VIEWER
-  gshaptics::register_haply_device();  // the Haply client lives in the viewer library (Boost.Beast)
-#endif
   CLI::App app{
       "gshaptics: direct haptic rendering of 3D Gaussian Splatting scenes.\n"
       "Loads a trained 3DGS scene, filters it by opacity, registers it into the device's world "

@@ -14,15 +14,15 @@
 #include "commands.h"
 #include "gshaptics/error.h"
 #include "gshaptics/servo/query_pool.h"
-#include "gshaptics/servo/replay_device.h"
+#include "gshaptics/device/replay_device.h"
 #include "gshaptics/servo/tick_log.h"
-#include "gshaptics/servo/vendor_devices.h"
-#include "gshaptics/servo/workspace_mapping.h"
+#include "gshaptics/device/vendor_devices.h"
+#include "gshaptics/device/workspace_mapping.h"
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/sim/simulated_device.h"
 #include "gshaptics/sim/pose_sampler.h"
 #ifdef GSHAPTICS_HAVE_VIEWER
-#include "gshaptics/net/haply_device.h"
+#include "gshaptics/device/haply_device.h"
 #endif
 
 namespace gshaptics::cli {

@@ -13,7 +13,7 @@
 
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/simulated_runtime.h"
-#include "gshaptics/servo/stream_device.h"
+#include "gshaptics/device/stream_device.h"
 #include "probe_setup.h"
 
 namespace gshaptics::cli {

@@ -15,7 +15,7 @@
 #include <thread>
 
 #include "gshaptics/error.h"
-#include "gshaptics/net/peer_messages.h"
+#include "gshaptics/device/peer_messages.h"
 
 namespace gshaptics {
 

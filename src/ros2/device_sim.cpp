@@ -4,7 +4,7 @@
 #include <string>
 
 #include "gshaptics/error.h"
-#include "gshaptics/servo/clock.h"
+#include "gshaptics/device/clock.h"
 
 namespace gshaptics {
 

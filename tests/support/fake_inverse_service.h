@@ -1,6 +1,6 @@
 #pragma once
 // A fake Haply Inverse Service for the tests: a WebSocket server that speaks the documented
-// Inverse Service 3.1 JSON (see gshaptics/net/haply_device.h) in lock-step - a state message,
+// Inverse Service 3.1 JSON (see gshaptics/device/haply_device.h) in lock-step - a state message,
 // then one command, then the next state - records the forces it is sent, and can be told to
 // drop the connection and refuse new ones for a while (a service restart), to slip malformed
 // messages in, or to list no device.

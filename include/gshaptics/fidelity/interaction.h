@@ -15,7 +15,7 @@
 
 #include "gshaptics/fidelity/analytic_shape.h"
 #include "gshaptics/force/force_renderer.h"
-#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/device/haptic_device.h"
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/safety.h"
 

@@ -11,9 +11,9 @@
 #include <array>
 #include <cstdint>
 
-#include "gshaptics/servo/clock.h"
+#include "gshaptics/device/clock.h"
 #include "gshaptics/servo/collision_worker.h"
-#include "gshaptics/servo/triple_buffer.h"
+#include "gshaptics/device/triple_buffer.h"
 
 namespace gshaptics {
 

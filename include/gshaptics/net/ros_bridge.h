@@ -16,9 +16,9 @@
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/net/ros_marker.h"
 #include "gshaptics/net/contact_snapshot.h"
-#include "gshaptics/servo/haptic_device.h"
-#include "gshaptics/servo/stream_device.h"
-#include "gshaptics/servo/triple_buffer.h"
+#include "gshaptics/device/haptic_device.h"
+#include "gshaptics/device/stream_device.h"
+#include "gshaptics/device/triple_buffer.h"
 
 namespace gshaptics {
 

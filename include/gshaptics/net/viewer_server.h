@@ -26,7 +26,7 @@
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/net/contact_snapshot.h"
 #include "gshaptics/servo/haptic_runtime.h"
-#include "gshaptics/servo/stream_device.h"
+#include "gshaptics/device/stream_device.h"
 
 namespace gshaptics {
 

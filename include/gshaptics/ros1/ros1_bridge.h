@@ -14,8 +14,8 @@
 #include <string>
 
 #include "gshaptics/net/ros_bridge.h"
-#include "gshaptics/servo/clock.h"
-#include "gshaptics/servo/stream_device.h"
+#include "gshaptics/device/clock.h"
+#include "gshaptics/device/stream_device.h"
 
 namespace gshaptics {
 

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "gshaptics/ros2/ros2_bridge.h"
-#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/device/haptic_device.h"
 #include "gshaptics/servo/tick_log.h"
 
 namespace gshaptics {

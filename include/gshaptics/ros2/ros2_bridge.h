@@ -27,7 +27,7 @@
 
 #include "gshaptics/net/ros_bridge.h"
 #include "gshaptics/net/contact_snapshot.h"
-#include "gshaptics/servo/stream_device.h"
+#include "gshaptics/device/stream_device.h"
 
 namespace gshaptics {
 

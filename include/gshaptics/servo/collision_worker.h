@@ -18,9 +18,9 @@
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_renderer.h"
-#include "gshaptics/servo/clock.h"
+#include "gshaptics/device/clock.h"
 #include "gshaptics/servo/latency_histogram.h"
-#include "gshaptics/servo/triple_buffer.h"
+#include "gshaptics/device/triple_buffer.h"
 
 namespace gshaptics {
 

@@ -22,7 +22,7 @@
 
 #include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/servo/collision_worker.h"
-#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/device/haptic_device.h"
 #include "gshaptics/servo/query_pool.h"
 #include "gshaptics/servo/runtime_stats.h"
 #include "gshaptics/servo/safety.h"

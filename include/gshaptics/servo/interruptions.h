@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <span>
 
-#include "gshaptics/servo/clock.h"
+#include "gshaptics/device/clock.h"
 
 namespace gshaptics {
 

@@ -25,7 +25,7 @@
 #include <cstdint>
 #include <limits>
 
-#include "gshaptics/servo/clock.h"
+#include "gshaptics/device/clock.h"
 
 namespace gshaptics {
 

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "gshaptics/servo/collision_worker.h"
-#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/device/haptic_device.h"
 #include "gshaptics/servo/runtime_stats.h"
 #include "gshaptics/servo/safety.h"
 #include "gshaptics/servo/tick_log.h"

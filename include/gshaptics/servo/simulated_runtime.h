@@ -21,9 +21,9 @@
 #include <memory>
 #include <vector>
 
-#include "gshaptics/servo/clock.h"
+#include "gshaptics/device/clock.h"
 #include "gshaptics/servo/collision_worker.h"
-#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/device/haptic_device.h"
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/runtime_stats.h"
 #include "gshaptics/servo/servo_controller.h"

@@ -17,7 +17,7 @@
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/safety.h"
 #include "gshaptics/servo/tick_log.h"
-#include "gshaptics/sim/admittance_device.h"
+#include "gshaptics/device/admittance_device.h"
 #include "gshaptics/sim/probe_trajectory.h"
 
 namespace gshaptics {

@@ -4,8 +4,8 @@
 /// virtual mass-damper) driven by a simulated user hand that follows a probe trajectory, running
 /// in real time behind the HapticDevice interface.
 
-#include "gshaptics/servo/haptic_device.h"
-#include "gshaptics/sim/admittance_device.h"
+#include "gshaptics/device/haptic_device.h"
+#include "gshaptics/device/admittance_device.h"
 #include "gshaptics/sim/probe_trajectory.h"
 
 namespace gshaptics {

@@ -1,4 +1,4 @@
-#include "gshaptics/servo/replay_device.h"
+#include "gshaptics/device/replay_device.h"
 
 #include <algorithm>
 #include <cmath>

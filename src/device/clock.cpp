@@ -1,6 +1,7 @@
-#include "gshaptics/servo/clock.h"
+#include "gshaptics/device/clock.h"
 
 #include <cerrno>
+#include <chrono>
 #include <ctime>
 
 namespace gshaptics {
@@ -18,6 +19,11 @@ void MonotonicClock::sleep_until(Nanos deadline) noexcept {
   // Absolute deadline: an interrupted sleep resumes toward the same instant (no drift).
   while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
   }
+}
+
+std::int64_t steady_ns() noexcept {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 
 MonotonicClock& MonotonicClock::instance() noexcept {

@@ -1,4 +1,4 @@
-#include "gshaptics/net/peer_messages.h"
+#include "gshaptics/device/peer_messages.h"
 
 #include <nlohmann/json.hpp>
 

@@ -1,4 +1,4 @@
-#include "gshaptics/servo/stream_device.h"
+#include "gshaptics/device/stream_device.h"
 
 #include <algorithm>
 

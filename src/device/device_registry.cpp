@@ -1,12 +1,16 @@
-#include "gshaptics/servo/device_registry.h"
+#include "gshaptics/device/device_registry.h"
+
+#ifdef GSHAPTICS_HAVE_HAPLY
+#include "gshaptics/device/haply_device.h"
+#endif
 
 #include <cstdio>
 #include <utility>
 
 #include "gshaptics/error.h"
-#include "gshaptics/servo/replay_device.h"
-#include "gshaptics/servo/vendor_devices.h"
-#include "gshaptics/servo/vendor_library.h"
+#include "gshaptics/device/replay_device.h"
+#include "gshaptics/device/vendor_devices.h"
+#include "gshaptics/device/vendor_library.h"
 
 namespace gshaptics {
 
@@ -172,6 +176,9 @@ DeviceRegistry& device_registry() {
   static DeviceRegistry r = [] {
     DeviceRegistry built;
     register_builtin_devices(built);
+#ifdef GSHAPTICS_HAVE_HAPLY
+    register_haply_device(built);  // built into this library when Boost.Beast was found
+#endif
     return built;
   }();
   return r;

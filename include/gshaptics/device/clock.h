@@ -23,6 +23,10 @@ constexpr Nanos kNanosPerSecond = 1'000'000'000;
 /// Nanoseconds -> seconds.
 [[nodiscard]] constexpr double to_seconds(Nanos ns) noexcept { return double(ns) * 1e-9; }
 
+/// std::chrono::steady_clock, ns: the time base of the drivers' I/O threads (command ages), which
+/// run beside, not on, the runtime's Clock.
+[[nodiscard]] std::int64_t steady_ns() noexcept;
+
 /// The time source of the runtime. now() and sleep_until() never allocate, lock or throw.
 class Clock {
  public:

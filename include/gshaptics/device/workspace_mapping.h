@@ -19,7 +19,7 @@
 #include <Eigen/Geometry>
 #include <memory>
 
-#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/device/haptic_device.h"
 
 namespace gshaptics {
 

@@ -32,8 +32,9 @@
 #include <cstdint>
 #include <string>
 
-#include "gshaptics/servo/haptic_device.h"
-#include "gshaptics/servo/triple_buffer.h"
+#include "gshaptics/device/haptic_device.h"
+#include "gshaptics/device/device_link.h"
+#include "gshaptics/device/triple_buffer.h"
 
 namespace gshaptics {
 
@@ -116,20 +117,6 @@ struct OpenHapticsParams {
   double calibration_wait = 5.0;
 };
 
-namespace detail {
-/// What the HD callback hands the servo thread (device frame, m, m/s).
-struct HdSample {
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
-  std::uint32_t buttons = 0;
-};
-/// What the servo thread hands the HD callback.
-struct HdCommand {
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< HD frame, N
-  std::int64_t wall_ns = 0;                         ///< steady clock when written
-};
-}  // namespace detail
-
 class OpenHapticsDevice final : public HapticDevice {
  public:
   /// Loads the library (probe_openhaptics_library); throws InputError when it is missing.
@@ -160,7 +147,7 @@ class OpenHapticsDevice final : public HapticDevice {
   [[nodiscard]] double max_force() const noexcept { return max_force_; }
   /// HD callbacks run so far, and how many of them zeroed a stale command.
   [[nodiscard]] std::uint64_t callbacks() const noexcept { return callbacks_.load(std::memory_order_relaxed); }
-  [[nodiscard]] std::uint64_t stale_commands() const noexcept { return stale_.load(std::memory_order_relaxed); }
+  [[nodiscard]] std::uint64_t stale_commands() const noexcept { return link_.stale_commands(); }
   /// Stops whose final zero-force frame the callback did not confirm within 50 ms.
   [[nodiscard]] std::uint64_t unconfirmed_stops() const noexcept { return unconfirmed_stops_.load(std::memory_order_relaxed); }
 
@@ -169,8 +156,6 @@ class OpenHapticsDevice final : public HapticDevice {
   unsigned int servo_callback() noexcept;
 
  private:
-  using Sample = detail::HdSample;
-  using Command = detail::HdCommand;
   const Api* api_ = nullptr;
   OpenHapticsParams params_;
   unsigned int handle_ = 0xFFFFFFFFu;
@@ -179,15 +164,10 @@ class OpenHapticsDevice final : public HapticDevice {
   DeviceInfo info_;
   std::string status_;
   double max_force_ = 0;
-  TripleBuffer<Sample> samples_{Sample{}};
-  TripleBuffer<Command> commands_{Command{}};
+  DeviceLink link_;  // HD callback <-> servo thread; HD frame, mm converted to m
   std::atomic<bool> running_{false};
-  std::atomic<std::uint64_t> callbacks_{0}, stale_{0}, hd_errors_{0}, unconfirmed_stops_{0};
+  std::atomic<std::uint64_t> callbacks_{0}, hd_errors_{0}, unconfirmed_stops_{0};
   std::atomic<bool> zero_applied_{false};
-  // Callback thread only:
-  std::uint64_t produced_ = 0;
-  // Servo thread only:
-  DeviceSample last_;
 };
 
 }  // namespace gshaptics

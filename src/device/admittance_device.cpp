@@ -1,4 +1,4 @@
-#include "gshaptics/sim/admittance_device.h"
+#include "gshaptics/device/admittance_device.h"
 
 namespace gshaptics {
 

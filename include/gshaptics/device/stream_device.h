@@ -11,8 +11,8 @@
 #include <atomic>
 #include <string>
 
-#include "gshaptics/servo/haptic_device.h"
-#include "gshaptics/servo/triple_buffer.h"
+#include "gshaptics/device/haptic_device.h"
+#include "gshaptics/device/triple_buffer.h"
 
 namespace gshaptics {
 

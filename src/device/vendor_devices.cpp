@@ -1,4 +1,4 @@
-#include "gshaptics/servo/vendor_devices.h"
+#include "gshaptics/device/vendor_devices.h"
 
 #include <dlfcn.h>
 
@@ -10,7 +10,7 @@
 #include <thread>
 
 #include "gshaptics/error.h"
-#include "gshaptics/servo/vendor_library.h"
+#include "gshaptics/device/vendor_library.h"
 
 namespace gshaptics {
 
@@ -29,11 +29,6 @@ template <class F>
 F symbol(void* handle, const char* name) {
   // The probe has checked that every symbol is present.
   return reinterpret_cast<F>(dlsym(handle, name));
-}
-
-std::int64_t steady_ns() noexcept {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 }  // namespace
@@ -328,7 +323,8 @@ const OpenHapticsDevice::Api* load_hd() {
 }
 }  // namespace
 
-OpenHapticsDevice::OpenHapticsDevice(const OpenHapticsParams& params) : api_(load_hd()), params_(params) {
+OpenHapticsDevice::OpenHapticsDevice(const OpenHapticsParams& params)
+    : api_(load_hd()), params_(params), link_(params.command_timeout) {
   if (!(params.command_timeout > 0)) throw InputError("openhaptics: command_timeout must be > 0");
   info_.name = "openhaptics" + (params.device_name.empty() ? std::string() : ":" + params.device_name);
   info_.max_rate_hz = 1000;  // the HD scheduler's default servo rate
@@ -372,7 +368,6 @@ void OpenHapticsDevice::start(Nanos) {
   handle_ = h;
   // Every session starts afresh: a previous stop() left these set.
   zero_applied_.store(false, std::memory_order_release);
-  stale_.store(0, std::memory_order_relaxed);
   double ws[6] = {};
   api_->get_doublev(kHdUsableWorkspace, ws);  // min x,y,z, max x,y,z, mm
   const Eigen::Vector3d a = hd_mm_to_device_m({ws[0], ws[1], ws[2]});
@@ -447,7 +442,7 @@ void OpenHapticsDevice::start(Nanos) {
   }
   info_.calibration = Calibration::kCalibrated;
 
-  commands_.write(Command{Eigen::Vector3d::Zero(), steady_ns()});
+  link_.begin_session();
   running_.store(true, std::memory_order_release);
   schedule_ = api_->schedule_asynchronous(&hd_trampoline, this, kHdMaxSchedulerPriority);
   scheduled_ = true;
@@ -467,25 +462,19 @@ unsigned int OpenHapticsDevice::servo_callback() noexcept {
   api_->get_doublev(kHdCurrentPosition, p);
   api_->get_doublev(kHdCurrentVelocity, v);
   api_->get_integerv(kHdCurrentButtons, &buttons);
-  Sample s;
+  LinkSample s;
   s.position = hd_mm_to_device_m({p[0], p[1], p[2]});
   s.velocity = hd_mm_to_device_m({v[0], v[1], v[2]});
   s.buttons = static_cast<std::uint32_t>(buttons);
   const bool running = running_.load(std::memory_order_acquire);
-  const Command& c = commands_.read();
-  Eigen::Vector3d f = c.force;
-  if (!running) {
-    f.setZero();
-  } else if (steady_ns() - c.wall_ns > static_cast<std::int64_t>(params_.command_timeout * 1e9)) {
-    f.setZero();
-    stale_.fetch_add(1, std::memory_order_relaxed);
-  }
+  // Stopping: zero. Otherwise the newest command, or zero when the servo thread stopped refreshing it.
+  Eigen::Vector3d f = running ? link_.force_to_send() : Eigen::Vector3d::Zero();
   api_->set_doublev(kHdCurrentForce, f.data());
   api_->end_frame(handle_);
   if (api_->get_error().errorCode != 0) {
     hd_errors_.fetch_add(1, std::memory_order_relaxed);
   } else {
-    samples_.write(s);  // a frame with an error delivers no sample: the runtime's watchdog decides
+    link_.publish(s);  // a frame with an error delivers no sample: the runtime's watchdog decides
   }
   callbacks_.fetch_add(1, std::memory_order_relaxed);
   if (!running) {
@@ -509,25 +498,13 @@ std::vector<DeviceCounter> OpenHapticsDevice::counters() const {
           {"stops without a confirmed zero frame", unconfirmed_stops()}};
 }
 
-DeviceSample OpenHapticsDevice::read(Nanos now) noexcept {
-  Sample s;
-  if (samples_.read_if_new(s)) {
-    last_.sequence += 1;
-    last_.stamp = now;
-    last_.position = s.position;
-    last_.velocity = s.velocity;
-    last_.buttons = s.buttons;
-  }
-  return last_;
-}
+DeviceSample OpenHapticsDevice::read(Nanos now) noexcept { return link_.read(now); }
 
-void OpenHapticsDevice::write(const Wrench& wrench, Nanos) noexcept {
-  commands_.write(Command{device_force_to_hd(wrench.force), steady_ns()});
-}
+void OpenHapticsDevice::write(const Wrench& wrench, Nanos) noexcept { link_.command(device_force_to_hd(wrench.force)); }
 
 void OpenHapticsDevice::stop(Nanos) noexcept {
   if (handle_ == kHdInvalidHandle) return;
-  commands_.write(Command{Eigen::Vector3d::Zero(), steady_ns()});
+  link_.command(Eigen::Vector3d::Zero());
   if (running_.exchange(false, std::memory_order_acq_rel) && scheduled_) {
     // The callback's last frame commands zero force and ends the callback.
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(50);

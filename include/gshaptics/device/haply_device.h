@@ -18,7 +18,7 @@
 ///
 /// Behaviour:
 ///   - the client runs its own I/O thread; the servo thread exchanges samples and forces with it
-///     through wait-free triple buffers (read()/write() never block);
+///     through the drivers' shared DeviceLink (wait-free; read()/write() never block);
 ///   - the service's rate is measured (messages per second);
 ///   - the link lost (service restart, no message for `read_timeout`): no new samples, so the
 ///     runtime's watchdog zeroes the force; the client reconnects every `reconnect_interval`,
@@ -35,10 +35,10 @@
 #include <string>
 #include <thread>
 
-#include "gshaptics/net/peer_messages.h"
-#include "gshaptics/servo/device_registry.h"
-#include "gshaptics/servo/haptic_device.h"
-#include "gshaptics/servo/triple_buffer.h"
+#include "gshaptics/device/peer_messages.h"
+#include "gshaptics/device/device_registry.h"
+#include "gshaptics/device/haptic_device.h"
+#include "gshaptics/device/device_link.h"
 
 namespace gshaptics {
 
@@ -60,16 +60,10 @@ struct HaplyStats {
   std::uint64_t commands = 0;    ///< force commands sent
   std::uint64_t connects = 0;    ///< successful (re)connections
   std::uint64_t zero_after_connect = 0;  ///< commands sent as zero because of a fresh (re)connection
+  std::uint64_t stale_commands = 0;      ///< commands sent as zero: not refreshed within command_timeout
   double rate_hz = 0;            ///< state messages per second, over windows of 0.25 s
   bool connected = false;
 };
-
-namespace detail {
-struct HaplyCommand {
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< device frame, N
-  std::int64_t wall_ns = 0;                         ///< steady clock when written
-};
-}  // namespace detail
 
 class HaplyDevice final : public HapticDevice {
  public:
@@ -105,18 +99,15 @@ class HaplyDevice final : public HapticDevice {
 
   HaplyParams params_;
   DeviceInfo info_;
-  TripleBuffer<HaplySample> samples_{HaplySample{}};
-  TripleBuffer<detail::HaplyCommand> commands_{detail::HaplyCommand{}};
+  DeviceLink link_;  // I/O thread <-> servo thread
   std::thread io_;
   std::atomic<bool> stop_{false};
   std::atomic<bool> have_state_{false};
-  std::atomic<std::uint64_t> messages_{0}, malformed_{0}, commands_sent_{0}, connects_{0}, zero_after_connect_{0};
+  std::atomic<std::uint64_t> messages_{0}, malformed_{0}, commands_sent_{0}, connects_{0};
   std::atomic<double> rate_hz_{0};
   std::atomic<bool> connected_{false};
   mutable std::mutex text_mutex_;  // the I/O thread's rare text (ids, last problem); never the servo thread
   std::string device_id_, handedness_, problem_;
-  // Servo thread only:
-  DeviceSample last_;
 };
 
 /// Parses "ws://HOST:PORT/PATH" into `p` (host, port, path). Throws InputError naming `url`.

@@ -1,4 +1,4 @@
-#include "gshaptics/net/haply_device.h"
+#include "gshaptics/device/haply_device.h"
 
 #include <boost/asio/connect.hpp>
 #include <boost/asio/ip/tcp.hpp>
@@ -11,7 +11,7 @@
 #include <cmath>
 
 #include "gshaptics/error.h"
-#include "gshaptics/net/peer_messages.h"
+#include "gshaptics/device/peer_messages.h"
 
 namespace gshaptics {
 
@@ -22,11 +22,6 @@ using tcp = net::ip::tcp;
 using json = nlohmann::json;
 
 namespace {
-
-std::int64_t steady_ns() noexcept {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 /// Runs `ioc` until `done` or `seconds` pass or `stop`; true when done.
 bool run_until(net::io_context& ioc, const bool& done, double seconds, const std::atomic<bool>& stop) {
@@ -40,7 +35,7 @@ bool run_until(net::io_context& ioc, const bool& done, double seconds, const std
 
 }  // namespace
 
-HaplyDevice::HaplyDevice(const HaplyParams& params) : params_(params) {
+HaplyDevice::HaplyDevice(const HaplyParams& params) : params_(params), link_(params.command_timeout) {
   if (params.port <= 0 || params.port > 65535) throw InputError(fmt::format("haply: port {} is not a TCP port", params.port));
   if (params.index < 0) throw InputError(fmt::format("--device haply:{}: the index must be >= 0", params.index));
   for (double t : {params.connect_timeout, params.read_timeout, params.reconnect_interval, params.command_timeout})
@@ -68,7 +63,8 @@ HaplyStats HaplyDevice::stats() const noexcept {
   s.malformed = malformed_.load(std::memory_order_relaxed);
   s.commands = commands_sent_.load(std::memory_order_relaxed);
   s.connects = connects_.load(std::memory_order_relaxed);
-  s.zero_after_connect = zero_after_connect_.load(std::memory_order_relaxed);
+  s.zero_after_connect = link_.zeroed_before();
+  s.stale_commands = link_.stale_commands();
   s.rate_hz = rate_hz_.load(std::memory_order_relaxed);
   s.connected = connected_.load(std::memory_order_relaxed);
   return s;
@@ -77,6 +73,7 @@ HaplyStats HaplyDevice::stats() const noexcept {
 void HaplyDevice::start(Nanos) {
   if (io_.joinable()) throw InputError("haply: already started");
   stop_.store(false);
+  link_.begin_session();
   io_ = std::thread([this] { io_main(); });
   const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(params_.connect_timeout);
   while (!have_state_.load(std::memory_order_acquire) && std::chrono::steady_clock::now() < end)
@@ -179,18 +176,11 @@ void HaplyDevice::io_main() noexcept {
         if (!good) {
           malformed_.fetch_add(1, std::memory_order_relaxed);
         } else if (s.position.allFinite()) {
-          samples_.write(s);
+          link_.publish(LinkSample{s.position, s.velocity, s.orientation, s.buttons});
           have_state_.store(true, std::memory_order_release);
         }
         // Answer with one command (lock-step), zero unless fresh and written after this connection.
-        const detail::HaplyCommand& c = commands_.read();
-        Eigen::Vector3d f = c.force;
-        if (c.wall_ns < connected_at) {
-          if (!f.isZero()) zero_after_connect_.fetch_add(1, std::memory_order_relaxed);
-          f.setZero();
-        } else if (steady_ns() - c.wall_ns > std::int64_t(params_.command_timeout * 1e9)) {
-          f.setZero();
-        }
+        const Eigen::Vector3d f = link_.force_to_send(connected_at);
         if (id.empty()) continue;  // nothing to address yet (the service sends state regardless)
         out = fmt::format(R"({{"inverse3":[{{"device_id":{},"commands":{{"set_cursor_force":{{"values":{{"x":{},"y":{},"z":{}}}}}}}}}]}})",
                           json(id).dump(-1, ' ', false, json::error_handler_t::replace), f.x(), f.y(), f.z());
@@ -228,25 +218,12 @@ void HaplyDevice::io_main() noexcept {
   }
 }
 
-DeviceSample HaplyDevice::read(Nanos now) noexcept {
-  HaplySample s;
-  if (samples_.read_if_new(s)) {
-    last_.sequence += 1;
-    last_.stamp = now;
-    last_.position = s.position;
-    last_.velocity = s.velocity;
-    last_.orientation = s.orientation;
-    last_.buttons = s.buttons;
-  }
-  return last_;
-}
+DeviceSample HaplyDevice::read(Nanos now) noexcept { return link_.read(now); }
 
-void HaplyDevice::write(const Wrench& wrench, Nanos) noexcept {
-  commands_.write(detail::HaplyCommand{wrench.force, steady_ns()});
-}
+void HaplyDevice::write(const Wrench& wrench, Nanos) noexcept { link_.command(wrench.force); }
 
 void HaplyDevice::stop(Nanos) noexcept {
-  commands_.write(detail::HaplyCommand{Eigen::Vector3d::Zero(), steady_ns()});
+  link_.command(Eigen::Vector3d::Zero());
   stop_.store(true, std::memory_order_relaxed);
   if (io_.joinable()) io_.join();
 }
@@ -262,7 +239,9 @@ std::string HaplyDevice::status() const {
 
 std::vector<DeviceCounter> HaplyDevice::counters() const {
   const HaplyStats st = stats();
-  return {{"reconnects", st.connects > 0 ? st.connects - 1 : 0}, {"malformed messages", st.malformed}};
+  return {{"reconnects", st.connects > 0 ? st.connects - 1 : 0},
+          {"malformed messages", st.malformed},
+          {"stale commands sent as zero", st.stale_commands}};
 }
 
 void parse_haply_url(const std::string& u, HaplyParams& p) {

@@ -8,7 +8,7 @@
 ///
 /// Adding a device: write its driver (a HapticDevice; docs/devices.md, "Adding a device"), then
 /// add one DeviceKind to the registry: built-in kinds in register_builtin_devices()
-/// (src/servo/device_registry.cpp), kinds that live in an optional library through that library's
+/// (src/device/device_registry.cpp), kinds that live in an optional library through that library's
 /// own registration call (register_haply_device() in the viewer library).
 ///
 /// Threading: build the registry before any run starts; lookups are read-only and may run on
@@ -21,7 +21,7 @@
 #include <string_view>
 #include <vector>
 
-#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/device/haptic_device.h"
 
 namespace gshaptics {
 

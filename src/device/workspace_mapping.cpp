@@ -1,4 +1,4 @@
-#include "gshaptics/servo/workspace_mapping.h"
+#include "gshaptics/device/workspace_mapping.h"
 
 #include <cstdio>
 

@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "gshaptics/servo/clock.h"
+#include "gshaptics/device/clock.h"
 
 namespace gshaptics {
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "gshaptics/servo/haptic_device.h"
+#include "gshaptics/device/haptic_device.h"
 
 namespace gshaptics {
 

@@ -1,4 +1,4 @@
-#include "gshaptics/servo/vendor_library.h"
+#include "gshaptics/device/vendor_library.h"
 
 #include <dlfcn.h>
 
