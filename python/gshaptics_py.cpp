@@ -327,9 +327,8 @@ PYBIND11_MODULE(gshaptics, m) {
              rp.rate_hz = rate_hz;
              ProxyParams proxy;
              if (!device_profile_obj.is_none()) {
-               const DeviceProfile& dp = device_profile(device_profile_obj.cast<std::string>(), "device_profile");
-               rp.safety.f_max = dp.f_max;
-               proxy.stiffness = dp.stiffness;
+               apply_device_profile(device_profile(device_profile_obj.cast<std::string>(), "device_profile"),
+                                    rp.safety.f_max, proxy);
              }
              if (!is_force_model(force_model))
                throw py::value_error("force_model: expected 'proxy' or 'paper', got '" + force_model + "'");

@@ -6,7 +6,7 @@
 #include <memory>
 
 #include "commands.h"
-#include "common.h"
+#include "options.h"
 #include "gshaptics/io/scene_writer.h"
 #include "gshaptics/scene/opacity_filter.h"
 #include "gshaptics/scene/registration.h"

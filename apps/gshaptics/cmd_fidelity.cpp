@@ -7,9 +7,8 @@
 #include <memory>
 
 #include "commands.h"
-#include "common.h"
+#include "options.h"
 #include "gshaptics/fidelity/fidelity_run.h"
-#include "probe_setup.h"
 
 namespace gshaptics::cli {
 

@@ -5,7 +5,7 @@
 #include <memory>
 
 #include "commands.h"
-#include "common.h"
+#include "options.h"
 #include "gshaptics/scene/registration.h"
 #include "gshaptics/scene/scene_stats.h"
 

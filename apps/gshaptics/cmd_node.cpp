@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "commands.h"
+#include "options.h"
 #include "gshaptics/error.h"
 #include "gshaptics/net/ros_bridge.h"
 #ifdef GSHAPTICS_HAVE_ROS2
@@ -26,7 +27,6 @@
 #include "gshaptics/sim/simulated_device.h"
 #include "gshaptics/sim/pose_sampler.h"
 #include "gshaptics/sim/probe_run.h"
-#include "runtime_cli.h"
 
 namespace gshaptics::cli {
 
@@ -205,8 +205,8 @@ void register_node(CLI::App& app) {
                             {"stamp_rejected", st.stamp_rejected.load()},
                             {"qos_incompatible", st.qos_incompatible.load()},
                             {"qos_last_policy", qos_policy(st.qos_last_policy.load())}};
-    if (!write_run_outputs(rt, o->run, so, pw, setup, interrupted, "node", {{o->ros2 ? "ros2" : "ros1", extra}}))
-      set_exit_code(1);
+    if (const int rc = write_run_outputs(rt, o->run, so, pw, setup, interrupted, "node", {{o->ros2 ? "ros2" : "ros1", extra}}))
+      set_exit_code(rc);
   });
 }
 

@@ -5,7 +5,7 @@
 #include <memory>
 
 #include "commands.h"
-#include "common.h"
+#include "options.h"
 #include "gshaptics/sim/pose_sampler.h"
 
 namespace gshaptics::cli {

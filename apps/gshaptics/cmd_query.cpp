@@ -11,7 +11,7 @@
 #include <sstream>
 
 #include "commands.h"
-#include "common.h"
+#include "options.h"
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/error.h"
 

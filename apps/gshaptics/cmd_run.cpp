@@ -6,7 +6,7 @@
 #include <memory>
 
 #include "commands.h"
-#include "runtime_cli.h"
+#include "options.h"
 #include "gshaptics/error.h"
 
 namespace gshaptics::cli {
@@ -40,12 +40,12 @@ void register_run(CLI::App& app) {
       Progress bar("simulating", !o->quiet);
       sim.run([&](double f) { bar(f); });
       bar.done();
-      if (!write_run_outputs(sim, *o, so, pw, setup, "run")) set_exit_code(1);
+      if (const int rc = write_run_outputs(sim, *o, so, pw, setup, "run")) set_exit_code(rc);
       return;
     }
     HapticRuntime rt(pw.world, *setup.device, setup.config);
     const bool interrupted = run_live(rt, setup.planned, o->quiet);
-    if (!write_run_outputs(rt, *o, so, pw, setup, interrupted, "run")) set_exit_code(1);
+    if (const int rc = write_run_outputs(rt, *o, so, pw, setup, interrupted, "run")) set_exit_code(rc);
   });
 }
 

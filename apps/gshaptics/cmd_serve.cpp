@@ -10,12 +10,12 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "options.h"
 #include "gshaptics/error.h"
 #include "gshaptics/io/mapped_file.h"
 #include "gshaptics/net/viewer_server.h"
 #include "gshaptics/percentile.h"
 #include "gshaptics/sim/pose_sampler.h"
-#include "runtime_cli.h"
 
 namespace gshaptics::cli {
 
@@ -214,7 +214,7 @@ void register_serve(CLI::App& app) {
         extra["device_idle_note"] = note;
       }
     }
-    if (!write_run_outputs(rt, o->run, so, pw, setup, interrupted, "serve", extra)) set_exit_code(1);
+    if (const int rc = write_run_outputs(rt, o->run, so, pw, setup, interrupted, "serve", extra)) set_exit_code(rc);
     if (extra.contains("device_idle_note"))
       fmt::print("note       {}\n", extra["device_idle_note"].get<std::string>());
   });

@@ -8,8 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
-#include "common.h"
-#include "probe_setup.h"
+#include "options.h"
 #include "gshaptics/error.h"
 #include "gshaptics/sim/probe_run.h"
 

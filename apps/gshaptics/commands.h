@@ -15,8 +15,6 @@ void register_synth(CLI::App& app);
 void register_fidelity(CLI::App& app);
 void register_devices(CLI::App& app);
 void register_latency(CLI::App& app);
-/// Exit status of a run that completed but could not write its outputs (disk full, read-only).
-inline constexpr int kExitOutputsLost = 4;
 /// Exit status a command set while running (0 unless it reported a failure).
 int exit_code();
 void set_exit_code(int code);

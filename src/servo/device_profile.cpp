@@ -31,6 +31,12 @@ const DeviceProfile& device_profile(std::string_view name, const std::string& so
   throw InputError(source + ": unknown device profile '" + std::string(name) + "' (expected " + known + ")");
 }
 
+void apply_device_profile(const DeviceProfile& profile, double& f_max, ProxyParams& proxy, bool keep_f_max,
+                          bool keep_stiffness) noexcept {
+  if (!keep_f_max) f_max = profile.f_max;
+  if (!keep_stiffness) proxy.stiffness = profile.stiffness;
+}
+
 bool fits_workspace(const DeviceProfile& profile, double robust_size) {
   if (profile.workspace.isZero(0)) return true;
   return robust_size <= profile.workspace.maxCoeff();

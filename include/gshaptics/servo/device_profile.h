@@ -35,6 +35,13 @@ struct DeviceProfile {
 /// The profile called `name`; throws InputError naming `source` (an option) and the known names.
 [[nodiscard]] const DeviceProfile& device_profile(std::string_view name, const std::string& source);
 
+/// Applies `profile` to a session's force limit `f_max` (N, the safety layer's) and the proxy's
+/// coupling stiffness, except the ones the caller set explicitly (`keep_f_max`,
+/// `keep_stiffness`). The one place a profile is applied: the CLI's --device-profile and
+/// Python's device_profile= both call it.
+void apply_device_profile(const DeviceProfile& profile, double& f_max, ProxyParams& proxy, bool keep_f_max = false,
+                          bool keep_stiffness = false) noexcept;
+
 /// True when a scene of `robust_size` (world units, metres after registration) fits the
 /// profile's workspace (always true without a bound).
 [[nodiscard]] bool fits_workspace(const DeviceProfile& profile, double robust_size);

@@ -1,4 +1,4 @@
-#include "runtime_cli.h"
+#include "gshaptics/session/run_session.h"
 
 #include <fmt/format.h>
 #include <unistd.h>
@@ -11,7 +11,6 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-#include "commands.h"
 #include "gshaptics/error.h"
 #include "gshaptics/servo/query_pool.h"
 #include "gshaptics/device/replay_device.h"
@@ -21,11 +20,11 @@
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/sim/simulated_device.h"
 #include "gshaptics/sim/pose_sampler.h"
-#ifdef GSHAPTICS_HAVE_VIEWER
+#ifdef GSHAPTICS_HAVE_HAPLY
 #include "gshaptics/device/haply_device.h"
 #endif
 
-namespace gshaptics::cli {
+namespace gshaptics::session {
 
 namespace {
 
@@ -97,83 +96,6 @@ StopSignals::~StopSignals() {
 int StopSignals::received() noexcept { return g_signal.load(std::memory_order_relaxed); }
 const std::atomic<int>& StopSignals::flag() noexcept { return g_signal; }
 
-void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& devices) {
-  cmd.add_option("scene", o.scene.scene, "Scene file (default: bundled data/truck.splat, registered z-up in metres)");
-  cmd.add_option("--device", o.device, devices)->capture_default_str();
-  cmd.add_option("--rate", o.rate, "Servo rate, Hz")->capture_default_str()->check(check::range(10.0, 20000.0));
-  cmd.add_option("--duration", o.duration,
-                 "Run length, s (default: one pass of the probe trajectory for sim, the log's "
-                 "length for replay, until Ctrl-C for mouse; a longer sim run repeats the trajectory)")
-      ->check(check::positive());
-  add_execution_options(cmd, o.exec, /*simulated=*/true);
-  cmd.add_flag("--simulated-time", o.simulated_time,
-               "Run on simulated time (as fast as the CPU allows, deterministic) through the same servo step: "
-               "sim and replay devices only; --latency sets the decoupled worker's latency in ticks");
-  cmd.add_option("--candidate-cache", o.candidate_cache,
-                 "Servo-loop candidate cache of the paper model's contact query: margin as a fraction of the "
-                 "tool radius (the BVH leaves near the tool are reused while the tool stays within it; "
-                 "results are bit-identical); 0: off")
-      ->capture_default_str()->check(check::range(0.0, 10.0));
-  cmd.add_option("--query-threads", o.query_threads,
-                 "Threads sharing the narrow phase of a large query (>= 2048 candidates; the paper model), "
-                 "the collision worker included; 0: all cores but the servo's and the worker's, at most 4 "
-                 "(1 on this 2-core machine)")
-      ->capture_default_str()->check(CLI::Range(0, 64));
-  cmd.add_option("--sites", o.sites, "Contact sites of the simulated probe")->capture_default_str()
-      ->check(CLI::Range(1, 100));
-  cmd.add_option("--seed", o.seed, "Seed of the site choice")->capture_default_str();
-  cmd.add_option("--tool-radius", o.tool_radius,
-                 "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)")
-      ->check(check::positive());
-  add_force_options(cmd, o.force);
-  cmd.add_option("--hold-timeout", o.safety.hold_timeout, "Hold a late result at full force this long, s")
-      ->capture_default_str()->check(check::non_negative());
-  cmd.add_option("--fade-time", o.safety.fade_time, "Then fade it to zero over this long, s")
-      ->capture_default_str()->check(check::non_negative());
-  cmd.add_option("--ramp-time", o.safety.ramp_time, "Soft start after start and every resume, s")
-      ->capture_default_str()->check(check::non_negative());
-  cmd.add_option("--max-force-rate", o.safety.max_force_rate, "Force-rate limit, N/s")
-      ->capture_default_str()->check(check::positive());
-  cmd.add_option("--device-timeout", o.safety.device_timeout, "Watchdog: zero force when device data is older, s")
-      ->capture_default_str()->check(check::positive());
-  cmd.add_option("--continuous-window", o.safety.continuous_window,
-                 "Averaging window of the device's continuous-force limit (RMS force, I^2 t), s")
-      ->capture_default_str()->check(check::positive());
-  cmd.add_option("--rt-priority", o.realtime.servo_priority,
-                 "SCHED_FIFO priority of the servo thread (worker: 10 lower); 0: normal scheduling")
-      ->capture_default_str()->check(CLI::Range(0, 99));
-  cmd.add_flag("--no-pin", o.no_pin, "Do not pin the servo and worker threads to CPUs");
-  cmd.add_option("--spin-us", o.spin_us,
-                 "Sleep until this many microseconds before each deadline, then spin: lower "
-                 "jitter for one busy core")
-      ->capture_default_str()->check(check::range(0.0, 1000.0));
-  cmd.add_flag("--mlock", o.realtime.lock_memory, "Lock all memory (mlockall) against page faults");
-  cmd.add_option("--workspace-scale", o.workspace_scale,
-                  "Map the device's workspace onto the scene: world metres per device metre (a 16 cm "
-                  "desktop workspace over a 3 m scene: 20). Forces are not scaled: 1 N in the scene "
-                  "is 1 N in the hand, so the hand feels --stiffness times this scale")->type_name("FLOAT");
-  cmd.add_option("--workspace-offset", o.workspace_offset, "World point X,Y,Z of the device's origin (with --workspace-scale)");
-  cmd.add_option("--clutch-button", o.clutch_button,
-                 "Device button (0-31) that holds the clutch: re-centre the hand without moving the tool")
-      ->check(CLI::Range(0, 31));
-  cmd.add_option("--bubble-radius", o.bubble_radius,
-                 "Rate control: beyond this device distance from its origin, m, the mapping drifts outward")
-      ->check(check::non_negative());
-  cmd.add_option("--bubble-gain", o.bubble_gain, "Rate control gain: world m/s per device m beyond --bubble-radius")
-      ->check(check::non_negative());
-  cmd.add_option("--haply-url", o.haply_url, "The Haply Inverse Service's WebSocket (--device haply)")
-      ->capture_default_str();
-  cmd.add_option("--log-seconds", o.log_seconds,
-                 "Keep only the first S seconds of the per-tick log (reserved up front; default: the "
-                 "whole run, or 10 min when open-ended). Long runs: caps the log's memory")
-      ->check(check::positive());
-  cmd.add_option("--out", o.out_dir, "Output folder (default: runs/<name>-<extension>, e.g. runs/truck-splat)");
-  cmd.add_flag("--no-plot", o.no_plot, "Do not draw run.png (needs /usr/bin/python3 with matplotlib)");
-  cmd.add_flag("--quiet", o.quiet, "No progress bar or live status line");
-  add_world_options(cmd, o.scene);
-  add_world_cache_option(cmd, o.scene);
-}
-
 std::string registry_device_help(bool hardware_only) {
   std::string s;
   for (const DeviceKind& k : device_registry().kinds())
@@ -190,7 +112,7 @@ void check_device_option(const std::string& device, bool allow_mouse) {
   // The kinds that need the scene (sim, mouse, xr) are made here; every other one is the registry's.
   if (device == "sim" || (allow_mouse && (device == "mouse" || device == "xr"))) return;
   if (device_registry().find(device) == nullptr) {
-#ifndef GSHAPTICS_HAVE_VIEWER
+#ifndef GSHAPTICS_HAVE_HAPLY
     if (device == "haply" || device.rfind("haply:", 0) == 0)
       throw InputError("--device haply: this build has no WebSocket client (built without Boost.Beast)");
 #endif
@@ -432,26 +354,26 @@ void prepare_run_out_dir(RuntimeOptions& o, const SceneOptions& so) {
 }
 
 namespace {
-bool write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector<std::string>& warnings,
+int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector<std::string>& warnings,
                    const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
                    const RuntimeSetup& setup, bool interrupted, const std::string& command,
                    const nlohmann::json& extra);
 }  // namespace
 
-bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
+int write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
                        const PreparedWorld& pw, const RuntimeSetup& setup, bool interrupted,
                        const std::string& command, const nlohmann::json& extra) {
   return write_outputs(rt.summary(), rt.log(), rt.warnings(), o, so, pw, setup, interrupted, command, extra);
 }
 
-bool write_run_outputs(const SimulatedRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
+int write_run_outputs(const SimulatedRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
                        const PreparedWorld& pw, const RuntimeSetup& setup, const std::string& command) {
   nlohmann::json extra = {{"simulated_time", true}, {"latency_ticks", o.exec.inline_query ? 0 : o.exec.latency_ticks}};
   return write_outputs(rt.summary(), rt.log(), {}, o, so, pw, setup, false, command, extra);
 }
 
 namespace {
-bool write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector<std::string>& warnings,
+int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector<std::string>& warnings,
                    const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
                    const RuntimeSetup& setup, bool interrupted, const std::string& command,
                    const nlohmann::json& extra) {
@@ -539,22 +461,20 @@ bool write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vecto
   if (!write_errors.empty()) {
     for (const std::string& e : write_errors) fmt::print(stderr, "error: the run completed, but {}\n", e);
     fmt::print(stderr, "note: {} is left as it was\n", out_dir);
-    set_exit_code(kExitOutputsLost);
-    return true;
+    return kExitOutputsLost;
   }
   const bool plotted = !o.no_plot && !records.empty() && plot_run(csv, summary_path, png, command);
   try {
     stage.commit();
   } catch (const InputError& e) {
     fmt::print(stderr, "error: the run completed, but {}\n", e.what());
-    set_exit_code(kExitOutputsLost);
-    return true;
+    return kExitOutputsLost;
   }
   fmt::print("log        {}\nsummary    {}\n", stage.final_path("servo_log.csv"), stage.final_path("run_summary.json"));
   if (plotted) fmt::print("figure     {}\n", stage.final_path("run.png"));
-  return o.no_plot || records.empty() || plotted;
+  return o.no_plot || records.empty() || plotted ? 0 : 1;
 }
 
 }  // namespace
 
-}  // namespace gshaptics::cli
+}  // namespace gshaptics::session

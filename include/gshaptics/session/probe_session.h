@@ -1,18 +1,22 @@
 #pragma once
-// What `simulate` and `run` share: the bundled-scene defaults, the world report, the probe
-// trajectory with scene-relative sizes, the force-model options and the Fig. 5 plot.
+/// @file
+/// The session layer (see world_session.h), probe runs: the force model a session renders with
+/// (a RendererSpec plus the safety layer's limit and a device profile), the execution mode, the
+/// prepared world (load, filter, register, cache or build) with the lines a run prints about it,
+/// the seeded probe trajectory with scene-relative sizes, the diagnosis of a run without contact,
+/// and the figure (tools/plot_probe_run.py).
 
-#include <CLI/CLI.hpp>
 #include <string>
 #include <vector>
 
-#include "common.h"
 #include "gshaptics/force/force_model.h"
 #include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/servo/haptic_runtime.h"
+#include "gshaptics/session/world_session.h"
 #include "gshaptics/sim/probe_trajectory.h"
 
-namespace gshaptics::cli {
+namespace gshaptics::session {
+
 
 /// The force model a command renders with, and the parameters of each model.
 struct ForceModelOptions {
@@ -31,17 +35,8 @@ struct ExecutionOptions {
   bool inline_query = RuntimeConfig{}.inline_query;
   int latency_ticks = RuntimeConfig{}.latency_ticks;
 };
-
-/// Adds --inline, --decoupled and (when `simulated`) --latency. The default is the runtime's.
-void add_execution_options(CLI::App& cmd, ExecutionOptions& o, bool simulated);
 /// "inline" or "decoupled (worker thread)" / "decoupled, N tick(s) latency" on simulated time.
 std::string describe_execution(const ExecutionOptions& o, bool simulated);
-
-/// Adds --force-model, the paper model's --k-base, --damping, --tau-normal, --tau-opacity, the
-/// proxy's --stiffness, --coupling-damping, --mu-s, --mu-k, --opacity-stiffness, --substeps, and
-/// --f-max.
-/// And --device-profile, whose values fill --f-max and --stiffness unless they are given.
-void add_force_options(CLI::App& cmd, ForceModelOptions& o);
 
 
 /// Without SCENE: the bundled Truck and its registration. Throws InputError naming `command`
@@ -85,4 +80,4 @@ bool run_python(const std::string& script, const std::vector<std::string>& args,
 bool plot_run(const std::string& csv, const std::string& summary, const std::string& png,
               const std::string& command);
 
-}  // namespace gshaptics::cli
+}  // namespace gshaptics::session

@@ -1,7 +1,15 @@
 #pragma once
-// Helpers shared by the CLI subcommands: argument parsing, progress, building a world.
+/// @file
+/// The session layer (gshaptics::session): what a command does around the haptic loop, as library
+/// calls, so the CLI and an embedder (or the Python module) do it one way. This part: a world as
+/// the commands open it (scene options, registration from a file and overrides, the bundled
+/// scene, the world cache folder), output folders that lose nothing (OutputStage: a failed run
+/// keeps the previous results), the frame comment pose files carry, vector parsing and the
+/// console progress bar.
+///
+/// Console: the session prints the CLI's report (stdout) and warnings and progress (stderr);
+/// quiet flags silence progress. Errors are InputError naming the file or option.
 
-#include <CLI/CLI.hpp>
 #include <Eigen/Core>
 #include <optional>
 #include <string>
@@ -12,17 +20,10 @@
 #include "gshaptics/io/atomic_file.h"
 #include "gshaptics/io/scene_loader.h"
 
-namespace gshaptics::cli {
+namespace gshaptics::session {
 
-/// Option validators that also reject NaN and infinities (CLI11's numeric ones let NaN through),
-/// with one short message: "--rate: must be a finite number in [10, 20000], got 'nan'".
-namespace check {
-CLI::Validator positive();                   ///< finite and > 0
-CLI::Validator non_negative();               ///< finite and >= 0
-CLI::Validator range(double lo, double hi);  ///< finite and in [lo, hi]
-}  // namespace check
-
-/// Options every scene-consuming command shares.
+/// How a session opens a scene: the options every scene-consuming command shares (the CLI binds
+/// them to --min-opacity, --sigma, --registration, --reg-*, --up and --world-cache).
 struct SceneOptions {
   std::string scene;
   float min_opacity = kDefaultMinOpacity;
@@ -33,10 +34,6 @@ struct SceneOptions {
   std::string world_cache;  // folder of world caches, "auto", or "" (none)
 };
 
-/// Adds --min-opacity, --sigma, --registration and the --reg-* overrides.
-void add_world_options(CLI::App& app, SceneOptions& o);
-/// Adds --world-cache (the commands that build a world for a run: run, serve, node, simulate).
-void add_world_cache_option(CLI::App& app, SceneOptions& o);
 /// The world-cache folder of --world-cache ("auto": $XDG_CACHE_HOME/gshaptics/worlds, else
 /// ~/.cache/gshaptics/worlds); "" when off.
 std::string world_cache_dir(const SceneOptions& o);
@@ -121,4 +118,4 @@ class Progress {
   int last_ = -1;
 };
 
-}  // namespace gshaptics::cli
+}  // namespace gshaptics::session

@@ -1,22 +1,25 @@
 #pragma once
-// What `run` and `serve` share: the runtime's options, the device they name, the live loop with
-// its status line and signal handling, and the outputs of a run.
+/// @file
+/// The session layer (see world_session.h), live and replayed runs: the runtime's options, the
+/// device a --device value names (through the device registry) under its workspace mapping, the
+/// tool's start point, the runtime configuration, the live loop with its status line and signal
+/// handling, and the outputs of a run (servo_log.csv, run_summary.json, run.png).
 
-#include <CLI/CLI.hpp>
 #include <atomic>
 #include <csignal>
 #include <functional>
 #include <memory>
-#include <optional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
+#include "gshaptics/device/stream_device.h"
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/simulated_runtime.h"
-#include "gshaptics/device/stream_device.h"
-#include "probe_setup.h"
+#include "gshaptics/session/probe_session.h"
 
-namespace gshaptics::cli {
+namespace gshaptics::session {
+
 
 /// Turns SIGINT/SIGTERM into a flag for the lifetime of the object (restoring the old handlers
 /// after), so a run can stop cleanly with the device at zero force.
@@ -61,10 +64,6 @@ struct RuntimeOptions {
   bool no_plot = false;
   bool quiet = false;
 };
-
-/// Adds the device, rate, duration, tool, force, safety, real-time, output and world options.
-/// `devices` is the --device help text.
-void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& devices);
 
 /// The device a --device value names, made for a world. `mouse` is set for --device mouse
 /// (allowed only when `allow_mouse`).
@@ -122,14 +121,18 @@ bool run_live(HapticRuntime& rt, double planned, bool quiet, const std::function
 /// run writes there.
 void prepare_run_out_dir(RuntimeOptions& o, const SceneOptions& so);
 
+/// Exit status of a run that completed but could not write its outputs (disk full, read-only).
+inline constexpr int kExitOutputsLost = 4;
+
 /// Writes servo_log.csv and run_summary.json (and run.png unless no_plot) into the output
-/// folder and prints the summary. Returns false when plotting failed.
+/// folder and prints the summary. Returns the exit status: 0, 1 when plotting failed, or
+/// kExitOutputsLost (the folder is then left as it was).
 /// `extra` is merged into run_summary.json.
-bool write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
+int write_run_outputs(const HapticRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
                        const PreparedWorld& pw, const RuntimeSetup& setup, bool interrupted,
                        const std::string& command, const nlohmann::json& extra = nlohmann::json::object());
 /// The same for a run on simulated time (`run --simulated-time`).
-bool write_run_outputs(const SimulatedRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
+int write_run_outputs(const SimulatedRuntime& rt, const RuntimeOptions& o, const SceneOptions& so,
                        const PreparedWorld& pw, const RuntimeSetup& setup, const std::string& command);
 
-}  // namespace gshaptics::cli
+}  // namespace gshaptics::session

@@ -1,4 +1,4 @@
-#include "probe_setup.h"
+#include "gshaptics/session/probe_session.h"
 
 #include <chrono>
 #include <filesystem>
@@ -16,7 +16,7 @@
 #include "gshaptics/servo/device_profile.h"
 #include "gshaptics/sim/pose_sampler.h"
 
-namespace gshaptics::cli {
+namespace gshaptics::session {
 
 namespace {
 
@@ -28,20 +28,6 @@ std::string shell_quote(const std::string& s) {
 
 }  // namespace
 
-void add_execution_options(CLI::App& cmd, ExecutionOptions& o, bool simulated) {
-  const bool inline_default = RuntimeConfig{}.inline_query;
-  cmd.add_flag_callback("--inline", [&o] { o.inline_query = true; },
-                        std::string("Run the query inside the servo tick") + (inline_default ? " (default)" : ""));
-  cmd.add_flag_callback("--decoupled", [&o] { o.inline_query = false; },
-                        std::string("Run the query on the collision worker (the paper's split; the force is one "
-                                    "to two ticks old)") + (inline_default ? "" : " (default)"));
-  if (simulated)
-    cmd.add_option("--latency", o.latency_ticks,
-                   "Simulated time, decoupled mode: ticks from a pose to the first tick that renders its result "
-                   "(a real-time run's worker answers within 1-2)")
-        ->capture_default_str()->check(CLI::Range(1, 100));
-}
-
 std::string describe_execution(const ExecutionOptions& o, bool simulated) {
   if (o.inline_query) return "inline";
   return simulated ? fmt::format("decoupled, {} tick{} latency", o.latency_ticks, o.latency_ticks == 1 ? "" : "s")
@@ -52,45 +38,6 @@ RendererSpec ForceModelOptions::spec() const {
   if (model == "paper") return PaperModelSpec{force};
   if (model == "proxy") return ProxyModelSpec{proxy};
   return renderer_spec(model);  // throws, naming the known models
-}
-
-void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
-  cmd.add_option("--force-model", o.model,
-                 std::string("Force model: proxy (god-object on the Gaussians, virtual coupling in N/m) "
-                             "or paper (the paper's penalty force, eq. 7-11)"))
-      ->capture_default_str()
-      ->check(CLI::IsMember({"proxy", "paper"}));
-  ForceParams& force = o.force;
-  cmd.add_option("--k-base", force.k_base, "paper: base stiffness k_base, N per contact (eq. 9)")
-      ->capture_default_str()->check(check::non_negative());
-  cmd.add_option("--damping", force.damping, "paper: damping D, N s/m (eq. 10)")
-      ->capture_default_str()->check(check::non_negative());
-  cmd.add_option("--f-max", o.f_max,
-                 "Force limit F_max, N: the safety layer's, for every model (a device's own lower limit binds too)")
-      ->capture_default_str()->check(check::positive());
-  cmd.add_option("--tau-normal", force.tau_normal, "paper: time constant of the normal EMA, s")
-      ->capture_default_str()->check(check::non_negative());
-  cmd.add_option("--tau-opacity", force.tau_opacity, "paper: time constant of the opacity EMA, s")
-      ->capture_default_str()->check(check::non_negative());
-  ProxyParams& p = o.proxy;
-  cmd.add_option("--stiffness", p.stiffness, "proxy: coupling stiffness k_c, N/m")
-      ->capture_default_str()->check(check::positive());
-  cmd.add_option("--coupling-damping", p.damping, "proxy: coupling damping b_c, N s/m (passive above k_c T / 2)")
-      ->capture_default_str()->check(check::non_negative());
-  cmd.add_option("--mu-s", p.mu_s, "proxy: static friction coefficient (0: off)")->capture_default_str()->check(check::non_negative());
-  cmd.add_option("--mu-k", p.mu_k, "proxy: kinetic friction coefficient (<= --mu-s)")->capture_default_str()->check(check::non_negative());
-  cmd.add_flag("--opacity-stiffness", p.opacity_stiffness, "proxy: scale k_c by the blocking Gaussians' opacity (paper eq. 9)");
-  cmd.add_option("--substeps", p.substeps, "proxy: sweeps per tick")->capture_default_str()->check(CLI::Range(1, 16));
-  cmd.add_option("--device-profile", o.profile,
-                 "Device class: desktop (Touch class: --f-max 3.3, --stiffness 1000, 160x120x70 mm "
-                 "workspace) or room (--f-max 30, --stiffness 1000); explicit options win")
-      ->check(CLI::IsMember({"desktop", "room"}));
-  cmd.parse_complete_callback([&cmd, &o] {
-    if (o.profile.empty()) return;
-    const DeviceProfile& profile = device_profile(o.profile, "--device-profile");
-    if (cmd.count("--f-max") == 0) o.f_max = profile.f_max;
-    if (cmd.count("--stiffness") == 0) o.proxy.stiffness = profile.stiffness;
-  });
 }
 
 void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o) {
@@ -254,4 +201,4 @@ bool plot_run(const std::string& csv, const std::string& summary, const std::str
   return run_python(find_tool_script("plot_probe_run.py"), {csv, summary, png}, command);
 }
 
-}  // namespace gshaptics::cli
+}  // namespace gshaptics::session

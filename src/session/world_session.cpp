@@ -1,4 +1,4 @@
-#include "common.h"
+#include "gshaptics/session/world_session.h"
 
 #include <unistd.h>
 
@@ -15,68 +15,7 @@
 
 #include "gshaptics/error.h"
 
-namespace gshaptics::cli {
-
-namespace check {
-namespace {
-CLI::Validator finite_number(const std::string& what, std::function<bool(double)> ok) {
-  return CLI::Validator(
-      [what, ok](std::string& text) -> std::string {
-        double x = 0;
-        std::size_t used = 0;
-        try {
-          x = std::stod(text, &used);
-        } catch (...) {
-          used = 0;
-        }
-        if (used == 0 || text.find_first_not_of(" \t", used) != std::string::npos)
-          return "expected a number, got '" + text + "'";
-        if (!std::isfinite(x) || !ok(x)) return "must be " + what + ", got '" + text + "'";
-        return std::string();
-      },
-      what);
-}
-}  // namespace
-
-CLI::Validator positive() {
-  return finite_number("a finite number > 0", [](double x) { return x > 0; });
-}
-CLI::Validator non_negative() {
-  return finite_number("a finite number >= 0", [](double x) { return x >= 0; });
-}
-CLI::Validator range(double lo, double hi) {
-  return finite_number(fmt::format("a finite number in [{:g}, {:g}]", lo, hi),
-                       [lo, hi](double x) { return x >= lo && x <= hi; });
-}
-}  // namespace check
-
-void add_world_options(CLI::App& app, SceneOptions& o) {
-  app.add_option("--min-opacity", o.min_opacity,
-                 "Keep Gaussians with opacity > T (paper Sec. III-A: 0.1..0.3)")
-      ->capture_default_str()->check(check::range(0.0, 1.0));
-  app.add_option("--sigma", o.sigma, "Collision ellipsoid at K sigma (semi-axes K * scale)")
-      ->capture_default_str()->check(check::positive());
-  app.add_option("--registration", o.registration_file,
-                 "JSON similarity transform scene->world: {\"scale\": s, \"rotation\": [w,x,y,z] "
-                 "or \"matrix\": 3x3, \"translation\": [x,y,z]} (paper eq. 3)");
-  app.add_option("--reg-scale", o.reg_scale, "Registration scale s (overrides the file)")->type_name("FLOAT");
-  app.add_option("--reg-rotation", o.reg_rotation, "Registration rotation W,X,Y,Z (overrides)");
-  app.add_option("--reg-translation", o.reg_translation, "Registration translation X,Y,Z (overrides)");
-  app.add_option("--up", o.up,
-                 "Turn the scene's up axis to world +z before the registration: none, auto (from "
-                 "the file's convention: -y for PLY/.splat, +y for SPZ), y-down, y-up, z-up, "
-                 "z-down, x-up, x-down")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"none", "auto", "y-down", "y-up", "z-up", "z-down", "x-up", "x-down"}));
-}
-
-void add_world_cache_option(CLI::App& app, SceneOptions& o) {
-  app.add_option("--world-cache", o.world_cache,
-                 "Keep the built collision world in DIR (or 'auto': ~/.cache/gshaptics/worlds) and "
-                 "open it from there next time with mmap, skipping load, filter and BVH build; keyed "
-                 "by the scene's content and every world option, checked on open, rebuilt when stale "
-                 "or damaged; a folder that cannot be written only costs the rebuild");
-}
+namespace gshaptics::session {
 
 std::string world_cache_dir(const SceneOptions& o) {
   if (o.world_cache.empty() || o.world_cache == "off") return "";
@@ -313,4 +252,4 @@ void Progress::done() {
   last_ = -1;
 }
 
-}  // namespace gshaptics::cli
+}  // namespace gshaptics::session

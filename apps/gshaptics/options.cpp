@@ -1,0 +1,204 @@
+#include "options.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <functional>
+#include <string>
+
+#include "gshaptics/device/device_registry.h"
+#include "gshaptics/servo/device_profile.h"
+
+namespace gshaptics::cli {
+
+namespace check {
+namespace {
+CLI::Validator finite_number(const std::string& what, std::function<bool(double)> ok) {
+  return CLI::Validator(
+      [what, ok](std::string& text) -> std::string {
+        double x = 0;
+        std::size_t used = 0;
+        try {
+          x = std::stod(text, &used);
+        } catch (...) {
+          used = 0;
+        }
+        if (used == 0 || text.find_first_not_of(" \t", used) != std::string::npos)
+          return "expected a number, got '" + text + "'";
+        if (!std::isfinite(x) || !ok(x)) return "must be " + what + ", got '" + text + "'";
+        return std::string();
+      },
+      what);
+}
+}  // namespace
+
+CLI::Validator positive() {
+  return finite_number("a finite number > 0", [](double x) { return x > 0; });
+}
+CLI::Validator non_negative() {
+  return finite_number("a finite number >= 0", [](double x) { return x >= 0; });
+}
+CLI::Validator range(double lo, double hi) {
+  return finite_number(fmt::format("a finite number in [{:g}, {:g}]", lo, hi),
+                       [lo, hi](double x) { return x >= lo && x <= hi; });
+}
+}  // namespace check
+
+void add_world_options(CLI::App& app, SceneOptions& o) {
+  app.add_option("--min-opacity", o.min_opacity,
+                 "Keep Gaussians with opacity > T (paper Sec. III-A: 0.1..0.3)")
+      ->capture_default_str()->check(check::range(0.0, 1.0));
+  app.add_option("--sigma", o.sigma, "Collision ellipsoid at K sigma (semi-axes K * scale)")
+      ->capture_default_str()->check(check::positive());
+  app.add_option("--registration", o.registration_file,
+                 "JSON similarity transform scene->world: {\"scale\": s, \"rotation\": [w,x,y,z] "
+                 "or \"matrix\": 3x3, \"translation\": [x,y,z]} (paper eq. 3)");
+  app.add_option("--reg-scale", o.reg_scale, "Registration scale s (overrides the file)")->type_name("FLOAT");
+  app.add_option("--reg-rotation", o.reg_rotation, "Registration rotation W,X,Y,Z (overrides)");
+  app.add_option("--reg-translation", o.reg_translation, "Registration translation X,Y,Z (overrides)");
+  app.add_option("--up", o.up,
+                 "Turn the scene's up axis to world +z before the registration: none, auto (from "
+                 "the file's convention: -y for PLY/.splat, +y for SPZ), y-down, y-up, z-up, "
+                 "z-down, x-up, x-down")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"none", "auto", "y-down", "y-up", "z-up", "z-down", "x-up", "x-down"}));
+}
+
+void add_world_cache_option(CLI::App& app, SceneOptions& o) {
+  app.add_option("--world-cache", o.world_cache,
+                 "Keep the built collision world in DIR (or 'auto': ~/.cache/gshaptics/worlds) and "
+                 "open it from there next time with mmap, skipping load, filter and BVH build; keyed "
+                 "by the scene's content and every world option, checked on open, rebuilt when stale "
+                 "or damaged; a folder that cannot be written only costs the rebuild");
+}
+
+void add_execution_options(CLI::App& cmd, ExecutionOptions& o, bool simulated) {
+  const bool inline_default = RuntimeConfig{}.inline_query;
+  cmd.add_flag_callback("--inline", [&o] { o.inline_query = true; },
+                        std::string("Run the query inside the servo tick") + (inline_default ? " (default)" : ""));
+  cmd.add_flag_callback("--decoupled", [&o] { o.inline_query = false; },
+                        std::string("Run the query on the collision worker (the paper's split; the force is one "
+                                    "to two ticks old)") + (inline_default ? "" : " (default)"));
+  if (simulated)
+    cmd.add_option("--latency", o.latency_ticks,
+                   "Simulated time, decoupled mode: ticks from a pose to the first tick that renders its result "
+                   "(a real-time run's worker answers within 1-2)")
+        ->capture_default_str()->check(CLI::Range(1, 100));
+}
+
+void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
+  cmd.add_option("--force-model", o.model,
+                 std::string("Force model: proxy (god-object on the Gaussians, virtual coupling in N/m) "
+                             "or paper (the paper's penalty force, eq. 7-11)"))
+      ->capture_default_str()
+      ->check(CLI::IsMember({"proxy", "paper"}));
+  ForceParams& force = o.force;
+  cmd.add_option("--k-base", force.k_base, "paper: base stiffness k_base, N per contact (eq. 9)")
+      ->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--damping", force.damping, "paper: damping D, N s/m (eq. 10)")
+      ->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--f-max", o.f_max,
+                 "Force limit F_max, N: the safety layer's, for every model (a device's own lower limit binds too)")
+      ->capture_default_str()->check(check::positive());
+  cmd.add_option("--tau-normal", force.tau_normal, "paper: time constant of the normal EMA, s")
+      ->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--tau-opacity", force.tau_opacity, "paper: time constant of the opacity EMA, s")
+      ->capture_default_str()->check(check::non_negative());
+  ProxyParams& p = o.proxy;
+  cmd.add_option("--stiffness", p.stiffness, "proxy: coupling stiffness k_c, N/m")
+      ->capture_default_str()->check(check::positive());
+  cmd.add_option("--coupling-damping", p.damping, "proxy: coupling damping b_c, N s/m (passive above k_c T / 2)")
+      ->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--mu-s", p.mu_s, "proxy: static friction coefficient (0: off)")->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--mu-k", p.mu_k, "proxy: kinetic friction coefficient (<= --mu-s)")->capture_default_str()->check(check::non_negative());
+  cmd.add_flag("--opacity-stiffness", p.opacity_stiffness, "proxy: scale k_c by the blocking Gaussians' opacity (paper eq. 9)");
+  cmd.add_option("--substeps", p.substeps, "proxy: sweeps per tick")->capture_default_str()->check(CLI::Range(1, 16));
+  cmd.add_option("--device-profile", o.profile,
+                 "Device class: desktop (Touch class: --f-max 3.3, --stiffness 1000, 160x120x70 mm "
+                 "workspace) or room (--f-max 30, --stiffness 1000); explicit options win")
+      ->check(CLI::IsMember({"desktop", "room"}));
+  cmd.parse_complete_callback([&cmd, &o] {
+    if (o.profile.empty()) return;
+    apply_device_profile(device_profile(o.profile, "--device-profile"), o.f_max, o.proxy, cmd.count("--f-max") > 0,
+                         cmd.count("--stiffness") > 0);
+  });
+}
+
+void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& devices) {
+  cmd.add_option("scene", o.scene.scene, "Scene file (default: bundled data/truck.splat, registered z-up in metres)");
+  cmd.add_option("--device", o.device, devices)->capture_default_str();
+  cmd.add_option("--rate", o.rate, "Servo rate, Hz")->capture_default_str()->check(check::range(10.0, 20000.0));
+  cmd.add_option("--duration", o.duration,
+                 "Run length, s (default: one pass of the probe trajectory for sim, the log's "
+                 "length for replay, until Ctrl-C for mouse; a longer sim run repeats the trajectory)")
+      ->check(check::positive());
+  add_execution_options(cmd, o.exec, /*simulated=*/true);
+  cmd.add_flag("--simulated-time", o.simulated_time,
+               "Run on simulated time (as fast as the CPU allows, deterministic) through the same servo step: "
+               "sim and replay devices only; --latency sets the decoupled worker's latency in ticks");
+  cmd.add_option("--candidate-cache", o.candidate_cache,
+                 "Servo-loop candidate cache of the paper model's contact query: margin as a fraction of the "
+                 "tool radius (the BVH leaves near the tool are reused while the tool stays within it; "
+                 "results are bit-identical); 0: off")
+      ->capture_default_str()->check(check::range(0.0, 10.0));
+  cmd.add_option("--query-threads", o.query_threads,
+                 "Threads sharing the narrow phase of a large query (>= 2048 candidates; the paper model), "
+                 "the collision worker included; 0: all cores but the servo's and the worker's, at most 4 "
+                 "(1 on this 2-core machine)")
+      ->capture_default_str()->check(CLI::Range(0, 64));
+  cmd.add_option("--sites", o.sites, "Contact sites of the simulated probe")->capture_default_str()
+      ->check(CLI::Range(1, 100));
+  cmd.add_option("--seed", o.seed, "Seed of the site choice")->capture_default_str();
+  cmd.add_option("--tool-radius", o.tool_radius,
+                 "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)")
+      ->check(check::positive());
+  add_force_options(cmd, o.force);
+  cmd.add_option("--hold-timeout", o.safety.hold_timeout, "Hold a late result at full force this long, s")
+      ->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--fade-time", o.safety.fade_time, "Then fade it to zero over this long, s")
+      ->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--ramp-time", o.safety.ramp_time, "Soft start after start and every resume, s")
+      ->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--max-force-rate", o.safety.max_force_rate, "Force-rate limit, N/s")
+      ->capture_default_str()->check(check::positive());
+  cmd.add_option("--device-timeout", o.safety.device_timeout, "Watchdog: zero force when device data is older, s")
+      ->capture_default_str()->check(check::positive());
+  cmd.add_option("--continuous-window", o.safety.continuous_window,
+                 "Averaging window of the device's continuous-force limit (RMS force, I^2 t), s")
+      ->capture_default_str()->check(check::positive());
+  cmd.add_option("--rt-priority", o.realtime.servo_priority,
+                 "SCHED_FIFO priority of the servo thread (worker: 10 lower); 0: normal scheduling")
+      ->capture_default_str()->check(CLI::Range(0, 99));
+  cmd.add_flag("--no-pin", o.no_pin, "Do not pin the servo and worker threads to CPUs");
+  cmd.add_option("--spin-us", o.spin_us,
+                 "Sleep until this many microseconds before each deadline, then spin: lower "
+                 "jitter for one busy core")
+      ->capture_default_str()->check(check::range(0.0, 1000.0));
+  cmd.add_flag("--mlock", o.realtime.lock_memory, "Lock all memory (mlockall) against page faults");
+  cmd.add_option("--workspace-scale", o.workspace_scale,
+                  "Map the device's workspace onto the scene: world metres per device metre (a 16 cm "
+                  "desktop workspace over a 3 m scene: 20). Forces are not scaled: 1 N in the scene "
+                  "is 1 N in the hand, so the hand feels --stiffness times this scale")->type_name("FLOAT");
+  cmd.add_option("--workspace-offset", o.workspace_offset, "World point X,Y,Z of the device's origin (with --workspace-scale)");
+  cmd.add_option("--clutch-button", o.clutch_button,
+                 "Device button (0-31) that holds the clutch: re-centre the hand without moving the tool")
+      ->check(CLI::Range(0, 31));
+  cmd.add_option("--bubble-radius", o.bubble_radius,
+                 "Rate control: beyond this device distance from its origin, m, the mapping drifts outward")
+      ->check(check::non_negative());
+  cmd.add_option("--bubble-gain", o.bubble_gain, "Rate control gain: world m/s per device m beyond --bubble-radius")
+      ->check(check::non_negative());
+  cmd.add_option("--haply-url", o.haply_url, "The Haply Inverse Service's WebSocket (--device haply)")
+      ->capture_default_str();
+  cmd.add_option("--log-seconds", o.log_seconds,
+                 "Keep only the first S seconds of the per-tick log (reserved up front; default: the "
+                 "whole run, or 10 min when open-ended). Long runs: caps the log's memory")
+      ->check(check::positive());
+  cmd.add_option("--out", o.out_dir, "Output folder (default: runs/<name>-<extension>, e.g. runs/truck-splat)");
+  cmd.add_flag("--no-plot", o.no_plot, "Do not draw run.png (needs /usr/bin/python3 with matplotlib)");
+  cmd.add_flag("--quiet", o.quiet, "No progress bar or live status line");
+  add_world_options(cmd, o.scene);
+  add_world_cache_option(cmd, o.scene);
+}
+
+}  // namespace gshaptics::cli
