@@ -14,6 +14,7 @@
 #include "options.h"
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/error.h"
+#include "gshaptics/session/query_session.h"
 
 namespace gshaptics::cli {
 
@@ -26,38 +27,6 @@ struct QueryCliOptions {
   int golden_iterations = 30;
 };
 
-ToolEllipsoid make_tool(const Eigen::Vector3d& c, const Eigen::Vector3d& a, const Eigen::Vector4d& q,
-                        const std::string& where) {
-  if (!(a.minCoeff() > 0)) throw InputError(where + ": tool semi-axes must be > 0");
-  if (q.norm() < 1e-9) throw InputError(where + ": tool rotation is a zero quaternion");
-  ToolEllipsoid t;
-  t.center = c;
-  t.semi_axes = a;
-  t.rotation = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
-  return t;
-}
-
-std::string answer(ContactQuery& query, const ToolEllipsoid& tool) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const QueryStatus status = query.run(tool);
-  const auto t1 = std::chrono::steady_clock::now();
-  std::vector<Contact> contacts(query.result().contacts().begin(), query.result().contacts().end());
-  std::sort(contacts.begin(), contacts.end(),
-            [](const Contact& a, const Contact& b) { return a.index < b.index; });
-  nlohmann::json j;
-  j["candidates"] = query.result().counts.candidates;
-  j["prefiltered"] = query.result().counts.prefiltered;
-  nlohmann::json arr = nlohmann::json::array();
-  for (const Contact& c : contacts)
-    arr.push_back({{"index", c.index},
-                   {"k_min", c.k_min},
-                   {"opacity", c.opacity},
-                   {"center", {c.center.x(), c.center.y(), c.center.z()}}});
-  j["contacts"] = std::move(arr);
-  j["query_us"] = std::chrono::duration<double, std::micro>(t1 - t0).count();
-  if (status == QueryStatus::kContactOverflow) j["overflow"] = true;
-  return j.dump();
-}
 
 }  // namespace
 
@@ -105,7 +74,7 @@ void register_query(CLI::App& app) {
       const ToolEllipsoid tool =
           make_tool(parse_vec3(o->center, "--tool-center"), parse_vec3(o->axes, "--tool-axes"),
                     parse_vec4(o->rotation, "--tool-rotation"), "query");
-      std::printf("%s\n", answer(query, tool).c_str());
+      std::printf("%s\n", query_answer_json(query, tool).c_str());
       return;
     }
     std::ifstream in(o->poses);
@@ -133,7 +102,7 @@ void register_query(CLI::App& app) {
         if (!std::isfinite(y)) throw InputError(where + ": values must be finite");
       const ToolEllipsoid tool = make_tool({v[0], v[1], v[2]}, {v[3], v[4], v[5]},
                                            {v[6], v[7], v[8], v[9]}, where);
-      std::printf("%s\n", answer(query, tool).c_str());
+      std::printf("%s\n", query_answer_json(query, tool).c_str());
     }
   });
 }

@@ -2,105 +2,14 @@
 // original scene file and a WebSocket stream of the tool, the touched Gaussians and the force;
 // with --device mouse the page steers the tool.
 
-#include <fmt/format.h>
-
-#include <filesystem>
+#include <cstdint>
 #include <memory>
-#include <vector>
-#include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "gshaptics/session/serve_session.h"
 #include "options.h"
-#include "gshaptics/error.h"
-#include "gshaptics/io/mapped_file.h"
-#include "gshaptics/net/viewer_server.h"
-#include "gshaptics/percentile.h"
-#include "gshaptics/sim/pose_sampler.h"
 
 namespace gshaptics::cli {
-
-namespace {
-
-struct ServeOptions {
-  RuntimeOptions run;
-  std::string host = "127.0.0.1";
-  int port = 8080;
-  double display_rate = 30;
-  std::string web_root;
-  std::vector<std::string> allow_origins;
-  std::string token;
-  bool no_token = false;
-  ViewerLimits limits;
-};
-
-/// The page's folder: beside an installed binary (PREFIX/bin/gshaptics -> PREFIX/share/gshaptics/web),
-/// then the configured install prefix, then the source tree (a binary run from its build tree).
-std::string find_web_root() {
-  std::vector<std::string> candidates;
-  std::error_code ec;
-  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
-  if (!ec) candidates.push_back((exe.parent_path().parent_path() / "share/gshaptics/web").string());
-  candidates.push_back(std::string(GSHAPTICS_INSTALL_DATADIR) + "/web");
-  candidates.push_back(std::string(GSHAPTICS_SOURCE_DIR) + "/web");
-  for (const std::string& p : candidates)
-    if (std::filesystem::exists(p + "/index.html")) return p;
-  return "";
-}
-
-std::string spark_file_type(SceneFormat f) {
-  switch (f) {
-    case SceneFormat::kSplat: return "splat";
-    case SceneFormat::kSpz: return "spz";
-    default: return "ply";
-  }
-}
-
-/// The hello message: everything the page needs once (docs/viewer_protocol.md).
-std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const RuntimeSetup& setup,
-                       double display_hz) {
-  const SimilarityTransform& r = pw.world.scene_to_world();
-  std::vector<double> ax[3];
-  for (const auto& g : pw.world.gaussians())
-    for (int k = 0; k < 3; ++k) ax[k].push_back(g.center[k]);
-  nlohmann::json lo = nlohmann::json::array(), hi = nlohmann::json::array();
-  for (int k = 0; k < 3; ++k) {
-    lo.push_back(percentile(ax[k], 1));
-    hi.push_back(percentile(ax[k], 99));
-  }
-  const Eigen::Vector3d up = pw.world.up();
-  nlohmann::json j;
-  j["type"] = "hello";
-  j["protocol"] = 1;
-  j["scene_url"] = "/scene";
-  j["scene_name"] = std::filesystem::path(so.scene).filename().string();
-  j["file_type"] = spark_file_type(pw.scene.report.format);
-  j["gaussians_in_file"] = pw.scene.report.loaded + pw.scene.report.skipped();
-  j["gaussians_kept"] = pw.world.size();
-  j["registration"] = {{"scale", r.scale},
-                       {"rotation", {r.rotation.w(), r.rotation.x(), r.rotation.y(), r.rotation.z()}},
-                       {"translation", {r.translation.x(), r.translation.y(), r.translation.z()}}};
-  j["up"] = {up.x(), up.y(), up.z()};
-  j["bounds"] = {{"min", lo}, {"max", hi}};
-  j["tool"] = {{"axes", {setup.tool_radius, setup.tool_radius, setup.tool_radius}}};
-  j["device"] = setup.device->info().name;
-  j["mouse"] = setup.mouse != nullptr && !setup.xr;
-  j["xr"] = setup.xr;
-  j["f_max"] = setup.config.safety.f_max;
-  j["rate_hz"] = setup.config.rate_hz;
-  j["display_hz"] = display_hz;
-  j["step"] = 0.5 * setup.tool_radius;
-  if (setup.workspace_box) {
-    const Eigen::Vector3d a = setup.workspace_box->min(), b = setup.workspace_box->max();
-    j["workspace_box"] = {{"min", {a.x(), a.y(), a.z()}}, {"max", {b.x(), b.y(), b.z()}}};
-  }
-  if (setup.mouse != nullptr) {
-    const Eigen::Vector3d p = setup.mouse_start;
-    j["tool_start"] = {p.x(), p.y(), p.z()};
-  }
-  return j.dump();
-}
-
-}  // namespace
 
 void register_serve(CLI::App& app) {
   auto o = std::make_shared<ServeOptions>();
@@ -138,85 +47,7 @@ void register_serve(CLI::App& app) {
   cmd->add_option("--idle-timeout", o->limits.idle_timeout_s, "Close a WebSocket peer that answers no ping this long, s")
       ->capture_default_str()->check(check::range(1.0, 3600.0));
   cmd->callback([o] {
-    if (o->run.simulated_time) throw InputError("--simulated-time: serve runs in real time (use `run --simulated-time`)");
-    const SceneOptions so = with_bundled_defaults(o->run.scene, "serve");
-    validate_runtime_options(o->run, /*allow_mouse=*/true);  // before the (slow) scene load
-    prepare_run_out_dir(o->run, so);
-    ViewerConfig vc;
-    vc.host = o->host;
-    vc.port = std::uint16_t(o->port);
-    vc.display_hz = o->display_rate;
-    vc.allow_origins = o->allow_origins;
-    vc.limits = o->limits;
-    if (!o->token.empty() && o->no_token) throw InputError("serve: --token and --no-token are exclusive");
-    if (!o->token.empty() && o->token.size() < 16)
-      throw InputError("serve: --token: use at least 16 characters");
-    vc.token = o->token;
-    const bool loopback = is_loopback_host(o->host);
-    if (!loopback && vc.token.empty() && !o->no_token) vc.token = make_access_token();
-    if (!loopback && o->no_token)
-      fmt::print(stderr, "warning: serving on {} without a token: anyone who can reach this port can "
-                         "read the scene and steer the tool (the device's target)\n", o->host);
-    vc.web_root = o->web_root.empty() ? find_web_root() : o->web_root;
-    vc.scene_path = so.scene;
-    if (vc.web_root.empty()) throw InputError("serve: web/index.html not found; pass --web-root");
-    if (!std::filesystem::exists(vc.web_root + "/node_modules/three") ||
-        !std::filesystem::exists(vc.web_root + "/node_modules/@sparkjsdev/spark"))
-      throw InputError("serve: " + vc.web_root + "/node_modules has no three / @sparkjsdev/spark; run "
-                       "`npm ci --prefix " + vc.web_root + "` (scripts/setup.sh does)");
-
-    const PreparedWorld pw = prepare_world(so, o->run.quiet);
-    warn_if_outside_profile(pw, o->run.force);
-    RuntimeSetup setup = make_runtime_setup(o->run, so, pw, true);
-    vc.hello_json = hello_json(pw, so, setup, o->display_rate);
-    vc.repeat_targets = !setup.xr;  // a VR controller that stops reporting must time out
-    if (pw.scene.report.format == SceneFormat::kSpz && pw.scene.report.version >= 4) {
-      // The page's splat renderer (Spark 2.2) reads SPZ as one gzip stream only: re-pack v4.
-      const std::vector<std::uint8_t> gz = spz_as_gzip(MappedFile(so.scene).bytes(), so.scene);
-      vc.scene_bytes = std::make_shared<const std::string>(gz.begin(), gz.end());
-      fmt::print("viewer     SPZ v{} re-packed for the page as gzip SPZ v3 ({:.1f} MB, same data)\n",
-                 pw.scene.report.version, double(gz.size()) / 1e6);
-    }
-    HapticRuntime rt(pw.world, *setup.device, setup.config);
-    ContactSnapshotObserver snapshots(o->display_rate, MonotonicClock::instance());
-    rt.set_observer(&snapshots);
-    ViewerServer server(vc, rt, pw.world, snapshots, setup.mouse, MonotonicClock::instance());
-    server.start();
-    fmt::print("page       {}\n", vc.web_root);
-    fmt::print("viewer     http://{}:{}/{}  (Ctrl-C to stop)\n", vc.host, server.port(),
-               vc.token.empty() ? std::string() : "?token=" + vc.token);
-    std::fflush(stdout);
-    const bool interrupted = run_live(rt, setup.planned, o->run.quiet, [&server] {
-      return fmt::format(" | clients {} | frames {}", server.stats().clients.load(),
-                         server.stats().frames_sent.load());
-    });
-    server.stop();
-    const ViewerStats& vs = server.stats();
-    fmt::print("\nviewer     {} frames sent, {} dropped for slow clients, {} tool messages ({} malformed)\n",
-               vs.frames_sent.load(), vs.frames_dropped.load(), vs.tool_messages.load(), vs.bad_messages.load());
-    fmt::print("refused    host {}, origin {}, token {}, connections {}; limits: {} oversize frames, {} "
-               "messages over the rate, {} floods closed, {} idle peers closed\n",
-               vs.refused_host.load(), vs.refused_origin.load(), vs.refused_token.load(),
-               vs.refused_connections.load(), vs.oversize_frames.load(), vs.rate_limited.load(),
-               vs.flood_closed.load(), vs.idle_closed.load());
-    nlohmann::json extra = nlohmann::json::object();
-    extra["viewer"] = to_json(vs);
-    if (setup.mouse != nullptr) {
-      // With the page as the device, the watchdog counts the time no page steered the tool.
-      const RuntimeSummary s = rt.summary();
-      const double idle = double(s.watchdog_ticks) / std::max(1.0, s.rate_hz);
-      extra["device_idle_s"] = idle;
-      if (idle > 0.5) {
-        const std::string note = fmt::format(
-            "device idle for {:.1f} of {:.1f} s: no page was steering the tool (none open, or a "
-            "hidden tab), so the watchdog held the force at zero and no new pose reached the "
-            "collision worker (hence the old result age). Not a fault.", idle, s.duration_s);
-        extra["device_idle_note"] = note;
-      }
-    }
-    if (const int rc = write_run_outputs(rt, o->run, so, pw, setup, interrupted, "serve", extra)) set_exit_code(rc);
-    if (extra.contains("device_idle_note"))
-      fmt::print("note       {}\n", extra["device_idle_note"].get<std::string>());
+    if (const int rc = run_serve(*o)) set_exit_code(rc);
   });
 }
 

@@ -80,4 +80,26 @@ bool run_python(const std::string& script, const std::vector<std::string>& args,
 bool plot_run(const std::string& csv, const std::string& summary, const std::string& png,
               const std::string& command);
 
+/// `gshaptics simulate`: the main job's options.
+struct SimulateOptions {
+  SceneOptions scene;
+  std::string out_dir;
+  int sites = 7;
+  std::uint64_t seed = 1;
+  double tool_radius = 0;  // 0: 1% of the scene's robust extent
+  double rate = 1000;
+  ForceModelOptions force;
+  ExecutionOptions exec;
+  SafetyParams safety;
+  bool no_plot = false;
+  bool quiet = false;
+};
+
+/// The main job: a seeded probe trajectory over the world, a simulated hand on a simulated
+/// admittance device, every tick through the runtime's servo step on simulated time; writes
+/// probe_log.csv, summary.json and probe_run.png (the paper's Fig. 5) and prints the episodes.
+/// Returns the exit status (0; 1: no contact or the figure failed; kExitOutputsLost).
+/// Throws InputError for bad options or input files.
+int run_simulate(SimulateOptions o);
+
 }  // namespace gshaptics::session

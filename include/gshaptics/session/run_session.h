@@ -121,9 +121,6 @@ bool run_live(HapticRuntime& rt, double planned, bool quiet, const std::function
 /// run writes there.
 void prepare_run_out_dir(RuntimeOptions& o, const SceneOptions& so);
 
-/// Exit status of a run that completed but could not write its outputs (disk full, read-only).
-inline constexpr int kExitOutputsLost = 4;
-
 /// Writes servo_log.csv and run_summary.json (and run.png unless no_plot) into the output
 /// folder and prints the summary. Returns the exit status: 0, 1 when plotting failed, or
 /// kExitOutputsLost (the folder is then left as it was).

@@ -22,6 +22,9 @@
 
 namespace gshaptics::session {
 
+/// Exit status of a run that completed but could not write its outputs (disk full, read-only).
+inline constexpr int kExitOutputsLost = 4;
+
 /// How a session opens a scene: the options every scene-consuming command shares (the CLI binds
 /// them to --min-opacity, --sigma, --registration, --reg-*, --up and --world-cache).
 struct SceneOptions {
