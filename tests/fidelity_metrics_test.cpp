@@ -15,6 +15,14 @@
 namespace gshaptics {
 namespace {
 
+// These tests check the metrics on synthetic renderers, so the servo step's passivity
+// controller stays off (observe only): it would dissipate what the soft start makes look active.
+PlayOptions metrics_only() {
+  PlayOptions o;
+  o.safety.passivity.enabled = false;
+  return o;
+}
+
 constexpr double kK = 1000.0;  // N/m = 1 N/mm
 
 // F = k delta n against the analytic surface. With a site: delta along the site's normal line
@@ -87,7 +95,7 @@ TEST(FidelityMetrics, OracleScoresPerfectly) {
     for (const ContactSite& site : shape.press_sites(5, 3, 0.03)) {
       Oracle oracle(shape, &site);
       const Script s = press_script(shape, site, 0.005, 0.01, 1000);
-      const PressMetrics m = press_metrics(shape, s, play_script(oracle, s, 1000));
+      const PressMetrics m = press_metrics(shape, s, play_script(oracle, s, 1000, metrics_only()));
       ASSERT_FALSE(m.direction_deg.empty());
       EXPECT_LT(*std::max_element(m.direction_deg.begin(), m.direction_deg.end()), 1e-3) << shape.name();
       EXPECT_NEAR(m.stiffness_n_per_mm, kK * 1e-3, 1e-6) << shape.name();
@@ -105,7 +113,7 @@ TEST(FidelityMetrics, OracleHoldsThroughAPlateAndIntoAConcaveCorner) {
   const ContactSite site = plate.press_sites(1, 1, 0.03)[0];
   Oracle oracle(plate, &site);
   const Script s = press_script(plate, site, 0.005, 0.03, 1000);
-  const PressMetrics m = press_metrics(plate, s, play_script(oracle, s, 1000));
+  const PressMetrics m = press_metrics(plate, s, play_script(oracle, s, 1000, metrics_only()));
   EXPECT_TRUE(m.never_lost);
   EXPECT_NEAR(m.hold_through_mm, 30.0, 0.05);
 
@@ -115,7 +123,7 @@ TEST(FidelityMetrics, OracleHoldsThroughAPlateAndIntoAConcaveCorner) {
   for (const ContactSite& c : corner.press_sites(6, 2, 0.03)) {
     Oracle o(corner, &c);
     const Script cs = press_script(corner, c, 0.005, 0.01, 1000);
-    const PressMetrics cm = press_metrics(corner, cs, play_script(o, cs, 1000));
+    const PressMetrics cm = press_metrics(corner, cs, play_script(o, cs, 1000, metrics_only()));
     EXPECT_LT(percentile(cm.direction_deg, 100), 1e-3) << c.feature;
     // On the corner line the faces see delta at 1/sqrt(2) of the bisector travel.
     EXPECT_GT(cm.stiffness_n_per_mm, 0.99) << c.feature;
@@ -127,7 +135,7 @@ TEST(FidelityMetrics, RotatedNormalScoresItsAngle) {
   const ContactSite site = shape.press_sites(1, 1, 0.03)[0];
   Oracle rotated(shape, &site, 20.0);
   const Script s = press_script(shape, site, 0.005, 0.01, 1000);
-  const PressMetrics m = press_metrics(shape, s, play_script(rotated, s, 1000));
+  const PressMetrics m = press_metrics(shape, s, play_script(rotated, s, 1000, metrics_only()));
   EXPECT_NEAR(percentile(m.direction_deg, 50), 20.0, 1e-6);
   EXPECT_NEAR(percentile(m.direction_deg, 95), 20.0, 1e-6);
   EXPECT_NEAR(m.stiffness_n_per_mm, 1.0, 1e-6);  // |F| unchanged
@@ -138,7 +146,7 @@ TEST(FidelityMetrics, ActiveSpringHasNegativeEnergy) {
   const ContactSite site = shape.press_sites(1, 1, 0.03)[0];
   Oracle active(shape, &site, 0, /*unload_gain=*/1.5);
   const Script s = press_script(shape, site, 0.005, 0.01, 1000);
-  const PressMetrics m = press_metrics(shape, s, play_script(active, s, 1000));
+  const PressMetrics m = press_metrics(shape, s, play_script(active, s, 1000, metrics_only()));
   // In: 0.5 k d^2 = 0.05 J taken; out: 1.5 times that given back: W = -0.025 J.
   EXPECT_NEAR(m.energy_j, -0.5 * 0.5 * kK * 0.01 * 0.01, 2e-4);
 }
@@ -156,7 +164,7 @@ TEST(FidelityMetrics, StiffnessThatCountsContactsDependsOnDensity) {
     const CollisionWorld world = CollisionWorld::build(sc.scene, WorldConfig{});
     CountingModel model(world, site);
     const Script s = press_script(shape, site, 0.01, 0.01, 1000);
-    stiffness[i] = press_metrics(shape, s, play_script(model, s, 1000)).stiffness_n_per_mm;
+    stiffness[i] = press_metrics(shape, s, play_script(model, s, 1000, metrics_only())).stiffness_n_per_mm;
   }
   // 4x finer Gaussians, ~16x the contacts per mm of penetration.
   EXPECT_GT(stiffness[0] / stiffness[1], 5.0) << stiffness[0] << " vs " << stiffness[1];
@@ -167,13 +175,13 @@ TEST(FidelityMetrics, SlidesScoreSmoothnessAndDrag) {
     const AnalyticShape shape(k);
     const Script s = slide_script(shape, 0.005, 1000);
     Oracle ideal(shape, nullptr);
-    const SlideMetrics m = slide_metrics(shape, s, play_script(ideal, s, 1000));
+    const SlideMetrics m = slide_metrics(shape, s, play_script(ideal, s, 1000, metrics_only()));
     EXPECT_NEAR(m.mean_force, kK * 0.002, 1e-3) << shape.name();  // 2 mm deep all along
     EXPECT_LT(m.force_rsd, 1e-3) << shape.name();
     EXPECT_LT(m.tangential_over_normal, 1e-3) << shape.name();
     EXPECT_LT(percentile(m.direction_deg, 100), 0.05) << shape.name();
     Oracle dragging(shape, nullptr, 0, 1, /*drag=*/0.3);
-    const SlideMetrics d = slide_metrics(shape, s, play_script(dragging, s, 1000));
+    const SlideMetrics d = slide_metrics(shape, s, play_script(dragging, s, 1000, metrics_only()));
     EXPECT_NEAR(d.tangential_over_normal, 0.3, 0.01) << shape.name();
   }
 }

@@ -60,6 +60,7 @@ void register_fidelity(CLI::App& app) {
     std::uint64_t seed = 1;
     ForceModelOptions force;
     ExecutionOptions exec;
+    PassivityParams passivity;
     SynthParams synth;
   };
   auto o = std::make_shared<Options>();
@@ -82,10 +83,12 @@ void register_fidelity(CLI::App& app) {
       ->capture_default_str()->check(check::range(0.0, 1.0));
   add_force_options(*cmd, o->force);
   add_execution_options(*cmd, o->exec, /*simulated=*/true);
+  add_passivity_option(*cmd, o->passivity);
   cmd->callback([o] {
     FidelityOptions fo = o->quick ? quick_fidelity_options() : FidelityOptions{};
     fo.renderer = o->force.spec();
     fo.play.safety.f_max = o->force.f_max;
+    fo.play.safety.passivity = o->passivity;
     fo.seed = o->seed;
     fo.synth = o->synth;
     fo.play.inline_query = o->exec.inline_query;

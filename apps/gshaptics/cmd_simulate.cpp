@@ -30,6 +30,7 @@ void register_simulate(CLI::App& app) {
       ->check(check::range(100.0, 20000.0));
   add_force_options(*cmd, o->force);
   add_execution_options(*cmd, o->exec, /*simulated=*/true);
+  add_passivity_option(*cmd, o->safety.passivity);
   cmd->add_flag("--no-plot", o->no_plot, "Do not draw probe_run.png (needs /usr/bin/python3 with matplotlib)");
   cmd->add_flag("--quiet", o->quiet, "No progress bars");
   add_world_options(*cmd, o->scene);

@@ -124,6 +124,16 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
   });
 }
 
+void add_passivity_option(CLI::App& cmd, PassivityParams& p) {
+  cmd.add_option_function<std::string>(
+         "--passivity", [&p](const std::string& v) { p.enabled = v == "on"; },
+         "Passivity observer and controller in the servo step (Hannaford & Ryu 2002): damping where the "
+         "scene would give back more energy than it took. Default: on")
+      ->check(CLI::IsMember({"on", "off"}));
+  cmd.add_option("--passivity-max-damping", p.max_damping, "Cap on the passivity controller's damping, N s/m")
+      ->capture_default_str()->check(check::non_negative());
+}
+
 void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& devices) {
   cmd.add_option("scene", o.scene.scene, "Scene file (default: bundled data/truck.splat, registered z-up in metres)");
   cmd.add_option("--device", o.device, devices)->capture_default_str();
@@ -163,6 +173,7 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
       ->capture_default_str()->check(check::positive());
   cmd.add_option("--device-timeout", o.safety.device_timeout, "Watchdog: zero force when device data is older, s")
       ->capture_default_str()->check(check::positive());
+  add_passivity_option(cmd, o.safety.passivity);
   cmd.add_option("--continuous-window", o.safety.continuous_window,
                  "Averaging window of the device's continuous-force limit (RMS force, I^2 t), s")
       ->capture_default_str()->check(check::positive());

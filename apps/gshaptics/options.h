@@ -34,6 +34,8 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o);
 
 /// Adds the device, rate, duration, tool, force, safety, real-time, output and world options.
 /// `devices` is the --device help text.
+/// Adds --passivity on|off and --passivity-max-damping (the servo step's passivity controller).
+void add_passivity_option(CLI::App& cmd, PassivityParams& p);
 void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& devices);
 
 }  // namespace gshaptics::cli

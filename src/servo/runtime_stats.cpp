@@ -36,6 +36,9 @@ RuntimeSummary summarize(const RuntimeStats& s, const LatencyHistogram& query, d
   r.force_limited_ticks = ld(s.force_limited_ticks);
   r.rate_limited_ticks = ld(s.rate_limited_ticks);
   r.continuous_limited_ticks = ld(s.continuous_limited_ticks);
+  r.passivity_ticks = ld(s.passivity_ticks);
+  r.passivity_peak_damping = s.passivity_peak_damping.load(std::memory_order_relaxed);
+  r.passivity_min_energy = s.passivity_min_energy.load(std::memory_order_relaxed);
   r.results_used = ld(s.results_used);
   r.force_limit = s.force_limit.load(std::memory_order_relaxed);
   r.continuous_force_limit = s.continuous_force_limit.load(std::memory_order_relaxed);

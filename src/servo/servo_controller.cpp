@@ -23,7 +23,7 @@ ServoController::ServoController(HapticDevice& device, const SafetyParams& safet
                                  PoseChannel& poses, ResultChannel& results, RuntimeStats& stats,
                                  TickLog* log, Clock& clock, TripleBuffer<TickRecord>* monitor)
     : device_(device), safety_(safety), period_(period), poses_(poses), results_(results),
-      stats_(stats), log_(log), clock_(clock), monitor_(monitor) {}
+      stats_(stats), log_(log), clock_(clock), monitor_(monitor), passivity_(safety.passivity) {}
 
 void ServoController::start(Nanos now) {
   device_.start(now);
@@ -45,6 +45,7 @@ void ServoController::start(Nanos now) {
   prev_now_ = now;
   last_device_data_ = now;
   safety_.reset(now);
+  passivity_.reset();
   stats_.start_ns.store(now, std::memory_order_relaxed);
 }
 
@@ -89,9 +90,14 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   // The worker writes one result per new pose, so anything new in the buffer is a new result.
   const bool fresh = results_.read_if_new(result_);
 
+  // The passivity controller (Hannaford & Ryu 2002) ahead of the safety layer's limits.
+  PassivityStep pc;
+  pc.force = result_.force;
+  if (device_flags == 0) pc = passivity_.correct(result_.force, s.velocity, dt);
+
   SafetyInput in;
   in.now = now;
-  in.desired = result_.force;
+  in.desired = pc.force;
   in.have_result = result_.pose_sequence != 0;
   in.fresh_result = fresh;
   in.result_age = in.have_result ? now - result_.pose_stamp : 0;
@@ -99,6 +105,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   in.device_flags = device_flags;
   in.stopping = stopping_;
   const SafetyOutput out = safety_.apply(in, dt);
+  if (finite) passivity_.observe(out.force, s.velocity, dt);
 
   Wrench w;
   w.force = out.force;
@@ -106,7 +113,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   const Nanos end = clock_.now();
 
   // Statistics and log.
-  const std::uint32_t f = out.flags;
+  const std::uint32_t f = out.flags | (pc.damping > 0 ? kFlagPassivity : 0u);
   stats_.ticks.store(stats_.ticks.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
   bump(stats_.deadline_misses, end > scheduled + period_);
   bump(stats_.stale_ticks, (f & kFlagHeld) != 0);
@@ -123,6 +130,10 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   bump(stats_.rate_limited_ticks, (f & kFlagRateLimited) != 0);
   bump(stats_.continuous_limited_ticks, (f & kFlagContinuousLimited) != 0);
   bump(stats_.results_used, fresh);
+  bump(stats_.passivity_ticks, (f & kFlagPassivity) != 0);
+  max_store(stats_.passivity_peak_damping, pc.damping);
+  if (passivity_.energy() < stats_.passivity_min_energy.load(std::memory_order_relaxed))
+    stats_.passivity_min_energy.store(passivity_.energy(), std::memory_order_relaxed);
   const double fm = out.force.norm();
   stats_.last_force.store(fm, std::memory_order_relaxed);
   max_store(stats_.peak_force, fm);
@@ -148,6 +159,8 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
     r.flags = f;
     r.proxy = result_.pose_sequence != 0 ? result_.proxy : s.position;
     r.constraints = result_.constraints;
+    r.energy = passivity_.energy();
+    r.damping = float(pc.damping);
     if (log_ != nullptr) log_->push(r);
     if (monitor_ != nullptr) monitor_->write(r);
   }

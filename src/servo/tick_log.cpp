@@ -52,6 +52,8 @@ const Column kColumns[] = {
     GSH_COL("proxy_y", kColumnsProxy, "%.6f", r.proxy.y()),
     GSH_COL("proxy_z", kColumnsProxy, "%.6f", r.proxy.z()),
     GSH_COL("constraints", kColumnsProxy, "%u", unsigned(r.constraints)),
+    GSH_COL("energy_j", kColumnsPassivity, "%.7f", r.energy),
+    GSH_COL("pc_damping", kColumnsPassivity, "%.4f", double(r.damping)),
 };
 
 #undef GSH_COL

@@ -69,6 +69,9 @@ nlohmann::json to_json(const RuntimeSummary& s) {
           {"force_limited_ticks", s.force_limited_ticks},
           {"rate_limited_ticks", s.rate_limited_ticks},
           {"continuous_limited_ticks", s.continuous_limited_ticks},
+          {"passivity_ticks", s.passivity_ticks},
+          {"passivity_peak_damping", s.passivity_peak_damping},
+          {"passivity_min_energy_j", s.passivity_min_energy},
           {"results_used", s.results_used},
           {"peak_force_n", s.peak_force},
           {"force_limit_n", s.force_limit},
@@ -439,6 +442,9 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
   fmt::print("safety     watchdog {}, invalid pose {}, outside workspace {}, force-limited {}, "
              "rate-limited {} ticks; peak force {:.2f} N\n", s.watchdog_ticks, s.invalid_pose_ticks,
              s.outside_workspace_ticks, s.force_limited_ticks, s.rate_limited_ticks, s.peak_force);
+  fmt::print("passivity  {}: the controller added damping on {} ticks (peak {:.3g} N s/m); lowest observed "
+             "energy {:.3g} mJ\n", o.safety.passivity.enabled ? "on" : "off (observed only)", s.passivity_ticks,
+             s.passivity_peak_damping, s.passivity_min_energy * 1e3);
   const DeviceInfo& di = setup.device->info();
   fmt::print("limit      {:.3g} N, bound by {}{}{}\n", s.force_limit,
              s.force_limit_by_device ? fmt::format("the device ({}; --f-max {:.3g} N)", di.limit_source, o.force.f_max)

@@ -26,6 +26,9 @@ struct RuntimeStats {
   std::atomic<std::uint64_t> force_limited_ticks{0};
   std::atomic<std::uint64_t> rate_limited_ticks{0};
   std::atomic<std::uint64_t> continuous_limited_ticks{0};  ///< kFlagContinuousLimited
+  std::atomic<std::uint64_t> passivity_ticks{0};  ///< kFlagPassivity: the controller added damping
+  std::atomic<double> passivity_peak_damping{0};  ///< its largest damping, N s/m
+  std::atomic<double> passivity_min_energy{0};    ///< the observer's lowest energy, J
   std::atomic<std::uint64_t> results_used{0};     ///< distinct collision results rendered
   std::atomic<double> force_limit{0};             ///< peak limit in force, N (set at start)
   std::atomic<double> continuous_force_limit{0};  ///< the device's continuous force, N (+inf: none)
@@ -53,7 +56,10 @@ struct RuntimeSummary {
   std::uint64_t deadline_misses = 0, skipped_periods = 0, stale_ticks = 0, fading_ticks = 0,
                 faded_ticks = 0, fades = 0, no_result_ticks = 0, watchdog_ticks = 0,
                 invalid_pose_ticks = 0, outside_workspace_ticks = 0, force_limited_ticks = 0,
-                rate_limited_ticks = 0, continuous_limited_ticks = 0, results_used = 0;
+                rate_limited_ticks = 0, continuous_limited_ticks = 0, results_used = 0,
+                passivity_ticks = 0;
+  double passivity_peak_damping = 0;  ///< N s/m
+  double passivity_min_energy = 0;    ///< J (< 0: the environment was active before the controller caught it)
   double peak_force = 0;  ///< N
   double force_limit = 0;  ///< peak limit applied: min(configured F_max, device's peak force), N
   double continuous_force_limit = 0;  ///< the device's continuous force, N (+inf: none)

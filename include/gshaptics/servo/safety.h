@@ -26,6 +26,7 @@
 #include <limits>
 
 #include "gshaptics/device/clock.h"
+#include "gshaptics/servo/passivity.h"
 
 namespace gshaptics {
 
@@ -40,6 +41,9 @@ struct SafetyParams {
   /// Time constant of the continuous-force (I^2 t) average, s. The RMS force over this window
   /// stays at or below the device's continuous force.
   double continuous_window = 2.0;
+  /// The passivity observer and controller the servo step runs before this layer's limits
+  /// (servo/passivity.h; Hannaford & Ryu 2002). On by default.
+  PassivityParams passivity;
 };
 
 /// The force limits in force for a run, and what set them.
@@ -65,6 +69,7 @@ enum SafetyFlag : std::uint32_t {
   kFlagOutsideWorkspace = 1u << 9,  ///< tool centre outside the device workspace: force zero
   kFlagStopping = 1u << 10,     ///< stop requested: ramping down to zero
   kFlagContinuousLimited = 1u << 11,  ///< held below f_max by the device's continuous-force budget
+  kFlagPassivity = 1u << 12,    ///< the passivity controller added damping (servo/passivity.h)
 };
 
 /// What the safety layer knows at one tick.

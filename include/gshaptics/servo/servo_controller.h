@@ -48,6 +48,8 @@ class ServoController {
   void finish(Nanos now) noexcept;
 
   [[nodiscard]] const SafetyFilter& safety() const noexcept { return safety_; }
+  /// The passivity observer and controller (energy so far).
+  [[nodiscard]] const PassivityController& passivity() const noexcept { return passivity_; }
   [[nodiscard]] Nanos start_time() const noexcept { return t0_; }
 
  private:
@@ -60,6 +62,7 @@ class ServoController {
   TickLog* log_;
   Clock& clock_;
   TripleBuffer<TickRecord>* monitor_;
+  PassivityController passivity_;
   Nanos t0_ = 0, prev_now_ = 0, last_device_data_ = 0;
   std::uint64_t last_device_seq_ = 0, pose_seq_ = 0;
   bool have_device_data_ = false, stopping_ = false, was_fading_ = false;

@@ -31,6 +31,8 @@ struct TickRecord {
   std::uint32_t flags = 0;   ///< SafetyFlag bits (servo/safety.h)
   Eigen::Vector3d proxy = Eigen::Vector3d::Zero();  ///< proxy centre of the rendered result, m
   std::uint8_t constraints = 0;                     ///< its constraint planes (0..3)
+  double energy = 0;   ///< passivity observer: energy into the environment so far, J (servo/passivity.h)
+  float damping = 0;   ///< passivity controller's damping this tick, N s/m
 };
 
 /// Column groups of the tick log. Each column is declared once (tick_log.cpp) with its group;
@@ -42,9 +44,11 @@ enum TickColumns : unsigned {
   kColumnsServo = 1u << 3,    ///< desired_f*, jitter_us, tick_us, result_age_us, held, fading, flags
   kColumnsLatency = 1u << 4,  ///< latency_us
   kColumnsProxy = 1u << 5,    ///< proxy_x, proxy_y, proxy_z, constraints
+  kColumnsPassivity = 1u << 6,  ///< energy_j, pc_damping
 };
 /// The probe run's log (`simulate`, probe_log.csv): the paper's Fig. 5 quantities.
-inline constexpr unsigned kProbeLogColumns = kColumnsMotion | kColumnsQuery | kColumnsForce | kColumnsProxy;
+inline constexpr unsigned kProbeLogColumns =
+    kColumnsMotion | kColumnsQuery | kColumnsForce | kColumnsProxy | kColumnsPassivity;
 /// The real-time runtime's log (`run`, `serve`, `node`, servo_log.csv): the probe log's columns
 /// first, so the same plot and the replay device read both.
 inline constexpr unsigned kServoLogColumns = kProbeLogColumns | kColumnsServo | kColumnsProxy;

@@ -1,0 +1,163 @@
+// The passivity observer and controller (Hannaford & Ryu 2002): on its own against an active
+// environment, a passive one and its cap and reset; then in the servo step, where a delayed stiff
+// wall (the decoupled worker two ticks late) gives energy back with the controller off and does
+// not with it on.
+
+#include "gshaptics/servo/passivity.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+
+#include "gshaptics/device/replay_device.h"
+#include "gshaptics/servo/simulated_runtime.h"
+
+namespace gshaptics {
+namespace {
+
+TEST(PassivityController, KeepsTheEnergyOfAnActiveEnvironmentAtZero) {
+  // An environment with negative damping (F = +3 v: it pushes along the motion) on a device
+  // moving back and forth.
+  const double dt = 1e-3;
+  for (const bool enabled : {false, true}) {
+    PassivityParams p;
+    p.enabled = enabled;
+    PassivityController pc(p);
+    double lowest = 0;
+    int acted = 0;
+    for (int k = 0; k < 2000; ++k) {
+      const Eigen::Vector3d v(0.1 * std::sin(k * dt * 2 * M_PI), 0, 0.02);
+      const PassivityStep s = pc.correct(3.0 * v, v, dt);
+      if (s.damping > 0) ++acted;
+      pc.observe(s.force, v, dt);
+      lowest = std::min(lowest, pc.energy());
+    }
+    if (enabled) {
+      EXPECT_GE(lowest, -1e-12);
+      EXPECT_GT(acted, 1900);
+    } else {
+      // Observed only: -sum F.v dt = -3 sum |v|^2 dt.
+      EXPECT_LT(lowest, -0.02);
+      EXPECT_EQ(acted, 0);
+    }
+  }
+}
+
+TEST(PassivityController, LeavesAPassiveSpringAloneAndRespectsItsCap) {
+  const double dt = 1e-3, k = 1000;
+  PassivityController pc;
+  // A spring loaded and unloaded with the force of this tick's position (no delay) and a little
+  // damping: passive, the controller never acts.
+  double x = 0;
+  for (int i = 0; i < 400; ++i) {
+    const double v = i < 200 ? -0.01 : 0.01;
+    x += v * dt;
+    const Eigen::Vector3d f(0, 0, std::max(0.0, -k * x) - 0.5 * v);
+    const PassivityStep s = pc.correct(f, Eigen::Vector3d(0, 0, v), dt);
+    EXPECT_EQ(s.damping, 0.0) << i;
+    pc.observe(s.force, Eigen::Vector3d(0, 0, v), dt);
+  }
+  EXPECT_GE(pc.energy(), 0.0);
+  // The cap: a large deficit at low speed asks for more damping than allowed.
+  PassivityParams p;
+  p.max_damping = 2.0;
+  PassivityController capped(p);
+  const Eigen::Vector3d v(0.01, 0, 0);
+  capped.observe(Eigen::Vector3d(1.0, 0, 0), v, dt);  // E = -1e-5 J
+  const Eigen::Vector3d resisting(-0.5, 0, 0);  // the force opposes the motion: it may grow
+  const PassivityStep s = capped.correct(resisting, v, dt);  // needs alpha = 50 N s/m
+  EXPECT_DOUBLE_EQ(s.damping, 2.0);
+  EXPECT_NEAR((s.force - (resisting - 2.0 * v)).norm(), 0, 1e-15);
+  // Below min_speed nothing can be dissipated: no damping.
+  EXPECT_EQ(capped.correct(resisting, Eigen::Vector3d(1e-6, 0, 0), dt).damping, 0.0);
+  // Free space stays free: a zero force gets no damping, whatever the deficit.
+  EXPECT_EQ(capped.correct(Eigen::Vector3d::Zero(), v, dt).force, Eigen::Vector3d::Zero());
+  // Never pull: a force along the motion is cancelled at most, not reversed.
+  PassivityParams wide;
+  wide.max_damping = 1e6;
+  PassivityController no_pull(wide);
+  no_pull.observe(Eigen::Vector3d(1.0, 0, 0), v, dt);
+  const PassivityStep np = no_pull.correct(Eigen::Vector3d(0.3, 0.2, 0), v, dt);
+  EXPECT_NEAR(np.force.x(), 0.0, 1e-12);  // the component along v cancelled, not reversed
+  EXPECT_EQ(np.force.y(), 0.2);           // the rest untouched
+}
+
+TEST(PassivityController, ZeroForceDropsStoredEnergyButKeepsADeficit) {
+  const double dt = 1e-3;
+  PassivityController pc;
+  pc.observe(Eigen::Vector3d(0, 0, 2), Eigen::Vector3d(0, 0, -0.1), dt);  // +0.2 mJ in
+  EXPECT_NEAR(pc.energy(), 2e-4, 1e-15);
+  pc.observe(Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 0.1), dt);  // released: nothing stored
+  EXPECT_EQ(pc.energy(), 0.0);
+  pc.observe(Eigen::Vector3d(0, 0, 2), Eigen::Vector3d(0, 0, 0.1), dt);  // -0.2 mJ: active
+  pc.observe(Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 0.1), dt);
+  EXPECT_NEAR(pc.energy(), -2e-4, 1e-15);  // the deficit stays to be paid back
+  pc.reset();
+  EXPECT_EQ(pc.energy(), 0.0);
+}
+
+/// A stiff floor at z = 0 (3000 N/m), the force of the pose it was given.
+class StiffFloor final : public ForceRenderer {
+ public:
+  std::string_view name() const noexcept override { return "stiff floor"; }
+  RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d&, double) noexcept override {
+    RenderOutput o;
+    o.force = Eigen::Vector3d(0, 0, std::max(0.0, -tool.center.z()) * 3000.0);
+    o.counts.contacts = o.force.z() > 0 ? 1 : 0;
+    o.proxy = tool.center;
+    return o;
+  }
+  std::span<const Contact> contacts() const noexcept override { return {}; }
+  void reset() noexcept override {}
+};
+
+TEST(PassivityController, InTheServoStepADelayedWallStopsGivingEnergyBack) {
+  // Ten presses 4 mm into the floor at 2 Hz, the worker's result two ticks late.
+  PoseLog log;
+  log.has_velocity = true;
+  const double w = 2 * M_PI * 2.0, a = 0.004;
+  for (int i = 0; i <= 5000; ++i) {
+    const double t = i * 1e-3;
+    const double z = 0.001 - 0.5 * (a + 0.001) * (1 - std::cos(w * t));
+    const double vz = -0.5 * (a + 0.001) * w * std::sin(w * t);
+    log.rows.push_back({t, Eigen::Vector3d(0, 0, z), Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, vz)});
+  }
+  // Off; on with the default damping cap (20 N s/m, which this wall reaches); on with a cap it
+  // never reaches.
+  double work[3] = {0, 0, 0};
+  for (const int mode : {0, 1, 2}) {
+    ReplayDevice replay(log);
+    RuntimeConfig c;
+    c.inline_query = false;
+    c.latency_ticks = 2;
+    c.duration = 4.9;
+    c.safety.ramp_time = 0;
+    c.safety.max_force_rate = 1e9;
+    c.safety.passivity.enabled = mode > 0;
+    if (mode == 2) c.safety.passivity.max_damping = 1e4;
+    SimulatedRuntime sim(replay, c, std::make_unique<StiffFloor>());
+    sim.run();
+    const auto& rec = sim.log().records();
+    ASSERT_GT(rec.size(), 4800u);
+    double wsum = 0;  // W = -sum F . v dt, what the hand put in
+    for (const TickRecord& r : rec) wsum -= r.force.dot(r.velocity) * 1e-3;
+    work[mode] = wsum;
+    const RuntimeSummary s = sim.summary();
+    if (mode == 0) {
+      EXPECT_EQ(s.passivity_ticks, 0u);
+      EXPECT_LT(s.passivity_min_energy, -1e-3);  // observed: the delayed wall was active
+    } else {
+      EXPECT_GT(s.passivity_ticks, 100u);
+      EXPECT_LE(s.passivity_peak_damping, c.safety.passivity.max_damping);
+      EXPECT_NEAR(rec.back().energy, std::min(0.0, wsum), 1e-6 + 1e-3 * std::fabs(wsum));
+    }
+    if (mode == 2) EXPECT_GE(s.passivity_min_energy, -1e-9);  // caught within the tick
+  }
+  EXPECT_LT(work[0], -5e-3);                  // off: the scene gave back more than 5 mJ
+  EXPECT_LT(std::fabs(work[1]), 0.15 * std::fabs(work[0]));  // default cap: under 15 % of that
+  EXPECT_GE(work[2], -1e-9);                  // uncapped: never active
+}
+
+}  // namespace
+}  // namespace gshaptics
