@@ -16,29 +16,41 @@
 namespace gshaptics {
 namespace {
 
-TEST(PassivityController, KeepsTheEnergyOfAnActiveEnvironmentAtZero) {
-  // An environment with negative damping (F = +3 v: it pushes along the motion) on a device
-  // moving back and forth.
+/// One tick of a device at `x` moving at `v`: account the last interval, correct `f`, send it,
+/// move on. Returns the force sent.
+Eigen::Vector3d tick(PassivityController& pc, const Eigen::Vector3d& f, Eigen::Vector3d& x, const Eigen::Vector3d& v,
+                     double dt, double* damping = nullptr) {
+  pc.account(x);
+  const PassivityStep s = pc.correct(f, v, dt);
+  pc.sent(s.force);
+  if (damping != nullptr) *damping = s.damping;
+  x += v * dt;
+  return s.force;
+}
+
+TEST(PassivityController, KeepsTheEnergyOfAnActiveEnvironmentNearZero) {
+  // An environment that pushes along the motion with 3 N s/m plus a 1 N bias against it (so it is
+  // never a zero force), on a device moving back and forth.
   const double dt = 1e-3;
   for (const bool enabled : {false, true}) {
     PassivityParams p;
     p.enabled = enabled;
     PassivityController pc(p);
+    Eigen::Vector3d x = Eigen::Vector3d::Zero();
     double lowest = 0;
     int acted = 0;
     for (int k = 0; k < 2000; ++k) {
       const Eigen::Vector3d v(0.1 * std::sin(k * dt * 2 * M_PI), 0, 0.02);
-      const PassivityStep s = pc.correct(3.0 * v, v, dt);
-      if (s.damping > 0) ++acted;
-      pc.observe(s.force, v, dt);
+      double d = 0;
+      (void)tick(pc, 3.0 * v + Eigen::Vector3d(0, 0, 0.01), x, v, dt, &d);
+      if (d > 0) ++acted;
       lowest = std::min(lowest, pc.energy());
     }
     if (enabled) {
-      EXPECT_GE(lowest, -1e-12);
-      EXPECT_GT(acted, 1900);
+      EXPECT_GE(lowest, -1e-6);  // within what one tick's prediction misses
+      EXPECT_GT(acted, 1000);
     } else {
-      // Observed only: -sum F.v dt = -3 sum |v|^2 dt.
-      EXPECT_LT(lowest, -0.02);
+      EXPECT_LT(lowest, -0.02);  // observed only: about -3 sum |v|^2 dt
       EXPECT_EQ(acted, 0);
     }
   }
@@ -47,16 +59,16 @@ TEST(PassivityController, KeepsTheEnergyOfAnActiveEnvironmentAtZero) {
 TEST(PassivityController, LeavesAPassiveSpringAloneAndRespectsItsCap) {
   const double dt = 1e-3, k = 1000;
   PassivityController pc;
-  // A spring loaded and unloaded with the force of this tick's position (no delay) and a little
-  // damping: passive, the controller never acts.
-  double x = 0;
+  // A spring loaded and unloaded with the force of this tick's position, and damping above the
+  // zero-order hold's k T / 2 = 0.5 N s/m (Colgate & Schenkel 1997): passive, the controller never acts.
+  Eigen::Vector3d x(0, 0, 0.0005);
   for (int i = 0; i < 400; ++i) {
-    const double v = i < 200 ? -0.01 : 0.01;
-    x += v * dt;
-    const Eigen::Vector3d f(0, 0, std::max(0.0, -k * x) - 0.5 * v);
-    const PassivityStep s = pc.correct(f, Eigen::Vector3d(0, 0, v), dt);
-    EXPECT_EQ(s.damping, 0.0) << i;
-    pc.observe(s.force, Eigen::Vector3d(0, 0, v), dt);
+    const double vz = i < 200 ? -0.01 : 0.01;
+    const Eigen::Vector3d v(0, 0, vz);
+    const Eigen::Vector3d f(0, 0, std::max(0.0, -k * x.z() - 1.0 * vz));
+    double d = 0;
+    (void)tick(pc, f, x, v, dt, &d);
+    EXPECT_EQ(d, 0.0) << i;
   }
   EXPECT_GE(pc.energy(), 0.0);
   // The cap: a large deficit at low speed asks for more damping than allowed.
@@ -64,7 +76,10 @@ TEST(PassivityController, LeavesAPassiveSpringAloneAndRespectsItsCap) {
   p.max_damping = 2.0;
   PassivityController capped(p);
   const Eigen::Vector3d v(0.01, 0, 0);
-  capped.observe(Eigen::Vector3d(1.0, 0, 0), v, dt);  // E = -1e-5 J
+  Eigen::Vector3d x0 = Eigen::Vector3d::Zero();
+  (void)tick(capped, Eigen::Vector3d(1.0, 0, 0), x0, v, dt);  // 1 N along the motion, less 2 N s/m...
+  capped.account(x0);                                           // ...over 10 um: E = -0.98e-5 J
+  EXPECT_NEAR(capped.energy(), -0.98e-5, 1e-15);
   const Eigen::Vector3d resisting(-0.5, 0, 0);  // the force opposes the motion: it may grow
   const PassivityStep s = capped.correct(resisting, v, dt);  // needs alpha = 50 N s/m
   EXPECT_DOUBLE_EQ(s.damping, 2.0);
@@ -77,7 +92,9 @@ TEST(PassivityController, LeavesAPassiveSpringAloneAndRespectsItsCap) {
   PassivityParams wide;
   wide.max_damping = 1e6;
   PassivityController no_pull(wide);
-  no_pull.observe(Eigen::Vector3d(1.0, 0, 0), v, dt);
+  Eigen::Vector3d x1 = Eigen::Vector3d::Zero();
+  (void)tick(no_pull, Eigen::Vector3d(1.0, 0, 0), x1, v, dt);
+  no_pull.account(x1);
   const PassivityStep np = no_pull.correct(Eigen::Vector3d(0.3, 0.2, 0), v, dt);
   EXPECT_NEAR(np.force.x(), 0.0, 1e-12);  // the component along v cancelled, not reversed
   EXPECT_EQ(np.force.y(), 0.2);           // the rest untouched
@@ -85,13 +102,18 @@ TEST(PassivityController, LeavesAPassiveSpringAloneAndRespectsItsCap) {
 
 TEST(PassivityController, ZeroForceDropsStoredEnergyButKeepsADeficit) {
   const double dt = 1e-3;
-  PassivityController pc;
-  pc.observe(Eigen::Vector3d(0, 0, 2), Eigen::Vector3d(0, 0, -0.1), dt);  // +0.2 mJ in
-  EXPECT_NEAR(pc.energy(), 2e-4, 1e-15);
-  pc.observe(Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 0.1), dt);  // released: nothing stored
+  PassivityParams p;
+  p.enabled = false;  // the observer alone
+  PassivityController pc(p);
+  Eigen::Vector3d x = Eigen::Vector3d::Zero();
+  (void)tick(pc, Eigen::Vector3d(0, 0, 2), x, Eigen::Vector3d(0, 0, -0.1), dt);  // 2 N against the motion
+  (void)tick(pc, Eigen::Vector3d::Zero(), x, Eigen::Vector3d(0, 0, 0.1), dt);
+  EXPECT_NEAR(pc.energy(), 2e-4, 1e-15);  // +0.2 mJ in
+  (void)tick(pc, Eigen::Vector3d(0, 0, 2), x, Eigen::Vector3d(0, 0, 0.1), dt);  // the zero force was held: reset
   EXPECT_EQ(pc.energy(), 0.0);
-  pc.observe(Eigen::Vector3d(0, 0, 2), Eigen::Vector3d(0, 0, 0.1), dt);  // -0.2 mJ: active
-  pc.observe(Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 0.1), dt);
+  (void)tick(pc, Eigen::Vector3d::Zero(), x, Eigen::Vector3d(0, 0, 0.1), dt);
+  EXPECT_NEAR(pc.energy(), -2e-4, 1e-15);  // 2 N along the motion: active, -0.2 mJ
+  (void)tick(pc, Eigen::Vector3d::Zero(), x, Eigen::Vector3d(0, 0, 0.1), dt);
   EXPECT_NEAR(pc.energy(), -2e-4, 1e-15);  // the deficit stays to be paid back
   pc.reset();
   EXPECT_EQ(pc.energy(), 0.0);
@@ -140,8 +162,8 @@ TEST(PassivityController, InTheServoStepADelayedWallStopsGivingEnergyBack) {
     sim.run();
     const auto& rec = sim.log().records();
     ASSERT_GT(rec.size(), 4800u);
-    double wsum = 0;  // W = -sum F . v dt, what the hand put in
-    for (const TickRecord& r : rec) wsum -= r.force.dot(r.velocity) * 1e-3;
+    double wsum = 0;  // W = -sum F_k . (x_k+1 - x_k), what the hand put in (zero-order hold)
+    for (std::size_t i = 0; i + 1 < rec.size(); ++i) wsum -= rec[i].force.dot(rec[i + 1].position - rec[i].position);
     work[mode] = wsum;
     const RuntimeSummary s = sim.summary();
     if (mode == 0) {
@@ -150,13 +172,13 @@ TEST(PassivityController, InTheServoStepADelayedWallStopsGivingEnergyBack) {
     } else {
       EXPECT_GT(s.passivity_ticks, 100u);
       EXPECT_LE(s.passivity_peak_damping, c.safety.passivity.max_damping);
-      EXPECT_NEAR(rec.back().energy, std::min(0.0, wsum), 1e-6 + 1e-3 * std::fabs(wsum));
+      EXPECT_LE(rec.back().energy, 1e-12);  // released at the end: what is left is a deficit
     }
-    if (mode == 2) EXPECT_GE(s.passivity_min_energy, -1e-9);  // caught within the tick
+    if (mode == 2) EXPECT_GE(s.passivity_min_energy, -2e-5);  // caught within a tick's prediction
   }
   EXPECT_LT(work[0], -5e-3);                  // off: the scene gave back more than 5 mJ
   EXPECT_LT(std::fabs(work[1]), 0.15 * std::fabs(work[0]));  // default cap: under 15 % of that
-  EXPECT_GE(work[2], -1e-9);                  // uncapped: never active
+  EXPECT_GE(work[2], -0.02 * std::fabs(work[0]));  // uncapped: at most what the prediction misses
 }
 
 }  // namespace

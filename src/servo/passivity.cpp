@@ -24,10 +24,13 @@ PassivityStep PassivityController::correct(const Eigen::Vector3d& force, const E
   return out;
 }
 
-void PassivityController::observe(const Eigen::Vector3d& sent, const Eigen::Vector3d& velocity, double dt) noexcept {
-  if (!(dt > 0) || !velocity.allFinite() || !sent.allFinite()) return;
-  energy_ -= sent.dot(velocity) * dt;
-  if (sent.isZero(0) && energy_ > 0) energy_ = 0;  // the environment holds nothing now
+void PassivityController::account(const Eigen::Vector3d& position) noexcept {
+  if (have_position_ && last_force_.allFinite()) {
+    energy_ -= last_force_.dot(position - last_position_);
+    if (last_force_.isZero(0) && energy_ > 0) energy_ = 0;  // the environment held nothing
+  }
+  last_position_ = position;
+  have_position_ = true;
 }
 
 }  // namespace gshaptics

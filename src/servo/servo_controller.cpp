@@ -91,6 +91,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   const bool fresh = results_.read_if_new(result_);
 
   // The passivity controller (Hannaford & Ryu 2002) ahead of the safety layer's limits.
+  if (finite) passivity_.account(s.position);
   PassivityStep pc;
   pc.force = result_.force;
   if (device_flags == 0) pc = passivity_.correct(result_.force, s.velocity, dt);
@@ -105,7 +106,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   in.device_flags = device_flags;
   in.stopping = stopping_;
   const SafetyOutput out = safety_.apply(in, dt);
-  if (finite) passivity_.observe(out.force, s.velocity, dt);
+  passivity_.sent(out.force);
 
   Wrench w;
   w.force = out.force;

@@ -13,6 +13,7 @@
 #include <filesystem>
 
 #include "gshaptics/error.h"
+#include "gshaptics/servo/safety.h"
 #include "gshaptics/servo/tick_log.h"
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/io/atomic_file.h"
@@ -251,6 +252,15 @@ int run_simulate(SimulateOptions o) {
   sj["rate_hz"] = o.rate;
   sj["mode"] = describe_execution(o.exec, true);
   sj["ticks"] = run.ticks.size();
+  std::uint64_t pc_ticks = 0;
+  double pc_min_energy = 0, pc_peak = 0;
+  for (const TickRecord& t : run.ticks) {
+    if (t.flags & kFlagPassivity) ++pc_ticks;
+    pc_min_energy = std::min(pc_min_energy, t.energy);
+    pc_peak = std::max(pc_peak, double(t.damping));
+  }
+  sj["passivity"] = {{"enabled", o.safety.passivity.enabled}, {"ticks", pc_ticks},
+                     {"peak_damping", pc_peak}, {"min_energy_j", pc_min_energy}};
   sj["query_us"] = {{"p50", run.query_time.p50_us}, {"p99", run.query_time.p99_us},
                     {"max", run.query_time.max_us}, {"ticks_over_1ms", run.query_time.over_1ms}};
   nlohmann::json eps = nlohmann::json::array();
@@ -278,7 +288,10 @@ int run_simulate(SimulateOptions o) {
     write_errors.push_back(e.what());
   }
 
-  fmt::print("\nquery time p50 {:.1f} us, p99 {:.1f} us, max {:.1f} us; {} of {} ticks over 1 ms\n",
+  fmt::print("\npassivity  {}: the controller added damping on {} ticks (peak {:.3g} N s/m); lowest observed energy "
+             "{:.3g} mJ\n", o.safety.passivity.enabled ? "on" : "off (observed only)", pc_ticks, pc_peak,
+             pc_min_energy * 1e3);
+  fmt::print("query time p50 {:.1f} us, p99 {:.1f} us, max {:.1f} us; {} of {} ticks over 1 ms\n",
              run.query_time.p50_us, run.query_time.p99_us, run.query_time.max_us,
              run.query_time.over_1ms, run.ticks.size());
   if (!write_errors.empty()) {

@@ -7,10 +7,14 @@
 /// sampled too slowly), adds just enough damping to dissipate the difference. It needs no model
 /// of the device or the environment, so it applies to every force model.
 ///
-/// Observer, one tick of length dt with force F (on the device, N) and device velocity v (m/s):
-///   E <- E - F . v dt        (J; energy into the environment, > 0 while it is passive)
-/// Controller (impedance causality): when the tick would leave E < 0, the force gets a damping
-/// term -alpha v with alpha = -E' / (|v|^2 dt), E' the energy with this tick's undamped force,
+/// Observer: the device holds each tick's force F_k (N) while it moves from x_k to x_k+1 (a
+/// zero-order hold), so the energy into the environment is counted from positions,
+///   E <- E - F_k . (x_k+1 - x_k)        (J; > 0 while the environment is passive),
+/// which includes the half tick the hold adds (the source of the b > K T / 2 condition of
+/// Colgate & Schenkel 1997); a velocity-sampled sum F_k . v_k dt would miss it.
+/// Controller (impedance causality): when the coming tick would leave E < 0 (predicted with the
+/// device velocity v: E' = E - F . v dt), the force gets a damping term -alpha v with
+/// alpha = -E' / (|v|^2 dt),
 /// capped at `max_damping` (what the device renders without chattering) and applied only above
 /// `min_speed` (below it no damping dissipates anything). Two rules keep it from being felt where
 /// it should not be: it never acts on a zero force (free space stays free), and while the force
@@ -18,7 +22,7 @@
 /// never pulled into the surface; a deficit left over is paid back over the next ticks). The
 /// safety layer's limits apply after it, and the observer counts the force actually sent.
 ///
-/// Reset: when the force sent is zero the environment holds no energy (the proxy sits on the
+/// Reset: when the force held is zero the environment holds no energy (the proxy sits on the
 /// device; the paper's penalty has no memory), so a positive E is dropped there and a deficit is
 /// kept: a long passive contact cannot mask an active one later (the observer's drift that
 /// Hannaford & Ryu discuss), and a deficit left at release is paid back at the next contact.
@@ -45,14 +49,21 @@ struct PassivityStep {
 class PassivityController {
  public:
   explicit PassivityController(const PassivityParams& params = {}) noexcept : params_(params) {}
-  /// Forget the energy (at the start of a run).
-  void reset() noexcept { energy_ = 0; }
-  /// Before the safety layer: `force` (N) with the damping that keeps the observed energy from
-  /// going negative over this tick of `dt` s at `velocity` (m/s). Unchanged when disabled.
+  /// Forget the energy and the last tick (at the start of a run).
+  void reset() noexcept {
+    energy_ = 0;
+    have_position_ = false;
+    last_force_.setZero();
+  }
+  /// At the start of a tick: the observer accounts the interval that just ended, the last force
+  /// sent times the device's displacement to `position` (m). Call only with a finite position.
+  void account(const Eigen::Vector3d& position) noexcept;
+  /// Before the safety layer: `force` (N) with the damping that keeps the energy predicted over
+  /// the coming tick of `dt` s at `velocity` (m/s) from going negative. Unchanged when disabled.
   [[nodiscard]] PassivityStep correct(const Eigen::Vector3d& force, const Eigen::Vector3d& velocity,
                                       double dt) const noexcept;
-  /// After the safety layer: the observer's update with the force actually sent.
-  void observe(const Eigen::Vector3d& sent, const Eigen::Vector3d& velocity, double dt) noexcept;
+  /// After the safety layer: the force actually sent this tick (held until the next account()).
+  void sent(const Eigen::Vector3d& force) noexcept { last_force_ = force; }
   /// The observed energy, J (< 0: the environment has been active).
   [[nodiscard]] double energy() const noexcept { return energy_; }
   [[nodiscard]] const PassivityParams& params() const noexcept { return params_; }
@@ -60,6 +71,8 @@ class PassivityController {
  private:
   PassivityParams params_;
   double energy_ = 0;
+  bool have_position_ = false;
+  Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero(), last_force_ = Eigen::Vector3d::Zero();
 };
 
 }  // namespace gshaptics
