@@ -39,7 +39,10 @@ def main(argv):
     t = data["time_s"]
     realtime = "jitter_us" in data.dtype.names
     has_proxy = "proxy_x" in data.dtype.names
-    rows = (5 if realtime else 4) + (1 if has_proxy else 0)
+    has_energy = "energy_j" in data.dtype.names
+    proxy_row = 5 if realtime else 4
+    energy_row = proxy_row + (1 if has_proxy else 0)
+    rows = energy_row + (1 if has_energy else 0)
     fig, ax = plt.subplots(rows, 1, figsize=(11, 2.4 * rows + 0.4), sharex=True)
     ax[0].plot(t, data["candidates"], lw=0.8, label="broad-phase candidates")
     ax[0].plot(t, data["prefiltered"], lw=0.8, label="after sphere pre-filter (eq. 4)")
@@ -81,13 +84,26 @@ def main(argv):
         # many constraint planes.
         gap = np.sqrt((data["proxy_x"] - data["x"]) ** 2 + (data["proxy_y"] - data["y"]) ** 2 +
                       (data["proxy_z"] - data["z"]) ** 2)
-        ax[-1].plot(t, gap * 1e3, lw=0.9, color="tab:green", label="proxy to device distance")
-        ax[-1].set_ylabel("proxy gap (mm)")
-        twin = ax[-1].twinx()
+        ax[proxy_row].plot(t, gap * 1e3, lw=0.9, color="tab:green", label="proxy to device distance")
+        ax[proxy_row].set_ylabel("proxy gap (mm)")
+        twin = ax[proxy_row].twinx()
         twin.plot(t, data["constraints"], lw=0.6, color="tab:gray", alpha=0.6, label="constraint planes")
         twin.set_ylim(-0.2, 3.5)
         twin.set_ylabel("constraints")
-        ax[-1].legend(loc="upper left", fontsize=8)
+        ax[proxy_row].legend(loc="upper left", fontsize=8)
+    if has_energy:
+        # Passivity observer (Hannaford & Ryu 2002): energy into the scene since the last release
+        # (< 0: the scene gave back more than it took), and the controller's damping.
+        e = ax[energy_row]
+        e.plot(t, data["energy_j"] * 1e3, lw=0.9, color="tab:blue", label="observed energy E")
+        e.axhline(0, color="black", lw=0.6)
+        e.set_ylabel("energy (mJ)")
+        twin = e.twinx()
+        twin.plot(t, data["pc_damping"], lw=0.6, color="tab:red", alpha=0.7, label="controller damping")
+        twin.set_ylabel("damping (N s/m)")
+        pc = summary.get("passivity", summary.get("runtime", {}))
+        ticks = pc.get("ticks", pc.get("passivity_ticks", 0))
+        e.set_title(f"passivity controller acted on {ticks} ticks", fontsize=9, loc="right")
     q = summary.get("query_us", {})
     ax[3].set_title(f"p50 {q.get('p50', 0):.1f} us, p99 {q.get('p99', 0):.1f} us, "
                     f"max {q.get('max', 0):.1f} us", fontsize=9, loc="right")
