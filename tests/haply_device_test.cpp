@@ -64,6 +64,29 @@ TEST(HaplyDevice, PositionsInForcesOutInMetresAndNewtons) {
   EXPECT_EQ(service.bad_commands(), 0);
 }
 
+TEST(HaplyDevice, StartStopStartStopEndsEverySessionAtZeroForce) {
+  test::FakeInverseService service;
+  HaplyParams p = params_for(service);
+  p.command_timeout = 0.02;
+  HaplyDevice dev(p);
+  for (int session = 0; session < 2; ++session) {
+    dev.start(0);
+    Wrench w;
+    w.force = {0, 0, 1.0 + session};
+    ASSERT_TRUE(eventually([&] {
+      dev.write(w, 0);
+      return service.last_force().z() > 0.5 + session;
+    })) << "session " << session;
+    // The link's counters start afresh each session: let this one go stale once.
+    ASSERT_TRUE(eventually([&] { return dev.stats().stale_commands > 0; })) << "session " << session;
+    dev.stop(0);
+    EXPECT_EQ(service.last_force(), Eigen::Vector3d::Zero()) << "session " << session;
+  }
+  // Every connection opened with a zero force (nothing replayed from the previous session).
+  for (const Eigen::Vector3d& f : service.first_forces()) EXPECT_EQ(f, Eigen::Vector3d::Zero());
+  EXPECT_GE(service.first_forces().size(), 2u);
+}
+
 TEST(HaplyDevice, StaleCommandIsSentAsZero) {
   test::FakeInverseService service;
   HaplyParams p = params_for(service);

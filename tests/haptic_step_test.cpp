@@ -19,6 +19,7 @@
 #include "gshaptics/servo/simulated_runtime.h"
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/sim/probe_trajectory.h"
+#include "support/floor_renderer.h"
 #include "support/scenes.h"
 
 namespace gshaptics {
@@ -144,24 +145,6 @@ TEST(StepEquivalenceFidelity, PressScriptAndItsReplayAgree) {
   }
 }
 
-/// A renderer whose force is the tool centre's depth below z = 0 times 10 N/m: the latency
-/// of the force it returns is visible tick by tick.
-class SpringFloor final : public ForceRenderer {
- public:
-  std::string_view name() const noexcept override { return "spring floor"; }
-  RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d&, double) noexcept override {
-    RenderOutput o;
-    o.force = Eigen::Vector3d(0, 0, std::max(0.0, -tool.center.z()) * 10.0);
-    o.counts.contacts = o.force.z() > 0 ? 1 : 0;
-    o.proxy = tool.center;
-    ++calls;
-    return o;
-  }
-  std::span<const Contact> contacts() const noexcept override { return {}; }
-  void reset() noexcept override {}
-  int calls = 0;
-};
-
 // The decoupled mode on simulated time renders the result of the pose latency_ticks ago; the
 // inline mode the pose of this tick. A caller's own renderer drives the run.
 TEST(SimulatedRuntime, DecoupledWorkerLatencyIsExactInTicks) {
@@ -176,8 +159,8 @@ TEST(SimulatedRuntime, DecoupledWorkerLatencyIsExactInTicks) {
     c.duration = 0.9;
     c.safety.ramp_time = 0;
     c.safety.max_force_rate = 1e9;
-    auto floor = std::make_unique<SpringFloor>();
-    SpringFloor* raw = floor.get();
+    auto floor = std::make_unique<test::FloorRenderer>(10.0);
+    test::FloorRenderer* raw = floor.get();
     SimulatedRuntime sim(replay, c, std::move(floor));
     sim.run();
     EXPECT_GT(raw->calls, 800);
@@ -198,7 +181,7 @@ TEST(SimulatedRuntime, RejectsBadLatencyAndAMissingRenderer) {
   ReplayDevice replay(log);
   RuntimeConfig c;
   c.latency_ticks = 0;
-  EXPECT_THROW(SimulatedRuntime(replay, c, std::make_unique<SpringFloor>()), InputError);
+  EXPECT_THROW(SimulatedRuntime(replay, c, std::make_unique<test::FloorRenderer>(10.0)), InputError);
   c.latency_ticks = 1;
   EXPECT_THROW(SimulatedRuntime(replay, c, nullptr), InputError);
 }

@@ -12,6 +12,7 @@
 
 #include "gshaptics/device/replay_device.h"
 #include "gshaptics/servo/simulated_runtime.h"
+#include "support/floor_renderer.h"
 
 namespace gshaptics {
 namespace {
@@ -119,21 +120,7 @@ TEST(PassivityController, ZeroForceDropsStoredEnergyButKeepsADeficit) {
   EXPECT_EQ(pc.energy(), 0.0);
 }
 
-/// A stiff floor at z = 0 (3000 N/m), the force of the pose it was given.
-class StiffFloor final : public ForceRenderer {
- public:
-  std::string_view name() const noexcept override { return "stiff floor"; }
-  RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d&, double) noexcept override {
-    RenderOutput o;
-    o.force = Eigen::Vector3d(0, 0, std::max(0.0, -tool.center.z()) * 3000.0);
-    o.counts.contacts = o.force.z() > 0 ? 1 : 0;
-    o.proxy = tool.center;
-    return o;
-  }
-  std::span<const Contact> contacts() const noexcept override { return {}; }
-  void reset() noexcept override {}
-};
-
+// A stiff floor at z = 0 (3000 N/m, support/floor_renderer.h) in the servo step.
 TEST(PassivityController, InTheServoStepADelayedWallStopsGivingEnergyBack) {
   // Ten presses 4 mm into the floor at 2 Hz, the worker's result two ticks late.
   PoseLog log;
@@ -158,7 +145,7 @@ TEST(PassivityController, InTheServoStepADelayedWallStopsGivingEnergyBack) {
     c.safety.max_force_rate = 1e9;
     c.safety.passivity.enabled = mode > 0;
     if (mode == 2) c.safety.passivity.max_damping = 1e4;
-    SimulatedRuntime sim(replay, c, std::make_unique<StiffFloor>());
+    SimulatedRuntime sim(replay, c, std::make_unique<test::FloorRenderer>(3000.0));
     sim.run();
     const auto& rec = sim.log().records();
     ASSERT_GT(rec.size(), 4800u);
