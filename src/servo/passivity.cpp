@@ -5,6 +5,27 @@
 
 namespace gshaptics {
 
+PassivityController::PassivityController(const PassivityParams& params)
+    : params_(params), forces_(std::size_t(std::max(0, params.max_delay_ticks)) + 1, Eigen::Vector3d::Zero()) {}
+
+void PassivityController::reset(int delay_ticks) noexcept {
+  energy_ = 0;
+  have_position_ = false;
+  delay_ = std::clamp(delay_ticks, 0, int(forces_.size()) - 1);
+  for (auto& f : forces_) f.setZero();
+  newest_ = 0;
+}
+
+const Eigen::Vector3d& PassivityController::force_sent(int age) const noexcept {
+  const std::size_t n = forces_.size();
+  return forces_[(newest_ + n - std::size_t(age) % n) % n];
+}
+
+void PassivityController::sent(const Eigen::Vector3d& force) noexcept {
+  newest_ = (newest_ + 1) % forces_.size();
+  forces_[newest_] = force;
+}
+
 PassivityStep PassivityController::correct(const Eigen::Vector3d& force, const Eigen::Vector3d& velocity,
                                            double dt) const noexcept {
   PassivityStep out;
@@ -13,7 +34,10 @@ PassivityStep PassivityController::correct(const Eigen::Vector3d& force, const E
   if (!params_.enabled || !(dt > 0) || force.isZero(0)) return out;
   const double v2 = velocity.squaredNorm();
   const double fv = force.dot(velocity);
-  const double e = energy_ - fv * dt;  // with this tick's force as it is
+  // With this tick's force as it is, and the forces still in flight to the device (sent, not yet
+  // paired with the motion they cause), each over one tick at this velocity.
+  double e = energy_ - fv * dt;
+  for (int age = 0; age < delay_; ++age) e -= force_sent(age).dot(velocity) * dt;
   if (!(e < 0) || !(v2 > params_.min_speed * params_.min_speed) || !std::isfinite(v2)) return out;
   double alpha = std::min(-e / (v2 * dt), params_.max_damping);
   // Never pull: while the force pushes along the motion (unloading) the damping may cancel that
@@ -25,9 +49,11 @@ PassivityStep PassivityController::correct(const Eigen::Vector3d& force, const E
 }
 
 void PassivityController::account(const Eigen::Vector3d& position) noexcept {
-  if (have_position_ && last_force_.allFinite()) {
-    energy_ -= last_force_.dot(position - last_position_);
-    if (last_force_.isZero(0) && energy_ > 0) energy_ = 0;  // the environment held nothing
+  // The force acting at the device while it moved from the last read to this one.
+  const Eigen::Vector3d& held = force_sent(delay_);
+  if (have_position_ && held.allFinite()) {
+    energy_ -= held.dot(position - last_position_);
+    if (held.isZero(0) && energy_ > 0) energy_ = 0;  // the environment held nothing
   }
   last_position_ = position;
   have_position_ = true;

@@ -1,5 +1,6 @@
 #include "gshaptics/servo/servo_controller.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -45,7 +46,10 @@ void ServoController::start(Nanos now) {
   prev_now_ = now;
   last_device_data_ = now;
   safety_.reset(now);
-  passivity_.reset();
+  // Forces reach the device and its motion comes back a round trip later (0 ticks on a local device).
+  const double delay_ticks = std::isfinite(info.transport_delay) && info.transport_delay > 0
+                                 ? std::round(info.transport_delay / to_seconds(period_)) : 0.0;
+  passivity_.reset(int(std::min(delay_ticks, 1e6)));
   stats_.start_ns.store(now, std::memory_order_relaxed);
 }
 

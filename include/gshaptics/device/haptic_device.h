@@ -72,6 +72,10 @@ struct DeviceInfo {
   /// Where max_force and max_continuous_force come from (e.g. "HD_NOMINAL_MAX_FORCE"), for the
   /// run summary; empty: no limit of its own.
   std::string limit_source;
+  /// Round trip between the runtime and the device's amplifier, s: the age of a position read plus
+  /// the time a written force takes to act (a network link, a device-side loop). 0: none known.
+  /// The passivity observer pairs each force with the motion it acted on this much later.
+  double transport_delay = 0;
   /// The device renders torque (6-DoF output). When false the runtime sends force only.
   bool renders_torque = false;
   Calibration calibration = Calibration::kNotApplicable;

@@ -27,9 +27,22 @@
 /// kept: a long passive contact cannot mask an active one later (the observer's drift that
 /// Hannaford & Ryu discuss), and a deficit left at release is paid back at the next contact.
 ///
-/// Threading: one servo thread; every call is allocation-free and noexcept.
+/// Transport delay (a network link, a device-side loop): a force sent at tick k acts at the device
+/// d_down later, and the position read at tick j was measured d_up earlier. With the round trip
+/// n = (d_up + d_down) / T ticks known (DeviceInfo::transport_delay), the observer pairs each
+/// displacement it reads with the force that was acting at the device while it happened, the one
+/// sent n ticks before the previous read: the energy at the device's port, exactly, known n ticks
+/// late. The controller then predicts over the forces still in flight as well (the energy they will
+/// take at the current velocity). This is the one-port form of the time-delay power network of
+/// Artigas, Ryu and Preusche 2010 ("Time domain passivity control for position-position
+/// teleoperation architectures", Presence 19(5)); without it an observer on the renderer's side
+/// of a delay pairs each force with the wrong motion and calls an oscillating wall passive.
+///
+/// Threading: one servo thread; every call is allocation-free and noexcept (the force history is
+/// reserved by the constructor).
 
 #include <Eigen/Core>
+#include <vector>
 
 namespace gshaptics {
 
@@ -38,6 +51,8 @@ struct PassivityParams {
   bool enabled = true;       ///< observe and control (false: observe only)
   double max_damping = 20;   ///< cap on the controller's damping, N s/m (>= 0)
   double min_speed = 1e-4;   ///< below this device speed the controller does not act, m/s
+  /// Longest round trip the observer can pair across, ticks (sizes its force history).
+  int max_delay_ticks = 1000;
 };
 
 /// The controller's decision for one tick.
@@ -48,13 +63,12 @@ struct PassivityStep {
 
 class PassivityController {
  public:
-  explicit PassivityController(const PassivityParams& params = {}) noexcept : params_(params) {}
-  /// Forget the energy and the last tick (at the start of a run).
-  void reset() noexcept {
-    energy_ = 0;
-    have_position_ = false;
-    last_force_.setZero();
-  }
+  /// Reserves the force history (params.max_delay_ticks + 1 forces).
+  explicit PassivityController(const PassivityParams& params = {});
+  /// Forget the energy and the last tick (at the start of a run); `delay_ticks`: the round trip
+  /// between sending a force and reading the motion it caused, ticks (clamped to
+  /// [0, max_delay_ticks]; 0: the device applies each force before the next read).
+  void reset(int delay_ticks = 0) noexcept;
   /// At the start of a tick: the observer accounts the interval that just ended, the last force
   /// sent times the device's displacement to `position` (m). Call only with a finite position.
   void account(const Eigen::Vector3d& position) noexcept;
@@ -62,17 +76,24 @@ class PassivityController {
   /// the coming tick of `dt` s at `velocity` (m/s) from going negative. Unchanged when disabled.
   [[nodiscard]] PassivityStep correct(const Eigen::Vector3d& force, const Eigen::Vector3d& velocity,
                                       double dt) const noexcept;
-  /// After the safety layer: the force actually sent this tick (held until the next account()).
-  void sent(const Eigen::Vector3d& force) noexcept { last_force_ = force; }
+  /// After the safety layer: the force actually sent this tick (held at the device until the next
+  /// one arrives there).
+  void sent(const Eigen::Vector3d& force) noexcept;
   /// The observed energy, J (< 0: the environment has been active).
   [[nodiscard]] double energy() const noexcept { return energy_; }
   [[nodiscard]] const PassivityParams& params() const noexcept { return params_; }
+  [[nodiscard]] int delay_ticks() const noexcept { return delay_; }
 
  private:
+  // The force sent `age` ticks ago (0: the newest).
+  [[nodiscard]] const Eigen::Vector3d& force_sent(int age) const noexcept;
   PassivityParams params_;
   double energy_ = 0;
   bool have_position_ = false;
-  Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero(), last_force_ = Eigen::Vector3d::Zero();
+  int delay_ = 0;
+  Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> forces_;  // ring of the last delay_ + 1 forces sent
+  std::size_t newest_ = 0;
 };
 
 }  // namespace gshaptics

@@ -1,0 +1,202 @@
+// The simulated impedance device (sim/impedance_device.h) and the stability trials
+// (fidelity/stability.h): the model's physics, its validation against the sampled-wall limit
+// (Colgate and Schenkel 1997: b > K T / 2 + |B|), and the passivity controller on a wall above it.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+
+#include "gshaptics/error.h"
+#include "gshaptics/fidelity/stability.h"
+#include "gshaptics/sim/impedance_device.h"
+#include "support/floor_renderer.h"
+
+namespace gshaptics {
+namespace {
+
+// A device alone (no runtime): constant force, read at 1 kHz.
+ImpedanceDeviceParams free_device() {
+  ImpedanceDeviceParams p;
+  p.mass = 0.2;
+  p.damping = 2.0;
+  return p;
+}
+
+TEST(ImpedanceDevice, ConstantForceReachesTerminalVelocityAndDoesWork) {
+  ImpedanceDevice d(free_device());
+  d.start(0);
+  Wrench w;
+  w.force = Eigen::Vector3d(1.0, 0, 0);
+  d.write(w, 0);
+  const Nanos tick = 1'000'000;
+  DeviceSample s;
+  for (int k = 1; k <= 2000; ++k) s = d.read(k * tick);  // 2 s = 20 time constants m/b
+  EXPECT_NEAR(d.velocity().x(), 0.5, 1e-3);              // F / b
+  EXPECT_NEAR(s.velocity.x(), 0.5, 1e-3);                // backward difference of positions
+  // x(t) = v_inf (t - tau (1 - e^(-t/tau))), tau = m / b = 0.1 s.
+  const double tau = 0.1, t = 2.0;
+  EXPECT_NEAR(d.position().x(), 0.5 * (t - tau * (1 - std::exp(-t / tau))), 1e-4);
+  EXPECT_NEAR(d.work_by_force(), d.position().x() * 1.0, 1e-9);
+}
+
+TEST(ImpedanceDevice, DelaysQuantisationAndLimit) {
+  ImpedanceDeviceParams p = free_device();
+  p.delay_down = 0.005;
+  p.delay_up = 0.003;
+  p.encoder_resolution = 1e-4;
+  p.force_resolution = 0.25;
+  p.max_force = 2.0;
+  ImpedanceDevice d(p);
+  d.start(0);
+  Wrench w;
+  w.force = Eigen::Vector3d(0, 0, 1.1);  // rounds to 1.0 N
+  d.write(w, 0);
+  const Nanos ms = 1'000'000;
+  (void)d.read(4 * ms);
+  EXPECT_EQ(d.applied_force().z(), 0.0);  // still in flight
+  (void)d.read(6 * ms);
+  EXPECT_DOUBLE_EQ(d.applied_force().z(), 1.0);
+  // The position read is 3 ms old and on the encoder's grid.
+  for (int k = 7; k <= 300; ++k) (void)d.read(k * ms);
+  const DeviceSample s = d.read(301 * ms);
+  const double counts = s.position.z() / 1e-4;
+  EXPECT_NEAR(counts, std::round(counts), 1e-9);
+  EXPECT_LT(s.position.z(), d.position().z());
+  EXPECT_GT(d.position().z() - s.position.z(), 0.003 * d.velocity().z() - 1e-4 - 1e-6);
+  // The output limit binds (12 N asked, 2 N given), after the delay.
+  w.force = Eigen::Vector3d(12, 0, 0);
+  d.write(w, 301 * ms);
+  (void)d.read(307 * ms);
+  EXPECT_NEAR(d.applied_force().norm(), 2.0, 1e-12);
+  d.stop(308 * ms);
+  EXPECT_EQ(d.applied_force().norm(), 0.0);
+  ImpedanceDeviceParams bad = free_device();
+  bad.mass = 0;
+  EXPECT_THROW(ImpedanceDevice{bad}, InputError);
+}
+
+// A wall trial on the plain spring floor (no virtual damping, B = 0), with the passivity
+// controller off: the sampled wall alone against the device's damping.
+RuntimeConfig wall_config(double rate_hz, bool passivity) {
+  RuntimeConfig c;
+  c.rate_hz = rate_hz;
+  c.inline_query = true;
+  c.safety.f_max = 1000;
+  c.safety.max_force_rate = 1e9;
+  c.safety.ramp_time = 0;
+  c.safety.passivity.enabled = passivity;
+  return c;
+}
+
+ImpedanceDeviceParams wall_device(double delay_each_way, double hand_damping) {
+  ImpedanceDeviceParams p;
+  p.mass = 0.2;
+  p.damping = 2.0;
+  p.delay_up = p.delay_down = delay_each_way;
+  p.hand.damping = hand_damping;
+  p.hand.push = Eigen::Vector3d(0, 0, -5.0);
+  p.initial_position = Eigen::Vector3d(0, 0, 0.0005);
+  return p;
+}
+
+bool stable_at(double k, double rate_hz, double delay_each_way, double hand_damping) {
+  ImpedanceDevice device(wall_device(delay_each_way, hand_damping));
+  return run_wall_trial(device, std::make_unique<test::FloorRenderer>(k), wall_config(rate_hz, false)).stable;
+}
+
+// Largest stable stiffness by bisection in log space between predicted / 4 and predicted * 4.
+double limit_stiffness(double predicted, const std::function<bool(double)>& stable) {
+  double lo = predicted / 4, hi = predicted * 4;
+  EXPECT_TRUE(stable(lo)) << "not stable at " << lo << " N/m";
+  EXPECT_FALSE(stable(hi)) << "stable at " << hi << " N/m";
+  for (int i = 0; i < 12; ++i) {
+    const double mid = std::sqrt(lo * hi);
+    (stable(mid) ? lo : hi) = mid;
+  }
+  return std::sqrt(lo * hi);
+}
+
+struct LimitCase {
+  double rate_hz, delay_each_way, hand_damping;
+};
+
+class SampledWallLimit : public ::testing::TestWithParam<LimitCase> {};
+
+// b_total > K (T/2 + d): K_max = b_total / (T/2 + d), d the round-trip transport delay.
+TEST_P(SampledWallLimit, MatchesColgateSchenkelWithin20Percent) {
+  const LimitCase c = GetParam();
+  const double T = 1.0 / c.rate_hz, b = 2.0 + c.hand_damping;
+  const double predicted = b / (T / 2 + 2 * c.delay_each_way);
+  const double measured = limit_stiffness(
+      predicted, [&](double k) { return stable_at(k, c.rate_hz, c.delay_each_way, c.hand_damping); });
+  EXPECT_NEAR(measured / predicted, 1.0, 0.2) << "measured " << measured << " N/m, predicted " << predicted;
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, SampledWallLimit,
+                         ::testing::Values(LimitCase{1000, 0, 0}, LimitCase{2000, 0, 0}, LimitCase{1000, 0, 1.0},
+                                           LimitCase{1000, 0.001, 0}));
+
+// Above the limit with a 5 ms round trip (2.5 ms each way; limit 364 N/m, wall 1000 N/m): the
+// oscillation grows without the controller; with it (the observer pairing each force with the
+// motion a round trip later) the contact settles, within the damping cap.
+TEST(PassivityOnDelayedWall, OscillationGrowsWithoutAndDecaysWith) {
+  const double k = 1000;
+  ImpedanceDevice off_device(wall_device(0.0025, 0));
+  const WallTrialResult off =
+      run_wall_trial(off_device, std::make_unique<test::FloorRenderer>(k), wall_config(1000, false));
+  EXPECT_FALSE(off.stable);
+  EXPECT_GT(off.last_amplitude, off.first_amplitude);
+  EXPECT_GT(off.last_amplitude, 0.005);   // bouncing off the wall, centimetres
+  EXPECT_LT(off.min_energy, -1.0);        // joules generated by the delayed wall
+  ImpedanceDevice on_device(wall_device(0.0025, 0));
+  const RuntimeConfig on_config = wall_config(1000, true);
+  const WallTrialResult on = run_wall_trial(on_device, std::make_unique<test::FloorRenderer>(k), on_config);
+  EXPECT_TRUE(on.stable);
+  EXPECT_LT(on.last_amplitude, 0.2 * on.first_amplitude);
+  EXPECT_GT(on.min_energy, -0.01);
+  EXPECT_GT(on.passivity_ticks, 100u);
+  EXPECT_LE(on.peak_damping, on_config.safety.passivity.max_damping);
+  EXPECT_NEAR(on.mean_depth, 5.0 / k, 2e-4);  // holds the hand's 5 N on the wall's spring
+  // The round trip is what makes it work: told there is no delay, the observer pairs each force
+  // with the wrong motion, sees a passive wall and the oscillation grows as without it.
+  ImpedanceDeviceParams hidden = wall_device(0.0025, 0);
+  struct DelayUnknown final : HapticDevice {
+    explicit DelayUnknown(const ImpedanceDeviceParams& p) : inner(p), info_(inner.info()) { info_.transport_delay = 0; }
+    const DeviceInfo& info() const noexcept override { return info_; }
+    void start(Nanos now) override { inner.start(now); }
+    DeviceSample read(Nanos now) noexcept override { return inner.read(now); }
+    void write(const Wrench& w, Nanos now) noexcept override { inner.write(w, now); }
+    void stop(Nanos now) noexcept override { inner.stop(now); }
+    ImpedanceDevice inner;
+    DeviceInfo info_;
+  } unknown(hidden);
+  const WallTrialResult blind = run_wall_trial(unknown, std::make_unique<test::FloorRenderer>(k), on_config);
+  EXPECT_FALSE(blind.stable);
+  EXPECT_GT(blind.last_amplitude, 0.005);
+}
+
+TEST(WallTrace, JudgesDecayGrowthRestAndLimitCycle) {
+  const WallTrialOptions o;
+  auto trace = [&](const std::function<double(double)>& z) {
+    std::vector<double> t, h;
+    for (int i = 0; i < 3000; ++i) {
+      t.push_back(i * 1e-3);
+      h.push_back(z(i * 1e-3));
+    }
+    WallTrialResult r;
+    judge_wall_trace(t, h, o, r);
+    return r;
+  };
+  const double w = 2 * M_PI * 20;
+  const WallTrialResult decaying = trace([&](double t) { return -0.001 + 1e-3 * std::exp(-t) * std::sin(w * t); });
+  EXPECT_TRUE(decaying.stable);
+  EXPECT_NEAR(decaying.growth, std::exp(-2.25), 0.01);  // windows 0.5-0.75 s and 2.75-3.0 s
+  EXPECT_NEAR(decaying.mean_depth, 0.001, 1e-4);
+  EXPECT_FALSE(trace([&](double t) { return 1e-4 * std::exp(t) * std::sin(w * t); }).stable);
+  EXPECT_FALSE(trace([&](double t) { return 0.01 * std::abs(std::sin(w * t)); }).stable);  // bouncing
+  EXPECT_TRUE(trace([&](double) { return -0.002; }).stable);                              // at rest
+}
+
+}  // namespace
+}  // namespace gshaptics
