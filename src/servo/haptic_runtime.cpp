@@ -38,6 +38,14 @@ Nanos validate_runtime_config(const RuntimeConfig& config, const DeviceInfo& inf
   if (!(config.duration >= 0) || !std::isfinite(config.duration)) throw InputError("runtime: duration must be >= 0 s");
   if (config.latency_ticks < 1) throw InputError("runtime: latency_ticks must be >= 1");
   if (!(config.safety.continuous_window > 0)) throw InputError("runtime: the continuous-force window must be > 0 s");
+  if (config.control.mode == ControlMode::kAdmittance) {
+    if (!info.admittance)
+      throw InputError("runtime: admittance control needs an admittance-type device (one that measures the "
+                       "user's force and takes position setpoints); '" + info.name + "' is impedance-type");
+    const AdmittanceParams& a = config.control.admittance;
+    if (!(a.mass > 0) || !std::isfinite(a.mass) || !(a.damping >= 0) || !std::isfinite(a.damping))
+      throw InputError("runtime: the virtual tool's mass must be > 0 kg and its damping >= 0 N s/m");
+  }
   const Nanos period = to_nanos(1.0 / config.rate_hz);
   if (period <= 0) throw InputError("runtime: rate too high");
   return period;
@@ -69,7 +77,7 @@ HapticRuntime::HapticRuntime(HapticDevice& device, const RuntimeConfig& config,
     worker_->renderer().set_executor(query_pool_.get(), config.parallel_min_candidates);
   }
   servo_ = std::make_unique<ServoController>(device, config.safety, period_, poses_, results_,
-                                             stats_, &log_, clock, &monitor_);
+                                             stats_, &log_, clock, &monitor_, config.control);
 }
 
 HapticRuntime::~HapticRuntime() {

@@ -22,9 +22,11 @@ void bump(std::atomic<std::uint64_t>& a, bool cond) noexcept {
 
 ServoController::ServoController(HapticDevice& device, const SafetyParams& safety, Nanos period,
                                  PoseChannel& poses, ResultChannel& results, RuntimeStats& stats,
-                                 TickLog* log, Clock& clock, TripleBuffer<TickRecord>* monitor)
+                                 TickLog* log, Clock& clock, TripleBuffer<TickRecord>* monitor,
+                                 const ControlParams& control)
     : device_(device), safety_(safety), period_(period), poses_(poses), results_(results),
-      stats_(stats), log_(log), clock_(clock), monitor_(monitor), passivity_(safety.passivity) {}
+      stats_(stats), log_(log), clock_(clock), monitor_(monitor), passivity_(safety.passivity),
+      control_(control), admittance_(control.admittance) {}
 
 void ServoController::start(Nanos now) {
   device_.start(now);
@@ -42,6 +44,7 @@ void ServoController::start(Nanos now) {
   stats_.force_limit.store(lim.f_max, std::memory_order_relaxed);
   stats_.continuous_force_limit.store(lim.continuous, std::memory_order_relaxed);
   stats_.force_limit_by_device.store(lim.bound_by_device, std::memory_order_relaxed);
+  virtual_tool_ready_ = false;
   t0_ = now;
   prev_now_ = now;
   last_device_data_ = now;
@@ -78,14 +81,29 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
     device_flags |= kFlagOutsideWorkspace;
   }
 
+  // The tool the force model sees: the device's, or in admittance control the virtual tool (which
+  // starts at the device and restarts there after any gate failure).
+  const bool admittance = control_.mode == ControlMode::kAdmittance;
+  Eigen::Vector3d tool_position = s.position, tool_velocity = s.velocity;
+  if (admittance) {
+    if (device_flags != 0) {
+      virtual_tool_ready_ = false;
+    } else {
+      if (!virtual_tool_ready_) admittance_.reset(s.position);
+      virtual_tool_ready_ = true;
+      tool_position = admittance_.setpoint().position;
+      tool_velocity = admittance_.setpoint().velocity;
+    }
+  }
+
   // Publish the pose (never a non-finite one) to the collision side.
   if (finite && (device_flags & kFlagWatchdog) == 0) {
     PoseCommand p;
     p.sequence = ++pose_seq_;
     p.stamp = now;
-    p.position = s.position;
+    p.position = tool_position;
     p.orientation = s.orientation.normalized();
-    p.velocity = s.velocity;
+    p.velocity = tool_velocity;
     poses_.write(p);
   }
   if (inline_worker != nullptr) inline_worker->step(poses_, results_);
@@ -95,10 +113,10 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   const bool fresh = results_.read_if_new(result_);
 
   // The passivity controller (Hannaford & Ryu 2002) ahead of the safety layer's limits.
-  if (finite) passivity_.account(s.position);
+  if (finite) passivity_.account(tool_position);
   PassivityStep pc;
   pc.force = result_.force;
-  if (device_flags == 0) pc = passivity_.correct(result_.force, s.velocity, dt);
+  if (device_flags == 0) pc = passivity_.correct(result_.force, tool_velocity, dt);
 
   SafetyInput in;
   in.now = now;
@@ -112,6 +130,9 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   const SafetyOutput out = safety_.apply(in, dt);
   passivity_.sent(out.force);
 
+  // Admittance control: the user's force and the rendered force move the virtual tool; the device
+  // is commanded to be where it is.
+  if (admittance && virtual_tool_ready_) device_.write_setpoint(admittance_.step(s.user_force, out.force, dt), now);
   Wrench w;
   w.force = out.force;
   device_.write(w, now);

@@ -21,7 +21,7 @@ SimulatedRuntime::SimulatedRuntime(HapticDevice& device, const RuntimeConfig& co
   log_ = TickLog(runtime_log_capacity(config));
   worker_ = std::make_unique<CollisionWorker>(config.tool, std::move(renderer), 1.0 / config.rate_hz, clock_);
   servo_ = std::make_unique<ServoController>(device, config.safety, period_, poses_, results_,
-                                             stats_, &log_, clock_);
+                                             stats_, &log_, clock_, nullptr, config.control);
   const std::size_t slots = std::size_t(config.latency_ticks) + 1;
   in_flight_.assign(slots, CollisionResult{});
 }

@@ -43,6 +43,13 @@ struct Wrench {
   Eigen::Vector3d torque = Eigen::Vector3d::Zero();  ///< N m (zero: the paper renders force only)
 };
 
+/// What an admittance-type device is commanded: where its tool centre point should be, world
+/// frame. The device's own position servo tracks it.
+struct Setpoint {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< m
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  ///< m/s (feed-forward)
+};
+
 /// Whether a device's position sensing is calibrated (vendor libraries report it; simulated and
 /// networked devices have nothing to calibrate).
 enum class Calibration : std::uint8_t {
@@ -76,6 +83,10 @@ struct DeviceInfo {
   /// the time a written force takes to act (a network link, a device-side loop). 0: none known.
   /// The passivity observer pairs each force with the motion it acted on this much later.
   double transport_delay = 0;
+  /// Admittance-type: the device measures the user's force (DeviceSample::user_force) and takes
+  /// position setpoints (HapticDevice::write_setpoint), like the paper's HapticGiant. Such a device
+  /// can be driven with RuntimeConfig::control = kAdmittance.
+  bool admittance = false;
   /// The device renders torque (6-DoF output). When false the runtime sends force only.
   bool renders_torque = false;
   Calibration calibration = Calibration::kNotApplicable;
@@ -99,8 +110,17 @@ class HapticDevice {
   /// The newest data at time `now`. A device with nothing new returns its previous sample
   /// (same sequence). Never blocks.
   [[nodiscard]] virtual DeviceSample read(Nanos now) noexcept = 0;
-  /// Commands a wrench, applied until the next write.
+  /// Commands a wrench, applied until the next write. In admittance control the runtime still
+  /// writes the environment's force on the virtual tool (for display and feed-forward); an
+  /// admittance-type device may ignore it.
   virtual void write(const Wrench& wrench, Nanos now) noexcept = 0;
+  /// Admittance control: the position the device should be at, held until the next call. Called
+  /// before write() on every tick the device is driven in admittance control. Impedance-type
+  /// devices ignore it (the default).
+  virtual void write_setpoint(const Setpoint& setpoint, Nanos now) noexcept {
+    (void)setpoint;
+    (void)now;
+  }
   /// Called once on the servo thread after the last tick, after a zero wrench was written.
   virtual void stop(Nanos now) noexcept = 0;
   /// True when the device has nothing more to give (a replay at its end); the runtime then stops.

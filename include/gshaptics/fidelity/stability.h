@@ -3,7 +3,7 @@
 /// Stability trials: a simulated device held against a wall through the full servo step
 /// (SimulatedRuntime: the same safety layer, passivity controller and execution mode as a live
 /// run), and whether the contact settles or oscillates. `gshaptics stability` sweeps them; the
-/// device-model validation (tests/impedance_device_test.cpp) bisects them for the limit stiffness.
+/// device-model validation (tests/stability_test.cpp) bisects them for the limit stiffness.
 ///
 /// A trial: the device starts `start_gap` above the wall (the plane z = 0 of the world, normal +z)
 /// with the hand pushing it down (HandImpedance::push), and runs for `duration`. The tool's

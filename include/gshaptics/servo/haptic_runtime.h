@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "gshaptics/force/renderer_spec.h"
+#include "gshaptics/servo/admittance.h"
 #include "gshaptics/servo/collision_worker.h"
 #include "gshaptics/device/haptic_device.h"
 #include "gshaptics/servo/query_pool.h"
@@ -69,6 +70,9 @@ struct RuntimeConfig {
   /// Queries with fewer candidates stay on one thread (waking workers costs microseconds).
   std::size_t parallel_min_candidates = 2048;
   SafetyParams safety;
+  /// Impedance (command force; every device) or admittance control (command the virtual tool's
+  /// position; DeviceInfo::admittance devices only). servo/admittance.h.
+  ControlParams control;
   RealtimeOptions realtime;
   /// Ticks kept in the per-tick log (reserved up front). 0: duration * rate + 1 s worth when a
   /// duration is set, else 10 minutes' worth.
@@ -76,7 +80,8 @@ struct RuntimeConfig {
 };
 
 /// Checks `config` against `device` (rate within its limit, tool axes > 0, duration >= 0,
-/// latency_ticks >= 1) and returns the servo period, ns. Throws InputError naming the setting.
+/// latency_ticks >= 1, admittance control only on an admittance-type device with a virtual
+/// tool of positive mass) and returns the servo period, ns. Throws InputError naming the setting.
 /// HapticRuntime and SimulatedRuntime both call it.
 Nanos validate_runtime_config(const RuntimeConfig& config, const DeviceInfo& device);
 

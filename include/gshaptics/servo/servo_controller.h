@@ -2,7 +2,8 @@
 /// @file
 /// One servo tick (paper Sec. IV-V, docs/design.md Sec. 6): read the device, publish its pose to the
 /// collision worker, take the newest collision result, pass it through the safety layer and
-/// command the wrench. No threads here: HapticRuntime calls tick() from its servo thread, and
+/// command the wrench. In admittance control the pose published is the virtual tool's, which the
+/// user's force and the rendered force move, and the device is commanded its position. No threads here: HapticRuntime calls tick() from its servo thread, and
 /// tests call it with a ManualClock to check hold, fade, ramp, limits and the watchdog exactly.
 ///
 /// Threading: a ServoController belongs to the servo thread. tick() never allocates, locks,
@@ -12,6 +13,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "gshaptics/servo/admittance.h"
 #include "gshaptics/servo/collision_worker.h"
 #include "gshaptics/device/haptic_device.h"
 #include "gshaptics/servo/runtime_stats.h"
@@ -24,9 +26,11 @@ class ServoController {
  public:
   /// `safety.f_max` is the configured force limit, N. `period` is the servo period, ns (> 0). `log` may be null. When `monitor` is given, every
   /// tick's record is also written to it (for a display thread, which is its single reader).
+  /// `control`: impedance (command force) or admittance (command the virtual tool's position to
+  /// a DeviceInfo::admittance device; servo/admittance.h).
   ServoController(HapticDevice& device, const SafetyParams& safety, Nanos period,
                   PoseChannel& poses, ResultChannel& results, RuntimeStats& stats, TickLog* log,
-                  Clock& clock, TripleBuffer<TickRecord>* monitor = nullptr);
+                  Clock& clock, TripleBuffer<TickRecord>* monitor = nullptr, const ControlParams& control = {});
 
   /// Starts the device, applies its own force limits to the safety layer (the limit becomes
   /// min(safety.f_max, DeviceInfo::max_force); the continuous limit DeviceInfo::max_continuous_force),
@@ -51,6 +55,8 @@ class ServoController {
   /// The passivity observer and controller (energy so far).
   [[nodiscard]] const PassivityController& passivity() const noexcept { return passivity_; }
   [[nodiscard]] Nanos start_time() const noexcept { return t0_; }
+  /// Admittance control: the virtual tool (its position is what the force model sees).
+  [[nodiscard]] const AdmittanceController& admittance() const noexcept { return admittance_; }
 
  private:
   HapticDevice& device_;
@@ -63,6 +69,9 @@ class ServoController {
   Clock& clock_;
   TripleBuffer<TickRecord>* monitor_;
   PassivityController passivity_;
+  ControlParams control_;
+  AdmittanceController admittance_;
+  bool virtual_tool_ready_ = false;
   Nanos t0_ = 0, prev_now_ = 0, last_device_data_ = 0;
   std::uint64_t last_device_seq_ = 0, pose_seq_ = 0;
   bool have_device_data_ = false, stopping_ = false, was_fading_ = false;

@@ -1,4 +1,4 @@
-#include "gshaptics/sim/impedance_device.h"
+#include "gshaptics/sim/device_model.h"
 
 #include <algorithm>
 #include <cmath>
@@ -11,12 +11,12 @@ namespace gshaptics {
 namespace {
 
 void require(bool ok, const std::string& what) {
-  if (!ok) throw InputError("impedance device: " + what);
+  if (!ok) throw InputError("device model: " + what);
 }
 
 }  // namespace
 
-ImpedanceDevice::ImpedanceDevice(const ImpedanceDeviceParams& p) : params_(p) {
+DeviceModel::DeviceModel(const DeviceModelParams& p) : params_(p) {
   const HandImpedance& hand = p.hand;
   require(std::isfinite(p.mass) && p.mass > 0, "mass must be > 0 kg");
   require(std::isfinite(p.damping) && p.damping >= 0, "damping must be >= 0 N s/m");
@@ -28,6 +28,9 @@ ImpedanceDevice::ImpedanceDevice(const ImpedanceDeviceParams& p) : params_(p) {
   require(std::isfinite(p.substep) && p.substep > 0 && p.substep <= 1e-3, "substep must be in (0, 1 ms]");
   require(std::isfinite(p.max_rate_hz) && p.max_rate_hz > 0 && p.max_rate_hz <= 1e5, "max rate must be in (0, 100 kHz]");
   require(std::isfinite(p.duration) && p.duration >= 0, "duration must be >= 0 s");
+  require(std::isfinite(p.position_gain) && p.position_gain >= 0 && std::isfinite(p.velocity_gain) &&
+              p.velocity_gain >= 0,
+          "position and velocity gains must be >= 0");
   require(std::isfinite(hand.mass) && hand.mass >= 0 && std::isfinite(hand.stiffness) && hand.stiffness >= 0 &&
               std::isfinite(hand.damping) && hand.damping >= 0 && hand.push.allFinite(),
           "hand mass, stiffness and damping must be >= 0 and finite");
@@ -36,7 +39,10 @@ ImpedanceDevice::ImpedanceDevice(const ImpedanceDeviceParams& p) : params_(p) {
   h_ = std::max<Nanos>(1, to_nanos(p.substep));
   history_.resize(std::size_t(std::ceil(p.delay_up / p.substep)) + 4);
   commands_.resize(std::size_t(std::ceil(p.delay_down * p.max_rate_hz)) + 4);
-  info_.name = "sim impedance device (m " + std::to_string(p.mass) + " kg, b " + std::to_string(p.damping) + " N s/m)";
+  const bool admittance = p.causality == Causality::kAdmittance;
+  info_.name = std::string(admittance ? "sim admittance device" : "sim impedance device") + " (m " +
+               std::to_string(p.mass) + " kg, b " + std::to_string(p.damping) + " N s/m)";
+  info_.admittance = admittance;
   info_.max_rate_hz = p.max_rate_hz;
   info_.rate_source = "model";
   info_.transport_delay = p.delay_up + p.delay_down;
@@ -46,12 +52,14 @@ ImpedanceDevice::ImpedanceDevice(const ImpedanceDeviceParams& p) : params_(p) {
   v_ = p.initial_velocity;
 }
 
-void ImpedanceDevice::start(Nanos now) {
+void DeviceModel::start(Nanos now) {
   t0_ = t_ = last_read_ = now;
   x_ = params_.initial_position;
   v_ = params_.initial_velocity;
   applied_.setZero();
   last_reported_.setZero();
+  setpoint_ = x_;  // the position servo holds where it starts
+  setpoint_velocity_.setZero();
   work_ = 0;
   sequence_ = 0;
   have_reported_ = false;
@@ -61,12 +69,12 @@ void ImpedanceDevice::start(Nanos now) {
   command_head_ = command_size_ = 0;
 }
 
-Eigen::Vector3d ImpedanceDevice::quantize(const Eigen::Vector3d& v, double step) const noexcept {
+Eigen::Vector3d DeviceModel::quantize(const Eigen::Vector3d& v, double step) const noexcept {
   if (step <= 0) return v;
   return (v / step).array().round().matrix() * step;
 }
 
-void ImpedanceDevice::integrate_to(Nanos now) noexcept {
+void DeviceModel::integrate_to(Nanos now) noexcept {
   const HandImpedance& hand = params_.hand;
   const double h = to_seconds(h_);
   const double inv_mass = 1.0 / (params_.mass + hand.mass);
@@ -74,9 +82,20 @@ void ImpedanceDevice::integrate_to(Nanos now) noexcept {
   while (t_ + h_ <= now) {
     // Commands whose transport delay has passed reach the amplifier.
     while (command_size_ > 0 && commands_[command_head_].t <= t_) {
-      applied_ = commands_[command_head_].v;
+      const Timed& c = commands_[command_head_];
+      if (params_.causality == Causality::kAdmittance) {
+        setpoint_ = c.v;
+        setpoint_velocity_ = c.w;
+      } else {
+        applied_ = c.v;
+      }
       command_head_ = (command_head_ + 1) % commands_.size();
       --command_size_;
+    }
+    if (params_.causality == Causality::kAdmittance) {
+      applied_ = params_.position_gain * (setpoint_ - x_) + params_.velocity_gain * (setpoint_velocity_ - v_);
+      const double n = applied_.norm();
+      if (n > params_.max_force) applied_ *= params_.max_force / n;
     }
     const Eigen::Vector3d f = applied_ - b * v_ + hand.stiffness * (params_.hand_anchor - x_) + hand.push;
     v_ += (h * inv_mass) * f;
@@ -94,7 +113,7 @@ void ImpedanceDevice::integrate_to(Nanos now) noexcept {
   }
 }
 
-Eigen::Vector3d ImpedanceDevice::position_at(Nanos t) const noexcept {
+Eigen::Vector3d DeviceModel::position_at(Nanos t) const noexcept {
   // Newest first; positions between substeps are interpolated.
   const std::size_t n = history_.size();
   const Timed* later = nullptr;
@@ -110,7 +129,7 @@ Eigen::Vector3d ImpedanceDevice::position_at(Nanos t) const noexcept {
   return history_[history_head_].v;  // older than the history: the oldest known
 }
 
-DeviceSample ImpedanceDevice::read(Nanos now) noexcept {
+DeviceSample DeviceModel::read(Nanos now) noexcept {
   integrate_to(now);
   DeviceSample s;
   s.sequence = ++sequence_;
@@ -125,7 +144,29 @@ DeviceSample ImpedanceDevice::read(Nanos now) noexcept {
   return s;
 }
 
-void ImpedanceDevice::write(const Wrench& wrench, Nanos now) noexcept {
+void DeviceModel::enqueue(const Timed& command) noexcept {
+  if (command_size_ == commands_.size()) {  // faster than max_rate_hz: the oldest is dropped
+    command_head_ = (command_head_ + 1) % commands_.size();
+    --command_size_;
+  }
+  commands_[(command_head_ + command_size_) % commands_.size()] = command;
+  ++command_size_;
+}
+
+void DeviceModel::write_setpoint(const Setpoint& setpoint, Nanos now) noexcept {
+  if (params_.causality != Causality::kAdmittance) return;
+  if (!setpoint.position.allFinite() || !setpoint.velocity.allFinite()) return;
+  integrate_to(now);
+  if (params_.delay_down <= 0) {
+    setpoint_ = setpoint.position;
+    setpoint_velocity_ = setpoint.velocity;
+    return;
+  }
+  enqueue(Timed{now + to_nanos(params_.delay_down), setpoint.position, setpoint.velocity});
+}
+
+void DeviceModel::write(const Wrench& wrench, Nanos now) noexcept {
+  if (params_.causality == Causality::kAdmittance) return;  // position-controlled: no force command
   integrate_to(now);  // the previous force is held up to now
   Eigen::Vector3d f = quantize(wrench.force.allFinite() ? wrench.force : Eigen::Vector3d::Zero(),
                                params_.force_resolution);
@@ -135,22 +176,18 @@ void ImpedanceDevice::write(const Wrench& wrench, Nanos now) noexcept {
     applied_ = f;
     return;
   }
-  if (command_size_ == commands_.size()) {  // faster than max_rate_hz: the oldest takes effect now
-    applied_ = commands_[command_head_].v;
-    command_head_ = (command_head_ + 1) % commands_.size();
-    --command_size_;
-  }
-  commands_[(command_head_ + command_size_) % commands_.size()] = Timed{now + to_nanos(params_.delay_down), f};
-  ++command_size_;
+  enqueue(Timed{now + to_nanos(params_.delay_down), f, Eigen::Vector3d::Zero()});
 }
 
-void ImpedanceDevice::stop(Nanos now) noexcept {
+void DeviceModel::stop(Nanos now) noexcept {
   integrate_to(now);
   applied_.setZero();
+  setpoint_ = x_;  // an admittance device brakes where it is
+  setpoint_velocity_.setZero();
   command_head_ = command_size_ = 0;
 }
 
-bool ImpedanceDevice::finished() const noexcept {
+bool DeviceModel::finished() const noexcept {
   return params_.duration > 0 && t_ - t0_ >= to_nanos(params_.duration);
 }
 

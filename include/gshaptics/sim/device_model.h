@@ -1,6 +1,7 @@
 #pragma once
 /// @file
-/// A simulated impedance-type haptic device that can go unstable, as real ones do: a moving mass
+/// A simulated haptic device that can go unstable, as real ones do. Impedance-type (the default):
+/// a moving mass
 /// with little physical damping, driven by the commanded force through a zero-order hold, read
 /// through an encoder of finite resolution, commanded through a force output of finite
 /// resolution, held by a human hand with its own impedance, and linked to the renderer through a
@@ -18,7 +19,7 @@
 /// damping B, sampled every T and held, is passive iff b > K T / 2 + |B| (Colgate and Schenkel
 /// 1997, "Passivity of a class of sampled-data systems: application to haptic interfaces",
 /// J. Robotic Systems 14(1)); a delay d adds d to the hold's T/2 (the spring lags by T/2 + d),
-/// so the limit stiffness of a plain wall is K = b / (T/2 + d). tests/impedance_device_test.cpp
+/// so the limit stiffness of a plain wall is K = b / (T/2 + d). tests/stability_test.cpp
 /// finds the limit on this model within 20 % of that prediction.
 ///
 /// The hand: a mass-spring-damper gripping the device (mass, stiffness toward `hand_anchor`,
@@ -31,10 +32,18 @@
 /// makes walls more stable; the "hands-off" case (all zero) is the worst one, which is how
 /// stability limits are usually stated.
 ///
+/// Admittance-type (DeviceModelParams::causality = kAdmittance; the HapticGiant class of the
+/// paper, Sec. IV): the same mass is a robot under a stiff position servo,
+///   F_servo = position_gain (x_sp - x) + velocity_gain (v_sp - v),
+/// that tracks the setpoint the runtime writes (HapticDevice::write_setpoint, through the same
+/// delay and hold), and a force sensor between the hand and the robot reports the hand's force
+/// (DeviceSample::user_force). Commanded wrenches are ignored.
+///
 /// Threading: as every HapticDevice (servo thread only); read() and write() never allocate (the
 /// delay lines are sized in the constructor).
 
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -45,13 +54,21 @@ namespace gshaptics {
 /// The hand holding the device. SI units.
 struct HandImpedance {
   double mass = 0;       ///< kg, moves with the device
-  double stiffness = 0;  ///< N/m, toward ImpedanceDeviceParams::hand_anchor
+  double stiffness = 0;  ///< N/m, toward DeviceModelParams::hand_anchor
   double damping = 0;    ///< N s/m
   /// Constant force the hand pushes with, N, world frame (on top of the spring).
   Eigen::Vector3d push = Eigen::Vector3d::Zero();
 };
 
-struct ImpedanceDeviceParams {
+/// Impedance-type: the runtime commands force. Admittance-type: the runtime commands a position
+/// setpoint and reads the user's force.
+enum class Causality : std::uint8_t { kImpedance, kAdmittance };
+
+struct DeviceModelParams {
+  Causality causality = Causality::kImpedance;
+  /// Admittance-type only: the robot's position servo. N/m and N s/m.
+  double position_gain = 2e5;
+  double velocity_gain = 1500;
   double mass = 0.1;        ///< kg, the device's moving mass at the tool centre point (each axis)
   double damping = 1.0;     ///< b, N s/m, the device's physical (viscous) damping
   double encoder_resolution = 0;  ///< m per count; 0: exact position
@@ -73,41 +90,46 @@ struct ImpedanceDeviceParams {
 
 /// The simulated impedance device. Time zero is the `now` given to start(); the state restarts
 /// from the initial position and velocity at every start().
-class ImpedanceDevice final : public HapticDevice {
+class DeviceModel final : public HapticDevice {
  public:
   /// Throws InputError for a non-positive mass or substep, negative damping, resolutions or
   /// delays, a delay over 1 s, or a non-finite parameter.
-  explicit ImpedanceDevice(const ImpedanceDeviceParams& params);
+  explicit DeviceModel(const DeviceModelParams& params);
   [[nodiscard]] const DeviceInfo& info() const noexcept override { return info_; }
   void start(Nanos now) override;
   [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
   void write(const Wrench& wrench, Nanos now) noexcept override;
+  void write_setpoint(const Setpoint& setpoint, Nanos now) noexcept override;
   void stop(Nanos now) noexcept override;
   [[nodiscard]] bool finished() const noexcept override;
 
   /// The true (unquantised, undelayed) state, for measurements.
   [[nodiscard]] const Eigen::Vector3d& position() const noexcept { return x_; }
   [[nodiscard]] const Eigen::Vector3d& velocity() const noexcept { return v_; }
-  /// The force acting on the device now (after delay, quantisation and limit), N.
+  /// The force the device's actuators apply now (after delay, quantisation and limit; the
+  /// position servo's force on an admittance-type device), N.
   [[nodiscard]] const Eigen::Vector3d& applied_force() const noexcept { return applied_; }
   /// Work the device's output force has done on the mass since start, J (> 0: the renderer
   /// pushed energy into the hand and device; its growth over a contact is the instability).
   [[nodiscard]] double work_by_force() const noexcept { return work_; }
-  [[nodiscard]] const ImpedanceDeviceParams& params() const noexcept { return params_; }
+  [[nodiscard]] const DeviceModelParams& params() const noexcept { return params_; }
 
  private:
   struct Timed {
     Nanos t = 0;
-    Eigen::Vector3d v = Eigen::Vector3d::Zero();
+    Eigen::Vector3d v = Eigen::Vector3d::Zero();  // force, or setpoint position
+    Eigen::Vector3d w = Eigen::Vector3d::Zero();  // setpoint velocity
   };
+  void enqueue(const Timed& command) noexcept;
   void integrate_to(Nanos now) noexcept;
   [[nodiscard]] Eigen::Vector3d position_at(Nanos t) const noexcept;
   [[nodiscard]] Eigen::Vector3d quantize(const Eigen::Vector3d& v, double step) const noexcept;
 
-  ImpedanceDeviceParams params_;
+  DeviceModelParams params_;
   DeviceInfo info_;
   Nanos h_ = 0, t0_ = 0, t_ = 0, last_read_ = 0;
   Eigen::Vector3d x_, v_, applied_ = Eigen::Vector3d::Zero(), last_reported_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d setpoint_ = Eigen::Vector3d::Zero(), setpoint_velocity_ = Eigen::Vector3d::Zero();
   double work_ = 0;
   std::uint64_t sequence_ = 0;
   bool have_reported_ = false;
