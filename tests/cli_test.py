@@ -485,6 +485,28 @@ class Devices(unittest.TestCase):
             self.assertIn("limit      12 N, bound by the device (rating of omega.3", p.stdout)
 
 
+class Stability(unittest.TestCase):
+    def test_quick_sweep_writes_table_and_trials(self):
+        with tempfile.TemporaryDirectory() as d:
+            out = os.path.join(d, "STABILITY.md")
+            p = run("stability", "--quick", "--no-plot", "--out", out, "--control", "impedance",
+                    "--stiffness", "1000", "--stiffness", "64000", "--delay", "0")
+            md = open(out).read()
+            rows = [l for l in md.splitlines() if l.startswith("| plane | impedance |")]
+            self.assertEqual(len(rows), 2, md)  # passivity off and on
+            cells = [[c.strip() for c in r.strip("|").split("|")] for r in rows]
+            self.assertEqual([c[4] for c in cells], ["off", "on"])
+            self.assertEqual(cells[0][5], "1000")  # 64 kN/m bounces without the controller
+            self.assertEqual(cells[0][6], "4000")  # b / (T/2): 2 N s/m at 1 kHz
+            trials = open(os.path.join(d, "stability", "stability_trials.csv")).read().splitlines()
+            self.assertEqual(len(trials), 1 + 4)
+            self.assertIn("largest stable", p.stdout)
+            bad = run("stability", "--quick", "--out", os.path.join(d, "x.txt"), check=False)
+            self.assertEqual(bad.returncode, 2)
+            self.assertIn("expected a .md file", bad.stderr)
+            self.assertFalse(os.path.exists(os.path.join(d, "x.txt")))
+
+
 class Latency(unittest.TestCase):
     """`gshaptics latency`: the gap profile of a spinning thread, as text and JSON."""
 
