@@ -10,6 +10,7 @@
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_model.h"
+#include "gshaptics/servo/passivity.h"
 #include "gshaptics/servo/query_pool.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/narrowphase/k_min_batch.h"
@@ -121,6 +122,26 @@ void BM_NarrowPhaseBatchEllipsoid(benchmark::State& state) {
   state.SetItemsProcessed(std::int64_t(state.iterations()) * kBatchCapacity);
 }
 BENCHMARK(BM_NarrowPhaseBatchEllipsoid);
+
+// The passivity observer and controller's share of one servo tick (account, correct, sent) on a
+// pressed, oscillating contact, with the round trip in ticks as the argument (0: a local device;
+// the in-flight prediction loops over the round trip).
+void BM_PassivityTick(benchmark::State& state) {
+  PassivityController pc;
+  pc.reset(int(state.range(0)));
+  double t = 0;
+  for (auto _ : state) {
+    t += 1e-3;
+    const Eigen::Vector3d x(0, 0, -0.002 + 0.001 * std::sin(40 * t));
+    const Eigen::Vector3d v(0, 0, 0.04 * std::cos(40 * t));
+    const Eigen::Vector3d f(0, 0, 2000 * -x.z() + 0.3 * std::sin(40 * t - 0.5));
+    pc.account(x);
+    const PassivityStep step = pc.correct(f, v, 1e-3);
+    pc.sent(step.force);
+    benchmark::DoNotOptimize(step.force);
+  }
+}
+BENCHMARK(BM_PassivityTick)->Arg(0)->Arg(5)->Arg(20);
 
 void BM_BroadPhase(benchmark::State& state, const char* scene, double rmin, double rmax) {
   const Fixture& f = fixture(scene, rmin, rmax);
