@@ -135,7 +135,13 @@ TEST_P(SampledWallLimit, MatchesColgateSchenkelWithin20Percent) {
 
 INSTANTIATE_TEST_SUITE_P(Cases, SampledWallLimit,
                          ::testing::Values(LimitCase{1000, 0, 0}, LimitCase{2000, 0, 0}, LimitCase{1000, 0, 1.0},
-                                           LimitCase{1000, 0.001, 0}));
+                                           LimitCase{1000, 0.001, 0}),
+                         [](const ::testing::TestParamInfo<LimitCase>& i) {
+                           const LimitCase& c = i.param;
+                           return std::to_string(int(c.rate_hz)) + "Hz_delay" +
+                                  std::to_string(int(c.delay_each_way * 1e6)) + "us_hand" +
+                                  std::to_string(int(c.hand_damping * 10)) + "dNsm";
+                         });
 
 // Above the limit with a 5 ms round trip (2.5 ms each way; limit 364 N/m, wall 1000 N/m): the
 // oscillation grows without the controller; with it (the observer pairing each force with the
