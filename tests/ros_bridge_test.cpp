@@ -86,3 +86,31 @@ TEST(RosPoseIntake, MissingBackwardAndImpossibleStampsFallBackAndAreCounted) {
 
 }  // namespace
 }  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+// Wrench stamps (issue "ROS nodes that behave as ROS users expect", item 3): the pose's stamp while
+// poses are fresh, the current time otherwise; never zero, never the last pose's stamp on the
+// watchdog's zero-force wrenches.
+TEST(RosPoseIntake, WrenchStampEchoesFreshPosesAndIsNeverStaleOrZero) {
+  Intake in;
+  const std::int64_t wall = RosTime::now().nanos();
+  const RosTime before = in.intake.wrench_stamp();  // no pose yet
+  EXPECT_NE(before.nanos(), 0);
+  EXPECT_NEAR(double(before.nanos() - wall), 0.0, 5e9);
+  const std::int64_t stamp = 1'700'000'000LL * 1'000'000'000 + 123;
+  in.send(0.001, stamp);
+  EXPECT_EQ(in.intake.wrench_stamp().nanos(), stamp);  // fresh: the pose it answers
+  in.clock.set(in.clock.now() + 50 * kMs);
+  EXPECT_EQ(in.intake.wrench_stamp().nanos(), stamp);  // within the input timeout (0.1 s)
+  in.clock.set(in.clock.now() + 60 * kMs);
+  const RosTime stale = in.intake.wrench_stamp();      // the publisher stopped: now, not the old stamp
+  EXPECT_NE(stale.nanos(), stamp);
+  EXPECT_GE(stale.nanos(), wall);
+  in.send(0.002, 0);                                   // an unstamped pose: now
+  EXPECT_GE(in.intake.wrench_stamp().nanos(), wall);
+}
+
+}  // namespace
+}  // namespace gshaptics

@@ -57,13 +57,19 @@ void RosPoseIntake::on_pose(const Eigen::Vector3d& position, const Eigen::Vector
   prev_stamp_ = st;
   prev_arrival_ = now;
   input_.set_target(position, q.normalized(), now, fresh_twist ? &twist_ : &velocity_);
-  stamps_.write(stamp);
+  stamps_.write(RosPoseArrival{stamp, now});
   stats_.poses_received.fetch_add(1);
 }
 
 const RosTime& RosPoseIntake::newest_stamp() noexcept {
   stamps_.read_if_new(newest_);
-  return newest_;
+  return newest_.stamp;
+}
+
+RosTime RosPoseIntake::wrench_stamp() noexcept {
+  stamps_.read_if_new(newest_);
+  const bool fresh = newest_.arrival >= 0 && clock_.now() - newest_.arrival <= fresh_for_ && newest_.stamp.nanos() != 0;
+  return fresh ? newest_.stamp : RosTime::now();
 }
 
 void RosWrenchOutbox::start() {
@@ -76,7 +82,10 @@ void RosWrenchOutbox::start() {
       seen = signal_.load();
       const bool stopping = stop_.load();
       if (items_.read_if_new(item) || stopping) {
-        if (stopping) item.wrench = Wrench{};  // the last message: zero force
+        if (stopping) {  // the last message: zero force, stamped when it is sent
+          item.wrench = Wrench{};
+          item.echo = RosTime::now();
+        }
         publish_(item.wrench, item.echo);
         stats_.wrenches_published.fetch_add(1);
       }

@@ -23,7 +23,7 @@ struct Ros1Impl {
   std::unique_ptr<RosMarkerLoop> markers;
 
   Ros1Impl(const RosBridgeOptions& o, Clock& c, StreamDevice& in)
-      : options(o), intake(in, c, stats),
+      : options(o), intake(in, c, stats, o.input_timeout),
         outbox([this](const Wrench& w, const RosTime& echo) {
           transport->publish_wrench({w.force.x(), w.force.y(), w.force.z()}, {w.torque.x(), w.torque.y(), w.torque.z()},
                                     echo.sec, echo.nanosec);
@@ -73,7 +73,7 @@ DeviceSample Ros1NetworkDevice::read(Nanos now) noexcept { return input_.read(no
 
 void Ros1NetworkDevice::write(const Wrench& wrench, Nanos now) noexcept {
   input_.write(wrench, now);
-  impl_->outbox.post(wrench, impl_->intake.newest_stamp());
+  impl_->outbox.post(wrench, impl_->intake.wrench_stamp());
 }
 
 void Ros1NetworkDevice::stop(Nanos now) noexcept {

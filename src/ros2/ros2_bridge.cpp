@@ -98,7 +98,7 @@ struct Ros2Impl {
   geometry_msgs_msg_dds__WrenchStamped_ wrench_msg{};  // publisher thread only
 
   Ros2Impl(const Ros2Options& o, Clock& c, StreamDevice& in)
-      : options(o), intake(in, c, stats), outbox([this](const Wrench& w, const RosTime& echo) { publish(w, echo); }, stats) {
+      : options(o), intake(in, c, stats, o.input_timeout), outbox([this](const Wrench& w, const RosTime& echo) { publish(w, echo); }, stats) {
     participant = check(dds_create_participant(o.domain < 0 ? DDS_DOMAIN_DEFAULT : dds_domainid_t(o.domain), nullptr, nullptr),
                         "participant");
     pose_reader = make_reader(participant, &geometry_msgs_msg_dds__PoseStamped__desc, o.pose_topic, o);
@@ -204,7 +204,7 @@ DeviceSample Ros2NetworkDevice::read(Nanos now) noexcept { return input_.read(no
 
 void Ros2NetworkDevice::write(const Wrench& wrench, Nanos now) noexcept {
   input_.write(wrench, now);
-  impl_->outbox.post(wrench, impl_->intake.newest_stamp());
+  impl_->outbox.post(wrench, impl_->intake.wrench_stamp());
 }
 
 void Ros2NetworkDevice::stop(Nanos now) noexcept {

@@ -100,14 +100,22 @@ class RosBridgeDevice : public HapticDevice {
   return p;
 }
 
+/// A pose's header stamp and when it arrived (ns on the bridge's clock; -1: none yet).
+struct RosPoseArrival {
+  RosTime stamp;
+  Nanos arrival = -1;
+};
+
 /// The device side of a bridge's input, on the middleware's receive thread: validates a pose
 /// (NaN/Inf dropped and counted; an all-zero quaternion, an unset field, taken as identity),
 /// counts distinct publishers, pairs it with a recent twist and hands it to the StreamDevice.
 /// Threading: on_pose()/on_twist() from one receive thread; newest_stamp() from the servo thread.
 class RosPoseIntake {
  public:
-  RosPoseIntake(StreamDevice& input, Clock& clock, RosBridgeStats& stats)
-      : input_(input), clock_(clock), stats_(stats) {}
+  /// `fresh_for`: how long after its arrival a pose's stamp is echoed in the wrenches, s (the
+  /// bridge's input timeout).
+  RosPoseIntake(StreamDevice& input, Clock& clock, RosBridgeStats& stats, double fresh_for = 0.1)
+      : input_(input), clock_(clock), stats_(stats), fresh_for_(to_nanos(fresh_for)) {}
   /// A twist (m/s, world); used with poses arriving within 50 ms of it.
   void on_twist(const Eigen::Vector3d& linear);
   /// A pose: position (m), orientation (x, y, z, w as in ROS), its header stamp, and a key that
@@ -120,8 +128,14 @@ class RosPoseIntake {
                const RosTime& stamp, std::uint64_t publisher);
   /// Time constant of the velocity filter, s.
   static constexpr double kVelocityTau = 0.002;
-  /// Servo thread: the stamp of the newest pose (echoed in the wrench header). Never blocks.
+  /// Servo thread: the stamp of the newest pose. Never blocks. Zero before the first pose.
   [[nodiscard]] const RosTime& newest_stamp() noexcept;
+  /// Servo thread: the stamp for a wrench computed now. While poses are fresh (the newest
+  /// arrived within `fresh_for` and carries a stamp) it is that pose's stamp, so a driver can
+  /// pair the wrench with the pose it answers; otherwise (before the first pose, after the
+  /// publisher stopped, for unstamped poses) the current ROS time, so the zero-force wrenches
+  /// of the watchdog are never stale. Never zero. Never blocks.
+  [[nodiscard]] RosTime wrench_stamp() noexcept;
 
  private:
   StreamDevice& input_;
@@ -130,8 +144,9 @@ class RosPoseIntake {
   std::vector<std::uint64_t> publishers_;
   Eigen::Vector3d twist_ = Eigen::Vector3d::Zero();
   Nanos twist_at_ = -1;
-  TripleBuffer<RosTime> stamps_;
-  RosTime newest_;
+  Nanos fresh_for_;
+  TripleBuffer<RosPoseArrival> stamps_;
+  RosPoseArrival newest_;
   // Velocity estimate from stamps (reader thread only).
   bool have_prev_ = false;
   Eigen::Vector3d prev_position_ = Eigen::Vector3d::Zero(), velocity_ = Eigen::Vector3d::Zero();
