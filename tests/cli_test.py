@@ -550,6 +550,12 @@ class Node(unittest.TestCase):
         self.assertEqual(p.returncode, 2)
         self.assertIn("--ros2 or --ros1", p.stderr)
 
+    def test_ros2_only_options_are_refused_with_ros1(self):
+        for args in (["--depth", "5"], ["--domain", "3"], ["--reliable"], ["--best-effort-output"]):
+            p = run("node", "--ros1", "--quiet", *args, check=False)
+            self.assertEqual(p.returncode, 2, args)
+            self.assertIn(f"{args[0]} is a ROS 2 (DDS) option", p.stderr)
+
     def test_device_sim_without_a_node_says_so(self):
         if "device-sim" not in run("--help").stdout:
             self.skipTest("built without ROS 2")

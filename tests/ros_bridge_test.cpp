@@ -114,3 +114,34 @@ TEST(RosPoseIntake, WrenchStampEchoesFreshPosesAndIsNeverStaleOrZero) {
 
 }  // namespace
 }  // namespace gshaptics
+
+#include "gshaptics/servo/simulated_runtime.h"
+#include "support/floor_renderer.h"
+
+namespace gshaptics {
+namespace {
+
+// The pose watchdog of a ROS node at the defaults: the last pose arrives and the force is zero
+// 0.1 s later (input timeout 0.09 s, then the servo's device timeout 0.01 s), as docs/ros.md says.
+TEST(RosWatchdog, ForceStopsAtTheDocumentedTimeAfterTheLastPose) {
+  const RosBridgeOptions topics;
+  StreamDevice device(network_device_params("test", topics.input_timeout), Eigen::Vector3d::Zero());
+  RuntimeConfig c;
+  c.inline_query = true;
+  c.duration = 0.4;
+  c.safety.ramp_time = 0;
+  // A pose inside the spring floor, then silence (set before start: it is the newest at t = 0).
+  device.set_target(Eigen::Vector3d(0, 0, -0.002), Eigen::Quaterniond::Identity(), 0);
+  SimulatedRuntime rt(device, c, std::make_unique<test::FloorRenderer>(1000));
+  rt.run();
+  double last_force = -1, first_zero = -1;
+  for (const TickRecord& r : rt.log().records()) {
+    if (r.force.norm() > 0) last_force = r.time;
+    if (first_zero < 0 && last_force >= 0 && r.force.norm() == 0 && (r.flags & kFlagWatchdog)) first_zero = r.time;
+  }
+  ASSERT_GE(last_force, 0.0) << "the pose never produced a force";
+  EXPECT_NEAR(first_zero, 0.1, 0.0015);  // within a tick and a half of 0.1 s
+}
+
+}  // namespace
+}  // namespace gshaptics

@@ -23,11 +23,15 @@ void add_topic_options(CLI::App& cmd, RosBridgeOptions& t) {
   cmd.add_option("--markers-topic", t.markers_topic, "visualization_msgs/MarkerArray: tool and contacts")->capture_default_str();
   cmd.add_option("--frame-id", t.frame_id, "header.frame_id of what is published")->capture_default_str();
   cmd.add_flag("--reliable", t.reliable_input,
-               "Read poses RELIABLE instead of BEST_EFFORT (best-effort matches either kind of writer)");
+               "ROS 2 only: read poses RELIABLE instead of BEST_EFFORT (best-effort matches either kind of writer)");
   cmd.add_flag("--best-effort-output", [&t](std::int64_t n) { t.reliable_output = n == 0; },
-               "Write wrenches and markers BEST_EFFORT instead of RELIABLE keep-last --depth (reliable "
-               "serves either kind of subscriber)");
-  cmd.add_option("--depth", t.depth, "Keep-last depth of the streams")->capture_default_str()->check(CLI::Range(1, 1000));
+               "ROS 2 only: write wrenches and markers BEST_EFFORT instead of RELIABLE keep-last --depth "
+               "(reliable serves either kind of subscriber)");
+  cmd.add_option("--depth", t.depth, "ROS 2 only: keep-last depth of the streams")->capture_default_str()->check(CLI::Range(1, 1000));
+  cmd.add_option("--input-timeout", t.input_timeout,
+                 "No pose for this long and the device's data stops; the force is zero --device-timeout later "
+                 "(0.09 + 0.01 = 0.1 s by default), s")
+      ->capture_default_str()->check(check::range(0.001, 10.0));
   cmd.add_option("--marker-rate", t.marker_hz, "MarkerArrays per second")->capture_default_str()->check(check::range(1.0, 200.0));
 }
 
@@ -53,7 +57,13 @@ void register_node(CLI::App& app) {
   f2->excludes(f1);
   cmd->add_option("--domain", o->topics.domain, "ROS 2: DDS domain id (ROS_DOMAIN_ID); -1: the DDS default")->check(CLI::Range(-1, 232));
   add_topic_options(*cmd, o->topics);
-  cmd->callback([o] {
+  cmd->callback([o, cmd] {
+    if (o->ros1)
+      for (const char* ros2_only : {"--domain", "--depth", "--reliable", "--best-effort-output"})
+        if (cmd->count(ros2_only) > 0)
+          throw InputError(std::string("node: ") + ros2_only +
+                           " is a ROS 2 (DDS) option; ROS 1 has no counterpart here (roscpp over TCP, queues of "
+                           "64 poses and 64 wrenches)");
     if (const int rc = run_node(*o)) set_exit_code(rc);
   });
 }

@@ -41,7 +41,9 @@ struct RosBridgeOptions {
   int depth = 1;          ///< ROS 2 keep-last depth of the written streams (readers keep 64)
   double marker_hz = 30;  ///< MarkerArray rate
   std::size_t max_markers = 500;  ///< colliding Gaussians per MarkerArray (the rest are counted)
-  double input_timeout = 0.1;     ///< no pose for this long: the device stops (watchdog), s
+  /// No pose for this long: the device's data stops, s; the servo's watchdog zeroes the force
+  /// SafetyParams::device_timeout later (0.09 + 0.01 = 0.1 s by default).
+  double input_timeout = 0.09;
 };
 
 /// ROS time (the system clock) as builtin_interfaces/Time (ROS 2) or ros::Time (ROS 1) fields.
