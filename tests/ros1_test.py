@@ -110,6 +110,55 @@ class Ros1Node(unittest.TestCase):
         self.assertGreater(ros1["markers_published"], 10)
         self.assertIn("publishers on /gshaptics/tool_pose", err)
 
+    def start_node(self, out, *args, env=None):
+        node = subprocess.Popen([EXE, "node", "--ros1", "--quiet", "--no-plot", "--out", out, *args],
+                                env=env or self.env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        line = ""
+        while "ready" not in line:
+            line = node.stdout.readline()
+            if line == "":
+                raise AssertionError(f"node {args} ended before it was ready: " + node.stderr.read())
+            if line.startswith("node       ROS 1"):
+                header = line
+        return node, header
+
+    def test_namespaces_remapping_and_shutdown(self):
+        # Two arms on one master: one in a namespace from ROS_NAMESPACE, one from __ns with its own
+        # name and a remapped wrench topic. Each serves its own client.
+        out1, out2 = tempfile.mkdtemp(), tempfile.mkdtemp()
+        arm1, h1 = self.start_node(out1, env=dict(self.env, ROS_NAMESPACE="/arm1"))
+        arm2, h2 = self.start_node(out2, "__ns:=/arm2", "--node-name", "right", "gshaptics/wrench:=haptic_wrench")
+        try:
+            self.assertIn("/arm1/gshaptics/tool_pose", h1)
+            self.assertIn("/arm2/haptic_wrench", h2)
+            nodes = subprocess.run(["rosnode", "list"], env=self.env, capture_output=True, text=True,
+                                   timeout=30).stdout.split()
+            self.assertIn("/arm1/gshaptics_node", nodes)
+            self.assertIn("/arm2/right", nodes)
+            for topic in ("/arm1/gshaptics/tool_pose", "/arm2/gshaptics/tool_pose"):
+                self.pubs.append(subprocess.Popen(["rostopic", "pub", "-r", "200", topic, POSE, INSIDE],
+                                                  env=self.env, stdout=subprocess.DEVNULL,
+                                                  stderr=subprocess.DEVNULL))
+            time.sleep(3.0)
+            for topic in ("/arm1/gshaptics/wrench", "/arm2/haptic_wrench"):
+                f, _ = force_of(echo_once(topic, self.env))
+                self.assertGreater(f, 0.1, topic)
+            # The master ends a node: it stops at zero force and exits with a message.
+            subprocess.run(["rosnode", "kill", "/arm1/gshaptics_node"], env=self.env, capture_output=True,
+                           timeout=30)
+            _, err = arm1.communicate(timeout=30)
+            self.assertEqual(arm1.returncode, 0, err)
+            self.assertIn("the ROS master shut this node down", err)
+            with open(os.path.join(out1, "run_summary.json")) as fh:
+                summary = json.load(fh)
+            self.assertIn("rosnode kill", summary["ros1"]["shutdown_reason"])
+            self.assertIsNone(arm2.poll())  # the other arm runs on
+        finally:
+            for n in (arm1, arm2):
+                if n.poll() is None:
+                    n.send_signal(signal.SIGINT)
+                    n.communicate(timeout=60)
+
 
 if __name__ == "__main__":
     if shutil.which("roscore") is None or shutil.which("rostopic") is None:

@@ -14,6 +14,10 @@ namespace gshaptics::cli {
 namespace {
 int g_exit_code = 0;
 }
+std::vector<std::string>& ros_arguments() {
+  static std::vector<std::string> args;
+  return args;
+}
 int exit_code() { return g_exit_code; }
 void set_exit_code(int code) { g_exit_code = code; }
 

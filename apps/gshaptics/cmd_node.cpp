@@ -55,9 +55,17 @@ void register_node(CLI::App& app) {
   auto* f2 = cmd->add_flag("--ros2", o->ros2, "Speak ROS 2 over DDS (Cyclone DDS; ROS 2 Humble message layouts)");
   auto* f1 = cmd->add_flag("--ros1", o->ros1, "Speak ROS 1 (roscpp; master at ROS_MASTER_URI)");
   f2->excludes(f1);
-  cmd->add_option("--domain", o->topics.domain, "ROS 2: DDS domain id (ROS_DOMAIN_ID); -1: the DDS default")->check(CLI::Range(-1, 232));
+  cmd->add_option("--domain", o->topics.domain, "ROS 2 only: DDS domain id (ROS_DOMAIN_ID); -1: the DDS default")->check(CLI::Range(-1, 232));
+  cmd->add_option("--node-name", o->topics.node_name,
+                  "ROS 1: the node's name at the master (two nodes on one master need two names; __name:= too)")
+      ->capture_default_str();
   add_topic_options(*cmd, o->topics);
+  cmd->footer(
+      "ROS arguments pass through: ROS 1 remappings and names (pose:=/arm1/pose, __ns:=/arm1, "
+      "__name:=left), or ROS 2's --ros-args -r FROM:=TO (also -r __ns:=/arm1). Relative topic "
+      "names (the defaults) resolve in the node's namespace (ROS 1: also ROS_NAMESPACE).");
   cmd->callback([o, cmd] {
+    o->topics.ros_args = ros_arguments();
     if (o->ros1)
       for (const char* ros2_only : {"--domain", "--depth", "--reliable", "--best-effort-output"})
         if (cmd->count(ros2_only) > 0)

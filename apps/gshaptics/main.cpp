@@ -4,6 +4,8 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
+#include <string>
+#include <vector>
 
 #include "commands.h"
 #include "gshaptics/error.h"
@@ -39,8 +41,28 @@ int main(int argc, char** argv) {
   gshaptics::cli::register_stability(app);
   gshaptics::cli::register_devices(app);
   gshaptics::cli::register_latency(app);
+  // ROS arguments go to the middleware, not to CLI11: ROS 1 remappings (`from:=to`, `__name:=`,
+  // `__ns:=`) and ROS 2's `--ros-args ... [--]`.
+  std::vector<char*> args{argv[0]};
+  auto& ros = gshaptics::cli::ros_arguments();
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--ros-args") {
+      for (ros.push_back(a); ++i < argc && std::string(argv[i]) != "--";) ros.emplace_back(argv[i]);
+      continue;
+    }
+    if (!a.empty() && a[0] != '-' && a.find(":=") != std::string::npos) {
+      ros.push_back(a);
+      continue;
+    }
+    args.push_back(argv[i]);
+  }
+  if (!ros.empty() && !(args.size() > 1 && std::string(args[1]) == "node")) {
+    std::fprintf(stderr, "gshaptics: error: '%s' is a ROS argument; only `gshaptics node` takes them\n", ros.front().c_str());
+    return 2;
+  }
   try {
-    app.parse(argc, argv);
+    app.parse(int(args.size()), args.data());
   } catch (const CLI::ParseError& e) {
     // --help and --version exit 0 through CLI11; every input error is one line and exit 2.
     if (e.get_exit_code() == 0) return app.exit(e);

@@ -8,12 +8,6 @@
 
 namespace gshaptics {
 
-namespace {
-
-std::string absolute(const std::string& name) { return name.empty() || name[0] == '/' ? name : "/" + name; }
-
-}  // namespace
-
 struct Ros1Impl {
   RosBridgeOptions options;
   RosBridgeStats stats;
@@ -32,15 +26,17 @@ struct Ros1Impl {
 
 Ros1NetworkDevice::Ros1NetworkDevice(const RosBridgeOptions& options, Clock& clock, const std::string& node_name,
                                      double master_timeout)
-    : input_(network_device_params("ros1 (" + absolute(options.pose_topic) + ")", options.input_timeout),
+    : input_(network_device_params("ros1 (" + options.pose_topic + ")", options.input_timeout),
              Eigen::Vector3d::Zero()),
       impl_(std::make_unique<Ros1Impl>(options, clock, input_)) {
   ros1::TransportOptions t;
-  t.node_name = node_name;
-  t.pose_topic = absolute(options.pose_topic);
-  t.twist_topic = absolute(options.twist_topic);
-  t.wrench_topic = absolute(options.wrench_topic);
-  t.markers_topic = absolute(options.markers_topic);
+  t.node_name = node_name.empty() ? options.node_name : node_name;
+  t.remappings = options.ros_args;
+  // Relative names stay relative: roscpp resolves them in the node's namespace.
+  t.pose_topic = options.pose_topic;
+  t.twist_topic = options.twist_topic;
+  t.wrench_topic = options.wrench_topic;
+  t.markers_topic = options.markers_topic;
   t.frame_id = options.frame_id;
   t.master_timeout = master_timeout;
   Ros1Impl& m = *impl_;
@@ -96,6 +92,16 @@ void Ros1NetworkDevice::stop_markers() {
   if (impl_->markers) impl_->markers->stop();
 }
 
-std::string Ros1NetworkDevice::wire_topic(const std::string& ros_name) const { return absolute(ros_name); }
+std::string Ros1NetworkDevice::wire_topic(const std::string& ros_name) const {
+  return impl_->transport ? impl_->transport->resolve(ros_name) : ros_name;
+}
+
+bool Ros1NetworkDevice::finished() const noexcept { return !ros1::Transport::ok(); }
+
+std::string Ros1NetworkDevice::shutdown_reason() const {
+  if (ros1::Transport::ok()) return {};
+  return "the ROS master shut this node down (rosnode kill, or another node registered as " +
+         impl_->transport->node_name() + ")";
+}
 
 }  // namespace gshaptics

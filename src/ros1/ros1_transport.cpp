@@ -45,8 +45,15 @@ Transport::Transport(const TransportOptions& o, std::function<void(const PoseIn&
   s.on_pose = std::move(on_pose);
   s.on_twist = std::move(on_twist);
   if (!ros::isInitialized()) {
-    int argc = 0;
-    ros::init(argc, nullptr, o.node_name, ros::init_options::NoSigintHandler);
+    // roscpp reads remappings, __name and __ns from its command line (and ROS_NAMESPACE).
+    std::vector<std::string> args{"gshaptics"};
+    args.insert(args.end(), o.remappings.begin(), o.remappings.end());
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    int argc = int(argv.size());
+    ros::init(argc, argv.data(), o.node_name, ros::init_options::NoSigintHandler);
+    if (argc > 1)
+      throw std::runtime_error("ROS 1: not a remapping: '" + std::string(argv[1]) + "' (expected from:=to)");
   }
   const auto t0 = std::chrono::steady_clock::now();
   while (!ros::master::check()) {
@@ -72,6 +79,12 @@ Transport::~Transport() {
   state_->pose_sub.shutdown();
   state_->twist_sub.shutdown();
 }
+
+std::string Transport::resolve(const std::string& name) const { return ros::names::resolve(name); }
+
+std::string Transport::node_name() const { return ros::this_node::getName(); }
+
+bool Transport::ok() noexcept { return ros::ok() && !ros::isShuttingDown(); }
 
 void Transport::publish_wrench(const std::array<double, 3>& f, const std::array<double, 3>& t, std::int32_t sec,
                                std::uint32_t nanosec) {

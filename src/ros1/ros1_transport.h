@@ -24,12 +24,14 @@ struct PoseIn {
 
 struct TransportOptions {
   std::string node_name, pose_topic, twist_topic, wrench_topic, markers_topic, frame_id;
+  std::vector<std::string> remappings;  ///< `from:=to`, `__name:=`, `__ns:=` as on a ROS 1 command line
   double master_timeout = 10;
 };
 
 class Transport {
  public:
-  /// Initialises roscpp (once per process, without its SIGINT handler), waits for the master,
+  /// Initialises roscpp (once per process, without its SIGINT handler; with the remappings as its
+  /// command line), waits for the master,
   /// subscribes and advertises; callbacks run on an AsyncSpinner thread. Throws
   /// std::runtime_error with a message naming the master when none answers.
   Transport(const TransportOptions& options, std::function<void(const PoseIn&)> on_pose,
@@ -38,6 +40,12 @@ class Transport {
   void publish_wrench(const std::array<double, 3>& force, const std::array<double, 3>& torque,
                       std::int32_t sec, std::uint32_t nanosec);
   void publish_markers(const std::vector<RosMarker>& markers);
+  /// `name` resolved in the node's namespace, remappings applied (what the master lists).
+  [[nodiscard]] std::string resolve(const std::string& name) const;
+  /// The node's full name (/namespace/name).
+  [[nodiscard]] std::string node_name() const;
+  /// False once roscpp has shut down (the master asked: rosnode kill, or a node of the same name).
+  [[nodiscard]] static bool ok() noexcept;
 
  private:
   struct State;

@@ -42,7 +42,7 @@ class PublishingDevice final : public HapticDevice {
     local_.stop(now);
     bridge_.stop(now);
   }
-  bool finished() const noexcept override { return local_.finished(); }
+  bool finished() const noexcept override { return local_.finished() || bridge_.finished(); }
   std::string status() const override { return local_.status(); }
   std::vector<DeviceCounter> counters() const override { return local_.counters(); }
 
@@ -145,6 +145,9 @@ int run_node(NodeOptions o) {
   if (st.pose_publishers.load() > 1)
     fmt::print(stderr, "warning: {} publishers on {}: their poses interleaved (the newest sample wins)\n",
                st.pose_publishers.load(), net.wire_topic(o.topics.pose_topic));
+  const std::string shutdown = net.shutdown_reason();
+  if (!shutdown.empty())
+    fmt::print(stderr, "node       ended: {}; the force was ramped to zero\n", shutdown);
   nlohmann::json extra = {{"poses_received", st.poses_received.load()}, {"poses_dropped", st.poses_dropped.load()},
                           {"twists_received", st.twists_received.load()},
                           {"wrenches_published", st.wrenches_published.load()},
@@ -153,7 +156,8 @@ int run_node(NodeOptions o) {
                           {"stamp_fallbacks", st.stamp_fallbacks.load()},
                           {"stamp_rejected", st.stamp_rejected.load()},
                           {"qos_incompatible", st.qos_incompatible.load()},
-                          {"qos_last_policy", qos_policy(st.qos_last_policy.load())}};
+                          {"qos_last_policy", qos_policy(st.qos_last_policy.load())},
+                          {"shutdown_reason", shutdown}};
   return write_run_outputs(rt, o.run, so, pw, setup, interrupted, "node", {{o.ros2 ? "ros2" : "ros1", extra}});
 }
 

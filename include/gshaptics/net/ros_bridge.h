@@ -22,8 +22,14 @@
 
 namespace gshaptics {
 
-/// Topics, frame and QoS. Topic names are ROS names (leading '/' optional).
+/// Topics, frame and QoS. Topic names are ROS names: relative ones (the defaults) resolve in the
+/// node's namespace (ROS 1: ROS_NAMESPACE or __ns:=; ROS 2: __ns), absolute ones ('/...') do not.
 struct RosBridgeOptions {
+  /// The node's name (ROS 1: registered with the master; two nodes on one master need two names).
+  std::string node_name = "gshaptics_node";
+  /// Command-line arguments for the middleware, passed through as given: ROS 1 remappings
+  /// (`from:=to`, `__name:=`, `__ns:=`), or ROS 2's `--ros-args -r from:=to ...`.
+  std::vector<std::string> ros_args;
   int domain = -1;  ///< ROS 2: DDS domain (= ROS_DOMAIN_ID); -1: the DDS default. ROS 1: unused
   std::string pose_topic = "gshaptics/tool_pose";    ///< geometry_msgs/PoseStamped, in
   std::string twist_topic = "gshaptics/tool_twist";  ///< geometry_msgs/TwistStamped, in (optional)
@@ -88,6 +94,9 @@ class RosBridgeDevice : public HapticDevice {
   virtual void stop_markers() = 0;
   /// The full names of the pose, twist, wrench and markers topics on the wire.
   [[nodiscard]] virtual std::string wire_topic(const std::string& ros_name) const = 0;
+  /// Why the middleware ended this node (ROS 1: the master shut it down), empty while it has not.
+  /// A node that was shut down reports finished(), so the runtime ramps the force to zero and ends.
+  [[nodiscard]] virtual std::string shutdown_reason() const { return {}; }
 };
 
 /// StreamDevice parameters of a network device: the newest pose as it is (inputs come at the

@@ -23,22 +23,26 @@ struct Ros1Impl;
 
 class Ros1NetworkDevice final : public RosBridgeDevice {
  public:
-  /// Initialises roscpp once per process as `node_name` (without its SIGINT handler) and waits
-  /// up to `master_timeout` s for the master at ROS_MASTER_URI; throws InputError when none
-  /// answers.
-  Ros1NetworkDevice(const RosBridgeOptions& options, Clock& clock,
-                    const std::string& node_name = "gshaptics_node", double master_timeout = 10);
+  /// Initialises roscpp once per process as `node_name` (empty: options.node_name), with
+  /// options.ros_args as its remappings (without its SIGINT handler), and waits up to
+  /// `master_timeout` s for the master at ROS_MASTER_URI; throws InputError when none answers or
+  /// an argument is not a remapping.
+  Ros1NetworkDevice(const RosBridgeOptions& options, Clock& clock, const std::string& node_name = {},
+                    double master_timeout = 10);
   ~Ros1NetworkDevice() override;
   [[nodiscard]] const DeviceInfo& info() const noexcept override { return input_.info(); }
   void start(Nanos now) override;
   [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
   void write(const Wrench& wrench, Nanos now) noexcept override;
   void stop(Nanos now) noexcept override;
+  /// True once roscpp has shut down (the master asked this node to end).
+  [[nodiscard]] bool finished() const noexcept override;
   [[nodiscard]] const RosBridgeStats& stats() const noexcept override;
   void start_markers(const CollisionWorld& world, ContactSnapshotObserver& snapshots,
                      const Eigen::Vector3d& tool_axes) override;
   void stop_markers() override;
   [[nodiscard]] std::string wire_topic(const std::string& ros_name) const override;
+  [[nodiscard]] std::string shutdown_reason() const override;
 
  private:
   StreamDevice input_;
