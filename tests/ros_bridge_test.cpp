@@ -2,6 +2,7 @@
 // not from arrival times, so transport jitter never reaches the damping term; missing, backward
 // and impossible stamps fall back to arrival times and are counted.
 
+#include "gshaptics/error.h"
 #include "gshaptics/net/ros_bridge.h"
 
 #include <gtest/gtest.h>
@@ -141,6 +142,32 @@ TEST(RosWatchdog, ForceStopsAtTheDocumentedTimeAfterTheLastPose) {
   }
   ASSERT_GE(last_force, 0.0) << "the pose never produced a force";
   EXPECT_NEAR(first_zero, 0.1, 0.0015);  // within a tick and a half of 0.1 s
+}
+
+}  // namespace
+}  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+// ROS 2 names without rcl (issue "ROS nodes that behave as ROS users expect", item 1): the
+// namespace and node name of --ros-args, and remap rules matched after resolution, as rcl does.
+TEST(Ros2Names, NamespaceNodeAndRemapsResolveAsRclDoes) {
+  const Ros2Names none = Ros2Names::parse({}, "gshaptics_node");
+  EXPECT_EQ(none.resolve("gshaptics/tool_pose"), "/gshaptics/tool_pose");
+  EXPECT_EQ(none.node, "gshaptics_node");
+  const Ros2Names n = Ros2Names::parse({"--ros-args", "-r", "__ns:=/arm1", "-r", "__node:=left", "--remap",
+                                        "gshaptics/wrench:=haptic/wrench", "-r", "/abs/in:=/other"},
+                                       "gshaptics_node");
+  EXPECT_EQ(n.node, "left");
+  EXPECT_EQ(n.resolve("gshaptics/tool_pose"), "/arm1/gshaptics/tool_pose");  // relative: under the namespace
+  EXPECT_EQ(n.resolve("gshaptics/wrench"), "/arm1/haptic/wrench");           // remapped, then resolved
+  EXPECT_EQ(n.resolve("/gshaptics/wrench"), "/gshaptics/wrench");            // absolute: not the rule's name
+  EXPECT_EQ(n.resolve("/abs/in"), "/other");
+  EXPECT_THROW((void)Ros2Names::parse({"pose:=x"}, "n"), InputError);                     // a ROS 1 remapping
+  EXPECT_THROW((void)Ros2Names::parse({"--ros-args", "-p", "x:=1"}, "n"), InputError);     // parameters
+  EXPECT_THROW((void)Ros2Names::parse({"--ros-args", "-r", "nonsense"}, "n"), InputError);
+  EXPECT_THROW((void)Ros2Names::parse({"--ros-args", "-r", "__ns:=relative"}, "n"), InputError);
 }
 
 }  // namespace

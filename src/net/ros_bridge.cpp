@@ -1,11 +1,64 @@
 #include "gshaptics/net/ros_bridge.h"
 
+#include "gshaptics/error.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <chrono>
 
 namespace gshaptics {
+
+namespace {
+
+// `name` under namespace `ns` (absolute, no trailing '/'), without repeated or trailing slashes.
+std::string expand(const std::string& ns, const std::string& name) {
+  std::string full = !name.empty() && name[0] == '/' ? name : (ns == "/" ? "" : ns) + "/" + name;
+  std::string out;
+  for (char c : full)
+    if (!(c == '/' && !out.empty() && out.back() == '/')) out += c;
+  if (out.size() > 1 && out.back() == '/') out.pop_back();
+  return out.empty() ? "/" : out;
+}
+
+}  // namespace
+
+Ros2Names Ros2Names::parse(const std::vector<std::string>& args, const std::string& node) {
+  Ros2Names n;
+  n.node = node;
+  if (args.empty()) return n;
+  if (args.front() != "--ros-args")
+    throw InputError("ROS 2: '" + args.front() + "' is a ROS 1 remapping; ROS 2 takes --ros-args -r FROM:=TO");
+  std::vector<std::pair<std::string, std::string>> rules;
+  for (std::size_t i = 1; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if ((a != "-r" && a != "--remap") || i + 1 >= args.size())
+      throw InputError("ROS 2: --ros-args '" + a + "': this node takes remap rules only (-r FROM:=TO, -r __ns:=/NS, "
+                       "-r __node:=NAME)");
+    const std::string rule = args[++i];
+    const std::size_t eq = rule.find(":=");
+    if (eq == std::string::npos || eq == 0 || eq + 2 >= rule.size())
+      throw InputError("ROS 2: remap rule '" + rule + "' is not FROM:=TO");
+    const std::string from = rule.substr(0, eq), to = rule.substr(eq + 2);
+    if (from == "__ns") {
+      if (to[0] != '/') throw InputError("ROS 2: __ns:=" + to + ": a namespace must be absolute ('/...')");
+      n.ns = expand("/", to);
+    } else if (from == "__node" || from == "__name") {
+      n.node = to;
+    } else {
+      rules.emplace_back(from, to);
+    }
+  }
+  for (const auto& [from, to] : rules) n.remaps.emplace_back(expand(n.ns, from), expand(n.ns, to));
+  return n;
+}
+
+std::string Ros2Names::resolve(const std::string& name) const {
+  const std::string full = expand(ns, name);
+  for (const auto& [from, to] : remaps)
+    if (from == full) return to;
+  return full;
+}
 
 void RosPoseIntake::on_twist(const Eigen::Vector3d& linear) {
   if (!linear.allFinite()) {

@@ -187,10 +187,24 @@ struct Ros2Impl {
   }
 };
 
+namespace {
+
+// The options with every topic resolved in the node's namespace and remapped (--ros-args).
+Ros2Options resolved(const Ros2Options& o, const Ros2Names& names) {
+  Ros2Options r = o;
+  r.node_name = names.node;
+  for (std::string* t : {&r.pose_topic, &r.twist_topic, &r.wrench_topic, &r.markers_topic}) *t = names.resolve(*t);
+  return r;
+}
+
+}  // namespace
+
 Ros2NetworkDevice::Ros2NetworkDevice(const Ros2Options& options, Clock& clock)
-    : input_(network_device_params("ros2 (" + ros2_dds_topic(options.pose_topic) + ")", options.input_timeout),
+    : names_(Ros2Names::parse(options.ros_args, options.node_name)),
+      input_(network_device_params("ros2 (" + ros2_dds_topic(names_.resolve(options.pose_topic)) + ")",
+                                   options.input_timeout),
              Eigen::Vector3d::Zero()),
-      impl_(std::make_unique<Ros2Impl>(options, clock, input_)) {}
+      impl_(std::make_unique<Ros2Impl>(resolved(options, names_), clock, input_)) {}
 
 Ros2NetworkDevice::~Ros2NetworkDevice() { stop_markers(); }
 

@@ -80,6 +80,7 @@ int run_node(NodeOptions o) {
     throw InputError("--device: node takes 'ros' (default), 'haply[:N]', 'dhd[:N]' or 'openhaptics[:NAME]', got '" +
                      o.run.device + "'");
   if (o.run.device != "ros") validate_runtime_options(o.run, false);  // before the scene load
+  if (o.ros2) (void)Ros2Names::parse(o.topics.ros_args, o.topics.node_name);  // before the scene load too
   const SceneOptions so = with_bundled_defaults(o.run.scene, "node");
   prepare_run_out_dir(o.run, so);
   const PreparedWorld pw = prepare_world(so, o.run.quiet);

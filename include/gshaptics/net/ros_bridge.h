@@ -11,6 +11,7 @@
 #include <functional>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "gshaptics/collision/collision_world.h"
@@ -50,6 +51,22 @@ struct RosBridgeOptions {
   /// No pose for this long: the device's data stops, s; the servo's watchdog zeroes the force
   /// SafetyParams::device_timeout later (0.09 + 0.01 = 0.1 s by default).
   double input_timeout = 0.09;
+};
+
+/// ROS 2 naming for a bridge without rcl: the node's namespace and name and the topic remappings
+/// of a `--ros-args` command line (`-r`/`--remap` with `FROM:=TO`, `__ns:=/NS`, `__node:=NAME`),
+/// resolved the way rcl resolves them: a relative name is put under the namespace, and a remap rule
+/// applies when its FROM, resolved the same way, equals the resolved name.
+struct Ros2Names {
+  std::string ns = "/";  ///< absolute
+  std::string node = "gshaptics_node";
+  std::vector<std::pair<std::string, std::string>> remaps;  ///< resolved FROM -> resolved TO
+
+  /// Parses `args` (empty, or starting with "--ros-args"); `node` is the default node name.
+  /// Throws InputError naming an argument that is not a remap rule this bridge understands.
+  [[nodiscard]] static Ros2Names parse(const std::vector<std::string>& args, const std::string& node);
+  /// `name` resolved: absolute, remapped.
+  [[nodiscard]] std::string resolve(const std::string& name) const;
 };
 
 /// ROS time (the system clock) as builtin_interfaces/Time (ROS 2) or ros::Time (ROS 1) fields.

@@ -44,6 +44,8 @@ class Ros2MarkerPublisher;
 
 class Ros2NetworkDevice final : public RosBridgeDevice {
  public:
+  /// Topics resolve in the namespace and through the remap rules of options.ros_args
+  /// (`--ros-args -r ...`, Ros2Names). Throws InputError for an argument it does not understand.
   Ros2NetworkDevice(const Ros2Options& options, Clock& clock);
   ~Ros2NetworkDevice() override;
   [[nodiscard]] const DeviceInfo& info() const noexcept override { return input_.info(); }
@@ -56,12 +58,13 @@ class Ros2NetworkDevice final : public RosBridgeDevice {
                      const Eigen::Vector3d& tool_axes) override;
   void stop_markers() override;
   [[nodiscard]] std::string wire_topic(const std::string& ros_name) const override {
-    return ros2_dds_topic(ros_name);
+    return ros2_dds_topic(names_.resolve(ros_name));
   }
   /// The DDS participant (for a marker publisher sharing it).
   [[nodiscard]] Ros2Impl& impl() noexcept { return *impl_; }
 
  private:
+  Ros2Names names_;
   StreamDevice input_;
   std::unique_ptr<Ros2Impl> impl_;
   std::unique_ptr<Ros2MarkerPublisher> markers_;
