@@ -83,6 +83,7 @@ class Ros1Node(unittest.TestCase):
         markers = echo_once("/gshaptics/markers", self.env)
         self.assertIn('ns: "tool"', markers)
         self.assertIn('ns: "contacts"', markers)
+        self.assertRegex(markers, r"lifetime: \n\s+secs: 0\n\s+nsecs: 100000000")  # three periods at 30 Hz
         # 2. A second publisher on the same topic is counted (poses interleave).
         second = self.publish(INSIDE, rate=50)
         time.sleep(2.0)
@@ -97,6 +98,10 @@ class Ros1Node(unittest.TestCase):
         time.sleep(1.0)
         f, _ = force_of(echo_once("/gshaptics/wrench", self.env))
         self.assertEqual(f, 0.0)
+        # ... and the markers say so: a lone DELETEALL, still at the marker rate.
+        markers = echo_once("/gshaptics/markers", self.env)
+        self.assertIn("action: 3", markers)
+        self.assertNotIn('ns: "tool"', markers)
         # The node stops cleanly and reports.
         self.node.send_signal(signal.SIGINT)
         out, err = self.node.communicate(timeout=60)
@@ -153,6 +158,26 @@ class Ros1Node(unittest.TestCase):
                 summary = json.load(fh)
             self.assertIn("rosnode kill", summary["ros1"]["shutdown_reason"])
             self.assertIsNone(arm2.poll())  # the other arm runs on
+            # Stopped while in contact, it clears its markers: the last MarkerArray is a DELETEALL.
+            # (into a file: a pipe nobody reads would fill and stall rostopic's callback)
+            echo_path = os.path.join(out2, "markers_echo.txt")
+            echo_file = open(echo_path, "w")
+            echo = subprocess.Popen(["rostopic", "echo", "/arm2/gshaptics/markers"], env=self.env,
+                                    stdout=echo_file, stderr=subprocess.DEVNULL, text=True)
+            time.sleep(2.0)
+            arm2.send_signal(signal.SIGINT)
+            arm2.communicate(timeout=60)
+            time.sleep(2.0)
+            echo.send_signal(signal.SIGINT)
+            echo.wait(timeout=30)
+            echo_file.close()
+            with open(echo_path) as fh:
+                seen = fh.read()
+            arrays = [a for a in seen.split("---") if "markers:" in a]
+            self.assertGreater(len(arrays), 5)
+            self.assertIn('ns: "tool"', arrays[0])
+            self.assertIn("action: 3", arrays[-1])
+            self.assertNotIn('ns: "tool"', arrays[-1])
         finally:
             for n in (arm1, arm2):
                 if n.poll() is None:

@@ -162,7 +162,7 @@ void RosWrenchOutbox::stop() {
 }
 
 std::vector<RosMarker> contact_markers(const ContactSnapshot& snap, const CollisionWorld& world,
-                                       const Eigen::Vector3d& tool_axes, std::size_t max_contacts) {
+                                       const Eigen::Vector3d& tool_axes, std::size_t max_contacts, double lifetime) {
   const std::size_t shown = std::min<std::size_t>(snap.shown, max_contacts);
   std::vector<RosMarker> out;
   out.reserve(3 + shown);
@@ -176,6 +176,7 @@ std::vector<RosMarker> contact_markers(const ContactSnapshot& snap, const Collis
                            snap.pose.orientation.w()};
   tool.scale = {2 * tool_axes.x(), 2 * tool_axes.y(), 2 * tool_axes.z()};
   tool.rgba = {0.4f, 0.8f, 1.0f, 0.5f};
+  tool.lifetime = lifetime;
   out.push_back(tool);
   for (std::size_t i = 0; i < shown; ++i) {
     const CollisionGaussian& g = world.gaussians()[snap.record[i]];
@@ -188,6 +189,7 @@ std::vector<RosMarker> contact_markers(const ContactSnapshot& snap, const Collis
     m.orientation_xyzw = {q.x(), q.y(), q.z(), q.w()};
     m.scale = {2.0 * g.semi_axes[0], 2.0 * g.semi_axes[1], 2.0 * g.semi_axes[2]};
     m.rgba = {1.0f, 0.15f, 0.25f, 0.85f};
+    m.lifetime = lifetime;
     out.push_back(m);
   }
   // The proxy (god-object) as a ghost of the tool, last, while it holds the tool off the pose.
@@ -203,22 +205,36 @@ std::vector<RosMarker> contact_markers(const ContactSnapshot& snap, const Collis
 
 RosMarkerLoop::RosMarkerLoop(PublishFn publish, const CollisionWorld& world, ContactSnapshotObserver& snapshots,
                              const Eigen::Vector3d& tool_axes, double hz, std::size_t max_contacts,
-                             RosBridgeStats& stats)
+                             RosBridgeStats& stats, double stale_after)
     : publish_(std::move(publish)), world_(world), snapshots_(snapshots), tool_axes_(tool_axes),
-      hz_(std::max(1.0, hz)), max_(max_contacts), stats_(stats) {}
+      hz_(std::max(1.0, hz)), max_(max_contacts), stats_(stats), stale_after_(std::max(stale_after, 2.5 / hz_)) {}
 
 void RosMarkerLoop::start() {
   stop_.store(false);
   thread_ = std::thread([this] {
     ContactSnapshot snap;
+    bool have = false;
     const auto period = std::chrono::duration<double>(1.0 / hz_);
+    const double lifetime = 3.0 / hz_;
+    auto last_new = std::chrono::steady_clock::now();
+    RosMarker clear;
+    clear.action = RosMarker::kDeleteAll;
+    const std::vector<RosMarker> clear_all{clear};
     while (!stop_.load()) {
+      const auto now = std::chrono::steady_clock::now();
       if (snapshots_.take(snap) && snap.pose_sequence != 0) {
-        publish_(contact_markers(snap, world_, tool_axes_, max_));
+        have = true;
+        last_new = now;
+      }
+      if (have) {
+        const bool stale = std::chrono::duration<double>(now - last_new).count() > stale_after_;
+        publish_(stale ? clear_all : contact_markers(snap, world_, tool_axes_, max_, lifetime));
         stats_.markers_published.fetch_add(1);
       }
       std::this_thread::sleep_for(period);
     }
+    publish_(clear_all);  // nothing of this run stays on screen
+    stats_.markers_published.fetch_add(1);
   });
 }
 

@@ -84,7 +84,7 @@ void Ros1NetworkDevice::start_markers(const CollisionWorld& world, ContactSnapsh
   Ros1Impl& m = *impl_;
   m.markers = std::make_unique<RosMarkerLoop>(
       [&m](const std::vector<RosMarker>& markers) { m.transport->publish_markers(markers); }, world, snapshots,
-      tool_axes, m.options.marker_hz, m.options.max_markers, m.stats);
+      tool_axes, m.options.marker_hz, m.options.max_markers, m.stats, m.options.input_timeout + 0.01);
   m.markers->start();
 }
 

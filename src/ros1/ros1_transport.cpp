@@ -113,6 +113,7 @@ void Transport::publish_markers(const std::vector<RosMarker>& markers) {
     m.pose.orientation.z = in.orientation_xyzw[2], m.pose.orientation.w = in.orientation_xyzw[3];
     m.scale.x = in.scale[0], m.scale.y = in.scale[1], m.scale.z = in.scale[2];
     m.color.r = in.rgba[0], m.color.g = in.rgba[1], m.color.b = in.rgba[2], m.color.a = in.rgba[3];
+    m.lifetime = ros::Duration(in.lifetime);
   }
   state_->marker_pub.publish(arr);
 }

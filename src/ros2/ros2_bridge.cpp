@@ -258,7 +258,7 @@ struct Ros2MarkerPublisher::State {
         writer(make_writer(d.participant, &visualization_msgs_msg_dds__MarkerArray__desc, d.options.markers_topic,
                            d.options)),
         loop([this](const std::vector<RosMarker>& m) { publish(m); }, w, s, axes, d.options.marker_hz,
-             d.options.max_markers, d.stats) {}
+             d.options.max_markers, d.stats, d.options.input_timeout + 0.01) {}
 
   void publish(const std::vector<RosMarker>& markers) {
     const RosTime t = RosTime::now();
@@ -275,6 +275,8 @@ struct Ros2MarkerPublisher::State {
       m.pose.orientation = {in.orientation_xyzw[0], in.orientation_xyzw[1], in.orientation_xyzw[2], in.orientation_xyzw[3]};
       m.scale = {in.scale[0], in.scale[1], in.scale[2]};
       m.color = {in.rgba[0], in.rgba[1], in.rgba[2], in.rgba[3]};
+      m.lifetime.sec = std::int32_t(in.lifetime);
+      m.lifetime.nanosec = std::uint32_t((in.lifetime - std::floor(in.lifetime)) * 1e9);
       m.texture_resource = kEmpty;
       m.texture.header.frame_id = kEmpty;
       m.texture.format = kEmpty;

@@ -211,18 +211,23 @@ class RosWrenchOutbox {
 /// the tool (ns "tool"), then one SPHERE per contact (ns "contacts", id = index into the original
 /// scene file, scale = the k-sigma ellipsoid's diameters), at most `max_contacts`, and last the
 /// proxy (ns "proxy", a ghost of the tool) while the proxy force model holds the tool away from
-/// the device's pose.
+/// the device's pose. Every added marker carries `lifetime` s (0: none).
 [[nodiscard]] std::vector<RosMarker> contact_markers(const ContactSnapshot& snapshot,
                                                      const CollisionWorld& world,
                                                      const Eigen::Vector3d& tool_axes,
-                                                     std::size_t max_contacts);
+                                                     std::size_t max_contacts, double lifetime = 0);
 
-/// Publishes contact_markers() of the newest snapshot at `hz` from its own thread.
+/// Publishes contact_markers() of the newest snapshot at `hz` from its own thread, every period
+/// whether or not the snapshot is new (each marker lives three periods, so a node that dies leaves
+/// nothing behind). When no new snapshot arrived for `stale_after` s (at least 2.5 periods; the
+/// poses stopped: the
+/// watchdog zeroed the force), it publishes a lone DELETEALL instead, and once more at stop().
 class RosMarkerLoop {
  public:
   using PublishFn = std::function<void(const std::vector<RosMarker>&)>;
   RosMarkerLoop(PublishFn publish, const CollisionWorld& world, ContactSnapshotObserver& snapshots,
-                const Eigen::Vector3d& tool_axes, double hz, std::size_t max_contacts, RosBridgeStats& stats);
+                const Eigen::Vector3d& tool_axes, double hz, std::size_t max_contacts, RosBridgeStats& stats,
+                double stale_after = 0.1);
   ~RosMarkerLoop() { stop(); }
   void start();
   void stop();
@@ -235,6 +240,7 @@ class RosMarkerLoop {
   double hz_;
   std::size_t max_;
   RosBridgeStats& stats_;
+  double stale_after_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

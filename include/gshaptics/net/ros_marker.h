@@ -20,6 +20,7 @@ struct RosMarker {
   std::array<double, 4> orientation_xyzw{0, 0, 0, 1};     ///< ROS order x, y, z, w
   std::array<double, 3> scale{};                          ///< full extents (diameters), m
   std::array<float, 4> rgba{};
+  double lifetime = 0;  ///< s after which RViz drops the marker unless it is republished; 0: never
 };
 
 }  // namespace gshaptics
