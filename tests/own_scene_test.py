@@ -161,6 +161,19 @@ class Serve(unittest.TestCase):
         self.assertIn("Not a fault", summary["device_idle_note"])
 
 
+    def test_wildcard_bind_prints_reachable_addresses(self):
+        # Bound to every interface, it printed http://0.0.0.0:PORT/, which no browser can open.
+        with tempfile.TemporaryDirectory() as d:
+            p = run("serve", "--host", "0.0.0.0", "--port", "0", "--duration", "1", "--quiet", "--no-plot",
+                    "--out", d, timeout=120)
+        urls = [l.split()[-1] if l.startswith("  ") else l.split()[1] for l in p.stdout.splitlines()
+                if "http://" in l]
+        self.assertTrue(urls, p.stdout)
+        self.assertFalse([u for u in urls if "0.0.0.0" in u], urls)
+        self.assertIn("http://127.0.0.1:", p.stdout)
+        self.assertIn("listening on every interface of 0.0.0.0", p.stdout)
+
+
 class InfoPreview(unittest.TestCase):
     def test_registration_preview(self):
         # `info --up auto` and `info --registration F` were rejected.

@@ -60,7 +60,7 @@ CollisionWorld CollisionWorld::build_impl(const GaussianScene& scene, GaussianSc
   for (float a : scene.opacities) kept += a > config.min_opacity ? 1 : 0;
   if (kept == 0)
     throw InputError("no Gaussian has opacity > " + std::to_string(config.min_opacity) + " (of " +
-                     std::to_string(scene.size()) + "); lower min_opacity");
+                     std::to_string(scene.size()) + "); lower the opacity threshold (--min-opacity, WorldConfig::min_opacity)");
 
   // In place: the records are written once into their final storage; then (the scene freed
   // if it is consumed) their float boxes; the BVH over the boxes; then the records are

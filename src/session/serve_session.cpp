@@ -1,5 +1,11 @@
 #include "gshaptics/session/serve_session.h"
 
+#include <arpa/inet.h>
+#include <ifaddrs.h>
+#include <net/if.h>
+#include <netinet/in.h>
+#include <unistd.h>
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -14,6 +20,30 @@
 namespace gshaptics::session {
 
 namespace {
+
+// Addresses a browser can reach the viewer at: `host` itself, or for a wildcard bind (0.0.0.0,
+// ::) this machine's non-loopback IPv4 addresses, then its host name, then 127.0.0.1.
+std::vector<std::string> reachable_hosts(const std::string& host) {
+  if (host != "0.0.0.0" && host != "::" && !host.empty()) return {host};
+  std::vector<std::string> out;
+  ifaddrs* list = nullptr;
+  if (getifaddrs(&list) == 0) {
+    for (const ifaddrs* a = list; a != nullptr; a = a->ifa_next) {
+      if (a->ifa_addr == nullptr || a->ifa_addr->sa_family != AF_INET || (a->ifa_flags & IFF_LOOPBACK) != 0 ||
+          (a->ifa_flags & IFF_UP) == 0)
+        continue;
+      char buf[INET_ADDRSTRLEN] = {};
+      if (inet_ntop(AF_INET, &reinterpret_cast<const sockaddr_in*>(a->ifa_addr)->sin_addr, buf, sizeof buf))
+        out.emplace_back(buf);
+    }
+    freeifaddrs(list);
+  }
+  char name[256] = {};
+  if (gethostname(name, sizeof name - 1) == 0 && name[0] != 0) out.emplace_back(name);
+  out.emplace_back("127.0.0.1");
+  return out;
+}
+
 
 std::string spark_file_type(SceneFormat f) {
   switch (f) {
@@ -128,8 +158,13 @@ int run_serve(ServeOptions o) {
   ViewerServer server(vc, rt, pw.world, snapshots, setup.mouse, MonotonicClock::instance());
   server.start();
   fmt::print("page       {}\n", vc.web_root);
-  fmt::print("viewer     http://{}:{}/{}  (Ctrl-C to stop)\n", vc.host, server.port(),
-             vc.token.empty() ? std::string() : "?token=" + vc.token);
+  {
+    const std::string query = vc.token.empty() ? std::string() : "?token=" + vc.token;
+    const std::vector<std::string> hosts = reachable_hosts(vc.host);
+    fmt::print("viewer     http://{}:{}/{}  (Ctrl-C to stop{})\n", hosts.front(), server.port(), query,
+               hosts.front() != vc.host ? ", listening on every interface of " + vc.host : std::string());
+    for (std::size_t i = 1; i < hosts.size(); ++i) fmt::print("           http://{}:{}/{}\n", hosts[i], server.port(), query);
+  }
   std::fflush(stdout);
   const bool interrupted = run_live(rt, setup.planned, o.run.quiet, [&server] {
     return fmt::format(" | clients {} | frames {}", server.stats().clients.load(),
