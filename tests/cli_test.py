@@ -386,6 +386,17 @@ class WorldCache(unittest.TestCase):
     def sim(self, cache, out):
         return run("simulate", "--world-cache", cache, "--quiet", "--no-plot", "--out", out, "--sites", "1")
 
+    def test_query_takes_the_cache_and_keeps_stdout_json(self):
+        with tempfile.TemporaryDirectory() as d:
+            args = ["query", scene_file("donut.ply"), "--tool-center", "0.0,0.05,0.04", "--tool-axes",
+                    "0.03,0.02,0.02", "--world-cache", d]
+            first, second = run(*args), run(*args)
+            self.assertIn("world written to", first.stderr)
+            self.assertIn("from the world cache", second.stderr)
+            a, b = json.loads(first.stdout), json.loads(second.stdout)  # stdout is the JSON alone
+            self.assertGreater(len(a["contacts"]), 0)
+            self.assertEqual(a["contacts"], b["contacts"])
+
     def test_hit_damage_and_unwritable_folder(self):
         with tempfile.TemporaryDirectory() as d:
             cache = os.path.join(d, "cache")

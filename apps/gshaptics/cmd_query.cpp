@@ -52,6 +52,7 @@ void register_query(CLI::App& app) {
                   "Iterations of the golden-section search")->capture_default_str()
       ->check(CLI::Range(1, 200));
   add_world_options(*cmd, o->scene);
+  add_world_cache_option(*cmd, o->scene);
   cmd->callback([o] {
     if (o->poses.empty() && (o->center.empty() || o->axes.empty()))
       throw InputError("query: give --tool-center and --tool-axes, or --poses FILE");
@@ -61,9 +62,9 @@ void register_query(CLI::App& app) {
       throw InputError(o->poses + ": is a folder, expected a pose file");
     if (!o->poses.empty() && !std::filesystem::exists(o->poses))
       throw InputError(o->poses + ": no such pose file");
-    const LoadedScene s = load_with_progress(o->scene.scene);
-    const WorldConfig cfg = world_config_from(o->scene);
-    const CollisionWorld world = CollisionWorld::build(s.scene, cfg);
+    // stdout is the JSON; what the load did goes to stderr.
+    const PreparedWorld pw = prepare_world(o->scene, false, stderr);
+    const CollisionWorld& world = pw.world;
     QueryOptions qo;
     if (o->minimiser == "golden") {
       qo.narrow_phase.minimiser = Minimiser::kGoldenSection;

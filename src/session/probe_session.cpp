@@ -70,7 +70,7 @@ bool is_registered(const SceneOptions& so) {
          !so.reg_translation.empty() || so.up != "none";
 }
 
-PreparedWorld prepare_world(const SceneOptions& so, bool quiet) {
+PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* report) {
   const WorldConfig cfg = world_config_from(so);
   const std::string cache_dir = world_cache_dir(so);
   WorldCacheKey key;
@@ -90,9 +90,9 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet) {
       br.filter = {cfg.min_opacity, std::size_t(s.report.loaded), hit->world.size()};
       br.memory_bytes = hit->world.memory_bytes();
       const Eigen::Vector3d up = hit->world.up();
-      fmt::print("scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
+      fmt::print(report, "scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
                  s.report.loaded, s.report.skipped());
-      fmt::print("world      {} Gaussians from the world cache {} (hashed and mapped in {:.0f} ms), up [{:.2f}, "
+      fmt::print(report, "world      {} Gaussians from the world cache {} (hashed and mapped in {:.0f} ms), up [{:.2f}, "
                  "{:.2f}, {:.2f}]\n", hit->world.size(), cache_file, ms, up.x(), up.y(), up.z());
       return {std::move(s), cfg, br, std::move(hit->world)};
     }
@@ -108,17 +108,17 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet) {
       std::error_code ec;
       std::filesystem::create_directories(cache_dir, ec);
       write_world_cache(world, key, cache_file, s.report);
-      fmt::print("cache      world written to {}\n", cache_file);
+      fmt::print(report, "cache      world written to {}\n", cache_file);
     } catch (const InputError& e) {
       fmt::print(stderr, "warning: {} (the world is rebuilt each time)\n", e.what());
     }
   }
-  fmt::print("scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
+  fmt::print(report, "scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
              s.report.loaded, s.report.skipped());
-  fmt::print("filter     opacity > {:.2f}: kept {} ({:.1f}%)\n", cfg.min_opacity, br.filter.after,
+  fmt::print(report, "filter     opacity > {:.2f}: kept {} ({:.1f}%)\n", cfg.min_opacity, br.filter.after,
              100 * br.filter.kept_fraction());
   const Eigen::Vector3d up = for_print(world.up());
-  fmt::print("world      {} Gaussians, BVH built in {:.0f} ms, {:.1f} MB, up [{:.2f}, {:.2f}, {:.2f}]{}\n",
+  fmt::print(report, "world      {} Gaussians, BVH built in {:.0f} ms, {:.1f} MB, up [{:.2f}, {:.2f}, {:.2f}]{}\n",
              world.size(), br.build_seconds * 1e3, double(br.memory_bytes) / 1e6, up.x(), up.y(),
              up.z(), so.registration_file.empty() ? "" : ", registration " + so.registration_file);
   if (rotates_twice(cfg.registration, cfg.up))

@@ -1,4 +1,5 @@
 #pragma once
+#include <cstdio>
 /// @file
 /// The session layer (see world_session.h), probe runs: the force model a session renders with
 /// (a RendererSpec plus the safety layer's limit and a device profile), the execution mode, the
@@ -53,7 +54,9 @@ struct PreparedWorld {
   WorldBuildReport report;
   CollisionWorld world;
 };
-PreparedWorld prepare_world(const SceneOptions& so, bool quiet);
+/// Loads and builds the world (or maps it from the world cache, --world-cache), printing what it
+/// did to `report` (stdout; a command whose stdout is data passes stderr).
+PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* report = stdout);
 
 /// Warns when the world is larger than the --device-profile's workspace, with the --reg-scale
 /// that fits it.
