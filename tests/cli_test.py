@@ -9,6 +9,7 @@ import csv
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -494,6 +495,18 @@ class Devices(unittest.TestCase):
             self.assertLessEqual(s["runtime"]["peak_force_n"], 12.0)
             self.assertEqual(s["device_limits"]["max_force_n"], 12.0)
             self.assertIn("limit      12 N, bound by the device (rating of omega.3", p.stdout)
+
+
+class Convert(unittest.TestCase):
+    def test_splat_output_measures_and_says_what_it_loses(self):
+        with tempfile.TemporaryDirectory() as d:
+            lossy = run("convert", scene_file("donut.ply"), os.path.join(d, "donut.splat"), "--quiet")
+            m = re.search(r"contacts changed for (\d+) of 200 tool poses", lossy.stderr)
+            self.assertIsNotNone(m, lossy.stderr)
+            self.assertIn(".splat is lossy", lossy.stderr)
+            exact = run("convert", scene_file("donut.ply"), os.path.join(d, "donut.ply"), "--quiet")
+            self.assertNotIn("lossy", exact.stderr)
+            self.assertIn("lossy", run("convert", "--help").stdout)
 
 
 class Stability(unittest.TestCase):

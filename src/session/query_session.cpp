@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "gshaptics/error.h"
+#include "gshaptics/sim/pose_sampler.h"
 
 namespace gshaptics::session {
 
@@ -41,6 +42,30 @@ std::string query_answer_json(ContactQuery& query, const ToolEllipsoid& tool) {
   j["query_us"] = std::chrono::duration<double, std::micro>(t1 - t0).count();
   if (status == QueryStatus::kContactOverflow) j["overflow"] = true;
   return j.dump();
+}
+
+ContactChange compare_contacts(const CollisionWorld& a, const CollisionWorld& b, std::size_t poses,
+                               std::uint64_t seed) {
+  PoseSamplerParams pp;
+  pp.count = poses;
+  pp.seed = seed;
+  const std::vector<ToolEllipsoid> tools = sample_poses(a, pp);
+  ContactQuery qa(a), qb(b);
+  ContactChange c;
+  std::vector<std::uint32_t> ia, ib;
+  const auto indices = [](ContactQuery& q, const ToolEllipsoid& t, std::vector<std::uint32_t>& out) {
+    (void)q.run(t);
+    out.clear();
+    for (const Contact& k : q.result().contacts()) out.push_back(k.index);
+    std::sort(out.begin(), out.end());
+  };
+  for (const ToolEllipsoid& t : tools) {
+    indices(qa, t, ia);
+    indices(qb, t, ib);
+    ++c.poses;
+    if (ia != ib) ++c.changed;
+  }
+  return c;
 }
 
 }  // namespace gshaptics::session

@@ -20,4 +20,13 @@ namespace gshaptics::session {
 /// contact set overflowed.
 [[nodiscard]] std::string query_answer_json(ContactQuery& query, const ToolEllipsoid& tool);
 
+/// How two worlds of the same scene differ where it matters (a lossy conversion, say): of
+/// `poses` seeded near-surface tool poses drawn on `a` (sim/pose_sampler.h), those whose contact
+/// sets (file indices) differ between `a` and `b`.
+struct ContactChange {
+  std::size_t poses = 0, changed = 0;
+};
+[[nodiscard]] ContactChange compare_contacts(const CollisionWorld& a, const CollisionWorld& b, std::size_t poses = 200,
+                                             std::uint64_t seed = 1);
+
 }  // namespace gshaptics::session
