@@ -380,6 +380,15 @@ class Run(unittest.TestCase):
         self.assertIn("'y'", p.stderr)
 
 
+    def test_short_run_says_it_ended_before_the_first_site(self):
+        # It said "0 contact episodes, likely causes: up axis" when the run was just too short.
+        with tempfile.TemporaryDirectory() as d:
+            p = run("run", "--device", "sim", "--simulated-time", "--duration", "1", "--no-plot", "--quiet",
+                    "--out", d)
+        self.assertIn("0 contact episodes", p.stdout)
+        self.assertRegex(p.stdout, r"ended at 1\.\d s, before the probe reached its first site \(at [\d.]+ s")
+        self.assertNotIn("likely causes", p.stderr)
+
 class WorldCache(unittest.TestCase):
     """--world-cache: the second run opens the world from the cache; a damaged cache is detected
     and rebuilt; a folder that cannot be written only costs the rebuild."""

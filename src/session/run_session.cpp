@@ -237,6 +237,9 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     ProbeTrajectory traj = make_probe_trajectory(pw, is_registered(so), o.sites, o.seed, o.tool_radius);
     s.tool_radius = traj.tool_radius();
     if (s.planned == 0) s.planned = traj.duration() + 0.5;
+    s.pass = traj.duration();
+    for (const ProbeSite& site : traj.sites())
+      if (s.first_site < 0 || site.t_touch < s.first_site) s.first_site = site.t_touch;
     s.device = std::make_unique<SimulatedDevice>(std::move(traj));
   } else if (o.device == "mouse") {
     if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
@@ -460,7 +463,15 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
   for (const DeviceCounter& c : device_counters)
     if (c.count > 0) fmt::print("device     {}: {}\n", c.name, c.count);
   fmt::print("episodes   {} contact episodes\n", episodes.size());
-  if (episodes.empty() && o.device == "sim" && !interrupted) print_no_contact_hints(pw, so, setup.tool_radius);
+  const double ran = records.empty() ? 0.0 : records.back().time;
+  if (episodes.empty() && o.device == "sim" && !interrupted) {
+    if (setup.first_site > 0 && ran < setup.first_site)
+      fmt::print("           the run ended at {:.1f} s, before the probe reached its first site (at {:.1f} s of a "
+                 "{:.1f} s pass): give a longer --duration, or none for one pass\n",
+                 ran, setup.first_site, setup.pass);
+    else
+      print_no_contact_hints(pw, so, setup.tool_radius);
+  }
   if (log.dropped() > 0)
     fmt::print(stderr, "warning: the tick log kept the first {} ticks; {} more were not logged\n",
                records.size(), log.dropped());

@@ -80,6 +80,9 @@ struct RuntimeSetup {
   std::optional<Eigen::AlignedBox3d> workspace_box;
   double tool_radius = 0;
   double planned = 0;  ///< s, 0: open-ended
+  /// The simulated hand (--device sim): when it first reaches a probe site and how long a pass
+  /// is, s (-1: not a probe run).
+  double first_site = -1, pass = -1;
   RuntimeConfig config;
 };
 /// Checks --device before the scene loads (throws InputError naming the option).
