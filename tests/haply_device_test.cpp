@@ -172,5 +172,49 @@ TEST(HaplyDevice, NoServiceOrNoDeviceIsAClearError) {
   }
 }
 
+// A first message that is not the documented state (and, having no device_id, cannot be answered,
+// so no better one follows): start() names what is wrong, instead of "no answer" or a read timeout (and a state without device_id, which could never be commanded, is
+// refused rather than run without force).
+TEST(HaplyDevice, FirstMessageProblemsAreNamed) {
+  const std::pair<const char*, const char*> cases[] = {
+      {"this is not json", "not JSON"},
+      {R"({"devices": []})", "no \"inverse3\" array"},
+      {R"({"inverse3": [{"state": {"cursor_position": {"x": "0", "y": 0, "z": 0}}}]})",
+       "cursor_position of three finite numbers"},
+      {R"({"inverse3": [{"state": {"cursor_position": {"x": 0, "y": 0, "z": 0}}}]})", "no \"device_id\""},
+  };
+  for (const auto& [first, expected] : cases) {
+    test::FakeInverseService service;
+    service.set_first_message(first);
+    HaplyParams p = params_for(service);
+    p.connect_timeout = 0.8;
+    HaplyDevice dev(p);
+    try {
+      dev.start(0);
+      ADD_FAILURE() << "started on: " << first;
+      dev.stop(0);
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  }
+}
+
+// The header's promise: a malformed message is answered with zero force (the lock-step goes on).
+TEST(HaplyDevice, MalformedMessagesAreAnsweredWithZeroForce) {
+  test::FakeInverseService service;
+  service.set_malformed_every(5);
+  HaplyDevice dev(params_for(service));
+  dev.start(0);
+  Wrench w;
+  w.force = {0, 0, 1.5};
+  ASSERT_TRUE(eventually([&] {
+    dev.write(w, 0);
+    return dev.stats().malformed >= 10;
+  }));
+  EXPECT_GT(service.last_force().z(), 1.0);  // the force goes out otherwise
+  EXPECT_EQ(service.nonzero_after_malformed(), 0);
+  dev.stop(0);
+}
+
 }  // namespace
 }  // namespace gshaptics

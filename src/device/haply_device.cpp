@@ -97,7 +97,11 @@ void HaplyDevice::io_main() noexcept {
     std::lock_guard<std::mutex> lock(text_mutex_);
     // A device missing from the service's list says more than the link loss that follows it
     // (without a device there is nothing to command, so the lock-step stops).
-    if (problem_.rfind("the service lists", 0) != 0 || p.rfind("the service lists", 0) == 0) problem_ = p;
+    // Likewise what was wrong with the messages says more than the timeout or loss it leads to.
+    const auto protocol = [](const std::string& x) {
+      return x.rfind("the service lists", 0) == 0 || x.rfind("malformed", 0) == 0 || x.rfind("the state of", 0) == 0;
+    };
+    if (!protocol(problem_) || protocol(p)) problem_ = p;
   };
   std::int64_t window_start = steady_ns();
   std::uint64_t window_count = 0;
@@ -161,8 +165,15 @@ void HaplyDevice::io_main() noexcept {
         // Parse the documented state message (peer_messages.h: never throws).
         const HaplyStateMessage state = parse_haply_state(
             std::string_view(static_cast<const char*>(buffer.data().data()), buffer.data().size()), params_.index);
-        const bool good = state.valid;
+        bool good = state.valid;
         HaplySample s = state.sample;
+        if (!good) set_problem(fmt::format("malformed state message: {}", state.problem));
+        if (good && state.devices_listed < 0 && !state.device_id && id.empty()) {
+          // Nothing to address commands to: refuse the device rather than run it without force.
+          set_problem(fmt::format("the state of Inverse3 {} has no \"device_id\", so it cannot be commanded",
+                                  params_.index));
+          good = false;
+        }
         if (state.devices_listed >= 0) {
           set_problem(fmt::format("the service lists {} Inverse3 device(s), none with index {}", state.devices_listed,
                                   params_.index));
@@ -179,8 +190,9 @@ void HaplyDevice::io_main() noexcept {
           link_.publish(LinkSample{s.position, s.velocity, s.orientation, s.buttons});
           have_state_.store(true, std::memory_order_release);
         }
-        // Answer with one command (lock-step), zero unless fresh and written after this connection.
-        const Eigen::Vector3d f = link_.force_to_send(connected_at);
+        // Answer with one command (lock-step), zero unless fresh and written after this connection,
+        // and zero to a malformed message.
+        const Eigen::Vector3d f = good ? link_.force_to_send(connected_at) : Eigen::Vector3d::Zero();
         if (id.empty()) continue;  // nothing to address yet (the service sends state regardless)
         out = fmt::format(R"({{"inverse3":[{{"device_id":{},"commands":{{"set_cursor_force":{{"values":{{"x":{},"y":{},"z":{}}}}}}}}}]}})",
                           json(id).dump(-1, ' ', false, json::error_handler_t::replace), f.x(), f.y(), f.z());

@@ -74,15 +74,20 @@ std::optional<ViewerToolMessage> parse_viewer_tool_message(std::string_view text
 HaplyStateMessage parse_haply_state(std::string_view text, int index) noexcept {
   HaplyStateMessage m;
   const json j = parse_or_discard(text);
+  const auto bad = [&m](const char* why) -> HaplyStateMessage& {
+    m.problem = why;
+    return m;
+  };
+  if (j.is_discarded()) return bad("not JSON");
   const json* inverse3 = member(j, "inverse3");
-  if (inverse3 == nullptr || !inverse3->is_array() || index < 0) return m;
+  if (inverse3 == nullptr || !inverse3->is_array() || index < 0) return bad("no \"inverse3\" array");
   if (std::size_t(index) >= inverse3->size()) {  // a valid message without our device
     m.valid = true;
     m.devices_listed = long(inverse3->size());
     return m;
   }
   const json& device = (*inverse3)[std::size_t(index)];
-  if (!device.is_object()) return m;
+  if (!device.is_object()) return bad("the \"inverse3\" entry is not an object");
   if (const json* id = member(device, "device_id")) {
     try {
       m.device_id = id->is_string() ? id->get<std::string>()
@@ -96,8 +101,10 @@ HaplyStateMessage parse_haply_state(std::string_view text, int index) noexcept {
     if (hand != nullptr && hand->is_string()) m.handedness = hand->get_ref<const std::string&>();
   }
   const json* state = member(device, "state");
-  if (!finite_xyz(state == nullptr ? nullptr : member(*state, "cursor_position"), m.sample.position)) return m;
-  if (const json* v = member(*state, "cursor_velocity"); v != nullptr && !finite_xyz(v, m.sample.velocity)) return m;
+  if (!finite_xyz(state == nullptr ? nullptr : member(*state, "cursor_position"), m.sample.position))
+    return bad("no state.cursor_position of three finite numbers x, y, z");
+  if (const json* v = member(*state, "cursor_velocity"); v != nullptr && !finite_xyz(v, m.sample.velocity))
+    return bad("state.cursor_velocity is not three finite numbers x, y, z");
   m.valid = true;
   // The first wireless VerseGrip, if any: orientation and buttons (optional; never invalidate).
   const json* grips = member(j, "wireless_verse_grip");

@@ -42,6 +42,11 @@ class FakeInverseService {
   void set_devices(int n) { devices_ = n; }
   /// Every n-th message is malformed JSON (0: never).
   void set_malformed_every(int n) { malformed_every_ = n; }
+  /// Each connection opens with this text instead of the documented first state (empty: the
+  /// documented one), and sends nothing more until a command comes.
+  void set_first_message(std::string text) { std::lock_guard<std::mutex> l(mu_); first_override_ = std::move(text); }
+  /// Commands that answered a malformed message with a force other than zero.
+  long nonzero_after_malformed() const { return nonzero_after_malformed_; }
   /// Drops the current connection and refuses new ones for `seconds`.
   void restart(double seconds) {
     refuse_until_ = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -102,7 +107,13 @@ class FakeInverseService {
         ws.accept();
         ws.text(true);
         long sent = 0;
-        ws.write(boost::asio::buffer(state(true)));
+        bool malformed_sent = false;
+        std::string first;
+        {
+          std::lock_guard<std::mutex> l(mu_);
+          first = first_override_;
+        }
+        ws.write(boost::asio::buffer(first.empty() ? state(true) : first));
         while (!stop_) {
           beast::flat_buffer buf;
           ws.read(buf);
@@ -112,6 +123,7 @@ class FakeInverseService {
             const auto& v = j.at("inverse3").at(0).at("commands").at("set_cursor_force").at("values");
             const Eigen::Vector3d f(v.at("x").get<double>(), v.at("y").get<double>(), v.at("z").get<double>());
             std::lock_guard<std::mutex> l(mu_);
+            if (malformed_sent && f != Eigen::Vector3d::Zero()) ++nonzero_after_malformed_;
             last_force_ = f;
             if (first_command) first_forces_.push_back(f);
             first_command = false;
@@ -119,7 +131,8 @@ class FakeInverseService {
             ++bad_commands_;
           }
           ++sent;
-          if (malformed_every_ > 0 && sent % malformed_every_ == 0)
+          malformed_sent = malformed_every_ > 0 && sent % malformed_every_ == 0;
+          if (malformed_sent)
             ws.write(boost::asio::buffer(std::string("{\"inverse3\": [ {\"device_id\": ")));
           else
             ws.write(boost::asio::buffer(state(false)));
@@ -139,8 +152,9 @@ class FakeInverseService {
   std::atomic<int> socket_fd_{-1};
   std::atomic<std::chrono::steady_clock::time_point> refuse_until_{};
   std::atomic<int> devices_{1}, malformed_every_{0}, connections_{0};
-  std::atomic<long> commands_{0}, bad_commands_{0};
+  std::atomic<long> commands_{0}, bad_commands_{0}, nonzero_after_malformed_{0};
   mutable std::mutex mu_;
+  std::string first_override_;
   Eigen::Vector3d position_ = Eigen::Vector3d::Zero(), velocity_ = Eigen::Vector3d::Zero(), last_force_ = Eigen::Vector3d::Zero();
   std::array<bool, 3> buttons_{false, false, false};
   std::vector<Eigen::Vector3d> first_forces_;

@@ -25,7 +25,10 @@
 ///     and after a reconnect it sends zero force until the servo thread writes a new command;
 ///   - a force not refreshed by the servo thread for `command_timeout` is sent as zero;
 ///   - a malformed message is counted and skipped, the connection kept (a zero-force command
-///     keeps the lock-step going);
+///     keeps the lock-step going); what was wrong with it is kept, and a start() that gets no
+///     usable state names it (not JSON, no "inverse3" array, a cursor_position that is not three
+///     finite numbers, ...);
+///   - a state for our device without "device_id" is refused: it could never be commanded;
 ///   - stop() sends zero force, closes and joins.
 
 #include <atomic>

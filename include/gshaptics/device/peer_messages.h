@@ -58,6 +58,9 @@ struct HaplyStateMessage {
   /// The device's "device_id" (a string as is; another JSON value as its text) when present.
   std::optional<std::string> device_id;
   std::string handedness;  ///< config.handedness when it is a string, else empty
+  /// Why the message is malformed, for people ("not JSON", "no \"inverse3\" array", ...);
+  /// empty when valid. A static string.
+  const char* problem = "";
 };
 
 /// Parses one state message for Inverse3 number `index` (>= 0). Never throws.
