@@ -380,6 +380,16 @@ class Run(unittest.TestCase):
         self.assertIn("'y'", p.stderr)
 
 
+    def test_workspace_rotation_on_the_command_line(self):
+        with tempfile.TemporaryDirectory() as d:
+            p = run("run", "--device", "sim", "--simulated-time", "--duration", "0.2", "--no-plot", "--quiet",
+                    "--out", d, "--workspace-rotation", "0.7071068,0,0,0.7071068")
+        self.assertIn("turned [0.707, 0.000, 0.000, 0.707] (w,x,y,z)", p.stdout)
+        bad = run("run", "--workspace-rotation", "0,0,0,0", check=False)
+        self.assertEqual(bad.returncode, 2)
+        self.assertIn("--workspace-rotation", bad.stderr)
+        self.assertNotIn("scene ", bad.stdout)  # refused before the scene loads
+
     def test_short_run_says_it_ended_before_the_first_site(self):
         # It said "0 contact episodes, likely causes: up axis" when the run was just too short.
         with tempfile.TemporaryDirectory() as d:

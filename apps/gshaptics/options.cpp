@@ -191,6 +191,9 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
                   "desktop workspace over a 3 m scene: 20). Forces are not scaled: 1 N in the scene "
                   "is 1 N in the hand, so the hand feels --stiffness times this scale")->type_name("FLOAT");
   cmd.add_option("--workspace-offset", o.workspace_offset, "World point X,Y,Z of the device's origin (with --workspace-scale)");
+  cmd.add_option("--workspace-rotation", o.workspace_rotation,
+                 "Quaternion W,X,Y,Z turning the device's axes into the world's, for a unit set to another "
+                 "basis (default: the device's z turned onto the world's up)");
   cmd.add_option("--clutch-button", o.clutch_button,
                  "Device button (0-31) that holds the clutch: re-centre the hand without moving the tool")
       ->check(CLI::Range(0, 31));

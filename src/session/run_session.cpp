@@ -175,12 +175,19 @@ double parse_workspace_scale(const std::string& text) {
     throw InputError("--workspace-scale: must be a finite number > 0, got '" + text + "'");
   return v;
 }
+
+Eigen::Quaterniond parse_workspace_rotation(const std::string& text) {
+  const Eigen::Vector4d q = parse_vec4(text, "--workspace-rotation");
+  if (!(q.norm() > 1e-9)) throw InputError("--workspace-rotation: '" + text + "' is not a rotation (all zero)");
+  return Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+}
 }  // namespace
 
 void validate_runtime_options(const RuntimeOptions& o, bool allow_mouse) {
   check_device_option(o.device, allow_mouse);
   if (!o.workspace_scale.empty()) (void)parse_workspace_scale(o.workspace_scale);
   if (!o.workspace_offset.empty()) (void)parse_vec3(o.workspace_offset, "--workspace-offset");
+  if (!o.workspace_rotation.empty()) (void)parse_workspace_rotation(o.workspace_rotation);
   // A device's library and a replay file are checked now, before the scene is loaded.
   if (is_hardware_device(o.device)) (void)make_hardware_device(o);
   if (o.device.rfind("replay:", 0) == 0) (void)load_pose_log(o.device.substr(7));
@@ -188,8 +195,8 @@ void validate_runtime_options(const RuntimeOptions& o, bool allow_mouse) {
 
 void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool hardware,
                                const Eigen::Vector3d& default_offset, const Eigen::Vector3d& world_up) {
-  const bool any = !o.workspace_scale.empty() || !o.workspace_offset.empty() || o.clutch_button >= 0 ||
-                   o.bubble_radius > 0 || o.bubble_gain > 0;
+  const bool any = !o.workspace_scale.empty() || !o.workspace_offset.empty() || !o.workspace_rotation.empty() ||
+                   o.clutch_button >= 0 || o.bubble_radius > 0 || o.bubble_gain > 0;
   if (!any && !hardware) return;
   if (s.mouse != nullptr)
     throw InputError("--workspace-*: the mouse device already works in world coordinates");
@@ -201,6 +208,7 @@ void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool ha
     p.offset = default_offset;
   }
   if (!o.workspace_offset.empty()) p.offset = parse_vec3(o.workspace_offset, "--workspace-offset");
+  if (!o.workspace_rotation.empty()) p.rotation = parse_workspace_rotation(o.workspace_rotation);
   p.clutch_button = o.clutch_button;
   p.bubble_radius = o.bubble_radius;
   p.bubble_gain = o.bubble_gain;
@@ -209,8 +217,9 @@ void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool ha
   const Eigen::AlignedBox3d& ws = s.inner->info().workspace;
   if (ws.sizes().allFinite() && ws.sizes().maxCoeff() < 1e3) s.workspace_box = mapped->mapping().world_box(ws);
   s.device = std::move(mapped);
-  fmt::print("workspace  device x {:.4g} + [{:.3f}, {:.3f}, {:.3f}] -> world{}{}\n", p.scale, p.offset.x(),
-             p.offset.y(), p.offset.z(), p.clutch_button >= 0 ? fmt::format(", clutch button {}", p.clutch_button) : "",
+  const Eigen::Quaterniond& r = p.rotation;
+  fmt::print("workspace  device x {:.4g}, turned [{:.3f}, {:.3f}, {:.3f}, {:.3f}] (w,x,y,z), + [{:.3f}, {:.3f}, {:.3f}] "
+             "-> world{}{}\n", p.scale, r.w(), r.x(), r.y(), r.z(), p.offset.x(), p.offset.y(), p.offset.z(), p.clutch_button >= 0 ? fmt::format(", clutch button {}", p.clutch_button) : "",
              p.bubble_radius > 0 ? fmt::format(", bubble {:.3g} m", p.bubble_radius) : "");
 }
 

@@ -57,6 +57,8 @@ struct RuntimeOptions {
   double spin_us = 0;
   double log_seconds = 0;  ///< 0: the whole run (the runtime's default)
   std::string workspace_scale, workspace_offset;  ///< "" : no workspace mapping
+  /// "W,X,Y,Z": the device's axes in the world (replaces the default, device z -> world up); "": default.
+  std::string workspace_rotation;
   int clutch_button = -1;
   double bubble_radius = 0, bubble_gain = 0;
   std::string haply_url = "ws://127.0.0.1:10001/";  ///< the Haply Inverse Service
