@@ -220,5 +220,94 @@ TEST(HaplyDevice, MalformedMessagesAreAnsweredWithZeroForce) {
   dev.stop(0);
 }
 
+// Both documented forms, told apart by the service's first message: 3.1-3.4 take the force as
+// "values", 3.5 as "vector" with a session profile handshake on the first command of each
+// connection. A command in the wrong form is not applied by the fake (bad_commands).
+TEST(HaplyDevice, SpeaksTheFormOfTheServiceVersion) {
+  for (int version : {31, 35}) {
+    SCOPED_TRACE(version);
+    test::FakeInverseService service;
+    service.set_version(version);
+    HaplyDevice dev(params_for(service));
+    for (int session = 0; session < 2; ++session) {
+      dev.start(0);
+      EXPECT_EQ(dev.stats().format, version);
+      const std::string status = dev.status();
+      EXPECT_NE(status.find(version == 35 ? "3.5 format" : "3.1-3.4 format"), std::string::npos) << status;
+      EXPECT_NE(status.find(" Hz"), std::string::npos) << "no service rate at start: " << status;
+      Wrench w;
+      w.force = {0.25, -0.5, 1.25};
+      ASSERT_TRUE(eventually([&] {
+        dev.write(w, 0);
+        return service.last_force().isApprox(w.force);
+      }));
+      dev.stop(0);
+      EXPECT_EQ(service.last_force(), Eigen::Vector3d::Zero());
+    }
+    EXPECT_EQ(service.bad_commands(), 0);
+    const std::vector<std::string> profiles = service.session_profiles();
+    if (version == 35) {
+      ASSERT_EQ(profiles.size(), 2u);  // once per connection, not with every command
+      EXPECT_EQ(profiles[0], "gshaptics");
+    } else {
+      EXPECT_TRUE(profiles.empty());
+    }
+  }
+}
+
+// What the device says about itself: not calibrated or not ready is refused with that reason
+// (calibration can be waived); turning not ready mid-run answers with zero force, counted.
+TEST(HaplyDevice, StatusNotCalibratedOrNotReadyGetsNoForce) {
+  const struct {
+    bool calibrated, ready;
+    const char* expected;
+  } cases[] = {{false, true, "not calibrated"}, {true, false, "not ready"}};
+  for (const auto& c : cases) {
+    test::FakeInverseService service;
+    service.set_version(35);
+    service.set_status(c.calibrated, c.ready);
+    HaplyParams p = params_for(service);
+    p.connect_timeout = 0.5;
+    HaplyDevice dev(p);
+    try {
+      dev.start(0);
+      ADD_FAILURE() << "started a device whose status says " << c.expected;
+      dev.stop(0);
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.expected), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(service.last_force(), Eigen::Vector3d::Zero());
+  }
+  {
+    test::FakeInverseService service;
+    service.set_status(false, true);
+    HaplyParams p = params_for(service);
+    p.require_calibrated = false;
+    HaplyDevice dev(p);
+    dev.start(0);  // waived
+    dev.stop(0);
+  }
+  test::FakeInverseService service;
+  HaplyDevice dev(params_for(service));
+  dev.start(0);
+  Wrench w;
+  w.force = {0, 0, 1.5};
+  ASSERT_TRUE(eventually([&] {
+    dev.write(w, 0);
+    return service.last_force().z() > 1.0;
+  }));
+  service.set_status(true, false);
+  EXPECT_TRUE(eventually([&] {
+    dev.write(w, 0);
+    return dev.stats().not_ready > 5 && service.last_force().isZero();
+  }));
+  service.set_status(true, true);
+  EXPECT_TRUE(eventually([&] {
+    dev.write(w, 0);
+    return service.last_force().z() > 1.0;
+  }));
+  dev.stop(0);
+}
+
 }  // namespace
 }  // namespace gshaptics

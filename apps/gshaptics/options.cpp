@@ -204,6 +204,9 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
       ->check(check::non_negative());
   cmd.add_option("--haply-url", o.haply_url, "The Haply Inverse Service's WebSocket (--device haply)")
       ->capture_default_str();
+  cmd.add_flag("--haply-allow-uncalibrated", o.haply_allow_uncalibrated,
+               "Render force to an Inverse3 whose status says it is not calibrated (refused by default; "
+               "calibrate it in Haply Hub instead)");
   cmd.add_option("--log-seconds", o.log_seconds,
                  "Keep only the first S seconds of the per-tick log (reserved up front; default: the "
                  "whole run, or 10 min when open-ended). Long runs: caps the log's memory")

@@ -33,6 +33,19 @@ bool run_until(net::io_context& ioc, const bool& done, double seconds, const std
   return done;
 }
 
+/// One set_cursor_force command for `id` in the service's form: "vector" for 3.5 (`format` 35),
+/// "values" for 3.1-3.4; with the 3.5 session handshake naming profile `*handshake` when given.
+std::string force_command(const std::string& id, const Eigen::Vector3d& f, int format, const std::string* handshake) {
+  const auto quote = [](const std::string& t) { return json(t).dump(-1, ' ', false, json::error_handler_t::replace); };
+  const std::string quoted = quote(id);
+  const char* key = format == 35 ? "vector" : "values";
+  const std::string session =
+      handshake != nullptr ? fmt::format(R"("session":{{"configure":{{"profile":{{"name":{}}}}}}},)", quote(*handshake))
+                           : std::string();
+  return fmt::format(R"({{{}"inverse3":[{{"device_id":{},"commands":{{"set_cursor_force":{{"{}":{{"x":{},"y":{},"z":{}}}}}}}}}]}})",
+                     session, quoted, key, f.x(), f.y(), f.z());
+}
+
 }  // namespace
 
 HaplyDevice::HaplyDevice(const HaplyParams& params) : params_(params), link_(params.command_timeout) {
@@ -66,6 +79,12 @@ HaplyStats HaplyDevice::stats() const noexcept {
   s.zero_after_connect = link_.zeroed_before();
   s.stale_commands = link_.stale_commands();
   s.rate_hz = rate_hz_.load(std::memory_order_relaxed);
+  if (s.rate_hz == 0 && s.messages > 1) {  // before the first 0.25 s window: the rate so far
+    const std::int64_t since = steady_ns() - first_message_ns_.load(std::memory_order_relaxed);
+    if (since > 0) s.rate_hz = double(s.messages - 1) * 1e9 / double(since);
+  }
+  s.not_ready = not_ready_.load(std::memory_order_relaxed);
+  s.format = format_.load(std::memory_order_relaxed);
   s.connected = connected_.load(std::memory_order_relaxed);
   return s;
 }
@@ -74,11 +93,26 @@ void HaplyDevice::start(Nanos) {
   if (io_.joinable()) throw InputError("haply: already started");
   stop_.store(false);
   link_.begin_session();
+  have_state_.store(false);
+  messages_.store(0);
+  rate_hz_.store(0);
+  format_.store(0);
+  not_ready_.store(0);
+  {
+    std::lock_guard<std::mutex> lock(text_mutex_);
+    problem_.clear();
+  }
   io_ = std::thread([this] { io_main(); });
   const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(params_.connect_timeout);
   while (!have_state_.load(std::memory_order_acquire) && std::chrono::steady_clock::now() < end)
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  if (have_state_.load(std::memory_order_acquire)) return;
+  if (have_state_.load(std::memory_order_acquire)) {
+    // A few more messages (at most 0.1 s) so that status() can show the service's rate at once.
+    const auto rate_end = std::chrono::steady_clock::now() + std::chrono::milliseconds(100);
+    while (messages_.load(std::memory_order_relaxed) < 8 && std::chrono::steady_clock::now() < rate_end)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    return;
+  }
   std::string problem;
   {
     std::lock_guard<std::mutex> lock(text_mutex_);
@@ -138,6 +172,8 @@ void HaplyDevice::io_main() noexcept {
       connected_.store(true, std::memory_order_relaxed);
       const std::int64_t connected_at = steady_ns();
       std::string id;
+      int format = 0;          // detected from this connection's first message
+      bool handshake = false;  // the 3.5 session handshake goes with the first command
       beast::flat_buffer buffer;
       std::string out;
       // Reads and writes are never abandoned half-way on stop (Beast allows one of each in
@@ -154,9 +190,9 @@ void HaplyDevice::io_main() noexcept {
           set_problem(done ? "link lost: " + ec.message() : std::string("link lost: no message within the read timeout"));
           break;
         }
-        messages_.fetch_add(1, std::memory_order_relaxed);
-        ++window_count;
         const std::int64_t t = steady_ns();
+        if (messages_.fetch_add(1, std::memory_order_relaxed) == 0) first_message_ns_.store(t, std::memory_order_relaxed);
+        ++window_count;
         if (t - window_start >= 250'000'000) {
           rate_hz_.store(double(window_count) * 1e9 / double(t - window_start), std::memory_order_relaxed);
           window_start = t;
@@ -167,6 +203,11 @@ void HaplyDevice::io_main() noexcept {
             std::string_view(static_cast<const char*>(buffer.data().data()), buffer.data().size()), params_.index);
         bool good = state.valid;
         HaplySample s = state.sample;
+        if (format == 0 && good) {
+          format = state.has_session_id ? 35 : 31;
+          handshake = format == 35;
+          format_.store(format, std::memory_order_relaxed);
+        }
         if (!good) set_problem(fmt::format("malformed state message: {}", state.problem));
         if (good && state.devices_listed < 0 && !state.device_id && id.empty()) {
           // Nothing to address commands to: refuse the device rather than run it without force.
@@ -184,18 +225,31 @@ void HaplyDevice::io_main() noexcept {
           device_id_ = id;
           handedness_ = state.handedness;
         }
+        // What the device says about itself (status, documented from 3.4): refused before the
+        // first sample, zero force during a run.
+        const bool not_ready = state.ready == 0, uncalibrated = params_.require_calibrated && state.calibrated == 0;
+        const bool blocked = good && state.devices_listed < 0 && (not_ready || uncalibrated);
+        if (blocked && !have_state_.load(std::memory_order_relaxed))
+          set_problem(fmt::format("the state of Inverse3 {} says it is {} (status.{} false){}", id.empty() ? "?" : id,
+                                  not_ready ? "not ready" : "not calibrated", not_ready ? "ready" : "calibrated",
+                                  not_ready ? ": check its power supply and Haply Hub"
+                                            : ": calibrate it in Haply Hub (or give --haply-allow-uncalibrated)"));
         if (!good) {
           malformed_.fetch_add(1, std::memory_order_relaxed);
-        } else if (s.position.allFinite()) {
+        } else if (s.position.allFinite() && (!blocked || have_state_.load(std::memory_order_relaxed))) {
           link_.publish(LinkSample{s.position, s.velocity, s.orientation, s.buttons});
           have_state_.store(true, std::memory_order_release);
         }
         // Answer with one command (lock-step), zero unless fresh and written after this connection,
         // and zero to a malformed message.
-        const Eigen::Vector3d f = good ? link_.force_to_send(connected_at) : Eigen::Vector3d::Zero();
+        Eigen::Vector3d f = good ? link_.force_to_send(connected_at) : Eigen::Vector3d::Zero();
+        if (blocked) {  // a device that says it is not ready (or not calibrated) gets no force
+          if (have_state_.load(std::memory_order_relaxed)) not_ready_.fetch_add(1, std::memory_order_relaxed);
+          f.setZero();
+        }
         if (id.empty()) continue;  // nothing to address yet (the service sends state regardless)
-        out = fmt::format(R"({{"inverse3":[{{"device_id":{},"commands":{{"set_cursor_force":{{"values":{{"x":{},"y":{},"z":{}}}}}}}}}]}})",
-                          json(id).dump(-1, ' ', false, json::error_handler_t::replace), f.x(), f.y(), f.z());
+        out = force_command(id, f, format, handshake ? &params_.profile_name : nullptr);
+        handshake = false;
         done = false;
         ws.text(true);
         ws.async_write(net::buffer(out), [&](beast::error_code e, std::size_t) {
@@ -210,8 +264,7 @@ void HaplyDevice::io_main() noexcept {
       }
       // Leaving: a last zero-force command when we are stopping on a live link, then close.
       if (stop_.load(std::memory_order_relaxed) && !id.empty() && done && !ec) {
-        out = fmt::format(R"({{"inverse3":[{{"device_id":{},"commands":{{"set_cursor_force":{{"values":{{"x":0,"y":0,"z":0}}}}}}}}]}})",
-                          json(id).dump(-1, ' ', false, json::error_handler_t::replace));
+        out = force_command(id, Eigen::Vector3d::Zero(), format, nullptr);
         bool sent = false;
         ws.async_write(net::buffer(out), [&](beast::error_code, std::size_t) { sent = true; });
         if (run_until(ioc, sent, 0.2, never)) commands_sent_.fetch_add(1, std::memory_order_relaxed);
@@ -245,15 +298,17 @@ std::string HaplyDevice::status() const {
   if (id.empty()) return {};
   const std::string hand = handedness();
   const HaplyStats st = stats();
-  return fmt::format("Inverse3 {} ({}-handed) at {}{}", id, hand.empty() ? "?" : hand, url(),
-                     st.rate_hz > 0 ? fmt::format(", service {:.0f} Hz", st.rate_hz) : "");
+  return fmt::format("Inverse3 {} ({}-handed) at {}, service {} format{}", id, hand.empty() ? "?" : hand, url(),
+                     st.format == 35 ? "3.5" : "3.1-3.4",
+                     st.rate_hz > 0 ? fmt::format(", {:.0f} Hz", st.rate_hz) : "");
 }
 
 std::vector<DeviceCounter> HaplyDevice::counters() const {
   const HaplyStats st = stats();
   return {{"reconnects", st.connects > 0 ? st.connects - 1 : 0},
           {"malformed messages", st.malformed},
-          {"stale commands sent as zero", st.stale_commands}};
+          {"stale commands sent as zero", st.stale_commands},
+          {"messages answered with zero force (device not ready)", st.not_ready}};
 }
 
 void parse_haply_url(const std::string& u, HaplyParams& p) {
@@ -290,6 +345,7 @@ void register_haply_device(DeviceRegistry& registry) {
     HaplyParams p;
     p.index = device_index_arg("haply:" + arg, arg);
     parse_haply_url(o.haply_url, p);
+    p.require_calibrated = !o.haply_allow_uncalibrated;
     return std::make_unique<HaplyDevice>(p);
   };
   k.probe = [](const DeviceOptions& o) {
@@ -297,10 +353,11 @@ void register_haply_device(DeviceRegistry& registry) {
       HaplyParams p;
       parse_haply_url(o.haply_url, p);
       p.connect_timeout = 1.0;
+      p.require_calibrated = !o.haply_allow_uncalibrated;
       HaplyDevice d(p);
       d.start(0);
       std::this_thread::sleep_for(std::chrono::milliseconds(300));  // one rate window
-      const std::string note = d.status();
+      const std::string note = describe_device(d) + ", " + d.status();
       d.stop(0);
       return std::vector<DeviceStatus>{{"haply:0", true, note}};
     } catch (const InputError& e) {

@@ -81,6 +81,7 @@ HaplyStateMessage parse_haply_state(std::string_view text, int index) noexcept {
   if (j.is_discarded()) return bad("not JSON");
   const json* inverse3 = member(j, "inverse3");
   if (inverse3 == nullptr || !inverse3->is_array() || index < 0) return bad("no \"inverse3\" array");
+  m.has_session_id = member(j, "session_id") != nullptr;
   if (std::size_t(index) >= inverse3->size()) {  // a valid message without our device
     m.valid = true;
     m.devices_listed = long(inverse3->size());
@@ -99,6 +100,14 @@ HaplyStateMessage parse_haply_state(std::string_view text, int index) noexcept {
   if (const json* config = member(device, "config")) {
     const json* hand = member(*config, "handedness");
     if (hand != nullptr && hand->is_string()) m.handedness = hand->get_ref<const std::string&>();
+  }
+  if (const json* status = member(device, "status")) {
+    const auto flag = [status](const char* key) {
+      const json* v = member(*status, key);
+      return v != nullptr && v->is_boolean() ? int(v->get<bool>()) : -1;
+    };
+    m.calibrated = flag("calibrated");
+    m.ready = flag("ready");
   }
   const json* state = member(device, "state");
   if (!finite_xyz(state == nullptr ? nullptr : member(*state, "cursor_position"), m.sample.position))

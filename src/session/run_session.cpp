@@ -129,6 +129,7 @@ void check_device_option(const std::string& device, bool allow_mouse) {
 std::unique_ptr<HapticDevice> make_hardware_device(const RuntimeOptions& o) {
   DeviceOptions d;
   d.haply_url = o.haply_url;
+  d.haply_allow_uncalibrated = o.haply_allow_uncalibrated;
   return open_device(o.device, d);
 }
 
@@ -257,6 +258,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     const Eigen::Vector3d start = tool_start_point(pw, s.tool_radius);
     StreamDeviceParams sp;
     sp.name = "mouse (browser)";
+    sp.timeout_periods = 3;  // a busy page sends its keep-alive at 5-7/s, not 30: scale the timeout
     auto dev = std::make_unique<StreamDevice>(sp, start);
     s.mouse_start = start;
     s.mouse = dev.get();
@@ -266,12 +268,14 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
   } else if (o.device == "xr") {
     // A VR controller in the page's WebXR session: 6-DoF targets at the headset's frame rate
     // (72-120 Hz), interpolated to the servo rate like the mouse; no force before the first
-    // controller pose, and none once the controller stops reporting for 0.25 s.
+    // controller pose, and none once the controller stops reporting for 0.25 s or three of the
+    // page's frame intervals, whichever is longer (up to 1 s: a page at 7 frames/s).
     if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
     const Eigen::Vector3d start = tool_start_point(pw, s.tool_radius);
     StreamDeviceParams sp;
     sp.name = "xr controller (WebXR)";
     sp.input_timeout = 0.25;
+    sp.timeout_periods = 3;  // a page at 7-15 frames/s: one late frame does not cut the force
     sp.alive_before_first_target = false;
     auto dev = std::make_unique<StreamDevice>(sp, start);
     s.mouse_start = start;
@@ -418,6 +422,7 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
   sj["gaussians_kept"] = pw.world.size();
   sj["device"] = setup.device->info().name;
   sj["mode"] = o.exec.inline_query ? "inline" : "decoupled";
+  sj["renderer"] = std::string(renderer_name(setup.config.renderer));
   sj["tool_radius"] = setup.tool_radius;
   sj["interrupted"] = interrupted;
   sj["runtime"] = to_json(s);

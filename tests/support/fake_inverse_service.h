@@ -1,6 +1,9 @@
 #pragma once
 // A fake Haply Inverse Service for the tests: a WebSocket server that speaks the documented
-// Inverse Service 3.1 JSON (see gshaptics/device/haply_device.h) in lock-step - a state message,
+// Inverse Service JSON (see gshaptics/device/haply_device.h) of version 3.1 (force key "values",
+// no session) or 3.5 (a "session_id" in the first message, force key "vector", a session
+// profile handshake with the first command; docs.haply.co/inverseSDK/service, 3.5.x), with each
+// device's "status" {calibrated, ready, ...}, in lock-step - a state message,
 // then one command, then the next state - records the forces it is sent, and can be told to
 // drop the connection and refuse new ones for a while (a service restart), to slip malformed
 // messages in, or to list no device.
@@ -40,6 +43,13 @@ class FakeInverseService {
   void set_velocity(const Eigen::Vector3d& v) { std::lock_guard<std::mutex> l(mu_); velocity_ = v; }
   void set_buttons(bool a, bool b, bool c) { std::lock_guard<std::mutex> l(mu_); buttons_ = {a, b, c}; }
   void set_devices(int n) { devices_ = n; }
+  /// The documented form served and expected: 31 (3.1-3.4) or 35 (3.5). A command in the other
+  /// form counts as a bad command and is not applied.
+  void set_version(int v) { version_ = v; }
+  /// What the device's status says (both true unless told).
+  void set_status(bool calibrated, bool ready) { calibrated_ = calibrated; ready_ = ready; }
+  /// 3.5: connections whose first command carried session.configure.profile.name (the name kept).
+  std::vector<std::string> session_profiles() const { std::lock_guard<std::mutex> l(mu_); return profiles_; }
   /// Every n-th message is malformed JSON (0: never).
   void set_malformed_every(int n) { malformed_every_ = n; }
   /// Each connection opens with this text instead of the documented first state (empty: the
@@ -76,6 +86,8 @@ class FakeInverseService {
                            {{"cursor_position", {{"x", position_.x()}, {"y", position_.y()}, {"z", position_.z()}}},
                             {"cursor_velocity", {{"x", velocity_.x()}, {"y", velocity_.y()}, {"z", velocity_.z()}}}}}};
       if (first) d["config"] = {{"handedness", "right"}};
+      d["status"] = {{"calibrated", calibrated_.load()}, {"in_use", true}, {"power_supply", true},
+                     {"ready", ready_.load()}, {"started", true}};
       inv.push_back(d);
     }
     nlohmann::json grip = nlohmann::json::array(
@@ -83,7 +95,9 @@ class FakeInverseService {
           {"state",
            {{"orientation", {{"w", 1.0}, {"x", 0.0}, {"y", 0.0}, {"z", 0.0}}},
             {"buttons", {{"a", buttons_[0]}, {"b", buttons_[1]}, {"c", buttons_[2]}}}}}}});
-    return nlohmann::json{{"inverse3", inv}, {"wireless_verse_grip", grip}}.dump();
+    nlohmann::json msg{{"inverse3", inv}, {"wireless_verse_grip", grip}};
+    if (first && version_ == 35) msg["session_id"] = 7;
+    return msg.dump();
   }
 
   void serve() {
@@ -120,7 +134,12 @@ class FakeInverseService {
           ++commands_;
           const auto j = nlohmann::json::parse(beast::buffers_to_string(buf.data()), nullptr, false);
           try {
-            const auto& v = j.at("inverse3").at(0).at("commands").at("set_cursor_force").at("values");
+            if (first_command && version_ == 35 && j.contains("session")) {
+              std::lock_guard<std::mutex> l(mu_);
+              profiles_.push_back(j.at("session").at("configure").at("profile").at("name").get<std::string>());
+            }
+            const char* key = version_ == 35 ? "vector" : "values";
+            const auto& v = j.at("inverse3").at(0).at("commands").at("set_cursor_force").at(key);
             const Eigen::Vector3d f(v.at("x").get<double>(), v.at("y").get<double>(), v.at("z").get<double>());
             std::lock_guard<std::mutex> l(mu_);
             if (malformed_sent && f != Eigen::Vector3d::Zero()) ++nonzero_after_malformed_;
@@ -151,7 +170,9 @@ class FakeInverseService {
   std::atomic<bool> stop_{false};
   std::atomic<int> socket_fd_{-1};
   std::atomic<std::chrono::steady_clock::time_point> refuse_until_{};
-  std::atomic<int> devices_{1}, malformed_every_{0}, connections_{0};
+  std::atomic<int> devices_{1}, malformed_every_{0}, connections_{0}, version_{31};
+  std::atomic<bool> calibrated_{true}, ready_{true};
+  std::vector<std::string> profiles_;
   std::atomic<long> commands_{0}, bad_commands_{0}, nonzero_after_malformed_{0};
   mutable std::mutex mu_;
   std::string first_override_;

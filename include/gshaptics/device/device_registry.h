@@ -28,6 +28,8 @@ namespace gshaptics {
 /// What the device factories may need besides the `--device` value.
 struct DeviceOptions {
   std::string haply_url = "ws://127.0.0.1:10001/";  ///< the Haply Inverse Service's WebSocket
+  /// Haply: render force to an Inverse3 whose status says it is not calibrated (refused by default).
+  bool haply_allow_uncalibrated = false;
   double calibration_wait = 5.0;  ///< OpenHaptics: how long start() waits for inkwell calibration, s
 };
 

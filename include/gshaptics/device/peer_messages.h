@@ -58,6 +58,13 @@ struct HaplyStateMessage {
   /// The device's "device_id" (a string as is; another JSON value as its text) when present.
   std::optional<std::string> device_id;
   std::string handedness;  ///< config.handedness when it is a string, else empty
+  /// The message has a top-level "session_id" (Inverse Service 3.5 and later put one in every
+  /// connection's first message; 3.1-3.4 have none). Its value is not interpreted.
+  bool has_session_id = false;
+  /// The device's status.calibrated / status.ready: 1 true, 0 false, -1 absent or not a boolean
+  /// (services before 3.4 may send no status).
+  int calibrated = -1;
+  int ready = -1;
   /// Why the message is malformed, for people ("not JSON", "no \"inverse3\" array", ...);
   /// empty when valid. A static string.
   const char* problem = "";

@@ -62,6 +62,7 @@ struct RuntimeOptions {
   int clutch_button = -1;
   double bubble_radius = 0, bubble_gain = 0;
   std::string haply_url = "ws://127.0.0.1:10001/";  ///< the Haply Inverse Service
+  bool haply_allow_uncalibrated = false;  ///< DeviceOptions::haply_allow_uncalibrated
   std::string out_dir;
   bool no_plot = false;
   bool quiet = false;
