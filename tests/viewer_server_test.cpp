@@ -376,6 +376,36 @@ TEST_F(ViewerWithToken, RefusedWithoutAcceptedWithAndCarriedAsCookie) {
   EXPECT_TRUE(ws_handshake(port, {{"Cookie", std::string("gshaptics_token=") + kToken}}));
 }
 
+// A page at 7 frames/s (software GL, a stalled browser): with the timeout scaled to its frame
+// interval, one late frame does not cut the force; the fixed 0.25 s timeout would. Silence
+// longer than three intervals still ends the data.
+TEST(StreamDeviceTimeout, ScalesToTheInputPeriodWithinItsBounds) {
+  const auto alive_after = [](double timeout_periods, double gap_s) {
+    StreamDeviceParams sp;
+    sp.input_timeout = 0.25;
+    sp.timeout_periods = timeout_periods;
+    sp.alive_before_first_target = false;
+    StreamDevice dev(sp, Eigen::Vector3d::Zero());
+    dev.start(0);
+    const Nanos period = to_nanos(1.0 / 7.0);
+    Nanos t = 0;
+    for (int k = 0; k < 20; ++k) {  // 20 frames at 7 Hz
+      t += period;
+      dev.set_target(Eigen::Vector3d(0.001 * k, 0, 0), Eigen::Quaterniond::Identity(), t);
+      (void)dev.read(t);
+    }
+    const std::uint64_t seq = dev.read(t).sequence;
+    return std::pair(dev.read(t + to_nanos(gap_s)).sequence > seq, dev.input_timeout());
+  };
+  const auto [fixed_alive, fixed_timeout] = alive_after(0, 0.35);
+  EXPECT_FALSE(fixed_alive);
+  EXPECT_DOUBLE_EQ(fixed_timeout, 0.25);
+  const auto [scaled_alive, scaled_timeout] = alive_after(3, 0.35);
+  EXPECT_TRUE(scaled_alive) << "a frame 0.35 s late at 7 frames/s cut the input";
+  EXPECT_NEAR(scaled_timeout, 3.0 / 7.0, 1e-6);
+  EXPECT_FALSE(alive_after(3, 0.5).first);  // > 3 intervals: the controller is gone
+}
+
 TEST(ViewerSecurity, OriginPolicy) {
   const OriginPolicy lo("127.0.0.1", 8080);
   EXPECT_TRUE(lo.host_ok("127.0.0.1:8080"));

@@ -61,6 +61,10 @@ function vec(a) { return new THREE.Vector3(a[0], a[1], a[2]); }
 
 function init(h) {
   view.hello = h;
+  if (h.renderer === "proxy") {
+    $("prefiltered-label").textContent = "proxy gap / constraints";
+    $("contacts-label").textContent = "Gaussians holding the proxy";
+  }
   $("scene-name").textContent = `${h.scene_name}: ${h.gaussians_kept.toLocaleString()} of ` +
     `${h.gaussians_in_file.toLocaleString()} Gaussians collide (opacity filter); device: ${h.device}`;
   const lo = vec(h.bounds.min), hi = vec(h.bounds.max);
@@ -105,7 +109,7 @@ function init(h) {
     view.perf.splats = splat.numSplats || (splat.packedSplats && splat.packedSplats.numSplats) || h.gaussians_in_file;
     view.perf.budget = quality.splats;
     setLoading(null);
-    document.body.dataset.sceneLoaded = "1";
+    view.splatFrames = 0;  // "scene loaded" once frames with the splats have been drawn (below)
   }).catch((err) => {
     setLoading(null);
     showError(`The scene ${h.scene_name} could not be shown: ${err && err.message ? err.message : err}. ` +
@@ -171,6 +175,10 @@ function init(h) {
     if (frame && view.onXRFrame) view.onXRFrame(frame);
     else controls.update();
     renderer.render(scene, camera);
+    // The splats are sorted off the main thread: the first frame after loading may draw none, so
+    // the flag waits for the second drawn frame.
+    if (view.splatFrames !== undefined && !document.body.dataset.sceneLoaded && ++view.splatFrames >= 2)
+      document.body.dataset.sceneLoaded = "1";
     countFrame();
   });
   setupXR(view, ws, { steer: !!h.xr }).then((ok) => {
@@ -244,7 +252,14 @@ function update(m) {
   }
 
   $("candidates").textContent = m.counts.candidates;
-  $("prefiltered").textContent = m.counts.prefiltered;
+  if (view.hello.renderer === "proxy") {
+    // The proxy (god-object) reports what holds it: the gap to the device and the Gaussians it
+    // rests on, not the paper's pre-filter and K_min counts (it runs neither per tick).
+    const gap = vec(m.proxy.center).distanceTo(vec(m.tool.center));
+    $("prefiltered").textContent = `${(gap * 1000).toFixed(1)} mm, ${m.proxy.constraints} plane(s)`;
+  } else {
+    $("prefiltered").textContent = m.counts.prefiltered;
+  }
   $("contacts").textContent = m.counts.contacts;
   $("force").textContent = `${fm.toFixed(2)} N`;
   $("query").textContent = `${m.query_us.toFixed(1)} µs (p99 ${m.stats.query_p99_us.toFixed(1)})`;

@@ -41,6 +41,9 @@ DeviceSample StreamDevice::read(Nanos now) noexcept {
       prev_.stamp = t.stamp - 1;
     } else {
       prev_ = last_;
+      // The input's period: a running average (weight 0.2) of the intervals between targets.
+      const double dt = std::clamp(to_seconds(t.stamp - last_.stamp), 0.0, params_.max_input_timeout);
+      period_s_ = period_s_ > 0 ? 0.8 * period_s_ + 0.2 * dt : dt;
     }
     last_ = t;
     have_last_ = true;
@@ -50,7 +53,7 @@ DeviceSample StreamDevice::read(Nanos now) noexcept {
   // that it is alive while targets keep coming.
   const bool alive = !have_last_ ? params_.alive_before_first_target &&
                                        now - start_ <= to_nanos(params_.input_timeout)
-                                 : now - last_.stamp <= to_nanos(params_.input_timeout);
+                                 : now - last_.stamp <= to_nanos(input_timeout());
   if (alive) ++sequence_;
   s.sequence = sequence_;
   s.stamp = now;
@@ -72,6 +75,12 @@ DeviceSample StreamDevice::read(Nanos now) noexcept {
                           : Eigen::Vector3d::Zero();
   s.orientation = prev_.orientation.slerp(u, last_.orientation);
   return s;
+}
+
+double StreamDevice::input_timeout() const noexcept {
+  if (!(params_.timeout_periods > 0)) return params_.input_timeout;
+  return std::clamp(params_.timeout_periods * period_s_, params_.input_timeout,
+                    std::max(params_.input_timeout, params_.max_input_timeout));
 }
 
 void StreamDevice::write(const Wrench& wrench, Nanos now) noexcept {

@@ -84,6 +84,7 @@ std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const Ru
   j["mouse"] = setup.mouse != nullptr && !setup.xr;
   j["xr"] = setup.xr;
   j["f_max"] = setup.config.safety.f_max;
+  j["renderer"] = std::string(renderer_name(setup.config.renderer));
   j["rate_hz"] = setup.config.rate_hz;
   j["display_hz"] = display_hz;
   j["step"] = 0.5 * setup.tool_radius;

@@ -21,6 +21,12 @@ struct StreamDeviceParams {
   /// No target for this long: the device stops delivering data, so the runtime's watchdog
   /// zeroes the force (a closed browser tab, a dead link). s.
   double input_timeout = 0.5;
+  /// > 0: the timeout stretches to this many input periods when the input is slower than
+  /// input_timeout / timeout_periods (a browser page at 7-15 frames/s, or stalling: one late
+  /// frame must not cut the force mid-contact), up to max_input_timeout. The period is a running
+  /// average of the intervals between targets. 0: input_timeout as it is (network devices).
+  double timeout_periods = 0;
+  double max_input_timeout = 1.0;  ///< s
   double max_rate_hz = 100000;
   /// true: interpolate between the last two targets over one input period (smooth servo-rate
   /// poses from a 30-60 Hz input, one period behind); false: use the newest target as it is
@@ -58,6 +64,8 @@ class StreamDevice final : public HapticDevice {
                   Nanos stamp, const Eigen::Vector3d* velocity = nullptr) noexcept;
   /// |F| last commanded, N (any thread).
   [[nodiscard]] double last_force() const noexcept { return last_force_.load(std::memory_order_relaxed); }
+  /// The input timeout in force now, s (servo thread; see StreamDeviceParams::timeout_periods).
+  [[nodiscard]] double input_timeout() const noexcept;
 
  private:
   using Target = StreamTarget;
@@ -69,6 +77,7 @@ class StreamDevice final : public HapticDevice {
   bool have_last_ = false;
   std::uint64_t sequence_ = 0;
   Nanos start_ = 0;
+  double period_s_ = 0;  // running average of the intervals between targets (0: none yet)
   std::atomic<double> last_force_{0};
 };
 
