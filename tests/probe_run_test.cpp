@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <cstdlib>
 #include <fstream>
 
@@ -116,6 +118,51 @@ TEST(ProbeRun, EpisodesMergeShortGapsAndRecordPeaks) {
   EXPECT_NEAR(eps[0].peak_force, 299, 1e-9);
   EXPECT_EQ(eps[0].peak_contacts, 17u);
   EXPECT_NEAR((eps[0].peak_direction - Eigen::Vector3d(0, 1, 0)).norm(), 0, 1e-12);
+}
+
+// Every planned site is accounted for: touched (when, how hard, bounces as extra episodes) or
+// missed, with how close the tool came to the planned touch point.
+TEST(ProbeRun, SiteAccountsNameTouchedAndMissedSites) {
+  std::vector<ProbeSite> sites(3);
+  const double planned[] = {1.0, 2.0, 3.0};
+  for (int i = 0; i < 3; ++i) {
+    sites[i].t_touch = planned[i];
+    sites[i].touch_point = Eigen::Vector3d(double(i), 0, 0);
+    sites[i].surface_point = sites[i].touch_point;
+    sites[i].normal = Eigen::Vector3d::UnitZ();
+    sites[i].gaussian_index = std::uint32_t(i);
+  }
+  const ProbeTrajectory traj({{0.0, {0, 0, 1}}, {4.0, {2, 0, 1}}}, sites, 0.05);
+  std::vector<TickRecord> ticks(4000);
+  for (std::size_t k = 0; k < ticks.size(); ++k) {
+    TickRecord& r = ticks[k];
+    r.time = double(k) * 1e-3;
+    r.position = Eigen::Vector3d(r.time / 2.0, 0, 0.5);  // passes 0.5 above every touch point...
+    if (k >= 1800 && k < 2300) r.position.z() = 0.02;     // ...but dips to 0.02 near site 2
+    // Site 1: two episodes 300 ms apart (a bounce); site 2: none although the tool came close;
+    // site 3: one.
+    const bool touching = (k >= 1000 && k < 1100) || (k >= 1400 && k < 1450) || (k >= 3000 && k < 3050);
+    r.counts.contacts = touching ? 3 : 0;
+    r.force = touching ? Eigen::Vector3d(0, 0, 0.001 * double(k % 1000 + 1)) : Eigen::Vector3d::Zero();
+  }
+  const auto eps = find_episodes(ticks, 0.1);
+  ASSERT_EQ(eps.size(), 3u);
+  const std::vector<SiteAccount> a = account_sites(traj, ticks, eps);
+  ASSERT_EQ(a.size(), 3u);
+  EXPECT_TRUE(a[0].touched);
+  EXPECT_NEAR(a[0].t_first_contact, 1.0, 1e-12);
+  EXPECT_EQ(a[0].episodes, 2);
+  EXPECT_NEAR(a[0].peak_force, 0.450, 1e-12);  // k = 1449
+  EXPECT_NEAR(a[0].t_window_start, 0.0, 1e-12);
+  EXPECT_NEAR(a[0].t_window_end, 1.5, 1e-12);
+  EXPECT_FALSE(a[1].touched);
+  EXPECT_EQ(a[1].episodes, 0);
+  EXPECT_EQ(a[1].peak_force, 0.0);
+  EXPECT_NEAR(a[1].closest_approach, 0.02, 1e-9);  // at t = 2.0 the tool is at (1, 0, 0.02)
+  EXPECT_TRUE(a[2].touched);
+  EXPECT_NEAR(a[2].t_first_contact, 3.0, 1e-12);
+  EXPECT_EQ(a[2].episodes, 1);
+  EXPECT_NEAR(a[2].closest_approach, std::hypot(0.5, 0.0), 1e-3);  // never dipped there
 }
 
 TEST(ProbeRun, CsvLogIsWrittenAtomicallyWithHeader) {

@@ -28,6 +28,22 @@ TEST(SimulatedDevice, FollowsTheTrajectoryThroughTheHand) {
   EXPECT_EQ(s.stamp, 4000 * kMs);
 }
 
+// `run --device sim` runs one pass (duration + 0.5 s of rest): its last tick lands exactly on the
+// loop's period. The hand must not be sent back to the start there (a 34 N "user force" spike
+// in run.png at the last tick, issue 35).
+TEST(SimulatedDevice, TheLastTickOfAPassIsNotTheStartOfTheNext) {
+  SimulatedDevice d(straight_line());
+  d.start(0);
+  DeviceSample s;
+  double peak_late = 0;
+  for (Nanos t = kMs; t <= 4500 * kMs; t += kMs) {
+    s = d.read(t);
+    if (t > 3000 * kMs) peak_late = std::max(peak_late, s.user_force.norm());
+  }
+  EXPECT_LT(peak_late, 0.5) << "the hand pulled at the end of the pass";
+  EXPECT_NEAR(s.position.x(), 0.2, 0.005);
+}
+
 TEST(SimulatedDevice, StateDoesNotDependOnTheReadRate) {
   SimulatedDevice a(straight_line()), b(straight_line());
   a.start(0);

@@ -7,7 +7,10 @@ Rows: (1) broad-phase candidates, pre-filtered and colliding Gaussians; (2) rend
 x/y/z in the world frame; (3) force of the (simulated) user's hand; (4) collision-query time;
 and for a real-time run (servo_log.csv of `gshaptics run`) a fifth row: servo tick jitter with
 the ticks that held a stale result or faded marked.
-Vertical lines mark the start of each contact episode (t_a, t_b, ...).
+Vertical lines mark the start of each contact episode (t_a, t_b, ...); for a probe run
+(simulate) the planned sites are marked on the force row: S1, S2, ... (green: touched, red: missed).
+With the proxy (god-object) renderer the first row shows the Gaussians holding the proxy instead
+of the paper's pre-filter and K_min counts.
 The PNG is written to a temporary name and renamed, so a failed run never leaves half a file.
 """
 import json
@@ -44,9 +47,15 @@ def main(argv):
     energy_row = proxy_row + (1 if has_proxy else 0)
     rows = energy_row + (1 if has_energy else 0)
     fig, ax = plt.subplots(rows, 1, figsize=(11, 2.4 * rows + 0.4), sharex=True)
+    proxy = summary.get("renderer", "proxy" if has_proxy else "paper") == "proxy"
     ax[0].plot(t, data["candidates"], lw=0.8, label="broad-phase candidates")
-    ax[0].plot(t, data["prefiltered"], lw=0.8, label="after sphere pre-filter (eq. 4)")
-    ax[0].plot(t, data["contacts"], lw=1.0, label="colliding (K_min > 0)")
+    if proxy:
+        # The proxy (god-object) runs no pre-filter or K_min per tick: its contacts are the
+        # Gaussians that hold it (its blockers), a handful even where many overlap the device's tool.
+        ax[0].plot(t, data["contacts"], lw=1.0, label="Gaussians holding the proxy")
+    else:
+        ax[0].plot(t, data["prefiltered"], lw=0.8, label="after sphere pre-filter (eq. 4)")
+        ax[0].plot(t, data["contacts"], lw=1.0, label="colliding (K_min > 0)")
     ax[0].set_yscale("symlog", linthresh=10)
     ax[0].set_ylabel("Gaussians")
     for name, lab in (("fx", "x"), ("fy", "y"), ("fz", "z")):
@@ -113,6 +122,18 @@ def main(argv):
             a.axvline(ep["t_start"], color="gray", ls=":", lw=0.8)
         ax[0].annotate(label, (ep["t_start"], 1), xycoords=("data", "axes fraction"),
                        xytext=(2, -10), textcoords="offset points", fontsize=8)
+    # The planned probe sites (simulate): a green triangle where the tool touched, a red cross
+    # where it missed, at the planned touch time.
+    for i, site in enumerate(summary.get("sites", [])):
+        if "touched" not in site:
+            continue
+        touched = site["touched"]
+        ax[1].plot([site["t_touch"]], [1.0], transform=ax[1].get_xaxis_transform(), clip_on=False,
+                   marker="v" if touched else "x", ms=7, color="tab:green" if touched else "tab:red",
+                   label=None)
+        ax[1].annotate(f"S{i + 1}" + ("" if touched else " missed"), (site["t_touch"], 1.0),
+                       xycoords=("data", "axes fraction"), xytext=(4, 2), textcoords="offset points",
+                       fontsize=7, color="tab:green" if touched else "tab:red")
     for a in ax:
         a.grid(alpha=0.3)
         a.legend(loc="upper left", fontsize=7, ncol=3)

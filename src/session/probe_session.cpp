@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 
@@ -251,6 +252,7 @@ int run_simulate(SimulateOptions o) {
   sj["tool_radius"] = traj.tool_radius();
   sj["rate_hz"] = o.rate;
   sj["mode"] = describe_execution(o.exec, true);
+  sj["renderer"] = std::string(renderer_name(rp.renderer));
   sj["ticks"] = run.ticks.size();
   std::uint64_t pc_ticks = 0;
   double pc_min_energy = 0, pc_peak = 0;
@@ -276,12 +278,43 @@ int run_simulate(SimulateOptions o) {
                    {"peak_direction", {e.peak_direction.x(), e.peak_direction.y(), e.peak_direction.z()}}});
   }
   sj["episodes"] = eps;
+  // Every planned site accounted for: touched or not, when, how hard, bounces.
+  const std::vector<SiteAccount> accounts = account_sites(traj, run.ticks, run.episodes);
   nlohmann::json sites = nlohmann::json::array();
-  for (const auto& st : traj.sites())
-    sites.push_back({{"gaussian_index", st.gaussian_index}, {"t_touch", st.t_touch},
-                     {"surface_point", {st.surface_point.x(), st.surface_point.y(), st.surface_point.z()}},
-                     {"normal", {st.normal.x(), st.normal.y(), st.normal.z()}}});
+  fmt::print("\n{:>4} {:>9} {:>9} {:>12} {:>8}\n", "site", "planned s", "touched s", "peak force N", "episodes");
+  int missed = 0;
+  for (std::size_t i = 0; i < traj.sites().size(); ++i) {
+    const ProbeSite& st = traj.sites()[i];
+    const SiteAccount& a = accounts[i];
+    nlohmann::json j = {{"gaussian_index", st.gaussian_index}, {"t_touch", st.t_touch},
+                        {"surface_point", {st.surface_point.x(), st.surface_point.y(), st.surface_point.z()}},
+                        {"normal", {st.normal.x(), st.normal.y(), st.normal.z()}},
+                        {"touched", a.touched}, {"peak_force", a.peak_force}, {"episodes", a.episodes},
+                        {"closest_approach", std::isfinite(a.closest_approach) ? a.closest_approach : -1.0}};
+    if (a.touched) j["t_first_contact"] = a.t_first_contact;
+    sites.push_back(j);
+    std::string note;
+    if (!a.touched) {
+      ++missed;
+      // The tool came within a tool radius of the planned touch point yet met nothing: nothing
+      // dense or opaque enough is there (or the renderer let the tool pass); otherwise the run or
+      // the hand never got there.
+      note = a.closest_approach <= traj.tool_radius()
+                 ? fmt::format("MISSED: the tool came within {:.3g} of the planned touch point and met no Gaussian "
+                               "(sparse or low-opacity content there; try --min-opacity lower or --renderer paper)",
+                               a.closest_approach)
+                 : fmt::format("MISSED: the tool never came closer than {:.3g} to the planned touch point",
+                               a.closest_approach);
+    } else if (a.episodes > 1) {
+      note = fmt::format("{} bounces", a.episodes - 1);
+    }
+    fmt::print("{:>4} {:>9.3f} {:>9} {:>12.2f} {:>8}  {}\n", i + 1, a.t_planned,
+               a.touched ? fmt::format("{:.3f}", a.t_first_contact) : std::string("-"), a.peak_force, a.episodes,
+               note);
+  }
   sj["sites"] = sites;
+  sj["sites_touched"] = int(accounts.size()) - missed;
+  sj["sites_missed"] = missed;
   try {
     write_file_atomically(summary_path, sj.dump(2) + "\n");
   } catch (const std::exception& e) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include "gshaptics/error.h"
 #include "gshaptics/percentile.h"
@@ -60,6 +61,35 @@ std::vector<ContactEpisode> find_episodes(const std::vector<TickRecord>& ticks, 
     last_contact_t = r.time;
   }
   return episodes;
+}
+
+std::vector<SiteAccount> account_sites(const ProbeTrajectory& trajectory, const std::vector<TickRecord>& ticks,
+                                       const std::vector<ContactEpisode>& episodes) {
+  const std::vector<ProbeSite>& sites = trajectory.sites();
+  std::vector<SiteAccount> out(sites.size());
+  const double t_end = ticks.empty() ? trajectory.duration() : std::max(ticks.back().time, trajectory.duration());
+  for (std::size_t i = 0; i < sites.size(); ++i) {
+    SiteAccount& a = out[i];
+    a.site = int(i);
+    a.t_planned = sites[i].t_touch;
+    a.t_window_start = i == 0 ? -std::numeric_limits<double>::infinity() : 0.5 * (sites[i - 1].t_touch + sites[i].t_touch);
+    a.t_window_end = i + 1 == sites.size() ? std::numeric_limits<double>::infinity()
+                                           : 0.5 * (sites[i].t_touch + sites[i + 1].t_touch);
+    a.closest_approach = std::numeric_limits<double>::infinity();
+    for (const TickRecord& r : ticks) {
+      if (r.time < a.t_window_start || r.time >= a.t_window_end) continue;
+      a.closest_approach = std::min(a.closest_approach, (r.position - sites[i].touch_point).norm());
+      a.peak_force = std::max(a.peak_force, r.force.norm());
+      if (r.counts.contacts > 0 && !a.touched) {
+        a.touched = true;
+        a.t_first_contact = r.time;
+      }
+    }
+    for (const ContactEpisode& e : episodes) a.episodes += e.t_start >= a.t_window_start && e.t_start < a.t_window_end;
+    a.t_window_start = std::max(a.t_window_start, 0.0);
+    a.t_window_end = std::min(a.t_window_end, t_end);
+  }
+  return out;
 }
 
 QueryTimeStats query_time_stats(const std::vector<TickRecord>& ticks) {

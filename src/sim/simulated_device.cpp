@@ -37,7 +37,8 @@ void SimulatedDevice::integrate_to(Nanos now) noexcept {
   while (t_ < now) {
     const Nanos h = std::min(max_step, now - t_);
     double ts = to_seconds(t_ - t0_);
-    if (params_.loop && period_s_ > 0) ts = std::fmod(ts, period_s_);
+    // Loop after the pass and its rest, not at its last instant (a one-pass run ends exactly there).
+    if (params_.loop && period_s_ > 0 && ts > period_s_) ts = std::fmod(ts, period_s_);
     Eigen::Vector3d target_p, target_v;
     trajectory_.sample(ts, target_p, target_v);
     user_force_ = user_hand_force(params_.user, device_.state(), target_p, target_v);

@@ -68,6 +68,29 @@ using RunProgressFn = std::function<void(double)>;
 [[nodiscard]] std::vector<ContactEpisode> find_episodes(const std::vector<TickRecord>& ticks,
                                                         double merge_gap_s = 0.1);
 
+/// What became of one planned probe site (ProbeTrajectory::sites()) in a run. A site's window
+/// runs from halfway after the previous site's planned touch to halfway before the next one's
+/// (the run's start and end for the first and last).
+struct SiteAccount {
+  int site = 0;                      ///< 0-based, in the trajectory's order
+  double t_planned = 0;              ///< when the target reaches the touch point, s
+  double t_window_start = 0, t_window_end = 0;  ///< s
+  bool touched = false;              ///< a tick in the window had contacts
+  double t_first_contact = 0;        ///< first tick with contacts in the window, s (when touched)
+  double peak_force = 0;             ///< largest commanded force in the window, N
+  int episodes = 0;                  ///< contact episodes that start in the window (> 1: bounces)
+  /// Closest approach of the tool centre to the planned touch point in the window, world units
+  /// (a missed site the tool reached says: nothing there to touch; one it never reached says:
+  /// the run or the hand did not get there).
+  double closest_approach = 0;
+};
+
+/// Accounts for every planned site of `trajectory` in `ticks` (sorted by time) and `episodes`
+/// (from find_episodes on the same ticks).
+[[nodiscard]] std::vector<SiteAccount> account_sites(const ProbeTrajectory& trajectory,
+                                                     const std::vector<TickRecord>& ticks,
+                                                     const std::vector<ContactEpisode>& episodes);
+
 /// p50/p99/max of the ticks' query times.
 [[nodiscard]] QueryTimeStats query_time_stats(const std::vector<TickRecord>& ticks);
 
