@@ -176,8 +176,8 @@ TEST(ProxySolver, FloatersAreSweptThroughAndCountedAsIsolated) {
   std::uint32_t floater = 0;
   for (std::uint32_t s = 0; s < w.gaussians().size(); ++s)
     if (w.gaussians()[s].center[2] > 0.01f) floater = s;
-  EXPECT_TRUE(solver.isolated(floater));
-  EXPECT_FALSE(solver.isolated(floater == 0 ? 1 : 0));
+  EXPECT_TRUE(solver.isolated(floater, 0.005));
+  EXPECT_FALSE(solver.isolated(floater == 0 ? 1 : 0, 0.005));
 }
 
 TEST(ShadedNormal, PointsAwayFromAPlaneOnBothSidesAndIsZeroFarAway) {

@@ -141,6 +141,35 @@ TEST(ProxyRenderer, FloatersDoNotCatchTheTool) {
   }
 }
 
+// A sparse surface, as small trained objects have (fruitdrops: in-plane scales about half the
+// spacing, so neighbouring 1-sigma ellipsoids leave gaps): no Gaussian overlaps another, yet
+// every one has neighbours within a tool radius. It holds the tool; with the overlap-only
+// floater rule (isolation_gap 0) every Gaussian counted as a floater and the tool fell through.
+TEST(ProxyRenderer, SparseSurfacesHoldWhereFloatersPass) {
+  std::vector<test::GaussianSpec> gs;
+  const float h = 0.004f;
+  for (float x = -0.03f; x <= 0.03f; x += h)
+    for (float y = -0.03f; y <= 0.03f; y += h)
+      gs.emplace_back(Eigen::Vector3f(x, y, 0), Eigen::Vector3f(0.4f * h, 0.25f * h, 0.05f * h), Eigen::Quaternionf::Identity());
+  gs.emplace_back(Eigen::Vector3f(0.02f, 0.02f, 0.02f), Eigen::Vector3f::Constant(0.002f), Eigen::Quaternionf::Identity());
+  const CollisionWorld w = world_of(gs);
+  const double r = 0.005;
+  for (const double gap : {0.0, 1.0}) {
+    ProxyParams p;
+    p.isolation_gap = gap;
+    ProxyRenderer proxy(w, p);
+    for (double z = 0.03; z > -0.004; z -= 0.0005)
+      (void)proxy.render(ToolEllipsoid::sphere({0.002, 0.001, z}, r), Eigen::Vector3d::Zero(), 1e-3);
+    if (gap == 0) EXPECT_LT(proxy.proxy_position().z(), 0.0) << "the sparse layer held with the overlap-only rule";
+    else EXPECT_NEAR(proxy.proxy_position().z(), r, 0.0015) << "the tool fell through a sparse surface";
+    // The floater, 2 cm above the layer, is alone within a tool radius: it never catches the tool.
+    ProxyRenderer down(w, p);
+    for (double z = 0.05; z > 0.004; z -= 0.0005)
+      (void)down.render(ToolEllipsoid::sphere({0.02, 0.02, z}, r), Eigen::Vector3d::Zero(), 1e-3);
+    if (gap > 0) EXPECT_NEAR(down.proxy_position().z(), r, 0.0015) << "caught on the floater";
+  }
+}
+
 TEST(ProxyRenderer, FrictionSticksBelowMuSAndSlidesAtMuK) {
   std::vector<test::GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.1f);

@@ -27,8 +27,8 @@ void add_world_cache_option(CLI::App& app, SceneOptions& o);
 void add_execution_options(CLI::App& cmd, ExecutionOptions& o, bool simulated);
 
 /// Adds --force-model, the paper model's --k-base, --damping, --tau-normal, --tau-opacity, the
-/// proxy's --stiffness, --coupling-damping, --mu-s, --mu-k, --opacity-stiffness, --substeps, and
-/// --f-max.
+/// proxy's --stiffness, --coupling-damping, --mu-s, --mu-k, --opacity-stiffness, --substeps,
+/// --isolation-gap and --f-max.
 /// And --device-profile, whose values fill --f-max and --stiffness unless they are given.
 void add_force_options(CLI::App& cmd, ForceModelOptions& o);
 

@@ -16,6 +16,7 @@ const ProxyParams& validated(const ProxyParams& p, double f_max) {
   if (!(p.mu_s >= 0 && p.mu_k >= 0 && p.mu_k <= p.mu_s) || !std::isfinite(p.mu_s))
     throw InputError("proxy: friction needs 0 <= mu_k <= mu_s");
   if (p.substeps < 1 || p.substeps > 16) throw InputError("proxy: substeps must be in [1, 16]");
+  if (!(p.isolation_gap >= 0) || !std::isfinite(p.isolation_gap)) throw InputError("proxy: isolation_gap must be >= 0");
   if (!(p.shading_kernel > 0) || !(p.teleport > 0) || !(p.tau_opacity >= 0))
     throw InputError("proxy: shading_kernel and teleport must be > 0, tau_opacity >= 0");
   return p;
@@ -26,6 +27,7 @@ ProxySolverParams solver_params(const ProxyParams& p) {
   s.substeps = p.substeps;
   s.lift = p.lift;
   s.pass_isolated = p.pass_isolated;
+  s.isolation_gap = p.isolation_gap;
   s.shading_kernel = p.shading_kernel;
   return s;
 }

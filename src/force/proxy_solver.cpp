@@ -67,14 +67,23 @@ void ProxySolver::reset() noexcept {
   cache_state_.fill(0);
 }
 
-bool ProxySolver::isolated(std::uint32_t slot) noexcept {
+bool ProxySolver::isolated(std::uint32_t slot, double gap) noexcept {
+  if (gap != cache_gap_) {  // another tool size: the cached answers are for another neighbourhood
+    cache_state_.fill(0);
+    cache_gap_ = gap;
+  }
   for (std::size_t i = 0; i < kIsolationCache; ++i)
     if (cache_state_[i] != 0 && cache_slot_[i] == slot) return cache_state_[i] == 2;
   const CollisionGaussian& g = world_->gaussians()[slot];
   ToolEllipsoid self;
   self.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
   self.rotation = Eigen::Quaterniond(rotation_matrix(g)).normalized();
-  self.semi_axes = Eigen::Vector3d(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+  // Grown by the gap, but by no more than its own middle semi-axis: a sparse surface's
+  // neighbours lie about one Gaussian size away, while a floater a few sizes off a surface stays
+  // a floater (the fidelity scenes' floaters, 5-30 mm off, did catch a 10 mm tool otherwise).
+  const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+  const double a_mid = a.sum() - a.maxCoeff() - a.minCoeff();
+  self.semi_axes = a.array() + std::clamp(gap, 0.0, a_mid);
   const bool alone = !free_query_.any_contact(self, slot);
   cache_slot_[cache_next_] = slot;
   cache_state_[cache_next_] = alone ? 2 : 1;
@@ -137,7 +146,7 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
     SweepHit hit = sweep_.first_contact(at, u, {ignore, n_ignore}, {hints, n_hints});
     candidates += sweep_.counts().candidates;
     // Floaters do not block: sweep again without them (at most 8 per tick).
-    while (hit.hit && params_.pass_isolated && n_ignore < 8 && isolated(hit.slot)) {
+    while (hit.hit && params_.pass_isolated && n_ignore < 8 && isolated(hit.slot, params_.isolation_gap * r)) {
       ignore[n_ignore++] = hit.slot;
       hit = sweep_.first_contact(at, u, {ignore, n_ignore});
       candidates += sweep_.counts().candidates;

@@ -43,7 +43,10 @@ struct ConstraintPlane {
 struct ProxySolverParams {
   int substeps = 4;          ///< sweeps per tick, in [1, 16]
   double lift = 0.05;        ///< step-up out of a pocket between bumps, in tool radii (0: never)
-  bool pass_isolated = true;  ///< a Gaussian that overlaps no other kept one does not block
+  /// A floater (no other kept Gaussian within `isolation_gap` tool radii of it, at most its
+  /// middle semi-axis) does not block.
+  bool pass_isolated = true;
+  double isolation_gap = 1.0;  ///< tool radii (see ProxyParams::isolation_gap)
   double shading_kernel = 0.5;  ///< kernel of the shaded normal that place() tries first, in tool radii
 };
 
@@ -85,8 +88,10 @@ class ProxySolver {
   [[nodiscard]] std::span<const Contact> blockers() const noexcept { return {blockers_.data(), n_blockers_}; }
   [[nodiscard]] std::uint64_t placements() const noexcept { return placements_; }
   [[nodiscard]] std::uint64_t lost() const noexcept { return lost_; }
-  /// Whether the Gaussian in `slot` overlaps no other kept Gaussian (a floater; cached).
-  bool isolated(std::uint32_t slot) noexcept;
+  /// Whether the Gaussian in `slot` is a floater: no other kept Gaussian overlaps its ellipsoid
+  /// grown on every semi-axis by `gap` (m) or its middle semi-axis, whichever is smaller.
+  /// Cached per slot while `gap` stays the same.
+  bool isolated(std::uint32_t slot, double gap) noexcept;
 
  private:
   const CollisionWorld* world_;
@@ -103,6 +108,7 @@ class ProxySolver {
   std::array<std::uint32_t, kIsolationCache> cache_slot_{};
   std::array<std::uint8_t, kIsolationCache> cache_state_{};  // 0: empty, 1: supported, 2: isolated
   std::size_t cache_next_ = 0;
+  double cache_gap_ = -1;  // the gap the cache was filled with
 };
 
 }  // namespace gshaptics
