@@ -20,6 +20,7 @@
 #include "gshaptics/io/atomic_file.h"
 #include "gshaptics/scene/scene_stats.h"
 #include "gshaptics/servo/device_profile.h"
+#include "gshaptics/device/admittance_device.h"
 #include "gshaptics/sim/pose_sampler.h"
 
 namespace gshaptics::session {
@@ -66,9 +67,9 @@ SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command) 
   return so;
 }
 
-bool is_registered(const SceneOptions& so) {
+bool is_scaled(const SceneOptions& so) {
   return !so.registration_file.empty() || !so.reg_rotation.empty() || !so.reg_scale.empty() ||
-         !so.reg_translation.empty() || so.up != "none";
+         !so.reg_translation.empty();
 }
 
 PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* report) {
@@ -131,23 +132,39 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
   return {std::move(s), cfg, br, std::move(world)};
 }
 
-ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, int sites,
-                                      std::uint64_t seed, double tool_radius) {
+ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool scaled, int sites, std::uint64_t seed,
+                                      double tool_radius, const ForceModelOptions& force) {
   // The world's up from the actual transform: the file's convention carried through --up and the
   // registration (a --reg-scale alone rotates nothing, so it changes nothing here).
   const double extent = robust_extent(w.world);
-  const ProbeParams pp =
-      default_probe_params(w.world, tool_radius > 0 ? tool_radius : default_tool_radius(w.world), sites, seed);
-  if (!registered && extent > 30.0)
+  // Press to half the force limit through the proxy's coupling in series with the simulated hand.
+  // At most kMaxPressRadii tool radii deep: a deeper target drives the proxy into the holes of
+  // sparse scenes (fruitdrops' 1-sigma ellipsoids leave gaps) and is no longer a press.
+  constexpr double kMaxPressRadii = 3.0;
+  const double radius = tool_radius > 0 ? tool_radius : default_tool_radius(w.world);
+  const double hand_k = UserHandParams{}.stiffness;
+  const double depth =
+      std::min(press_depth_for_force(0.5 * force.f_max, force.proxy.stiffness, hand_k), kMaxPressRadii * radius);
+  const double press_force = depth / press_depth_for_force(1.0, force.proxy.stiffness, hand_k);
+  const ProbeParams pp = default_probe_params(w.world, radius, sites, seed, depth);
+  if (!scaled && extent > 30.0)
     fmt::print(stderr,
                "warning: the scene is not registered and spans {:.0f} units; the simulated hand and "
                "device work in metres and newtons, so they will move it like a {:.0f} m object. "
                "Register it into metres (--registration, --reg-scale, --up) for a realistic run.\n",
                extent, extent);
   ProbeTrajectory traj = generate_probe_trajectory(w.world, pp);
-  fmt::print("probe      {} sites, tool radius {:.4g}, up [{:.2f}, {:.2f}, {:.2f}], {:.1f} s per pass\n",
+  fmt::print("probe      {} sites, tool radius {:.4g}, up [{:.2f}, {:.2f}, {:.2f}], {:.1f} s per pass; the hand "
+             "presses {:.3g} past first contact (to {:.3g} N at {:.0f} N/m)\n",
              traj.sites().size(), pp.tool_radius, for_print(pp.up).x(), for_print(pp.up).y(), for_print(pp.up).z(),
-             traj.duration());
+             traj.duration(), depth, press_force, force.proxy.stiffness);
+  if (press_force < 0.3 * force.f_max) {
+    std::fflush(stdout);
+    fmt::print(stderr,
+               "note: the hand presses at most {:.0f} tool radii deep, so it reaches {:.2g} N of the {:.3g} N "
+               "range on a world this small ({:.3g} across); --reg-scale or a larger --tool-radius presses harder\n",
+               kMaxPressRadii, press_force, force.f_max, extent);
+  }
   if (int(traj.sites().size()) < sites)
     fmt::print(stderr,
                "warning: only {} of {} sites are reachable from above (world up [{:.2f}, {:.2f}, "
@@ -162,7 +179,7 @@ void print_no_contact_hints(const PreparedWorld& w, const SceneOptions& so, doub
   const Eigen::Vector3d up = for_print(w.world.up());
   std::fflush(stdout);
   fmt::print(stderr, "likely causes, from this run's numbers:\n");
-  if (!is_registered(so) && (extent > 30.0 || extent < 0.05))
+  if (!is_scaled(so) && (extent > 30.0 || extent < 0.05))
     fmt::print(stderr,
                "  units      the scene spans {:.4g} units and is not registered; the simulated hand "
                "works in metres, so register it into metres (`gshaptics info {}` suggests a "
@@ -216,7 +233,7 @@ int run_simulate(SimulateOptions o) {
   const CollisionWorld& world = pw.world;
   const WorldConfig& cfg = pw.config;
   const LoadedScene& s = pw.scene;
-  const ProbeTrajectory traj = make_probe_trajectory(pw, is_registered(so), o.sites, o.seed, o.tool_radius);
+  const ProbeTrajectory traj = make_probe_trajectory(pw, is_scaled(so), o.sites, o.seed, o.tool_radius, o.force);
   fmt::print("rate       {:.0f} Hz of simulated time (as fast as the CPU allows), {}\n", o.rate,
              describe_execution(o.exec, true));
 
@@ -301,7 +318,7 @@ int run_simulate(SimulateOptions o) {
       // the hand never got there.
       note = a.closest_approach <= traj.tool_radius()
                  ? fmt::format("MISSED: the tool came within {:.3g} of the planned touch point and met no Gaussian "
-                               "(sparse or low-opacity content there; try --min-opacity lower or --renderer paper)",
+                               "(sparse or low-opacity content there; try a lower --min-opacity or --force-model paper)",
                                a.closest_approach)
                  : fmt::format("MISSED: the tool never came closer than {:.3g} to the planned touch point",
                                a.closest_approach);

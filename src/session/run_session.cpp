@@ -244,7 +244,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
   s.tool_radius = o.tool_radius;
   s.planned = o.duration;
   if (o.device == "sim") {
-    ProbeTrajectory traj = make_probe_trajectory(pw, is_registered(so), o.sites, o.seed, o.tool_radius);
+    ProbeTrajectory traj = make_probe_trajectory(pw, is_scaled(so), o.sites, o.seed, o.tool_radius, o.force);
     s.tool_radius = traj.tool_radius();
     if (s.planned == 0) s.planned = traj.duration() + 0.5;
     s.pass = traj.duration();

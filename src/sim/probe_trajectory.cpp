@@ -215,8 +215,16 @@ ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world, const Pro
 
 double default_tool_radius(const CollisionWorld& world) { return 0.01 * robust_extent(world); }
 
-ProbeParams default_probe_params(const CollisionWorld& world, double tool_radius, int sites, std::uint64_t seed) {
+double press_depth_for_force(double force, double coupling_stiffness, double hand_stiffness) {
+  if (!(force > 0) || !(coupling_stiffness > 0) || !(hand_stiffness > 0) || !std::isfinite(force))
+    throw InputError("probe: the press force and the stiffnesses must be > 0");
+  return force * (1.0 / coupling_stiffness + 1.0 / hand_stiffness);
+}
+
+ProbeParams default_probe_params(const CollisionWorld& world, double tool_radius, int sites, std::uint64_t seed,
+                                 double press_depth_m) {
   ProbeParams pp;
+  if (press_depth_m > 0) pp.press_depth = press_depth_m / tool_radius;
   pp.sites = sites;
   pp.seed = seed;
   pp.up = world.up();

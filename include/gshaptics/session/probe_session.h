@@ -44,8 +44,9 @@ std::string describe_execution(const ExecutionOptions& o, bool simulated);
 /// when the bundled scene is missing.
 SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command);
 
-/// True when a registration or --up was given (the world is then meant to be in metres).
-bool is_registered(const SceneOptions& so);
+/// True when a registration file, rotation, translation or --reg-scale was given: the world is
+/// then meant to be in metres (--up alone turns the scene, it does not change its units).
+bool is_scaled(const SceneOptions& so);
 
 /// A loaded scene turned into a world, with the lines `simulate` and `run` print about it.
 struct PreparedWorld {
@@ -63,10 +64,13 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
 void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o);
 
 /// The seeded probe trajectory; tool_radius <= 0 picks 1 % of the scene's robust extent.
-/// Speeds scale with the tool so that any scene unit gives a similar run. Prints one line.
-/// The probe approaches along -CollisionWorld::up(), the registered world's up.
-ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool registered, int sites,
-                                      std::uint64_t seed, double tool_radius);
+/// Speeds scale with the tool so that any scene unit gives a similar run. The simulated hand
+/// presses to half of `force`'s limit (f_max) through the proxy's coupling stiffness
+/// (press_depth_for_force), so the peaks sit in the middle of the device's range on any scene.
+/// Prints one line. The probe approaches along -CollisionWorld::up(), the registered world's up.
+/// `scaled`: a registration or --reg-scale was given (the world is meant to be in metres).
+ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool scaled, int sites, std::uint64_t seed,
+                                      double tool_radius, const ForceModelOptions& force);
 
 /// After a probe run that made no contact: the likely causes, from the numbers at hand (units,
 /// up axis, opacity filter, tool size), one line each, printed to stderr.

@@ -63,9 +63,17 @@ class ProbeTrajectory {
 [[nodiscard]] double default_tool_radius(const CollisionWorld& world);
 
 /// The probe parameters of the main job for a tool of `tool_radius` (> 0): the world's own up,
-/// approach at 2 tool radii per second and travel at 8, the rest ProbeParams' defaults.
+/// approach at 2 tool radii per second and travel at 8, the press `press_depth_m` past first
+/// contact (world units; <= 0: one tool radius), the rest ProbeParams' defaults.
 [[nodiscard]] ProbeParams default_probe_params(const CollisionWorld& world, double tool_radius, int sites = 7,
-                                               std::uint64_t seed = 1);
+                                               std::uint64_t seed = 1, double press_depth_m = 0);
+
+/// How far past first contact (m) the simulated hand's target must go for the hand to push with
+/// `force` (N) at rest through a coupling of `coupling_stiffness` (N/m): the hand (a spring of
+/// `hand_stiffness`, N/m; UserHandParams) and the coupling in series, d = F (1/k_c + 1/k_h).
+/// The probe run presses to half the force limit with it, so its peaks sit in the middle of the
+/// device's range whatever the scene's size. Throws InputError for non-positive arguments.
+[[nodiscard]] double press_depth_for_force(double force, double coupling_stiffness, double hand_stiffness);
 
 /// Finds `params.sites` sites on the outer surface of the object at the middle of the scene and
 /// links them into a path: above the object -> down to the approach point -> along -normal to
