@@ -283,7 +283,9 @@ int run_simulate(SimulateOptions o) {
   sj["query_us"] = {{"p50", run.query_time.p50_us}, {"p99", run.query_time.p99_us},
                     {"max", run.query_time.max_us}, {"ticks_over_1ms", run.query_time.over_1ms}};
   nlohmann::json eps = nlohmann::json::array();
-  fmt::print("\n{:>3} {:>9} {:>9} {:>13} {:>11}  {}\n", "#", "start s", "end s", "peak contacts",
+  // The proxy's contacts are the Gaussians holding it (at most three), not the paper's K_min set.
+  const bool proxy = std::holds_alternative<ProxyModelSpec>(rp.renderer);
+  fmt::print("\n{:>3} {:>9} {:>9} {:>13} {:>11}  {}\n", "#", "start s", "end s", proxy ? "peak holding" : "peak contacts",
              "peak force N", "direction at peak");
   for (std::size_t i = 0; i < run.episodes.size(); ++i) {
     const auto& e = run.episodes[i];

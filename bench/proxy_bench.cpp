@@ -1,0 +1,175 @@
+// gshaptics_proxy_bench: the proxy (god-object) renderer's tick against the paper model's on the
+// same device poses (issue 38). A set's poses are the device's path in a probe run of a real
+// scene (as `gshaptics simulate SCENE --up auto` runs it: proxy, inline, the default press), or a
+// fidelity press (ground-truth scene, scripted device). Each pass replays the whole path through a
+// fresh renderer (the proxy's state depends on the path alone, so every pass does the same work);
+// a tick's time is its median over the passes, which keeps the machine's own interruptions out of
+// the p99. Writes one Markdown table.
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <memory>
+#include <sstream>
+
+#include <CLI/CLI.hpp>
+#include "gshaptics/collision/contact_query.h"
+#include "gshaptics/device/admittance_device.h"
+#include "gshaptics/error.h"
+#include "gshaptics/fidelity/interaction.h"
+#include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/force/force_model.h"
+#include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/io/atomic_file.h"
+#include "gshaptics/io/scene_loader.h"
+#include "gshaptics/percentile.h"
+#include "gshaptics/scene/registration.h"
+#include "gshaptics/sim/probe_run.h"
+#include "gshaptics/sim/probe_trajectory.h"
+
+namespace gshaptics::bench {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+struct Pose {
+  Eigen::Vector3d position, velocity;
+};
+
+struct Set {
+  std::string name;
+  std::unique_ptr<CollisionWorld> world;
+  double tool_radius = 0;
+  std::vector<Pose> poses;
+};
+
+std::string scene_path(const std::string& file) {
+  if (file == "truck.splat") return std::string(GSHAPTICS_DATA_DIR) + "/truck.splat";
+  return std::string(GSHAPTICS_SCENES_DIR) + "/" + file;
+}
+
+// A real scene's probe run, as `gshaptics simulate SCENE --up auto [--reg-scale S]` runs it.
+Set probe_set(const std::string& name, const std::string& file, double reg_scale, bool bundled) {
+  Set s;
+  s.name = name;
+  WorldConfig cfg;
+  if (bundled) {
+    cfg.registration = load_registration_file(std::string(GSHAPTICS_DATA_DIR) + "/truck.registration.json");
+  } else {
+    cfg.up = parse_up_axis("auto", "up");
+    cfg.registration.scale = reg_scale;
+  }
+  fmt::print(stderr, "proxy_bench: {}: loading {}\n", name, scene_path(file));
+  s.world = std::make_unique<CollisionWorld>(CollisionWorld::build(load_scene(scene_path(file)).scene, cfg));
+  s.tool_radius = default_tool_radius(*s.world);
+  const double depth = std::min(press_depth_for_force(15.0, ProxyParams{}.stiffness, UserHandParams{}.stiffness),
+                                3.0 * s.tool_radius);
+  const ProbeTrajectory traj = generate_probe_trajectory(*s.world, default_probe_params(*s.world, s.tool_radius, 7, 1, depth));
+  fmt::print(stderr, "proxy_bench: {}: recording the probe run ({:.0f} s simulated)\n", name, traj.duration());
+  const ProbeRunResult run = run_probe(*s.world, traj, {});
+  for (const TickRecord& r : run.ticks) s.poses.push_back({r.position, r.velocity});
+  return s;
+}
+
+// A fidelity press set: `sites` presses to 10 mm on a ground-truth shape at `spacing`.
+Set fidelity_set(const std::string& name, ShapeKind kind, double spacing, double radius, int sites) {
+  Set s;
+  s.name = name;
+  const AnalyticShape shape(kind);
+  SynthParams sp;
+  sp.spacing = spacing;
+  s.world = std::make_unique<CollisionWorld>(CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{}));
+  s.tool_radius = radius;
+  for (const ContactSite& site : shape.press_sites(sites, 1, 0.03))
+    for (const ScriptTick& t : press_script(shape, site, radius, 0.010, 1000).ticks)
+      s.poses.push_back({t.position, t.velocity});
+  return s;
+}
+
+struct Timing {
+  double p50 = 0, p99 = 0, max = 0;
+};
+
+// Each tick's median over `passes` replays of `tick` (which renders pose i and returns nothing).
+template <typename Reset, typename Tick>
+Timing time_replays(std::size_t n, int passes, Reset&& reset, Tick&& tick) {
+  std::vector<std::vector<double>> us(n, std::vector<double>(std::size_t(passes)));
+  for (int p = 0; p < passes; ++p) {
+    reset();
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto t0 = Clock::now();
+      tick(i);
+      us[i][std::size_t(p)] = std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
+    }
+  }
+  std::vector<double> med(n);
+  for (std::size_t i = 0; i < n; ++i) med[i] = percentile(us[i], 50);
+  return {percentile(med, 50), percentile(med, 99), *std::max_element(med.begin(), med.end())};
+}
+
+}  // namespace
+}  // namespace gshaptics::bench
+
+int main(int argc, char** argv) {
+  using namespace gshaptics;
+  using namespace gshaptics::bench;
+  CLI::App app{"The proxy renderer's tick against the paper model's on the same device poses: the probe runs of "
+               "real scenes (as `gshaptics simulate SCENE --up auto`) and fidelity presses. Each tick's time is "
+               "its median over the passes.",
+               "gshaptics_proxy_bench"};
+  std::string sets = "truck,burger,halo,firepit,karangkidul,fidelity-plane-2mm-10mm,fidelity-cube-8mm-5mm";
+  int passes = 5;
+  std::string out;
+  app.add_option("--sets", sets, "Comma-separated sets")->capture_default_str();
+  app.add_option("--passes", passes, "Replays of each path; a tick's time is its median over them")
+      ->capture_default_str()->check(CLI::Range(1, 99));
+  app.add_option("--out", out, "Also write the table (Markdown) to this file");
+  CLI11_PARSE(app, argc, argv);
+  try {
+    std::string table =
+        "| set | Gaussians | tool radius | ticks | ticks in contact | proxy p50 / p99 / max us | paper p50 / p99 us | "
+        "p99 proxy / paper | target p99 us |\n|---|---:|---:|---:|---:|---|---|---:|---:|\n";
+    std::stringstream ss(sets);
+    std::string name;
+    while (std::getline(ss, name, ',')) {
+      Set s;
+      if (name == "truck") s = probe_set(name, "truck.splat", 1.0, true);
+      else if (name == "burger") s = probe_set(name, "burger.splat", 1.0, false);
+      else if (name == "halo") s = probe_set(name, "halo.ply", 1.0, false);
+      else if (name == "firepit") s = probe_set(name, "firepit.ply", 1.0, false);
+      else if (name == "karangkidul") s = probe_set(name, "karangkidul_crop.ply", 0.01, false);
+      else if (name == "fidelity-plane-2mm-10mm") s = fidelity_set(name, ShapeKind::kPlane, 0.002, 0.010, 4);
+      else if (name == "fidelity-cube-8mm-5mm") s = fidelity_set(name, ShapeKind::kCube, 0.008, 0.005, 8);
+      else throw InputError("proxy_bench: unknown set '" + name + "'");
+      const CollisionWorld& w = *s.world;
+      const double r = s.tool_radius;
+      fmt::print(stderr, "proxy_bench: {}: {} ticks x {} passes\n", name, s.poses.size(), passes);
+      std::size_t in_contact = 0;
+      ProxyRenderer proxy(w);
+      const Timing tp = time_replays(
+          s.poses.size(), passes, [&] { proxy.reset(); in_contact = 0; },
+          [&](std::size_t i) {
+            const RenderOutput o = proxy.render(ToolEllipsoid::sphere(s.poses[i].position, r), s.poses[i].velocity, 1e-3);
+            in_contact += o.counts.contacts > 0;
+          });
+      ContactQuery query(w);
+      ForceModel model;
+      const Timing tm = time_replays(
+          s.poses.size(), passes, [&] { model.reset(); },
+          [&](std::size_t i) {
+            query.run(ToolEllipsoid::sphere(s.poses[i].position, r));
+            (void)model.update(query.result().contacts(), s.poses[i].position, s.poses[i].velocity, 1e-3);
+          });
+      table += fmt::format("| {} | {} | {:.4g} | {} | {} | {:.1f} / {:.1f} / {:.0f} | {:.1f} / {:.1f} | {:.1f}x | {:.0f} |\n",
+                           name, w.size(), r, s.poses.size(), in_contact, tp.p50, tp.p99, tp.max, tm.p50, tm.p99,
+                           tp.p99 / std::max(tm.p99, 1e-3), std::min(50.0, std::max(2 * tm.p99, 10.0)));
+      fmt::print(stderr, "{}", table.substr(table.rfind("\n|", table.size() - 2) + 1));
+    }
+    fmt::print("{}", table);
+    if (!out.empty()) write_file_atomically(out, table);
+  } catch (const InputError& e) {
+    fmt::print(stderr, "gshaptics_proxy_bench: error: {}\n", e.what());
+    return 2;
+  }
+  return 0;
+}
