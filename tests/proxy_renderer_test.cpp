@@ -143,8 +143,8 @@ TEST(ProxyRenderer, FloatersDoNotCatchTheTool) {
 
 // A sparse surface, as small trained objects have (fruitdrops: in-plane scales about half the
 // spacing, so neighbouring 1-sigma ellipsoids leave gaps): no Gaussian overlaps another, yet
-// every one has neighbours within a tool radius. It holds the tool; with the overlap-only
-// floater rule (isolation_gap 0) every Gaussian counted as a floater and the tool fell through.
+// every one has neighbours within a tool radius. With isolation_gap 1 it holds the tool; with
+// the default overlap-only floater rule (0) every Gaussian counts as a floater and the tool falls through.
 TEST(ProxyRenderer, SparseSurfacesHoldWhereFloatersPass) {
   std::vector<test::GaussianSpec> gs;
   const float h = 0.004f;

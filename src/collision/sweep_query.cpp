@@ -175,7 +175,44 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
 }
 
 SweepQuery::SweepQuery(const CollisionWorld& world, std::size_t max_candidates)
-    : world_(&world), scratch_(std::max<std::size_t>(1, max_candidates)) {}
+    : world_(&world), scratch_(std::max<std::size_t>(1, max_candidates)), region_(8192) {}
+
+void SweepQuery::gather_region(const Eigen::Vector3d& center, double radius, double tool_radius) noexcept {
+  region_valid_ = false;
+  region_n_ = 0;
+  if (!center.allFinite() || !(radius >= 0) || !std::isfinite(radius) || !(tool_radius > 0)) return;
+  // A hair wider than the ball, so that rounding neither drops a Gaussian the sweep's own
+  // capsule test would keep nor sends a motion that ends on the ball's surface to the BVH.
+  radius = radius * (1 + 1e-9) + 1e-15;
+  const double reach0 = (radius + tool_radius) * (1 + 1e-9) + 1e-12;
+  float lo[3], hi[3];
+  const CollisionGaussian* gs = world_->gaussians().data();
+  // The BVH's leaf boxes hold whole ellipsoids, so the ball's own box finds every Gaussian whose
+  // bounding sphere reaches into it.
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = round_down_to_float(center[k] - reach0);
+    hi[k] = round_up_to_float(center[k] + reach0);
+  }
+  bool overflow = false;
+  world_->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
+    for (std::uint32_t k = first; k < first + count && !overflow; ++k) {
+      const CollisionGaussian& g = gs[k];
+      const double reach = reach0 + double(g.bounding_radius());
+      const Eigen::Vector3d d = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - center;
+      if (d.squaredNorm() > reach * reach) continue;
+      if (region_n_ == region_.size()) {
+        overflow = true;
+        return;
+      }
+      region_[region_n_++] = k;
+    }
+  });
+  if (overflow) return;
+  region_valid_ = true;
+  region_center_ = center;
+  region_radius_ = radius;
+  region_tool_radius_ = tool_radius;
+}
 
 SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
                                    std::span<const std::uint32_t> ignore,
@@ -196,6 +233,9 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
   const Eigen::Vector3d m_hat = motion / len;
   const Eigen::Matrix3d Rt = tool.rotation.normalized().toRotationMatrix();
   const double h_tool = (tool.semi_axes.cwiseProduct(Rt.transpose() * m_hat)).norm();  // tool extent along m
+  const Eigen::Vector3d& b = tool.semi_axes;
+  const bool spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
+  const double r2_tool = b.x() * b.x();
   const CollisionGaussian* gs = world_->gaussians().data();
   std::size_t n = 0;
   double best = 1.0;
@@ -213,9 +253,8 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
     for (std::uint32_t s : ignore) ignored = ignored || s == hint;
     if (!ignored && hint < world_->size()) exact(hint);
   }
-  world_->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
-    counts_.candidates += count;
-    for (std::uint32_t k = first; k < first + count; ++k) {
+  // Bounds of one candidate, then the sorted list (or, past its capacity, an exact test now).
+  const auto consider = [&](std::uint32_t k) {
       const CollisionGaussian& g = gs[k];
       const Eigen::Vector3d rel = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - c0;
       const double reach = double(g.bounding_radius()) + r_tool;
@@ -226,9 +265,9 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
         t_lb = 0;
       } else {
         const double disc = bq * bq - len2 * cq;
-        if (disc < 0 || bq <= 0) continue;
+        if (disc < 0 || bq <= 0) return;
         t_lb = (bq - std::sqrt(disc)) / len2;
-        if (t_lb > 1.0) continue;
+        if (t_lb > 1.0) return;
       }
       // Slab bound along the motion: the ellipsoid's extent along it is sqrt(sum (a_j m.R_j)^2),
       // tight for flat Gaussians met face-on, where the sphere bound is loose.
@@ -239,17 +278,47 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
         h2 += double(g.semi_axes[j]) * g.semi_axes[j] * mr * mr;
       }
       t_lb = std::max(t_lb, (rel.dot(m_hat) - std::sqrt(h2) - h_tool) / len);
-      if (t_lb > 1.0) continue;
+      if (spherical && t_lb <= best) {
+        // The lambda = 1/2 member of the family (sweep_time's first evaluation): its entry time
+        // is a lower bound of the exact one, and far tighter than the spheres and slabs for the
+        // Gaussians beside a sliding tool. Computed here, it spares them the exact search's set-up.
+        double qa = 0, qb = 0, qc = 0;
+        for (int j = 0; j < 3; ++j) {
+          const double dg = R(0, j) * rel[0] + R(1, j) * rel[1] + R(2, j) * rel[2];
+          const double ug = R(0, j) * motion[0] + R(1, j) * motion[1] + R(2, j) * motion[2];
+          const double inv = 2.0 / (double(g.semi_axes[j]) * g.semi_axes[j] + r2_tool);
+          qa += ug * ug * inv;
+          qb += ug * dg * inv;
+          qc += dg * dg * inv;
+        }
+        const double te = entry_time({qa, -2 * qb, qc - 4.0});
+        if (te > 1.0) return;
+        t_lb = std::max(t_lb, te - 1e-12);  // (a rounding's margin below the exact search's value)
+      }
+      // best only decreases and the candidates are tested in t_lb order up to best: one whose
+      // bound is past the best contact so far (from the hints) is never tested.
+      if (t_lb > best) return;
       bool ignored = false;
       for (std::uint32_t s : ignore) ignored = ignored || s == k;
-      if (ignored) continue;
+      if (ignored) return;
       ++counts_.prefiltered;
       if (n < scratch_.size())
         scratch_[n++] = {t_lb, k};
       else if (t_lb <= best)
         exact(k);
-    }
-  });
+  };
+  const auto in_region = [&](const Eigen::Vector3d& c) {
+    return (c - region_center_).squaredNorm() <= region_radius_ * region_radius_;
+  };
+  if (region_valid_ && r_tool <= region_tool_radius_ && in_region(c0) && in_region(c1)) {
+    counts_.candidates += std::uint32_t(region_n_);
+    for (std::size_t i = 0; i < region_n_; ++i) consider(region_[i]);
+  } else {
+    world_->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
+      counts_.candidates += count;
+      for (std::uint32_t k = first; k < first + count; ++k) consider(k);
+    });
+  }
   std::sort(scratch_.begin(), scratch_.begin() + std::ptrdiff_t(n));
   for (std::size_t i = 0; i < n && scratch_[i].first <= best; ++i) exact(scratch_[i].second);
   return hit;

@@ -137,6 +137,11 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
   std::uint32_t ignore[8];
   std::size_t n_ignore = 0;
   int lifts = 0;
+  // Every sweep of this step stays in the ball around the goal through the proxy (each target
+  // is the goal's projection on planes the proxy stands on, so it is no farther from the goal
+  // than the proxy; lifts may leave it, and their sweeps then traverse the BVH): one traversal
+  // a tick gathers the candidates of them all.
+  if (!hold && params_.gather_region) sweep_.gather_region(goal, (goal - p).norm(), r);
   for (int s = 0; s < params_.substeps && !hold; ++s) {
     const Eigen::Vector3d target = closest_feasible_point(goal, {planes, std::size_t(np)});
     const Eigen::Vector3d u = target - p;
@@ -188,6 +193,7 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
     if (np == 3) break;
     planes[np++] = {hit.normal, p};
   }
+  sweep_.clear_region();
   proxy_ = p;
   last_constraints_ = np;
   ProxyMove out;

@@ -320,7 +320,7 @@ int run_simulate(SimulateOptions o) {
       // the hand never got there.
       note = a.closest_approach <= traj.tool_radius()
                  ? fmt::format("MISSED: the tool came within {:.3g} of the planned touch point and met no Gaussian "
-                               "(sparse or low-opacity content there; try a lower --min-opacity or --force-model paper)",
+                               "(sparse or low-opacity content there; try --isolation-gap 1, a lower --min-opacity or --force-model paper)",
                                a.closest_approach)
                  : fmt::format("MISSED: the tool never came closer than {:.3g} to the planned touch point",
                                a.closest_approach);

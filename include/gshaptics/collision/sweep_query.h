@@ -64,6 +64,18 @@ class SweepQuery {
   SweepHit first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
                          std::span<const std::uint32_t> ignore = {},
                          std::span<const std::uint32_t> hints = {}) noexcept;
+  /// Gathers, with one BVH traversal, the Gaussians that any motion of a tool of bounding radius
+  /// `tool_radius` may touch while its centre stays within `radius` of `center` (world frame, m).
+  /// Until clear_region() or the next gather, a first_contact() whose start and end lie in that
+  /// ball (and whose tool is no larger) scans this list instead of traversing the BVH: the same
+  /// candidates pass its bounds, so the answer is the same. The proxy gathers once a tick around
+  /// its goal, since every sweep of its god-object step stays within that ball. More Gaussians
+  /// than the list holds (8192): no region (every sweep traverses the BVH).
+  void gather_region(const Eigen::Vector3d& center, double radius, double tool_radius) noexcept;
+  void clear_region() noexcept { region_valid_ = false; }
+  /// Gaussians in the current region (0 when none).
+  [[nodiscard]] std::size_t region_size() const noexcept { return region_valid_ ? region_n_ : 0; }
+
   [[nodiscard]] const SweepCounts& counts() const noexcept { return counts_; }
   [[nodiscard]] const CollisionWorld& world() const noexcept { return *world_; }
 
@@ -71,6 +83,11 @@ class SweepQuery {
   const CollisionWorld* world_;
   std::vector<std::pair<double, std::uint32_t>> scratch_;  // (earliest contact bound, slot)
   SweepCounts counts_;
+  std::vector<std::uint32_t> region_;  // gathered slots (capacity fixed in the constructor)
+  std::size_t region_n_ = 0;
+  bool region_valid_ = false;
+  Eigen::Vector3d region_center_ = Eigen::Vector3d::Zero();
+  double region_radius_ = 0, region_tool_radius_ = 0;
 };
 
 }  // namespace gshaptics

@@ -46,8 +46,11 @@ struct ProxySolverParams {
   /// A floater (no other kept Gaussian within `isolation_gap` tool radii of it, at most its
   /// middle semi-axis) does not block.
   bool pass_isolated = true;
-  double isolation_gap = 1.0;  ///< tool radii (see ProxyParams::isolation_gap)
+  double isolation_gap = 0.0;  ///< tool radii (see ProxyParams::isolation_gap)
   double shading_kernel = 0.5;  ///< kernel of the shaded normal that place() tries first, in tool radii
+  /// Gather the tick's sweep candidates once (SweepQuery::gather_region; the same answers).
+  /// false: every sweep traverses the BVH (the plain computation, for tests and benchmarks).
+  bool gather_region = true;
 };
 
 /// One tick's move of the proxy.
