@@ -175,48 +175,11 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
 }
 
 SweepQuery::SweepQuery(const CollisionWorld& world, std::size_t max_candidates)
-    : world_(&world), scratch_(std::max<std::size_t>(1, max_candidates)), region_(8192) {}
-
-void SweepQuery::gather_region(const Eigen::Vector3d& center, double radius, double tool_radius) noexcept {
-  region_valid_ = false;
-  region_n_ = 0;
-  if (!center.allFinite() || !(radius >= 0) || !std::isfinite(radius) || !(tool_radius > 0)) return;
-  // A hair wider than the ball, so that rounding neither drops a Gaussian the sweep's own
-  // capsule test would keep nor sends a motion that ends on the ball's surface to the BVH.
-  radius = radius * (1 + 1e-9) + 1e-15;
-  const double reach0 = (radius + tool_radius) * (1 + 1e-9) + 1e-12;
-  float lo[3], hi[3];
-  const CollisionGaussian* gs = world_->gaussians().data();
-  // The BVH's leaf boxes hold whole ellipsoids, so the ball's own box finds every Gaussian whose
-  // bounding sphere reaches into it.
-  for (int k = 0; k < 3; ++k) {
-    lo[k] = round_down_to_float(center[k] - reach0);
-    hi[k] = round_up_to_float(center[k] + reach0);
-  }
-  bool overflow = false;
-  world_->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
-    for (std::uint32_t k = first; k < first + count && !overflow; ++k) {
-      const CollisionGaussian& g = gs[k];
-      const double reach = reach0 + double(g.bounding_radius());
-      const Eigen::Vector3d d = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - center;
-      if (d.squaredNorm() > reach * reach) continue;
-      if (region_n_ == region_.size()) {
-        overflow = true;
-        return;
-      }
-      region_[region_n_++] = k;
-    }
-  });
-  if (overflow) return;
-  region_valid_ = true;
-  region_center_ = center;
-  region_radius_ = radius;
-  region_tool_radius_ = tool_radius;
-}
+    : world_(&world), scratch_(std::max<std::size_t>(1, max_candidates)) {}
 
 SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
                                    std::span<const std::uint32_t> ignore,
-                                   std::span<const std::uint32_t> hints) noexcept {
+                                   std::span<const std::uint32_t> hints, BlockFilter filter) noexcept {
   counts_ = {};
   SweepHit hit;
   const double len2 = motion.squaredNorm();
@@ -243,6 +206,10 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
     Eigen::Vector3d nrm;
     ++counts_.exact;
     const double t = sweep_time(gs[k], tool, motion, &nrm, best);
+    if (t <= best && filter.blocks != nullptr && !filter.blocks(filter.context, k)) {
+      ++counts_.passed;  // reached first, but let through: it prunes nothing
+      return;
+    }
     if (t <= best) {
       best = t;
       hit = {true, t, k, nrm};
@@ -307,18 +274,10 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
       else if (t_lb <= best)
         exact(k);
   };
-  const auto in_region = [&](const Eigen::Vector3d& c) {
-    return (c - region_center_).squaredNorm() <= region_radius_ * region_radius_;
-  };
-  if (region_valid_ && r_tool <= region_tool_radius_ && in_region(c0) && in_region(c1)) {
-    counts_.candidates += std::uint32_t(region_n_);
-    for (std::size_t i = 0; i < region_n_; ++i) consider(region_[i]);
-  } else {
-    world_->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
-      counts_.candidates += count;
-      for (std::uint32_t k = first; k < first + count; ++k) consider(k);
-    });
-  }
+  world_->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
+    counts_.candidates += count;
+    for (std::uint32_t k = first; k < first + count; ++k) consider(k);
+  });
   std::sort(scratch_.begin(), scratch_.begin() + std::ptrdiff_t(n));
   for (std::size_t i = 0; i < n && scratch_[i].first <= best; ++i) exact(scratch_[i].second);
   return hit;

@@ -28,7 +28,6 @@ ProxySolverParams solver_params(const ProxyParams& p) {
   s.lift = p.lift;
   s.pass_isolated = p.pass_isolated;
   s.isolation_gap = p.isolation_gap;
-  s.gather_region = p.gather_region;
   s.shading_kernel = p.shading_kernel;
   return s;
 }

@@ -67,13 +67,27 @@ void ProxySolver::reset() noexcept {
   cache_state_.fill(0);
 }
 
-bool ProxySolver::isolated(std::uint32_t slot, double gap) noexcept {
+int ProxySolver::cached_isolation(std::uint32_t slot, double gap) noexcept {
   if (gap != cache_gap_) {  // another tool size: the cached answers are for another neighbourhood
     cache_state_.fill(0);
     cache_gap_ = gap;
   }
   for (std::size_t i = 0; i < kIsolationCache; ++i)
-    if (cache_state_[i] != 0 && cache_slot_[i] == slot) return cache_state_[i] == 2;
+    if (cache_state_[i] != 0 && cache_slot_[i] == slot) return cache_state_[i];
+  return 0;
+}
+
+bool ProxySolver::FloaterFilter::blocks(void* context, std::uint32_t slot) noexcept {
+  auto* f = static_cast<FloaterFilter*>(context);
+  const int known = f->solver->cached_isolation(slot, f->gap);
+  if (known != 0) return known == 1;
+  if (f->queries_left <= 0) return true;
+  --f->queries_left;
+  return !f->solver->isolated(slot, f->gap);
+}
+
+bool ProxySolver::isolated(std::uint32_t slot, double gap) noexcept {
+  if (const int known = cached_isolation(slot, gap); known != 0) return known == 2;
   const CollisionGaussian& g = world_->gaussians()[slot];
   ToolEllipsoid self;
   self.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
@@ -134,28 +148,21 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
   Eigen::Vector3d p = proxy_;
   const double eps = 1e-4 * r;  // the proxy stops this far short of a contact
   std::uint32_t candidates = 0;
-  std::uint32_t ignore[8];
-  std::size_t n_ignore = 0;
   int lifts = 0;
-  // Every sweep of this step stays in the ball around the goal through the proxy (each target
-  // is the goal's projection on planes the proxy stands on, so it is no farther from the goal
-  // than the proxy; lifts may leave it, and their sweeps then traverse the BVH): one traversal
-  // a tick gathers the candidates of them all.
-  if (!hold && params_.gather_region) sweep_.gather_region(goal, (goal - p).norm(), r);
+  // Floaters do not block: the sweep asks, in its one pass, whether a Gaussian it reaches first
+  // is one (isolated(), cached per slot). At most kFloaterQueries uncached answers a tick; past
+  // that a Gaussian blocks (the safe side).
+  FloaterFilter floaters{this, params_.isolation_gap * r, kFloaterQueries};
+  BlockFilter filter;
+  if (params_.pass_isolated) filter = {&FloaterFilter::blocks, &floaters};
   for (int s = 0; s < params_.substeps && !hold; ++s) {
     const Eigen::Vector3d target = closest_feasible_point(goal, {planes, std::size_t(np)});
     const Eigen::Vector3d u = target - p;
     const double len = u.norm();
     if (len <= 1e-9 * r) break;
     at.center = p;
-    SweepHit hit = sweep_.first_contact(at, u, {ignore, n_ignore}, {hints, n_hints});
+    const SweepHit hit = sweep_.first_contact(at, u, {}, {hints, n_hints}, filter);
     candidates += sweep_.counts().candidates;
-    // Floaters do not block: sweep again without them (at most 8 per tick).
-    while (hit.hit && params_.pass_isolated && n_ignore < 8 && isolated(hit.slot, params_.isolation_gap * r)) {
-      ignore[n_ignore++] = hit.slot;
-      hit = sweep_.first_contact(at, u, {ignore, n_ignore});
-      candidates += sweep_.counts().candidates;
-    }
     if (!hit.hit) {
       p = target;
       if (np == 0) break;
@@ -172,7 +179,7 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
       if (up.norm() > 0) {
         const Eigen::Vector3d lift = up.normalized() * (params_.lift * r);
         at.center = p;
-        const SweepHit lh = sweep_.first_contact(at, lift, {ignore, n_ignore});
+        const SweepHit lh = sweep_.first_contact(at, lift, {}, {}, filter);
         if (!lh.hit) {
           p += lift;
           np = 0;
@@ -193,7 +200,6 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
     if (np == 3) break;
     planes[np++] = {hit.normal, p};
   }
-  sweep_.clear_region();
   proxy_ = p;
   last_constraints_ = np;
   ProxyMove out;

@@ -35,11 +35,20 @@ struct SweepHit {
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit contact normal, Gaussian -> tool, world
 };
 
+/// Which Gaussians block a sweep: `blocks(context, slot)` is asked for a Gaussian the motion
+/// would touch before the best contact found so far; false lets the motion pass it (the proxy's
+/// floaters). Empty: every Gaussian blocks. Called on the sweep's thread; must not throw.
+struct BlockFilter {
+  bool (*blocks)(void* context, std::uint32_t slot) noexcept = nullptr;
+  void* context = nullptr;
+};
+
 /// What the last sweep looked at.
 struct SweepCounts {
   std::uint32_t candidates = 0;  ///< in BVH leaves overlapping the swept box
   std::uint32_t prefiltered = 0;  ///< bounding spheres within reach of the path
   std::uint32_t exact = 0;        ///< exact first-contact searches run
+  std::uint32_t passed = 0;       ///< Gaussians touched before the contact that the filter let pass
 };
 
 /// First-contact time of `tool` translating by `motion` against one Gaussian, as a fraction of
@@ -59,23 +68,12 @@ class SweepQuery {
 
   /// The first Gaussian `tool` touches when its centre moves by `motion` (rotation and axes
   /// fixed; world frame), leaving out the records in `ignore`. `hints` are records tested
-  /// first (the last tick's blockers: the likely answer, which then prunes the rest). A zero
-  /// or non-finite motion gives no hit.
+  /// first (the last tick's blockers: the likely answer, which then prunes the rest). `filter`
+  /// decides, in the same pass, whether a Gaussian the motion reaches first blocks it (a
+  /// Gaussian it lets pass does not prune the others). A zero or non-finite motion gives no hit.
   SweepHit first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
                          std::span<const std::uint32_t> ignore = {},
-                         std::span<const std::uint32_t> hints = {}) noexcept;
-  /// Gathers, with one BVH traversal, the Gaussians that any motion of a tool of bounding radius
-  /// `tool_radius` may touch while its centre stays within `radius` of `center` (world frame, m).
-  /// Until clear_region() or the next gather, a first_contact() whose start and end lie in that
-  /// ball (and whose tool is no larger) scans this list instead of traversing the BVH: the same
-  /// candidates pass its bounds, so the answer is the same. The proxy gathers once a tick around
-  /// its goal, since every sweep of its god-object step stays within that ball. More Gaussians
-  /// than the list holds (8192): no region (every sweep traverses the BVH).
-  void gather_region(const Eigen::Vector3d& center, double radius, double tool_radius) noexcept;
-  void clear_region() noexcept { region_valid_ = false; }
-  /// Gaussians in the current region (0 when none).
-  [[nodiscard]] std::size_t region_size() const noexcept { return region_valid_ ? region_n_ : 0; }
-
+                         std::span<const std::uint32_t> hints = {}, BlockFilter filter = {}) noexcept;
   [[nodiscard]] const SweepCounts& counts() const noexcept { return counts_; }
   [[nodiscard]] const CollisionWorld& world() const noexcept { return *world_; }
 
@@ -83,11 +81,6 @@ class SweepQuery {
   const CollisionWorld* world_;
   std::vector<std::pair<double, std::uint32_t>> scratch_;  // (earliest contact bound, slot)
   SweepCounts counts_;
-  std::vector<std::uint32_t> region_;  // gathered slots (capacity fixed in the constructor)
-  std::size_t region_n_ = 0;
-  bool region_valid_ = false;
-  Eigen::Vector3d region_center_ = Eigen::Vector3d::Zero();
-  double region_radius_ = 0, region_tool_radius_ = 0;
 };
 
 }  // namespace gshaptics

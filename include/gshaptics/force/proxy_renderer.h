@@ -73,9 +73,6 @@ struct ProxyParams {
   /// probe sites). 1 holds there, but on the bundled Truck pressed 2 m under its roof it lets
   /// the proxy find its way into the cab, so it is not the default (bench/RESULTS.md).
   double isolation_gap = 0.0;
-  /// One candidate gathering a tick for all its sweeps (ProxySolverParams::gather_region); false
-  /// gives the plain computation, with the same answers (tests and benchmarks).
-  bool gather_region = true;
 };
 
 class ProxyRenderer final : public ForceRenderer {

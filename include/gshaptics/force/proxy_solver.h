@@ -48,9 +48,6 @@ struct ProxySolverParams {
   bool pass_isolated = true;
   double isolation_gap = 0.0;  ///< tool radii (see ProxyParams::isolation_gap)
   double shading_kernel = 0.5;  ///< kernel of the shaded normal that place() tries first, in tool radii
-  /// Gather the tick's sweep candidates once (SweepQuery::gather_region; the same answers).
-  /// false: every sweep traverses the BVH (the plain computation, for tests and benchmarks).
-  bool gather_region = true;
 };
 
 /// One tick's move of the proxy.
@@ -82,8 +79,8 @@ class ProxySolver {
   [[nodiscard]] bool blocked(const ToolEllipsoid& tool) noexcept { return free_query_.any_contact(tool); }
 
   /// Move the proxy (of `tool`'s shape and rotation) toward `goal`, or hold it where it is with
-  /// its blockers when `hold` (static friction). Floaters (pass_isolated) are swept through, at
-  /// most 8 a tick; the last tick's blockers are tested first.
+  /// its blockers when `hold` (static friction). Floaters (pass_isolated) are swept through in
+  /// the same pass (SweepQuery's BlockFilter); the last tick's blockers are tested first.
   ProxyMove move_toward(const ToolEllipsoid& tool, const Eigen::Vector3d& goal, bool hold) noexcept;
 
   [[nodiscard]] const Eigen::Vector3d& position() const noexcept { return proxy_; }
@@ -95,6 +92,8 @@ class ProxySolver {
   /// grown on every semi-axis by `gap` (m) or its middle semi-axis, whichever is smaller.
   /// Cached per slot while `gap` stays the same.
   bool isolated(std::uint32_t slot, double gap) noexcept;
+  /// Uncached isolation tests a tick may run for the floater filter; past them a Gaussian blocks.
+  static constexpr int kFloaterQueries = 16;
 
  private:
   const CollisionWorld* world_;
@@ -112,6 +111,15 @@ class ProxySolver {
   std::array<std::uint8_t, kIsolationCache> cache_state_{};  // 0: empty, 1: supported, 2: isolated
   std::size_t cache_next_ = 0;
   double cache_gap_ = -1;  // the gap the cache was filled with
+  // 0: not cached, 1: supported, 2: isolated.
+  int cached_isolation(std::uint32_t slot, double gap) noexcept;
+  // The sweep's BlockFilter: a Gaussian blocks unless it is a floater (within a query budget).
+  struct FloaterFilter {
+    ProxySolver* solver;
+    double gap;
+    int queries_left;
+    static bool blocks(void* context, std::uint32_t slot) noexcept;
+  };
 };
 
 }  // namespace gshaptics

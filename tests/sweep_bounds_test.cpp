@@ -1,0 +1,112 @@
+// The proxy's work-saving paths give the plain computation's answers (issue 38). The sweep's
+// bounds (bounding-sphere capsule, slab, the lambda = 1/2 member of the family, candidates past
+// the best contact so far never queued) and its one-pass floater filter against the plain
+// computation: sweep_time() of every Gaussian of the world, the smallest time among those the
+// filter does not let pass. On the bundled Truck (near-surface tools, random motions) and on
+// fidelity scenes (a cube edge, a sphere with floaters). The same first-contact time to the bit.
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <filesystem>
+#include <limits>
+#include <random>
+
+#include "gshaptics/collision/sweep_query.h"
+#include "gshaptics/fidelity/analytic_shape.h"
+#include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/io/scene_loader.h"
+#include "gshaptics/scene/registration.h"
+#include "gshaptics/sim/pose_sampler.h"
+
+namespace gshaptics {
+namespace {
+
+// A filter that lets every third slot (by a hash of it) pass: exercised in both paths.
+bool every_third_blocks(void*, std::uint32_t slot) noexcept { return (slot * 2654435761u) % 3 != 0; }
+
+// The plain computation: every Gaussian's exact first-contact time, the smallest among those
+// that block.
+double plain_first_contact(const CollisionWorld& w, const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
+                           bool filtered) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::uint32_t k = 0; k < w.size(); ++k) {
+    const double t = sweep_time(w.gaussians()[k], tool, motion);
+    if (t <= 1.0 && (!filtered || every_third_blocks(nullptr, k))) best = std::min(best, t);
+  }
+  return best;
+}
+
+// Runs `n` sweeps drawn by `draw` both ways and counts the hits (so a test can check that it
+// exercised contact at all).
+template <typename Draw>
+int expect_same_first_contacts(const CollisionWorld& w, int n, Draw&& draw) {
+  SweepQuery sweep(w);
+  int hits = 0;
+  for (int i = 0; i < n; ++i) {
+    const auto [tool, motion] = draw(i);
+    for (const bool filtered : {false, true}) {
+      BlockFilter f;
+      if (filtered) f.blocks = &every_third_blocks;
+      const SweepHit hit = sweep.first_contact(tool, motion, {}, {}, f);
+      const double plain = plain_first_contact(w, tool, motion, filtered);
+      if (!std::isfinite(plain)) {
+        EXPECT_FALSE(hit.hit) << "sweep " << i << (filtered ? " filtered" : "");
+        continue;
+      }
+      ++hits;
+      EXPECT_TRUE(hit.hit) << "sweep " << i;
+      EXPECT_EQ(hit.t, plain) << "sweep " << i << (filtered ? " filtered" : "");
+      if (filtered) EXPECT_TRUE(every_third_blocks(nullptr, hit.slot)) << "a passing Gaussian was reported";
+    }
+    if (::testing::Test::HasFailure()) break;  // one sweep's report is enough
+  }
+  return hits;
+}
+
+TEST(SweepBounds, TruckNearSurfaceSweepsMatchThePlainComputation) {
+  const std::string scene = std::string(GSHAPTICS_DATA_DIR) + "/truck.splat";
+  if (!std::filesystem::exists(scene)) GTEST_SKIP() << scene << " not found";
+  WorldConfig cfg;
+  cfg.registration = load_registration_file(std::string(GSHAPTICS_DATA_DIR) + "/truck.registration.json");
+  const CollisionWorld w = CollisionWorld::build(load_scene(scene).scene, cfg);
+  PoseSamplerParams pp;
+  pp.count = 60;
+  pp.seed = 11;
+  pp.anisotropic = true;  // ellipsoidal tools too (the lambda = 1/2 bound is for spheres only)
+  const std::vector<ToolEllipsoid> tools = sample_poses(w, pp);
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> n01;
+  const int hits = expect_same_first_contacts(w, int(tools.size()), [&](int i) {
+    ToolEllipsoid t = tools[std::size_t(i)];
+    if (i % 2 == 0) t.semi_axes.setConstant(t.semi_axes.maxCoeff());  // and spheres
+    const double r = t.semi_axes.maxCoeff();
+    const Eigen::Vector3d m = Eigen::Vector3d(n01(rng), n01(rng), n01(rng)).normalized() * r * (0.05 + 2.0 * (i % 5) / 4.0);
+    t.center -= m * 0.5;  // start half a motion back, so that some sweeps begin free
+    return std::pair(t, m);
+  });
+  EXPECT_GT(hits, 40);
+}
+
+TEST(SweepBounds, FidelityScenesMatchThePlainComputation) {
+  for (const ShapeKind kind : {ShapeKind::kCube, ShapeKind::kSphere}) {
+    const AnalyticShape shape(kind);
+    SynthParams sp;
+    sp.spacing = 0.008;
+    sp.floater_share = 0.05;
+    const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> u(-1, 1);
+    const int hits = expect_same_first_contacts(w, 150, [&](int i) {
+      // Near the top face / top of the sphere (both 0.1 m up), across the cube's edges.
+      const double r = i % 3 == 0 ? 0.010 : 0.005;
+      const Eigen::Vector3d c(0.1 * u(rng), 0.1 * u(rng), 0.1 + r + 0.01 * u(rng));
+      const Eigen::Vector3d m = Eigen::Vector3d(u(rng), u(rng), u(rng) - 0.5) * 0.02;
+      return std::pair(ToolEllipsoid::sphere(c, r), m);
+    });
+    EXPECT_GT(hits, 60) << to_string(kind);
+  }
+}
+
+}  // namespace
+}  // namespace gshaptics
