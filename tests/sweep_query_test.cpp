@@ -146,7 +146,8 @@ TEST(SweepQuery, TouchingAtTheStartBlocksOnlyMotionInward) {
 
 TEST(SweepQuery, IgnoredRecordsAndHintsChangeOnlyWhatTheyShould) {
   // Two layers: ignoring the upper layer's first blocker still stops on the upper layer (its
-  // neighbours), ignoring the whole upper layer stops on the lower one; hints never change a hit.
+  // neighbours), ignoring the whole upper layer stops on the lower one; hints never change a hit
+  // (beyond the search's tolerance: each exact search starts at the Gaussian's last maximiser).
   std::vector<GaussianSpec> gs;
   add_layer(gs, 0.01f, 0.004f, 0.02f);
   const std::size_t upper = gs.size();
@@ -171,7 +172,7 @@ TEST(SweepQuery, IgnoredRecordsAndHintsChangeOnlyWhatTheyShould) {
     const std::uint32_t hints[3] = {pick(rng), pick(rng), first.slot};
     const SweepHit h = sweep.first_contact(tool, motion, {}, {hints, std::size_t(i % 4)});
     ASSERT_TRUE(h.hit);
-    EXPECT_DOUBLE_EQ(h.t, first.t) << i;
+    EXPECT_NEAR(h.t, first.t, 1e-12) << i;  // (each search starts at the Gaussian's last maximiser)
   }
 }
 

@@ -74,7 +74,7 @@ inline double lambda_of(double s) noexcept { return 1.0 / (1.0 + std::exp(-s)); 
 }  // namespace
 
 double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
-                  Eigen::Vector3d* normal, double stop_above) noexcept {
+                  Eigen::Vector3d* normal, double stop_above, double* s_io) noexcept {
   PairSweep p;
   const Eigen::Vector3d cg(g.center[0], g.center[1], g.center[2]);
   const Eigen::Vector3d d0 = cg - tool.center;
@@ -94,74 +94,103 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
     p.d0 = d0;
     p.u = motion;
   }
-  // Coarse scan of s = ln(lambda / (1 - lambda)) over [-16, 16] in steps of 4, then Brent's
-  // method around the best point. Every evaluation is a lower bound of t*, so it may stop as
-  // soon as one says "never" or "later than stop_above".
-  double best_s = 0, best_t = -kNever;
-  // From the middle outward: lambda = 1/2 is usually near the maximum, so a Gaussian that
-  // cannot be the first contact is dismissed after one or two evaluations.
-  for (int i = 0; i <= 8; ++i) {
-    const double s = 4.0 * ((i + 1) / 2) * (i % 2 ? 1 : -1);
-    const double t = entry_time(p.at(lambda_of(s)));
-    if (t > stop_above) return t;
-    if (t > best_t) best_t = t, best_s = s;
-  }
-  // Brent's method (Brent 1973, "Algorithms for Minimization without Derivatives", ch. 5):
-  // parabolic steps through the three best points, golden-section steps where a parabola is not
-  // trusted, on [best_s - 4, best_s + 4]. It needs 8-15 evaluations where plain golden section
-  // needs 34 for a bracket of 1e-6 in s; t_e is smooth and flat at its maximum, so t* is
-  // exact to far below the proxy's stand-off. Non-finite values (inside every E_lambda at t = 0:
-  // -infinity) force golden steps.
-  constexpr double kCGold = 0.3819660112501051;
-  constexpr double kTol = 1e-6;
-  double lo = best_s - 4, hi = best_s + 4;
-  double x = best_s, w = best_s, v = best_s;
-  double fx = -best_t, fw = fx, fv = fx;  // minimising -t_e
-  double d = 0, e = 0;
-  for (int it = 0; it < 40; ++it) {
-    const double m = 0.5 * (lo + hi);
-    const double tol2 = 2 * kTol;
-    if (std::fabs(x - m) <= tol2 - 0.5 * (hi - lo)) break;
-    bool golden = true;
-    if (std::fabs(e) > kTol && std::isfinite(fx) && std::isfinite(fw) && std::isfinite(fv)) {
-      double r = (x - w) * (fx - fv), q = (x - v) * (fx - fw);
-      double pp = (x - v) * q - (x - w) * r;
-      q = 2 * (q - r);
-      if (q > 0) pp = -pp;
-      q = std::fabs(q);
-      const double e_prev = e;
-      if (std::fabs(pp) < std::fabs(0.5 * q * e_prev) && pp > q * (lo - x) && pp < q * (hi - x)) {
-        e = d;
-        d = pp / q;
-        const double u = x + d;
-        if (u - lo < tol2 || hi - u < tol2) d = m >= x ? kTol : -kTol;
-        golden = false;
+  // The maximum of t_e over s = ln(lambda / (1 - lambda)), refined by Brent's method on
+  // [centre - half, centre + half] from the point centre (where t_e is t_centre); `stop` when an
+  // evaluation proves the contact later than stop_above; `edge` when it ended at the bracket's
+  // edge (the maximum may lie outside).
+  struct Refined {
+    double t, s;
+    bool stop;
+    bool edge = false;
+  };
+  const auto refine = [&](double centre, double t_centre, double half) -> Refined {
+    // Brent's method (Brent 1973, "Algorithms for Minimization without Derivatives", ch. 5):
+    // parabolic steps through the three best points, golden-section steps where a parabola is not
+    // trusted. It needs 8-15 evaluations where plain golden section needs 34 for a bracket of
+    // 1e-6 in s; t_e is smooth and flat at its maximum, so t* is
+    // exact to far below the proxy's stand-off. Non-finite values (inside every E_lambda at t = 0:
+    // -infinity) force golden steps.
+    constexpr double kCGold = 0.3819660112501051;
+    constexpr double kTol = 1e-6;
+    double lo = centre - half, hi = centre + half;
+    double x = centre, w = centre, v = centre;
+    double fx = -t_centre, fw = fx, fv = fx;  // minimising -t_e
+    double d = 0, e = 0;
+    for (int it = 0; it < 40; ++it) {
+      const double m = 0.5 * (lo + hi);
+      const double tol2 = 2 * kTol;
+      if (std::fabs(x - m) <= tol2 - 0.5 * (hi - lo)) break;
+      bool golden = true;
+      if (std::fabs(e) > kTol && std::isfinite(fx) && std::isfinite(fw) && std::isfinite(fv)) {
+        double r = (x - w) * (fx - fv), q = (x - v) * (fx - fw);
+        double pp = (x - v) * q - (x - w) * r;
+        q = 2 * (q - r);
+        if (q > 0) pp = -pp;
+        q = std::fabs(q);
+        const double e_prev = e;
+        if (std::fabs(pp) < std::fabs(0.5 * q * e_prev) && pp > q * (lo - x) && pp < q * (hi - x)) {
+          e = d;
+          d = pp / q;
+          const double u = x + d;
+          if (u - lo < tol2 || hi - u < tol2) d = m >= x ? kTol : -kTol;
+          golden = false;
+        }
       }
-    }
-    if (golden) {
-      e = x >= m ? lo - x : hi - x;
-      d = kCGold * e;
-    }
-    const double u = std::fabs(d) >= kTol ? x + d : x + (d >= 0 ? kTol : -kTol);
-    const double tu = entry_time(p.at(lambda_of(u)));
-    if (tu > stop_above) return tu;
-    const double fu = -tu;
-    if (fu <= fx) {
-      (u >= x ? lo : hi) = x;
-      v = w, fv = fw;
-      w = x, fw = fx;
-      x = u, fx = fu;
-    } else {
-      (u < x ? lo : hi) = u;
-      if (fu <= fw || w == x) {
+      if (golden) {
+        e = x >= m ? lo - x : hi - x;
+        d = kCGold * e;
+      }
+      const double u = std::fabs(d) >= kTol ? x + d : x + (d >= 0 ? kTol : -kTol);
+      const double tu = entry_time(p.at(lambda_of(u)));
+      if (tu > stop_above) return Refined{tu, 0, true};
+      const double fu = -tu;
+      if (fu <= fx) {
+        (u >= x ? lo : hi) = x;
         v = w, fv = fw;
-        w = u, fw = fu;
-      } else if (fu <= fv || v == x || v == w) {
-        v = u, fv = fu;
+        w = x, fw = fx;
+        x = u, fx = fu;
+      } else {
+        (u < x ? lo : hi) = u;
+        if (fu <= fw || w == x) {
+          v = w, fv = fw;
+          w = u, fw = fu;
+        } else if (fu <= fv || v == x || v == w) {
+          v = u, fv = fu;
+        }
       }
     }
+    return Refined{-fx, x, false, std::fabs(x - (centre - half)) < 1e-3 || std::fabs(x - (centre + half)) < 1e-3};
+  };
+  double best_s = 0, best_t = -kNever;
+  // Warm start: the caller's s (this Gaussian's maximiser at the last sweep, which moves little
+  // from tick to tick) is evaluated first, then refined on +-2; a maximum at the bracket's edge
+  // falls back to the full scan below. Any s gives a lower bound of t*, so a stale start can only
+  // cost evaluations, never report a later contact.
+  if (s_io != nullptr && std::isfinite(*s_io)) {
+    const double s0 = std::clamp(*s_io, -16.0, 16.0);
+    const double t0 = entry_time(p.at(lambda_of(s0)));
+    if (t0 > stop_above) return t0;
+    const Refined r = refine(s0, t0, 2.0);
+    if (r.stop) return r.t;
+    if (!r.edge) best_t = r.t, best_s = r.s;
   }
-  if (-fx > best_t) best_t = -fx, best_s = x;
+  if (best_t == -kNever) {
+    // Coarse scan of s = ln(lambda / (1 - lambda)) over [-16, 16] in steps of 4, then Brent's
+    // method around the best point. Every evaluation is a lower bound of t*, so it may stop as
+    // soon as one says "never" or "later than stop_above".
+    // From the middle outward: lambda = 1/2 is usually near the maximum, so a Gaussian that
+    // cannot be the first contact is dismissed after one or two evaluations.
+    for (int i = 0; i <= 8; ++i) {
+      const double s = 4.0 * ((i + 1) / 2) * (i % 2 ? 1 : -1);
+      const double t = entry_time(p.at(lambda_of(s)));
+      if (t > stop_above) return t;
+      if (t > best_t) best_t = t, best_s = s;
+    }
+    const Refined r = refine(best_s, best_t, 4.0);
+    if (r.stop) return r.t;
+    if (r.t > best_t) best_t = r.t, best_s = r.s;
+  }
+  if (s_io != nullptr) *s_io = best_s;
   const double t_star = std::max(0.0, best_t);
   Eigen::Vector3d md;
   (void)p.at(lambda_of(best_s), &md, t_star);
@@ -205,7 +234,11 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
   const auto exact = [&](std::uint32_t k) {
     Eigen::Vector3d nrm;
     ++counts_.exact;
-    const double t = sweep_time(gs[k], tool, motion, &nrm, best);
+    // This Gaussian's maximiser from its last exact search (a direct-mapped cache) starts it.
+    const std::size_t h = k % kStartCache;
+    double s_start = start_slot_[h] == k ? double(start_s_[h]) : std::numeric_limits<double>::quiet_NaN();
+    const double t = sweep_time(gs[k], tool, motion, &nrm, best, &s_start);
+    if (std::isfinite(s_start)) start_slot_[h] = k, start_s_[h] = float(s_start);
     if (t <= best && filter.blocks != nullptr && !filter.blocks(filter.context, k)) {
       ++counts_.passed;  // reached first, but let through: it prunes nothing
       return;

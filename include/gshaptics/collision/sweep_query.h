@@ -17,6 +17,7 @@
 /// never allocates, locks, logs or throws.
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <span>
 #include <utility>
@@ -56,9 +57,14 @@ struct SweepCounts {
 /// start and moves further in), +infinity when it does not (a tool that touches at the start
 /// and moves away or along the contact plane is not blocked). `normal` (may be null) receives the unit contact normal
 /// (Gaussian -> tool). Stops early, returning a value > `stop_above`, once the contact is proven
-/// to come later than `stop_above`.
+/// to come later than `stop_above`. `s_io` (may be null): in, a start for the search over the
+/// family (s = ln(lambda / (1 - lambda)), e.g. this Gaussian's maximiser at the last sweep; NaN:
+/// none); out, the maximiser found when the search ran to the end. A start changes the work,
+/// not the answer beyond the search's tolerance (t* to about 1e-12 of the motion), and never
+/// gives a later contact.
 [[nodiscard]] double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
-                                Eigen::Vector3d* normal = nullptr, double stop_above = 1.0) noexcept;
+                                Eigen::Vector3d* normal = nullptr, double stop_above = 1.0,
+                                double* s_io = nullptr) noexcept;
 
 class SweepQuery {
  public:
@@ -80,6 +86,15 @@ class SweepQuery {
  private:
   const CollisionWorld* world_;
   std::vector<std::pair<double, std::uint32_t>> scratch_;  // (earliest contact bound, slot)
+  // Each Gaussian's last lambda maximiser, direct-mapped by slot: the next search starts there.
+  static constexpr std::size_t kStartCache = 1024;
+  std::array<std::uint32_t, kStartCache> start_slot_ = filled_slots();
+  std::array<float, kStartCache> start_s_{};
+  static constexpr std::array<std::uint32_t, kStartCache> filled_slots() {
+    std::array<std::uint32_t, kStartCache> a{};
+    for (auto& v : a) v = UINT32_MAX;
+    return a;
+  }
   SweepCounts counts_;
 };
 
