@@ -59,12 +59,10 @@ struct ProxyParams {
                                 ///< blocking Gaussians' middle semi-axis when that is larger)
   double shading_reuse = 0.05;  ///< the shaded normal is recomputed once the proxy moved this many tool radii
   double teleport = 10.0;     ///< a device jump of more tool radii than this in one tick re-places the proxy
-  /// A Gaussian with no other kept Gaussian within `isolation_gap` tool radii or its own middle
-  /// semi-axis, whichever is smaller (a floater, as
-  /// trained scenes have in free space) does not block the proxy, so the tool is not caught on
-  /// specks in mid-air. A Gaussian with a neighbour that close (a surface, a bump on it, and the
-  /// sparse surfaces of small trained objects, whose 1-sigma ellipsoids leave gaps between
-  /// neighbours) always blocks.
+  /// A Gaussian that no other kept Gaussian comes near (a floater, as trained scenes have in free
+  /// space) does not block the proxy, so the tool is not caught on specks in mid-air. "Near" is
+  /// overlapping by default, or within `isolation_gap` (below). A Gaussian with such a
+  /// neighbour (a surface, a bump on it) always blocks.
   bool pass_isolated = true;
   /// How near, in tool radii, another Gaussian must come to make one part of a surface (but no
   /// nearer than the Gaussian's own middle semi-axis: a floater a few of its sizes off a surface
