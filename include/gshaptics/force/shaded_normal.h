@@ -10,7 +10,11 @@
 /// times a unit direction that blends, by the Gaussian's flatness f = 1 - a_min / a_mid, the
 /// Gaussian's shortest axis turned toward p (a disc states its own normal) and the direction of
 /// A_i^-1 (p - c_i) (a round Gaussian only says where it is: the density gradient). The kernel
-/// width s widens every Gaussian so the field is smooth at the scale of the tool.
+/// width s widens every Gaussian so the field is smooth at the scale of the tool. Near convex
+/// edges and corners, a disc whose turned axis disagrees with a first outward estimate and that
+/// p sees from beyond its rim gives the direction from its rim to p instead, with less weight
+/// (two passes; docs/design.md Sec. 7), so the other face's discs do not pull the normal into
+/// the solid.
 ///
 /// Threading: pure functions of an immutable world; no allocation, lock, log or throw.
 
