@@ -228,3 +228,80 @@ TEST(Safety, ContinuousLimitBoundsTheMeanSquareOverTheWindow) {
 
 }  // namespace
 }  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+SafetyInput fresh_wrench(Nanos now, const Eigen::Vector3d& f, const Eigen::Vector3d& tau) {
+  SafetyInput in = fresh(now, f);
+  in.desired_torque = tau;
+  return in;
+}
+
+TEST(SafetyTorque, LimitedOnItsOwnKeepingDirectionAndTheDeviceLimitBinds) {
+  SafetyParams p = no_ramp();
+  p.tau_max = 0.4;
+  p.max_torque_rate = 1e9;
+  SafetyFilter s(p);
+  s.reset(0);
+  // Below the limit: unchanged, and the force is untouched by the torque path.
+  SafetyOutput o = s.apply(fresh_wrench(10 * kMs, {0, 0, 2}, {0.1, -0.2, 0.05}), kDt);
+  EXPECT_EQ(o.torque, Eigen::Vector3d(0.1, -0.2, 0.05));
+  EXPECT_EQ(o.force, Eigen::Vector3d(0, 0, 2));
+  EXPECT_EQ(o.flags, 0u);
+  // Above: scaled to 0.4 N m along the same axis.
+  o = s.apply(fresh_wrench(11 * kMs, {0, 0, 2}, {0, 3, 4}), kDt);
+  EXPECT_NEAR(o.torque.norm(), 0.4, 1e-12);
+  EXPECT_NEAR(o.torque.normalized().dot(Eigen::Vector3d(0, 0.6, 0.8)), 1.0, 1e-12);
+  EXPECT_TRUE(o.flags & kFlagTorqueLimited);
+  EXPECT_FALSE(o.flags & kFlagForceLimited);
+  // A device that allows 0.25 N m binds below the option; +inf or 0 leaves the option.
+  s.set_device_torque_limit(0.25);
+  EXPECT_DOUBLE_EQ(s.tau_max(), 0.25);
+  EXPECT_NEAR(s.apply(fresh_wrench(12 * kMs, {}, {0, 3, 4}), kDt).torque.norm(), 0.25, 1e-12);
+  s.set_device_torque_limit(std::numeric_limits<double>::infinity());
+  EXPECT_DOUBLE_EQ(s.tau_max(), 0.4);
+}
+
+TEST(SafetyTorque, RateLimitedRampedGatedAndFadedLikeTheForce) {
+  SafetyParams p = no_ramp();
+  p.tau_max = 10;
+  p.max_torque_rate = 50;  // 0.05 N m per 1 ms tick
+  SafetyFilter s(p);
+  s.reset(0);
+  const SafetyOutput a = s.apply(fresh_wrench(10 * kMs, {}, {0, 0, 1}), kDt);
+  EXPECT_NEAR(a.torque.z(), 0.05, 1e-12);
+  EXPECT_TRUE(a.flags & kFlagTorqueLimited);
+  const SafetyOutput b = s.apply(fresh_wrench(11 * kMs, {}, {0, 0, 1}), kDt);
+  EXPECT_NEAR(b.torque.z(), 0.10, 1e-12);
+  // The device gate zeroes the torque at once.
+  SafetyInput bad = fresh_wrench(12 * kMs, {}, {0, 0, 1});
+  bad.device_ok = false;
+  bad.device_flags = kFlagWatchdog;
+  EXPECT_EQ(s.apply(bad, kDt).torque, Eigen::Vector3d::Zero());
+  // The soft start scales it as it scales the force (half way through a 0.5 s ramp).
+  SafetyParams r = no_ramp();
+  r.ramp_time = 0.5;
+  r.max_torque_rate = 1e9;
+  SafetyFilter ramped(r);
+  ramped.reset(0);
+  const SafetyOutput half = ramped.apply(fresh_wrench(250 * kMs, {0, 0, 4}, {0, 0.2, 0}), kDt);
+  EXPECT_NEAR(half.force.z(), 2.0, 1e-9);
+  EXPECT_NEAR(half.torque.y(), 0.1, 1e-9);
+  // A result older than hold + fade: zero torque too.
+  SafetyFilter old(no_ramp());
+  old.reset(0);
+  SafetyInput stale = fresh_wrench(kNanosPerSecond, {0, 0, 4}, {0, 0.2, 0});
+  stale.fresh_result = false;
+  stale.result_age = 100 * kMs;
+  EXPECT_EQ(old.apply(stale, kDt).torque, Eigen::Vector3d::Zero());
+  // Non-finite torque is dropped, the force still passes.
+  SafetyFilter nan_filter(no_ramp());
+  nan_filter.reset(0);
+  const SafetyOutput n = nan_filter.apply(fresh_wrench(10 * kMs, {0, 0, 1}, {NAN, 0, 0}), kDt);
+  EXPECT_EQ(n.torque, Eigen::Vector3d::Zero());
+  EXPECT_EQ(n.force, Eigen::Vector3d(0, 0, 1));
+}
+
+}  // namespace
+}  // namespace gshaptics

@@ -52,6 +52,7 @@ class ScriptedDevice final : public HapticDevice {
     ++writes;
   }
   void stop(Nanos) noexcept override { stopped = true; }
+  void set_renders_torque(bool on) noexcept { info_.renders_torque = on; }
 
   DeviceSample sample;
   bool stalled = false;
@@ -68,8 +69,9 @@ class ScriptedDevice final : public HapticDevice {
 class ServoTick : public ::testing::Test {
  protected:
   void SetUp() override { make({}); }
-  void make(SafetyParams safety, double tool_radius = 0.02, ForceParams force = {}) {
+  void make(SafetyParams safety, double tool_radius = 0.02, ForceParams force = {}, const ToolShape* shape = nullptr) {
     tool_.semi_axes = Eigen::Vector3d::Constant(tool_radius);
+    if (shape != nullptr) tool_ = *shape;
     safety_ = safety;
     worker_ = std::make_unique<CollisionWorker>(floor_world(), tool_, force, QueryOptions{}, 1e-3, clock_);
     servo_ = std::make_unique<ServoController>(device_, safety, kMs, poses_, results_, stats_, &log_, clock_);
@@ -275,6 +277,59 @@ TEST_F(ServoTick, TickAndWorkerStepAllocateNothing) {
   }
   const std::size_t after = test::allocation_count();
   EXPECT_EQ(after - before, 0u);
+  EXPECT_GT(log_.records().back().counts.contacts, 0u);
+}
+
+}  // namespace
+}  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+// A compound tool's torque through the servo step: a device that renders force only gets none
+// (and the run counts the ticks), a 6-DoF device gets the safety layer's torque.
+TEST_F(ServoTick, TorqueGoesToTorqueDevicesAndIsCountedWhereDropped) {
+  // Two spheres 10 cm apart on the tool's x axis, the tool tilted so only the +x one presses.
+  CompoundTool bell;
+  bell.count = 2;
+  bell.parts[0].offset = {-0.05, 0, 0};
+  bell.parts[1].offset = {0.05, 0, 0};
+  bell.parts[0].semi_axes = bell.parts[1].semi_axes = Eigen::Vector3d::Constant(0.02);
+  const ToolShape shape = tool_shape_for(bell);
+  SafetyParams p = direct();
+  p.max_torque_rate = 1e9;
+  for (bool renders : {false, true}) {
+    device_.set_renders_torque(renders);
+    make(p, 0.02, {}, &shape);
+    device_.sample.position = {0.0, 0.0, 0.03};
+    device_.sample.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitY()));
+    const std::uint64_t dropped0 = stats_.torque_dropped_ticks.load();
+    TickRecord r;
+    for (int k = 0; k < 5; ++k) r = tick(/*worker_runs=*/true, /*inline_mode=*/true);
+    ASSERT_GT(r.force.z(), 0.0) << renders;
+    // The +x sphere (at x ~ +0.046) pushes up: torque about -y.
+    EXPECT_LT(r.desired.z(), 1e9);
+    if (renders) {
+      EXPECT_LT(device_.last.torque.y(), 0.0);
+      EXPECT_EQ(device_.last.torque, r.torque);
+      EXPECT_EQ(stats_.torque_dropped_ticks.load(), dropped0);
+      EXPECT_FALSE(r.flags & kFlagTorqueDropped);
+    } else {
+      EXPECT_EQ(device_.last.torque, Eigen::Vector3d::Zero());
+      EXPECT_EQ(r.torque, Eigen::Vector3d::Zero());
+      EXPECT_GE(stats_.torque_dropped_ticks.load(), dropped0 + 5);
+      EXPECT_TRUE(r.flags & kFlagTorqueDropped);
+    }
+    EXPECT_GT(stats_.peak_torque.load(), 0.0);
+  }
+  // The compound tick allocates nothing either (inline: worker step inside the tick).
+  const std::size_t before = test::allocation_count();
+  for (int k = 0; k < 300; ++k) {
+    device_.sample.position.z() = 0.06 - 0.0001 * k;
+    device_.sample.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.4 + 0.001 * k, Eigen::Vector3d::UnitY()));
+    tick(true, true);
+  }
+  EXPECT_EQ(test::allocation_count() - before, 0u);
   EXPECT_GT(log_.records().back().counts.contacts, 0u);
 }
 

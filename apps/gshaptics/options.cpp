@@ -166,6 +166,14 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
   cmd.add_option("--tool-radius", o.tool_radius,
                  "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)")
       ->check(check::positive());
+  cmd.add_option("--tool", o.tool,
+                 "A tool with a shape, in the device's tool frame (origin: the tool centre point), world units: "
+                 "sphere:R, ellipsoid:A,B,C, stylus:LENGTH,RADIUS (4 ellipsoids from the TCP along +z), "
+                 "disc:RADIUS,THICKNESS, or FILE.json ({\"parts\": [{\"center\", \"semi_axes\", \"rotation\"}]}). "
+                 "Tools of more than one part (or off the TCP) need --force-model paper for now; they give a torque, "
+                 "sent to devices that render torque (limit --tau-max)");
+  cmd.add_option("--tau-max", o.safety.tau_max, "Torque limit, N m (the device's own limit binds too)")
+      ->capture_default_str()->check(check::positive());
   add_force_options(cmd, o.force);
   cmd.add_option("--hold-timeout", o.safety.hold_timeout, "Hold a late result at full force this long, s")
       ->capture_default_str()->check(check::non_negative());

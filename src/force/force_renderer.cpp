@@ -28,7 +28,79 @@ std::unique_ptr<ForceRenderer> make_force_renderer(const RendererSpec& spec, con
   return std::make_unique<ProxyRenderer>(world, std::get<ProxyModelSpec>(spec).params);
 }
 
+RenderOutput ForceRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
+                                            const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
+                                            double dt) noexcept {
+  (void)angular_velocity;
+  if (parts.size() == 1 && parts[0].center == tcp) return render(parts[0], velocity, dt);
+  RenderOutput out;
+  out.proxy = tcp;
+  out.status = QueryStatus::kInvalidTool;  // a renderer of one ellipsoid at the TCP
+  return out;
+}
+
+namespace {
+
+std::array<ForceModel, kMaxToolParts> part_models(const ForceParams& force) {
+  std::array<ForceModel, kMaxToolParts> m;
+  m.fill(ForceModel(force));
+  return m;
+}
+
+}  // namespace
+
+PaperRenderer::PaperRenderer(const CollisionWorld& world, const ForceParams& force, const QueryOptions& query)
+    : query_(world, query), model_(force), part_models_(part_models(force)), merged_(query_.result().capacity()) {}
+
+RenderOutput PaperRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
+                                            const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
+                                            double dt) noexcept {
+  if (parts.size() == 1 && parts[0].center == tcp) {
+    compound_ = false;
+    return render(parts[0], velocity, dt);
+  }
+  compound_ = true;
+  merged_.clear();
+  RenderOutput out;
+  out.proxy = tcp;
+  if (parts.empty() || parts.size() > std::size_t(kMaxToolParts) || !tcp.allFinite() || !velocity.allFinite() ||
+      !angular_velocity.allFinite()) {
+    out.status = QueryStatus::kInvalidTool;
+    return out;
+  }
+  for (std::size_t j = 0; j < parts.size(); ++j) {
+    const QueryStatus st = query_.run(parts[j]);
+    if (st == QueryStatus::kInvalidTool) {  // one bad part: no force from any (as for one ellipsoid)
+      merged_.clear();
+      out = RenderOutput{};
+      out.proxy = tcp;
+      out.status = st;
+      return out;
+    }
+    if (st != QueryStatus::kOk) out.status = st;
+    const ContactSet& r = query_.result();
+    out.counts.candidates += r.counts.candidates;
+    out.counts.prefiltered += r.counts.prefiltered;
+    out.counts.contacts += r.counts.contacts;
+    const Eigen::Vector3d arm = parts[j].center - tcp;
+    const Eigen::Vector3d v = velocity + angular_velocity.cross(arm);
+    const ForceOutput f = part_models_[j].update(r.contacts(), parts[j].center, v, dt);
+    out.force += f.force;
+    if (f.contacts > 0) out.torque += (f.centroid - tcp).cross(f.force);
+    std::size_t granted = 0;
+    Contact* dst = merged_.append(r.contacts().size(), granted);
+    for (std::size_t k = 0; k < granted; ++k) {
+      dst[k] = r.contacts()[k];
+      dst[k].part = std::uint8_t(j);
+    }
+    if (granted < r.contacts().size()) out.status = QueryStatus::kContactOverflow;
+  }
+  merged_.counts = out.counts;
+  return out;
+}
+
 RenderOutput PaperRenderer::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
+  compound_ = false;
   RenderOutput out;
   out.status = query_.run(tool);
   out.counts = query_.result().counts;

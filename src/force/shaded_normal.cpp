@@ -32,7 +32,7 @@ Eigen::Vector3d direction_sum(const CollisionWorld& world, const Eigen::Vector3d
     lo[k] = round_down_to_float(c[k] - half);
     hi[k] = round_up_to_float(c[k] + half);
   }
-  const bool first_pass = outward.isZero();
+  const bool first_pass = outward.isZero(0);
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   const CollisionGaussian* gs = world.gaussians().data();
   world.bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {

@@ -1,12 +1,36 @@
 #include "gshaptics/servo/collision_worker.h"
 
 #include <algorithm>
+#include <cmath>
+
+#include "gshaptics/error.h"
 
 namespace gshaptics {
 
+ToolShape tool_shape_for(const CompoundTool& tool) {
+  ToolShape s;
+  if (tool.count == 1 && tool.parts[0].offset.isZero(0)) {
+    s.semi_axes = tool.parts[0].semi_axes;
+    s.rotation = tool.parts[0].rotation;
+  } else {
+    s.compound = tool;
+    s.semi_axes = Eigen::Vector3d::Constant(tool.largest_semi_axis());
+  }
+  return s;
+}
+
 CollisionWorker::CollisionWorker(const ToolShape& tool, std::unique_ptr<ForceRenderer> renderer, double nominal_dt,
                                  Clock& clock)
-    : renderer_(std::move(renderer)), tool_(tool), nominal_dt_(nominal_dt), clock_(clock) {}
+    : renderer_(std::move(renderer)), tool_(tool), nominal_dt_(nominal_dt), clock_(clock) {
+  if (tool_.compound.count > 0) {
+    tool_.compound.validate("tool");
+    const bool single = tool_.compound.count == 1 && tool_.compound.parts[0].offset.isZero(0);
+    if (!single && renderer_ && !renderer_->renders_compound())
+      throw InputError("the " + std::string(renderer_->name()) + " force model renders one ellipsoid at the tool "
+                       "centre point; a compound tool (" + describe(tool_.compound) +
+                       ") needs the paper model (--force-model paper) until the 6-DoF proxy is built");
+  }
+}
 
 CollisionWorker::CollisionWorker(const CollisionWorld& world, const ToolShape& tool, const ForceParams& force,
                                  const QueryOptions& query, double nominal_dt, Clock& clock)
@@ -30,14 +54,30 @@ bool CollisionWorker::step(PoseChannel& poses, ResultChannel& results) noexcept 
   // worker skipped (it was busy) still count, so filters follow real time.
   double dt = nominal_dt_;
   if (have_last_) dt = std::clamp(to_seconds(pose_.stamp - last_stamp_), nominal_dt_ * 0.5, 0.1);
+  RenderOutput f;
+  if (tool_.compound.count > 0) {
+    // Angular velocity from the orientation step (world frame): the rotation taking the last
+    // orientation to this one, as an axis times an angle, per second.
+    Eigen::Vector3d omega = Eigen::Vector3d::Zero();
+    if (have_last_) {
+      const Eigen::AngleAxisd step(pose_.orientation * last_orientation_.conjugate());
+      const double angle = step.angle() > M_PI ? step.angle() - 2 * M_PI : step.angle();
+      if (std::isfinite(angle)) omega = step.axis() * (angle / dt);
+    }
+    const int n = tool_.compound.posed(pose_.position, pose_.orientation, parts_);
+    f = renderer_->render_compound({parts_.data(), std::size_t(n)}, pose_.position, pose_.velocity, omega, dt);
+  } else {
+    f = renderer_->render(tool_at(pose_), pose_.velocity, dt);
+  }
   last_stamp_ = pose_.stamp;
+  last_orientation_ = pose_.orientation;
   have_last_ = true;
-  const RenderOutput f = renderer_->render(tool_at(pose_), pose_.velocity, dt);
 
   CollisionResult r;
   r.pose_sequence = pose_.sequence;
   r.pose_stamp = pose_.stamp;
   r.force = f.force;
+  r.torque = f.torque;
   r.counts = f.counts;
   r.status = f.status;
   r.proxy = f.proxy;

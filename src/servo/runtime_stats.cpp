@@ -44,6 +44,10 @@ RuntimeSummary summarize(const RuntimeStats& s, const LatencyHistogram& query, d
   r.continuous_force_limit = s.continuous_force_limit.load(std::memory_order_relaxed);
   r.force_limit_by_device = s.force_limit_by_device.load(std::memory_order_relaxed);
   r.peak_force = s.peak_force.load(std::memory_order_relaxed);
+  r.peak_torque = s.peak_torque.load(std::memory_order_relaxed);
+  r.torque_limited_ticks = ld(s.torque_limited_ticks);
+  r.torque_dropped_ticks = ld(s.torque_dropped_ticks);
+  r.torque_limit = s.torque_limit.load(std::memory_order_relaxed);
   return r;
 }
 

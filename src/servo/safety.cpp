@@ -11,6 +11,10 @@ void SafetyFilter::set_device_limits(double peak, double continuous) noexcept {
   f_max_ = std::min(option_f_max_, device_peak_);
 }
 
+void SafetyFilter::set_device_torque_limit(double peak) noexcept {
+  tau_max_ = peak > 0 ? std::min(params_.tau_max, peak) : params_.tau_max;
+}
+
 ForceLimits SafetyFilter::limits() const noexcept {
   ForceLimits l;
   l.f_max = f_max_;
@@ -24,6 +28,7 @@ ForceLimits SafetyFilter::limits() const noexcept {
 void SafetyFilter::reset(Nanos now) noexcept {
   heat_ = 0;
   last_.setZero();
+  last_torque_.setZero();
   ramp_start_ = now;
   gated_ = false;
 }
@@ -36,6 +41,7 @@ SafetyOutput SafetyFilter::apply(const SafetyInput& in, double dt) noexcept {
   if (!in.device_ok) {
     out.flags = in.device_flags;
     last_.setZero();
+    last_torque_.setZero();
     heat_ -= heat_ * decay;
     gated_ = true;
     return out;
@@ -116,6 +122,25 @@ SafetyOutput SafetyFilter::apply(const SafetyInput& in, double dt) noexcept {
   last_ = target;
   heat_ += (target.squaredNorm() - heat_) * decay;
   out.force = target;
+
+  // 6. Torque: the same scale (hold, fade, stop) and ramp, its own limit and rate limit.
+  Eigen::Vector3d torque = scale * in.desired_torque;
+  if (!torque.allFinite()) torque.setZero();
+  const double tn = torque.norm();
+  if (tn > tau_max_) {
+    torque *= tau_max_ / tn;
+    out.flags |= kFlagTorqueLimited;
+  }
+  torque *= ramp;
+  const Eigen::Vector3d tstep = torque - last_torque_;
+  const double max_tstep = params_.max_torque_rate * std::max(dt, 0.0);
+  const double ts = tstep.norm();
+  if (ts > max_tstep) {
+    torque = last_torque_ + tstep * (max_tstep / ts);
+    out.flags |= kFlagTorqueLimited;
+  }
+  last_torque_ = torque;
+  out.torque = torque;
   return out;
 }
 

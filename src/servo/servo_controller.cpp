@@ -40,6 +40,8 @@ void ServoController::start(Nanos now) {
                      "' accepts (" + std::to_string(info.max_rate_hz) + " Hz, " + info.rate_source + ")");
   }
   safety_.set_device_limits(info.max_force, info.max_continuous_force);
+  safety_.set_device_torque_limit(info.max_torque);
+  stats_.torque_limit.store(safety_.tau_max(), std::memory_order_relaxed);
   const ForceLimits lim = safety_.limits();
   stats_.force_limit.store(lim.f_max, std::memory_order_relaxed);
   stats_.continuous_force_limit.store(lim.continuous, std::memory_order_relaxed);
@@ -121,6 +123,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   SafetyInput in;
   in.now = now;
   in.desired = pc.force;
+  in.desired_torque = result_.torque;
   in.have_result = result_.pose_sequence != 0;
   in.fresh_result = fresh;
   in.result_age = in.have_result ? now - result_.pose_stamp : 0;
@@ -135,11 +138,14 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   if (admittance && virtual_tool_ready_) device_.write_setpoint(admittance_.step(s.user_force, out.force, dt), now);
   Wrench w;
   w.force = out.force;
+  const bool renders_torque = device_.info().renders_torque;
+  const bool torque_dropped = !renders_torque && (out.torque.array() != 0.0).any();
+  if (renders_torque) w.torque = out.torque;
   device_.write(w, now);
   const Nanos end = clock_.now();
 
   // Statistics and log.
-  const std::uint32_t f = out.flags | (pc.damping > 0 ? kFlagPassivity : 0u);
+  const std::uint32_t f = out.flags | (pc.damping > 0 ? kFlagPassivity : 0u) | (torque_dropped ? kFlagTorqueDropped : 0u);
   stats_.ticks.store(stats_.ticks.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
   bump(stats_.deadline_misses, end > scheduled + period_);
   bump(stats_.stale_ticks, (f & kFlagHeld) != 0);
@@ -157,6 +163,9 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   bump(stats_.continuous_limited_ticks, (f & kFlagContinuousLimited) != 0);
   bump(stats_.results_used, fresh);
   bump(stats_.passivity_ticks, (f & kFlagPassivity) != 0);
+  bump(stats_.torque_limited_ticks, (f & kFlagTorqueLimited) != 0);
+  bump(stats_.torque_dropped_ticks, torque_dropped);
+  max_store(stats_.peak_torque, out.torque.norm());
   max_store(stats_.passivity_peak_damping, pc.damping);
   if (passivity_.energy() < stats_.passivity_min_energy.load(std::memory_order_relaxed))
     stats_.passivity_min_energy.store(passivity_.energy(), std::memory_order_relaxed);
@@ -179,6 +188,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
     r.counts = result_.counts;
     r.desired = result_.force;
     r.force = out.force;
+    r.torque = w.torque;
     r.user_force = s.user_force;
     r.query_us = result_.query_us;
     r.result_age_us = float(double(in.result_age) * 1e-3);

@@ -54,6 +54,9 @@ const Column kColumns[] = {
     GSH_COL("constraints", kColumnsProxy, "%u", unsigned(r.constraints)),
     GSH_COL("energy_j", kColumnsPassivity, "%.7f", r.energy),
     GSH_COL("pc_damping", kColumnsPassivity, "%.4f", double(r.damping)),
+    GSH_COL("tx", kColumnsTorque, "%.6f", r.torque.x()),
+    GSH_COL("ty", kColumnsTorque, "%.6f", r.torque.y()),
+    GSH_COL("tz", kColumnsTorque, "%.6f", r.torque.z()),
 };
 
 #undef GSH_COL

@@ -1,5 +1,7 @@
 #include "gshaptics/session/run_session.h"
 
+#include "gshaptics/collision/compound_tool.h"
+
 #include <fmt/format.h>
 #include <unistd.h>
 
@@ -74,6 +76,10 @@ nlohmann::json to_json(const RuntimeSummary& s) {
           {"passivity_min_energy_j", s.passivity_min_energy},
           {"results_used", s.results_used},
           {"peak_force_n", s.peak_force},
+          {"peak_torque_nm", s.peak_torque},
+          {"torque_limited_ticks", s.torque_limited_ticks},
+          {"torque_dropped_ticks", s.torque_dropped_ticks},
+          {"torque_limit_nm", s.torque_limit},
           {"force_limit_n", s.force_limit},
           {"force_limit_bound_by", s.force_limit_by_device ? "device" : "option"},
           {"continuous_force_limit_n", std::isfinite(s.continuous_force_limit) ? nlohmann::json(s.continuous_force_limit)
@@ -192,6 +198,13 @@ void validate_runtime_options(const RuntimeOptions& o, bool allow_mouse) {
   // A device's library and a replay file are checked now, before the scene is loaded.
   if (is_hardware_device(o.device)) (void)make_hardware_device(o);
   if (o.device.rfind("replay:", 0) == 0) (void)load_pose_log(o.device.substr(7));
+  if (!o.tool.empty()) {
+    const ToolShape t = tool_shape_for(parse_tool_spec(o.tool));
+    if (t.compound.count > 0 && !std::holds_alternative<PaperModelSpec>(o.force.spec()))
+      throw InputError("--tool " + o.tool + ": the " + std::string(renderer_name(o.force.spec())) +
+                       " force model renders one ellipsoid at the tool centre point; this tool (" +
+                       describe(t.compound) + ") needs --force-model paper until the 6-DoF proxy is built");
+  }
 }
 
 void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool hardware,
@@ -242,9 +255,10 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
   check_device_option(o.device, allow_mouse);
   RuntimeSetup s;
   s.tool_radius = o.tool_radius;
+  if (s.tool_radius <= 0 && !o.tool.empty()) s.tool_radius = parse_tool_spec(o.tool).largest_semi_axis();
   s.planned = o.duration;
   if (o.device == "sim") {
-    ProbeTrajectory traj = make_probe_trajectory(pw, is_scaled(so), o.sites, o.seed, o.tool_radius, o.force);
+    ProbeTrajectory traj = make_probe_trajectory(pw, is_scaled(so), o.sites, o.seed, s.tool_radius, o.force);
     s.tool_radius = traj.tool_radius();
     if (s.planned == 0) s.planned = traj.duration() + 0.5;
     s.pass = traj.duration();
@@ -327,6 +341,7 @@ RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, d
   rc.latency_ticks = o.exec.latency_ticks;
   rc.duration = planned;
   rc.tool.semi_axes = Eigen::Vector3d::Constant(tool_radius);
+  if (!o.tool.empty()) rc.tool = tool_shape_for(parse_tool_spec(o.tool));
   rc.renderer = o.force.spec();
   rc.safety = o.safety;
   rc.safety.f_max = o.force.f_max;
@@ -424,6 +439,14 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
   sj["mode"] = o.exec.inline_query ? "inline" : "decoupled";
   sj["renderer"] = std::string(renderer_name(setup.config.renderer));
   sj["tool_radius"] = setup.tool_radius;
+  if (setup.config.tool.compound.count > 0) {
+    nlohmann::json parts = nlohmann::json::array();
+    for (const ToolPart& p : setup.config.tool.compound.view())
+      parts.push_back({{"center", {p.offset.x(), p.offset.y(), p.offset.z()}},
+                       {"semi_axes", {p.semi_axes.x(), p.semi_axes.y(), p.semi_axes.z()}},
+                       {"rotation", {p.rotation.w(), p.rotation.x(), p.rotation.y(), p.rotation.z()}}});
+    sj["tool"] = {{"spec", o.tool}, {"parts", parts}};
+  }
   sj["interrupted"] = interrupted;
   sj["runtime"] = to_json(s);
   sj["query_us"] = {{"p50", s.query_p50_us}, {"p99", s.query_p99_us}, {"max", s.query_max_us}};
@@ -459,6 +482,11 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
   fmt::print("safety     watchdog {}, invalid pose {}, outside workspace {}, force-limited {}, "
              "rate-limited {} ticks; peak force {:.2f} N\n", s.watchdog_ticks, s.invalid_pose_ticks,
              s.outside_workspace_ticks, s.force_limited_ticks, s.rate_limited_ticks, s.peak_force);
+  if (setup.config.tool.compound.count > 0 || s.peak_torque > 0 || s.torque_dropped_ticks > 0)
+    fmt::print("torque     peak {:.3g} N m after the safety layer (limit {:.3g} N m); {} ticks limited; {} ticks dropped ({})\n",
+               s.peak_torque, s.torque_limit, s.torque_limited_ticks, s.torque_dropped_ticks,
+               setup.device->info().renders_torque ? "the device renders torque"
+                                                   : "the device renders force only: torque not sent");
   fmt::print("passivity  {}: the controller added damping on {} ticks (peak {:.3g} N s/m); lowest observed "
              "energy {:.3g} mJ\n", o.safety.passivity.enabled ? "on" : "off (observed only)", s.passivity_ticks,
              s.passivity_peak_damping, s.passivity_min_energy * 1e3);

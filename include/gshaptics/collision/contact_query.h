@@ -27,6 +27,7 @@ struct Contact {
   std::uint32_t index = 0;    ///< index into the ORIGINAL scene file (before filtering)
   std::uint32_t slot = 0;     ///< position of its record in CollisionWorld::gaussians()
   float opacity = 0;          ///< alpha_i
+  std::uint8_t part = 0;      ///< the compound tool's part that overlaps it (0 for one ellipsoid)
   double k_min = 0;           ///< K_min in (0, 1]: larger is deeper (paper eq. 6, Fig. 2)
   Eigen::Vector3d center = Eigen::Vector3d::Zero();  ///< c_i, world frame
 };

@@ -87,8 +87,12 @@ struct DeviceInfo {
   /// position setpoints (HapticDevice::write_setpoint), like the paper's HapticGiant. Such a device
   /// can be driven with RuntimeConfig::control = kAdmittance.
   bool admittance = false;
-  /// The device renders torque (6-DoF output). When false the runtime sends force only.
+  /// The device renders torque (6-DoF output). When false the runtime sends force only and
+  /// counts the ticks whose torque it dropped (RuntimeStats::torque_dropped_ticks).
   bool renders_torque = false;
+  /// Peak torque the device may be commanded, N m; +inf: no limit of its own. The safety layer's
+  /// torque limit is min(this, SafetyParams::tau_max).
+  double max_torque = std::numeric_limits<double>::infinity();
   Calibration calibration = Calibration::kNotApplicable;
 };
 

@@ -14,6 +14,9 @@
 #include <span>
 #include <string>
 
+#include <array>
+
+#include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_model.h"
 
@@ -22,6 +25,9 @@ namespace gshaptics {
 /// What a renderer produced at one tick. World frame, SI units.
 struct RenderOutput {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< force on the tool (device), N
+  /// Torque on the tool about its tool centre point, N m (compound tools; zero for one
+  /// ellipsoid at the TCP).
+  Eigen::Vector3d torque = Eigen::Vector3d::Zero();
   QueryCounts counts;                               ///< of the tick's contact query
   QueryStatus status = QueryStatus::kOk;
   /// Where the renderer holds the tool: the proxy's centre (m, world); the device's own centre
@@ -38,7 +44,18 @@ class ForceRenderer {
   /// One tick: the tool ellipsoid where the device is now (world frame, m), its velocity (m/s)
   /// and the time since the previous tick (s, > 0).
   virtual RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept = 0;
-  /// The contacts of the last render() (valid until the next call).
+  /// One tick with a compound tool (collision/compound_tool.h): its `parts` posed in the world,
+  /// the tool centre point `tcp` (world, m), the TCP's velocity (m/s) and the tool's angular
+  /// velocity (rad/s, world). The torque is about the TCP. Renderers that take one ellipsoid
+  /// (renders_compound() false) render a single part at the TCP with render() and report
+  /// kInvalidTool for anything else; callers check renders_compound() at set-up.
+  virtual RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
+                                       const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
+                                       double dt) noexcept;
+  /// True when render_compound() takes several parts and parts off the TCP.
+  [[nodiscard]] virtual bool renders_compound() const noexcept { return false; }
+  /// The contacts of the last render() (valid until the next call); Contact::part names the
+  /// part of a compound tool.
   [[nodiscard]] virtual std::span<const Contact> contacts() const noexcept = 0;
   /// Forgets all per-device state (a new run, a teleport).
   virtual void reset() noexcept = 0;
@@ -52,14 +69,26 @@ class ForceRenderer {
 
 /// The paper's renderer: ContactQuery (broad + narrow phase, eq. 4-6) then ForceModel (eq. 7-11)
 /// on the tool centre and velocity.
+///
+/// With a compound tool it sums eq. 7-11 part by part (one ForceModel, so one set of filters, per
+/// part; each part's velocity is v + omega x (c_j - x_tcp)), and the torque about the TCP is
+/// sum_j (p_eff,j - x_tcp) x F_j, with p_eff,j the part's softmax-weighted centroid (eq. 8).
 class PaperRenderer final : public ForceRenderer {
  public:
-  PaperRenderer(const CollisionWorld& world, const ForceParams& force = {}, const QueryOptions& query = {})
-      : query_(world, query), model_(force) {}
+  PaperRenderer(const CollisionWorld& world, const ForceParams& force = {}, const QueryOptions& query = {});
   [[nodiscard]] std::string_view name() const noexcept override { return "paper"; }
   RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
-  [[nodiscard]] std::span<const Contact> contacts() const noexcept override { return query_.result().contacts(); }
-  void reset() noexcept override { model_.reset(); }
+  RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
+                               const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
+                               double dt) noexcept override;
+  [[nodiscard]] bool renders_compound() const noexcept override { return true; }
+  [[nodiscard]] std::span<const Contact> contacts() const noexcept override {
+    return compound_ ? merged_.contacts() : query_.result().contacts();
+  }
+  void reset() noexcept override {
+    model_.reset();
+    for (ForceModel& m : part_models_) m.reset();
+  }
   void set_executor(ParallelExecutor* executor, std::size_t min_candidates) override {
     query_.set_executor(executor, min_candidates);
   }
@@ -68,6 +97,9 @@ class PaperRenderer final : public ForceRenderer {
  private:
   ContactQuery query_;
   ForceModel model_;
+  std::array<ForceModel, kMaxToolParts> part_models_;
+  ContactSet merged_;      // every part's contacts, tagged with the part
+  bool compound_ = false;  // the last tick was render_compound() with more than one part or an offset
 };
 
 /// A renderer that forwards to one the caller owns and keeps (it must outlive this one): for
@@ -84,6 +116,12 @@ class BorrowedRenderer final : public ForceRenderer {
   void set_executor(ParallelExecutor* executor, std::size_t min_candidates) override {
     inner_.set_executor(executor, min_candidates);
   }
+  RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
+                               const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
+                               double dt) noexcept override {
+    return inner_.render_compound(parts, tcp, velocity, angular_velocity, dt);
+  }
+  [[nodiscard]] bool renders_compound() const noexcept override { return inner_.renders_compound(); }
 
  private:
   ForceRenderer& inner_;

@@ -16,6 +16,7 @@
 #include <memory>
 #include <span>
 
+#include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/device/clock.h"
@@ -39,6 +40,7 @@ struct CollisionResult {
   Nanos pose_stamp = 0;             ///< its stamp: result age = now - pose_stamp
   Nanos done = 0;                   ///< when the force was ready, ns
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< force model output, N, world (eq. 11)
+  Eigen::Vector3d torque = Eigen::Vector3d::Zero(); ///< about the tool centre point, N m, world (compound tools)
   QueryCounts counts;
   QueryStatus status = QueryStatus::kOk;
   float query_us = 0;  ///< broad + narrow phase + force model, microseconds
@@ -49,11 +51,19 @@ struct CollisionResult {
 using PoseChannel = TripleBuffer<PoseCommand>;
 using ResultChannel = TripleBuffer<CollisionResult>;
 
-/// Shape of the tool, in the tool frame (the device's TCP frame).
+/// Shape of the tool, in the tool frame (the device's TCP frame): one ellipsoid at the TCP, or
+/// a compound tool (collision/compound_tool.h) when `compound.count` > 0.
 struct ToolShape {
   Eigen::Vector3d semi_axes = Eigen::Vector3d::Constant(0.01);  ///< m, all > 0
   Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  ///< ellipsoid axes in the tool frame
+  /// Parts of a compound tool (count 0: the single ellipsoid above). Rendered with
+  /// ForceRenderer::render_compound(), which gives the torque about the TCP too.
+  CompoundTool compound;
 };
+
+/// The ToolShape of a compound tool: a single part at the TCP becomes the plain ellipsoid (so
+/// every renderer, the proxy included, takes it); anything else stays compound.
+[[nodiscard]] ToolShape tool_shape_for(const CompoundTool& tool);
 
 /// Sees every result with its contacts, on the worker's thread right after step() computed it
 /// (for viewers and network bridges). Must return quickly and never block; the contacts span is
@@ -69,7 +79,8 @@ class CollisionWorker {
  public:
   /// Renders with `renderer` (any ForceRenderer: make_force_renderer(), or your own).
   /// `nominal_dt` is the servo period, s: the renderer's dt for the first pose and the lower
-  /// bound of the dt between poses.
+  /// bound of the dt between poses. Throws InputError for a compound tool (`tool.compound`)
+  /// the renderer cannot render (ForceRenderer::renders_compound()).
   CollisionWorker(const ToolShape& tool, std::unique_ptr<ForceRenderer> renderer, double nominal_dt, Clock& clock);
   /// Renders with the paper's model (PaperRenderer with `force` and `query`).
   CollisionWorker(const CollisionWorld& world, const ToolShape& tool, const ForceParams& force,
@@ -96,6 +107,8 @@ class CollisionWorker {
   Clock& clock_;
   ResultObserver* observer_ = nullptr;
   PoseCommand pose_;
+  Eigen::Quaterniond last_orientation_ = Eigen::Quaterniond::Identity();
+  std::array<ToolEllipsoid, kMaxToolParts> parts_{};
   Nanos last_stamp_ = 0;
   bool have_last_ = false;
   LatencyHistogram latency_;

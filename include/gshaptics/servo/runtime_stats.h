@@ -36,6 +36,11 @@ struct RuntimeStats {
   std::atomic<std::uint32_t> last_contacts{0};
   std::atomic<double> last_force{0};              ///< |F| sent on the last tick, N
   std::atomic<double> peak_force{0};              ///< largest |F| sent, N
+  std::atomic<double> peak_torque{0};             ///< largest |tau| after the safety layer (sent if the device renders torque), N m
+  std::atomic<std::uint64_t> torque_limited_ticks{0};  ///< kFlagTorqueLimited
+  /// kFlagTorqueDropped: ticks with a torque the device cannot render (force-only devices)
+  std::atomic<std::uint64_t> torque_dropped_ticks{0};
+  std::atomic<double> torque_limit{0};            ///< torque limit in force, N m (set at start)
   std::atomic<std::int64_t> start_ns{0}, last_tick_ns{0};
   LatencyHistogram jitter;      ///< wake-up time minus scheduled time, ns
   LatencyHistogram tick_time;   ///< work inside one tick (wake to device write), ns
@@ -61,6 +66,10 @@ struct RuntimeSummary {
   double passivity_peak_damping = 0;  ///< N s/m
   double passivity_min_energy = 0;    ///< J (< 0: the environment was active before the controller caught it)
   double peak_force = 0;  ///< N
+  double peak_torque = 0;  ///< largest |tau| after the safety layer, N m (sent if the device renders torque)
+  std::uint64_t torque_limited_ticks = 0;  ///< torque clipped to its limit or rate
+  std::uint64_t torque_dropped_ticks = 0;  ///< torque not sent: the device renders force only
+  double torque_limit = 0;  ///< min(SafetyParams::tau_max, the device's max_torque), N m
   double force_limit = 0;  ///< peak limit applied: min(configured F_max, device's peak force), N
   double continuous_force_limit = 0;  ///< the device's continuous force, N (+inf: none)
   bool force_limit_by_device = false;  ///< the device's own limit bound (it is below F_max)

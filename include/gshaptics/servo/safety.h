@@ -38,6 +38,10 @@ struct SafetyParams {
   double fade_time = 0.020;       ///< linear fade after hold_timeout, s
   double ramp_time = 0.5;         ///< soft start, s
   double device_timeout = 0.010;  ///< watchdog: device data older than this zeroes the force, s
+  /// Torque limit, N m (compound tools on 6-DoF devices; the device's own DeviceInfo::max_torque
+  /// binds too). 0.5 N m is about what desktop 6-DoF arms give (Phantom Premium 6DOF: 0.2-0.5).
+  double tau_max = 0.5;
+  double max_torque_rate = 50;    ///< N m/s: 0.05 N m per 1 ms tick
   /// Time constant of the continuous-force (I^2 t) average, s. The RMS force over this window
   /// stays at or below the device's continuous force.
   double continuous_window = 2.0;
@@ -70,12 +74,15 @@ enum SafetyFlag : std::uint32_t {
   kFlagStopping = 1u << 10,     ///< stop requested: ramping down to zero
   kFlagContinuousLimited = 1u << 11,  ///< held below f_max by the device's continuous-force budget
   kFlagPassivity = 1u << 12,    ///< the passivity controller added damping (servo/passivity.h)
+  kFlagTorqueLimited = 1u << 13,  ///< torque clipped to the torque limit or its rate
+  kFlagTorqueDropped = 1u << 14,  ///< torque asked of a device that renders force only: not sent
 };
 
 /// What the safety layer knows at one tick.
 struct SafetyInput {
   Nanos now = 0;
   Eigen::Vector3d desired = Eigen::Vector3d::Zero();  ///< force of the newest result, N
+  Eigen::Vector3d desired_torque = Eigen::Vector3d::Zero();  ///< its torque about the TCP, N m
   bool have_result = false;   ///< a collision result exists
   bool fresh_result = false;  ///< it arrived since the previous tick
   Nanos result_age = 0;       ///< now - stamp of the pose the result answers, ns
@@ -87,6 +94,8 @@ struct SafetyInput {
 /// The force to send and why.
 struct SafetyOutput {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< N
+  /// N m: the same gates, hold, fade, ramp and stop as the force, its own limit and rate limit.
+  Eigen::Vector3d torque = Eigen::Vector3d::Zero();
   std::uint32_t flags = 0;                          ///< SafetyFlag bits
   double scale = 0;  ///< hold/fade factor times ramp factor in [0, 1]
 };
@@ -99,6 +108,11 @@ class SafetyFilter {
   /// the peak limit becomes min(configured F_max, device peak). Call after the device started
   /// (vendor drivers learn their limits then); ServoController::start does.
   void set_device_limits(double peak, double continuous) noexcept;
+  /// The device's own torque limit (DeviceInfo::max_torque, N m; +inf: none): the torque limit
+  /// becomes min(SafetyParams::tau_max, this).
+  void set_device_torque_limit(double peak) noexcept;
+  /// The torque limit in force, N m.
+  [[nodiscard]] double tau_max() const noexcept { return tau_max_; }
   /// Arms the soft start at `now` and empties the continuous-force average (call at start).
   void reset(Nanos now) noexcept;
   /// One tick; `dt` is the time since the previous tick, s (> 0).
@@ -119,6 +133,8 @@ class SafetyFilter {
   double continuous_ = std::numeric_limits<double>::infinity();
   double heat_ = 0;  // mean square of the force sent over continuous_window, N^2
   Eigen::Vector3d last_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d last_torque_ = Eigen::Vector3d::Zero();
+  double tau_max_ = params_.tau_max;
   Nanos ramp_start_ = 0;
   bool gated_ = false;  // gate 1 closed on the previous tick: re-arm the ramp when it opens
 };

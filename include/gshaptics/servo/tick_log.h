@@ -24,6 +24,7 @@ struct TickRecord {
   QueryCounts counts;                                    ///< of the result rendered
   Eigen::Vector3d desired = Eigen::Vector3d::Zero();     ///< force model output, N (eq. 11)
   Eigen::Vector3d force = Eigen::Vector3d::Zero();       ///< force sent to the device, N
+  Eigen::Vector3d torque = Eigen::Vector3d::Zero();      ///< torque after the safety layer, N m (about the TCP)
   Eigen::Vector3d user_force = Eigen::Vector3d::Zero();  ///< force of the (simulated) hand, N
   float query_us = 0;        ///< collision query (+ force model in the runtime), microseconds
   float result_age_us = 0;   ///< now - stamp of the rendered result's pose, microseconds
@@ -45,13 +46,14 @@ enum TickColumns : unsigned {
   kColumnsLatency = 1u << 4,  ///< latency_us
   kColumnsProxy = 1u << 5,    ///< proxy_x, proxy_y, proxy_z, constraints
   kColumnsPassivity = 1u << 6,  ///< energy_j, pc_damping
+  kColumnsTorque = 1u << 7,     ///< tx, ty, tz: torque sent about the TCP, N m (compound tools)
 };
 /// The probe run's log (`simulate`, probe_log.csv): the paper's Fig. 5 quantities.
 inline constexpr unsigned kProbeLogColumns =
     kColumnsMotion | kColumnsQuery | kColumnsForce | kColumnsProxy | kColumnsPassivity;
 /// The real-time runtime's log (`run`, `serve`, `node`, servo_log.csv): the probe log's columns
 /// first, so the same plot and the replay device read both.
-inline constexpr unsigned kServoLogColumns = kProbeLogColumns | kColumnsServo | kColumnsProxy;
+inline constexpr unsigned kServoLogColumns = kProbeLogColumns | kColumnsServo | kColumnsProxy | kColumnsTorque;
 /// The device side of a two-process run (`device-sim`, device_log.csv).
 inline constexpr unsigned kDeviceLogColumns = kColumnsMotion | kColumnsForce | kColumnsLatency;
 

@@ -50,6 +50,9 @@ struct RuntimeOptions {
   int sites = 7;
   std::uint64_t seed = 1;
   double tool_radius = 0;
+  /// --tool: a compound tool (collision/compound_tool.h: sphere:R, ellipsoid:A,B,C,
+  /// stylus:L,R, disc:R,T or FILE.json); "": a sphere of tool_radius.
+  std::string tool;
   ForceModelOptions force;
   SafetyParams safety;
   RealtimeOptions realtime;
