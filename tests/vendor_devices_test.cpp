@@ -61,8 +61,12 @@ struct FakeDhd {
   double (*peak_force)() = hook<double (*)()>(GSHAPTICS_FAKE_DHD, "fake_dhd_peak_force");
   unsigned long (*saturated_writes)() = hook<unsigned long (*)()>(GSHAPTICS_FAKE_DHD, "fake_dhd_saturated_writes");
   void (*reset_force_stats)() = hook<void (*)()>(GSHAPTICS_FAKE_DHD, "fake_dhd_reset_force_stats");
+  void (*set_active_wrist)(int) = hook<void (*)(int)>(GSHAPTICS_FAKE_DHD, "fake_dhd_set_active_wrist");
+  void (*torque_raw)(double*) = hook<void (*)(double*)>(GSHAPTICS_FAKE_DHD, "fake_dhd_torque");
+  void (*set_frame)(const double*) = hook<void (*)(const double*)>(GSHAPTICS_FAKE_DHD, "fake_dhd_set_frame");
   /// Back to the defaults: a powered, calibrated omega.3 without a software limit.
   void defaults() const {
+    set_active_wrist(0);
     set_reset_mode(0);
     set_powered(1);
     set_system_type(33);
@@ -76,6 +80,11 @@ struct FakeDhd {
     Eigen::Vector3d f;
     force_raw(f.data());
     return f;
+  }
+  Eigen::Vector3d torque() const {
+    Eigen::Vector3d t;
+    torque_raw(t.data());
+    return t;
   }
 };
 
@@ -545,6 +554,65 @@ TEST(DhdDevice, StartStopStartStopEndsEverySessionAtZeroForce) {
     const std::string log = fake.log();
     EXPECT_NE(log.find("dhdSetForce(0) dhdEnableForce(off) dhdClose"), std::string::npos) << log;
   }
+}
+
+}  // namespace
+}  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+// A sigma.7-like device with an active wrist: torque through dhdSetForceAndTorque in the DHD
+// frame, the wrist's orientation read back in the device frame, and every session (start,
+// stop, start, stop) ending with zero force and zero torque before the force is switched off.
+TEST(DhdDevice, ActiveWristTakesTorqueAndEverySessionEndsAtZeroWrench) {
+  FakeDhd fake;
+  fake.defaults();
+  fake.set_system_type(104);  // sigma.7
+  fake.set_active_wrist(1);
+  // The wrist turned 90 deg about the DHD z axis (rows of the rotation matrix).
+  const double rz90[9] = {0, -1, 0, 1, 0, 0, 0, 0, 1};
+  fake.set_frame(rz90);
+  DhdDevice dev(0);
+  for (int session = 0; session < 2; ++session) {
+    fake.clear_log();
+    dev.start(0);
+    EXPECT_TRUE(dev.info().renders_torque);
+    const std::string started = fake.log();
+    EXPECT_NE(started.find("dhdSetForceAndTorque(0) dhdEnableForce(on)"), std::string::npos) << started;
+    Wrench w;
+    w.force = {1, 0, 0};
+    w.torque = {0.1, 0.2, 0.3};
+    dev.write(w, 0);
+    // Device -> DHD frame: (x, y, z) -> (-y, x, z), for the torque as for the force.
+    EXPECT_LT((fake.torque() - Eigen::Vector3d(-0.2, 0.1, 0.3)).norm(), 1e-12);
+    EXPECT_LT((fake.force() - Eigen::Vector3d(0, 1, 0)).norm(), 1e-12);
+    // A 90 deg turn about z is a 90 deg turn about the device's z too (the frames share z).
+    const DeviceSample s = dev.read(0);
+    const Eigen::AngleAxisd aa(s.orientation);
+    EXPECT_NEAR(aa.angle(), M_PI / 2, 1e-9);
+    EXPECT_NEAR(std::abs(aa.axis().z()), 1.0, 1e-9);
+    dev.stop(0);
+    EXPECT_EQ(fake.force(), Eigen::Vector3d::Zero()) << "session " << session;
+    EXPECT_EQ(fake.torque(), Eigen::Vector3d::Zero()) << "session " << session;
+    const std::string log = fake.log();
+    EXPECT_NE(log.find("dhdSetForceAndTorque(0) dhdEnableForce(off) dhdClose"), std::string::npos) << log;
+  }
+  // Without an active wrist the same device takes force only, through dhdSetForce.
+  fake.set_active_wrist(0);
+  DhdDevice plain(0);
+  plain.start(0);
+  EXPECT_FALSE(plain.info().renders_torque);
+  Wrench w;
+  w.force = {0, 0, 2};
+  w.torque = {0.5, 0, 0};
+  const Eigen::Vector3d before = fake.torque();
+  plain.write(w, 0);
+  EXPECT_EQ(fake.torque(), before);
+  EXPECT_NEAR(fake.force().z(), 2.0, 1e-12);
+  EXPECT_EQ(plain.read(0).orientation.coeffs(), Eigen::Quaterniond::Identity().coeffs());
+  plain.stop(0);
+  fake.defaults();
 }
 
 }  // namespace

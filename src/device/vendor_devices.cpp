@@ -18,6 +18,11 @@ namespace gshaptics {
 
 Eigen::Vector3d dhd_to_device(const Eigen::Vector3d& v) noexcept { return {v.y(), -v.x(), v.z()}; }
 Eigen::Vector3d device_to_dhd(const Eigen::Vector3d& v) noexcept { return {-v.y(), v.x(), v.z()}; }
+Eigen::Matrix3d dhd_axes_in_device() noexcept {
+  Eigen::Matrix3d m;
+  m << 0, 1, 0, -1, 0, 0, 0, 0, 1;  // the columns: the DHD axes in the device frame (dhd_to_device)
+  return m;
+}
 Eigen::Vector3d hd_mm_to_device_m(const Eigen::Vector3d& mm) noexcept {
   return Eigen::Vector3d(mm.x(), -mm.z(), mm.y()) * 1e-3;
 }
@@ -50,6 +55,10 @@ struct DhdDevice::Api {
   int (*get_system_type)(char id);                                  // DHD_DEVICE_*
   double (*get_max_force)(char id);   // N; < 0: no software limit set. Optional (newer SDKs)
   const char* (*error_last)();
+  // 6-DoF (optional: older SDKs and 3-DoF-only builds may lack them).
+  bool (*has_active_wrist)(char id);                                // the wrist renders torque
+  int (*set_force_and_torque)(double, double, double, double, double, double, char id);  // N, N m
+  int (*get_orientation_frame)(double (*)[3], char id);             // wrist frame, rows of a 3x3
 };
 
 namespace {
@@ -102,6 +111,9 @@ const DhdDevice::Api* load_dhd() {
     a.get_system_type = symbol<decltype(a.get_system_type)>(h, "dhdGetSystemType");
     a.get_max_force = symbol<decltype(a.get_max_force)>(h, "dhdGetMaxForce");  // may be null
     a.error_last = symbol<decltype(a.error_last)>(h, "dhdErrorGetLastStr");
+    a.has_active_wrist = symbol<decltype(a.has_active_wrist)>(h, "dhdHasActiveWrist");        // may be null
+    a.set_force_and_torque = symbol<decltype(a.set_force_and_torque)>(h, "dhdSetForceAndTorque");  // may be null
+    a.get_orientation_frame = symbol<decltype(a.get_orientation_frame)>(h, "dhdGetOrientationFrame");  // may be null
     return a;
   }();
   return &api;
@@ -171,7 +183,12 @@ void DhdDevice::start(Nanos) {
   const double r = type_.workspace_diameter / 2, hz = type_.workspace_height / 2;
   info_.workspace = Eigen::AlignedBox3d(Eigen::Vector3d(-r, -r, -hz), Eigen::Vector3d(r, r, hz));
   if (const char* name = api_->get_system_name(id_)) info_.name = std::string(name) + " (dhd:" + std::to_string(index_) + ")";
-  api_->set_force(0, 0, 0, id_);
+  // An active wrist (sigma.7, omega.6/7 with the active option: dhdHasActiveWrist) takes
+  // torque through dhdSetForceAndTorque; its rating is not in the type table, so --tau-max
+  // (SafetyParams::tau_max) is the limit and the device's own saturation is counted.
+  info_.renders_torque = api_->has_active_wrist != nullptr && api_->set_force_and_torque != nullptr &&
+                         api_->has_active_wrist(id_);
+  zero_output();
   // The rate: measured, one tick's I/O (position, velocity, buttons, a zero force) timed 16 times
   // (median), capped at the DHD loop's 8 kHz.
   {
@@ -182,7 +199,7 @@ void DhdDevice::start(Nanos) {
       api_->get_position(&p[0], &p[1], &p[2], id_);
       api_->get_linear_velocity(&v[0], &v[1], &v[2], id_);
       for (int b = 0; b < kDhdButtons; ++b) api_->get_button(b, id_);
-      api_->set_force(0, 0, 0, id_);
+      zero_output();
       t = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     }
     std::sort(std::begin(samples), std::end(samples));
@@ -221,6 +238,19 @@ DeviceSample DhdDevice::read(Nanos now) noexcept {
   s.stamp = now;
   s.position = dhd_to_device({p[0], p[1], p[2]});
   s.velocity = dhd_to_device({v[0], v[1], v[2]});
+  if (api_->get_orientation_frame != nullptr) {
+    // The wrist frame in the DHD base frame (identity on devices without a wrist), turned into
+    // the device frame on both sides so the wrist's rest pose is the tool frame's identity.
+    double m[3][3];
+    if (api_->get_orientation_frame(m, id_) >= 0) {
+      Eigen::Matrix3d r;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) r(i, j) = m[i][j];
+      const Eigen::Matrix3d turned = dhd_axes_in_device() * r * dhd_axes_in_device().transpose();
+      const Eigen::Quaterniond q(turned);
+      if (q.coeffs().allFinite() && std::abs(q.norm() - 1.0) < 1e-6) s.orientation = q.normalized();
+    }
+  }
   for (int b = 0; b < kDhdButtons; ++b)
     if (api_->get_button(b, id_) == kDhdOn) s.buttons |= 1u << b;
   last_ = s;
@@ -229,13 +259,27 @@ DeviceSample DhdDevice::read(Nanos now) noexcept {
 
 void DhdDevice::write(const Wrench& wrench, Nanos) noexcept {
   const Eigen::Vector3d f = device_to_dhd(wrench.force);
-  if (api_->set_force(f.x(), f.y(), f.z(), id_) == kDhdMotorSaturated)
+  int ret;
+  if (info_.renders_torque) {
+    const Eigen::Vector3d t = device_to_dhd(wrench.torque);  // a rotation: torques turn as forces
+    ret = api_->set_force_and_torque(f.x(), f.y(), f.z(), t.x(), t.y(), t.z(), id_);
+  } else {
+    ret = api_->set_force(f.x(), f.y(), f.z(), id_);
+  }
+  if (ret == kDhdMotorSaturated)
     saturated_.store(saturated_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+}
+
+void DhdDevice::zero_output() noexcept {
+  if (info_.renders_torque)
+    api_->set_force_and_torque(0, 0, 0, 0, 0, 0, id_);
+  else
+    api_->set_force(0, 0, 0, id_);
 }
 
 void DhdDevice::stop(Nanos) noexcept {
   if (!open_) return;
-  api_->set_force(0, 0, 0, id_);
+  zero_output();
   api_->enable_force(kDhdOff, id_);
   api_->close(id_);
   open_ = false;

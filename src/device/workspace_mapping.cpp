@@ -86,6 +86,7 @@ void MappedDevice::start(Nanos now) {
   info_.max_stiffness = in.max_stiffness;
   info_.limit_source = in.limit_source;
   info_.renders_torque = in.renders_torque;
+  info_.max_torque = in.max_torque;
   info_.calibration = in.calibration;
 }
 

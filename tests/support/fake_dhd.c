@@ -7,6 +7,7 @@
    (fake_dhd_log), forces are recorded (peak while force is enabled), and the test sets the
    device state (fake_dhd_set_*). Units as the DHD API: metres, newtons. */
 #include <math.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <string.h>
 #include <time.h>
@@ -17,6 +18,8 @@ static double pos[3], vel[3], force[3];
 static int buttons = 0, force_enabled = 0, fail_reads = 0, reset_mode = 0, opened = -1, powered = 1;
 static int system_type = 33;
 static double software_limit = -1, saturation = 12.0, peak_seen = 0, io_delay_us = 0;
+static int active_wrist = 0;
+static double torque[3], frame[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
 static unsigned long saturated_writes = 0;
 
 static void io_delay(void) {
@@ -54,6 +57,12 @@ unsigned long fake_dhd_saturated_writes(void) { return saturated_writes; }
 void fake_dhd_reset_force_stats(void) { peak_seen = 0; saturated_writes = 0; }
 void fake_dhd_force(double* f) { f[0] = force[0]; f[1] = force[1]; f[2] = force[2]; }
 int fake_dhd_force_enabled(void) { return force_enabled; }
+void fake_dhd_set_active_wrist(int on) { active_wrist = on; }
+void fake_dhd_torque(double* t) { t[0] = torque[0]; t[1] = torque[1]; t[2] = torque[2]; }
+void fake_dhd_set_frame(const double* rows) { /* 9 values, row-major */
+  int i;
+  for (i = 0; i < 9; ++i) frame[i / 3][i % 3] = rows[i];
+}
 
 /* The DHD API (dhdc.h). */
 int dhdGetDeviceCount(void) { return 2; }
@@ -79,8 +88,7 @@ int dhdGetLinearVelocity(double* x, double* y, double* z, char id) {
   *x = vel[0]; *y = vel[1]; *z = vel[2];
   return 0;
 }
-int dhdSetForce(double x, double y, double z, char id) {
-  (void)id;
+static int apply_force(double x, double y, double z) {
   double m = sqrt(x * x + y * y + z * z);
   int ret = 0;
   if (force_enabled && m > peak_seen) peak_seen = m;
@@ -90,8 +98,12 @@ int dhdSetForce(double x, double y, double z, char id) {
     ret = 2; /* DHD_MOTOR_SATURATED */
   }
   force[0] = x; force[1] = y; force[2] = z;
-  if (x == 0 && y == 0 && z == 0) note("dhdSetForce(0)");
   return ret;
+}
+int dhdSetForce(double x, double y, double z, char id) {
+  (void)id;
+  if (x == 0 && y == 0 && z == 0) note("dhdSetForce(0)");
+  return apply_force(x, y, z);
 }
 int dhdGetButton(int index, char id) { (void)id; return (buttons >> index) & 1; }
 int dhdEnableForce(unsigned char on, char id) {
@@ -114,3 +126,20 @@ const char* dhdGetSystemName(char id) { (void)id; return "fake omega.3"; }
 int dhdGetSystemType(char id) { (void)id; return system_type; }
 double dhdGetMaxForce(char id) { (void)id; return software_limit; }
 const char* dhdErrorGetLastStr(void) { return "no error"; }
+/* 6-DoF: dhdHasActiveWrist, dhdSetForceAndTorque (0 or DHD_MOTOR_SATURATED for the force part,
+   as dhdSetForce), dhdGetOrientationFrame (identity on a device without a wrist). */
+bool dhdHasActiveWrist(char id) { (void)id; return active_wrist != 0; }
+int dhdSetForceAndTorque(double fx, double fy, double fz, double tx, double ty, double tz, char id) {
+  (void)id;
+  if (tx == 0 && ty == 0 && tz == 0 && fx == 0 && fy == 0 && fz == 0) note("dhdSetForceAndTorque(0)");
+  torque[0] = tx; torque[1] = ty; torque[2] = tz;
+  return apply_force(fx, fy, fz);
+}
+int dhdGetOrientationFrame(double m[3][3], char id) {
+  int i, j;
+  (void)id;
+  if (fail_reads) return -1;
+  for (i = 0; i < 3; ++i)
+    for (j = 0; j < 3; ++j) m[i][j] = active_wrist ? frame[i][j] : (i == j);
+  return 0;
+}

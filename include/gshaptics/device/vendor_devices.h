@@ -42,6 +42,9 @@ namespace gshaptics {
 [[nodiscard]] Eigen::Vector3d dhd_to_device(const Eigen::Vector3d& v) noexcept;
 /// Device frame -> DHD frame.
 [[nodiscard]] Eigen::Vector3d device_to_dhd(const Eigen::Vector3d& v) noexcept;
+/// The rotation dhd_to_device applies, as a matrix (its columns: the DHD axes in the device
+/// frame). Torques and the wrist's orientation frame turn with it.
+[[nodiscard]] Eigen::Matrix3d dhd_axes_in_device() noexcept;
 /// HD frame (x right, y up, z to the user), millimetres -> device frame, metres.
 [[nodiscard]] Eigen::Vector3d hd_mm_to_device_m(const Eigen::Vector3d& mm) noexcept;
 /// A force (N) in the device frame -> HD frame (N; no unit change).
@@ -75,26 +78,33 @@ class DhdDevice final : public HapticDevice {
   /// dhdOpenID; dhdGetStatus, and refuses (closes, InputError saying what to do) a device that
   /// is not powered, not connected, in error or in RESET mode (not calibrated); takes the force
   /// limit from the device type's rating (dhdGetSystemType), or dhdGetMaxForce when a lower
-  /// software limit is set, and the workspace from the type; measures the rate; commands zero
-  /// force, then dhdEnableForce(on). Throws InputError naming the index and dhdErrorGetLastStr().
+  /// software limit is set, and the workspace from the type; asks dhdHasActiveWrist (a wrist
+  /// that renders torque: DeviceInfo::renders_torque, written with dhdSetForceAndTorque; its
+  /// torque rating is not known here, so SafetyParams::tau_max limits it); measures the rate;
+  /// commands zero force (and torque), then dhdEnableForce(on). Throws InputError naming the
+  /// index and dhdErrorGetLastStr().
   void start(Nanos now) override;
-  /// Position, velocity and buttons 0-3. A failed read returns the previous sample (same
+  /// Position, velocity, the wrist's orientation (dhdGetOrientationFrame, when the library has
+  /// it; identity otherwise) and buttons 0-3. A failed read returns the previous sample (same
   /// sequence), so the runtime's watchdog zeroes the force if the device stops answering.
   [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
+  /// dhdSetForceAndTorque on an active wrist, dhdSetForce otherwise (the torque is then not
+  /// rendered; the servo counts it).
   void write(const Wrench& wrench, Nanos now) noexcept override;
-  /// Zero force, force off, dhdClose.
+  /// Zero force (and torque), force off, dhdClose.
   void stop(Nanos now) noexcept override;
   /// What dhdGetStatus said at start, with the device type, its force rating and the rate.
   [[nodiscard]] std::string status() const override;
   /// "saturated writes" (dhdSetForce returned DHD_MOTOR_SATURATED).
   [[nodiscard]] std::vector<DeviceCounter> counters() const override;
-  /// dhdSetForce calls that returned DHD_MOTOR_SATURATED in this session.
+  /// dhdSetForce / dhdSetForceAndTorque calls that returned DHD_MOTOR_SATURATED in this session.
   [[nodiscard]] std::uint64_t saturated_writes() const noexcept { return saturated_.load(std::memory_order_relaxed); }
   [[nodiscard]] const DhdDeviceType& device_type() const noexcept { return type_; }
 
   struct Api;  // the DHD functions, resolved with dlsym
 
  private:
+  void zero_output() noexcept;  // zero force (and torque on an active wrist)
   const Api* api_ = nullptr;
   int index_ = 0;
   char id_ = -1;
