@@ -8,11 +8,13 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_model.h"
 #include "gshaptics/force/renderer_spec.h"
@@ -467,6 +469,71 @@ PYBIND11_MODULE(gshaptics, m) {
                              "shaded contact normal (3,) of the last contact")
       .def_property_readonly("sticking", [](const PyProxy& p) { return p.proxy->sticking(); })
       .def("reset", [](PyProxy& p) { p.proxy->reset(); });
+
+  py::class_<CompoundTool>(m, "Tool",
+      "A tool with a shape: 1-8 ellipsoids in the tool frame, whose origin is the device's tool "
+      "centre point (collision/compound_tool.h). Tool(spec): sphere:R, ellipsoid:A,B,C, stylus:L,R "
+      "(4 ellipsoids from the TCP along +z), disc:R,T or a .json file; metres. ValueError naming the "
+      "spec or file when it is wrong.")
+      .def(py::init([](const std::string& spec) { return parse_tool_spec(spec); }), py::arg("spec"))
+      .def("__len__", [](const CompoundTool& t) { return t.count; })
+      .def_property_readonly("reach", &CompoundTool::reach, "radius about the TCP holding every part, m")
+      .def_property_readonly("parts", [](const CompoundTool& t) {
+        py::list out;
+        for (const ToolPart& p : t.view()) {
+          py::dict d;
+          d["center"] = Eigen::Vector3d(p.offset);
+          d["semi_axes"] = Eigen::Vector3d(p.semi_axes);
+          d["rotation"] = Eigen::Vector4d(p.rotation.w(), p.rotation.x(), p.rotation.y(), p.rotation.z());
+          out.append(d);
+        }
+        return out;
+      }, "list of dicts: center (3,) m and semi_axes (3,) m in the tool frame, rotation (w, x, y, z)");
+
+  struct PyPaper {
+    std::shared_ptr<CollisionWorld> world;
+    std::unique_ptr<PaperRenderer> paper;
+  };
+  py::class_<PyPaper>(m, "PaperRenderer",
+      "The paper's force model (eq. 7-11) as a renderer, for compound tools too: eq. 7-11 per part "
+      "(each part with its own filters and velocity v + omega x r), the torque about the TCP "
+      "sum_j (p_eff,j - x_tcp) x F_j. One per device; not thread-safe.")
+      .def(py::init([](const PyWorld& w, const ForceParams& params) {
+             return PyPaper{w.world, std::make_unique<PaperRenderer>(*w.world, params)};
+           }),
+           py::arg("world"), py::arg("params") = ForceParams{})
+      .def("render", [](PyPaper& p, const CompoundTool& tool, const py::object& position, const py::object& rotation,
+                        const py::object& velocity, const py::object& angular_velocity, double dt) {
+             if (!(dt > 0)) throw py::value_error("dt: must be > 0 seconds");
+             const Eigen::Vector3d x = vec3(position, "position");
+             const Eigen::Vector4d q = vec4(rotation, "rotation");
+             if (q.norm() < 1e-12) throw py::value_error("rotation: zero quaternion");
+             std::array<ToolEllipsoid, kMaxToolParts> parts;
+             const int n = tool.posed(x, Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized(), parts);
+             const RenderOutput o = p.paper->render_compound({parts.data(), std::size_t(n)}, x, vec3(velocity, "velocity"),
+                                                             vec3(angular_velocity, "angular_velocity"), dt);
+             std::vector<std::uint32_t> index;
+             std::vector<int> part;
+             std::vector<double> k;
+             for (const Contact& c : p.paper->contacts()) {
+               index.push_back(c.index);
+               part.push_back(c.part);
+               k.push_back(c.k_min);
+             }
+             py::dict d;
+             d["force"] = Eigen::Vector3d(o.force);
+             d["torque"] = Eigen::Vector3d(o.torque);
+             d["index"] = py::array_t<std::uint32_t>(py::ssize_t(index.size()), index.data());
+             d["part"] = py::array_t<int>(py::ssize_t(part.size()), part.data());
+             d["k_min"] = py::array_t<double>(py::ssize_t(k.size()), k.data());
+             return d;
+           },
+           py::arg("tool"), py::arg("position"), py::arg("rotation"), py::arg("velocity"),
+           py::arg("angular_velocity"), py::arg("dt"),
+           "One tick: the TCP's position (3,) m, orientation (w, x, y, z) tool frame -> world, velocity "
+           "(3,) m/s, angular velocity (3,) rad/s, dt s. Returns a dict: force (3,) N and torque (3,) N m "
+           "about the TCP (world frame), and the contacts' index (into the scene file), part and k_min.")
+      .def("reset", [](PyPaper& p) { p.paper->reset(); });
 
   m.def("k_min", &k_min_pairs, py::arg("cov_a"), py::arg("cov_b"), py::arg("d"),
         "K_min of the Gilitschenski-Hanebeck test for ellipsoids {x: (x-c)^T cov^-1 (x-c) <= 1}, "

@@ -238,3 +238,35 @@ def test_run_probe_desktop_profile_limits_the_force(data_dir):
     assert 1.0 < peak <= 3.3 + 1e-9
     with pytest.raises(ValueError):
         world.run_probe(sites=1, device_profile="glove")
+
+
+def test_compound_tool_on_the_truck_roof_gives_force_torque_and_tagged_contacts(data_dir, tmp_path):
+    scene = gshaptics.Scene.load(os.path.join(data_dir, "truck.splat"))
+    world = gshaptics.CollisionWorld(scene, registration=os.path.join(data_dir, "truck.registration.json"))
+    stylus = gshaptics.Tool("stylus:0.4,0.03")
+    assert len(stylus) == 4 and abs(stylus.reach - 0.4) < 1e-12
+    assert stylus.parts[0]["semi_axes"][2] > stylus.parts[0]["semi_axes"][0]
+    with pytest.raises(ValueError, match="unknown tool 'cube'"):
+        gshaptics.Tool("cube:1")
+    bad = tmp_path / "tool.json"
+    bad.write_text('{"parts": []}')
+    with pytest.raises(ValueError, match="tool.json"):
+        gshaptics.Tool(str(bad))
+    # Find the roof under the TCP with a sphere, then lay the stylus over it: tilted 60 deg about
+    # y, its tip 1 cm into the roof. The roof pushes the tip up and turns the stylus.
+    sphere = gshaptics.Tool("sphere:0.03")
+    z = 2.0
+    while z > 0 and np.linalg.norm(gshaptics.PaperRenderer(world).render(
+            sphere, (0.0, 0.0, z), (1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 1e-3)["force"]) == 0:
+        z -= 0.005
+    assert 0.8 < z < 1.2  # the roof, about 1 m up
+    c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
+    r = gshaptics.PaperRenderer(world)
+    out = r.render(stylus, (0.0, 0.0, z - 0.04), (c, 0.0, s, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 1e-3)
+    assert out["force"][2] > 0
+    assert np.linalg.norm(out["torque"]) > 0
+    assert len(out["index"]) == len(out["part"]) == len(out["k_min"]) > 0
+    assert set(out["part"]) <= {0, 1, 2, 3} and 0 in set(out["part"])
+    # The torque is the sum over parts of lever x force, so it is perpendicular to nothing in
+    # particular, but it is bounded by |F| times the stylus' reach.
+    assert np.linalg.norm(out["torque"]) <= np.linalg.norm(out["force"]) * stylus.reach * 1.01
