@@ -8,12 +8,16 @@
 
 #include <fmt/format.h>
 
+#include <array>
 #include <chrono>
+#include <cmath>
 #include <memory>
 #include <sstream>
 
 #include <CLI/CLI.hpp>
+#include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/collision/contact_query.h"
+#include "gshaptics/force/force_renderer.h"
 #include "gshaptics/device/admittance_device.h"
 #include "gshaptics/error.h"
 #include "gshaptics/fidelity/interaction.h"
@@ -124,11 +128,19 @@ int main(int argc, char** argv) {
   app.add_option("--passes", passes, "Replays of each path; a tick's time is its median over them")
       ->capture_default_str()->check(CLI::Range(1, 99));
   app.add_option("--out", out, "Also write the table (Markdown) to this file");
+  bool stylus = false;
+  app.add_flag("--stylus", stylus,
+               "Also time the paper model with a compound tool on the same paths: a 4-part stylus "
+               "(stylus:6R,R, tilted 45 deg, its tip at the pose) against the sphere of radius R, and "
+               "write a second table");
   CLI11_PARSE(app, argc, argv);
   try {
     std::string table =
         "| set | Gaussians | tool radius | ticks | ticks in contact | proxy p50 / p99 / max us | paper p50 / p99 us | "
         "p99 proxy / paper | target p99 us |\n|---|---:|---:|---:|---:|---|---|---:|---:|\n";
+    std::string compound_table =
+        "\n| set | tool radius R | ticks with contact (sphere / stylus) | paper, sphere R: p50 / p99 us | "
+        "paper, stylus 6R x R (4 parts): p50 / p99 us | p99 stylus / sphere |\n|---|---:|---|---|---|---:|\n";
     std::stringstream ss(sets);
     std::string name;
     while (std::getline(ss, name, ',')) {
@@ -164,7 +176,33 @@ int main(int argc, char** argv) {
                            name, w.size(), r, s.poses.size(), in_contact, tp.p50, tp.p99, tp.max, tm.p50, tm.p99,
                            tp.p99 / std::max(tm.p99, 1e-3), std::min(50.0, std::max(2 * tm.p99, 10.0)));
       fmt::print(stderr, "{}", table.substr(table.rfind("\n|", table.size() - 2) + 1));
+      if (stylus) {
+        const CompoundTool tool = parse_tool_spec(fmt::format("stylus:{},{}", 6 * r, r));
+        const Eigen::Quaterniond tilt(Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitY()));
+        std::array<ToolEllipsoid, kMaxToolParts> parts;
+        PaperRenderer sphere_r(w), stylus_r(w);
+        std::size_t sphere_hits = 0, stylus_hits = 0;
+        const Timing ts = time_replays(
+            s.poses.size(), passes, [&] { sphere_r.reset(); sphere_hits = 0; },
+            [&](std::size_t i) {
+              const ToolEllipsoid one = ToolEllipsoid::sphere(s.poses[i].position, r);
+              sphere_hits += sphere_r.render_compound({&one, 1}, s.poses[i].position, s.poses[i].velocity,
+                                                      Eigen::Vector3d::Zero(), 1e-3).counts.contacts > 0;
+            });
+        const Timing tc = time_replays(
+            s.poses.size(), passes, [&] { stylus_r.reset(); stylus_hits = 0; },
+            [&](std::size_t i) {
+              const int n = tool.posed(s.poses[i].position, tilt, parts);
+              stylus_hits += stylus_r.render_compound({parts.data(), std::size_t(n)}, s.poses[i].position,
+                                                      s.poses[i].velocity, Eigen::Vector3d::Zero(), 1e-3)
+                                 .counts.contacts > 0;
+            });
+        compound_table += fmt::format("| {} | {:.4g} | {} / {} | {:.1f} / {:.1f} | {:.1f} / {:.1f} | {:.1f}x |\n", name, r,
+                                      sphere_hits, stylus_hits, ts.p50, ts.p99, tc.p50, tc.p99,
+                                      tc.p99 / std::max(ts.p99, 1e-3));
+      }
     }
+    if (stylus) table += compound_table;
     fmt::print("{}", table);
     if (!out.empty()) write_file_atomically(out, table);
   } catch (const InputError& e) {
