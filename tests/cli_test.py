@@ -331,30 +331,31 @@ class Run(unittest.TestCase):
         self.assertLess(again, 2.0 * orig + 5)
 
     def test_compound_tool_replay_counts_the_torque_a_force_only_device_drops(self):
-        out = tempfile.mkdtemp()
         r = self.summary["tool_radius"]
-        tool = os.path.join(out, "tool.json")
-        with open(tool, "w") as f:  # the recorded sphere at the TCP plus a smaller one beside it
-            json.dump({"parts": [{"center": [0, 0, 0], "semi_axes": [r, r, r]},
-                                 {"center": [2 * r, 0, 0], "semi_axes": [r / 2, r / 2, r / 2]}]}, f)
         log_path = os.path.join(self.out, "servo_log.csv")
-        p = run("run", "--device", "replay:" + log_path, "--simulated-time", "--quiet", "--no-plot",
-                "--out", out, "--tool", tool, "--force-model", "paper")
-        self.assertIn("torque", p.stdout)
-        self.assertIn("force only", p.stdout)
-        s = load_json(os.path.join(out, "run_summary.json"))
-        self.assertEqual(len(s["tool"]["parts"]), 2)
-        rt = s["runtime"]
-        self.assertGreater(rt["peak_torque_nm"], 0.0)
-        self.assertGreater(rt["torque_dropped_ticks"], 0)
-        self.assertEqual(rt["torque_limit_nm"], 0.5)
-        rows = read_log(os.path.join(out, "servo_log.csv"))
-        self.assertGreater(max(int(x["contacts"]) for x in rows), 0)
-        self.assertEqual({x["tx"] for x in rows} | {x["ty"] for x in rows}, {"0.000000"})  # nothing sent
-        # The proxy renders one ellipsoid at the TCP: a stylus is refused before the scene loads.
-        q = run("run", "--device", "replay:" + log_path, "--tool", "stylus:0.3,0.03", "--quiet", check=False)
+        for model in ("paper", "proxy"):
+            out = tempfile.mkdtemp()
+            tool = os.path.join(out, "tool.json")
+            with open(tool, "w") as f:  # the recorded sphere at the TCP plus a smaller one beside it
+                json.dump({"parts": [{"center": [0, 0, 0], "semi_axes": [r, r, r]},
+                                     {"center": [2 * r, 0, 0], "semi_axes": [r / 2, r / 2, r / 2]}]}, f)
+            p = run("run", "--device", "replay:" + log_path, "--simulated-time", "--quiet", "--no-plot",
+                    "--out", out, "--tool", tool, "--force-model", model)
+            self.assertIn("torque", p.stdout, model)
+            self.assertIn("force only", p.stdout, model)
+            s = load_json(os.path.join(out, "run_summary.json"))
+            self.assertEqual(len(s["tool"]["parts"]), 2)
+            rt = s["runtime"]
+            self.assertGreater(rt["peak_torque_nm"], 0.0, model)
+            self.assertGreater(rt["torque_dropped_ticks"], 0, model)
+            self.assertEqual(rt["torque_limit_nm"], 0.5)
+            self.assertGreater(rt["peak_force_n"], 0.0, model)
+            rows = read_log(os.path.join(out, "servo_log.csv"))
+            self.assertEqual({x["tx"] for x in rows} | {x["ty"] for x in rows}, {"0.000000"})  # nothing sent
+        # A bad tool is named before the scene loads.
+        q = run("run", "--device", "replay:" + log_path, "--tool", "stylus:0.01,0.03", "--quiet", check=False)
         self.assertEqual(q.returncode, 2)
-        self.assertIn("--force-model paper", q.stderr)
+        self.assertIn("longer than its diameter", q.stderr)
         self.assertNotIn("gaussians", q.stdout.lower())
 
     def test_replay_with_nan_rows_gates_the_force(self):

@@ -210,22 +210,35 @@ TEST(PaperCompound, SymmetricToolPressedSymmetricallyHasNoTorqueAndMirrorsMirror
   EXPECT_NEAR(std::abs(a.torque.y()) / a.force.norm(), 0.03 * std::cos(20 * M_PI / 180), 0.004);
 }
 
-TEST(PaperCompound, RenderersOfOneEllipsoidRefuseCompoundTools) {
+// A renderer of one ellipsoid (a caller's own): the worker refuses to hand it a compound tool.
+class OneEllipsoid final : public ForceRenderer {
+ public:
+  std::string_view name() const noexcept override { return "one"; }
+  RenderOutput render(const ToolEllipsoid& t, const Eigen::Vector3d&, double) noexcept override {
+    RenderOutput o;
+    o.proxy = t.center;
+    return o;
+  }
+  std::span<const Contact> contacts() const noexcept override { return {}; }
+  void reset() noexcept override {}
+};
+
+TEST(CompoundWorker, RenderersOfOneEllipsoidRefuseCompoundToolsTheOthersTakeThem) {
   const CompoundTool stylus = parse_tool_spec("stylus:0.1,0.006");
   ManualClock clock(0);
-  auto make = [&](const RendererSpec& spec) {
-    return CollisionWorker(tool_shape_for(stylus), make_force_renderer(spec, plane()), 1e-3, clock);
-  };
   try {
-    (void)make(ProxyModelSpec{});
-    ADD_FAILURE() << "the proxy took a stylus";
+    CollisionWorker w(tool_shape_for(stylus), std::make_unique<OneEllipsoid>(), 1e-3, clock);
+    ADD_FAILURE() << "a one-ellipsoid renderer took a stylus";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("paper model"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("one ellipsoid"), std::string::npos) << e.what();
   }
-  EXPECT_NO_THROW((void)make(PaperModelSpec{}));
-  // One part at the TCP is the plain ellipsoid, which the proxy takes.
-  EXPECT_NO_THROW((void)CollisionWorker(tool_shape_for(parse_tool_spec("disc:0.02,0.004")),
-                                        make_force_renderer(ProxyModelSpec{}, plane()), 1e-3, clock));
+  for (const RendererSpec& spec : {RendererSpec(PaperModelSpec{}), RendererSpec(ProxyModelSpec{})}) {
+    CollisionWorker w(tool_shape_for(stylus), make_force_renderer(spec, plane()), 1e-3, clock);
+    EXPECT_TRUE(w.renderer().renders_compound()) << renderer_name(spec);
+  }
+  // One part at the TCP is the plain ellipsoid, which any renderer takes.
+  EXPECT_NO_THROW(CollisionWorker(tool_shape_for(parse_tool_spec("disc:0.02,0.004")), std::make_unique<OneEllipsoid>(),
+                                  1e-3, clock));
 }
 
 }  // namespace

@@ -41,7 +41,39 @@ ProxyRenderer::ProxyRenderer(const CollisionWorld& world, const ProxyParams& par
       friction_(params.mu_s, params.mu_k),
       coupling_(params.stiffness, params.damping, f_max, params.opacity_stiffness, params.tau_opacity) {}
 
+void ProxyRenderer::set_tool(const CompoundTool& tool) {
+  tool.validate("proxy: tool");
+  const bool single = tool.count == 1 && tool.parts[0].offset.isZero(0);
+  if (single) {
+    compound_.reset();
+    return;
+  }
+  CompoundProxyParams c;
+  c.stiffness = params_.stiffness;
+  c.damping = params_.damping;
+  c.substeps = params_.substeps;
+  c.pass_isolated = params_.pass_isolated;
+  c.isolation_gap = params_.isolation_gap;
+  c.teleport = params_.teleport;
+  compound_ = std::make_unique<CompoundProxy>(*world_, tool, c);
+  tool_ = tool;
+}
+
+RenderOutput ProxyRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
+                                            const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
+                                            double dt) noexcept {
+  if (!compound_ || parts.size() != std::size_t(tool_.count)) {
+    compound_active_ = false;
+    return ForceRenderer::render_compound(parts, tcp, velocity, angular_velocity, dt);
+  }
+  compound_active_ = true;
+  // The device's orientation from any part: its world rotation is orientation x its own.
+  const Eigen::Quaterniond orientation = parts[0].rotation * tool_.parts[0].rotation.conjugate();
+  return compound_->render(tcp, orientation, velocity, angular_velocity, dt);
+}
+
 void ProxyRenderer::reset() noexcept {
+  if (compound_) compound_->reset();
   solver_.reset();
   friction_.reset();
   coupling_.release();

@@ -24,11 +24,12 @@ CollisionWorker::CollisionWorker(const ToolShape& tool, std::unique_ptr<ForceRen
     : renderer_(std::move(renderer)), tool_(tool), nominal_dt_(nominal_dt), clock_(clock) {
   if (tool_.compound.count > 0) {
     tool_.compound.validate("tool");
+    if (renderer_) renderer_->set_tool(tool_.compound);
     const bool single = tool_.compound.count == 1 && tool_.compound.parts[0].offset.isZero(0);
     if (!single && renderer_ && !renderer_->renders_compound())
-      throw InputError("the " + std::string(renderer_->name()) + " force model renders one ellipsoid at the tool "
+      throw InputError("the " + std::string(renderer_->name()) + " force renderer renders one ellipsoid at the tool "
                        "centre point; a compound tool (" + describe(tool_.compound) +
-                       ") needs the paper model (--force-model paper) until the 6-DoF proxy is built");
+                       ") needs one that takes several (the proxy or the paper model)");
   }
 }
 

@@ -198,13 +198,7 @@ void validate_runtime_options(const RuntimeOptions& o, bool allow_mouse) {
   // A device's library and a replay file are checked now, before the scene is loaded.
   if (is_hardware_device(o.device)) (void)make_hardware_device(o);
   if (o.device.rfind("replay:", 0) == 0) (void)load_pose_log(o.device.substr(7));
-  if (!o.tool.empty()) {
-    const ToolShape t = tool_shape_for(parse_tool_spec(o.tool));
-    if (t.compound.count > 0 && !std::holds_alternative<PaperModelSpec>(o.force.spec()))
-      throw InputError("--tool " + o.tool + ": the " + std::string(renderer_name(o.force.spec())) +
-                       " force model renders one ellipsoid at the tool centre point; this tool (" +
-                       describe(t.compound) + ") needs --force-model paper until the 6-DoF proxy is built");
-  }
+  if (!o.tool.empty()) (void)parse_tool_spec(o.tool);  // a bad spec or file is named before the scene loads
 }
 
 void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool hardware,

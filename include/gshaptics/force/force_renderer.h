@@ -52,8 +52,12 @@ class ForceRenderer {
   virtual RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
                                        const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
                                        double dt) noexcept;
-  /// True when render_compound() takes several parts and parts off the TCP.
+  /// True when render_compound() takes several parts and parts off the TCP (after set_tool()).
   [[nodiscard]] virtual bool renders_compound() const noexcept { return false; }
+  /// The compound tool render_compound() will be given, in the tool frame (set-up, before the
+  /// loop; CollisionWorker calls it). Renderers that keep the tool's own state (the proxy) build
+  /// it here and may allocate or throw InputError; the default ignores it.
+  virtual void set_tool(const CompoundTool& tool) { (void)tool; }
   /// The contacts of the last render() (valid until the next call); Contact::part names the
   /// part of a compound tool.
   [[nodiscard]] virtual std::span<const Contact> contacts() const noexcept = 0;
@@ -122,6 +126,7 @@ class BorrowedRenderer final : public ForceRenderer {
     return inner_.render_compound(parts, tcp, velocity, angular_velocity, dt);
   }
   [[nodiscard]] bool renders_compound() const noexcept override { return inner_.renders_compound(); }
+  void set_tool(const CompoundTool& tool) override { inner_.set_tool(tool); }
 
  private:
   ForceRenderer& inner_;

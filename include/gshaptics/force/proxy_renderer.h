@@ -34,6 +34,9 @@
 #include <Eigen/Core>
 #include <limits>
 
+#include <memory>
+
+#include "gshaptics/force/compound_proxy.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/force/friction_cone.h"
 #include "gshaptics/force/proxy_solver.h"
@@ -83,8 +86,21 @@ class ProxyRenderer final : public ForceRenderer {
   [[nodiscard]] std::string_view name() const noexcept override { return "proxy"; }
   RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
   /// The Gaussians holding the proxy at the last tick (at most three).
-  [[nodiscard]] std::span<const Contact> contacts() const noexcept override { return solver_.blockers(); }
+  [[nodiscard]] std::span<const Contact> contacts() const noexcept override {
+    return compound_active_ ? compound_->blockers() : solver_.blockers();
+  }
   void reset() noexcept override;
+  /// A tool of several parts (or one off the TCP) gets the compound proxy (force/compound_proxy.h:
+  /// translation and rotation, the wrench at the contacts), with this renderer's stiffness,
+  /// damping, substeps, floater rule and teleport distance; friction and the shaded normal are not
+  /// applied to it. A single part at the TCP stays with the one-ellipsoid proxy.
+  void set_tool(const CompoundTool& tool) override;
+  [[nodiscard]] bool renders_compound() const noexcept override { return compound_ != nullptr; }
+  RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
+                               const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
+                               double dt) noexcept override;
+  /// The compound proxy, when set_tool() gave one (nullptr otherwise).
+  [[nodiscard]] const CompoundProxy* compound() const noexcept { return compound_.get(); }
 
   [[nodiscard]] const Eigen::Vector3d& proxy_position() const noexcept { return solver_.position(); }
   [[nodiscard]] const Eigen::Vector3d& contact_normal() const noexcept { return normal_; }
@@ -109,6 +125,9 @@ class ProxyRenderer final : public ForceRenderer {
   Eigen::Quaterniond last_rotation_ = Eigen::Quaterniond::Identity();
   bool in_contact_ = false, sticking_ = false, shade_valid_ = false;
   Eigen::Vector3d shade_ = Eigen::Vector3d::Zero(), shade_at_ = Eigen::Vector3d::Zero();
+  std::unique_ptr<CompoundProxy> compound_;
+  CompoundTool tool_;
+  bool compound_active_ = false;
 };
 
 }  // namespace gshaptics

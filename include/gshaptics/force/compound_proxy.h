@@ -1,0 +1,110 @@
+#pragma once
+/// @file
+/// The god-object proxy for a compound tool (issue 36, item 2, first version): a rigid copy of
+/// the tool, every part of it, kept where no part overlaps a Gaussian, coupled to the device in
+/// translation and in rotation.
+///
+/// Each tick:
+/// 1. Rotation: the proxy turns from its orientation toward the device's about its tool centre
+///    point (TCP), in sub-rotations; each part's centre is swept along its chord (SweepQuery,
+///    continuous), the sub-rotation small enough that no point moves more than `rotation_step`
+///    smallest semi-axes off its part's swept chord (shells thicker than that are certified),
+///    and the turned pose is tested (the early-exit query), so a turn
+///    that would swing the tool through a thin plate stops at the contact (the conservative
+///    advancement of Mirtich 1996 / Ortega, Redon & Coquillart 2007, in fixed steps).
+/// 2. Translation: the god-object of Zilles & Salisbury (1995) with all parts: the proxy moves
+///    toward the device, stops at the first contact of any part (the minimum over the parts'
+///    sweeps), then slides on the constraint planes of the Gaussians that block it (at most
+///    three). Floaters (ProxyParams::pass_isolated) do not block.
+/// 3. Wrench: a virtual coupling in both (Colgate, Stanley & Brown 1995): F = k_c e - b_c (v . e^) e^
+///    with e = x_proxy - x_device (never pulling), applied at the contacts: its moment about the
+///    TCP is (mean_j c_j - x_tcp) x F, with c_j the surface point of each touching part facing
+///    its contact (the parts that a small move toward the device would make touch); plus, when
+///    contact stopped a turn, the rotational coupling tau = k_r theta - b_r omega, theta the
+///    rotation taking the device's orientation to the proxy's (axis times angle, world). A turn
+///    that ran out of sub-rotations this tick catches up on the next, with no torque.
+/// Without contact the proxy is the device and the wrench is zero.
+///
+/// What it does not do yet: the proxy does not turn under the contact torque (a full 6-DoF
+/// god-object solves for the pose that balances it; here the torque is rendered and the proxy
+/// keeps the device's orientation while that is free), no shaded normal (the force is along the
+/// spring), no friction.
+///
+/// Threading: one thread; render() allocates, locks, logs and throws nothing.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <array>
+
+#include "gshaptics/collision/compound_tool.h"
+#include "gshaptics/collision/sweep_query.h"
+#include "gshaptics/force/force_renderer.h"
+#include "gshaptics/force/proxy_solver.h"
+
+namespace gshaptics {
+
+/// Parameters of the compound proxy. SI units.
+struct CompoundProxyParams {
+  double stiffness = 1000.0;   ///< k_c, N/m
+  double damping = 1.0;        ///< b_c, N s/m (passive for b > k T / 2)
+  /// k_r, N m/rad: 1 N m/rad gives 0.5 N m, a desktop 6-DoF arm's torque, at about 30 deg.
+  double rot_stiffness = 1.0;
+  /// b_r, N m s/rad: twice the sampled-spring bound k_r T / 2 at 1 kHz, as for the force.
+  double rot_damping = 0.001;
+  int substeps = 4;            ///< translational sweeps per tick, [1, 16]
+  double rotation_step = 0.25; ///< largest motion of any point per sub-rotation, in smallest semi-axes
+  int max_rotation_steps = 64; ///< sub-rotations per tick (the rest waits for the next tick)
+  bool pass_isolated = true;   ///< floaters do not block (ProxyParams::pass_isolated)
+  double isolation_gap = 0.0;  ///< ProxyParams::isolation_gap, in the largest semi-axis
+  double teleport = 10.0;      ///< a device jump of more than this many reaches re-places the proxy
+};
+
+class CompoundProxy {
+ public:
+  /// Throws InputError for an invalid tool or parameters.
+  CompoundProxy(const CollisionWorld& world, const CompoundTool& tool, const CompoundProxyParams& params = {});
+
+  /// One tick: the device's TCP position (m) and orientation (tool frame -> world), its velocity
+  /// (m/s) and angular velocity (rad/s), dt (s, > 0). Force and torque (about the device's TCP)
+  /// on the device, world frame.
+  RenderOutput render(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
+                      const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity, double dt) noexcept;
+  void reset() noexcept;
+  /// The Gaussians holding the proxy (at most three), Contact::part naming the part.
+  [[nodiscard]] std::span<const Contact> blockers() const noexcept { return {blockers_.data(), n_blockers_}; }
+  [[nodiscard]] const Eigen::Vector3d& position() const noexcept { return x_; }
+  [[nodiscard]] const Eigen::Quaterniond& orientation() const noexcept { return q_; }
+  [[nodiscard]] std::uint64_t placements() const noexcept { return placements_; }
+  [[nodiscard]] std::uint64_t lost() const noexcept { return lost_; }
+  /// Whether any part of the tool at this pose overlaps a kept Gaussian.
+  [[nodiscard]] bool blocked(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;
+
+ private:
+  const CollisionWorld* world_;
+  CompoundTool tool_;
+  CompoundProxyParams params_;
+  ProxySolver floaters_;  // its isolation test and cache (the floater rule of the one-ellipsoid proxy)
+  SweepQuery sweep_;
+  ContactQuery free_query_;
+  std::array<ToolEllipsoid, kMaxToolParts> parts_{};
+  Eigen::Vector3d x_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();
+  bool placed_ = false;
+  std::array<Contact, 3> blockers_{};
+  std::size_t n_blockers_ = 0;
+  bool rotation_held_ = false;
+  std::uint64_t placements_ = 0, lost_ = 0;
+  double min_axis_ = 0, reach_ = 0, largest_ = 0;
+
+  int pose_parts(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
+  void place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;
+  bool turn_toward(const Eigen::Quaterniond& target) noexcept;  // true: reached it
+  int translate_toward(const Eigen::Vector3d& goal, Eigen::Vector3d& first_normal) noexcept;
+  struct Filter {
+    CompoundProxy* self;
+    int queries_left;
+    static bool blocks(void* context, std::uint32_t slot) noexcept;
+  };
+};
+
+}  // namespace gshaptics

@@ -1,0 +1,290 @@
+#include "gshaptics/force/compound_proxy.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "gshaptics/error.h"
+
+namespace gshaptics {
+
+namespace {
+
+const CompoundProxyParams& validated(const CompoundProxyParams& p) {
+  if (!(p.stiffness > 0) || !std::isfinite(p.stiffness) || !(p.damping >= 0) || !std::isfinite(p.damping))
+    throw InputError("compound proxy: stiffness must be > 0 N/m and damping >= 0 N s/m");
+  if (!(p.rot_stiffness >= 0) || !std::isfinite(p.rot_stiffness) || !(p.rot_damping >= 0) ||
+      !std::isfinite(p.rot_damping))
+    throw InputError("compound proxy: rotational stiffness and damping must be >= 0");
+  if (p.substeps < 1 || p.substeps > 16) throw InputError("compound proxy: substeps must be in [1, 16]");
+  if (!(p.rotation_step > 0) || !(p.rotation_step <= 1) || p.max_rotation_steps < 1)
+    throw InputError("compound proxy: rotation_step must be in (0, 1] and max_rotation_steps >= 1");
+  if (!(p.teleport > 0) || !(p.isolation_gap >= 0)) throw InputError("compound proxy: teleport must be > 0");
+  return p;
+}
+
+ProxySolverParams floater_params(const CompoundProxyParams& p) {
+  ProxySolverParams s;
+  s.pass_isolated = p.pass_isolated;
+  s.isolation_gap = p.isolation_gap;
+  return s;
+}
+
+// Distance from an ellipsoid's centre to its surface point whose outward normal is `n` (unit):
+// the support function sqrt(n^T Sigma n).
+double support(const ToolEllipsoid& e, const Eigen::Vector3d& n) noexcept {
+  const Eigen::Vector3d local = e.rotation.conjugate() * n;
+  return std::sqrt((local.array().square() * e.semi_axes.array().square()).sum());
+}
+
+}  // namespace
+
+CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& tool, const CompoundProxyParams& params)
+    : world_(&world),
+      tool_(tool),
+      params_(validated(params)),
+      floaters_(world, floater_params(params)),
+      sweep_(world),
+      free_query_(world, [] {
+        QueryOptions q;
+        q.max_contacts = 1;
+        return q;
+      }()) {
+  tool_.validate("compound proxy: tool");
+  reach_ = tool_.reach();
+  largest_ = tool_.largest_semi_axis();
+  min_axis_ = largest_;
+  for (const ToolPart& p : tool_.view()) min_axis_ = std::min(min_axis_, p.semi_axes.minCoeff());
+}
+
+void CompoundProxy::reset() noexcept {
+  placed_ = false;
+  n_blockers_ = 0;
+  rotation_held_ = false;
+  floaters_.reset();
+}
+
+int CompoundProxy::pose_parts(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept {
+  return tool_.posed(x, q, parts_);
+}
+
+bool CompoundProxy::blocked(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept {
+  const int n = pose_parts(position, orientation);
+  for (int j = 0; j < n; ++j)
+    if (free_query_.any_contact(parts_[std::size_t(j)])) return true;
+  return false;
+}
+
+bool CompoundProxy::Filter::blocks(void* context, std::uint32_t slot) noexcept {
+  auto* f = static_cast<Filter*>(context);
+  if (f->queries_left <= 0) return true;  // past the budget a Gaussian blocks (the safe side)
+  --f->queries_left;
+  return !f->self->floaters_.isolated(slot, f->self->params_.isolation_gap * f->self->largest_);
+}
+
+void CompoundProxy::place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept {
+  ++placements_;
+  placed_ = true;
+  n_blockers_ = 0;
+  rotation_held_ = false;
+  x_ = position;
+  q_ = orientation;
+  if (!blocked(position, orientation)) return;
+  Eigen::Vector3d dirs[14];
+  int nd = 0;
+  for (int a = 0; a < 3; ++a)
+    for (double sg : {1.0, -1.0}) dirs[nd++] = Eigen::Vector3d::Unit(a) * sg;
+  for (int k = 0; k < 8; ++k) dirs[nd++] = Eigen::Vector3d(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1).normalized();
+  double best = INFINITY;
+  for (int i = 0; i < nd; ++i)
+    for (int step = 1; step <= 40; ++step) {
+      const double dist = 0.25 * largest_ * step;
+      if (dist >= best) break;
+      if (!blocked(position + dirs[i] * dist, orientation)) {
+        best = dist;
+        x_ = position + dirs[i] * dist;
+        break;
+      }
+    }
+  if (!std::isfinite(best)) ++lost_;
+}
+
+bool CompoundProxy::turn_toward(const Eigen::Quaterniond& target) noexcept {
+  const Eigen::AngleAxisd delta(target * q_.conjugate());
+  double angle = delta.angle();
+  Eigen::Vector3d axis = delta.axis();
+  if (angle > M_PI) {  // the short way round
+    angle = 2 * M_PI - angle;
+    axis = -axis;
+  }
+  if (!(angle > 1e-12) || !axis.allFinite()) {
+    q_ = target;
+    return true;
+  }
+  // Each part's centre is swept along its chord; relative to that, no point of the part moves
+  // more than rotation_step x the smallest semi-axis per sub-rotation: a delta + o delta^2 / 8
+  // <= eta (the part's turn about its own centre, a its largest semi-axis, plus the arc's
+  // departure from the chord, o its distance from the TCP).
+  const double eta = params_.rotation_step * min_axis_;
+  double step = INFINITY;
+  for (const ToolPart& part : tool_.view()) {
+    const double a = part.semi_axes.maxCoeff(), c = part.offset.norm() / 8;
+    step = std::min(step, c > 0 ? (-a + std::sqrt(a * a + 4 * c * eta)) / (2 * c) : eta / a);
+  }
+  const int needed = int(std::ceil(angle / step));
+  const int steps = std::min(needed, params_.max_rotation_steps);
+  const Eigen::Quaterniond start = q_;
+  Filter floaters{this, ProxySolver::kFloaterQueries};
+  BlockFilter filter;
+  if (params_.pass_isolated) filter = {&Filter::blocks, &floaters};
+  for (int k = 1; k <= steps; ++k) {
+    const Eigen::Quaterniond next =
+        (Eigen::Quaterniond(Eigen::AngleAxisd(angle * double(k) / double(needed), axis)) * start).normalized();
+    const int n = pose_parts(x_, q_);
+    for (int j = 0; j < n; ++j) {
+      const ToolPart& part = tool_.parts[std::size_t(j)];
+      const Eigen::Vector3d chord = (x_ + next * part.offset) - parts_[std::size_t(j)].center;
+      if (chord.squaredNorm() == 0) continue;
+      if (sweep_.first_contact(parts_[std::size_t(j)], chord, {}, {}, filter).hit) return false;
+    }
+    if (blocked(x_, next)) return false;
+    q_ = next;
+  }
+  return steps == needed;
+}
+
+int CompoundProxy::translate_toward(const Eigen::Vector3d& goal, Eigen::Vector3d& first_normal) noexcept {
+  ConstraintPlane planes[3];
+  int np = 0;
+  std::uint32_t hints[3];
+  std::size_t n_hints = 0;
+  for (; n_hints < n_blockers_; ++n_hints) hints[n_hints] = blockers_[n_hints].slot;
+  n_blockers_ = 0;
+  Eigen::Vector3d p = x_;
+  const double eps = 1e-4 * largest_;
+  int lifts = 0;
+  Filter floaters{this, ProxySolver::kFloaterQueries};
+  BlockFilter filter;
+  if (params_.pass_isolated) filter = {&Filter::blocks, &floaters};
+  const auto first_of_parts = [&](const Eigen::Vector3d& at, const Eigen::Vector3d& u, std::span<const std::uint32_t> h,
+                                  int& part) {
+    SweepHit best;
+    const int n = pose_parts(at, q_);
+    for (int j = 0; j < n; ++j) {
+      const SweepHit hj = sweep_.first_contact(parts_[std::size_t(j)], u, {}, h, filter);
+      if (hj.hit && (!best.hit || hj.t < best.t)) {
+        best = hj;
+        part = j;
+      }
+    }
+    return best;
+  };
+  for (int s = 0; s < params_.substeps; ++s) {
+    const Eigen::Vector3d target = closest_feasible_point(goal, {planes, std::size_t(np)});
+    const Eigen::Vector3d u = target - p;
+    const double len = u.norm();
+    if (len <= 1e-9 * largest_) break;
+    int part = 0;
+    const SweepHit hit = first_of_parts(p, u, {hints, n_hints}, part);
+    if (!hit.hit) {
+      p = target;
+      if (np == 0) break;
+      continue;
+    }
+    p += u * std::max(0.0, hit.t - eps / len);
+    if (np >= 2 && hit.t * len < 1e-3 * largest_ && lifts < 2) {  // wedged: step up and slide on
+      Eigen::Vector3d up = hit.normal;
+      for (int i = 0; i < np; ++i) up += planes[i].normal;
+      if (up.norm() > 0) {
+        const Eigen::Vector3d lift = up.normalized() * (0.05 * largest_);
+        int lp = 0;
+        if (!first_of_parts(p, lift, {}, lp).hit) {
+          p += lift;
+          np = 0;
+          ++lifts;
+          continue;
+        }
+      }
+    }
+    const CollisionGaussian& g = world_->gaussians()[hit.slot];
+    if (n_blockers_ < blockers_.size()) {
+      Contact& c = blockers_[n_blockers_];
+      c.index = g.source_index;
+      c.slot = hit.slot;
+      c.opacity = g.opacity;
+      c.k_min = 0;
+      c.part = std::uint8_t(part);
+      c.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+      ++n_blockers_;
+    }
+    if (np == 0) first_normal = hit.normal;
+    if (np == 3) break;
+    planes[np++] = {hit.normal, p};
+  }
+  x_ = p;
+  return np;
+}
+
+RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
+                                   const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
+                                   double dt) noexcept {
+  RenderOutput out;
+  out.proxy = position;
+  const bool finite = position.allFinite() && orientation.coeffs().allFinite() && orientation.norm() > 1e-9 &&
+                      velocity.allFinite() && angular_velocity.allFinite() && dt > 0;
+  if (!finite) {
+    out.status = QueryStatus::kInvalidTool;
+    return out;
+  }
+  const Eigen::Quaterniond qd = orientation.normalized();
+  if (!placed_ || (position - last_device_).norm() > params_.teleport * reach_) place(position, qd);
+  last_device_ = position;
+
+  // 1. Turn toward the device's orientation, stopping at a contact.
+  rotation_held_ = !turn_toward(qd);
+  // 2. Move toward the device's position, sliding on the blockers' planes.
+  Eigen::Vector3d first_normal = Eigen::Vector3d::Zero();
+  const int np = translate_toward(position, first_normal);
+  out.proxy = x_;
+  out.constraints = std::uint8_t(np);
+  out.counts.contacts = std::uint32_t(n_blockers_);
+
+  // 3. The wrench: the coupling in translation, applied at the contacts, and in rotation.
+  const Eigen::Vector3d e = x_ - position;
+  const double el = e.norm();
+  if (el > 1e-6 * largest_ && n_blockers_ > 0) {
+    const Eigen::Vector3d n = e / el;
+    const double fn = std::max(0.0, params_.stiffness * el - params_.damping * velocity.dot(n));
+    out.force = fn * n;
+    // The parts that touch: those a small move toward the device would make touch a Gaussian.
+    // The force is shared among them, at each one's surface point facing its contact.
+    Filter floaters{this, ProxySolver::kFloaterQueries};
+    BlockFilter filter;
+    if (params_.pass_isolated) filter = {&Filter::blocks, &floaters};
+    const int count = pose_parts(x_, q_);
+    const Eigen::Vector3d probe = -n * (1e-3 * largest_);
+    Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+    int touching = 0;
+    for (int j = 0; j < count; ++j) {
+      const ToolEllipsoid& part = parts_[std::size_t(j)];
+      const SweepHit h = sweep_.first_contact(part, probe, {}, {}, filter);
+      if (!h.hit) continue;
+      moment += (part.center - h.normal * support(part, h.normal)) - x_;
+      ++touching;
+    }
+    if (touching > 0) out.torque = (moment / double(touching)).cross(out.force);
+  }
+  const Eigen::AngleAxisd held(q_ * qd.conjugate());
+  double angle = held.angle();
+  Eigen::Vector3d axis = held.axis();
+  if (angle > M_PI) {
+    angle = 2 * M_PI - angle;
+    axis = -axis;
+  }
+  // Only a turn that contact stopped is rendered (a turn that ran out of sub-rotations this
+  // tick catches up on the next: free space stays free).
+  if (rotation_held_ && angle > 1e-9 && axis.allFinite())
+    out.torque += params_.rot_stiffness * angle * axis - params_.rot_damping * angular_velocity;
+  return out;
+}
+
+}  // namespace gshaptics

@@ -1,0 +1,131 @@
+// The compound proxy (issue 36, item 2, first version): no part of the proxy ever ends inside the
+// Gaussians, a turn that would swing a stylus through a thin plate stops at the contact, the
+// wrench of a symmetric press has no torque and mirrored presses mirror it, the lever arm of an
+// off-centre contact, the rotational coupling, and a tick that allocates nothing.
+
+#include "gshaptics/force/compound_proxy.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "gshaptics/force/proxy_renderer.h"
+#include "support/allocation_counter.h"
+#include "support/gaussian_worlds.h"
+
+namespace gshaptics {
+namespace {
+
+using test::add_layer;
+using test::GaussianSpec;
+using test::world_of;
+
+// A plate of flat discs at z = 0 (spacing 4 mm, 0.2 mm thick) over [-0.2, 0.2]^2.
+const CollisionWorld& plate() {
+  static const CollisionWorld w = [] {
+    std::vector<GaussianSpec> gs;
+    add_layer(gs, 0.0f, 0.004f, 0.2f);
+    return world_of(gs);
+  }();
+  return w;
+}
+
+CompoundTool dumbbell() {  // two 1 cm spheres 3 cm either side of the TCP on the tool's x axis
+  CompoundTool t;
+  t.count = 2;
+  t.parts[0].offset = {-0.03, 0, 0};
+  t.parts[1].offset = {0.03, 0, 0};
+  t.parts[0].semi_axes = t.parts[1].semi_axes = Eigen::Vector3d::Constant(0.01);
+  return t;
+}
+
+Eigen::Quaterniond about_y(double deg) { return Eigen::Quaterniond(Eigen::AngleAxisd(deg * M_PI / 180, Eigen::Vector3d::UnitY())); }
+
+TEST(CompoundProxy, PressedIntoAPlateNoPartEndsInsideAndTheWrenchIsRight) {
+  CompoundProxy proxy(plate(), dumbbell());
+  const Eigen::Vector3d v(0, 0, -0.02);
+  // Level, lowered from 3 cm above to 1 cm below the plate: the proxy stays on it.
+  RenderOutput out;
+  for (int k = 0; k <= 40; ++k) {
+    const Eigen::Vector3d x(0.001, 0.0007, 0.03 - 0.001 * k);
+    out = proxy.render(x, Eigen::Quaterniond::Identity(), v, Eigen::Vector3d::Zero(), 1e-3);
+    ASSERT_FALSE(proxy.blocked(proxy.position(), proxy.orientation())) << "tick " << k;
+  }
+  // The spheres rest on the discs (0.2 mm thick, so their tops at 0.1 mm): the TCP about 1 cm up.
+  EXPECT_NEAR(proxy.position().z(), 0.0101, 0.0003);
+  EXPECT_GT(out.force.z(), 0.0);
+  EXPECT_NEAR(out.force.norm(), 1000.0 * (proxy.position().z() + 0.010) + 1.0 * 0.02, 0.4);
+  // Symmetric: both spheres hold it, the contact moments cancel.
+  EXPECT_LT(out.torque.norm(), 0.02 * out.force.norm() * 0.03) << out.torque.transpose();
+
+  // Tilted +-20 deg about y and pressed: one sphere holds; the torques mirror, and the lever
+  // arm is the contact point's horizontal distance from the TCP (0.03 cos 20 deg).
+  RenderOutput tilt[2];
+  for (int side = 0; side < 2; ++side) {
+    CompoundProxy p(plate(), dumbbell());
+    const Eigen::Quaterniond q = about_y(side == 0 ? 20 : -20);
+    for (int k = 0; k <= 40; ++k)
+      tilt[side] = p.render({0.001, 0.0007, 0.04 - 0.001 * k}, q, v, Eigen::Vector3d::Zero(), 1e-3);
+    ASSERT_FALSE(p.blocked(p.position(), p.orientation()));
+    ASSERT_GT(tilt[side].force.z(), 0.0);
+  }
+  EXPECT_NEAR(tilt[0].torque.y(), -tilt[1].torque.y(), 0.05 * std::abs(tilt[0].torque.y()));
+  EXPECT_LT(tilt[0].torque.y(), 0.0);  // +20 deg lowers the +x sphere: (+x) x (+z) = -y
+  const double lever = std::abs(tilt[0].torque.y()) / tilt[0].force.norm();
+  EXPECT_NEAR(lever, 0.03 * std::cos(20 * M_PI / 180), 0.1 * 0.03);
+}
+
+TEST(CompoundProxy, ATurnThatWouldSwingAStylusThroughAThinPlateStopsAtTheContact) {
+  // A 10 cm stylus upright, its tip (the TCP) 2 cm above the plate, turned 120 deg about y in
+  // one tick: its far end would sweep through the plate (it crosses z = 0 at about 100 deg).
+  const CompoundTool stylus = parse_tool_spec("stylus:0.1,0.006");
+  CompoundProxy proxy(plate(), stylus);
+  const Eigen::Vector3d x(0.0, 0.0, 0.02);
+  proxy.render(x, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 1e-3);
+  const RenderOutput out = proxy.render(x, about_y(120), Eigen::Vector3d::Zero(), {0, 2094.0, 0}, 1e-3);
+  EXPECT_FALSE(proxy.blocked(proxy.position(), proxy.orientation()));
+  // It stopped short of the plate: every part above it, the turn between 60 and 100 deg.
+  std::array<ToolEllipsoid, kMaxToolParts> parts;
+  const int n = stylus.posed(proxy.position(), proxy.orientation(), parts);
+  for (int j = 0; j < n; ++j) EXPECT_GT(parts[std::size_t(j)].center.z(), 0.0) << "part " << j;
+  const double turned = Eigen::AngleAxisd(proxy.orientation()).angle() * 180 / M_PI;
+  EXPECT_GT(turned, 60.0);
+  EXPECT_LT(turned, 100.0);
+  // The rotational coupling pulls the device back toward the proxy: about -y, k_r x the gap
+  // minus b_r x omega.
+  const double gap = (120 - turned) * M_PI / 180;
+  EXPECT_NEAR(out.torque.y(), -(1.0 * gap) - 0.001 * 2094.0, 0.05);
+  // Without the plate the same turn goes all the way.
+  const CollisionWorld empty = world_of({{Eigen::Vector3f(5, 5, 5), Eigen::Vector3f::Constant(0.001f), Eigen::Quaternionf::Identity()}});
+  CompoundProxy free_proxy(empty, stylus, CompoundProxyParams{.pass_isolated = false});
+  free_proxy.render(x, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 1e-3);
+  const RenderOutput free_out = free_proxy.render(x, about_y(120), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 1e-3);
+  EXPECT_NEAR(Eigen::AngleAxisd(free_proxy.orientation()).angle() * 180 / M_PI, 120.0, 1e-6);
+  EXPECT_EQ(free_out.torque, Eigen::Vector3d::Zero());
+  EXPECT_EQ(free_out.force, Eigen::Vector3d::Zero());
+}
+
+TEST(CompoundProxy, TheProxyRendererTakesCompoundToolsAndItsTickAllocatesNothing) {
+  ProxyRenderer r(plate());
+  ASSERT_FALSE(r.renders_compound());
+  const CompoundTool bell = dumbbell();
+  r.set_tool(bell);
+  ASSERT_TRUE(r.renders_compound());
+  std::array<ToolEllipsoid, kMaxToolParts> parts;
+  const auto tick = [&](double z, double deg) {
+    const Eigen::Vector3d x(0.002, 0.001, z);
+    const int n = bell.posed(x, about_y(deg), parts);
+    return r.render_compound({parts.data(), std::size_t(n)}, x, {0, 0, -0.02}, Eigen::Vector3d::Zero(), 1e-3);
+  };
+  for (int k = 0; k < 10; ++k) (void)tick(0.03 - 0.001 * k, 0);  // warm up
+  const std::size_t before = test::allocation_count();
+  RenderOutput out;
+  for (int k = 10; k < 60; ++k) out = tick(0.03 - 0.001 * k, 0.2 * (k - 10));
+  EXPECT_EQ(test::allocation_count() - before, 0u);
+  EXPECT_GT(out.force.z(), 0.0);
+  ASSERT_FALSE(r.contacts().empty());
+  for (const Contact& c : r.contacts()) EXPECT_LE(c.part, 1);
+}
+
+}  // namespace
+}  // namespace gshaptics
