@@ -205,17 +205,7 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal, Eigen::Vector3d
         }
       }
     }
-    const CollisionGaussian& g = world_->gaussians()[hit.slot];
-    if (n_blockers_ < blockers_.size()) {
-      Contact& c = blockers_[n_blockers_];
-      c.index = g.source_index;
-      c.slot = hit.slot;
-      c.opacity = g.opacity;
-      c.k_min = 0;
-      c.part = std::uint8_t(part);
-      c.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
-      ++n_blockers_;
-    }
+    if (n_blockers_ < blockers_.size()) blockers_[n_blockers_++] = blocker_contact(*world_, hit.slot, std::uint8_t(part));
     if (np == 0) first_normal = hit.normal;
     if (np == 3) break;
     planes[np++] = {hit.normal, p};

@@ -43,8 +43,7 @@ ProxyRenderer::ProxyRenderer(const CollisionWorld& world, const ProxyParams& par
 
 void ProxyRenderer::set_tool(const CompoundTool& tool) {
   tool.validate("proxy: tool");
-  const bool single = tool.count == 1 && tool.parts[0].offset.isZero(0);
-  if (single) {
+  if (tool.is_single_at_tcp()) {
     compound_.reset();
     return;
   }

@@ -54,6 +54,18 @@ Eigen::Vector3d closest_feasible_point(const Eigen::Vector3d& goal, std::span<co
   return best;
 }
 
+Contact blocker_contact(const CollisionWorld& world, std::uint32_t slot, std::uint8_t part) noexcept {
+  const CollisionGaussian& g = world.gaussians()[slot];
+  Contact c;
+  c.index = g.source_index;
+  c.slot = slot;
+  c.opacity = g.opacity;
+  c.k_min = 0;
+  c.part = part;
+  c.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+  return c;
+}
+
 ProxySolver::ProxySolver(const CollisionWorld& world, const ProxySolverParams& params)
     : world_(&world), params_(params), sweep_(world), free_query_(world, [] {
         QueryOptions q;
@@ -188,15 +200,7 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
         }
       }
     }
-    const CollisionGaussian& g = world_->gaussians()[hit.slot];
-    if (n_blockers_ < blockers_.size()) {
-      Contact& c = blockers_[n_blockers_++];
-      c.index = g.source_index;
-      c.slot = hit.slot;
-      c.opacity = g.opacity;
-      c.k_min = 0;
-      c.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
-    }
+    if (n_blockers_ < blockers_.size()) blockers_[n_blockers_++] = blocker_contact(*world_, hit.slot);
     if (np == 3) break;
     planes[np++] = {hit.normal, p};
   }

@@ -9,7 +9,7 @@ namespace gshaptics {
 
 ToolShape tool_shape_for(const CompoundTool& tool) {
   ToolShape s;
-  if (tool.count == 1 && tool.parts[0].offset.isZero(0)) {
+  if (tool.is_single_at_tcp()) {
     s.semi_axes = tool.parts[0].semi_axes;
     s.rotation = tool.parts[0].rotation;
   } else {
@@ -25,8 +25,7 @@ CollisionWorker::CollisionWorker(const ToolShape& tool, std::unique_ptr<ForceRen
   if (tool_.compound.count > 0) {
     tool_.compound.validate("tool");
     if (renderer_) renderer_->set_tool(tool_.compound);
-    const bool single = tool_.compound.count == 1 && tool_.compound.parts[0].offset.isZero(0);
-    if (!single && renderer_ && !renderer_->renders_compound())
+    if (!tool_.compound.is_single_at_tcp() && renderer_ && !renderer_->renders_compound())
       throw InputError("the " + std::string(renderer_->name()) + " force renderer renders one ellipsoid at the tool "
                        "centre point; a compound tool (" + describe(tool_.compound) +
                        ") needs one that takes several (the proxy or the paper model)");

@@ -5,6 +5,26 @@
 
 namespace gshaptics {
 
+namespace {
+
+// Scales `v` down to length `limit` (same direction); true when it had to.
+bool clamp_length(Eigen::Vector3d& v, double limit) noexcept {
+  const double n = v.norm();
+  if (!(n > limit)) return false;
+  v *= limit / n;
+  return true;
+}
+
+// Moves `target` back toward `last` so it is at most `max_step` from it; true when it had to.
+bool limit_step(Eigen::Vector3d& target, const Eigen::Vector3d& last, double max_step) noexcept {
+  Eigen::Vector3d step = target - last;
+  if (!clamp_length(step, max_step)) return false;
+  target = last + step;
+  return true;
+}
+
+}  // namespace
+
 void SafetyFilter::set_device_limits(double peak, double continuous) noexcept {
   device_peak_ = peak > 0 ? peak : std::numeric_limits<double>::infinity();
   continuous_ = continuous > 0 ? continuous : std::numeric_limits<double>::infinity();
@@ -91,11 +111,7 @@ SafetyOutput SafetyFilter::apply(const SafetyInput& in, double dt) noexcept {
   if (!target.allFinite()) target.setZero();
 
   // 4. Force limit.
-  const double n = target.norm();
-  if (n > f_max_) {
-    target *= f_max_ / n;
-    out.flags |= kFlagForceLimited;
-  }
+  if (clamp_length(target, f_max_)) out.flags |= kFlagForceLimited;
   // Continuous limit (I^2 t): above 80 % of the heat budget the allowed force tapers linearly
   // from f_max to the continuous force, reached when the budget is used up, so a sustained push
   // settles at the continuous force with the budget exactly used (no chatter at the threshold).
@@ -103,22 +119,12 @@ SafetyOutput SafetyFilter::apply(const SafetyInput& in, double dt) noexcept {
     const double budget = continuous_ * continuous_;
     const double free_share = std::clamp((budget - heat_) / (0.2 * budget), 0.0, 1.0);
     const double cap = continuous_ + (f_max_ - continuous_) * free_share;
-    const double m = target.norm();
-    if (m > cap) {
-      target *= cap / m;
-      out.flags |= kFlagContinuousLimited;
-    }
+    if (clamp_length(target, cap)) out.flags |= kFlagContinuousLimited;
   }
   target *= ramp;
 
   // 5. Force-rate limit.
-  const Eigen::Vector3d step = target - last_;
-  const double max_step = params_.max_force_rate * std::max(dt, 0.0);
-  const double s = step.norm();
-  if (s > max_step) {
-    target = last_ + step * (max_step / s);
-    out.flags |= kFlagRateLimited;
-  }
+  if (limit_step(target, last_, params_.max_force_rate * std::max(dt, 0.0))) out.flags |= kFlagRateLimited;
   last_ = target;
   heat_ += (target.squaredNorm() - heat_) * decay;
   out.force = target;
@@ -126,19 +132,9 @@ SafetyOutput SafetyFilter::apply(const SafetyInput& in, double dt) noexcept {
   // 6. Torque: the same scale (hold, fade, stop) and ramp, its own limit and rate limit.
   Eigen::Vector3d torque = scale * in.desired_torque;
   if (!torque.allFinite()) torque.setZero();
-  const double tn = torque.norm();
-  if (tn > tau_max_) {
-    torque *= tau_max_ / tn;
-    out.flags |= kFlagTorqueLimited;
-  }
+  if (clamp_length(torque, tau_max_)) out.flags |= kFlagTorqueLimited;
   torque *= ramp;
-  const Eigen::Vector3d tstep = torque - last_torque_;
-  const double max_tstep = params_.max_torque_rate * std::max(dt, 0.0);
-  const double ts = tstep.norm();
-  if (ts > max_tstep) {
-    torque = last_torque_ + tstep * (max_tstep / ts);
-    out.flags |= kFlagTorqueLimited;
-  }
+  if (limit_step(torque, last_torque_, params_.max_torque_rate * std::max(dt, 0.0))) out.flags |= kFlagTorqueLimited;
   last_torque_ = torque;
   out.torque = torque;
   return out;

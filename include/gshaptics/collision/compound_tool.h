@@ -57,6 +57,8 @@ struct CompoundTool {
   /// Writes min(count, out.size()) ellipsoids and returns how many.
   int posed(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
             std::span<ToolEllipsoid> out) const noexcept;
+  /// One part centred on the TCP: the plain tool ellipsoid, which every renderer takes.
+  [[nodiscard]] bool is_single_at_tcp() const noexcept { return count == 1 && parts[0].offset.isZero(0); }
   /// Radius of the sphere about the TCP that holds every part, m.
   [[nodiscard]] double reach() const noexcept;
   /// The largest semi-axis of any part, m (the scale a proxy or a kernel works at).

@@ -39,6 +39,10 @@ struct ConstraintPlane {
 [[nodiscard]] Eigen::Vector3d closest_feasible_point(const Eigen::Vector3d& goal,
                                                      std::span<const ConstraintPlane> planes) noexcept;
 
+/// The Contact a proxy reports for the Gaussian in `slot` that holds it (k_min 0: it touches),
+/// made by the tool's part `part`.
+[[nodiscard]] Contact blocker_contact(const CollisionWorld& world, std::uint32_t slot, std::uint8_t part = 0) noexcept;
+
 /// Parameters of the solver (as the same-named fields of ProxyParams).
 struct ProxySolverParams {
   int substeps = 4;          ///< sweeps per tick, in [1, 16]
