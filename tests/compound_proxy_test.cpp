@@ -103,6 +103,16 @@ TEST(CompoundProxy, ATurnThatWouldSwingAStylusThroughAThinPlateStopsAtTheContact
   EXPECT_NEAR(Eigen::AngleAxisd(free_proxy.orientation()).angle() * 180 / M_PI, 120.0, 1e-6);
   EXPECT_EQ(free_out.torque, Eigen::Vector3d::Zero());
   EXPECT_EQ(free_out.force, Eigen::Vector3d::Zero());
+  // A turn larger than a tick's sub-rotations catches up over ticks, with no torque in free space.
+  CompoundProxyParams few;
+  few.pass_isolated = false;
+  few.max_rotation_steps = 2;
+  CompoundProxy slow(empty, stylus, few);
+  slow.render(x, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 1e-3);
+  const RenderOutput partial = slow.render(x, about_y(120), Eigen::Vector3d::Zero(), {0, 5, 0}, 1e-3);
+  EXPECT_GT(Eigen::AngleAxisd(slow.orientation()).angle(), 0.0);
+  EXPECT_LT(Eigen::AngleAxisd(slow.orientation()).angle() * 180 / M_PI, 120.0 - 1.0);
+  EXPECT_EQ(partial.torque, Eigen::Vector3d::Zero());
 }
 
 TEST(CompoundProxy, TheProxyRendererTakesCompoundToolsAndItsTickAllocatesNothing) {

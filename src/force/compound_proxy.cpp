@@ -59,7 +59,6 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
 void CompoundProxy::reset() noexcept {
   placed_ = false;
   n_blockers_ = 0;
-  rotation_held_ = false;
   floaters_.reset();
 }
 
@@ -85,7 +84,6 @@ void CompoundProxy::place(const Eigen::Vector3d& position, const Eigen::Quaterni
   ++placements_;
   placed_ = true;
   n_blockers_ = 0;
-  rotation_held_ = false;
   x_ = position;
   q_ = orientation;
   if (!blocked(position, orientation)) return;
@@ -108,7 +106,7 @@ void CompoundProxy::place(const Eigen::Vector3d& position, const Eigen::Quaterni
   if (!std::isfinite(best)) ++lost_;
 }
 
-bool CompoundProxy::turn_toward(const Eigen::Quaterniond& target) noexcept {
+bool CompoundProxy::turn_toward(const Eigen::Quaterniond& target) noexcept {  // true: contact stopped it
   const Eigen::AngleAxisd delta(target * q_.conjugate());
   double angle = delta.angle();
   Eigen::Vector3d axis = delta.axis();
@@ -118,7 +116,7 @@ bool CompoundProxy::turn_toward(const Eigen::Quaterniond& target) noexcept {
   }
   if (!(angle > 1e-12) || !axis.allFinite()) {
     q_ = target;
-    return true;
+    return false;
   }
   // Each part's centre is swept along its chord; relative to that, no point of the part moves
   // more than rotation_step x the smallest semi-axis per sub-rotation: a delta + o delta^2 / 8
@@ -144,15 +142,15 @@ bool CompoundProxy::turn_toward(const Eigen::Quaterniond& target) noexcept {
       const ToolPart& part = tool_.parts[std::size_t(j)];
       const Eigen::Vector3d chord = (x_ + next * part.offset) - parts_[std::size_t(j)].center;
       if (chord.squaredNorm() == 0) continue;
-      if (sweep_.first_contact(parts_[std::size_t(j)], chord, {}, {}, filter).hit) return false;
+      if (sweep_.first_contact(parts_[std::size_t(j)], chord, {}, {}, filter).hit) return true;
     }
-    if (blocked(x_, next)) return false;
+    if (blocked(x_, next)) return true;
     q_ = next;
   }
-  return steps == needed;
+  return false;  // turned all the way, or out of sub-rotations this tick (the rest comes next tick)
 }
 
-int CompoundProxy::translate_toward(const Eigen::Vector3d& goal, Eigen::Vector3d& first_normal) noexcept {
+int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
   ConstraintPlane planes[3];
   int np = 0;
   std::uint32_t hints[3];
@@ -206,7 +204,6 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal, Eigen::Vector3d
       }
     }
     if (n_blockers_ < blockers_.size()) blockers_[n_blockers_++] = blocker_contact(*world_, hit.slot, std::uint8_t(part));
-    if (np == 0) first_normal = hit.normal;
     if (np == 3) break;
     planes[np++] = {hit.normal, p};
   }
@@ -230,10 +227,9 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
   last_device_ = position;
 
   // 1. Turn toward the device's orientation, stopping at a contact.
-  rotation_held_ = !turn_toward(qd);
+  const bool turn_stopped = turn_toward(qd);
   // 2. Move toward the device's position, sliding on the blockers' planes.
-  Eigen::Vector3d first_normal = Eigen::Vector3d::Zero();
-  const int np = translate_toward(position, first_normal);
+  const int np = translate_toward(position);
   out.proxy = x_;
   out.constraints = std::uint8_t(np);
   out.counts.contacts = std::uint32_t(n_blockers_);
@@ -272,7 +268,7 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
   }
   // Only a turn that contact stopped is rendered (a turn that ran out of sub-rotations this
   // tick catches up on the next: free space stays free).
-  if (rotation_held_ && angle > 1e-9 && axis.allFinite())
+  if (turn_stopped && angle > 1e-9 && axis.allFinite())
     out.torque += params_.rot_stiffness * angle * axis - params_.rot_damping * angular_velocity;
   return out;
 }

@@ -92,14 +92,13 @@ class CompoundProxy {
   bool placed_ = false;
   std::array<Contact, 3> blockers_{};
   std::size_t n_blockers_ = 0;
-  bool rotation_held_ = false;
   std::uint64_t placements_ = 0, lost_ = 0;
   double min_axis_ = 0, reach_ = 0, largest_ = 0;
 
   int pose_parts(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
   void place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;
-  bool turn_toward(const Eigen::Quaterniond& target) noexcept;  // true: reached it
-  int translate_toward(const Eigen::Vector3d& goal, Eigen::Vector3d& first_normal) noexcept;
+  bool turn_toward(const Eigen::Quaterniond& target) noexcept;  // true: a contact stopped the turn
+  int translate_toward(const Eigen::Vector3d& goal) noexcept;  // the constraint planes holding it
   struct Filter {
     CompoundProxy* self;
     int queries_left;
