@@ -116,8 +116,10 @@ TEST(CompoundTool, JsonFileWithRotationsPosesInTheWorld) {
   const Eigen::Vector3d long_axis = out[1].rotation * Eigen::Vector3d::UnitX();
   EXPECT_LT((long_axis - Eigen::Vector3d(-1, 0, 0)).norm(), 1e-12);
   // A single part at the TCP is the plain ellipsoid; anything else stays compound.
-  EXPECT_EQ(tool_shape_for(parse_tool_spec("disc:0.02,0.004")).compound.count, 0);
-  EXPECT_EQ(tool_shape_for(parse_tool_spec("disc:0.02,0.004")).semi_axes, Eigen::Vector3d(0.02, 0.02, 0.002));
+  // A sphere at the TCP is the plain tool; one disc at the TCP stays compound (its rim contact has a torque).
+  EXPECT_EQ(tool_shape_for(parse_tool_spec("sphere:0.01")).compound.count, 0);
+  EXPECT_EQ(tool_shape_for(parse_tool_spec("sphere:0.01")).semi_axes, Eigen::Vector3d::Constant(0.01));
+  EXPECT_EQ(tool_shape_for(parse_tool_spec("disc:0.02,0.004")).compound.count, 1);
   EXPECT_EQ(tool_shape_for(t).compound.count, 2);
 }
 

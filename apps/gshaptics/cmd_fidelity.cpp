@@ -2,6 +2,7 @@
 // haptic fidelity benchmark on such scenes): thin CLIs over gshaptics/fidelity.
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <filesystem>
 #include <memory>
@@ -58,6 +59,10 @@ void register_fidelity(CLI::App& app) {
     std::string data_dir;
     std::string scene_dir = "runs/fidelity/scenes";
     std::uint64_t seed = 1;
+    std::vector<std::string> shapes;
+    std::vector<double> spacings_mm;
+    int wrench_sites = -1;
+    std::string stylus = "stylus:0.12,0.005", disc = "disc:0.02,0.004";
     ForceModelOptions force;
     ExecutionOptions exec;
     PassivityParams passivity;
@@ -79,6 +84,19 @@ void register_fidelity(CLI::App& app) {
   cmd->add_option("--scene-dir", o->scene_dir, "Where the generated scenes are written and reused")->capture_default_str();
   cmd->add_option("--seed", o->seed, "Seed of the scenes and sites")->capture_default_str();
   cmd->add_flag("--no-plot", o->no_plot, "Skip the figures (matplotlib)");
+  cmd->add_option("--shape", o->shapes,
+                  "Only these shapes (repeat or comma-separate): plane, sphere, cube, plate-2mm, plate-5mm, cylinder, "
+                  "corner-90, v-groove-60")
+      ->delimiter(',');
+  cmd->add_option("--spacing", o->spacings_mm, "Only these Gaussian spacings, mm (repeat or comma-separate)")
+      ->delimiter(',')
+      ->check(check::range(0.5, 50.0));
+  cmd->add_option("--wrench-sites", o->wrench_sites,
+                  "6-DoF cases (compound tools, torque; on the plane and the cube): sites per case, 0 to skip "
+                  "(default 3, --quick 1)")
+      ->check(check::range(0, 100));
+  cmd->add_option("--stylus", o->stylus, "6-DoF cases: the stylus (a --tool spec)")->capture_default_str();
+  cmd->add_option("--disc", o->disc, "6-DoF cases: the disc (a --tool spec)")->capture_default_str();
   cmd->add_option("--floater-share", o->synth.floater_share, "Floaters per surface Gaussian in the scenes")
       ->capture_default_str()->check(check::range(0.0, 1.0));
   add_force_options(*cmd, o->force);
@@ -91,6 +109,18 @@ void register_fidelity(CLI::App& app) {
     fo.play.safety.passivity = o->passivity;
     fo.seed = o->seed;
     fo.synth = o->synth;
+    if (!o->shapes.empty()) {
+      fo.shapes.clear();
+      for (const std::string& name : o->shapes) fo.shapes.push_back(parse_shape(name, "--shape"));
+    }
+    if (!o->spacings_mm.empty()) {
+      fo.spacings.clear();
+      for (double mm : o->spacings_mm) fo.spacings.push_back(mm * 1e-3);
+    }
+    if (o->wrench_sites == 0) fo.wrench = false;
+    if (o->wrench_sites > 0) fo.wrench_sites = o->wrench_sites;
+    fo.wrench_tools.stylus = parse_tool_spec(o->stylus);
+    fo.wrench_tools.disc = parse_tool_spec(o->disc);
     fo.play.inline_query = o->exec.inline_query;
     fo.play.latency_ticks = o->exec.latency_ticks;
     const std::filesystem::path out(o->out);
@@ -109,6 +139,9 @@ void register_fidelity(CLI::App& app) {
                                ? std::string(o->exec.inline_query ? " --inline" : " --decoupled")
                                : std::string()) +
                           (o->exec.latency_ticks != 1 ? fmt::format(" --latency {}", o->exec.latency_ticks) : std::string()) +
+                          (o->shapes.empty() ? std::string() : " --shape " + fmt::format("{}", fmt::join(o->shapes, ","))) +
+                          (o->spacings_mm.empty() ? std::string() : fmt::format(" --spacing {}", fmt::join(o->spacings_mm, ","))) +
+                          (o->wrench_sites >= 0 ? fmt::format(" --wrench-sites {}", o->wrench_sites) : std::string()) +
                           (o->synth.floater_share != SynthParams{}.floater_share
                                ? fmt::format(" --floater-share {:g}", o->synth.floater_share)
                                : std::string());

@@ -22,4 +22,11 @@ Eigen::Vector3d ToolEllipsoid::aabb_half_extent() const noexcept {
   return (R.cwiseAbs2() * a2).cwiseSqrt();
 }
 
+Eigen::Vector3d ToolEllipsoid::surface_point(const Eigen::Vector3d& n) const noexcept {
+  const Eigen::Vector3d local = rotation.conjugate() * n;
+  const Eigen::Vector3d scaled = local.cwiseProduct(semi_axes.cwiseProduct(semi_axes));
+  const double s = std::sqrt(local.dot(scaled));
+  return s > 0 ? Eigen::Vector3d(center + rotation * scaled / s) : center;
+}
+
 }  // namespace gshaptics

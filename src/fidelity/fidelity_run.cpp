@@ -10,6 +10,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <variant>
 
 #include "gshaptics/error.h"
 #include "gshaptics/io/atomic_file.h"
@@ -132,6 +133,66 @@ std::string ensure_scene(const FidelityOptions& o, ShapeKind k, double spacing) 
   return path;
 }
 
+double p(const std::vector<double>& v, double q) { return v.empty() ? NAN : percentile(v, q); }
+
+// The 6-DoF cases of one shape at one spacing, a row per case.
+void run_wrench_cases(const FidelityOptions& o, ShapeKind kind, double spacing, const CollisionWorld& world,
+                      FidelityReport& rep) {
+  const std::vector<WrenchCase> cases = wrench_cases(kind, o.wrench_tools, o.wrench_sites, o.seed);
+  if (cases.empty()) return;
+  const bool proxy = std::holds_alternative<ProxyModelSpec>(o.renderer);
+  struct Gather {
+    std::vector<double> stiffness, energy, fdir, tdir, ratio, zero, levers, ticks;
+    int runs = 0, never_lost = 0, active = 0;
+    double deepest = NAN;
+  };
+  std::vector<std::pair<std::string, Gather>> groups;
+  for (const WrenchCase& c : cases) {
+    auto it = std::find_if(groups.begin(), groups.end(), [&](const auto& g) { return g.first == c.name; });
+    if (it == groups.end()) it = groups.insert(groups.end(), {c.name, Gather{}});
+    Gather& g = it->second;
+    const auto renderer = make_force_renderer(o.renderer, world);
+    const Script s = wrench_script(c, o.wrench_depth, o.rate_hz);
+    const ScriptTrace tr = play_script(*renderer, s, o.rate_hz, o.play);
+    const WrenchMetrics m = wrench_metrics(c, s, tr, proxy);
+    rep.ticks += s.ticks.size();
+    ++g.runs;
+    g.never_lost += m.press.never_lost ? 1 : 0;
+    g.active += m.press.energy_j < 0 ? 1 : 0;
+    if (!std::isnan(m.press.stiffness_n_per_mm)) g.stiffness.push_back(m.press.stiffness_n_per_mm);
+    g.energy.push_back(m.press.energy_j);
+    g.fdir.insert(g.fdir.end(), m.force_dir_deg.begin(), m.force_dir_deg.end());
+    g.tdir.insert(g.tdir.end(), m.torque_dir_deg.begin(), m.torque_dir_deg.end());
+    g.ratio.insert(g.ratio.end(), m.torque_ratio.begin(), m.torque_ratio.end());
+    g.zero.insert(g.zero.end(), m.zero_lever_mm.begin(), m.zero_lever_mm.end());
+    if (!std::isnan(m.analytic_lever_mm)) g.levers.push_back(m.analytic_lever_mm);
+    if (!std::isnan(m.deepest_part_mm)) g.deepest = std::isnan(g.deepest) ? m.deepest_part_mm : std::max(g.deepest, m.deepest_part_mm);
+    for (float t : tr.render_us) g.ticks.push_back(double(t));
+  }
+  for (const auto& [name, g] : groups) {
+    WrenchRow r;
+    r.name = name;
+    r.shape = std::string(to_string(kind));
+    r.spacing = spacing;
+    r.runs = g.runs;
+    r.never_lost = g.never_lost;
+    r.active_cycles = g.active;
+    r.stiffness_median = median(g.stiffness);
+    r.energy_min_j = min_of(g.energy);
+    r.force_dir_p95 = p(g.fdir, 95);
+    r.torque_dir_p50 = p(g.tdir, 50);
+    r.torque_dir_p95 = p(g.tdir, 95);
+    r.torque_ratio_p5 = p(g.ratio, 5);
+    r.torque_ratio_p50 = p(g.ratio, 50);
+    r.torque_ratio_p95 = p(g.ratio, 95);
+    r.zero_lever_p95_mm = p(g.zero, 95);
+    r.analytic_lever_mm = median(g.levers);
+    r.deepest_part_mm = g.deepest;
+    r.tick_p99_us = p(g.ticks, 99);
+    rep.wrench.push_back(r);
+  }
+}
+
 }  // namespace
 
 PlayOptions default_play_options() {
@@ -155,6 +216,7 @@ FidelityOptions quick_fidelity_options() {
   o.tool_radii = {0.005};
   o.press_sites = 4;
   o.push_sites = 2;
+  o.wrench_sites = 1;
   return o;
 }
 
@@ -162,6 +224,8 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
   if (o.scene_dir.empty()) throw InputError("fidelity: scene_dir is required (where the scenes are written)");
   if (o.spacings.empty() || o.tool_radii.empty() || o.shapes.empty())
     throw InputError("fidelity: shapes, spacings and tool radii must not be empty");
+  if (o.wrench && !(o.wrench_sites >= 1 && o.wrench_depth > 0))
+    throw InputError("fidelity: 6-DoF cases need sites >= 1 and a depth > 0");
   if (!(o.press_sites >= 1 && o.push_sites >= 0 && o.rate_hz > 0 && o.press_depth > 0 && o.push_depth > 0))
     throw InputError("fidelity: sites >= 1, rate > 0 and depths > 0 are required");
   for (double r : o.tool_radii)
@@ -233,6 +297,7 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
           rep.curves.push_back(curve_of(s, tr, name, spacing, 5));
         }
       }
+      if (o.wrench) run_wrench_cases(o, kind, spacing, world, rep);
     }
   }
   for (auto& [shape, d] : directions) rep.press_directions.emplace_back(shape, std::move(d));
@@ -278,6 +343,22 @@ std::string press_table(const std::vector<FidelityRow>& rows) {
                      num(r.dir_max, "{:.1f}"), num(r.shallow_dir_p95, "{:.1f}"), num(r.energy_min_j * 1e3, "{:.3f}"), r.active_cycles,
                      num(r.energy_other_min_j * 1e3, "{:.3f}"), std::isnan(r.energy_other_min_j) ? std::string("-") : std::to_string(r.active_cycles_other),
                      num(r.tick_p50_us, "{:.1f}"), num(r.tick_p99_us, "{:.1f}"));
+  return t;
+}
+
+std::string wrench_table(const std::vector<WrenchRow>& rows) {
+  std::string t =
+      "| case | spacing mm | runs | force direction error deg p95 | analytic lever mm | torque direction error deg p50 / p95 | "
+      "abs tau / abs tau* p5 / p50 / p95 | lever of zero-torque cases mm p95 | stiffness N/mm | never lost | "
+      "deepest part past the surface mm | W min (mJ) | W < 0 | tick us p99 |\n"
+      "|---|---:|---:|---:|---:|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
+  for (const WrenchRow& r : rows)
+    t += fmt::format("| {} | {:g} | {} | {} | {} | {} / {} | {} / {} / {} | {} | {} | {} / {} | {} | {} | {} | {} |\n", r.name,
+                     r.spacing * 1e3, r.runs, num(r.force_dir_p95, "{:.1f}"), num(r.analytic_lever_mm, "{:.1f}"),
+                     num(r.torque_dir_p50, "{:.1f}"), num(r.torque_dir_p95, "{:.1f}"), num(r.torque_ratio_p5),
+                     num(r.torque_ratio_p50), num(r.torque_ratio_p95), num(r.zero_lever_p95_mm, "{:.2f}"),
+                     num(r.stiffness_median, "{:.3f}"), r.never_lost, r.runs, num(r.deepest_part_mm, "{:.2f}"),
+                     num(r.energy_min_j * 1e3, "{:.3f}"), r.active_cycles, num(r.tick_p99_us, "{:.1f}"));
   return t;
 }
 
@@ -332,6 +413,22 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
   if (!rep.slide.empty()) {
     md += "## Slide (10 cm at 5 cm/s, 2 mm past the surface; the first and last 5 mm not scored)\n\n";
     md += slide_table(rep.slide) + "\n";
+  }
+  if (!rep.wrench.empty()) {
+    md += fmt::format(
+        "## 6-DoF: compound tools and the torque ({} site(s) per case: 2 cm/s to {:g} mm past the touch point along the "
+        "press axis, hold 0.3 s, retract; orientation held)\n\n",
+        o.wrench_sites, o.wrench_depth * 1e3);
+    md += fmt::format(
+        "Tools: stylus `{}`, disc `{}`. Analytic answer (wrench_fidelity.h): the tool lifted along the press axis until "
+        "it just touches the true surface; the touching parts' exact tangent points and normals; expected torque "
+        "tau* = (c - x_tcp) x (abs F n). Force direction: angle between F and n (ticks with abs F >= 0.1 N). Torque: "
+        "ticks with abs F >= 0.5 N; cases whose analytic lever is under 1 mm (the stylus tip-first at 0 deg, the "
+        "flat disc) report the lever abs tau / abs F they got instead. Deepest part: how far the proxy's tool "
+        "overlaps the true surface along the press axis at its worst tick (Gaussians stand about half their "
+        "thickness proud of it, so a proxy resting on them reads slightly negative).\n\n",
+        describe(o.wrench_tools.stylus), describe(o.wrench_tools.disc));
+    md += wrench_table(rep.wrench) + "\n";
   }
   if (!figures_prefix.empty()) {
     md += "## Figures\n\n";

@@ -6,6 +6,7 @@
 #include <functional>
 
 #include "gshaptics/error.h"
+#include "gshaptics/servo/collision_worker.h"
 #include "gshaptics/servo/simulated_runtime.h"
 
 namespace gshaptics {
@@ -149,6 +150,7 @@ ScriptedDevice::ScriptedDevice(const Script& script, double rate_hz) : script_(s
   if (script.ticks.empty()) throw InputError("scripted device: empty script");
   info_.name = "scripted (ideal position device)";
   info_.max_rate_hz = 1e6;
+  info_.renders_torque = true;
 }
 
 void ScriptedDevice::start(Nanos now) {
@@ -167,6 +169,7 @@ DeviceSample ScriptedDevice::read(Nanos now) noexcept {
   s.sequence = ++sequence_;
   s.stamp = now;
   s.position = t.position;
+  s.orientation = t.orientation;
   s.velocity = t.velocity;
   return s;
 }
@@ -183,7 +186,10 @@ ScriptTrace play_script(ForceRenderer& renderer, const Script& script, double ra
   c.inline_query = options.inline_query;
   c.latency_ticks = options.latency_ticks;
   c.safety = options.safety;
-  c.tool.semi_axes = Eigen::Vector3d::Constant(script.tool_radius);
+  if (script.tool.count > 0)
+    c.tool = tool_shape_for(script.tool);
+  else
+    c.tool.semi_axes = Eigen::Vector3d::Constant(script.tool_radius);
   c.log_capacity = script.ticks.size() + std::size_t(std::ceil((c.stop_timeout + 0.01) * rate_hz)) + 2;
   SimulatedRuntime rt(device, c, std::make_unique<BorrowedRenderer>(renderer));
   rt.run();
@@ -193,8 +199,12 @@ ScriptTrace play_script(ForceRenderer& renderer, const Script& script, double ra
   tr.force.assign(n, Eigen::Vector3d::Zero());
   tr.render_us.assign(n, 0.0f);
   tr.contacts.assign(n, 0);
+  tr.torque.assign(n, Eigen::Vector3d::Zero());
+  tr.proxy.assign(n, Eigen::Vector3d::Zero());
   for (std::size_t i = 0; i < n && i < rec.size(); ++i) {
     tr.force[i] = rec[i].force;
+    tr.torque[i] = rec[i].torque;
+    tr.proxy[i] = rec[i].proxy;
     tr.render_us[i] = rec[i].query_us;
     tr.contacts[i] = rec[i].counts.contacts;
   }

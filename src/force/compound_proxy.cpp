@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "gshaptics/error.h"
+#include "gshaptics/force/shaded_normal.h"
 
 namespace gshaptics {
 
@@ -18,7 +19,8 @@ const CompoundProxyParams& validated(const CompoundProxyParams& p) {
   if (p.substeps < 1 || p.substeps > 16) throw InputError("compound proxy: substeps must be in [1, 16]");
   if (!(p.rotation_step > 0) || !(p.rotation_step <= 1) || p.max_rotation_steps < 1)
     throw InputError("compound proxy: rotation_step must be in (0, 1] and max_rotation_steps >= 1");
-  if (!(p.teleport > 0) || !(p.isolation_gap >= 0)) throw InputError("compound proxy: teleport must be > 0");
+  if (!(p.teleport > 0) || !(p.isolation_gap >= 0) || !(p.shading_kernel >= 0))
+    throw InputError("compound proxy: teleport must be > 0, isolation gap and shading kernel >= 0");
   return p;
 }
 
@@ -27,13 +29,6 @@ ProxySolverParams floater_params(const CompoundProxyParams& p) {
   s.pass_isolated = p.pass_isolated;
   s.isolation_gap = p.isolation_gap;
   return s;
-}
-
-// Distance from an ellipsoid's centre to its surface point whose outward normal is `n` (unit):
-// the support function sqrt(n^T Sigma n).
-double support(const ToolEllipsoid& e, const Eigen::Vector3d& n) noexcept {
-  const Eigen::Vector3d local = e.rotation.conjugate() * n;
-  return std::sqrt((local.array().square() * e.semi_axes.array().square()).sum());
 }
 
 }  // namespace
@@ -58,6 +53,7 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
 
 void CompoundProxy::reset() noexcept {
   placed_ = false;
+  for (Shade& sh : shades_) sh.valid = false;
   n_blockers_ = 0;
   floaters_.reset();
 }
@@ -238,26 +234,61 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
   const Eigen::Vector3d e = x_ - position;
   const double el = e.norm();
   if (el > 1e-6 * largest_ && n_blockers_ > 0) {
-    const Eigen::Vector3d n = e / el;
-    const double fn = std::max(0.0, params_.stiffness * el - params_.damping * velocity.dot(n));
-    out.force = fn * n;
-    // The parts that touch: those a small move toward the device would make touch a Gaussian.
-    // The force is shared among them, at each one's surface point facing its contact.
+    const Eigen::Vector3d spring = e / el;
+    // The parts that touch: each part within the contact band (the smallest semi-axis) of a
+    // Gaussian along the spring, weighted 1 - gap / band. A rigid tool resting on a surface
+    // along a line (a stylus's side on a wall) thus gets the resultant at the middle of the line,
+    // whatever the Gaussians' jitter. Each touching part's contact normal is shaded
+    // (shaded_normal.h) at the centre of the sphere of the part's smallest semi-axis that
+    // touches where the part touches: the field the one-ellipsoid proxy reads, at the part's
+    // own contact (the Gaussian's own contact normal where the field disagrees with it); the
+    // part's contact point is its surface point facing that normal.
     Filter floaters{this, ProxySolver::kFloaterQueries};
     BlockFilter filter;
     if (params_.pass_isolated) filter = {&Filter::blocks, &floaters};
     const int count = pose_parts(x_, q_);
-    const Eigen::Vector3d probe = -n * (1e-3 * largest_);
-    Eigen::Vector3d moment = Eigen::Vector3d::Zero();
-    int touching = 0;
+    const double band = min_axis_;
+    const Eigen::Vector3d probe = -spring * band;
+    Eigen::Vector3d moment = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::Zero();
+    double weight = 0;
+    const std::span<const Contact> held_by = blockers();
     for (int j = 0; j < count; ++j) {
       const ToolEllipsoid& part = parts_[std::size_t(j)];
       const SweepHit h = sweep_.first_contact(part, probe, {}, {}, filter);
       if (!h.hit) continue;
-      moment += (part.center - h.normal * support(part, h.normal)) - x_;
-      ++touching;
+      const double w = std::max(1e-6, 1.0 - h.t);
+      Eigen::Vector3d nj = h.normal;
+      if (params_.shading_kernel > 0) {
+        // Re-read once the shading point moved kShadeReuse of the part's smallest semi-axis
+        // (ProxyParams::shading_reuse: the field is smooth at the kernel's scale).
+        const double rho = part.semi_axes.minCoeff();
+        const Eigen::Vector3d at = part.surface_point(-h.normal) + h.normal * rho;
+        Shade& sh = shades_[std::size_t(j)];
+        if (!(sh.valid && (at - sh.at).norm() <= kShadeReuse * rho)) {
+          sh.normal = shaded_normal(*world_, at, shading_scale(*world_, held_by, rho), params_.shading_kernel);
+          sh.at = at;
+          sh.valid = true;
+        }
+        if (sh.normal.dot(h.normal) > 0) nj = sh.normal;
+      }
+      moment += w * (part.surface_point(-nj) - x_);
+      normal += w * nj;
+      weight += w;
     }
-    if (touching > 0) out.torque = (moment / double(touching)).cross(out.force);
+    Eigen::Vector3d n = normal.norm() > 0 ? Eigen::Vector3d(normal.normalized()) : spring;
+    if (n.dot(e) < 0 && !blocked(position, qd)) {
+      // The contacts say the device is on their free side and its own pose is free: the proxy
+      // is caught in a Gaussian-scale pocket and would pull the hand in. It rejoins the device.
+      place(position, qd);
+      out.proxy = x_;
+      out.constraints = 0;
+      out.counts.contacts = 0;
+      return out;
+    }
+    if (!(n.dot(e) > 0)) n = spring;
+    const double fn = std::max(0.0, params_.stiffness * e.dot(n) - params_.damping * velocity.dot(n));
+    out.force = fn * n;
+    if (weight > 0) out.torque = (moment / weight).cross(out.force);
   }
   const Eigen::AngleAxisd held(q_ * qd.conjugate());
   double angle = held.angle();

@@ -28,11 +28,21 @@ std::unique_ptr<ForceRenderer> make_force_renderer(const RendererSpec& spec, con
   return std::make_unique<ProxyRenderer>(world, std::get<ProxyModelSpec>(spec).params);
 }
 
+Eigen::Vector3d contact_torque(const ToolEllipsoid& tool, const Eigen::Vector3d& tcp,
+                               const Eigen::Vector3d& force) noexcept {
+  if (!(force.squaredNorm() > 0)) return Eigen::Vector3d::Zero();
+  return (tool.surface_point(-force) - tcp).cross(force);
+}
+
 RenderOutput ForceRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
                                             const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
                                             double dt) noexcept {
   (void)angular_velocity;
-  if (parts.size() == 1 && parts[0].center == tcp) return render(parts[0], velocity, dt);
+  if (parts.size() == 1 && parts[0].center == tcp) {
+    RenderOutput out = render(parts[0], velocity, dt);
+    out.torque = contact_torque(parts[0], tcp, out.force);
+    return out;
+  }
   RenderOutput out;
   out.proxy = tcp;
   out.status = QueryStatus::kInvalidTool;  // a renderer of one ellipsoid at the TCP
@@ -55,7 +65,7 @@ PaperRenderer::PaperRenderer(const CollisionWorld& world, const ForceParams& for
 RenderOutput PaperRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
                                             const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
                                             double dt) noexcept {
-  if (parts.size() == 1 && parts[0].center == tcp) {
+  if (parts.size() == 1 && parts[0].center == tcp && parts[0].is_sphere()) {
     compound_ = false;
     return render(parts[0], velocity, dt);
   }

@@ -52,6 +52,7 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   c.damping = params_.damping;
   c.substeps = params_.substeps;
   c.pass_isolated = params_.pass_isolated;
+  c.shading_kernel = params_.shading_kernel;
   c.isolation_gap = params_.isolation_gap;
   c.teleport = params_.teleport;
   compound_ = std::make_unique<CompoundProxy>(*world_, tool, c);
@@ -135,6 +136,18 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     shade_valid_ = true;
   }
   Eigen::Vector3d n = shade_;
+  if (n.dot(e) < 0 && !solver_.blocked(tool)) {
+    // The surface says the device is on its free side, and the device's own pose is free: the
+    // proxy is caught in a Gaussian-scale pocket (a sharp tool rim under a neighbouring disc's
+    // rim) and would pull the hand into the surface. It rejoins the device instead.
+    solver_.place(tool);
+    friction_.reset();
+    coupling_.release();
+    in_contact_ = sticking_ = shade_valid_ = false;
+    out.proxy = xd;
+    out.constraints = 0;
+    return out;
+  }
   if (!(n.dot(e) > 0)) {
     // (The first plane is known only when the proxy moved this tick; a sticking proxy keeps normal_.)
     const Eigen::Vector3d fallback = !sticking_ && move.constraints > 0 ? move.first_normal : normal_;

@@ -23,6 +23,13 @@ struct ToolEllipsoid {
   [[nodiscard]] double bounding_radius() const noexcept { return semi_axes.maxCoeff(); }
   /// Half-extents of the exact axis-aligned bounding box: sqrt(Sigma_tool_jj).
   [[nodiscard]] Eigen::Vector3d aabb_half_extent() const noexcept;
+  /// The surface point whose outward normal is `n` (any non-zero direction, world frame):
+  /// center + Sigma n / sqrt(n^T Sigma n), Sigma = R diag(semi_axes^2) R^T. m.
+  [[nodiscard]] Eigen::Vector3d surface_point(const Eigen::Vector3d& n) const noexcept;
+  /// True when the three semi-axes are equal (to 1e-12 relative): a sphere.
+  [[nodiscard]] bool is_sphere() const noexcept {
+    return semi_axes.maxCoeff() - semi_axes.minCoeff() <= 1e-12 * semi_axes.maxCoeff();
+  }
 };
 
 }  // namespace gshaptics

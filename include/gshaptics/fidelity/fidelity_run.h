@@ -12,6 +12,7 @@
 
 #include "gshaptics/fidelity/interaction.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/fidelity/wrench_fidelity.h"
 #include "gshaptics/force/renderer_spec.h"
 
 namespace gshaptics {
@@ -41,9 +42,16 @@ struct FidelityOptions {
   /// Also play every press in the other execution mode and report its energy W (the decoupled
   /// worker's force age shows there).
   bool compare_modes = true;
+  /// The 6-DoF cases (wrench_fidelity.h) on the plane and the cube, when those shapes are in
+  /// `shapes`: compound tools pressed `wrench_depth` deep at `wrench_sites` sites per case.
+  bool wrench = true;
+  int wrench_sites = 3;
+  double wrench_depth = 0.005;
+  WrenchTools wrench_tools;
 };
 
-/// The CI subset: 4 mm spacing, 5 mm tool, 4 press sites, 2 push sites; plane, sphere, cube, 2 mm plate.
+/// The CI subset: 4 mm spacing, 5 mm tool, 4 press sites, 2 push sites, 1 site per 6-DoF case;
+/// plane, sphere, cube, 2 mm plate.
 [[nodiscard]] FidelityOptions quick_fidelity_options();
 
 /// One row of a table: a shape (and feature) at one density and tool radius.
@@ -68,6 +76,22 @@ struct FidelityRow {
   double tick_p50_us = NAN, tick_p99_us = NAN;
 };
 
+/// One row of the 6-DoF table: a case at one density.
+struct WrenchRow {
+  std::string name, shape;
+  double spacing = 0;  ///< m
+  int runs = 0, never_lost = 0, active_cycles = 0;
+  double stiffness_median = NAN;  ///< N/mm
+  double energy_min_j = NAN;
+  double force_dir_p95 = NAN;     ///< deg, against the analytic contact normal
+  double torque_dir_p50 = NAN, torque_dir_p95 = NAN;  ///< deg
+  double torque_ratio_p5 = NAN, torque_ratio_p50 = NAN, torque_ratio_p95 = NAN;  ///< |tau| / |tau*|
+  double analytic_lever_mm = NAN;  ///< median |tau*| / |F|
+  double zero_lever_p95_mm = NAN;  ///< cases whose analytic torque is zero: |tau| / |F|, p95
+  double deepest_part_mm = NAN;    ///< the proxy's deepest part past the true surface (max; NaN: no proxy)
+  double tick_p99_us = NAN;
+};
+
 /// A curve for the figures: x (delta or path, mm) against force components (N).
 struct FidelityCurve {
   std::string scenario, shape;
@@ -78,6 +102,7 @@ struct FidelityCurve {
 struct FidelityReport {
   FidelityOptions options;
   std::vector<FidelityRow> press, push, slide;
+  std::vector<WrenchRow> wrench;
   std::vector<FidelityCurve> curves;
   /// Pooled press direction errors per shape (degrees), for the histogram.
   std::vector<std::pair<std::string, std::vector<double>>> press_directions;

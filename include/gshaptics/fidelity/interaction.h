@@ -13,6 +13,9 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Geometry>
+
+#include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/fidelity/analytic_shape.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/device/haptic_device.h"
@@ -29,6 +32,8 @@ struct ScriptTick {
   double time = 0;                                     ///< s
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< tool centre, m
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  ///< m/s
+  /// Tool frame -> world (compound tools; the scripts here hold it fixed, angular velocity 0).
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
   double delta = 0;                                    ///< penetration, m (> 0: past the surface)
   double path = 0;                                     ///< slides: distance along the surface, m
   bool measured = false;  ///< part of the scored stretch (slides: the constant-delta middle)
@@ -39,7 +44,8 @@ struct ScriptTick {
 struct Script {
   Scenario scenario = Scenario::kPress;
   ContactSite site;           ///< press / push-through: where; slides: the start
-  double tool_radius = 0.005;  ///< m
+  double tool_radius = 0.005;  ///< m, the sphere tool (when `tool` has no parts)
+  CompoundTool tool;           ///< a compound tool (count > 0) instead of the sphere
   double max_delta = 0.01;     ///< deepest penetration the script reaches, m
   std::vector<ScriptTick> ticks;
 };
@@ -59,6 +65,8 @@ struct Script {
 /// What the servo commanded on each tick of a script.
 struct ScriptTrace {
   std::vector<Eigen::Vector3d> force;  ///< commanded force (after the safety layer), N
+  std::vector<Eigen::Vector3d> torque; ///< commanded torque about the TCP (after the safety layer), N m
+  std::vector<Eigen::Vector3d> proxy;  ///< where the renderer held the tool's TCP (the device's for the paper), m
   std::vector<float> render_us;        ///< wall time of the render the tick used, microseconds
   std::vector<std::uint32_t> contacts;
 };
@@ -70,8 +78,9 @@ struct PlayOptions {
   SafetyParams safety;  ///< the safety layer, F_max included
 };
 
-/// A HapticDevice that follows a script exactly (an ideal position-controlled device): tick k of
-/// the run reads script tick k; it finishes at the script's last tick.
+/// A HapticDevice that follows a script exactly (an ideal position-controlled 6-DoF device that
+/// renders torque, with no limits of its own): tick k of the run reads script tick k; it
+/// finishes at the script's last tick.
 class ScriptedDevice final : public HapticDevice {
  public:
   ScriptedDevice(const Script& script, double rate_hz);

@@ -16,10 +16,16 @@
 ///    toward the device, stops at the first contact of any part (the minimum over the parts'
 ///    sweeps), then slides on the constraint planes of the Gaussians that block it (at most
 ///    three). Floaters (ProxyParams::pass_isolated) do not block.
-/// 3. Wrench: a virtual coupling in both (Colgate, Stanley & Brown 1995): F = k_c e - b_c (v . e^) e^
-///    with e = x_proxy - x_device (never pulling), applied at the contacts: its moment about the
-///    TCP is (mean_j c_j - x_tcp) x F, with c_j the surface point of each touching part facing
-///    its contact (the parts that a small move toward the device would make touch); plus, when
+/// 3. Wrench: a virtual coupling in both (Colgate, Stanley & Brown 1995): F = (k_c e . n - b_c v . n) n
+///    with e = x_proxy - x_device and n the contact normal: the touching parts' shaded normals
+///    (Morgenbesser & Srinivasan 1996; shaded_normal.h, each read at the centre of the sphere of
+///    the part's smallest semi-axis touching where the part touches), weighted as below (e^
+///    when they disagree with e; when they say the device is on the free side and its pose is
+///    free, the proxy rejoins the device), applied at the contacts: its moment about the
+///    TCP is (c - x_tcp) x F, c the mean of the touching parts' surface points facing their
+///    contacts, each weighted 1 - gap / band (gap: how far the part is from a Gaussian along
+///    -F, band: the smallest semi-axis; a stylus lying on a wall gets the middle of its line of
+///    contact, as a penalty model with its depth-weighted contacts would (McNeely et al. 1999)); plus, when
 ///    contact stopped a turn, the rotational coupling tau = k_r theta - b_r omega, theta the
 ///    rotation taking the device's orientation to the proxy's (axis times angle, world). A turn
 ///    that ran out of sub-rotations this tick catches up on the next, with no torque.
@@ -27,8 +33,7 @@
 ///
 /// What it does not do yet: the proxy does not turn under the contact torque (a full 6-DoF
 /// god-object solves for the pose that balances it; here the torque is rendered and the proxy
-/// keeps the device's orientation while that is free), no shaded normal (the force is along the
-/// spring), no friction.
+/// keeps the device's orientation while that is free), no friction.
 ///
 /// Threading: one thread; render() allocates, locks, logs and throws nothing.
 
@@ -54,6 +59,9 @@ struct CompoundProxyParams {
   int substeps = 4;            ///< translational sweeps per tick, [1, 16]
   double rotation_step = 0.25; ///< largest motion of any point per sub-rotation, in smallest semi-axes
   int max_rotation_steps = 64; ///< sub-rotations per tick (the rest waits for the next tick)
+  /// Kernel of each touching part's shaded normal, in the part's smallest semi-axis
+  /// (ProxyParams::shading_kernel); 0: the Gaussians' own contact normals.
+  double shading_kernel = 0.5;
   bool pass_isolated = true;   ///< floaters do not block (ProxyParams::pass_isolated)
   double isolation_gap = 0.0;  ///< ProxyParams::isolation_gap, in the largest semi-axis
   double teleport = 10.0;      ///< a device jump of more than this many reaches re-places the proxy
@@ -94,6 +102,12 @@ class CompoundProxy {
   std::size_t n_blockers_ = 0;
   std::uint64_t placements_ = 0, lost_ = 0;
   double min_axis_ = 0, reach_ = 0, largest_ = 0;
+  struct Shade {  // a part's last shaded normal and where it was read
+    Eigen::Vector3d at = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::Zero();
+    bool valid = false;
+  };
+  std::array<Shade, kMaxToolParts> shades_{};
+  static constexpr double kShadeReuse = 0.05;  // the shading point moves this x the part's smallest semi-axis
 
   int pose_parts(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
   void place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;

@@ -36,6 +36,13 @@ struct RenderOutput {
   std::uint8_t constraints = 0;  ///< constraint planes holding the proxy (0..3)
 };
 
+/// The torque about `tcp` (world, m) of `force` (N) applied at the surface point of `tool` that
+/// faces the contact pushing it, i.e. whose outward normal is -force: (surface_point(-F) - tcp) x F,
+/// N m. Zero for a sphere centred on the TCP and for a zero force. The contact moment of a
+/// renderer whose force acts along the contact normal (the proxy's coupling, the paper's eq. 11).
+[[nodiscard]] Eigen::Vector3d contact_torque(const ToolEllipsoid& tool, const Eigen::Vector3d& tcp,
+                                             const Eigen::Vector3d& force) noexcept;
+
 class ForceRenderer {
  public:
   virtual ~ForceRenderer() = default;
@@ -47,8 +54,10 @@ class ForceRenderer {
   /// One tick with a compound tool (collision/compound_tool.h): its `parts` posed in the world,
   /// the tool centre point `tcp` (world, m), the TCP's velocity (m/s) and the tool's angular
   /// velocity (rad/s, world). The torque is about the TCP. Renderers that take one ellipsoid
-  /// (renders_compound() false) render a single part at the TCP with render() and report
-  /// kInvalidTool for anything else; callers check renders_compound() at set-up.
+  /// (renders_compound() false) render a single part at the TCP with render(), with the torque
+  /// of that force applied at the part's surface point facing the contact (contact_torque();
+  /// zero for a sphere), and report kInvalidTool for anything else; callers check
+  /// renders_compound() at set-up.
   virtual RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
                                        const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
                                        double dt) noexcept;
@@ -77,6 +86,8 @@ class ForceRenderer {
 /// With a compound tool it sums eq. 7-11 part by part (one ForceModel, so one set of filters, per
 /// part; each part's velocity is v + omega x (c_j - x_tcp)), and the torque about the TCP is
 /// sum_j (p_eff,j - x_tcp) x F_j, with p_eff,j the part's softmax-weighted centroid (eq. 8).
+/// One sphere at the TCP is the paper's own case (no torque); one other ellipsoid at the TCP
+/// (a disc) takes the compound path with its one part.
 class PaperRenderer final : public ForceRenderer {
  public:
   PaperRenderer(const CollisionWorld& world, const ForceParams& force = {}, const QueryOptions& query = {});

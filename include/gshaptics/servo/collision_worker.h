@@ -61,8 +61,10 @@ struct ToolShape {
   CompoundTool compound;
 };
 
-/// The ToolShape of a compound tool: a single part at the TCP becomes the plain ellipsoid (so
-/// every renderer, the proxy included, takes it); anything else stays compound.
+/// The ToolShape of a compound tool: a single sphere at the TCP becomes the plain tool (its
+/// torque about the TCP is zero); anything else stays compound, a single ellipsoid at the TCP
+/// included (every renderer takes it, and render_compound() gives the torque of its off-centre
+/// contact, e.g. a tilted disc touching with its rim).
 [[nodiscard]] ToolShape tool_shape_for(const CompoundTool& tool);
 
 /// Sees every result with its contacts, on the worker's thread right after step() computed it

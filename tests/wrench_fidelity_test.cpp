@@ -1,0 +1,169 @@
+// The 6-DoF fidelity cases (issue 36, item 4): the analytic contact of an ellipsoid on a plane
+// and on an edge against answers worked out by hand here, and the wrench the proxy renders on a
+// synthetic Gaussian plane and cube (played through the servo step) against those answers:
+// torque direction within 5 degrees and magnitude within 10 %.
+
+#include "gshaptics/fidelity/wrench_fidelity.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/fidelity/fidelity_run.h"
+#include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/force/renderer_spec.h"
+
+namespace gshaptics {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+Eigen::Quaterniond about(const Eigen::Vector3d& axis, double deg) {
+  return Eigen::Quaterniond(Eigen::AngleAxisd(deg * kPi / 180, axis));
+}
+
+WrenchCase on_plane(const CompoundTool& tool, const Eigen::Quaterniond& q) {
+  WrenchCase c;
+  c.name = "hand-made";
+  c.tool = tool;
+  c.orientation = q;
+  c.feature = {ContactFeature::Kind::kPlane, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ()};
+  c.touch = {0.01, -0.02, 0.5};
+  c.touch.z() += analytic_contact(c, c.touch).lift;
+  return c;
+}
+
+TEST(WrenchFidelity, ADiscTiltedOnAPlaneTouchesAtItsSupportPoint) {
+  // An oblate disc (radius R, half-thickness c) tilted by theta about y rests at height
+  // S = sqrt(R^2 sin^2 + c^2 cos^2) and touches sin cos (R^2 - c^2) / S beside its centre, toward +x.
+  const double R = 0.02, c = 0.002, th = 30 * kPi / 180;
+  const WrenchCase k = on_plane(parse_tool_spec("disc:0.02,0.004"), about(Eigen::Vector3d::UnitY(), 30));
+  const double S = std::sqrt(R * R * std::sin(th) * std::sin(th) + c * c * std::cos(th) * std::cos(th));
+  const double x = std::sin(th) * std::cos(th) * (R * R - c * c) / S;
+  EXPECT_NEAR(k.touch.z(), S, 1e-12);
+  const AnalyticContact a = analytic_contact(k, k.touch);
+  EXPECT_NEAR(a.lift, 0, 1e-12);
+  EXPECT_EQ(a.parts, 1);
+  EXPECT_NEAR((a.point - k.touch - Eigen::Vector3d(x, 0, -S)).norm(), 0, 1e-12);
+  EXPECT_NEAR((a.normal - Eigen::Vector3d::UnitZ()).norm(), 0, 1e-12);
+  // 3 mm deeper: the lift says so, the contact point moves with the tool.
+  const AnalyticContact d = analytic_contact(k, k.touch - Eigen::Vector3d(0, 0, 0.003));
+  EXPECT_NEAR(d.lift, 0.003, 1e-12);
+  EXPECT_NEAR((d.point - a.point).norm(), 0, 1e-12);
+}
+
+TEST(WrenchFidelity, AStylusLyingOnAPlaneRestsOnAllPartsAtTheMiddleOfItsLength) {
+  const double L = 0.12, r = 0.005;
+  const WrenchCase k = on_plane(parse_tool_spec("stylus:0.12,0.005"), about(Eigen::Vector3d::UnitY(), 90));
+  EXPECT_NEAR(k.touch.z(), r, 1e-12);  // lying flat: its axis at the radius's height
+  const AnalyticContact a = analytic_contact(k, k.touch);
+  EXPECT_EQ(a.parts, 4);
+  EXPECT_NEAR((a.point - (k.touch + Eigen::Vector3d(L / 2, 0, -r))).norm(), 0, 1e-12);
+}
+
+TEST(WrenchFidelity, AnEllipsoidOnAnEdgeTouchesWhereItsShortAxisMeetsTheEdge) {
+  // A prolate part (R, R, C) at 30 degrees to the horizontal over the edge x = 0.1, z = 0.1 (along
+  // y), placed so that the end of a short axis is on the edge: it touches there, with the
+  // normal along that short axis, and lowering it by h makes the lift h.
+  const double R = 0.005, C = 0.02, th = 30 * kPi / 180;
+  WrenchCase k;
+  k.tool = CompoundTool::single(Eigen::Vector3d(R, R, C));
+  const Eigen::Vector3d axis(-std::cos(th), 0, std::sin(th)), side(std::sin(th), 0, std::cos(th));
+  k.orientation = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), axis);
+  k.feature = {ContactFeature::Kind::kLine, Eigen::Vector3d(0.1, 0.03, 0.1), Eigen::Vector3d::UnitY()};
+  const Eigen::Vector3d edge(0.1, 0.03, 0.1);
+  k.touch = edge + side * R;
+  const AnalyticContact a = analytic_contact(k, k.touch);
+  EXPECT_NEAR(a.lift, 0, 1e-12);
+  EXPECT_NEAR((a.point - edge).norm(), 0, 1e-12);
+  EXPECT_NEAR((a.normal - side).norm(), 0, 1e-9);
+  EXPECT_NEAR(analytic_contact(k, k.touch - Eigen::Vector3d(0, 0, 0.002)).lift, 0.002, 1e-12);
+  // Brute force: lowered by the lift, the part's Mahalanobis distance to the line is 1.
+  const Eigen::Vector3d at = k.touch - Eigen::Vector3d(0, 0, 0.002);
+  const AnalyticContact b = analytic_contact(k, at);
+  const Eigen::Vector3d centre = at + Eigen::Vector3d::UnitZ() * b.lift;
+  const Eigen::Matrix3d rot = k.orientation.toRotationMatrix();
+  const Eigen::Matrix3d A = rot * Eigen::Vector3d(1 / (R * R), 1 / (R * R), 1 / (C * C)).asDiagonal() * rot.transpose();
+  double best = INFINITY;
+  for (int i = -20000; i <= 20000; ++i) {
+    const Eigen::Vector3d w = edge + Eigen::Vector3d::UnitY() * (i * 1e-6) - centre;
+    best = std::min(best, w.dot(A * w));
+  }
+  EXPECT_NEAR(best, 1.0, 1e-6);
+}
+
+TEST(WrenchFidelity, CasesAreDrawnWithTheirToolsAndTouchTheirFeature) {
+  const WrenchTools tools;
+  const std::vector<WrenchCase> plane = wrench_cases(ShapeKind::kPlane, tools, 2, 7);
+  ASSERT_EQ(plane.size(), 12u);
+  const std::vector<WrenchCase> cube = wrench_cases(ShapeKind::kCube, tools, 3, 7);
+  ASSERT_EQ(cube.size(), 3u);
+  EXPECT_TRUE(wrench_cases(ShapeKind::kSphere, tools, 2, 7).empty());
+  const AnalyticShape box(ShapeKind::kCube);
+  for (const WrenchCase& c : cube) {
+    const AnalyticContact a = analytic_contact(c, c.touch);
+    EXPECT_NEAR(a.lift, 0, 1e-12);
+    EXPECT_NEAR(box.signed_distance(a.point), 0, 1e-9);      // on the edge
+    EXPECT_LT(box.normal_cone(a.point).angle_deg(a.normal), 1e-6);  // inside its normal cone
+    // No part dips into the cube at the touch pose: its surface points along many directions are outside.
+    std::array<ToolEllipsoid, kMaxToolParts> parts{};
+    const int n = c.tool.posed(c.touch, c.orientation, parts);
+    for (int j = 0; j < n; ++j)
+      for (int s = 0; s < 400; ++s) {
+        const double z = -1 + 2 * (s + 0.5) / 400, phi = s * 2.399963;
+        const Eigen::Vector3d d(std::sqrt(1 - z * z) * std::cos(phi), std::sqrt(1 - z * z) * std::sin(phi), z);
+        EXPECT_GT(box.signed_distance(parts[std::size_t(j)].surface_point(d)), -1e-9);
+      }
+  }
+}
+
+// One case played through the servo step with the proxy on a synthetic scene (4 mm spacing).
+WrenchMetrics play(ShapeKind shape, const std::string& name) {
+  SynthParams p;
+  p.spacing = 0.004;
+  const SyntheticScene sc = make_synthetic_scene(AnalyticShape(shape), p);
+  const CollisionWorld world = CollisionWorld::build(sc.scene, WorldConfig{});
+  for (const WrenchCase& c : wrench_cases(shape, WrenchTools{}, 1, 3)) {
+    if (c.name != name) continue;
+    const auto renderer = make_force_renderer(RendererSpec{}, world);
+    const Script s = wrench_script(c, 0.005, 1000);
+    return wrench_metrics(c, s, play_script(*renderer, s, 1000, default_play_options()), true);
+  }
+  ADD_FAILURE() << "no case " << name;
+  return {};
+}
+
+double worst(const std::vector<double>& v) { return v.empty() ? NAN : *std::max_element(v.begin(), v.end()); }
+double least(const std::vector<double>& v) { return v.empty() ? NAN : *std::min_element(v.begin(), v.end()); }
+
+TEST(WrenchFidelity, TheProxyRendersTheAnalyticTorqueOfAStylusLyingOnAPlaneAndATiltedDisc) {
+  for (const char* name : {"stylus side-on", "disc tilted 30 deg", "stylus tip-first 60 deg"}) {
+    SCOPED_TRACE(name);
+    const WrenchMetrics m = play(ShapeKind::kPlane, name);
+    ASSERT_GT(m.torque_ratio.size(), 100u);
+    EXPECT_LT(worst(m.torque_dir_deg), 5.0);
+    EXPECT_GT(least(m.torque_ratio), 0.9);
+    EXPECT_LT(worst(m.torque_ratio), 1.1);
+    EXPECT_LT(worst(m.force_dir_deg), 5.0);
+    EXPECT_TRUE(m.press.never_lost);
+    EXPECT_LT(m.deepest_part_mm, 0.5);  // no part ends inside the surface (Gaussian-scale)
+  }
+  // Tip-first at 0 degrees: no lever, no torque.
+  const WrenchMetrics tip = play(ShapeKind::kPlane, "stylus tip-first 0 deg");
+  ASSERT_FALSE(tip.zero_lever_mm.empty());
+  EXPECT_LT(worst(tip.zero_lever_mm), 1.0);
+}
+
+TEST(WrenchFidelity, AStylusAcrossACubeEdgeGetsTheTorqueOfItsLever) {
+  const WrenchMetrics m = play(ShapeKind::kCube, "stylus across an edge");
+  ASSERT_GT(m.torque_dir_deg.size(), 100u);
+  EXPECT_NEAR(m.analytic_lever_mm, 11 * 120.0 / 18, 1.0);  // the third part's centre, 11 L / 18 from the tip
+  std::vector<double> d = m.torque_dir_deg;
+  std::nth_element(d.begin(), d.begin() + std::ptrdiff_t(d.size() * 95 / 100), d.end());
+  EXPECT_LT(d[d.size() * 95 / 100], 5.0);  // the torque turns the right way (p95)
+  EXPECT_TRUE(m.press.never_lost);
+}
+
+}  // namespace
+}  // namespace gshaptics
