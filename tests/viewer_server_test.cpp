@@ -485,6 +485,7 @@ TEST(ViewerState, ContactsEncodeTheWorldGeometry) {
   TickRecord tick;
   tick.position = {1, 2, 3.2};
   tick.force = {0, 0, 2};
+  tick.torque = {0.125, -0.25, 0};
   RuntimeStats stats;
   LatencyHistogram query;
   const json j = json::parse(ViewerServer::state_json(tick, snap, world, stats, query, 1000));
@@ -500,6 +501,8 @@ TEST(ViewerState, ContactsEncodeTheWorldGeometry) {
   }
   EXPECT_TRUE(found);
   EXPECT_EQ(j["force"][2], 2.0);
+  EXPECT_EQ(j["torque"][0], 0.125);  // the torque sent, about the tool centre point
+  EXPECT_EQ(j["torque"][1], -0.25);
 }
 
 }  // namespace

@@ -45,7 +45,11 @@ def main(argv):
     has_energy = "energy_j" in data.dtype.names
     proxy_row = 5 if realtime else 4
     energy_row = proxy_row + (1 if has_proxy else 0)
-    rows = energy_row + (1 if has_energy else 0)
+    torque_row = energy_row + (1 if has_energy else 0)
+    # Compound tools: the torque sent about the tool centre point (a sphere's is zero: no row).
+    has_torque = all(c in data.dtype.names for c in ("tx", "ty", "tz")) and bool(
+        np.any(np.abs(np.stack([data["tx"], data["ty"], data["tz"]])) > 0))
+    rows = torque_row + (1 if has_torque else 0)
     fig, ax = plt.subplots(rows, 1, figsize=(11, 2.4 * rows + 0.4), sharex=True)
     proxy = summary.get("renderer", "proxy" if has_proxy else "paper") == "proxy"
     ax[0].plot(t, data["candidates"], lw=0.8, label="broad-phase candidates")
@@ -111,8 +115,14 @@ def main(argv):
         twin.plot(t, data["pc_damping"], lw=0.6, color="tab:red", alpha=0.7, label="controller damping")
         twin.set_ylabel("damping (N s/m)")
         pc = summary.get("passivity", summary.get("runtime", {}))
-        ticks = pc.get("ticks", pc.get("passivity_ticks", 0))
+        ticks = pc.get("passivity_ticks", pc.get("ticks", 0))  # run summaries: runtime.passivity_ticks
         e.set_title(f"passivity controller acted on {ticks} ticks", fontsize=9, loc="right")
+    if has_torque:
+        for name, lab in (("tx", "x"), ("ty", "y"), ("tz", "z")):
+            ax[torque_row].plot(t, data[name], lw=0.9, label=f"tau_{lab}")
+        ax[torque_row].set_ylabel("torque sent (N m)")
+        tau = np.sqrt(data["tx"] ** 2 + data["ty"] ** 2 + data["tz"] ** 2)
+        ax[torque_row].set_title(f"peak {tau.max():.3f} N m about the tool centre point", fontsize=9, loc="right")
     q = summary.get("query_us", {})
     ax[3].set_title(f"p50 {q.get('p50', 0):.1f} us, p99 {q.get('p99', 0):.1f} us, "
                     f"max {q.get('max', 0):.1f} us", fontsize=9, loc="right")

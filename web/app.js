@@ -121,18 +121,15 @@ function init(h) {
   splat.position.set(...reg.translation);
   root.add(splat);
 
-  const tool = new THREE.Mesh(new THREE.SphereGeometry(1, 16, 10),
-    new THREE.MeshBasicMaterial({ color: 0x66ccff, wireframe: true, transparent: true, opacity: 0.45, depthTest: false }));
-  tool.scale.set(...h.tool.axes);
-  tool.renderOrder = 1000; // overlays: drawn after the splats, visible inside the surface
+  const tool = toolShape(h.tool, 0x66ccff, 0.45, 1000); // overlays: drawn after the splats, visible inside the surface
   root.add(tool);
   // The proxy (god-object): a ghost of the tool where the force model holds it, on the surface.
-  const proxy = new THREE.Mesh(new THREE.SphereGeometry(1, 16, 10),
-    new THREE.MeshBasicMaterial({ color: 0x99ff99, wireframe: true, transparent: true, opacity: 0.35, depthTest: false }));
-  proxy.scale.set(...h.tool.axes);
-  proxy.renderOrder = 999;
+  const proxy = toolShape(h.tool, 0x99ff99, 0.35, 999);
   proxy.visible = false;
   root.add(proxy);
+  // The torque about the tool centre point: a curved arrow turning about its axis (right hand).
+  const twist = torqueArrow();
+  root.add(twist);
   const contacts = new THREE.InstancedMesh(new THREE.SphereGeometry(1, 10, 6),
     new THREE.MeshBasicMaterial({ color: 0xff2244, transparent: true, opacity: 0.85, depthTest: false }), MAX_SHOWN);
   contacts.count = 0;
@@ -158,7 +155,7 @@ function init(h) {
     root.add(helper);
   }
 
-  Object.assign(view, { scene, camera, renderer, controls, splat, tool, proxy, contacts, arrow, extent, root });
+  Object.assign(view, { scene, camera, renderer, controls, splat, tool, proxy, contacts, arrow, twist, extent, root });
   addEventListener("resize", () => {
     camera.aspect = innerWidth / innerHeight;
     camera.updateProjectionMatrix();
@@ -202,6 +199,43 @@ function countFrame() {
       `${p.splats.toLocaleString()}${p.budget ? `, LoD budget ${p.budget.toLocaleString()}` : ""} (${view.quality.name})`;
   }
 }
+
+// The tool as wireframe ellipsoids: one at the tool centre point, or every part of a compound
+// tool placed in the tool frame (hello.tool.parts).
+function toolShape(t, color, opacity, order) {
+  const group = new THREE.Group();
+  const material = new THREE.MeshBasicMaterial({ color, wireframe: true, transparent: true, opacity, depthTest: false });
+  const parts = t.parts || [{ center: [0, 0, 0], axes: t.axes, rotation: [1, 0, 0, 0] }];
+  for (const p of parts) {
+    const mesh = new THREE.Mesh(new THREE.SphereGeometry(1, 16, 10), material);
+    mesh.position.set(...p.center);
+    mesh.quaternion.set(p.rotation[1], p.rotation[2], p.rotation[3], p.rotation[0]);
+    mesh.scale.set(...p.axes);
+    mesh.renderOrder = order;
+    group.add(mesh);
+  }
+  group.name = `tool-parts-${parts.length}`;
+  return group;
+}
+
+// A unit curved arrow about +z: three quarters of a ring turning counter-clockwise, a cone at its end.
+function torqueArrow() {
+  const group = new THREE.Group();
+  const material = new THREE.MeshBasicMaterial({ color: 0xff66cc, transparent: true, depthTest: false });
+  const ring = new THREE.Mesh(new THREE.TorusGeometry(1, 0.05, 6, 36, 1.5 * Math.PI), material);
+  const head = new THREE.Mesh(new THREE.ConeGeometry(0.15, 0.4, 12), material);
+  head.position.set(0, -1, 0); // the ring's end, at 270 degrees
+  head.rotation.z = -Math.PI / 2; // the cone's +y turned to +x: the way the ring turns there
+  for (const o of [ring, head]) {
+    o.renderOrder = 1002;
+    group.add(o);
+  }
+  group.visible = false;
+  group.name = "torque";
+  return group;
+}
+
+const zAxis = new THREE.Vector3(0, 0, 1);
 
 const tmpM = new THREE.Matrix4(), tmpQ = new THREE.Quaternion(), tmpP = new THREE.Vector3(), tmpS = new THREE.Vector3();
 
@@ -250,6 +284,18 @@ function update(m) {
     view.arrow.setDirection(f.clone().normalize());
     view.arrow.setLength(len, 0.2 * len, 0.1 * len);
   }
+
+  // Torque about the tool centre point: the ring's size grows with |tau| up to the safety limit.
+  const tau = m.torque ? vec(m.torque) : new THREE.Vector3();
+  const tm = tau.length();
+  view.twist.visible = tm > 1e-6;
+  if (view.twist.visible) {
+    const size = view.hello.tool.axes[0] * (1.2 + 1.8 * Math.min(1, tm / (view.hello.tau_max || 0.5)));
+    view.twist.position.copy(c);
+    view.twist.quaternion.setFromUnitVectors(zAxis, tau.clone().normalize());
+    view.twist.scale.setScalar(size);
+  }
+  document.body.dataset.torque = tm.toFixed(5);
 
   $("candidates").textContent = m.counts.candidates;
   if (view.hello.renderer === "proxy") {

@@ -62,6 +62,8 @@ std::string ViewerServer::state_json(const TickRecord& tick, const ContactSnapsh
   s += "}";
   s += ",\"force\":";
   append_vec(s, tick.force);
+  s += ",\"torque\":";
+  append_vec(s, tick.torque);
   s += ",\"desired\":";
   append_vec(s, tick.desired);
   s += ",\"user_force\":";

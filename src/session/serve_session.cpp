@@ -79,7 +79,21 @@ std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const Ru
                        {"translation", {r.translation.x(), r.translation.y(), r.translation.z()}}};
   j["up"] = {up.x(), up.y(), up.z()};
   j["bounds"] = {{"min", lo}, {"max", hi}};
-  j["tool"] = {{"axes", {setup.tool_radius, setup.tool_radius, setup.tool_radius}}};
+  const ToolShape& ts = setup.config.tool;
+  if (ts.compound.count > 0) {
+    // A tool with a shape: every part in the tool frame (its origin the TCP); "axes" is the
+    // largest semi-axis, the scale the page sizes its markers by.
+    const double a = ts.compound.largest_semi_axis();
+    nlohmann::json parts = nlohmann::json::array();
+    for (const ToolPart& p : ts.compound.view())
+      parts.push_back({{"center", {p.offset.x(), p.offset.y(), p.offset.z()}},
+                       {"axes", {p.semi_axes.x(), p.semi_axes.y(), p.semi_axes.z()}},
+                       {"rotation", {p.rotation.w(), p.rotation.x(), p.rotation.y(), p.rotation.z()}}});
+    j["tool"] = {{"axes", {a, a, a}}, {"parts", parts}};
+  } else {
+    j["tool"] = {{"axes", {ts.semi_axes.x(), ts.semi_axes.y(), ts.semi_axes.z()}}};
+  }
+  j["tau_max"] = setup.config.safety.tau_max;
   j["device"] = setup.device->info().name;
   j["mouse"] = setup.mouse != nullptr && !setup.xr;
   j["xr"] = setup.xr;

@@ -23,7 +23,8 @@ if (synth.status !== 0) {
   process.exit(1);
 }
 
-const serve = startServe(exe, [scene, "--up", "z-up", "--tool-radius", "0.008", "--port", "0", "--quiet", "--no-plot", "--out", outDir]);
+// A stylus (four parts, tip at the tool centre point, pointing up): the page draws every part.
+const serve = startServe(exe, [scene, "--up", "z-up", "--tool", "stylus:0.04,0.008", "--port", "0", "--quiet", "--no-plot", "--out", outDir]);
 const { server, out, exited } = serve;
 
 let browser;
@@ -44,6 +45,8 @@ try {
   if (!loadState.loaded) throw new Error(`the page did not load the scene: ${loadState.error}`);
   if (!loadState.overlay) fail("the loading indicator is still shown after the scene loaded");
   console.log(`scene loaded after ${((Date.now() - t0) / 1000).toFixed(1)} s`);
+  const parts = await page.evaluate(() => window.gshaptics.tool.children.length);
+  if (parts !== 4) fail(`the page draws ${parts} tool part(s), not the stylus's 4`);
   const start = await page.evaluate(() => window.gshaptics.last.tool.center);
   console.log(`tool starts at ${start.map((x) => x.toFixed(3))}`);
 
