@@ -428,6 +428,7 @@ PYBIND11_MODULE(gshaptics, m) {
   struct PyProxy {
     std::shared_ptr<CollisionWorld> world;
     std::unique_ptr<ProxyRenderer> proxy;
+    CompoundTool tool;  // the tool set_tool() was given (count 0: none yet)
   };
   py::class_<PyProxy>(m, "ProxyRenderer",
       "The proxy (god-object) force model on the Gaussians: the proxy never passes a Gaussian "
@@ -444,7 +445,7 @@ PYBIND11_MODULE(gshaptics, m) {
              p.mu_s = mu_s;
              p.mu_k = mu_k;
              p.opacity_stiffness = opacity_stiffness;
-             return PyProxy{w.world, std::make_unique<ProxyRenderer>(*w.world, p, f_max)};
+             return PyProxy{w.world, std::make_unique<ProxyRenderer>(*w.world, p, f_max), {}};
            }),
            py::arg("world"), py::arg("stiffness") = ProxyParams{}.stiffness,
            py::arg("damping") = ProxyParams{}.damping, py::arg("mu_s") = 0.0, py::arg("mu_k") = 0.0,
@@ -463,6 +464,51 @@ PYBIND11_MODULE(gshaptics, m) {
            py::arg("center"), py::arg("axes"), py::arg("velocity"), py::arg("dt"),
            "One tick: device tool centre (3,) m, semi-axes (3,) m, velocity (3,) m/s, dt s. "
            "Returns the force (3,) in N, world frame.")
+      .def("render_tool", [](PyProxy& p, const CompoundTool& tool, const py::object& position,
+                             const py::object& rotation, const py::object& velocity,
+                             const py::object& angular_velocity, double dt) {
+             if (!(dt > 0)) throw py::value_error("dt: must be > 0 seconds");
+             const Eigen::Vector3d x = vec3(position, "position");
+             const Eigen::Vector4d q = vec4(rotation, "rotation");
+             if (q.norm() < 1e-12) throw py::value_error("rotation: zero quaternion");
+             // A new tool builds its proxy (and forgets the last one's state).
+             bool same = tool.count == p.tool.count;
+             for (int j = 0; same && j < tool.count; ++j) {
+               const ToolPart &a = tool.parts[std::size_t(j)], &b = p.tool.parts[std::size_t(j)];
+               same = a.offset == b.offset && a.semi_axes == b.semi_axes && a.rotation.coeffs() == b.rotation.coeffs();
+             }
+             if (!same) {
+               p.proxy->set_tool(tool);  // validates (ValueError for a bad tool)
+               p.proxy->reset();
+               p.tool = tool;
+             }
+             std::array<ToolEllipsoid, kMaxToolParts> parts;
+             const Eigen::Quaterniond qn = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+             const int n = tool.posed(x, qn, parts);
+             const RenderOutput o = p.proxy->render_compound({parts.data(), std::size_t(n)}, x, vec3(velocity, "velocity"),
+                                                             vec3(angular_velocity, "angular_velocity"), dt);
+             std::vector<std::uint32_t> index;
+             std::vector<int> part;
+             for (const Contact& c : p.proxy->contacts()) {
+               index.push_back(c.index);
+               part.push_back(c.part);
+             }
+             py::dict d;
+             d["force"] = Eigen::Vector3d(o.force);
+             d["torque"] = Eigen::Vector3d(o.torque);
+             d["proxy"] = Eigen::Vector3d(o.proxy);
+             d["index"] = py::array_t<std::uint32_t>(py::ssize_t(index.size()), index.data());
+             d["part"] = py::array_t<int>(py::ssize_t(part.size()), part.data());
+             return d;
+           },
+           py::arg("tool"), py::arg("position"), py::arg("rotation"), py::arg("velocity"),
+           py::arg("angular_velocity"), py::arg("dt"),
+           "One tick with a tool with a shape (gshaptics.Tool): the TCP's position (3,) m, orientation "
+           "(w, x, y, z) tool frame -> world, velocity (3,) m/s, angular velocity (3,) rad/s, dt s. "
+           "Several parts (or one off the TCP): the compound proxy (a rigid copy of the tool no part "
+           "may move into a Gaussian). Returns a dict: force (3,) N, torque (3,) N m about the TCP, "
+           "proxy (3,) where it holds the TCP (m), and the Gaussians holding it: index (into the scene "
+           "file) and part.")
       .def_property_readonly("proxy", [](const PyProxy& p) { return Eigen::Vector3d(p.proxy->proxy_position()); },
                              "proxy centre (3,), m, world frame")
       .def_property_readonly("normal", [](const PyProxy& p) { return Eigen::Vector3d(p.proxy->contact_normal()); },

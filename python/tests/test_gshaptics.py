@@ -270,3 +270,16 @@ def test_compound_tool_on_the_truck_roof_gives_force_torque_and_tagged_contacts(
     # The torque is the sum over parts of lever x force, so it is perpendicular to nothing in
     # particular, but it is bounded by |F| times the stylus' reach.
     assert np.linalg.norm(out["torque"]) <= np.linalg.norm(out["force"]) * stylus.reach * 1.01
+    # The proxy with the same stylus, its tip pressed from 3 cm above the roof to 3 cm into it in
+    # 60 ticks: it holds the tool on the roof (above the device), pushes up, and its torque is its
+    # force's moment about the TCP.
+    proxy = gshaptics.ProxyRenderer(world)
+    for k in range(61):
+        out = proxy.render_tool(stylus, (0.0, 0.0, z - 0.001 * k), (c, 0.0, s, 0.0), (0.0, 0.0, -1.0),
+                                (0.0, 0.0, 0.0), 1e-3)
+    assert out["force"][2] > 1.0
+    assert out["proxy"][2] > z - 0.06 + 0.01  # held well above the device
+    assert len(out["part"]) > 0 and set(out["part"]) <= {0, 1, 2, 3}
+    tau = np.asarray(out["torque"])
+    assert np.linalg.norm(tau) > 0 and abs(np.dot(tau, out["force"])) < 1e-9 * np.linalg.norm(tau) * np.linalg.norm(out["force"]) + 1e-12
+    assert np.linalg.norm(tau) <= np.linalg.norm(out["force"]) * stylus.reach * 1.01
