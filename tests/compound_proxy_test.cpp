@@ -135,6 +135,32 @@ TEST(CompoundProxy, TheProxyRendererTakesCompoundToolsAndItsTickAllocatesNothing
   EXPECT_GT(out.force.z(), 0.0);
   ASSERT_FALSE(r.contacts().empty());
   for (const Contact& c : r.contacts()) EXPECT_LE(c.part, 1);
+  // The renderer counts the compound proxy's placements (its first, free one) and no lost one.
+  EXPECT_EQ(r.placements(), 1u);
+  EXPECT_EQ(r.lost(), 0u);
+}
+
+TEST(CompoundProxy, PressedAndPulledBackItsForceNeverPointsIntoThePlate) {
+  // A tilted stylus pressed tip-first onto the plate, then pulled straight back up: the force
+  // pushes out while pressed, never points into the plate (the proxy never pulls the hand in),
+  // and is zero once the device is free above the surface.
+  ProxyRenderer r(plate());
+  const CompoundTool stylus = parse_tool_spec("stylus:0.06,0.005");
+  r.set_tool(stylus);
+  std::array<ToolEllipsoid, kMaxToolParts> parts;
+  const Eigen::Quaterniond q = about_y(40);
+  double fz_min = INFINITY;
+  for (int k = 0; k <= 120; ++k) {
+    const double z = k <= 60 ? 0.01 - 0.0002 * k : -0.002 + 0.0004 * (k - 60);
+    const Eigen::Vector3d x(0.001, 0.002, z);
+    const int n = stylus.posed(x, q, parts);
+    const RenderOutput o = r.render_compound({parts.data(), std::size_t(n)}, x, {0, 0, k <= 60 ? -0.2 : 0.4},
+                                             Eigen::Vector3d::Zero(), 1e-3);
+    fz_min = std::min(fz_min, o.force.z());
+    if (k == 60) EXPECT_GT(o.force.z(), 1.0);  // pressed in: pushed out
+    if (k == 120) EXPECT_EQ(o.force.norm(), 0.0);  // free above the plate: nothing
+  }
+  EXPECT_GE(fz_min, 0.0);
 }
 
 }  // namespace

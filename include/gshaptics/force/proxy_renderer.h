@@ -105,9 +105,12 @@ class ProxyRenderer final : public ForceRenderer {
   [[nodiscard]] const Eigen::Vector3d& proxy_position() const noexcept { return solver_.position(); }
   [[nodiscard]] const Eigen::Vector3d& contact_normal() const noexcept { return normal_; }
   [[nodiscard]] bool sticking() const noexcept { return sticking_; }
-  /// Proxy placements by the search (start inside geometry, teleports) and failed searches.
-  [[nodiscard]] std::uint64_t placements() const noexcept { return solver_.placements(); }
-  [[nodiscard]] std::uint64_t lost() const noexcept { return solver_.lost(); }
+  /// Proxy placements by the search (start inside geometry, teleports) and failed searches,
+  /// of the one-ellipsoid proxy and the compound proxy together.
+  [[nodiscard]] std::uint64_t placements() const noexcept {
+    return solver_.placements() + (compound_ ? compound_->placements() : 0);
+  }
+  [[nodiscard]] std::uint64_t lost() const noexcept { return solver_.lost() + (compound_ ? compound_->lost() : 0); }
   [[nodiscard]] const ProxyParams& params() const noexcept { return params_; }
 
   /// The shaded normal at `center` for a tool of bounding radius `radius` with this renderer's
