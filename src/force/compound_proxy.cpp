@@ -235,7 +235,7 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
   const double el = e.norm();
   if (el > 1e-6 * largest_ && n_blockers_ > 0) {
     const Eigen::Vector3d spring = e / el;
-    // The parts that touch: each part within the contact band (the smallest semi-axis) of a
+    // The parts that touch: each part within the contact band (half the smallest semi-axis) of a
     // Gaussian along the spring, weighted 1 - gap / band. A rigid tool resting on a surface
     // along a line (a stylus's side on a wall) thus gets the resultant at the middle of the line,
     // whatever the Gaussians' jitter. Each touching part's contact normal is shaded
@@ -247,7 +247,7 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     BlockFilter filter;
     if (params_.pass_isolated) filter = {&Filter::blocks, &floaters};
     const int count = pose_parts(x_, q_);
-    const double band = min_axis_;
+    const double band = kContactBand * min_axis_;
     const Eigen::Vector3d probe = -spring * band;
     Eigen::Vector3d moment = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::Zero();
     double weight = 0;

@@ -24,7 +24,7 @@
 ///    free, the proxy rejoins the device), applied at the contacts: its moment about the
 ///    TCP is (c - x_tcp) x F, c the mean of the touching parts' surface points facing their
 ///    contacts, each weighted 1 - gap / band (gap: how far the part is from a Gaussian along
-///    -F, band: the smallest semi-axis; a stylus lying on a wall gets the middle of its line of
+///    -F, band: half the smallest semi-axis; a stylus lying on a wall gets the middle of its line of
 ///    contact, as a penalty model with its depth-weighted contacts would (McNeely et al. 1999)); plus, when
 ///    contact stopped a turn, the rotational coupling tau = k_r theta - b_r omega, theta the
 ///    rotation taking the device's orientation to the proxy's (axis times angle, world). A turn
@@ -107,7 +107,11 @@ class CompoundProxy {
     bool valid = false;
   };
   std::array<Shade, kMaxToolParts> shades_{};
-  static constexpr double kShadeReuse = 0.05;  // the shading point moves this x the part's smallest semi-axis
+  static constexpr double kShadeReuse = 0.05;
+  // A part touches within this x the smallest semi-axis of a Gaussian along the force (its weight
+  // falls linearly to 0 there): wide enough that a stylus lying on a surface loads every part
+  // whatever the Gaussians' 0.5 mm jitter, short enough to keep the probe sweeps cheap.
+  static constexpr double kContactBand = 0.5;  // the shading point moves this x the part's smallest semi-axis
 
   int pose_parts(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
   void place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;
