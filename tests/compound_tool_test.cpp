@@ -212,6 +212,38 @@ TEST(PaperCompound, SymmetricToolPressedSymmetricallyHasNoTorqueAndMirrorsMirror
   EXPECT_NEAR(std::abs(a.torque.y()) / a.force.norm(), 0.03 * std::cos(20 * M_PI / 180), 0.004);
 }
 
+TEST(PaperCompound, ABadPartRendersNothingAndAdvancesNoPartsFilters) {
+  // A stylus pressed into the plane for 20 ticks, with one tick in the middle whose last part is
+  // NaN: that tick is invalid with no force, and the ticks after it are bit-identical to a run
+  // without the bad tick (no earlier part's filters moved on it).
+  const CompoundTool stylus = parse_tool_spec("stylus:0.1,0.006");
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(40 * M_PI / 180, Eigen::Vector3d::UnitY()));
+  std::array<ToolEllipsoid, kMaxToolParts> parts;
+  const auto run = [&](bool with_bad_tick) {
+    PaperRenderer r(plane());
+    RenderOutput last;
+    for (int k = 0; k < 20; ++k) {
+      const Eigen::Vector3d tcp(0.001, 0.002, 0.002 - 0.0002 * k);
+      const int n = stylus.posed(tcp, q, parts);
+      if (with_bad_tick && k == 10) {
+        parts[std::size_t(n - 1)].center.x() = NAN;
+        const RenderOutput bad = r.render_compound({parts.data(), std::size_t(n)}, tcp, {0, 0, -0.2},
+                                                   Eigen::Vector3d::Zero(), 1e-3);
+        EXPECT_EQ(bad.status, QueryStatus::kInvalidTool);
+        EXPECT_EQ(bad.force.norm(), 0.0);
+        continue;
+      }
+      if (!with_bad_tick && k == 10) continue;
+      last = r.render_compound({parts.data(), std::size_t(n)}, tcp, {0, 0, -0.2}, Eigen::Vector3d::Zero(), 1e-3);
+    }
+    return last;
+  };
+  const RenderOutput a = run(true), b = run(false);
+  ASSERT_GT(b.force.norm(), 0.0);
+  EXPECT_EQ(a.force, b.force);
+  EXPECT_EQ(a.torque, b.torque);
+}
+
 // A renderer of one ellipsoid (a caller's own): the worker refuses to hand it a compound tool.
 class OneEllipsoid final : public ForceRenderer {
  public:

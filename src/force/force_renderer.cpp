@@ -73,8 +73,10 @@ RenderOutput PaperRenderer::render_compound(std::span<const ToolEllipsoid> parts
   merged_.clear();
   RenderOutput out;
   out.proxy = tcp;
-  if (parts.empty() || parts.size() > std::size_t(kMaxToolParts) || !tcp.allFinite() || !velocity.allFinite() ||
-      !angular_velocity.allFinite()) {
+  bool valid = !parts.empty() && parts.size() <= std::size_t(kMaxToolParts) && tcp.allFinite() &&
+               velocity.allFinite() && angular_velocity.allFinite();
+  for (std::size_t j = 0; valid && j < parts.size(); ++j) valid = parts[j].valid();
+  if (!valid) {  // one bad part: no force from any, and no part's filters advance (as for one ellipsoid)
     out.status = QueryStatus::kInvalidTool;
     return out;
   }
