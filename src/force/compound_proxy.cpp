@@ -24,12 +24,6 @@ const CompoundProxyParams& validated(const CompoundProxyParams& p) {
   return p;
 }
 
-ProxySolverParams floater_params(const CompoundProxyParams& p) {
-  ProxySolverParams s;
-  s.pass_isolated = p.pass_isolated;
-  s.isolation_gap = p.isolation_gap;
-  return s;
-}
 
 }  // namespace
 
@@ -37,7 +31,7 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
     : world_(&world),
       tool_(tool),
       params_(validated(params)),
-      floaters_(world, floater_params(params)),
+      floaters_(world),
       sweep_(world),
       free_query_(world, [] {
         QueryOptions q;
@@ -69,12 +63,6 @@ bool CompoundProxy::blocked(const Eigen::Vector3d& position, const Eigen::Quater
   return false;
 }
 
-bool CompoundProxy::Filter::blocks(void* context, std::uint32_t slot) noexcept {
-  auto* f = static_cast<Filter*>(context);
-  if (f->queries_left <= 0) return true;  // past the budget a Gaussian blocks (the safe side)
-  --f->queries_left;
-  return !f->self->floaters_.isolated(slot, f->self->params_.isolation_gap * f->self->largest_);
-}
 
 void CompoundProxy::place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept {
   ++placements_;
@@ -127,9 +115,9 @@ bool CompoundProxy::turn_toward(const Eigen::Quaterniond& target) noexcept {  //
   const int needed = int(std::ceil(angle / step));
   const int steps = std::min(needed, params_.max_rotation_steps);
   const Eigen::Quaterniond start = q_;
-  Filter floaters{this, ProxySolver::kFloaterQueries};
+  FloaterTest::Filter floaters(floaters_, params_.isolation_gap * largest_);
   BlockFilter filter;
-  if (params_.pass_isolated) filter = {&Filter::blocks, &floaters};
+  if (params_.pass_isolated) filter = floaters.block_filter();
   for (int k = 1; k <= steps; ++k) {
     const Eigen::Quaterniond next =
         (Eigen::Quaterniond(Eigen::AngleAxisd(angle * double(k) / double(needed), axis)) * start).normalized();
@@ -156,9 +144,9 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
   Eigen::Vector3d p = x_;
   const double eps = 1e-4 * largest_;
   int lifts = 0;
-  Filter floaters{this, ProxySolver::kFloaterQueries};
+  FloaterTest::Filter floaters(floaters_, params_.isolation_gap * largest_);
   BlockFilter filter;
-  if (params_.pass_isolated) filter = {&Filter::blocks, &floaters};
+  if (params_.pass_isolated) filter = floaters.block_filter();
   const auto first_of_parts = [&](const Eigen::Vector3d& at, const Eigen::Vector3d& u, std::span<const std::uint32_t> h,
                                   int& part) {
     SweepHit best;
@@ -243,9 +231,9 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     // touches where the part touches: the field the one-ellipsoid proxy reads, at the part's
     // own contact (the Gaussian's own contact normal where the field disagrees with it); the
     // part's contact point is its surface point facing that normal.
-    Filter floaters{this, ProxySolver::kFloaterQueries};
+    FloaterTest::Filter floaters(floaters_, params_.isolation_gap * largest_);
     BlockFilter filter;
-    if (params_.pass_isolated) filter = {&Filter::blocks, &floaters};
+    if (params_.pass_isolated) filter = floaters.block_filter();
     const int count = pose_parts(x_, q_);
     const double band = kContactBand * min_axis_;
     const Eigen::Vector3d probe = -spring * band;

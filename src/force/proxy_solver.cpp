@@ -71,50 +71,13 @@ ProxySolver::ProxySolver(const CollisionWorld& world, const ProxySolverParams& p
         QueryOptions q;
         q.max_contacts = 1;  // any_contact() keeps no contact set
         return q;
-      }()) {}
+      }()),
+      floaters_(world) {}
 
 void ProxySolver::reset() noexcept {
   valid_ = false;
   n_blockers_ = 0;
-  cache_state_.fill(0);
-}
-
-int ProxySolver::cached_isolation(std::uint32_t slot, double gap) noexcept {
-  if (gap != cache_gap_) {  // another tool size: the cached answers are for another neighbourhood
-    cache_state_.fill(0);
-    cache_gap_ = gap;
-  }
-  for (std::size_t i = 0; i < kIsolationCache; ++i)
-    if (cache_state_[i] != 0 && cache_slot_[i] == slot) return cache_state_[i];
-  return 0;
-}
-
-bool ProxySolver::FloaterFilter::blocks(void* context, std::uint32_t slot) noexcept {
-  auto* f = static_cast<FloaterFilter*>(context);
-  const int known = f->solver->cached_isolation(slot, f->gap);
-  if (known != 0) return known == 1;
-  if (f->queries_left <= 0) return true;
-  --f->queries_left;
-  return !f->solver->isolated(slot, f->gap);
-}
-
-bool ProxySolver::isolated(std::uint32_t slot, double gap) noexcept {
-  if (const int known = cached_isolation(slot, gap); known != 0) return known == 2;
-  const CollisionGaussian& g = world_->gaussians()[slot];
-  ToolEllipsoid self;
-  self.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
-  self.rotation = Eigen::Quaterniond(rotation_matrix(g)).normalized();
-  // Grown by the gap, but by no more than its own middle semi-axis: a sparse surface's
-  // neighbours lie about one Gaussian size away, while a floater a few sizes off a surface stays
-  // a floater (the fidelity scenes' floaters, 5-30 mm off, did catch a 10 mm tool otherwise).
-  const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
-  const double a_mid = a.sum() - a.maxCoeff() - a.minCoeff();
-  self.semi_axes = a.array() + std::clamp(gap, 0.0, a_mid);
-  const bool alone = !free_query_.any_contact(self, slot);
-  cache_slot_[cache_next_] = slot;
-  cache_state_[cache_next_] = alone ? 2 : 1;
-  cache_next_ = (cache_next_ + 1) % kIsolationCache;
-  return alone;
+  floaters_.reset();
 }
 
 void ProxySolver::place(const ToolEllipsoid& tool) noexcept {
@@ -162,11 +125,11 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
   std::uint32_t candidates = 0;
   int lifts = 0;
   // Floaters do not block: the sweep asks, in its one pass, whether a Gaussian it reaches first
-  // is one (isolated(), cached per slot). At most kFloaterQueries uncached answers a tick; past
-  // that a Gaussian blocks (the safe side).
-  FloaterFilter floaters{this, params_.isolation_gap * r, kFloaterQueries};
+  // is one (FloaterTest, cached per slot). At most FloaterTest::kQueriesPerTick uncached answers
+  // a tick; past that a Gaussian blocks (the safe side).
+  FloaterTest::Filter floaters(floaters_, params_.isolation_gap * r);
   BlockFilter filter;
-  if (params_.pass_isolated) filter = {&FloaterFilter::blocks, &floaters};
+  if (params_.pass_isolated) filter = floaters.block_filter();
   for (int s = 0; s < params_.substeps && !hold; ++s) {
     const Eigen::Vector3d target = closest_feasible_point(goal, {planes, std::size_t(np)});
     const Eigen::Vector3d u = target - p;

@@ -44,6 +44,7 @@
 #include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/collision/sweep_query.h"
 #include "gshaptics/force/force_renderer.h"
+#include "gshaptics/force/floater_test.h"
 #include "gshaptics/force/proxy_solver.h"
 
 namespace gshaptics {
@@ -91,7 +92,7 @@ class CompoundProxy {
   const CollisionWorld* world_;
   CompoundTool tool_;
   CompoundProxyParams params_;
-  ProxySolver floaters_;  // its isolation test and cache (the floater rule of the one-ellipsoid proxy)
+  FloaterTest floaters_;  // the floater rule of the one-ellipsoid proxy, with its own cache
   SweepQuery sweep_;
   ContactQuery free_query_;
   std::array<ToolEllipsoid, kMaxToolParts> parts_{};
@@ -117,11 +118,6 @@ class CompoundProxy {
   void place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;
   bool turn_toward(const Eigen::Quaterniond& target) noexcept;  // true: a contact stopped the turn
   int translate_toward(const Eigen::Vector3d& goal) noexcept;  // the constraint planes holding it
-  struct Filter {
-    CompoundProxy* self;
-    int queries_left;
-    static bool blocks(void* context, std::uint32_t slot) noexcept;
-  };
 };
 
 }  // namespace gshaptics

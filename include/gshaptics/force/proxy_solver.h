@@ -22,6 +22,7 @@
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/collision/sweep_query.h"
+#include "gshaptics/force/floater_test.h"
 
 namespace gshaptics {
 
@@ -92,12 +93,8 @@ class ProxySolver {
   [[nodiscard]] std::span<const Contact> blockers() const noexcept { return {blockers_.data(), n_blockers_}; }
   [[nodiscard]] std::uint64_t placements() const noexcept { return placements_; }
   [[nodiscard]] std::uint64_t lost() const noexcept { return lost_; }
-  /// Whether the Gaussian in `slot` is a floater: no other kept Gaussian overlaps its ellipsoid
-  /// grown on every semi-axis by `gap` (m) or its middle semi-axis, whichever is smaller.
-  /// Cached per slot while `gap` stays the same.
-  bool isolated(std::uint32_t slot, double gap) noexcept;
-  /// Uncached isolation tests a tick may run for the floater filter; past them a Gaussian blocks.
-  static constexpr int kFloaterQueries = 16;
+  /// Whether the Gaussian in `slot` is a floater (FloaterTest::isolated).
+  bool isolated(std::uint32_t slot, double gap) noexcept { return floaters_.isolated(slot, gap); }
 
  private:
   const CollisionWorld* world_;
@@ -110,20 +107,7 @@ class ProxySolver {
   std::size_t n_blockers_ = 0;
   int last_constraints_ = 0;
   std::uint64_t placements_ = 0, lost_ = 0;
-  static constexpr std::size_t kIsolationCache = 64;
-  std::array<std::uint32_t, kIsolationCache> cache_slot_{};
-  std::array<std::uint8_t, kIsolationCache> cache_state_{};  // 0: empty, 1: supported, 2: isolated
-  std::size_t cache_next_ = 0;
-  double cache_gap_ = -1;  // the gap the cache was filled with
-  // 0: not cached, 1: supported, 2: isolated.
-  int cached_isolation(std::uint32_t slot, double gap) noexcept;
-  // The sweep's BlockFilter: a Gaussian blocks unless it is a floater (within a query budget).
-  struct FloaterFilter {
-    ProxySolver* solver;
-    double gap;
-    int queries_left;
-    static bool blocks(void* context, std::uint32_t slot) noexcept;
-  };
+  FloaterTest floaters_;
 };
 
 }  // namespace gshaptics

@@ -1,0 +1,58 @@
+#pragma once
+/// @file
+/// The floater rule of the proxies (ProxyParams::pass_isolated): a Gaussian that no other kept
+/// Gaussian supports is a floater (an optimisation artefact hanging in free space) and does not
+/// block the god-object. Shared by the one-ellipsoid proxy (ProxySolver) and the compound proxy.
+///
+/// Threading: one thread; isolated() and the filter never allocate, lock, log or throw.
+
+#include <array>
+#include <cstdint>
+
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/collision/contact_query.h"
+#include "gshaptics/collision/sweep_query.h"
+
+namespace gshaptics {
+
+class FloaterTest {
+ public:
+  explicit FloaterTest(const CollisionWorld& world);
+  /// Whether the Gaussian in `slot` is a floater: no other kept Gaussian overlaps its ellipsoid
+  /// grown on every semi-axis by `gap` (m) or its middle semi-axis, whichever is smaller.
+  /// Cached per slot (the last kCacheSize answers) while `gap` stays the same.
+  bool isolated(std::uint32_t slot, double gap) noexcept;
+  /// Forgets the cached answers.
+  void reset() noexcept { state_.fill(0); }
+  /// Uncached isolation tests one tick may run through a Filter; past them a Gaussian blocks.
+  static constexpr int kQueriesPerTick = 16;
+
+  /// A SweepQuery BlockFilter for one tick: a Gaussian blocks unless it is a floater; once
+  /// `budget` uncached tests ran, every Gaussian not known to be a floater blocks (the safe side).
+  class Filter {
+   public:
+    Filter(FloaterTest& test, double gap, int budget = kQueriesPerTick) noexcept
+        : test_(&test), gap_(gap), left_(budget) {}
+    /// The BlockFilter to hand to SweepQuery (valid while this Filter lives).
+    [[nodiscard]] BlockFilter block_filter() noexcept { return {&Filter::blocks, this}; }
+
+   private:
+    FloaterTest* test_;
+    double gap_;
+    int left_;
+    static bool blocks(void* context, std::uint32_t slot) noexcept;
+  };
+
+ private:
+  static constexpr std::size_t kCacheSize = 64;
+  const CollisionWorld* world_;
+  ContactQuery query_;
+  std::array<std::uint32_t, kCacheSize> slot_{};
+  std::array<std::uint8_t, kCacheSize> state_{};  // 0: empty, 1: supported, 2: isolated
+  std::size_t next_ = 0;
+  double gap_ = -1;  // the gap the cache was filled with
+  // 0: not cached, 1: supported, 2: isolated.
+  int cached(std::uint32_t slot, double gap) noexcept;
+};
+
+}  // namespace gshaptics
