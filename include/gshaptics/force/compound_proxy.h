@@ -16,7 +16,7 @@
 ///    toward the device, stops at the first contact of any part (the minimum over the parts'
 ///    sweeps), then slides on the constraint planes of the Gaussians that block it (at most
 ///    three). Floaters (ProxyParams::pass_isolated) do not block.
-/// 3. Wrench: a virtual coupling in both (Colgate, Stanley & Brown 1995): F = (k_c e . n - b_c v . n) n
+/// 3. Wrench: a virtual coupling in both (Colgate, Stanley & Brown 1995): F = max(0, k_c e . n - b_c v . n) n
 ///    with e = x_proxy - x_device and n the contact normal: the touching parts' shaded normals
 ///    (Morgenbesser & Srinivasan 1996; shaded_normal.h, each read at the centre of the sphere of
 ///    the part's smallest semi-axis touching where the part touches), weighted as below (e^
@@ -33,7 +33,10 @@
 ///
 /// What it does not do yet: the proxy does not turn under the contact torque (a full 6-DoF
 /// god-object solves for the pose that balances it; here the torque is rendered and the proxy
-/// keeps the device's orientation while that is free), no friction.
+/// keeps the device's orientation while that is free), no friction, and at a convex edge the
+/// shaded normal leans toward one face where a smooth tool resting on the sharp edge is pushed
+/// along its own normal (the stylus across the fidelity cube's edge: torque direction right,
+/// force 20-50 degrees off; docs/results.md).
 ///
 /// Threading: one thread; render() allocates, locks, logs and throws nothing.
 
