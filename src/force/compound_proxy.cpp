@@ -19,8 +19,8 @@ const CompoundProxyParams& validated(const CompoundProxyParams& p) {
   if (p.substeps < 1 || p.substeps > 16) throw InputError("compound proxy: substeps must be in [1, 16]");
   if (!(p.rotation_step > 0) || !(p.rotation_step <= 1) || p.max_rotation_steps < 1)
     throw InputError("compound proxy: rotation_step must be in (0, 1] and max_rotation_steps >= 1");
-  if (!(p.teleport > 0) || !(p.isolation_gap >= 0) || !(p.shading_kernel >= 0))
-    throw InputError("compound proxy: teleport must be > 0, isolation gap and shading kernel >= 0");
+  if (!(p.teleport > 0) || !(p.isolation_gap >= 0) || !(p.shading_kernel >= 0) || !(p.shading_reuse >= 0))
+    throw InputError("compound proxy: teleport must be > 0, isolation gap, shading kernel and reuse >= 0");
   return p;
 }
 
@@ -47,7 +47,7 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
 
 void CompoundProxy::reset() noexcept {
   placed_ = false;
-  for (Shade& sh : shades_) sh.valid = false;
+  for (ShadedNormalCache& sh : shades_) sh.reset();
   n_blockers_ = 0;
   floaters_.reset();
 }
@@ -247,17 +247,12 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       const double w = std::max(1e-6, 1.0 - h.t);
       Eigen::Vector3d nj = h.normal;
       if (params_.shading_kernel > 0) {
-        // Re-read once the shading point moved kShadeReuse of the part's smallest semi-axis
-        // (ProxyParams::shading_reuse: the field is smooth at the kernel's scale).
         const double rho = part.semi_axes.minCoeff();
-        const Eigen::Vector3d at = part.surface_point(-h.normal) + h.normal * rho;
-        Shade& sh = shades_[std::size_t(j)];
-        if (!(sh.valid && (at - sh.at).norm() <= kShadeReuse * rho)) {
-          sh.normal = shaded_normal(*world_, at, shading_scale(*world_, held_by, rho), params_.shading_kernel);
-          sh.at = at;
-          sh.valid = true;
-        }
-        if (sh.normal.dot(h.normal) > 0) nj = sh.normal;
+        const Eigen::Vector3d& sn =
+            shades_[std::size_t(j)].read(*world_, part.surface_point(-h.normal) + h.normal * rho,
+                                         shading_scale(*world_, held_by, rho), params_.shading_kernel,
+                                         params_.shading_reuse * rho);
+        if (sn.dot(h.normal) > 0) nj = sn;
       }
       moment += w * (part.surface_point(-nj) - x_);
       normal += w * nj;

@@ -53,6 +53,7 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   c.substeps = params_.substeps;
   c.pass_isolated = params_.pass_isolated;
   c.shading_kernel = params_.shading_kernel;
+  c.shading_reuse = params_.shading_reuse;
   c.isolation_gap = params_.isolation_gap;
   c.teleport = params_.teleport;
   compound_ = std::make_unique<CompoundProxy>(*world_, tool, c);
@@ -77,7 +78,8 @@ void ProxyRenderer::reset() noexcept {
   solver_.reset();
   friction_.reset();
   coupling_.release();
-  in_contact_ = sticking_ = shade_valid_ = false;
+  in_contact_ = sticking_ = false;
+  shade_.reset();
   normal_.setZero();
 }
 
@@ -130,12 +132,8 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   }
   // 3. The contact normal: shaded (Morgenbesser & Srinivasan 1996), recomputed once the proxy
   // has moved `shading_reuse` tool radii, unless it disagrees with where the proxy holds the device.
-  if (!(shade_valid_ && (p - shade_at_).norm() <= params_.shading_reuse * r)) {
-    shade_ = gshaptics::shaded_normal(*world_, p, shading_scale(*world_, blockers, r), params_.shading_kernel);
-    shade_at_ = p;
-    shade_valid_ = true;
-  }
-  Eigen::Vector3d n = shade_;
+  Eigen::Vector3d n =
+      shade_.read(*world_, p, shading_scale(*world_, blockers, r), params_.shading_kernel, params_.shading_reuse * r);
   if (n.dot(e) < 0 && !solver_.blocked(tool)) {
     // The surface says the device is on its free side, and the device's own pose is free: the
     // proxy is caught in a Gaussian-scale pocket (a sharp tool rim under a neighbouring disc's
@@ -143,7 +141,8 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     solver_.place(tool);
     friction_.reset();
     coupling_.release();
-    in_contact_ = sticking_ = shade_valid_ = false;
+    in_contact_ = sticking_ = false;
+    shade_.reset();
     out.proxy = xd;
     out.constraints = 0;
     return out;

@@ -48,6 +48,7 @@
 #include "gshaptics/collision/sweep_query.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/force/floater_test.h"
+#include "gshaptics/force/shaded_normal.h"
 #include "gshaptics/force/proxy_solver.h"
 
 namespace gshaptics {
@@ -66,6 +67,9 @@ struct CompoundProxyParams {
   /// Kernel of each touching part's shaded normal, in the part's smallest semi-axis
   /// (ProxyParams::shading_kernel); 0: the Gaussians' own contact normals.
   double shading_kernel = 0.5;
+  /// A part's shaded normal is re-read once its reading point moved this many of the part's
+  /// smallest semi-axes (ProxyParams::shading_reuse).
+  double shading_reuse = 0.05;
   bool pass_isolated = true;   ///< floaters do not block (ProxyParams::pass_isolated)
   double isolation_gap = 0.0;  ///< ProxyParams::isolation_gap, in the largest semi-axis
   double teleport = 10.0;      ///< a device jump of more than this many reaches re-places the proxy
@@ -106,16 +110,11 @@ class CompoundProxy {
   std::size_t n_blockers_ = 0;
   std::uint64_t placements_ = 0, lost_ = 0;
   double min_axis_ = 0, reach_ = 0, largest_ = 0;
-  struct Shade {  // a part's last shaded normal and where it was read
-    Eigen::Vector3d at = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::Zero();
-    bool valid = false;
-  };
-  std::array<Shade, kMaxToolParts> shades_{};
-  static constexpr double kShadeReuse = 0.05;
+  std::array<ShadedNormalCache, kMaxToolParts> shades_{};  // each part's last shaded normal
   // A part touches within this x the smallest semi-axis of a Gaussian along the force (its weight
   // falls linearly to 0 there): wide enough that a stylus lying on a surface loads every part
   // whatever the Gaussians' 0.5 mm jitter, short enough to keep the probe sweeps cheap.
-  static constexpr double kContactBand = 0.5;  // the shading point moves this x the part's smallest semi-axis
+  static constexpr double kContactBand = 0.5;
 
   int pose_parts(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
   void place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;

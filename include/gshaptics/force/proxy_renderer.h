@@ -92,8 +92,8 @@ class ProxyRenderer final : public ForceRenderer {
   void reset() noexcept override;
   /// A tool of several parts (or one off the TCP) gets the compound proxy (force/compound_proxy.h:
   /// translation and rotation, the wrench at the contacts), with this renderer's stiffness,
-  /// damping, substeps, floater rule and teleport distance; friction and the shaded normal are not
-  /// applied to it. A single part at the TCP stays with the one-ellipsoid proxy.
+  /// damping, substeps, shading kernel and reuse, floater rule and teleport distance; friction is
+  /// not applied to it. A single part at the TCP stays with the one-ellipsoid proxy.
   void set_tool(const CompoundTool& tool) override;
   [[nodiscard]] bool renders_compound() const noexcept override { return compound_ != nullptr; }
   RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
@@ -126,8 +126,8 @@ class ProxyRenderer final : public ForceRenderer {
   Eigen::Vector3d last_device_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond last_rotation_ = Eigen::Quaterniond::Identity();
-  bool in_contact_ = false, sticking_ = false, shade_valid_ = false;
-  Eigen::Vector3d shade_ = Eigen::Vector3d::Zero(), shade_at_ = Eigen::Vector3d::Zero();
+  bool in_contact_ = false, sticking_ = false;
+  ShadedNormalCache shade_;
   std::unique_ptr<CompoundProxy> compound_;
   CompoundTool tool_;
   bool compound_active_ = false;

@@ -39,4 +39,27 @@ namespace gshaptics {
 [[nodiscard]] double shading_scale(const CollisionWorld& world, std::span<const Contact> blockers,
                                    double radius) noexcept;
 
+/// The last shaded normal and where it was read. The field is smooth at the kernel's scale, so
+/// a proxy re-reads it only once its reading point moved more than `reuse` m
+/// (ProxyParams::shading_reuse, in tool radii, times the radius).
+class ShadedNormalCache {
+ public:
+  /// shaded_normal(world, at, scale, kernel), or the cached one while `at` is within `reuse` m of
+  /// where that was read.
+  const Eigen::Vector3d& read(const CollisionWorld& world, const Eigen::Vector3d& at, double scale, double kernel,
+                              double reuse) noexcept {
+    if (!(valid_ && (at - at_).norm() <= reuse)) {
+      normal_ = shaded_normal(world, at, scale, kernel);
+      at_ = at;
+      valid_ = true;
+    }
+    return normal_;
+  }
+  void reset() noexcept { valid_ = false; }
+
+ private:
+  Eigen::Vector3d at_ = Eigen::Vector3d::Zero(), normal_ = Eigen::Vector3d::Zero();
+  bool valid_ = false;
+};
+
 }  // namespace gshaptics
