@@ -81,14 +81,7 @@ RenderOutput PaperRenderer::render_compound(std::span<const ToolEllipsoid> parts
     return out;
   }
   for (std::size_t j = 0; j < parts.size(); ++j) {
-    const QueryStatus st = query_.run(parts[j]);
-    if (st == QueryStatus::kInvalidTool) {  // one bad part: no force from any (as for one ellipsoid)
-      merged_.clear();
-      out = RenderOutput{};
-      out.proxy = tcp;
-      out.status = st;
-      return out;
-    }
+    const QueryStatus st = query_.run(parts[j]);  // every part is valid: ok, or an overflow
     if (st != QueryStatus::kOk) out.status = st;
     const ContactSet& r = query_.result();
     out.counts.candidates += r.counts.candidates;

@@ -9,9 +9,8 @@ namespace gshaptics {
 
 ToolShape tool_shape_for(const CompoundTool& tool) {
   ToolShape s;
-  const Eigen::Vector3d& a = tool.parts[0].semi_axes;
-  if (tool.is_single_at_tcp() && a.maxCoeff() - a.minCoeff() <= 1e-12 * a.maxCoeff()) {
-    s.semi_axes = a;
+  if (tool.is_single_at_tcp() && ToolEllipsoid::is_sphere(tool.parts[0].semi_axes)) {
+    s.semi_axes = tool.parts[0].semi_axes;
     s.rotation = tool.parts[0].rotation;
   } else {
     s.compound = tool;

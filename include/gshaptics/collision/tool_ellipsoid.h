@@ -27,7 +27,8 @@ struct ToolEllipsoid {
   /// center + Sigma n / sqrt(n^T Sigma n), Sigma = R diag(semi_axes^2) R^T. m.
   [[nodiscard]] Eigen::Vector3d surface_point(const Eigen::Vector3d& n) const noexcept;
   /// True when the three semi-axes are equal (to 1e-12 relative): a sphere.
-  [[nodiscard]] bool is_sphere() const noexcept {
+  [[nodiscard]] bool is_sphere() const noexcept { return is_sphere(semi_axes); }
+  [[nodiscard]] static bool is_sphere(const Eigen::Vector3d& semi_axes) noexcept {
     return semi_axes.maxCoeff() - semi_axes.minCoeff() <= 1e-12 * semi_axes.maxCoeff();
   }
 };
