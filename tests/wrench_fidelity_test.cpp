@@ -162,6 +162,17 @@ TEST(WrenchFidelity, AStylusAcrossACubeEdgeGetsTheTorqueOfItsLever) {
   std::vector<double> d = m.torque_dir_deg;
   std::nth_element(d.begin(), d.begin() + std::ptrdiff_t(d.size() * 95 / 100), d.end());
   EXPECT_LT(d[d.size() * 95 / 100], 5.0);  // the torque turns the right way (p95)
+  // The force acts along the stylus's own normal where it rests on the edge (the support normal
+  // of the edge's patch), not along a blend of the two faces' normals (the shaded field alone
+  // was 20-50 degrees off here).
+  std::vector<double> f = m.force_dir_deg;
+  ASSERT_GT(f.size(), 100u);
+  std::nth_element(f.begin(), f.begin() + std::ptrdiff_t(f.size() * 95 / 100), f.end());
+  EXPECT_LT(f[f.size() * 95 / 100], 5.0);
+  std::vector<double> r = m.torque_ratio;
+  std::sort(r.begin(), r.end());
+  EXPECT_GT(r[r.size() * 5 / 100], 0.9);
+  EXPECT_LT(r[r.size() * 95 / 100], 1.1);
   EXPECT_TRUE(m.press.never_lost);
 }
 

@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <Eigen/Eigenvalues>
 
 #include "gshaptics/error.h"
+#include "gshaptics/broadphase/bvh.h"
 #include "gshaptics/force/shaded_normal.h"
 
 namespace gshaptics {
@@ -43,11 +45,13 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
   largest_ = tool_.largest_semi_axis();
   min_axis_ = largest_;
   for (const ToolPart& p : tool_.view()) min_axis_ = std::min(min_axis_, p.semi_axes.minCoeff());
+  for (const CollisionGaussian& g : world.gaussians()) largest_gaussian_ = std::max(largest_gaussian_, double(g.radius));
 }
 
 void CompoundProxy::reset() noexcept {
   placed_ = false;
   for (ShadedNormalCache& sh : shades_) sh.reset();
+  for (SupportCache& sc : supports_) sc.valid = false;
   n_blockers_ = 0;
   floaters_.reset();
 }
@@ -195,6 +199,110 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
   return np;
 }
 
+namespace {
+
+// The patch's thin-axis scatter: one face has one direction (rank 1), an edge two, a corner three.
+struct PatchShape {
+  bool feature = false;                               // more than one face in the patch
+  Eigen::Vector3d edge = Eigen::Vector3d::Zero();     // an edge's direction (zero: a face or a corner)
+};
+
+PatchShape patch_shape(std::span<const Eigen::Vector3d> axes, double feature_share, double edge_share) noexcept {
+  PatchShape out;
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& a : axes) scatter.noalias() += a * a.transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.computeDirect(scatter);
+  const Eigen::Vector3d l = es.eigenvalues();  // ascending
+  if (!(l[2] > 0) || !l.allFinite()) return out;
+  out.feature = l[1] > feature_share * l[2];
+  if (out.feature && l[0] < edge_share * l[1]) out.edge = es.eigenvectors().col(0);
+  return out;
+}
+
+}  // namespace
+
+CompoundProxy::PartNormal CompoundProxy::part_support_normal(int j, const Eigen::Vector3d& start) noexcept {
+  const ToolEllipsoid& part = parts_[std::size_t(j)];
+  const double rho = part.semi_axes.minCoeff();
+  SupportCache& sc = supports_[std::size_t(j)];
+  const double reuse = params_.shading_reuse * rho;
+  if (sc.valid && (part.center - sc.center).norm() <= reuse &&
+      sc.rotation.angularDistance(part.rotation) * part.semi_axes.maxCoeff() <= reuse)
+    return sc.answer;
+  sc = {part.center, part.rotation, {}, true};
+  // The patch: the Gaussians whose bounding sphere reaches within kPatchBand smallest semi-axes
+  // of the part (by BVH leaves; a cheap superset of the exact test, enough for a hull), less
+  // those whose centre is inside the part (floaters it passed: the proxy overlaps no Gaussian
+  // that blocks it).
+  const double band = kPatchBand * min_axis_;
+  const Eigen::Vector3d half = part.aabb_half_extent() + Eigen::Vector3d::Constant(band + largest_gaussian_);
+  float lo[3], hi[3];
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = round_down_to_float(part.center[k] - half[k]);
+    hi[k] = round_up_to_float(part.center[k] + half[k]);
+  }
+  const Eigen::Matrix3d rp = part.rotation.normalized().toRotationMatrix();
+  std::size_t n = 0;
+  const CollisionGaussian* gs = world_->gaussians().data();
+  world_->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
+    for (std::uint32_t k = first; k < first + count && n < kMaxPatch; ++k) {
+      const CollisionGaussian& g = gs[k];
+      const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
+      const Eigen::Vector3d local = rp.transpose() * (c - part.center);
+      const double reach = band + double(g.radius);
+      double inside = 0, grown = 0;
+      for (int q = 0; q < 3; ++q) {
+        inside += local[q] * local[q] / (part.semi_axes[q] * part.semi_axes[q]);
+        grown += local[q] * local[q] / ((part.semi_axes[q] + reach) * (part.semi_axes[q] + reach));
+      }
+      if (grown > 1.0 || inside < 1.0) continue;
+      const Eigen::Matrix3d r = rotation_matrix(g);
+      const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+      Eigen::Index thin = 0;
+      a.minCoeff(&thin);
+      patch_slot_[n] = k;
+      patch_axis_[n] = r.col(thin) * double(g.opacity);
+      patch_[n++] = {c, r * a.array().square().matrix().asDiagonal() * r.transpose(), double(g.opacity)};
+    }
+  });
+  PatchShape shape = patch_shape({patch_axis_.data(), n}, kFeatureShare, kEdgeShare);
+  if (!shape.feature) return sc.answer;  // a face: the shaded normal stands
+  // Floaters that the part did not pass but that the grown part reaches (one hanging beside a
+  // stylus) would bend the hull: the Gaussians that hold the answer (within a few soft-minimum
+  // widths of the smallest gap) are put to the floater rule, and floaters leave the patch.
+  const double tau = kSupportTau * rho;
+  SupportNormal sn = support_normal(part, {patch_.data(), n}, start, tau);
+  for (int round = 0; round < 3 && params_.pass_isolated && sn.normal.squaredNorm() > 0; ++round) {
+    bool dropped = false;
+    for (std::size_t i = 0; i < n;) {
+      if (support_gap(part, patch_[i], sn.normal) <= sn.separation + 3 * tau &&
+          floaters_.isolated(patch_slot_[i], params_.isolation_gap * largest_)) {
+        --n;
+        patch_[i] = patch_[n];
+        patch_slot_[i] = patch_slot_[n];
+        patch_axis_[i] = patch_axis_[n];
+        dropped = true;
+      } else {
+        ++i;
+      }
+    }
+    if (!dropped) break;
+    shape = patch_shape({patch_axis_.data(), n}, kFeatureShare, kEdgeShare);
+    if (!shape.feature) return sc.answer;
+    sn = support_normal(part, {patch_.data(), n}, start, tau);
+  }
+  if (!(sn.normal.squaredNorm() > 0)) return sc.answer;
+  // At an edge the normal lies across it: the hull's tilt along the edge is the rims' jitter.
+  Eigen::Vector3d normal = sn.normal;
+  if (shape.edge.squaredNorm() > 0) {
+    const Eigen::Vector3d across = normal - normal.dot(shape.edge) * shape.edge;
+    if (across.norm() > 0.5) normal = across.normalized();
+  }
+  sc.answer = {normal, true};
+  return sc.answer;
+}
+
 RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
                                    const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
                                    double dt) noexcept {
@@ -254,6 +362,10 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
                                          params_.shading_reuse * rho);
         if (sn.dot(h.normal) > 0) nj = sn;
       }
+      // At a convex edge or corner the shaded field blends the faces' normals; the tool resting
+      // on the feature is pushed along the patch's support normal instead (support_normal.h).
+      const PartNormal feature = part_support_normal(j, nj);
+      if (feature.feature && feature.normal.dot(h.normal) > 0) nj = feature.normal;
       moment += w * (part.surface_point(-nj) - x_);
       normal += w * nj;
       weight += w;

@@ -19,7 +19,11 @@
 /// 3. Wrench: a virtual coupling in both (Colgate, Stanley & Brown 1995): F = max(0, k_c e . n - b_c v . n) n
 ///    with e = x_proxy - x_device and n the contact normal: the touching parts' shaded normals
 ///    (Morgenbesser & Srinivasan 1996; shaded_normal.h, each read at the centre of the sphere of
-///    the part's smallest semi-axis touching where the part touches), weighted as below (e^
+///    the part's smallest semi-axis touching where the part touches) on a face; where the part's
+///    patch of Gaussians holds more than one face (a convex edge or corner, told by the spread of
+///    the Gaussians' thin axes), the patch's support normal instead (support_normal.h: the
+///    direction that best separates the part from the patch's hull, kept across an edge), the
+///    tool's own normal where it rests on the feature; weighted as below (e^
 ///    when they disagree with e; when they say the device is on the free side and its pose is
 ///    free, the proxy rejoins the device), applied at the contacts: its moment about the
 ///    TCP is (c - x_tcp) x F, c the mean of the touching parts' surface points facing their
@@ -33,10 +37,9 @@
 ///
 /// What it does not do yet: the proxy does not turn under the contact torque (a full 6-DoF
 /// god-object solves for the pose that balances it; here the torque is rendered and the proxy
-/// keeps the device's orientation while that is free), no friction, and at a convex edge the
-/// shaded normal leans toward one face where a smooth tool resting on the sharp edge is pushed
-/// along its own normal (the stylus across the fidelity cube's edge: torque direction right,
-/// force 20-50 degrees off; docs/results.md).
+/// keeps the device's orientation while that is free), and no friction. A concave patch (a
+/// groove) is also told a feature; the support normal there is the bisector of its faces, which
+/// the fidelity cases do not score yet.
 ///
 /// Threading: one thread; render() allocates, locks, logs and throws nothing.
 
@@ -50,6 +53,7 @@
 #include "gshaptics/force/floater_test.h"
 #include "gshaptics/force/shaded_normal.h"
 #include "gshaptics/force/proxy_solver.h"
+#include "gshaptics/force/support_normal.h"
 
 namespace gshaptics {
 
@@ -111,10 +115,41 @@ class CompoundProxy {
   std::uint64_t placements_ = 0, lost_ = 0;
   double min_axis_ = 0, reach_ = 0, largest_ = 0;
   std::array<ShadedNormalCache, kMaxToolParts> shades_{};  // each part's last shaded normal
+  // The support normal (support_normal.h) of each part at a convex feature: its patch, and the
+  // last answer with the part's pose it was found at (re-found once the part moved
+  // shading_reuse smallest semi-axes).
+  struct PartNormal {
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();  // unit when `feature`
+    bool feature = false;  // the patch holds more than one face: an edge or a corner
+  };
+  struct SupportCache {
+    Eigen::Vector3d center = Eigen::Vector3d::Zero();
+    Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
+    PartNormal answer;
+    bool valid = false;
+  };
+  static constexpr std::size_t kMaxPatch = 256;
+  double largest_gaussian_ = 0;  // the world's largest bounding radius (the patch's box margin)
+  std::array<PatchGaussian, kMaxPatch> patch_{};
+  std::array<std::uint32_t, kMaxPatch> patch_slot_{};
+  std::array<Eigen::Vector3d, kMaxPatch> patch_axis_{};  // each Gaussian's thin axis x opacity
+  std::array<SupportCache, kMaxToolParts> supports_{};
+  PartNormal part_support_normal(int j, const Eigen::Vector3d& start) noexcept;
   // A part touches within this x the smallest semi-axis of a Gaussian along the force (its weight
   // falls linearly to 0 there): wide enough that a stylus lying on a surface loads every part
   // whatever the Gaussians' 0.5 mm jitter, short enough to keep the probe sweeps cheap.
   static constexpr double kContactBand = 0.5;
+  // The support normal's patch: the Gaussians within this x the smallest semi-axis of a part (a
+  // wider patch than the contact band, so that an edge's hull spans several rims).
+  static constexpr double kPatchBand = 1.0;
+  // The soft minimum's width, in the part's smallest semi-axis: about the Gaussians' jitter on a
+  // 5 mm stylus (0.5 mm).
+  static constexpr double kSupportTau = 0.1;
+  // The patch is a feature when its thin axes' second principal value is at least this share of
+  // the first (a second face holds about 5 % of the patch's opacity; a face's 3 deg tilts give
+  // 0.3 %), and an edge when the third is under kEdgeShare of the second.
+  static constexpr double kFeatureShare = 0.05;
+  static constexpr double kEdgeShare = 0.2;
 
   int pose_parts(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
   void place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;
