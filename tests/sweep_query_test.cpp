@@ -88,6 +88,30 @@ TEST(SweepQuery, AThinPlateIsHitWhenTheWholePlateIsCrossedInOneMotion) {
   }
 }
 
+TEST(SweepQuery, ALimitKeepsContactsUpToItAndDropsTheLaterOnes) {
+  // A grid of discs at z = 0 and a second one at z = -0.02: a sphere moving down 60 mm.
+  std::vector<GaussianSpec> gs;
+  for (float x = -0.03f; x <= 0.03f; x += 0.003f)
+    for (float y = -0.03f; y <= 0.03f; y += 0.003f)
+      for (float z : {0.0f, -0.02f})
+        gs.emplace_back(Eigen::Vector3f(x, y, z), Eigen::Vector3f(0.003f, 0.003f, 1e-6f), Eigen::Quaternionf::Identity());
+  const CollisionWorld w = world_of(gs);
+  const ToolEllipsoid tool = ToolEllipsoid::sphere({0.0011, -0.0007, 0.03}, 0.004);
+  const Eigen::Vector3d motion(0, 0, -0.06);
+  SweepQuery sweep(w);
+  const SweepHit free = sweep.first_contact(tool, motion);
+  ASSERT_TRUE(free.hit);
+  EXPECT_NEAR(free.t, (0.03 - 0.004) / 0.06, 1e-4);  // the upper grid
+  for (const double limit : {1.0, 0.9, free.t + 1e-9}) {
+    const SweepHit h = sweep.first_contact(tool, motion, {}, {}, {}, limit);
+    ASSERT_TRUE(h.hit) << limit;
+    EXPECT_NEAR(h.t, free.t, 1e-9) << limit;  // the same contact (the search's start cache moves it by ~1e-12)
+    EXPECT_EQ(h.slot, free.slot) << limit;
+  }
+  for (const double limit : {free.t * 0.99, 0.1, 0.0, -1.0})
+    EXPECT_FALSE(sweep.first_contact(tool, motion, {}, {}, {}, limit).hit) << limit;
+}
+
 TEST(SweepQuery, AnEllipsoidalToolTouchesAPlateAtItsSupportHeight) {
   std::vector<GaussianSpec> gs;
   for (float x = -0.05f; x <= 0.05f; x += 0.002f)

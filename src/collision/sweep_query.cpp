@@ -208,12 +208,14 @@ SweepQuery::SweepQuery(const CollisionWorld& world, std::size_t max_candidates)
 
 SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
                                    std::span<const std::uint32_t> ignore,
-                                   std::span<const std::uint32_t> hints, BlockFilter filter) noexcept {
+                                   std::span<const std::uint32_t> hints, BlockFilter filter,
+                                   double limit) noexcept {
   counts_ = {};
   SweepHit hit;
   const double len2 = motion.squaredNorm();
-  if (!tool.valid() || !motion.allFinite() || !(len2 > 0)) return hit;
-  const Eigen::Vector3d c0 = tool.center, c1 = tool.center + motion;
+  if (!tool.valid() || !motion.allFinite() || !(len2 > 0) || !(limit > 0)) return hit;
+  double best = std::min(limit, 1.0);
+  const Eigen::Vector3d c0 = tool.center, c1 = tool.center + motion * best;  // nothing past the limit counts
   const Eigen::Vector3d h = tool.aabb_half_extent();
   float lo[3], hi[3];
   for (int k = 0; k < 3; ++k) {
@@ -230,7 +232,6 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
   const double r2_tool = b.x() * b.x();
   const CollisionGaussian* gs = world_->gaussians().data();
   std::size_t n = 0;
-  double best = 1.0;
   const auto exact = [&](std::uint32_t k) {
     Eigen::Vector3d nrm;
     ++counts_.exact;

@@ -156,7 +156,8 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
     SweepHit best;
     const int n = pose_parts(at, q_);
     for (int j = 0; j < n; ++j) {
-      const SweepHit hj = sweep_.first_contact(parts_[std::size_t(j)], u, {}, h, filter);
+      // The earliest contact so far bounds the next part's sweep: its later candidates go unseen.
+      const SweepHit hj = sweep_.first_contact(parts_[std::size_t(j)], u, {}, h, filter, best.hit ? best.t : 1.0);
       if (hj.hit && (!best.hit || hj.t < best.t)) {
         best = hj;
         part = j;
@@ -365,7 +366,15 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       // At a convex edge or corner the shaded field blends the faces' normals; the tool resting
       // on the feature is pushed along the patch's support normal instead (support_normal.h).
       const PartNormal feature = part_support_normal(j, nj);
-      if (feature.feature && feature.normal.dot(h.normal) > 0) nj = feature.normal;
+      // Where the two agree to a few degrees (a face the thin axes call a feature, as on a
+      // messy real surface) the smooth shaded normal stays; past that the support normal takes
+      // over, blended so that the force's direction never jumps.
+      if (feature.feature && feature.normal.dot(h.normal) > 0) {
+        const double apart = std::atan2(feature.normal.cross(nj).norm(), feature.normal.dot(nj));
+        const double t = std::clamp((apart - kBlendFrom) / (kBlendTo - kBlendFrom), 0.0, 1.0);
+        const Eigen::Vector3d blend = (1.0 - t) * nj + t * feature.normal;
+        if (blend.norm() > 1e-9) nj = blend.normalized();
+      }
       moment += w * (part.surface_point(-nj) - x_);
       normal += w * nj;
       weight += w;

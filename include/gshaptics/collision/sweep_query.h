@@ -77,9 +77,12 @@ class SweepQuery {
   /// first (the last tick's blockers: the likely answer, which then prunes the rest). `filter`
   /// decides, in the same pass, whether a Gaussian the motion reaches first blocks it (a
   /// Gaussian it lets pass does not prune the others). A zero or non-finite motion gives no hit.
+  /// `limit` in (0, 1]: only contacts at t <= limit count (the earliest contact another part of
+  /// a compound tool already found on the same motion: everything later is pruned unseen).
   SweepHit first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
                          std::span<const std::uint32_t> ignore = {},
-                         std::span<const std::uint32_t> hints = {}, BlockFilter filter = {}) noexcept;
+                         std::span<const std::uint32_t> hints = {}, BlockFilter filter = {},
+                         double limit = 1.0) noexcept;
   [[nodiscard]] const SweepCounts& counts() const noexcept { return counts_; }
   [[nodiscard]] const CollisionWorld& world() const noexcept { return *world_; }
 

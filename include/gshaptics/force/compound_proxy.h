@@ -150,6 +150,10 @@ class CompoundProxy {
   // 0.3 %), and an edge when the third is under kEdgeShare of the second.
   static constexpr double kFeatureShare = 0.05;
   static constexpr double kEdgeShare = 0.2;
+  // A feature's support normal replaces the shaded one fully once they are kBlendTo apart, not
+  // at all below kBlendFrom (rad; 3 and 6 deg), linearly between.
+  static constexpr double kBlendFrom = 3.0 * 3.14159265358979323846 / 180;
+  static constexpr double kBlendTo = 6.0 * 3.14159265358979323846 / 180;
 
   int pose_parts(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
   void place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;
