@@ -1,7 +1,8 @@
 // The compound proxy (issue 36, item 2, first version): no part of the proxy ever ends inside the
 // Gaussians, a turn that would swing a stylus through a thin plate stops at the contact, the
 // wrench of a symmetric press has no torque and mirrored presses mirror it, the lever arm of an
-// off-centre contact, the rotational coupling, and a tick that allocates nothing.
+// off-centre contact, the rotational coupling, a stylus across an edge pushed along its own
+// normal there, and ticks that allocate nothing.
 
 #include "gshaptics/force/compound_proxy.h"
 
@@ -113,6 +114,49 @@ TEST(CompoundProxy, ATurnThatWouldSwingAStylusThroughAThinPlateStopsAtTheContact
   EXPECT_GT(Eigen::AngleAxisd(slow.orientation()).angle(), 0.0);
   EXPECT_LT(Eigen::AngleAxisd(slow.orientation()).angle() * 180 / M_PI, 120.0 - 1.0);
   EXPECT_EQ(partial.torque, Eigen::Vector3d::Zero());
+}
+
+// A block's edge along y: discs on the top face (z = 0, x < 0) and on the side face (x = 0, z < 0),
+// 4 mm apart, 2.4 mm wide, 0.2 mm thick.
+const CollisionWorld& block_edge() {
+  static const CollisionWorld w = [] {
+    std::vector<GaussianSpec> gs;
+    const Eigen::Quaternionf side(Eigen::AngleAxisf(float(M_PI / 2), Eigen::Vector3f::UnitY()));
+    for (float y = -0.06f; y <= 0.06f; y += 0.004f)
+      for (float d = 0.002f; d <= 0.1f; d += 0.004f) {
+        gs.emplace_back(Eigen::Vector3f(-d, y, 0), Eigen::Vector3f(0.0024f, 0.0024f, 0.0001f), Eigen::Quaternionf::Identity());
+        gs.emplace_back(Eigen::Vector3f(0, y, -d), Eigen::Vector3f(0.0024f, 0.0024f, 0.0001f), side);
+      }
+    return world_of(gs);
+  }();
+  return w;
+}
+
+TEST(CompoundProxy, AStylusPressedAcrossAnEdgeIsPushedAlongItsOwnNormalThereWithoutAllocating) {
+  // The stylus (tip at the TCP, along the tool's +z) descends across the edge at 30 deg; its
+  // third part's centre (11 L / 18 from the tip) rests on the edge. A cylinder on a line is
+  // pushed perpendicular to both: n = (sin 30, 0, cos 30), not a blend of the faces' normals.
+  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.005");
+  const double tilt = 30 * M_PI / 180, s = 11 * 0.12 / 18;
+  const Eigen::Vector3d axis(-std::cos(tilt), 0, std::sin(tilt)), n(std::sin(tilt), 0, std::cos(tilt));
+  const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), axis);
+  const Eigen::Vector3d touch = n * 0.005 - s * axis + Eigen::Vector3d(0, 0.0013, 0);
+  CompoundProxy proxy(block_edge(), stylus);
+  const auto tick = [&](double depth) { return proxy.render(touch - depth * n, q, -0.02 * n, Eigen::Vector3d::Zero(), 1e-3); };
+  for (int k = 0; k < 100; ++k) (void)tick(-0.003 + 0.00005 * k);  // from 3 mm off to 2 mm in
+  const std::size_t before = test::allocation_count();
+  RenderOutput out;
+  double worst = 0;
+  for (int k = 100; k < 160; ++k) {
+    out = tick(-0.003 + 0.00005 * k);  // on to 5 mm in
+    ASSERT_GT(out.force.norm(), 0.5) << k;
+    worst = std::max(worst, std::atan2(out.force.cross(n).norm(), out.force.dot(n)) * 180 / M_PI);
+  }
+  EXPECT_EQ(test::allocation_count() - before, 0u);
+  EXPECT_LT(worst, 5.0);
+  // Its moment about the TCP turns the way the lever says: (s axis) x n, within 5 deg.
+  const Eigen::Vector3d lever = (s * axis).cross(n);
+  EXPECT_LT(std::atan2(out.torque.cross(lever).norm(), out.torque.dot(lever)) * 180 / M_PI, 5.0);
 }
 
 TEST(CompoundProxy, TheProxyRendererTakesCompoundToolsAndItsTickAllocatesNothing) {
