@@ -170,8 +170,9 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
                  "A tool with a shape, in the device's tool frame (origin: the tool centre point), world units: "
                  "sphere:R, ellipsoid:A,B,C, stylus:LENGTH,RADIUS (4 ellipsoids from the TCP along +z), "
                  "disc:RADIUS,THICKNESS, or FILE.json ({\"parts\": [{\"center\", \"semi_axes\", \"rotation\"}]}). "
-                 "Tools of more than one part (or off the TCP) need --force-model paper for now; they give a torque, "
-                 "sent to devices that render torque (limit --tau-max)");
+                 "A tool of more than one part (or off the TCP, or not a sphere) gets the compound god-object with "
+                 "the proxy (the paper model: eq. 7-11 per part) and a torque, sent to devices that render torque "
+                 "(limit --tau-max)");
   cmd.add_option("--tau-max", o.safety.tau_max, "Torque limit, N m (the device's own limit binds too)")
       ->capture_default_str()->check(check::positive());
   add_force_options(cmd, o.force);
