@@ -271,14 +271,17 @@ CompoundProxy::PartNormal CompoundProxy::part_support_normal(int j, const Eigen:
   if (!shape.feature) return sc.answer;  // a face: the shaded normal stands
   // Floaters that the part did not pass but that the grown part reaches (one hanging beside a
   // stylus) would bend the hull: the Gaussians that hold the answer (within a few soft-minimum
-  // widths of the smallest gap) are put to the floater rule, and floaters leave the patch.
+  // widths of the smallest gap) are put to the floater rule, and floaters leave the patch (with
+  // the per-tick budget of uncached isolation tests the sweeps have; past it a Gaussian stays).
   const double tau = kSupportTau * rho;
   SupportNormal sn = support_normal(part, {patch_.data(), n}, start, tau);
+  FloaterTest::Filter floaters(floaters_, params_.isolation_gap * largest_);
+  const BlockFilter rule = floaters.block_filter();
   for (int round = 0; round < 3 && params_.pass_isolated && sn.normal.squaredNorm() > 0; ++round) {
     bool dropped = false;
     for (std::size_t i = 0; i < n;) {
       if (support_gap(part, patch_[i], sn.normal) <= sn.separation + 3 * tau &&
-          floaters_.isolated(patch_slot_[i], params_.isolation_gap * largest_)) {
+          !rule.blocks(rule.context, patch_slot_[i])) {
         --n;
         patch_[i] = patch_[n];
         patch_slot_[i] = patch_slot_[n];
