@@ -202,10 +202,12 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
 
 namespace {
 
-// The patch's thin-axis scatter: one face has one direction (rank 1), an edge two, a corner three.
+// The patch's thin-axis scatter (each axis weighted by its Gaussian's opacity and flatness): one
+// face has one direction (rank 1), a clean edge two, with almost nothing out of their plane. A
+// messy patch (a real scene's Gaussians in every orientation) or a corner spreads in all three.
 struct PatchShape {
-  bool feature = false;                               // more than one face in the patch
-  Eigen::Vector3d edge = Eigen::Vector3d::Zero();     // an edge's direction (zero: a face or a corner)
+  bool feature = false;                            // a clean edge: two faces
+  Eigen::Vector3d edge = Eigen::Vector3d::Zero();  // its direction
 };
 
 PatchShape patch_shape(std::span<const Eigen::Vector3d> axes, double feature_share, double edge_share) noexcept {
@@ -216,8 +218,10 @@ PatchShape patch_shape(std::span<const Eigen::Vector3d> axes, double feature_sha
   es.computeDirect(scatter);
   const Eigen::Vector3d l = es.eigenvalues();  // ascending
   if (!(l[2] > 0) || !l.allFinite()) return out;
-  out.feature = l[1] > feature_share * l[2];
-  if (out.feature && l[0] < edge_share * l[1]) out.edge = es.eigenvectors().col(0);
+  if (l[1] > feature_share * l[2] && l[0] < edge_share * l[1]) {
+    out.feature = true;
+    out.edge = es.eigenvectors().col(0);
+  }
   return out;
 }
 
@@ -263,7 +267,9 @@ CompoundProxy::PartNormal CompoundProxy::part_support_normal(int j, const Eigen:
       Eigen::Index thin = 0;
       a.minCoeff(&thin);
       patch_slot_[n] = k;
-      patch_axis_[n] = r.col(thin) * double(g.opacity);
+      const double mid = std::max({std::min(a[0], a[1]), std::min(a[1], a[2]), std::min(a[0], a[2])});
+      const double flat = mid > 0 ? 1.0 - a[thin] / mid : 0.0;  // a round Gaussian states no normal
+      patch_axis_[n] = r.col(thin) * (double(g.opacity) * flat);
       patch_[n++] = {c, r * a.array().square().matrix().asDiagonal() * r.transpose(), double(g.opacity)};
     }
   });
@@ -366,12 +372,11 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
                                          params_.shading_reuse * rho);
         if (sn.dot(h.normal) > 0) nj = sn;
       }
-      // At a convex edge or corner the shaded field blends the faces' normals; the tool resting
-      // on the feature is pushed along the patch's support normal instead (support_normal.h).
+      // At a convex edge the shaded field blends the faces' normals; the tool resting on the edge
+      // is pushed along the patch's support normal instead (support_normal.h).
       const PartNormal feature = part_support_normal(j, nj);
-      // Where the two agree to a few degrees (a face the thin axes call a feature, as on a
-      // messy real surface) the smooth shaded normal stays; past that the support normal takes
-      // over, blended so that the force's direction never jumps.
+      // Where the two agree to a few degrees the smooth shaded normal stays; past that the
+      // support normal takes over, blended so that the force's direction never jumps.
       if (feature.feature && feature.normal.dot(h.normal) > 0) {
         const double apart = std::atan2(feature.normal.cross(nj).norm(), feature.normal.dot(nj));
         const double t = std::clamp((apart - kBlendFrom) / (kBlendTo - kBlendFrom), 0.0, 1.0);
