@@ -2,10 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <Eigen/Eigenvalues>
 
 #include "gshaptics/error.h"
-#include "gshaptics/broadphase/bvh.h"
 #include "gshaptics/force/shaded_normal.h"
 
 namespace gshaptics {
@@ -39,19 +37,19 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
         QueryOptions q;
         q.max_contacts = 1;
         return q;
-      }()) {
+      }()),
+      edge_(world) {
   tool_.validate("compound proxy: tool");
   reach_ = tool_.reach();
   largest_ = tool_.largest_semi_axis();
   min_axis_ = largest_;
   for (const ToolPart& p : tool_.view()) min_axis_ = std::min(min_axis_, p.semi_axes.minCoeff());
-  for (const CollisionGaussian& g : world.gaussians()) largest_gaussian_ = std::max(largest_gaussian_, double(g.radius));
 }
 
 void CompoundProxy::reset() noexcept {
   placed_ = false;
   for (ShadedNormalCache& sh : shades_) sh.reset();
-  for (SupportCache& sc : supports_) sc.valid = false;
+  for (EdgeNormalCache& c : edges_) c.reset();
   n_blockers_ = 0;
   floaters_.reset();
 }
@@ -200,119 +198,6 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
   return np;
 }
 
-namespace {
-
-// The patch's thin-axis scatter (each axis weighted by its Gaussian's opacity and flatness): one
-// face has one direction (rank 1), a clean edge two, with almost nothing out of their plane. A
-// messy patch (a real scene's Gaussians in every orientation) or a corner spreads in all three.
-struct PatchShape {
-  bool feature = false;                            // a clean edge: two faces
-  Eigen::Vector3d edge = Eigen::Vector3d::Zero();  // its direction
-};
-
-PatchShape patch_shape(std::span<const Eigen::Vector3d> axes, double feature_share, double edge_share) noexcept {
-  PatchShape out;
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-  for (const Eigen::Vector3d& a : axes) scatter.noalias() += a * a.transpose();
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-  es.computeDirect(scatter);
-  const Eigen::Vector3d l = es.eigenvalues();  // ascending
-  if (!(l[2] > 0) || !l.allFinite()) return out;
-  if (l[1] > feature_share * l[2] && l[0] < edge_share * l[1]) {
-    out.feature = true;
-    out.edge = es.eigenvectors().col(0);
-  }
-  return out;
-}
-
-}  // namespace
-
-CompoundProxy::PartNormal CompoundProxy::part_support_normal(int j, const Eigen::Vector3d& start) noexcept {
-  const ToolEllipsoid& part = parts_[std::size_t(j)];
-  const double rho = part.semi_axes.minCoeff();
-  SupportCache& sc = supports_[std::size_t(j)];
-  const double reuse = params_.shading_reuse * rho;
-  if (sc.valid && (part.center - sc.center).norm() <= reuse &&
-      sc.rotation.angularDistance(part.rotation) * part.semi_axes.maxCoeff() <= reuse)
-    return sc.answer;
-  sc = {part.center, part.rotation, {}, true};
-  // The patch: the Gaussians whose bounding sphere reaches within kPatchBand smallest semi-axes
-  // of the part (by BVH leaves; a cheap superset of the exact test, enough for a hull), less
-  // those whose centre is inside the part (floaters it passed: the proxy overlaps no Gaussian
-  // that blocks it).
-  const double band = kPatchBand * min_axis_;
-  const Eigen::Vector3d half = part.aabb_half_extent() + Eigen::Vector3d::Constant(band + largest_gaussian_);
-  float lo[3], hi[3];
-  for (int k = 0; k < 3; ++k) {
-    lo[k] = round_down_to_float(part.center[k] - half[k]);
-    hi[k] = round_up_to_float(part.center[k] + half[k]);
-  }
-  const Eigen::Matrix3d rp = part.rotation.normalized().toRotationMatrix();
-  std::size_t n = 0;
-  const CollisionGaussian* gs = world_->gaussians().data();
-  world_->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
-    for (std::uint32_t k = first; k < first + count && n < kMaxPatch; ++k) {
-      const CollisionGaussian& g = gs[k];
-      const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
-      const Eigen::Vector3d local = rp.transpose() * (c - part.center);
-      const double reach = band + double(g.radius);
-      double inside = 0, grown = 0;
-      for (int q = 0; q < 3; ++q) {
-        inside += local[q] * local[q] / (part.semi_axes[q] * part.semi_axes[q]);
-        grown += local[q] * local[q] / ((part.semi_axes[q] + reach) * (part.semi_axes[q] + reach));
-      }
-      if (grown > 1.0 || inside < 1.0) continue;
-      const Eigen::Matrix3d r = rotation_matrix(g);
-      const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
-      Eigen::Index thin = 0;
-      a.minCoeff(&thin);
-      patch_slot_[n] = k;
-      const double mid = std::max({std::min(a[0], a[1]), std::min(a[1], a[2]), std::min(a[0], a[2])});
-      const double flat = mid > 0 ? 1.0 - a[thin] / mid : 0.0;  // a round Gaussian states no normal
-      patch_axis_[n] = r.col(thin) * (double(g.opacity) * flat);
-      patch_[n++] = {c, r * a.array().square().matrix().asDiagonal() * r.transpose(), double(g.opacity)};
-    }
-  });
-  PatchShape shape = patch_shape({patch_axis_.data(), n}, kFeatureShare, kEdgeShare);
-  if (!shape.feature) return sc.answer;  // a face: the shaded normal stands
-  // Floaters that the part did not pass but that the grown part reaches (one hanging beside a
-  // stylus) would bend the hull: the Gaussians that hold the answer (within a few soft-minimum
-  // widths of the smallest gap) are put to the floater rule, and floaters leave the patch (with
-  // the per-tick budget of uncached isolation tests the sweeps have; past it a Gaussian stays).
-  const double tau = kSupportTau * rho;
-  SupportNormal sn = support_normal(part, {patch_.data(), n}, start, tau);
-  FloaterTest::Filter floaters(floaters_, params_.isolation_gap * largest_);
-  const BlockFilter rule = floaters.block_filter();
-  for (int round = 0; round < 3 && params_.pass_isolated && sn.normal.squaredNorm() > 0; ++round) {
-    bool dropped = false;
-    for (std::size_t i = 0; i < n;) {
-      if (support_gap(part, patch_[i], sn.normal) <= sn.separation + 3 * tau &&
-          !rule.blocks(rule.context, patch_slot_[i])) {
-        --n;
-        patch_[i] = patch_[n];
-        patch_slot_[i] = patch_slot_[n];
-        patch_axis_[i] = patch_axis_[n];
-        dropped = true;
-      } else {
-        ++i;
-      }
-    }
-    if (!dropped) break;
-    shape = patch_shape({patch_axis_.data(), n}, kFeatureShare, kEdgeShare);
-    if (!shape.feature) return sc.answer;
-    sn = support_normal(part, {patch_.data(), n}, start, tau);
-  }
-  if (!(sn.normal.squaredNorm() > 0)) return sc.answer;
-  // At an edge the normal lies across it: the hull's tilt along the edge is the rims' jitter.
-  Eigen::Vector3d normal = sn.normal;
-  if (shape.edge.squaredNorm() > 0) {
-    const Eigen::Vector3d across = normal - normal.dot(shape.edge) * shape.edge;
-    if (across.norm() > 0.5) normal = across.normalized();
-  }
-  sc.answer = {normal, true};
-  return sc.answer;
-}
-
 RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
                                    const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
                                    double dt) noexcept {
@@ -364,25 +249,19 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       if (!h.hit) continue;
       const double w = std::max(1e-6, 1.0 - h.t);
       Eigen::Vector3d nj = h.normal;
+      const double rho = part.semi_axes.minCoeff();
       if (params_.shading_kernel > 0) {
-        const double rho = part.semi_axes.minCoeff();
         const Eigen::Vector3d& sn =
             shades_[std::size_t(j)].read(*world_, part.surface_point(-h.normal) + h.normal * rho,
                                          shading_scale(*world_, held_by, rho), params_.shading_kernel,
                                          params_.shading_reuse * rho);
         if (sn.dot(h.normal) > 0) nj = sn;
       }
-      // At a convex edge the shaded field blends the faces' normals; the tool resting on the edge
-      // is pushed along the patch's support normal instead (support_normal.h).
-      const PartNormal feature = part_support_normal(j, nj);
-      // Where the two agree to a few degrees the smooth shaded normal stays; past that the
-      // support normal takes over, blended so that the force's direction never jumps.
-      if (feature.feature && feature.normal.dot(h.normal) > 0) {
-        const double apart = std::atan2(feature.normal.cross(nj).norm(), feature.normal.dot(nj));
-        const double t = std::clamp((apart - kBlendFrom) / (kBlendTo - kBlendFrom), 0.0, 1.0);
-        const Eigen::Vector3d blend = (1.0 - t) * nj + t * feature.normal;
-        if (blend.norm() > 1e-9) nj = blend.normalized();
-      }
+      // At a clean convex edge the shaded field blends the faces' normals; the tool resting on
+      // the edge is pushed along the patch's support normal instead (edge_normal.h).
+      nj = EdgeNormal::blend(nj, edge_.read(part, nj, kPatchBand * min_axis_, params_.shading_reuse * rho, filter,
+                                            edges_[std::size_t(j)]),
+                             h.normal);
       moment += w * (part.surface_point(-nj) - x_);
       normal += w * nj;
       weight += w;

@@ -53,7 +53,7 @@
 #include "gshaptics/force/floater_test.h"
 #include "gshaptics/force/shaded_normal.h"
 #include "gshaptics/force/proxy_solver.h"
-#include "gshaptics/force/support_normal.h"
+#include "gshaptics/force/edge_normal.h"
 
 namespace gshaptics {
 
@@ -115,46 +115,15 @@ class CompoundProxy {
   std::uint64_t placements_ = 0, lost_ = 0;
   double min_axis_ = 0, reach_ = 0, largest_ = 0;
   std::array<ShadedNormalCache, kMaxToolParts> shades_{};  // each part's last shaded normal
-  // The support normal (support_normal.h) of each part at a convex feature: its patch, and the
-  // last answer with the part's pose it was found at (re-found once the part moved
-  // shading_reuse smallest semi-axes).
-  struct PartNormal {
-    Eigen::Vector3d normal = Eigen::Vector3d::Zero();  // unit when `feature`
-    bool feature = false;  // the patch is a clean edge: two faces
-  };
-  struct SupportCache {
-    Eigen::Vector3d center = Eigen::Vector3d::Zero();
-    Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
-    PartNormal answer;
-    bool valid = false;
-  };
-  static constexpr std::size_t kMaxPatch = 256;
-  double largest_gaussian_ = 0;  // the world's largest bounding radius (the patch's box margin)
-  std::array<PatchGaussian, kMaxPatch> patch_{};
-  std::array<std::uint32_t, kMaxPatch> patch_slot_{};
-  std::array<Eigen::Vector3d, kMaxPatch> patch_axis_{};  // each Gaussian's thin axis x opacity
-  std::array<SupportCache, kMaxToolParts> supports_{};
-  PartNormal part_support_normal(int j, const Eigen::Vector3d& start) noexcept;
+  EdgeNormal edge_;  // each part's normal at a clean convex edge, with its cache
+  std::array<EdgeNormalCache, kMaxToolParts> edges_{};
   // A part touches within this x the smallest semi-axis of a Gaussian along the force (its weight
   // falls linearly to 0 there): wide enough that a stylus lying on a surface loads every part
   // whatever the Gaussians' 0.5 mm jitter, short enough to keep the probe sweeps cheap.
   static constexpr double kContactBand = 0.5;
-  // The support normal's patch: the Gaussians within this x the smallest semi-axis of a part (a
+  // The edge normal's patch: the Gaussians within this x the smallest semi-axis of a part (a
   // wider patch than the contact band, so that an edge's hull spans several rims).
   static constexpr double kPatchBand = 1.0;
-  // The soft minimum's width, in the part's smallest semi-axis: about the Gaussians' jitter on a
-  // 5 mm stylus (0.5 mm).
-  static constexpr double kSupportTau = 0.1;
-  // The patch is a clean edge when its thin axes' second principal value is at least
-  // kFeatureShare of the first (a second face holds about 5 % of the patch's weight; a face's 3 deg
-  // tilts give 0.3 %) and the third is under kEdgeShare of the second (the fidelity cube's edges
-  // pass; on the real scenes' stylus probe runs no Truck or burger patch does, 19 % of halo's).
-  static constexpr double kFeatureShare = 0.05;
-  static constexpr double kEdgeShare = 0.05;
-  // A feature's support normal replaces the shaded one fully once they are kBlendTo apart, not
-  // at all below kBlendFrom (rad; 3 and 6 deg), linearly between.
-  static constexpr double kBlendFrom = 3.0 * 3.14159265358979323846 / 180;
-  static constexpr double kBlendTo = 6.0 * 3.14159265358979323846 / 180;
 
   int pose_parts(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
   void place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;

@@ -1,0 +1,161 @@
+#include "gshaptics/force/edge_normal.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+#include "gshaptics/broadphase/bvh.h"
+
+namespace gshaptics {
+
+namespace {
+
+// The patch's thin-axis scatter (each axis weighted by its Gaussian's opacity and flatness): one
+// face has one direction (rank 1), a clean edge two, with almost nothing out of their plane. A
+// messy patch (a real scene's Gaussians in every orientation) or a corner spreads in all three.
+struct PatchShape {
+  bool feature = false;                            // a clean edge: two faces
+  Eigen::Vector3d edge = Eigen::Vector3d::Zero();  // its direction
+};
+
+PatchShape patch_shape(std::span<const Eigen::Vector3d> axes, double feature_share, double edge_share) noexcept {
+  PatchShape out;
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& a : axes) scatter.noalias() += a * a.transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.computeDirect(scatter);
+  const Eigen::Vector3d l = es.eigenvalues();  // ascending
+  if (!(l[2] > 0) || !l.allFinite()) return out;
+  if (!(l[1] > feature_share * l[2] && l[0] < edge_share * l[1])) return out;
+  out.feature = true;
+  out.edge = es.eigenvectors().col(0);
+  return out;
+}
+
+// Convex or concave: the patch split into its two faces (each thin axis turned toward the tool,
+// on either side of their mean across the edge), each face's weighted centroid p and normal n. At
+// a convex edge each face lies behind the other's plane, (p_B - p_A) . (n_A - n_B) < 0; in a
+// groove each rises in front of it.
+bool convex(std::span<const Eigen::Vector3d> axes, std::span<const PatchGaussian> patch,
+            const Eigen::Vector3d& tool_center, const Eigen::Vector3d& edge) noexcept {
+  const auto toward_tool = [&](std::size_t i) {
+    return axes[i].dot(tool_center - patch[i].center) >= 0 ? Eigen::Vector3d(axes[i]) : Eigen::Vector3d(-axes[i]);
+  };
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < axes.size(); ++i) mean += toward_tool(i);
+  const Eigen::Vector3d side = edge.cross(mean);  // across the edge, among the faces' normals
+  if (!(side.norm() > 0)) return false;
+  Eigen::Vector3d n[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  Eigen::Vector3d c[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  double w[2] = {0, 0};
+  for (std::size_t i = 0; i < axes.size(); ++i) {
+    const Eigen::Vector3d a = toward_tool(i);
+    const double wi = a.norm();
+    const int f = a.dot(side) >= 0 ? 0 : 1;
+    n[f] += a;
+    c[f] += wi * patch[i].center;
+    w[f] += wi;
+  }
+  if (!(w[0] > 0 && w[1] > 0)) return false;
+  return (c[1] / w[1] - c[0] / w[0]).dot(n[0].normalized() - n[1].normalized()) < 0;
+}
+
+}  // namespace
+
+EdgeNormal::EdgeNormal(const CollisionWorld& world) : world_(&world) {
+  for (const CollisionGaussian& g : world.gaussians()) largest_gaussian_ = std::max(largest_gaussian_, double(g.radius));
+}
+
+EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector3d& start, double band, double reuse,
+                                  BlockFilter floaters, EdgeNormalCache& sc) noexcept {
+  const double rho = part.semi_axes.minCoeff();
+  if (sc.valid && (part.center - sc.center).norm() <= reuse &&
+      sc.rotation.angularDistance(part.rotation) * part.semi_axes.maxCoeff() <= reuse)
+    return sc.answer;
+  sc = {part.center, part.rotation, {}, true};
+  // The patch: the Gaussians whose bounding sphere reaches within `band` of the part (by BVH
+  // leaves; a cheap superset of the exact test, enough for a hull), less those whose centre is
+  // inside the part (floaters it passed: the proxy overlaps no Gaussian that blocks it).
+  const Eigen::Vector3d half = part.aabb_half_extent() + Eigen::Vector3d::Constant(band + largest_gaussian_);
+  float lo[3], hi[3];
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = round_down_to_float(part.center[k] - half[k]);
+    hi[k] = round_up_to_float(part.center[k] + half[k]);
+  }
+  const Eigen::Matrix3d rp = part.rotation.normalized().toRotationMatrix();
+  std::size_t n = 0;
+  const CollisionGaussian* gs = world_->gaussians().data();
+  world_->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
+    for (std::uint32_t k = first; k < first + count && n < kMaxPatch; ++k) {
+      const CollisionGaussian& g = gs[k];
+      const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
+      const Eigen::Vector3d local = rp.transpose() * (c - part.center);
+      const double reach = band + double(g.radius);
+      double inside = 0, grown = 0;
+      for (int q = 0; q < 3; ++q) {
+        inside += local[q] * local[q] / (part.semi_axes[q] * part.semi_axes[q]);
+        grown += local[q] * local[q] / ((part.semi_axes[q] + reach) * (part.semi_axes[q] + reach));
+      }
+      if (grown > 1.0 || inside < 1.0) continue;
+      const Eigen::Matrix3d r = rotation_matrix(g);
+      const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+      Eigen::Index thin = 0;
+      a.minCoeff(&thin);
+      slot_[n] = k;
+      const double mid = std::max({std::min(a[0], a[1]), std::min(a[1], a[2]), std::min(a[0], a[2])});
+      const double flat = mid > 0 ? 1.0 - a[thin] / mid : 0.0;  // a round Gaussian states no normal
+      axis_[n] = r.col(thin) * (double(g.opacity) * flat);
+      patch_[n++] = {c, r * a.array().square().matrix().asDiagonal() * r.transpose(), double(g.opacity)};
+    }
+  });
+  PatchShape shape = patch_shape({axis_.data(), n}, kFeatureShare, kEdgeShare);
+  if (!shape.feature) return sc.answer;  // a face: the shaded normal stands
+  // Floaters that the part did not pass but that the grown part reaches (one hanging beside a
+  // stylus) would bend the hull: the Gaussians that hold the answer (within a few soft-minimum
+  // widths of the smallest gap) are put to the floater rule, and floaters leave the patch (with
+  // the caller's budget of uncached isolation tests; past it a Gaussian stays).
+  const double tau = kSupportTau * rho;
+  SupportNormal sn = support_normal(part, {patch_.data(), n}, start, tau);
+  for (int round = 0; round < 3 && floaters.blocks != nullptr && sn.normal.squaredNorm() > 0; ++round) {
+    bool dropped = false;
+    for (std::size_t i = 0; i < n;) {
+      if (support_gap(part, patch_[i], sn.normal) <= sn.separation + 3 * tau &&
+          !floaters.blocks(floaters.context, slot_[i])) {
+        --n;
+        patch_[i] = patch_[n];
+        slot_[i] = slot_[n];
+        axis_[i] = axis_[n];
+        dropped = true;
+      } else {
+        ++i;
+      }
+    }
+    if (!dropped) break;
+    shape = patch_shape({axis_.data(), n}, kFeatureShare, kEdgeShare);
+    if (!shape.feature) return sc.answer;
+    sn = support_normal(part, {patch_.data(), n}, start, tau);
+  }
+  if (!(sn.normal.squaredNorm() > 0)) return sc.answer;
+  // A groove (a concave edge) keeps the shaded normal: its hull spans the groove's opening, and
+  // the support normal there would be the bisector whichever wall the tool touches.
+  if (!convex({axis_.data(), n}, {patch_.data(), n}, part.center, shape.edge)) return sc.answer;
+  // At an edge the normal lies across it: the hull's tilt along the edge is the rims' jitter.
+  Eigen::Vector3d normal = sn.normal;
+  if (shape.edge.squaredNorm() > 0) {
+    const Eigen::Vector3d across = normal - normal.dot(shape.edge) * shape.edge;
+    if (across.norm() > 0.5) normal = across.normalized();
+  }
+  sc.answer = {normal, true};
+  return sc.answer;
+}
+
+Eigen::Vector3d EdgeNormal::blend(const Eigen::Vector3d& shaded, const EdgeNormalAnswer& answer,
+                                  const Eigen::Vector3d& contact) noexcept {
+  if (!answer.edge || !(answer.normal.dot(contact) > 0)) return shaded;
+  const double apart = std::atan2(answer.normal.cross(shaded).norm(), answer.normal.dot(shaded));
+  const double t = std::clamp((apart - kBlendFrom) / (kBlendTo - kBlendFrom), 0.0, 1.0);
+  const Eigen::Vector3d mix = (1.0 - t) * shaded + t * answer.normal;
+  return mix.norm() > 1e-9 ? Eigen::Vector3d(mix.normalized()) : shaded;
+}
+
+}  // namespace gshaptics
