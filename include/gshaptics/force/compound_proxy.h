@@ -38,8 +38,7 @@
 /// What it does not do yet: the proxy does not turn under the contact torque (a full 6-DoF
 /// god-object solves for the pose that balances it; here the torque is rendered and the proxy
 /// keeps the device's orientation while that is free), no friction, and corners (three faces) keep
-/// the shaded normal. A concave patch (a groove) is also told an edge; the support normal there is
-/// the bisector of its faces, which the fidelity cases do not score yet.
+/// the shaded normal, as do grooves (edge_normal.h tests convexity).
 ///
 /// Threading: one thread; render() allocates, locks, logs and throws nothing.
 
