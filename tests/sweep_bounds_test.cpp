@@ -1,11 +1,14 @@
 // The proxy's work-saving paths give the plain computation's answers (issue 38). The sweep's
-// bounds (bounding-sphere capsule, slab, the lambda = 1/2 member of the family, candidates past
-// the best contact so far never queued), its one-pass floater filter and its warm-started
-// searches (each Gaussian's lambda search starts at its last maximiser) against the plain
-// computation: a cold sweep_time() of every Gaussian of the world, the smallest time among those
-// the filter does not let pass. On the bundled Truck (near-surface tools, random motions) and on
-// fidelity scenes (a cube edge, a sphere with floaters). The bounds alone are exact; the warm
-// start moves the first-contact time by the search's tolerance (1e-12 of the motion here).
+// bounds (bounding-sphere capsule, slab, members of the family: the one exact along the offset
+// and each Gaussian's last maximiser; candidates past the best contact so far never queued), its
+// one-pass floater filter and its warm-started searches (each Gaussian's lambda search starts at
+// its last maximiser, by Newton's method for spheres) against the plain computation: a cold
+// sweep_time() of every Gaussian of the world, the smallest time among those the filter does not
+// let pass. On the bundled Truck (near-surface tools, random motions) and on fidelity scenes (a
+// cube edge, a sphere with floaters). The bounds alone are exact; the warm start moves the
+// first-contact time by the search's tolerance (1e-12 of the motion here); a sweep with a
+// tolerance reports a contact at most that much later than the first. The shaded normal with
+// working memory is bit-identical to the plain two-pass one.
 
 #include <gtest/gtest.h>
 
@@ -17,6 +20,7 @@
 #include "gshaptics/collision/sweep_query.h"
 #include "gshaptics/fidelity/analytic_shape.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/force/shaded_normal.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/scene/registration.h"
 #include "gshaptics/sim/pose_sampler.h"
@@ -55,12 +59,22 @@ int expect_same_first_contacts(const CollisionWorld& w, int n, Draw&& draw) {
       const double plain = plain_first_contact(w, tool, motion, filtered);
       if (!std::isfinite(plain)) {
         EXPECT_FALSE(hit.hit) << "sweep " << i << (filtered ? " filtered" : "");
+        EXPECT_FALSE(sweep.first_contact(tool, motion, {}, {}, f, 1.0, 1e-2).hit) << "sweep " << i;
         continue;
       }
       ++hits;
       EXPECT_TRUE(hit.hit) << "sweep " << i;
       EXPECT_NEAR(hit.t, plain, 1e-12) << "sweep " << i << (filtered ? " filtered" : "");
       if (filtered) EXPECT_TRUE(every_third_blocks(nullptr, hit.slot)) << "a passing Gaussian was reported";
+      // With a tolerance: a contact no earlier than the first and at most the tolerance later.
+      for (const double tol : {1e-4, 1e-2}) {
+        const SweepHit ht = sweep.first_contact(tool, motion, {}, {}, f, 1.0, tol);
+        EXPECT_TRUE(ht.hit) << "sweep " << i << " tolerance " << tol;
+        EXPECT_GE(ht.t, plain - 1e-12) << "sweep " << i << " tolerance " << tol;
+        EXPECT_LE(ht.t, plain + tol + 1e-12) << "sweep " << i << " tolerance " << tol;
+        // It is a real contact of the Gaussian it names.
+        EXPECT_NEAR(sweep_time(w.gaussians()[ht.slot], tool, motion), ht.t, 1e-12) << "sweep " << i;
+      }
     }
     if (::testing::Test::HasFailure()) break;  // one sweep's report is enough
   }
@@ -109,6 +123,40 @@ TEST(SweepBounds, FidelityScenesMatchThePlainComputation) {
     });
     EXPECT_GT(hits, 60) << to_string(kind);
   }
+}
+
+TEST(ShadingScratch, TruckReadingsAreBitIdenticalToThePlainTwoPassOnes) {
+  const std::string scene = std::string(GSHAPTICS_DATA_DIR) + "/truck.splat";
+  if (!std::filesystem::exists(scene)) GTEST_SKIP() << scene << " not found";
+  WorldConfig cfg;
+  cfg.registration = load_registration_file(std::string(GSHAPTICS_DATA_DIR) + "/truck.registration.json");
+  const CollisionWorld w = CollisionWorld::build(load_scene(scene).scene, cfg);
+  PoseSamplerParams pp;
+  pp.count = 40;
+  pp.seed = 5;
+  const std::vector<ToolEllipsoid> tools = sample_poses(w, pp);
+  ShadingScratch roomy;         // holds every reading here
+  ShadingScratch tight(16);     // overflows: the plain second pass
+  int overflowed = 0, held = 0, nonzero = 0;
+  for (const ToolEllipsoid& t : tools) {
+    for (const double kernel : {0.25, 0.5}) {
+      const double r = t.semi_axes.maxCoeff();
+      const Eigen::Vector3d plain = shaded_normal(w, t.center, r, kernel);
+      const Eigen::Vector3d a = shaded_normal(w, t.center, r, kernel, roomy);
+      const Eigen::Vector3d b = shaded_normal(w, t.center, r, kernel, tight);
+      // Bitwise: the same terms summed in the same order.
+      for (int k = 0; k < 3; ++k) {
+        EXPECT_EQ(a[k], plain[k]);
+        EXPECT_EQ(b[k], plain[k]);
+      }
+      held += !roomy.last_overflow() && roomy.last_terms() > 16;
+      overflowed += tight.last_overflow();
+      nonzero += plain.squaredNorm() > 0;
+    }
+  }
+  EXPECT_GT(held, 10);        // the one-traversal path ran with real neighbourhoods
+  EXPECT_GT(overflowed, 10);  // and the fallback too
+  EXPECT_GT(nonzero, 40);
 }
 
 }  // namespace

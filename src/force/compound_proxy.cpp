@@ -155,7 +155,9 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
     const int n = pose_parts(at, q_);
     for (int j = 0; j < n; ++j) {
       // The earliest contact so far bounds the next part's sweep: its later candidates go unseen.
-      const SweepHit hj = sweep_.first_contact(parts_[std::size_t(j)], u, {}, h, filter, best.hit ? best.t : 1.0);
+      // Near-ties within half the stand-off are not searched to the end (SweepQuery's tolerance).
+      const SweepHit hj = sweep_.first_contact(parts_[std::size_t(j)], u, {}, h, filter, best.hit ? best.t : 1.0,
+                                               0.5 * eps / u.norm());
       if (hj.hit && (!best.hit || hj.t < best.t)) {
         best = hj;
         part = j;
@@ -254,7 +256,7 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
         const Eigen::Vector3d& sn =
             shades_[std::size_t(j)].read(*world_, part.surface_point(-h.normal) + h.normal * rho,
                                          shading_scale(*world_, held_by, rho), params_.shading_kernel,
-                                         params_.shading_reuse * rho);
+                                         params_.shading_reuse * rho, shading_scratch_);
         if (sn.dot(h.normal) > 0) nj = sn;
       }
       // At a clean convex edge the shaded field blends the faces' normals; the tool resting on

@@ -133,7 +133,8 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   // 3. The contact normal: shaded (Morgenbesser & Srinivasan 1996), recomputed once the proxy
   // has moved `shading_reuse` tool radii, unless it disagrees with where the proxy holds the device.
   Eigen::Vector3d n =
-      shade_.read(*world_, p, shading_scale(*world_, blockers, r), params_.shading_kernel, params_.shading_reuse * r);
+      shade_.read(*world_, p, shading_scale(*world_, blockers, r), params_.shading_kernel, params_.shading_reuse * r,
+                  shading_scratch_);
   if (n.dot(e) < 0 && !solver_.blocked(tool)) {
     // The surface says the device is on its free side, and the device's own pose is free: the
     // proxy is caught in a Gaussian-scale pocket (a sharp tool rim under a neighbouring disc's

@@ -136,7 +136,9 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
     const double len = u.norm();
     if (len <= 1e-9 * r) break;
     at.center = p;
-    const SweepHit hit = sweep_.first_contact(at, u, {}, {hints, n_hints}, filter);
+    // The proxy stops eps short of the reported contact; a near-tie within half of that is
+    // not searched to the end (SweepQuery's tolerance): it still stays eps / 2 away.
+    const SweepHit hit = sweep_.first_contact(at, u, {}, {hints, n_hints}, filter, 1.0, 0.5 * eps / len);
     candidates += sweep_.counts().candidates;
     if (!hit.hit) {
       p = target;

@@ -2,11 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
+#include <vector>
 
 #include "gshaptics/broadphase/bvh.h"
 
 namespace gshaptics {
-
 namespace {
 
 // A disc whose own normal (its shortest axis, turned toward c) lies more than acos(kAgree) ~ 73
@@ -20,72 +21,128 @@ constexpr double kAgree = 0.3;
 constexpr double kGain = 0.2;
 constexpr double kRimFalloff = 0.5;
 
-// The weighted sum of the Gaussians' directions at c (see the header). `outward`: a first
-// estimate of the unit normal, or zero for the first pass, in which every disc seen from beyond
-// its rim takes the rim direction.
-Eigen::Vector3d direction_sum(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double s,
-                              const Eigen::Vector3d& outward) noexcept {
-  const double s2 = s * s;
+// What one Gaussian gives the sum at c, the parts that do not depend on the outward estimate
+// (see the header): computed once a call and shared by the two passes.
+struct Term {
+  Eigen::Vector3d axis;  // shortest axis turned toward c
+  Eigen::Vector3d rim;   // unit direction from the nearest rim point to c (when beyond_rim)
+  Eigen::Vector3d rad;   // R A^-1 d, the density gradient's direction before dividing by an
+  double an = 0;         // |A^-1 d|
+  double weight = 0;     // alpha exp(-q / 2)
+  double flat = 0;       // 1 - a_min / a_mid
+  double past = 0;       // distance past the rim, in kRimFalloff kernel widths
+  bool beyond_rim = false;  // a disc (flat > 0) and c beyond its rim
+};
+
+// Term of g at c for a kernel width s (s2 = s^2); false when g does not contribute (q > 40).
+inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double s, double s2, Term& out) noexcept {
+  const Eigen::Vector3d d = c - Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+  // q >= |d|^2 / (a_max^2 + s^2): most of the box around c is dismissed before the rotation.
+  // (The 1e-3 margin keeps rounding from dismissing one the exact q keeps.)
+  const double a_max = g.radius;
+  if (d.squaredNorm() > 40.04 * (a_max * a_max + s2)) return false;
+  // In the Gaussian's frame A = diag(a^2 + s^2): q = sum dl^2 / A, A^-1 d = R (dl / A).
+  const Eigen::Matrix3d R = rotation_matrix(g);
+  const Eigen::Vector3d dl = R.transpose() * d;
+  Eigen::Vector3d ad;
+  double q = 0;
+  for (int j = 0; j < 3; ++j) {
+    const double inv = 1.0 / (double(g.semi_axes[j]) * g.semi_axes[j] + s2);
+    ad[j] = dl[j] * inv;
+    q += dl[j] * ad[j];
+  }
+  if (q > 40) return false;
+  out.an = ad.norm();
+  if (!(out.an > 0)) return false;
+  int jmin = 0;
+  for (int j = 1; j < 3; ++j)
+    if (g.semi_axes[j] < g.semi_axes[jmin]) jmin = j;
+  const int ju = (jmin + 1) % 3, jv = (jmin + 2) % 3;
+  const double a_min = g.semi_axes[jmin];
+  const double a_mid = std::min(g.semi_axes[ju], g.semi_axes[jv]);
+  out.flat = a_mid > 0 ? 1.0 - a_min / a_mid : 0.0;
+  out.axis = R.col(jmin) * (dl[jmin] >= 0 ? 1.0 : -1.0);
+  out.weight = double(g.opacity) * std::exp(-0.5 * q);
+  out.rad = R * ad;
+  const double eu = dl[ju] / g.semi_axes[ju], ev = dl[jv] / g.semi_axes[jv];
+  const double rho = std::sqrt(eu * eu + ev * ev);  // > 1: c is beyond the disc's rim
+  out.beyond_rim = out.flat > 0 && rho > 1.0;
+  if (out.beyond_rim) {
+    Eigen::Vector3d off;  // from the rim point on the ray toward c's projection, to c
+    off[jmin] = dl[jmin];
+    off[ju] = dl[ju] * (1.0 - 1.0 / rho);
+    off[jv] = dl[jv] * (1.0 - 1.0 / rho);
+    out.rim = (R * off).normalized();  // (off is never zero: c is past the rim)
+    out.past = std::hypot(off[ju], off[jv]) / (kRimFalloff * s);
+  }
+  return true;
+}
+
+// The term's weighted direction for the outward estimate `outward` (zero in the first pass, in
+// which every disc seen from beyond its rim takes the rim direction).
+inline Eigen::Vector3d contribution(const Term& tm, const Eigen::Vector3d& outward, bool first_pass) noexcept {
+  Eigen::Vector3d axis = tm.axis;
+  double weight = tm.weight;
+  const double agree = first_pass ? -1.0 : axis.dot(outward);
+  if (tm.beyond_rim && agree < kAgree) {
+    double t = std::min(1.0, (kAgree - agree) / kAgree);
+    if (!first_pass) t *= std::clamp((tm.rim.dot(outward) - agree) / kGain, 0.0, 1.0);
+    const Eigen::Vector3d blend = (1.0 - t) * axis + t * tm.rim;
+    const double bn = blend.norm();
+    if (bn > 1e-9) axis = blend / bn;
+    weight *= std::exp(-0.5 * t * tm.past * tm.past);
+  }
+  const Eigen::Vector3d dir = tm.flat * axis + (1.0 - tm.flat) * tm.rad / tm.an;
+  return weight * dir;
+}
+
+// Calls f(term) for every contributing Gaussian near c, in BVH order.
+template <typename F>
+void for_each_term(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double s, F&& f) noexcept {
   const double half = radius + 3.0 * s;
   float lo[3], hi[3];
   for (int k = 0; k < 3; ++k) {
     lo[k] = round_down_to_float(c[k] - half);
     hi[k] = round_up_to_float(c[k] + half);
   }
+  const CollisionGaussian* gs = world.gaussians().data();
+  Term tm;
+  world.bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
+    for (std::uint32_t k = first; k < first + count; ++k)
+      if (term_of(gs[k], c, s, s * s, tm)) f(tm);
+  });
+}
+
+// The weighted sum of the Gaussians' directions at c (plain: the terms computed as they come).
+Eigen::Vector3d direction_sum(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double s,
+                              const Eigen::Vector3d& outward) noexcept {
   const bool first_pass = outward.isZero(0);
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  const CollisionGaussian* gs = world.gaussians().data();
-  world.bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
-    for (std::uint32_t k = first; k < first + count; ++k) {
-      const CollisionGaussian& g = gs[k];
-      const Eigen::Vector3d d = c - Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
-      // In the Gaussian's frame A = diag(a^2 + s^2): q = sum dl^2 / A, A^-1 d = R (dl / A).
-      const Eigen::Matrix3d R = rotation_matrix(g);
-      const Eigen::Vector3d dl = R.transpose() * d;
-      Eigen::Vector3d ad;
-      double q = 0;
-      for (int j = 0; j < 3; ++j) {
-        const double inv = 1.0 / (double(g.semi_axes[j]) * g.semi_axes[j] + s2);
-        ad[j] = dl[j] * inv;
-        q += dl[j] * ad[j];
-      }
-      if (q > 40) continue;
-      const double an = ad.norm();
-      if (!(an > 0)) continue;
-      int jmin = 0;
-      for (int j = 1; j < 3; ++j)
-        if (g.semi_axes[j] < g.semi_axes[jmin]) jmin = j;
-      const int ju = (jmin + 1) % 3, jv = (jmin + 2) % 3;
-      const double a_min = g.semi_axes[jmin];
-      const double a_mid = std::min(g.semi_axes[ju], g.semi_axes[jv]);
-      const double flat = a_mid > 0 ? 1.0 - a_min / a_mid : 0.0;
-      Eigen::Vector3d axis = R.col(jmin) * (dl[jmin] >= 0 ? 1.0 : -1.0);
-      double weight = double(g.opacity) * std::exp(-0.5 * q);
-      const double agree = first_pass ? -1.0 : axis.dot(outward);
-      const double eu = dl[ju] / g.semi_axes[ju], ev = dl[jv] / g.semi_axes[jv];
-      const double rho = std::sqrt(eu * eu + ev * ev);  // > 1: c is beyond the disc's rim
-      if (flat > 0 && agree < kAgree && rho > 1.0) {
-        Eigen::Vector3d off;  // from the rim point on the ray toward c's projection, to c
-        off[jmin] = dl[jmin];
-        off[ju] = dl[ju] * (1.0 - 1.0 / rho);
-        off[jv] = dl[jv] * (1.0 - 1.0 / rho);
-        const Eigen::Vector3d rim = (R * off).normalized();
-        double t = std::min(1.0, (kAgree - agree) / kAgree);
-        if (!first_pass) t *= std::clamp((rim.dot(outward) - agree) / kGain, 0.0, 1.0);
-        const Eigen::Vector3d blend = (1.0 - t) * axis + t * rim;
-        const double bn = blend.norm();
-        if (bn > 1e-9) axis = blend / bn;  // (off is never zero: c is past the rim)
-        const double past = std::hypot(off[ju], off[jv]) / (kRimFalloff * s);
-        weight *= std::exp(-0.5 * t * past * past);
-      }
-      const Eigen::Vector3d dir = flat * axis + (1.0 - flat) * (R * ad) / an;
-      sum += weight * dir;
-    }
-  });
+  for_each_term(world, c, radius, s, [&](const Term& tm) { sum += contribution(tm, outward, first_pass); });
   return sum;
 }
 
+Eigen::Vector3d finish(const Eigen::Vector3d& sum) noexcept {
+  const double n = sum.norm();
+  return n > 0 && std::isfinite(n) ? Eigen::Vector3d(sum / n) : Eigen::Vector3d::Zero();
+}
+
 }  // namespace
+
+struct ShadingScratch::Terms {
+  std::vector<Term> terms;
+};
+
+ShadingScratch::ShadingScratch(std::size_t capacity) : terms_(std::make_unique<Terms>()) {
+  terms_->terms.resize(capacity);
+}
+ShadingScratch::~ShadingScratch() = default;
+ShadingScratch::ShadingScratch(const ShadingScratch& o) : ShadingScratch(o.capacity()) {}
+ShadingScratch& ShadingScratch::operator=(const ShadingScratch& o) {
+  if (this != &o) terms_->terms.resize(o.capacity());
+  return *this;
+}
+std::size_t ShadingScratch::capacity() const noexcept { return terms_->terms.size(); }
 
 Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius,
                               double kernel) noexcept {
@@ -93,9 +150,33 @@ Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d
   const Eigen::Vector3d first = direction_sum(world, c, radius, s, Eigen::Vector3d::Zero());
   const double n1 = first.norm();
   if (!(n1 > 0) || !std::isfinite(n1)) return Eigen::Vector3d::Zero();
-  const Eigen::Vector3d sum = direction_sum(world, c, radius, s, first / n1);
-  const double n = sum.norm();
-  return n > 0 && std::isfinite(n) ? Eigen::Vector3d(sum / n) : Eigen::Vector3d::Zero();
+  return finish(direction_sum(world, c, radius, s, first / n1));
+}
+
+Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
+                              ShadingScratch& scratch) noexcept {
+  const double s = kernel * radius;
+  std::vector<Term>& terms = scratch.terms_->terms;
+  std::size_t n = 0;
+  bool overflow = false;
+  Eigen::Vector3d first = Eigen::Vector3d::Zero();
+  for_each_term(world, c, radius, s, [&](const Term& tm) {
+    first += contribution(tm, Eigen::Vector3d::Zero(), true);
+    if (n < terms.size())
+      terms[n++] = tm;
+    else
+      overflow = true;
+  });
+  scratch.last_terms_ = n;
+  scratch.last_overflow_ = overflow;
+ 
+  const double n1 = first.norm();
+  if (!(n1 > 0) || !std::isfinite(n1)) return Eigen::Vector3d::Zero();
+  const Eigen::Vector3d outward = first / n1;
+  if (overflow) return finish(direction_sum(world, c, radius, s, outward));  // more than it holds: the plain pass
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) sum += contribution(terms[i], outward, false);
+  return finish(sum);
 }
 
 double shading_scale(const CollisionWorld& world, std::span<const Contact> blockers, double radius) noexcept {

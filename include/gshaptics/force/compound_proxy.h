@@ -114,6 +114,7 @@ class CompoundProxy {
   std::uint64_t placements_ = 0, lost_ = 0;
   double min_axis_ = 0, reach_ = 0, largest_ = 0;
   std::array<ShadedNormalCache, kMaxToolParts> shades_{};  // each part's last shaded normal
+  ShadingScratch shading_scratch_;  // the parts' readings' working memory
   EdgeNormal edge_;  // each part's normal at a clean convex edge, with its cache
   std::array<EdgeNormalCache, kMaxToolParts> edges_{};
   // A part touches within this x the smallest semi-axis of a Gaussian along the force (its weight

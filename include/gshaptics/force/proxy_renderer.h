@@ -128,6 +128,7 @@ class ProxyRenderer final : public ForceRenderer {
   Eigen::Quaterniond last_rotation_ = Eigen::Quaterniond::Identity();
   bool in_contact_ = false, sticking_ = false;
   ShadedNormalCache shade_;
+  ShadingScratch shading_scratch_;  // the shaded normal's working memory
   std::unique_ptr<CompoundProxy> compound_;
   CompoundTool tool_;
   bool compound_active_ = false;
