@@ -2,7 +2,8 @@
 // Gaussians, a turn that would swing a stylus through a thin plate stops at the contact, the
 // wrench of a symmetric press has no torque and mirrored presses mirror it, the lever arm of an
 // off-centre contact, the rotational coupling, a stylus across an edge pushed along its own
-// normal there, and ticks that allocate nothing.
+// normal there, friction (sticking inside the cone, mu_k times the normal force sliding, its
+// moment in the torque), and ticks that allocate nothing.
 
 #include "gshaptics/force/compound_proxy.h"
 
@@ -157,6 +158,72 @@ TEST(CompoundProxy, AStylusPressedAcrossAnEdgeIsPushedAlongItsOwnNormalThereWith
   // Its moment about the TCP turns the way the lever says: (s axis) x n, within 5 deg.
   const Eigen::Vector3d lever = (s * axis).cross(n);
   EXPECT_LT(std::atan2(out.torque.cross(lever).norm(), out.torque.dot(lever)) * 180 / M_PI, 5.0);
+}
+
+// Pressed 2 mm into the plate, then drawn sideways: with friction the proxy sticks while the
+// device stays inside the cone (the spring's tangential part k x offset), then slides with mu_k
+// times the normal force against the motion; the friction acts at the contacts, 1 cm below the
+// TCP, so its moment is in the torque. Without friction the sideways force is only the shell's
+// noise.
+struct Drag {
+  double stuck_proxy_shift = 0, stuck_force_y = 0, stuck_force_z = 0;
+  double slid_proxy_shift = 0, slid_force_y = 0, slid_force_z = 0, slid_torque_x = 0;
+  bool ever_inside = false;
+};
+Drag drag(double mu_s, double mu_k) {
+  CompoundProxyParams p;
+  p.mu_s = mu_s;
+  p.mu_k = mu_k;
+  CompoundProxy proxy(plate(), dumbbell(), p);
+  const double z_press = 0.0101 - 0.002;
+  Drag d;
+  RenderOutput out;
+  const Eigen::Quaterniond level = Eigen::Quaterniond::Identity();
+  for (int k = 0; k <= 30; ++k) {  // down from 3 cm, then held
+    const double z = std::max(z_press, 0.03 - 0.001 * k);
+    out = proxy.render({0.001, 0.0, z}, level, {0, 0, z > z_press ? -1.0 : 0.0}, Eigen::Vector3d::Zero(), 1e-3);
+  }
+  for (int k = 0; k < 20; ++k) out = proxy.render({0.001, 0.0, z_press}, level, {}, Eigen::Vector3d::Zero(), 1e-3);
+  const double y0 = proxy.position().y();
+  double y = 0;
+  const Eigen::Vector3d v(0, 0.01, 0);  // 10 mm/s sideways
+  for (int k = 0; k < 50; ++k) {  // 0.5 mm: inside the cone of mu_s = 0.5 at 2 mm depth
+    y += 1e-5;
+    out = proxy.render({0.001, y, z_press}, level, v, Eigen::Vector3d::Zero(), 1e-3);
+    d.ever_inside = d.ever_inside || proxy.blocked(proxy.position(), proxy.orientation());
+  }
+  d.stuck_proxy_shift = proxy.position().y() - y0;
+  d.stuck_force_y = out.force.y();
+  d.stuck_force_z = out.force.z();
+  for (int k = 0; k < 450; ++k) {  // on to 5 mm: out of the cone, sliding
+    y += 1e-5;
+    out = proxy.render({0.001, y, z_press}, level, v, Eigen::Vector3d::Zero(), 1e-3);
+    d.ever_inside = d.ever_inside || proxy.blocked(proxy.position(), proxy.orientation());
+  }
+  d.slid_proxy_shift = proxy.position().y() - y0;
+  d.slid_force_y = out.force.y();
+  d.slid_force_z = out.force.z();
+  d.slid_torque_x = out.torque.x();
+  return d;
+}
+
+TEST(CompoundProxy, FrictionSticksInsideTheConeSlidesWithMuKAndItsMomentIsInTheTorque) {
+  const Drag f = drag(0.5, 0.3);
+  EXPECT_FALSE(f.ever_inside);
+  // Sticking: the proxy has not moved; the force's sideways part is the spring's, k x 0.5 mm.
+  EXPECT_NEAR(f.stuck_proxy_shift, 0.0, 1e-9);
+  EXPECT_NEAR(f.stuck_force_z, 2.0, 0.3);
+  EXPECT_NEAR(f.stuck_force_y, -1000.0 * 0.0005, 0.05);
+  // Sliding: the proxy followed (held mu_k x depth behind), the sideways force is -mu_k F_n.
+  EXPECT_GT(f.slid_proxy_shift, 0.003);
+  EXPECT_NEAR(f.slid_force_y, -0.3 * f.slid_force_z, 0.05 * f.slid_force_z);
+  // At the contacts, 1.01 cm below the TCP: tau_x = 0.0101 F_y (plus nothing from F_z, symmetric).
+  EXPECT_NEAR(f.slid_torque_x, 0.0101 * f.slid_force_y, 0.1 * std::fabs(0.0101 * f.slid_force_y));
+
+  const Drag none = drag(0.0, 0.0);
+  EXPECT_FALSE(none.ever_inside);
+  EXPECT_GT(none.stuck_proxy_shift, 0.0004);  // it followed the device at once
+  EXPECT_LT(std::fabs(none.slid_force_y), 0.05 * none.slid_force_z);
 }
 
 TEST(CompoundProxy, TheProxyRendererTakesCompoundToolsAndItsTickAllocatesNothing) {

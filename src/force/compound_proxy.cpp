@@ -21,6 +21,8 @@ const CompoundProxyParams& validated(const CompoundProxyParams& p) {
     throw InputError("compound proxy: rotation_step must be in (0, 1] and max_rotation_steps >= 1");
   if (!(p.teleport > 0) || !(p.isolation_gap >= 0) || !(p.shading_kernel >= 0) || !(p.shading_reuse >= 0))
     throw InputError("compound proxy: teleport must be > 0, isolation gap, shading kernel and reuse >= 0");
+  if (!(p.mu_s >= 0 && p.mu_k >= 0 && p.mu_k <= p.mu_s) || !std::isfinite(p.mu_s))
+    throw InputError("compound proxy: friction needs 0 <= mu_k <= mu_s");
   return p;
 }
 
@@ -39,6 +41,7 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
         return q;
       }()),
       edge_(world) {
+  friction_ = FrictionCone(params_.mu_s, params_.mu_k);
   tool_.validate("compound proxy: tool");
   reach_ = tool_.reach();
   largest_ = tool_.largest_semi_axis();
@@ -48,6 +51,7 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
 
 void CompoundProxy::reset() noexcept {
   placed_ = false;
+  release();
   for (ShadedNormalCache& sh : shades_) sh.reset();
   for (EdgeNormalCache& c : edges_) c.reset();
   n_blockers_ = 0;
@@ -66,8 +70,16 @@ bool CompoundProxy::blocked(const Eigen::Vector3d& position, const Eigen::Quater
 }
 
 
+void CompoundProxy::release() noexcept {
+  in_contact_ = false;
+  normal_.setZero();
+  friction_.reset();
+  last_constraints_ = 0;
+}
+
 void CompoundProxy::place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept {
   ++placements_;
+  release();
   placed_ = true;
   n_blockers_ = 0;
   x_ = position;
@@ -213,12 +225,16 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
   }
   const Eigen::Quaterniond qd = orientation.normalized();
   if (!placed_ || (position - last_device_).norm() > params_.teleport * reach_) place(position, qd);
+  const Eigen::Vector3d device_step = position - last_device_;
   last_device_ = position;
 
   // 1. Turn toward the device's orientation, stopping at a contact.
   const bool turn_stopped = turn_toward(qd);
-  // 2. Move toward the device's position, sliding on the blockers' planes.
-  const int np = translate_toward(position);
+  // 2. Friction decides where the proxy heads (Salisbury et al. 1995): inside the cone it holds
+  // still with its blockers; else it moves toward the goal, sliding on the blockers' planes.
+  const FrictionStep fr = friction_.update(in_contact_, normal_, position, x_, device_step, reach_);
+  const int np = fr.sticking && n_blockers_ > 0 ? last_constraints_ : translate_toward(fr.goal);
+  last_constraints_ = np;
   out.proxy = x_;
   out.constraints = std::uint8_t(np);
   out.counts.contacts = std::uint32_t(n_blockers_);
@@ -281,7 +297,13 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     if (!(n.dot(e) > 0)) n = spring;
     const double fn = std::max(0.0, params_.stiffness * e.dot(n) - params_.damping * velocity.dot(n));
     out.force = fn * n;
+    if (fr.sticking) out.force += params_.stiffness * (e - e.dot(n) * n);  // static: the spring's tangential part
+    if (fr.sliding) out.force -= params_.mu_k * fn * fr.slip_dir;          // kinetic: mu_k times the normal force
     if (weight > 0) out.torque = (moment / weight).cross(out.force);
+    in_contact_ = true;
+    normal_ = n;
+  } else {
+    release();
   }
   const Eigen::AngleAxisd held(q_ * qd.conjugate());
   double angle = held.angle();

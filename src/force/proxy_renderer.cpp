@@ -56,6 +56,8 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   c.shading_reuse = params_.shading_reuse;
   c.isolation_gap = params_.isolation_gap;
   c.teleport = params_.teleport;
+  c.mu_s = params_.mu_s;
+  c.mu_k = params_.mu_k;
   compound_ = std::make_unique<CompoundProxy>(*world_, tool, c);
   tool_ = tool;
 }

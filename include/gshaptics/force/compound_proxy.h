@@ -35,10 +35,17 @@
 ///    that ran out of sub-rotations this tick catches up on the next, with no torque.
 /// Without contact the proxy is the device and the wrench is zero.
 ///
+/// 4. Friction (mu_s > 0): the friction cone of the one-ellipsoid proxy (friction_cone.h,
+///    Salisbury et al. 1995) on the translation, about the last tick's contact normal: inside
+///    the cone the proxy holds still with its blockers and the spring's tangential part is
+///    rendered too; outside it the proxy slides, held mu_k times the depth behind the device, and
+///    the force gets mu_k times the normal force against the sliding direction. Friction acts at
+///    the contacts, so its moment is in the torque.
+///
 /// What it does not do yet: the proxy does not turn under the contact torque (a full 6-DoF
 /// god-object solves for the pose that balances it; here the torque is rendered and the proxy
-/// keeps the device's orientation while that is free), no friction, and corners (three faces) keep
-/// the shaded normal, as do grooves (edge_normal.h tests convexity).
+/// keeps the device's orientation while that is free), no torsional (spin) friction, and
+/// corners (three faces) keep the shaded normal, as do grooves (edge_normal.h tests convexity).
 ///
 /// Threading: one thread; render() allocates, locks, logs and throws nothing.
 
@@ -50,6 +57,7 @@
 #include "gshaptics/collision/sweep_query.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/force/floater_test.h"
+#include "gshaptics/force/friction_cone.h"
 #include "gshaptics/force/shaded_normal.h"
 #include "gshaptics/force/proxy_solver.h"
 #include "gshaptics/force/edge_normal.h"
@@ -76,6 +84,8 @@ struct CompoundProxyParams {
   bool pass_isolated = true;   ///< floaters do not block (ProxyParams::pass_isolated)
   double isolation_gap = 0.0;  ///< ProxyParams::isolation_gap, in the largest semi-axis
   double teleport = 10.0;      ///< a device jump of more than this many reaches re-places the proxy
+  /// Coulomb friction, static and kinetic (ProxyParams::mu_s, mu_k; 0 <= mu_k <= mu_s; 0: none).
+  double mu_s = 0.0, mu_k = 0.0;
 };
 
 class CompoundProxy {
@@ -107,6 +117,10 @@ class CompoundProxy {
   ContactQuery free_query_;
   std::array<ToolEllipsoid, kMaxToolParts> parts_{};
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
+  FrictionCone friction_{0.0, 0.0};
+  bool in_contact_ = false;                             // the proxy held the device at the last tick
+  Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();    // along this contact normal
+  int last_constraints_ = 0;                            // planes holding it at the last move
   Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();
   bool placed_ = false;
   std::array<Contact, 3> blockers_{};
@@ -129,6 +143,7 @@ class CompoundProxy {
   void place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;
   bool turn_toward(const Eigen::Quaterniond& target) noexcept;  // true: a contact stopped the turn
   int translate_toward(const Eigen::Vector3d& goal) noexcept;  // the constraint planes holding it
+  void release() noexcept;  // out of contact: friction and the contact normal forgotten
 };
 
 }  // namespace gshaptics
