@@ -92,8 +92,8 @@ class ProxyRenderer final : public ForceRenderer {
   void reset() noexcept override;
   /// A tool of several parts (or one off the TCP) gets the compound proxy (force/compound_proxy.h:
   /// translation and rotation, the wrench at the contacts), with this renderer's stiffness,
-  /// damping, substeps, shading kernel and reuse, floater rule and teleport distance; friction is
-  /// not applied to it. A single part at the TCP stays with the one-ellipsoid proxy.
+  /// damping, substeps, shading kernel and reuse, floater rule, teleport distance and friction
+  /// (mu_s, mu_k). A single part at the TCP stays with the one-ellipsoid proxy.
   void set_tool(const CompoundTool& tool) override;
   [[nodiscard]] bool renders_compound() const noexcept override { return compound_ != nullptr; }
   RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
