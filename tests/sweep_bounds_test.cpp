@@ -15,6 +15,7 @@
 #include <Eigen/Geometry>
 #include <filesystem>
 #include <limits>
+#include <memory>
 #include <random>
 
 #include "gshaptics/collision/sweep_query.h"
@@ -81,12 +82,22 @@ int expect_same_first_contacts(const CollisionWorld& w, int n, Draw&& draw) {
   return hits;
 }
 
+// The bundled Truck, registered as `gshaptics simulate` does (null when the file is absent);
+// built once for the tests below.
+const CollisionWorld* truck() {
+  static const std::unique_ptr<CollisionWorld> w = [] {
+    const std::string scene = std::string(GSHAPTICS_DATA_DIR) + "/truck.splat";
+    if (!std::filesystem::exists(scene)) return std::unique_ptr<CollisionWorld>();
+    WorldConfig cfg;
+    cfg.registration = load_registration_file(std::string(GSHAPTICS_DATA_DIR) + "/truck.registration.json");
+    return std::make_unique<CollisionWorld>(CollisionWorld::build(load_scene(scene).scene, cfg));
+  }();
+  return w.get();
+}
+
 TEST(SweepBounds, TruckNearSurfaceSweepsMatchThePlainComputation) {
-  const std::string scene = std::string(GSHAPTICS_DATA_DIR) + "/truck.splat";
-  if (!std::filesystem::exists(scene)) GTEST_SKIP() << scene << " not found";
-  WorldConfig cfg;
-  cfg.registration = load_registration_file(std::string(GSHAPTICS_DATA_DIR) + "/truck.registration.json");
-  const CollisionWorld w = CollisionWorld::build(load_scene(scene).scene, cfg);
+  if (truck() == nullptr) GTEST_SKIP() << "the bundled truck.splat was not found";
+  const CollisionWorld& w = *truck();
   PoseSamplerParams pp;
   pp.count = 60;
   pp.seed = 11;
@@ -126,11 +137,8 @@ TEST(SweepBounds, FidelityScenesMatchThePlainComputation) {
 }
 
 TEST(ShadingScratch, TruckReadingsAreBitIdenticalToThePlainTwoPassOnes) {
-  const std::string scene = std::string(GSHAPTICS_DATA_DIR) + "/truck.splat";
-  if (!std::filesystem::exists(scene)) GTEST_SKIP() << scene << " not found";
-  WorldConfig cfg;
-  cfg.registration = load_registration_file(std::string(GSHAPTICS_DATA_DIR) + "/truck.registration.json");
-  const CollisionWorld w = CollisionWorld::build(load_scene(scene).scene, cfg);
+  if (truck() == nullptr) GTEST_SKIP() << "the bundled truck.splat was not found";
+  const CollisionWorld& w = *truck();
   PoseSamplerParams pp;
   pp.count = 40;
   pp.seed = 5;
