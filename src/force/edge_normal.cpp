@@ -99,12 +99,9 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
       if (grown > 1.0 || inside < 1.0) continue;
       const Eigen::Matrix3d r = rotation_matrix(g);
       const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
-      Eigen::Index thin = 0;
-      a.minCoeff(&thin);
       slot_[n] = k;
-      const double mid = std::max({std::min(a[0], a[1]), std::min(a[1], a[2]), std::min(a[0], a[2])});
-      const double flat = mid > 0 ? 1.0 - a[thin] / mid : 0.0;  // a round Gaussian states no normal
-      axis_[n] = r.col(thin) * (double(g.opacity) * flat);
+      // (a round Gaussian states no normal: flatness 0)
+      axis_[n] = r.col(thinnest_axis(g)) * (double(g.opacity) * flatness(g));
       patch_[n++] = {c, r * a.array().square().matrix().asDiagonal() * r.transpose(), double(g.opacity)};
     }
   });

@@ -54,13 +54,9 @@ inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double
   if (q > 40) return false;
   out.an = ad.norm();
   if (!(out.an > 0)) return false;
-  int jmin = 0;
-  for (int j = 1; j < 3; ++j)
-    if (g.semi_axes[j] < g.semi_axes[jmin]) jmin = j;
+  const int jmin = thinnest_axis(g);
   const int ju = (jmin + 1) % 3, jv = (jmin + 2) % 3;
-  const double a_min = g.semi_axes[jmin];
-  const double a_mid = std::min(g.semi_axes[ju], g.semi_axes[jv]);
-  out.flat = a_mid > 0 ? 1.0 - a_min / a_mid : 0.0;
+  out.flat = flatness(g);
   out.axis = R.col(jmin) * (dl[jmin] >= 0 ? 1.0 : -1.0);
   out.weight = double(g.opacity) * std::exp(-0.5 * q);
   out.rad = R * ad;
@@ -182,8 +178,7 @@ Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d
 double shading_scale(const CollisionWorld& world, std::span<const Contact> blockers, double radius) noexcept {
   double scale = radius;
   for (const Contact& b : blockers) {
-    const float* a = world.gaussians()[b.slot].semi_axes;
-    scale = std::max(scale, double(std::max({std::min(a[0], a[1]), std::min(a[1], a[2]), std::min(a[0], a[2])})));
+    scale = std::max(scale, middle_semi_axis(world.gaussians()[b.slot]));
   }
   return scale;
 }

@@ -7,6 +7,7 @@
 /// from several threads at once. Per-device mutable state lives in ContactQuery and ForceModel.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -104,6 +105,28 @@ class CollisionWorld {
   Bvh bvh_;
   Eigen::Vector3d lo_ = Eigen::Vector3d::Zero(), hi_ = Eigen::Vector3d::Zero();
 };
+
+/// The index (0-2) of a Gaussian's shortest semi-axis (the first of equal ones): a disc's normal
+/// is that column of its rotation.
+[[nodiscard]] inline int thinnest_axis(const CollisionGaussian& g) noexcept {
+  int j = 0;
+  for (int k = 1; k < 3; ++k)
+    if (g.semi_axes[k] < g.semi_axes[j]) j = k;
+  return j;
+}
+
+/// The middle of a Gaussian's three semi-axes (world units).
+[[nodiscard]] inline double middle_semi_axis(const CollisionGaussian& g) noexcept {
+  const float* a = g.semi_axes;
+  return std::max({std::min(a[0], a[1]), std::min(a[1], a[2]), std::min(a[0], a[2])});
+}
+
+/// How flat a Gaussian is, 1 - a_min / a_mid in [0, 1]: 1 for a disc (it states a normal), 0
+/// when its two shortest semi-axes are equal (a rod or a ball states none); 0 when degenerate.
+[[nodiscard]] inline double flatness(const CollisionGaussian& g) noexcept {
+  const double mid = middle_semi_axis(g);
+  return mid > 0 ? 1.0 - double(g.semi_axes[thinnest_axis(g)]) / mid : 0.0;
+}
 
 /// Rotation matrix of a stored Gaussian (world frame), from its quaternion exactly as the batch
 /// kernel makes it (rotation_from_quaternion).
