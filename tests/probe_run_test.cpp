@@ -9,7 +9,9 @@
 #include <cstdlib>
 #include <fstream>
 
+#include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/error.h"
+#include "gshaptics/servo/safety.h"
 #include "gshaptics/io/scene_loader.h"
 #include "support/allocation_counter.h"
 #include "support/scenes.h"
@@ -88,6 +90,44 @@ TEST_F(TruckRun, SevenSitesEachTouchedWithForceAwayFromTheSurface) {
     }
     prev = t.force.norm();
   }
+}
+
+// The same run with a tool that has a shape (`simulate --tool`): a stylus held upright, tip at the
+// TCP, through the same servo step. Every site is touched with the force out of the surface, and
+// the simulated device, a force-only one, is sent no torque: the safety layer drops what the
+// compound proxy asks for and flags those ticks.
+TEST_F(TruckRun, AStylusTouchesEverySiteAndItsTorqueIsDroppedOnAForceOnlyDevice) {
+  ProbeRunParams rp;
+  rp.tool = parse_tool_spec("stylus:0.2,0.02");
+  ProbeParams pp;
+  pp.tool_radius = rp.tool.largest_semi_axis();  // as `simulate --tool` scales the trajectory
+  pp.approach_speed = 2 * pp.tool_radius;
+  pp.travel_speed = 8 * pp.tool_radius;
+  pp.sites = 3;
+  const ProbeTrajectory traj = generate_probe_trajectory(*world_, pp);
+  const ProbeRunResult run = run_probe(*world_, traj, rp);
+  for (const auto& s : traj.sites()) {
+    double peak_force = 0, along_normal = 0;
+    for (const auto& t : run.ticks) {
+      if (t.time < s.t_touch - 0.5 || t.time > s.t_touch + 1.5) continue;
+      if (t.force.norm() > peak_force) {
+        peak_force = t.force.norm();
+        along_normal = t.force.normalized().dot(s.normal);
+      }
+    }
+    EXPECT_GT(peak_force, 0.5) << "site " << s.gaussian_index << " normal " << s.normal.transpose();
+    EXPECT_GT(along_normal, 0.0) << "site " << s.gaussian_index;
+  }
+  std::size_t dropped = 0;
+  for (const auto& t : run.ticks) {
+    dropped += (t.flags & kFlagTorqueDropped) != 0;
+    ASSERT_EQ(t.torque.norm(), 0.0) << t.time;  // never sent
+  }
+  EXPECT_GT(dropped, 100u);
+  // A bad tool is an input error before any tick.
+  rp.tool.count = 1;
+  rp.tool.parts[0].semi_axes = Eigen::Vector3d(0.01, -1, 0.01);
+  EXPECT_THROW((void)run_probe(*world_, traj, rp), InputError);
 }
 
 TEST_F(TruckRun, SameSeedSameTrajectoryOtherSeedOtherSites) {

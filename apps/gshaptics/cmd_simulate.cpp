@@ -26,6 +26,12 @@ void register_simulate(CLI::App& app) {
   cmd->add_option("--tool-radius", o->tool_radius,
                   "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)")
       ->check(check::positive());
+  cmd->add_option("--tool", o->tool,
+                  "A tool with a shape, world units, as for `run --tool` (sphere:R, ellipsoid:A,B,C, "
+                  "stylus:LENGTH,RADIUS along +z from the TCP, disc:RADIUS,THICKNESS, or FILE.json), held at the "
+                  "world's orientation (a stylus probes tip first). The simulated device renders force only: the "
+                  "summary counts the ticks whose torque was dropped. "
+                  "--tool-radius then defaults to its largest semi-axis (the trajectory's scale)");
   cmd->add_option("--rate", o->rate, "Servo rate of the simulation, Hz")->capture_default_str()
       ->check(check::range(100.0, 20000.0));
   add_force_options(*cmd, o->force);

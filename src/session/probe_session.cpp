@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/error.h"
 #include "gshaptics/servo/safety.h"
 #include "gshaptics/servo/tick_log.h"
@@ -225,6 +226,11 @@ bool plot_run(const std::string& csv, const std::string& summary, const std::str
 }
 
 int run_simulate(SimulateOptions o) {
+  CompoundTool tool;
+  if (!o.tool.empty()) {  // a bad spec or file is named before the scene loads
+    tool = parse_tool_spec(o.tool);
+    if (o.tool_radius <= 0) o.tool_radius = tool.largest_semi_axis();
+  }
   const SceneOptions so = with_bundled_defaults(o.scene, "simulate");
   const std::string out_dir =
       prepare_out_dir(o.out_dir, so.scene, {"probe_log.csv", "summary.json", "probe_run.png"});
@@ -245,6 +251,10 @@ int run_simulate(SimulateOptions o) {
   rp.latency_ticks = o.exec.latency_ticks;
   rp.safety = o.safety;
   rp.safety.f_max = o.force.f_max;
+  rp.tool = tool;
+  if (tool.count > 0)
+    fmt::print("tool       {} ({} part{}, held at the world's orientation)\n", o.tool, tool.count,
+               tool.count == 1 ? "" : "s");
   Progress bar("simulating", !o.quiet);
   const ProbeRunResult run = run_probe(world, traj, rp, [&](double f) { bar(f); });
   bar.done();
@@ -267,6 +277,15 @@ int run_simulate(SimulateOptions o) {
   sj["gaussians_kept"] = world.size();
   sj["min_opacity"] = cfg.min_opacity;
   sj["tool_radius"] = traj.tool_radius();
+  if (tool.count > 0) {
+    // The simulated device is a 3-DoF admittance device: the safety layer drops the torque a
+    // compound tool asks for (as for any force-only device) and counts those ticks.
+    std::size_t dropped = 0;
+    for (const TickRecord& r : run.ticks) dropped += (r.flags & kFlagTorqueDropped) != 0;
+    sj["tool"] = {{"spec", o.tool}, {"parts", tool.count}, {"torque_dropped_ticks", dropped}};
+    fmt::print("torque     the simulated device renders force only: {} ticks had a torque it was not sent\n",
+               dropped);
+  }
   sj["rate_hz"] = o.rate;
   sj["mode"] = describe_execution(o.exec, true);
   sj["renderer"] = std::string(renderer_name(rp.renderer));

@@ -26,7 +26,12 @@ ProbeRunResult run_probe(const CollisionWorld& world, const ProbeTrajectory& tra
   c.duration = trajectory.duration() + 0.5;
   c.inline_query = params.inline_query;
   c.latency_ticks = params.latency_ticks;
-  c.tool.semi_axes = Eigen::Vector3d::Constant(trajectory.tool_radius());
+  if (params.tool.count > 0) {
+    params.tool.validate("probe run: tool");
+    c.tool = tool_shape_for(params.tool);
+  } else {
+    c.tool.semi_axes = Eigen::Vector3d::Constant(trajectory.tool_radius());
+  }
   c.renderer = params.renderer;
   c.query = params.query;
   c.safety = params.safety;

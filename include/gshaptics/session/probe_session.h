@@ -93,7 +93,8 @@ struct SimulateOptions {
   std::string out_dir;
   int sites = 7;
   std::uint64_t seed = 1;
-  double tool_radius = 0;  // 0: 1% of the scene's robust extent
+  double tool_radius = 0;  // 0: 1% of the scene's robust extent (or --tool's largest semi-axis)
+  std::string tool;        // a tool spec or JSON file (parse_tool_spec); empty: the sphere
   double rate = 1000;
   ForceModelOptions force;
   ExecutionOptions exec;

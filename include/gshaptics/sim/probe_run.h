@@ -7,6 +7,8 @@
 
 #include <Eigen/Core>
 #include <functional>
+
+#include "gshaptics/collision/compound_tool.h"
 #include <memory>
 #include <string>
 #include <vector>
@@ -45,6 +47,11 @@ struct ProbeRunParams {
   SafetyParams safety;        ///< the servo's safety layer, as in a real-time run
   bool inline_query = kDefaultInlineQuery;  ///< query inside the tick; false: the decoupled worker
   int latency_ticks = 1;      ///< decoupled mode: ticks from a pose to its result (>= 1)
+  /// A tool with a shape (count 0: a sphere of the trajectory's radius). The simulated hand holds
+  /// it at a fixed orientation (the tool frame is the world's; a stylus, along +z, probes tip
+  /// first); the simulated device renders force only, so the safety layer drops the torque
+  /// (TickRecord::flags has kFlagTorqueDropped on those ticks).
+  CompoundTool tool;
 };
 
 struct ProbeRunResult {
@@ -56,7 +63,8 @@ struct ProbeRunResult {
 /// Progress callback: fraction of simulated time done, in [0, 1]. May be empty.
 using RunProgressFn = std::function<void(double)>;
 
-/// Runs the whole trajectory (plus 0.5 s) with a spherical tool of the trajectory's radius.
+/// Runs the whole trajectory (plus 0.5 s) with a spherical tool of the trajectory's radius, or
+/// with `params.tool`.
 /// `ticks` are the servo's records: `force` is what was commanded (after the safety layer),
 /// `desired` what the renderer asked for, `query_us` the wall time of the render.
 [[nodiscard]] ProbeRunResult run_probe(const CollisionWorld& world,
