@@ -72,8 +72,8 @@ struct PairSweep {
 // the offset's direction: there the ellipsoid's radius is rho = |d| / |diag(1/a) d| and the
 // sphere touches it at |d| = rho + r, where lambda = r / (rho + r) gives the smallest member
 // (min over lambda of rho^2 / (1 - lambda) + r^2 / lambda). `dl`: the offset in the Gaussian's
-// frame. A start and a tight lower bound for a Gaussian met for the first time (a disc under a
-// sliding tool: lambda near 1, where lambda = 1/2 is loose by 40 % of r). 1/2 when degenerate.
+// frame. A tight lower bound of the contact time (a disc under a sliding tool: lambda near 1,
+// where lambda = 1/2 is loose by 40 % of r). 1/2 when degenerate.
 inline double geometric_lambda(const CollisionGaussian& g, const double* dl, double r) noexcept {
   double d2 = 0, e2 = 0;
   for (int j = 0; j < 3; ++j) {

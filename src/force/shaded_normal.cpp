@@ -8,6 +8,7 @@
 #include "gshaptics/broadphase/bvh.h"
 
 namespace gshaptics {
+
 namespace {
 
 // A disc whose own normal (its shortest axis, turned toward c) lies more than acos(kAgree) ~ 73
@@ -24,9 +25,9 @@ constexpr double kRimFalloff = 0.5;
 // What one Gaussian gives the sum at c, the parts that do not depend on the outward estimate
 // (see the header): computed once a call and shared by the two passes.
 struct Term {
-  Eigen::Vector3d axis;  // shortest axis turned toward c
-  Eigen::Vector3d rim;   // unit direction from the nearest rim point to c (when beyond_rim)
-  Eigen::Vector3d rad;   // R A^-1 d, the density gradient's direction before dividing by an
+  Eigen::Vector3d axis = Eigen::Vector3d::Zero();  // shortest axis turned toward c
+  Eigen::Vector3d rim = Eigen::Vector3d::Zero();   // unit direction from the nearest rim point to c (when beyond_rim)
+  Eigen::Vector3d rad = Eigen::Vector3d::Zero();   // R A^-1 d, the density gradient's direction before dividing by an
   double an = 0;         // |A^-1 d|
   double weight = 0;     // alpha exp(-q / 2)
   double flat = 0;       // 1 - a_min / a_mid
