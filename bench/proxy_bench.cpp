@@ -128,6 +128,11 @@ int main(int argc, char** argv) {
   app.add_option("--passes", passes, "Replays of each path; a tick's time is its median over them")
       ->capture_default_str()->check(CLI::Range(1, 99));
   app.add_option("--out", out, "Also write the table (Markdown) to this file");
+  bool breakdown = false;
+  app.add_flag("--breakdown", breakdown,
+               "Also print, per set, what the proxy's slow ticks do: over one more replay, the ticks between "
+               "the p95 and the p99 and the top 1 % (by that replay's times), their mean sweeps, candidates "
+               "and exact first-contact searches, and how many read the shaded normal");
   bool stylus = false;
   app.add_flag("--stylus", stylus,
                "Also time both models with a compound tool on the same paths: a 4-part stylus "
@@ -165,6 +170,45 @@ int main(int argc, char** argv) {
             const RenderOutput o = proxy.render(ToolEllipsoid::sphere(s.poses[i].position, r), s.poses[i].velocity, 1e-3);
             in_contact += o.counts.contacts > 0;
           });
+      if (breakdown) {
+        // One more replay, each tick's time with what its move did (ProxyRenderer::last_move) and
+        // whether it read the shaded normal.
+        struct TickWork {
+          double us;
+          std::uint32_t sweeps, candidates, exact;
+          bool read;
+        };
+        std::vector<TickWork> work(s.poses.size());
+        proxy.reset();
+        for (std::size_t i = 0; i < s.poses.size(); ++i) {
+          const std::uint64_t reads = proxy.shading_reads();
+          const auto t0 = bench::Clock::now();
+          (void)proxy.render(ToolEllipsoid::sphere(s.poses[i].position, r), s.poses[i].velocity, 1e-3);
+          const double us = std::chrono::duration<double, std::micro>(bench::Clock::now() - t0).count();
+          const ProxyMove& m = proxy.last_move();
+          work[i] = {us, m.sweeps, m.candidates, m.exact, proxy.shading_reads() != reads};
+        }
+        std::vector<double> us(work.size());
+        for (std::size_t i = 0; i < work.size(); ++i) us[i] = work[i].us;
+        const double p95 = percentile(us, 95), p99 = percentile(us, 99);
+        const auto describe = [&](const char* label, double lo, double hi) {
+          double n = 0, t = 0, sw = 0, cand = 0, ex = 0, rd = 0;
+          for (const TickWork& k : work)
+            if (k.us >= lo && k.us < hi) {
+              n += 1, t += k.us, sw += k.sweeps, cand += k.candidates, ex += k.exact, rd += k.read;
+            }
+          if (n == 0) return;
+          fmt::print(stderr,
+                     "proxy_bench: {}: {} ticks {}: mean {:.1f} us, {:.1f} sweeps, {:.0f} candidates, {:.1f} exact "
+                     "searches, {:.0f} % read the shaded normal\n",
+                     name, n, label, t / n, sw / n, cand / n, ex / n, 100 * rd / n);
+        };
+        describe("p95-p99", p95, p99);
+        describe("top 1 %", p99, INFINITY);
+        std::size_t reads = 0;
+        for (const TickWork& k : work) reads += k.read;
+        fmt::print(stderr, "proxy_bench: {}: the shaded normal read on {} of {} ticks\n", name, reads, work.size());
+      }
       ContactQuery query(w);
       ForceModel model;
       const Timing tm = time_replays(

@@ -83,6 +83,7 @@ void ProxyRenderer::reset() noexcept {
   in_contact_ = sticking_ = false;
   shade_.reset();
   normal_.setZero();
+  last_move_ = {};
 }
 
 Eigen::Vector3d ProxyRenderer::shaded_normal(const Eigen::Vector3d& center, double radius) const noexcept {
@@ -118,6 +119,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   sticking_ = fr.sticking;
   // 2. The god-object moves toward it (Zilles & Salisbury 1995).
   const ProxyMove move = solver_.move_toward(tool, fr.goal, fr.sticking);
+  last_move_ = move;
   const Eigen::Vector3d& p = move.position;
   const std::span<const Contact> blockers = solver_.blockers();
   out.proxy = p;

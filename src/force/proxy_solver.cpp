@@ -122,7 +122,7 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
   if (!hold) n_blockers_ = 0;
   Eigen::Vector3d p = proxy_;
   const double eps = 1e-4 * r;  // the proxy stops this far short of a contact
-  std::uint32_t candidates = 0;
+  std::uint32_t candidates = 0, sweeps = 0, exact = 0;
   int lifts = 0;
   // Floaters do not block: the sweep asks, in its one pass, whether a Gaussian it reaches first
   // is one (FloaterTest, cached per slot). At most FloaterTest::kQueriesPerTick uncached answers
@@ -140,6 +140,8 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
     // not searched to the end (SweepQuery's tolerance): it still stays eps / 2 away.
     const SweepHit hit = sweep_.first_contact(at, u, {}, {hints, n_hints}, filter, 1.0, 0.5 * eps / len);
     candidates += sweep_.counts().candidates;
+    exact += sweep_.counts().exact;
+    ++sweeps;
     if (!hit.hit) {
       p = target;
       if (np == 0) break;
@@ -157,6 +159,9 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
         const Eigen::Vector3d lift = up.normalized() * (params_.lift * r);
         at.center = p;
         const SweepHit lh = sweep_.first_contact(at, lift, {}, {}, filter);
+        candidates += sweep_.counts().candidates;
+        exact += sweep_.counts().exact;
+        ++sweeps;
         if (!lh.hit) {
           p += lift;
           np = 0;
@@ -176,6 +181,8 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
   out.constraints = np;
   if (!hold && np > 0) out.first_normal = planes[0].normal;
   out.candidates = candidates;
+  out.sweeps = sweeps;
+  out.exact = exact;
   return out;
 }
 

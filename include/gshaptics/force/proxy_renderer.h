@@ -103,6 +103,11 @@ class ProxyRenderer final : public ForceRenderer {
   [[nodiscard]] const CompoundProxy* compound() const noexcept { return compound_.get(); }
 
   [[nodiscard]] const Eigen::Vector3d& proxy_position() const noexcept { return solver_.position(); }
+  /// The one-ellipsoid proxy's last move: its sweeps, candidates and exact searches (profiling;
+  /// gshaptics_proxy_bench --breakdown).
+  [[nodiscard]] const ProxyMove& last_move() const noexcept { return last_move_; }
+  /// Readings of the shaded normal so far (the cache's misses; profiling).
+  [[nodiscard]] std::uint64_t shading_reads() const noexcept { return shade_.reads(); }
   [[nodiscard]] const Eigen::Vector3d& contact_normal() const noexcept { return normal_; }
   [[nodiscard]] bool sticking() const noexcept { return sticking_; }
   /// Proxy placements by the search (start inside geometry, teleports) and failed searches,
@@ -128,6 +133,7 @@ class ProxyRenderer final : public ForceRenderer {
   Eigen::Quaterniond last_rotation_ = Eigen::Quaterniond::Identity();
   bool in_contact_ = false, sticking_ = false;
   ShadedNormalCache shade_;
+  ProxyMove last_move_;
   ShadingScratch shading_scratch_;  // the shaded normal's working memory
   std::unique_ptr<CompoundProxy> compound_;
   CompoundTool tool_;

@@ -63,6 +63,8 @@ struct ProxyMove {
   /// still or is free).
   Eigen::Vector3d first_normal = Eigen::Vector3d::Zero();
   std::uint32_t candidates = 0;  ///< Gaussians the sweeps looked at
+  std::uint32_t sweeps = 0;      ///< continuous first-contact sweeps run (SweepQuery::first_contact)
+  std::uint32_t exact = 0;       ///< exact first-contact searches those ran (the expensive step)
 };
 
 class ProxySolver {

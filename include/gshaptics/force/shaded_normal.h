@@ -20,6 +20,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <span>
 
@@ -85,12 +86,16 @@ class ShadedNormalCache {
       normal_ = shaded_normal(world, at, scale, kernel, scratch);
       at_ = at;
       valid_ = true;
+      ++reads_;
     }
     return normal_;
   }
   void reset() noexcept { valid_ = false; }
+  /// Readings of the field so far (cache misses), for profiling.
+  [[nodiscard]] std::uint64_t reads() const noexcept { return reads_; }
 
  private:
+  std::uint64_t reads_ = 0;
   Eigen::Vector3d at_ = Eigen::Vector3d::Zero(), normal_ = Eigen::Vector3d::Zero();
   bool valid_ = false;
 };
