@@ -5,6 +5,7 @@
 
 #include "gshaptics/error.h"
 #include "gshaptics/force/shaded_normal.h"
+#include "gshaptics/force/virtual_coupling.h"
 
 namespace gshaptics {
 
@@ -296,9 +297,7 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     }
     if (!(n.dot(e) > 0)) n = spring;
     const double fn = std::max(0.0, params_.stiffness * e.dot(n) - params_.damping * velocity.dot(n));
-    out.force = fn * n;
-    if (fr.sticking) out.force += params_.stiffness * (e - e.dot(n) * n);  // static: the spring's tangential part
-    if (fr.sliding) out.force -= params_.mu_k * fn * fr.slip_dir;          // kinetic: mu_k times the normal force
+    out.force = coupling_force(fn, n, e, params_.stiffness, fr, params_.mu_k);  // with friction
     if (weight > 0) out.torque = (moment / weight).cross(out.force);
     in_contact_ = true;
     normal_ = n;

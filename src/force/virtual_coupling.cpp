@@ -18,9 +18,7 @@ Eigen::Vector3d VirtualCoupling::force(const Eigen::Vector3d& e, const Eigen::Ve
     k *= opacity_;
   }
   const double fn = std::max(0.0, k * e.dot(n) - b_ * velocity.dot(n));
-  Eigen::Vector3d f = fn * n;
-  if (friction.sticking) f += k * (e - e.dot(n) * n);  // static friction: the spring's tangential part
-  if (friction.sliding) f -= mu_k * fn * friction.slip_dir;  // kinetic friction: mu_k times the normal force
+  Eigen::Vector3d f = coupling_force(fn, n, e, k, friction, mu_k);
   const double fm = f.norm();
   if (fm > f_max_) f *= f_max_ / fm;
   return f;

@@ -21,6 +21,19 @@
 
 namespace gshaptics {
 
+/// The coupling's force for a normal force `fn` (N, >= 0) along the unit contact normal `n`, with
+/// the friction cone's decision `friction` (Salisbury et al. 1995): fn n, plus the spring's
+/// tangential part k (e - (e . n) n) while sticking (e: proxy - device, m; k: N/m), minus
+/// mu_k fn along the sliding direction while sliding. World frame, N; no clamp. Shared by
+/// VirtualCoupling and the compound proxy.
+[[nodiscard]] inline Eigen::Vector3d coupling_force(double fn, const Eigen::Vector3d& n, const Eigen::Vector3d& e,
+                                                    double k, const FrictionStep& friction, double mu_k) noexcept {
+  Eigen::Vector3d f = fn * n;
+  if (friction.sticking) f += k * (e - e.dot(n) * n);  // static friction: the spring's tangential part
+  if (friction.sliding) f -= mu_k * fn * friction.slip_dir;  // kinetic friction: mu_k times the normal force
+  return f;
+}
+
 class VirtualCoupling {
  public:
   /// `stiffness` k, N/m (> 0); `damping` b, N s/m (>= 0), along the normal; `f_max`, N (+inf:
