@@ -146,7 +146,8 @@ int main(int argc, char** argv) {
     std::string compound_table =
         "\n| set | tool radius R | ticks with contact, paper (sphere / stylus) | paper, sphere R: p50 / p99 us | "
         "paper, stylus 6R x R (4 parts): p50 / p99 us | p99 stylus / sphere | proxy, sphere R: p50 / p99 us | "
-        "proxy, stylus: p50 / p99 / max us | p99 stylus / sphere |\n|---|---:|---|---|---|---:|---|---|---:|\n";
+        "proxy, stylus: p50 / p99 / max us | p99 stylus / sphere | proxy, bounding sphere 3R (same tip): p50 / p99 us | "
+        "p99 stylus / bounding sphere |\n|---|---:|---|---|---|---:|---|---|---:|---|---:|\n";
     std::stringstream ss(sets);
     std::string name;
     while (std::getline(ss, name, ',')) {
@@ -251,11 +252,25 @@ int main(int argc, char** argv) {
               (void)stylus_proxy.render_compound({parts.data(), std::size_t(n)}, s.poses[i].position,
                                                  s.poses[i].velocity, Eigen::Vector3d::Zero(), 1e-3);
             });
+        // The sphere of the stylus's overall size: its bounding sphere (radius 3R, centred at the
+        // stylus's middle, so it touches with the same tip), one part through the same compound proxy.
+        CompoundTool ball = CompoundTool::single(Eigen::Vector3d::Constant(3 * r));
+        ball.parts[0].offset = Eigen::Vector3d(0, 0, 3 * r);
+        ProxyRenderer ball_proxy(w);
+        ball_proxy.set_tool(ball);
+        const Timing tb = time_replays(
+            s.poses.size(), passes, [&] { ball_proxy.reset(); },
+            [&](std::size_t i) {
+              const int n = ball.posed(s.poses[i].position, tilt, parts);
+              (void)ball_proxy.render_compound({parts.data(), std::size_t(n)}, s.poses[i].position,
+                                               s.poses[i].velocity, Eigen::Vector3d::Zero(), 1e-3);
+            });
         compound_table += fmt::format(
             "| {} | {:.4g} | {} / {} | {:.1f} / {:.1f} | {:.1f} / {:.1f} | {:.1f}x | {:.1f} / {:.1f} | {:.1f} / {:.1f} / {:.0f} | "
-            "{:.1f}x |\n",
+            "{:.1f}x | {:.1f} / {:.1f} | {:.1f}x |\n",
             name, r, sphere_hits, stylus_hits, ts.p50, ts.p99, tc.p50, tc.p99, tc.p99 / std::max(ts.p99, 1e-3), tp.p50,
-            tp.p99, tq.p50, tq.p99, tq.max, tq.p99 / std::max(tp.p99, 1e-3));
+            tp.p99, tq.p50, tq.p99, tq.max, tq.p99 / std::max(tp.p99, 1e-3), tb.p50, tb.p99,
+            tq.p99 / std::max(tb.p99, 1e-3));
       }
     }
     if (stylus) table += compound_table;
