@@ -29,4 +29,10 @@ Eigen::Vector3d ToolEllipsoid::surface_point(const Eigen::Vector3d& n) const noe
   return s > 0 ? Eigen::Vector3d(center + rotation * scaled / s) : center;
 }
 
+double ToolEllipsoid::inner_clearance(const Eigen::Vector3d& p) const noexcept {
+  const Eigen::Vector3d local = rotation.conjugate() * (p - center);
+  const double rho = local.cwiseQuotient(semi_axes).norm();
+  return rho < 1.0 ? (1.0 - rho) * semi_axes.minCoeff() : 0.0;
+}
+
 }  // namespace gshaptics

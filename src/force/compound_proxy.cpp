@@ -270,10 +270,13 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       Eigen::Vector3d nj = h.normal;
       const double rho = part.semi_axes.minCoeff();
       if (params_.shading_kernel > 0) {
+        // (The part rests free: the floaters beside it that reach into it at the reading point
+        // were passed; `up` is the part's contact normal. FreeBall.)
+        const Eigen::Vector3d at = part.surface_point(-h.normal) + h.normal * rho;
         const Eigen::Vector3d& sn =
-            shades_[std::size_t(j)].read(*world_, part.surface_point(-h.normal) + h.normal * rho,
-                                         shading_scale(*world_, held_by, rho), params_.shading_kernel,
-                                         params_.shading_reuse * rho, shading_scratch_);
+            shades_[std::size_t(j)].read(*world_, at, shading_scale(*world_, held_by, rho), params_.shading_kernel,
+                                         params_.shading_reuse * rho, shading_scratch_,
+                                         {part.inner_clearance(at), h.normal});
         if (sn.dot(h.normal) > 0) nj = sn;
       }
       // At a clean convex edge the shaded field blends the faces' normals; the tool resting on

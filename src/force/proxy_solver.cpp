@@ -77,6 +77,7 @@ ProxySolver::ProxySolver(const CollisionWorld& world, const ProxySolverParams& p
 void ProxySolver::reset() noexcept {
   valid_ = false;
   n_blockers_ = 0;
+  support_.setZero();
   floaters_.reset();
 }
 
@@ -84,6 +85,7 @@ void ProxySolver::place(const ToolEllipsoid& tool) noexcept {
   ++placements_;
   valid_ = true;
   n_blockers_ = 0;
+  support_.setZero();
   proxy_ = tool.center;
   if (!free_query_.any_contact(tool)) return;
   const double r = tool.bounding_radius();
@@ -179,7 +181,12 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
   ProxyMove out;
   out.position = p;
   out.constraints = np;
-  if (!hold && np > 0) out.first_normal = planes[0].normal;
+  if (!hold && np > 0) {
+    out.first_normal = planes[0].normal;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int i = 0; i < np; ++i) sum += planes[i].normal;
+    if (sum.norm() > 1e-9) support_ = sum.normalized();
+  }
   out.candidates = candidates;
   out.sweeps = sweeps;
   out.exact = exact;

@@ -35,9 +35,21 @@ struct Term {
   bool beyond_rim = false;  // a disc (flat > 0) and c beyond its rim
 };
 
-// Term of g at c for a kernel width s (s2 = s^2); false when g does not contribute (q > 40).
-inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double s, double s2, Term& out) noexcept {
+// Term of g at c for a kernel width s (s2 = s^2); false when g does not contribute (q > 40, or
+// a floater beside the tool, see FreeBall).
+inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double s, double s2, const FreeBall& ball,
+                    Term& out) noexcept {
   const Eigen::Vector3d d = c - Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+  if (ball.radius > 0 && d.dot(ball.up) < 0.5 * ball.radius) {
+    // Less than half the radius below the ball's centre (or above it), seen from the surface it
+    // rests on: beside the tool, not under it. If its inscribed ball (radius a_min) also reaches
+    // into the free ball, the proxy passed it (no blocker does: the proxy rests free of it, and
+    // its inscribed ball lies inside it). The margin (1e-3 of the radius, ten times the proxy's
+    // stand-off) keeps rounding from dropping a blocker.
+    const double a_min = std::min({double(g.semi_axes[0]), double(g.semi_axes[1]), double(g.semi_axes[2])});
+    const double lim = ball.radius * (1.0 - 1e-3) + a_min;
+    if (d.squaredNorm() < lim * lim) return false;
+  }
   // q >= |d|^2 / (a_max^2 + s^2): most of the box around c is dismissed before the rotation.
   // (The 1e-3 margin keeps rounding from dismissing one the exact q keeps.)
   const double a_max = g.radius;
@@ -95,7 +107,8 @@ inline Eigen::Vector3d contribution(const Term& tm, const Eigen::Vector3d& outwa
 
 // Calls f(term) for every contributing Gaussian near c, in BVH order.
 template <typename F>
-void for_each_term(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double s, F&& f) noexcept {
+void for_each_term(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double s, const FreeBall& ball,
+                   F&& f) noexcept {
   const double half = radius + 3.0 * s;
   float lo[3], hi[3];
   for (int k = 0; k < 3; ++k) {
@@ -106,16 +119,16 @@ void for_each_term(const CollisionWorld& world, const Eigen::Vector3d& c, double
   Term tm;
   world.bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
     for (std::uint32_t k = first; k < first + count; ++k)
-      if (term_of(gs[k], c, s, s * s, tm)) f(tm);
+      if (term_of(gs[k], c, s, s * s, ball, tm)) f(tm);
   });
 }
 
 // The weighted sum of the Gaussians' directions at c (plain: the terms computed as they come).
 Eigen::Vector3d direction_sum(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double s,
-                              const Eigen::Vector3d& outward) noexcept {
+                              const FreeBall& ball, const Eigen::Vector3d& outward) noexcept {
   const bool first_pass = outward.isZero(0);
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for_each_term(world, c, radius, s, [&](const Term& tm) { sum += contribution(tm, outward, first_pass); });
+  for_each_term(world, c, radius, s, ball, [&](const Term& tm) { sum += contribution(tm, outward, first_pass); });
   return sum;
 }
 
@@ -141,23 +154,23 @@ ShadingScratch& ShadingScratch::operator=(const ShadingScratch& o) {
 }
 std::size_t ShadingScratch::capacity() const noexcept { return terms_->terms.size(); }
 
-Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius,
-                              double kernel) noexcept {
+Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
+                              const FreeBall& ball) noexcept {
   const double s = kernel * radius;
-  const Eigen::Vector3d first = direction_sum(world, c, radius, s, Eigen::Vector3d::Zero());
+  const Eigen::Vector3d first = direction_sum(world, c, radius, s, ball, Eigen::Vector3d::Zero());
   const double n1 = first.norm();
   if (!(n1 > 0) || !std::isfinite(n1)) return Eigen::Vector3d::Zero();
-  return finish(direction_sum(world, c, radius, s, first / n1));
+  return finish(direction_sum(world, c, radius, s, ball, first / n1));
 }
 
 Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
-                              ShadingScratch& scratch) noexcept {
+                              ShadingScratch& scratch, const FreeBall& ball) noexcept {
   const double s = kernel * radius;
   std::vector<Term>& terms = scratch.terms_->terms;
   std::size_t n = 0;
   bool overflow = false;
   Eigen::Vector3d first = Eigen::Vector3d::Zero();
-  for_each_term(world, c, radius, s, [&](const Term& tm) {
+  for_each_term(world, c, radius, s, ball, [&](const Term& tm) {
     first += contribution(tm, Eigen::Vector3d::Zero(), true);
     if (n < terms.size())
       terms[n++] = tm;
@@ -170,7 +183,7 @@ Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d
   const double n1 = first.norm();
   if (!(n1 > 0) || !std::isfinite(n1)) return Eigen::Vector3d::Zero();
   const Eigen::Vector3d outward = first / n1;
-  if (overflow) return finish(direction_sum(world, c, radius, s, outward));  // more than it holds: the plain pass
+  if (overflow) return finish(direction_sum(world, c, radius, s, ball, outward));  // more than it holds: the plain pass
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < n; ++i) sum += contribution(terms[i], outward, false);
   return finish(sum);

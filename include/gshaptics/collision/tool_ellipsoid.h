@@ -26,6 +26,11 @@ struct ToolEllipsoid {
   /// The surface point whose outward normal is `n` (any non-zero direction, world frame):
   /// center + Sigma n / sqrt(n^T Sigma n), Sigma = R diag(semi_axes^2) R^T. m.
   [[nodiscard]] Eigen::Vector3d surface_point(const Eigen::Vector3d& n) const noexcept;
+  /// A lower bound of the distance from `p` (world frame, m) to the surface when p is inside:
+  /// (1 - |diag(1/a) R^T (p - center)|) a_min, which is exact for a sphere (the ellipsoid scaled
+  /// by p's normalised radius lies inside it, at least (1 - that radius) a_min from its surface);
+  /// 0 when p is not inside. The radius of a ball at p that lies within the tool. m.
+  [[nodiscard]] double inner_clearance(const Eigen::Vector3d& p) const noexcept;
   /// True when the three semi-axes are equal (to 1e-12 relative): a sphere.
   [[nodiscard]] bool is_sphere() const noexcept { return is_sphere(semi_axes); }
   [[nodiscard]] static bool is_sphere(const Eigen::Vector3d& semi_axes) noexcept {

@@ -93,6 +93,10 @@ class ProxySolver {
   [[nodiscard]] const Eigen::Vector3d& position() const noexcept { return proxy_; }
   /// The Gaussians holding the proxy after the last move (at most three; k_min is 0: they touch).
   [[nodiscard]] std::span<const Contact> blockers() const noexcept { return {blockers_.data(), n_blockers_}; }
+  /// Unit mean of the constraint planes' normals (the exact contact normals, Gaussian -> tool,
+  /// world frame) at the last move that met one; kept while held; zero before any or after a
+  /// placement. Which way is "away from the surface" the proxy rests on (FreeBall::up).
+  [[nodiscard]] const Eigen::Vector3d& support_normal() const noexcept { return support_; }
   [[nodiscard]] std::uint64_t placements() const noexcept { return placements_; }
   [[nodiscard]] std::uint64_t lost() const noexcept { return lost_; }
   /// Whether the Gaussian in `slot` is a floater (FloaterTest::isolated).
@@ -107,6 +111,7 @@ class ProxySolver {
   bool valid_ = false;
   std::array<Contact, 3> blockers_{};
   std::size_t n_blockers_ = 0;
+  Eigen::Vector3d support_ = Eigen::Vector3d::Zero();
   int last_constraints_ = 0;
   std::uint64_t placements_ = 0, lost_ = 0;
   FloaterTest floaters_;
