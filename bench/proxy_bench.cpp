@@ -243,28 +243,24 @@ int main(int argc, char** argv) {
                                                       s.poses[i].velocity, Eigen::Vector3d::Zero(), 1e-3)
                                  .counts.contacts > 0;
             });
-        ProxyRenderer stylus_proxy(w);
-        stylus_proxy.set_tool(tool);
-        const Timing tq = time_replays(
-            s.poses.size(), passes, [&] { stylus_proxy.reset(); },
-            [&](std::size_t i) {
-              const int n = tool.posed(s.poses[i].position, tilt, parts);
-              (void)stylus_proxy.render_compound({parts.data(), std::size_t(n)}, s.poses[i].position,
-                                                 s.poses[i].velocity, Eigen::Vector3d::Zero(), 1e-3);
-            });
+        // The proxy with a compound tool, tilted, its TCP on the poses.
+        const auto time_proxy = [&](const CompoundTool& t) {
+          ProxyRenderer timed(w);
+          timed.set_tool(t);
+          return time_replays(
+              s.poses.size(), passes, [&] { timed.reset(); },
+              [&](std::size_t i) {
+                const int n = t.posed(s.poses[i].position, tilt, parts);
+                (void)timed.render_compound({parts.data(), std::size_t(n)}, s.poses[i].position, s.poses[i].velocity,
+                                            Eigen::Vector3d::Zero(), 1e-3);
+              });
+        };
+        const Timing tq = time_proxy(tool);
         // The sphere of the stylus's overall size: its bounding sphere (radius 3R, centred at the
         // stylus's middle, so it touches with the same tip), one part through the same compound proxy.
         CompoundTool ball = CompoundTool::single(Eigen::Vector3d::Constant(3 * r));
         ball.parts[0].offset = Eigen::Vector3d(0, 0, 3 * r);
-        ProxyRenderer ball_proxy(w);
-        ball_proxy.set_tool(ball);
-        const Timing tb = time_replays(
-            s.poses.size(), passes, [&] { ball_proxy.reset(); },
-            [&](std::size_t i) {
-              const int n = ball.posed(s.poses[i].position, tilt, parts);
-              (void)ball_proxy.render_compound({parts.data(), std::size_t(n)}, s.poses[i].position,
-                                               s.poses[i].velocity, Eigen::Vector3d::Zero(), 1e-3);
-            });
+        const Timing tb = time_proxy(ball);
         compound_table += fmt::format(
             "| {} | {:.4g} | {} / {} | {:.1f} / {:.1f} | {:.1f} / {:.1f} | {:.1f}x | {:.1f} / {:.1f} | {:.1f} / {:.1f} / {:.0f} | "
             "{:.1f}x | {:.1f} / {:.1f} | {:.1f}x |\n",
