@@ -245,6 +245,42 @@ TEST(ShadedNormal, LeavesOutTheFloatersTheRestingToolOverlaps) {
   }
 }
 
+// On a sparse curved surface (a 5 cm cylinder drawn with 8 mm discs, 9 degrees of arc each) a
+// kernel of half a 10 mm tool reads little more than the disc under the tool: its facet. A
+// kernel at least as wide as the Gaussian spacing (shading_spacing: the disc under the tool's
+// middle semi-axis) averages the neighbours and follows the curvature.
+TEST(ShadedNormal, AKernelAsWideAsTheSpacingFollowsASparseCurvedSurface) {
+  AnalyticShape shape(ShapeKind::kCylinder);
+  SynthParams sp;
+  sp.spacing = 0.008;
+  sp.floater_share = 0;
+  const SyntheticScene s = make_synthetic_scene(shape, sp);
+  const CollisionWorld w = CollisionWorld::build(s.scene, WorldConfig{});
+  const double r = 0.01;
+  std::vector<double> plain, wide;
+  for (const SurfaceSample& q : shape.sample_surface(0.006)) {
+    const Eigen::Vector3d p = q.position + q.normal * (r + 0.0005);
+    // The blocker: the Gaussian nearest to the tool's contact point (a stand-in for the sweep's).
+    Contact b;
+    double best = INFINITY;
+    for (std::uint32_t k = 0; k < w.gaussians().size(); ++k) {
+      const auto& g = w.gaussians()[k];
+      const double d = (Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - q.position).norm();
+      if (d < best) best = d, b.slot = k;
+    }
+    const double scale = shading_scale(w, {&b, 1}, r);
+    plain.push_back(angle_deg(shaded_normal(w, p, scale, 0.5), q.normal));
+    wide.push_back(angle_deg(shaded_normal(w, p, scale, 0.5, {}, shading_spacing(w, {&b, 1})), q.normal));
+  }
+  ASSERT_GT(plain.size(), 100u);
+  const auto p95 = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[std::size_t(0.95 * double(v.size() - 1))];
+  };
+  EXPECT_LT(p95(wide), 3.0);
+  EXPECT_GT(p95(plain), p95(wide) + 1.0);  // (the facets: what the wider kernel mends)
+}
+
 TEST(ShadedNormal, FollowsASphereOfGaussiansWithinAFewDegrees) {
   AnalyticShape shape(ShapeKind::kSphere);
   const SyntheticScene s = make_synthetic_scene(shape, SynthParams{});

@@ -35,10 +35,10 @@ struct Term {
   bool beyond_rim = false;  // a disc (flat > 0) and c beyond its rim
 };
 
-// Term of g at c for a kernel width s (s2 = s^2); false when g does not contribute (q > 40, or
-// a floater beside the tool, see FreeBall).
-inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double s, double s2, const FreeBall& ball,
-                    Term& out) noexcept {
+// Term of g at c for a kernel width s (s2 = s^2) and a rim falloff scale `rim`; false when g
+// does not contribute (q > 40, or a floater beside the tool, see FreeBall).
+inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double s, double s2, double rim,
+                    const FreeBall& ball, Term& out) noexcept {
   const Eigen::Vector3d d = c - Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
   if (ball.radius > 0 && d.dot(ball.up) < 0.5 * ball.radius) {
     // Less than half the radius below the ball's centre (or above it), seen from the surface it
@@ -82,7 +82,7 @@ inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double
     off[ju] = dl[ju] * (1.0 - 1.0 / rho);
     off[jv] = dl[jv] * (1.0 - 1.0 / rho);
     out.rim = (R * off).normalized();  // (off is never zero: c is past the rim)
-    out.past = std::hypot(off[ju], off[jv]) / (kRimFalloff * s);
+    out.past = std::hypot(off[ju], off[jv]) / (kRimFalloff * rim);
   }
   return true;
 }
@@ -107,8 +107,8 @@ inline Eigen::Vector3d contribution(const Term& tm, const Eigen::Vector3d& outwa
 
 // Calls f(term) for every contributing Gaussian near c, in BVH order.
 template <typename F>
-void for_each_term(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double s, const FreeBall& ball,
-                   F&& f) noexcept {
+void for_each_term(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double s, double rim,
+                   const FreeBall& ball, F&& f) noexcept {
   const double half = radius + 3.0 * s;
   float lo[3], hi[3];
   for (int k = 0; k < 3; ++k) {
@@ -119,16 +119,16 @@ void for_each_term(const CollisionWorld& world, const Eigen::Vector3d& c, double
   Term tm;
   world.bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
     for (std::uint32_t k = first; k < first + count; ++k)
-      if (term_of(gs[k], c, s, s * s, ball, tm)) f(tm);
+      if (term_of(gs[k], c, s, s * s, rim, ball, tm)) f(tm);
   });
 }
 
 // The weighted sum of the Gaussians' directions at c (plain: the terms computed as they come).
 Eigen::Vector3d direction_sum(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double s,
-                              const FreeBall& ball, const Eigen::Vector3d& outward) noexcept {
+                              double rim, const FreeBall& ball, const Eigen::Vector3d& outward) noexcept {
   const bool first_pass = outward.isZero(0);
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for_each_term(world, c, radius, s, ball, [&](const Term& tm) { sum += contribution(tm, outward, first_pass); });
+  for_each_term(world, c, radius, s, rim, ball, [&](const Term& tm) { sum += contribution(tm, outward, first_pass); });
   return sum;
 }
 
@@ -155,22 +155,22 @@ ShadingScratch& ShadingScratch::operator=(const ShadingScratch& o) {
 std::size_t ShadingScratch::capacity() const noexcept { return terms_->terms.size(); }
 
 Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
-                              const FreeBall& ball) noexcept {
-  const double s = kernel * radius;
-  const Eigen::Vector3d first = direction_sum(world, c, radius, s, ball, Eigen::Vector3d::Zero());
+                              const FreeBall& ball, double min_width) noexcept {
+  const double rim = kernel * radius, s = std::max(rim, min_width);
+  const Eigen::Vector3d first = direction_sum(world, c, radius, s, rim, ball, Eigen::Vector3d::Zero());
   const double n1 = first.norm();
   if (!(n1 > 0) || !std::isfinite(n1)) return Eigen::Vector3d::Zero();
-  return finish(direction_sum(world, c, radius, s, ball, first / n1));
+  return finish(direction_sum(world, c, radius, s, rim, ball, first / n1));
 }
 
 Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
-                              ShadingScratch& scratch, const FreeBall& ball) noexcept {
-  const double s = kernel * radius;
+                              ShadingScratch& scratch, const FreeBall& ball, double min_width) noexcept {
+  const double rim = kernel * radius, s = std::max(rim, min_width);
   std::vector<Term>& terms = scratch.terms_->terms;
   std::size_t n = 0;
   bool overflow = false;
   Eigen::Vector3d first = Eigen::Vector3d::Zero();
-  for_each_term(world, c, radius, s, ball, [&](const Term& tm) {
+  for_each_term(world, c, radius, s, rim, ball, [&](const Term& tm) {
     first += contribution(tm, Eigen::Vector3d::Zero(), true);
     if (n < terms.size())
       terms[n++] = tm;
@@ -183,10 +183,16 @@ Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d
   const double n1 = first.norm();
   if (!(n1 > 0) || !std::isfinite(n1)) return Eigen::Vector3d::Zero();
   const Eigen::Vector3d outward = first / n1;
-  if (overflow) return finish(direction_sum(world, c, radius, s, ball, outward));  // more than it holds: the plain pass
+  if (overflow) return finish(direction_sum(world, c, radius, s, rim, ball, outward));  // more than it holds: the plain pass
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < n; ++i) sum += contribution(terms[i], outward, false);
   return finish(sum);
+}
+
+double shading_spacing(const CollisionWorld& world, std::span<const Contact> blockers) noexcept {
+  double spacing = 0;
+  for (const Contact& b : blockers) spacing = std::max(spacing, middle_semi_axis(world.gaussians()[b.slot]));
+  return spacing;
 }
 
 double shading_scale(const CollisionWorld& world, std::span<const Contact> blockers, double radius) noexcept {

@@ -47,16 +47,25 @@ struct FreeBall {
 /// The shaded normal at `center` (world frame, m) for a tool of bounding radius `radius` (m)
 /// with a kernel of `kernel` radii (s = kernel x radius). Gaussians within radius + 3 s of the
 /// centre (by their BVH leaves) and with q <= 40 contribute, except the floaters beside the
-/// `ball` (FreeBall). Returns a unit vector pointing from the Gaussians toward `center`, or zero
-/// when no Gaussian is near.
+/// `ball` (FreeBall). `min_width` (m): the kernel width is max(s, min_width), so that on a sparse
+/// surface it spans the Gaussian spacing (shading_spacing()) and averages neighbouring Gaussians
+/// instead of reading the one under the tool; the falloff of discs seen beyond their rim stays
+/// on s (docs/design.md Sec. 7). Returns a unit vector pointing from the Gaussians toward
+/// `center`, or zero when no Gaussian is near.
 [[nodiscard]] Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& center, double radius,
-                                            double kernel, const FreeBall& ball = {}) noexcept;
+                                            double kernel, const FreeBall& ball = {},
+                                            double min_width = 0) noexcept;
 
 /// The length scale of the shading kernel for a tool of bounding radius `radius`: the radius,
 /// or the largest middle semi-axis of the `blockers` when that is larger. On sparse scenes a
 /// kernel smaller than the Gaussian spacing would see single Gaussians, not the surface.
 [[nodiscard]] double shading_scale(const CollisionWorld& world, std::span<const Contact> blockers,
                                    double radius) noexcept;
+
+/// The Gaussian spacing of the surface under a resting tool, as its `blockers` show it: their
+/// largest middle semi-axis (m; 0 without blockers). 3DGS and the synthetic scenes size their
+/// discs about as far apart as they are wide.
+[[nodiscard]] double shading_spacing(const CollisionWorld& world, std::span<const Contact> blockers) noexcept;
 
 /// Working memory of shaded_normal(): the terms of the Gaussians near the reading point, kept
 /// from the first pass for the second (no second traversal, rotation or exponential per
@@ -77,7 +86,7 @@ class ShadingScratch {
 
  private:
   friend Eigen::Vector3d shaded_normal(const CollisionWorld&, const Eigen::Vector3d&, double, double,
-                                       ShadingScratch&, const FreeBall&) noexcept;
+                                       ShadingScratch&, const FreeBall&, double) noexcept;
   struct Terms;
   std::unique_ptr<Terms> terms_;
   std::size_t last_terms_ = 0;
@@ -88,19 +97,20 @@ class ShadingScratch {
 /// in the same order), one traversal instead of two. Allocates nothing.
 [[nodiscard]] Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& center, double radius,
                                             double kernel, ShadingScratch& scratch,
-                                            const FreeBall& ball = {}) noexcept;
+                                            const FreeBall& ball = {}, double min_width = 0) noexcept;
 
 /// The last shaded normal and where it was read. The field is smooth at the kernel's scale, so
 /// a proxy re-reads it only once its reading point moved more than `reuse` m
 /// (ProxyParams::shading_reuse, in tool radii, times the radius).
 class ShadedNormalCache {
  public:
-  /// shaded_normal(world, at, scale, kernel, scratch, ball), or the cached one while `at` is
-  /// within `reuse` m of where that was read.
+  /// shaded_normal(world, at, scale, kernel, scratch, ball, min_width), or the cached one while
+  /// `at` is within `reuse` m of where that was read.
   const Eigen::Vector3d& read(const CollisionWorld& world, const Eigen::Vector3d& at, double scale, double kernel,
-                              double reuse, ShadingScratch& scratch, const FreeBall& ball = {}) noexcept {
+                              double reuse, ShadingScratch& scratch, const FreeBall& ball = {},
+                              double min_width = 0) noexcept {
     if (!(valid_ && (at - at_).norm() <= reuse)) {
-      normal_ = shaded_normal(world, at, scale, kernel, scratch, ball);
+      normal_ = shaded_normal(world, at, scale, kernel, scratch, ball, min_width);
       at_ = at;
       valid_ = true;
       ++reads_;
