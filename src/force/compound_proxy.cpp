@@ -263,7 +263,7 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     double weight = 0;
     const std::span<const Contact> held_by = blockers();
     // The blockers are the likely first contacts of the probes too: tested first, they prune
-    // the rest (the answer is the same exact search; 8 % off the Truck stylus's p99).
+    // the rest (the answer is the same exact search).
     std::uint32_t held_slots[3];
     for (std::size_t i = 0; i < held_by.size(); ++i) held_slots[i] = held_by[i].slot;
     const std::span<const std::uint32_t> hints{held_slots, held_by.size()};

@@ -37,8 +37,8 @@ struct Term {
 
 // Term of g at c for a kernel width s (s2 = s^2) and a rim falloff scale `rim`; false when g
 // does not contribute (q > 40, or a floater beside the tool, see FreeBall).
-inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double s, double s2, double rim,
-                    const FreeBall& ball, Term& out) noexcept {
+inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double s2, double rim, const FreeBall& ball,
+                    Term& out) noexcept {
   const Eigen::Vector3d d = c - Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
   if (ball.radius > 0 && d.dot(ball.up) < 0.5 * ball.radius) {
     // Less than half the radius below the ball's centre (or above it), seen from the surface it
@@ -119,7 +119,7 @@ void for_each_term(const CollisionWorld& world, const Eigen::Vector3d& c, double
   Term tm;
   world.bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
     for (std::uint32_t k = first; k < first + count; ++k)
-      if (term_of(gs[k], c, s, s * s, rim, ball, tm)) f(tm);
+      if (term_of(gs[k], c, s * s, rim, ball, tm)) f(tm);
   });
 }
 
@@ -196,11 +196,7 @@ double shading_spacing(const CollisionWorld& world, std::span<const Contact> blo
 }
 
 double shading_scale(const CollisionWorld& world, std::span<const Contact> blockers, double radius) noexcept {
-  double scale = radius;
-  for (const Contact& b : blockers) {
-    scale = std::max(scale, middle_semi_axis(world.gaussians()[b.slot]));
-  }
-  return scale;
+  return std::max(radius, shading_spacing(world, blockers));
 }
 
 }  // namespace gshaptics
