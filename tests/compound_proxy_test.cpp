@@ -187,19 +187,18 @@ Drag drag(double mu_s, double mu_k) {
   const double y0 = proxy.position().y();
   double y = 0;
   const Eigen::Vector3d v(0, 0.01, 0);  // 10 mm/s sideways
-  for (int k = 0; k < 50; ++k) {  // 0.5 mm: inside the cone of mu_s = 0.5 at 2 mm depth
-    y += 1e-5;
-    out = proxy.render({0.001, y, z_press}, level, v, Eigen::Vector3d::Zero(), 1e-3);
-    d.ever_inside = d.ever_inside || proxy.blocked(proxy.position(), proxy.orientation());
-  }
+  const auto slide = [&](int ticks) {   // 10 um a tick
+    for (int k = 0; k < ticks; ++k) {
+      y += 1e-5;
+      out = proxy.render({0.001, y, z_press}, level, v, Eigen::Vector3d::Zero(), 1e-3);
+      d.ever_inside = d.ever_inside || proxy.blocked(proxy.position(), proxy.orientation());
+    }
+  };
+  slide(50);  // 0.5 mm: inside the cone of mu_s = 0.5 at 2 mm depth
   d.stuck_proxy_shift = proxy.position().y() - y0;
   d.stuck_force_y = out.force.y();
   d.stuck_force_z = out.force.z();
-  for (int k = 0; k < 450; ++k) {  // on to 5 mm: out of the cone, sliding
-    y += 1e-5;
-    out = proxy.render({0.001, y, z_press}, level, v, Eigen::Vector3d::Zero(), 1e-3);
-    d.ever_inside = d.ever_inside || proxy.blocked(proxy.position(), proxy.orientation());
-  }
+  slide(450);  // on to 5 mm: out of the cone, sliding
   d.slid_proxy_shift = proxy.position().y() - y0;
   d.slid_force_y = out.force.y();
   d.slid_force_z = out.force.z();

@@ -1,5 +1,6 @@
 #include "gshaptics/force/proxy_renderer.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "gshaptics/error.h"
@@ -136,12 +137,14 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   }
   // 3. The contact normal: shaded (Morgenbesser & Srinivasan 1996), recomputed once the proxy
   // has moved `shading_reuse` tool radii, unless it disagrees with where the proxy holds the device.
+  // (The spacing is the blockers' largest middle semi-axis; the scale, the larger of it and r.)
+  const double spacing = shading_spacing(*world_, blockers);
   Eigen::Vector3d n =
-      shade_.read(*world_, p, shading_scale(*world_, blockers, r), params_.shading_kernel, params_.shading_reuse * r,
+      shade_.read(*world_, p, std::max(r, spacing), params_.shading_kernel, params_.shading_reuse * r,
                   shading_scratch_,
                   {solver_.support_normal().isZero(0) ? 0.0 : tool.semi_axes.minCoeff(),
                    solver_.support_normal()},  // (the tool's inscribed ball rests free at p)
-                  shading_spacing(*world_, blockers));
+                  spacing);
   if (n.dot(e) < 0 && !solver_.blocked(tool)) {
     // The surface says the device is on its free side, and the device's own pose is free: the
     // proxy is caught in a Gaussian-scale pocket (a sharp tool rim under a neighbouring disc's
