@@ -277,13 +277,41 @@ TEST(ShadedNormal, AKernelAsWideAsTheSpacingFollowsASparseCurvedSurface) {
     std::sort(v.begin(), v.end());
     return v[std::size_t(0.95 * double(v.size() - 1))];
   };
-  EXPECT_LT(p95(wide), 3.0);
-  EXPECT_GT(p95(plain), p95(wide) + 1.0);  // (the facets: what the wider kernel mends)
+  EXPECT_LT(p95(wide), 3.0);   // 3.0 before the linear fit
+  EXPECT_LT(p95(plain), 3.0);  // 4.1 before the linear fit (the facets: the wider kernel and the fit each mend them)
+}
+
+// Where the Gaussians near the reading point lie to one side of it, the plain weighted sum reads
+// the surface at their centroid; on a curved surface that is a tilt of offset / radius. The
+// second pass fits the directions linearly over the centres and reads the fit at the point
+// (shaded_normal.cpp, LocalLinearSum). Exact discs (no jitter, no tilt) on the fidelity
+// cylinder (radius 5 cm) at 8 mm spacing, read 10 mm off the surface at 6 mm steps with the
+// half-tool kernel: the error is the sampling's alone. With the fit p95 1.6 deg; with the plain
+// sum 2.9 (checked with the fit turned off).
+TEST(ShadedNormal, ALinearFitReadsASparseCurvedSurfaceAtThePointNotAtTheCentroid) {
+  AnalyticShape shape(ShapeKind::kCylinder);
+  SynthParams sp;
+  sp.spacing = 0.008;
+  sp.floater_share = 0;
+  sp.normal_jitter = 0;
+  sp.tilt_deg = 0;
+  sp.low_opacity_share = 0;
+  const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
+  const double r = 0.01;
+  std::vector<double> err;
+  for (const SurfaceSample& q : shape.sample_surface(0.006)) {
+    if (std::abs(q.position.z()) > 0.1) continue;  // away from the cylinder's rims
+    const Eigen::Vector3d p = q.position + q.normal * r;
+    err.push_back(angle_deg(shaded_normal(w, p, r, 0.5), q.normal));
+  }
+  ASSERT_GT(err.size(), 100u);
+  std::sort(err.begin(), err.end());
+  EXPECT_LT(err[std::size_t(0.95 * double(err.size() - 1))], 2.0);
 }
 
 // The same through the renderer: ProxyRenderer reads the field with the blockers' spacing. The
 // fidelity cylinder at 8 mm spacing, 20 presses of a 10 mm tool to 5 mm, render() alone: the
-// force's direction p95 against the true normal (5.1 degrees with the half-tool kernel, seed 1).
+// force's direction p95 against the true normal: 2.6 degrees; 4.6 with the half-tool kernel, seed 1.
 TEST(ProxyRenderer, PressesOnASparseCylinderFollowItsCurvature) {
   AnalyticShape shape(ShapeKind::kCylinder);
   SynthParams sp;
