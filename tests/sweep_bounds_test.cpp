@@ -116,6 +116,71 @@ TEST(SweepBounds, TruckNearSurfaceSweepsMatchThePlainComputation) {
   EXPECT_GT(hits, 40);
 }
 
+// A rigid compound tool in one sweep (first_contact over a span of parts: one traversal, one
+// sorted list, one bar) and each part's own contact (first_contacts) against the plain
+// computation per part, on random compound tools (2-6 ellipsoids and spheres, random offsets
+// and rotations) near the Truck's surface, with and without a filter, each sweep run twice (the
+// second warm-started by the first).
+TEST(SweepBounds, CompoundToolSweepsMatchThePlainComputationPerPart) {
+  if (truck() == nullptr) GTEST_SKIP() << "the bundled truck.splat was not found";
+  const CollisionWorld& w = *truck();
+  PoseSamplerParams pp;
+  pp.count = 24;
+  pp.seed = 5;
+  const std::vector<ToolEllipsoid> poses = sample_poses(w, pp);
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-1, 1), s(0.3, 1.0);
+  SweepQuery sweep(w);
+  int hits = 0, parts_hit = 0, later_parts = 0;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const double r = poses[i].semi_axes.maxCoeff();
+    std::vector<ToolEllipsoid> parts(2 + i % 5);
+    for (std::size_t j = 0; j < parts.size(); ++j) {
+      ToolEllipsoid& t = parts[j];
+      t.center = poses[i].center + Eigen::Vector3d(u(rng), u(rng), u(rng)) * r;
+      t.semi_axes = j % 2 == 0 ? Eigen::Vector3d(Eigen::Vector3d::Constant(s(rng) * r)) : Eigen::Vector3d(Eigen::Vector3d(s(rng), s(rng), s(rng)) * r);
+      t.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(3.0 * u(rng), Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized()));
+    }
+    const Eigen::Vector3d m = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized() * r * (0.1 + 1.5 * double(i % 4) / 3.0);
+    for (ToolEllipsoid& t : parts) t.center -= m * 0.5;  // some sweeps begin free
+    for (const bool filtered : {false, true}) {
+      BlockFilter f;
+      if (filtered) f.blocks = &every_third_blocks;
+      std::vector<double> plain(parts.size());
+      double first = std::numeric_limits<double>::infinity();
+      for (std::size_t j = 0; j < parts.size(); ++j) first = std::min(first, plain[j] = plain_first_contact(w, parts[j], m, filtered));
+      (void)sweep.first_contact(parts, m, {}, {}, f);  // fills the warm starts
+      const SweepHit hit = sweep.first_contact(parts, m, {}, {}, f);
+      ASSERT_EQ(hit.hit, std::isfinite(first)) << "tool " << i;
+      if (hit.hit) {
+        ++hits;
+        EXPECT_NEAR(hit.t, first, 1e-12) << "tool " << i;
+        ASSERT_LT(std::size_t(hit.part), parts.size());
+        EXPECT_NEAR(sweep_time(w.gaussians()[hit.slot], parts[std::size_t(hit.part)], m), hit.t, 1e-12) << "tool " << i;
+        later_parts += hit.part > 0;
+        const SweepHit ht = sweep.first_contact(parts, m, {}, {}, f, 1.0, 1e-3);
+        EXPECT_TRUE(ht.hit);
+        EXPECT_GE(ht.t, first - 1e-12);
+        EXPECT_LE(ht.t, first + 1e-3 + 1e-12);
+      }
+      std::vector<SweepHit> each(parts.size());
+      sweep.first_contacts(parts, m, each, {}, f);  // fills the warm starts
+      sweep.first_contacts(parts, m, each, {}, f);
+      for (std::size_t j = 0; j < parts.size(); ++j) {
+        ASSERT_EQ(each[j].hit, std::isfinite(plain[j])) << "tool " << i << " part " << j;
+        if (!each[j].hit) continue;
+        ++parts_hit;
+        EXPECT_EQ(each[j].part, int(j));
+        EXPECT_NEAR(each[j].t, plain[j], 1e-12) << "tool " << i << " part " << j;
+      }
+    }
+    if (::testing::Test::HasFailure()) break;
+  }
+  EXPECT_GT(hits, 20);
+  EXPECT_GT(parts_hit, 2 * hits);  // several parts touch on most motions
+  EXPECT_GT(later_parts, 5);       // and the first contact is not always the first part's
+}
+
 TEST(SweepBounds, FidelityScenesMatchThePlainComputation) {
   for (const ShapeKind kind : {ShapeKind::kCube, ShapeKind::kSphere}) {
     const AnalyticShape shape(kind);

@@ -2,6 +2,7 @@
 
 #include <Eigen/LU>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -282,41 +283,91 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
                                    std::span<const std::uint32_t> ignore,
                                    std::span<const std::uint32_t> hints, BlockFilter filter,
                                    double limit, double tolerance) noexcept {
-  counts_ = {};
+  return first_contact(std::span<const ToolEllipsoid>(&tool, 1), motion, ignore, hints, filter, limit, tolerance);
+}
+
+SweepHit SweepQuery::first_contact(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,
+                                   std::span<const std::uint32_t> ignore,
+                                   std::span<const std::uint32_t> hints, BlockFilter filter,
+                                   double limit, double tolerance) noexcept {
   SweepHit hit;
+  sweep_parts(parts, motion, ignore, hints, filter, limit, tolerance, true, {&hit, 1});
+  return hit;
+}
+
+void SweepQuery::first_contacts(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,
+                                std::span<SweepHit> hits, std::span<const std::uint32_t> hints,
+                                BlockFilter filter) noexcept {
+  for (SweepHit& h : hits) h = {};
+  if (hits.size() < parts.size()) return;
+  sweep_parts(parts, motion, {}, hints, filter, 1.0, 0.0, false, hits);
+}
+
+void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,
+                             std::span<const std::uint32_t> ignore, std::span<const std::uint32_t> hints,
+                             BlockFilter filter, double limit, double tolerance, bool shared,
+                             std::span<SweepHit> hits) noexcept {
+  counts_ = {};
   const double len2 = motion.squaredNorm();
-  if (!tool.valid() || !motion.allFinite() || !(len2 > 0) || !(limit > 0)) return hit;
-  double best = std::min(limit, 1.0);
+  if (parts.empty() || parts.size() > kMaxParts || !motion.allFinite() || !(len2 > 0) || !(limit > 0)) return;
+  for (const ToolEllipsoid& tool : parts)
+    if (!tool.valid()) return;
+  const double best = std::min(limit, 1.0);
   // What a Gaussian must beat to count: the limit until a contact is found, then that contact
-  // less the tolerance (a near-tie is not searched to the end).
+  // less the tolerance (a near-tie is not searched to the end). One bar for all parts (the
+  // earliest contact of the rigid tool), or one a part (each part's own first contact).
   const double tol = std::isfinite(tolerance) ? std::max(0.0, tolerance) : 0.0;
-  double bar = best;
-  const Eigen::Vector3d c0 = tool.center, c1 = tool.center + motion * best;  // nothing past the limit counts
-  const Eigen::Vector3d h = tool.aabb_half_extent();
-  float lo[3], hi[3];
-  for (int k = 0; k < 3; ++k) {
-    lo[k] = round_down_to_float(std::min(c0[k], c1[k]) - h[k]);
-    hi[k] = round_up_to_float(std::max(c0[k], c1[k]) + h[k]);
-  }
-  const double r_tool = tool.bounding_radius();
+  std::array<double, kMaxParts> bars;
+  bars.fill(best);
+  const auto bar_of = [&](std::uint32_t p) -> double& { return bars[shared ? 0 : p]; };
   const double len = std::sqrt(len2);
   const Eigen::Vector3d m_hat = motion / len;
-  const Eigen::Matrix3d Rt = tool.rotation.normalized().toRotationMatrix();
-  const double h_tool = (tool.semi_axes.cwiseProduct(Rt.transpose() * m_hat)).norm();  // tool extent along m
-  const Eigen::Vector3d& b = tool.semi_axes;
-  const bool spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
-  const double r2_tool = b.x() * b.x();
+  // Each part's swept box (nothing past the limit counts) and the bounds' constants; the BVH is
+  // traversed once, over the union of the boxes.
+  struct Part {
+    Eigen::Vector3d c0;
+    float lo[3], hi[3];
+    double r_tool, h_tool, r2_tool;
+    bool spherical;
+  };
+  std::array<Part, kMaxParts> pd;
+  float lo[3], hi[3];
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    const ToolEllipsoid& tool = parts[p];
+    Part& q = pd[p];
+    q.c0 = tool.center;
+    const Eigen::Vector3d c1 = tool.center + motion * best;
+    const Eigen::Vector3d h = tool.aabb_half_extent();
+    for (int k = 0; k < 3; ++k) {
+      q.lo[k] = round_down_to_float(std::min(q.c0[k], c1[k]) - h[k]);
+      q.hi[k] = round_up_to_float(std::max(q.c0[k], c1[k]) + h[k]);
+      lo[k] = p == 0 ? q.lo[k] : std::min(lo[k], q.lo[k]);
+      hi[k] = p == 0 ? q.hi[k] : std::max(hi[k], q.hi[k]);
+    }
+    q.r_tool = tool.bounding_radius();
+    const Eigen::Matrix3d Rt = tool.rotation.normalized().toRotationMatrix();
+    q.h_tool = (tool.semi_axes.cwiseProduct(Rt.transpose() * m_hat)).norm();  // tool extent along m
+    const Eigen::Vector3d& b = tool.semi_axes;
+    q.spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
+    q.r2_tool = b.x() * b.x();
+  }
+  const bool several = parts.size() > 1;
   const CollisionGaussian* gs = world_->gaussians().data();
   std::size_t n = 0;
-  const auto exact = [&](std::uint32_t k) {
+  // This Gaussian's maximiser from its last exact search against this part (a direct-mapped
+  // cache) starts it; one part keys by the slot alone.
+  const auto cache_slot = [](std::uint32_t k, std::uint32_t p) { return (k + 977u * p) % kStartCache; };
+  const auto exact = [&](std::uint32_t k, std::uint32_t p) {
     Eigen::Vector3d nrm;
     ++counts_.exact;
-    // This Gaussian's maximiser from its last exact search (a direct-mapped cache) starts it.
-    const std::size_t slot_h = k % kStartCache;
-    double s_start = start_slot_[slot_h] == k ? double(start_s_[slot_h]) : std::numeric_limits<double>::quiet_NaN();
-    const double t = sweep_time(gs[k], tool, motion, &nrm, bar, &s_start);
+    const std::size_t slot_h = cache_slot(k, p);
+    const bool cached = start_slot_[slot_h] == k && start_part_[slot_h] == p;
+    double s_start = cached ? double(start_s_[slot_h]) : std::numeric_limits<double>::quiet_NaN();
+    double& bar = bar_of(p);
+    const double t = sweep_time(gs[k], parts[p], motion, &nrm, bar, &s_start);
     if (std::isfinite(s_start)) {
       start_slot_[slot_h] = k;
+      start_part_[slot_h] = std::uint8_t(p);
       start_s_[slot_h] = float(s_start);
       start_lambda_[slot_h] = lambda_of(double(start_s_[slot_h]));
     }
@@ -325,21 +376,29 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
       return;
     }
     if (t <= bar) {
-      best = t;
       bar = t - tol;
-      hit = {true, t, k, nrm};
+      hits[shared ? 0 : p] = {true, t, k, nrm, int(p)};
     }
   };
   for (std::uint32_t hint : hints) {
     bool ignored = false;
     for (std::uint32_t s : ignore) ignored = ignored || s == hint;
-    if (!ignored && hint < world_->size()) exact(hint);
+    if (!ignored && hint < world_->size())
+      for (std::uint32_t p = 0; p < parts.size(); ++p) exact(hint, p);
   }
-  // Bounds of one candidate, then the sorted list (or, past its capacity, an exact test now).
-  const auto consider = [&](std::uint32_t k) {
+  // Bounds of one candidate against one part, then the sorted list (or, past its capacity, an
+  // exact test now).
+  const auto consider = [&](std::uint32_t k, std::uint32_t p) {
       const CollisionGaussian& g = gs[k];
-      const Eigen::Vector3d rel = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - c0;
-      const double reach = double(g.bounding_radius()) + r_tool;
+      const Part& q = pd[p];
+      if (several) {
+        // The part's own swept box first (the traversal's box is the union of the parts').
+        const float gr = g.bounding_radius();
+        for (int j = 0; j < 3; ++j)
+          if (g.center[j] + gr < q.lo[j] || g.center[j] - gr > q.hi[j]) return;
+      }
+      const Eigen::Vector3d rel = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - q.c0;
+      const double reach = double(g.bounding_radius()) + q.r_tool;
       // Bounding spheres: the earliest the two could touch along the path (capsule test).
       const double bq = rel.dot(motion), cq = rel.squaredNorm() - reach * reach;
       double t_lb;
@@ -359,8 +418,9 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
         const double mr = m_hat[0] * R(0, j) + m_hat[1] * R(1, j) + m_hat[2] * R(2, j);
         h2 += double(g.semi_axes[j]) * g.semi_axes[j] * mr * mr;
       }
-      t_lb = std::max(t_lb, (rel.dot(m_hat) - std::sqrt(h2) - h_tool) / len);
-      if (spherical && t_lb <= bar) {
+      t_lb = std::max(t_lb, (rel.dot(m_hat) - std::sqrt(h2) - q.h_tool) / len);
+      const double bar = bar_of(p);
+      if (q.spherical && t_lb <= bar) {
         // Members of the family: each one's entry time is a lower bound of the exact one, far
         // tighter than the spheres and slabs for the Gaussians beside a sliding tool. First the
         // member exact along the offset's direction (geometric_lambda; lambda = 1/2, the bound
@@ -368,7 +428,7 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
         // for a Gaussian searched before, its maximiser at that search (then the bound is
         // close to the contact time itself, and the candidates sort nearly as the exact search
         // would order them). Computed here, they spare most candidates the exact search.
-        const std::size_t hs = k % kStartCache;
+        const std::size_t hs = cache_slot(k, p);
         double dg[3], ug[3];
         for (int j = 0; j < 3; ++j) {
           dg[j] = R(0, j) * rel[0] + R(1, j) * rel[1] + R(2, j) * rel[2];
@@ -378,15 +438,15 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
           const double w_inv = 1.0 / (lam * (1.0 - lam));
           double qa = 0, qb = 0, qc = 0;
           for (int j = 0; j < 3; ++j) {
-            const double inv = 1.0 / (lam * (double(g.semi_axes[j]) * g.semi_axes[j]) + (1.0 - lam) * r2_tool);
+            const double inv = 1.0 / (lam * (double(g.semi_axes[j]) * g.semi_axes[j]) + (1.0 - lam) * q.r2_tool);
             qa += ug[j] * ug[j] * inv;
             qb += ug[j] * dg[j] * inv;
             qc += dg[j] * dg[j] * inv;
           }
           return entry_time({qa, -2 * qb, qc - w_inv});
         };
-        double te = member(geometric_lambda(g, dg, r_tool));
-        if (te <= bar && start_slot_[hs] == k) te = std::max(te, member(start_lambda_[hs]));
+        double te = member(geometric_lambda(g, dg, q.r_tool));
+        if (te <= bar && start_slot_[hs] == k && start_part_[hs] == p) te = std::max(te, member(start_lambda_[hs]));
         if (te > 1.0) return;
         t_lb = std::max(t_lb, te - 1e-12);  // (a rounding's margin below the exact search's value)
       }
@@ -398,17 +458,35 @@ SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vecto
       if (ignored) return;
       ++counts_.prefiltered;
       if (n < scratch_.size())
-        scratch_[n++] = {t_lb, k};
-      else if (t_lb <= bar)
-        exact(k);
+        scratch_[n++] = {t_lb, k, p};
+      else if (t_lb <= bar_of(p))
+        exact(k, p);
   };
-  world_->bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
-    counts_.candidates += count;
-    for (std::uint32_t k = first; k < first + count; ++k) consider(k);
+  // One traversal over the union of the parts' boxes; a leaf is read for each part whose own box
+  // it overlaps (a tilted stylus's union box holds many leaves no part's box reaches).
+  const auto n_parts = std::uint32_t(parts.size());
+  world_->bvh().for_each_overlapping_leaf_node(lo, hi, [&](const BvhNode& leaf) {
+    for (std::uint32_t p = 0; p < n_parts; ++p) {
+      const Part& q = pd[p];
+      if (several && (leaf.lo[0] > q.hi[0] || leaf.hi[0] < q.lo[0] || leaf.lo[1] > q.hi[1] || leaf.hi[1] < q.lo[1] ||
+                      leaf.lo[2] > q.hi[2] || leaf.hi[2] < q.lo[2]))
+        continue;
+      counts_.candidates += leaf.count;
+      for (std::uint32_t k = leaf.first; k < leaf.first + leaf.count; ++k) consider(k, p);
+    }
+    return true;
   });
-  std::sort(scratch_.begin(), scratch_.begin() + std::ptrdiff_t(n));
-  for (std::size_t i = 0; i < n && scratch_[i].first <= bar; ++i) exact(scratch_[i].second);
-  return hit;
+  std::sort(scratch_.begin(), scratch_.begin() + std::ptrdiff_t(n),
+            [](const Candidate& a, const Candidate& b) {
+              return a.t < b.t || (a.t == b.t && (a.slot < b.slot || (a.slot == b.slot && a.part < b.part)));
+            });
+  for (std::size_t i = 0; i < n; ++i) {
+    const Candidate& c = scratch_[i];
+    if (c.t <= bar_of(c.part))
+      exact(c.slot, c.part);
+    else if (shared)
+      break;  // (one bar: the rest come later still)
+  }
 }
 
 }  // namespace gshaptics

@@ -9,6 +9,8 @@
 
 namespace gshaptics {
 
+static_assert(std::size_t(kMaxToolParts) <= SweepQuery::kMaxParts, "a compound tool's parts must fit one compound sweep");
+
 namespace {
 
 const CompoundProxyParams& validated(const CompoundProxyParams& p) {
@@ -164,18 +166,12 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
   if (params_.pass_isolated) filter = floaters.block_filter();
   const auto first_of_parts = [&](const Eigen::Vector3d& at, const Eigen::Vector3d& u, std::span<const std::uint32_t> h,
                                   int& part) {
-    SweepHit best;
+    // All parts in one traversal, one sorted list and one bar (SweepQuery's compound sweep).
+    // Near-ties within half the stand-off are not searched to the end (SweepQuery's tolerance).
     const int n = pose_parts(at, q_);
-    for (int j = 0; j < n; ++j) {
-      // The earliest contact so far bounds the next part's sweep: its later candidates go unseen.
-      // Near-ties within half the stand-off are not searched to the end (SweepQuery's tolerance).
-      const SweepHit hj = sweep_.first_contact(parts_[std::size_t(j)], u, {}, h, filter, best.hit ? best.t : 1.0,
-                                               0.5 * eps / u.norm());
-      if (hj.hit && (!best.hit || hj.t < best.t)) {
-        best = hj;
-        part = j;
-      }
-    }
+    const SweepHit best = sweep_.first_contact(std::span<const ToolEllipsoid>(parts_.data(), std::size_t(n)), u, {}, h,
+                                               filter, 1.0, 0.5 * eps / u.norm());
+    if (best.hit) part = best.part;
     return best;
   };
   for (int s = 0; s < params_.substeps; ++s) {
@@ -267,9 +263,13 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     std::uint32_t held_slots[3];
     for (std::size_t i = 0; i < held_by.size(); ++i) held_slots[i] = held_by[i].slot;
     const std::span<const std::uint32_t> hints{held_slots, held_by.size()};
+    // Each part's own first contact along the probe, all parts in one traversal.
+    std::array<SweepHit, kMaxToolParts> probes;
+    sweep_.first_contacts(std::span<const ToolEllipsoid>(parts_.data(), std::size_t(count)), probe, probes, hints,
+                          filter);
     for (int j = 0; j < count; ++j) {
       const ToolEllipsoid& part = parts_[std::size_t(j)];
-      const SweepHit h = sweep_.first_contact(part, probe, {}, hints, filter);
+      const SweepHit& h = probes[std::size_t(j)];
       if (!h.hit) continue;
       const double w = std::max(1e-6, 1.0 - h.t);
       Eigen::Vector3d nj = h.normal;

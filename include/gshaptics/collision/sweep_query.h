@@ -34,6 +34,7 @@ struct SweepHit {
   double t = 1.0;            ///< fraction of the motion at first contact, in [0, 1] (1 when no hit)
   std::uint32_t slot = 0;    ///< the blocking Gaussian's record in CollisionWorld::gaussians()
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit contact normal, Gaussian -> tool, world
+  int part = 0;              ///< the part of a compound tool that touches (its index in the span)
 };
 
 /// Which Gaussians block a sweep: `blocks(context, slot)` is asked for a Gaussian the motion
@@ -89,16 +90,39 @@ class SweepQuery {
                          std::span<const std::uint32_t> ignore = {},
                          std::span<const std::uint32_t> hints = {}, BlockFilter filter = {},
                          double limit = 1.0, double tolerance = 0.0) noexcept;
+  /// The first Gaussian any of `parts` (a rigid compound tool: all move by the same `motion`)
+  /// touches, in one traversal of the BVH over the union of the parts' swept boxes, with one
+  /// sorted list of (Gaussian, part) candidates and one bar: the same contact as the earliest of
+  /// the parts' own first_contact() calls (the same t within the tolerance, never later),
+  /// SweepHit::part naming the part. Hints are tested against every part. At most kMaxParts
+  /// parts (more, or an invalid part: no hit).
+  SweepHit first_contact(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,
+                         std::span<const std::uint32_t> ignore = {},
+                         std::span<const std::uint32_t> hints = {}, BlockFilter filter = {},
+                         double limit = 1.0, double tolerance = 0.0) noexcept;
+  static constexpr std::size_t kMaxParts = 8;
+  /// Each part's own first contact along the same `motion`, in one traversal (a bar a part):
+  /// hits[j] is what first_contact(parts[j], motion, {}, hints, filter) reports, within the
+  /// exact search's tolerance. For a compound tool's contact band: how far each part is from the
+  /// Gaussians along one direction. `hits` must hold parts.size() entries (fewer: every hit
+  /// cleared, none searched).
+  void first_contacts(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion, std::span<SweepHit> hits,
+                      std::span<const std::uint32_t> hints = {}, BlockFilter filter = {}) noexcept;
   [[nodiscard]] const SweepCounts& counts() const noexcept { return counts_; }
   [[nodiscard]] const CollisionWorld& world() const noexcept { return *world_; }
 
  private:
   const CollisionWorld* world_;
-  std::vector<std::pair<double, std::uint32_t>> scratch_;  // (earliest contact bound, slot)
-  // Each Gaussian's last lambda maximiser, direct-mapped by slot: the next search starts there.
+  struct Candidate {
+    double t;  // earliest contact bound
+    std::uint32_t slot, part;
+  };
+  std::vector<Candidate> scratch_;
+  // Each Gaussian's last lambda maximiser, direct-mapped by slot (and part): the next search starts there.
   static constexpr std::size_t kStartCache = 1024;
   std::array<std::uint32_t, kStartCache> start_slot_ = filled_slots();
   std::array<float, kStartCache> start_s_{};
+  std::array<std::uint8_t, kStartCache> start_part_{};  // the part of a compound tool it was searched against
   std::array<double, kStartCache> start_lambda_{};  // lambda of start_s_
   static constexpr std::array<std::uint32_t, kStartCache> filled_slots() {
     std::array<std::uint32_t, kStartCache> a{};
@@ -106,6 +130,11 @@ class SweepQuery {
     return a;
   }
   SweepCounts counts_;
+  // The sweep of first_contact() and first_contacts(): one bar for all parts (`shared`: the
+  // earliest contact, in hits[0]) or one a part (hits[j]).
+  void sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,
+                   std::span<const std::uint32_t> ignore, std::span<const std::uint32_t> hints, BlockFilter filter,
+                   double limit, double tolerance, bool shared, std::span<SweepHit> hits) noexcept;
 };
 
 }  // namespace gshaptics

@@ -13,9 +13,9 @@
 ///    that would swing the tool through a thin plate stops at the contact (the conservative
 ///    advancement of Mirtich 1996 / Ortega, Redon & Coquillart 2007, in fixed steps).
 /// 2. Translation: the god-object of Zilles & Salisbury (1995) with all parts: the proxy moves
-///    toward the device, stops at the first contact of any part (the minimum over the parts'
-///    sweeps), then slides on the constraint planes of the Gaussians that block it (at most
-///    three). Floaters (ProxyParams::pass_isolated) do not block.
+///    toward the device, stops at the first contact of any part (all parts in one sweep: one
+///    BVH traversal, one sorted list of candidates; SweepQuery), then slides on the constraint
+///    planes of the Gaussians that block it (at most three). Floaters (ProxyParams::pass_isolated) do not block.
 /// 3. Wrench: a virtual coupling in both (Colgate, Stanley & Brown 1995): F = max(0, k_c e . n - b_c v . n) n
 ///    with e = x_proxy - x_device and n the contact normal: the touching parts' shaded normals
 ///    (Morgenbesser & Srinivasan 1996; shaded_normal.h, each read at the centre of the sphere of
