@@ -95,14 +95,20 @@ const CollisionWorld* truck() {
   return w.get();
 }
 
+// Tool poses near the Truck's surface (PoseSampler; `anisotropic`: ellipsoidal tools too).
+std::vector<ToolEllipsoid> truck_poses(std::size_t count, std::uint64_t seed, bool anisotropic = false) {
+  PoseSamplerParams pp;
+  pp.count = count;
+  pp.seed = seed;
+  pp.anisotropic = anisotropic;
+  return sample_poses(*truck(), pp);
+}
+
 TEST(SweepBounds, TruckNearSurfaceSweepsMatchThePlainComputation) {
   if (truck() == nullptr) GTEST_SKIP() << "the bundled truck.splat was not found";
   const CollisionWorld& w = *truck();
-  PoseSamplerParams pp;
-  pp.count = 60;
-  pp.seed = 11;
-  pp.anisotropic = true;  // ellipsoidal tools too (the lambda = 1/2 bound is for spheres only)
-  const std::vector<ToolEllipsoid> tools = sample_poses(w, pp);
+  // Ellipsoidal tools too (the lambda = 1/2 bound is for spheres only).
+  const std::vector<ToolEllipsoid> tools = truck_poses(60, 11, true);
   std::mt19937_64 rng(3);
   std::normal_distribution<double> n01;
   const int hits = expect_same_first_contacts(w, int(tools.size()), [&](int i) {
@@ -124,10 +130,7 @@ TEST(SweepBounds, TruckNearSurfaceSweepsMatchThePlainComputation) {
 TEST(SweepBounds, CompoundToolSweepsMatchThePlainComputationPerPart) {
   if (truck() == nullptr) GTEST_SKIP() << "the bundled truck.splat was not found";
   const CollisionWorld& w = *truck();
-  PoseSamplerParams pp;
-  pp.count = 24;
-  pp.seed = 5;
-  const std::vector<ToolEllipsoid> poses = sample_poses(w, pp);
+  const std::vector<ToolEllipsoid> poses = truck_poses(24, 5);
   std::mt19937_64 rng(9);
   std::uniform_real_distribution<double> u(-1, 1), s(0.3, 1.0);
   SweepQuery sweep(w);
@@ -204,10 +207,7 @@ TEST(SweepBounds, FidelityScenesMatchThePlainComputation) {
 TEST(ShadingScratch, TruckReadingsAreBitIdenticalToThePlainTwoPassOnes) {
   if (truck() == nullptr) GTEST_SKIP() << "the bundled truck.splat was not found";
   const CollisionWorld& w = *truck();
-  PoseSamplerParams pp;
-  pp.count = 40;
-  pp.seed = 5;
-  const std::vector<ToolEllipsoid> tools = sample_poses(w, pp);
+  const std::vector<ToolEllipsoid> tools = truck_poses(40, 5);
   ShadingScratch roomy;         // holds every reading here
   ShadingScratch tight(16);     // overflows: the plain second pass
   int overflowed = 0, held = 0, nonzero = 0;
