@@ -14,7 +14,10 @@
 /// edges and corners, a disc whose turned axis disagrees with a first outward estimate and that
 /// p sees from beyond its rim gives the direction from its rim to p instead, with less weight
 /// (two passes; docs/design.md Sec. 7), so the other face's discs do not pull the normal into
-/// the solid.
+/// the solid. The second pass reads the directions' local linear fit over the Gaussians' centres
+/// at p, not their plain weighted mean, which is the field at the Gaussians' centroid (local
+/// linear kernel regression: Cleveland 1979, Fan 1992; on the directions within about 18-32
+/// degrees of the first pass's estimate, so not across edges and corners).
 ///
 /// Threading: pure functions of an immutable world; no allocation, lock, log or throw.
 
@@ -72,7 +75,7 @@ struct FreeBall {
 /// Gaussian). Allocated once, at construction; copies allocate their own.
 class ShadingScratch {
  public:
-  /// Room for `capacity` Gaussians (112 bytes each; the default, 448 KiB, holds a 7.6 cm tool's
+  /// Room for `capacity` Gaussians (136 bytes each; the default, 544 KiB, holds a 7.6 cm tool's
   /// kernel on the Truck and most of one on the largest real scenes). A reading with more falls
   /// back to the plain second pass, with the same result.
   explicit ShadingScratch(std::size_t capacity = 4096);
