@@ -263,6 +263,8 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     std::uint32_t held_slots[3];
     for (std::size_t i = 0; i < held_by.size(); ++i) held_slots[i] = held_by[i].slot;
     const std::span<const std::uint32_t> hints{held_slots, held_by.size()};
+    // The Gaussian spacing under the tool (shading_spacing), read once for every part's scale.
+    const double spacing = shading_spacing(*world_, held_by);
     // Each part's own first contact along the probe, all parts in one traversal.
     std::array<SweepHit, kMaxToolParts> probes;
     sweep_.first_contacts(std::span<const ToolEllipsoid>(parts_.data(), std::size_t(count)), probe, probes, hints,
@@ -279,7 +281,7 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
         // were passed; `up` is the part's contact normal. FreeBall.)
         const Eigen::Vector3d at = part.surface_point(-h.normal) + h.normal * rho;
         const Eigen::Vector3d& sn =
-            shades_[std::size_t(j)].read(*world_, at, shading_scale(*world_, held_by, rho), params_.shading_kernel,
+            shades_[std::size_t(j)].read(*world_, at, std::max(rho, spacing), params_.shading_kernel,
                                          params_.shading_reuse * rho, shading_scratch_,
                                          {part.inner_clearance(at), h.normal});
         if (sn.dot(h.normal) > 0) nj = sn;
