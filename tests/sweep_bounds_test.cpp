@@ -29,6 +29,8 @@
 namespace gshaptics {
 namespace {
 
+constexpr std::size_t kMaxToolPartsForTest = 8;
+
 // A filter that lets every third slot (by a hash of it) pass: exercised in both paths.
 bool every_third_blocks(void*, std::uint32_t slot) noexcept { return (slot * 2654435761u) % 3 != 0; }
 
@@ -67,6 +69,14 @@ int expect_same_first_contacts(const CollisionWorld& w, int n, Draw&& draw) {
       EXPECT_TRUE(hit.hit) << "sweep " << i;
       EXPECT_NEAR(hit.t, plain, 1e-12) << "sweep " << i << (filtered ? " filtered" : "");
       if (filtered) EXPECT_TRUE(every_third_blocks(nullptr, hit.slot)) << "a passing Gaussian was reported";
+      // With hints (the contact itself, which then bounds the traversal to the box swept up to
+      // it, and an arbitrary other Gaussian): the same contact.
+      const std::uint32_t hints[2] = {hit.slot, std::uint32_t((hit.slot * 7919u + 13u) % w.size())};
+      for (std::size_t nh : {std::size_t(1), std::size_t(2)}) {
+        const SweepHit hh = sweep.first_contact(tool, motion, {}, {hints, nh}, f);
+        EXPECT_TRUE(hh.hit) << "sweep " << i << " hints " << nh;
+        EXPECT_NEAR(hh.t, plain, 1e-12) << "sweep " << i << " hints " << nh;
+      }
       // With a tolerance: a contact no earlier than the first and at most the tolerance later.
       for (const double tol : {1e-4, 1e-2}) {
         const SweepHit ht = sweep.first_contact(tool, motion, {}, {}, f, 1.0, tol);
@@ -165,10 +175,18 @@ TEST(SweepBounds, CompoundToolSweepsMatchThePlainComputationPerPart) {
         EXPECT_TRUE(ht.hit);
         EXPECT_GE(ht.t, first - 1e-12);
         EXPECT_LE(ht.t, first + 1e-3 + 1e-12);
+        const std::uint32_t hint = hit.slot;  // the contact as a hint: the same contact
+        const SweepHit hh = sweep.first_contact(parts, m, {}, {&hint, 1}, f);
+        EXPECT_TRUE(hh.hit);
+        EXPECT_NEAR(hh.t, first, 1e-12) << "tool " << i << " with a hint";
       }
       std::vector<SweepHit> each(parts.size());
       sweep.first_contacts(parts, m, each, {}, f);  // fills the warm starts
-      sweep.first_contacts(parts, m, each, {}, f);
+      std::uint32_t part_hints[kMaxToolPartsForTest];
+      std::size_t n_part_hints = 0;
+      for (const SweepHit& e : each)
+        if (e.hit && n_part_hints < kMaxToolPartsForTest) part_hints[n_part_hints++] = e.slot;
+      sweep.first_contacts(parts, m, each, {part_hints, n_part_hints}, f);  // each part's contact as a hint
       for (std::size_t j = 0; j < parts.size(); ++j) {
         ASSERT_EQ(each[j].hit, std::isfinite(plain[j])) << "tool " << i << " part " << j;
         if (!each[j].hit) continue;

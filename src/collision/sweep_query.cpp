@@ -332,18 +332,25 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   };
   std::array<Part, kMaxParts> pd;
   float lo[3], hi[3];
+  // Each part's box swept up to its bar (nothing later counts), and their union.
+  const auto sweep_boxes = [&] {
+    for (std::size_t p = 0; p < parts.size(); ++p) {
+      const ToolEllipsoid& tool = parts[p];
+      Part& q = pd[p];
+      const Eigen::Vector3d c1 = tool.center + motion * std::max(0.0, bar_of(std::uint32_t(p)));
+      const Eigen::Vector3d h = tool.aabb_half_extent();
+      for (int k = 0; k < 3; ++k) {
+        q.lo[k] = round_down_to_float(std::min(tool.center[k], c1[k]) - h[k]);
+        q.hi[k] = round_up_to_float(std::max(tool.center[k], c1[k]) + h[k]);
+        lo[k] = p == 0 ? q.lo[k] : std::min(lo[k], q.lo[k]);
+        hi[k] = p == 0 ? q.hi[k] : std::max(hi[k], q.hi[k]);
+      }
+    }
+  };
   for (std::size_t p = 0; p < parts.size(); ++p) {
     const ToolEllipsoid& tool = parts[p];
     Part& q = pd[p];
     q.c0 = tool.center;
-    const Eigen::Vector3d c1 = tool.center + motion * best;
-    const Eigen::Vector3d h = tool.aabb_half_extent();
-    for (int k = 0; k < 3; ++k) {
-      q.lo[k] = round_down_to_float(std::min(q.c0[k], c1[k]) - h[k]);
-      q.hi[k] = round_up_to_float(std::max(q.c0[k], c1[k]) + h[k]);
-      lo[k] = p == 0 ? q.lo[k] : std::min(lo[k], q.lo[k]);
-      hi[k] = p == 0 ? q.hi[k] : std::max(hi[k], q.hi[k]);
-    }
     q.r_tool = tool.bounding_radius();
     const Eigen::Matrix3d Rt = tool.rotation.normalized().toRotationMatrix();
     q.h_tool = (tool.semi_axes.cwiseProduct(Rt.transpose() * m_hat)).norm();  // tool extent along m
@@ -351,6 +358,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
     q.spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
     q.r2_tool = b.x() * b.x();
   }
+  sweep_boxes();
   const bool several = parts.size() > 1;
   const CollisionGaussian* gs = world_->gaussians().data();
   std::size_t n = 0;
@@ -380,22 +388,17 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       hits[shared ? 0 : p] = {true, t, k, nrm, int(p)};
     }
   };
-  for (std::uint32_t hint : hints) {
-    bool ignored = false;
-    for (std::uint32_t s : ignore) ignored = ignored || s == hint;
-    if (!ignored && hint < world_->size())
-      for (std::uint32_t p = 0; p < parts.size(); ++p) exact(hint, p);
-  }
   // Bounds of one candidate against one part, then the sorted list (or, past its capacity, an
   // exact test now).
-  const auto consider = [&](std::uint32_t k, std::uint32_t p) {
+  // (Inlined by force: it has two call sites, and as a call the candidates' loop ran 5-10 % slower.)
+  const auto lower_bound = [&](std::uint32_t k, std::uint32_t p) __attribute__((always_inline)) -> double {
       const CollisionGaussian& g = gs[k];
       const Part& q = pd[p];
       if (several) {
         // The part's own swept box first (the traversal's box is the union of the parts').
         const float gr = g.bounding_radius();
         for (int j = 0; j < 3; ++j)
-          if (g.center[j] + gr < q.lo[j] || g.center[j] - gr > q.hi[j]) return;
+          if (g.center[j] + gr < q.lo[j] || g.center[j] - gr > q.hi[j]) return kNever;
       }
       const Eigen::Vector3d rel = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - q.c0;
       const double reach = double(g.bounding_radius()) + q.r_tool;
@@ -406,9 +409,9 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         t_lb = 0;
       } else {
         const double disc = bq * bq - len2 * cq;
-        if (disc < 0 || bq <= 0) return;
+        if (disc < 0 || bq <= 0) return kNever;
         t_lb = (bq - std::sqrt(disc)) / len2;
-        if (t_lb > 1.0) return;
+        if (t_lb > 1.0) return kNever;
       }
       // Slab bound along the motion: the ellipsoid's extent along it is sqrt(sum (a_j m.R_j)^2),
       // tight for flat Gaussians met face-on, where the sphere bound is loose.
@@ -447,12 +450,16 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         };
         double te = member(geometric_lambda(g, dg, q.r_tool));
         if (te <= bar && start_slot_[hs] == k && start_part_[hs] == p) te = std::max(te, member(start_lambda_[hs]));
-        if (te > 1.0) return;
+        if (te > 1.0) return kNever;
         t_lb = std::max(t_lb, te - 1e-12);  // (a rounding's margin below the exact search's value)
       }
+      return t_lb;
+  };
+  const auto consider = [&](std::uint32_t k, std::uint32_t p) {
+      const double t_lb = lower_bound(k, p);
       // The bar only falls and the candidates are tested in t_lb order up to it: one whose
       // bound is past it (the best contact so far, from the hints) is never tested.
-      if (t_lb > bar) return;
+      if (t_lb > bar_of(p)) return;
       bool ignored = false;
       for (std::uint32_t s : ignore) ignored = ignored || s == k;
       if (ignored) return;
@@ -462,6 +469,20 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       else if (t_lb <= bar_of(p))
         exact(k, p);
   };
+  // The hints first (the last tick's blockers, usually the first contact again): their exact
+  // searches set the bar that prunes the rest. For a compound tool, only against the parts the
+  // hint's bounds do not rule out (each hint is usually one part's blocker, out of the others'
+  // reach).
+  for (std::uint32_t hint : hints) {
+    bool ignored = false;
+    for (std::uint32_t s : ignore) ignored = ignored || s == hint;
+    if (!ignored && hint < world_->size())
+      for (std::uint32_t p = 0; p < parts.size(); ++p)
+        if (!several || lower_bound(hint, p) <= bar_of(p)) exact(hint, p);
+  }
+  // A hint that holds the tool (a resting contact: the bar near 0) leaves only the boxes swept
+  // up to it to traverse.
+  sweep_boxes();
   // One traversal over the union of the parts' boxes; a leaf is read for each part whose own box
   // it overlaps (a tilted stylus's union box holds many leaves no part's box reaches).
   const auto n_parts = std::uint32_t(parts.size());
