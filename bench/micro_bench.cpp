@@ -4,11 +4,13 @@
 
 #include <benchmark/benchmark.h>
 
+#include <limits>
 #include <map>
 #include <memory>
 #include <random>
 
 #include "gshaptics/collision/contact_query.h"
+#include "gshaptics/collision/sweep_query.h"
 #include "gshaptics/force/force_model.h"
 #include "gshaptics/servo/passivity.h"
 #include "gshaptics/servo/query_pool.h"
@@ -122,6 +124,49 @@ void BM_NarrowPhaseBatchEllipsoid(benchmark::State& state) {
   state.SetItemsProcessed(std::int64_t(state.iterations()) * kBatchCapacity);
 }
 BENCHMARK(BM_NarrowPhaseBatchEllipsoid);
+
+// The proxy's exact first-contact search (sweep_time) for one tool-Gaussian pair: truck Gaussians
+// near sampled tool poses, each tool moved a tool radius toward its Gaussian. Arg 0: a sphere;
+// 1: an ellipsoidal tool (semi-axes 1, 0.7, 0.4 of the radius, turned). Arg 1 of the range: 0 cold
+// (the full scan over lambda), 1 warm (started at the pair's last maximiser, as the sweep does
+// from tick to tick).
+void BM_SweepTime(benchmark::State& state) {
+  const Fixture& f = fixture("truck.splat", 0.01, 0.02);
+  std::mt19937_64 rng(4);
+  struct Pair {
+    std::uint32_t slot;
+    ToolEllipsoid tool;
+    Eigen::Vector3d motion;
+    double s;
+  };
+  std::vector<Pair> pairs;
+  const auto& gs = f.world->gaussians();
+  for (const ToolEllipsoid& pose : f.poses) {
+    if (pairs.size() == 512) break;
+    ToolEllipsoid tool = pose;
+    if (state.range(0) == 1) {
+      tool.semi_axes = pose.semi_axes.maxCoeff() * Eigen::Vector3d(1.0, 0.7, 0.4);
+      tool.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.6, Eigen::Vector3d(1, 2, 3).normalized()));
+    }
+    const std::uint32_t k = std::uint32_t(rng() % gs.size());
+    const Eigen::Vector3d cg(gs[k].center[0], gs[k].center[1], gs[k].center[2]);
+    const double r = tool.semi_axes.maxCoeff();
+    tool.center = cg + (pose.center - cg).normalized() * (2.5 * r + gs[k].radius);
+    pairs.push_back({k, tool, (cg - tool.center).normalized() * 2 * r, std::numeric_limits<double>::quiet_NaN()});
+  }
+  const bool warm = state.range(1) == 1;
+  if (warm)
+    for (Pair& p : pairs) (void)sweep_time(gs[p.slot], p.tool, p.motion, nullptr, 2.0, &p.s);
+  std::size_t i = 0;
+  for (auto _ : state) {
+    Pair& p = pairs[i];
+    Eigen::Vector3d n;
+    double s = warm ? p.s : std::numeric_limits<double>::quiet_NaN();
+    benchmark::DoNotOptimize(sweep_time(gs[p.slot], p.tool, p.motion, &n, 2.0, &s));
+    if (++i == pairs.size()) i = 0;
+  }
+}
+BENCHMARK(BM_SweepTime)->Args({0, 0})->Args({0, 1})->Args({1, 0})->Args({1, 1});
 
 // The passivity observer and controller's share of one servo tick (account, correct, sent) on a
 // pressed, oscillating contact, with the round trip in ticks as the argument (0: a local device;

@@ -1,6 +1,6 @@
 #include "gshaptics/collision/sweep_query.h"
 
-#include <Eigen/LU>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -33,39 +33,28 @@ inline double entry_time(const Quadratic& q) noexcept {
   return t2 < 0 ? kNever : t1;
 }
 
-// Evaluates the quadratic for a lambda, in the frame where it is cheapest.
+// Evaluates the quadratic for a lambda in a frame where both shapes are diagonal: Sigma_g =
+// diag(a2) and Sigma_t = r2 I there (for a spherical tool the Gaussian's own frame; for an
+// ellipsoidal one, see sweep_time), so that M = (lambda Sigma_g + (1 - lambda) Sigma_t)^-1 is
+// diagonal too. `back` maps that frame's M d to the world's.
 struct PairSweep {
-  bool spherical;
-  // spherical tool: Gaussian frame, diagonal shapes
   Eigen::Vector3d dg, ug, a2;
   double r2 = 0;
-  Eigen::Matrix3d Rg;
-  // general tool: world frame
-  Eigen::Matrix3d sigma_g, sigma_t;
-  Eigen::Vector3d d0, u;
+  Eigen::Matrix3d back;
 
   Quadratic at(double lambda, Eigen::Vector3d* m_d = nullptr, double t = 0) const noexcept {
     const double w_inv = 1.0 / (lambda * (1.0 - lambda));
-    Quadratic q{};
-    if (spherical) {
-      double qa = 0, qb = 0, qc = 0;
-      Eigen::Vector3d md;
-      for (int j = 0; j < 3; ++j) {
-        const double inv_m = 1.0 / (lambda * a2[j] + (1.0 - lambda) * r2);
-        qa += ug[j] * ug[j] * inv_m;
-        qb += ug[j] * dg[j] * inv_m;
-        qc += dg[j] * dg[j] * inv_m;
-        md[j] = (dg[j] - t * ug[j]) * inv_m;
-      }
-      if (m_d != nullptr) *m_d = Rg * md;
-      q = {qa, -2 * qb, qc - w_inv};
-    } else {
-      const Eigen::Matrix3d M = (lambda * sigma_g + (1.0 - lambda) * sigma_t).inverse();
-      const Eigen::Vector3d Mu = M * u;
-      q = {u.dot(Mu), -2 * Mu.dot(d0), d0.dot(M * d0) - w_inv};
-      if (m_d != nullptr) *m_d = M * (d0 - t * u);
+    double qa = 0, qb = 0, qc = 0;
+    Eigen::Vector3d md;
+    for (int j = 0; j < 3; ++j) {
+      const double inv_m = 1.0 / (lambda * a2[j] + (1.0 - lambda) * r2);
+      qa += ug[j] * ug[j] * inv_m;
+      qb += ug[j] * dg[j] * inv_m;
+      qc += dg[j] * dg[j] * inv_m;
+      md[j] = (dg[j] - t * ug[j]) * inv_m;
     }
-    return q;
+    if (m_d != nullptr) *m_d = back * md;
+    return {qa, -2 * qb, qc - w_inv};
   }
 };
 
@@ -99,20 +88,32 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
   const Eigen::Vector3d cg(g.center[0], g.center[1], g.center[2]);
   const Eigen::Vector3d d0 = cg - tool.center;
   const Eigen::Vector3d& b = tool.semi_axes;
-  p.spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
-  p.Rg = rotation_matrix(g);
+  const bool spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
+  const Eigen::Matrix3d Rg = rotation_matrix(g);
   const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
-  if (p.spherical) {
-    p.dg = p.Rg.transpose() * d0;
-    p.ug = p.Rg.transpose() * motion;
+  if (spherical) {
+    p.dg = Rg.transpose() * d0;
+    p.ug = Rg.transpose() * motion;
     p.a2 = a.cwiseAbs2();
     p.r2 = b.x() * b.x();
+    p.back = Rg;
   } else {
-    p.sigma_g = p.Rg * a.cwiseAbs2().asDiagonal() * p.Rg.transpose();
+    // An ellipsoidal tool: both shapes diagonal at once (simultaneous diagonalisation, e.g.
+    // Golub & Van Loan, "Matrix Computations", Sec. 8.7). W = diag(1/b) R_t^T turns the tool into
+    // the unit sphere and W Sigma_g W^T = Q Lambda Q^T; the quadratic forms are invariant, so in
+    // the frame Q^T W the pair is the spherical case with a^2 = Lambda and r = 1 (Newton's
+    // method below included), and the world's M d is W^T Q times that frame's.
     const Eigen::Matrix3d Rt = tool.rotation.normalized().toRotationMatrix();
-    p.sigma_t = Rt * b.cwiseAbs2().asDiagonal() * Rt.transpose();
-    p.d0 = d0;
-    p.u = motion;
+    const Eigen::Matrix3d W = b.cwiseInverse().asDiagonal() * Rt.transpose();
+    const Eigen::Matrix3d WR = W * Rg;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+    eig.computeDirect(WR * a.cwiseAbs2().asDiagonal() * WR.transpose());
+    const Eigen::Matrix3d& Q = eig.eigenvectors();
+    p.dg = Q.transpose() * (W * d0);
+    p.ug = Q.transpose() * (W * motion);
+    p.a2 = eig.eigenvalues().cwiseMax(0.0);
+    p.r2 = 1.0;
+    p.back = W.transpose() * Q;
   }
   // The maximum of t_e over s = ln(lambda / (1 - lambda)), refined by Brent's method on
   // [centre - half, centre + half] from the point centre (where t_e is t_centre); `stop` when an
@@ -181,8 +182,8 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
     }
     return Refined{-fx, x, false, std::fabs(x - (centre - half)) < 1e-3 || std::fabs(x - (centre + half)) < 1e-3};
   };
-  // Newton's method on the stationarity of t_e in s, for a spherical tool (diagonal shapes in
-  // the Gaussian's frame, so the derivatives are a few sums): F(t, lambda) = sum e_j^2 / m_j -
+  // Newton's method on the stationarity of t_e in s (diagonal shapes in the pair's frame, so
+  // the derivatives are a few sums): F(t, lambda) = sum e_j^2 / m_j -
   // 1 / w with e = dg - t ug, m_j = lambda a_j^2 + (1 - lambda) r^2, w = lambda (1 - lambda);
   // t_e(lambda) is F's smaller root, dt_e/dlambda = -F_l / F_t, and the maximum is the root of
   // phi(lambda) = F_l(t_e(lambda), lambda). Quadratic convergence from a warm start (3-4 steps
@@ -237,7 +238,7 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
     const double s0 = std::clamp(*s_io, -16.0, 16.0);
     const double t0 = entry_time(p.at(lambda_of(s0)));
     if (t0 > stop_above) return t0;
-    const Refined nr = p.spherical ? newton(s0) : Refined{0, 0, false, true};
+    const Refined nr = newton(s0);
     if (nr.stop) return nr.t;
     if (!nr.edge) {
       best_t = nr.t, best_s = nr.s;
