@@ -326,7 +326,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   // Each part's swept box (nothing past the limit counts) and the bounds' constants; the BVH is
   // traversed once, over the union of the boxes.
   struct Part {
-    Eigen::Vector3d c0;
+    Eigen::Vector3d c0, half;  // centre at the start; half extent of the tool's box
     float lo[3], hi[3];
     double r_tool, h_tool, r2_tool;
     bool spherical;
@@ -339,7 +339,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       const ToolEllipsoid& tool = parts[p];
       Part& q = pd[p];
       const Eigen::Vector3d c1 = tool.center + motion * std::max(0.0, bar_of(std::uint32_t(p)));
-      const Eigen::Vector3d h = tool.aabb_half_extent();
+      const Eigen::Vector3d& h = q.half;
       for (int k = 0; k < 3; ++k) {
         q.lo[k] = round_down_to_float(std::min(tool.center[k], c1[k]) - h[k]);
         q.hi[k] = round_up_to_float(std::max(tool.center[k], c1[k]) + h[k]);
@@ -352,6 +352,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
     const ToolEllipsoid& tool = parts[p];
     Part& q = pd[p];
     q.c0 = tool.center;
+    q.half = tool.aabb_half_extent();
     q.r_tool = tool.bounding_radius();
     const Eigen::Matrix3d Rt = tool.rotation.normalized().toRotationMatrix();
     q.h_tool = (tool.semi_axes.cwiseProduct(Rt.transpose() * m_hat)).norm();  // tool extent along m
