@@ -75,7 +75,8 @@ class SweepQuery {
 
   /// The first Gaussian `tool` touches when its centre moves by `motion` (rotation and axes
   /// fixed; world frame), leaving out the records in `ignore`. `hints` are records tested
-  /// first (the last tick's blockers: the likely answer, which then prunes the rest). `filter`
+  /// first (the last tick's blockers: the likely answer, which then prunes the rest, the BVH
+  /// traversal included: it covers only the box swept up to the contact they found). `filter`
   /// decides, in the same pass, whether a Gaussian the motion reaches first blocks it (a
   /// Gaussian it lets pass does not prune the others). A zero or non-finite motion gives no hit.
   /// `limit` in (0, 1]: only contacts at t <= limit count (the earliest contact another part of
@@ -94,8 +95,9 @@ class SweepQuery {
   /// touches, in one traversal of the BVH over the union of the parts' swept boxes, with one
   /// sorted list of (Gaussian, part) candidates and one bar: the same contact as the earliest of
   /// the parts' own first_contact() calls (the same t within the tolerance, never later),
-  /// SweepHit::part naming the part. Hints are tested against every part. At most kMaxParts
-  /// parts (more, or an invalid part: no hit).
+  /// SweepHit::part naming the part. A hint is exact-searched against each part its bounds do
+  /// not rule out, and the traversal then covers only the boxes swept up to the contact the
+  /// hints found. At most kMaxParts parts (more, or an invalid part: no hit).
   SweepHit first_contact(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,
                          std::span<const std::uint32_t> ignore = {},
                          std::span<const std::uint32_t> hints = {}, BlockFilter filter = {},
