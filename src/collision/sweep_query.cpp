@@ -323,8 +323,8 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   const auto bar_of = [&](std::uint32_t p) -> double& { return bars[shared ? 0 : p]; };
   const double len = std::sqrt(len2);
   const Eigen::Vector3d m_hat = motion / len;
-  // Each part's swept box (nothing past the limit counts) and the bounds' constants; the BVH is
-  // traversed once, over the union of the boxes.
+  // Each part's bounds' constants and swept box; the BVH is traversed once, over the union of
+  // the boxes.
   struct Part {
     Eigen::Vector3d c0, half;  // centre at the start; half extent of the tool's box
     float lo[3], hi[3];
@@ -360,8 +360,8 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
     q.spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
     q.r2_tool = b.x() * b.x();
   }
-  sweep_boxes();
   const bool several = parts.size() > 1;
+  if (several) sweep_boxes();  // (the hints' bounds check each part's box; one part's is swept below)
   const CollisionGaussian* gs = world_->gaussians().data();
   std::size_t n = 0;
   // This Gaussian's maximiser from its last exact search against this part (a direct-mapped
