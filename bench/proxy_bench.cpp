@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <regex>
 #include <sstream>
 
 #include <CLI/CLI.hpp>
@@ -75,18 +76,28 @@ Set probe_set(const std::string& name, const std::string& file, double reg_scale
   return s;
 }
 
-// A fidelity press set: `sites` presses to 10 mm on a ground-truth shape at `spacing`.
-Set fidelity_set(const std::string& name, ShapeKind kind, double spacing, double radius, int sites) {
+// A fidelity set named `fidelity-SHAPE-Smm-Tmm[-slide]`: presses to 10 mm at 8 sites (seed 1)
+// on a ground-truth shape at Gaussian spacing S with a tool of radius T, or with `-slide` the
+// fidelity run's slide (plane, sphere, cube).
+Set fidelity_set(const std::string& name) {
+  static const std::regex pattern("fidelity-(.+)-([0-9.]+)mm-([0-9.]+)mm(-slide)?");
+  std::smatch m;
+  if (!std::regex_match(name, m, pattern))
+    throw InputError("proxy_bench: set '" + name + "': expected fidelity-SHAPE-SPACINGmm-TOOLmm[-slide]");
   Set s;
   s.name = name;
-  const AnalyticShape shape(kind);
+  const AnalyticShape shape(parse_shape(m[1].str(), "proxy_bench --sets"));
   SynthParams sp;
-  sp.spacing = spacing;
+  sp.spacing = std::stod(m[2].str()) * 1e-3;
+  const double radius = std::stod(m[3].str()) * 1e-3;
   s.world = std::make_unique<CollisionWorld>(CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{}));
   s.tool_radius = radius;
-  for (const ContactSite& site : shape.press_sites(sites, 1, 0.03))
-    for (const ScriptTick& t : press_script(shape, site, radius, 0.010, 1000).ticks)
-      s.poses.push_back({t.position, t.velocity});
+  const auto add = [&](const Script& script) {
+    for (const ScriptTick& t : script.ticks) s.poses.push_back({t.position, t.velocity});
+  };
+  if (m[4].matched) add(slide_script(shape, radius, 1000));
+  else
+    for (const ContactSite& site : shape.press_sites(8, 1, 0.03)) add(press_script(shape, site, radius, 0.010, 1000));
   return s;
 }
 
@@ -124,7 +135,10 @@ int main(int argc, char** argv) {
   std::string sets = "truck,burger,halo,firepit,karangkidul,fidelity-plane-2mm-10mm,fidelity-cube-8mm-5mm";
   int passes = 5;
   std::string out;
-  app.add_option("--sets", sets, "Comma-separated sets")->capture_default_str();
+  app.add_option("--sets", sets,
+                 "Comma-separated sets: truck, burger, halo, firepit, karangkidul (probe runs) and "
+                 "fidelity-SHAPE-SPACINGmm-TOOLmm[-slide] (8 fidelity presses, or the slide; e.g. "
+                 "fidelity-v-groove-60-2mm-10mm, fidelity-plane-2mm-10mm-slide)")->capture_default_str();
   app.add_option("--passes", passes, "Replays of each path; a tick's time is its median over them")
       ->capture_default_str()->check(CLI::Range(1, 99));
   app.add_option("--out", out, "Also write the table (Markdown) to this file");
@@ -157,8 +171,7 @@ int main(int argc, char** argv) {
       else if (name == "halo") s = probe_set(name, "halo.ply", 1.0, false);
       else if (name == "firepit") s = probe_set(name, "firepit.ply", 1.0, false);
       else if (name == "karangkidul") s = probe_set(name, "karangkidul_crop.ply", 0.01, false);
-      else if (name == "fidelity-plane-2mm-10mm") s = fidelity_set(name, ShapeKind::kPlane, 0.002, 0.010, 4);
-      else if (name == "fidelity-cube-8mm-5mm") s = fidelity_set(name, ShapeKind::kCube, 0.008, 0.005, 8);
+      else if (name.rfind("fidelity-", 0) == 0) s = fidelity_set(name);
       else throw InputError("proxy_bench: unknown set '" + name + "'");
       const CollisionWorld& w = *s.world;
       const double r = s.tool_radius;

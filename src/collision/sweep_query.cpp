@@ -330,6 +330,10 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
     float lo[3], hi[3];
     double r_tool, h_tool, r2_tool;
     bool spherical;
+    // An ellipsoidal part: its covariance diag(b^2) in the world (xx, yy, zz, xy, xz, yz) and
+    // W = diag(1/b) R_t^T, for the family members' bound.
+    double st[6];
+    Eigen::Matrix3d w;
   };
   std::array<Part, kMaxParts> pd;
   float lo[3], hi[3];
@@ -359,6 +363,11 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
     const Eigen::Vector3d& b = tool.semi_axes;
     q.spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
     q.r2_tool = b.x() * b.x();
+    if (!q.spherical) {
+      const Eigen::Matrix3d S = Rt * b.cwiseAbs2().asDiagonal() * Rt.transpose();
+      q.st[0] = S(0, 0), q.st[1] = S(1, 1), q.st[2] = S(2, 2), q.st[3] = S(0, 1), q.st[4] = S(0, 2), q.st[5] = S(1, 2);
+      q.w = b.cwiseInverse().asDiagonal() * Rt.transpose();
+    }
   }
   const bool several = parts.size() > 1;
   if (several) sweep_boxes();  // (the hints' bounds check each part's box; one part's is swept below)
@@ -454,6 +463,48 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         if (te <= bar && start_slot_[hs] == k && start_part_[hs] == p) te = std::max(te, member(start_lambda_[hs]));
         if (te > 1.0) return kNever;
         t_lb = std::max(t_lb, te - 1e-12);  // (a rounding's margin below the exact search's value)
+      } else if (!q.spherical && t_lb <= bar) {
+        // The same members for an ellipsoidal part, in the world frame: the member lambda is
+        // {x : x^T K^-1 x <= 1 / (lambda (1 - lambda))} with K = lambda Sigma_g + (1 - lambda)
+        // Sigma_t, the form the exact search reads in its whitened frame (the quadratic forms
+        // are frame-invariant), here through K's adjugate: no eigendecomposition. Its lambda:
+        // the geometric one with the part's radius along the offset, |d| / |W d|, or this
+        // Gaussian's maximiser at its last search against this part.
+        double sg[6] = {0, 0, 0, 0, 0, 0};
+        for (int j = 0; j < 3; ++j) {
+          const double a2 = double(g.semi_axes[j]) * g.semi_axes[j];
+          const double x = R(0, j), y = R(1, j), z = R(2, j);
+          sg[0] += a2 * x * x, sg[1] += a2 * y * y, sg[2] += a2 * z * z;
+          sg[3] += a2 * x * y, sg[4] += a2 * x * z, sg[5] += a2 * y * z;
+        }
+        const auto member = [&](double lam) {
+          double km[6];
+          for (int j = 0; j < 6; ++j) km[j] = lam * sg[j] + (1.0 - lam) * q.st[j];
+          // Adjugate of [[k0 k3 k4] [k3 k1 k5] [k4 k5 k2]].
+          const double c00 = km[1] * km[2] - km[5] * km[5], c11 = km[0] * km[2] - km[4] * km[4],
+                       c22 = km[0] * km[1] - km[3] * km[3], c01 = km[4] * km[5] - km[3] * km[2],
+                       c02 = km[3] * km[5] - km[4] * km[1], c12 = km[3] * km[4] - km[0] * km[5];
+          const double det = km[0] * c00 + km[3] * c01 + km[4] * c02;
+          if (!(det > 0)) return -kNever;  // (degenerate: no bound)
+          const auto form = [&](const double* x, const double* y) {
+            return x[0] * (c00 * y[0] + c01 * y[1] + c02 * y[2]) + x[1] * (c01 * y[0] + c11 * y[1] + c12 * y[2]) +
+                   x[2] * (c02 * y[0] + c12 * y[1] + c22 * y[2]);
+          };
+          const double d[3] = {rel[0], rel[1], rel[2]}, u[3] = {motion[0], motion[1], motion[2]};
+          const double inv_det = 1.0 / det;
+          return entry_time({form(u, u) * inv_det, -2 * form(u, d) * inv_det,
+                             form(d, d) * inv_det - 1.0 / (lam * (1.0 - lam))});
+        };
+        double dl[3];
+        for (int j = 0; j < 3; ++j) dl[j] = R(0, j) * rel[0] + R(1, j) * rel[1] + R(2, j) * rel[2];
+        const double wd = (q.w * rel).norm();
+        const double r_dir = wd > 0 ? rel.norm() / wd : q.r_tool;
+        const std::size_t hs = cache_slot(k, p);
+        double te = member(geometric_lambda(g, dl, r_dir));
+        if (te <= bar && start_slot_[hs] == k && start_part_[hs] == p) te = std::max(te, member(start_lambda_[hs]));
+        if (te > 1.0) return kNever;
+        // (The exact search reads the same forms in another frame: a wider margin for its rounding.)
+        t_lb = std::max(t_lb, te - 1e-9);
       }
       return t_lb;
   };
