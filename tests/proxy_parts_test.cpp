@@ -388,6 +388,65 @@ TEST(ShadedNormal, StaysInTheNormalConeAroundAConvexEdge) {
   }
 }
 
+// A 10 mm tool sliding over a cube's top face and around its edge on 2 mm spacing (about a
+// thousand Gaussians a reading): reading ahead, every normal the cache gives is bit-identical to
+// the plain reading at the point where it was read, that point is within `reuse` of the tool,
+// and at a slide's pace nearly no call reads the field whole; a jump reads at once.
+TEST(ShadedNormalCache, ReadingAheadGivesThePlainReadingWithinReuseAndSpreadsItsCost) {
+  const AnalyticShape shape(ShapeKind::kCube);
+  SynthParams sp;
+  sp.spacing = 0.002;
+  const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
+  const double r = 0.01, h = 0.1, reuse = 0.05 * r;
+  const std::size_t budget = ProxyParams{}.shading_budget;
+  ShadedNormalCache ahead, whole;
+  ShadingScratch scratch, plain_scratch;
+  int calls = 0, readings = 0;
+  const FreeBall ball{r, Eigen::Vector3d::UnitZ()};
+  const auto path = [&](double u) {  // 0.05 mm a call (5 cm/s at 1 kHz)
+    return u < 0.03 ? Eigen::Vector3d(h - 0.03 + u, 0.001, h + r)
+                    : Eigen::Vector3d(h, 0.001, h) + r * Eigen::Vector3d(std::sin((u - 0.03) / r), 0, std::cos((u - 0.03) / r));
+  };
+  for (double u = 0; u < 0.045; u += 5e-5, ++calls) {
+    const Eigen::Vector3d p = path(u);
+    const std::uint64_t before = ahead.reads();
+    const Eigen::Vector3d n = ahead.read_ahead(w, p, r, 0.5, reuse, scratch, budget, ball, 0.002);
+    readings += int(ahead.reads() - before);
+    ASSERT_LE((p - ahead.read_point()).norm(), reuse + 1e-15) << u;
+    ASSERT_EQ(n, shaded_normal(w, ahead.read_point(), r, 0.5, plain_scratch, ball, 0.002)) << u;
+    (void)whole.read(w, p, r, 0.5, reuse, plain_scratch, ball, 0.002);
+  }
+  const std::uint64_t whole_before_jump = ahead.whole_reads();
+  EXPECT_LE(10 * whole_before_jump, ahead.reads());  // (the first, and where the slide turns the edge)
+  EXPECT_NEAR(readings, int(whole.reads()), int(whole.reads()) / 10);  // (read where the tool will be)
+  EXPECT_LT(4 * readings, calls);  // yet each reading serves several calls
+  EXPECT_GT(scratch.last_terms(), 0u);
+  // A jump past reuse with no reading prepared there: read at once, at the new point.
+  const Eigen::Vector3d far(0, 0.001, h + r);
+  const Eigen::Vector3d n = ahead.read_ahead(w, far, r, 0.5, reuse, scratch, budget, ball, 0.002);
+  EXPECT_EQ(ahead.whole_reads(), whole_before_jump + 1);
+  EXPECT_EQ(ahead.read_point(), far);
+  EXPECT_EQ(n, shaded_normal(w, far, r, 0.5, ball, 0.002));
+  // Budget 0: read() exactly.
+  ShadedNormalCache zero;
+  for (double u = 0; u < 0.01; u += 5e-5) {
+    const Eigen::Vector3d p = path(u);
+    const Eigen::Vector3d nz = zero.read_ahead(w, p, r, 0.5, reuse, scratch, 0, ball, 0.002);
+    EXPECT_EQ(nz, shaded_normal(w, zero.read_point(), r, 0.5, ball, 0.002));
+  }
+  EXPECT_EQ(zero.whole_reads(), zero.reads());
+  // A reading cheaper than the budget (here every one) is made whole when due, not ahead: the
+  // same readings at the same points as read().
+  ShadedNormalCache cheap, due;
+  for (double u = 0; u < 0.01; u += 5e-5) {
+    const Eigen::Vector3d p = path(u);
+    const Eigen::Vector3d nc = cheap.read_ahead(w, p, r, 0.5, reuse, scratch, 1000000, ball, 0.002);
+    EXPECT_EQ(nc, due.read(w, p, r, 0.5, reuse, plain_scratch, ball, 0.002));
+  }
+  EXPECT_EQ(cheap.whole_reads(), cheap.reads());
+  EXPECT_EQ(cheap.reads(), due.reads());
+}
+
 TEST(ShadedNormal, TheKernelScaleFollowsTheLargestBlocker) {
   const CollisionWorld w = world_of({{Eigen::Vector3f::Zero(), Eigen::Vector3f(0.03f, 0.02f, 0.001f), Eigen::Quaternionf::Identity()},
                                      {Eigen::Vector3f(0.1f, 0, 0), Eigen::Vector3f::Constant(0.001f), Eigen::Quaternionf::Identity()}});

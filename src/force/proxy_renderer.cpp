@@ -136,13 +136,14 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     return out;
   }
   // 3. The contact normal: shaded (Morgenbesser & Srinivasan 1996), recomputed once the proxy
-  // has moved `shading_reuse` tool radii, unless it disagrees with where the proxy holds the device.
+  // has moved `shading_reuse` tool radii (the next reading prepared over the ticks before, a
+  // `shading_budget` a tick), unless it disagrees with where the proxy holds the device.
   // (The spacing is the blockers' largest middle semi-axis; the scale, the larger of it and r.)
   const double spacing = shading_spacing(*world_, blockers);
   Eigen::Vector3d n =
-      shade_.read(*world_, p, std::max(r, spacing), params_.shading_kernel, params_.shading_reuse * r,
-                  shading_scratch_,
-                  {solver_.support_normal().isZero(0) ? 0.0 : tool.semi_axes.minCoeff(),
+      shade_.read_ahead(*world_, p, std::max(r, spacing), params_.shading_kernel, params_.shading_reuse * r,
+                        shading_scratch_, params_.shading_budget,
+                        {solver_.support_normal().isZero(0) ? 0.0 : tool.semi_axes.minCoeff(),
                    solver_.support_normal()},  // (the tool's inscribed ball rests free at p)
                   spacing);
   if (n.dot(e) < 0 && !solver_.blocked(tool)) {

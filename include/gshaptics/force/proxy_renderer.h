@@ -61,6 +61,11 @@ struct ProxyParams {
   double shading_kernel = 0.5;  ///< kernel width of the shaded normal, in tool radii (or in the
                                 ///< blocking Gaussians' middle semi-axis when that is larger)
   double shading_reuse = 0.05;  ///< the shaded normal is recomputed once the proxy moved this many tool radii
+  /// Steps (Gaussians visited or fitted) a tick spends preparing the next shaded normal once the
+  /// proxy moved half of `shading_reuse`, so no tick pays for a whole reading (about a thousand
+  /// Gaussians for a 10 mm tool on 2 mm spacing); ShadedNormalCache::read_ahead. 0: each reading
+  /// at once, when it is due.
+  std::size_t shading_budget = 384;
   double teleport = 10.0;     ///< a device jump of more tool radii than this in one tick re-places the proxy
   /// A Gaussian that no other kept Gaussian comes near (a floater, as trained scenes have in free
   /// space) does not block the proxy, so the tool is not caught on specks in mid-air. "Near" is
@@ -108,6 +113,8 @@ class ProxyRenderer final : public ForceRenderer {
   [[nodiscard]] const ProxyMove& last_move() const noexcept { return last_move_; }
   /// Readings of the shaded normal so far (the cache's misses; profiling).
   [[nodiscard]] std::uint64_t shading_reads() const noexcept { return shade_.reads(); }
+  /// The shaded normal's cache (its readings, whole and ahead; profiling).
+  [[nodiscard]] const ShadedNormalCache& shading_cache() const noexcept { return shade_; }
   [[nodiscard]] const Eigen::Vector3d& contact_normal() const noexcept { return normal_; }
   [[nodiscard]] bool sticking() const noexcept { return sticking_; }
   /// Proxy placements by the search (start inside geometry, teleports) and failed searches,

@@ -86,13 +86,16 @@ class ShadingScratch {
   /// Gaussians the last reading kept, and whether it had more than the capacity.
   [[nodiscard]] std::size_t last_terms() const noexcept { return last_terms_; }
   [[nodiscard]] bool last_overflow() const noexcept { return last_overflow_; }
+  /// What the last finished reading cost: Gaussians visited plus terms fitted.
+  [[nodiscard]] std::size_t last_steps() const noexcept { return last_steps_; }
 
  private:
   friend Eigen::Vector3d shaded_normal(const CollisionWorld&, const Eigen::Vector3d&, double, double,
                                        ShadingScratch&, const FreeBall&, double) noexcept;
+  friend class ShadedNormalCache;  // (its reading ahead keeps the pending reading here)
   struct Terms;
   std::unique_ptr<Terms> terms_;
-  std::size_t last_terms_ = 0;
+  std::size_t last_terms_ = 0, last_steps_ = 0;
   bool last_overflow_ = false;
 };
 
@@ -117,17 +120,53 @@ class ShadedNormalCache {
       at_ = at;
       valid_ = true;
       ++reads_;
+      ++whole_reads_;
     }
     return normal_;
   }
-  void reset() noexcept { valid_ = false; }
+  /// read() that prepares the next reading ahead, so that the tick it is due does not pay for a
+  /// whole one. Where the last reading cost more than `budget` steps (a Gaussian visited, or a
+  /// term fitted: ShadingScratch::last_steps) and the proxy moved half of `reuse` from the cached
+  /// reading steadily (in at most 8 calls, on a path at most 1.25 times the displacement), a
+  /// reading starts for the point as far on again, and each later call advances it by an even
+  /// share over the calls left (at most `budget` steps). When the cached normal is due (`at`
+  /// more than `reuse` from where it was read), that reading replaces it if it was made for a
+  /// point within `reuse` of `at` (what is left of it is done then); otherwise `at` is read
+  /// whole, as read() does. So the normal returned was read within `reuse` of `at`, is
+  /// bit-identical to shaded_normal() at the point where it was read, and there are no more
+  /// readings than read() makes; only which point of that range differs. A cheaper reading, or
+  /// one on a fast, slow or wandering motion, is made whole when due (budget 0: read() exactly).
+  /// The pending reading lives in `scratch`: one cache a scratch, and no other reading with it
+  /// in between (one cancels the pending reading).
+  const Eigen::Vector3d& read_ahead(const CollisionWorld& world, const Eigen::Vector3d& at, double scale,
+                                    double kernel, double reuse, ShadingScratch& scratch, std::size_t budget,
+                                    const FreeBall& ball = {}, double min_width = 0) noexcept;
+  void reset() noexcept {
+    valid_ = pending_ = ahead_blocked_ = ready_ = false;
+    calls_ = 0;
+    path_ = 0;
+  }
   /// Readings of the field so far (cache misses), for profiling.
   [[nodiscard]] std::uint64_t reads() const noexcept { return reads_; }
+  /// Of those, the ones made whole within one call (read(), or read_ahead() when a reading was
+  /// due and none was prepared).
+  [[nodiscard]] std::uint64_t whole_reads() const noexcept { return whole_reads_; }
+  /// Where the cached normal was read (world, m).
+  [[nodiscard]] const Eigen::Vector3d& read_point() const noexcept { return at_; }
 
  private:
-  std::uint64_t reads_ = 0;
+  std::uint64_t reads_ = 0, whole_reads_ = 0;
   Eigen::Vector3d at_ = Eigen::Vector3d::Zero(), normal_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d pending_at_ = Eigen::Vector3d::Zero();  // where the reading ahead started
   bool valid_ = false;
+  bool pending_ = false;        // a reading ahead is under way in the scratch
+  bool ahead_blocked_ = false;  // it did not fit the scratch: read at once until the next reading
+  std::size_t calls_ = 0;       // read_ahead() calls since the last reading
+  std::size_t ahead_share_ = 0; // steps a call gives the reading ahead
+  bool ready_ = false;          // the reading ahead is done (ready_normal_), taken when due
+  Eigen::Vector3d ready_normal_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d last_at_ = Eigen::Vector3d::Zero();  // the last call's point
+  double path_ = 0;             // path length since the last reading, m
 };
 
 }  // namespace gshaptics
