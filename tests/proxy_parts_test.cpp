@@ -445,6 +445,16 @@ TEST(ShadedNormalCache, ReadingAheadGivesThePlainReadingWithinReuseAndSpreadsIts
   }
   EXPECT_EQ(cheap.whole_reads(), cheap.reads());
   EXPECT_EQ(cheap.reads(), due.reads());
+  // A proxy that wanders (a zigzag of 0.1 mm across a 0.05 mm a call drift: the path is far
+  // longer than the displacement) is not read ahead: the readings read() makes, whole.
+  ShadedNormalCache wander, plain;
+  for (int i = 0; i < 400; ++i) {
+    const Eigen::Vector3d p = path(5e-5 * i) + Eigen::Vector3d(0, (i % 2 ? 1e-4 : -1e-4), 0);
+    const Eigen::Vector3d nw = wander.read_ahead(w, p, r, 0.5, reuse, scratch, budget, ball, 0.002);
+    EXPECT_EQ(nw, plain.read(w, p, r, 0.5, reuse, plain_scratch, ball, 0.002));
+  }
+  EXPECT_EQ(wander.whole_reads(), plain.reads());
+  EXPECT_GT(plain.reads(), 3u);
 }
 
 TEST(ShadedNormal, TheKernelScaleFollowsTheLargestBlocker) {
