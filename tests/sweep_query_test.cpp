@@ -320,12 +320,6 @@ TEST(SweepQuery, AnEllipsoidalToolsSearchMatchesThePlainWorldFrameComputation) {
   EXPECT_GT(touched, 60);
 }
 
-}  // namespace
-}  // namespace gshaptics
-
-namespace gshaptics {
-namespace {
-
 TEST(SweepQuery, AnEllipsoidalPartsCandidatesAreBoundedByTheFamilyMembers) {
   // A long part (a stylus's segment, 30 x 4 x 4 mm, lying 20 degrees off the layer) over a dense
   // layer of discs, moved down and aside: its box and capsule hold many discs, most of which it
