@@ -144,8 +144,8 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
       shade_.read_ahead(*world_, p, std::max(r, spacing), params_.shading_kernel, params_.shading_reuse * r,
                         shading_scratch_, params_.shading_budget,
                         {solver_.support_normal().isZero(0) ? 0.0 : tool.semi_axes.minCoeff(),
-                   solver_.support_normal()},  // (the tool's inscribed ball rests free at p)
-                  spacing);
+                         solver_.support_normal()},  // (the tool's inscribed ball rests free at p)
+                        spacing);
   if (n.dot(e) < 0 && !solver_.blocked(tool)) {
     // The surface says the device is on its free side, and the device's own pose is free: the
     // proxy is caught in a Gaussian-scale pocket (a sharp tool rim under a neighbouring disc's
