@@ -267,8 +267,12 @@ TEST(CompoundProxy, PressedAndPulledBackItsForceNeverPointsIntoThePlate) {
     const RenderOutput o = r.render_compound({parts.data(), std::size_t(n)}, x, {0, 0, k <= 60 ? -0.2 : 0.4},
                                              Eigen::Vector3d::Zero(), 1e-3);
     fz_min = std::min(fz_min, o.force.z());
-    if (k == 60) EXPECT_GT(o.force.z(), 1.0);  // pressed in: pushed out
-    if (k == 120) EXPECT_EQ(o.force.norm(), 0.0);  // free above the plate: nothing
+    if (k == 60) {
+      EXPECT_GT(o.force.z(), 1.0);  // pressed in: pushed out
+    }
+    if (k == 120) {
+      EXPECT_EQ(o.force.norm(), 0.0);  // free above the plate: nothing
+    }
   }
   EXPECT_GE(fz_min, 0.0);
 }

@@ -161,7 +161,9 @@ TEST(PassivityController, InTheServoStepADelayedWallStopsGivingEnergyBack) {
       EXPECT_LE(s.passivity_peak_damping, c.safety.passivity.max_damping);
       EXPECT_LE(rec.back().energy, 1e-12);  // released at the end: what is left is a deficit
     }
-    if (mode == 2) EXPECT_GE(s.passivity_min_energy, -2e-5);  // caught within a tick's prediction
+    if (mode == 2) {
+      EXPECT_GE(s.passivity_min_energy, -2e-5);  // caught within a tick's prediction
+    }
   }
   EXPECT_LT(work[0], -5e-3);                  // off: the scene gave back more than 5 mJ
   EXPECT_LT(std::fabs(work[1]), 0.15 * std::fabs(work[0]));  // default cap: under 15 % of that

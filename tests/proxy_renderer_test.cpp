@@ -166,7 +166,9 @@ TEST(ProxyRenderer, SparseSurfacesHoldWhereFloatersPass) {
     ProxyRenderer down(w, p);
     for (double z = 0.05; z > 0.004; z -= 0.0005)
       (void)down.render(ToolEllipsoid::sphere({0.02, 0.02, z}, r), Eigen::Vector3d::Zero(), 1e-3);
-    if (gap > 0) EXPECT_NEAR(down.proxy_position().z(), r, 0.0015) << "caught on the floater";
+    if (gap > 0) {
+      EXPECT_NEAR(down.proxy_position().z(), r, 0.0015) << "caught on the floater";
+    }
   }
 }
 

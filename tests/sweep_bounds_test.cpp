@@ -68,7 +68,9 @@ int expect_same_first_contacts(const CollisionWorld& w, int n, Draw&& draw) {
       ++hits;
       EXPECT_TRUE(hit.hit) << "sweep " << i;
       EXPECT_NEAR(hit.t, plain, 1e-12) << "sweep " << i << (filtered ? " filtered" : "");
-      if (filtered) EXPECT_TRUE(every_third_blocks(nullptr, hit.slot)) << "a passing Gaussian was reported";
+      if (filtered) {
+        EXPECT_TRUE(every_third_blocks(nullptr, hit.slot)) << "a passing Gaussian was reported";
+      }
       // With hints (the contact itself, which then bounds the traversal to the box swept up to
       // it, and an arbitrary other Gaussian): the same contact.
       const std::uint32_t hints[2] = {hit.slot, std::uint32_t((hit.slot * 7919u + 13u) % w.size())};
