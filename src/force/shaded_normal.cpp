@@ -173,17 +173,22 @@ class LocalLinearSum {
   double weight_ = 0, fw_ = 0;
 };
 
+// The box whose BVH leaves hold the Gaussians that may contribute at c: radius + 3 s around it.
+inline void kernel_box(const Eigen::Vector3d& c, double radius, double s, float lo[3], float hi[3]) noexcept {
+  const double half = radius + 3.0 * s;
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = round_down_to_float(c[k] - half);
+    hi[k] = round_up_to_float(c[k] + half);
+  }
+}
+
 // Calls f(term) for every contributing Gaussian near c, in BVH order.
 // Returns how many Gaussians it visited.
 template <typename F>
 std::size_t for_each_term(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double s, double rim,
                           const FreeBall& ball, F&& f) noexcept {
-  const double half = radius + 3.0 * s;
   float lo[3], hi[3];
-  for (int k = 0; k < 3; ++k) {
-    lo[k] = round_down_to_float(c[k] - half);
-    hi[k] = round_up_to_float(c[k] + half);
-  }
+  kernel_box(c, radius, s, lo, hi);
   const CollisionGaussian* gs = world.gaussians().data();
   Term tm;
   std::size_t visited = 0;
@@ -239,12 +244,8 @@ struct ShadingScratch::Terms {
     rim = kernel * radius;
     s = std::max(rim, min_width);
     ball = ball_in;
-    const double half = radius + 3.0 * s;
     float lo[3], hi[3];
-    for (int k = 0; k < 3; ++k) {
-      lo[k] = round_down_to_float(c[k] - half);
-      hi[k] = round_up_to_float(c[k] + half);
-    }
+    kernel_box(c, radius, s, lo, hi);
     n_ranges = 0;
     bool fits = true;
     world.bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t f, std::uint32_t count) {
