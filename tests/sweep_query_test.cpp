@@ -201,12 +201,6 @@ TEST(SweepQuery, IgnoredRecordsAndHintsChangeOnlyWhatTheyShould) {
   }
 }
 
-}  // namespace
-}  // namespace gshaptics
-
-namespace gshaptics {
-namespace {
-
 TEST(SweepQuery, AHintThatHoldsTheToolBoundsTheTraversalAndIsSearchedOnlyWhereItCanBlock) {
   // A tool resting on a layer and pressed deep into it (ten radii down and seven aside, as the proxy's
   // first sweep toward a device far inside): with the resting contact as a hint, the hint's
@@ -241,12 +235,6 @@ TEST(SweepQuery, AHintThatHoldsTheToolBoundsTheTraversalAndIsSearchedOnlyWhereIt
   EXPECT_NEAR(both.t, cold.t, 1e-12);
   EXPECT_EQ(sweep.counts().exact, hinted_exact) << "the upper part was searched against the hint";
 }
-
-}  // namespace
-}  // namespace gshaptics
-
-namespace gshaptics {
-namespace {
 
 // The first-contact time of an ellipsoidal tool against one Gaussian, computed plainly in the
 // world frame: the largest entry time over the family E_lambda (lambda on a fine grid of
@@ -348,6 +336,49 @@ TEST(SweepQuery, AnEllipsoidalPartsCandidatesAreBoundedByTheFamilyMembers) {
     EXPECT_NEAR(hit.t, t_ref, 1e-12);
     EXPECT_EQ(hit.slot, slot_ref);
     EXPECT_LT(10 * exact, candidates) << exact << " exact searches of " << candidates << " candidates";
+  }
+}
+
+TEST(SweepQuery, AnElongatedPartsCandidatesAreTheGaussiansWithinReachOfItsAxis) {
+  // A stylus segment (40 x 4 x 4 mm) lying on a dense layer, moved down and a little aside: its
+  // bounding sphere's capsule holds every disc within 40 mm of its centre, but only those whose
+  // centre comes within their bounding radius + 4 mm of the segment's axis can touch it. Those
+  // (found here by sampling the path) are all the bounds may pass; the contact is the earliest
+  // of every Gaussian's own exact search.
+  std::vector<GaussianSpec> gs;
+  add_layer(gs, 0.0f, 0.002f, 0.06f);
+  const CollisionWorld w = world_of(gs);
+  SweepQuery sweep(w);
+  ToolEllipsoid part;
+  part.semi_axes = {0.04, 0.004, 0.004};
+  part.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY())) *
+                  Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()));
+  const Eigen::Vector3d axis = part.rotation * Eigen::Vector3d::UnitX();
+  for (const Eigen::Vector3d& motion : {Eigen::Vector3d(0.001, -0.002, -0.01), Eigen::Vector3d(0.0, 0.0, -0.012)}) {
+    part.center = {0.0011, -0.0006, 0.0062};
+    const SweepHit hit = sweep.first_contact(part, motion);
+    ASSERT_TRUE(hit.hit);
+    double t_ref = 2;
+    std::uint32_t slot_ref = 0, within = 0, beside = 0;
+    for (std::uint32_t k = 0; k < w.size(); ++k) {
+      const CollisionGaussian& g = w.gaussians()[k];
+      const double t = sweep_time(g, part, motion);
+      if (t < t_ref) t_ref = t, slot_ref = k;
+      const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
+      double nearest = 1e9;  // the centre's nearest distance to the moving axis's line
+      for (int i = 0; i <= 2000; ++i) {
+        const Eigen::Vector3d rel = c - part.center - motion * (i / 2000.0);
+        nearest = std::min(nearest, (rel - rel.dot(axis) * axis).norm());
+      }
+      const double reach = g.bounding_radius() + 0.004;
+      if (nearest <= reach + 1e-5 && (c - part.center).norm() <= g.bounding_radius() + 0.04 + motion.norm()) ++within;
+      if (nearest > reach + 1e-5 && (c - part.center).norm() <= g.bounding_radius() + 0.04) ++beside;
+    }
+    EXPECT_NEAR(hit.t, t_ref, 1e-12);
+    EXPECT_EQ(hit.slot, slot_ref);
+    ASSERT_GT(beside, within) << "the set-up puts most discs in the bounding sphere beside the axis";
+    EXPECT_LE(sweep.counts().prefiltered, within)
+        << sweep.counts().prefiltered << " candidates past the bounds of " << sweep.counts().candidates;
   }
 }
 

@@ -334,6 +334,13 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
     // W = diag(1/b) R_t^T, for the family members' bound.
     double st[6];
     Eigen::Matrix3d w;
+    // An elongated part (longest semi-axis a over 1.5x the middle one, b) lies inside the capsule
+    // of radius b round the segment of half-length a - b on its long axis: a Gaussian whose
+    // centre never comes within its bounding radius + b of that axis's line never touches it.
+    // The axis (world, unit), b, and the motion's part across the axis with its squared length.
+    bool capsule;
+    Eigen::Vector3d axis, m_across;
+    double cap_r, cap_a;
   };
   std::array<Part, kMaxParts> pd;
   float lo[3], hi[3];
@@ -367,6 +374,15 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       const Eigen::Matrix3d S = Rt * b.cwiseAbs2().asDiagonal() * Rt.transpose();
       q.st[0] = S(0, 0), q.st[1] = S(1, 1), q.st[2] = S(2, 2), q.st[3] = S(0, 1), q.st[4] = S(0, 2), q.st[5] = S(1, 2);
       q.w = b.cwiseInverse().asDiagonal() * Rt.transpose();
+    }
+    int i_long = 0;
+    const double a_long = b.maxCoeff(&i_long), b_mid = b.sum() - a_long - b.minCoeff();
+    q.capsule = a_long > 1.5 * b_mid;
+    if (q.capsule) {
+      q.axis = Rt.col(i_long);
+      q.cap_r = b_mid * (1 + 1e-9);  // (a rounding's margin, outward)
+      q.m_across = motion - motion.dot(q.axis) * q.axis;
+      q.cap_a = q.m_across.squaredNorm();
     }
   }
   const bool several = parts.size() > 1;
@@ -423,6 +439,23 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         if (disc < 0 || bq <= 0) return kNever;
         t_lb = (bq - std::sqrt(disc)) / len2;
         if (t_lb > 1.0) return kNever;
+      }
+      if (q.capsule) {
+        // The capsule of an elongated part (see Part): the earliest the Gaussian's centre comes
+        // within its bounding radius + b of the part's axis (a line: no nearer than the segment).
+        // Beside a stylus lying on a layer, the bounding sphere (radius a) lets through every
+        // Gaussian within a of the part's centre; this keeps those within about b of its axis.
+        const double reach_c = double(g.bounding_radius()) + q.cap_r;
+        const Eigen::Vector3d across = rel - rel.dot(q.axis) * q.axis;
+        const double cc = across.squaredNorm() - reach_c * reach_c;
+        if (cc > 0) {
+          const double bc = across.dot(q.m_across);
+          const double dc = bc * bc - q.cap_a * cc;
+          if (dc < 0 || bc <= 0) return kNever;
+          const double t_cap = cc / (bc + std::sqrt(dc));  // (the smaller root, without cancellation)
+          if (t_cap > 1.0) return kNever;
+          t_lb = std::max(t_lb, t_cap);
+        }
       }
       // Slab bound along the motion: the ellipsoid's extent along it is sqrt(sum (a_j m.R_j)^2),
       // tight for flat Gaussians met face-on, where the sphere bound is loose.
