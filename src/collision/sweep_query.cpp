@@ -80,6 +80,70 @@ inline double geometric_lambda(const CollisionGaussian& g, const double* dl, dou
 // lambda from s = ln(lambda / (1 - lambda)).
 inline double lambda_of(double s) noexcept { return 1.0 / (1.0 + std::exp(-s)); }
 
+// An elongated ellipsoid (semi-axes a >= b >= c, a > b) lies inside the capsule of radius b round
+// the segment of half-length a - b on its long axis: a point x of it has |x_perp|^2 <= b^2 (1 -
+// x_a^2 / a^2), within b of the segment. So a Gaussian, within its bounding radius of its
+// centre, touches the part only when its centre comes within that radius + b of the axis's
+// line (no nearer than the segment). Beside a stylus lying on a layer the bounding sphere
+// (radius a) lets through every Gaussian within a of the part's centre; this keeps those within
+// about b of its axis. Kept apart from the candidates' loop (its own call, for elongated parts
+// only): inlined there, it slowed the spheres' loop by 5-8 %.
+struct Capsule {
+  Eigen::Vector3d axis, m_across;  // the long axis (world, unit); the motion's part across it
+  double radius = 0, m_across2 = 0;
+  Capsule() = default;
+  [[gnu::noinline]] Capsule(const Eigen::Vector3d& long_axis, double b, const Eigen::Vector3d& motion)
+      : axis(long_axis), m_across(motion - motion.dot(long_axis) * long_axis),
+        radius(b * (1 + 1e-9)),  // (a rounding's margin, outward)
+        m_across2(m_across.squaredNorm()) {}
+  // The earliest t in [0, 1] at which a centre at `rel` from the part's start (the part moving by
+  // the motion) comes within `r_g` + b of the axis: 0 when it is already, kNever when never.
+  [[gnu::noinline]] double entry_time(const Eigen::Vector3d& rel, double r_g) const noexcept {
+    const double reach = r_g + radius;
+    const Eigen::Vector3d across = rel - rel.dot(axis) * axis;
+    const double cc = across.squaredNorm() - reach * reach;
+    if (cc <= 0) return 0;
+    const double bc = across.dot(m_across), dc = bc * bc - m_across2 * cc;
+    if (dc < 0 || bc <= 0) return kNever;
+    return cc / (bc + std::sqrt(dc));  // (the smaller root, without cancellation)
+  }
+};
+
+struct PartBounds {
+  Eigen::Vector3d c0, half;  // centre at the start; half extent of the tool's box
+  float lo[3], hi[3];
+  double r_tool, h_tool, r2_tool;
+  bool spherical;
+  // An ellipsoidal part: its covariance diag(b^2) in the world (xx, yy, zz, xy, xz, yz) and
+  // W = diag(1/b) R_t^T, for the family members' bound.
+  double st[6];
+  Eigen::Matrix3d w;
+  bool capsule;  // elongated: its capsule bound applies (Capsule)
+  // Fills the constants (not the boxes) for `tool` moved by `motion` (m_hat its direction).
+  // Out of line: inlined, it grew sweep_parts past the size at which GCC inlines the candidates'
+  // loop whole, and the spheres' loop ran 5-8 % slower.
+  [[gnu::noinline]] void set(const ToolEllipsoid& tool, const Eigen::Vector3d& motion, const Eigen::Vector3d& m_hat,
+                             Capsule& capsule_of) noexcept {
+    c0 = tool.center;
+    half = tool.aabb_half_extent();
+    r_tool = tool.bounding_radius();
+    const Eigen::Matrix3d Rt = tool.rotation.normalized().toRotationMatrix();
+    h_tool = (tool.semi_axes.cwiseProduct(Rt.transpose() * m_hat)).norm();  // tool extent along m
+    const Eigen::Vector3d& b = tool.semi_axes;
+    spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
+    r2_tool = b.x() * b.x();
+    if (!spherical) {
+      const Eigen::Matrix3d S = Rt * b.cwiseAbs2().asDiagonal() * Rt.transpose();
+      st[0] = S(0, 0), st[1] = S(1, 1), st[2] = S(2, 2), st[3] = S(0, 1), st[4] = S(0, 2), st[5] = S(1, 2);
+      w = b.cwiseInverse().asDiagonal() * Rt.transpose();
+    }
+    int i_long = 0;
+    const double a_long = b.maxCoeff(&i_long), b_mid = b.sum() - a_long - b.minCoeff();
+    capsule = a_long > 1.5 * b_mid;
+    if (capsule) capsule_of = Capsule(Rt.col(i_long), b_mid, motion);
+  }
+};
+
 }  // namespace
 
 double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
@@ -325,30 +389,14 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   const Eigen::Vector3d m_hat = motion / len;
   // Each part's bounds' constants and swept box; the BVH is traversed once, over the union of
   // the boxes.
-  struct Part {
-    Eigen::Vector3d c0, half;  // centre at the start; half extent of the tool's box
-    float lo[3], hi[3];
-    double r_tool, h_tool, r2_tool;
-    bool spherical;
-    // An ellipsoidal part: its covariance diag(b^2) in the world (xx, yy, zz, xy, xz, yz) and
-    // W = diag(1/b) R_t^T, for the family members' bound.
-    double st[6];
-    Eigen::Matrix3d w;
-    // An elongated part (longest semi-axis a over 1.5x the middle one, b) lies inside the capsule
-    // of radius b round the segment of half-length a - b on its long axis: a Gaussian whose
-    // centre never comes within its bounding radius + b of that axis's line never touches it.
-    // The axis (world, unit), b, and the motion's part across the axis with its squared length.
-    bool capsule;
-    Eigen::Vector3d axis, m_across;
-    double cap_r, cap_a;
-  };
-  std::array<Part, kMaxParts> pd;
+  std::array<PartBounds, kMaxParts> pd;
+  std::array<Capsule, kMaxParts> caps;
   float lo[3], hi[3];
   // Each part's box swept up to its bar (nothing later counts), and their union.
   const auto sweep_boxes = [&] {
     for (std::size_t p = 0; p < parts.size(); ++p) {
       const ToolEllipsoid& tool = parts[p];
-      Part& q = pd[p];
+      PartBounds& q = pd[p];
       const Eigen::Vector3d c1 = tool.center + motion * std::max(0.0, bar_of(std::uint32_t(p)));
       const Eigen::Vector3d& h = q.half;
       for (int k = 0; k < 3; ++k) {
@@ -359,32 +407,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       }
     }
   };
-  for (std::size_t p = 0; p < parts.size(); ++p) {
-    const ToolEllipsoid& tool = parts[p];
-    Part& q = pd[p];
-    q.c0 = tool.center;
-    q.half = tool.aabb_half_extent();
-    q.r_tool = tool.bounding_radius();
-    const Eigen::Matrix3d Rt = tool.rotation.normalized().toRotationMatrix();
-    q.h_tool = (tool.semi_axes.cwiseProduct(Rt.transpose() * m_hat)).norm();  // tool extent along m
-    const Eigen::Vector3d& b = tool.semi_axes;
-    q.spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
-    q.r2_tool = b.x() * b.x();
-    if (!q.spherical) {
-      const Eigen::Matrix3d S = Rt * b.cwiseAbs2().asDiagonal() * Rt.transpose();
-      q.st[0] = S(0, 0), q.st[1] = S(1, 1), q.st[2] = S(2, 2), q.st[3] = S(0, 1), q.st[4] = S(0, 2), q.st[5] = S(1, 2);
-      q.w = b.cwiseInverse().asDiagonal() * Rt.transpose();
-    }
-    int i_long = 0;
-    const double a_long = b.maxCoeff(&i_long), b_mid = b.sum() - a_long - b.minCoeff();
-    q.capsule = a_long > 1.5 * b_mid;
-    if (q.capsule) {
-      q.axis = Rt.col(i_long);
-      q.cap_r = b_mid * (1 + 1e-9);  // (a rounding's margin, outward)
-      q.m_across = motion - motion.dot(q.axis) * q.axis;
-      q.cap_a = q.m_across.squaredNorm();
-    }
-  }
+  for (std::size_t p = 0; p < parts.size(); ++p) pd[p].set(parts[p], motion, m_hat, caps[p]);
   const bool several = parts.size() > 1;
   if (several) sweep_boxes();  // (the hints' bounds check each part's box; one part's is swept below)
   const CollisionGaussian* gs = world_->gaussians().data();
@@ -420,7 +443,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   // (Inlined by force: it has two call sites, and as a call the candidates' loop ran 5-10 % slower.)
   const auto lower_bound = [&](std::uint32_t k, std::uint32_t p) __attribute__((always_inline)) -> double {
       const CollisionGaussian& g = gs[k];
-      const Part& q = pd[p];
+      const PartBounds& q = pd[p];
       if (several) {
         // The part's own swept box first (the traversal's box is the union of the parts').
         const float gr = g.bounding_radius();
@@ -439,23 +462,6 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         if (disc < 0 || bq <= 0) return kNever;
         t_lb = (bq - std::sqrt(disc)) / len2;
         if (t_lb > 1.0) return kNever;
-      }
-      if (q.capsule) {
-        // The capsule of an elongated part (see Part): the earliest the Gaussian's centre comes
-        // within its bounding radius + b of the part's axis (a line: no nearer than the segment).
-        // Beside a stylus lying on a layer, the bounding sphere (radius a) lets through every
-        // Gaussian within a of the part's centre; this keeps those within about b of its axis.
-        const double reach_c = double(g.bounding_radius()) + q.cap_r;
-        const Eigen::Vector3d across = rel - rel.dot(q.axis) * q.axis;
-        const double cc = across.squaredNorm() - reach_c * reach_c;
-        if (cc > 0) {
-          const double bc = across.dot(q.m_across);
-          const double dc = bc * bc - q.cap_a * cc;
-          if (dc < 0 || bc <= 0) return kNever;
-          const double t_cap = cc / (bc + std::sqrt(dc));  // (the smaller root, without cancellation)
-          if (t_cap > 1.0) return kNever;
-          t_lb = std::max(t_lb, t_cap);
-        }
       }
       // Slab bound along the motion: the ellipsoid's extent along it is sqrt(sum (a_j m.R_j)^2),
       // tight for flat Gaussians met face-on, where the sphere bound is loose.
@@ -497,6 +503,11 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         if (te > 1.0) return kNever;
         t_lb = std::max(t_lb, te - 1e-12);  // (a rounding's margin below the exact search's value)
       } else if (!q.spherical && t_lb <= bar) {
+        if (q.capsule) {
+          const double t_cap = caps[p].entry_time(rel, double(g.bounding_radius()));
+          if (t_cap > 1.0) return kNever;
+          t_lb = std::max(t_lb, t_cap);
+        }
         // The same members for an ellipsoidal part, in the world frame: the member lambda is
         // {x : x^T K^-1 x <= 1 / (lambda (1 - lambda))} with K = lambda Sigma_g + (1 - lambda)
         // Sigma_t, the form the exact search reads in its whitened frame (the quadratic forms
@@ -574,7 +585,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   const auto n_parts = std::uint32_t(parts.size());
   world_->bvh().for_each_overlapping_leaf_node(lo, hi, [&](const BvhNode& leaf) {
     for (std::uint32_t p = 0; p < n_parts; ++p) {
-      const Part& q = pd[p];
+      const PartBounds& q = pd[p];
       if (several && (leaf.lo[0] > q.hi[0] || leaf.hi[0] < q.lo[0] || leaf.lo[1] > q.hi[1] || leaf.hi[1] < q.lo[1] ||
                       leaf.lo[2] > q.hi[2] || leaf.hi[2] < q.lo[2]))
         continue;
