@@ -78,6 +78,7 @@ void CompoundProxy::release() noexcept {
   normal_.setZero();
   friction_.reset();
   last_constraints_ = 0;
+  n_probe_slots_ = 0;
 }
 
 void CompoundProxy::place(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept {
@@ -260,15 +261,25 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     const std::span<const Contact> held_by = blockers();
     // The blockers are the likely first contacts of the probes too: tested first, they prune
     // the rest (the answer is the same exact search).
-    std::uint32_t held_slots[3];
-    for (std::size_t i = 0; i < held_by.size(); ++i) held_slots[i] = held_by[i].slot;
-    const std::span<const std::uint32_t> hints{held_slots, held_by.size()};
+    // So are each part's first contacts along the last tick's probe (a resting part's again).
+    std::uint32_t held_slots[3 + kMaxToolParts];
+    std::size_t n_held = 0;
+    for (const Contact& c : held_by) held_slots[n_held++] = c.slot;
+    for (std::size_t i = 0; i < n_probe_slots_; ++i) {
+      bool seen = false;
+      for (std::size_t k = 0; k < n_held; ++k) seen = seen || held_slots[k] == probe_slots_[i];
+      if (!seen) held_slots[n_held++] = probe_slots_[i];
+    }
+    const std::span<const std::uint32_t> hints{held_slots, n_held};
     // The Gaussian spacing under the tool (shading_spacing), read once for every part's scale.
     const double spacing = shading_spacing(*world_, held_by);
     // Each part's own first contact along the probe, all parts in one traversal.
     std::array<SweepHit, kMaxToolParts> probes;
     sweep_.first_contacts(std::span<const ToolEllipsoid>(parts_.data(), std::size_t(count)), probe, probes, hints,
                           filter);
+    n_probe_slots_ = 0;
+    for (int j = 0; j < count; ++j)
+      if (probes[std::size_t(j)].hit) probe_slots_[n_probe_slots_++] = probes[std::size_t(j)].slot;
     for (int j = 0; j < count; ++j) {
       const ToolEllipsoid& part = parts_[std::size_t(j)];
       const SweepHit& h = probes[std::size_t(j)];

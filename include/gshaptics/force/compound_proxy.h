@@ -125,6 +125,10 @@ class CompoundProxy {
   bool placed_ = false;
   std::array<Contact, 3> blockers_{};
   std::size_t n_blockers_ = 0;
+  // Each part's first contact along the last tick's contact probe (the Gaussian's slot), tried
+  // first by the next tick's probe as a hint: a part at rest usually touches it again.
+  std::array<std::uint32_t, kMaxToolParts> probe_slots_{};
+  std::size_t n_probe_slots_ = 0;
   std::uint64_t placements_ = 0, lost_ = 0;
   double min_axis_ = 0, reach_ = 0, largest_ = 0;
   std::array<ShadedNormalCache, kMaxToolParts> shades_{};  // each part's last shaded normal
