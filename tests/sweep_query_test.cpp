@@ -382,5 +382,49 @@ TEST(SweepQuery, AnElongatedPartsCandidatesAreTheGaussiansWithinReachOfItsAxis) 
   }
 }
 
+TEST(SweepQuery, AFlatPartsCandidatesAreTheGaussiansThatReachItsPlane) {
+  // A disc (20 x 20 x 2 mm) tilted 30 degrees, then 3 degrees, over a dense layer and moved
+  // down: its bounding sphere and its slab along the motion hold the disc's whole footprint, but
+  // a Gaussian touches it only while its centre is within 2 mm + its own reach along the disc's
+  // axis of the disc's mid-plane (the slab bound; nearly face-on, the contact is at that
+  // distance). Those (found here by sampling the path) are all the bounds may pass; the contact
+  // is the earliest of every Gaussian's own exact search, rim first or face first.
+  std::vector<GaussianSpec> gs;
+  add_layer(gs, 0.0f, 0.002f, 0.04f);
+  const CollisionWorld w = world_of(gs);
+  SweepQuery sweep(w);
+  ToolEllipsoid part;
+  part.semi_axes = {0.02, 0.02, 0.002};
+  for (const double tilt : {0.52, 0.05})
+  for (const Eigen::Vector3d& motion : {Eigen::Vector3d(0.0005, -0.001, -0.003), Eigen::Vector3d(0.0, 0.0, -0.004)}) {
+    part.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(tilt, Eigen::Vector3d(0.3, 1, 0).normalized()));
+    const Eigen::Vector3d axis = part.rotation * Eigen::Vector3d::UnitZ();
+    part.center = {0.0007, -0.0011, tilt > 0.1 ? 0.0125 : 0.0039};
+    const SweepHit hit = sweep.first_contact(part, motion);
+    ASSERT_TRUE(hit.hit);
+    double t_ref = 2;
+    std::uint32_t slot_ref = 0, within = 0, beside = 0;
+    for (std::uint32_t k = 0; k < w.size(); ++k) {
+      const CollisionGaussian& g = w.gaussians()[k];
+      const double t = sweep_time(g, part, motion);
+      if (t < t_ref) t_ref = t, slot_ref = k;
+      const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
+      const Eigen::Matrix3d R = rotation_matrix(g);
+      const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+      const double reach = 0.002 + a.cwiseProduct(R.transpose() * axis).norm();
+      double nearest = 1e9;  // the centre's nearest distance to the moving mid-plane
+      for (int i = 0; i <= 2000; ++i) nearest = std::min(nearest, std::fabs(axis.dot(c - part.center - motion * (i / 2000.0))));
+      const double from_centre = (c - part.center).norm();
+      if (nearest <= reach + 1e-5 && from_centre <= g.bounding_radius() + 0.02 + motion.norm()) ++within;
+      if (nearest > reach + 1e-5 && from_centre <= g.bounding_radius() + 0.02) ++beside;
+    }
+    EXPECT_NEAR(hit.t, t_ref, 1e-12) << "tilt " << tilt;
+    EXPECT_EQ(hit.slot, slot_ref) << "tilt " << tilt;
+    if (tilt > 0.1) ASSERT_GT(beside, within) << "the set-up puts most discs in the bounding sphere off the disc's plane";
+    EXPECT_LE(sweep.counts().prefiltered, within)
+        << sweep.counts().prefiltered << " candidates past the bounds of " << sweep.counts().candidates;
+  }
+}
+
 }  // namespace
 }  // namespace gshaptics

@@ -109,6 +109,34 @@ struct Capsule {
   }
 };
 
+// A flat ellipsoid (smallest semi-axis c under half the middle one) lies between the two planes
+// at +-c along its shortest axis n; a Gaussian reaches h_g(n) = |diag(a) R_g^T n| along n from its
+// centre. So the two touch only while the centre is within c + h_g(n) of the part's mid-plane
+// (a separating axis that moves with the part). Under a disc tilted onto a layer the motion's
+// slab lets through the disc's whole footprint; this keeps the Gaussians near the disc's plane.
+// Its own call, as the capsule's.
+struct FlatSlab {
+  Eigen::Vector3d n;  // the shortest axis (world, unit)
+  double c = 0, nm = 0;  // half-thickness; the motion along n
+  FlatSlab() = default;
+  [[gnu::noinline]] FlatSlab(const Eigen::Vector3d& short_axis, double half, const Eigen::Vector3d& motion)
+      : n(short_axis), c(half * (1 + 1e-9)), nm(motion.dot(short_axis)) {}
+  // The earliest t in [0, 1] at which the Gaussian (centre at `rel` from the part's start, its
+  // rotation R and semi-axes a) is within the slab: 0 when it is already, kNever when never.
+  [[gnu::noinline]] double entry_time(const Eigen::Vector3d& rel, const Eigen::Matrix3d& R, const float* a) const noexcept {
+    double h2 = 0;
+    for (int j = 0; j < 3; ++j) {
+      const double nr = n[0] * R(0, j) + n[1] * R(1, j) + n[2] * R(2, j);
+      h2 += double(a[j]) * a[j] * nr * nr;
+    }
+    const double reach = c + std::sqrt(h2) * (1 + 1e-9), s = n.dot(rel);  // (margins outward)
+    if (std::fabs(s) <= reach) return 0;
+    // s - t nm must come within +-reach: from the near side, moving toward the plane.
+    if (s > 0 ? !(nm > 0) : !(nm < 0)) return kNever;
+    return (std::fabs(s) - reach) / std::fabs(nm);
+  }
+};
+
 struct PartBounds {
   Eigen::Vector3d c0, half;  // centre at the start; half extent of the tool's box
   float lo[3], hi[3];
@@ -119,11 +147,12 @@ struct PartBounds {
   double st[6];
   Eigen::Matrix3d w;
   bool capsule;  // elongated: its capsule bound applies (Capsule)
+  bool flat;     // flat: its slab along the shortest axis applies (FlatSlab)
   // Fills the constants (not the boxes) for `tool` moved by `motion` (m_hat its direction).
   // Out of line: inlined, it grew sweep_parts past the size at which GCC inlines the candidates'
   // loop whole, and the spheres' loop ran 5-8 % slower.
   [[gnu::noinline]] void set(const ToolEllipsoid& tool, const Eigen::Vector3d& motion, const Eigen::Vector3d& m_hat,
-                             Capsule& capsule_of) noexcept {
+                             Capsule& capsule_of, FlatSlab& slab_of) noexcept {
     c0 = tool.center;
     half = tool.aabb_half_extent();
     r_tool = tool.bounding_radius();
@@ -141,6 +170,10 @@ struct PartBounds {
     const double a_long = b.maxCoeff(&i_long), b_mid = b.sum() - a_long - b.minCoeff();
     capsule = a_long > 1.5 * b_mid;
     if (capsule) capsule_of = Capsule(Rt.col(i_long), b_mid, motion);
+    int i_short = 0;
+    const double c_short = b.minCoeff(&i_short);
+    flat = c_short < 0.5 * b_mid;
+    if (flat) slab_of = FlatSlab(Rt.col(i_short), c_short, motion);
   }
 };
 
@@ -391,6 +424,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   // the boxes.
   std::array<PartBounds, kMaxParts> pd;
   std::array<Capsule, kMaxParts> caps;
+  std::array<FlatSlab, kMaxParts> flats;
   float lo[3], hi[3];
   // Each part's box swept up to its bar (nothing later counts), and their union.
   const auto sweep_boxes = [&] {
@@ -407,7 +441,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       }
     }
   };
-  for (std::size_t p = 0; p < parts.size(); ++p) pd[p].set(parts[p], motion, m_hat, caps[p]);
+  for (std::size_t p = 0; p < parts.size(); ++p) pd[p].set(parts[p], motion, m_hat, caps[p], flats[p]);
   const bool several = parts.size() > 1;
   if (several) sweep_boxes();  // (the hints' bounds check each part's box; one part's is swept below)
   const CollisionGaussian* gs = world_->gaussians().data();
@@ -507,6 +541,11 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
           const double t_cap = caps[p].entry_time(rel, double(g.bounding_radius()));
           if (t_cap > 1.0) return kNever;
           t_lb = std::max(t_lb, t_cap);
+        }
+        if (q.flat) {
+          const double t_flat = flats[p].entry_time(rel, R, g.semi_axes);
+          if (t_flat > 1.0) return kNever;
+          t_lb = std::max(t_lb, t_flat);
         }
         // The same members for an ellipsoidal part, in the world frame: the member lambda is
         // {x : x^T K^-1 x <= 1 / (lambda (1 - lambda))} with K = lambda Sigma_g + (1 - lambda)
