@@ -245,6 +245,43 @@ TEST(ShadedNormal, LeavesOutTheFloatersTheRestingToolOverlaps) {
   }
 }
 
+// A 60-degree groove of 8 mm discs, the tool resting on one face 33 mm from the crease with the
+// kernel widened to 13 mm (the width of the large discs the fidelity scenes draw there): the far
+// face, 23 mm from the reading point, tilts the sum toward the groove's bisector. Its discs lie
+// farther from the reading point than the surface under the tool (FreeBall::surface), so they
+// fade; on a flat layer, where every disc's plane is at the surface's distance, the reading is
+// bit-identical with or without it.
+TEST(ShadedNormal, TheFarFaceOfAConcaveCreaseDoesNotTiltAWideKernel) {
+  const float h = 0.008f;
+  std::vector<GaussianSpec> gs;
+  const Eigen::Vector3f y = Eigen::Vector3f::UnitY();
+  Eigen::Vector3f dir[2] = {{-0.5f, 0, 0.8660254f}, {0.5f, 0, 0.8660254f}};
+  Eigen::Vector3f nrm[2] = {{0.8660254f, 0, 0.5f}, {-0.8660254f, 0, 0.5f}};
+  for (int f = 0; f < 2; ++f)
+    for (float along = 0.5f * h; along < 0.08f; along += h)
+      for (float v = -0.04f; v <= 0.04f; v += h)
+        gs.emplace_back(dir[f] * along + y * v, Eigen::Vector3f(h, h, 0.05f * h),
+                        Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f::UnitZ(), nrm[f]));
+  const CollisionWorld w = world_of(gs, 0.5f);
+  const double r = 0.010, wide = 0.013;
+  const Eigen::Vector3d n0 = nrm[0].cast<double>(), c = dir[0].cast<double>() * 0.033 + n0 * (r + 0.05 * h);
+  const double plain = angle_deg(shaded_normal(w, c, wide, 0.5, FreeBall{r, n0}, wide), n0);
+  const double faded = angle_deg(shaded_normal(w, c, wide, 0.5, FreeBall{r, n0, r + 0.05 * h}, wide), n0);
+  EXPECT_GT(plain, 3.0) << "the set-up: the far face tilts the plain reading";
+  EXPECT_LT(faded, 1.0) << plain;
+  ShadingScratch scratch(256);
+  EXPECT_EQ(shaded_normal(w, c, wide, 0.5, scratch, FreeBall{r, n0, r + 0.05 * h}, wide),
+            shaded_normal(w, c, wide, 0.5, FreeBall{r, n0, r + 0.05 * h}, wide));
+
+  std::vector<GaussianSpec> layer;
+  add_layer(layer, 0.0f, h, 0.05f);
+  const CollisionWorld flat = world_of(layer, 0.5f);
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  for (const Eigen::Vector3d& at : {Eigen::Vector3d(0.001, 0.002, r + 0.05 * h), Eigen::Vector3d(0.003, -0.001, r + 0.05 * h)})
+    EXPECT_EQ(shaded_normal(flat, at, wide, 0.5, FreeBall{r, up, r + 0.05 * h}, wide),
+              shaded_normal(flat, at, wide, 0.5, FreeBall{r, up}, wide));
+}
+
 // On a sparse curved surface (a 5 cm cylinder drawn with 8 mm discs, 9 degrees of arc each) a
 // kernel of half a 10 mm tool reads little more than the disc under the tool: its facet. A
 // kernel at least as wide as the Gaussian spacing (shading_spacing: the disc under the tool's

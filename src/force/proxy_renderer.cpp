@@ -139,13 +139,15 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   // has moved `shading_reuse` tool radii (the next reading prepared over the ticks before, a
   // `shading_budget` a tick), unless it disagrees with where the proxy holds the device.
   // (The spacing is the blockers' largest middle semi-axis; the scale, the larger of it and r.)
+  // The tool's inscribed ball rests free at p, and the surface under it is the tool's support
+  // distance along the support normal away (FreeBall).
   const double spacing = shading_spacing(*world_, blockers);
-  Eigen::Vector3d n =
-      shade_.read_ahead(*world_, p, std::max(r, spacing), params_.shading_kernel, params_.shading_reuse * r,
-                        shading_scratch_, params_.shading_budget,
-                        {solver_.support_normal().isZero(0) ? 0.0 : tool.semi_axes.minCoeff(),
-                         solver_.support_normal()},  // (the tool's inscribed ball rests free at p)
-                        spacing);
+  const Eigen::Vector3d& up = solver_.support_normal();
+  const bool resting = !up.isZero(0);
+  const FreeBall ball{resting ? tool.semi_axes.minCoeff() : 0.0, up,
+                      resting ? tool.semi_axes.cwiseProduct(tool.rotation.conjugate() * up).norm() : 0.0};
+  Eigen::Vector3d n = shade_.read_ahead(*world_, p, std::max(r, spacing), params_.shading_kernel,
+                                        params_.shading_reuse * r, shading_scratch_, params_.shading_budget, ball, spacing);
   if (n.dot(e) < 0 && !solver_.blocked(tool)) {
     // The surface says the device is on its free side, and the device's own pose is free: the
     // proxy is caught in a Gaussian-scale pocket (a sharp tool rim under a neighbouring disc's

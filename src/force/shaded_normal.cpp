@@ -74,6 +74,12 @@ inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double
   out.flat = flatness(g);
   out.axis = R.col(jmin) * (dl[jmin] >= 0 ? 1.0 : -1.0);
   out.weight = double(g.opacity) * std::exp(-0.5 * q);
+  if (ball.surface > 0 && out.flat > 0) {
+    // A disc whose plane lies farther from c than the surface under the tool (FreeBall::surface)
+    // is not under it: the far face of a concave crease.
+    const double excess = (std::fabs(dl[jmin]) - ball.surface - 0.5 * rim) / (0.5 * rim);
+    if (excess > 0) out.weight *= std::exp(-0.5 * out.flat * excess * excess);
+  }
   out.rad = R * ad;
   out.at = -d;
   const double eu = dl[ju] / g.semi_axes[ju], ev = dl[jv] / g.semi_axes[jv];

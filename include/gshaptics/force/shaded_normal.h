@@ -42,9 +42,18 @@ namespace gshaptics {
 /// Without this a round floater level with a resting tool (0.3 % of the fidelity scenes'
 /// Gaussians, 5-30 mm off the surface) tilts the normal by its density gradient: 11 degrees on
 /// a cube face at 8 mm spacing.
+///
+/// `surface`, when set, is how far the surface the tool rests on lies from the reading point
+/// (a sphere's radius). A disc whose plane lies farther than that, past half a narrow kernel
+/// (0.5 kernel x radius) more for the Gaussians' jitter, is not under the tool: its weight falls
+/// as exp(-e^2 / 2) with e the excess in half narrow kernels, scaled by its flatness. That is
+/// the far face of a concave crease, which the kernel widened to the Gaussian spacing reaches:
+/// 9.6 degrees on a 60-degree groove's face at 8 mm spacing, 33 mm from the crease, with a
+/// 10 mm tool on 13 mm discs.
 struct FreeBall {
   double radius = 0;  ///< m; 0: off (every Gaussian near counts)
   Eigen::Vector3d up = Eigen::Vector3d::Zero();  ///< unit, away from the surface the tool rests on (its constraint normals)
+  double surface = 0;  ///< m, from the reading point to the surface under the tool along `up`; 0: no height falloff
 };
 
 /// The shaded normal at `center` (world frame, m) for a tool of bounding radius `radius` (m)
