@@ -346,6 +346,19 @@ TEST(SweepQuery, AnEllipsoidalPartsCandidatesAreBoundedByTheFamilyMembers) {
   }
 }
 
+// How many Gaussians have their centre in the box `part` sweeps along `motion` (what a traversal
+// of that box reads, leaves' spill aside).
+std::uint32_t centres_in_swept_box(const CollisionWorld& w, const ToolEllipsoid& part, const Eigen::Vector3d& motion) {
+  const Eigen::Vector3d h = part.aabb_half_extent();
+  const Eigen::Vector3d lo = part.center.cwiseMin(part.center + motion) - h, hi = part.center.cwiseMax(part.center + motion) + h;
+  std::uint32_t n = 0;
+  for (const CollisionGaussian& g : w.gaussians()) {
+    const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
+    n += (c.array() >= lo.array()).all() && (c.array() <= hi.array()).all() ? 1 : 0;
+  }
+  return n;
+}
+
 TEST(SweepQuery, AnElongatedPartsCandidatesAreTheGaussiansWithinReachOfItsAxis) {
   // A stylus segment (40 x 4 x 4 mm) lying on a dense layer, moved down and a little aside: its
   // bounding sphere's capsule holds every disc within 40 mm of its centre, but only those whose
@@ -380,6 +393,10 @@ TEST(SweepQuery, AnElongatedPartsCandidatesAreTheGaussiansWithinReachOfItsAxis) 
       if (nearest > reach + 1e-5 && (c - part.center).norm() <= g.bounding_radius() + 0.04) ++beside;
     }
     ASSERT_GT(beside, within) << "the set-up puts most discs in the bounding sphere beside the axis";
+    // The leaves read are those whose bounding sphere comes within reach of the axis (about half
+    // of the swept box's discs here; every leaf overlapping the box holds more than the box).
+    const std::uint32_t in_box = centres_in_swept_box(w, part, motion);
+    EXPECT_LT(3 * sweep.counts().candidates, 2 * in_box) << sweep.counts().candidates << " read of " << in_box;
     EXPECT_LE(sweep.counts().prefiltered, within)
         << sweep.counts().prefiltered << " candidates past the bounds of " << sweep.counts().candidates;
   }
@@ -422,6 +439,10 @@ TEST(SweepQuery, AFlatPartsCandidatesAreTheGaussiansThatReachItsPlane) {
     }
     if (tilt > 0.1) {
       ASSERT_GT(beside, within) << "the set-up puts most discs in the bounding sphere off the disc's plane";
+      // The leaves read are those whose bounding sphere reaches the disc's slab: fewer than the
+      // swept box holds (every leaf overlapping the box, more).
+      const std::uint32_t in_box = centres_in_swept_box(w, part, motion);
+      EXPECT_LT(sweep.counts().candidates, in_box) << sweep.counts().candidates << " read of " << in_box;
     }
     EXPECT_LE(sweep.counts().prefiltered, within)
         << sweep.counts().prefiltered << " candidates past the bounds of " << sweep.counts().candidates;

@@ -135,6 +135,13 @@ struct FlatSlab {
     if (s > 0 ? !(nm > 0) : !(nm < 0)) return kNever;
     return (std::fabs(s) - reach) / std::fabs(nm);
   }
+  // The same for anything within `r` of `rel` (a BVH leaf's bounding sphere).
+  [[gnu::noinline]] double entry_time(const Eigen::Vector3d& rel, double r) const noexcept {
+    const double reach = c + r, s = n.dot(rel);
+    if (std::fabs(s) <= reach) return 0;
+    if (s > 0 ? !(nm > 0) : !(nm < 0)) return kNever;
+    return (std::fabs(s) - reach) / std::fabs(nm);
+  }
 };
 
 struct PartBounds {
@@ -176,6 +183,22 @@ struct PartBounds {
     if (flat) slab_of = FlatSlab(Rt.col(i_short), c_short, motion);
   }
 };
+
+// Whether anything in `leaf` (within the bounding sphere of its box) can reach the part's
+// capsule or slab by `bar` (a fraction of the motion): the swept box of a stylus or disc lying
+// across a layer holds many leaves far from its axis or plane. Out of line, as PartBounds::set.
+[[gnu::noinline]] bool leaf_within_reach(const BvhNode& leaf, const PartBounds& q, const Capsule& capsule,
+                                         const FlatSlab& slab, double bar) noexcept {
+  Eigen::Vector3d mid, half_diag;
+  for (int k = 0; k < 3; ++k) {
+    mid[k] = 0.5 * (double(leaf.lo[k]) + double(leaf.hi[k]));
+    half_diag[k] = 0.5 * (double(leaf.hi[k]) - double(leaf.lo[k]));
+  }
+  const Eigen::Vector3d rel = mid - q.c0;
+  const double r_leaf = half_diag.norm() * (1 + 1e-9);
+  if (q.capsule && capsule.entry_time(rel, r_leaf) > bar) return false;
+  return !(q.flat && slab.entry_time(rel, r_leaf) > bar);
+}
 
 }  // namespace
 
@@ -497,6 +520,13 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         t_lb = (bq - std::sqrt(disc)) / len2;
         if (t_lb > 1.0) return kNever;
       }
+      if (q.capsule) {
+        // (Before the rotation's and the slab's arithmetic: beside a stylus lying on a layer it
+        // rules out most of the part's bounding sphere.)
+        const double t_cap = caps[p].entry_time(rel, double(g.bounding_radius()));
+        if (t_cap > bar_of(p)) return kNever;
+        t_lb = std::max(t_lb, t_cap);
+      }
       // Slab bound along the motion: the ellipsoid's extent along it is sqrt(sum (a_j m.R_j)^2),
       // tight for flat Gaussians met face-on, where the sphere bound is loose.
       double h2 = 0;
@@ -537,11 +567,6 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         if (te > 1.0) return kNever;
         t_lb = std::max(t_lb, te - 1e-12);  // (a rounding's margin below the exact search's value)
       } else if (!q.spherical && t_lb <= bar) {
-        if (q.capsule) {
-          const double t_cap = caps[p].entry_time(rel, double(g.bounding_radius()));
-          if (t_cap > 1.0) return kNever;
-          t_lb = std::max(t_lb, t_cap);
-        }
         if (q.flat) {
           const double t_flat = flats[p].entry_time(rel, R, g.semi_axes);
           if (t_flat > 1.0) return kNever;
@@ -628,6 +653,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       if (several && (leaf.lo[0] > q.hi[0] || leaf.hi[0] < q.lo[0] || leaf.lo[1] > q.hi[1] || leaf.hi[1] < q.lo[1] ||
                       leaf.lo[2] > q.hi[2] || leaf.hi[2] < q.lo[2]))
         continue;
+      if ((q.capsule || q.flat) && !leaf_within_reach(leaf, q, caps[p], flats[p], bar_of(p))) continue;
       counts_.candidates += leaf.count;
       for (std::uint32_t k = leaf.first; k < leaf.first + leaf.count; ++k) consider(k, p);
     }
