@@ -310,9 +310,11 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
   // where Brent's method takes 8-15). Every iterate's t_e is a lower bound of t*, so it is as
   // safe as the search it replaces; it gives up (edge = true: the caller runs Brent's method)
   // when a step would not climb (phi' >= 0), leaves s0 +- 2, or does not settle in 8 steps.
-  const auto newton = [&](double s0) -> Refined {
+  // `t_first` receives t_e at s0 (the first iterate: the caller's fallback starts there).
+  const auto newton = [&](double s0, double& t_first) -> Refined {
     double s = s0;
     double t_best = -kNever, s_best = s0;
+    t_first = -kNever;
     for (int it = 0; it < 8; ++it) {
       const double lam = lambda_of(s);
       const double w = lam * (1.0 - lam), w1 = 1.0 - 2.0 * lam;
@@ -324,6 +326,7 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
         qc += p.dg[j] * p.dg[j] * inv[j];
       }
       const double t = entry_time({qa, -2 * qb, qc - 1.0 / w});
+      if (it == 0) t_first = t;
       if (t > stop_above) return Refined{t, s, true};
       if (!std::isfinite(t)) break;
       if (t > t_best) t_best = t, s_best = s;
@@ -342,8 +345,10 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
       if (!(phi1 < 0)) break;
       double ds = -f_l / (phi1 * w);
       if (!std::isfinite(ds)) break;
+      // The step's gain on the local quadratic model, 0.5 (dt/ds) ds: under 1e-13 of the motion,
+      // t is the maximum to that accuracy (one step fewer than waiting for the step to vanish).
+      if (std::fabs(ds) < 1e-9 || 0.5 * std::fabs(dt_dl * w * ds) < 1e-13) return Refined{t_best, s_best, false, false};
       ds = std::clamp(ds, -1.0, 1.0);
-      if (std::fabs(ds) < 1e-9) return Refined{t_best, s_best, false, false};
       s += ds;
       if (std::fabs(s - s0) > 2.0 || std::fabs(s) > 16.0) break;
     }
@@ -356,9 +361,8 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
   // cost evaluations, never report a later contact.
   if (s_io != nullptr && std::isfinite(*s_io)) {
     const double s0 = std::clamp(*s_io, -16.0, 16.0);
-    const double t0 = entry_time(p.at(lambda_of(s0)));
-    if (t0 > stop_above) return t0;
-    const Refined nr = newton(s0);
+    double t0;  // (t_e at s0: Newton's first iterate, which also stops the search when it is past stop_above)
+    const Refined nr = newton(s0, t0);
     if (nr.stop) return nr.t;
     if (!nr.edge) {
       best_t = nr.t, best_s = nr.s;
