@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <random>
 
@@ -122,6 +123,29 @@ TEST(Bvh, OutwardRoundingContainsTheDoubleValue) {
     const double x = u(rng);
     EXPECT_LE(double(round_down_to_float(x)), x);
     EXPECT_GE(double(round_up_to_float(x)), x);
+  }
+}
+
+TEST(Bvh, OutwardRoundingIsTheNearestFloatOutward) {
+  // Against std::nextafter: the float nearest to x on its outer side, across signs, zero,
+  // subnormals and past the largest float.
+  const auto down = [](double x) {
+    float f = float(x);
+    return double(f) > x ? std::nextafter(f, -std::numeric_limits<float>::infinity()) : f;
+  };
+  const auto up = [](double x) {
+    float f = float(x);
+    return double(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
+  };
+  std::vector<double> xs = {0.0, -0.0, 1e-46, -1e-46, 1e-40, -1e-40, 0.1, -0.1, 1.0, -1.0, 3.4028235e38, -3.4028235e38,
+                            3.5e38, -3.5e38, 1e300, -1e300};
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), e(-45.0, 38.0);
+  for (int i = 0; i < 20000; ++i) xs.push_back(u(rng) * std::pow(10.0, e(rng)));
+  for (double x : xs) {
+    SCOPED_TRACE(x);
+    EXPECT_EQ(std::bit_cast<std::uint32_t>(round_down_to_float(x)), std::bit_cast<std::uint32_t>(down(x)));
+    EXPECT_EQ(std::bit_cast<std::uint32_t>(round_up_to_float(x)), std::bit_cast<std::uint32_t>(up(x)));
   }
 }
 

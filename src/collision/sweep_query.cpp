@@ -161,14 +161,22 @@ struct PartBounds {
   [[gnu::noinline]] void set(const ToolEllipsoid& tool, const Eigen::Vector3d& motion, const Eigen::Vector3d& m_hat,
                              Capsule& capsule_of, FlatSlab& slab_of) noexcept {
     c0 = tool.center;
-    half = tool.aabb_half_extent();
     r_tool = tool.bounding_radius();
-    const Eigen::Matrix3d Rt = tool.rotation.normalized().toRotationMatrix();
-    h_tool = (tool.semi_axes.cwiseProduct(Rt.transpose() * m_hat)).norm();  // tool extent along m
     const Eigen::Vector3d& b = tool.semi_axes;
     spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
     r2_tool = b.x() * b.x();
-    if (!spherical) {
+    if (spherical) {
+      // (No rotation: the box and the extent along the motion are the radius's, as
+      // aabb_half_extent() and the general formula give them to rounding.)
+      half = Eigen::Vector3d::Constant(b.maxCoeff());
+      h_tool = b.maxCoeff();
+      capsule = flat = false;
+      return;
+    }
+    half = tool.aabb_half_extent();
+    const Eigen::Matrix3d Rt = tool.rotation.normalized().toRotationMatrix();
+    h_tool = (tool.semi_axes.cwiseProduct(Rt.transpose() * m_hat)).norm();  // tool extent along m
+    {
       const Eigen::Matrix3d S = Rt * b.cwiseAbs2().asDiagonal() * Rt.transpose();
       st[0] = S(0, 0), st[1] = S(1, 1), st[2] = S(2, 2), st[3] = S(0, 1), st[4] = S(0, 2), st[5] = S(1, 2);
       w = b.cwiseInverse().asDiagonal() * Rt.transpose();
