@@ -1,43 +1,13 @@
 #include "gshaptics/broadphase/bvh.h"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
-#include <cstdint>
 #include <limits>
 #include <stdexcept>
 
 #include "../huge_pages.h"
 
 namespace gshaptics {
-
-namespace {
-// The float next to a finite or infinite `f` toward -infinity (down) or +infinity (up), by its bits
-// (IEEE 754 binary32 orders like sign-magnitude integers): std::nextafter's answer without its
-// library call, which the sweeps' boxes paid several times a sweep.
-float next_down(float f) noexcept {
-  if (f == 0.0f) return -std::numeric_limits<float>::denorm_min();
-  const auto bits = std::bit_cast<std::uint32_t>(f);
-  return std::bit_cast<float>(f > 0 ? bits - 1 : bits + 1);
-}
-float next_up(float f) noexcept {
-  if (f == 0.0f) return std::numeric_limits<float>::denorm_min();
-  const auto bits = std::bit_cast<std::uint32_t>(f);
-  return std::bit_cast<float>(f > 0 ? bits + 1 : bits - 1);
-}
-}  // namespace
-
-float round_down_to_float(double x) noexcept {
-  float f = static_cast<float>(x);
-  if (static_cast<double>(f) > x) f = next_down(f);  // (f > x: f is not -infinity)
-  return f;
-}
-
-float round_up_to_float(double x) noexcept {
-  float f = static_cast<float>(x);
-  if (static_cast<double>(f) < x) f = next_up(f);  // (f < x: f is not +infinity)
-  return f;
-}
 
 Bvh Bvh::from_nodes(std::span<const BvhNode> nodes, int depth, std::shared_ptr<const void> owner) {
   if (depth < 0 || depth >= kMaxDepth) throw std::invalid_argument("Bvh::from_nodes: depth out of range");

@@ -5,7 +5,9 @@
 /// (e.g. madmann91/bvh): inner nodes store the index of their first child, leaves a primitive range.
 
 #include <Eigen/Core>
+#include <bit>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 #include <type_traits>
@@ -24,9 +26,24 @@ struct BvhNode {
 };
 static_assert(sizeof(BvhNode) == 32);
 
-/// Rounds a double bound outward to float.
-[[nodiscard]] float round_down_to_float(double x) noexcept;
-[[nodiscard]] float round_up_to_float(double x) noexcept;
+/// Rounds a double bound outward to float: the largest float <= x (down) or the smallest >= x
+/// (up); NaN stays NaN. Stepped by the float's bits (IEEE 754 binary32 orders like
+/// sign-magnitude integers): std::nextafter's answer, inline, as the sweeps' boxes call it several
+/// times a sweep.
+[[nodiscard]] inline float round_down_to_float(double x) noexcept {
+  const float f = static_cast<float>(x);
+  if (!(static_cast<double>(f) > x)) return f;
+  if (f == 0.0f) return -std::numeric_limits<float>::denorm_min();
+  const auto bits = std::bit_cast<std::uint32_t>(f);  // (f > x: f is not -infinity)
+  return std::bit_cast<float>(f > 0 ? bits - 1 : bits + 1);
+}
+[[nodiscard]] inline float round_up_to_float(double x) noexcept {
+  const float f = static_cast<float>(x);
+  if (!(static_cast<double>(f) < x)) return f;
+  if (f == 0.0f) return std::numeric_limits<float>::denorm_min();
+  const auto bits = std::bit_cast<std::uint32_t>(f);  // (f < x: f is not +infinity)
+  return std::bit_cast<float>(f > 0 ? bits + 1 : bits - 1);
+}
 
 /// A primitive's box for the build: the double box rounded outward to float (the nodes'
 /// precision; since rounding is monotone, a node's box is the same whether its children's
