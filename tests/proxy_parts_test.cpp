@@ -126,14 +126,15 @@ TEST(ProxySolver, FaceEdgeAndCornerHoldOneTwoAndThreeConstraintsWithoutAllocatin
     // bumps" fires and the planes start afresh, so the corner ends a tick on 1-3 planes.)
     EXPECT_GE(m.constraints, 1) << c.constraints;
     // It never overlaps the walls, and rests on each one the goal is behind (r from its
-    // plane, plus at most the discs' 2 um half-thickness); along the others it reaches the goal.
+    // plane, plus at most the discs' 2 um half-thickness and the stand-off); along the others it
+    // reaches the goal.
     ToolEllipsoid at = start;
     at.center = m.position;
     EXPECT_FALSE(test::overlaps(w, at)) << c.constraints;
     for (int a = 0; a < 3; ++a) {
       if (c.goal[a] < 0) {
         EXPECT_GE(m.position[a], r - 1e-9) << c.constraints << " axis " << a;
-        EXPECT_LE(m.position[a], r + 2e-6 + 1e-6) << c.constraints << " axis " << a;
+        EXPECT_LE(m.position[a], r + 2e-6 + ProxySolver::kStandOff * r + 1e-7) << c.constraints << " axis " << a;
       } else {
         EXPECT_NEAR(m.position[a], c.goal[a], 2e-5) << c.constraints << " axis " << a;  // the discs' rims tilt the planes
       }

@@ -160,7 +160,7 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
   for (; n_hints < n_blockers_; ++n_hints) hints[n_hints] = blockers_[n_hints].slot;
   n_blockers_ = 0;
   Eigen::Vector3d p = x_;
-  const double eps = 1e-4 * largest_;
+  const double eps = ProxySolver::kStandOff * min_axis_;  // (the one-ellipsoid proxy's stand-off, on the thinnest part)
   int lifts = 0;
   FloaterTest::Filter floaters(floaters_, params_.isolation_gap * largest_);
   BlockFilter filter;

@@ -123,7 +123,7 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
   for (; n_hints < n_blockers_; ++n_hints) hints[n_hints] = blockers_[n_hints].slot;
   if (!hold) n_blockers_ = 0;
   Eigen::Vector3d p = proxy_;
-  const double eps = 1e-4 * r;  // the proxy stops this far short of a contact
+  const double eps = kStandOff * r;  // the proxy stops this far short of a contact
   std::uint32_t candidates = 0, sweeps = 0, exact = 0;
   int lifts = 0;
   // Floaters do not block: the sweep asks, in its one pass, whether a Gaussian it reaches first
