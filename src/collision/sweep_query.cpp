@@ -430,10 +430,10 @@ SweepHit SweepQuery::first_contact(std::span<const ToolEllipsoid> parts, const E
 
 void SweepQuery::first_contacts(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,
                                 std::span<SweepHit> hits, std::span<const std::uint32_t> hints,
-                                BlockFilter filter) noexcept {
+                                BlockFilter filter, double tolerance) noexcept {
   for (SweepHit& h : hits) h = {};
   if (hits.size() < parts.size()) return;
-  sweep_parts(parts, motion, {}, hints, filter, 1.0, 0.0, false, hits);
+  sweep_parts(parts, motion, {}, hints, filter, 1.0, tolerance, false, hits);
 }
 
 void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,

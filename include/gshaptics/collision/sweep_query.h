@@ -104,12 +104,13 @@ class SweepQuery {
                          double limit = 1.0, double tolerance = 0.0) noexcept;
   static constexpr std::size_t kMaxParts = 8;
   /// Each part's own first contact along the same `motion`, in one traversal (a bar a part):
-  /// hits[j] is what first_contact(parts[j], motion, {}, hints, filter) reports, within the
-  /// exact search's tolerance. For a compound tool's contact band: how far each part is from the
-  /// Gaussians along one direction. `hits` must hold parts.size() entries (fewer: every hit
-  /// cleared, none searched).
+  /// hits[j] is what first_contact(parts[j], motion, {}, hints, filter, 1, tolerance) reports,
+  /// within the exact search's tolerance. For a compound tool's contact band: how far each part
+  /// is from the Gaussians along one direction. `hits` must hold parts.size() entries (fewer:
+  /// every hit cleared, none searched).
   void first_contacts(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion, std::span<SweepHit> hits,
-                      std::span<const std::uint32_t> hints = {}, BlockFilter filter = {}) noexcept;
+                      std::span<const std::uint32_t> hints = {}, BlockFilter filter = {},
+                      double tolerance = 0.0) noexcept;
   [[nodiscard]] const SweepCounts& counts() const noexcept { return counts_; }
   [[nodiscard]] const CollisionWorld& world() const noexcept { return *world_; }
 
