@@ -196,6 +196,14 @@ TEST(SweepBounds, CompoundToolSweepsMatchThePlainComputationPerPart) {
         EXPECT_EQ(each[j].part, int(j));
         EXPECT_NEAR(each[j].t, plain[j], 1e-12) << "tool " << i << " part " << j;
       }
+      // With a tolerance: each part still hits exactly when it touches, at most that much late.
+      sweep.first_contacts(parts, m, each, {part_hints, n_part_hints}, f, 1e-3);
+      for (std::size_t j = 0; j < parts.size(); ++j) {
+        ASSERT_EQ(each[j].hit, std::isfinite(plain[j])) << "tool " << i << " part " << j << ", tolerance";
+        if (!each[j].hit) continue;
+        EXPECT_GE(each[j].t, plain[j] - 1e-12) << "tool " << i << " part " << j << ", tolerance";
+        EXPECT_LE(each[j].t, plain[j] + 1e-3 + 1e-12) << "tool " << i << " part " << j << ", tolerance";
+      }
     }
     if (::testing::Test::HasFailure()) break;
   }
