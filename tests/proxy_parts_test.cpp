@@ -495,6 +495,34 @@ TEST(ShadedNormalCache, ReadingAheadGivesThePlainReadingWithinReuseAndSpreadsIts
   EXPECT_GT(plain.reads(), 3u);
 }
 
+// A part whose probe cycles among three Gaussians moves its reading point among three places
+// more than `reuse` apart, tick by tick: read() keeps the earlier readings, so the field is read
+// once a place, and every normal it gives is bit-identical to the plain reading at a point within
+// `reuse` of the call's. A cycle of more places than it keeps reads every time.
+TEST(ShadedNormalCache, ReadKeepsEarlierReadingsForAReadingPointThatCycles) {
+  std::vector<GaussianSpec> gs;
+  add_layer(gs, 0.0f, 0.002f, 0.04f);
+  const CollisionWorld w = world_of(gs);
+  const double r = 0.005, reuse = 0.05 * r;
+  const FreeBall ball{r, Eigen::Vector3d::UnitZ()};
+  ShadingScratch scratch, plain_scratch;
+  const auto place = [&](int k) { return Eigen::Vector3d(0.0014 * k, 0.0003 * k, r + 0.002); };
+  for (const int places : {3, int(ShadedNormalCache::kEarlierReadings) + 2}) {
+    SCOPED_TRACE(places);
+    ShadedNormalCache cache;
+    for (int tick = 0; tick < 60; ++tick) {
+      const Eigen::Vector3d at = place(tick % places) + Eigen::Vector3d(0, 0, 1e-6 * (tick % 7));  // (a jitter under reuse)
+      const Eigen::Vector3d n = cache.read(w, at, r, 0.5, reuse, scratch, ball, 0.002);
+      ASSERT_LE((at - cache.read_point()).norm(), reuse) << tick;
+      ASSERT_EQ(n, shaded_normal(w, cache.read_point(), r, 0.5, plain_scratch, ball, 0.002)) << tick;
+    }
+    if (places <= int(ShadedNormalCache::kEarlierReadings) + 1)
+      EXPECT_EQ(cache.reads(), std::uint64_t(places));
+    else
+      EXPECT_EQ(cache.reads(), 60u);  // (each place was evicted before it came round again)
+  }
+}
+
 TEST(ShadedNormal, TheKernelScaleFollowsTheLargestBlocker) {
   const CollisionWorld w = world_of({{Eigen::Vector3f::Zero(), Eigen::Vector3f(0.03f, 0.02f, 0.001f), Eigen::Quaternionf::Identity()},
                                      {Eigen::Vector3f(0.1f, 0, 0), Eigen::Vector3f::Constant(0.001f), Eigen::Quaternionf::Identity()}});
