@@ -511,7 +511,8 @@ TEST(ShadedNormalCache, ReadKeepsEarlierReadingsForAReadingPointThatCycles) {
     SCOPED_TRACE(places);
     ShadedNormalCache cache;
     for (int tick = 0; tick < 60; ++tick) {
-      const Eigen::Vector3d at = place(tick % places) + Eigen::Vector3d(0, 0, 1e-6 * (tick % 7));  // (a jitter under reuse)
+      // (with a jitter under reuse)
+      const Eigen::Vector3d at = place(tick % places) + Eigen::Vector3d(0, 0, 1e-6 * (tick % 7));
       const Eigen::Vector3d n = cache.read(w, at, r, 0.5, reuse, scratch, ball, 0.002);
       ASSERT_LE((at - cache.read_point()).norm(), reuse) << tick;
       ASSERT_EQ(n, shaded_normal(w, cache.read_point(), r, 0.5, plain_scratch, ball, 0.002)) << tick;

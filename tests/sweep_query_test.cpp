@@ -350,7 +350,8 @@ TEST(SweepQuery, AnEllipsoidalPartsCandidatesAreBoundedByTheFamilyMembers) {
 // of that box reads, leaves' spill aside).
 std::uint32_t centres_in_swept_box(const CollisionWorld& w, const ToolEllipsoid& part, const Eigen::Vector3d& motion) {
   const Eigen::Vector3d h = part.aabb_half_extent();
-  const Eigen::Vector3d lo = part.center.cwiseMin(part.center + motion) - h, hi = part.center.cwiseMax(part.center + motion) + h;
+  const Eigen::Vector3d lo = part.center.cwiseMin(part.center + motion) - h;
+  const Eigen::Vector3d hi = part.center.cwiseMax(part.center + motion) + h;
   std::uint32_t n = 0;
   for (const CollisionGaussian& g : w.gaussians()) {
     const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);

@@ -85,8 +85,8 @@ class ProxySolver {
   /// Whether `tool` overlaps a kept Gaussian (the early-exit query).
   [[nodiscard]] bool blocked(const ToolEllipsoid& tool) noexcept { return free_query_.any_contact(tool); }
 
-  /// How far short of a contact the proxy stops, in tool radii (a compound tool's largest
-  /// semi-axis): 5 um on a 5 mm tool, 5 mN at 1 kN/m. The sweeps' tolerance is half of it
+  /// How far short of a contact the proxy stops, in tool radii (a compound tool: in its parts'
+  /// smallest semi-axis, CompoundProxy): 5 um on a 5 mm tool, 5 mN at 1 kN/m. The sweeps' tolerance is half of it
   /// (SweepQuery: a near-tie within it is not searched to the end), so it sets how many exact
   /// searches a resting tool's ticks run: 1e-4 cost firepit a third more of them at p95-p99
   /// (bench/RESULTS.md, twenty-third session) and moved no fidelity cell beyond its noise.

@@ -140,7 +140,10 @@ class ShadedNormalCache {
       }
     if (valid_) {  // the last reading joins the earlier ones (the oldest leaves)
       const std::size_t keep = n_earlier_ < kEarlierReadings ? n_earlier_++ : kEarlierReadings - 1;
-      for (std::size_t i = keep; i > 0; --i) earlier_at_[i] = earlier_at_[i - 1], earlier_normal_[i] = earlier_normal_[i - 1];
+      for (std::size_t i = keep; i > 0; --i) {
+        earlier_at_[i] = earlier_at_[i - 1];
+        earlier_normal_[i] = earlier_normal_[i - 1];
+      }
       earlier_at_[0] = at_, earlier_normal_[0] = normal_;
     }
     normal_ = shaded_normal(world, at, scale, kernel, scratch, ball, min_width);
