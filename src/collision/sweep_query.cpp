@@ -121,26 +121,25 @@ struct FlatSlab {
   FlatSlab() = default;
   [[gnu::noinline]] FlatSlab(const Eigen::Vector3d& short_axis, double half, const Eigen::Vector3d& motion)
       : n(short_axis), c(half * (1 + 1e-9)), nm(motion.dot(short_axis)) {}
-  // The earliest t in [0, 1] at which the Gaussian (centre at `rel` from the part's start, its
-  // rotation R and semi-axes a) is within the slab: 0 when it is already, kNever when never.
+  // The earliest t in [0, 1] at which anything within `reach` of `rel` along n (from the part's
+  // start) is within the slab: 0 when it is already, kNever when never. A BVH leaf passes its
+  // bounding sphere's radius.
+  [[gnu::noinline]] double entry_time(const Eigen::Vector3d& rel, double reach) const noexcept {
+    const double total = c + reach, s = n.dot(rel);
+    if (std::fabs(s) <= total) return 0;
+    // s - t nm must come within +-total: from the near side, moving toward the plane.
+    if (s > 0 ? !(nm > 0) : !(nm < 0)) return kNever;
+    return (std::fabs(s) - total) / std::fabs(nm);
+  }
+  // The same for a Gaussian (its rotation R and semi-axes a): its reach along n is
+  // |diag(a) R^T n|.
   [[gnu::noinline]] double entry_time(const Eigen::Vector3d& rel, const Eigen::Matrix3d& R, const float* a) const noexcept {
     double h2 = 0;
     for (int j = 0; j < 3; ++j) {
       const double nr = n[0] * R(0, j) + n[1] * R(1, j) + n[2] * R(2, j);
       h2 += double(a[j]) * a[j] * nr * nr;
     }
-    const double reach = c + std::sqrt(h2) * (1 + 1e-9), s = n.dot(rel);  // (margins outward)
-    if (std::fabs(s) <= reach) return 0;
-    // s - t nm must come within +-reach: from the near side, moving toward the plane.
-    if (s > 0 ? !(nm > 0) : !(nm < 0)) return kNever;
-    return (std::fabs(s) - reach) / std::fabs(nm);
-  }
-  // The same for anything within `r` of `rel` (a BVH leaf's bounding sphere).
-  [[gnu::noinline]] double entry_time(const Eigen::Vector3d& rel, double r) const noexcept {
-    const double reach = c + r, s = n.dot(rel);
-    if (std::fabs(s) <= reach) return 0;
-    if (s > 0 ? !(nm > 0) : !(nm < 0)) return kNever;
-    return (std::fabs(s) - reach) / std::fabs(nm);
+    return entry_time(rel, std::sqrt(h2) * (1 + 1e-9));  // (a rounding's margin, outward)
   }
 };
 
