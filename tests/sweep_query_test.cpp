@@ -403,6 +403,49 @@ TEST(SweepQuery, AnElongatedPartsCandidatesAreTheGaussiansWithinReachOfItsAxis) 
   }
 }
 
+TEST(SweepQuery, AnElongatedPartSlidingOnABumpyLayerMeetsTheFirstContact) {
+  // A stylus segment (40 x 4 x 4 mm) resting on a layer of thin discs with jittered heights
+  // and tilts, sliding along it in every direction (a little down, or a little up): the
+  // Gaussians beside its axis are ruled out by their support toward the axis and the motion
+  // across it (Capsule's bound); each contact is still the earliest of every Gaussian's own
+  // exact search.
+  std::vector<GaussianSpec> gs;
+  std::mt19937 rng(38);
+  std::uniform_real_distribution<float> jitter(-1.0f, 1.0f);
+  for (float x = -0.04f; x <= 0.04f; x += 0.002f)
+    for (float y = -0.04f; y <= 0.04f; y += 0.002f) {
+      const Eigen::Quaternionf tilt(Eigen::AngleAxisf(0.3f * jitter(rng), Eigen::Vector3f(jitter(rng), jitter(rng), 0).normalized()));
+      gs.emplace_back(Eigen::Vector3f(x, y, 0.0005f * jitter(rng)), Eigen::Vector3f(0.002f, 0.0015f, 0.0002f), tilt);
+    }
+  const CollisionWorld w = world_of(gs);
+  SweepQuery sweep(w);
+  ToolEllipsoid part;
+  part.semi_axes = {0.02, 0.004, 0.004};
+  int hits = 0;
+  for (int i = 0; i < 48; ++i) {
+    part.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.05 * jitter(rng), Eigen::Vector3d::UnitY())) *
+                    Eigen::Quaterniond(Eigen::AngleAxisd(3.2 * jitter(rng), Eigen::Vector3d::UnitZ()));
+    part.center = {0.005 * jitter(rng), 0.005 * jitter(rng), 0.0};
+    // Rest it on the layer: lift it out, then sweep it down to its first contact. Then slide it
+    // 0.1 to 5 mm (a short slide leaves little margin to the motion's part of the bound).
+    part.center.z() = 0.02;
+    const SweepHit rest = sweep.first_contact(part, Eigen::Vector3d(0, 0, -0.03));
+    ASSERT_TRUE(rest.hit);
+    part.center.z() -= 0.03 * rest.t - 1e-6;
+    const double heading = 3.2 * jitter(rng), slope = 0.3 * jitter(rng), len = 0.0001 * std::pow(50.0, 0.5 * (1 + jitter(rng)));
+    const Eigen::Vector3d motion =
+        len * Eigen::Vector3d(std::cos(heading), std::sin(heading), slope).normalized();
+    SCOPED_TRACE(i);
+    const SweepHit hit = sweep.first_contact(part, motion);
+    double t_ref = INFINITY;
+    for (const CollisionGaussian& g : w.gaussians()) t_ref = std::min(t_ref, sweep_time(g, part, motion));
+    ASSERT_EQ(hit.hit, t_ref <= 1.0) << "brute force: t = " << t_ref;
+    if (hit.hit) expect_brute_force_first_contact(w, part, motion, hit);
+    hits += hit.hit ? 1 : 0;
+  }
+  EXPECT_GE(hits, 8) << "many slides meet a bump";
+}
+
 TEST(SweepQuery, AFlatPartsCandidatesAreTheGaussiansThatReachItsPlane) {
   // A disc (20 x 20 x 2 mm) tilted 30 degrees, then 3 degrees, over a dense layer and moved
   // down: its bounding sphere and its slab along the motion hold the disc's whole footprint, but

@@ -107,6 +107,26 @@ struct Capsule {
     if (dc < 0 || bc <= 0) return kNever;
     return cc / (bc + std::sqrt(dc));  // (the smaller root, without cancellation)
   }
+  // Whether a Gaussian (centre at `rel` from the part's start; rotation R, semi-axes a) stays
+  // farther than b from the axis's line until `bar`: along n, the unit direction from the line to
+  // its centre (across the axis), no point of it is nearer the line than |across| - h(n), h(n) =
+  // |diag(a) R^T n| its support, and the line moves by at most bar |m_across|. Tighter than the
+  // bounding sphere for the flat Gaussians of a layer under a stylus lying on it (their support
+  // toward the axis is their thickness). (The infinite line: the part's ends are left out, so it
+  // never rules out too much.)
+  [[gnu::noinline]] bool clear_until(const Eigen::Vector3d& rel, const Eigen::Matrix3d& R, const float* a,
+                                     double bar) const noexcept {
+    const Eigen::Vector3d across = rel - rel.dot(axis) * axis;
+    const double d = across.norm();
+    if (!(d > 0)) return false;
+    double h2 = 0;
+    for (int j = 0; j < 3; ++j) {
+      const double nr = (across[0] * R(0, j) + across[1] * R(1, j) + across[2] * R(2, j)) / d;
+      h2 += double(a[j]) * a[j] * nr * nr;
+    }
+    const double nearest = d - std::sqrt(h2) * (1 + 1e-9) - std::max(0.0, bar) * std::sqrt(m_across2) * (1 + 1e-9);
+    return nearest > radius * (1 + 1e-9);
+  }
 };
 
 // A flat ellipsoid (smallest semi-axis c under half the middle one) lies between the two planes
@@ -540,8 +560,9 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       }
       // Slab bound along the motion: the ellipsoid's extent along it is sqrt(sum (a_j m.R_j)^2),
       // tight for flat Gaussians met face-on, where the sphere bound is loose.
-      double h2 = 0;
       const Eigen::Matrix3d R = rotation_matrix(g);
+      if (q.capsule && caps[p].clear_until(rel, R, g.semi_axes, bar_of(p))) return kNever;
+      double h2 = 0;
       for (int j = 0; j < 3; ++j) {
         const double mr = m_hat[0] * R(0, j) + m_hat[1] * R(1, j) + m_hat[2] * R(2, j);
         h2 += double(g.semi_axes[j]) * g.semi_axes[j] * mr * mr;
