@@ -161,6 +161,34 @@ TEST(ProxySolver, HoldKeepsThePositionAndTheBlockers) {
   EXPECT_EQ(held.candidates, 0u);  // no sweep while held
 }
 
+TEST(ProxySolver, ASlideUnderHalfTheStandOffIsNotSwept) {
+  // Resting on a layer, pressed toward a goal below it and a little aside: the slide along the
+  // contact plane is swept when it is longer than half the stand-off (the sweeps' tolerance),
+  // and left out, the proxy staying where it rests, when it is shorter.
+  std::vector<GaussianSpec> gs;
+  add_layer(gs, 0.0f, 0.004f, 0.04f);
+  const CollisionWorld w = world_of(gs);
+  const double r = 0.005, eps = ProxySolver::kStandOff * r;
+  for (const double aside : {0.3 * eps, 3.0 * eps}) {
+    ProxySolver solver(w, ProxySolverParams{});
+    const ToolEllipsoid tool = ToolEllipsoid::sphere({0.0, 0.0, 0.01}, r);  // over a disc's centre
+    solver.place(tool);
+    const ProxyMove rest = solver.move_toward(tool, {0.0, 0.0, -0.002}, false);
+    ASSERT_EQ(rest.constraints, 1);
+    const ProxyMove m = solver.move_toward(tool, {aside, 0.0, -0.002}, false);
+    SCOPED_TRACE(aside / eps);
+    EXPECT_EQ(m.constraints, 1);
+    if (aside < 0.5 * eps) {
+      EXPECT_EQ(m.sweeps, 1u);
+      EXPECT_LT((m.position - rest.position).norm(), 1e-12);
+    } else {
+      EXPECT_GE(m.sweeps, 2u);
+      EXPECT_NEAR(m.position.x(), rest.position.x() + aside, 0.1 * eps);
+      EXPECT_NEAR(m.position.z(), rest.position.z(), 0.1 * eps);
+    }
+  }
+}
+
 TEST(ProxySolver, FloatersAreSweptThroughAndCountedAsIsolated) {
   std::vector<GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.04f);

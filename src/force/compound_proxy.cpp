@@ -179,7 +179,10 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
     const Eigen::Vector3d target = closest_feasible_point(goal, {planes, std::size_t(np)});
     const Eigen::Vector3d u = target - p;
     const double len = u.norm();
-    if (len <= 1e-9 * largest_) break;
+    // After a contact, a slide shorter than the sweeps' tolerance (half the stand-off) is not
+    // swept: the proxy stays, within that of its goal (a resting tool's residual slide along a
+    // tilted blocker would otherwise re-search every Gaussian it rests on for a few nanometres).
+    if (len <= (np > 0 ? 0.5 * eps : 1e-9 * largest_)) break;
     int part = 0;
     const SweepHit hit = first_of_parts(p, u, {hints, n_hints}, part);
     if (!hit.hit) {

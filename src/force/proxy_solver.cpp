@@ -136,7 +136,9 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
     const Eigen::Vector3d target = closest_feasible_point(goal, {planes, std::size_t(np)});
     const Eigen::Vector3d u = target - p;
     const double len = u.norm();
-    if (len <= 1e-9 * r) break;
+    // After a contact, a slide shorter than the sweeps' tolerance (half the stand-off) is not
+    // swept: the proxy stays, within that of its goal.
+    if (len <= (np > 0 ? 0.5 * eps : 1e-9 * r)) break;
     at.center = p;
     // The proxy stops eps short of the reported contact; a near-tie within half of that is
     // not searched to the end (SweepQuery's tolerance): it still stays eps / 2 away.
