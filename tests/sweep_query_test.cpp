@@ -446,6 +446,42 @@ TEST(SweepQuery, AnElongatedPartSlidingOnABumpyLayerMeetsTheFirstContact) {
   EXPECT_GE(hits, 8) << "many slides meet a bump";
 }
 
+TEST(SweepQuery, AGaussianTheFilterKnowsToPassIsNotSearched) {
+  // A tool resting in a lone Gaussian above a layer, moved down onto the layer: the filter lets
+  // the lone one pass. Asked only after its search, it costs a search at every sweep; known
+  // beforehand (a cached answer), it is left out: the same contact, one search fewer.
+  std::vector<GaussianSpec> gs;
+  add_layer(gs, 0.0f, 0.004f, 0.04f);
+  gs.emplace_back(Eigen::Vector3f(0.0f, 0.0f, 0.012f), Eigen::Vector3f(0.002f, 0.002f, 0.002f), Eigen::Quaternionf::Identity());
+  const CollisionWorld w = world_of(gs);
+  std::uint32_t lone = 0;
+  for (std::uint32_t k = 0; k < w.size(); ++k)
+    if (w.gaussians()[k].center[2] > 0.01) lone = k;
+  struct Lone {
+    std::uint32_t slot;
+    static bool blocks(void* c, std::uint32_t k) noexcept { return k != static_cast<Lone*>(c)->slot; }
+    static bool known(void* c, std::uint32_t k) noexcept { return k == static_cast<Lone*>(c)->slot; }
+  } ctx{lone};
+  const ToolEllipsoid tool = ToolEllipsoid::sphere({0.001, 0.0, 0.013}, 0.005);  // overlaps the lone Gaussian
+  const Eigen::Vector3d motion(0, 0, -0.02);
+  SweepQuery sweep(w);
+  BlockFilter asked{&Lone::blocks, &ctx};
+  const SweepHit a = sweep.first_contact(tool, motion, {}, {}, asked);
+  const SweepCounts ca = sweep.counts();
+  BlockFilter known = asked;
+  known.known_to_pass = &Lone::known;
+  const SweepHit b = sweep.first_contact(tool, motion, {}, {}, known);
+  const SweepCounts cb = sweep.counts();
+  ASSERT_TRUE(a.hit);
+  ASSERT_TRUE(b.hit);
+  EXPECT_NE(a.slot, lone);
+  EXPECT_EQ(a.slot, b.slot);
+  EXPECT_NEAR(a.t, b.t, 1e-12);
+  EXPECT_EQ(ca.passed, 1u);
+  EXPECT_EQ(cb.passed, 0u);
+  EXPECT_EQ(cb.exact + 1, ca.exact);
+}
+
 TEST(SweepQuery, AFlatPartsCandidatesAreTheGaussiansThatReachItsPlane) {
   // A disc (20 x 20 x 2 mm) tilted 30 degrees, then 3 degrees, over a dense layer and moved
   // down: its bounding sphere and its slab along the motion hold the disc's whole footprint, but

@@ -504,6 +504,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   // cache) starts it; one part keys by the slot alone.
   const auto cache_slot = [](std::uint32_t k, std::uint32_t p) { return (k + 977u * p) % kStartCache; };
   const auto exact = [&](std::uint32_t k, std::uint32_t p) {
+    if (filter.known_to_pass != nullptr && filter.known_to_pass(filter.context, k)) return;
     Eigen::Vector3d nrm;
     ++counts_.exact;
     const std::size_t slot_h = cache_slot(k, p);

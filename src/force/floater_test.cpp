@@ -49,4 +49,9 @@ bool FloaterTest::Filter::blocks(void* context, std::uint32_t slot) noexcept {
   return !f->test_->isolated(slot, f->gap_);
 }
 
+bool FloaterTest::Filter::known_to_pass(void* context, std::uint32_t slot) noexcept {
+  const auto* f = static_cast<const Filter*>(context);
+  return f->test_->cached(slot, f->gap_) == 2;
+}
+
 }  // namespace gshaptics

@@ -39,10 +39,15 @@ struct SweepHit {
 
 /// Which Gaussians block a sweep: `blocks(context, slot)` is asked for a Gaussian the motion
 /// would touch before the best contact found so far; false lets the motion pass it (the proxy's
-/// floaters). Empty: every Gaussian blocks. Called on the sweep's thread; must not throw.
+/// floaters). `known_to_pass(context, slot)` (may be null) is asked before a Gaussian's exact
+/// search: true when the filter already knows, at no cost, that it lets the Gaussian pass (a
+/// cached answer); the search is then left out (a floater the tool rests in would otherwise be
+/// searched at every sweep). It must agree with `blocks`. Empty: every Gaussian blocks. Called on
+/// the sweep's thread; must not throw.
 struct BlockFilter {
   bool (*blocks)(void* context, std::uint32_t slot) noexcept = nullptr;
   void* context = nullptr;
+  bool (*known_to_pass)(void* context, std::uint32_t slot) noexcept = nullptr;
 };
 
 /// What the last sweep looked at.
@@ -50,7 +55,9 @@ struct SweepCounts {
   std::uint32_t candidates = 0;  ///< in BVH leaves overlapping the swept box
   std::uint32_t prefiltered = 0;  ///< bounding spheres within reach of the path
   std::uint32_t exact = 0;        ///< exact first-contact searches run
-  std::uint32_t passed = 0;       ///< Gaussians touched before the contact that the filter let pass
+  /// Gaussians searched and touched before the contact that the filter let pass (those it knew
+  /// beforehand are not searched, nor counted)
+  std::uint32_t passed = 0;
 };
 
 /// First-contact time of `tool` translating by `motion` against one Gaussian, as a fraction of

@@ -33,14 +33,16 @@ class FloaterTest {
    public:
     Filter(FloaterTest& test, double gap, int budget = kQueriesPerTick) noexcept
         : test_(&test), gap_(gap), left_(budget) {}
-    /// The BlockFilter to hand to SweepQuery (valid while this Filter lives).
-    [[nodiscard]] BlockFilter block_filter() noexcept { return {&Filter::blocks, this}; }
+    /// The BlockFilter to hand to SweepQuery (valid while this Filter lives); it knows the
+    /// cached floaters beforehand (BlockFilter::known_to_pass).
+    [[nodiscard]] BlockFilter block_filter() noexcept { return {&Filter::blocks, this, &Filter::known_to_pass}; }
 
    private:
     FloaterTest* test_;
     double gap_;
     int left_;
     static bool blocks(void* context, std::uint32_t slot) noexcept;
+    static bool known_to_pass(void* context, std::uint32_t slot) noexcept;
   };
 
  private:
