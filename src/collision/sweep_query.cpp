@@ -574,6 +574,19 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       t_lb = std::max(t_lb, (rel.dot(m_hat) - std::sqrt(h2) - q.h_tool) / len);
       const double bar = bar_of(p);
       if (q.spherical && t_lb <= bar) {
+        // Support toward the tool's centre: no point of the Gaussian is nearer it than |rel| -
+        // h(rel / |rel|), and the centre moves by at most bar |motion| (d^2 - reach d > H, H =
+        // |diag(a) R^T rel|, as the capsule's; margins outward).
+        const double d2 = rel.squaredNorm(), reach = q.r_tool * (1 + 1e-9) + std::max(0.0, bar) * len * (1 + 1e-9);
+        const double lhs = d2 - reach * std::sqrt(d2);
+        if (lhs > 0) {
+          double hr = 0;
+          for (int j = 0; j < 3; ++j) {
+            const double nr = rel[0] * R(0, j) + rel[1] * R(1, j) + rel[2] * R(2, j);
+            hr += double(g.semi_axes[j]) * g.semi_axes[j] * nr * nr;
+          }
+          if (lhs * lhs > hr * (1 + 4e-9)) return kNever;
+        }
         // Members of the family: each one's entry time is a lower bound of the exact one, far
         // tighter than the spheres and slabs for the Gaussians beside a sliding tool. First the
         // member exact along the offset's direction (geometric_lambda; lambda = 1/2, the bound
