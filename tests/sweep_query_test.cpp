@@ -234,21 +234,6 @@ TEST(SweepQuery, AHintThatHoldsTheToolBoundsTheTraversalAndIsSearchedOnlyWhereIt
   EXPECT_EQ(both.part, 0);
   EXPECT_NEAR(both.t, cold.t, 1e-12);
   EXPECT_EQ(sweep.counts().exact, hinted_exact) << "the upper part was searched against the hint";
-  // One part: a hint its bounds rule out (a disc 30 radii aside, behind the motion) is not
-  // searched either, and the resting contact, searched first, bounds every later hint.
-  std::uint32_t far = 0;
-  for (std::uint32_t k = 0; k < w.size(); ++k) {
-    const auto& c = w.gaussians()[k].center;
-    if (std::hypot(c[0] - resting.center.x() + 30 * r * 0.6, c[1] - resting.center.y() + 30 * r * 0.8) <
-        std::hypot(w.gaussians()[far].center[0] - resting.center.x() + 30 * r * 0.6,
-                   w.gaussians()[far].center[1] - resting.center.y() + 30 * r * 0.8))
-      far = k;
-  }
-  const std::uint32_t two[2] = {rest.slot, far};
-  const SweepHit with_far = sweep.first_contact(resting, press, {}, {two, 2});
-  ASSERT_TRUE(with_far.hit);
-  EXPECT_NEAR(with_far.t, cold.t, 1e-12);
-  EXPECT_EQ(sweep.counts().exact, hinted_exact) << "the hint behind the motion was searched";
 }
 
 // The first-contact time of an ellipsoidal tool against one Gaussian, computed plainly in the

@@ -680,16 +680,15 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         exact(k, p);
   };
   // The hints first (the last tick's blockers, usually the first contact again): their exact
-  // searches set the bar that prunes the rest. Each only where its bounds do not rule it out: for
-  // a compound tool, against the parts it can reach (each hint is usually one part's blocker, out
-  // of the others' reach); for any tool, once an earlier hint set the bar (a proxy wedged on
-  // three blockers searched all three at every one of its sweeps).
+  // searches set the bar that prunes the rest. For a compound tool, only against the parts the
+  // hint's bounds do not rule out (each hint is usually one part's blocker, out of the others'
+  // reach).
   for (std::uint32_t hint : hints) {
     bool ignored = false;
     for (std::uint32_t s : ignore) ignored = ignored || s == hint;
     if (!ignored && hint < world_->size())
       for (std::uint32_t p = 0; p < parts.size(); ++p)
-        if (lower_bound(hint, p) <= bar_of(p)) exact(hint, p);
+        if (!several || lower_bound(hint, p) <= bar_of(p)) exact(hint, p);
   }
   // A hint that holds the tool (a resting contact: the bar near 0) leaves only the boxes swept
   // up to it to traverse.

@@ -82,9 +82,8 @@ class SweepQuery {
 
   /// The first Gaussian `tool` touches when its centre moves by `motion` (rotation and axes
   /// fixed; world frame), leaving out the records in `ignore`. `hints` are records tested
-  /// first, each unless its bounds rule it out (the last tick's blockers: the likely answer,
-  /// which then prunes the rest, the BVH traversal included: it covers only the box swept up to
-  /// the contact they found). `filter`
+  /// first (the last tick's blockers: the likely answer, which then prunes the rest, the BVH
+  /// traversal included: it covers only the box swept up to the contact they found). `filter`
   /// decides, in the same pass, whether a Gaussian the motion reaches first blocks it (a
   /// Gaussian it lets pass does not prune the others). A zero or non-finite motion gives no hit.
   /// `limit` in (0, 1]: only contacts at t <= limit count (the earliest contact another part of
