@@ -77,6 +77,31 @@ TEST(CompoundProxy, PressedIntoAPlateNoPartEndsInsideAndTheWrenchIsRight) {
   EXPECT_NEAR(lever, 0.03 * std::cos(20 * M_PI / 180), 0.1 * 0.03);
 }
 
+TEST(CompoundProxy, ASlideUnderHalfTheStandOffIsNotSwept) {
+  // The dumbbell resting level on the plate, each sphere over a disc's centre, then the device
+  // moved aside: by 0.3 stand-offs (1e-3 of the smallest semi-axis) the slide along the contact
+  // plane is left out and the proxy holds; by 3 it slides with the device.
+  const double eps = ProxySolver::kStandOff * 0.01;
+  for (const double aside : {0.3 * eps, 3.0 * eps}) {
+    CompoundProxy proxy(plate(), dumbbell());
+    const Eigen::Vector3d v(0, 0, -0.02);
+    for (int k = 0; k <= 40; ++k)
+      (void)proxy.render({0.002, 0.0, 0.03 - 0.001 * k}, Eigen::Quaterniond::Identity(), v, Eigen::Vector3d::Zero(), 1e-3);
+    const Eigen::Vector3d rest = proxy.position();
+    ASSERT_NEAR(rest.z(), 0.0101, 0.0003);
+    ASSERT_NEAR(rest.x(), 0.002, 1e-9) << "the discs under the spheres are level";
+    (void)proxy.render({0.002 + aside, 0.0, -0.01}, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero(),
+                       Eigen::Vector3d::Zero(), 1e-3);
+    SCOPED_TRACE(aside / eps);
+    if (aside < 0.5 * eps) {
+      EXPECT_LT((proxy.position() - rest).norm(), 1e-3 * eps);
+    } else {
+      EXPECT_NEAR(proxy.position().x(), rest.x() + aside, 0.1 * eps);
+      EXPECT_NEAR(proxy.position().z(), rest.z(), 0.1 * eps);
+    }
+  }
+}
+
 TEST(CompoundProxy, ATurnThatWouldSwingAStylusThroughAThinPlateStopsAtTheContact) {
   // A 10 cm stylus upright, its tip (the TCP) 2 cm above the plate, turned 120 deg about y in
   // one tick: its far end would sweep through the plate (it crosses z = 0 at about 100 deg).
