@@ -80,6 +80,26 @@ inline double geometric_lambda(const CollisionGaussian& g, const double* dl, dou
 // lambda from s = ln(lambda / (1 - lambda)).
 inline double lambda_of(double s) noexcept { return 1.0 / (1.0 + std::exp(-s)); }
 
+// |diag(a) R^T v|^2: the squared support of the ellipsoid (rotation R, semi-axes a) along v,
+// times |v|^2 (v need not be unit).
+inline double support_sq(const Eigen::Matrix3d& R, const float* a, const Eigen::Vector3d& v) noexcept {
+  double h2 = 0;
+  for (int j = 0; j < 3; ++j) {
+    const double vr = v[0] * R(0, j) + v[1] * R(1, j) + v[2] * R(2, j);
+    h2 += double(a[j]) * a[j] * vr * vr;
+  }
+  return h2;
+}
+
+// Whether the ellipsoid (rotation R, semi-axes a) whose centre is at v from a point (or from the
+// nearest point of a line, v across it) stays beyond `reach` of it: along v's direction none of
+// it is nearer than d - h, d = |v| and h its support, so d - h > reach suffices; tested as
+// d^2 - reach d > |diag(a) R^T v| = d h (one square root, no division; margins outward).
+inline bool beyond_reach(const Eigen::Vector3d& v, double reach, const Eigen::Matrix3d& R, const float* a) noexcept {
+  const double d2 = v.squaredNorm(), lhs = d2 - reach * std::sqrt(d2);
+  return lhs > 0 && lhs * lhs > support_sq(R, a, v) * (1 + 4e-9);
+}
+
 // An elongated ellipsoid (semi-axes a >= b >= c, a > b) lies inside the capsule of radius b round
 // the segment of half-length a - b on its long axis: a point x of it has |x_perp|^2 <= b^2 (1 -
 // x_a^2 / a^2), within b of the segment. So a Gaussian, within its bounding radius of its
@@ -116,19 +136,7 @@ struct Capsule {
   // never rules out too much.)
   [[gnu::noinline]] bool clear_until(const Eigen::Vector3d& rel, const Eigen::Matrix3d& R, const float* a,
                                      double bar) const noexcept {
-    const Eigen::Vector3d across = rel - rel.dot(axis) * axis;
-    // With d = |across| and H = |diag(a) R^T across| = d h(n): clear iff d - h > reach, that is
-    // d^2 - reach d > H (one square root, no division; margins outward).
-    const double d2 = across.squaredNorm(), d = std::sqrt(d2);
-    const double reach = radius * (1 + 1e-9) + std::max(0.0, bar) * m_across_len;
-    const double lhs = d2 - reach * d;
-    if (!(lhs > 0)) return false;
-    double h2 = 0;
-    for (int j = 0; j < 3; ++j) {
-      const double nr = across[0] * R(0, j) + across[1] * R(1, j) + across[2] * R(2, j);
-      h2 += double(a[j]) * a[j] * nr * nr;
-    }
-    return lhs * lhs > h2 * (1 + 4e-9);
+    return beyond_reach(rel - rel.dot(axis) * axis, radius * (1 + 1e-9) + std::max(0.0, bar) * m_across_len, R, a);
   }
 };
 
@@ -156,13 +164,9 @@ struct FlatSlab {
   }
   // The same for a Gaussian (its rotation R and semi-axes a): its reach along n is
   // |diag(a) R^T n|.
-  [[gnu::noinline]] double entry_time(const Eigen::Vector3d& rel, const Eigen::Matrix3d& R, const float* a) const noexcept {
-    double h2 = 0;
-    for (int j = 0; j < 3; ++j) {
-      const double nr = n[0] * R(0, j) + n[1] * R(1, j) + n[2] * R(2, j);
-      h2 += double(a[j]) * a[j] * nr * nr;
-    }
-    return entry_time(rel, std::sqrt(h2) * (1 + 1e-9));  // (a rounding's margin, outward)
+  [[gnu::noinline]] double entry_time(const Eigen::Vector3d& rel, const Eigen::Matrix3d& R,
+                                      const float* a) const noexcept {
+    return entry_time(rel, std::sqrt(support_sq(R, a, n)) * (1 + 1e-9));  // (margin outward)
   }
 };
 
@@ -566,27 +570,14 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       // tight for flat Gaussians met face-on, where the sphere bound is loose.
       const Eigen::Matrix3d R = rotation_matrix(g);
       if (q.capsule && caps[p].clear_until(rel, R, g.semi_axes, bar_of(p))) return kNever;
-      double h2 = 0;
-      for (int j = 0; j < 3; ++j) {
-        const double mr = m_hat[0] * R(0, j) + m_hat[1] * R(1, j) + m_hat[2] * R(2, j);
-        h2 += double(g.semi_axes[j]) * g.semi_axes[j] * mr * mr;
-      }
-      t_lb = std::max(t_lb, (rel.dot(m_hat) - std::sqrt(h2) - q.h_tool) / len);
+      t_lb = std::max(t_lb, (rel.dot(m_hat) - std::sqrt(support_sq(R, g.semi_axes, m_hat)) - q.h_tool) / len);
       const double bar = bar_of(p);
       if (q.spherical && t_lb <= bar) {
         // Support toward the tool's centre: no point of the Gaussian is nearer it than |rel| -
-        // h(rel / |rel|), and the centre moves by at most bar |motion| (d^2 - reach d > H, H =
-        // |diag(a) R^T rel|, as the capsule's; margins outward).
-        const double d2 = rel.squaredNorm(), reach = q.r_tool * (1 + 1e-9) + std::max(0.0, bar) * len * (1 + 1e-9);
-        const double lhs = d2 - reach * std::sqrt(d2);
-        if (lhs > 0) {
-          double hr = 0;
-          for (int j = 0; j < 3; ++j) {
-            const double nr = rel[0] * R(0, j) + rel[1] * R(1, j) + rel[2] * R(2, j);
-            hr += double(g.semi_axes[j]) * g.semi_axes[j] * nr * nr;
-          }
-          if (lhs * lhs > hr * (1 + 4e-9)) return kNever;
-        }
+        // h(rel / |rel|), and the centre moves by at most bar |motion| (the capsule's test for a
+        // point axis).
+        if (beyond_reach(rel, q.r_tool * (1 + 1e-9) + std::max(0.0, bar) * len * (1 + 1e-9), R, g.semi_axes))
+          return kNever;
         // Members of the family: each one's entry time is a lower bound of the exact one, far
         // tighter than the spheres and slabs for the Gaussians beside a sliding tool. First the
         // member exact along the offset's direction (geometric_lambda; lambda = 1/2, the bound
