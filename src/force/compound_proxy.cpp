@@ -26,6 +26,8 @@ const CompoundProxyParams& validated(const CompoundProxyParams& p) {
     throw InputError("compound proxy: teleport must be > 0, isolation gap, shading kernel and reuse >= 0");
   if (!(p.mu_s >= 0 && p.mu_k >= 0 && p.mu_k <= p.mu_s) || !std::isfinite(p.mu_s))
     throw InputError("compound proxy: friction needs 0 <= mu_k <= mu_s");
+  if (!(p.shading_turn >= 0) || !std::isfinite(p.shading_turn))
+    throw InputError("compound proxy: shading_turn must be >= 0 degrees");
   return p;
 }
 
@@ -50,6 +52,7 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
   largest_ = tool_.largest_semi_axis();
   min_axis_ = largest_;
   for (const ToolPart& p : tool_.view()) min_axis_ = std::min(min_axis_, p.semi_axes.minCoeff());
+  for (ShadedNormalCache& sh : shades_) sh.set_turn_tolerance(params_.shading_turn * M_PI / 180);
 }
 
 void CompoundProxy::reset() noexcept {

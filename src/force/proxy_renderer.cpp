@@ -18,6 +18,7 @@ const ProxyParams& validated(const ProxyParams& p, double f_max) {
     throw InputError("proxy: friction needs 0 <= mu_k <= mu_s");
   if (p.substeps < 1 || p.substeps > 16) throw InputError("proxy: substeps must be in [1, 16]");
   if (!(p.isolation_gap >= 0) || !std::isfinite(p.isolation_gap)) throw InputError("proxy: isolation_gap must be >= 0");
+  if (!(p.shading_turn >= 0) || !std::isfinite(p.shading_turn)) throw InputError("proxy: shading_turn must be >= 0 degrees");
   if (!(p.shading_kernel > 0) || !(p.teleport > 0) || !(p.tau_opacity >= 0))
     throw InputError("proxy: shading_kernel and teleport must be > 0, tau_opacity >= 0");
   return p;
@@ -40,7 +41,9 @@ ProxyRenderer::ProxyRenderer(const CollisionWorld& world, const ProxyParams& par
       params_(validated(params, f_max)),
       solver_(world, solver_params(params)),
       friction_(params.mu_s, params.mu_k),
-      coupling_(params.stiffness, params.damping, f_max, params.opacity_stiffness, params.tau_opacity) {}
+      coupling_(params.stiffness, params.damping, f_max, params.opacity_stiffness, params.tau_opacity) {
+  shade_.set_turn_tolerance(params_.shading_turn * M_PI / 180);
+}
 
 void ProxyRenderer::set_tool(const CompoundTool& tool) {
   tool.validate("proxy: tool");
@@ -55,6 +58,7 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   c.pass_isolated = params_.pass_isolated;
   c.shading_kernel = params_.shading_kernel;
   c.shading_reuse = params_.shading_reuse;
+  c.shading_turn = params_.shading_turn;
   c.isolation_gap = params_.isolation_gap;
   c.teleport = params_.teleport;
   c.mu_s = params_.mu_s;

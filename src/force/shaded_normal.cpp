@@ -360,6 +360,16 @@ const Eigen::Vector3d& ShadedNormalCache::read_ahead(const CollisionWorld& world
                                                      std::size_t budget, const FreeBall& ball,
                                                      double min_width) noexcept {
   ShadingScratch::Terms& pending = *scratch.terms_;
+  // The field's turn bounds how far a reading is kept (reuse_within), but a reading that costs
+  // more than the tick's budget is kept at least as far as a reading ahead needs to be prepared:
+  // twice the proxy's motion this tick times the ticks its steps take at the budget. On a fast
+  // slide the tick's cost wins; at rest and on slow presses, where a normal held over a steep
+  // field turns into energy, the tolerance holds.
+  const double largest_reuse = reuse;
+  reuse = reuse_within(reuse);
+  if (reuse < largest_reuse && valid_ && budget > 0 && scratch.last_steps_ > budget)
+    reuse = std::min(largest_reuse, std::max(reuse, 2.0 * (at - last_at_).norm() * double(scratch.last_steps_) /
+                                                        double(budget)));
   if (pending_ && pending.phase == 0) pending_ = false;  // (the scratch served another reading meanwhile)
   path_ += valid_ ? (at - last_at_).norm() : 0.0;
   last_at_ = at;
@@ -378,11 +388,11 @@ const Eigen::Vector3d& ShadedNormalCache::read_ahead(const CollisionWorld& world
     calls_ = 0;
     path_ = 0;
     if (done == 1) {
-      normal_ = out, at_ = pending_at_, valid_ = true;
+      take(out, pending_at_);
       ++reads_;
       return normal_;
     }
-    return read(world, at, scale, kernel, reuse, scratch, ball, min_width);
+    return read(world, at, scale, kernel, largest_reuse, scratch, ball, min_width);
   }
   if (budget == 0) return normal_;
   // A reading ahead is started only where one costs more than a tick's budget, and only on a

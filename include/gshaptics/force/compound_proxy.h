@@ -81,6 +81,9 @@ struct CompoundProxyParams {
   /// A part's shaded normal is re-read once its reading point moved this many of the part's
   /// smallest semi-axes (ProxyParams::shading_reuse).
   double shading_reuse = 0.05;
+  /// ... or sooner where a part's field turns fast: by at most this many degrees at the rate
+  /// it turned between the part's last two readings (ProxyParams::shading_turn; 0: off).
+  double shading_turn = 1.0;
   bool pass_isolated = true;   ///< floaters do not block (ProxyParams::pass_isolated)
   double isolation_gap = 0.0;  ///< ProxyParams::isolation_gap, in the largest semi-axis
   double teleport = 10.0;      ///< a device jump of more than this many reaches re-places the proxy

@@ -61,6 +61,12 @@ struct ProxyParams {
   double shading_kernel = 0.5;  ///< kernel width of the shaded normal, in tool radii (or in the
                                 ///< blocking Gaussians' middle semi-axis when that is larger)
   double shading_reuse = 0.05;  ///< the shaded normal is recomputed once the proxy moved this many tool radii
+  /// ... or sooner where the field turns fast: a reading is kept only while the normal would
+  /// turn by at most this many degrees at the rate it turned between the last two readings
+  /// (down to 1/25 of shading_reuse; ShadedNormalCache::set_turn_tolerance). Round a convex
+  /// edge the field turns tens of degrees per mm, and a normal held over 5 % of the tool made
+  /// the force depend on the path (presses that gave back more energy than they took). 0: off.
+  double shading_turn = 1.0;
   /// Steps (Gaussians visited or fitted) a tick may spend preparing the next shaded normal while
   /// the proxy slides steadily, so the tick it is due does not pay for a whole reading (about
   /// 1700 steps, 70 us, for a 10 mm tool on 2 mm spacing); ShadedNormalCache::read_ahead. A

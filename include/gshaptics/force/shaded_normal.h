@@ -22,7 +22,9 @@
 /// Threading: pure functions of an immutable world; no allocation, lock, log or throw.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -118,11 +120,13 @@ class ShadingScratch {
 
 /// The last shaded normal and where it was read. The field is smooth at the kernel's scale, so
 /// a proxy re-reads it only once its reading point moved more than `reuse` m
-/// (ProxyParams::shading_reuse, in tool radii, times the radius).
+/// (ProxyParams::shading_reuse, in tool radii, times the radius), or sooner where the field
+/// turns fast, with a turn tolerance (set_turn_tolerance; ProxyParams::shading_turn).
 class ShadedNormalCache {
  public:
   /// shaded_normal(world, at, scale, kernel, scratch, ball, min_width), or a cached one while
-  /// `at` is within `reuse` m of where that was read: the last reading, or one of the
+  /// `at` is within `reuse` m (less where the field turns fast: reuse_within) of where that was
+  /// read: the last reading, or one of the
   /// kEarlierReadings before it (then it becomes the last). A compound tool's part whose probe
   /// cycles among two or three Gaussians tick by tick (a resting tool's limit cycle) moves its
   /// reading point back and forth by more than `reuse` (a long part's support point moves by
@@ -131,6 +135,7 @@ class ShadedNormalCache {
   const Eigen::Vector3d& read(const CollisionWorld& world, const Eigen::Vector3d& at, double scale, double kernel,
                               double reuse, ShadingScratch& scratch, const FreeBall& ball = {},
                               double min_width = 0) noexcept {
+    reuse = reuse_within(reuse);
     if (valid_ && (at - at_).norm() <= reuse) return normal_;
     for (std::size_t i = 0; valid_ && i < n_earlier_; ++i)
       if ((at - earlier_at_[i]).norm() <= reuse) {
@@ -146,9 +151,7 @@ class ShadedNormalCache {
       }
       earlier_at_[0] = at_, earlier_normal_[0] = normal_;
     }
-    normal_ = shaded_normal(world, at, scale, kernel, scratch, ball, min_width);
-    at_ = at;
-    valid_ = true;
+    take(shaded_normal(world, at, scale, kernel, scratch, ball, min_width), at);
     ++reads_;
     ++whole_reads_;
     return normal_;
@@ -171,7 +174,26 @@ class ShadedNormalCache {
   const Eigen::Vector3d& read_ahead(const CollisionWorld& world, const Eigen::Vector3d& at, double scale,
                                     double kernel, double reuse, ShadingScratch& scratch, std::size_t budget,
                                     const FreeBall& ball = {}, double min_width = 0) noexcept;
+  /// Bounds the normal's turn between readings (radians; 0: off, `reuse` as given). The field
+  /// is smooth on a face but turns fast round a convex edge (40 degrees per mm beside the 8 mm
+  /// fidelity cube's edge with a 10 mm tool), and a normal held over `reuse` there makes the
+  /// force depend on the path: a press read on the way in and again on the way out pushed
+  /// harder out than in (W down to -3 mJ a cycle). With a tolerance, the radius a reading is
+  /// kept over is `tolerance` / (the turn per metre between the last two readings), at most
+  /// `reuse` and at least kMinReuseShare of it.
+  void set_turn_tolerance(double radians) noexcept { turn_tolerance_ = radians > 0 ? radians : 0.0; }
+  [[nodiscard]] double turn_tolerance() const noexcept { return turn_tolerance_; }
+  /// The field's turn between the last two readings, radians per metre (negative before two:
+  /// unknown, and the first reading is kept over the smallest radius only).
+  [[nodiscard]] double turn_rate() const noexcept { return turn_rate_; }
+  /// The radius a reading is now kept over, for a largest radius `reuse` (m).
+  [[nodiscard]] double reuse_within(double reuse) const noexcept {
+    if (!(turn_tolerance_ > 0) || !(turn_rate_ * reuse > turn_tolerance_ || turn_rate_ < 0)) return reuse;
+    return turn_rate_ < 0 ? kMinReuseShare * reuse : std::max(kMinReuseShare * reuse, turn_tolerance_ / turn_rate_);
+  }
+  static constexpr double kMinReuseShare = 0.04;
   void reset() noexcept {
+    turn_rate_ = -1;
     valid_ = pending_ = ahead_blocked_ = ready_ = false;
     n_earlier_ = 0;
     calls_ = 0;
@@ -186,6 +208,18 @@ class ShadedNormalCache {
   [[nodiscard]] const Eigen::Vector3d& read_point() const noexcept { return at_; }
 
  private:
+  // A new reading `n` at `at` replaces the cached one; the turn between them is measured.
+  void take(const Eigen::Vector3d& n, const Eigen::Vector3d& at) noexcept {
+    if (valid_) {
+      const double d = (at - at_).norm();
+      const double c = n.dot(normal_);
+      if (d > 0 && n.allFinite() && !n.isZero(0) && !normal_.isZero(0))
+        turn_rate_ = std::acos(std::min(1.0, std::max(-1.0, c))) / d;
+    }
+    normal_ = n, at_ = at, valid_ = true;
+  }
+  double turn_tolerance_ = 0;   // radians; 0: off
+  double turn_rate_ = -1;       // radians per metre between the last two readings (< 0: unknown)
   std::uint64_t reads_ = 0, whole_reads_ = 0;
   Eigen::Vector3d at_ = Eigen::Vector3d::Zero(), normal_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d pending_at_ = Eigen::Vector3d::Zero();  // where the reading ahead started
