@@ -194,6 +194,7 @@ int main(int argc, char** argv) {
         };
         std::vector<TickWork> work(s.poses.size());
         proxy.reset();
+        const std::uint64_t whole_before = proxy.shading_cache().whole_reads();
         for (std::size_t i = 0; i < s.poses.size(); ++i) {
           const std::uint64_t reads = proxy.shading_reads();
           const auto t0 = bench::Clock::now();
@@ -221,7 +222,8 @@ int main(int argc, char** argv) {
         describe("top 1 %", p99, INFINITY);
         std::size_t reads = 0;
         for (const TickWork& k : work) reads += k.read;
-        fmt::print(stderr, "proxy_bench: {}: the shaded normal read on {} of {} ticks\n", name, reads, work.size());
+        fmt::print(stderr, "proxy_bench: {}: the shaded normal read on {} of {} ticks ({} of them whole)\n", name,
+                   reads, work.size(), proxy.shading_cache().whole_reads() - whole_before);
       }
       ContactQuery query(w);
       ForceModel model;
