@@ -154,7 +154,7 @@ void run_wrench_cases(const FidelityOptions& o, ShapeKind kind, double spacing, 
     const auto renderer = make_force_renderer(o.renderer, world);
     const Script s = wrench_script(c, o.wrench_depth, o.rate_hz);
     const ScriptTrace tr = play_script(*renderer, s, o.rate_hz, o.play);
-    const WrenchMetrics m = wrench_metrics(c, s, tr, proxy);
+    const WrenchMetrics m = wrench_metrics(c, s, tr, proxy, o.play.safety.tau_max);
     rep.ticks += s.ticks.size();
     ++g.runs;
     g.never_lost += m.press.never_lost ? 1 : 0;
@@ -423,11 +423,12 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
         "Tools: stylus `{}`, disc `{}`. Analytic answer (wrench_fidelity.h): the tool lifted along the press axis until "
         "it just touches the true surface; the touching parts' exact tangent points and normals; expected torque "
         "tau* = (c - x_tcp) x (abs F n). Force direction: angle between F and n (ticks with abs F >= 0.1 N). Torque: "
-        "ticks with abs F >= 0.5 N; cases whose analytic lever is under 1 mm (the stylus tip-first at 0 deg, the "
+        "ticks with abs F >= 0.5 N, its magnitude against abs tau* clipped to the safety layer's torque limit ({:g} N m: "
+        "what the hand can get); cases whose analytic lever is under 1 mm (the stylus tip-first at 0 deg, the "
         "flat disc) report the lever abs tau / abs F they got instead. Deepest part: how far the proxy's tool "
         "overlaps the true surface along the press axis at its worst tick (Gaussians stand about half their "
         "thickness proud of it, so a proxy resting on them reads slightly negative).\n\n",
-        describe(o.wrench_tools.stylus), describe(o.wrench_tools.disc));
+        describe(o.wrench_tools.stylus), describe(o.wrench_tools.disc), o.play.safety.tau_max);
     md += wrench_table(rep.wrench) + "\n";
   }
   if (!figures_prefix.empty()) {

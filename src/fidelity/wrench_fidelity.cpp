@@ -194,7 +194,8 @@ Script wrench_script(const WrenchCase& c, double depth, double rate_hz, double s
   return s;
 }
 
-WrenchMetrics wrench_metrics(const WrenchCase& c, const Script& script, const ScriptTrace& trace, bool proxy) {
+WrenchMetrics wrench_metrics(const WrenchCase& c, const Script& script, const ScriptTrace& trace, bool proxy,
+                             double tau_limit) {
   WrenchMetrics m;
   m.press = press_metrics(AnalyticShape(c.shape), script, trace);
   std::vector<double> levers;
@@ -217,7 +218,7 @@ WrenchMetrics wrench_metrics(const WrenchCase& c, const Script& script, const Sc
       m.zero_lever_mm.push_back(tau.norm() / fm * 1e3);
       continue;
     }
-    m.torque_ratio.push_back(tau.norm() / expected.norm());
+    m.torque_ratio.push_back(tau.norm() / std::min(expected.norm(), tau_limit));
     m.torque_dir_deg.push_back(tau.norm() > 0 ? angle_deg(tau, expected) : 180.0);
   }
   if (!levers.empty()) {

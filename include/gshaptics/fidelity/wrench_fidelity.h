@@ -20,6 +20,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -92,14 +93,17 @@ struct WrenchMetrics {
   PressMetrics press;                    ///< stiffness, hold-through, energy (as for the sphere presses)
   std::vector<double> force_dir_deg;     ///< per tick with |F| >= 0.1 N: angle(F, analytic normal)
   std::vector<double> torque_dir_deg;    ///< per tick with |F| >= 0.5 N and an analytic lever >= 1 mm
-  std::vector<double> torque_ratio;      ///< the same ticks: |tau| / |tau*|
+  std::vector<double> torque_ratio;      ///< the same ticks: |tau| / min(|tau*|, tau_limit)
   std::vector<double> zero_lever_mm;     ///< ticks with |F| >= 0.5 N and a lever < 1 mm: |tau| / |F|
   double analytic_lever_mm = NAN;        ///< median |tau*| / |F|
   double deepest_part_mm = NAN;          ///< max over ticks of the lift of the tool at the renderer's proxy
 };
 /// `proxy`: whether the renderer holds the tool at a proxy (trace.proxy); otherwise the deepest
-/// part is left NaN (the paper model's tool is the device's).
+/// part is left NaN (the paper model's tool is the device's). `tau_limit` (N m): the torque limit
+/// of the safety layer the trace went through (SafetyParams::tau_max): the hand can get at most
+/// that, so the magnitude is judged against the analytic torque clipped to it (a stylus across the
+/// cube's edge pressed 5 mm asks 0.7 N m of a 0.5 N m limit); +inf: the analytic torque itself.
 [[nodiscard]] WrenchMetrics wrench_metrics(const WrenchCase& c, const Script& script, const ScriptTrace& trace,
-                                           bool proxy);
+                                           bool proxy, double tau_limit = INFINITY);
 
 }  // namespace gshaptics
