@@ -128,7 +128,8 @@ WrenchMetrics play(ShapeKind shape, const std::string& name) {
     if (c.name != name) continue;
     const auto renderer = make_force_renderer(RendererSpec{}, world);
     const Script s = wrench_script(c, 0.005, 1000);
-    return wrench_metrics(c, s, play_script(*renderer, s, 1000, default_play_options()), true);
+    const PlayOptions play = default_play_options();
+    return wrench_metrics(c, s, play_script(*renderer, s, 1000, play), true, play.safety.tau_max);
   }
   ADD_FAILURE() << "no case " << name;
   return {};
