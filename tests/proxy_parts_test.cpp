@@ -27,6 +27,15 @@ using test::add_layer;
 using test::GaussianSpec;
 using test::world_of;
 
+// The ground-truth Gaussians of `shape` at `spacing` (m), without floaters.
+CollisionWorld shell_without_floaters(const AnalyticShape& shape, double spacing, std::uint64_t seed = 1) {
+  SynthParams sp;
+  sp.spacing = spacing;
+  sp.seed = seed;
+  sp.floater_share = 0;
+  return CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
+}
+
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180 / M_PI;
 }
@@ -422,11 +431,7 @@ TEST(ShadedNormal, FollowsASphereOfGaussiansWithinAFewDegrees) {
 TEST(ShadedNormal, StaysInTheNormalConeAroundAConvexEdge) {
   const AnalyticShape shape(ShapeKind::kCube);
   for (double spacing : {0.002, 0.004}) {
-    SynthParams sp;
-    sp.spacing = spacing;
-    sp.floater_share = 0;
-    const SyntheticScene s = make_synthetic_scene(shape, sp);
-    const CollisionWorld w = CollisionWorld::build(s.scene, WorldConfig{});
+    const CollisionWorld w = shell_without_floaters(shape, spacing);
     ContactQuery query(w);
     const double r = 0.005, h = 0.1;  // tool radius; the cube's half side
     double worst = 0;
@@ -576,11 +581,7 @@ TEST(ShadedNormalCache, ReadKeepsEarlierReadingsForAReadingPointThatCycles) {
 TEST(ShadedNormalCache, ATurnToleranceKeepsAReadingOnlyWhileTheFieldTurnsLessThanIt) {
   const AnalyticShape shape(ShapeKind::kCube);
   for (double spacing : {0.004, 0.008}) {
-    SynthParams sp;
-    sp.spacing = spacing;
-    sp.seed = 5;
-    sp.floater_share = 0;
-    const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
+    const CollisionWorld w = shell_without_floaters(shape, spacing, 5);
     ContactQuery query(w);
     for (double r : {0.005, 0.01}) {
       SCOPED_TRACE(testing::Message() << "spacing " << spacing << ", tool " << r);
