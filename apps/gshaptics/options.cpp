@@ -113,6 +113,11 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
   cmd.add_option("--mu-k", p.mu_k, "proxy: kinetic friction coefficient (<= --mu-s)")->capture_default_str()->check(check::non_negative());
   cmd.add_flag("--opacity-stiffness", p.opacity_stiffness, "proxy: scale k_c by the blocking Gaussians' opacity (paper eq. 9)");
   cmd.add_option("--substeps", p.substeps, "proxy: sweeps per tick")->capture_default_str()->check(CLI::Range(1, 16));
+  cmd.add_option_function<std::string>(
+         "--energy-bound", [&p](const std::string& v) { p.energy_bound = v == "on"; },
+         "proxy: the shaded normal's turns under the loaded coupling spring add no energy the contact's "
+         "earlier turns did not take out (SpringEnergyBound). Default: on")
+      ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option("--isolation-gap", p.isolation_gap,
                  "proxy: a Gaussian with no other within this many tool radii is a floater and does not block "
                  "(0: only overlapping Gaussians support each other, which lets the tool through sparse surfaces)")

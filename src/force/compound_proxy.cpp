@@ -78,6 +78,7 @@ bool CompoundProxy::blocked(const Eigen::Vector3d& position, const Eigen::Quater
 
 void CompoundProxy::release() noexcept {
   in_contact_ = false;
+  bound_.release();
   normal_.setZero();
   friction_.reset();
   last_constraints_ = 0;
@@ -325,7 +326,8 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       return out;
     }
     if (!(n.dot(e) > 0)) n = spring;
-    const double fn = std::max(0.0, params_.stiffness * e.dot(n) - params_.damping * velocity.dot(n));
+    const double depth = params_.energy_bound ? bound_.depth(e, n, params_.stiffness) : e.dot(n);
+    const double fn = std::max(0.0, params_.stiffness * depth - params_.damping * velocity.dot(n));
     out.force = coupling_force(fn, n, e, params_.stiffness, fr, params_.mu_k);  // with friction
     if (weight > 0) out.torque = (moment / weight).cross(out.force);
     in_contact_ = true;

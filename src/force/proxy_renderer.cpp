@@ -63,6 +63,7 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   c.teleport = params_.teleport;
   c.mu_s = params_.mu_s;
   c.mu_k = params_.mu_k;
+  c.energy_bound = params_.energy_bound;
   compound_ = std::make_unique<CompoundProxy>(*world_, tool, c);
   tool_ = tool;
 }
@@ -85,6 +86,7 @@ void ProxyRenderer::reset() noexcept {
   solver_.reset();
   friction_.reset();
   coupling_.release();
+  bound_.release();
   in_contact_ = sticking_ = false;
   shade_.reset();
   normal_.setZero();
@@ -113,6 +115,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   if (replace) {
     solver_.place(tool);
     friction_.reset();
+    bound_.release();
     in_contact_ = sticking_ = false;
   }
   const Eigen::Vector3d device_step = xd - last_device_;
@@ -137,6 +140,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     in_contact_ = sticking_ = false;
     friction_.reset();
     coupling_.release();
+    bound_.release();
     return out;
   }
   // 3. The contact normal: shaded (Morgenbesser & Srinivasan 1996), recomputed once the proxy
@@ -159,6 +163,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     solver_.place(tool);
     friction_.reset();
     coupling_.release();
+    bound_.release();
     in_contact_ = sticking_ = false;
     shade_.reset();
     out.proxy = xd;
@@ -172,8 +177,11 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   }
   normal_ = n;
   in_contact_ = true;
-  // 4. The virtual coupling gives the force (Colgate, Stanley & Brown 1995).
-  out.force = coupling_.force(e, n, velocity, dt, blockers, fr, params_.mu_k);
+  // 4. The virtual coupling gives the force (Colgate, Stanley & Brown 1995), on a spring whose
+  // updates never raise its energy (SpringEnergyBound: its depth along n).
+  Eigen::Vector3d spring = e;
+  if (params_.energy_bound) spring -= (e.dot(n) - bound_.depth(e, n, params_.stiffness * coupling_.opacity_factor())) * n;
+  out.force = coupling_.force(spring, n, velocity, dt, blockers, fr, params_.mu_k);
   return out;
 }
 

@@ -5,6 +5,34 @@
 
 namespace gshaptics {
 
+double SpringEnergyBound::depth(const Eigen::Vector3d& e, const Eigen::Vector3d& n, double k) noexcept {
+  const double d = e.dot(n);
+  if (valid_) {
+    // This tick's turn of the normal: the depth now against the depth along last tick's normal
+    // (the proxy's own move since, and the device's, are rendered as they are), and the
+    // rendered spring's energy V(d - withheld) either side of it.
+    const double before = e.dot(normal_);
+    const auto energy = [k](double x) { return x > 0 ? 0.5 * k * x * x : 0.0; };
+    if (d >= before) {  // a rise: paid from the bank, the rest withheld
+      const double cost = energy(d - withheld_) - energy(before - withheld_);
+      if (cost <= bank_) {
+        bank_ -= cost;
+      } else {
+        const double base = std::max(0.0, before - withheld_);
+        withheld_ = d - std::sqrt(base * base + 2 * bank_ / k);
+        bank_ = 0;
+      }
+    } else {  // a fall: pays the withheld depth back first; what is left is rendered and banked
+      const double was = energy(before - withheld_);
+      withheld_ = std::max(0.0, withheld_ + d - before);
+      bank_ += was - energy(d - withheld_);
+    }
+  }
+  normal_ = n;
+  valid_ = true;
+  return d - withheld_;
+}
+
 Eigen::Vector3d VirtualCoupling::force(const Eigen::Vector3d& e, const Eigen::Vector3d& n,
                                        const Eigen::Vector3d& velocity, double dt, std::span<const Contact> blockers,
                                        const FrictionStep& friction, double mu_k) noexcept {

@@ -31,7 +31,9 @@
 ///    -F, band: half the smallest semi-axis; a stylus lying on a wall gets the middle of its line of
 ///    contact, as a penalty model with its depth-weighted contacts would (McNeely et al. 1999)); plus, when
 ///    contact stopped a turn, the rotational coupling tau = k_r theta - b_r omega, theta the
-///    rotation taking the device's orientation to the proxy's (axis times angle, world). A turn
+///    rotation taking the device's orientation to the proxy's (axis times angle, world). The
+///    translational spring's depth is bounded so that the contact normal's turns add no energy
+///    (SpringEnergyBound; the rotational spring is not bounded). A turn
 ///    that ran out of sub-rotations this tick catches up on the next, with no torque.
 /// Without contact the proxy is the device and the wrench is zero.
 ///
@@ -61,6 +63,7 @@
 #include "gshaptics/force/shaded_normal.h"
 #include "gshaptics/force/proxy_solver.h"
 #include "gshaptics/force/edge_normal.h"
+#include "gshaptics/force/virtual_coupling.h"
 
 namespace gshaptics {
 
@@ -89,6 +92,9 @@ struct CompoundProxyParams {
   double teleport = 10.0;      ///< a device jump of more than this many reaches re-places the proxy
   /// Coulomb friction, static and kinetic (ProxyParams::mu_s, mu_k; 0 <= mu_k <= mu_s; 0: none).
   double mu_s = 0.0, mu_k = 0.0;
+  /// The contact normal's turns under the translational spring add no energy that earlier turns
+  /// did not take out (ProxyParams::energy_bound, SpringEnergyBound). false: the plain coupling.
+  bool energy_bound = true;
 };
 
 class CompoundProxy {
@@ -121,6 +127,7 @@ class CompoundProxy {
   std::array<ToolEllipsoid, kMaxToolParts> parts_{};
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
   FrictionCone friction_{0.0, 0.0};
+  SpringEnergyBound bound_;  // the contact normal's turns add no energy (energy_bound)
   bool in_contact_ = false;                             // the proxy held the device at the last tick
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();    // along this contact normal
   int last_constraints_ = 0;                            // planes holding it at the last move

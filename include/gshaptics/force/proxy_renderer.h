@@ -86,6 +86,11 @@ struct ProxyParams {
   /// probe sites). 1 holds there, but on the bundled Truck pressed 2 m under its roof it lets
   /// the proxy find its way into the cab, so it is not the default (bench/RESULTS.md).
   double isolation_gap = 0.0;
+  /// The shaded normal's turns under the loaded spring add no energy that the contact's earlier
+  /// turns did not take out (SpringEnergyBound): without it a press into a Gaussian crease gave
+  /// back up to 12 mJ more than it took (bench/RESULTS.md, twenty-sixth session). false: the
+  /// plain coupling.
+  bool energy_bound = true;
 };
 
 class ProxyRenderer final : public ForceRenderer {
@@ -124,6 +129,8 @@ class ProxyRenderer final : public ForceRenderer {
   [[nodiscard]] const ShadedNormalCache& shading_cache() const noexcept { return shade_; }
   [[nodiscard]] const Eigen::Vector3d& contact_normal() const noexcept { return normal_; }
   [[nodiscard]] bool sticking() const noexcept { return sticking_; }
+  /// The depth the energy bound withholds now, m (SpringEnergyBound::withheld; 0 without contact).
+  [[nodiscard]] double withheld_depth() const noexcept { return bound_.withheld(); }
   /// Proxy placements by the search (start inside geometry, teleports) and failed searches,
   /// of the one-ellipsoid proxy and the compound proxy together.
   [[nodiscard]] std::uint64_t placements() const noexcept {
@@ -142,6 +149,7 @@ class ProxyRenderer final : public ForceRenderer {
   ProxySolver solver_;
   FrictionCone friction_;
   VirtualCoupling coupling_;
+  SpringEnergyBound bound_;  // the shaded normal's turns add no energy (ProxyParams::energy_bound)
   Eigen::Vector3d last_device_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond last_rotation_ = Eigen::Quaterniond::Identity();

@@ -34,6 +34,54 @@ namespace gshaptics {
   return f;
 }
 
+/// The energy bound on the shaded normal's turns. The coupling's spring acts along the contact
+/// normal n, F = k d n with d = e . n (e = x_proxy - x_device): with the proxy and n fixed a
+/// conservative field, which gives the hand back what it stored. But the normal is shaded (force
+/// shading, Morgenbesser and Srinivasan 1996), and a shaded field is not the gradient of a
+/// potential: each re-reading turns n under a loaded spring and changes the depth at the device's
+/// fixed position from e . n_prev to e . n. A fall dissipates; a rise makes energy. On faces the
+/// turns are small and cancel, but in a Gaussian crease the proxy creeps along the crease under
+/// load, the field (which picks the nearer wall) turns by tens of degrees with it, and it does not
+/// turn back the same way: a 60-degree groove's press gave back up to 12 mJ (bench/RESULTS.md,
+/// twenty-sixth session). This renders the depth d - delta, delta >= 0, with an energy bank
+/// B >= 0 (J), over each tick's turn from d' = e . n_prev to d = e . n, with V(x) = k/2 max(0, x)^2:
+///   - a rise (d > d') costs V(d - delta) - V(d' - delta): paid from B while B lasts; past it,
+///     delta grows so that the rendered energy rises by B exactly (B = 0);
+///   - a fall pays delta back first (the force does not move); what is left of it lowers the
+///     rendered energy, and that goes into B.
+/// So the turns add no energy that earlier turns of the contact did not take out, and the force
+/// is continuous across a withheld rise. The proxy's own moves (e - e_prev + the device's step,
+/// along n_prev) are rendered as they are: they are the god-object following the Gaussians' bumps,
+/// and bounding them too sank a slide's force by up to 17 % (bench/RESULTS.md). Where the turns'
+/// rises outrun the bank, the force ends delta before the depth at which it began (measured in
+/// bench/RESULTS.md). delta and B start at zero with each contact. The energy-bounding idea of Kim
+/// and Ryu (2004, "Energy bounding algorithm based on passivity theorem for stable haptic
+/// interaction control", there for the zero-order hold) with the energy tank of the passivity
+/// observer (Hannaford and Ryu 2002), applied to force shading.
+/// Threading: one thread; allocation-free and noexcept.
+class SpringEnergyBound {
+ public:
+  /// The depth (m, along `normal`) to render this tick for the spring offset `offset` = x_proxy -
+  /// x_device (m), the unit contact `normal` and the spring's stiffness `k` (N/m, > 0). World
+  /// frame. offset . normal minus the withheld depth (>= 0); may be negative (no force).
+  double depth(const Eigen::Vector3d& offset, const Eigen::Vector3d& normal, double k) noexcept;
+  /// Out of contact: the next call starts a new contact (no withheld depth, an empty bank).
+  void release() noexcept {
+    valid_ = false;
+    withheld_ = 0;
+    bank_ = 0;
+  }
+  /// delta, m: the depth withheld now.
+  [[nodiscard]] double withheld() const noexcept { return withheld_; }
+  /// B, J: what the contact's turns dissipated and later ones may still spend.
+  [[nodiscard]] double bank() const noexcept { return bank_; }
+
+ private:
+  Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
+  double withheld_ = 0, bank_ = 0;
+  bool valid_ = false;
+};
+
 class VirtualCoupling {
  public:
   /// `stiffness` k, N/m (> 0); `damping` b, N s/m (>= 0), along the normal; `f_max`, N (+inf:
