@@ -180,7 +180,10 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   // 4. The virtual coupling gives the force (Colgate, Stanley & Brown 1995), on a spring whose
   // updates never raise its energy (SpringEnergyBound: its depth along n).
   Eigen::Vector3d spring = e;
-  if (params_.energy_bound) spring -= (e.dot(n) - bound_.depth(e, n, params_.stiffness * coupling_.opacity_factor())) * n;
+  if (params_.energy_bound) {
+    const double k = params_.stiffness * coupling_.opacity_factor();
+    spring -= (e.dot(n) - bound_.depth(e, n, k)) * n;
+  }
   out.force = coupling_.force(spring, n, velocity, dt, blockers, fr, params_.mu_k);
   return out;
 }
