@@ -223,6 +223,17 @@ class Simulate(unittest.TestCase):
             self.assertEqual(summary["mode"], "inline" if mode[0] == "--inline" else "decoupled, 2 ticks latency")
 
 
+    def test_energy_bound_is_an_option_of_the_proxy(self):
+        self.assertIn("--energy-bound", run("simulate", "--help").stdout)
+        for value in ("on", "off"):
+            out = tempfile.mkdtemp()
+            run("simulate", "--sites", "1", "--out", out, "--quiet", "--no-plot", "--energy-bound", value)
+            self.assertEqual(load_json(os.path.join(out, "summary.json"))["renderer"], "proxy")
+        bad = run("simulate", "--sites", "1", "--quiet", "--no-plot", "--energy-bound", "sometimes", check=False)
+        self.assertNotEqual(bad.returncode, 0)
+        self.assertIn("--energy-bound", bad.stderr)
+
+
 class DataSafety(unittest.TestCase):
     """Issue 35: a failed run leaves the previous results untouched and creates no folder; every
     check comes before the scene is loaded; a FIFO is refused, not waited on."""
