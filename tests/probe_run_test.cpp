@@ -160,6 +160,33 @@ TEST(ProbeRun, EpisodesMergeShortGapsAndRecordPeaks) {
   EXPECT_NEAR((eps[0].peak_direction - Eigen::Vector3d(0, 1, 0)).norm(), 0, 1e-12);
 }
 
+// An episode's energy W = -sum F_k . (x_k+1 - x_k) over its ticks with contacts: a constant 2 N
+// against a 1 mm press in is +2 mJ; the same force held while the tool is pushed back out is
+// -2 mJ (the scene gave it back); the note names the episodes that gave energy back.
+TEST(ProbeRun, EpisodesCarryTheEnergyTheHandPutIn) {
+  std::vector<TickRecord> ticks(600);
+  for (std::size_t k = 0; k < ticks.size(); ++k) {
+    TickRecord& r = ticks[k];
+    r.time = double(k) * 1e-3;
+    const bool first = k >= 100 && k < 200, second = k >= 400 && k < 500;
+    r.counts.contacts = first || second ? 1 : 0;
+    r.force = first || second ? Eigen::Vector3d(0, 0, 2.0) : Eigen::Vector3d::Zero();
+    // In by 10 um a tick over the first episode, out by as much over the second.
+    const double z = k < 100   ? 0.0
+                     : k < 200 ? -1e-5 * double(k - 100)
+                     : k < 400 ? -1e-3
+                     : k < 500 ? -1e-3 + 1e-5 * double(k - 400)
+                               : 0.0;
+    r.position = Eigen::Vector3d(0, 0, z);
+  }
+  const auto eps = find_episodes(ticks, 0.1);
+  ASSERT_EQ(eps.size(), 2u);
+  EXPECT_NEAR(eps[0].energy_j, 2.0 * 1e-3, 1e-12);
+  EXPECT_NEAR(eps[1].energy_j, -2.0 * 1e-3, 1e-12);
+  EXPECT_EQ(active_episodes_note({eps[0]}), "");
+  EXPECT_EQ(active_episodes_note(eps), "; 1 gave energy back, the worst W = -2.00 mJ");
+}
+
 // Every planned site is accounted for: touched (when, how hard, bounces as extra episodes) or
 // missed, with how close the tool came to the planned touch point.
 TEST(ProbeRun, SiteAccountsNameTouchedAndMissedSites) {

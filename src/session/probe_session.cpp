@@ -304,18 +304,20 @@ int run_simulate(SimulateOptions o) {
   nlohmann::json eps = nlohmann::json::array();
   // The proxy's contacts are the Gaussians holding it (at most three), not the paper's K_min set.
   const bool proxy = std::holds_alternative<ProxyModelSpec>(rp.renderer);
-  fmt::print("\n{:>3} {:>9} {:>9} {:>13} {:>11}  {}\n", "#", "start s", "end s", proxy ? "peak holding" : "peak contacts",
-             "peak force N", "direction at peak");
+  fmt::print("\n{:>3} {:>9} {:>9} {:>13} {:>11} {:>8}  {}\n", "#", "start s", "end s",
+             proxy ? "peak holding" : "peak contacts", "peak force N", "W mJ", "direction at peak");
   for (std::size_t i = 0; i < run.episodes.size(); ++i) {
     const auto& e = run.episodes[i];
-    fmt::print("{:>3} {:>9.3f} {:>9.3f} {:>13} {:>11.2f}  [{:+.2f}, {:+.2f}, {:+.2f}]\n", i + 1,
-               e.t_start, e.t_end, e.peak_contacts, e.peak_force, e.peak_direction.x(),
+    fmt::print("{:>3} {:>9.3f} {:>9.3f} {:>13} {:>11.2f} {:>8.2f}  [{:+.2f}, {:+.2f}, {:+.2f}]\n", i + 1,
+               e.t_start, e.t_end, e.peak_contacts, e.peak_force, e.energy_j * 1e3, e.peak_direction.x(),
                e.peak_direction.y(), e.peak_direction.z());
     eps.push_back({{"t_start", e.t_start}, {"t_end", e.t_end}, {"peak_contacts", e.peak_contacts},
-                   {"peak_force", e.peak_force},
+                   {"peak_force", e.peak_force}, {"energy_j", e.energy_j},
                    {"peak_direction", {e.peak_direction.x(), e.peak_direction.y(), e.peak_direction.z()}}});
   }
   sj["episodes"] = eps;
+  if (!run.episodes.empty()) fmt::print("W: the energy the hand put in (< 0: the scene gave back more){}\n",
+                                        active_episodes_note(run.episodes));
   // Every planned site accounted for: touched or not, when, how hard, bounces.
   const std::vector<SiteAccount> accounts = account_sites(traj, run.ticks, run.episodes);
   nlohmann::json sites = nlohmann::json::array();

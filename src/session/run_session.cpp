@@ -457,7 +457,7 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
   nlohmann::json eps = nlohmann::json::array();
   for (const auto& e : episodes)
     eps.push_back({{"t_start", e.t_start}, {"t_end", e.t_end}, {"peak_contacts", e.peak_contacts},
-                   {"peak_force", e.peak_force}});
+                   {"peak_force", e.peak_force}, {"energy_j", e.energy_j}});
   sj["episodes"] = eps;
   for (const auto& [k, v] : extra.items()) sj[k] = v;
   attempt([&] { write_file_atomically(summary_path, sj.dump(2) + "\n"); });
@@ -498,7 +498,7 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
                  : std::string());
   for (const DeviceCounter& c : device_counters)
     if (c.count > 0) fmt::print("device     {}: {}\n", c.name, c.count);
-  fmt::print("episodes   {} contact episodes\n", episodes.size());
+  fmt::print("episodes   {} contact episodes{}\n", episodes.size(), active_episodes_note(episodes));
   const double ran = records.empty() ? 0.0 : records.back().time;
   if (episodes.empty() && o.device == "sim" && !interrupted) {
     if (setup.first_site > 0 && ran < setup.first_site)

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "gshaptics/error.h"
@@ -49,14 +50,16 @@ std::vector<ContactEpisode> find_episodes(const std::vector<TickRecord>& ticks, 
   std::vector<ContactEpisode> episodes;
   bool open = false;
   double last_contact_t = -1e300;
-  for (const auto& r : ticks) {
+  for (std::size_t k = 0; k < ticks.size(); ++k) {
+    const TickRecord& r = ticks[k];
     if (r.counts.contacts == 0) continue;
     if (!open || r.time - last_contact_t > merge_gap_s) {
-      episodes.push_back({r.time, r.time, 0, 0, Eigen::Vector3d::Zero()});
+      episodes.push_back({r.time, r.time, 0, 0, Eigen::Vector3d::Zero(), 0});
       open = true;
     }
     ContactEpisode& e = episodes.back();
     e.t_end = r.time;
+    if (k + 1 < ticks.size()) e.energy_j -= r.force.dot(ticks[k + 1].position - r.position);
     e.peak_contacts = std::max(e.peak_contacts, r.counts.contacts);
     const double fm = r.force.norm();
     if (fm > e.peak_force) {
@@ -66,6 +69,17 @@ std::vector<ContactEpisode> find_episodes(const std::vector<TickRecord>& ticks, 
     last_contact_t = r.time;
   }
   return episodes;
+}
+
+std::string active_episodes_note(const std::vector<ContactEpisode>& episodes) {
+  int active = 0;
+  double worst = 0;
+  for (const ContactEpisode& e : episodes)
+    if (e.energy_j < 0) ++active, worst = std::min(worst, e.energy_j);
+  if (active == 0) return {};
+  char note[96];
+  std::snprintf(note, sizeof note, "; %d gave energy back, the worst W = %.2f mJ", active, worst * 1e3);
+  return note;
 }
 
 std::vector<SiteAccount> account_sites(const ProbeTrajectory& trajectory, const std::vector<TickRecord>& ticks,

@@ -30,6 +30,10 @@ struct ContactEpisode {
   std::uint32_t peak_contacts = 0;
   double peak_force = 0;  ///< N
   Eigen::Vector3d peak_direction = Eigen::Vector3d::Zero();  ///< unit force direction at the peak
+  /// W, J: the energy the hand put into the scene over the episode, -sum F_k . (x_k+1 - x_k) over
+  /// its ticks with contacts (the force sent, held over each tick, as the passivity observer
+  /// counts it, servo/passivity.h). < 0: the scene gave back more than it took.
+  double energy_j = 0;
 };
 
 /// Query-time statistics over a run.
@@ -72,9 +76,14 @@ using RunProgressFn = std::function<void(double)>;
                                        const ProbeRunParams& params,
                                        const RunProgressFn& progress = {});
 
-/// Groups ticks with contacts into episodes, bridging gaps shorter than `merge_gap_s`.
+/// Groups ticks with contacts into episodes, bridging gaps shorter than `merge_gap_s`; `ticks`
+/// in time order (each tick's displacement to the next one counts toward its episode's energy).
 [[nodiscard]] std::vector<ContactEpisode> find_episodes(const std::vector<TickRecord>& ticks,
                                                         double merge_gap_s = 0.1);
+
+/// "" when no episode gave energy back; else "; N gave energy back, the worst W = X mJ" (for
+/// the commands' printed summaries).
+[[nodiscard]] std::string active_episodes_note(const std::vector<ContactEpisode>& episodes);
 
 /// What became of one planned probe site (ProbeTrajectory::sites()) in a run. A site's window
 /// runs from halfway after the previous site's planned touch to halfway before the next one's
