@@ -178,7 +178,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   normal_ = n;
   in_contact_ = true;
   // 4. The virtual coupling gives the force (Colgate, Stanley & Brown 1995), on a spring whose
-  // updates never raise its energy (SpringEnergyBound: its depth along n).
+  // depth along n is bounded so that the shaded normal's turns add no energy (SpringEnergyBound).
   Eigen::Vector3d spring = e;
   if (params_.energy_bound) {
     const double k = params_.stiffness * coupling_.opacity_factor();
