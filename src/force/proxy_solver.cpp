@@ -126,6 +126,9 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
   const double eps = kStandOff * r;  // the proxy stops this far short of a contact
   std::uint32_t candidates = 0, sweeps = 0, exact = 0;
   int lifts = 0;
+  // Where the proxy was wedged before its first step-up: a step-up may only bring it nearer its
+  // goal by the end of the tick (WedgedState, below).
+  WedgedState wedged;
   // Floaters do not block: the sweep asks, in its one pass, whether a Gaussian it reaches first
   // is one (FloaterTest, cached per slot). At most FloaterTest::kQueriesPerTick uncached answers
   // a tick; past that a Gaussian blocks (the safe side).
@@ -167,6 +170,7 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
         exact += sweep_.counts().exact;
         ++sweeps;
         if (!lh.hit) {
+          if (lifts == 0) wedged.save(p, planes, np, n_blockers_, hit.normal, hit.slot);
           p += lift;
           np = 0;
           ++lifts;
@@ -177,6 +181,13 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
     if (n_blockers_ < blockers_.size()) blockers_[n_blockers_++] = blocker_contact(*world_, hit.slot);
     if (np == 3) break;
     planes[np++] = {hit.normal, p};
+  }
+  if (lifts > 0 && (p - goal).squaredNorm() > (wedged.p - goal).squaredNorm()) {
+    // The step-up left the proxy farther from its goal than where it was wedged: under a loaded
+    // coupling that is energy the proxy made (it moved against the force). It stays wedged.
+    p = wedged.p;
+    np = wedged.restore(planes, n_blockers_);
+    if (n_blockers_ < blockers_.size()) blockers_[n_blockers_++] = blocker_contact(*world_, wedged.hit_slot);
   }
   proxy_ = p;
   last_constraints_ = np;

@@ -44,6 +44,39 @@ struct ConstraintPlane {
 /// made by the tool's part `part`.
 [[nodiscard]] Contact blocker_contact(const CollisionWorld& world, std::uint32_t slot, std::uint8_t part = 0) noexcept;
 
+/// Where a god-object was wedged when it first stepped up out of a pocket, kept through the
+/// rest of its tick's sweeps. The step-up moves the proxy away from its goal; if the sweeps after
+/// it do not end nearer the goal than this, the proxy goes back here: under a loaded coupling a
+/// move away from the device is energy the proxy made (the 60-degree groove's crease gave back
+/// 1-5 mJ a press that way). Sweeps toward the constrained goal never move away from it, so this
+/// is the only move the rule can undo. Used by ProxySolver and CompoundProxy.
+struct WedgedState {
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();  ///< the proxy's centre, world, m
+  ConstraintPlane planes[3];
+  int np = 0;
+  std::size_t n_blockers = 0;
+  ConstraintPlane hit_plane;  ///< the contact that wedged it (not yet a plane)
+  std::uint32_t hit_slot = 0;
+  void save(const Eigen::Vector3d& at, const ConstraintPlane* pl, int n, std::size_t blockers,
+            const Eigen::Vector3d& hit_normal, std::uint32_t slot) noexcept {
+    p = at;
+    np = n;
+    for (int i = 0; i < n; ++i) planes[i] = pl[i];
+    n_blockers = blockers;
+    hit_plane = {hit_normal, at};
+    hit_slot = slot;
+  }
+  /// Restores the planes as the sweeps had them without the step-up (the wedging contact's plane
+  /// added, as they would have) and the blocker count; returns the plane count.
+  int restore(ConstraintPlane* pl, std::size_t& blockers) const noexcept {
+    int n = np;
+    for (int i = 0; i < n; ++i) pl[i] = planes[i];
+    if (n < 3) pl[n++] = hit_plane;
+    blockers = n_blockers;
+    return n;
+  }
+};
+
 /// Parameters of the solver (as the same-named fields of ProxyParams).
 struct ProxySolverParams {
   int substeps = 4;          ///< sweeps per tick, in [1, 16]
