@@ -76,6 +76,7 @@ ProxySolver::ProxySolver(const CollisionWorld& world, const ProxySolverParams& p
 
 void ProxySolver::reset() noexcept {
   valid_ = false;
+  refused_ = false;
   n_blockers_ = 0;
   support_.setZero();
   floaters_.reset();
@@ -84,6 +85,7 @@ void ProxySolver::reset() noexcept {
 void ProxySolver::place(const ToolEllipsoid& tool) noexcept {
   ++placements_;
   valid_ = true;
+  refused_ = false;
   n_blockers_ = 0;
   support_.setZero();
   proxy_ = tool.center;
@@ -158,7 +160,9 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
     // Wedged between Gaussian-scale bumps (two planes already, and blocked at once): step up
     // along the planes' mean normal by a small lift and start the planes afresh, so the proxy
     // glides over the shell's noise instead of stopping in a pocket of it.
-    if (np >= 2 && hit.t * len < 1e-3 * r && lifts < 2) {
+    // (Not where the last step-up was undone while the goal is within a lift of its goal then.)
+    if (np >= 2 && hit.t * len < 1e-3 * r && lifts < 2 &&
+        !(refused_ && (p - refused_at_).norm() <= eps && (goal - refused_goal_).norm() < params_.lift * r)) {
       Eigen::Vector3d up = Eigen::Vector3d::Zero();
       for (int i = 0; i < np; ++i) up += planes[i].normal;
       up += hit.normal;
@@ -188,6 +192,9 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
     p = wedged.p;
     np = wedged.restore(planes, n_blockers_);
     if (n_blockers_ < blockers_.size()) blockers_[n_blockers_++] = blocker_contact(*world_, wedged.hit_slot);
+    refused_ = true;
+    refused_at_ = p;
+    refused_goal_ = goal;
   }
   proxy_ = p;
   last_constraints_ = np;

@@ -155,6 +155,10 @@ class ProxySolver {
   int last_constraints_ = 0;
   std::uint64_t placements_ = 0, lost_ = 0;
   FloaterTest floaters_;
+  // The last step-up WedgedState undid: where the proxy was wedged and its goal then. It is not
+  // tried again from there until the goal has moved a lift away (each try costs a tick's sweeps).
+  bool refused_ = false;
+  Eigen::Vector3d refused_at_ = Eigen::Vector3d::Zero(), refused_goal_ = Eigen::Vector3d::Zero();
 };
 
 }  // namespace gshaptics
