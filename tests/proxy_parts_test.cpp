@@ -11,6 +11,7 @@
 
 #include "gshaptics/fidelity/interaction.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/force/compound_proxy.h"
 #include "gshaptics/force/friction_cone.h"
 #include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/force/proxy_renderer.h"
@@ -761,6 +762,41 @@ TEST(ProxySolver, AnUndoneStepUpIsNotRetriedWhileTheGoalStaysWithinALift) {
   }
   EXPECT_GT(held, 2000);
   EXPECT_EQ(costly, 0);
+}
+
+// The compound proxy's god-object follows the same rule (WedgedState): a stylus pressed tip-first
+// into the 60-degree groove's crease, tick by tick, never ends a tick farther from the device's
+// TCP than it began it (its orientation held at the device's, so only the translation moves it).
+TEST(CompoundProxy, AStepUpNeverLeavesTheStylusFartherFromTheDevice) {
+  const AnalyticShape shape(ShapeKind::kVGroove60);
+  const CompoundTool stylus = parse_tool_spec("stylus:0.06,0.005");
+  double worst = 0;
+  int wedged = 0;
+  for (std::uint64_t seed : {4, 5, 6, 9}) {
+    for (double spacing : {0.002, 0.004, 0.008}) {
+      SynthParams sp;
+      sp.spacing = spacing;
+      sp.seed = seed;
+      const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
+      for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
+        if (site.feature != "concave") continue;
+        CompoundProxy proxy(w, stylus);
+        // The tip (the TCP) leads, the stylus along the site normal.
+        const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), site.normal);
+        const Script s = press_script(shape, site, 0.005, 0.010, 1000);
+        Eigen::Vector3d last = s.ticks.front().position;
+        for (const ScriptTick& t : s.ticks) {
+          const RenderOutput out = proxy.render(t.position, q, t.velocity, Eigen::Vector3d::Zero(), 1e-3);
+          worst = std::max(worst, (out.proxy - t.position).norm() - (last - t.position).norm());
+          wedged += out.constraints >= 2;
+          last = out.proxy;
+        }
+      }
+    }
+  }
+  EXPECT_GT(wedged, 1000);  // (the stylus does rest in the crease on two planes)
+  EXPECT_LE(worst, 1e-12);
+  RecordProperty("worst_um", std::to_string(worst * 1e6));
 }
 
 TEST(ShadedNormal, TheKernelScaleFollowsTheLargestBlocker) {
