@@ -28,6 +28,14 @@ using test::add_layer;
 using test::GaussianSpec;
 using test::world_of;
 
+// The ground-truth Gaussians of `shape` at `spacing` (m), as the fidelity run draws them.
+CollisionWorld synthetic_world(const AnalyticShape& shape, double spacing, std::uint64_t seed) {
+  SynthParams sp;
+  sp.spacing = spacing;
+  sp.seed = seed;
+  return CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
+}
+
 // The ground-truth Gaussians of `shape` at `spacing` (m), without floaters.
 CollisionWorld shell_without_floaters(const AnalyticShape& shape, double spacing, std::uint64_t seed = 1) {
   SynthParams sp;
@@ -633,10 +641,7 @@ TEST(ProxyRenderer, PressesIntoCubeEdgesAndCornersGiveBackNoEnergy) {
   double worst[2] = {0, 0};
   for (std::uint64_t seed = 1; seed <= 6; ++seed)
     for (double spacing : {0.004, 0.008}) {
-      SynthParams sp;
-      sp.spacing = spacing;
-      sp.seed = seed;
-      const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
+      const CollisionWorld w = synthetic_world(shape, spacing, seed);
       for (int with = 0; with < 2; ++with) {
         ProxyParams pp;  // with: the defaults
         if (!with) {
@@ -669,10 +674,7 @@ TEST(ProxyRenderer, PressesIntoAGrooveCreaseGiveBackNoEnergyWithTheEnergyBound) 
   const AnalyticShape shape(ShapeKind::kVGroove60);
   double worst[2] = {0, 0};
   for (std::uint64_t seed = 1; seed <= 6; ++seed) {
-    SynthParams sp;
-    sp.spacing = 0.002;
-    sp.seed = seed;
-    const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
+    const CollisionWorld w = synthetic_world(shape, 0.002, seed);
     for (int with = 0; with < 2; ++with) {
       ProxyParams pp;
       pp.energy_bound = with == 1;
@@ -705,10 +707,7 @@ TEST(ProxySolver, AStepUpNeverLeavesTheProxyFartherFromItsGoal) {
   int wedged_ticks = 0;
   for (std::uint64_t seed : {4, 5, 6, 9}) {
     for (double spacing : {0.004, 0.008}) {
-      SynthParams sp;
-      sp.spacing = spacing;
-      sp.seed = seed;
-      const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
+      const CollisionWorld w = synthetic_world(shape, spacing, seed);
       for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
         if (site.feature != "concave") continue;
         for (double r : {0.005, 0.01}) {
@@ -735,12 +734,10 @@ TEST(ProxySolver, AStepUpNeverLeavesTheProxyFartherFromItsGoal) {
 // its sweeps every tick only to undo them (halo's probe run: proxy p99 17.6 -> 8.4 us).
 TEST(ProxySolver, AnUndoneStepUpIsNotRetriedWhileTheGoalStaysWithinALift) {
   const AnalyticShape shape(ShapeKind::kVGroove60);
-  SynthParams sp;
-  sp.spacing = 0.008;
-  sp.seed = 9;
-  const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
+  const std::uint64_t seed = 9;
+  const CollisionWorld w = synthetic_world(shape, 0.008, seed);
   int held = 0, costly = 0;
-  for (const ContactSite& site : shape.press_sites(20, sp.seed, 0.03)) {
+  for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
     if (site.feature != "concave") continue;
     for (double r : {0.005, 0.01}) {
       ProxySolver solver(w, ProxySolverParams{});
@@ -774,10 +771,7 @@ TEST(CompoundProxy, AStepUpNeverLeavesTheStylusFartherFromTheDevice) {
   int wedged = 0;
   for (std::uint64_t seed : {4, 5, 6, 9}) {
     for (double spacing : {0.002, 0.004, 0.008}) {
-      SynthParams sp;
-      sp.spacing = spacing;
-      sp.seed = seed;
-      const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
+      const CollisionWorld w = synthetic_world(shape, spacing, seed);
       for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
         if (site.feature != "concave") continue;
         CompoundProxy proxy(w, stylus);

@@ -167,7 +167,6 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
   const double eps = ProxySolver::kStandOff * min_axis_;  // (the one-ellipsoid proxy's stand-off, on the thinnest part)
   int lifts = 0;
   WedgedState wedged;  // where it was wedged before its first step-up (proxy_solver.h)
-  int wedged_part = 0;
   FloaterTest::Filter floaters(floaters_, params_.isolation_gap * largest_);
   BlockFilter filter;
   if (params_.pass_isolated) filter = floaters.block_filter();
@@ -204,10 +203,7 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
         const Eigen::Vector3d lift = up.normalized() * (0.05 * largest_);
         int lp = 0;
         if (!first_of_parts(p, lift, {}, lp).hit) {
-          if (lifts == 0) {
-            wedged.save(p, planes, np, n_blockers_, hit.normal, hit.slot);
-            wedged_part = part;
-          }
+          if (lifts == 0) wedged.save(p, planes, np, n_blockers_, hit.normal, hit.slot, std::uint8_t(part));
           p += lift;
           np = 0;
           ++lifts;
@@ -224,7 +220,7 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
     p = wedged.p;
     np = wedged.restore(planes, n_blockers_);
     if (n_blockers_ < blockers_.size())
-      blockers_[n_blockers_++] = blocker_contact(*world_, wedged.hit_slot, std::uint8_t(wedged_part));
+      blockers_[n_blockers_++] = blocker_contact(*world_, wedged.hit_slot, wedged.hit_part);
   }
   x_ = p;
   return np;

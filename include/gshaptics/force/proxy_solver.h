@@ -57,14 +57,16 @@ struct WedgedState {
   std::size_t n_blockers = 0;
   ConstraintPlane hit_plane;  ///< the contact that wedged it (not yet a plane)
   std::uint32_t hit_slot = 0;
+  std::uint8_t hit_part = 0;  ///< the compound tool's part that made it (0: one ellipsoid)
   void save(const Eigen::Vector3d& at, const ConstraintPlane* pl, int n, std::size_t blockers,
-            const Eigen::Vector3d& hit_normal, std::uint32_t slot) noexcept {
+            const Eigen::Vector3d& hit_normal, std::uint32_t slot, std::uint8_t part = 0) noexcept {
     p = at;
     np = n;
     for (int i = 0; i < n; ++i) planes[i] = pl[i];
     n_blockers = blockers;
     hit_plane = {hit_normal, at};
     hit_slot = slot;
+    hit_part = part;
   }
   /// Restores the planes as the sweeps had them without the step-up (the wedging contact's plane
   /// added, as they would have) and the blocker count; returns the plane count.
