@@ -144,6 +144,39 @@ TEST(ProxyRenderer, FloatersDoNotCatchTheTool) {
   }
 }
 
+// Floaters come in clumps: a pair and a triple of overlapping round Gaussians hanging 12 mm over
+// a layer do not catch a 5 mm tool pressed down through them (floater_cluster 3, the default);
+// with single floaters only (1) the pair holds it like a solid. A clump of four, and a pair
+// hanging within its own size of the layer (a bump of the surface), hold it either way.
+TEST(ProxyRenderer, FloaterClumpsDoNotCatchTheToolButSurfaceClumpsHold) {
+  std::vector<test::GaussianSpec> gs;
+  add_layer(gs, 0.0f, 0.004f, 0.05f);
+  const float a = 0.0025f;  // the clumps' radius; members 4 mm apart overlap
+  const auto ball = [&](float x, float y, float z) {
+    gs.emplace_back(Eigen::Vector3f(x, y, z), Eigen::Vector3f::Constant(a), Eigen::Quaternionf::Identity());
+  };
+  ball(-0.002f, 0, 0.012f), ball(0.002f, 0, 0.012f);                               // pair at (0, 0)
+  ball(0.018f, 0, 0.012f), ball(0.022f, 0, 0.012f), ball(0.020f, 0.0035f, 0.012f);  // triple at (0.02, 0)
+  for (float x : {-0.026f, -0.022f, -0.018f, -0.014f}) ball(x, 0, 0.012f);          // four in a row at (-0.02, 0)
+  ball(-0.002f, 0.02f, 0.0042f), ball(0.002f, 0.02f, 0.0042f);                    // pair 1.5 mm over the layer at (0, 0.02)
+  const CollisionWorld w = world_of(gs);
+  const double r = 0.005, on_layer = r + 0.0002, on_clump = 0.012 + a + r;
+  const auto press = [&](std::size_t cluster, double x, double y) {
+    ProxyParams p;
+    p.floater_cluster = cluster;
+    ProxyRenderer proxy(w, p);
+    for (double z = 0.03; z > 0.003; z -= 0.0005)
+      (void)proxy.render(ToolEllipsoid::sphere({x, y, z}, r), Eigen::Vector3d::Zero(), 1e-3);
+    return proxy.proxy_position().z();
+  };
+  EXPECT_NEAR(press(3, 0, 0), on_layer, 1e-4) << "caught on a floater pair";
+  EXPECT_NEAR(press(3, 0.02, 0), on_layer, 1e-4) << "caught on a floater triple";
+  EXPECT_GT(press(1, 0, 0), on_clump - 1e-3) << "single floaters only: the pair holds";
+  EXPECT_GT(press(3, -0.02, 0), on_clump - 1e-3) << "a clump of four holds";
+  EXPECT_GT(press(3, 0, 0.02), 0.0042 + a + r - 1e-3) << "a pair within its size of the surface holds";
+  EXPECT_THROW(ProxyRenderer(w, [] { ProxyParams p; p.floater_cluster = 0; return p; }()), InputError);
+}
+
 // A sparse surface, as small trained objects have (fruitdrops: in-plane scales about half the
 // spacing, so neighbouring 1-sigma ellipsoids leave gaps): no Gaussian overlaps another, yet
 // every one has neighbours within a tool radius. With isolation_gap 1 it holds the tool; with

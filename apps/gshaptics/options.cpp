@@ -8,6 +8,7 @@
 
 #include "gshaptics/device/device_registry.h"
 #include "gshaptics/servo/device_profile.h"
+#include "gshaptics/force/floater_test.h"
 
 namespace gshaptics::cli {
 
@@ -122,6 +123,10 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
                  "proxy: a Gaussian with no other within this many tool radii is a floater and does not block "
                  "(0: only overlapping Gaussians support each other, which lets the tool through sparse surfaces)")
       ->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--floater-cluster", p.floater_cluster,
+                 "proxy: a clump of at most this many overlapping Gaussians with nothing else within their own "
+                 "size is a floater too (1: single Gaussians only)")
+      ->capture_default_str()->check(CLI::Range(std::size_t(1), FloaterTest::kLargestCluster));
   cmd.add_option("--device-profile", o.profile,
                  "Device class: desktop (Touch class: --f-max 3.3, --stiffness 1000, 160x120x70 mm "
                  "workspace) or room (--f-max 30, --stiffness 1000); explicit options win")

@@ -205,6 +205,40 @@ bool ContactQuery::any_contact(const ToolEllipsoid& tool, std::uint32_t exclude_
   return found;
 }
 
+std::size_t ContactQuery::first_overlaps(const ToolEllipsoid& tool, std::span<std::uint32_t> slots) noexcept {
+  if (!tool.valid() || slots.empty()) return 0;
+  const ToolBox box(tool);
+  const double r_tool = tool.bounding_radius();
+  const double c_tool[3] = {tool.center.x(), tool.center.y(), tool.center.z()};
+  const CollisionGaussian* gs = world_->gaussians().data();
+  const BatchTool batch_tool = make_batch_tool(box.rotation, tool.semi_axes);
+  PairBatch& batch = batch_;
+  std::uint32_t* slot = slot_;
+  constexpr int kEarly = 2 * kBatchLanes;  // (as any_contact: small batches, an early answer)
+  int n = 0;
+  std::size_t found = 0;
+  const auto flush = [&] {
+    batch.count = n;
+    gather_lanes(batch, gs, slot);
+    k_min_batch(batch, batch_tool, /*stop_when_separated=*/true);
+    for (int l = 0; l < n && found < slots.size(); ++l)
+      if (!batch.separated[l] && batch.k_min[l] > 0) slots[found++] = slot[l];
+    n = 0;
+  };
+  world_->bvh().for_each_overlapping_leaf(box.lo, box.hi, [&](std::uint32_t first, std::uint32_t count) {
+    while (count > 0 && found < slots.size()) {
+      const std::uint32_t take = count < std::uint32_t(kEarly) ? count : std::uint32_t(kEarly);
+      n = prefilter(gs, first, take, c_tool, r_tool, UINT32_MAX, batch, slot, n);
+      if (n >= kEarly - int(take)) flush();
+      first += take;
+      count -= take;
+    }
+    return found < slots.size();
+  });
+  if (found < slots.size() && n > 0) flush();
+  return found;
+}
+
 QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
   result_.clear();
   if (!tool.valid()) return QueryStatus::kInvalidTool;

@@ -38,7 +38,7 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
     : world_(&world),
       tool_(tool),
       params_(validated(params)),
-      floaters_(world),
+      floaters_(world, params.floater_cluster),
       sweep_(world),
       free_query_(world, [] {
         QueryOptions q;

@@ -18,6 +18,8 @@ const ProxyParams& validated(const ProxyParams& p, double f_max) {
     throw InputError("proxy: friction needs 0 <= mu_k <= mu_s");
   if (p.substeps < 1 || p.substeps > 16) throw InputError("proxy: substeps must be in [1, 16]");
   if (!(p.isolation_gap >= 0) || !std::isfinite(p.isolation_gap)) throw InputError("proxy: isolation_gap must be >= 0");
+  if (p.floater_cluster < 1 || p.floater_cluster > FloaterTest::kLargestCluster)
+    throw InputError("proxy: floater_cluster must be in [1, " + std::to_string(FloaterTest::kLargestCluster) + "]");
   if (!(p.shading_turn >= 0) || !std::isfinite(p.shading_turn)) throw InputError("proxy: shading_turn must be >= 0 degrees");
   if (!(p.shading_kernel > 0) || !(p.teleport > 0) || !(p.tau_opacity >= 0))
     throw InputError("proxy: shading_kernel and teleport must be > 0, tau_opacity >= 0");
@@ -30,6 +32,7 @@ ProxySolverParams solver_params(const ProxyParams& p) {
   s.lift = p.lift;
   s.pass_isolated = p.pass_isolated;
   s.isolation_gap = p.isolation_gap;
+  s.floater_cluster = p.floater_cluster;
   s.shading_kernel = p.shading_kernel;
   return s;
 }
@@ -60,6 +63,7 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   c.shading_reuse = params_.shading_reuse;
   c.shading_turn = params_.shading_turn;
   c.isolation_gap = params_.isolation_gap;
+  c.floater_cluster = params_.floater_cluster;
   c.teleport = params_.teleport;
   c.mu_s = params_.mu_s;
   c.mu_k = params_.mu_k;

@@ -72,7 +72,7 @@ ProxySolver::ProxySolver(const CollisionWorld& world, const ProxySolverParams& p
         q.max_contacts = 1;  // any_contact() keeps no contact set
         return q;
       }()),
-      floaters_(world) {}
+      floaters_(world, params.floater_cluster) {}
 
 void ProxySolver::reset() noexcept {
   valid_ = false;

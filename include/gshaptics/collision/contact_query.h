@@ -165,6 +165,12 @@ class ContactQuery {
   /// `exclude_slot`: a world record to leave out (a Gaussian tested against the others).
   [[nodiscard]] bool any_contact(const ToolEllipsoid& tool, std::uint32_t exclude_slot = UINT32_MAX) noexcept;
 
+  /// Early exit after `slots.size()` contacts: writes the world records (slots) of Gaussians
+  /// that overlap `tool` (K_min > 0) into `slots`, in BVH order, and stops once it is full;
+  /// returns how many it wrote (so slots.size() means "at least that many"). 0 for an invalid
+  /// tool. Leaves result() untouched. Allocation-free.
+  [[nodiscard]] std::size_t first_overlaps(const ToolEllipsoid& tool, std::span<std::uint32_t> slots) noexcept;
+
   [[nodiscard]] const ContactSet& result() const noexcept { return result_; }
   [[nodiscard]] const CandidateCacheStats& cache_stats() const noexcept { return cache_stats_; }
   /// Splits the narrow phase of queries with at least `min_candidates` candidates into

@@ -89,6 +89,7 @@ struct CompoundProxyParams {
   double shading_turn = 1.0;
   bool pass_isolated = true;   ///< floaters do not block (ProxyParams::pass_isolated)
   double isolation_gap = 0.0;  ///< ProxyParams::isolation_gap, in the largest semi-axis
+  std::size_t floater_cluster = FloaterTest::kMaxCluster;  ///< ProxyParams::floater_cluster
   double teleport = 10.0;      ///< a device jump of more than this many reaches re-places the proxy
   /// Coulomb friction, static and kinetic (ProxyParams::mu_s, mu_k; 0 <= mu_k <= mu_s; 0: none).
   double mu_s = 0.0, mu_k = 0.0;

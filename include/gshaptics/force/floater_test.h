@@ -17,11 +17,23 @@ namespace gshaptics {
 
 class FloaterTest {
  public:
-  explicit FloaterTest(const CollisionWorld& world);
+  /// `max_cluster`: the largest clump the rule passes (1: single Gaussians only; at most
+  /// kLargestCluster).
+  explicit FloaterTest(const CollisionWorld& world, std::size_t max_cluster = kMaxCluster);
   /// Whether the Gaussian in `slot` is a floater: no other kept Gaussian overlaps its ellipsoid
-  /// grown on every semi-axis by `gap` (m) or its middle semi-axis, whichever is smaller.
-  /// Cached per slot (the last kCacheSize answers) while `gap` stays the same.
+  /// grown on every semi-axis by `gap` (m) or its middle semi-axis, whichever is smaller; or it
+  /// belongs to a small clump in free space: its overlap cluster (the Gaussians so grown that
+  /// overlap it, theirs, and so on) has at most `max_cluster` members, and no Gaussian outside the
+  /// cluster overlaps a member grown by its own largest semi-axis. (3DGS floaters come in
+  /// small clumps; a clump of a surface's discs has neighbours about one disc size away.)
+  /// Cached per slot (the last kCacheSize answers) while `gap` stays the same; a clump's
+  /// members are cached together. At most 2 max_cluster + 1 early-exit queries, on small
+  /// ellipsoids; a Gaussian of a dense surface costs two.
   bool isolated(std::uint32_t slot, double gap) noexcept;
+  /// The largest overlap cluster the floater rule passes by default (ProxyParams::floater_cluster).
+  static constexpr std::size_t kMaxCluster = 3;
+  /// The largest one it can be asked to pass.
+  static constexpr std::size_t kLargestCluster = 4;
   /// Forgets the cached answers.
   void reset() noexcept { state_.fill(0); }
   /// Uncached isolation tests one tick may run through a Filter; past them a Gaussian blocks.
@@ -48,13 +60,18 @@ class FloaterTest {
  private:
   static constexpr std::size_t kCacheSize = 64;
   const CollisionWorld* world_;
-  ContactQuery query_;
+  ContactQuery query_;  // early-exit queries only
   std::array<std::uint32_t, kCacheSize> slot_{};
   std::array<std::uint8_t, kCacheSize> state_{};  // 0: empty, 1: supported, 2: isolated
   std::size_t next_ = 0;
+  std::size_t max_cluster_;
   double gap_ = -1;  // the gap the cache was filled with
   // 0: not cached, 1: supported, 2: isolated.
   int cached(std::uint32_t slot, double gap) noexcept;
+  void remember(std::uint32_t slot, bool alone) noexcept;
+  // The cluster of members[0] (n = 1 on entry) is a small clump in free space; `members` and
+  // `n` end as the cluster found so far.
+  bool isolated_cluster(double gap, std::array<std::uint32_t, kLargestCluster>& members, std::size_t& n) noexcept;
 };
 
 }  // namespace gshaptics

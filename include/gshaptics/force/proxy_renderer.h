@@ -86,6 +86,12 @@ struct ProxyParams {
   /// probe sites). 1 holds there, but on the bundled Truck pressed 2 m under its roof it lets
   /// the proxy find its way into the cab, so it is not the default (bench/RESULTS.md).
   double isolation_gap = 0.0;
+  /// Floaters come in small clumps too: a clump of at most this many Gaussians overlapping one
+  /// another, with no other Gaussian within its members' own largest semi-axis, does not block
+  /// either (FloaterTest::isolated). Without it a pair of overlapping floaters 12 mm above the
+  /// fidelity plane held a 5 mm tool like a solid blob (direction p95 94 degrees). 1: single
+  /// Gaussians only; at most FloaterTest::kLargestCluster.
+  std::size_t floater_cluster = FloaterTest::kMaxCluster;
   /// The shaded normal's turns under the loaded spring add no energy that the contact's earlier
   /// turns did not take out (SpringEnergyBound): without it a press into a Gaussian crease gave
   /// back up to 12 mJ more than it took (bench/RESULTS.md, twenty-sixth session). false: the

@@ -87,6 +87,7 @@ struct ProxySolverParams {
   /// middle semi-axis) does not block.
   bool pass_isolated = true;
   double isolation_gap = 0.0;  ///< tool radii (see ProxyParams::isolation_gap)
+  std::size_t floater_cluster = FloaterTest::kMaxCluster;  ///< ProxyParams::floater_cluster
   double shading_kernel = 0.5;  ///< kernel of the shaded normal that place() tries first, in tool radii
 };
 
