@@ -401,6 +401,37 @@ TEST(ContactQuery, LeavesLargerThanABatchAndAnyContactAgree) {
   EXPECT_FALSE(qb.any_contact(clear));
 }
 
+// first_overlaps() lists the Gaussians run() reports, in the same (BVH) order, and stops once
+// its span is full: with room for all it lists exactly run()'s slots; with room for k it lists
+// the first k of them.
+TEST(ContactQuery, FirstOverlapsListsRunsContactsUntilFull) {
+  const LoadedScene s = load_scene(test::data_path("truck.splat"));
+  WorldConfig config;
+  config.registration = load_registration_file(test::data_path("truck.registration.json"));
+  const CollisionWorld w = CollisionWorld::build(s.scene, config);
+  ContactQuery q(w), listing(w);
+  std::vector<std::uint32_t> slots(4096);
+  std::size_t checked = 0;
+  for (const ToolEllipsoid& t :
+       sample_poses(w, {.count = 80, .seed = 23, .radius_min = 0.005, .radius_max = 0.03, .anisotropic = true})) {
+    q.run(t);
+    const std::span<const Contact> all = q.result().contacts();
+    ASSERT_LT(all.size(), slots.size());
+    const std::size_t n = listing.first_overlaps(t, slots);
+    ASSERT_EQ(n, all.size());
+    for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(slots[i], all[i].slot) << i;
+    for (const std::size_t room : {std::size_t(1), std::size_t(3)}) {
+      const std::size_t k = listing.first_overlaps(t, {slots.data(), room});
+      ASSERT_EQ(k, std::min(room, all.size()));
+      for (std::size_t i = 0; i < k; ++i) ASSERT_EQ(slots[i], all[i].slot) << i;
+    }
+    checked += all.size() > 3;
+  }
+  EXPECT_GT(checked, 20u);
+  const ToolEllipsoid clear = ToolEllipsoid::sphere(w.bounds_hi() + Eigen::Vector3d::Constant(1.0), 0.05);
+  EXPECT_EQ(listing.first_overlaps(clear, slots), 0u);
+}
+
 }  // namespace
 }  // namespace gshaptics
 
