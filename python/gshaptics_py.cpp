@@ -434,13 +434,16 @@ PYBIND11_MODULE(gshaptics, m) {
       "The proxy (god-object) force model on the Gaussians: the proxy never passes a Gaussian "
       "(continuous first contact), the device is coupled to it by k_c (N/m) and b_c (N s/m); "
       "optional Coulomb friction (mu_s, mu_k); a Gaussian with no other within isolation_gap tool "
-      "radii is a floater and does not block; energy_bound: the shaded normal's turns add no energy the "
+      "radii is a floater and does not block, and so is a clump of at most floater_cluster (1-4) overlapping "
+      "Gaussians with nothing else within their own size; energy_bound: the shaded normal's turns add no energy the "
       "contact's earlier turns did not take out (SpringEnergyBound); f_max clamps its output (default: none, as "
       "in a runtime the safety layer limits the force). One per device; not thread-safe.")
       .def(py::init([](const PyWorld& w, double stiffness, double damping, double mu_s, double mu_k,
-                       double f_max, bool opacity_stiffness, double isolation_gap, bool energy_bound) {
+                       double f_max, bool opacity_stiffness, double isolation_gap, bool energy_bound,
+                       std::size_t floater_cluster) {
              ProxyParams p;
              p.isolation_gap = isolation_gap;
+             p.floater_cluster = floater_cluster;
              p.energy_bound = energy_bound;
              p.stiffness = stiffness;
              p.damping = damping;
@@ -452,7 +455,8 @@ PYBIND11_MODULE(gshaptics, m) {
            py::arg("world"), py::arg("stiffness") = ProxyParams{}.stiffness,
            py::arg("damping") = ProxyParams{}.damping, py::arg("mu_s") = 0.0, py::arg("mu_k") = 0.0,
            py::arg("f_max") = ForceParams{}.f_max, py::arg("opacity_stiffness") = false,
-           py::arg("isolation_gap") = ProxyParams{}.isolation_gap, py::arg("energy_bound") = ProxyParams{}.energy_bound)
+           py::arg("isolation_gap") = ProxyParams{}.isolation_gap, py::arg("energy_bound") = ProxyParams{}.energy_bound,
+           py::arg("floater_cluster") = ProxyParams{}.floater_cluster)
       .def("render", [](PyProxy& p, const py::object& center, const py::object& axes, const py::object& velocity,
                         double dt) {
              if (!(dt > 0)) throw py::value_error("dt: must be > 0 seconds");

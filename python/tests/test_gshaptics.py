@@ -198,6 +198,14 @@ def test_proxy_holds_the_bundled_truck_roof(data_dir):
     np.testing.assert_allclose(np.linalg.norm(f), 30.0)  # clamped at f_max
     with pytest.raises(ValueError):
         gshaptics.ProxyRenderer(world, stiffness=-1.0)
+    # Single floaters only: the roof holds the same way; a clump size past the rule's range is refused.
+    single = gshaptics.ProxyRenderer(world, stiffness=800.0, f_max=30.0, floater_cluster=1)
+    for k in range(3000):
+        f1 = single.render((0.0, 0.0, 2.0 - 0.001 * k), (r, r, r), (0.0, 0.0, -1.0), 1e-3)
+    assert single.proxy[2] > z_touch - 0.15 and f1[2] > 0
+    for bad in (0, 5):
+        with pytest.raises(ValueError):
+            gshaptics.ProxyRenderer(world, floater_cluster=bad)
 
 
 def test_run_probe_with_either_force_model(data_dir):
