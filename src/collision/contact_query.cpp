@@ -172,40 +172,16 @@ struct ToolBox {
 }  // namespace
 
 bool ContactQuery::any_contact(const ToolEllipsoid& tool, std::uint32_t exclude_slot) noexcept {
-  if (!tool.valid()) return false;
-  const ToolBox box(tool);
-  const double r_tool = tool.bounding_radius();
-  const double c_tool[3] = {tool.center.x(), tool.center.y(), tool.center.z()};
-  const CollisionGaussian* gs = world_->gaussians().data();
-  const BatchTool batch_tool = make_batch_tool(box.rotation, tool.semi_axes);
-  PairBatch& batch = batch_;
-  std::uint32_t* slot = slot_;
-  // Small batches: the answer is wanted at the first contact, not after a full batch.
-  constexpr int kEarly = 2 * kBatchLanes;
-  int n = 0;
-  bool found = false;
-  const auto flush = [&] {
-    batch.count = n;
-    gather_lanes(batch, gs, slot);
-    k_min_batch(batch, batch_tool, /*stop_when_separated=*/true);
-    for (int l = 0; l < n; ++l) found = found || (!batch.separated[l] && batch.k_min[l] > 0);
-    n = 0;
-  };
-  world_->bvh().for_each_overlapping_leaf(box.lo, box.hi, [&](std::uint32_t first, std::uint32_t count) {
-    while (count > 0 && !found) {
-      const std::uint32_t take = count < std::uint32_t(kEarly) ? count : std::uint32_t(kEarly);
-      n = prefilter(gs, first, take, c_tool, r_tool, exclude_slot, batch, slot, n);
-      if (n >= kEarly - int(take)) flush();  // the next piece may not fit: test now
-      first += take;
-      count -= take;
-    }
-    return !found;
-  });
-  if (!found && n > 0) flush();
-  return found;
+  std::uint32_t first = 0;
+  return early_overlaps(tool, exclude_slot, {&first, 1}) > 0;
 }
 
 std::size_t ContactQuery::first_overlaps(const ToolEllipsoid& tool, std::span<std::uint32_t> slots) noexcept {
+  return early_overlaps(tool, UINT32_MAX, slots);
+}
+
+std::size_t ContactQuery::early_overlaps(const ToolEllipsoid& tool, std::uint32_t exclude_slot,
+                                         std::span<std::uint32_t> slots) noexcept {
   if (!tool.valid() || slots.empty()) return 0;
   const ToolBox box(tool);
   const double r_tool = tool.bounding_radius();
@@ -214,7 +190,8 @@ std::size_t ContactQuery::first_overlaps(const ToolEllipsoid& tool, std::span<st
   const BatchTool batch_tool = make_batch_tool(box.rotation, tool.semi_axes);
   PairBatch& batch = batch_;
   std::uint32_t* slot = slot_;
-  constexpr int kEarly = 2 * kBatchLanes;  // (as any_contact: small batches, an early answer)
+  // Small batches: the answer is wanted at the first contacts, not after a full batch.
+  constexpr int kEarly = 2 * kBatchLanes;
   int n = 0;
   std::size_t found = 0;
   const auto flush = [&] {
@@ -228,8 +205,8 @@ std::size_t ContactQuery::first_overlaps(const ToolEllipsoid& tool, std::span<st
   world_->bvh().for_each_overlapping_leaf(box.lo, box.hi, [&](std::uint32_t first, std::uint32_t count) {
     while (count > 0 && found < slots.size()) {
       const std::uint32_t take = count < std::uint32_t(kEarly) ? count : std::uint32_t(kEarly);
-      n = prefilter(gs, first, take, c_tool, r_tool, UINT32_MAX, batch, slot, n);
-      if (n >= kEarly - int(take)) flush();
+      n = prefilter(gs, first, take, c_tool, r_tool, exclude_slot, batch, slot, n);
+      if (n >= kEarly - int(take)) flush();  // the next piece may not fit: test now
       first += take;
       count -= take;
     }

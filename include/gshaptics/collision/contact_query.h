@@ -226,6 +226,9 @@ class ContactQuery {
   std::size_t min_parallel_candidates_ = 2048;
   std::vector<std::unique_ptr<Part>> parts_;
   std::uint64_t parallel_queries_ = 0;
+  // any_contact() and first_overlaps(): the overlapping records, BVH order, until `slots` is full.
+  std::size_t early_overlaps(const ToolEllipsoid& tool, std::uint32_t exclude_slot,
+                             std::span<std::uint32_t> slots) noexcept;
   void run_parts(std::size_t n_leaves, const ToolEllipsoid& tool, const BatchTool& batch_tool) noexcept;
   void run_part(Part& part, const ToolEllipsoid& tool, const BatchTool& batch_tool) noexcept;
   friend void contact_query_part(void* ctx, int part);
