@@ -176,8 +176,9 @@ bool ContactQuery::any_contact(const ToolEllipsoid& tool, std::uint32_t exclude_
   return early_overlaps(tool, exclude_slot, {&first, 1}) > 0;
 }
 
-std::size_t ContactQuery::first_overlaps(const ToolEllipsoid& tool, std::span<std::uint32_t> slots) noexcept {
-  return early_overlaps(tool, UINT32_MAX, slots);
+std::size_t ContactQuery::first_overlaps(const ToolEllipsoid& tool, std::span<std::uint32_t> slots,
+                                         std::uint32_t exclude_slot) noexcept {
+  return early_overlaps(tool, exclude_slot, slots);
 }
 
 std::size_t ContactQuery::early_overlaps(const ToolEllipsoid& tool, std::uint32_t exclude_slot,

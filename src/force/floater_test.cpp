@@ -45,8 +45,8 @@ bool FloaterTest::isolated(std::uint32_t slot, double gap) noexcept {
   const std::span<const CollisionGaussian> gs = world_->gaussians();
   std::array<std::uint32_t, kLargestCluster> members{slot};
   std::size_t n = 1;
-  bool alone = !query_.any_contact(grown(gs[slot], own_gap(gs[slot], gap)), slot);
-  if (!alone && max_cluster_ > 1) alone = isolated_cluster(gap, members, n);
+  const bool alone = max_cluster_ > 1 ? isolated_cluster(gap, members, n)
+                                     : !query_.any_contact(grown(gs[slot], own_gap(gs[slot], gap)), slot);
   for (std::size_t i = 0; i < (alone ? n : 1); ++i) remember(members[i], alone);
   return alone;
 }
@@ -55,14 +55,16 @@ bool FloaterTest::isolated_cluster(double gap, std::array<std::uint32_t, kLarges
                                    std::size_t& n) noexcept {
   const std::span<const CollisionGaussian> gs = world_->gaussians();
   const auto member = [&](std::uint32_t s) { return std::find(members.begin(), members.begin() + n, s) != members.begin() + n; };
-  // Early-exit listings: a member and at most max_cluster_ others, or the cluster and one more.
-  std::array<std::uint32_t, kLargestCluster + 1> listed;
+  // Early-exit listings of the Gaussians other than a member: at most as many as a cluster holds.
+  std::array<std::uint32_t, kLargestCluster> listed;
   // The overlap cluster, breadth first (each Gaussian grown by its gap, as above): a Gaussian
-  // that overlaps more than a cluster holds, or more than max_cluster_ members, is a surface.
+  // that overlaps as many others as a cluster holds, or more than max_cluster_ members, is a
+  // surface. The first listing is the single-floater test itself: none overlaps it.
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t k = query_.first_overlaps(grown(gs[members[i]], own_gap(gs[members[i]], gap)),
-                                                {listed.data(), max_cluster_ + 1});
-    if (k > max_cluster_) return false;
+                                                {listed.data(), max_cluster_}, members[i]);
+    if (i == 0 && k == 0) return true;
+    if (k == max_cluster_) return false;
     for (std::size_t j = 0; j < k; ++j) {
       if (member(listed[j])) continue;
       if (n == max_cluster_) return false;
@@ -74,7 +76,7 @@ bool FloaterTest::isolated_cluster(double gap, std::array<std::uint32_t, kLarges
   // neighbours lie about one disc size away).
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t k = query_.first_overlaps(grown(gs[members[i]], gs[members[i]].bounding_radius()),
-                                                {listed.data(), n + 1});
+                                                {listed.data(), n}, members[i]);
     for (std::size_t j = 0; j < k; ++j)
       if (!member(listed[j])) return false;
   }

@@ -168,8 +168,9 @@ class ContactQuery {
   /// Early exit after `slots.size()` contacts: writes the world records (slots) of Gaussians
   /// that overlap `tool` (K_min > 0) into `slots`, in BVH order, and stops once it is full;
   /// returns how many it wrote (so slots.size() means "at least that many"). 0 for an invalid
-  /// tool. Leaves result() untouched. Allocation-free.
-  [[nodiscard]] std::size_t first_overlaps(const ToolEllipsoid& tool, std::span<std::uint32_t> slots) noexcept;
+  /// tool. Leaves result() untouched. Allocation-free. `exclude_slot`: as any_contact().
+  [[nodiscard]] std::size_t first_overlaps(const ToolEllipsoid& tool, std::span<std::uint32_t> slots,
+                                           std::uint32_t exclude_slot = UINT32_MAX) noexcept;
 
   [[nodiscard]] const ContactSet& result() const noexcept { return result_; }
   [[nodiscard]] const CandidateCacheStats& cache_stats() const noexcept { return cache_stats_; }

@@ -27,8 +27,8 @@ class FloaterTest {
   /// cluster overlaps a member grown by its own largest semi-axis. (3DGS floaters come in
   /// small clumps; a clump of a surface's discs has neighbours about one disc size away.)
   /// Cached per slot (the last kCacheSize answers) while `gap` stays the same; a clump's
-  /// members are cached together. At most 2 max_cluster + 1 early-exit queries, on small
-  /// ellipsoids; a Gaussian of a dense surface costs two.
+  /// members are cached together. At most 2 max_cluster early-exit queries, on small
+  /// ellipsoids; a Gaussian of a dense surface costs one.
   bool isolated(std::uint32_t slot, double gap) noexcept;
   /// The largest overlap cluster the floater rule passes by default (ProxyParams::floater_cluster).
   static constexpr std::size_t kMaxCluster = 3;
