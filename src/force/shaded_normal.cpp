@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "gshaptics/broadphase/bvh.h"
+#include "gshaptics/narrowphase/k_min_batch.h"
 
 namespace gshaptics {
 
@@ -28,47 +29,47 @@ constexpr double kRimFalloff = 0.5;
 struct Term {
   Eigen::Vector3d axis = Eigen::Vector3d::Zero();  // shortest axis turned toward c
   Eigen::Vector3d rim = Eigen::Vector3d::Zero();   // unit direction from the nearest rim point to c (when beyond_rim)
-  Eigen::Vector3d rad = Eigen::Vector3d::Zero();   // R A^-1 d, the density gradient's direction before dividing by an
+  Eigen::Vector3d rad = Eigen::Vector3d::Zero();   // R A^-1 d / |A^-1 d|: the density gradient's direction
   Eigen::Vector3d at = Eigen::Vector3d::Zero();    // the Gaussian's centre relative to c (-d)
-  double an = 0;         // |A^-1 d|
   double weight = 0;     // alpha exp(-q / 2)
   double flat = 0;       // 1 - a_min / a_mid
   double past = 0;       // distance past the rim, in kRimFalloff kernel widths
   bool beyond_rim = false;  // a disc (flat > 0) and c beyond its rim
 };
 
-// Term of g at c for a kernel width s (s2 = s^2) and a rim falloff scale `rim`; false when g
-// does not contribute (q > 40, or a floater beside the tool, see FreeBall).
-inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double s2, double rim, const FreeBall& ball,
-                    Term& out) noexcept {
+// Term of g at c for a kernel width s (s2 = s^2), the support's q_cut (q_cutoff) and a rim
+// falloff scale `rim`; false when g does not contribute (q > q_cut, or a floater beside the
+// tool, see FreeBall).
+inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double s2, double q_cut, double rim,
+                    const FreeBall& ball, Term& out) noexcept {
   const Eigen::Vector3d d = c - Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+  const double d2 = d.squaredNorm();
+  const double a0 = g.semi_axes[0], a1 = g.semi_axes[1], a2 = g.semi_axes[2];
   if (ball.radius > 0 && d.dot(ball.up) < 0.5 * ball.radius) {
     // Less than half the radius below the ball's centre (or above it), seen from the surface it
     // rests on: beside the tool, not under it. If its inscribed ball (radius a_min) also reaches
     // into the free ball, the proxy passed it (no blocker does: the proxy rests free of it, and
     // its inscribed ball lies inside it). The margin (1e-3 of the radius, ten times the proxy's
     // stand-off) keeps rounding from dropping a blocker.
-    const double a_min = std::min({double(g.semi_axes[0]), double(g.semi_axes[1]), double(g.semi_axes[2])});
-    const double lim = ball.radius * (1.0 - 1e-3) + a_min;
-    if (d.squaredNorm() < lim * lim) return false;
+    const double lim = ball.radius * (1.0 - 1e-3) + std::min({a0, a1, a2});
+    if (d2 < lim * lim) return false;
   }
   // q >= |d|^2 / (a_max^2 + s^2): most of the box around c is dismissed before the rotation.
   // (The 1e-3 margin keeps rounding from dismissing one the exact q keeps.)
   const double a_max = g.radius;
-  if (d.squaredNorm() > 40.04 * (a_max * a_max + s2)) return false;
+  if (d2 > (q_cut + 1e-3 * q_cut) * (a_max * a_max + s2)) return false;
   // In the Gaussian's frame A = diag(a^2 + s^2): q = sum dl^2 / A, A^-1 d = R (dl / A).
-  const Eigen::Matrix3d R = rotation_matrix(g);
+  double r[9];
+  rotation_from_quaternion<double>(g.quaternion[0], g.quaternion[1], g.quaternion[2], g.quaternion[3], r[0], r[1],
+                                   r[2], r[3], r[4], r[5], r[6], r[7], r[8]);
+  const Eigen::Matrix3d R = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(r);
   const Eigen::Vector3d dl = R.transpose() * d;
-  Eigen::Vector3d ad;
-  double q = 0;
-  for (int j = 0; j < 3; ++j) {
-    const double inv = 1.0 / (double(g.semi_axes[j]) * g.semi_axes[j] + s2);
-    ad[j] = dl[j] * inv;
-    q += dl[j] * ad[j];
-  }
-  if (q > 40) return false;
-  out.an = ad.norm();
-  if (!(out.an > 0)) return false;
+  const Eigen::Vector3d A(a0 * a0 + s2, a1 * a1 + s2, a2 * a2 + s2);
+  const Eigen::Vector3d ad = dl.cwiseQuotient(A);
+  const double q = dl.dot(ad);
+  if (q > q_cut) return false;
+  const double an2 = ad.squaredNorm();
+  if (!(an2 > 0)) return false;
   const int jmin = thinnest_axis(g);
   const int ju = (jmin + 1) % 3, jv = (jmin + 2) % 3;
   out.flat = flatness(g);
@@ -80,18 +81,19 @@ inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double
     const double excess = (std::fabs(dl[jmin]) - ball.surface - 0.5 * rim) / (0.5 * rim);
     if (excess > 0) out.weight *= std::exp(-0.5 * out.flat * excess * excess);
   }
-  out.rad = R * ad;
+  out.rad = (R * ad) * (1.0 / std::sqrt(an2));
   out.at = -d;
   const double eu = dl[ju] / g.semi_axes[ju], ev = dl[jv] / g.semi_axes[jv];
-  const double rho = std::sqrt(eu * eu + ev * ev);  // > 1: c is beyond the disc's rim
-  out.beyond_rim = out.flat > 0 && rho > 1.0;
+  const double rho2 = eu * eu + ev * ev;  // > 1: c is beyond the disc's rim
+  out.beyond_rim = out.flat > 0 && rho2 > 1.0;
   if (out.beyond_rim) {
+    const double shrink = 1.0 - 1.0 / std::sqrt(rho2);
     Eigen::Vector3d off;  // from the rim point on the ray toward c's projection, to c
     off[jmin] = dl[jmin];
-    off[ju] = dl[ju] * (1.0 - 1.0 / rho);
-    off[jv] = dl[jv] * (1.0 - 1.0 / rho);
+    off[ju] = dl[ju] * shrink;
+    off[jv] = dl[jv] * shrink;
     out.rim = (R * off).normalized();  // (off is never zero: c is past the rim)
-    out.past = std::hypot(off[ju], off[jv]) / (kRimFalloff * rim);
+    out.past = std::sqrt(off[ju] * off[ju] + off[jv] * off[jv]) / (kRimFalloff * rim);
   }
   return true;
 }
@@ -114,7 +116,7 @@ inline Sample sample(const Term& tm, const Eigen::Vector3d& outward, bool first_
     if (bn > 1e-9) axis = blend / bn;
     weight *= std::exp(-0.5 * t * tm.past * tm.past);
   }
-  return {tm.flat * axis + (1.0 - tm.flat) * tm.rad / tm.an, weight};
+  return {tm.flat * axis + (1.0 - tm.flat) * tm.rad, weight};
 }
 inline Eigen::Vector3d contribution(const Term& tm, const Eigen::Vector3d& outward, bool first_pass) noexcept {
   const Sample sm = sample(tm, outward, first_pass);
@@ -179,44 +181,61 @@ class LocalLinearSum {
   double weight_ = 0, fw_ = 0;
 };
 
-// The box whose BVH leaves hold the Gaussians that may contribute at c: radius + 3 s around it.
-inline void kernel_box(const Eigen::Vector3d& c, double radius, double s, float lo[3], float hi[3]) noexcept {
-  const double half = radius + 3.0 * s;
+// The support of the sum at c for a tool of bounding radius `radius` and kernel width s (the
+// header's shaded_normal): q <= q_cut.
+inline double q_cutoff(double radius, double s, double tail = kShadingTail) noexcept {
+  return (1 + radius / s) * (1 + radius / s) + tail;
+}
+// Calls f(first, count) for the BVH leaves that may hold such Gaussians: those whose box comes
+// within s sqrt(q_cut) of c (a ball: the box around it alone would take about twice as many
+// Gaussians off a volumetric scene).
+template <typename F>
+void for_each_kernel_leaf(const CollisionWorld& world, const Eigen::Vector3d& c, double s, double q_cut, F&& f) noexcept {
+  const double half = s * std::sqrt(q_cut);
+  float lo[3], hi[3];
   for (int k = 0; k < 3; ++k) {
     lo[k] = round_down_to_float(c[k] - half);
     hi[k] = round_up_to_float(c[k] + half);
   }
+  const double reach = half * half * (1 + 1e-6);
+  world.bvh().for_each_overlapping_leaf_node(lo, hi, [&](const BvhNode& leaf) {
+    double d2 = 0;
+    for (int k = 0; k < 3; ++k) {
+      const double e = std::max({double(leaf.lo[k]) - c[k], c[k] - double(leaf.hi[k]), 0.0});
+      d2 += e * e;
+    }
+    if (d2 <= reach) f(leaf.first, leaf.count);
+    return true;
+  });
 }
 
 // Calls f(term) for every contributing Gaussian near c, in BVH order.
 // Returns how many Gaussians it visited.
 template <typename F>
-std::size_t for_each_term(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double s, double rim,
+std::size_t for_each_term(const CollisionWorld& world, const Eigen::Vector3d& c, double q_cut, double s, double rim,
                           const FreeBall& ball, F&& f) noexcept {
-  float lo[3], hi[3];
-  kernel_box(c, radius, s, lo, hi);
   const CollisionGaussian* gs = world.gaussians().data();
   Term tm;
   std::size_t visited = 0;
-  world.bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
+  for_each_kernel_leaf(world, c, s, q_cut, [&](std::uint32_t first, std::uint32_t count) {
     visited += count;
     for (std::uint32_t k = first; k < first + count; ++k)
-      if (term_of(gs[k], c, s * s, rim, ball, tm)) f(tm);
+      if (term_of(gs[k], c, s * s, q_cut, rim, ball, tm)) f(tm);
   });
   return visited;
 }
 
 // The weighted sum of the Gaussians' directions at c (plain: the terms computed as they come).
-Eigen::Vector3d direction_sum(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double s,
+Eigen::Vector3d direction_sum(const CollisionWorld& world, const Eigen::Vector3d& c, double q_cut, double s,
                               double rim, const FreeBall& ball, const Eigen::Vector3d& outward) noexcept {
   const bool first_pass = outward.isZero(0);
   if (!first_pass) {
     LocalLinearSum fit(outward);
-    for_each_term(world, c, radius, s, rim, ball, [&](const Term& tm) { fit.add(tm); });
+    for_each_term(world, c, q_cut, s, rim, ball, [&](const Term& tm) { fit.add(tm); });
     return fit.result(s);
   }
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for_each_term(world, c, radius, s, rim, ball, [&](const Term& tm) { sum += contribution(tm, outward, first_pass); });
+  for_each_term(world, c, q_cut, s, rim, ball, [&](const Term& tm) { sum += contribution(tm, outward, first_pass); });
   return sum;
 }
 
@@ -250,11 +269,9 @@ struct ShadingScratch::Terms {
     rim = kernel * radius;
     s = std::max(rim, min_width);
     ball = ball_in;
-    float lo[3], hi[3];
-    kernel_box(c, radius, s, lo, hi);
     n_ranges = 0;
     bool fits = true;
-    world.bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t f, std::uint32_t count) {
+    for_each_kernel_leaf(world, c, s, q_cutoff(radius, s), [&](std::uint32_t f, std::uint32_t count) {
       if (n_ranges < ranges.size())
         ranges[n_ranges++] = {f, count};
       else
@@ -285,7 +302,7 @@ struct ShadingScratch::Terms {
       const Range& rg = ranges[range_i];
       const std::uint32_t k = rg.first + std::uint32_t(offset);
       ++steps;
-      if (term_of(gs[k], c, s * s, rim, ball, tm)) {
+      if (term_of(gs[k], c, s * s, q_cutoff(radius, s), rim, ball, tm)) {
         first += contribution(tm, Eigen::Vector3d::Zero(), true);
         if (n == terms.size()) return phase = 0, -1;
         terms[n++] = tm;
@@ -320,22 +337,22 @@ ShadingScratch& ShadingScratch::operator=(const ShadingScratch& o) {
 std::size_t ShadingScratch::capacity() const noexcept { return terms_->terms.size(); }
 
 Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
-                              const FreeBall& ball, double min_width) noexcept {
-  const double rim = kernel * radius, s = std::max(rim, min_width);
-  const Eigen::Vector3d first = direction_sum(world, c, radius, s, rim, ball, Eigen::Vector3d::Zero());
+                              const FreeBall& ball, double min_width, double tail) noexcept {
+  const double rim = kernel * radius, s = std::max(rim, min_width), q_cut = q_cutoff(radius, s, tail);
+  const Eigen::Vector3d first = direction_sum(world, c, q_cut, s, rim, ball, Eigen::Vector3d::Zero());
   const double n1 = first.norm();
   if (!(n1 > 0) || !std::isfinite(n1)) return Eigen::Vector3d::Zero();
-  return finish(direction_sum(world, c, radius, s, rim, ball, first / n1));
+  return finish(direction_sum(world, c, q_cut, s, rim, ball, first / n1));
 }
 
 Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
                               ShadingScratch& scratch, const FreeBall& ball, double min_width) noexcept {
-  const double rim = kernel * radius, s = std::max(rim, min_width);
+  const double rim = kernel * radius, s = std::max(rim, min_width), q_cut = q_cutoff(radius, s);
   std::vector<Term>& terms = scratch.terms_->terms;
   std::size_t n = 0;
   bool overflow = false;
   Eigen::Vector3d first = Eigen::Vector3d::Zero();
-  const std::size_t visited = for_each_term(world, c, radius, s, rim, ball, [&](const Term& tm) {
+  const std::size_t visited = for_each_term(world, c, q_cut, s, rim, ball, [&](const Term& tm) {
     first += contribution(tm, Eigen::Vector3d::Zero(), true);
     if (n < terms.size())
       terms[n++] = tm;
@@ -349,7 +366,7 @@ Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d
   const double n1 = first.norm();
   if (!(n1 > 0) || !std::isfinite(n1)) return Eigen::Vector3d::Zero();
   const Eigen::Vector3d outward = first / n1;
-  if (overflow) return finish(direction_sum(world, c, radius, s, rim, ball, outward));  // more than it holds: the plain pass
+  if (overflow) return finish(direction_sum(world, c, q_cut, s, rim, ball, outward));  // more than it holds: the plain pass
   LocalLinearSum fit(outward);
   for (std::size_t i = 0; i < n; ++i) fit.add(terms[i]);
   return finish(fit.result(s));

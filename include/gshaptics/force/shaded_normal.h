@@ -60,17 +60,28 @@ struct FreeBall {
   double surface = 0;  ///< m, from the reading point to the surface under the tool along `up`; 0: no height falloff
 };
 
+/// How far the shaded normal's support reaches, in q past the Gaussians that touch the tool
+/// (see shaded_normal): exp(-kShadingTail / 2) = 1.2e-4 of such a Gaussian's weight.
+inline constexpr double kShadingTail = 18;
+
 /// The shaded normal at `center` (world frame, m) for a tool of bounding radius `radius` (m)
-/// with a kernel of `kernel` radii (s = kernel x radius). Gaussians within radius + 3 s of the
-/// centre (by their BVH leaves) and with q <= 40 contribute, except the floaters beside the
-/// `ball` (FreeBall). `min_width` (m): the kernel width is max(s, min_width), so that on a sparse
+/// with a kernel of `kernel` radii (s = kernel x radius). The Gaussians with
+/// q <= q_cut = (1 + radius / s)^2 + `tail` contribute, except the floaters beside the `ball`
+/// (FreeBall); they are found by the BVH leaves within s sqrt(q_cut) of the centre. A Gaussian
+/// that touches a resting tool has q <= (1 + radius / s)^2 (in the norm of A^-1 the tool's centre
+/// is at most 1 from the Gaussian's surface point and radius / s beyond it), so a term left out
+/// weighs under exp(-tail / 2) of it at equal opacity. On the fidelity shapes (faces, edges,
+/// corners, floaters included) the default tail reads the sum over all Gaussians within 0.5 deg
+/// (mean 0.002 deg; tests/proxy_parts_test.cpp), where the box radius + 3 s with q <= 40 that it
+/// replaced read it within 0.25 deg (mean 0.0035) with 1.4 times the terms (the burger's readings).
+/// `min_width` (m): the kernel width is max(s, min_width), so that on a sparse
 /// surface it spans the Gaussian spacing (shading_spacing()) and averages neighbouring Gaussians
 /// instead of reading the one under the tool; the falloff of discs seen beyond their rim stays
 /// on s (docs/design.md Sec. 7). Returns a unit vector pointing from the Gaussians toward
 /// `center`, or zero when no Gaussian is near.
 [[nodiscard]] Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& center, double radius,
                                             double kernel, const FreeBall& ball = {},
-                                            double min_width = 0) noexcept;
+                                            double min_width = 0, double tail = kShadingTail) noexcept;
 
 /// The length scale of the shading kernel for a tool of bounding radius `radius`: the radius,
 /// or the largest middle semi-axis of the `blockers` when that is larger. On sparse scenes a
