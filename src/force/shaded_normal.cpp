@@ -7,7 +7,16 @@
 #include <vector>
 
 #include "gshaptics/broadphase/bvh.h"
+#include "gshaptics/force/lane_exp.h"
 #include "gshaptics/narrowphase/k_min_batch.h"
+
+// The sum is computed in lanes: the Gaussians a reading visits are gathered kLanes at a time
+// into a structure of arrays and their terms computed by one vectorised loop (term_lanes); the
+// terms kept are stored in order, and the two passes over them run kLanes terms at a time,
+// each lane keeping its own partial sums, added up in lane order at the end. Term i always goes
+// to lane i % kLanes, so the plain call, the call with working memory and a reading spread over
+// calls add the same numbers in the same order: their results are bit-identical. (Built with
+// -fopenmp-simd, -fno-math-errno and -fno-trapping-math, as the narrow phase's kernel.)
 
 namespace gshaptics {
 
@@ -24,103 +33,188 @@ constexpr double kAgree = 0.3;
 constexpr double kGain = 0.2;
 constexpr double kRimFalloff = 0.5;
 
-// What one Gaussian gives the sum at c, the parts that do not depend on the outward estimate
-// (see the header): computed once a call and shared by the two passes.
-struct Term {
-  Eigen::Vector3d axis = Eigen::Vector3d::Zero();  // shortest axis turned toward c
-  Eigen::Vector3d rim = Eigen::Vector3d::Zero();   // unit direction from the nearest rim point to c (when beyond_rim)
-  Eigen::Vector3d rad = Eigen::Vector3d::Zero();   // R A^-1 d / |A^-1 d|: the density gradient's direction
-  Eigen::Vector3d at = Eigen::Vector3d::Zero();    // the Gaussian's centre relative to c (-d)
-  double weight = 0;     // alpha exp(-q / 2)
-  double flat = 0;       // 1 - a_min / a_mid
-  double past = 0;       // distance past the rim, in kRimFalloff kernel widths
-  bool beyond_rim = false;  // a disc (flat > 0) and c beyond its rim
+constexpr int kLanes = 16;
+
+// min and max by value in the lane loops (std::min/max return references, which turn a select
+// into a load through a chosen pointer and keep GCC from vectorising the loop).
+inline double lane_min(double a, double b) noexcept { return b < a ? b : a; }
+inline double lane_max(double a, double b) noexcept { return a < b ? b : a; }
+inline double flag(bool c) noexcept { return c ? 1.0 : 0.0; }
+
+// A term's fields (the parts that do not depend on the outward estimate), one array each.
+enum Field : int {
+  kAx, kAy, kAz,  // shortest axis turned toward c
+  kRx, kRy, kRz,  // unit direction from the nearest rim point to c (the axis when c is not beyond the rim)
+  kGx, kGy, kGz,  // R A^-1 d / |A^-1 d|: the density gradient's direction
+  kPx, kPy, kPz,  // the Gaussian's centre relative to c (-d)
+  kW,             // alpha exp(-q / 2) (times the concave-crease falloff, FreeBall::surface)
+  kFlat,          // 1 - a_min / a_mid
+  kPast,          // distance past the rim, in kRimFalloff kernel widths (0 when not beyond it)
+  kBeyond,        // 1: a disc (flat > 0) and c beyond its rim; else 0
+  kFields
 };
 
-// Term of g at c for a kernel width s (s2 = s^2), the support's q_cut (q_cutoff) and a rim
-// falloff scale `rim`; false when g does not contribute (q > q_cut, or a floater beside the
-// tool, see FreeBall).
-inline bool term_of(const CollisionGaussian& g, const Eigen::Vector3d& c, double s2, double q_cut, double rim,
-                    const FreeBall& ball, Term& out) noexcept {
-  const Eigen::Vector3d d = c - Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
-  const double d2 = d.squaredNorm();
-  const double a0 = g.semi_axes[0], a1 = g.semi_axes[1], a2 = g.semi_axes[2];
-  if (ball.radius > 0 && d.dot(ball.up) < 0.5 * ball.radius) {
-    // Less than half the radius below the ball's centre (or above it), seen from the surface it
-    // rests on: beside the tool, not under it. If its inscribed ball (radius a_min) also reaches
-    // into the free ball, the proxy passed it (no blocker does: the proxy rests free of it, and
-    // its inscribed ball lies inside it). The margin (1e-3 of the radius, ten times the proxy's
-    // stand-off) keeps rounding from dropping a blocker.
-    const double lim = ball.radius * (1.0 - 1e-3) + std::min({a0, a1, a2});
-    if (d2 < lim * lim) return false;
-  }
-  // q >= |d|^2 / (a_max^2 + s^2): most of the box around c is dismissed before the rotation.
-  // (The 1e-3 margin keeps rounding from dismissing one the exact q keeps.)
-  const double a_max = g.radius;
-  if (d2 > (q_cut + 1e-3 * q_cut) * (a_max * a_max + s2)) return false;
-  // In the Gaussian's frame A = diag(a^2 + s^2): q = sum dl^2 / A, A^-1 d = R (dl / A).
-  double r[9];
-  rotation_from_quaternion<double>(g.quaternion[0], g.quaternion[1], g.quaternion[2], g.quaternion[3], r[0], r[1],
-                                   r[2], r[3], r[4], r[5], r[6], r[7], r[8]);
-  const Eigen::Matrix3d R = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(r);
-  const Eigen::Vector3d dl = R.transpose() * d;
-  const Eigen::Vector3d A(a0 * a0 + s2, a1 * a1 + s2, a2 * a2 + s2);
-  const Eigen::Vector3d ad = dl.cwiseQuotient(A);
-  const double q = dl.dot(ad);
-  if (q > q_cut) return false;
-  const double an2 = ad.squaredNorm();
-  if (!(an2 > 0)) return false;
-  const int jmin = thinnest_axis(g);
-  const int ju = (jmin + 1) % 3, jv = (jmin + 2) % 3;
-  out.flat = flatness(g);
-  out.axis = R.col(jmin) * (dl[jmin] >= 0 ? 1.0 : -1.0);
-  out.weight = double(g.opacity) * std::exp(-0.5 * q);
-  if (ball.surface > 0 && out.flat > 0) {
-    // A disc whose plane lies farther from c than the surface under the tool (FreeBall::surface)
-    // is not under it: the far face of a concave crease.
-    const double excess = (std::fabs(dl[jmin]) - ball.surface - 0.5 * rim) / (0.5 * rim);
-    if (excess > 0) out.weight *= std::exp(-0.5 * out.flat * excess * excess);
-  }
-  out.rad = (R * ad) * (1.0 / std::sqrt(an2));
-  out.at = -d;
-  const double eu = dl[ju] / g.semi_axes[ju], ev = dl[jv] / g.semi_axes[jv];
-  const double rho2 = eu * eu + ev * ev;  // > 1: c is beyond the disc's rim
-  out.beyond_rim = out.flat > 0 && rho2 > 1.0;
-  if (out.beyond_rim) {
-    const double shrink = 1.0 - 1.0 / std::sqrt(rho2);
-    Eigen::Vector3d off;  // from the rim point on the ray toward c's projection, to c
-    off[jmin] = dl[jmin];
-    off[ju] = dl[ju] * shrink;
-    off[jv] = dl[jv] * shrink;
-    out.rim = (R * off).normalized();  // (off is never zero: c is past the rim)
-    out.past = std::sqrt(off[ju] * off[ju] + off[jv] * off[jv]) / (kRimFalloff * rim);
-  }
-  return true;
-}
-
-// The term's direction and weight for the outward estimate `outward` (zero in the first pass, in
-// which every disc seen from beyond its rim takes the rim direction).
-struct Sample {
-  Eigen::Vector3d dir;
-  double weight;
+// kLanes visited Gaussians, gathered.
+struct alignas(64) GaussianLanes {
+  double dx[kLanes], dy[kLanes], dz[kLanes];  // c - centre
+  double qw[kLanes], qx[kLanes], qy[kLanes], qz[kLanes];
+  double a0[kLanes], a1[kLanes], a2[kLanes], amax[kLanes], alpha[kLanes];
 };
-inline Sample sample(const Term& tm, const Eigen::Vector3d& outward, bool first_pass) noexcept {
-  Eigen::Vector3d axis = tm.axis;
-  double weight = tm.weight;
-  const double agree = first_pass ? -1.0 : axis.dot(outward);
-  if (tm.beyond_rim && agree < kAgree) {
-    double t = std::min(1.0, (kAgree - agree) / kAgree);
-    if (!first_pass) t *= std::clamp((tm.rim.dot(outward) - agree) / kGain, 0.0, 1.0);
-    const Eigen::Vector3d blend = (1.0 - t) * axis + t * tm.rim;
-    const double bn = blend.norm();
-    if (bn > 1e-9) axis = blend / bn;
-    weight *= std::exp(-0.5 * t * tm.past * tm.past);
+
+// Their terms, and which are kept.
+struct alignas(64) TermLanes {
+  double f[kFields][kLanes];
+  double keep[kLanes];  // 1: kept, 0: not
+};
+
+// What a reading's terms depend on besides the Gaussians.
+struct Support {
+  double s2 = 0, q_cut = 0, rim = 0;  // kernel width squared, q's cut-off, rim falloff scale
+  FreeBall ball;
+};
+
+// The terms of kLanes gathered Gaussians at c (which `in` holds as offsets); a padding lane
+// must be far (it is then not kept). Branch-free: every lane runs the same vector code. One
+// loop an instruction set, picked when the library loads (GCC 12 fails on this loop's SSE2
+// vectorisation, an internal compiler error, so the baseline loop runs lane by lane).
+template <bool kSimd>
+[[gnu::always_inline]] inline void term_lanes_loop(const GaussianLanes& in, const Support& sp, TermLanes& out) noexcept {
+  const double s2 = sp.s2, q_cut = sp.q_cut, pre = q_cut + 1e-3 * q_cut;
+  const double ball_r = sp.ball.radius, ux = sp.ball.up.x(), uy = sp.ball.up.y(), uz = sp.ball.up.z();
+  const double ball_lim = ball_r * (1.0 - 1e-3), surface = sp.ball.surface, half_rim = 0.5 * sp.rim;
+  const double inv_falloff = 1.0 / (kRimFalloff * sp.rim);
+  const auto lane = [&](int l) __attribute__((always_inline)) {
+    const double dx = in.dx[l], dy = in.dy[l], dz = in.dz[l];
+    const double a0 = in.a0[l], a1 = in.a1[l], a2 = in.a2[l];
+    const double d2 = dx * dx + dy * dy + dz * dz;
+    const double amin = lane_min(a0, lane_min(a1, a2));
+    // FreeBall: a floater beside the resting tool, whose inscribed ball reaches into the tool's.
+    const double lim = ball_lim + amin;
+    // (Conditions are 0/1 doubles, combined by products: a bool combined with another is a
+    // byte, and a byte lane sets the vectorisation factor past the loop's 16 lanes.)
+    const double beside = flag(ball_r > 0) * flag(dx * ux + dy * uy + dz * uz < 0.5 * ball_r) * flag(d2 < lim * lim);
+    // q >= |d|^2 / (a_max^2 + s^2): the pre-filter (its 1e-3 margin keeps rounding from
+    // dismissing one the exact q keeps).
+    const double am = in.amax[l];
+    const double near = flag(d2 <= pre * (am * am + s2));
+    double r0, r1, r2, r3, r4, r5, r6, r7, r8;
+    rotation_from_quaternion<double>(in.qw[l], in.qx[l], in.qy[l], in.qz[l], r0, r1, r2, r3, r4, r5, r6, r7, r8);
+    // In the Gaussian's frame A = diag(a^2 + s^2): q = sum dl^2 / A, A^-1 d = R (dl / A).
+    const double l0 = r0 * dx + r3 * dy + r6 * dz, l1 = r1 * dx + r4 * dy + r7 * dz, l2 = r2 * dx + r5 * dy + r8 * dz;
+    const double ad0 = l0 / (a0 * a0 + s2), ad1 = l1 / (a1 * a1 + s2), ad2 = l2 / (a2 * a2 + s2);
+    const double q = l0 * ad0 + l1 * ad1 + l2 * ad2;
+    const double an2 = ad0 * ad0 + ad1 * ad1 + ad2 * ad2;
+    out.keep[l] = (1.0 - beside) * near * flag(q <= q_cut) * flag(an2 > 0);
+    // The thinnest axis j (the first of equal ones), the middle semi-axis and the flatness.
+    const double jd = a2 < (a1 < a0 ? a1 : a0) ? 2.0 : (a1 < a0 ? 1.0 : 0.0);
+    const bool j0 = jd == 0.0, j1 = jd == 1.0, j2 = jd == 2.0;
+    const double mid = lane_max(lane_min(a0, a1), lane_max(lane_min(a1, a2), lane_min(a0, a2)));
+    const double flat = (mid - amin) / lane_max(mid, 1e-300);  // (0 when mid is: a rod or a point states no normal)
+    const double ln = j0 ? l0 : (j1 ? l1 : l2);  // offset along the thinnest axis
+    const double sgn = ln >= 0 ? 1.0 : -1.0;
+    const double ax = sgn * (j0 ? r0 : (j1 ? r1 : r2));
+    const double ay = sgn * (j0 ? r3 : (j1 ? r4 : r5));
+    const double az = sgn * (j0 ? r6 : (j1 ? r7 : r8));
+    // A disc whose plane lies farther from c than the surface under the tool is not under it
+    // (FreeBall::surface): the far face of a concave crease.
+    const double excess = surface > 0 ? lane_max(0.0, (std::fabs(ln) - surface - half_rim) / half_rim) : 0.0;
+    const double w = in.alpha[l] * lane_exp(-0.5 * q) * lane_exp(-0.5 * flat * excess * excess);  // (flat 0: no falloff)
+    const double inv_an = 1.0 / std::sqrt(an2 > 0 ? an2 : 1.0);
+    // Beyond the rim: the in-plane offset in semi-axes, rho^2 > 1.
+    const double e0 = l0 / a0, e1 = l1 / a1, e2 = l2 / a2;
+    const double rho2 = (j0 ? 0.0 : e0 * e0) + (j1 ? 0.0 : e1 * e1) + (j2 ? 0.0 : e2 * e2);
+    const double beyond_flag = flag(flat > 0) * flag(rho2 > 1.0);
+    const bool beyond = beyond_flag > 0;
+    // From the rim point on the ray toward c's projection, to c: the in-plane offset shrunk.
+    const double shrink = 1.0 - 1.0 / std::sqrt(rho2 > 1.0 ? rho2 : 1.0);
+    const double o0 = j0 ? l0 : l0 * shrink, o1 = j1 ? l1 : l1 * shrink, o2 = j2 ? l2 : l2 * shrink;
+    const double wx = r0 * o0 + r1 * o1 + r2 * o2, wy = r3 * o0 + r4 * o1 + r5 * o2, wz = r6 * o0 + r7 * o1 + r8 * o2;
+    const double wn = std::sqrt(wx * wx + wy * wy + wz * wz);
+    const double inv_wn = 1.0 / (wn > 0 ? wn : 1.0);
+    const double past2 = (j0 ? 0.0 : o0 * o0) + (j1 ? 0.0 : o1 * o1) + (j2 ? 0.0 : o2 * o2);
+    out.f[kAx][l] = ax, out.f[kAy][l] = ay, out.f[kAz][l] = az;
+    out.f[kRx][l] = beyond ? wx * inv_wn : ax;
+    out.f[kRy][l] = beyond ? wy * inv_wn : ay;
+    out.f[kRz][l] = beyond ? wz * inv_wn : az;
+    out.f[kGx][l] = (r0 * ad0 + r1 * ad1 + r2 * ad2) * inv_an;
+    out.f[kGy][l] = (r3 * ad0 + r4 * ad1 + r5 * ad2) * inv_an;
+    out.f[kGz][l] = (r6 * ad0 + r7 * ad1 + r8 * ad2) * inv_an;
+    out.f[kPx][l] = -dx, out.f[kPy][l] = -dy, out.f[kPz][l] = -dz;
+    out.f[kW][l] = w;
+    out.f[kFlat][l] = flat;
+    out.f[kPast][l] = beyond ? std::sqrt(past2) * inv_falloff : 0.0;
+    out.f[kBeyond][l] = beyond_flag;
+  };
+  if constexpr (kSimd) {
+#pragma omp simd
+    for (int l = 0; l < kLanes; ++l) lane(l);
+  } else {
+    for (int l = 0; l < kLanes; ++l) lane(l);
   }
-  return {tm.flat * axis + (1.0 - tm.flat) * tm.rad, weight};
 }
-inline Eigen::Vector3d contribution(const Term& tm, const Eigen::Vector3d& outward, bool first_pass) noexcept {
-  const Sample sm = sample(tm, outward, first_pass);
-  return sm.weight * sm.dir;
+__attribute__((target("avx512f"))) void term_lanes_avx512(const GaussianLanes& in, const Support& sp,
+                                                           TermLanes& out) noexcept {
+  term_lanes_loop<true>(in, sp, out);
+}
+__attribute__((target("avx2,fma"))) void term_lanes_avx2(const GaussianLanes& in, const Support& sp,
+                                                         TermLanes& out) noexcept {
+  term_lanes_loop<true>(in, sp, out);
+}
+__attribute__((optimize("no-tree-vectorize"))) void term_lanes_base(const GaussianLanes& in, const Support& sp,
+                                                                     TermLanes& out) noexcept {
+  term_lanes_loop<false>(in, sp, out);
+}
+using TermLanesFn = void (*)(const GaussianLanes&, const Support&, TermLanes&) noexcept;
+TermLanesFn pick_term_lanes() noexcept {
+  __builtin_cpu_init();  // (this runs among the static initialisers)
+  if (__builtin_cpu_supports("avx512f")) return term_lanes_avx512;
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) return term_lanes_avx2;
+  return term_lanes_base;
+}
+const TermLanesFn term_lanes = pick_term_lanes();
+
+// Where terms are stored, kLanes at a time: term i's field k at
+// base[(i / kLanes) kFields kLanes + k kLanes + i % kLanes] (a block of kLanes terms is 2 KiB
+// in one piece; arrays a field apart, a capacity apart, would all map to the same cache sets).
+struct TermStore {
+  double* base;
+  // Field k of the block that starts at term i (a multiple of kLanes).
+  [[nodiscard]] const double* field(int k, std::size_t i) const noexcept {
+    return base + i * kFields + std::size_t(k) * kLanes;
+  }
+};
+
+// The first pass's partial sums, a lane each: every disc seen from beyond its rim takes the rim
+// direction, with its weight falling by exp(-past^2 / 2).
+struct FirstLanes {
+  double v[3][kLanes] = {};
+  [[nodiscard]] Eigen::Vector3d total() const noexcept {
+    Eigen::Vector3d s = Eigen::Vector3d::Zero();
+    for (int l = 0; l < kLanes; ++l) s += Eigen::Vector3d(v[0][l], v[1][l], v[2][l]);
+    return s;
+  }
+};
+
+// Adds terms [i, i + count) (count <= kLanes) of `st` to the first pass's lanes.
+__attribute__((target_clones("avx512f", "avx2", "default")))
+void first_lanes(const TermStore& st, std::size_t i, int count, FirstLanes& acc) noexcept {
+  const double *rx = st.field(kRx, i), *ry = st.field(kRy, i), *rz = st.field(kRz, i);
+  const double *gx = st.field(kGx, i), *gy = st.field(kGy, i), *gz = st.field(kGz, i);
+  const double *w = st.field(kW, i), *fl = st.field(kFlat, i), *pa = st.field(kPast, i), *by = st.field(kBeyond, i);
+  alignas(64) double live[kLanes];
+  for (int l = 0; l < kLanes; ++l) live[l] = l < count ? 1.0 : 0.0;
+#pragma omp simd
+  for (int l = 0; l < kLanes; ++l) {
+    const bool beyond = by[l] > 0;
+    // (The rim direction is unit, and the axis itself where c is not beyond the rim.)
+    const double wt = beyond ? w[l] * lane_exp(-0.5 * pa[l] * pa[l]) : w[l];
+    const double f = fl[l];
+    const double x = f * rx[l] + (1.0 - f) * gx[l], y = f * ry[l] + (1.0 - f) * gy[l], z = f * rz[l] + (1.0 - f) * gz[l];
+    const bool in = live[l] > 0;
+    acc.v[0][l] += in ? wt * x : 0.0;
+    acc.v[1][l] += in ? wt * y : 0.0;
+    acc.v[2][l] += in ? wt * z : 0.0;
+  }
 }
 
 // The second pass's sum, corrected to first order where the field is one smooth surface: the
@@ -140,52 +234,98 @@ inline Eigen::Vector3d contribution(const Term& tm, const Eigen::Vector3d& outwa
 constexpr double kFitFull = 0.95, kFitNone = 0.85;
 constexpr double kFitRidge = 0.25;
 
-class LocalLinearSum {
- public:
-  explicit LocalLinearSum(const Eigen::Vector3d& outward) noexcept : outward_(outward) {}
-  void add(const Term& tm) noexcept {
-    const Sample sm = sample(tm, outward_, false);
-    sum_ += sm.weight * sm.dir;
-    weight_ += sm.weight;
-    const double dn = sm.dir.norm();
-    const double fit =
-        dn > 0 ? std::clamp((sm.dir.dot(outward_) / dn - kFitNone) / (kFitFull - kFitNone), 0.0, 1.0) : 0.0;
-    if (!(fit > 0)) return;
-    const double w = fit * sm.weight;
-    const Eigen::Vector3d wx = w * tm.at;
-    fw_ += w;
-    fx_ += wx;
-    fn_ += w * sm.dir;
-    fxx_ += wx * tm.at.transpose();
-    fxn_ += wx * sm.dir.transpose();
-  }
-  // The corrected sum for a kernel width s (m).
-  [[nodiscard]] Eigen::Vector3d result(double s) const noexcept {
-    if (!(fw_ > 0) || !(weight_ > 0)) return sum_;
-    const Eigen::Vector3d m = fx_ / fw_, nbar = fn_ / fw_;
-    const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - outward_ * outward_.transpose();
-    const double ridge = kFitRidge * s;
-    const Eigen::Matrix3d C =
-        P * (fxx_ / fw_ - m * m.transpose()) * P + ridge * ridge * Eigen::Matrix3d::Identity();
-    const Eigen::Matrix3d B = fxn_ / fw_ - m * nbar.transpose();
-    const Eigen::Vector3d y = C.ldlt().solve(P * m);
-    const double share = fw_ / weight_;
-    const Eigen::Vector3d out = sum_ - fw_ * share * share * (B.transpose() * y);
-    return out.allFinite() ? out : sum_;
-  }
-
- private:
-  Eigen::Vector3d outward_;
-  Eigen::Vector3d sum_ = Eigen::Vector3d::Zero(), fx_ = Eigen::Vector3d::Zero(), fn_ = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d fxx_ = Eigen::Matrix3d::Zero(), fxn_ = Eigen::Matrix3d::Zero();
-  double weight_ = 0, fw_ = 0;
+// The second pass's partial sums, a lane each: the plain sum and its weight, and the fitted
+// samples' weight, moments and cross moments (LocalLinearSum's fields, fxx by its 6 entries).
+enum FitField : int { kSx, kSy, kSz, kSw, kFw, kFx0, kFx1, kFx2, kFn0, kFn1, kFn2,
+                      kXX, kYY, kZZ, kXY, kXZ, kYZ,
+                      kN00, kN01, kN02, kN10, kN11, kN12, kN20, kN21, kN22, kFitFields };
+struct FitLanes {
+  double v[kFitFields][kLanes] = {};
 };
+
+// Adds terms [i, i + count) of `st` to the second pass's lanes for the outward estimate `o`.
+// A disc whose own normal disagrees with `o` and that c sees from beyond its rim turns toward
+// the rim direction (see kAgree) and loses weight with its distance past the rim.
+__attribute__((target_clones("avx512f", "avx2", "default")))
+void fit_lanes(const TermStore& st, std::size_t i, int count, const Eigen::Vector3d& o, FitLanes& acc) noexcept {
+  const double ox = o.x(), oy = o.y(), oz = o.z();
+  const double *ax = st.field(kAx, i), *ay = st.field(kAy, i), *az = st.field(kAz, i);
+  const double *rx = st.field(kRx, i), *ry = st.field(kRy, i), *rz = st.field(kRz, i);
+  const double *gx = st.field(kGx, i), *gy = st.field(kGy, i), *gz = st.field(kGz, i);
+  const double *px = st.field(kPx, i), *py = st.field(kPy, i), *pz = st.field(kPz, i);
+  const double *w = st.field(kW, i), *fl = st.field(kFlat, i), *pa = st.field(kPast, i), *by = st.field(kBeyond, i);
+  constexpr double kInvFitSpan = 1.0 / (kFitFull - kFitNone);
+  alignas(64) double live[kLanes];
+  for (int l = 0; l < kLanes; ++l) live[l] = l < count ? 1.0 : 0.0;
+#pragma omp simd
+  for (int l = 0; l < kLanes; ++l) {
+    const double agree = ax[l] * ox + ay[l] * oy + az[l] * oz;
+    const double rim_agree = rx[l] * ox + ry[l] * oy + rz[l] * oz;
+    const double turn = lane_min(1.0, (kAgree - agree) / kAgree);
+    const double gain = lane_min(1.0, lane_max(0.0, (rim_agree - agree) / kGain));
+    const double t = by[l] * flag(agree < kAgree) * turn * gain;
+    const double bx = (1.0 - t) * ax[l] + t * rx[l], by_ = (1.0 - t) * ay[l] + t * ry[l], bz = (1.0 - t) * az[l] + t * rz[l];
+    const double bn = std::sqrt(bx * bx + by_ * by_ + bz * bz);
+    // (At t = 0 the blend is the unit axis itself, normalised again.)
+    const bool blended = bn > 1e-9;
+    const double inv_bn = 1.0 / (blended ? bn : 1.0);
+    const double nx = blended ? bx * inv_bn : ax[l], ny = blended ? by_ * inv_bn : ay[l], nz = blended ? bz * inv_bn : az[l];
+    const double wt = w[l] * lane_exp(-0.5 * t * pa[l] * pa[l]);  // (exp(0) is 1 exactly)
+    const double f = fl[l];
+    const double dx = f * nx + (1.0 - f) * gx[l], dy = f * ny + (1.0 - f) * gy[l], dz = f * nz + (1.0 - f) * gz[l];
+    const double dn = std::sqrt(dx * dx + dy * dy + dz * dz);
+    const double cosine = (dx * ox + dy * oy + dz * oz) / (dn > 0 ? dn : 1.0);
+    const double fit = dn > 0 ? lane_min(1.0, lane_max(0.0, (cosine - kFitNone) * kInvFitSpan)) : 0.0;
+    const bool in = live[l] > 0;
+    const double ws = in ? wt : 0.0;      // (a lane past `count` adds nothing: selected, not multiplied)
+    const double wf = in ? fit * wt : 0.0;
+    const double x = in ? px[l] : 0.0, y = in ? py[l] : 0.0, z = in ? pz[l] : 0.0;
+    const double ex = in ? dx : 0.0, ey = in ? dy : 0.0, ez = in ? dz : 0.0;
+    acc.v[kSx][l] += ws * ex, acc.v[kSy][l] += ws * ey, acc.v[kSz][l] += ws * ez;
+    acc.v[kSw][l] += ws;
+    acc.v[kFw][l] += wf;
+    const double wx = wf * x, wy = wf * y, wz = wf * z;
+    acc.v[kFx0][l] += wx, acc.v[kFx1][l] += wy, acc.v[kFx2][l] += wz;
+    acc.v[kFn0][l] += wf * ex, acc.v[kFn1][l] += wf * ey, acc.v[kFn2][l] += wf * ez;
+    acc.v[kXX][l] += wx * x, acc.v[kYY][l] += wy * y, acc.v[kZZ][l] += wz * z;
+    acc.v[kXY][l] += wx * y, acc.v[kXZ][l] += wx * z, acc.v[kYZ][l] += wy * z;
+    acc.v[kN00][l] += wx * ex, acc.v[kN01][l] += wx * ey, acc.v[kN02][l] += wx * ez;
+    acc.v[kN10][l] += wy * ex, acc.v[kN11][l] += wy * ey, acc.v[kN12][l] += wy * ez;
+    acc.v[kN20][l] += wz * ex, acc.v[kN21][l] += wz * ey, acc.v[kN22][l] += wz * ez;
+  }
+}
+
+// The corrected sum (see kFitFull) from the lanes, for the outward estimate o and kernel width s.
+Eigen::Vector3d fit_result(const FitLanes& acc, const Eigen::Vector3d& o, double s) noexcept {
+  double t[kFitFields];
+  for (int k = 0; k < kFitFields; ++k) {
+    t[k] = 0;
+    for (int l = 0; l < kLanes; ++l) t[k] += acc.v[k][l];
+  }
+  const Eigen::Vector3d sum(t[kSx], t[kSy], t[kSz]);
+  const double weight = t[kSw], fw = t[kFw];
+  if (!(fw > 0) || !(weight > 0)) return sum;
+  const Eigen::Vector3d m = Eigen::Vector3d(t[kFx0], t[kFx1], t[kFx2]) / fw;
+  const Eigen::Vector3d nbar = Eigen::Vector3d(t[kFn0], t[kFn1], t[kFn2]) / fw;
+  Eigen::Matrix3d fxx, fxn;
+  fxx << t[kXX], t[kXY], t[kXZ], t[kXY], t[kYY], t[kYZ], t[kXZ], t[kYZ], t[kZZ];
+  fxn << t[kN00], t[kN01], t[kN02], t[kN10], t[kN11], t[kN12], t[kN20], t[kN21], t[kN22];
+  const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - o * o.transpose();
+  const double ridge = kFitRidge * s;
+  const Eigen::Matrix3d C = P * (fxx / fw - m * m.transpose()) * P + ridge * ridge * Eigen::Matrix3d::Identity();
+  const Eigen::Matrix3d B = fxn / fw - m * nbar.transpose();
+  const Eigen::Vector3d y = C.ldlt().solve(P * m);
+  const double share = fw / weight;
+  const Eigen::Vector3d out = sum - fw * share * share * (B.transpose() * y);
+  return out.allFinite() ? out : sum;
+}
 
 // The support of the sum at c for a tool of bounding radius `radius` and kernel width s (the
 // header's shaded_normal): q <= q_cut.
 inline double q_cutoff(double radius, double s, double tail = kShadingTail) noexcept {
   return (1 + radius / s) * (1 + radius / s) + tail;
 }
+
 // Calls f(first, count) for the BVH leaves that may hold such Gaussians: those whose box comes
 // within s sqrt(q_cut) of c (a ball: the box around it alone would take about twice as many
 // Gaussians off a volumetric scene).
@@ -209,34 +349,51 @@ void for_each_kernel_leaf(const CollisionWorld& world, const Eigen::Vector3d& c,
   });
 }
 
-// Calls f(term) for every contributing Gaussian near c, in BVH order.
-// Returns how many Gaussians it visited.
-template <typename F>
-std::size_t for_each_term(const CollisionWorld& world, const Eigen::Vector3d& c, double q_cut, double s, double rim,
-                          const FreeBall& ball, F&& f) noexcept {
-  const CollisionGaussian* gs = world.gaussians().data();
-  Term tm;
-  std::size_t visited = 0;
-  for_each_kernel_leaf(world, c, s, q_cut, [&](std::uint32_t first, std::uint32_t count) {
-    visited += count;
-    for (std::uint32_t k = first; k < first + count; ++k)
-      if (term_of(gs[k], c, s * s, q_cut, rim, ball, tm)) f(tm);
-  });
-  return visited;
-}
-
-// The weighted sum of the Gaussians' directions at c (plain: the terms computed as they come).
-Eigen::Vector3d direction_sum(const CollisionWorld& world, const Eigen::Vector3d& c, double q_cut, double s,
-                              double rim, const FreeBall& ball, const Eigen::Vector3d& outward) noexcept {
-  const bool first_pass = outward.isZero(0);
-  if (!first_pass) {
-    LocalLinearSum fit(outward);
-    for_each_term(world, c, q_cut, s, rim, ball, [&](const Term& tm) { fit.add(tm); });
-    return fit.result(s);
+// Gathers visited Gaussians kLanes at a time and passes each kept term, in visiting order, to a
+// sink: sink(lanes, l) for lane l of `lanes`.
+class Gatherer {
+ public:
+  void start(const Eigen::Vector3d& c, const Support& sp) noexcept {
+    c_ = c;
+    sp_ = sp;
+    n_ = 0;
   }
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for_each_term(world, c, q_cut, s, rim, ball, [&](const Term& tm) { sum += contribution(tm, outward, first_pass); });
-  return sum;
+  template <typename Sink>
+  void add(const CollisionGaussian& g, Sink&& sink) noexcept {
+    in_.dx[n_] = c_.x() - g.center[0];
+    in_.dy[n_] = c_.y() - g.center[1];
+    in_.dz[n_] = c_.z() - g.center[2];
+    in_.qw[n_] = g.quaternion[0], in_.qx[n_] = g.quaternion[1], in_.qy[n_] = g.quaternion[2], in_.qz[n_] = g.quaternion[3];
+    in_.a0[n_] = g.semi_axes[0], in_.a1[n_] = g.semi_axes[1], in_.a2[n_] = g.semi_axes[2];
+    in_.amax[n_] = g.radius;
+    in_.alpha[n_] = g.opacity;
+    if (++n_ == kLanes) flush(sink);
+  }
+  template <typename Sink>
+  void flush(Sink&& sink) noexcept {
+    if (n_ == 0) return;
+    for (int l = n_; l < kLanes; ++l) {  // padding: far, unit and round (not kept)
+      in_.dx[l] = in_.dy[l] = in_.dz[l] = 1e30;
+      in_.qw[l] = 1, in_.qx[l] = in_.qy[l] = in_.qz[l] = 0;
+      in_.a0[l] = in_.a1[l] = in_.a2[l] = in_.amax[l] = in_.alpha[l] = 1;
+    }
+    term_lanes(in_, sp_, out_);
+    for (int l = 0; l < n_; ++l)
+      if (out_.keep[l] > 0) sink(out_, l);
+    n_ = 0;
+  }
+
+ private:
+  Eigen::Vector3d c_ = Eigen::Vector3d::Zero();
+  Support sp_;
+  int n_ = 0;
+  GaussianLanes in_;
+  TermLanes out_;
+};
+
+inline void copy_term(const TermLanes& from, int l, const TermStore& to, std::size_t i) noexcept {
+  double* block = to.base + (i / kLanes) * kFields * kLanes + i % kLanes;
+  for (int k = 0; k < kFields; ++k) block[k * kLanes] = from.f[k][l];
 }
 
 Eigen::Vector3d finish(const Eigen::Vector3d& sum) noexcept {
@@ -244,75 +401,154 @@ Eigen::Vector3d finish(const Eigen::Vector3d& sum) noexcept {
   return n > 0 && std::isfinite(n) ? Eigen::Vector3d(sum / n) : Eigen::Vector3d::Zero();
 }
 
+Support support_of(double radius, double kernel, const FreeBall& ball, double min_width, double tail) noexcept {
+  Support sp;
+  sp.rim = kernel * radius;
+  const double s = std::max(sp.rim, min_width);
+  sp.s2 = s * s;
+  sp.q_cut = q_cutoff(radius, s, tail);
+  sp.ball = ball;
+  return sp;
+}
+
+// The plain reading: two traversals, the terms staged kLanes at a time (no working memory).
+Eigen::Vector3d plain_reading(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
+                              const FreeBall& ball, double min_width, double tail) noexcept {
+  const Support sp = support_of(radius, kernel, ball, min_width, tail);
+  const double s = std::sqrt(sp.s2);
+  const CollisionGaussian* gs = world.gaussians().data();
+  alignas(64) double staged[kFields * kLanes] = {};
+  const TermStore st{staged};
+  int m = 0;
+  Gatherer gather;
+  // One traversal, each kept term staged; a full stage goes to `lanes`.
+  const auto traverse = [&](auto&& lanes) {
+    m = 0;
+    gather.start(c, sp);
+    const auto sink = [&](const TermLanes& t, int l) {
+      copy_term(t, l, st, std::size_t(m));
+      if (++m == kLanes) lanes(kLanes), m = 0;
+    };
+    for_each_kernel_leaf(world, c, s, sp.q_cut, [&](std::uint32_t first, std::uint32_t count) {
+      for (std::uint32_t k = first; k < first + count; ++k) gather.add(gs[k], sink);
+    });
+    gather.flush(sink);
+    if (m > 0) lanes(m);
+  };
+  FirstLanes first;
+  traverse([&](int count) { first_lanes(st, 0, count, first); });
+  const Eigen::Vector3d f = first.total();
+  const double n1 = f.norm();
+  if (!(n1 > 0) || !std::isfinite(n1)) return Eigen::Vector3d::Zero();
+  const Eigen::Vector3d outward = f / n1;
+  FitLanes fit;
+  traverse([&](int count) { fit_lanes(st, 0, count, outward, fit); });
+  return finish(fit_result(fit, outward, s));
+}
+
 }  // namespace
 
 struct ShadingScratch::Terms {
-  std::vector<Term> terms;
-  // A reading spread over calls (ShadedNormalCache::read_ahead): the BVH leaves of its box, then
-  // its terms in the same order as shaded_normal() takes them, then their local linear fit.
+  // The kept terms (TermStore), room for `stride` (a multiple of kLanes).
+  std::vector<double> store;
+  std::size_t stride = 0;
+  [[nodiscard]] TermStore terms() noexcept { return {store.data()}; }
+  // A reading spread over calls (ShadedNormalCache::read_ahead): the BVH leaves of its support,
+  // then its terms in visiting order (each full kLanes of them added to the first pass as they
+  // come), then the second pass over them kLanes at a time.
   struct Range {
     std::uint32_t first, count;
   };
   std::vector<Range> ranges;
   std::size_t n_ranges = 0, range_i = 0, offset = 0, n = 0, fit_i = 0, steps = 0;
-  int phase = 0;  // 1: terms, 2: the fit
-  Eigen::Vector3d c = Eigen::Vector3d::Zero(), first = Eigen::Vector3d::Zero();
-  double radius = 0, s = 0, rim = 0;
-  FreeBall ball;
-  LocalLinearSum fit{Eigen::Vector3d::Zero()};
+  int phase = 0;  // 1: terms, 2: the second pass
+  bool overflow = false;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero(), outward = Eigen::Vector3d::Zero();
+  Support sp;
+  double s = 0;
+  Gatherer gather;
+  FirstLanes first;
+  FitLanes fit;
 
-  // Starts reading at c: false when the box holds more leaves than `ranges` (read it at once).
-  bool begin(const CollisionWorld& world, const Eigen::Vector3d& at, double radius_in, double kernel,
-             const FreeBall& ball_in, double min_width) noexcept {
+  // Stores lane l of `t` as the next term (or marks the overflow), adding each full kLanes of
+  // terms to the first pass.
+  void keep(const TermLanes& t, int l) noexcept {
+    if (n == stride) {
+      overflow = true;
+      return;
+    }
+    copy_term(t, l, terms(), n);
+    if (++n % kLanes == 0) first_lanes(terms(), n - kLanes, kLanes, first);
+  }
+  // The terms gathered: the last partial kLanes to the first pass; false when it found none.
+  bool close_first() noexcept {
+    gather.flush([this](const TermLanes& t, int l) { keep(t, l); });
+    if (n % kLanes != 0) first_lanes(terms(), n - n % kLanes, int(n % kLanes), first);
+    const Eigen::Vector3d f = first.total();
+    const double n1 = f.norm();
+    if (!(n1 > 0) || !std::isfinite(n1)) return false;
+    outward = f / n1;
+    return true;
+  }
+  void start(const Eigen::Vector3d& at, double radius, double kernel, const FreeBall& ball, double min_width) noexcept {
     c = at;
-    radius = radius_in;
-    rim = kernel * radius;
-    s = std::max(rim, min_width);
-    ball = ball_in;
+    sp = support_of(radius, kernel, ball, min_width, kShadingTail);
+    s = std::sqrt(sp.s2);
+    gather.start(c, sp);
+    first = FirstLanes{};
+    fit = FitLanes{};
+    range_i = offset = n = fit_i = steps = 0;
+    overflow = false;
+    outward = Eigen::Vector3d::Zero();
+  }
+
+  // Starts reading at `at`: false when the support holds more leaves than `ranges` (read it at once).
+  bool begin(const CollisionWorld& world, const Eigen::Vector3d& at, double radius, double kernel,
+             const FreeBall& ball, double min_width) noexcept {
+    start(at, radius, kernel, ball, min_width);
     n_ranges = 0;
     bool fits = true;
-    for_each_kernel_leaf(world, c, s, q_cutoff(radius, s), [&](std::uint32_t f, std::uint32_t count) {
+    for_each_kernel_leaf(world, c, s, sp.q_cut, [&](std::uint32_t f, std::uint32_t count) {
       if (n_ranges < ranges.size())
         ranges[n_ranges++] = {f, count};
       else
         fits = false;
     });
-    range_i = offset = n = fit_i = steps = 0;
-    first = Eigen::Vector3d::Zero();
     phase = 1;
     return fits;
   }
-  // Advances the reading by up to `budget` steps (a Gaussian visited, or a term fitted): 1 when
-  // it is done (the normal in `out`), 0 while it is not, -1 when its terms outgrow the scratch.
+  // Advances the reading by about `budget` steps (a Gaussian visited, or a term of the second
+  // pass; that pass goes kLanes terms at a time): 1 when it is done (the normal in `out`), 0
+  // while it is not, -1 when its terms outgrow the scratch.
   int advance(const CollisionWorld& world, std::size_t budget, Eigen::Vector3d& out) noexcept {
     const CollisionGaussian* gs = world.gaussians().data();
-    Term tm;
+    const auto sink = [this](const TermLanes& t, int l) { keep(t, l); };
     while (phase == 1 && budget > 0) {
       if (range_i == n_ranges) {
-        const double n1 = first.norm();
-        if (!(n1 > 0) || !std::isfinite(n1)) {
+        if (!close_first()) {
           out = Eigen::Vector3d::Zero();
           phase = 0;
-          return 1;
+          return overflow ? -1 : 1;
         }
-        fit = LocalLinearSum(first / n1);
         phase = 2;
         break;
       }
       const Range& rg = ranges[range_i];
-      const std::uint32_t k = rg.first + std::uint32_t(offset);
+      gather.add(gs[rg.first + std::uint32_t(offset)], sink);
       ++steps;
-      if (term_of(gs[k], c, s * s, q_cutoff(radius, s), rim, ball, tm)) {
-        first += contribution(tm, Eigen::Vector3d::Zero(), true);
-        if (n == terms.size()) return phase = 0, -1;
-        terms[n++] = tm;
-      }
       if (++offset == rg.count) offset = 0, ++range_i;
       --budget;
     }
-    for (; phase == 2 && budget > 0 && fit_i < n; --budget, ++steps) fit.add(terms[fit_i++]);
+    if (overflow) return phase = 0, -1;
+    while (phase == 2 && budget > 0 && fit_i < n) {
+      const int count = int(std::min<std::size_t>(kLanes, n - fit_i));
+      fit_lanes(terms(), fit_i, count, outward, fit);
+      fit_i += std::size_t(count);
+      steps += std::size_t(count);
+      budget -= std::min(budget, std::size_t(count));
+    }
     if (phase == 2 && fit_i == n) {
-      out = finish(fit.result(s));
+      out = finish(fit_result(fit, outward, s));
       phase = 0;
       return 1;
     }
@@ -321,55 +557,49 @@ struct ShadingScratch::Terms {
 };
 
 ShadingScratch::ShadingScratch(std::size_t capacity) : terms_(std::make_unique<Terms>()) {
-  terms_->terms.resize(capacity);
+  const std::size_t stride = (capacity + kLanes - 1) / kLanes * kLanes;
+  terms_->stride = stride;
+  terms_->store.assign(stride * kFields, 0.0);
   terms_->ranges.resize(std::max<std::size_t>(64, capacity / 4));
 }
 ShadingScratch::~ShadingScratch() = default;
 ShadingScratch::ShadingScratch(const ShadingScratch& o) : ShadingScratch(o.capacity()) {}
 ShadingScratch& ShadingScratch::operator=(const ShadingScratch& o) {
   if (this != &o) {
-    terms_->terms.resize(o.capacity());
+    terms_->stride = o.terms_->stride;
+    terms_->store.assign(o.terms_->store.size(), 0.0);
     terms_->ranges.resize(o.terms_->ranges.size());
     terms_->phase = 0;
   }
   return *this;
 }
-std::size_t ShadingScratch::capacity() const noexcept { return terms_->terms.size(); }
+std::size_t ShadingScratch::capacity() const noexcept { return terms_->stride; }
 
 Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
                               const FreeBall& ball, double min_width, double tail) noexcept {
-  const double rim = kernel * radius, s = std::max(rim, min_width), q_cut = q_cutoff(radius, s, tail);
-  const Eigen::Vector3d first = direction_sum(world, c, q_cut, s, rim, ball, Eigen::Vector3d::Zero());
-  const double n1 = first.norm();
-  if (!(n1 > 0) || !std::isfinite(n1)) return Eigen::Vector3d::Zero();
-  return finish(direction_sum(world, c, q_cut, s, rim, ball, first / n1));
+  return plain_reading(world, c, radius, kernel, ball, min_width, tail);
 }
 
 Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
                               ShadingScratch& scratch, const FreeBall& ball, double min_width) noexcept {
-  const double rim = kernel * radius, s = std::max(rim, min_width), q_cut = q_cutoff(radius, s);
-  std::vector<Term>& terms = scratch.terms_->terms;
-  std::size_t n = 0;
-  bool overflow = false;
-  Eigen::Vector3d first = Eigen::Vector3d::Zero();
-  const std::size_t visited = for_each_term(world, c, q_cut, s, rim, ball, [&](const Term& tm) {
-    first += contribution(tm, Eigen::Vector3d::Zero(), true);
-    if (n < terms.size())
-      terms[n++] = tm;
-    else
-      overflow = true;
+  ShadingScratch::Terms& t = *scratch.terms_;
+  t.phase = 0;  // (a reading spread over calls in this scratch is given up)
+  t.start(c, radius, kernel, ball, min_width);
+  const CollisionGaussian* gs = world.gaussians().data();
+  std::size_t visited = 0;
+  const auto sink = [&t](const TermLanes& tl, int l) { t.keep(tl, l); };
+  for_each_kernel_leaf(world, c, t.s, t.sp.q_cut, [&](std::uint32_t first, std::uint32_t count) {
+    visited += count;
+    for (std::uint32_t k = first; k < first + count; ++k) t.gather.add(gs[k], sink);
   });
-  scratch.last_terms_ = n;
-  scratch.last_overflow_ = overflow;
-  scratch.last_steps_ = visited + n;
- 
-  const double n1 = first.norm();
-  if (!(n1 > 0) || !std::isfinite(n1)) return Eigen::Vector3d::Zero();
-  const Eigen::Vector3d outward = first / n1;
-  if (overflow) return finish(direction_sum(world, c, q_cut, s, rim, ball, outward));  // more than it holds: the plain pass
-  LocalLinearSum fit(outward);
-  for (std::size_t i = 0; i < n; ++i) fit.add(terms[i]);
-  return finish(fit.result(s));
+  const bool found = t.close_first();
+  scratch.last_terms_ = t.n;
+  scratch.last_overflow_ = t.overflow;
+  scratch.last_steps_ = visited + t.n;
+  if (t.overflow) return plain_reading(world, c, radius, kernel, ball, min_width, kShadingTail);  // more than it holds
+  if (!found) return Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < t.n; i += kLanes) fit_lanes(t.terms(), i, int(std::min<std::size_t>(kLanes, t.n - i)), t.outward, t.fit);
+  return finish(fit_result(t.fit, t.outward, t.s));
 }
 
 const Eigen::Vector3d& ShadedNormalCache::read_ahead(const CollisionWorld& world, const Eigen::Vector3d& at,

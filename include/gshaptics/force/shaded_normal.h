@@ -99,9 +99,9 @@ inline constexpr double kShadingTail = 18;
 /// Gaussian). Allocated once, at construction; copies allocate their own.
 class ShadingScratch {
  public:
-  /// Room for `capacity` Gaussians (136 bytes each; the default, 544 KiB, holds a 7.6 cm tool's
-  /// kernel on the Truck and most of one on the largest real scenes). A reading with more falls
-  /// back to the plain second pass, with the same result.
+  /// Room for `capacity` terms, rounded up to a multiple of 16 (128 bytes each; the default,
+  /// 512 KiB, holds a 7.6 cm tool's kernel on the Truck and most of one on the largest real
+  /// scenes). A reading with more falls back to the plain call, with the same result.
   explicit ShadingScratch(std::size_t capacity = 4096);
   ~ShadingScratch();
   ShadingScratch(const ShadingScratch& other);
@@ -124,7 +124,8 @@ class ShadingScratch {
 };
 
 /// shaded_normal() with working memory: bit-identical to the plain call (the same terms, summed
-/// in the same order), one traversal instead of two. Allocates nothing.
+/// in the same order, by the same vectorised kernels), one traversal instead of two. Allocates
+/// nothing.
 [[nodiscard]] Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& center, double radius,
                                             double kernel, ShadingScratch& scratch,
                                             const FreeBall& ball = {}, double min_width = 0) noexcept;
