@@ -49,6 +49,20 @@ CollisionWorld shell_without_floaters(const AnalyticShape& shape, double spacing
   return CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
 }
 
+// Where a tool of radius r rests at each of `count` press sites of `shape` (seed `seed`): its
+// centre moved out along the site's normal until it overlaps no Gaussian of `w`.
+std::vector<Eigen::Vector3d> resting_centres(const CollisionWorld& w, const AnalyticShape& shape, double r, int count,
+                                             std::uint64_t seed) {
+  ContactQuery query(w);
+  std::vector<Eigen::Vector3d> centres;
+  for (const ContactSite& site : shape.press_sites(count, seed, 0.03)) {
+    Eigen::Vector3d p = site.point + r * site.normal;
+    while (query.any_contact(ToolEllipsoid::sphere(p, r))) p += 2e-4 * site.normal;
+    centres.push_back(p);
+  }
+  return centres;
+}
+
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180 / M_PI;
 }
@@ -456,18 +470,15 @@ TEST(ShadedNormal, TheLanesMatchASlowScalarReading) {
   for (ShapeKind kind : {ShapeKind::kCube, ShapeKind::kSphere, ShapeKind::kCorner90})
     for (double spacing : {0.002, 0.008}) {
       const AnalyticShape shape(kind);
-      SynthParams sp;
-      sp.spacing = spacing;
-      sp.seed = 4;
-      const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
-      ContactQuery query(w);
-      for (const double r : {0.005, 0.010})
-        for (const ContactSite& site : shape.press_sites(5, 4, 0.03)) {
-          Eigen::Vector3d p = site.point + r * site.normal;
-          while (query.any_contact(ToolEllipsoid::sphere(p, r))) p += 2e-4 * site.normal;
-          check(w, p, r, {}, spacing);
-          check(w, p, r, FreeBall{r, site.normal, r}, spacing);
+      const CollisionWorld w = synthetic_world(shape, spacing, 4);
+      for (const double r : {0.005, 0.010}) {
+        const std::vector<ContactSite> sites = shape.press_sites(5, 4, 0.03);
+        const std::vector<Eigen::Vector3d> centres = resting_centres(w, shape, r, 5, 4);
+        for (std::size_t i = 0; i < centres.size(); ++i) {
+          check(w, centres[i], r, {}, spacing);
+          check(w, centres[i], r, FreeBall{r, sites[i].normal, r}, spacing);
         }
+      }
     }
   WorldConfig config;
   config.registration = load_registration_file(test::data_path("truck.registration.json"));
@@ -496,15 +507,8 @@ TEST(ShadedNormal, TheSupportsTailChangesTheNormalByAFewHundredthsOfADegree) {
     for (double spacing : {0.002, 0.004, 0.008})
       for (double r : {0.005, 0.010}) {
         const AnalyticShape shape(kind);
-        SynthParams sp;
-        sp.spacing = spacing;
-        sp.seed = 11;
-        const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
-        ContactQuery query(w);
-        for (const ContactSite& site : shape.press_sites(6, 11, 0.03)) {
-          // A tool resting there: moved out along the site's normal until it overlaps no Gaussian.
-          Eigen::Vector3d p = site.point + r * site.normal;
-          while (query.any_contact(ToolEllipsoid::sphere(p, r))) p += 2e-4 * site.normal;
+        const CollisionWorld w = synthetic_world(shape, spacing, 11);
+        for (const Eigen::Vector3d& p : resting_centres(w, shape, r, 6, 11)) {
           const Eigen::Vector3d all = shaded_normal(w, p, r, 0.5, {}, spacing, 1e5);
           ASSERT_FALSE(all.isZero(0));
           const double gap = angle_deg(all, shaded_normal(w, p, r, 0.5, {}, spacing));
