@@ -13,8 +13,13 @@
 
 #include "gshaptics/error.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/io/scene_loader.h"
+#include "gshaptics/scene/registration.h"
+#include "gshaptics/sim/probe_run.h"
+#include "gshaptics/sim/probe_trajectory.h"
 #include "support/allocation_counter.h"
 #include "support/gaussian_worlds.h"
+#include "support/scenes.h"
 
 namespace gshaptics {
 namespace {
@@ -281,6 +286,54 @@ TEST(ProxyRenderer, TickIsAllocationFreeAndNoexcept) {
   EXPECT_GT(proxy.contact_normal().z(), 0.9);  // it did touch the sphere's top
 }
 
+// The shaded normal's support bound (ProxyParams::shading_tail, default kShadingTail) against a
+// support that holds every Gaussian that matters (tail 200: exp(-100) of the touching ones), on
+// the Truck's probe run replayed through the renderer: the same proxy path tick for tick (the
+// god-object does not read the normal), and the force within 0.25 deg and 1 % wherever it is
+// over 0.5 N (0.019 deg and 0.02 % here, over 9,444 ticks). A short tail (2) moves it by 1.7 deg:
+// the check can tell.
+TEST(ProxyRenderer, TheShadedNormalsSupportBoundKeepsTheTrucksProbeRunsPathAndForce) {
+  WorldConfig config;
+  config.registration = load_registration_file(test::data_path("truck.registration.json"));
+  const CollisionWorld w = CollisionWorld::build(load_scene(test::data_path("truck.splat")).scene, config);
+  const double r = default_tool_radius(w);
+  const ProbeTrajectory traj = generate_probe_trajectory(w, default_probe_params(w, r, 7, 1, 0.02));
+  const ProbeRunResult run = run_probe(w, traj, {});
+  std::size_t pressed = 0;
+  const auto replay = [&](double tail, double& worst_deg, double& worst_rel, std::size_t& path_differs) {
+    pressed = 0;
+    ProxyParams bounded, wide;
+    bounded.shading_tail = kShadingTail;
+    wide.shading_tail = tail;
+    ProxyRenderer a(w, bounded), b(w, wide);
+    worst_deg = worst_rel = 0;
+    path_differs = 0;
+    for (const TickRecord& t : run.ticks) {
+      const ToolEllipsoid tool = ToolEllipsoid::sphere(t.position, r);
+      const RenderOutput oa = a.render(tool, t.velocity, 1e-3), ob = b.render(tool, t.velocity, 1e-3);
+      path_differs += oa.proxy != ob.proxy;
+      if (ob.force.norm() > 0.5) {
+        ++pressed;
+        worst_deg = std::max(worst_deg, std::acos(std::clamp(oa.force.normalized().dot(ob.force.normalized()), -1.0, 1.0)) * 180 / M_PI);
+        worst_rel = std::max(worst_rel, std::fabs(oa.force.norm() - ob.force.norm()) / ob.force.norm());
+      }
+    }
+  };
+  double deg = 0, rel = 0;
+  std::size_t differs = 0;
+  replay(200, deg, rel, differs);
+  EXPECT_GT(pressed, 1000u);  // (ticks pressing with over 0.5 N)
+  EXPECT_EQ(differs, 0u);
+  EXPECT_LT(deg, 0.25);
+  EXPECT_LT(rel, 0.01);
+  RecordProperty("worst_deg", std::to_string(deg));
+  RecordProperty("worst_rel", std::to_string(rel));
+  double short_deg = 0, short_rel = 0;
+  replay(2, short_deg, short_rel, differs);
+  EXPECT_GT(short_deg, 0.25);
+  RecordProperty("short_tail_deg", std::to_string(short_deg));
+}
+
 TEST(ProxyRenderer, BadParametersAreErrors) {
   std::vector<test::GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.01f);
@@ -291,6 +344,9 @@ TEST(ProxyRenderer, BadParametersAreErrors) {
   p = {};
   p.mu_s = 0.2;
   p.mu_k = 0.5;
+  EXPECT_THROW(ProxyRenderer(w, p), InputError);
+  p = {};
+  p.shading_tail = 0;
   EXPECT_THROW(ProxyRenderer(w, p), InputError);
   EXPECT_THROW((void)renderer_spec("spring"), InputError);
   EXPECT_EQ(make_force_renderer(renderer_spec("proxy"), w)->name(), "proxy");

@@ -22,8 +22,9 @@ const CompoundProxyParams& validated(const CompoundProxyParams& p) {
   if (p.substeps < 1 || p.substeps > 16) throw InputError("compound proxy: substeps must be in [1, 16]");
   if (!(p.rotation_step > 0) || !(p.rotation_step <= 1) || p.max_rotation_steps < 1)
     throw InputError("compound proxy: rotation_step must be in (0, 1] and max_rotation_steps >= 1");
-  if (!(p.teleport > 0) || !(p.isolation_gap >= 0) || !(p.shading_kernel >= 0) || !(p.shading_reuse >= 0))
-    throw InputError("compound proxy: teleport must be > 0, isolation gap, shading kernel and reuse >= 0");
+  if (!(p.teleport > 0) || !(p.isolation_gap >= 0) || !(p.shading_kernel >= 0) || !(p.shading_reuse >= 0) ||
+      !(p.shading_tail > 0))
+    throw InputError("compound proxy: teleport and shading tail must be > 0, isolation gap, shading kernel and reuse >= 0");
   if (!(p.mu_s >= 0 && p.mu_k >= 0 && p.mu_k <= p.mu_s) || !std::isfinite(p.mu_s))
     throw InputError("compound proxy: friction needs 0 <= mu_k <= mu_s");
   if (!(p.shading_turn >= 0) || !std::isfinite(p.shading_turn))
@@ -312,7 +313,7 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
         const Eigen::Vector3d& sn =
             shades_[std::size_t(j)].read(*world_, at, std::max(rho, spacing), params_.shading_kernel,
                                          params_.shading_reuse * rho, shading_scratch_,
-                                         {part.inner_clearance(at), h.normal});
+                                         {part.inner_clearance(at), h.normal}, 0, params_.shading_tail);
         if (sn.dot(h.normal) > 0) nj = sn;
       }
       // At a clean convex edge the shaded field blends the faces' normals; the tool resting on

@@ -21,6 +21,7 @@ const ProxyParams& validated(const ProxyParams& p, double f_max) {
   if (p.floater_cluster < 1 || p.floater_cluster > FloaterTest::kLargestCluster)
     throw InputError("proxy: floater_cluster must be in [1, " + std::to_string(FloaterTest::kLargestCluster) + "]");
   if (!(p.shading_turn >= 0) || !std::isfinite(p.shading_turn)) throw InputError("proxy: shading_turn must be >= 0 degrees");
+  if (!(p.shading_tail > 0) || !std::isfinite(p.shading_tail)) throw InputError("proxy: shading_tail must be > 0");
   if (!(p.shading_kernel > 0) || !(p.teleport > 0) || !(p.tau_opacity >= 0))
     throw InputError("proxy: shading_kernel and teleport must be > 0, tau_opacity >= 0");
   return p;
@@ -61,6 +62,7 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   c.pass_isolated = params_.pass_isolated;
   c.shading_kernel = params_.shading_kernel;
   c.shading_reuse = params_.shading_reuse;
+  c.shading_tail = params_.shading_tail;
   c.shading_turn = params_.shading_turn;
   c.isolation_gap = params_.isolation_gap;
   c.floater_cluster = params_.floater_cluster;
@@ -98,7 +100,7 @@ void ProxyRenderer::reset() noexcept {
 }
 
 Eigen::Vector3d ProxyRenderer::shaded_normal(const Eigen::Vector3d& center, double radius) const noexcept {
-  return gshaptics::shaded_normal(*world_, center, radius, params_.shading_kernel);
+  return gshaptics::shaded_normal(*world_, center, radius, params_.shading_kernel, {}, 0, params_.shading_tail);
 }
 
 RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
@@ -159,7 +161,8 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   const FreeBall ball{resting ? tool.semi_axes.minCoeff() : 0.0, up,
                       resting ? tool.semi_axes.cwiseProduct(tool.rotation.conjugate() * up).norm() : 0.0};
   Eigen::Vector3d n = shade_.read_ahead(*world_, p, std::max(r, spacing), params_.shading_kernel,
-                                        params_.shading_reuse * r, shading_scratch_, params_.shading_budget, ball, spacing);
+                                        params_.shading_reuse * r, shading_scratch_, params_.shading_budget, ball, spacing,
+                                        params_.shading_tail);
   if (n.dot(e) < 0 && !solver_.blocked(tool)) {
     // The surface says the device is on its free side, and the device's own pose is free: the
     // proxy is caught in a Gaussian-scale pocket (a sharp tool rim under a neighbouring disc's

@@ -507,9 +507,10 @@ struct ShadingScratch::Terms {
     outward = f / n1;
     return true;
   }
-  void start(const Eigen::Vector3d& at, double radius, double kernel, const FreeBall& ball, double min_width) noexcept {
+  void start(const Eigen::Vector3d& at, double radius, double kernel, const FreeBall& ball, double min_width,
+             double tail) noexcept {
     c = at;
-    sp = support_of(radius, kernel, ball, min_width, kShadingTail);
+    sp = support_of(radius, kernel, ball, min_width, tail);
     s = std::sqrt(sp.s2);
     gather.start(c, sp);
     first = FirstLanes{};
@@ -521,8 +522,8 @@ struct ShadingScratch::Terms {
 
   // Starts reading at `at`: false when the support holds more leaves than `ranges` (read it at once).
   bool begin(const CollisionWorld& world, const Eigen::Vector3d& at, double radius, double kernel,
-             const FreeBall& ball, double min_width) noexcept {
-    start(at, radius, kernel, ball, min_width);
+             const FreeBall& ball, double min_width, double tail) noexcept {
+    start(at, radius, kernel, ball, min_width, tail);
     n_ranges = 0;
     bool fits = true;
     for_each_kernel_leaf(world, c, s, sp.q_cut, [&](std::uint32_t f, std::uint32_t count) {
@@ -598,10 +599,10 @@ Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d
 }
 
 Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
-                              ShadingScratch& scratch, const FreeBall& ball, double min_width) noexcept {
+                              ShadingScratch& scratch, const FreeBall& ball, double min_width, double tail) noexcept {
   ShadingScratch::Terms& t = *scratch.terms_;
   t.phase = 0;  // (a reading spread over calls in this scratch is given up)
-  t.start(c, radius, kernel, ball, min_width);
+  t.start(c, radius, kernel, ball, min_width, tail);
   const CollisionGaussian* gs = world.gaussians().data();
   std::size_t visited = 0;
   const auto sink = [&t](const TermLanes& tl, int l) { t.keep(tl, l); };
@@ -613,7 +614,7 @@ Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d
   scratch.last_terms_ = t.n;
   scratch.last_overflow_ = t.overflow;
   scratch.last_steps_ = visited + t.n;
-  if (t.overflow) return plain_reading(world, c, radius, kernel, ball, min_width, kShadingTail);  // more than it holds
+  if (t.overflow) return plain_reading(world, c, radius, kernel, ball, min_width, tail);  // more than it holds
   if (!found) return Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < t.n; i += kLanes) fit_lanes(t.terms(), i, int(std::min<std::size_t>(kLanes, t.n - i)), t.outward, t.fit);
   return finish(fit_result(t.fit, t.outward, t.s));
@@ -622,7 +623,7 @@ Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d
 const Eigen::Vector3d& ShadedNormalCache::read_ahead(const CollisionWorld& world, const Eigen::Vector3d& at,
                                                      double scale, double kernel, double reuse, ShadingScratch& scratch,
                                                      std::size_t budget, const FreeBall& ball,
-                                                     double min_width) noexcept {
+                                                     double min_width, double tail) noexcept {
   ShadingScratch::Terms& pending = *scratch.terms_;
   // The field's turn bounds how far a reading is kept (reuse_within), but a reading that costs
   // more than the tick's budget is kept at least as far as a reading ahead needs to be prepared:
@@ -656,7 +657,7 @@ const Eigen::Vector3d& ShadedNormalCache::read_ahead(const CollisionWorld& world
       ++reads_;
       return normal_;
     }
-    return read(world, at, scale, kernel, largest_reuse, scratch, ball, min_width);
+    return read(world, at, scale, kernel, largest_reuse, scratch, ball, min_width, tail);
   }
   if (budget == 0) return normal_;
   // A reading ahead is started only where one costs more than a tick's budget, and only on a
@@ -676,7 +677,7 @@ const Eigen::Vector3d& ShadedNormalCache::read_ahead(const CollisionWorld& world
       moved >= kStraight * path_ && share <= budget && calls_ <= kAheadCalls) {
     ahead_share_ = share;
     pending_at_ = at + (at - at_);  // as far on again as it came
-    pending_ = pending.begin(world, pending_at_, scale, kernel, ball, min_width);
+    pending_ = pending.begin(world, pending_at_, scale, kernel, ball, min_width, tail);
     if (!pending_) {
       pending.phase = 0;
       ahead_blocked_ = true;  // (too many leaves: this stretch reads at once)

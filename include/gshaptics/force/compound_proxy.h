@@ -84,6 +84,7 @@ struct CompoundProxyParams {
   /// A part's shaded normal is re-read once its reading point moved this many of the part's
   /// smallest semi-axes (ProxyParams::shading_reuse).
   double shading_reuse = 0.05;
+  double shading_tail = kShadingTail;  ///< the shaded normal's support (ProxyParams::shading_tail)
   /// ... or sooner where a part's field turns fast: by at most this many degrees at the rate
   /// it turned between the part's last two readings (ProxyParams::shading_turn; 0: off).
   double shading_turn = 1.0;

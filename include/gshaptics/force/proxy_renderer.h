@@ -60,6 +60,9 @@ struct ProxyParams {
   double lift = 0.05;
   double shading_kernel = 0.5;  ///< kernel width of the shaded normal, in tool radii (or in the
                                 ///< blocking Gaussians' middle semi-axis when that is larger)
+  /// How far the shaded normal's support reaches past the Gaussians that touch the tool, in q
+  /// (kShadingTail, shaded_normal()): a term left out weighs under exp(-tail / 2) of theirs.
+  double shading_tail = kShadingTail;
   double shading_reuse = 0.05;  ///< the shaded normal is recomputed once the proxy moved this many tool radii
   /// ... or sooner where the field turns fast: a reading is kept only while the normal would
   /// turn by at most this many degrees at the rate it turned between the last two readings

@@ -115,7 +115,7 @@ class ShadingScratch {
 
  private:
   friend Eigen::Vector3d shaded_normal(const CollisionWorld&, const Eigen::Vector3d&, double, double,
-                                       ShadingScratch&, const FreeBall&, double) noexcept;
+                                       ShadingScratch&, const FreeBall&, double, double) noexcept;
   friend class ShadedNormalCache;  // (its reading ahead keeps the pending reading here)
   struct Terms;
   std::unique_ptr<Terms> terms_;
@@ -128,7 +128,8 @@ class ShadingScratch {
 /// nothing.
 [[nodiscard]] Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& center, double radius,
                                             double kernel, ShadingScratch& scratch,
-                                            const FreeBall& ball = {}, double min_width = 0) noexcept;
+                                            const FreeBall& ball = {}, double min_width = 0,
+                                            double tail = kShadingTail) noexcept;
 
 /// The last shaded normal and where it was read. The field is smooth at the kernel's scale, so
 /// a proxy re-reads it only once its reading point moved more than `reuse` m
@@ -136,7 +137,7 @@ class ShadingScratch {
 /// turns fast, with a turn tolerance (set_turn_tolerance; ProxyParams::shading_turn).
 class ShadedNormalCache {
  public:
-  /// shaded_normal(world, at, scale, kernel, scratch, ball, min_width), or a cached one while
+  /// shaded_normal(world, at, scale, kernel, scratch, ball, min_width, tail), or a cached one while
   /// `at` is within `reuse` m (less where the field turns fast: reuse_within) of where that was
   /// read: the last reading, or one of the
   /// kEarlierReadings before it (then it becomes the last). A compound tool's part whose probe
@@ -146,7 +147,7 @@ class ShadedNormalCache {
   /// degrees); the earlier readings keep it from re-reading each time.
   const Eigen::Vector3d& read(const CollisionWorld& world, const Eigen::Vector3d& at, double scale, double kernel,
                               double reuse, ShadingScratch& scratch, const FreeBall& ball = {},
-                              double min_width = 0) noexcept {
+                              double min_width = 0, double tail = kShadingTail) noexcept {
     reuse = reuse_within(reuse);
     if (valid_ && (at - at_).norm() <= reuse) return normal_;
     for (std::size_t i = 0; valid_ && i < n_earlier_; ++i)
@@ -163,7 +164,7 @@ class ShadedNormalCache {
       }
       earlier_at_[0] = at_, earlier_normal_[0] = normal_;
     }
-    take(shaded_normal(world, at, scale, kernel, scratch, ball, min_width), at);
+    take(shaded_normal(world, at, scale, kernel, scratch, ball, min_width, tail), at);
     ++reads_;
     ++whole_reads_;
     return normal_;
@@ -185,7 +186,8 @@ class ShadedNormalCache {
   /// in between (one cancels the pending reading).
   const Eigen::Vector3d& read_ahead(const CollisionWorld& world, const Eigen::Vector3d& at, double scale,
                                     double kernel, double reuse, ShadingScratch& scratch, std::size_t budget,
-                                    const FreeBall& ball = {}, double min_width = 0) noexcept;
+                                    const FreeBall& ball = {}, double min_width = 0,
+                                    double tail = kShadingTail) noexcept;
   /// Bounds the normal's turn between readings (radians; 0: off, `reuse` as given). The field
   /// is smooth on a face but turns fast round a convex edge (40 degrees per mm beside the 8 mm
   /// fidelity cube's edge with a 10 mm tool), and a normal held over `reuse` there makes the
