@@ -53,8 +53,10 @@ enum Field : int {
   kW,             // alpha exp(-q / 2) (times the concave-crease falloff, FreeBall::surface)
   kFlat,          // 1 - a_min / a_mid
   kPast,          // distance past the rim, in kRimFalloff kernel widths (0 when not beyond it)
-  kBeyond,        // 1: a disc (flat > 0) and c beyond its rim; else 0
   kFields
+  // (Whether c is beyond a disc's rim needs no field of its own: where it is not, the rim
+  // direction is the axis itself and the distance past the rim is 0, so both passes' rim terms
+  // vanish exactly: exp(0) = 1, and a rim direction equal to the axis gains nothing.)
 };
 
 // kLanes visited Gaussians, gathered.
@@ -126,8 +128,7 @@ template <bool kSimd>
     // Beyond the rim: the in-plane offset in semi-axes, rho^2 > 1.
     const double e0 = l0 / a0, e1 = l1 / a1, e2 = l2 / a2;
     const double rho2 = (j0 ? 0.0 : e0 * e0) + (j1 ? 0.0 : e1 * e1) + (j2 ? 0.0 : e2 * e2);
-    const double beyond_flag = flag(flat > 0) * flag(rho2 > 1.0);
-    const bool beyond = beyond_flag > 0;
+    const bool beyond = flag(flat > 0) * flag(rho2 > 1.0) > 0;
     // From the rim point on the ray toward c's projection, to c: the in-plane offset shrunk.
     const double shrink = 1.0 - 1.0 / std::sqrt(rho2 > 1.0 ? rho2 : 1.0);
     const double o0 = j0 ? l0 : l0 * shrink, o1 = j1 ? l1 : l1 * shrink, o2 = j2 ? l2 : l2 * shrink;
@@ -146,7 +147,6 @@ template <bool kSimd>
     out.f[kW][l] = w;
     out.f[kFlat][l] = flat;
     out.f[kPast][l] = beyond ? std::sqrt(past2) * inv_falloff : 0.0;
-    out.f[kBeyond][l] = beyond_flag;
   };
   if constexpr (kSimd) {
 #pragma omp simd
@@ -191,7 +191,7 @@ inline void term_lanes(const GaussianLanes& in, const Support& sp, TermLanes& ou
 }
 
 // Where terms are stored, kLanes at a time: term i's field k at
-// base[(i / kLanes) kFields kLanes + k kLanes + i % kLanes] (a block of kLanes terms is 2 KiB
+// base[(i / kLanes) kFields kLanes + k kLanes + i % kLanes] (a block of kLanes terms is 1.9 KiB
 // in one piece; arrays a field apart, a capacity apart, would all map to the same cache sets).
 struct TermStore {
   double* base;
@@ -217,14 +217,13 @@ __attribute__((target_clones("avx512f", "avx2", "default")))
 void first_lanes(const TermStore& st, std::size_t i, int count, FirstLanes& acc) noexcept {
   const double *rx = st.field(kRx, i), *ry = st.field(kRy, i), *rz = st.field(kRz, i);
   const double *gx = st.field(kGx, i), *gy = st.field(kGy, i), *gz = st.field(kGz, i);
-  const double *w = st.field(kW, i), *fl = st.field(kFlat, i), *pa = st.field(kPast, i), *by = st.field(kBeyond, i);
+  const double *w = st.field(kW, i), *fl = st.field(kFlat, i), *pa = st.field(kPast, i);
   alignas(64) double live[kLanes];
   for (int l = 0; l < kLanes; ++l) live[l] = l < count ? 1.0 : 0.0;
 #pragma omp simd
   for (int l = 0; l < kLanes; ++l) {
-    const bool beyond = by[l] > 0;
     // (The rim direction is unit, and the axis itself where c is not beyond the rim.)
-    const double wt = beyond ? w[l] * lane_exp(-0.5 * pa[l] * pa[l]) : w[l];
+    const double wt = w[l] * lane_exp(-0.5 * pa[l] * pa[l]);
     const double f = fl[l];
     const double x = f * rx[l] + (1.0 - f) * gx[l], y = f * ry[l] + (1.0 - f) * gy[l], z = f * rz[l] + (1.0 - f) * gz[l];
     const bool in = live[l] > 0;
@@ -270,7 +269,7 @@ void fit_lanes(const TermStore& st, std::size_t i, int count, const Eigen::Vecto
   const double *rx = st.field(kRx, i), *ry = st.field(kRy, i), *rz = st.field(kRz, i);
   const double *gx = st.field(kGx, i), *gy = st.field(kGy, i), *gz = st.field(kGz, i);
   const double *px = st.field(kPx, i), *py = st.field(kPy, i), *pz = st.field(kPz, i);
-  const double *w = st.field(kW, i), *fl = st.field(kFlat, i), *pa = st.field(kPast, i), *by = st.field(kBeyond, i);
+  const double *w = st.field(kW, i), *fl = st.field(kFlat, i), *pa = st.field(kPast, i);
   constexpr double kInvFitSpan = 1.0 / (kFitFull - kFitNone);
   alignas(64) double live[kLanes];
   for (int l = 0; l < kLanes; ++l) live[l] = l < count ? 1.0 : 0.0;
@@ -280,7 +279,7 @@ void fit_lanes(const TermStore& st, std::size_t i, int count, const Eigen::Vecto
     const double rim_agree = rx[l] * ox + ry[l] * oy + rz[l] * oz;
     const double turn = lane_min(1.0, (kAgree - agree) / kAgree);
     const double gain = lane_min(1.0, lane_max(0.0, (rim_agree - agree) / kGain));
-    const double t = by[l] * flag(agree < kAgree) * turn * gain;
+    const double t = flag(agree < kAgree) * turn * gain;  // (0 where c is not beyond a rim: no gain)
     const double bx = (1.0 - t) * ax[l] + t * rx[l], by_ = (1.0 - t) * ay[l] + t * ry[l], bz = (1.0 - t) * az[l] + t * rz[l];
     const double bn = std::sqrt(bx * bx + by_ * by_ + bz * bz);
     // (At t = 0 the blend is the unit axis itself, normalised again.)

@@ -99,8 +99,8 @@ inline constexpr double kShadingTail = 18;
 /// Gaussian). Allocated once, at construction; copies allocate their own.
 class ShadingScratch {
  public:
-  /// Room for `capacity` terms, rounded up to a multiple of 16 (128 bytes each; the default,
-  /// 512 KiB, holds a 7.6 cm tool's kernel on the Truck and most of one on the largest real
+  /// Room for `capacity` terms, rounded up to a multiple of 16 (120 bytes each; the default,
+  /// 480 KiB, holds a 7.6 cm tool's kernel on the Truck and most of one on the largest real
   /// scenes). A reading with more falls back to the plain call, with the same result.
   explicit ShadingScratch(std::size_t capacity = 4096);
   ~ShadingScratch();
