@@ -148,6 +148,9 @@ int main(int argc, char** argv) {
                "the p95 and the p99 and the top 1 % (by that replay's times), their mean sweeps, candidates "
                "and exact first-contact searches, and how many read the shaded normal");
   bool stylus = false;
+  bool no_near_lists = false;
+  app.add_flag("--no-near-lists", no_near_lists,
+               "Compound tools' sweeps take the BVH every time (ProxyParams::near_lists off), for comparison");
   app.add_flag("--stylus", stylus,
                "Also time both models with a compound tool on the same paths: a 4-part stylus "
                "(stylus:6R,R, tilted 45 deg, its tip at the pose) against the sphere of radius R, and "
@@ -276,7 +279,9 @@ int main(int argc, char** argv) {
             });
         // The proxy with a compound tool, tilted, its TCP on the poses.
         const auto time_proxy = [&](const CompoundTool& t) {
-          ProxyRenderer timed(w);
+          ProxyParams pp;
+          pp.near_lists = !no_near_lists;
+          ProxyRenderer timed(w, pp);
           timed.set_tool(t);
           return time_replays(
               s.poses.size(), passes, [&] { timed.reset(); },

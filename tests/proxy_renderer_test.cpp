@@ -11,8 +11,12 @@
 #include <cmath>
 #include <random>
 
+#include <fmt/format.h>
+
 #include "gshaptics/error.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/collision/compound_tool.h"
+#include "gshaptics/fidelity/wrench_fidelity.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/scene/registration.h"
 #include "gshaptics/sim/probe_run.h"
@@ -332,6 +336,104 @@ TEST(ProxyRenderer, TheShadedNormalsSupportBoundKeepsTheTrucksProbeRunsPathAndFo
   replay(2, short_deg, short_rel, differs);
   EXPECT_GT(short_deg, 0.25);
   RecordProperty("short_tail_deg", std::to_string(short_deg));
+}
+
+// The compound proxy's near lists (ProxyParams::near_lists) keep its path and wrench: the same
+// proxy pose and the same force and torque on every tick as the proxy that takes the BVH every
+// sweep, for a stylus lying on the fidelity plane at 2 mm (the press the lists are for), a
+// stylus pressed 3 mm onto the fidelity cube's top and slid across its edge and back, and a
+// tilted stylus (as gshaptics_proxy_bench --stylus) on the Truck's probe run, its device
+// jumping three tool radii every 400 ticks (out of its lists' boxes). The lists must serve
+// most of the sweeps.
+TEST(ProxyRenderer, NearListsKeepTheCompoundProxysPathAndWrench) {
+  struct Tick {
+    Eigen::Vector3d position, velocity;
+    Eigen::Quaterniond orientation;
+  };
+  const auto replay = [](const CollisionWorld& w, const CompoundTool& tool, const std::vector<Tick>& ticks,
+                         const std::string& name) {
+    ProxyParams on, off;
+    off.near_lists = false;
+    ProxyRenderer a(w, on), b(w, off);
+    a.set_tool(tool);
+    b.set_tool(tool);
+    std::array<ToolEllipsoid, kMaxToolParts> parts;
+    std::size_t differ = 0, pressed = 0;
+    double worst_x = 0, worst_f = 0;
+    for (const Tick& t : ticks) {
+      const int n = tool.posed(t.position, t.orientation, parts);
+      const std::span<const ToolEllipsoid> ps(parts.data(), std::size_t(n));
+      const RenderOutput oa = a.render_compound(ps, t.position, t.velocity, Eigen::Vector3d::Zero(), 1e-3);
+      const RenderOutput ob = b.render_compound(ps, t.position, t.velocity, Eigen::Vector3d::Zero(), 1e-3);
+      differ += oa.proxy != ob.proxy || oa.force != ob.force || oa.torque != ob.torque;
+      pressed += ob.force.norm() > 0.5;
+      worst_x = std::max(worst_x, (oa.proxy - ob.proxy).norm());
+      worst_f = std::max(worst_f, (oa.force - ob.force).norm() + (oa.torque - ob.torque).norm());
+    }
+    ASSERT_NE(a.compound(), nullptr);
+    const CompoundProxy::SweepWork& work = a.compound()->sweep_work();
+    EXPECT_EQ(b.compound()->sweep_work().reused, 0u) << name;
+    EXPECT_GT(work.reused, work.sweeps) << name << ": the lists served few sweeps";
+    EXPECT_GT(pressed, ticks.size() / 10) << name;
+    // (The lists leave out Gaussians that cannot touch, whose exact searches would otherwise
+    // warm-start others: the same contacts to the search's tolerance, 1e-12 of a motion.)
+    EXPECT_LT(worst_x, 1e-12) << name;
+    EXPECT_LT(worst_f, 1e-8) << name;
+    RecordProperty(name + "_ticks_not_bit_identical", std::to_string(differ));
+    RecordProperty(name + "_reused_parts", std::to_string(work.reused));
+    RecordProperty(name + "_rebuilt", std::to_string(work.rebuilt));
+  };
+  const WrenchTools tools;
+  {
+    SynthParams sp;
+    sp.spacing = 0.002;
+    const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), sp).scene, WorldConfig{});
+    for (const WrenchCase& c : wrench_cases(ShapeKind::kPlane, tools, 1, 1)) {
+      if (c.name != "stylus side-on") continue;
+      std::vector<Tick> ticks;
+      for (const ScriptTick& t : wrench_script(c, 0.005, 1000).ticks) ticks.push_back({t.position, t.velocity, t.orientation});
+      replay(w, c.tool, ticks, "plane");
+    }
+  }
+  {
+    SynthParams sp;
+    sp.spacing = 0.004;
+    const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(AnalyticShape(ShapeKind::kCube), sp).scene, WorldConfig{});
+    // The cube's top at z = 0.1, its edge at x = 0.1: the stylus lies along y, tilted 20 deg.
+    const Eigen::Quaterniond q = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX())) *
+                                 Eigen::Quaterniond(Eigen::AngleAxisd(20 * M_PI / 180, Eigen::Vector3d::UnitY()));
+    std::vector<Tick> ticks;
+    const Eigen::Vector3d start(0.06, 0, 0.1 + 0.02), pressed(0.06, 0, 0.1 - 0.003), across(0.13, 0, 0.1 - 0.003);
+    const auto line = [&](const Eigen::Vector3d& from, const Eigen::Vector3d& to, int n) {
+      for (int i = 0; i < n; ++i)
+        ticks.push_back({from + (to - from) * (double(i) / n), (to - from) / (n * 1e-3), q});
+    };
+    line(start, pressed, 800);
+    line(pressed, across, 2000);
+    line(across, pressed, 2000);
+    line(pressed, start, 800);
+    replay(w, tools.stylus, ticks, "cube_edge");
+  }
+  {
+    WorldConfig config;
+    config.registration = load_registration_file(test::data_path("truck.registration.json"));
+    const CollisionWorld w = CollisionWorld::build(load_scene(test::data_path("truck.splat")).scene, config);
+    const double r = default_tool_radius(w);
+    const ProbeTrajectory traj = generate_probe_trajectory(w, default_probe_params(w, r, 7, 1, 0.02));
+    const ProbeRunResult run = run_probe(w, traj, {});
+    const CompoundTool stylus = parse_tool_spec(fmt::format("stylus:{},{}", 6 * r, r));
+    const Eigen::Quaterniond tilt(Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitY()));
+    std::mt19937_64 rng(12);
+    std::normal_distribution<double> n01;
+    std::vector<Tick> ticks;
+    Eigen::Vector3d jump = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < run.ticks.size(); ++i) {
+      if (i % 400 == 399) jump = Eigen::Vector3d(n01(rng), n01(rng), n01(rng)).normalized() * 3 * r;
+      else if (i % 400 == 0) jump.setZero();  // (and back on the next)
+      ticks.push_back({run.ticks[i].position + jump, run.ticks[i].velocity, tilt});
+    }
+    replay(w, stylus, ticks, "truck");
+  }
 }
 
 TEST(ProxyRenderer, BadParametersAreErrors) {

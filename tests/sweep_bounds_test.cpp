@@ -7,8 +7,9 @@
 // let pass. On the bundled Truck (near-surface tools, random motions) and on fidelity scenes (a
 // cube edge, a sphere with floaters). The bounds alone are exact; the warm start moves the
 // first-contact time by the search's tolerance (1e-12 of the motion here); a sweep with a
-// tolerance reports a contact at most that much later than the first. The shaded normal with
-// working memory is bit-identical to the plain two-pass one.
+// tolerance reports a contact at most that much later than the first. Near lists (the
+// candidates of a resting compound tool's sweeps from its parts' last lists) give the BVH's
+// contacts. The shaded normal with working memory is bit-identical to the plain two-pass one.
 
 #include <gtest/gtest.h>
 
@@ -25,6 +26,7 @@
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/scene/registration.h"
 #include "gshaptics/sim/pose_sampler.h"
+#include "support/gaussian_worlds.h"
 
 namespace gshaptics {
 namespace {
@@ -218,6 +220,166 @@ TEST(SweepBounds, CompoundToolSweepsMatchThePlainComputationPerPart) {
   EXPECT_GT(hits, 20);
   EXPECT_GT(parts_hit, 2 * hits);  // several parts touch on most motions
   EXPECT_GT(later_parts, 5);       // and the first contact is not always the first part's
+}
+
+// Near lists (SweepQuery's reuse margin) against the BVH: compound tools (elongated parts,
+// whose core is their axis, and round ones, whose core is their centre) near the Gaussians sweep
+// short motions from poses drifting toward the Gaussians for six sweeps and back for six
+// (toward: against the last contact's normal), so that the first contact is often a Gaussian that
+// was out of reach where its part's list was built; the last contact is the hint (so that lists
+// are built); now and then the tool turns (the lists no longer fit) or jumps three tool sizes (it
+// leaves their boxes). Each sweep, shared bar and per part, against the same sweep without
+// lists and, every fifth, against the plain computation.
+struct NearListWork {
+  std::uint64_t sweeps = 0, hits = 0, part_hits = 0, reused = 0, rebuilt = 0;
+};
+void expect_near_lists_give_the_bvhs_contacts(const CollisionWorld& w, const std::vector<Eigen::Vector3d>& centres,
+                                              double r, std::uint64_t seed, NearListWork& work) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1), s(0.4, 1.0);
+  std::normal_distribution<double> n01;
+  for (std::size_t i = 0; i < centres.size(); ++i) {
+    std::vector<ToolEllipsoid> parts(2 + i % 3);
+    std::vector<Eigen::Vector3d> offsets(parts.size());
+    Eigen::Quaterniond q(Eigen::AngleAxisd(3.0 * u(rng), Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized()));
+    for (std::size_t j = 0; j < parts.size(); ++j) {
+      offsets[j] = Eigen::Vector3d(u(rng), u(rng), u(rng)) * r;
+      const double a = s(rng) * r;
+      parts[j].semi_axes = j % 2 == 0 ? Eigen::Vector3d(a, a / 3, a / 3.5) : Eigen::Vector3d(Eigen::Vector3d::Constant(a / 2));
+    }
+    const double margin = 0.5 * r;
+    SweepQuery with(w, 4096, margin), without(w);
+    Eigen::Vector3d centre = centres[i];
+    std::vector<std::uint32_t> hint{0};
+    Eigen::Vector3d toward = Eigen::Vector3d(n01(rng), n01(rng), n01(rng)).normalized();
+    for (int step = 0; step < 48; ++step) {
+      const double sense = (step / 6) % 2 == 0 ? 1.0 : -1.0;
+      if (step % 13 == 12) centre += Eigen::Vector3d(n01(rng), n01(rng), n01(rng)).normalized() * 3 * r;  // a jump
+      else centre += toward * sense * 0.06 * margin + Eigen::Vector3d(u(rng), u(rng), u(rng)) * 0.01 * margin;
+      if (step % 17 == 16) q = Eigen::Quaterniond(Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ())) * q;  // a turn
+      for (std::size_t j = 0; j < parts.size(); ++j) {
+        parts[j].center = centre + q * offsets[j];
+        parts[j].rotation = q;
+      }
+      // Short motions (a resting tool's slides and contact probes; two in three toward the
+      // Gaussians) and now and then a long one.
+      const double len = step % 7 == 6 ? 2.0 * r : (step % 2 == 0 ? 0.2 : 0.45) * margin * (0.1 + 0.9 * std::fabs(u(rng)));
+      const Eigen::Vector3d dir = step % 3 == 2 ? Eigen::Vector3d(n01(rng), n01(rng), n01(rng)).normalized()
+                                                : Eigen::Vector3d((toward + 0.3 * Eigen::Vector3d(u(rng), u(rng), u(rng))).normalized());
+      const Eigen::Vector3d m = dir * len;
+      const SweepHit a = with.first_contact(parts, m, {}, hint), b = without.first_contact(parts, m, {}, hint);
+      ++work.sweeps;
+      work.reused += with.counts().reused;
+      work.rebuilt += with.counts().rebuilt;
+      ASSERT_EQ(a.hit, b.hit) << "tool " << i << " step " << step;
+      if (a.hit) {
+        ++work.hits;
+        EXPECT_NEAR(a.t, b.t, 1e-12) << "tool " << i << " step " << step;
+        EXPECT_NEAR(sweep_time(w.gaussians()[a.slot], parts[std::size_t(a.part)], m), a.t, 1e-12);
+        hint[0] = a.slot;
+        toward = -a.normal;
+      }
+      if (step % 5 == 0) {
+        double first = std::numeric_limits<double>::infinity();
+        for (const ToolEllipsoid& t : parts) first = std::min(first, plain_first_contact(w, t, m, false));
+        EXPECT_EQ(a.hit, std::isfinite(first)) << "tool " << i << " step " << step;
+        if (a.hit) EXPECT_NEAR(a.t, first, 1e-12) << "tool " << i << " step " << step;
+      }
+      // Each part's own contact (a contact probe: a bar a part).
+      std::vector<SweepHit> ea(parts.size()), eb(parts.size());
+      with.first_contacts(parts, m, ea, hint);
+      without.first_contacts(parts, m, eb, hint);
+      work.reused += with.counts().reused;
+      work.rebuilt += with.counts().rebuilt;
+      for (std::size_t j = 0; j < parts.size(); ++j) {
+        ASSERT_EQ(ea[j].hit, eb[j].hit) << "tool " << i << " step " << step << " part " << j;
+        if (!ea[j].hit) continue;
+        ++work.part_hits;
+        EXPECT_NEAR(ea[j].t, eb[j].t, 1e-12) << "tool " << i << " step " << step << " part " << j;
+      }
+    }
+    if (::testing::Test::HasFailure()) return;
+  }
+}
+
+// On the Truck (large, round Gaussians) and on a fidelity cube's top face and edges (flat discs
+// at 4 mm, where the clearances are tight). The reuse must show: lists built, and most sweeps
+// served by them.
+TEST(SweepBounds, NearListsGiveTheBvhsContacts) {
+  std::vector<std::pair<std::string, NearListWork>> runs;
+  if (truck() != nullptr) {
+    std::vector<Eigen::Vector3d> centres;
+    double r = 0;
+    for (const ToolEllipsoid& t : truck_poses(8, 21)) centres.push_back(t.center), r = std::max(r, t.semi_axes.maxCoeff());
+    NearListWork work;
+    expect_near_lists_give_the_bvhs_contacts(*truck(), centres, r, 4, work);
+    runs.emplace_back("truck", work);
+  }
+  {
+    SynthParams sp;
+    sp.spacing = 0.004;
+    const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(AnalyticShape(ShapeKind::kCube), sp).scene, WorldConfig{});
+    std::mt19937_64 rng(8);
+    std::uniform_real_distribution<double> u(-1, 1);
+    std::vector<Eigen::Vector3d> centres;
+    for (int i = 0; i < 16; ++i) centres.emplace_back(0.1 * u(rng), 0.1 * u(rng), 0.1 + 0.012 + 0.004 * u(rng));
+    NearListWork work;
+    expect_near_lists_give_the_bvhs_contacts(w, centres, 0.01, 5, work);
+    runs.emplace_back("cube", work);
+  }
+  for (const auto& [name, work] : runs) {
+    EXPECT_GT(work.hits, 60u) << name;
+    EXPECT_GT(work.part_hits, work.hits) << name;
+    EXPECT_GT(work.rebuilt, 20u) << name;              // built after jumps, turns and drifts
+    EXPECT_GT(work.reused, 2 * work.sweeps) << name;  // most parts of most sweeps served by their lists
+    RecordProperty(name + "_reused_parts", std::to_string(work.reused));
+    RecordProperty(name + "_rebuilt", std::to_string(work.rebuilt));
+    RecordProperty(name + "_hits", std::to_string(work.hits));
+  }
+}
+
+// A part's list follows its drift and its motion: a part (a stylus-like part lying flat, whose
+// core is its axis, or a ball, whose core is its centre) 0.4 margins above a layer of flat discs
+// builds its list there (a short sweep with a hint, no contact), drifts 0.2 margins down (its
+// list still fits) and sweeps 0.3 margins down: it touches 2/3 of the way, a disc that was
+// beyond its list's reach where the list was built. The list serves that sweep and gives the
+// BVH's contact, both as the shared bar and per part; a list that left out the drift or the
+// motion would miss it.
+TEST(SweepBounds, NearListsFollowTheirPartsDriftAndMotion) {
+  // Discs of radius 1 mm and half-thickness 0.05 mm, 4 mm apart: only those right under the
+  // part's lowest line are touched first.
+  std::vector<test::GaussianSpec> gs;
+  for (float x = -0.1f; x <= 0.1f; x += 0.004f)
+    for (float y = -0.1f; y <= 0.1f; y += 0.004f)
+      gs.emplace_back(Eigen::Vector3f(x, y, 0), Eigen::Vector3f(0.001f, 0.001f, 0.00005f), Eigen::Quaternionf::Identity());
+  const CollisionWorld w = test::world_of(gs);
+  const double margin = 0.005, thick = w.gaussians()[0].semi_axes[2];
+  for (const Eigen::Vector3d axes : {Eigen::Vector3d(0.03, 0.005, 0.005), Eigen::Vector3d(0.005, 0.005, 0.005)}) {
+    for (const bool per_part : {false, true}) {
+      ToolEllipsoid part;
+      part.semi_axes = axes;
+      part.center = Eigen::Vector3d(0.0005, 0, thick + axes.z() + 0.4 * margin);
+      SweepQuery with(w, 4096, margin), without(w);
+      const std::uint32_t hint = 0;
+      const auto sweep = [&](SweepQuery& q, const Eigen::Vector3d& m) {
+        SweepHit h;
+        if (per_part) q.first_contacts({&part, 1}, m, {&h, 1}, {&hint, 1});
+        else h = q.first_contact({&part, 1}, m, {}, {&hint, 1});
+        return h;
+      };
+      EXPECT_FALSE(sweep(with, Eigen::Vector3d(0, 0, -0.1 * margin)).hit);
+      EXPECT_EQ(with.counts().rebuilt, 1u);
+      part.center.z() -= 0.2 * margin;
+      const Eigen::Vector3d m(0, 0, -0.3 * margin);
+      const SweepHit a = sweep(with, m), b = sweep(without, m);
+      EXPECT_EQ(with.counts().reused, 1u) << "the list served the sweep";
+      EXPECT_EQ(with.counts().rebuilt, 0u);
+      ASSERT_TRUE(b.hit);
+      EXPECT_NEAR(b.t, 2.0 / 3.0, 0.01);  // (the part's curvature over the disc's 0.5 mm offset)
+      ASSERT_TRUE(a.hit) << "axes " << axes.transpose() << (per_part ? " per part" : "");
+      EXPECT_NEAR(a.t, b.t, 1e-12);
+    }
+  }
 }
 
 TEST(SweepBounds, FidelityScenesMatchThePlainComputation) {

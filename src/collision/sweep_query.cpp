@@ -435,8 +435,17 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
   return t_star;
 }
 
-SweepQuery::SweepQuery(const CollisionWorld& world, std::size_t max_candidates)
-    : world_(&world), scratch_(std::max<std::size_t>(1, max_candidates)) {}
+SweepQuery::SweepQuery(const CollisionWorld& world, std::size_t max_candidates, double reuse_margin)
+    : world_(&world),
+      scratch_(std::max<std::size_t>(1, max_candidates)),
+      reuse_margin_(std::isfinite(reuse_margin) ? std::max(0.0, reuse_margin) : 0.0) {
+  if (reuse_margin_ > 0) {
+    near_slot_.resize(kMaxParts * kNearCapacity);
+    near_clear_.resize(kMaxParts * kNearCapacity);
+    near_tmp_slot_.resize(kNearCapacity);
+    near_tmp_clear_.resize(kNearCapacity);
+  }
+}
 
 SweepHit SweepQuery::first_contact(const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
                                    std::span<const std::uint32_t> ignore,
@@ -460,6 +469,85 @@ void SweepQuery::first_contacts(std::span<const ToolEllipsoid> parts, const Eige
   for (SweepHit& h : hits) h = {};
   if (hits.size() < parts.size()) return;
   sweep_parts(parts, motion, {}, hints, filter, 1.0, tolerance, false, hits);
+}
+
+void SweepQuery::build_near(std::uint32_t p, const ToolEllipsoid& tool, const Eigen::Vector3d& axis, double rho,
+                            const Eigen::Vector3d& half) noexcept {
+  NearList& nl = near_[p];
+  nl.valid = false;
+  nl.line = axis.squaredNorm() > 0;
+  nl.c0 = tool.center;
+  nl.axis = axis;
+  nl.rotation = tool.rotation;
+  nl.semi_axes = tool.semi_axes;
+  nl.rho = rho;
+  for (int k = 0; k < 3; ++k) {
+    nl.lo[k] = round_down_to_float(tool.center[k] - half[k] - reuse_margin_);
+    nl.hi[k] = round_up_to_float(tool.center[k] + half[k] + reuse_margin_);
+  }
+  // An entry with more clearance than this never passes (a sweep moves the core by at most
+  // twice the margin, or takes the BVH).
+  const double keep = (rho + 2 * reuse_margin_) * (1 + 1e-9);  // (the largest limit a sweep uses)
+  // Gathered here, then sorted into the part's list by clearance bucket (a counting sort): a
+  // sweep reads only the buckets up to its limit.
+  std::uint32_t* tmp_slot = near_tmp_slot_.data();
+  float* tmp_clear = near_tmp_clear_.data();
+  std::array<std::uint8_t, kNearCapacity>& tmp_bucket = near_tmp_bucket_;
+  std::array<std::uint32_t, kNearBuckets + 1> start{};
+  const double width = 2 * reuse_margin_ / (kNearBuckets - 1);
+  const CollisionGaussian* gs = world_->gaussians().data();
+  std::uint32_t n = 0;
+  bool full = false;
+  world_->bvh().for_each_overlapping_leaf_node(nl.lo, nl.hi, [&](const BvhNode& leaf) {
+    for (std::uint32_t k = leaf.first; k < leaf.first + leaf.count; ++k) {
+      const CollisionGaussian& g = gs[k];
+      const float gr = g.bounding_radius();
+      bool out = false;
+      for (int j = 0; j < 3; ++j) out = out || g.center[j] + gr < nl.lo[j] || g.center[j] - gr > nl.hi[j];
+      if (out) continue;
+      // Its clearance from the core: along the unit v / |v| from the core to its centre, no point
+      // of it is nearer than |v| - h, h its support there (beyond_reach).
+      Eigen::Vector3d v = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - nl.c0;
+      if (nl.line) v -= v.dot(nl.axis) * nl.axis;
+      const double d2 = v.squaredNorm();
+      double c = -kNever;
+      if (d2 > 0) {
+        const double d = std::sqrt(d2), h = std::sqrt(support_sq(rotation_matrix(g), g.semi_axes, v)) / d;
+        c = d - h - 1e-9 * (d + h);  // (a rounding's margin, inward)
+      }
+      if (c > keep) continue;
+      if (n == kNearCapacity) {
+        full = true;
+        return false;
+      }
+      tmp_slot[n] = k;
+      tmp_clear[n] = round_down_to_float(c);
+      // Bucket 0: clearance <= rho; bucket j: up to rho + j x width (the last: up to keep).
+      const double over = (c - rho) / width;
+      const auto b = std::uint8_t(over <= 0 ? 0 : std::min<double>(kNearBuckets - 1, std::ceil(over)));
+      tmp_bucket[n] = b;
+      ++start[b + 1u];
+      ++n;
+    }
+    return true;
+  });
+  for (std::size_t b = 0; b < kNearBuckets; ++b) start[b + 1] += start[b];
+  nl.bucket_end = {};
+  for (std::size_t b = 0; b < kNearBuckets; ++b) nl.bucket_end[b] = start[b + 1];
+  std::uint32_t* slot = near_slot_.data() + std::size_t(p) * kNearCapacity;
+  float* clear = near_clear_.data() + std::size_t(p) * kNearCapacity;
+  if (!full)
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const std::uint32_t at = start[tmp_bucket[i]]++;
+      slot[at] = tmp_slot[i];
+      clear[at] = tmp_clear[i];
+    }
+  nl.count = n;
+  nl.width = width;
+  nl.valid = !full;
+  // (After each overflow in a row, twice as long.)
+  nl.overflows = full ? std::min<std::uint32_t>(nl.overflows + 1, 12) : 0;
+  nl.backoff = full ? kNearBackoff << (nl.overflows - 1) : 0;
 }
 
 void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,
@@ -684,11 +772,63 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   // A hint that holds the tool (a resting contact: the bar near 0) leaves only the boxes swept
   // up to it to traverse.
   sweep_boxes();
-  // One traversal over the union of the parts' boxes; a leaf is read for each part whose own box
-  // it overlaps (a tilted stylus's union box holds many leaves no part's box reaches).
+  // The parts served by their near lists (reuse_margin_), each with the clearance up to which an
+  // entry can still touch it in this sweep.
+  std::uint32_t served = 0;
+  std::array<double, kMaxParts> near_limit{};
+  if (reuse_margin_ > 0) {
+    for (std::size_t p = 0; p < parts.size(); ++p) {
+      const ToolEllipsoid& tool = parts[p];
+      const PartBounds& q = pd[p];
+      NearList& nl = near_[p];
+      const double bar_p = std::max(0.0, bar_of(std::uint32_t(p)));
+      bool fits = nl.valid && nl.rotation.coeffs() == tool.rotation.coeffs() && nl.semi_axes == tool.semi_axes;
+      for (int k = 0; k < 3 && fits; ++k) fits = q.lo[k] >= nl.lo[k] && q.hi[k] <= nl.hi[k];
+      // (A list is rebuilt once the part has drifted a quarter margin from where it was built:
+      // each sweep reads the entries up to its drift more, whose bounds rule out most of them.)
+      fits = fits && (tool.center - nl.c0).norm() <= kNearDrift * reuse_margin_;
+      // (Built only for a sweep with hints: a tool that touched at its last sweep. One that moves
+      // free would rebuild as often as it crosses a margin, for sweeps the BVH serves cheaply.)
+      // A list that overflowed (a large part in a dense scene) is not tried again for a while.
+      if (!fits && nl.backoff > 0) --nl.backoff;
+      else if (!fits && !hints.empty() && bar_p * len <= 0.5 * reuse_margin_) {
+        build_near(std::uint32_t(p), tool, q.capsule ? caps[p].axis : Eigen::Vector3d::Zero(),
+                   q.capsule ? caps[p].radius : q.r_tool * (1 + 1e-9), q.half);
+        ++counts_.rebuilt;
+        fits = nl.valid;
+      }
+      if (!fits) continue;
+      // How far the core gets from where the list was built, at most, in this sweep.
+      Eigen::Vector3d moved = tool.center - nl.c0, m = motion;
+      if (nl.line) {
+        moved -= moved.dot(nl.axis) * nl.axis;
+        m -= m.dot(nl.axis) * nl.axis;
+      }
+      const double reach = moved.norm() + bar_p * m.norm();
+      if (!(reach <= 2 * reuse_margin_)) continue;
+      served |= 1u << p;
+      near_limit[p] = (nl.rho + reach) * (1 + 1e-9);  // (a rounding's margin, outward)
+      ++counts_.reused;
+    }
+  }
   const auto n_parts = std::uint32_t(parts.size());
+  // One traversal over the union of the other parts' boxes; a leaf is read for each part whose
+  // own box it overlaps (a tilted stylus's union box holds many leaves no part's box reaches).
+  if (served != (1u << n_parts) - 1) {
+    if (served != 0) {
+      bool first = true;
+      for (std::uint32_t p = 0; p < n_parts; ++p) {
+        if ((served >> p) & 1u) continue;
+        for (int k = 0; k < 3; ++k) {
+          lo[k] = first ? pd[p].lo[k] : std::min(lo[k], pd[p].lo[k]);
+          hi[k] = first ? pd[p].hi[k] : std::max(hi[k], pd[p].hi[k]);
+        }
+        first = false;
+      }
+    }
   world_->bvh().for_each_overlapping_leaf_node(lo, hi, [&](const BvhNode& leaf) {
     for (std::uint32_t p = 0; p < n_parts; ++p) {
+      if ((served >> p) & 1u) continue;
       const PartBounds& q = pd[p];
       if (several && (leaf.lo[0] > q.hi[0] || leaf.hi[0] < q.lo[0] || leaf.lo[1] > q.hi[1] || leaf.hi[1] < q.lo[1] ||
                       leaf.lo[2] > q.hi[2] || leaf.hi[2] < q.lo[2]))
@@ -699,6 +839,33 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
     }
     return true;
   });
+  }
+  // The served parts' near lists: an entry whose clearance rules it out is passed over; the
+  // others are the BVH's candidates (the part's own swept box, then the same bounds).
+  for (std::uint32_t p = 0; p < n_parts; ++p) {
+    if (!((served >> p) & 1u)) continue;
+    const PartBounds& q = pd[p];
+    const std::uint32_t* slot = near_slot_.data() + std::size_t(p) * kNearCapacity;
+    const float* clear = near_clear_.data() + std::size_t(p) * kNearCapacity;
+    const double limit_p = near_limit[p];
+    // The buckets up to the limit's (bucket j holds clearances up to rho + j x width).
+    const NearList& nl = near_[p];
+    const double over = (limit_p - nl.rho) / nl.width;
+    const std::size_t last = over <= 0 ? 0 : std::size_t(std::min<double>(kNearBuckets - 1, std::ceil(over)));
+    for (std::uint32_t i = 0, n_near = nl.bucket_end[last]; i < n_near; ++i) {
+      if (double(clear[i]) > limit_p) continue;
+      const std::uint32_t k = slot[i];
+      if (!several) {  // (the compound sweep's bounds check the part's own box)
+        const CollisionGaussian& g = gs[k];
+        const float gr = g.bounding_radius();
+        bool out = false;
+        for (int j = 0; j < 3; ++j) out = out || g.center[j] + gr < q.lo[j] || g.center[j] - gr > q.hi[j];
+        if (out) continue;
+      }
+      ++counts_.candidates;
+      consider(k, p);
+    }
+  }
   std::sort(scratch_.begin(), scratch_.begin() + std::ptrdiff_t(n),
             [](const Candidate& a, const Candidate& b) {
               return a.t < b.t || (a.t == b.t && (a.slot < b.slot || (a.slot == b.slot && a.part < b.part)));

@@ -33,6 +33,13 @@ const CompoundProxyParams& validated(const CompoundProxyParams& p) {
 }
 
 
+// The smallest semi-axis of any part (0 for an empty tool: validated later).
+double smallest_semi_axis(const CompoundTool& tool) noexcept {
+  double m = INFINITY;
+  for (const ToolPart& p : tool.view()) m = std::min(m, p.semi_axes.minCoeff());
+  return std::isfinite(m) && m > 0 ? m : 0.0;
+}
+
 }  // namespace
 
 CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& tool, const CompoundProxyParams& params)
@@ -40,7 +47,8 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
       tool_(tool),
       params_(validated(params)),
       floaters_(world, params.floater_cluster),
-      sweep_(world),
+      sweep_(world, 4096, params.near_lists ? smallest_semi_axis(tool) : 0.0),
+      turn_sweep_(world),
       free_query_(world, [] {
         QueryOptions q;
         q.max_contacts = 1;
@@ -149,7 +157,7 @@ bool CompoundProxy::turn_toward(const Eigen::Quaterniond& target) noexcept {  //
       const ToolPart& part = tool_.parts[std::size_t(j)];
       const Eigen::Vector3d chord = (x_ + next * part.offset) - parts_[std::size_t(j)].center;
       if (chord.squaredNorm() == 0) continue;
-      if (sweep_.first_contact(parts_[std::size_t(j)], chord, {}, {}, filter).hit) return true;
+      if (turn_sweep_.first_contact(parts_[std::size_t(j)], chord, {}, {}, filter).hit) return true;
     }
     if (blocked(x_, next)) return true;
     q_ = next;
@@ -178,6 +186,7 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
     const int n = pose_parts(at, q_);
     const SweepHit best = sweep_.first_contact(std::span<const ToolEllipsoid>(parts_.data(), std::size_t(n)), u, {}, h,
                                                filter, 1.0, 0.5 * eps / u.norm());
+    count_sweep();
     if (best.hit) part = best.part;
     return best;
   };
@@ -296,6 +305,7 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     std::array<SweepHit, kMaxToolParts> probes;
     sweep_.first_contacts(std::span<const ToolEllipsoid>(parts_.data(), std::size_t(count)), probe, probes, hints,
                           filter, 0.5 * ProxySolver::kStandOff * min_axis_ / band);
+    count_sweep();
     n_probe_slots_ = 0;
     for (int j = 0; j < count; ++j)
       if (probes[std::size_t(j)].hit) probe_slots_[n_probe_slots_++] = probes[std::size_t(j)].slot;

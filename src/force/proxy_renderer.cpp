@@ -70,6 +70,7 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   c.mu_s = params_.mu_s;
   c.mu_k = params_.mu_k;
   c.energy_bound = params_.energy_bound;
+  c.near_lists = params_.near_lists;
   compound_ = std::make_unique<CompoundProxy>(*world_, tool, c);
   tool_ = tool;
 }

@@ -58,6 +58,9 @@ struct SweepCounts {
   /// Gaussians searched and touched before the contact that the filter let pass (those it knew
   /// beforehand are not searched, nor counted)
   std::uint32_t passed = 0;
+  /// Parts whose candidates came from their near list (SweepQuery's `reuse_margin`), and the
+  /// near lists built by this sweep
+  std::uint32_t reused = 0, rebuilt = 0;
 };
 
 /// First-contact time of `tool` translating by `motion` against one Gaussian, as a fraction of
@@ -78,7 +81,26 @@ class SweepQuery {
  public:
   /// `max_candidates`: scratch for candidates sorted by their earliest possible contact; more are
   /// still tested, in BVH order.
-  explicit SweepQuery(const CollisionWorld& world, std::size_t max_candidates = 4096);
+  ///
+  /// `reuse_margin` (world units, >= 0; 0 turns it off): each part keeps a near list, the
+  /// Gaussians within its AABB grown by the margin, each with its clearance from the part's core
+  /// (the long axis's line of an elongated part, the centre of any other) at the pose it was
+  /// built: how near any point of the Gaussian comes to that core, bounded below along the
+  /// direction between them (its support there). A later sweep of the same part (same rotation
+  /// and semi-axes) whose swept box lies in that box and whose core stays within twice the
+  /// margin of where it was takes its candidates from the list instead of the BVH, and passes
+  /// over those whose clearance, less how far the core has moved (across the axis, for a line)
+  /// and moves by the bar, exceeds the part's radius about its core: they cannot touch it. The
+  /// others get the same bounds and exact searches as the BVH's candidates, so the contact is
+  /// the same (docs/design.md Sec. 8). For a proxy whose parts rest on the Gaussians for many
+  /// ticks (a stylus lying on a surface: each sweep's box holds hundreds of Gaussians near its
+  /// axis and a few dozen within reach). A list is built when a part's sweep reaches under half
+  /// the margin; sweeps reaching farther take the BVH. One SweepQuery per moving tool: parts
+  /// that turn every call (a rotation's sub-steps) rebuild every time; give them a query
+  /// without reuse. Allocates its lists here (8 x kNearCapacity entries).
+  explicit SweepQuery(const CollisionWorld& world, std::size_t max_candidates = 4096, double reuse_margin = 0);
+  /// At most this many Gaussians a part's near list (more: that part takes the BVH).
+  static constexpr std::size_t kNearCapacity = 2048;
 
   /// The first Gaussian `tool` touches when its centre moves by `motion` (rotation and axes
   /// fixed; world frame), leaving out the records in `ignore`. `hints` are records tested
@@ -140,6 +162,37 @@ class SweepQuery {
     return a;
   }
   SweepCounts counts_;
+  // The parts' near lists (reuse_margin): where each was built and what it covers; entries
+  // [p * kNearCapacity, + count) of near_slot_ and near_clear_ (the clearance from the core,
+  // rounded down).
+  struct NearList {
+    bool valid = false;
+    bool line = false;  // the core: the part's long axis through c0 (else the point c0)
+    Eigen::Vector3d c0 = Eigen::Vector3d::Zero(), axis = Eigen::Vector3d::Zero();
+    Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
+    Eigen::Vector3d semi_axes = Eigen::Vector3d::Zero();
+    double rho = 0;  // the part lies within rho of its core
+    float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+    std::uint32_t count = 0;
+    double width = 0;  // the clearance buckets' width
+    std::array<std::uint32_t, 8> bucket_end{};  // the list sorted by clearance bucket (kNearBuckets)
+    std::uint32_t backoff = 0;    // sweeps to pass before trying again after an overflow
+    std::uint32_t overflows = 0;  // builds in a row that overflowed
+  };
+  static constexpr std::uint32_t kNearBackoff = 256;
+  static constexpr std::size_t kNearBuckets = 8;
+  static constexpr double kNearDrift = 0.25;
+  std::vector<std::uint32_t> near_tmp_slot_;
+  std::vector<float> near_tmp_clear_;
+  std::array<std::uint8_t, kNearCapacity> near_tmp_bucket_{};
+  double reuse_margin_ = 0;
+  // Builds part p's near list at its pose: `axis` its long axis (unit; zero: the core is its
+  // centre), `rho` its radius about the core, `half` its AABB's half extent.
+  void build_near(std::uint32_t p, const ToolEllipsoid& tool, const Eigen::Vector3d& axis, double rho,
+                  const Eigen::Vector3d& half) noexcept;
+  std::array<NearList, kMaxParts> near_{};
+  std::vector<std::uint32_t> near_slot_;
+  std::vector<float> near_clear_;
   // The sweep of first_contact() and first_contacts(): one bar for all parts (`shared`: the
   // earliest contact, in hits[0]) or one a part (hits[j]).
   void sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,

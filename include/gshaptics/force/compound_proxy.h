@@ -97,6 +97,11 @@ struct CompoundProxyParams {
   /// The contact normal's turns under the translational spring add no energy that earlier turns
   /// did not take out (ProxyParams::energy_bound, SpringEnergyBound). false: the plain coupling.
   bool energy_bound = true;
+  /// The translation's and the contact probe's sweeps keep each part's near list (SweepQuery's
+  /// reuse margin, one smallest semi-axis): a part resting on the Gaussians reads its candidates
+  /// from it instead of the BVH. The same contacts (within the exact search's tolerance); false:
+  /// the BVH every sweep.
+  bool near_lists = true;
 };
 
 class CompoundProxy {
@@ -116,6 +121,12 @@ class CompoundProxy {
   [[nodiscard]] const Eigen::Quaterniond& orientation() const noexcept { return q_; }
   [[nodiscard]] std::uint64_t placements() const noexcept { return placements_; }
   [[nodiscard]] std::uint64_t lost() const noexcept { return lost_; }
+  /// What the translation's and the probe's sweeps have done since construction: sweeps run,
+  /// parts whose candidates came from their near lists (near_lists), and near lists built.
+  struct SweepWork {
+    std::uint64_t sweeps = 0, reused = 0, rebuilt = 0;
+  };
+  [[nodiscard]] const SweepWork& sweep_work() const noexcept { return work_; }
   /// Whether any part of the tool at this pose overlaps a kept Gaussian.
   [[nodiscard]] bool blocked(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;
 
@@ -124,7 +135,9 @@ class CompoundProxy {
   CompoundTool tool_;
   CompoundProxyParams params_;
   FloaterTest floaters_;  // the floater rule of the one-ellipsoid proxy, with its own cache
-  SweepQuery sweep_;
+  // The translation's and the contact probe's sweeps, with near lists (SweepQuery's reuse margin:
+  // the smallest semi-axis, twice the contact band), and the turns' sub-step sweeps, without.
+  SweepQuery sweep_, turn_sweep_;
   ContactQuery free_query_;
   std::array<ToolEllipsoid, kMaxToolParts> parts_{};
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
@@ -142,6 +155,12 @@ class CompoundProxy {
   std::array<std::uint32_t, kMaxToolParts> probe_slots_{};
   std::size_t n_probe_slots_ = 0;
   std::uint64_t placements_ = 0, lost_ = 0;
+  SweepWork work_;
+  void count_sweep() noexcept {  // (after each of sweep_'s sweeps)
+    ++work_.sweeps;
+    work_.reused += sweep_.counts().reused;
+    work_.rebuilt += sweep_.counts().rebuilt;
+  }
   double min_axis_ = 0, reach_ = 0, largest_ = 0;
   std::array<ShadedNormalCache, kMaxToolParts> shades_{};  // each part's last shaded normal
   ShadingScratch shading_scratch_;  // the parts' readings' working memory

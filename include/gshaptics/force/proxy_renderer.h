@@ -100,6 +100,8 @@ struct ProxyParams {
   /// back up to 12 mJ more than it took (bench/RESULTS.md, twenty-sixth session). false: the
   /// plain coupling.
   bool energy_bound = true;
+  /// A compound tool's sweeps keep each part's near list (CompoundProxyParams::near_lists).
+  bool near_lists = true;
 };
 
 class ProxyRenderer final : public ForceRenderer {
