@@ -436,15 +436,17 @@ PYBIND11_MODULE(gshaptics, m) {
       "optional Coulomb friction (mu_s, mu_k); a Gaussian with no other within isolation_gap tool "
       "radii is a floater and does not block, and so is a clump of at most floater_cluster (1-4) overlapping "
       "Gaussians with nothing else within their own size; energy_bound: the shaded normal's turns add no energy the "
-      "contact's earlier turns did not take out (SpringEnergyBound); f_max clamps its output (default: none, as "
+      "contact's earlier turns did not take out (SpringEnergyBound); near_lists: a compound tool's sweeps read "
+      "each part's near list while it rests instead of the BVH (the same contacts); f_max clamps its output (default: none, as "
       "in a runtime the safety layer limits the force). One per device; not thread-safe.")
       .def(py::init([](const PyWorld& w, double stiffness, double damping, double mu_s, double mu_k,
                        double f_max, bool opacity_stiffness, double isolation_gap, bool energy_bound,
-                       std::size_t floater_cluster) {
+                       std::size_t floater_cluster, bool near_lists) {
              ProxyParams p;
              p.isolation_gap = isolation_gap;
              p.floater_cluster = floater_cluster;
              p.energy_bound = energy_bound;
+             p.near_lists = near_lists;
              p.stiffness = stiffness;
              p.damping = damping;
              p.mu_s = mu_s;
@@ -456,7 +458,7 @@ PYBIND11_MODULE(gshaptics, m) {
            py::arg("damping") = ProxyParams{}.damping, py::arg("mu_s") = 0.0, py::arg("mu_k") = 0.0,
            py::arg("f_max") = ForceParams{}.f_max, py::arg("opacity_stiffness") = false,
            py::arg("isolation_gap") = ProxyParams{}.isolation_gap, py::arg("energy_bound") = ProxyParams{}.energy_bound,
-           py::arg("floater_cluster") = ProxyParams{}.floater_cluster)
+           py::arg("floater_cluster") = ProxyParams{}.floater_cluster, py::arg("near_lists") = ProxyParams{}.near_lists)
       .def("render", [](PyProxy& p, const py::object& center, const py::object& axes, const py::object& velocity,
                         double dt) {
              if (!(dt > 0)) throw py::value_error("dt: must be > 0 seconds");

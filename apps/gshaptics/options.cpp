@@ -119,6 +119,11 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
          "proxy: the shaded normal's turns under the loaded coupling spring add no energy the contact's "
          "earlier turns did not take out (SpringEnergyBound). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
+  cmd.add_option_function<std::string>(
+         "--near-lists", [&p](const std::string& v) { p.near_lists = v == "on"; },
+         "proxy: a compound tool's sweeps read each part's last near list instead of the BVH while it rests "
+         "(the same contacts; off: the BVH every sweep). Default: on")
+      ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option("--isolation-gap", p.isolation_gap,
                  "proxy: a Gaussian with no other within this many tool radii is a floater and does not block "
                  "(0: only overlapping Gaussians support each other, which lets the tool through sparse surfaces)")

@@ -471,13 +471,13 @@ void SweepQuery::first_contacts(std::span<const ToolEllipsoid> parts, const Eige
   sweep_parts(parts, motion, {}, hints, filter, 1.0, tolerance, false, hits);
 }
 
-void SweepQuery::build_near(std::uint32_t p, const ToolEllipsoid& tool, const Eigen::Vector3d& axis, double rho,
-                            const Eigen::Vector3d& half) noexcept {
+void SweepQuery::build_near(std::uint32_t p, const ToolEllipsoid& tool, const Eigen::Vector3d& axis, double half_len,
+                            double rho, const Eigen::Vector3d& half) noexcept {
   NearList& nl = near_[p];
   nl.valid = false;
-  nl.line = axis.squaredNorm() > 0;
   nl.c0 = tool.center;
   nl.axis = axis;
+  nl.half_len = half_len;
   nl.rotation = tool.rotation;
   nl.semi_axes = tool.semi_axes;
   nl.rho = rho;
@@ -505,10 +505,11 @@ void SweepQuery::build_near(std::uint32_t p, const ToolEllipsoid& tool, const Ei
       bool out = false;
       for (int j = 0; j < 3; ++j) out = out || g.center[j] + gr < nl.lo[j] || g.center[j] - gr > nl.hi[j];
       if (out) continue;
-      // Its clearance from the core: along the unit v / |v| from the core to its centre, no point
-      // of it is nearer than |v| - h, h its support there (beyond_reach).
+      // Its clearance from the core: v runs from the core's nearest point to its centre; the
+      // distance to the segment is convex with gradient v / |v| there, so no point of the
+      // Gaussian is nearer the core than |v| - h, h its support along v (beyond_reach).
       Eigen::Vector3d v = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - nl.c0;
-      if (nl.line) v -= v.dot(nl.axis) * nl.axis;
+      v -= std::clamp(v.dot(nl.axis), -nl.half_len, nl.half_len) * nl.axis;
       const double d2 = v.squaredNorm();
       double c = -kNever;
       if (d2 > 0) {
@@ -792,19 +793,19 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       // A list that overflowed (a large part in a dense scene) is not tried again for a while.
       if (!fits && nl.backoff > 0) --nl.backoff;
       else if (!fits && !hints.empty() && bar_p * len <= 0.5 * reuse_margin_) {
+        // The core: an elongated part's segment of half-length a - b on its long axis (the part
+        // lies within b of it, Capsule), any other part's centre (within its largest semi-axis).
+        const Eigen::Vector3d& b = tool.semi_axes;
+        const double a_long = b.maxCoeff(), b_mid = b.sum() - a_long - b.minCoeff();
         build_near(std::uint32_t(p), tool, q.capsule ? caps[p].axis : Eigen::Vector3d::Zero(),
-                   q.capsule ? caps[p].radius : q.r_tool * (1 + 1e-9), q.half);
+                   q.capsule ? a_long - b_mid : 0.0, q.capsule ? caps[p].radius : q.r_tool * (1 + 1e-9), q.half);
         ++counts_.rebuilt;
         fits = nl.valid;
       }
       if (!fits) continue;
-      // How far the core gets from where the list was built, at most, in this sweep.
-      Eigen::Vector3d moved = tool.center - nl.c0, m = motion;
-      if (nl.line) {
-        moved -= moved.dot(nl.axis) * nl.axis;
-        m -= m.dot(nl.axis) * nl.axis;
-      }
-      const double reach = moved.norm() + bar_p * m.norm();
+      // How far the core gets from where the list was built, at most, in this sweep (the
+      // distance to it is 1-Lipschitz in its translation).
+      const double reach = (tool.center - nl.c0).norm() + bar_p * len;
       if (!(reach <= 2 * reuse_margin_)) continue;
       served |= 1u << p;
       near_limit[p] = (nl.rho + reach) * (1 + 1e-9);  // (a rounding's margin, outward)
@@ -852,16 +853,24 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
     const NearList& nl = near_[p];
     const double over = (limit_p - nl.rho) / nl.width;
     const std::size_t last = over <= 0 ? 0 : std::size_t(std::min<double>(kNearBuckets - 1, std::ceil(over)));
+    // The entry's clearance from the core where it is now, against the part's radius plus this
+    // sweep's motion (no drift): what the list's clearance leaves through for the drift, this
+    // rules out before the candidates' bounds (under a resting stylus, most of them).
+    const Eigen::Vector3d& c_now = parts[p].center;
+    const double reach_now = nl.rho * (1 + 1e-9) + std::max(0.0, bar_of(p)) * len * (1 + 1e-9);
     for (std::uint32_t i = 0, n_near = nl.bucket_end[last]; i < n_near; ++i) {
       if (double(clear[i]) > limit_p) continue;
       const std::uint32_t k = slot[i];
+      const CollisionGaussian& g = gs[k];
       if (!several) {  // (the compound sweep's bounds check the part's own box)
-        const CollisionGaussian& g = gs[k];
         const float gr = g.bounding_radius();
         bool out = false;
         for (int j = 0; j < 3; ++j) out = out || g.center[j] + gr < q.lo[j] || g.center[j] - gr > q.hi[j];
         if (out) continue;
       }
+      Eigen::Vector3d v = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - c_now;
+      v -= std::clamp(v.dot(nl.axis), -nl.half_len, nl.half_len) * nl.axis;
+      if (beyond_reach(v, reach_now, rotation_matrix(g), g.semi_axes)) continue;
       ++counts_.candidates;
       consider(k, p);
     }

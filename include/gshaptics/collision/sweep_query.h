@@ -167,8 +167,9 @@ class SweepQuery {
   // rounded down).
   struct NearList {
     bool valid = false;
-    bool line = false;  // the core: the part's long axis through c0 (else the point c0)
+    // The core: the segment c0 +- half_len axis (a point when half_len is 0)
     Eigen::Vector3d c0 = Eigen::Vector3d::Zero(), axis = Eigen::Vector3d::Zero();
+    double half_len = 0;
     Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
     Eigen::Vector3d semi_axes = Eigen::Vector3d::Zero();
     double rho = 0;  // the part lies within rho of its core
@@ -186,10 +187,11 @@ class SweepQuery {
   std::vector<float> near_tmp_clear_;
   std::array<std::uint8_t, kNearCapacity> near_tmp_bucket_{};
   double reuse_margin_ = 0;
-  // Builds part p's near list at its pose: `axis` its long axis (unit; zero: the core is its
-  // centre), `rho` its radius about the core, `half` its AABB's half extent.
-  void build_near(std::uint32_t p, const ToolEllipsoid& tool, const Eigen::Vector3d& axis, double rho,
-                  const Eigen::Vector3d& half) noexcept;
+  // Builds part p's near list at its pose: its core is the segment of half-length `half_len`
+  // along `axis` (unit, or zero with half_len 0: its centre) through its centre, `rho` its
+  // radius about the core, `half` its AABB's half extent.
+  void build_near(std::uint32_t p, const ToolEllipsoid& tool, const Eigen::Vector3d& axis, double half_len,
+                  double rho, const Eigen::Vector3d& half) noexcept;
   std::array<NearList, kMaxParts> near_{};
   std::vector<std::uint32_t> near_slot_;
   std::vector<float> near_clear_;

@@ -122,9 +122,10 @@ class CompoundProxy {
   [[nodiscard]] std::uint64_t placements() const noexcept { return placements_; }
   [[nodiscard]] std::uint64_t lost() const noexcept { return lost_; }
   /// What the translation's and the probe's sweeps have done since construction: sweeps run,
-  /// parts whose candidates came from their near lists (near_lists), and near lists built.
+  /// parts whose candidates came from their near lists (near_lists), near lists built,
+  /// candidates read and exact first-contact searches run (SweepCounts).
   struct SweepWork {
-    std::uint64_t sweeps = 0, reused = 0, rebuilt = 0;
+    std::uint64_t sweeps = 0, reused = 0, rebuilt = 0, candidates = 0, exact = 0;
   };
   [[nodiscard]] const SweepWork& sweep_work() const noexcept { return work_; }
   /// Whether any part of the tool at this pose overlaps a kept Gaussian.
@@ -160,6 +161,8 @@ class CompoundProxy {
     ++work_.sweeps;
     work_.reused += sweep_.counts().reused;
     work_.rebuilt += sweep_.counts().rebuilt;
+    work_.candidates += sweep_.counts().candidates;
+    work_.exact += sweep_.counts().exact;
   }
   double min_axis_ = 0, reach_ = 0, largest_ = 0;
   std::array<ShadedNormalCache, kMaxToolParts> shades_{};  // each part's last shaded normal
