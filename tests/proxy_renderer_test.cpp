@@ -290,6 +290,26 @@ TEST(ProxyRenderer, TickIsAllocationFreeAndNoexcept) {
   EXPECT_GT(proxy.contact_normal().z(), 0.9);  // it did touch the sphere's top
 }
 
+// The bundled Truck registered as `gshaptics simulate` does, the default tool radius, and its
+// probe run (seed 7, run_probe with its defaults): built once for the replays below.
+struct TruckProbeRun {
+  CollisionWorld world;
+  double tool_radius;
+  ProbeRunResult run;
+};
+const TruckProbeRun& truck_probe_run() {
+  static const TruckProbeRun t = [] {
+    WorldConfig config;
+    config.registration = load_registration_file(test::data_path("truck.registration.json"));
+    CollisionWorld w = CollisionWorld::build(load_scene(test::data_path("truck.splat")).scene, config);
+    const double r = default_tool_radius(w);
+    const ProbeTrajectory traj = generate_probe_trajectory(w, default_probe_params(w, r, 7, 1, 0.02));
+    ProbeRunResult run = run_probe(w, traj, {});
+    return TruckProbeRun{std::move(w), r, std::move(run)};
+  }();
+  return t;
+}
+
 // The shaded normal's support bound (ProxyParams::shading_tail, default kShadingTail) against a
 // support that holds every Gaussian that matters (tail 200: exp(-100) of the touching ones), on
 // the Truck's probe run replayed through the renderer: the same proxy path tick for tick (the
@@ -297,12 +317,10 @@ TEST(ProxyRenderer, TickIsAllocationFreeAndNoexcept) {
 // over 0.5 N (0.019 deg and 0.02 % here, over 9,444 ticks). A short tail (2) moves it by 1.7 deg:
 // the check can tell.
 TEST(ProxyRenderer, TheShadedNormalsSupportBoundKeepsTheTrucksProbeRunsPathAndForce) {
-  WorldConfig config;
-  config.registration = load_registration_file(test::data_path("truck.registration.json"));
-  const CollisionWorld w = CollisionWorld::build(load_scene(test::data_path("truck.splat")).scene, config);
-  const double r = default_tool_radius(w);
-  const ProbeTrajectory traj = generate_probe_trajectory(w, default_probe_params(w, r, 7, 1, 0.02));
-  const ProbeRunResult run = run_probe(w, traj, {});
+  const TruckProbeRun& truck = truck_probe_run();
+  const CollisionWorld& w = truck.world;
+  const double r = truck.tool_radius;
+  const ProbeRunResult& run = truck.run;
   std::size_t pressed = 0;
   const auto replay = [&](double tail, double& worst_deg, double& worst_rel, std::size_t& path_differs) {
     pressed = 0;
@@ -415,12 +433,10 @@ TEST(ProxyRenderer, NearListsKeepTheCompoundProxysPathAndWrench) {
     replay(w, tools.stylus, ticks, "cube_edge");
   }
   {
-    WorldConfig config;
-    config.registration = load_registration_file(test::data_path("truck.registration.json"));
-    const CollisionWorld w = CollisionWorld::build(load_scene(test::data_path("truck.splat")).scene, config);
-    const double r = default_tool_radius(w);
-    const ProbeTrajectory traj = generate_probe_trajectory(w, default_probe_params(w, r, 7, 1, 0.02));
-    const ProbeRunResult run = run_probe(w, traj, {});
+    const TruckProbeRun& truck = truck_probe_run();
+    const CollisionWorld& w = truck.world;
+    const double r = truck.tool_radius;
+    const ProbeRunResult& run = truck.run;
     const CompoundTool stylus = parse_tool_spec(fmt::format("stylus:{},{}", 6 * r, r));
     const Eigen::Quaterniond tilt(Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitY()));
     std::mt19937_64 rng(12);
