@@ -84,20 +84,21 @@ class SweepQuery {
   ///
   /// `reuse_margin` (world units, >= 0; 0 turns it off): each part keeps a near list, the
   /// Gaussians within its AABB grown by the margin, each with its clearance from the part's core
-  /// (the long axis's line of an elongated part, the centre of any other) at the pose it was
-  /// built: how near any point of the Gaussian comes to that core, bounded below along the
-  /// direction between them (its support there). A later sweep of the same part (same rotation
-  /// and semi-axes) whose swept box lies in that box and whose core stays within twice the
-  /// margin of where it was takes its candidates from the list instead of the BVH, and passes
-  /// over those whose clearance, less how far the core has moved (across the axis, for a line)
-  /// and moves by the bar, exceeds the part's radius about its core: they cannot touch it. The
-  /// others get the same bounds and exact searches as the BVH's candidates, so the contact is
-  /// the same (docs/design.md Sec. 8). For a proxy whose parts rest on the Gaussians for many
-  /// ticks (a stylus lying on a surface: each sweep's box holds hundreds of Gaussians near its
-  /// axis and a few dozen within reach). A list is built when a part's sweep reaches under half
-  /// the margin; sweeps reaching farther take the BVH. One SweepQuery per moving tool: parts
-  /// that turn every call (a rotation's sub-steps) rebuild every time; give them a query
-  /// without reuse. Allocates its lists here (8 x kNearCapacity entries).
+  /// (the segment of half-length a - b on an elongated part's long axis, the centre of any other)
+  /// at the pose it was built: how near any point of the Gaussian comes to that core, bounded
+  /// below along the direction between them (its support there). A later sweep of the same part
+  /// (same rotation and semi-axes) whose swept box lies in that box and whose centre stays within
+  /// a quarter margin of where the list was built takes its candidates from the list instead of
+  /// the BVH: it passes over those whose clearance, less how far the part has moved and moves by
+  /// the bar, exceeds the part's radius about its core, then those whose clearance from the core
+  /// where it is now exceeds that radius plus the bar's motion: they cannot touch it. The others
+  /// get the same bounds and exact searches as the BVH's candidates, so the contact is the same
+  /// (docs/design.md Sec. 8). For a proxy whose parts rest on the Gaussians for many ticks (a
+  /// stylus lying on a surface: each sweep's box holds hundreds of Gaussians near its axis and a
+  /// few dozen within reach). A list is built for a sweep with hints that reaches under half the
+  /// margin; sweeps reaching farther take the BVH. One SweepQuery per moving tool: parts that
+  /// turn every call (a rotation's sub-steps) rebuild every time; give them a query without
+  /// reuse. Allocates its lists here (8 x kNearCapacity entries).
   explicit SweepQuery(const CollisionWorld& world, std::size_t max_candidates = 4096, double reuse_margin = 0);
   /// At most this many Gaussians a part's near list (more: that part takes the BVH).
   static constexpr std::size_t kNearCapacity = 2048;
