@@ -1051,5 +1051,41 @@ TEST(VirtualCoupling, OpacityStiffnessApproachesTheBlockersMeanOpacityWithItsTim
   EXPECT_EQ(c.opacity_factor(), 1.0);
 }
 
+
+// The compound proxy keeps ProxySolver's rule too: a step-up WedgedState undid is not tried again
+// from the same pose while the goal stays within a lift of its goal then. A stylus held tip-first
+// in the 60-degree groove's crease pays its substeps and its contact probe a tick, not a step-up
+// and the sweeps after it every tick only to undo them (the fidelity side-on stylus at seed 12,
+// wedged between three discs: tick p99 81 -> 40 us).
+TEST(CompoundProxy, AnUndoneStepUpIsNotRetriedWhileTheGoalStaysWithinALift) {
+  const AnalyticShape shape(ShapeKind::kVGroove60);
+  const CompoundTool stylus = parse_tool_spec("stylus:0.06,0.005");
+  const int per_tick = CompoundProxyParams{}.substeps + 1;  // (the substeps and the contact probe)
+  int held = 0, costly = 0;
+  for (std::uint64_t seed : {4, 9}) {
+    for (double spacing : {0.004, 0.008}) {
+      const CollisionWorld w = synthetic_world(shape, spacing, seed);
+      for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
+        if (site.feature != "concave") continue;
+        CompoundProxy proxy(w, stylus);
+        const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), site.normal);
+        const Script s = press_script(shape, site, 0.005, 0.010, 1000);
+        for (std::size_t k = 0; k < s.ticks.size(); ++k) {
+          const ScriptTick& t = s.ticks[k];
+          const std::uint64_t before = proxy.sweep_work().sweeps;
+          const RenderOutput out = proxy.render(t.position, q, t.velocity, Eigen::Vector3d::Zero(), 1e-3);
+          if (k > 1 && t.velocity.norm() == 0 && t.delta > 0 && s.ticks[k - 1].velocity.norm() == 0 &&
+              s.ticks[k - 2].velocity.norm() == 0 && out.constraints >= 2) {
+            ++held;
+            costly += proxy.sweep_work().sweeps - before > std::uint64_t(per_tick);
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(held, 10000);
+  EXPECT_EQ(costly, 0);  // (without the rule: 5489 of 11976 held ticks take 6 sweeps)
+}
+
 }  // namespace
 }  // namespace gshaptics
