@@ -319,7 +319,7 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     n_probe_slots_ = 0;
     for (int j = 0; j < count; ++j)
       if (probes[std::size_t(j)].hit) probe_slots_[n_probe_slots_++] = probes[std::size_t(j)].slot;
-    bool shade_read = false, edge_read = false;  // a part's shaded normal, edge normal was read this tick
+    bool edge_read = false;  // a part's edge normal was read this tick
     for (int j = 0; j < count; ++j) {
       const ToolEllipsoid& part = parts_[std::size_t(j)];
       const SweepHit& h = probes[std::size_t(j)];
@@ -330,17 +330,11 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       if (params_.shading_kernel > 0) {
         // (The part rests free: the floaters beside it that reach into it at the reading point
         // were passed; `up` is the part's contact normal. FreeBall.)
-        // (As with the edge patches below, one part reads the field per tick; the others keep
-        // their readings up to twice the reuse distance, or the turn tolerance's radius where
-        // the field turns fast.)
         const Eigen::Vector3d at = part.surface_point(-h.normal) + h.normal * rho;
-        ShadedNormalCache& shade = shades_[std::size_t(j)];
-        double shade_reuse = params_.shading_reuse * rho;
-        if (shade_read && !shade.holds(at, shade_reuse)) shade_reuse *= 2;
-        shade_read = shade_read || !shade.holds(at, shade_reuse);
         const Eigen::Vector3d& sn =
-            shade.read(*world_, at, std::max(rho, spacing), params_.shading_kernel, shade_reuse, shading_scratch_,
-                       {part.inner_clearance(at), h.normal}, 0, params_.shading_tail);
+            shades_[std::size_t(j)].read(*world_, at, std::max(rho, spacing), params_.shading_kernel,
+                                         params_.shading_reuse * rho, shading_scratch_,
+                                         {part.inner_clearance(at), h.normal}, 0, params_.shading_tail);
         if (sn.dot(h.normal) > 0) nj = sn;
       }
       // At a clean convex edge the shaded field blends the faces' normals; the tool resting on

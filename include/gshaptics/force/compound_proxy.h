@@ -131,12 +131,6 @@ class CompoundProxy {
   /// The parts' edge-normal patch reads since construction (EdgeNormal::read calls that the
   /// cache did not answer).
   [[nodiscard]] std::uint64_t edge_reads() const noexcept { return edge_reads_; }
-  /// The parts' readings of the shaded normal since construction (ShadedNormalCache::reads).
-  [[nodiscard]] std::uint64_t shade_reads() const noexcept {
-    std::uint64_t n = 0;
-    for (const ShadedNormalCache& sh : shades_) n += sh.reads();
-    return n;
-  }
   /// Whether any part of the tool at this pose overlaps a kept Gaussian.
   [[nodiscard]] bool blocked(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;
 

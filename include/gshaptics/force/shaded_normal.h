@@ -170,16 +170,6 @@ class ShadedNormalCache {
     return normal_;
   }
   static constexpr std::size_t kEarlierReadings = 3;
-  /// Whether read() at `at` with this `reuse` would answer from the cache (the last reading or
-  /// an earlier one) rather than read the field.
-  [[nodiscard]] bool holds(const Eigen::Vector3d& at, double reuse) const noexcept {
-    reuse = reuse_within(reuse);
-    if (!valid_) return false;
-    if ((at - at_).norm() <= reuse) return true;
-    for (std::size_t i = 0; i < n_earlier_; ++i)
-      if ((at - earlier_at_[i]).norm() <= reuse) return true;
-    return false;
-  }
   /// read() that prepares the next reading ahead, so that the tick it is due does not pay for a
   /// whole one. Where the last reading cost more than `budget` steps (a Gaussian visited, or a
   /// term fitted: ShadingScratch::last_steps) and the proxy moved half of `reuse` from the cached
