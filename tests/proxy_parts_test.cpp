@@ -1087,45 +1087,5 @@ TEST(CompoundProxy, AnUndoneStepUpIsNotRetriedWhileTheGoalStaysWithinALift) {
   EXPECT_EQ(costly, 0);  // (without the rule: 5489 of 11976 held ticks take 6 sweeps)
 }
 
-// A rigid tool's parts move together, so their edge normals' cached answers fall due on the same
-// tick. One part reads its patch per tick and the others keep their answers up to twice the
-// reuse distance: the stylus pressed onto the 8 mm cube's edges and corners (tilted 45 degrees,
-// its tip on the press sites' scripts, 2 cm/s) reads at most one part's patch on every tick
-// after the first touch where the proxy moved less than an eighth of the reuse distance (4 reads on one tick before:
-// a 55 us tick where the others take 10).
-TEST(CompoundProxy, OnePartReadsItsEdgePatchPerTickWhileTheToolMovesSlowly) {
-  const AnalyticShape shape(ShapeKind::kCube);
-  const double r = 0.005;
-  const CompoundTool stylus = parse_tool_spec("stylus:0.03,0.005");
-  const Eigen::Quaterniond tilt(Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitY()));
-  const double reuse = CompoundProxyParams{}.shading_reuse * r;
-  int slow = 0, crowded = 0;
-  std::uint64_t reads = 0;
-  for (std::uint64_t seed : {1, 2}) {
-    const CollisionWorld w = synthetic_world(shape, 0.008, seed);
-    for (const ContactSite& site : shape.press_sites(8, seed, 0.03)) {
-      if (site.feature == "face") continue;
-      CompoundProxy proxy(w, stylus);
-      Eigen::Vector3d last = Eigen::Vector3d::Constant(INFINITY);
-      bool touched = false;  // (at the first touch every touching part reads: none has an answer)
-      for (const ScriptTick& t : press_script(shape, site, r, 0.010, 1000).ticks) {
-        const std::uint64_t before = proxy.edge_reads();
-        const RenderOutput out = proxy.render(t.position, tilt, t.velocity, Eigen::Vector3d::Zero(), 1e-3);
-        const std::uint64_t now = proxy.edge_reads() - before;
-        reads += now;
-        if (touched && (out.proxy - last).norm() < reuse / 8 && out.counts.contacts > 0) {
-          ++slow;
-          crowded += now > 1;
-        }
-        touched = touched || out.counts.contacts > 0;
-        last = out.proxy;
-      }
-    }
-  }
-  EXPECT_GT(slow, 5000);
-  EXPECT_GT(reads, 500u);  // (the parts do read their patches)
-  EXPECT_EQ(crowded, 0);  // (142 ticks without the rule)
-}
-
 }  // namespace
 }  // namespace gshaptics

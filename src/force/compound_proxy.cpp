@@ -319,7 +319,6 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     n_probe_slots_ = 0;
     for (int j = 0; j < count; ++j)
       if (probes[std::size_t(j)].hit) probe_slots_[n_probe_slots_++] = probes[std::size_t(j)].slot;
-    bool edge_read = false;  // a part's edge normal was read this tick
     for (int j = 0; j < count; ++j) {
       const ToolEllipsoid& part = parts_[std::size_t(j)];
       const SweepHit& h = probes[std::size_t(j)];
@@ -339,16 +338,8 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       }
       // At a clean convex edge the shaded field blends the faces' normals; the tool resting on
       // the edge is pushed along the patch's support normal instead (edge_normal.h).
-      // A rigid tool's parts move together, so their answers fall due on the same tick (4 reads
-      // of about 10 us on the stylus at an 8 mm cube edge): one part reads per tick, and the
-      // others keep theirs up to twice the reuse distance, for the next ticks to read.
-      double edge_reuse = params_.shading_reuse * rho;
-      if (edge_read && !edges_[std::size_t(j)].holds(part, edge_reuse)) edge_reuse *= 2;
-      if (!edges_[std::size_t(j)].holds(part, edge_reuse)) {
-        edge_read = true;
-        ++edge_reads_;
-      }
-      nj = EdgeNormal::blend(nj, edge_.read(part, nj, kPatchBand * min_axis_, edge_reuse, filter, edges_[std::size_t(j)]),
+      nj = EdgeNormal::blend(nj, edge_.read(part, nj, kPatchBand * min_axis_, params_.shading_reuse * rho, filter,
+                                            edges_[std::size_t(j)]),
                              h.normal);
       moment += w * (part.surface_point(-nj) - x_);
       normal += w * nj;

@@ -69,7 +69,9 @@ EdgeNormal::EdgeNormal(const CollisionWorld& world) : world_(&world) {
 EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector3d& start, double band, double reuse,
                                   BlockFilter floaters, EdgeNormalCache& sc) noexcept {
   const double rho = part.semi_axes.minCoeff();
-  if (sc.holds(part, reuse)) return sc.answer;
+  if (sc.valid && (part.center - sc.center).norm() <= reuse &&
+      sc.rotation.angularDistance(part.rotation) * part.semi_axes.maxCoeff() <= reuse)
+    return sc.answer;
   sc = {part.center, part.rotation, {}, true};
   // The patch: the Gaussians whose bounding sphere reaches within `band` of the part (by BVH
   // leaves; a cheap superset of the exact test, enough for a hull), less those whose centre is

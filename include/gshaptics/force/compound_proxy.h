@@ -128,9 +128,6 @@ class CompoundProxy {
     std::uint64_t sweeps = 0, reused = 0, rebuilt = 0, candidates = 0, exact = 0;
   };
   [[nodiscard]] const SweepWork& sweep_work() const noexcept { return work_; }
-  /// The parts' edge-normal patch reads since construction (EdgeNormal::read calls that the
-  /// cache did not answer).
-  [[nodiscard]] std::uint64_t edge_reads() const noexcept { return edge_reads_; }
   /// Whether any part of the tool at this pose overlaps a kept Gaussian.
   [[nodiscard]] bool blocked(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;
 
@@ -167,7 +164,6 @@ class CompoundProxy {
   std::size_t n_probe_slots_ = 0;
   std::uint64_t placements_ = 0, lost_ = 0;
   SweepWork work_;
-  std::uint64_t edge_reads_ = 0;
   void count_sweep() noexcept {  // (after each of sweep_'s sweeps)
     ++work_.sweeps;
     work_.reused += sweep_.counts().reused;

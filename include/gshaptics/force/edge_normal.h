@@ -43,12 +43,6 @@ struct EdgeNormalCache {
   EdgeNormalAnswer answer;
   bool valid = false;
   void reset() noexcept { valid = false; }
-  /// Whether the answer still stands for `tool`: it is within `reuse` m of where the answer was
-  /// found, and turned by less than that at its largest semi-axis (EdgeNormal::read's rule).
-  [[nodiscard]] bool holds(const ToolEllipsoid& tool, double reuse) const noexcept {
-    return valid && (tool.center - center).norm() <= reuse &&
-           rotation.angularDistance(tool.rotation) * tool.semi_axes.maxCoeff() <= reuse;
-  }
 };
 
 class EdgeNormal {
