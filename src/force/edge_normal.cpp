@@ -62,9 +62,7 @@ bool convex(std::span<const Eigen::Vector3d> axes, std::span<const PatchGaussian
 
 }  // namespace
 
-EdgeNormal::EdgeNormal(const CollisionWorld& world) : world_(&world) {
-  for (const CollisionGaussian& g : world.gaussians()) largest_gaussian_ = std::max(largest_gaussian_, double(g.radius));
-}
+EdgeNormal::EdgeNormal(const CollisionWorld& world) : world_(&world) {}
 
 EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector3d& start, double band, double reuse,
                                   BlockFilter floaters, EdgeNormalCache& sc) noexcept {
@@ -73,10 +71,13 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
       sc.rotation.angularDistance(part.rotation) * part.semi_axes.maxCoeff() <= reuse)
     return sc.answer;
   sc = {part.center, part.rotation, {}, true};
-  // The patch: the Gaussians whose bounding sphere reaches within `band` of the part (by BVH
-  // leaves; a cheap superset of the exact test, enough for a hull), less those whose centre is
-  // inside the part (floaters it passed: the proxy overlaps no Gaussian that blocks it).
-  const Eigen::Vector3d half = part.aabb_half_extent() + Eigen::Vector3d::Constant(band + largest_gaussian_);
+  // The patch: the Gaussians whose bounding sphere reaches within `band` of the part and whose
+  // own box meets the part's box grown by `band` (a cheap superset of the exact test, enough for
+  // a hull), less those whose centre is inside the part (floaters it passed: the proxy overlaps
+  // no Gaussian that blocks it). The own box keeps the BVH query to the part's box: grown by the
+  // world's largest Gaussian instead (0.72 m on halo, whose median is 11 mm), a stylus part's
+  // query read a good share of the scene at every reading.
+  const Eigen::Vector3d half = part.aabb_half_extent() + Eigen::Vector3d::Constant(band);
   float lo[3], hi[3];
   for (int k = 0; k < 3; ++k) {
     lo[k] = round_down_to_float(part.center[k] - half[k]);
@@ -99,6 +100,10 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
       if (grown > 1.0 || inside < 1.0) continue;
       const Eigen::Matrix3d r = rotation_matrix(g);
       const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+      const Eigen::Vector3d h = ellipsoid_half_extent(r, a);
+      bool apart = false;
+      for (int q = 0; q < 3; ++q) apart = apart || c[q] + h[q] < double(lo[q]) || c[q] - h[q] > double(hi[q]);
+      if (apart) continue;
       slot_[n] = k;
       // (a round Gaussian states no normal: flatness 0)
       axis_[n] = r.col(thinnest_axis(g)) * (double(g.opacity) * flatness(g));

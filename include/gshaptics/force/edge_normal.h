@@ -4,7 +4,8 @@
 /// 36, item 5). At an edge the shaded field (shaded_normal.h) blends the two faces' normals, while
 /// a smooth tool resting on a sharp edge is pushed along its own normal there (a stylus crossing an
 /// edge: perpendicular to both its axis and the edge). EdgeNormal looks at the tool's patch, the
-/// Gaussians whose bounding sphere comes within `band` of it, and:
+/// Gaussians whose bounding sphere comes within `band` of it and whose box meets its box grown by
+/// `band`, and:
 /// - tells a clean edge from a face, a corner or a messy patch by the spread of the patch's thin
 ///   axes (each weighted by opacity and flatness 1 - a_min / a_mid): a clean edge has two principal
 ///   directions and almost nothing out of their plane;
@@ -79,7 +80,6 @@ class EdgeNormal {
 
  private:
   const CollisionWorld* world_;
-  double largest_gaussian_ = 0;  // the world's largest bounding radius (the patch box's margin)
   std::array<PatchGaussian, kMaxPatch> patch_{};
   std::array<std::uint32_t, kMaxPatch> slot_{};
   std::array<Eigen::Vector3d, kMaxPatch> axis_{};  // thin axis x opacity x flatness
