@@ -854,33 +854,43 @@ TEST(ProxySolver, AnUndoneStepUpIsNotRetriedWhileTheGoalStaysWithinALift) {
   EXPECT_EQ(costly, 0);
 }
 
-// The compound proxy's god-object follows the same rule (WedgedState): a stylus pressed tip-first
-// into the 60-degree groove's crease, tick by tick, never ends a tick farther from the device's
-// TCP than it began it (its orientation held at the device's, so only the translation moves it).
-TEST(CompoundProxy, AStepUpNeverLeavesTheStylusFartherFromTheDevice) {
+// The stylus `stylus:0.06,0.005` pressed tip-first into the 60-degree groove's crease at its
+// concave press sites, tick by tick: the tip (the TCP) leads, the stylus along the site normal.
+// `on_press(proxy, q, script)` runs each press on a fresh proxy.
+template <typename OnPress>
+void stylus_groove_presses(std::initializer_list<std::uint64_t> seeds, std::initializer_list<double> spacings,
+                           OnPress&& on_press) {
   const AnalyticShape shape(ShapeKind::kVGroove60);
   const CompoundTool stylus = parse_tool_spec("stylus:0.06,0.005");
-  double worst = 0;
-  int wedged = 0;
-  for (std::uint64_t seed : {4, 5, 6, 9}) {
-    for (double spacing : {0.002, 0.004, 0.008}) {
+  for (std::uint64_t seed : seeds)
+    for (double spacing : spacings) {
       const CollisionWorld w = synthetic_world(shape, spacing, seed);
       for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
         if (site.feature != "concave") continue;
         CompoundProxy proxy(w, stylus);
-        // The tip (the TCP) leads, the stylus along the site normal.
         const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), site.normal);
-        const Script s = press_script(shape, site, 0.005, 0.010, 1000);
-        Eigen::Vector3d last = s.ticks.front().position;
-        for (const ScriptTick& t : s.ticks) {
-          const RenderOutput out = proxy.render(t.position, q, t.velocity, Eigen::Vector3d::Zero(), 1e-3);
-          worst = std::max(worst, (out.proxy - t.position).norm() - (last - t.position).norm());
-          wedged += out.constraints >= 2;
-          last = out.proxy;
-        }
+        on_press(proxy, q, press_script(shape, site, 0.005, 0.010, 1000));
       }
     }
-  }
+}
+
+// The compound proxy's god-object follows the same rule (WedgedState): a stylus pressed tip-first
+// into the 60-degree groove's crease, tick by tick, never ends a tick farther from the device's
+// TCP than it began it (its orientation held at the device's, so only the translation moves it).
+TEST(CompoundProxy, AStepUpNeverLeavesTheStylusFartherFromTheDevice) {
+  double worst = 0;
+  int wedged = 0;
+  stylus_groove_presses({4, 5, 6, 9}, {0.002, 0.004, 0.008},
+                        [&](CompoundProxy& proxy, const Eigen::Quaterniond& q, const Script& s) {
+                          Eigen::Vector3d last = s.ticks.front().position;
+                          for (const ScriptTick& t : s.ticks) {
+                            const RenderOutput out =
+                                proxy.render(t.position, q, t.velocity, Eigen::Vector3d::Zero(), 1e-3);
+                            worst = std::max(worst, (out.proxy - t.position).norm() - (last - t.position).norm());
+                            wedged += out.constraints >= 2;
+                            last = out.proxy;
+                          }
+                        });
   EXPECT_GT(wedged, 1000);  // (the stylus does rest in the crease on two planes)
   EXPECT_LE(worst, 1e-12);
   RecordProperty("worst_um", std::to_string(worst * 1e6));
@@ -1058,31 +1068,20 @@ TEST(VirtualCoupling, OpacityStiffnessApproachesTheBlockersMeanOpacityWithItsTim
 // and the sweeps after it every tick only to undo them (the fidelity side-on stylus at seed 12,
 // wedged between three discs: tick p99 81 -> 40 us).
 TEST(CompoundProxy, AnUndoneStepUpIsNotRetriedWhileTheGoalStaysWithinALift) {
-  const AnalyticShape shape(ShapeKind::kVGroove60);
-  const CompoundTool stylus = parse_tool_spec("stylus:0.06,0.005");
   const int per_tick = CompoundProxyParams{}.substeps + 1;  // (the substeps and the contact probe)
   int held = 0, costly = 0;
-  for (std::uint64_t seed : {4, 9}) {
-    for (double spacing : {0.004, 0.008}) {
-      const CollisionWorld w = synthetic_world(shape, spacing, seed);
-      for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
-        if (site.feature != "concave") continue;
-        CompoundProxy proxy(w, stylus);
-        const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), site.normal);
-        const Script s = press_script(shape, site, 0.005, 0.010, 1000);
-        for (std::size_t k = 0; k < s.ticks.size(); ++k) {
-          const ScriptTick& t = s.ticks[k];
-          const std::uint64_t before = proxy.sweep_work().sweeps;
-          const RenderOutput out = proxy.render(t.position, q, t.velocity, Eigen::Vector3d::Zero(), 1e-3);
-          if (k > 1 && t.velocity.norm() == 0 && t.delta > 0 && s.ticks[k - 1].velocity.norm() == 0 &&
-              s.ticks[k - 2].velocity.norm() == 0 && out.constraints >= 2) {
-            ++held;
-            costly += proxy.sweep_work().sweeps - before > std::uint64_t(per_tick);
-          }
-        }
+  stylus_groove_presses({4, 9}, {0.004, 0.008}, [&](CompoundProxy& proxy, const Eigen::Quaterniond& q, const Script& s) {
+    for (std::size_t k = 0; k < s.ticks.size(); ++k) {
+      const ScriptTick& t = s.ticks[k];
+      const std::uint64_t before = proxy.sweep_work().sweeps;
+      const RenderOutput out = proxy.render(t.position, q, t.velocity, Eigen::Vector3d::Zero(), 1e-3);
+      if (k > 1 && t.velocity.norm() == 0 && t.delta > 0 && s.ticks[k - 1].velocity.norm() == 0 &&
+          s.ticks[k - 2].velocity.norm() == 0 && out.constraints >= 2) {
+        ++held;
+        costly += proxy.sweep_work().sweeps - before > std::uint64_t(per_tick);
       }
     }
-  }
+  });
   EXPECT_GT(held, 10000);
   EXPECT_EQ(costly, 0);  // (without the rule: 5489 of 11976 held ticks take 6 sweeps)
 }
