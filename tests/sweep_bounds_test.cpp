@@ -283,7 +283,9 @@ void expect_near_lists_give_the_bvhs_contacts(const CollisionWorld& w, const std
         double first = std::numeric_limits<double>::infinity();
         for (const ToolEllipsoid& t : parts) first = std::min(first, plain_first_contact(w, t, m, false));
         EXPECT_EQ(a.hit, std::isfinite(first)) << "tool " << i << " step " << step;
-        if (a.hit) EXPECT_NEAR(a.t, first, 1e-12) << "tool " << i << " step " << step;
+        if (a.hit) {
+          EXPECT_NEAR(a.t, first, 1e-12) << "tool " << i << " step " << step;
+        }
       }
       // Each part's own contact (a contact probe: a bar a part).
       std::vector<SweepHit> ea(parts.size()), eb(parts.size());
@@ -354,7 +356,7 @@ TEST(SweepBounds, NearListsFollowTheirPartsDriftAndMotion) {
       gs.emplace_back(Eigen::Vector3f(x, y, 0), Eigen::Vector3f(0.001f, 0.001f, 0.00005f), Eigen::Quaternionf::Identity());
   const CollisionWorld w = test::world_of(gs);
   const double margin = 0.005, thick = w.gaussians()[0].semi_axes[2];
-  for (const Eigen::Vector3d axes : {Eigen::Vector3d(0.03, 0.005, 0.005), Eigen::Vector3d(0.005, 0.005, 0.005)}) {
+  for (const Eigen::Vector3d& axes : {Eigen::Vector3d(0.03, 0.005, 0.005), Eigen::Vector3d(0.005, 0.005, 0.005)}) {
     for (const bool per_part : {false, true}) {
       ToolEllipsoid part;
       part.semi_axes = axes;

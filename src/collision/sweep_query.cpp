@@ -495,6 +495,7 @@ void SweepQuery::build_near(std::uint32_t p, const ToolEllipsoid& tool, const Ei
   std::array<std::uint8_t, kNearCapacity>& tmp_bucket = near_tmp_bucket_;
   std::array<std::uint32_t, kNearBuckets + 1> start{};
   const double width = 2 * reuse_margin_ / (kNearBuckets - 1);
+  nl.width = width;  // (bucket_of)
   const CollisionGaussian* gs = world_->gaussians().data();
   std::uint32_t n = 0;
   bool full = false;
@@ -508,8 +509,7 @@ void SweepQuery::build_near(std::uint32_t p, const ToolEllipsoid& tool, const Ei
       // Its clearance from the core: v runs from the core's nearest point to its centre; the
       // distance to the segment is convex with gradient v / |v| there, so no point of the
       // Gaussian is nearer the core than |v| - h, h its support along v (beyond_reach).
-      Eigen::Vector3d v = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - nl.c0;
-      v -= std::clamp(v.dot(nl.axis), -nl.half_len, nl.half_len) * nl.axis;
+      const Eigen::Vector3d v = nl.from_core(nl.c0, g.center);
       const double d2 = v.squaredNorm();
       double c = -kNever;
       if (d2 > 0) {
@@ -523,9 +523,7 @@ void SweepQuery::build_near(std::uint32_t p, const ToolEllipsoid& tool, const Ei
       }
       tmp_slot[n] = k;
       tmp_clear[n] = round_down_to_float(c);
-      // Bucket 0: clearance <= rho; bucket j: up to rho + j x width (the last: up to keep).
-      const double over = (c - rho) / width;
-      const auto b = std::uint8_t(over <= 0 ? 0 : std::min<double>(kNearBuckets - 1, std::ceil(over)));
+      const auto b = std::uint8_t(nl.bucket_of(c));
       tmp_bucket[n] = b;
       ++start[b + 1u];
       ++n;
@@ -543,8 +541,6 @@ void SweepQuery::build_near(std::uint32_t p, const ToolEllipsoid& tool, const Ei
       slot[at] = tmp_slot[i];
       clear[at] = tmp_clear[i];
     }
-  nl.count = n;
-  nl.width = width;
   nl.valid = !full;
   // (After each overflow in a row, twice as long.)
   nl.overflows = full ? std::min<std::uint32_t>(nl.overflows + 1, 12) : 0;
@@ -851,8 +847,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
     const double limit_p = near_limit[p];
     // The buckets up to the limit's (bucket j holds clearances up to rho + j x width).
     const NearList& nl = near_[p];
-    const double over = (limit_p - nl.rho) / nl.width;
-    const std::size_t last = over <= 0 ? 0 : std::size_t(std::min<double>(kNearBuckets - 1, std::ceil(over)));
+    const std::size_t last = nl.bucket_of(limit_p);
     // The entry's clearance from the core where it is now, against the part's radius plus this
     // sweep's motion (no drift): what the list's clearance leaves through for the drift, this
     // rules out before the candidates' bounds (under a resting stylus, most of them).
@@ -868,8 +863,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         for (int j = 0; j < 3; ++j) out = out || g.center[j] + gr < q.lo[j] || g.center[j] - gr > q.hi[j];
         if (out) continue;
       }
-      Eigen::Vector3d v = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - c_now;
-      v -= std::clamp(v.dot(nl.axis), -nl.half_len, nl.half_len) * nl.axis;
+      const Eigen::Vector3d v = nl.from_core(c_now, g.center);
       if (beyond_reach(v, reach_now, rotation_matrix(g), g.semi_axes)) continue;
       ++counts_.candidates;
       consider(k, p);

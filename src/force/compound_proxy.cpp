@@ -66,7 +66,7 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
 
 void CompoundProxy::reset() noexcept {
   placed_ = false;
-  refused_ = false;
+  undone_.active = false;
   release();
   for (ShadedNormalCache& sh : shades_) sh.reset();
   for (EdgeNormalCache& c : edges_) c.reset();
@@ -99,7 +99,7 @@ void CompoundProxy::place(const Eigen::Vector3d& position, const Eigen::Quaterni
   ++placements_;
   release();
   placed_ = true;
-  refused_ = false;
+  undone_.active = false;
   n_blockers_ = 0;
   x_ = position;
   q_ = orientation;
@@ -211,8 +211,7 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
     // Wedged: step up and slide on (not where the last step-up was undone, at the same pose,
     // while the goal is within a lift of its goal then: ProxySolver's rule).
     if (np >= 2 && hit.t * len < 1e-3 * largest_ && lifts < 2 &&
-        !(refused_ && (p - refused_at_).norm() <= eps && (goal - refused_goal_).norm() < kLift * largest_ &&
-          q_.angularDistance(refused_q_) * reach_ <= eps)) {
+        !undone_.repeats(p, goal, eps, kLift * largest_, q_, reach_)) {
       Eigen::Vector3d up = hit.normal;
       for (int i = 0; i < np; ++i) up += planes[i].normal;
       if (up.norm() > 0) {
@@ -237,10 +236,7 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
     np = wedged.restore(planes, n_blockers_);
     if (n_blockers_ < blockers_.size())
       blockers_[n_blockers_++] = blocker_contact(*world_, wedged.hit_slot, wedged.hit_part);
-    refused_ = true;
-    refused_at_ = p;
-    refused_goal_ = goal;
-    refused_q_ = q_;
+    undone_.remember(p, goal, q_);
   }
   x_ = p;
   return np;

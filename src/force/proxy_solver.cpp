@@ -76,7 +76,7 @@ ProxySolver::ProxySolver(const CollisionWorld& world, const ProxySolverParams& p
 
 void ProxySolver::reset() noexcept {
   valid_ = false;
-  refused_ = false;
+  undone_.active = false;
   n_blockers_ = 0;
   support_.setZero();
   floaters_.reset();
@@ -85,7 +85,7 @@ void ProxySolver::reset() noexcept {
 void ProxySolver::place(const ToolEllipsoid& tool) noexcept {
   ++placements_;
   valid_ = true;
-  refused_ = false;
+  undone_.active = false;
   n_blockers_ = 0;
   support_.setZero();
   proxy_ = tool.center;
@@ -162,7 +162,7 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
     // glides over the shell's noise instead of stopping in a pocket of it.
     // (Not where the last step-up was undone while the goal is within a lift of its goal then.)
     if (np >= 2 && hit.t * len < 1e-3 * r && lifts < 2 &&
-        !(refused_ && (p - refused_at_).norm() <= eps && (goal - refused_goal_).norm() < params_.lift * r)) {
+        !undone_.repeats(p, goal, eps, params_.lift * r)) {
       Eigen::Vector3d up = Eigen::Vector3d::Zero();
       for (int i = 0; i < np; ++i) up += planes[i].normal;
       up += hit.normal;
@@ -192,9 +192,7 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
     p = wedged.p;
     np = wedged.restore(planes, n_blockers_);
     if (n_blockers_ < blockers_.size()) blockers_[n_blockers_++] = blocker_contact(*world_, wedged.hit_slot);
-    refused_ = true;
-    refused_at_ = p;
-    refused_goal_ = goal;
+    undone_.remember(p, goal);
   }
   proxy_ = p;
   last_constraints_ = np;

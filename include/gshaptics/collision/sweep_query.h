@@ -17,7 +17,9 @@
 /// never allocates, locks, logs or throws.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <utility>
@@ -164,8 +166,8 @@ class SweepQuery {
   }
   SweepCounts counts_;
   // The parts' near lists (reuse_margin): where each was built and what it covers; entries
-  // [p * kNearCapacity, + count) of near_slot_ and near_clear_ (the clearance from the core,
-  // rounded down).
+  // [p * kNearCapacity, + bucket_end[kNearBuckets - 1]) of near_slot_ and near_clear_ (the
+  // clearance from the core, rounded down).
   struct NearList {
     bool valid = false;
     // The core: the segment c0 +- half_len axis (a point when half_len is 0)
@@ -175,11 +177,21 @@ class SweepQuery {
     Eigen::Vector3d semi_axes = Eigen::Vector3d::Zero();
     double rho = 0;  // the part lies within rho of its core
     float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
-    std::uint32_t count = 0;
     double width = 0;  // the clearance buckets' width
     std::array<std::uint32_t, 8> bucket_end{};  // the list sorted by clearance bucket (kNearBuckets)
     std::uint32_t backoff = 0;    // sweeps to pass before trying again after an overflow
     std::uint32_t overflows = 0;  // builds in a row that overflowed
+    // The offset of x (world) from the core's nearest point to it.
+    [[nodiscard]] Eigen::Vector3d from_core(const Eigen::Vector3d& center, const double x[3]) const noexcept {
+      Eigen::Vector3d v = Eigen::Vector3d(x[0], x[1], x[2]) - center;
+      v -= std::clamp(v.dot(axis), -half_len, half_len) * axis;
+      return v;
+    }
+    // The bucket of clearance c: 0 up to rho, j up to rho + j x width, the last beyond.
+    [[nodiscard]] std::size_t bucket_of(double c) const noexcept {
+      const double over = (c - rho) / width;
+      return over <= 0 ? 0 : std::size_t(std::min<double>(double(bucket_end.size() - 1), std::ceil(over)));
+    }
   };
   static constexpr std::uint32_t kNearBackoff = 256;
   static constexpr std::size_t kNearBuckets = 8;

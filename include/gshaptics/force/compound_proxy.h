@@ -149,12 +149,7 @@ class CompoundProxy {
   int last_constraints_ = 0;                            // planes holding it at the last move
   Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();
   bool placed_ = false;
-  // The last step-up translate_toward undid (WedgedState): where the proxy was wedged, at which
-  // orientation, and its goal then. Not tried again from there until the goal has moved a lift
-  // away (each try costs a tick's sweeps; ProxySolver keeps the same rule).
-  bool refused_ = false;
-  Eigen::Vector3d refused_at_ = Eigen::Vector3d::Zero(), refused_goal_ = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond refused_q_ = Eigen::Quaterniond::Identity();
+  UndoneStepUp undone_;  // the last step-up translate_toward undid (ProxySolver's rule)
   static constexpr double kLift = 0.05;  // a step-up's height, x the largest semi-axis
   std::array<Contact, 3> blockers_{};
   std::size_t n_blockers_ = 0;
