@@ -10,16 +10,6 @@
 
 namespace gshaptics {
 
-Eigen::Matrix3d rotation_matrix(const CollisionGaussian& g) noexcept {
-  double r[9];
-  rotation_from_quaternion<double>(g.quaternion[0], g.quaternion[1], g.quaternion[2], g.quaternion[3], r[0], r[1], r[2], r[3], r[4],
-                                   r[5], r[6], r[7], r[8]);
-  Eigen::Matrix3d R;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) R(i, j) = r[3 * i + j];
-  return R;
-}
-
 Eigen::Vector3d ellipsoid_half_extent(const Eigen::Matrix3d& R,
                                       const Eigen::Vector3d& semi_axes) noexcept {
   return (R.cwiseAbs2() * semi_axes.cwiseAbs2()).cwiseSqrt();
