@@ -769,6 +769,13 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   // A hint that holds the tool (a resting contact: the bar near 0) leaves only the boxes swept
   // up to it to traverse.
   sweep_boxes();
+  // A part whose bar fell below 0 (a hint within the tolerance of the start) is settled: every
+  // lower bound and every exact search's contact is >= 0, so no other Gaussian can beat it, and
+  // its candidates are not looked at (the same answer; on the 8 mm cube a third of the
+  // candidates' bounds were of such parts).
+  std::uint32_t settled = 0;
+  for (std::uint32_t p = 0; p < parts.size(); ++p)
+    if (bar_of(p) < 0) settled |= 1u << p;
   // The parts served by their near lists (reuse_margin_), each with the clearance up to which an
   // entry can still touch it in this sweep.
   std::uint32_t served = 0;
@@ -777,6 +784,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
     for (std::size_t p = 0; p < parts.size(); ++p) {
       const ToolEllipsoid& tool = parts[p];
       const PartBounds& q = pd[p];
+      if ((settled >> p) & 1u) continue;
       NearList& nl = near_[p];
       const double bar_p = std::max(0.0, bar_of(std::uint32_t(p)));
       bool fits = nl.valid && nl.rotation.coeffs() == tool.rotation.coeffs() && nl.semi_axes == tool.semi_axes;
@@ -811,11 +819,12 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   const auto n_parts = std::uint32_t(parts.size());
   // One traversal over the union of the other parts' boxes; a leaf is read for each part whose
   // own box it overlaps (a tilted stylus's union box holds many leaves no part's box reaches).
-  if (served != (1u << n_parts) - 1) {
-    if (served != 0) {
+  const std::uint32_t skip = served | settled;
+  if (skip != (1u << n_parts) - 1) {
+    if (skip != 0) {
       bool first = true;
       for (std::uint32_t p = 0; p < n_parts; ++p) {
-        if ((served >> p) & 1u) continue;
+        if ((skip >> p) & 1u) continue;
         for (int k = 0; k < 3; ++k) {
           lo[k] = first ? pd[p].lo[k] : std::min(lo[k], pd[p].lo[k]);
           hi[k] = first ? pd[p].hi[k] : std::max(hi[k], pd[p].hi[k]);
@@ -825,7 +834,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
     }
   world_->bvh().for_each_overlapping_leaf_node(lo, hi, [&](const BvhNode& leaf) {
     for (std::uint32_t p = 0; p < n_parts; ++p) {
-      if ((served >> p) & 1u) continue;
+      if ((skip >> p) & 1u) continue;
       const PartBounds& q = pd[p];
       if (several && (leaf.lo[0] > q.hi[0] || leaf.hi[0] < q.lo[0] || leaf.lo[1] > q.hi[1] || leaf.hi[1] < q.lo[1] ||
                       leaf.lo[2] > q.hi[2] || leaf.hi[2] < q.lo[2]))
