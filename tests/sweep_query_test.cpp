@@ -236,6 +236,48 @@ TEST(SweepQuery, AHintThatHoldsTheToolBoundsTheTraversalAndIsSearchedOnlyWhereIt
   EXPECT_EQ(sweep.counts().exact, hinted_exact) << "the upper part was searched against the hint";
 }
 
+TEST(SweepQuery, APartSettledByItsHintReadsNoCandidates) {
+  // A hint whose contact lies within the tolerance of the start takes the part's bar below 0.
+  // Every contact time and every lower bound is >= 0, so no other Gaussian can come first: the
+  // sweep answers with the hint and reads none of that part's candidates. Another part, which
+  // no hint settles, still reads its own and finds its own first contact.
+  std::vector<GaussianSpec> gs;
+  add_layer(gs, 0.0f, 0.002f, 0.05f);
+  const CollisionWorld w = world_of(gs);
+  SweepQuery sweep(w);
+  const double r = 0.004, tol = 0.01;
+  const ToolEllipsoid free_tool = ToolEllipsoid::sphere({0.0007, -0.0003, 0.02}, r);
+  const SweepHit rest = sweep.first_contact(free_tool, {0, 0, -0.04});
+  ASSERT_TRUE(rest.hit);
+  const ToolEllipsoid resting = ToolEllipsoid::sphere(free_tool.center + Eigen::Vector3d(0, 0, -0.04 * rest.t + 1e-7), r);
+  const Eigen::Vector3d press(r, 0.5 * r, -2 * r);
+  const SweepHit cold = sweep.first_contact(resting, press);
+  ASSERT_TRUE(cold.hit);
+  ASSERT_LT(cold.t, 0.1 * tol);
+  const SweepHit settled = sweep.first_contact(resting, press, {}, {&rest.slot, 1}, {}, 1.0, tol);
+  ASSERT_TRUE(settled.hit);
+  EXPECT_EQ(settled.slot, rest.slot);
+  EXPECT_LE(settled.t, cold.t + tol);
+  EXPECT_EQ(sweep.counts().candidates, 0u);
+  // Without the tolerance the bar stays >= 0 and the same sweep reads the layer round the tool.
+  (void)sweep.first_contact(resting, press, {}, {&rest.slot, 1});
+  EXPECT_GT(sweep.counts().candidates, 0u);
+  // Two parts, each its own first contact: the second, 2 cm along and half a radius above the
+  // layer with no hint, is not settled by the first's.
+  const ToolEllipsoid other = ToolEllipsoid::sphere(resting.center + Eigen::Vector3d(0.02, 0, 0.5 * r), r);
+  const ToolEllipsoid parts[2] = {resting, other};
+  SweepHit hits[2];
+  sweep.first_contacts(parts, press, hits, {&rest.slot, 1}, {}, tol);
+  const std::uint32_t both_candidates = sweep.counts().candidates;
+  const SweepHit alone = sweep.first_contact(other, press, {}, {}, {}, 1.0, tol);
+  ASSERT_TRUE(alone.hit);
+  EXPECT_EQ(sweep.counts().candidates, both_candidates) << "the settled part read candidates";
+  ASSERT_TRUE(hits[0].hit);
+  EXPECT_EQ(hits[0].slot, rest.slot);
+  ASSERT_TRUE(hits[1].hit);
+  EXPECT_NEAR(hits[1].t, alone.t, tol);
+}
+
 // The first-contact time of an ellipsoidal tool against one Gaussian, computed plainly in the
 // world frame: the largest entry time over the family E_lambda (lambda on a fine grid of
 // s = logit(lambda), then golden-section refinement), with M = (lambda Sigma_g + (1 - lambda)
