@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace gshaptics {
@@ -20,23 +21,36 @@ double support(const Eigen::Matrix3d& m, const Eigen::Vector3d& n, Eigen::Vector
   return std::sqrt(std::max(0.0, n.dot(mn)));
 }
 
-// The soft minimum alone (derivatives: `full`).
+// The soft minimum alone (derivatives: `full`). The first 256 Gaussians' supports and gaps
+// (EdgeNormal's whole patch) are computed once, for the minimum and then for the sum; any further
+// ones twice.
 Eval evaluate(const Eigen::Vector3d& cp, const Eigen::Matrix3d& mp, std::span<const PatchGaussian> patch,
               const Eigen::Vector3d& n, double tau, bool full) noexcept {
   Eval out;
-  Eigen::Vector3d mpn, mn;
+  constexpr std::size_t kMax = 256;
+  std::array<double, kMax> gaps, sis;
+  std::array<Eigen::Vector3d, kMax> mns;
+  Eigen::Vector3d mpn, spare;
   const double sp = support(mp, n, mpn);
   double lo = INFINITY;
-  for (const PatchGaussian& q : patch) lo = std::min(lo, n.dot(cp - q.center) - sp - support(q.shape, n, mn));
+  for (std::size_t i = 0; i < patch.size(); ++i) {
+    const PatchGaussian& q = patch[i];
+    Eigen::Vector3d& mn = i < kMax ? mns[i] : spare;
+    const double si = support(q.shape, n, mn), gap = n.dot(cp - q.center) - sp - si;
+    if (i < kMax) sis[i] = si, gaps[i] = gap;
+    lo = std::min(lo, gap);
+  }
   if (!std::isfinite(lo)) return out;
   double z = 0;
   Eigen::Vector3d g = Eigen::Vector3d::Zero();
   Eigen::Matrix3d h = Eigen::Matrix3d::Zero(), gg = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d hp = Eigen::Matrix3d::Zero();
   if (full && sp > 0) hp = -(mp / sp - mpn * mpn.transpose() / (sp * sp * sp));
-  for (const PatchGaussian& q : patch) {
-    const double si = support(q.shape, n, mn);
-    const double gap = n.dot(cp - q.center) - sp - si;
+  for (std::size_t i = 0; i < patch.size(); ++i) {
+    const PatchGaussian& q = patch[i];
+    const double si = i < kMax ? sis[i] : support(q.shape, n, spare);
+    const Eigen::Vector3d& mn = i < kMax ? mns[i] : spare;
+    const double gap = i < kMax ? gaps[i] : n.dot(cp - q.center) - sp - si;
     const double e = q.weight * std::exp(-(gap - lo) / tau);
     z += e;
     if (!full) continue;
