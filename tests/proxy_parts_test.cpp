@@ -18,6 +18,7 @@
 #include "gshaptics/force/proxy_solver.h"
 #include "gshaptics/force/shaded_normal.h"
 #include "gshaptics/force/virtual_coupling.h"
+#include "gshaptics/percentile.h"
 #include "support/allocation_counter.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/scene/registration.h"
@@ -785,6 +786,38 @@ TEST(ProxyRenderer, PressesIntoAGrooveCreaseGiveBackNoEnergyWithTheEnergyBound) 
   EXPECT_LT(worst[0], -1e-3);  // (without the bound these presses do give energy back)
   EXPECT_GE(worst[1], 0.0);    // with it, none
   RecordProperty("worst_mJ", std::to_string(worst[1] * 1e3));
+}
+
+// On a curved face of Gaussians the frictionless proxy slides off the discs' rims into the hollows
+// between them, up to half the spacing from where the device presses, and the field read where
+// it comes to rest points that much round the face: seed 4's cylinder (5 cm radius) at 8 mm
+// spacing with the 10 mm tool read 3.8 degrees p95 over its 20 presses (issue 36 asks 3). Read
+// where the device would rest too (ProxyParams::device_shading), it is within 3 degrees, and the
+// presses give back no energy; without it, over 3. Through the runtime's servo step.
+TEST(ProxyRenderer, TheFieldReadWhereTheDeviceWouldRestKeepsACurvedFacesDirection) {
+  const AnalyticShape shape(ShapeKind::kCylinder);
+  const std::uint64_t seed = 4;
+  const CollisionWorld w = synthetic_world(shape, 0.008, seed);
+  double p95[2] = {0, 0}, worst_energy = 0;
+  for (int with = 0; with < 2; ++with) {
+    ProxyParams pp;  // with: the defaults
+    if (!with) pp.device_shading = 0;
+    ProxyRenderer proxy(w, pp);
+    std::vector<double> directions;
+    for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
+      const Script s = press_script(shape, site, 0.01, 0.010, 1000);
+      const PressMetrics m = press_metrics(shape, s, play_script(proxy, s, 1000));
+      directions.insert(directions.end(), m.direction_deg.begin(), m.direction_deg.end());
+      if (with) worst_energy = std::min(worst_energy, m.energy_j);
+    }
+    ASSERT_GT(directions.size(), 1000u);
+    p95[with] = percentile(directions, 95);
+  }
+  EXPECT_GT(p95[0], 3.0);  // (the proxy's own reading alone)
+  EXPECT_LE(p95[1], 3.0);
+  EXPECT_GE(worst_energy, 0.0);
+  RecordProperty("p95_deg_without", std::to_string(p95[0]));
+  RecordProperty("p95_deg_with", std::to_string(p95[1]));
 }
 
 // A god-object moves toward its goal and never away from it: under a loaded coupling a move away

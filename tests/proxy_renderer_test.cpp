@@ -466,6 +466,9 @@ TEST(ProxyRenderer, BadParametersAreErrors) {
   p = {};
   p.shading_tail = 0;
   EXPECT_THROW(ProxyRenderer(w, p), InputError);
+  p = {};
+  p.device_shading = -0.1;
+  EXPECT_THROW(ProxyRenderer(w, p), InputError);
   EXPECT_THROW((void)renderer_spec("spring"), InputError);
   EXPECT_EQ(make_force_renderer(renderer_spec("proxy"), w)->name(), "proxy");
   EXPECT_EQ(make_force_renderer(renderer_spec("paper"), w)->name(), "paper");

@@ -119,6 +119,10 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
          "proxy: the shaded normal's turns under the loaded coupling spring add no energy the contact's "
          "earlier turns did not take out (SpringEnergyBound). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
+  cmd.add_option("--device-shading", p.device_shading,
+                 "proxy: where the shaded normal turns slowly, also read it where the device would rest, at most "
+                 "this many tool radii from the proxy, and blend the two while they agree (0: off)")
+      ->capture_default_str()->check(check::non_negative());
   cmd.add_option_function<std::string>(
          "--near-lists", [&p](const std::string& v) { p.near_lists = v == "on"; },
          "proxy: a compound tool's sweeps read each part's last near list instead of the BVH while it rests "

@@ -22,6 +22,8 @@ const ProxyParams& validated(const ProxyParams& p, double f_max) {
     throw InputError("proxy: floater_cluster must be in [1, " + std::to_string(FloaterTest::kLargestCluster) + "]");
   if (!(p.shading_turn >= 0) || !std::isfinite(p.shading_turn)) throw InputError("proxy: shading_turn must be >= 0 degrees");
   if (!(p.shading_tail > 0) || !std::isfinite(p.shading_tail)) throw InputError("proxy: shading_tail must be > 0");
+  if (!(p.device_shading >= 0) || !std::isfinite(p.device_shading))
+    throw InputError("proxy: device_shading must be >= 0 tool radii");
   if (!(p.shading_kernel > 0) || !(p.teleport > 0) || !(p.tau_opacity >= 0))
     throw InputError("proxy: shading_kernel and teleport must be > 0, tau_opacity >= 0");
   return p;
@@ -96,6 +98,7 @@ void ProxyRenderer::reset() noexcept {
   bound_.release();
   in_contact_ = sticking_ = false;
   shade_.reset();
+  shade_device_.reset();
   normal_.setZero();
   last_move_ = {};
 }
@@ -182,6 +185,29 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     // (The first plane is known only when the proxy moved this tick; a sticking proxy keeps normal_.)
     const Eigen::Vector3d fallback = !sticking_ && move.constraints > 0 ? move.first_normal : normal_;
     n = e.norm() > 0 ? Eigen::Vector3d(e.normalized()) : fallback;
+  }
+  // Where the field turns slowly, it is also read where the device would rest: the device lifted
+  // along n to the proxy's level, at most device_shading tool radii from the proxy. A
+  // frictionless god-object slides off the Gaussians' rims into the hollows between them, up to
+  // half the spacing from where the device presses (6 mm round the 5 cm fidelity cylinder at 8 mm
+  // spacing), and the field read there is right for a place the device is not at (force shading
+  // of the device's contact point, as Morgenbesser & Srinivasan 1996 shade the surface point the
+  // device presses). The two readings are blended while they agree (fully within
+  // kDeviceShadingFrom degrees, not past kDeviceShadingTo): a crease's other wall, or the turn of
+  // an edge, is not this face.
+  if (params_.device_shading > 0 &&
+      shade_.reuse_within(params_.shading_reuse * r) >= params_.shading_reuse * r) {
+    Eigen::Vector3d lateral = (xd + e.dot(n) * n) - p;
+    const double shift = lateral.norm(), cap = params_.device_shading * r;
+    if (shift > 2 * params_.shading_reuse * r) {  // (nearer, the proxy's own reading holds)
+      if (shift > cap) lateral *= cap / shift;
+      const Eigen::Vector3d& nd =
+          shade_device_.read(*world_, p + lateral, std::max(r, spacing), params_.shading_kernel,
+                             params_.shading_reuse * r, shading_scratch_, ball, spacing, params_.shading_tail);
+      const double apart = std::atan2(nd.cross(n).norm(), nd.dot(n)) * 180 / M_PI;
+      const double w = std::clamp((kDeviceShadingTo - apart) / (kDeviceShadingTo - kDeviceShadingFrom), 0.0, 1.0);
+      if (w > 0 && nd.dot(e) > 0) n = ((1 - w) * n + w * nd).normalized();
+    }
   }
   normal_ = n;
   in_contact_ = true;
