@@ -203,7 +203,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
       if (shift > cap) lateral *= cap / shift;
       const Eigen::Vector3d& nd =
           shade_device_.read(*world_, p + lateral, std::max(r, spacing), params_.shading_kernel,
-                             params_.shading_reuse * r, shading_scratch_, ball, spacing, params_.shading_tail);
+                             params_.shading_reuse * r, device_scratch_, ball, spacing, params_.shading_tail);
       const double apart = std::atan2(nd.cross(n).norm(), nd.dot(n)) * 180 / M_PI;
       const double w = std::clamp((kDeviceShadingTo - apart) / (kDeviceShadingTo - kDeviceShadingFrom), 0.0, 1.0);
       if (w > 0 && nd.dot(e) > 0) n = ((1 - w) * n + w * nd).normalized();

@@ -182,6 +182,8 @@ class ProxyRenderer final : public ForceRenderer {
   ShadedNormalCache shade_device_;  // the field where the device would rest (device_shading)
   ProxyMove last_move_;
   ShadingScratch shading_scratch_;  // the shaded normal's working memory
+  // Its own working memory: a reading in shading_scratch_ would give up shade_'s reading ahead.
+  ShadingScratch device_scratch_;
   std::unique_ptr<CompoundProxy> compound_;
   CompoundTool tool_;
   bool compound_active_ = false;
