@@ -234,6 +234,16 @@ class Simulate(unittest.TestCase):
         self.assertIn("--energy-bound", bad.stderr)
 
 
+    def test_device_shading_is_an_option_of_the_proxy(self):
+        self.assertIn("--device-shading", run("simulate", "--help").stdout)
+        out = tempfile.mkdtemp()
+        run("simulate", "--sites", "1", "--out", out, "--quiet", "--no-plot", "--device-shading", "0")
+        self.assertEqual(load_json(os.path.join(out, "summary.json"))["renderer"], "proxy")
+        bad = run("simulate", "--sites", "1", "--quiet", "--no-plot", "--device-shading", "-1", check=False)
+        self.assertNotEqual(bad.returncode, 0)
+        self.assertIn("--device-shading", bad.stderr)
+
+
 class DataSafety(unittest.TestCase):
     """Issue 35: a failed run leaves the previous results untouched and creates no folder; every
     check comes before the scene is loaded; a FIFO is refused, not waited on."""

@@ -206,6 +206,13 @@ def test_proxy_holds_the_bundled_truck_roof(data_dir):
     for bad in (0, 5):
         with pytest.raises(ValueError):
             gshaptics.ProxyRenderer(world, floater_cluster=bad)
+    # Device shading off: the roof holds the same way; a negative share is refused.
+    plain = gshaptics.ProxyRenderer(world, stiffness=800.0, f_max=30.0, device_shading=0.0)
+    for k in range(3000):
+        f2 = plain.render((0.0, 0.0, 2.0 - 0.001 * k), (r, r, r), (0.0, 0.0, -1.0), 1e-3)
+    assert plain.proxy[2] > z_touch - 0.15 and f2[2] > 0
+    with pytest.raises(ValueError):
+        gshaptics.ProxyRenderer(world, device_shading=-0.1)
 
 
 def test_run_probe_with_either_force_model(data_dir):
