@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include <array>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <memory>
@@ -51,6 +52,10 @@ struct Set {
   /// tool whose teleport distance (10 reaches) exceeds the jump between two presses was dragged
   /// round the shape by the spring and timed stuck on its far side.
   std::vector<std::size_t> starts{0};
+  /// Whether pose i begins a further episode (the renderers are reset before it).
+  [[nodiscard]] bool restarts_at(std::size_t i) const {
+    return i > 0 && std::binary_search(starts.begin(), starts.end(), i);
+  }
 };
 
 std::string scene_path(const std::string& file) {
@@ -120,11 +125,8 @@ Timing time_replays(const Set& s, int passes, Reset&& reset, Tick&& tick) {
   std::vector<std::vector<double>> us(n, std::vector<double>(std::size_t(passes)));
   for (int p = 0; p < passes; ++p) {
     reset(true);
-    for (std::size_t i = 0, e = 1; i < n; ++i) {
-      if (e < s.starts.size() && i == s.starts[e]) {
-        reset(false);
-        ++e;
-      }
+    for (std::size_t i = 0; i < n; ++i) {
+      if (s.restarts_at(i)) reset(false);
       const auto t0 = Clock::now();
       tick(i);
       us[i][std::size_t(p)] = std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
@@ -215,11 +217,8 @@ int main(int argc, char** argv) {
         std::vector<TickWork> work(s.poses.size());
         proxy.reset();
         const std::uint64_t whole_before = proxy.shading_cache().whole_reads();
-        for (std::size_t i = 0, e = 1; i < s.poses.size(); ++i) {
-          if (e < s.starts.size() && i == s.starts[e]) {
-            proxy.reset();
-            ++e;
-          }
+        for (std::size_t i = 0; i < s.poses.size(); ++i) {
+          if (s.restarts_at(i)) proxy.reset();
           const std::uint64_t reads = proxy.shading_reads();
           const auto t0 = bench::Clock::now();
           (void)proxy.render(ToolEllipsoid::sphere(s.poses[i].position, r), s.poses[i].velocity, 1e-3);
