@@ -287,6 +287,19 @@ TEST(ShadedNormal, LeavesOutTheFloatersTheRestingToolOverlaps) {
   EXPECT_EQ(shaded_normal(w, rest, r, 0.5, scratch, FreeBall{0.0, up}), shaded_normal(w, rest, r, 0.5));
   // (Passed Gaussians under the tool stay: python/tests' Truck roof, where the floater rule
   // passes much of the roof, holds only with them.)
+  // A tool resting 1.2 mm high (on a proud disc): a floater 3 mm above the layer and 3.4 mm
+  // (0.68 r) below the tool's centre is still beside it, not under it (the fidelity sphere's
+  // seed 8, site 18: 4.1 degrees when the rule stopped at r / 2 below the centre).
+  {
+    std::vector<GaussianSpec> hs;
+    add_layer(hs, 0.0f, 0.004f, 0.04f);
+    hs.emplace_back(Eigen::Vector3f(0.0045f, 0.0f, 0.003f), Eigen::Vector3f(0.0035f, 0.0025f, 0.001f),
+                    Eigen::Quaternionf::Identity());
+    const CollisionWorld hw = world_of(hs, 0.5f);
+    const Eigen::Vector3d high(0, 0, 0.0002 + r + 0.0012);
+    EXPECT_GT(angle_deg(shaded_normal(hw, high, r, 0.5), up), 3.0);
+    EXPECT_LT(angle_deg(shaded_normal(hw, high, r, 0.5, free), up), 0.5);
+  }
 
   // Pressed 2 mm down from above, through the servo-free render call: the force is along +z.
   ProxyRenderer single(w);
