@@ -177,6 +177,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     bound_.release();
     in_contact_ = sticking_ = false;
     shade_.reset();
+    shade_device_.reset();
     out.proxy = xd;
     out.constraints = 0;
     return out;

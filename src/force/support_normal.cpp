@@ -21,13 +21,13 @@ double support(const Eigen::Matrix3d& m, const Eigen::Vector3d& n, Eigen::Vector
   return std::sqrt(std::max(0.0, n.dot(mn)));
 }
 
-// The soft minimum alone (derivatives: `full`). The first 256 Gaussians' supports and gaps
-// (EdgeNormal's whole patch) are computed once, for the minimum and then for the sum; any further
+// The soft minimum alone (derivatives: `full`). The first kSupportPatchOnePass Gaussians'
+// supports and gaps (EdgeNormal's whole patch) are computed once, for the minimum and then for the sum; any further
 // ones twice.
 Eval evaluate(const Eigen::Vector3d& cp, const Eigen::Matrix3d& mp, std::span<const PatchGaussian> patch,
               const Eigen::Vector3d& n, double tau, bool full) noexcept {
   Eval out;
-  constexpr std::size_t kMax = 256;
+  constexpr std::size_t kMax = kSupportPatchOnePass;
   std::array<double, kMax> gaps, sis;
   std::array<Eigen::Vector3d, kMax> mns;
   Eigen::Vector3d mpn, spare;

@@ -76,7 +76,7 @@ class EdgeNormal {
   /// blend(): 3 and 6 degrees, rad.
   static constexpr double kBlendFrom = 3.0 * 3.14159265358979323846 / 180;
   static constexpr double kBlendTo = 6.0 * 3.14159265358979323846 / 180;
-  static constexpr std::size_t kMaxPatch = 256;
+  static constexpr std::size_t kMaxPatch = kSupportPatchOnePass;
 
  private:
   const CollisionWorld* world_;

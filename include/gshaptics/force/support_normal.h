@@ -33,6 +33,11 @@ struct PatchGaussian {
   double weight = 1.0;
 };
 
+/// The patch size support_normal() evaluates in one pass (each Gaussian's support computed
+/// once per evaluation); a longer patch is read whole but its further Gaussians' supports are
+/// computed twice. EdgeNormal's patch holds at most this many.
+inline constexpr std::size_t kSupportPatchOnePass = 256;
+
 /// The result of support_normal().
 struct SupportNormal {
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit, patch -> part, world; zero if none
