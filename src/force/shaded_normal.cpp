@@ -97,7 +97,8 @@ template <bool kSimd>
     const double lim = ball_lim + amin;
     // (Conditions are 0/1 doubles, combined by products: a bool combined with another is a
     // byte, and a byte lane sets the vectorisation factor past the loop's 16 lanes.)
-    const double beside = flag(ball_r > 0) * flag(dx * ux + dy * uy + dz * uz < kFloaterDepth * ball_r) * flag(d2 < lim * lim);
+    const double beside =
+        flag(ball_r > 0) * flag(dx * ux + dy * uy + dz * uz < kFloaterDepth * ball_r) * flag(d2 < lim * lim);
     // q >= |d|^2 / (a_max^2 + s^2): the pre-filter (its 1e-3 margin keeps rounding from
     // dismissing one the exact q keeps).
     const double am = in.amax[l];

@@ -22,8 +22,8 @@ double support(const Eigen::Matrix3d& m, const Eigen::Vector3d& n, Eigen::Vector
 }
 
 // The soft minimum alone (derivatives: `full`). The first kSupportPatchOnePass Gaussians'
-// supports and gaps (EdgeNormal's whole patch) are computed once, for the minimum and then for the sum; any further
-// ones twice.
+// supports and gaps (EdgeNormal's whole patch) are computed once, for the minimum and then for
+// the sum; any further ones twice.
 Eval evaluate(const Eigen::Vector3d& cp, const Eigen::Matrix3d& mp, std::span<const PatchGaussian> patch,
               const Eigen::Vector3d& n, double tau, bool full) noexcept {
   Eval out;

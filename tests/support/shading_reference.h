@@ -46,7 +46,8 @@ inline Eigen::Vector3d reference_shaded_normal(const CollisionWorld& world, cons
     const CollisionGaussian& g = world.gaussians()[k];
     const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
     const Eigen::Vector3d d = c - Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
-    if (ball.radius > 0 && d.dot(ball.up) < kFloaterDepth * ball.radius && d.norm() < ball.radius * (1 - 1e-3) + a.minCoeff())
+    if (ball.radius > 0 && d.dot(ball.up) < kFloaterDepth * ball.radius &&
+        d.norm() < ball.radius * (1 - 1e-3) + a.minCoeff())
       continue;  // a floater beside the resting tool
     const Eigen::Matrix3d R = rotation_matrix(g);
     const Eigen::Matrix3d A = R * a.cwiseAbs2().asDiagonal() * R.transpose() + s * s * Eigen::Matrix3d::Identity();
