@@ -4,6 +4,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <limits>
 #include <map>
 #include <memory>
@@ -12,6 +13,7 @@
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/collision/sweep_query.h"
 #include "gshaptics/force/force_model.h"
+#include "gshaptics/force/support_normal.h"
 #include "gshaptics/servo/passivity.h"
 #include "gshaptics/servo/query_pool.h"
 #include "gshaptics/io/scene_loader.h"
@@ -167,6 +169,40 @@ void BM_SweepTime(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_SweepTime)->Args({0, 0})->Args({0, 1})->Args({1, 0})->Args({1, 1});
+
+// The support normal at a convex edge (EdgeNormal's solve, support_normal.h): a sphere part of
+// radius 5 mm resting on the edge of two faces of discs (semi-axes 4, 4, 0.2 mm at 4 mm spacing,
+// their centres jittered), the solve started from one face's normal. Arg: the patch size (the
+// discs nearest the part; EdgeNormal holds up to 256).
+void BM_SupportNormal(benchmark::State& state) {
+  const std::size_t n = std::size_t(state.range(0));
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> jitter(-2e-4, 2e-4);
+  std::vector<PatchGaussian> all;
+  const Eigen::Vector3d normals[2] = {Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX()};
+  for (int f = 0; f < 2; ++f) {
+    const Eigen::Vector3d nf = normals[f], along = Eigen::Vector3d::UnitY(), across = f == 0 ? Eigen::Vector3d(-1, 0, 0) : Eigen::Vector3d(0, 0, -1);
+    const Eigen::Matrix3d shape = (4e-3 * 4e-3) * (Eigen::Matrix3d::Identity() - nf * nf.transpose()) + (2e-4 * 2e-4) * nf * nf.transpose();
+    for (int i = 0; i < 16; ++i)
+      for (int j = -16; j < 16; ++j) {
+        const Eigen::Vector3d c = across * (2e-3 + 4e-3 * i) + along * (4e-3 * j) + Eigen::Vector3d(jitter(rng), jitter(rng), jitter(rng));
+        all.push_back({c, shape, 0.9});
+      }
+  }
+  ToolEllipsoid part = ToolEllipsoid::sphere(Eigen::Vector3d(1.0, 0, 1.0).normalized() * 5.3e-3, 5e-3);
+  std::sort(all.begin(), all.end(), [&](const PatchGaussian& a, const PatchGaussian& b) {
+    return (a.center - part.center).squaredNorm() < (b.center - part.center).squaredNorm();
+  });
+  all.resize(std::min(n, all.size()));
+  int iterations = 0;
+  for (auto _ : state) {
+    const SupportNormal sn = support_normal(part, all, Eigen::Vector3d::UnitZ(), 0.1 * 5e-3);
+    iterations = sn.iterations;
+    benchmark::DoNotOptimize(sn.normal);
+  }
+  state.counters["newton_steps"] = iterations;
+}
+BENCHMARK(BM_SupportNormal)->Arg(64)->Arg(256)->Unit(benchmark::kMicrosecond);
 
 // The passivity observer and controller's share of one servo tick (account, correct, sent) on a
 // pressed, oscillating contact, with the round trip in ticks as the argument (0: a local device;

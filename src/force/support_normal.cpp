@@ -118,18 +118,23 @@ SupportNormal support_normal(const ToolEllipsoid& part, std::span<const PatchGau
       step *= kMaxStep / sn;
       sn = kMaxStep;
     }
-    bool rose = false;
+    // The full step is tried with its derivatives (it is usually taken, and they are the next
+    // step's); the backtracked ones without. (Its S is the same either way, bit for bit.)
+    bool rose = false, full = false;
+    Eval next;
     for (int back = 0; back < 8 && !rose; ++back, step *= 0.5) {
       const Eigen::Vector3d cand = (n + step.x() * u + step.y() * v).normalized();
-      const Eval e = evaluate(cp, mp, patch, cand, tau, false);
+      const Eval e = evaluate(cp, mp, patch, cand, tau, back == 0);
       if (e.s > cur.s) {
         n = cand;
         rose = true;
+        full = back == 0;
+        if (full) next = e;
       }
     }
     ++out.iterations;
     if (!rose) break;
-    cur = evaluate(cp, mp, patch, n, tau, true);
+    cur = full ? next : evaluate(cp, mp, patch, n, tau, true);
     if (sn < 1e-5) break;
   }
   out.normal = n;
