@@ -181,11 +181,14 @@ void BM_SupportNormal(benchmark::State& state) {
   std::vector<PatchGaussian> all;
   const Eigen::Vector3d normals[2] = {Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX()};
   for (int f = 0; f < 2; ++f) {
-    const Eigen::Vector3d nf = normals[f], along = Eigen::Vector3d::UnitY(), across = f == 0 ? Eigen::Vector3d(-1, 0, 0) : Eigen::Vector3d(0, 0, -1);
-    const Eigen::Matrix3d shape = (4e-3 * 4e-3) * (Eigen::Matrix3d::Identity() - nf * nf.transpose()) + (2e-4 * 2e-4) * nf * nf.transpose();
+    const Eigen::Vector3d nf = normals[f], along = Eigen::Vector3d::UnitY();
+    const Eigen::Vector3d across = f == 0 ? Eigen::Vector3d(-1, 0, 0) : Eigen::Vector3d(0, 0, -1);
+    const Eigen::Matrix3d shape =
+        (4e-3 * 4e-3) * (Eigen::Matrix3d::Identity() - nf * nf.transpose()) + (2e-4 * 2e-4) * nf * nf.transpose();
     for (int i = 0; i < 16; ++i)
       for (int j = -16; j < 16; ++j) {
-        const Eigen::Vector3d c = across * (2e-3 + 4e-3 * i) + along * (4e-3 * j) + Eigen::Vector3d(jitter(rng), jitter(rng), jitter(rng));
+        const Eigen::Vector3d c = across * (2e-3 + 4e-3 * i) + along * (4e-3 * j) +
+                                  Eigen::Vector3d(jitter(rng), jitter(rng), jitter(rng));
         all.push_back({c, shape, 0.9});
       }
   }

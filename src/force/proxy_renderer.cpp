@@ -90,13 +90,17 @@ RenderOutput ProxyRenderer::render_compound(std::span<const ToolEllipsoid> parts
   return compound_->render(tcp, orientation, velocity, angular_velocity, dt);
 }
 
-void ProxyRenderer::reset() noexcept {
-  if (compound_) compound_->reset();
-  solver_.reset();
+void ProxyRenderer::leave_contact() noexcept {
   friction_.reset();
   coupling_.release();
   bound_.release();
   in_contact_ = sticking_ = false;
+}
+
+void ProxyRenderer::reset() noexcept {
+  if (compound_) compound_->reset();
+  solver_.reset();
+  leave_contact();
   shade_.reset();
   shade_device_.reset();
   normal_.setZero();
@@ -147,10 +151,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
 
   const Eigen::Vector3d e = p - xd;
   if (move.constraints == 0 && e.norm() <= 1e-6 * r) {  // free: the proxy is on the device
-    in_contact_ = sticking_ = false;
-    friction_.reset();
-    coupling_.release();
-    bound_.release();
+    leave_contact();
     return out;
   }
   // 3. The contact normal: shaded (Morgenbesser & Srinivasan 1996), recomputed once the proxy
@@ -172,10 +173,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     // proxy is caught in a Gaussian-scale pocket (a sharp tool rim under a neighbouring disc's
     // rim) and would pull the hand into the surface. It rejoins the device instead.
     solver_.place(tool);
-    friction_.reset();
-    coupling_.release();
-    bound_.release();
-    in_contact_ = sticking_ = false;
+    leave_contact();
     shade_.reset();
     shade_device_.reset();
     out.proxy = xd;

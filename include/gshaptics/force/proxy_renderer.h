@@ -168,6 +168,8 @@ class ProxyRenderer final : public ForceRenderer {
   [[nodiscard]] Eigen::Vector3d shaded_normal(const Eigen::Vector3d& center, double radius) const noexcept;
 
  private:
+  // Out of contact: friction, the coupling's onset, the energy bound and the contact flags reset.
+  void leave_contact() noexcept;
   const CollisionWorld* world_;
   ProxyParams params_;
   ProxySolver solver_;
