@@ -270,6 +270,42 @@ TEST(ProxyRenderer, StartInsideGeometryPlacesTheProxyOutside) {
   EXPECT_LE(out.force.norm(), ForceParams{}.f_max + 1e-9);
 }
 
+TEST(ProxyRenderer, ATeleportStartsTheContactAfreshAsANewRendererDoes) {
+  // Two layers of discs a metre apart: a faint one (opacity 0.3) and an opaque one. With the
+  // opacity-scaled stiffness (paper eq. 9) the coupling smooths the blockers' opacity; a device
+  // jump of more than `teleport` tool radii re-places the proxy, and the contact it lands in
+  // must not inherit the faint layer's smoothed opacity (or any other contact state).
+  GaussianScene s;
+  std::uint32_t id = 0;
+  for (const auto& [x0, opacity] : {std::pair{0.0f, 0.3f}, std::pair{1.0f, 1.0f}})
+    for (float x = -0.03f; x <= 0.03f; x += 0.004f)
+      for (float y = -0.03f; y <= 0.03f; y += 0.004f)
+        s.push_back(Eigen::Vector3f(x0 + x, y, 0.0f), Eigen::Vector3f(0.004f, 0.004f, 0.0002f), Eigen::Vector4f(1, 0, 0, 0),
+                    opacity, id++);
+  const CollisionWorld w = CollisionWorld::build(s, WorldConfig{});
+  ProxyParams p;
+  p.opacity_stiffness = true;
+  const double r = 0.005;
+  const Eigen::Vector3d pressed_b(1.0, 0.001, r - 0.003);  // 3 mm into the opaque layer
+  ProxyRenderer fresh(w, p);
+  const RenderOutput want = fresh.render(ToolEllipsoid::sphere(pressed_b, r), Eigen::Vector3d::Zero(), 1e-3);
+  ASSERT_GT(want.force.z(), 2.0);  // (k_c 1000 N/m on 3 mm, full opacity)
+
+  ProxyRenderer proxy(w, p);
+  Eigen::Vector3d x(0.001, 0.0, 0.02);
+  RenderOutput held;
+  for (int k = 0; k < 400; ++k) {  // down into the faint layer, then held 3 mm in
+    if (x.z() > r - 0.003) x.z() -= 0.0001;
+    held = proxy.render(ToolEllipsoid::sphere(x, r), Eigen::Vector3d::Zero(), 1e-3);
+  }
+  ASSERT_LT(held.force.z(), 0.35 * want.force.z());  // it did take on the faint layer's opacity
+  const std::uint64_t placed = proxy.placements();
+  const RenderOutput got = proxy.render(ToolEllipsoid::sphere(pressed_b, r), Eigen::Vector3d::Zero(), 1e-3);
+  EXPECT_EQ(proxy.placements(), placed + 1);  // the jump re-placed the proxy
+  EXPECT_LT((proxy.proxy_position() - fresh.proxy_position()).norm(), 1e-12);
+  EXPECT_LT((got.force - want.force).norm(), 1e-9) << got.force.transpose() << " vs " << want.force.transpose();
+}
+
 TEST(ProxyRenderer, TickIsAllocationFreeAndNoexcept) {
   AnalyticShape shape(ShapeKind::kSphere);
   SynthParams sp;

@@ -97,6 +97,13 @@ void ProxyRenderer::leave_contact() noexcept {
   in_contact_ = sticking_ = false;
 }
 
+void ProxyRenderer::restart_at(const ToolEllipsoid& tool) noexcept {
+  solver_.place(tool);
+  leave_contact();
+  shade_.reset();
+  shade_device_.reset();
+}
+
 void ProxyRenderer::reset() noexcept {
   if (compound_) compound_->reset();
   solver_.reset();
@@ -126,12 +133,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     at.center = solver_.position();
     replace = solver_.blocked(at);  // the tool turned into geometry
   }
-  if (replace) {
-    solver_.place(tool);
-    friction_.reset();
-    bound_.release();
-    in_contact_ = sticking_ = false;
-  }
+  if (replace) restart_at(tool);
   const Eigen::Vector3d device_step = xd - last_device_;
   last_device_ = xd;
   last_rotation_ = tool.rotation;
@@ -172,10 +174,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     // The surface says the device is on its free side, and the device's own pose is free: the
     // proxy is caught in a Gaussian-scale pocket (a sharp tool rim under a neighbouring disc's
     // rim) and would pull the hand into the surface. It rejoins the device instead.
-    solver_.place(tool);
-    leave_contact();
-    shade_.reset();
-    shade_device_.reset();
+    restart_at(tool);
     out.proxy = xd;
     out.constraints = 0;
     return out;

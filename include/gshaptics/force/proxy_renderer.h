@@ -170,6 +170,9 @@ class ProxyRenderer final : public ForceRenderer {
  private:
   // Out of contact: friction, the coupling's onset, the energy bound and the contact flags reset.
   void leave_contact() noexcept;
+  // The proxy placed anew at `tool` (free there, or the nearest free pose), with nothing of the
+  // last contact kept: a device jump, or the proxy caught in a pocket.
+  void restart_at(const ToolEllipsoid& tool) noexcept;
   const CollisionWorld* world_;
   ProxyParams params_;
   ProxySolver solver_;
