@@ -439,13 +439,15 @@ PYBIND11_MODULE(gshaptics, m) {
       "contact's earlier turns did not take out (SpringEnergyBound); near_lists: a compound tool's sweeps read "
       "each part's near list while it rests instead of the BVH (the same contacts); device_shading: where the shaded "
       "field turns slowly it is also read where the device would rest, at most this many tool radii from the proxy "
-      "(0: off); f_max clamps its output (default: none, as "
+      "(0: off); corner_normal: at a clean convex corner (three faces) the force turns to the patch's support "
+      "normal; f_max clamps its output (default: none, as "
       "in a runtime the safety layer limits the force). One per device; not thread-safe.")
       .def(py::init([](const PyWorld& w, double stiffness, double damping, double mu_s, double mu_k,
                        double f_max, bool opacity_stiffness, double isolation_gap, bool energy_bound,
-                       std::size_t floater_cluster, bool near_lists, double device_shading) {
+                       std::size_t floater_cluster, bool near_lists, double device_shading, bool corner_normal) {
              ProxyParams p;
              p.device_shading = device_shading;
+             p.corner_normal = corner_normal;
              p.isolation_gap = isolation_gap;
              p.floater_cluster = floater_cluster;
              p.energy_bound = energy_bound;
@@ -462,7 +464,8 @@ PYBIND11_MODULE(gshaptics, m) {
            py::arg("f_max") = ForceParams{}.f_max, py::arg("opacity_stiffness") = false,
            py::arg("isolation_gap") = ProxyParams{}.isolation_gap, py::arg("energy_bound") = ProxyParams{}.energy_bound,
            py::arg("floater_cluster") = ProxyParams{}.floater_cluster, py::arg("near_lists") = ProxyParams{}.near_lists,
-           py::arg("device_shading") = ProxyParams{}.device_shading)
+           py::arg("device_shading") = ProxyParams{}.device_shading,
+           py::arg("corner_normal") = ProxyParams{}.corner_normal)
       .def("render", [](PyProxy& p, const py::object& center, const py::object& axes, const py::object& velocity,
                         double dt) {
              if (!(dt > 0)) throw py::value_error("dt: must be > 0 seconds");

@@ -243,6 +243,12 @@ class Simulate(unittest.TestCase):
         self.assertNotEqual(bad.returncode, 0)
         self.assertIn("--device-shading", bad.stderr)
 
+    def test_corner_normal_is_an_option_of_the_proxy(self):
+        self.assertIn("--corner-normal", run("fidelity", "--help").stdout)
+        bad = run("fidelity", "--quick", "--no-plot", "--corner-normal", "maybe", check=False)
+        self.assertNotEqual(bad.returncode, 0)
+        self.assertIn("--corner-normal", bad.stderr)
+
 
 class DataSafety(unittest.TestCase):
     """Issue 35: a failed run leaves the previous results untouched and creates no folder; every

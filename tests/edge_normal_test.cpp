@@ -1,5 +1,7 @@
 // The edge normal (edge_normal.h): a tool resting on a clean convex edge of flat discs gets the
-// support normal across the edge; a face, a groove and a messy patch keep the shaded normal.
+// support normal across the edge; a face, a groove and a messy patch keep the shaded normal. At a
+// clean convex corner (three faces), when asked for, the support normal whole; an inside corner
+// and an edge with a row of bevelled discs along it are no corner.
 
 #include "gshaptics/force/edge_normal.h"
 
@@ -90,6 +92,98 @@ TEST(EdgeNormal, AMessyPatchKeepsTheShadedNormal) {
   EdgeNormalCache cache;
   ToolEllipsoid sphere = ToolEllipsoid::sphere({0, 0, 0.008}, 0.005);
   EXPECT_FALSE(edges.read(sphere, Eigen::Vector3d::UnitZ(), 0.005, 0.0, {}, cache).edge);
+}
+
+// Discs 4 mm apart, 2.4 mm wide, 0.1 mm thick, on the three faces of the octant corner at the
+// origin, each tilted by up to 3 degrees (a fixed pseudo-random draw): the block x, y, z < 0
+// (convex: outward normals +x, +y, +z) or, with `inside`, the walls of the octant x, y, z > 0
+// seen from within it (concave: the same normals, the solid outside the octant). Plus, with
+// `bevel_only`, only the two faces y = 0 and z = 0 and a row of discs along their edge (the x
+// axis) tilted half way: an edge with three groups of discs.
+CollisionWorld octant(bool inside, bool bevel_only = false) {
+  std::vector<GaussianSpec> gs;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1, 1);
+  const float sg = inside ? 1.0f : -1.0f;
+  const auto disc = [&](const Eigen::Vector3f& c, const Eigen::Vector3f& n) {
+    const Eigen::Vector3f tilt_axis = Eigen::Vector3f(u(rng), u(rng), u(rng)).cross(n).normalized();
+    const Eigen::Quaternionf q = Eigen::AngleAxisf(3.0f * float(M_PI) / 180 * u(rng), tilt_axis) *
+                                 Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f::UnitZ(), n);
+    gs.emplace_back(c, Eigen::Vector3f(0.0024f, 0.0024f, 0.0001f), q);
+  };
+  for (float a = 0.002f; a <= 0.04f; a += 0.004f)
+    for (float b = 0.002f; b <= 0.04f; b += 0.004f) {
+      if (!bevel_only) disc({0, sg * a, sg * b}, Eigen::Vector3f::UnitX());
+      disc({sg * a, 0, sg * b}, Eigen::Vector3f::UnitY());
+      disc({sg * a, sg * b, 0}, Eigen::Vector3f::UnitZ());
+    }
+  if (bevel_only)
+    for (float a = -0.04f; a <= 0.04f; a += 0.004f) disc({a, 0, 0}, Eigen::Vector3f(0, 1, 1).normalized());
+  return world_of(gs);
+}
+
+// The angle (degrees) from `d` to the positive octant's cone (0 inside it).
+double angle_to_octant(const Eigen::Vector3d& d) {
+  const Eigen::Vector3d in = d.cwiseMax(0.0);
+  return in.norm() > 0 ? angle_deg(d, in) : 90.0 + angle_deg(-d, Eigen::Vector3d::Ones());
+}
+
+TEST(EdgeNormal, AToolResting2mmFromAConvexCornerGetsANormalInsideItsCone) {
+  // A 5 mm sphere resting on the top face (z = 0) 2 and 3 mm from the corner's two other faces,
+  // the shaded normal tilted 6 degrees out of the corner's cone (toward -x: a face's discs'
+  // jitter, or a fin); the god-object's spring points up.
+  const CollisionWorld block = octant(false);
+  ToolEllipsoid sphere = ToolEllipsoid::sphere({-0.002, -0.003, 0.0052}, 0.005);
+  const Eigen::Vector3d shaded(-std::sin(6 * M_PI / 180), 0, std::cos(6 * M_PI / 180));
+  const Eigen::Vector3d spring(0, 0, 1);
+  EdgeNormal corners(block);
+  EdgeNormalCache cache;
+  const EdgeNormalAnswer a = corners.read(sphere, shaded, 0.005, 0.0, {}, cache, ConvexFeatures::kCorners, spring);
+  ASSERT_TRUE(a.corner);
+  EXPECT_FALSE(a.edge);
+  EXPECT_LT(angle_to_octant(a.normal), 0.5) << a.normal.transpose();
+  EXPECT_GT(angle_to_octant(shaded), 5.9);
+  // blend() hands the force to it (they disagree by more than 6 degrees).
+  EXPECT_LT(angle_to_octant(EdgeNormal::blend(shaded, a, spring)), 0.5);
+  // Edges only (the compound proxy's default): no answer here (three faces are no clean edge).
+  EdgeNormalCache edge_cache;
+  EXPECT_FALSE(corners.read(sphere, shaded, 0.005, 0.0, {}, edge_cache).feature());
+  // With a shaded normal far out of the cone (a fin turning it 40 degrees), the spring still
+  // vouches for the faces' orientation; without the spring the corner is not trusted.
+  const Eigen::Vector3d fin(-std::sin(40 * M_PI / 180), 0, std::cos(40 * M_PI / 180));
+  EdgeNormalCache c2, c3;
+  EXPECT_TRUE(corners.read(sphere, fin, 0.005, 0.0, {}, c2, ConvexFeatures::kCorners, spring).corner);
+  EXPECT_FALSE(corners.read(sphere, -fin.cwiseAbs(), 0.005, 0.0, {}, c3, ConvexFeatures::kCorners).corner);
+}
+
+TEST(EdgeNormal, AnInsideCornerAndABevelledEdgeAreNoCorner) {
+  // A 5 mm sphere in the inside corner of three walls, touching all three.
+  const CollisionWorld room = octant(true);
+  EdgeNormal in_room(room);
+  EdgeNormalCache cache;
+  const Eigen::Vector3d diagonal = Eigen::Vector3d::Ones().normalized();
+  const ToolEllipsoid in_corner = ToolEllipsoid::sphere({0.0052, 0.0052, 0.0052}, 0.005);
+  EXPECT_FALSE(in_room.read(in_corner, diagonal, 0.005, 0.0, {}, cache, ConvexFeatures::kCorners, diagonal).feature());
+  // ... and resting on one wall of it near the other two.
+  EdgeNormalCache c2;
+  const ToolEllipsoid on_wall = ToolEllipsoid::sphere({0.006, 0.007, 0.0052}, 0.005);
+  EXPECT_FALSE(in_room.read(on_wall, Eigen::Vector3d::UnitZ(), 0.005, 0.0, {}, c2, ConvexFeatures::kCorners,
+                            Eigen::Vector3d::UnitZ())
+                   .feature());
+  // A convex edge (faces y = 0 and z = 0 of the block y, z < 0) with a row of discs along it
+  // tilted half way: three groups of discs, all across the edge. No corner.
+  const CollisionWorld bevelled = octant(false, true);
+  EdgeNormal on_bevel(bevelled);
+  EdgeNormalCache c3;
+  const Eigen::Vector3d bisector = Eigen::Vector3d(0, 1, 1).normalized();
+  const ToolEllipsoid on_edge = ToolEllipsoid::sphere(bisector * 0.0052, 0.005);
+  EXPECT_FALSE(on_bevel.read(on_edge, bisector, 0.005, 0.0, {}, c3, ConvexFeatures::kCorners, bisector).feature());
+  // The same corner as a block (the convex one) is one: the test above is not vacuous here.
+  const CollisionWorld block = octant(false);
+  EdgeNormal on_block(block);
+  EdgeNormalCache c4;
+  const ToolEllipsoid at_tip = ToolEllipsoid::sphere(diagonal * 0.0052, 0.005);
+  EXPECT_TRUE(on_block.read(at_tip, diagonal, 0.005, 0.0, {}, c4, ConvexFeatures::kCorners, diagonal).corner);
 }
 
 }  // namespace

@@ -833,6 +833,46 @@ TEST(ProxyRenderer, TheFieldReadWhereTheDeviceWouldRestKeepsACurvedFacesDirectio
   RecordProperty("p95_deg_with", std::to_string(p95[1]));
 }
 
+// Pressed into a cube's corner, the proxy comes to rest on one face a few mm from the corner, as
+// a god-object on the analytic cube would, and the shaded field of that face tilts out of the
+// corner's normal cone by its discs' jitter: seed 16's 8 mm cube with the 5 mm tool read 5.7
+// degrees p95 over its corner presses (issue 36 asks 5). At a clean convex corner the patch's
+// support normal stays in the cone (ProxyParams::corner_normal); the presses give back no
+// energy. In the 60-degree groove's crease (seed 2, 2 mm, 10 mm tool) the rule must not fire:
+// there the walls' discs face away from the tool once turned away from their centroid (it read
+// 20.8 degrees before the corner test checked that).
+TEST(ProxyRenderer, TheCornerNormalKeepsACubeCornersForceInItsConeAndLeavesCreasesAlone) {
+  const auto corner_p95 = [](ShapeKind kind, double spacing, double radius, std::uint64_t seed, const char* feature,
+                             bool with, double& worst_energy) {
+    const AnalyticShape shape(kind);
+    const CollisionWorld w = synthetic_world(shape, spacing, seed);
+    ProxyParams pp;
+    pp.corner_normal = with;
+    ProxyRenderer proxy(w, pp);
+    std::vector<double> directions;
+    for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
+      if (site.feature != feature) continue;
+      const Script s = press_script(shape, site, radius, 0.010, 1000);
+      const PressMetrics m = press_metrics(shape, s, play_script(proxy, s, 1000));
+      directions.insert(directions.end(), m.direction_deg.begin(), m.direction_deg.end());
+      worst_energy = std::min(worst_energy, m.energy_j);
+    }
+    EXPECT_GT(directions.size(), 500u);
+    return percentile(directions, 95);
+  };
+  double energy = 0, ignored = 0;
+  const double without = corner_p95(ShapeKind::kCube, 0.008, 0.005, 16, "corner", false, ignored);
+  const double with = corner_p95(ShapeKind::kCube, 0.008, 0.005, 16, "corner", true, energy);
+  EXPECT_GT(without, 5.0);
+  EXPECT_LE(with, 5.0);
+  EXPECT_GE(energy, 0.0);
+  const double crease = corner_p95(ShapeKind::kVGroove60, 0.002, 0.01, 2, "concave", true, energy);
+  EXPECT_LT(crease, 2.0);
+  RecordProperty("corner_p95_deg_without", std::to_string(without));
+  RecordProperty("corner_p95_deg_with", std::to_string(with));
+  RecordProperty("crease_p95_deg", std::to_string(crease));
+}
+
 // A god-object moves toward its goal and never away from it: under a loaded coupling a move away
 // from the device is energy the proxy makes. Sweeps toward the constrained goal cannot move away;
 // the step-up out of a pocket does, and it is kept only when the tick's sweeps after it end

@@ -124,6 +124,11 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
                  "this many tool radii from the proxy, and blend the two while they agree (0: off)")
       ->capture_default_str()->check(check::non_negative());
   cmd.add_option_function<std::string>(
+         "--corner-normal", [&p](const std::string& v) { p.corner_normal = v == "on"; },
+         "proxy: at a clean convex corner of the Gaussians (three faces) the force turns to the patch's "
+         "support normal, which stays in the corner's normal cone (off: the shaded field). Default: on")
+      ->check(CLI::IsMember({"on", "off"}));
+  cmd.add_option_function<std::string>(
          "--near-lists", [&p](const std::string& v) { p.near_lists = v == "on"; },
          "proxy: a compound tool's sweeps read each part's last near list instead of the BVH while it rests "
          "(the same contacts; off: the BVH every sweep). Default: on")

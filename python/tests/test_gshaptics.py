@@ -213,6 +213,11 @@ def test_proxy_holds_the_bundled_truck_roof(data_dir):
     assert plain.proxy[2] > z_touch - 0.15 and f2[2] > 0
     with pytest.raises(ValueError):
         gshaptics.ProxyRenderer(world, device_shading=-0.1)
+    # The corner normal off: the roof (a face, no corner) holds the same way.
+    shaded = gshaptics.ProxyRenderer(world, stiffness=800.0, f_max=30.0, corner_normal=False)
+    for k in range(3000):
+        f3 = shaded.render((0.0, 0.0, 2.0 - 0.001 * k), (r, r, r), (0.0, 0.0, -1.0), 1e-3)
+    assert shaded.proxy[2] > z_touch - 0.15 and f3[2] > 0
 
 
 def test_run_probe_with_either_force_model(data_dir):

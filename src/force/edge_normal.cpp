@@ -60,12 +60,97 @@ bool convex(std::span<const Eigen::Vector3d> axes, std::span<const PatchGaussian
   return (c[1] / w[1] - c[0] / w[0]).dot(n[0].normalized() - n[1].normalized()) < 0;
 }
 
+// A clean convex corner (three faces). Each thin axis is turned away from the patch's weighted
+// centroid (inside the solid at a convex corner, so each face's axes point out of it, even where
+// the tool's centre lies behind a face's plane, as it does 2 mm from an edge); the axes fall into
+// three groups, each seeded by the heaviest axis left and holding those within `spread` of it.
+// Then:
+// - the three directions span space (an edge with a row of bevelled discs along it has three
+//   groups too, all across the edge);
+// - none points away from the tool (a cosine below -kAgainst with both `start`, the shaded
+//   normal, and `away`, the god-object's spring direction, when given: in a groove or an inside
+//   corner the centroid lies in the air and turns the walls' axes inward, into the solid, where
+//   they face away from both; at a convex corner each face's normal is within a few degrees of
+//   square to a direction in the cone, or nearer, and a fin can turn the shaded normal far out of
+//   the cone, but not the spring too);
+// - every pair of faces is convex (each behind the other's plane, as convex() tests an edge);
+// - and the tool lies on the outer side of the centroid.
+enum class CornerTest { kNo, kMessy, kCorner };  // kMessy: three directions hold under half the weight
+CornerTest clean_corner(std::span<const Eigen::Vector3d> axes, std::span<const PatchGaussian> patch,
+                        const Eigen::Vector3d& tool_center, const Eigen::Vector3d& start, const Eigen::Vector3d& away,
+                        double spread, double apart, double share, double leftover) noexcept {
+  constexpr double kAgainst = 0.25;  // the cosine a face's normal may reach against `start`
+  constexpr double kSpan = 0.25;     // |d0 . (d1 x d2)| at least (1 for a cube's corner)
+  const std::size_t n = std::min(axes.size(), EdgeNormal::kMaxPatch);
+  if (n < 3) return CornerTest::kNo;
+  Eigen::Vector3d mid = Eigen::Vector3d::Zero();
+  double total = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double wi = axes[i].norm();
+    mid += wi * patch[i].center;
+    total += wi;
+  }
+  if (!(total > 0)) return CornerTest::kNo;
+  mid /= total;
+  std::array<std::int8_t, EdgeNormal::kMaxPatch> group;
+  group.fill(-1);
+  const auto outward = [&](std::size_t i) {
+    return axes[i].dot(patch[i].center - mid) >= 0 ? Eigen::Vector3d(axes[i]) : Eigen::Vector3d(-axes[i]);
+  };
+  Eigen::Vector3d dir[3], c[3];
+  double weight[3] = {0, 0, 0};
+  const double cos_spread = std::cos(spread);
+  double left = total;
+  int faces = 0;
+  while (left > leftover * total) {
+    std::size_t seed = n;
+    double heaviest = 0;
+    for (std::size_t i = 0; i < n; ++i)
+      if (group[i] < 0 && axes[i].norm() > heaviest) heaviest = axes[i].norm(), seed = i;
+    if (seed == n) break;
+    // A fourth direction holds weight: not three faces. Messy (a real scene's noise) when the
+    // three hold under half the patch; else a clean feature with strays (a floater in the patch).
+    if (faces == 3) return total - left < 0.5 * total ? CornerTest::kMessy : CornerTest::kNo;
+    const Eigen::Vector3d u = outward(seed) / heaviest;
+    dir[faces].setZero();
+    c[faces].setZero();
+    for (std::size_t i = 0; i < n; ++i) {
+      if (group[i] >= 0) continue;
+      const Eigen::Vector3d a = outward(i);
+      const double wi = a.norm();
+      if (!(wi > 0) || a.dot(u) < cos_spread * wi) continue;
+      group[i] = std::int8_t(faces);
+      dir[faces] += a;
+      c[faces] += wi * patch[i].center;
+      weight[faces] += wi;
+      left -= wi;
+    }
+    ++faces;
+  }
+  if (faces != 3) return CornerTest::kNo;
+  for (int f = 0; f < 3; ++f) {
+    if (!(weight[f] >= share * total) || !(dir[f].norm() > 0)) return CornerTest::kNo;
+    dir[f].normalize();
+    c[f] /= weight[f];
+  }
+  if (!(std::abs(dir[0].dot(dir[1].cross(dir[2]))) >= kSpan)) return CornerTest::kNo;
+  const double sl = start.norm(), al = away.norm();
+  for (const Eigen::Vector3d& d : dir)
+    if (!(d.dot(start) > -kAgainst * sl) && !(al > 0 && d.dot(away) > -kAgainst * al)) return CornerTest::kNo;
+  const double cos_apart = std::cos(apart);
+  for (int f = 0; f < 3; ++f)
+    for (int g = f + 1; g < 3; ++g)
+      if (dir[f].dot(dir[g]) > cos_apart || !((c[g] - c[f]).dot(dir[f] - dir[g]) < 0)) return CornerTest::kNo;
+  return (tool_center - mid).dot(dir[0] + dir[1] + dir[2]) > 0 ? CornerTest::kCorner : CornerTest::kNo;
+}
+
 }  // namespace
 
 EdgeNormal::EdgeNormal(const CollisionWorld& world) : world_(&world) {}
 
 EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector3d& start, double band, double reuse,
-                                  BlockFilter floaters, EdgeNormalCache& sc) noexcept {
+                                  BlockFilter floaters, EdgeNormalCache& sc, ConvexFeatures features,
+                                  const Eigen::Vector3d& away) noexcept {
   const double rho = part.semi_axes.minCoeff();
   if (sc.valid && (part.center - sc.center).norm() <= reuse &&
       sc.rotation.angularDistance(part.rotation) * part.semi_axes.maxCoeff() <= reuse)
@@ -110,8 +195,22 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
       patch_[n++] = {c, r * a.array().square().matrix().asDiagonal() * r.transpose(), double(g.opacity)};
     }
   });
-  PatchShape shape = patch_shape({axis_.data(), n}, kFeatureShare, kEdgeShare);
-  if (!shape.feature) return sc.answer;  // a face: the shaded normal stands
+  const bool edges = (std::uint8_t(features) & std::uint8_t(ConvexFeatures::kEdges)) != 0;
+  const bool corners = (std::uint8_t(features) & std::uint8_t(ConvexFeatures::kCorners)) != 0;
+  // A clean edge (when asked for), else a clean convex corner (when asked for), else nothing.
+  PatchShape shape;
+  bool corner = false;
+  const auto classify = [&] {
+    shape = edges ? patch_shape({axis_.data(), n}, kFeatureShare, kEdgeShare) : PatchShape{};
+    const CornerTest c = !shape.feature && corners ? clean_corner({axis_.data(), n}, {patch_.data(), n}, part.center,
+                                                                  start, away, kCornerSpread, kCornerApart,
+                                                                  kFeatureShare, kEdgeShare)
+                                                   : CornerTest::kNo;
+    corner = c == CornerTest::kCorner;
+    sc.answer.messy = c == CornerTest::kMessy;
+    return shape.feature || corner;
+  };
+  if (!classify()) return sc.answer;  // a face, or a patch of no clean feature: the shaded normal stands
   // Floaters that the part did not pass but that the grown part reaches (one hanging beside a
   // stylus) would bend the hull: the Gaussians that hold the answer (within a few soft-minimum
   // widths of the smallest gap) are put to the floater rule, and floaters leave the patch (with
@@ -133,13 +232,16 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
       }
     }
     if (!dropped) break;
-    shape = patch_shape({axis_.data(), n}, kFeatureShare, kEdgeShare);
-    if (!shape.feature) return sc.answer;
+    if (!classify()) return sc.answer;
     // (From the last round's answer: the floaters it dropped moved it little, and the search
     // converges in a step or two from there instead of four or five from `start`.)
     sn = support_normal(part, {patch_.data(), n}, sn.normal, tau);
   }
   if (!(sn.normal.squaredNorm() > 0)) return sc.answer;
+  if (corner) {  // (convex, with the tool outside: clean_corner)
+    sc.answer = {sn.normal, false, true, false};
+    return sc.answer;
+  }
   // A groove (a concave edge) keeps the shaded normal: its hull spans the groove's opening, and
   // the support normal there would be the bisector whichever wall the tool touches.
   if (!convex({axis_.data(), n}, {patch_.data(), n}, part.center, shape.edge)) return sc.answer;
@@ -149,13 +251,13 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
     const Eigen::Vector3d across = normal - normal.dot(shape.edge) * shape.edge;
     if (across.norm() > 0.5) normal = across.normalized();
   }
-  sc.answer = {normal, true};
+  sc.answer = {normal, true, false, false};
   return sc.answer;
 }
 
 Eigen::Vector3d EdgeNormal::blend(const Eigen::Vector3d& shaded, const EdgeNormalAnswer& answer,
                                   const Eigen::Vector3d& contact) noexcept {
-  if (!answer.edge || !(answer.normal.dot(contact) > 0)) return shaded;
+  if (!answer.feature() || !(answer.normal.dot(contact) > 0)) return shaded;
   const double apart = std::atan2(answer.normal.cross(shaded).norm(), answer.normal.dot(shaded));
   const double t = std::clamp((apart - kBlendFrom) / (kBlendTo - kBlendFrom), 0.0, 1.0);
   const Eigen::Vector3d mix = (1.0 - t) * shaded + t * answer.normal;

@@ -47,7 +47,8 @@ ProxyRenderer::ProxyRenderer(const CollisionWorld& world, const ProxyParams& par
       params_(validated(params, f_max)),
       solver_(world, solver_params(params)),
       friction_(params.mu_s, params.mu_k),
-      coupling_(params.stiffness, params.damping, f_max, params.opacity_stiffness, params.tau_opacity) {
+      coupling_(params.stiffness, params.damping, f_max, params.opacity_stiffness, params.tau_opacity),
+      corners_(world) {
   shade_.set_turn_tolerance(params_.shading_turn * M_PI / 180);
 }
 
@@ -102,6 +103,7 @@ void ProxyRenderer::restart_at(const ToolEllipsoid& tool) noexcept {
   leave_contact();
   shade_.reset();
   shade_device_.reset();
+  corner_cache_.reset();
 }
 
 void ProxyRenderer::reset() noexcept {
@@ -110,6 +112,7 @@ void ProxyRenderer::reset() noexcept {
   leave_contact();
   shade_.reset();
   shade_device_.reset();
+  corner_cache_.reset();
   normal_.setZero();
   last_move_ = {};
 }
@@ -206,6 +209,22 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
       const double w = std::clamp((kDeviceShadingTo - apart) / (kDeviceShadingTo - kDeviceShadingFrom), 0.0, 1.0);
       if (w > 0 && nd.dot(e) > 0) n = ((1 - w) * n + w * nd).normalized();
     }
+  }
+  // At a clean convex corner the patch's support normal (edge_normal.h): the shaded field of the
+  // face the proxy came to rest on tilts out of the corner's normal cone by its discs' jitter,
+  // and a disc overhanging the corner (a fin) turns it further; the hull's normal stays in it.
+  if (params_.corner_normal) {
+    ToolEllipsoid at = tool;
+    at.center = p;
+    FloaterTest::Filter floaters(solver_.floater_test(), params_.isolation_gap * r);
+    const BlockFilter filter = params_.pass_isolated ? floaters.block_filter() : BlockFilter{};
+    // (Where the last reading found a messy patch, the thin axes in more than three directions as
+    // on most of a real scene, it is re-read only kCornerSearch radii on: its gather costs about
+    // what a shaded reading does. Elsewhere at the shaded normal's reuse distance.)
+    const double rho = tool.semi_axes.minCoeff();
+    const double reuse = (corner_cache_.answer.messy ? kCornerSearch : params_.shading_reuse) * rho;
+    n = EdgeNormal::blend(
+        n, corners_.read(at, n, kCornerBand * rho, reuse, filter, corner_cache_, ConvexFeatures::kCorners, e), e);
   }
   normal_ = n;
   in_contact_ = true;

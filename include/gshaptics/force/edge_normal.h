@@ -14,7 +14,12 @@
 ///   opening, and the support normal would be the bisector whichever wall the tool touches);
 /// - at a clean convex edge, takes the patch's support normal (support_normal.h), keeps only its part
 ///   across the edge (its tilt along the edge is the rims' jitter), and leaves out Gaussians whose
-///   centre is inside the tool (floaters it passed) and floaters among those that hold the answer.
+///   centre is inside the tool (floaters it passed) and floaters among those that hold the answer;
+/// - optionally tells a clean convex corner (three faces): the thin axes in three tight groups,
+///   every pair of faces convex, the tool outside; there the support normal is taken whole. A
+///   corner's normal cone is a solid angle that the hull's normal stays in, where the shaded field
+///   of the face the tool rests on tilts out of it by the discs' jitter (seen through fewer discs
+///   beside two edges than on a face) and a fin (a disc overhanging the corner) turns it further.
 /// blend() then hands the force from the shaded normal to it over 3-6 degrees of disagreement.
 ///
 /// Threading: one thread per EdgeNormal; read() and blend() allocate, lock, log and throw nothing.
@@ -33,9 +38,17 @@ namespace gshaptics {
 
 /// What EdgeNormal::read() found for one tool ellipsoid.
 struct EdgeNormalAnswer {
-  Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit when `edge`, world frame
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit when `feature()`, world frame
   bool edge = false;                                 ///< the patch is a clean convex edge
+  bool corner = false;                               ///< the patch is a clean convex corner
+  /// (corners asked for) the patch's thin axes spread so that three directions hold under half
+  /// their weight: a real scene's reconstruction noise, far from any clean feature
+  bool messy = false;
+  [[nodiscard]] bool feature() const noexcept { return edge || corner; }
 };
+
+/// The convex features EdgeNormal::read() answers at (a bit set).
+enum class ConvexFeatures : std::uint8_t { kEdges = 1, kCorners = 2, kEdgesAndCorners = 3 };
 
 /// One tool ellipsoid's last answer and the pose it was found at.
 struct EdgeNormalCache {
@@ -54,12 +67,17 @@ class EdgeNormal {
   /// (unit, e.g. the shaded normal). `band` (m, > 0): the patch's reach beyond the tool. The
   /// cached answer while the tool is within `reuse` m (and turned by less than that at its
   /// largest semi-axis) of where it was found. `floaters`: the proxy's floater rule (empty: every
-  /// Gaussian is surface).
+  /// Gaussian is surface). `features`: which convex features get an answer (the others: none).
+  /// `away` (any length; zero: none): a second direction known to point from the surface toward
+  /// the tool (a god-object's spring, proxy - device), for the corner test's orientation check
+  /// where `start` may be wrong (a shaded normal turned by a fin).
   EdgeNormalAnswer read(const ToolEllipsoid& tool, const Eigen::Vector3d& start, double band, double reuse,
-                        BlockFilter floaters, EdgeNormalCache& cache) noexcept;
+                        BlockFilter floaters, EdgeNormalCache& cache,
+                        ConvexFeatures features = ConvexFeatures::kEdges,
+                        const Eigen::Vector3d& away = Eigen::Vector3d::Zero()) noexcept;
 
   /// `shaded` (unit) turned toward the answer's normal: not at all while they are within
-  /// kBlendFrom, fully past kBlendTo, linearly between. Unchanged when the answer is no edge or
+  /// kBlendFrom, fully past kBlendTo, linearly between. Unchanged when the answer is no feature or
   /// its normal faces away from `contact` (a contact normal the result must agree with).
   [[nodiscard]] static Eigen::Vector3d blend(const Eigen::Vector3d& shaded, const EdgeNormalAnswer& answer,
                                              const Eigen::Vector3d& contact) noexcept;
@@ -73,6 +91,12 @@ class EdgeNormal {
   /// or burger stylus probe runs does, 19 % of halo's).
   static constexpr double kFeatureShare = 0.05;
   static constexpr double kEdgeShare = 0.05;
+  /// A clean corner: each face's thin axes within kCornerSpread of its heaviest disc's (the
+  /// fidelity scenes' discs tilt 3 degrees; real scenes' patches spread in every direction) and
+  /// the faces' mean directions at least kCornerApart apart; each face at least kFeatureShare of
+  /// the patch's weight and at most kEdgeShare left in none of the three. Radians.
+  static constexpr double kCornerSpread = 20.0 * 3.14159265358979323846 / 180;
+  static constexpr double kCornerApart = 30.0 * 3.14159265358979323846 / 180;
   /// blend(): 3 and 6 degrees, rad.
   static constexpr double kBlendFrom = 3.0 * 3.14159265358979323846 / 180;
   static constexpr double kBlendTo = 6.0 * 3.14159265358979323846 / 180;

@@ -37,6 +37,7 @@
 #include <memory>
 
 #include "gshaptics/force/compound_proxy.h"
+#include "gshaptics/force/edge_normal.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/force/friction_cone.h"
 #include "gshaptics/force/proxy_solver.h"
@@ -85,6 +86,13 @@ struct ProxyParams {
   /// cylinder with a 10 mm tool, direction p95 3.8 -> 2.3-2.6 degrees over seeds 1-18
   /// (bench/RESULTS.md, thirty-second session). 0: off (the proxy's reading alone).
   double device_shading = 0.2;
+  /// Where the patch under the tool is a clean convex corner (three faces: EdgeNormal's corner
+  /// test), the force turns to the patch's support normal (edge_normal.h, blended over 3-6
+  /// degrees of disagreement): the direction that best separates the tool from the corner's
+  /// Gaussians, which stays in the corner's normal cone where the shaded field of the face the
+  /// proxy rests on tilts out of it (fidelity seeds 1-18, 8 mm cube corners: p95 up to 29.7 ->
+  /// bench/RESULTS.md, thirty-fourth session). false: the shaded field everywhere.
+  bool corner_normal = true;
   double teleport = 10.0;     ///< a device jump of more tool radii than this in one tick re-places the proxy
   /// A Gaussian that no other kept Gaussian comes near (a floater, as trained scenes have in free
   /// space) does not block the proxy, so the tool is not caught on specks in mid-air. "Near" is
@@ -121,6 +129,15 @@ class ProxyRenderer final : public ForceRenderer {
   explicit ProxyRenderer(const CollisionWorld& world, const ProxyParams& params = {},
                          double f_max = std::numeric_limits<double>::infinity());
   [[nodiscard]] std::string_view name() const noexcept override { return "proxy"; }
+  /// ProxyParams::corner_normal: where the last corner reading found a messy patch (a real
+  /// scene's), the next comes once the proxy has moved this many tool radii (elsewhere,
+  /// shading_reuse's).
+  static constexpr double kCornerSearch = 0.25;
+  /// ProxyParams::corner_normal: the corner patch's reach beyond the tool, in its smallest
+  /// semi-axis (EdgeNormal's band, as the compound proxy's edge patch: it takes in the other
+  /// faces' discs while the tool rests on one face within a radius of the corner; half of it
+  /// left seed 5's 8 mm corner at 6.7 degrees, bench/RESULTS.md).
+  static constexpr double kCornerBand = 1.0;
   /// ProxyParams::device_shading's blend: the reading where the device would rest counts fully
   /// while it is within kDeviceShadingFrom degrees of the proxy's, not at all past
   /// kDeviceShadingTo (linear between).
@@ -189,6 +206,8 @@ class ProxyRenderer final : public ForceRenderer {
   ShadingScratch shading_scratch_;  // the shaded normal's working memory
   // Its own working memory: a reading in shading_scratch_ would give up shade_'s reading ahead.
   ShadingScratch device_scratch_;
+  EdgeNormal corners_;  // the patch's support normal at a clean convex corner (corner_normal)
+  EdgeNormalCache corner_cache_;
   std::unique_ptr<CompoundProxy> compound_;
   CompoundTool tool_;
   bool compound_active_ = false;

@@ -169,6 +169,8 @@ class ProxySolver {
   [[nodiscard]] std::uint64_t lost() const noexcept { return lost_; }
   /// Whether the Gaussian in `slot` is a floater (FloaterTest::isolated).
   bool isolated(std::uint32_t slot, double gap) noexcept { return floaters_.isolated(slot, gap); }
+  /// The floater rule with its cache, for a filter of the renderer's own readings.
+  [[nodiscard]] FloaterTest& floater_test() noexcept { return floaters_; }
 
  private:
   const CollisionWorld* world_;
