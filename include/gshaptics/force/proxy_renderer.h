@@ -90,8 +90,9 @@ struct ProxyParams {
   /// test), the force turns to the patch's support normal (edge_normal.h, blended over 3-6
   /// degrees of disagreement): the direction that best separates the tool from the corner's
   /// Gaussians, which stays in the corner's normal cone where the shaded field of the face the
-  /// proxy rests on tilts out of it (fidelity seeds 1-18, 8 mm cube corners: p95 up to 29.7 ->
-  /// bench/RESULTS.md, thirty-fourth session). false: the shaded field everywhere.
+  /// proxy rests on tilts out of it (fidelity seeds 1-18: every cube corner cell within 4.0
+  /// degrees p95, were up to 8.9, but seed 12's fin; bench/RESULTS.md, thirty-fourth session).
+  /// false: the shaded field everywhere.
   bool corner_normal = true;
   double teleport = 10.0;     ///< a device jump of more tool radii than this in one tick re-places the proxy
   /// A Gaussian that no other kept Gaussian comes near (a floater, as trained scenes have in free
