@@ -220,7 +220,8 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     const BlockFilter filter = params_.pass_isolated ? floaters.block_filter() : BlockFilter{};
     // (Where the last reading found a messy patch, the thin axes in more than three directions as
     // on most of a real scene, it is re-read only kCornerSearch radii on: its gather costs about
-    // what a shaded reading does. Elsewhere at the shaded normal's reuse distance.)
+    // what a shaded reading does, and at the shaded normal's distance burger's probe run
+    // gathered on 1.7 % of its contact ticks. Elsewhere at the shaded normal's reuse distance.)
     const double rho = tool.semi_axes.minCoeff();
     const double reuse = (corner_cache_.answer.messy ? kCornerSearch : params_.shading_reuse) * rho;
     n = EdgeNormal::blend(

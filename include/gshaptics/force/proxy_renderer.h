@@ -133,7 +133,7 @@ class ProxyRenderer final : public ForceRenderer {
   /// ProxyParams::corner_normal: where the last corner reading found a messy patch (a real
   /// scene's), the next comes once the proxy has moved this many tool radii (elsewhere,
   /// shading_reuse's).
-  static constexpr double kCornerSearch = 0.25;
+  static constexpr double kCornerSearch = 0.5;
   /// ProxyParams::corner_normal: the corner patch's reach beyond the tool, in its smallest
   /// semi-axis (EdgeNormal's band, as the compound proxy's edge patch: it takes in the other
   /// faces' discs while the tool rests on one face within a radius of the corner; half of it
