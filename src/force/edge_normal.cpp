@@ -79,21 +79,22 @@ enum class CornerTest { kNo, kMessy, kCorner };  // kMessy: three directions hol
 CornerTest clean_corner(std::span<const Eigen::Vector3d> axes, std::span<const PatchGaussian> patch,
                         const Eigen::Vector3d& tool_center, const Eigen::Vector3d& start, const Eigen::Vector3d& away,
                         double spread, double apart, double share, double leftover) noexcept {
-  constexpr double kAgainst = 0.25;  // the cosine a face's normal may reach against `start`
+  constexpr double kAgainst = 0.25;  // the cosine a face's normal may reach against `start` or `away`
   constexpr double kSpan = 0.25;     // |d0 . (d1 x d2)| at least (1 for a cube's corner)
   const std::size_t n = std::min(axes.size(), EdgeNormal::kMaxPatch);
   if (n < 3) return CornerTest::kNo;
+  std::array<double, EdgeNormal::kMaxPatch> w;  // each axis's weight (its length)
+  std::array<std::int8_t, EdgeNormal::kMaxPatch> group;
+  group.fill(-1);
   Eigen::Vector3d mid = Eigen::Vector3d::Zero();
   double total = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const double wi = axes[i].norm();
-    mid += wi * patch[i].center;
-    total += wi;
+    w[i] = axes[i].norm();
+    mid += w[i] * patch[i].center;
+    total += w[i];
   }
   if (!(total > 0)) return CornerTest::kNo;
   mid /= total;
-  std::array<std::int8_t, EdgeNormal::kMaxPatch> group;
-  group.fill(-1);
   const auto outward = [&](std::size_t i) {
     return axes[i].dot(patch[i].center - mid) >= 0 ? Eigen::Vector3d(axes[i]) : Eigen::Vector3d(-axes[i]);
   };
@@ -106,7 +107,7 @@ CornerTest clean_corner(std::span<const Eigen::Vector3d> axes, std::span<const P
     std::size_t seed = n;
     double heaviest = 0;
     for (std::size_t i = 0; i < n; ++i)
-      if (group[i] < 0 && axes[i].norm() > heaviest) heaviest = axes[i].norm(), seed = i;
+      if (group[i] < 0 && w[i] > heaviest) heaviest = w[i], seed = i;
     if (seed == n) break;
     // A fourth direction holds weight: not three faces. Messy (a real scene's noise) when the
     // three hold under half the patch; else a clean feature with strays (a floater in the patch).
@@ -115,15 +116,14 @@ CornerTest clean_corner(std::span<const Eigen::Vector3d> axes, std::span<const P
     dir[faces].setZero();
     c[faces].setZero();
     for (std::size_t i = 0; i < n; ++i) {
-      if (group[i] >= 0) continue;
+      if (group[i] >= 0 || !(w[i] > 0)) continue;
       const Eigen::Vector3d a = outward(i);
-      const double wi = a.norm();
-      if (!(wi > 0) || a.dot(u) < cos_spread * wi) continue;
+      if (a.dot(u) < cos_spread * w[i]) continue;
       group[i] = std::int8_t(faces);
       dir[faces] += a;
-      c[faces] += wi * patch[i].center;
-      weight[faces] += wi;
-      left -= wi;
+      c[faces] += w[i] * patch[i].center;
+      weight[faces] += w[i];
+      left -= w[i];
     }
     ++faces;
   }

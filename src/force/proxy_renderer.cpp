@@ -98,21 +98,22 @@ void ProxyRenderer::leave_contact() noexcept {
   in_contact_ = sticking_ = false;
 }
 
-void ProxyRenderer::restart_at(const ToolEllipsoid& tool) noexcept {
-  solver_.place(tool);
+void ProxyRenderer::forget_contact() noexcept {
   leave_contact();
   shade_.reset();
   shade_device_.reset();
   corner_cache_.reset();
 }
 
+void ProxyRenderer::restart_at(const ToolEllipsoid& tool) noexcept {
+  solver_.place(tool);
+  forget_contact();
+}
+
 void ProxyRenderer::reset() noexcept {
   if (compound_) compound_->reset();
   solver_.reset();
-  leave_contact();
-  shade_.reset();
-  shade_device_.reset();
-  corner_cache_.reset();
+  forget_contact();
   normal_.setZero();
   last_move_ = {};
 }

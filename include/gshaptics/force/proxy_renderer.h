@@ -188,8 +188,11 @@ class ProxyRenderer final : public ForceRenderer {
  private:
   // Out of contact: friction, the coupling's onset, the energy bound and the contact flags reset.
   void leave_contact() noexcept;
-  // The proxy placed anew at `tool` (free there, or the nearest free pose), with nothing of the
-  // last contact kept: a device jump, or the proxy caught in a pocket.
+  // leave_contact(), and the normal readings' caches dropped too (shaded, device, corner): nothing
+  // of the last contact kept.
+  void forget_contact() noexcept;
+  // The proxy placed anew at `tool` (free there, or the nearest free pose) after forget_contact():
+  // a device jump, or the proxy caught in a pocket.
   void restart_at(const ToolEllipsoid& tool) noexcept;
   const CollisionWorld* world_;
   ProxyParams params_;
