@@ -305,12 +305,13 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     const std::span<const std::uint32_t> hints{held_slots, n_held};
     // The Gaussian spacing under the tool (shading_spacing), read once for every part's scale.
     const double spacing = shading_spacing(*world_, held_by);
-    // Each part's own first contact along the probe, all parts in one traversal. Near-ties
-    // within half the stand-off are not searched to the end, as in the translation's sweeps
-    // (a part's weight moves by at most that over the band).
+    // Each part's own first contact along the probe, all parts in one traversal, to within two
+    // stand-offs (kProbeTolerance): a part's weight moves by at most that over the band. A part
+    // resting on a Gaussian a stand-off away (the translation left it there) is then settled by
+    // that hint, and its other candidates are not read (SweepQuery's settled parts).
     std::array<SweepHit, kMaxToolParts> probes;
     sweep_.first_contacts(std::span<const ToolEllipsoid>(parts_.data(), std::size_t(count)), probe, probes, hints,
-                          filter, 0.5 * ProxySolver::kStandOff * min_axis_ / band);
+                          filter, kProbeTolerance * ProxySolver::kStandOff * min_axis_ / band);
     count_sweep();
     n_probe_slots_ = 0;
     for (int j = 0; j < count; ++j)

@@ -175,6 +175,12 @@ class CompoundProxy {
   // falls linearly to 0 there): wide enough that a stylus lying on a surface loads every part
   // whatever the Gaussians' 0.5 mm jitter, short enough to keep the probe sweeps cheap.
   static constexpr double kContactBand = 0.5;
+  // The probe's tolerance, in stand-offs (ProxySolver::kStandOff x the smallest semi-axis): a
+  // part's gap along the probe is known to within this, its weight to within 0.4 % of the band.
+  // Over one stand-off, so that a part the translation left a stand-off from a Gaussian is
+  // settled by that Gaussian as hint (a resting stylus's parts: on the 8 mm cube the probe's
+  // candidates in the slow ticks fell from 17 to 12 a tick).
+  static constexpr double kProbeTolerance = 2.0;
   // The edge normal's patch: the Gaussians within this x the smallest semi-axis of a part (a
   // wider patch than the contact band, so that an edge's hull spans several rims).
   static constexpr double kPatchBand = 1.0;
