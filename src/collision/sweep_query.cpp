@@ -623,7 +623,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   // exact test now).
   // (Inlined by force: it has two call sites, and as a call the candidates' loop ran 5-10 % slower.)
   // `r_known`: the Gaussian's rotation matrix when the caller has it already (the near lists'
-  // test), or null.
+  // test, which has also ruled out what a spherical part's reach test would), or null.
   const auto lower_bound = [&](std::uint32_t k, std::uint32_t p,
                                const Eigen::Matrix3d* r_known) __attribute__((always_inline)) -> double {
       const CollisionGaussian& g = gs[k];
@@ -664,7 +664,10 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         // Support toward the tool's centre: no point of the Gaussian is nearer it than |rel| -
         // h(rel / |rel|), and the centre moves by at most bar |motion| (the capsule's test for a
         // point axis).
-        if (beyond_reach(rel, q.r_tool * (1 + 1e-9) + std::max(0.0, bar) * len * (1 + 1e-9), R, g.semi_axes))
+        // (A near list's entry has passed this test already, from the same centre and with no
+        // less reach: `r_known` comes only from there.)
+        if (r_known == nullptr &&
+            beyond_reach(rel, q.r_tool * (1 + 1e-9) + std::max(0.0, bar) * len * (1 + 1e-9), R, g.semi_axes))
           return kNever;
         // Members of the family: each one's entry time is a lower bound of the exact one, far
         // tighter than the spheres and slabs for the Gaussians beside a sliding tool. First the

@@ -75,7 +75,22 @@ void CompoundProxy::reset() noexcept {
 }
 
 int CompoundProxy::pose_parts(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept {
-  return tool_.posed(x, q, parts_);
+  const int n = tool_.count;
+  if (!(q.coeffs() == posed_q_.coeffs())) {
+    posed_q_ = q;
+    for (int j = 0; j < n; ++j) {
+      const ToolPart& part = tool_.parts[std::size_t(j)];
+      turned_offset_[std::size_t(j)] = q * part.offset;
+      turned_rotation_[std::size_t(j)] = q * part.rotation;
+    }
+  }
+  for (int j = 0; j < n; ++j) {  // (as CompoundTool::posed computes them)
+    ToolEllipsoid& e = parts_[std::size_t(j)];
+    e.center = x + turned_offset_[std::size_t(j)];
+    e.rotation = turned_rotation_[std::size_t(j)];
+    e.semi_axes = tool_.parts[std::size_t(j)].semi_axes;
+  }
+  return n;
 }
 
 bool CompoundProxy::blocked(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept {

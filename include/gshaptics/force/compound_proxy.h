@@ -141,6 +141,12 @@ class CompoundProxy {
   SweepQuery sweep_, turn_sweep_;
   ContactQuery free_query_;
   std::array<ToolEllipsoid, kMaxToolParts> parts_{};
+  // The parts' offsets and rotations turned by posed_q_ (pose_parts: the sweeps of one tick share
+  // the orientation, so each poses its parts by a translation only; the same values as
+  // CompoundTool::posed).
+  Eigen::Quaterniond posed_q_{0, 0, 0, 0};
+  std::array<Eigen::Vector3d, kMaxToolParts> turned_offset_{};
+  std::array<Eigen::Quaterniond, kMaxToolParts> turned_rotation_{};
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
   FrictionCone friction_{0.0, 0.0};
   SpringEnergyBound bound_;  // the contact normal's turns add no energy (energy_bound)
