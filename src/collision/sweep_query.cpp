@@ -622,10 +622,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
   // Bounds of one candidate against one part, then the sorted list (or, past its capacity, an
   // exact test now).
   // (Inlined by force: it has two call sites, and as a call the candidates' loop ran 5-10 % slower.)
-  // `r_known`: the Gaussian's rotation matrix when the caller has it already (the near lists'
-  // test, which has also ruled out what a spherical part's reach test would), or null.
-  const auto lower_bound = [&](std::uint32_t k, std::uint32_t p,
-                               const Eigen::Matrix3d* r_known) __attribute__((always_inline)) -> double {
+  const auto lower_bound = [&](std::uint32_t k, std::uint32_t p) __attribute__((always_inline)) -> double {
       const CollisionGaussian& g = gs[k];
       const PartBounds& q = pd[p];
       if (several) {
@@ -656,7 +653,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       }
       // Slab bound along the motion: the ellipsoid's extent along it is sqrt(sum (a_j m.R_j)^2),
       // tight for flat Gaussians met face-on, where the sphere bound is loose.
-      const Eigen::Matrix3d R = r_known != nullptr ? *r_known : rotation_matrix(g);
+      const Eigen::Matrix3d R = rotation_matrix(g);
       if (q.capsule && caps[p].clear_until(rel, R, g.semi_axes, bar_of(p))) return kNever;
       t_lb = std::max(t_lb, (rel.dot(m_hat) - std::sqrt(support_sq(R, g.semi_axes, m_hat)) - q.h_tool) / len);
       const double bar = bar_of(p);
@@ -664,10 +661,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         // Support toward the tool's centre: no point of the Gaussian is nearer it than |rel| -
         // h(rel / |rel|), and the centre moves by at most bar |motion| (the capsule's test for a
         // point axis).
-        // (A near list's entry has passed this test already, from the same centre and with no
-        // less reach: `r_known` comes only from there.)
-        if (r_known == nullptr &&
-            beyond_reach(rel, q.r_tool * (1 + 1e-9) + std::max(0.0, bar) * len * (1 + 1e-9), R, g.semi_axes))
+        if (beyond_reach(rel, q.r_tool * (1 + 1e-9) + std::max(0.0, bar) * len * (1 + 1e-9), R, g.semi_axes))
           return kNever;
         // Members of the family: each one's entry time is a lower bound of the exact one, far
         // tighter than the spheres and slabs for the Gaussians beside a sliding tool. First the
@@ -747,8 +741,8 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       }
       return t_lb;
   };
-  const auto consider = [&](std::uint32_t k, std::uint32_t p, const Eigen::Matrix3d* r_known) {
-      const double t_lb = lower_bound(k, p, r_known);
+  const auto consider = [&](std::uint32_t k, std::uint32_t p) {
+      const double t_lb = lower_bound(k, p);
       // The bar only falls and the candidates are tested in t_lb order up to it: one whose
       // bound is past it (the best contact so far, from the hints) is never tested.
       if (t_lb > bar_of(p)) return;
@@ -770,7 +764,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
     for (std::uint32_t s : ignore) ignored = ignored || s == hint;
     if (!ignored && hint < world_->size())
       for (std::uint32_t p = 0; p < parts.size(); ++p)
-        if (!several || lower_bound(hint, p, nullptr) <= bar_of(p)) exact(hint, p);
+        if (!several || lower_bound(hint, p) <= bar_of(p)) exact(hint, p);
   }
   // A hint that holds the tool (a resting contact: the bar near 0) leaves only the boxes swept
   // up to it to traverse.
@@ -847,7 +841,7 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         continue;
       if ((q.capsule || q.flat) && !leaf_within_reach(leaf, q, caps[p], flats[p], bar_of(p))) continue;
       counts_.candidates += leaf.count;
-      for (std::uint32_t k = leaf.first; k < leaf.first + leaf.count; ++k) consider(k, p, nullptr);
+      for (std::uint32_t k = leaf.first; k < leaf.first + leaf.count; ++k) consider(k, p);
     }
     return true;
   });
@@ -879,10 +873,9 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
         if (out) continue;
       }
       const Eigen::Vector3d v = nl.from_core(c_now, g.center);
-      const Eigen::Matrix3d R = rotation_matrix(g);
-      if (beyond_reach(v, reach_now, R, g.semi_axes)) continue;
+      if (beyond_reach(v, reach_now, rotation_matrix(g), g.semi_axes)) continue;
       ++counts_.candidates;
-      consider(k, p, &R);
+      consider(k, p);
     }
   }
   std::sort(scratch_.begin(), scratch_.begin() + std::ptrdiff_t(n),
