@@ -3,7 +3,7 @@
 // wrench of a symmetric press has no torque and mirrored presses mirror it, the lever arm of an
 // off-centre contact, the rotational coupling, a stylus across an edge pushed along its own
 // normal there, friction (sticking inside the cone, mu_k times the normal force sliding, its
-// moment in the torque), and ticks that allocate nothing.
+// moment in the torque), a resting part settled by the probe's hint, and ticks that allocate nothing.
 
 #include "gshaptics/force/compound_proxy.h"
 
@@ -100,6 +100,35 @@ TEST(CompoundProxy, ASlideUnderHalfTheStandOffIsNotSwept) {
       EXPECT_NEAR(proxy.position().z(), rest.z(), 0.1 * eps);
     }
   }
+}
+
+TEST(CompoundProxy, TheProbeTakesAPartRestingAStandOffFromItsBlockerAsSettled) {
+  // The dumbbell pressed level onto the plate and held there with friction: the proxy sticks,
+  // so the tick's only sweep is the contact probe. Each sphere rests a stand-off from the disc
+  // that stopped it; the probe knows a part's gap to two stand-offs (kProbeTolerance), so that
+  // disc, tested first as a hint, settles the part and no other candidate is read. (To half a
+  // stand-off, as the translation's sweeps search, both parts read their near lists.)
+  CompoundProxyParams params;
+  params.mu_s = 0.5;
+  params.mu_k = 0.4;
+  CompoundProxy proxy(plate(), dumbbell(), params);
+  const Eigen::Vector3d v(0, 0, -0.02);
+  RenderOutput out;
+  for (int k = 0; k <= 40; ++k)
+    out = proxy.render({0.001, 0.0007, 0.03 - 0.001 * k}, Eigen::Quaterniond::Identity(), v, Eigen::Vector3d::Zero(),
+                       1e-3);
+  ASSERT_NEAR(proxy.position().z(), 0.0101, 0.0003);
+  const Eigen::Vector3d held = proxy.position();
+  const CompoundProxy::SweepWork before = proxy.sweep_work();
+  out = proxy.render({0.001, 0.0007, -0.01}, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero(),
+                     Eigen::Vector3d::Zero(), 1e-3);
+  const CompoundProxy::SweepWork& after = proxy.sweep_work();
+  EXPECT_EQ((proxy.position() - held).norm(), 0.0) << "friction holds it";
+  EXPECT_EQ(after.sweeps - before.sweeps, 1u) << "the probe alone";
+  EXPECT_EQ(after.candidates - before.candidates, 0u);
+  // Both spheres still hold it with their full weight: no torque, the whole spring along z.
+  EXPECT_LT(out.torque.norm(), 0.02 * out.force.norm() * 0.03) << out.torque.transpose();
+  EXPECT_NEAR(out.force.z(), 1000.0 * (held.z() + 0.010), 0.05);
 }
 
 TEST(CompoundProxy, ATurnThatWouldSwingAStylusThroughAThinPlateStopsAtTheContact) {
