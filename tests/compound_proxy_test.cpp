@@ -77,6 +77,43 @@ TEST(CompoundProxy, PressedIntoAPlateNoPartEndsInsideAndTheWrenchIsRight) {
   EXPECT_NEAR(lever, 0.03 * std::cos(20 * M_PI / 180), 0.1 * 0.03);
 }
 
+// Two plates of flat discs side by side, x < -5 mm at z = 0 and x > 5 mm at z = `step`.
+CollisionWorld stepped_plates(float step) {
+  std::vector<GaussianSpec> gs;
+  const float h = 0.004f;
+  for (float x = -0.06f; x <= 0.06f; x += h)
+    for (float y = -0.04f; y <= 0.04f; y += h)
+      if (std::abs(x) > 0.005f)
+        gs.emplace_back(Eigen::Vector3f(x, y, x > 0 ? step : 0.0f), Eigen::Vector3f(h, h, 0.05f * h),
+                        Eigen::Quaternionf::Identity());
+  return world_of(gs);
+}
+
+TEST(CompoundProxy, APartAJitterAboveTheSurfaceStillCarriesItsShare) {
+  // The dumbbell pressed level onto two plates whose heights differ: the proxy rests on the
+  // higher (+x) one and the other sphere hangs `step` above its plate. Its weight is
+  // 1 - (gap / band)^2, band half the spheres' 1 cm radius, so the resultant acts at
+  // x_c = 0.03 (1 - w) / (1 + w) and the lever is |tau_y| / |F| = x_c. A 1 mm step (a fifth of the
+  // band, the Gaussians' jitter) moves it 0.6 mm (the linear 1 - gap / band: 3.3 mm); a step past
+  // the band leaves the +x sphere alone (30 mm).
+  const auto lever_on = [](float step) {
+    const CollisionWorld w = stepped_plates(step);
+    CompoundProxy proxy(w, dumbbell());
+    RenderOutput out;
+    for (int k = 0; k <= 45; ++k)
+      out = proxy.render({0.0, 0.0007, 0.035 - 0.001 * k}, Eigen::Quaterniond::Identity(), {0, 0, -0.02},
+                         Eigen::Vector3d::Zero(), 1e-3);
+    EXPECT_FALSE(proxy.blocked(proxy.position(), proxy.orientation()));
+    EXPECT_GT(out.force.z(), 5.0);
+    EXPECT_LT(out.torque.y(), 0.0) << "the +x sphere carries more: (+x) x (+z) = -y";
+    return std::abs(out.torque.y()) / out.force.norm();
+  };
+  const double t = 0.001 / 0.005, w = 1 - t * t;  // (the gap to within a stand-off, 10 um)
+  EXPECT_NEAR(lever_on(0.001f), 0.03 * (1 - w) / (1 + w), 2e-4);
+  EXPECT_LT(lever_on(0.001f), 0.001);
+  EXPECT_NEAR(lever_on(0.007f), 0.03, 5e-4);
+}
+
 TEST(CompoundProxy, ASlideUnderHalfTheStandOffIsNotSwept) {
   // The dumbbell resting level on the plate, each sphere over a disc's centre, then the device
   // moved aside: by 0.3 stand-offs (1e-3 of the smallest semi-axis) the slide along the contact

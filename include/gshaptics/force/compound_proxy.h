@@ -27,7 +27,7 @@
 ///    when they disagree with e; when they say the device is on the free side and its pose is
 ///    free, the proxy rejoins the device), applied at the contacts: its moment about the
 ///    TCP is (c - x_tcp) x F, c the mean of the touching parts' surface points facing their
-///    contacts, each weighted 1 - gap / band (gap: how far the part is from a Gaussian along
+///    contacts, each weighted 1 - (gap / band)^2 (gap: how far the part is from a Gaussian along
 ///    -F, band: half the smallest semi-axis; a stylus lying on a wall gets the middle of its line of
 ///    contact, as a penalty model with its depth-weighted contacts would (McNeely et al. 1999)); plus, when
 ///    contact stopped a turn, the rotational coupling tau = k_r theta - b_r omega, theta the
