@@ -114,6 +114,40 @@ TEST(CompoundProxy, APartAJitterAboveTheSurfaceStillCarriesItsShare) {
   EXPECT_NEAR(lever_on(0.007f), 0.03, 5e-4);
 }
 
+TEST(CompoundProxy, APartSmallerThanTheSpacingReReadsTheFieldAtTheSpacingsScale) {
+  // Two 2 mm spheres 3 cm apart slid 4 mm along a plate of 8 mm discs, pressed 1 mm: each part's
+  // shaded normal is read at the spacing's scale (its kernel is 0.5 x that), so it is kept over
+  // shading_reuse x the spacing, not x the part's 2 mm (which read 4x as often).
+  std::vector<GaussianSpec> gs;
+  add_layer(gs, 0.0f, 0.008f, 0.1f);
+  const CollisionWorld w = world_of(gs);
+  CompoundTool tool;
+  tool.count = 2;
+  tool.parts[0].offset = {-0.015, 0, 0};
+  tool.parts[1].offset = {0.015, 0, 0};
+  tool.parts[0].semi_axes = tool.parts[1].semi_axes = Eigen::Vector3d::Constant(0.002);
+  CompoundProxy proxy(w, tool);
+  const Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+  for (int k = 0; k <= 40; ++k)
+    proxy.render({0.001, 0.0013, 0.01 - 0.0003 * k}, q, {0, 0, -0.3}, Eigen::Vector3d::Zero(), 1e-3);
+  const double z = proxy.position().z() - 0.001;
+  ASSERT_GT(proxy.blockers().size(), 0u);
+  const double spacing = shading_spacing(w, proxy.blockers());
+  ASSERT_GT(spacing, 0.004);
+  const std::uint64_t before = proxy.shading_reads();
+  const double slide = 0.004;
+  RenderOutput out;
+  for (int k = 1; k <= 400; ++k)
+    out = proxy.render({0.001 + slide * k / 400, 0.0013, z}, q, {0.01, 0, 0}, Eigen::Vector3d::Zero(), 1e-3);
+  EXPECT_GT(out.force.z(), 0.5);
+  const double reads = double(proxy.shading_reads() - before);
+  const CompoundProxyParams params;
+  const double at_spacing = 2 * slide / (params.shading_reuse * spacing);  // both parts
+  EXPECT_GE(reads, 0.5 * at_spacing);
+  EXPECT_LE(reads, 1.5 * at_spacing + 4);
+  EXPECT_LT(reads, 0.5 * 2 * slide / (params.shading_reuse * 0.002));
+}
+
 TEST(CompoundProxy, ASlideUnderHalfTheStandOffIsNotSwept) {
   // The dumbbell resting level on the plate, each sphere over a disc's centre, then the device
   // moved aside: by 0.3 stand-offs (1e-3 of the smallest semi-axis) the slide along the contact

@@ -340,19 +340,25 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       const double w = std::max(1e-6, 1.0 - h.t * h.t);
       Eigen::Vector3d nj = h.normal;
       const double rho = part.semi_axes.minCoeff();
+      // The field's scale at this part (the kernel is shading_kernel times it): its smallest
+      // semi-axis, or the Gaussians' spacing where they are sparser. The readings are kept over
+      // shading_reuse times it, as the field is smooth at that scale: on the 8 mm cube the 5 mm
+      // stylus's parts re-read every 0.4 mm, not 0.25 (their shaded and edge readings fall due on
+      // the same tick, as the parts move together: those ticks were its slowest 1 %).
+      const double scale = std::max(rho, spacing);
+      const double reuse = params_.shading_reuse * scale;
       if (params_.shading_kernel > 0) {
         // (The part rests free: the floaters beside it that reach into it at the reading point
         // were passed; `up` is the part's contact normal. FreeBall.)
         const Eigen::Vector3d at = part.surface_point(-h.normal) + h.normal * rho;
         const Eigen::Vector3d& sn =
-            shades_[std::size_t(j)].read(*world_, at, std::max(rho, spacing), params_.shading_kernel,
-                                         params_.shading_reuse * rho, shading_scratch_,
+            shades_[std::size_t(j)].read(*world_, at, scale, params_.shading_kernel, reuse, shading_scratch_,
                                          {part.inner_clearance(at), h.normal}, 0, params_.shading_tail);
         if (sn.dot(h.normal) > 0) nj = sn;
       }
       // At a clean convex edge the shaded field blends the faces' normals; the tool resting on
       // the edge is pushed along the patch's support normal instead (edge_normal.h).
-      nj = EdgeNormal::blend(nj, edge_.read(part, nj, kPatchBand * min_axis_, params_.shading_reuse * rho, filter,
+      nj = EdgeNormal::blend(nj, edge_.read(part, nj, kPatchBand * min_axis_, reuse, filter,
                                             edges_[std::size_t(j)]),
                              h.normal);
       moment += w * (part.surface_point(-nj) - x_);

@@ -81,8 +81,10 @@ struct CompoundProxyParams {
   /// Kernel of each touching part's shaded normal, in the part's smallest semi-axis
   /// (ProxyParams::shading_kernel); 0: the Gaussians' own contact normals.
   double shading_kernel = 0.5;
-  /// A part's shaded normal is re-read once its reading point moved this many of the part's
-  /// smallest semi-axes (ProxyParams::shading_reuse).
+  /// A part's shaded normal (and its edge reading) is re-read once its reading point (its pose)
+  /// moved this many of the field's scale there: the larger of the part's smallest semi-axis and
+  /// the Gaussians' spacing under the tool (shading_spacing), the scale its kernel is read at
+  /// (ProxyParams::shading_reuse, which is in tool radii).
   double shading_reuse = 0.05;
   double shading_tail = kShadingTail;  ///< the shaded normal's support (ProxyParams::shading_tail)
   /// ... or sooner where a part's field turns fast: by at most this many degrees at the rate
@@ -128,6 +130,12 @@ class CompoundProxy {
     std::uint64_t sweeps = 0, reused = 0, rebuilt = 0, candidates = 0, exact = 0;
   };
   [[nodiscard]] const SweepWork& sweep_work() const noexcept { return work_; }
+  /// The parts' shaded-normal readings since construction (cache misses, ShadedNormalCache::reads).
+  [[nodiscard]] std::uint64_t shading_reads() const noexcept {
+    std::uint64_t n = 0;
+    for (const ShadedNormalCache& c : shades_) n += c.reads();
+    return n;
+  }
   /// Whether any part of the tool at this pose overlaps a kept Gaussian.
   [[nodiscard]] bool blocked(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation) noexcept;
 
