@@ -78,6 +78,66 @@ TEST(EdgeNormal, AStylusOnAConvexEdgeGetsItsOwnNormalAndAGrooveKeepsTheShadedOne
   EXPECT_FALSE(edges.read(on_face, Eigen::Vector3d::UnitZ(), 0.005, 0.0, {}, fc).edge);
 }
 
+TEST(EdgeNormal, AFlatFaceAnswersItsDiscsMeanAxisWhenAskedAndACurvedPatchIsNoFace) {
+  // Level discs 4 mm apart whose centres alternate 0.3 mm above and below z = 0 (the height
+  // scatter that tilts the density's gradient), a 5 mm sphere resting on them.
+  std::vector<GaussianSpec> gs;
+  int i = 0;
+  for (float x = -0.04f; x <= 0.04f; x += 0.004f)
+    for (float y = -0.04f; y <= 0.04f; y += 0.004f, ++i)
+      gs.emplace_back(Eigen::Vector3f(x, y, i % 2 ? 0.0003f : -0.0003f), Eigen::Vector3f(0.0024f, 0.0024f, 0.0001f),
+                      Eigen::Quaternionf::Identity());
+  const CollisionWorld plate = world_of(gs);
+  ToolEllipsoid ball;
+  ball.semi_axes = Eigen::Vector3d::Constant(0.005);
+  ball.center = {0.0011, 0.0007, 0.0054};
+  const Eigen::Vector3d z = Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d shaded = Eigen::AngleAxisd(2 * M_PI / 180, Eigen::Vector3d::UnitX()) * z;
+  EdgeNormal faces(plate);
+  EdgeNormalCache cache;
+  const EdgeNormalAnswer face = faces.read(ball, shaded, 0.005, 0.0, {}, cache, ConvexFeatures::kEdgesAndFaces);
+  ASSERT_TRUE(face.face);
+  EXPECT_FALSE(face.feature());
+  EXPECT_LT(angle_deg(face.normal, z), 1e-6);  // every disc's thin axis is z
+  // Only when asked for: the edges alone leave a face unanswered.
+  EdgeNormalCache plain;
+  EXPECT_FALSE(faces.read(ball, shaded, 0.005, 0.0, {}, plain).face);
+  // face_blend(): within 3 deg the mean of the two, past 6 deg the shaded normal alone.
+  EXPECT_NEAR(angle_deg(EdgeNormal::face_blend(shaded, face, z), z), 1.0, 1e-3);
+  const Eigen::Vector3d off = Eigen::AngleAxisd(8 * M_PI / 180, Eigen::Vector3d::UnitX()) * z;
+  EXPECT_EQ(EdgeNormal::face_blend(off, face, z), off);
+  EXPECT_EQ(EdgeNormal::blend(shaded, face, z), shaded);  // a face is no edge
+
+  // The same discs tangent to a cylinder of 2 cm radius (axis y): the patch under the sphere
+  // spans tens of degrees of normals, no face.
+  std::vector<GaussianSpec> curved;
+  for (float a = -1.0f; a <= 1.0f; a += 0.2f)
+    for (float y = -0.04f; y <= 0.04f; y += 0.004f)
+      curved.emplace_back(Eigen::Vector3f(0.02f * std::sin(a), y, 0.02f * std::cos(a) - 0.02f),
+                          Eigen::Vector3f(0.0024f, 0.0024f, 0.0001f),
+                          Eigen::Quaternionf(Eigen::AngleAxisf(a, Eigen::Vector3f::UnitY())));
+  const CollisionWorld cylinder = world_of(curved);
+  EdgeNormal round(cylinder);
+  EdgeNormalCache rc;
+  ToolEllipsoid on_top = ball;
+  on_top.center = {0.0, 0.0007, 0.0051};
+  EXPECT_FALSE(round.read(on_top, z, 0.005, 0.0, {}, rc, ConvexFeatures::kEdgesAndFaces).face);
+  // And an edge stays an edge.
+  const CollisionWorld block = two_faces({0, 0, 1}, {1, 0, 0}, {1, 0, 0}, {0, 0, 1});
+  EdgeNormal edges(block);
+  EdgeNormalCache ec;
+  const double tilt = 30 * M_PI / 180;
+  ToolEllipsoid part;
+  part.semi_axes = {0.015, 0.005, 0.005};
+  part.rotation = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitX(),
+                                                     Eigen::Vector3d(-std::cos(tilt), 0, std::sin(tilt)));
+  part.center = Eigen::Vector3d(std::sin(tilt), 0, std::cos(tilt)) * 0.0052;
+  const EdgeNormalAnswer e =
+      edges.read(part, Eigen::Vector3d(1, 0, 1).normalized(), 0.005, 0.0, {}, ec, ConvexFeatures::kEdgesAndFaces);
+  EXPECT_TRUE(e.edge);
+  EXPECT_FALSE(e.face);
+}
+
 TEST(EdgeNormal, AMessyPatchKeepsTheShadedNormal) {
   // Discs in random orientations around a plane (a real scene's reconstruction noise).
   std::mt19937 rng(3);

@@ -358,9 +358,12 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       }
       // At a clean convex edge the shaded field blends the faces' normals; the tool resting on
       // the edge is pushed along the patch's support normal instead (edge_normal.h).
-      nj = EdgeNormal::blend(nj, edge_.read(part, nj, kPatchBand * min_axis_, reuse, filter,
-                                            edges_[std::size_t(j)]),
-                             h.normal);
+      // On a clean flat face, averaged with the face's mean thin axis where the two agree
+      // (EdgeNormal::face_blend: their errors come from the Gaussians' height scatter and from
+      // their tilts, and their mean is quieter than either).
+      const EdgeNormalAnswer patch = edge_.read(part, nj, kPatchBand * min_axis_, reuse, filter, edges_[std::size_t(j)],
+                                                ConvexFeatures::kEdgesAndFaces);
+      nj = EdgeNormal::face_blend(EdgeNormal::blend(nj, patch, h.normal), patch, h.normal);
       moment += w * (part.surface_point(-nj) - x_);
       normal += w * nj;
       weight += w;

@@ -16,16 +16,28 @@ namespace {
 struct PatchShape {
   bool feature = false;                            // a clean edge: two faces
   Eigen::Vector3d edge = Eigen::Vector3d::Zero();  // its direction
+  bool face = false;                               // one flat face (rank 1)
+  Eigen::Vector3d face_normal = Eigen::Vector3d::Zero();  // its principal thin axis (either sign)
 };
 
-PatchShape patch_shape(std::span<const Eigen::Vector3d> axes, double feature_share, double edge_share) noexcept {
+PatchShape patch_shape(std::span<const Eigen::Vector3d> axes, double feature_share, double edge_share,
+                       bool faces) noexcept {
   PatchShape out;
   Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-  for (const Eigen::Vector3d& a : axes) scatter.noalias() += a * a.transpose();
+  std::size_t flat = 0;
+  for (const Eigen::Vector3d& a : axes) {
+    scatter.noalias() += a * a.transpose();
+    flat += a.squaredNorm() > 0 ? 1 : 0;
+  }
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
   es.computeDirect(scatter);
   const Eigen::Vector3d l = es.eigenvalues();  // ascending
   if (!(l[2] > 0) || !l.allFinite()) return out;
+  if (faces && l[1] < EdgeNormal::kFaceShare * l[2] && flat >= EdgeNormal::kFaceMinGaussians) {
+    out.face = true;
+    out.face_normal = es.eigenvectors().col(2);
+    return out;
+  }
   if (!(l[1] > feature_share * l[2] && l[0] < edge_share * l[1])) return out;
   out.feature = true;
   out.edge = es.eigenvectors().col(0);
@@ -197,11 +209,13 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
   });
   const bool edges = (std::uint8_t(features) & std::uint8_t(ConvexFeatures::kEdges)) != 0;
   const bool corners = (std::uint8_t(features) & std::uint8_t(ConvexFeatures::kCorners)) != 0;
+  const bool faces = (std::uint8_t(features) & std::uint8_t(ConvexFeatures::kFaces)) != 0;
   // A clean edge (when asked for), else a clean convex corner (when asked for), else nothing.
   PatchShape shape;
   bool corner = false;
   const auto classify = [&] {
-    shape = edges ? patch_shape({axis_.data(), n}, kFeatureShare, kEdgeShare) : PatchShape{};
+    shape = edges || faces ? patch_shape({axis_.data(), n}, edges ? kFeatureShare : INFINITY, kEdgeShare, faces)
+                           : PatchShape{};
     const CornerTest c = !shape.feature && corners ? clean_corner({axis_.data(), n}, {patch_.data(), n}, part.center,
                                                                   start, away, kCornerSpread, kCornerApart,
                                                                   kFeatureShare, kEdgeShare)
@@ -210,7 +224,13 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
     sc.answer.messy = c == CornerTest::kMessy;
     return shape.feature || corner;
   };
-  if (!classify()) return sc.answer;  // a face, or a patch of no clean feature: the shaded normal stands
+  if (!classify()) {  // a face, or a patch of no clean feature: the shaded normal stands
+    if (shape.face) {  // (faces asked for: its mean thin axis, for face_blend)
+      sc.answer.face = true;
+      sc.answer.normal = shape.face_normal.dot(start) >= 0 ? shape.face_normal : Eigen::Vector3d(-shape.face_normal);
+    }
+    return sc.answer;
+  }
   // Floaters that the part did not pass but that the grown part reaches (one hanging beside a
   // stylus) would bend the hull: the Gaussians that hold the answer (within a few soft-minimum
   // widths of the smallest gap) are put to the floater rule, and floaters leave the patch (with
@@ -260,6 +280,15 @@ Eigen::Vector3d EdgeNormal::blend(const Eigen::Vector3d& shaded, const EdgeNorma
   if (!answer.feature() || !(answer.normal.dot(contact) > 0)) return shaded;
   const double apart = std::atan2(answer.normal.cross(shaded).norm(), answer.normal.dot(shaded));
   const double t = std::clamp((apart - kBlendFrom) / (kBlendTo - kBlendFrom), 0.0, 1.0);
+  const Eigen::Vector3d mix = (1.0 - t) * shaded + t * answer.normal;
+  return mix.norm() > 1e-9 ? Eigen::Vector3d(mix.normalized()) : shaded;
+}
+
+Eigen::Vector3d EdgeNormal::face_blend(const Eigen::Vector3d& shaded, const EdgeNormalAnswer& answer,
+                                       const Eigen::Vector3d& contact) noexcept {
+  if (!answer.face || !(answer.normal.dot(contact) > 0)) return shaded;
+  const double apart = std::atan2(answer.normal.cross(shaded).norm(), answer.normal.dot(shaded));
+  const double t = kFaceShareOfMean * std::clamp((kFaceTo - apart) / (kFaceTo - kFaceFrom), 0.0, 1.0);
   const Eigen::Vector3d mix = (1.0 - t) * shaded + t * answer.normal;
   return mix.norm() > 1e-9 ? Eigen::Vector3d(mix.normalized()) : shaded;
 }

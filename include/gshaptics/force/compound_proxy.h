@@ -23,7 +23,8 @@
 ///    Gaussians is a clean edge (two faces, told by the spread of the Gaussians' thin axes), the
 ///    patch's support normal blends in (support_normal.h: the direction that best separates the
 ///    part from the patch's hull, kept across the edge), the tool's own normal where it rests on
-///    the edge; weighted as below (e^
+///    the edge; where it is one clean flat face, the shaded normal is averaged with the face's
+///    mean thin axis while they agree (EdgeNormal::face_blend); weighted as below (e^
 ///    when they disagree with e; when they say the device is on the free side and its pose is
 ///    free, the proxy rejoins the device), applied at the contacts: its moment about the
 ///    TCP is (c - x_tcp) x F, c the mean of the touching parts' surface points facing their

@@ -20,6 +20,8 @@
 ///   corner's normal cone is a solid angle that the hull's normal stays in, where the shaded field
 ///   of the face the tool rests on tilts out of it by the discs' jitter (seen through fewer discs
 ///   beside two edges than on a face) and a fin (a disc overhanging the corner) turns it further.
+/// - optionally answers a clean flat face (the thin axes in one tight direction): its Gaussians'
+///   mean thin axis, which face_blend() averages with the shaded normal.
 /// blend() then hands the force from the shaded normal to it over 3-6 degrees of disagreement.
 ///
 /// Threading: one thread per EdgeNormal; read() and blend() allocate, lock, log and throw nothing.
@@ -44,11 +46,15 @@ struct EdgeNormalAnswer {
   /// (corners asked for) the patch's thin axes spread so that three directions hold under half
   /// their weight: a real scene's reconstruction noise, far from any clean feature
   bool messy = false;
+  /// (faces asked for) the patch is one flat face: `normal` is its Gaussians' mean thin axis,
+  /// turned toward the tool's side (`start`); no feature
+  bool face = false;
   [[nodiscard]] bool feature() const noexcept { return edge || corner; }
 };
 
 /// The convex features EdgeNormal::read() answers at (a bit set).
-enum class ConvexFeatures : std::uint8_t { kEdges = 1, kCorners = 2, kEdgesAndCorners = 3 };
+/// kFaces adds the flat face's answer (EdgeNormalAnswer::face), for face_blend().
+enum class ConvexFeatures : std::uint8_t { kEdges = 1, kCorners = 2, kEdgesAndCorners = 3, kFaces = 4, kEdgesAndFaces = 5 };
 
 /// One tool ellipsoid's last answer and the pose it was found at.
 struct EdgeNormalCache {
@@ -81,6 +87,17 @@ class EdgeNormal {
   /// its normal faces away from `contact` (a contact normal the result must agree with).
   [[nodiscard]] static Eigen::Vector3d blend(const Eigen::Vector3d& shaded, const EdgeNormalAnswer& answer,
                                              const Eigen::Vector3d& contact) noexcept;
+  /// On a flat face (answer.face), `shaded` (unit) averaged with the face's normal while they
+  /// are within kFaceFrom, turned back to `shaded` alone by kFaceTo (there the field sees
+  /// something the patch does not), linearly between. Two estimates whose errors come from
+  /// different sources: the shaded field is the gradient of the Gaussians' density, which tilts
+  /// with their centres' scatter across the face (on the fidelity plane, 0.5 mm of height jitter
+  /// under a 2.5 mm kernel) and weighs the Gaussians near the contact most; the mean thin axis
+  /// carries only the discs' own tilts (3 degrees there), each Gaussian of the patch alike.
+  /// Their mean is quieter than either (fidelity seeds 1-30, bench/RESULTS.md). Unchanged when
+  /// the answer is no face or its normal faces away from `contact`.
+  [[nodiscard]] static Eigen::Vector3d face_blend(const Eigen::Vector3d& shaded, const EdgeNormalAnswer& answer,
+                                                  const Eigen::Vector3d& contact) noexcept;
 
   /// The soft minimum's width, in the tool's smallest semi-axis: about the Gaussians' jitter on
   /// a 5 mm tool (0.5 mm).
@@ -97,6 +114,16 @@ class EdgeNormal {
   /// the patch's weight and at most kEdgeShare left in none of the three. Radians.
   static constexpr double kCornerSpread = 20.0 * 3.14159265358979323846 / 180;
   static constexpr double kCornerApart = 30.0 * 3.14159265358979323846 / 180;
+  /// A flat face: the thin axes' second principal value under kFaceShare of the first (a face's
+  /// 3-degree tilts give 0.3 %; a patch spanning 16 degrees of a curved surface, or a second
+  /// face's 5 %, do not pass), over at least kFaceMinGaussians flat Gaussians (the mean of
+  /// fewer 3-degree tilts is no quieter than the field).
+  static constexpr double kFaceShare = 0.01;
+  static constexpr std::size_t kFaceMinGaussians = 8;
+  /// face_blend(): 3 and 6 degrees, rad; the face's share in the mean, kFaceShareOfMean.
+  static constexpr double kFaceFrom = 3.0 * 3.14159265358979323846 / 180;
+  static constexpr double kFaceTo = 6.0 * 3.14159265358979323846 / 180;
+  static constexpr double kFaceShareOfMean = 0.5;
   /// blend(): 3 and 6 degrees, rad.
   static constexpr double kBlendFrom = 3.0 * 3.14159265358979323846 / 180;
   static constexpr double kBlendTo = 6.0 * 3.14159265358979323846 / 180;
