@@ -359,10 +359,11 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       // At a clean convex edge the shaded field blends the faces' normals; the tool resting on
       // the edge is pushed along the patch's support normal instead (edge_normal.h).
       // On a clean flat face, averaged with the face's mean thin axis where the two agree
-      // (EdgeNormal::face_blend: their errors come from the Gaussians' height scatter and from
-      // their tilts, and their mean is quieter than either).
+      // (EdgeNormal::face_blend: both average the discs' tilts, the field over the few its kernel
+      // weighs near the reading point, the axis over the whole patch; their mean is the quieter).
       const EdgeNormalAnswer patch = edge_.read(part, nj, kPatchBand * min_axis_, reuse, filter, edges_[std::size_t(j)],
-                                                ConvexFeatures::kEdgesAndFaces);
+                                                params_.face_average ? ConvexFeatures::kEdgesAndFaces
+                                                                     : ConvexFeatures::kEdges);
       nj = EdgeNormal::face_blend(EdgeNormal::blend(nj, patch, h.normal), patch, h.normal);
       moment += w * (part.surface_point(-nj) - x_);
       normal += w * nj;

@@ -105,6 +105,9 @@ struct CompoundProxyParams {
   /// from it instead of the BVH. The same contacts (within the exact search's tolerance); false:
   /// the BVH every sweep.
   bool near_lists = true;
+  /// On a clean flat face, each part's shaded normal is averaged with the face's mean thin axis
+  /// where they agree (EdgeNormal::face_blend). false: the shaded normal (and edges) only.
+  bool face_average = true;
 };
 
 class CompoundProxy {

@@ -89,13 +89,14 @@ class EdgeNormal {
                                              const Eigen::Vector3d& contact) noexcept;
   /// On a flat face (answer.face), `shaded` (unit) averaged with the face's normal while they
   /// are within kFaceFrom, turned back to `shaded` alone by kFaceTo (there the field sees
-  /// something the patch does not), linearly between. Two estimates whose errors come from
-  /// different sources: the shaded field is the gradient of the Gaussians' density, which tilts
-  /// with their centres' scatter across the face (on the fidelity plane, 0.5 mm of height jitter
-  /// under a 2.5 mm kernel) and weighs the Gaussians near the contact most; the mean thin axis
-  /// carries only the discs' own tilts (3 degrees there), each Gaussian of the patch alike.
-  /// Their mean is quieter than either (fidelity seeds 1-30, bench/RESULTS.md). Unchanged when
-  /// the answer is no face or its normal faces away from `contact`.
+  /// something the patch does not), linearly between. Two estimates of the same discs' tilts
+  /// (3 degrees on the fidelity scenes), weighed differently: the shaded field, the gradient of
+  /// the Gaussians' density, turns with the tilts of the few discs its kernel weighs near the
+  /// reading point (discs lying flat at scattered heights barely turn it); the mean thin axis
+  /// averages every disc of the patch alike. On the 2 mm plane the patch holds many more discs;
+  /// on the 8 mm plane about as few, and the mean of the two is quieter than either there
+  /// (fidelity seeds 1-30, bench/RESULTS.md). Unchanged when the answer is no face or its normal
+  /// faces away from `contact`.
   [[nodiscard]] static Eigen::Vector3d face_blend(const Eigen::Vector3d& shaded, const EdgeNormalAnswer& answer,
                                                   const Eigen::Vector3d& contact) noexcept;
 
