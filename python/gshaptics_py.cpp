@@ -440,11 +440,13 @@ PYBIND11_MODULE(gshaptics, m) {
       "each part's near list while it rests instead of the BVH (the same contacts); device_shading: where the shaded "
       "field turns slowly it is also read where the device would rest, at most this many tool radii from the proxy "
       "(0: off); corner_normal: at a clean convex corner (three faces) the force turns to the patch's support "
-      "normal; f_max clamps its output (default: none, as "
+      "normal; face_average: on a clean flat face a compound tool's part averages its shaded normal with the "
+      "face's mean thin axis; f_max clamps its output (default: none, as "
       "in a runtime the safety layer limits the force). One per device; not thread-safe.")
       .def(py::init([](const PyWorld& w, double stiffness, double damping, double mu_s, double mu_k,
                        double f_max, bool opacity_stiffness, double isolation_gap, bool energy_bound,
-                       std::size_t floater_cluster, bool near_lists, double device_shading, bool corner_normal) {
+                       std::size_t floater_cluster, bool near_lists, double device_shading, bool corner_normal,
+                       bool face_average) {
              ProxyParams p;
              p.device_shading = device_shading;
              p.corner_normal = corner_normal;
@@ -452,6 +454,7 @@ PYBIND11_MODULE(gshaptics, m) {
              p.floater_cluster = floater_cluster;
              p.energy_bound = energy_bound;
              p.near_lists = near_lists;
+             p.face_average = face_average;
              p.stiffness = stiffness;
              p.damping = damping;
              p.mu_s = mu_s;
@@ -465,7 +468,8 @@ PYBIND11_MODULE(gshaptics, m) {
            py::arg("isolation_gap") = ProxyParams{}.isolation_gap, py::arg("energy_bound") = ProxyParams{}.energy_bound,
            py::arg("floater_cluster") = ProxyParams{}.floater_cluster, py::arg("near_lists") = ProxyParams{}.near_lists,
            py::arg("device_shading") = ProxyParams{}.device_shading,
-           py::arg("corner_normal") = ProxyParams{}.corner_normal)
+           py::arg("corner_normal") = ProxyParams{}.corner_normal,
+           py::arg("face_average") = ProxyParams{}.face_average)
       .def("render", [](PyProxy& p, const py::object& center, const py::object& axes, const py::object& velocity,
                         double dt) {
              if (!(dt > 0)) throw py::value_error("dt: must be > 0 seconds");

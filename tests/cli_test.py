@@ -249,6 +249,12 @@ class Simulate(unittest.TestCase):
         self.assertNotEqual(bad.returncode, 0)
         self.assertIn("--corner-normal", bad.stderr)
 
+    def test_face_average_is_an_option_of_the_proxy(self):
+        self.assertIn("--face-average", run("fidelity", "--help").stdout)
+        bad = run("fidelity", "--quick", "--no-plot", "--face-average", "maybe", check=False)
+        self.assertNotEqual(bad.returncode, 0)
+        self.assertIn("--face-average", bad.stderr)
+
 
 class DataSafety(unittest.TestCase):
     """Issue 35: a failed run leaves the previous results untouched and creates no folder; every

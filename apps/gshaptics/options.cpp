@@ -133,6 +133,11 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
          "proxy: a compound tool's sweeps read each part's last near list instead of the BVH while it rests "
          "(the same contacts; off: the BVH every sweep). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
+  cmd.add_option_function<std::string>(
+         "--face-average", [&p](const std::string& v) { p.face_average = v == "on"; },
+         "proxy: on a clean flat face of the Gaussians, a compound tool's part averages its shaded normal with the "
+         "face's mean thin axis while they agree (off: the shaded field). Default: on")
+      ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option("--isolation-gap", p.isolation_gap,
                  "proxy: a Gaussian with no other within this many tool radii is a floater and does not block "
                  "(0: only overlapping Gaussians support each other, which lets the tool through sparse surfaces)")

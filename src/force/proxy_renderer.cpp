@@ -74,6 +74,7 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   c.mu_k = params_.mu_k;
   c.energy_bound = params_.energy_bound;
   c.near_lists = params_.near_lists;
+  c.face_average = params_.face_average;
   compound_ = std::make_unique<CompoundProxy>(*world_, tool, c);
   tool_ = tool;
 }

@@ -120,6 +120,9 @@ struct ProxyParams {
   bool energy_bound = true;
   /// A compound tool's sweeps keep each part's near list (CompoundProxyParams::near_lists).
   bool near_lists = true;
+  /// On a clean flat face a compound tool's part averages its shaded normal with the face's mean
+  /// thin axis (CompoundProxyParams::face_average).
+  bool face_average = true;
 };
 
 class ProxyRenderer final : public ForceRenderer {
