@@ -175,7 +175,8 @@ TEST(CompoundProxy, OnAFlatFaceThePartsNormalIsAveragedWithTheDiscsMeanAxis) {
     CompoundProxy proxy(w, stylus, params);
     RenderOutput out;
     for (int k = 0; k <= 30; ++k)
-      out = proxy.render(at + Eigen::Vector3d(0, 0, 0.012 - 0.0005 * k), q, {0, 0, -0.5}, Eigen::Vector3d::Zero(), 1e-3);
+      out = proxy.render(at + Eigen::Vector3d(0, 0, 0.012 - 0.0005 * k), q, {0, 0, -0.5}, Eigen::Vector3d::Zero(),
+                         1e-3);
     EXPECT_GT(out.force.z(), 1.0);
     return std::atan2(out.force.head<2>().norm(), out.force.z()) * 180 / M_PI;
   };

@@ -294,7 +294,8 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     // touch, so gaps of the Gaussians' jitter, small against the band, barely move a weight; the
     // linear 1 - gap / band moved the resultant of a stylus lying on the 8 mm plane by up to 15 %
     // of its lever). A rigid tool resting on a surface along a line (a stylus's side on a wall)
-    // thus gets the resultant at the middle of the line, whatever the Gaussians' jitter. Each touching part's contact normal is shaded
+    // thus gets the resultant at the middle of the line, whatever the Gaussians' jitter. Each
+    // touching part's contact normal is shaded
     // (shaded_normal.h) at the centre of the sphere of the part's smallest semi-axis that
     // touches where the part touches: the field the one-ellipsoid proxy reads, at the part's
     // own contact (the Gaussian's own contact normal where the field disagrees with it); the

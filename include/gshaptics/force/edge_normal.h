@@ -54,7 +54,13 @@ struct EdgeNormalAnswer {
 
 /// The convex features EdgeNormal::read() answers at (a bit set).
 /// kFaces adds the flat face's answer (EdgeNormalAnswer::face), for face_blend().
-enum class ConvexFeatures : std::uint8_t { kEdges = 1, kCorners = 2, kEdgesAndCorners = 3, kFaces = 4, kEdgesAndFaces = 5 };
+enum class ConvexFeatures : std::uint8_t {
+  kEdges = 1,
+  kCorners = 2,
+  kEdgesAndCorners = 3,
+  kFaces = 4,
+  kEdgesAndFaces = 5
+};
 
 /// One tool ellipsoid's last answer and the pose it was found at.
 struct EdgeNormalCache {
