@@ -20,8 +20,8 @@ struct PatchShape {
   Eigen::Vector3d face_normal = Eigen::Vector3d::Zero();  // its principal thin axis (either sign)
 };
 
-PatchShape patch_shape(std::span<const Eigen::Vector3d> axes, double feature_share, double edge_share,
-                       bool faces) noexcept {
+// `edges`, `faces`: which answers are asked for.
+PatchShape patch_shape(std::span<const Eigen::Vector3d> axes, bool edges, bool faces) noexcept {
   PatchShape out;
   Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
   std::size_t flat = 0;
@@ -38,7 +38,7 @@ PatchShape patch_shape(std::span<const Eigen::Vector3d> axes, double feature_sha
     out.face_normal = es.eigenvectors().col(2);
     return out;
   }
-  if (!(l[1] > feature_share * l[2] && l[0] < edge_share * l[1])) return out;
+  if (!edges || !(l[1] > EdgeNormal::kFeatureShare * l[2] && l[0] < EdgeNormal::kEdgeShare * l[1])) return out;
   out.feature = true;
   out.edge = es.eigenvectors().col(0);
   return out;
@@ -156,6 +156,13 @@ CornerTest clean_corner(std::span<const Eigen::Vector3d> axes, std::span<const P
   return (tool_center - mid).dot(dir[0] + dir[1] + dir[2]) > 0 ? CornerTest::kCorner : CornerTest::kNo;
 }
 
+// `from` (unit) turned toward `to` (unit) by the share t in [0, 1] (normalised linear mix; `from`
+// where the mix vanishes): blend() and face_blend()'s hand-over.
+Eigen::Vector3d turned_toward(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double t) noexcept {
+  const Eigen::Vector3d mix = (1.0 - t) * from + t * to;
+  return mix.norm() > 1e-9 ? Eigen::Vector3d(mix.normalized()) : from;
+}
+
 }  // namespace
 
 EdgeNormal::EdgeNormal(const CollisionWorld& world) : world_(&world) {}
@@ -214,8 +221,7 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
   PatchShape shape;
   bool corner = false;
   const auto classify = [&] {
-    shape = edges || faces ? patch_shape({axis_.data(), n}, edges ? kFeatureShare : INFINITY, kEdgeShare, faces)
-                           : PatchShape{};
+    shape = edges || faces ? patch_shape({axis_.data(), n}, edges, faces) : PatchShape{};
     const CornerTest c = !shape.feature && corners ? clean_corner({axis_.data(), n}, {patch_.data(), n}, part.center,
                                                                   start, away, kCornerSpread, kCornerApart,
                                                                   kFeatureShare, kEdgeShare)
@@ -280,8 +286,7 @@ Eigen::Vector3d EdgeNormal::blend(const Eigen::Vector3d& shaded, const EdgeNorma
   if (!answer.feature() || !(answer.normal.dot(contact) > 0)) return shaded;
   const double apart = std::atan2(answer.normal.cross(shaded).norm(), answer.normal.dot(shaded));
   const double t = std::clamp((apart - kBlendFrom) / (kBlendTo - kBlendFrom), 0.0, 1.0);
-  const Eigen::Vector3d mix = (1.0 - t) * shaded + t * answer.normal;
-  return mix.norm() > 1e-9 ? Eigen::Vector3d(mix.normalized()) : shaded;
+  return turned_toward(shaded, answer.normal, t);
 }
 
 Eigen::Vector3d EdgeNormal::face_blend(const Eigen::Vector3d& shaded, const EdgeNormalAnswer& answer,
@@ -289,8 +294,7 @@ Eigen::Vector3d EdgeNormal::face_blend(const Eigen::Vector3d& shaded, const Edge
   if (!answer.face || !(answer.normal.dot(contact) > 0)) return shaded;
   const double apart = std::atan2(answer.normal.cross(shaded).norm(), answer.normal.dot(shaded));
   const double t = kFaceShareOfMean * std::clamp((kFaceTo - apart) / (kFaceTo - kFaceFrom), 0.0, 1.0);
-  const Eigen::Vector3d mix = (1.0 - t) * shaded + t * answer.normal;
-  return mix.norm() > 1e-9 ? Eigen::Vector3d(mix.normalized()) : shaded;
+  return turned_toward(shaded, answer.normal, t);
 }
 
 }  // namespace gshaptics
