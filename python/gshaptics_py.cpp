@@ -441,13 +441,16 @@ PYBIND11_MODULE(gshaptics, m) {
       "field turns slowly it is also read where the device would rest, at most this many tool radii from the proxy "
       "(0: off); corner_normal: at a clean convex corner (three faces) the force turns to the patch's support "
       "normal; face_average: on a clean flat face a compound tool's part averages its shaded normal with the "
-      "face's mean thin axis; f_max clamps its output (default: none, as "
+      "face's mean thin axis; overhang_falloff: where a disc of the other face overhangs a convex edge and "
+      "blocks the tool beside it, the shaded normal leaves out that face's discs behind the face under the tool; "
+      "f_max clamps its output (default: none, as "
       "in a runtime the safety layer limits the force). One per device; not thread-safe.")
       .def(py::init([](const PyWorld& w, double stiffness, double damping, double mu_s, double mu_k,
                        double f_max, bool opacity_stiffness, double isolation_gap, bool energy_bound,
                        std::size_t floater_cluster, bool near_lists, double device_shading, bool corner_normal,
-                       bool face_average) {
+                       bool face_average, bool overhang_falloff) {
              ProxyParams p;
+             p.overhang_falloff = overhang_falloff;
              p.device_shading = device_shading;
              p.corner_normal = corner_normal;
              p.isolation_gap = isolation_gap;
@@ -469,7 +472,8 @@ PYBIND11_MODULE(gshaptics, m) {
            py::arg("floater_cluster") = ProxyParams{}.floater_cluster, py::arg("near_lists") = ProxyParams{}.near_lists,
            py::arg("device_shading") = ProxyParams{}.device_shading,
            py::arg("corner_normal") = ProxyParams{}.corner_normal,
-           py::arg("face_average") = ProxyParams{}.face_average)
+           py::arg("face_average") = ProxyParams{}.face_average,
+           py::arg("overhang_falloff") = ProxyParams{}.overhang_falloff)
       .def("render", [](PyProxy& p, const py::object& center, const py::object& axes, const py::object& velocity,
                         double dt) {
              if (!(dt > 0)) throw py::value_error("dt: must be > 0 seconds");

@@ -255,6 +255,25 @@ class Simulate(unittest.TestCase):
         self.assertNotEqual(bad.returncode, 0)
         self.assertIn("--face-average", bad.stderr)
 
+    def test_overhang_falloff_is_an_option_of_the_proxy_and_changes_the_cube_edge(self):
+        # Seed 25's 8 mm cube: a disc overhanging an edge turns the 5 mm tool's force at one edge
+        # site (ProxyRenderer.AnOverhangingDiscOfTheOtherFaceDoesNotTurnTheFaceItBlocks).
+        self.assertIn("--overhang-falloff", run("fidelity", "--help").stdout)
+        p95 = {}
+        work = tempfile.mkdtemp()
+        for value in ("on", "off"):
+            out = os.path.join(work, value + ".md")
+            run("fidelity", "--seed", "25", "--shape", "cube", "--spacing", "8", "--wrench-sites", "0", "--no-plot",
+                "--scene-dir", os.path.join(work, "scenes"), "--out", out, "--overhang-falloff", value)
+            with open(out) as f:
+                row = next(line for line in f if line.startswith("| cube | edge | 8 | 5 |"))
+            p95[value] = float(row.split("|")[10].split("/")[1])
+        self.assertLessEqual(p95["on"], 5.0, p95)
+        self.assertGreater(p95["off"], 10.0, p95)
+        bad = run("fidelity", "--quick", "--no-plot", "--overhang-falloff", "maybe", check=False)
+        self.assertNotEqual(bad.returncode, 0)
+        self.assertIn("--overhang-falloff", bad.stderr)
+
 
 class DataSafety(unittest.TestCase):
     """Issue 35: a failed run leaves the previous results untouched and creates no folder; every

@@ -129,6 +129,12 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
          "support normal, which stays in the corner's normal cone (off: the shaded field). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option_function<std::string>(
+         "--overhang-falloff", [&p](const std::string& v) { p.overhang_falloff = v == "on"; },
+         "proxy: where a disc of the other face overhangs a convex edge and blocks the tool beside it, the "
+         "shaded normal leaves out that face's discs behind the face under the tool (off: every disc near "
+         "counts). Default: on")
+      ->check(CLI::IsMember({"on", "off"}));
+  cmd.add_option_function<std::string>(
          "--near-lists", [&p](const std::string& v) { p.near_lists = v == "on"; },
          "proxy: a compound tool's sweeps read each part's last near list instead of the BVH while it rests "
          "(the same contacts; off: the BVH every sweep). Default: on")

@@ -103,6 +103,7 @@ void ProxyRenderer::forget_contact() noexcept {
   leave_contact();
   shade_.reset();
   shade_device_.reset();
+  face_.setZero();
   corner_cache_.reset();
 }
 
@@ -170,8 +171,20 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   const double spacing = shading_spacing(*world_, blockers);
   const Eigen::Vector3d& up = solver_.support_normal();
   const bool resting = !up.isZero(0);
-  const FreeBall ball{resting ? tool.semi_axes.minCoeff() : 0.0, up,
-                      resting ? tool.semi_axes.cwiseProduct(tool.rotation.conjugate() * up).norm() : 0.0};
+  const double surface = resting ? tool.semi_axes.cwiseProduct(tool.rotation.conjugate() * up).norm() : 0.0;
+  // (Where a disc of the other face overhangs a convex edge and blocks the tool beside it, its
+  // flat side is not this face: FreeBall::face.)
+  const FrontFace front =
+      params_.overhang_falloff && resting ? front_face(*world_, blockers, p, kOverhangMargin * surface) : FrontFace{};
+  const FreeBall ball{resting ? tool.semi_axes.minCoeff() : 0.0, up, surface, front.normal, front.height,
+                      front.strength};
+  // (The cached readings were made for the face they were given: one found, lost or turned by
+  // more than kFaceTurn makes them stale, though the proxy did not move.)
+  if (ball.face.isZero(0) != face_.isZero(0) || (!face_.isZero(0) && ball.face.dot(face_) < kFaceTurn)) {
+    shade_.forget();
+    shade_device_.forget();
+  }
+  face_ = ball.face;
   Eigen::Vector3d n = shade_.read_ahead(*world_, p, std::max(r, spacing), params_.shading_kernel,
                                         params_.shading_reuse * r, shading_scratch_, params_.shading_budget, ball, spacing,
                                         params_.shading_tail);

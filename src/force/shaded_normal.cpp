@@ -88,6 +88,12 @@ template <bool kSimd>
   const double ball_r = sp.ball.radius, ux = sp.ball.up.x(), uy = sp.ball.up.y(), uz = sp.ball.up.z();
   const double ball_lim = ball_r * (1.0 - 1e-3), surface = sp.ball.surface, half_rim = 0.5 * sp.rim;
   const double inv_falloff = 1.0 / (kRimFalloff * sp.rim);
+  // (FreeBall::face off: a zero direction, and a depth that no centre reaches.)
+  const bool overhang = surface > 0 && !sp.ball.face.isZero(0);
+  const double fx = overhang ? sp.ball.face.x() : 0.0, fy = overhang ? sp.ball.face.y() : 0.0,
+               fz = overhang ? sp.ball.face.z() : 0.0;
+  const double fin_m = overhang ? kOverhangMargin * surface : 1e300, inv_fin_m = overhang ? 1.0 / fin_m : 0.0;
+  const double face_h = overhang ? sp.ball.face_height : 0.0, face_s = overhang ? sp.ball.face_strength : 0.0;
   const auto lane = [&](int l) __attribute__((always_inline)) {
     const double dx = in.dx[l], dy = in.dy[l], dz = in.dz[l];
     const double a0 = in.a0[l], a1 = in.a1[l], a2 = in.a2[l];
@@ -124,7 +130,13 @@ template <bool kSimd>
     // A disc whose plane lies farther from c than the surface under the tool is not under it
     // (FreeBall::surface): the far face of a concave crease.
     const double excess = surface > 0 ? lane_max(0.0, (std::fabs(ln) - surface - half_rim) / half_rim) : 0.0;
-    const double w = in.alpha[l] * lane_exp(-0.5 * q) * lane_exp(-0.5 * flat * excess * excess);  // (flat 0: no falloff)
+    // A disc across the face under the tool whose centre lies behind that face's plane
+    // (FreeBall::face): the other face of a convex edge, overhanging it.
+    const double rx0 = j0 ? r0 : (j1 ? r1 : r2), ry0 = j0 ? r3 : (j1 ? r4 : r5), rz0 = j0 ? r6 : (j1 ? r7 : r8);
+    const double across = lane_min(1.0, lane_max(0.0, (kAgree - std::fabs(rx0 * fx + ry0 * fy + rz0 * fz)) / kAgree));
+    const double deep = lane_max(0.0, (dx * fx + dy * fy + dz * fz - face_h - fin_m) * inv_fin_m);
+    const double w = in.alpha[l] * lane_exp(-0.5 * q) *
+                     lane_exp(-0.5 * flat * (excess * excess + face_s * across * deep * deep));  // (flat 0: no falloff)
     const double inv_an = 1.0 / std::sqrt(an2 > 0 ? an2 : 1.0);
     // Beyond the rim: the in-plane offset in semi-axes, rho^2 > 1.
     const double e0 = l0 / a0, e1 = l1 / a1, e2 = l2 / a2;
@@ -700,6 +712,55 @@ double shading_spacing(const CollisionWorld& world, std::span<const Contact> blo
 
 double shading_scale(const CollisionWorld& world, std::span<const Contact> blockers, double radius) noexcept {
   return std::max(radius, shading_spacing(world, blockers));
+}
+
+FrontFace front_face(const CollisionWorld& world, std::span<const Contact> blockers, const Eigen::Vector3d& at,
+                     double margin) noexcept {
+  constexpr std::size_t kMax = 8;
+  if (!(margin > 0)) return {};
+  std::array<Eigen::Vector3d, kMax> axis, center;
+  std::size_t n = 0;
+  for (const Contact& b : blockers) {
+    if (n == kMax) break;
+    const CollisionGaussian& g = world.gaussians()[b.slot];
+    if (!(flatness(g) >= 0.5)) continue;  // (a rod or a ball states no plane)
+    const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
+    const Eigen::Vector3d a = rotation_matrix(g).col(thinnest_axis(g));
+    axis[n] = (at - c).dot(a) >= 0 ? a : Eigen::Vector3d(-a);
+    center[n++] = c;
+  }
+  // How far j lies behind i's plane (on the side away from `at`) past `margin`, in margins, up
+  // to 1; and how far across i it lies (1 at 90 degrees, 0 from acos(kAgree) ~ 73 degrees on:
+  // discs of one face lie behind each other by their tilt over their distance, not across).
+  const auto behind = [&](std::size_t j, std::size_t i) {
+    return std::clamp(((center[i] - center[j]).dot(axis[i]) - margin) / margin, 0.0, 1.0);
+  };
+  const auto across = [&](std::size_t j, std::size_t i) {
+    return std::clamp((kAgree - std::fabs(axis[j].dot(axis[i]))) / kAgree, 0.0, 1.0);
+  };
+  // j overhangs i when it lies across i and behind it while i does not lie behind j; the
+  // product of the three ramps is how clearly (continuous in the blockers' poses).
+  std::array<bool, kMax> overhang{};
+  double strength = 0;
+  for (std::size_t j = 0; j < n; ++j)
+    for (std::size_t i = 0; i < n; ++i) {
+      if (i == j) continue;
+      const double clear = across(j, i) * behind(j, i) * (1.0 - behind(i, j));
+      if (clear > 0) overhang[j] = true, strength = std::max(strength, clear);
+    }
+  FrontFace face;
+  if (!(strength > 0)) return face;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double height = 0;
+  int front = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (!overhang[i]) sum += axis[i], height += (at - center[i]).dot(axis[i]), ++front;
+  const double norm = sum.norm();
+  if (!(norm > 0)) return face;
+  face.normal = sum / norm;
+  face.height = height / front;
+  face.strength = strength;
+  return face;
 }
 
 }  // namespace gshaptics

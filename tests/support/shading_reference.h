@@ -67,6 +67,16 @@ inline Eigen::Vector3d reference_shaded_normal(const CollisionWorld& world, cons
     if (ball.surface > 0 && t.flat > 0) {
       const double excess = (std::fabs(dl[j]) - ball.surface - 0.5 * rim_scale) / (0.5 * rim_scale);
       if (excess > 0) t.weight *= std::exp(-0.5 * t.flat * excess * excess);
+      // A disc across the face under an overhang, centred behind that face's plane (FreeBall::face).
+      if (!ball.face.isZero(0)) {
+        const double margin = kOverhangMargin * ball.surface;
+        const double across = std::clamp((kAgree - std::fabs(R.col(j).dot(ball.face))) / kAgree, 0.0, 1.0);
+        const double behind = d.dot(ball.face) - ball.face_height;
+        if (behind > margin) {
+          const double e = (behind - margin) / margin;
+          t.weight *= std::exp(-0.5 * t.flat * ball.face_strength * across * e * e);
+        }
+      }
     }
     t.grad = Ad.normalized();
     t.at = -d;

@@ -94,6 +94,10 @@ struct ProxyParams {
   /// degrees p95, were up to 8.9, but seed 12's fin; bench/RESULTS.md, thirty-fourth session).
   /// false: the shaded field everywhere.
   bool corner_normal = true;
+  /// Where a disc of the other face overhangs a convex edge and blocks the tool beside it, the
+  /// shaded normal leaves out that face's discs that lie deeper than the surface under the tool
+  /// (front_face, FreeBall::face). false: every disc near counts.
+  bool overhang_falloff = true;
   double teleport = 10.0;     ///< a device jump of more tool radii than this in one tick re-places the proxy
   /// A Gaussian that no other kept Gaussian comes near (a floater, as trained scenes have in free
   /// space) does not block the proxy, so the tool is not caught on specks in mid-air. "Near" is
@@ -146,6 +150,9 @@ class ProxyRenderer final : public ForceRenderer {
   /// while it is within kDeviceShadingFrom degrees of the proxy's, not at all past
   /// kDeviceShadingTo (linear between).
   static constexpr double kDeviceShadingFrom = 6.0, kDeviceShadingTo = 12.0;
+  /// The cosine of the turn of the face under an overhang (front_face) past which the cached
+  /// shaded readings are made again (10 degrees).
+  static constexpr double kFaceTurn = 0.985;
   RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
   /// The Gaussians holding the proxy at the last tick (at most three).
   [[nodiscard]] std::span<const Contact> contacts() const noexcept override {
@@ -209,6 +216,7 @@ class ProxyRenderer final : public ForceRenderer {
   bool in_contact_ = false, sticking_ = false;
   ShadedNormalCache shade_;
   ShadedNormalCache shade_device_;  // the field where the device would rest (device_shading)
+  Eigen::Vector3d face_ = Eigen::Vector3d::Zero();  // the FreeBall::face the cached readings were made for
   ProxyMove last_move_;
   ShadingScratch shading_scratch_;  // the shaded normal's working memory
   // Its own working memory: a reading in shading_scratch_ would give up shade_'s reading ahead.

@@ -60,11 +60,52 @@ inline constexpr double kFloaterDepth = 0.75;
 /// the far face of a concave crease, which the kernel widened to the Gaussian spacing reaches:
 /// 9.6 degrees on a 60-degree groove's face at 8 mm spacing, 33 mm from the crease, with a
 /// 10 mm tool on 13 mm discs.
+///
+/// `face`, when set (front_face), is the plane of the face under the tool where a disc of the
+/// other face, overhanging a convex edge, blocks it too. A disc across that face (its axis more
+/// than acos(0.3) ~ 73 degrees from `face`, fully at 90) whose centre lies behind the plane by
+/// more than a margin (kOverhangMargin x `surface`) belongs to the other face: its weight falls
+/// as exp(-s e^2 / 2), e the excess in margins, s the face's strength, scaled by its flatness. Without it the overhang's
+/// flat side turned the normal by 23 degrees out of the face on the 8 mm fidelity cube (a -y
+/// face disc 16 mm across reaching 12 mm below the -z face, the tool resting on the -z face
+/// against it).
 struct FreeBall {
   double radius = 0;  ///< m; 0: off (every Gaussian near counts)
   Eigen::Vector3d up = Eigen::Vector3d::Zero();  ///< unit, away from the surface the tool rests on (its constraint normals)
   double surface = 0;  ///< m, from the reading point to the surface under the tool along `up`; 0: no height falloff
+  Eigen::Vector3d face = Eigen::Vector3d::Zero();  ///< unit normal of the face under an overhang (front_face); zero: off
+  double face_height = 0;  ///< m, the reading point's height above that face's plane along `face`
+  double face_strength = 1;  ///< in [0, 1], scales the overhang falloff's exponent (FrontFace::strength)
 };
+
+/// How far, in units of FreeBall::surface, a disc's centre must lie behind another blocker's
+/// plane (front_face), or behind the plane of the face under the tool (FreeBall::face), before
+/// it counts as the other face of a convex edge rather than the jitter and tilt of this one.
+inline constexpr double kOverhangMargin = 0.25;
+
+/// The face under a resting tool where a disc of the other face of a convex edge overhangs the
+/// edge and blocks the tool beside it (a "fin": the synthetic scenes' discs near an edge reach
+/// past it by up to half their width; trained scenes have them where a surface ends).
+struct FrontFace {
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit, toward the reading point; zero: no overhang
+  double height = 0;  ///< m, the reading point's mean height above the front blockers' planes
+  /// In (0, 1] with a normal: how clearly a blocker overhangs, the largest over the pairs of the
+  /// product of three ramps (across: 0 at acos(0.3), 1 at 90 degrees; behind the other's plane:
+  /// 0 at `margin`, 1 at twice it; the other not behind its plane: the same ramp, reversed), so
+  /// that the face comes and goes continuously as the tool moves.
+  double strength = 0;
+};
+
+/// Among the flat `blockers` (flatness >= 0.5; each disc's axis turned toward `at`), blocker j
+/// overhangs blocker i when the two lie across each other (axes more than acos(0.3) ~ 73 degrees
+/// apart: two faces, not two discs of one face) and j's centre lies more than `margin` m behind
+/// i's plane while i's centre does not lie as far behind j's (FrontFace::strength grades each).
+/// The normal is the normalised sum of the axes of the flat blockers that overhang none, the
+/// height `at`'s mean height above their planes. Zero when no blocker overhangs another: at a
+/// clean convex edge each face's discs lie behind the other's plane, in a concave crease neither
+/// does; and for `margin` <= 0. World frame. No allocation; the first 8 flat blockers are compared.
+[[nodiscard]] FrontFace front_face(const CollisionWorld& world, std::span<const Contact> blockers,
+                                   const Eigen::Vector3d& at, double margin) noexcept;
 
 /// How far the shaded normal's support reaches, in q past the Gaussians that touch the tool
 /// (see shaded_normal): exp(-kShadingTail / 2) = 1.2e-4 of such a Gaussian's weight.
@@ -212,6 +253,15 @@ class ShadedNormalCache {
     return turn_rate_ < 0 ? kMinReuseShare * reuse : std::max(kMinReuseShare * reuse, turn_tolerance_ / turn_rate_);
   }
   static constexpr double kMinReuseShare = 0.04;
+  /// Drops the cached readings and any reading under way, keeping the field's measured turn
+  /// rate: the next call reads anew. For a change in what a reading depends on besides the point
+  /// (the proxy's FreeBall::face).
+  void forget() noexcept {
+    valid_ = pending_ = ahead_blocked_ = ready_ = false;
+    n_earlier_ = 0;
+    calls_ = 0;
+    path_ = 0;
+  }
   void reset() noexcept {
     turn_rate_ = -1;
     valid_ = pending_ = ahead_blocked_ = ready_ = false;
