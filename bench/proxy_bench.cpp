@@ -163,6 +163,10 @@ int main(int argc, char** argv) {
                "the p95 and the p99 and the top 1 % (by that replay's times), their mean sweeps, candidates "
                "and exact first-contact searches, and how many read the shaded normal");
   bool stylus = false;
+  bool no_overhang_falloff = false;
+  app.add_flag("--no-overhang-falloff", no_overhang_falloff,
+               "The one-ellipsoid proxy's shaded normal counts every disc near, overhangs too "
+               "(ProxyParams::overhang_falloff off), for comparison");
   bool no_near_lists = false;
   app.add_flag("--no-near-lists", no_near_lists,
                "Compound tools' sweeps take the BVH every time (ProxyParams::near_lists off), for comparison");
@@ -195,7 +199,9 @@ int main(int argc, char** argv) {
       const double r = s.tool_radius;
       fmt::print(stderr, "proxy_bench: {}: {} ticks x {} passes\n", name, s.poses.size(), passes);
       std::size_t in_contact = 0;
-      ProxyRenderer proxy(w);
+      ProxyParams params;
+      params.overhang_falloff = !no_overhang_falloff;
+      ProxyRenderer proxy(w, params);
       const Timing tp = time_replays(
           s, passes,
           [&](bool pass) {

@@ -218,6 +218,11 @@ def test_proxy_holds_the_bundled_truck_roof(data_dir):
     for k in range(3000):
         f3 = shaded.render((0.0, 0.0, 2.0 - 0.001 * k), (r, r, r), (0.0, 0.0, -1.0), 1e-3)
     assert shaded.proxy[2] > z_touch - 0.15 and f3[2] > 0
+    # The overhang falloff off: the roof holds the same way.
+    every_disc = gshaptics.ProxyRenderer(world, stiffness=800.0, f_max=30.0, overhang_falloff=False)
+    for k in range(3000):
+        f4 = every_disc.render((0.0, 0.0, 2.0 - 0.001 * k), (r, r, r), (0.0, 0.0, -1.0), 1e-3)
+    assert every_disc.proxy[2] > z_touch - 0.15 and f4[2] > 0
 
 
 def test_run_probe_with_either_force_model(data_dir):
