@@ -65,10 +65,10 @@ inline constexpr double kFloaterDepth = 0.75;
 /// other face, overhanging a convex edge, blocks it too. A disc across that face (its axis more
 /// than acos(0.3) ~ 73 degrees from `face`, fully at 90) whose centre lies behind the plane by
 /// more than a margin (kOverhangMargin x `surface`) belongs to the other face: its weight falls
-/// as exp(-s e^2 / 2), e the excess in margins, s the face's strength, scaled by its flatness. Without it the overhang's
-/// flat side turned the normal by 23 degrees out of the face on the 8 mm fidelity cube (a -y
-/// face disc 16 mm across reaching 12 mm below the -z face, the tool resting on the -z face
-/// against it).
+/// as exp(-s e^2 / 2), e the excess in margins and s the face's strength, scaled by its
+/// flatness. Without it the overhang's flat side turned the normal by 23 degrees out of the face
+/// on the 8 mm fidelity cube (a -y face disc 16 mm across reaching 12 mm below the -z face, the
+/// tool resting on the -z face against it).
 struct FreeBall {
   double radius = 0;  ///< m; 0: off (every Gaussian near counts)
   Eigen::Vector3d up = Eigen::Vector3d::Zero();  ///< unit, away from the surface the tool rests on (its constraint normals)
