@@ -88,11 +88,11 @@ template <bool kSimd>
   const double ball_r = sp.ball.radius, ux = sp.ball.up.x(), uy = sp.ball.up.y(), uz = sp.ball.up.z();
   const double ball_lim = ball_r * (1.0 - 1e-3), surface = sp.ball.surface, half_rim = 0.5 * sp.rim;
   const double inv_falloff = 1.0 / (kRimFalloff * sp.rim);
-  // (FreeBall::face off: a zero direction, and a depth that no centre reaches.)
+  // (FreeBall::face off: a zero direction and margin, so that every depth term is 0.)
   const bool overhang = surface > 0 && !sp.ball.face.isZero(0);
   const double fx = overhang ? sp.ball.face.x() : 0.0, fy = overhang ? sp.ball.face.y() : 0.0,
                fz = overhang ? sp.ball.face.z() : 0.0;
-  const double fin_m = overhang ? kOverhangMargin * surface : 1e300, inv_fin_m = overhang ? 1.0 / fin_m : 0.0;
+  const double fin_m = overhang ? kOverhangMargin * surface : 0.0, inv_fin_m = overhang ? 1.0 / fin_m : 0.0;
   const double face_h = overhang ? sp.ball.face_height : 0.0, face_s = overhang ? sp.ball.face_strength : 0.0;
   const auto lane = [&](int l) __attribute__((always_inline)) {
     const double dx = in.dx[l], dy = in.dy[l], dz = in.dz[l];
@@ -132,8 +132,7 @@ template <bool kSimd>
     const double excess = surface > 0 ? lane_max(0.0, (std::fabs(ln) - surface - half_rim) / half_rim) : 0.0;
     // A disc across the face under the tool whose centre lies behind that face's plane
     // (FreeBall::face): the other face of a convex edge, overhanging it.
-    const double rx0 = j0 ? r0 : (j1 ? r1 : r2), ry0 = j0 ? r3 : (j1 ? r4 : r5), rz0 = j0 ? r6 : (j1 ? r7 : r8);
-    const double across = lane_min(1.0, lane_max(0.0, (kAgree - std::fabs(rx0 * fx + ry0 * fy + rz0 * fz)) / kAgree));
+    const double across = lane_min(1.0, lane_max(0.0, (kAgree - std::fabs(ax * fx + ay * fy + az * fz)) / kAgree));
     const double deep = lane_max(0.0, (dx * fx + dy * fy + dz * fz - face_h - fin_m) * inv_fin_m);
     const double w = in.alpha[l] * lane_exp(-0.5 * q) *
                      lane_exp(-0.5 * flat * (excess * excess + face_s * across * deep * deep));  // (flat 0: no falloff)
