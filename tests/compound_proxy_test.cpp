@@ -330,6 +330,38 @@ TEST(CompoundProxy, AStylusPressedAcrossAnEdgeIsPushedAlongItsOwnNormalThereWith
   EXPECT_LT(std::atan2(out.torque.cross(lever).norm(), out.torque.dot(lever)) * 180 / M_PI, 5.0);
 }
 
+// Two overlapping rods lowered level onto a plate of discs that ends under their overlap: rod A
+// (x in [-10, 30] mm) lies on it, and rod B (x in [-40, 0] mm) hangs past its edge (x = -4
+// mm), within the contact band of the last discs (2 mm above them, where A's underside is 3.6
+// mm below the axis and B's 3.0): its first contact there lies inside A, whose surface is the
+// union's there. B carries no load, so the resultant acts under A's middle, as for A alone on
+// the plate; B's share (its support point along the plate's normal: its own middle, x = -20 mm)
+// pulled it 6 mm toward B (the stylus across the 8 mm fidelity cube's edge: torque 0.69 of the
+// lever's).
+TEST(CompoundProxy, APartWhoseContactLiesInsideAnotherPartCarriesNoLoad) {
+  CompoundTool rods;
+  rods.count = 2;
+  rods.parts[0].offset = {0.010, 0, 0};
+  rods.parts[1].offset = {-0.020, 0, 0};
+  rods.parts[0].semi_axes = rods.parts[1].semi_axes = {0.020, 0.005, 0.005};
+  std::vector<GaussianSpec> gs;
+  for (int i = 0; i <= 8; ++i)
+    for (int k = -3; k <= 3; ++k)
+      gs.emplace_back(Eigen::Vector3f(0.004f * float(i), 0.004f * float(k), 0.0f), Eigen::Vector3f(0.004f, 0.004f, 0.0002f),
+                      Eigen::Quaternionf::Identity());
+  const CollisionWorld world = world_of(gs);
+  CompoundProxy proxy(world, rods);
+  RenderOutput out;
+  const Eigen::Quaterniond level = Eigen::Quaterniond::Identity();
+  for (int k = 0; k <= 60; ++k)  // from 3 mm above the touch to 3 mm below it, 10 cm/s
+    out = proxy.render({0, 0, 0.0052 - 0.0001 * k}, level, {0, 0, -0.1}, Eigen::Vector3d::Zero(), 1e-3);
+  ASSERT_GT(out.force.norm(), 1.0);
+  ASSERT_FALSE(proxy.blocked(proxy.position(), proxy.orientation()));
+  // The line of action's offset from the TCP, F x tau / |F|^2, is A's middle's: 10 mm along x.
+  const Eigen::Vector3d lever = out.force.cross(out.torque) / out.force.squaredNorm();
+  EXPECT_NEAR(lever.x(), 0.010, 0.001) << lever.transpose();
+}
+
 // Pressed 2 mm into the plate, then drawn sideways: with friction the proxy sticks while the
 // device stays inside the cone (the spring's tangential part k x offset), then slides with mu_k
 // times the normal force against the motion; the friction acts at the contacts, 1 cm below the

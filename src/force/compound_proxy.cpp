@@ -338,7 +338,17 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       const ToolEllipsoid& part = parts_[std::size_t(j)];
       const SweepHit& h = probes[std::size_t(j)];
       if (!h.hit) continue;
-      const double w = std::max(1e-6, 1.0 - h.t * h.t);
+      // A part whose first contact lies inside another part is not touching with the tool's
+      // surface: there the union's surface is the other part's, which meets the Gaussian sooner
+      // (a stylus's part hanging beside the lip of an edge that its neighbour rests on: its own
+      // contact point, its support point along the shaded normal, lay at its middle, 31 mm from
+      // the lip). Its weight fades to nothing as that point sinks kHiddenRamp into the other part.
+      double hidden = 0;
+      const Eigen::Vector3d touch = part.surface_point(-h.normal);
+      for (int k = 0; k < count; ++k)
+        if (k != j) hidden = std::max(hidden, parts_[std::size_t(k)].inner_clearance(touch));
+      const double w = std::max(1e-6, 1.0 - h.t * h.t) * std::clamp(1.0 - hidden / (kHiddenRamp * min_axis_), 0.0, 1.0);
+      if (!(w > 0)) continue;
       Eigen::Vector3d nj = h.normal;
       const double rho = part.semi_axes.minCoeff();
       // The field's scale at this part (the kernel is shading_kernel times it): its smallest

@@ -190,7 +190,7 @@ class CompoundProxy {
   EdgeNormal edge_;  // each part's normal at a clean convex edge, with its cache
   std::array<EdgeNormalCache, kMaxToolParts> edges_{};
   // A part touches within this x the smallest semi-axis of a Gaussian along the force (its weight
-  // falls linearly to 0 there): wide enough that a stylus lying on a surface loads every part
+  // falls as 1 - (gap / band)^2 to 0 there): wide enough that a stylus lying on a surface loads every part
   // whatever the Gaussians' 0.5 mm jitter, short enough to keep the probe sweeps cheap.
   static constexpr double kContactBand = 0.5;
   // The probe's tolerance, in stand-offs (ProxySolver::kStandOff x the smallest semi-axis): a
@@ -199,6 +199,10 @@ class CompoundProxy {
   // settled by that Gaussian as hint (a resting stylus's parts: on the 8 mm cube the probe's
   // candidates in the slow ticks fell from 17 to 12 a tick).
   static constexpr double kProbeTolerance = 2.0;
+  // A part's first contact this far inside another part (ToolEllipsoid::inner_clearance, in the
+  // tool's smallest semi-axis) is hidden: the part carries no load there (its weight falls
+  // linearly to 0 from the other part's surface to this depth).
+  static constexpr double kHiddenRamp = 0.05;
   // The edge normal's patch: the Gaussians within this x the smallest semi-axis of a part (a
   // wider patch than the contact band, so that an edge's hull spans several rims).
   static constexpr double kPatchBand = 1.0;
