@@ -384,7 +384,7 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
   md += fmt::format(
       "{} ticks at {:g} Hz in {:.0f} s. Scenes: Gaussians on analytic surfaces (`gshaptics synth`, seed {}; "
       "flat discs, log-normal sizes around the spacing, 0.5 mm normal jitter, 3 deg tilt, 15 % below the 0.2 "
-      "opacity filter, 0.3 % floaters 5-30 mm off the surface), loaded as INRIA PLY, default world "
+      "opacity filter, 0.3 % floaters 5-30 mm off the surface and clear of it by 2 mm), loaded as INRIA PLY, default world "
       "(opacity > 0.2, 1 sigma). The device is ideal and position-controlled: it follows the script, and "
       "the force the servo commands (the runtime's step: safety layer and execution mode included) is "
       "recorded. delta = how far the tool's surface is past the true surface. Direction error: "

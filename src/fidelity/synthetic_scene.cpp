@@ -5,6 +5,8 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/collision/contact_query.h"
 #include "gshaptics/error.h"
 #include "gshaptics/io/atomic_file.h"
 #include "gshaptics/io/scene_writer.h"
@@ -46,7 +48,8 @@ nlohmann::json SyntheticScene::description() const {
                      {"tilt_sigma_deg", params.tilt_deg},
                      {"low_opacity_share", params.low_opacity_share},
                      {"floater_share", params.floater_share},
-                     {"floater_distance_m", {params.floater_min, params.floater_max}}};
+                     {"floater_distance_m", {params.floater_min, params.floater_max}},
+                     {"floater_clearance_m", params.floater_clearance}};
   j["counts"] = {{"surface", surface_count}, {"floaters", floater_count}, {"total", scene.size()}};
   j["layout"] = "Gaussians 0 .. surface-1 lie on the surface, the rest are floaters";
   return j;
@@ -60,8 +63,11 @@ SyntheticScene make_synthetic_scene(const AnalyticShape& shape, const SynthParam
   if (!(p.thin_min > 0 && p.thin_max >= p.thin_min && p.thin_max <= 1))
     throw InputError("synth: thin fractions must satisfy 0 < thin_min <= thin_max <= 1");
   if (!(p.normal_jitter >= 0 && p.tilt_deg >= 0 && p.scale_log_sigma >= 0 && p.floater_min >= 0 &&
-        p.floater_max >= p.floater_min))
+        p.floater_max >= p.floater_min && p.floater_clearance >= 0))
     throw InputError("synth: jitters, sigmas and floater distances must be >= 0 (floater_max >= floater_min)");
+  if (p.floater_share > 0 && !(p.floater_max - 0.3 * p.spacing >= p.floater_clearance))
+    throw InputError("synth: floaters cannot clear the surface: floater_max less the smallest floater (0.3 spacing) "
+                     "must be >= floater_clearance");
 
   SyntheticScene out;
   out.shape = shape;
@@ -97,21 +103,39 @@ SyntheticScene make_synthetic_scene(const AnalyticShape& shape, const SynthParam
                 index++);
   }
   out.surface_count = g.size();
+  // The surface as the default world keeps it (opacity filter, 1 sigma), for the floaters' test.
+  const CollisionWorld surface = CollisionWorld::build(g, WorldConfig{});
+  ContactQuery touches(surface);
   for (std::size_t k = 0; k < floaters; ++k) {
-    // Off a random surface point along its normal; redrawn until it is in free space at the stated
-    // distance from the whole surface (near a concave corner the other face may be closer).
-    Eigen::Vector3d mean;
-    double d;
-    int tries = 0;
-    do {
-      const SurfaceSample& s = samples[std::size_t(rng.uniform(0, double(samples.size()))) % samples.size()];
-      mean = s.position + s.normal * rng.uniform(p.floater_min, p.floater_max);
-      d = shape.signed_distance(mean);
-    } while ((d < p.floater_min || d > p.floater_max) && ++tries < 1000);
-    const double r = p.spacing * rng.uniform(0.3, 1.0);
-    const Eigen::Quaterniond q = Eigen::Quaterniond(rng.normal(), rng.normal(), rng.normal(), rng.normal()).normalized();
-    g.push_back(mean.cast<float>(), Eigen::Vector3f(float(r), float(r * rng.uniform(0.5, 1.0)), float(r * rng.uniform(0.2, 1.0))),
-                to_wxyz(q), float(rng.uniform(0.05, 0.5)), index++);
+    // Off a random surface point along its normal, at the stated distance from the whole surface
+    // (near a concave corner the other face may be closer); redrawn, whole, until its ellipsoid
+    // (largest semi-axis r) lies at least the clearance off the surface and, grown by the
+    // clearance, touches none of the surface's Gaussians (a face's discs overhang an edge). A
+    // floater in free space at the first draw is the one earlier versions drew.
+    for (int attempt = 0;; ++attempt) {
+      Eigen::Vector3d mean;
+      double d;
+      int tries = 0;
+      do {
+        const SurfaceSample& s = samples[std::size_t(rng.uniform(0, double(samples.size()))) % samples.size()];
+        mean = s.position + s.normal * rng.uniform(p.floater_min, p.floater_max);
+        d = shape.signed_distance(mean);
+      } while ((d < p.floater_min || d > p.floater_max) && ++tries < 1000);
+      const double r = p.spacing * rng.uniform(0.3, 1.0);
+      const Eigen::Quaterniond q =
+          Eigen::Quaterniond(rng.normal(), rng.normal(), rng.normal(), rng.normal()).normalized();
+      // (The draws in the order GCC made them when they were one call's arguments: last first.)
+      const double alpha = rng.uniform(0.05, 0.5);
+      const double thin = rng.uniform(0.2, 1.0), mid = rng.uniform(0.5, 1.0);
+      const Eigen::Vector3d axes(r, r * mid, r * thin);
+      ToolEllipsoid grown;
+      grown.center = mean;
+      grown.rotation = q;
+      grown.semi_axes = axes.array() + p.floater_clearance;
+      if (attempt < 1000 && (d - r < p.floater_clearance || touches.any_contact(grown))) continue;
+      g.push_back(mean.cast<float>(), axes.cast<float>(), to_wxyz(q), float(alpha), index++);
+      break;
+    }
   }
   out.floater_count = floaters;
   return out;
