@@ -275,7 +275,10 @@ void expect_near_lists_give_the_bvhs_contacts(const CollisionWorld& w, const std
       if (a.hit) {
         ++work.hits;
         EXPECT_NEAR(a.t, b.t, 1e-12) << "tool " << i << " step " << step;
-        EXPECT_NEAR(sweep_time(w.gaussians()[a.slot], parts[std::size_t(a.part)], m), a.t, 1e-12);
+        EXPECT_NEAR(sweep_time(w.gaussians()[a.slot], parts[std::size_t(a.part)], m), a.t, 1e-12)
+            << "tool " << i << " step " << step << " slot " << a.slot << " part " << a.part << " normal "
+            << a.normal.transpose() << " motion " << m.transpose() << " (reverse motion: t "
+            << sweep_time(w.gaussians()[a.slot], parts[std::size_t(a.part)], -m) << ")";
         hint[0] = a.slot;
         toward = -a.normal;
       }

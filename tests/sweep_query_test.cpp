@@ -169,6 +169,51 @@ TEST(SweepQuery, TouchingAtTheStartBlocksOnlyMotionInward) {
   EXPECT_FALSE(sweep.first_contact(touching, {0, 0, NAN}).hit);
 }
 
+// A warm start (the Gaussian's maximiser at an earlier sweep, SweepQuery's start cache) changes
+// the search's work, never its answer: random ellipsoidal parts a hair from flat and round
+// Gaussians, moving along, toward and away from them, with starts anywhere on [-16, 16] against
+// the search with none. (A stale start once had Newton's method settle where the start lies
+// inside every member it reached and report a contact at t = 0 for a part moving off a Gaussian
+// that only the reverse motion touches.)
+TEST(SweepQuery, AWarmStartNeverChangesTheContact) {
+  std::mt19937_64 rng(36);
+  std::uniform_real_distribution<double> u(-1, 1), pos(0.1, 1);
+  std::normal_distribution<double> n01;
+  int hits = 0, misses = 0, touching = 0;
+  for (int i = 0; i < 4000; ++i) {
+    CollisionGaussian g{};
+    const Eigen::Vector3d ga(0.004 * pos(rng), 0.004 * pos(rng), i % 2 ? 0.0002 * pos(rng) : 0.004 * pos(rng));
+    const Eigen::Quaterniond gq = Eigen::Quaterniond(n01(rng), n01(rng), n01(rng), n01(rng)).normalized();
+    for (int k = 0; k < 3; ++k) g.semi_axes[k] = float(ga[k]);
+    g.quaternion[0] = float(gq.w()), g.quaternion[1] = float(gq.x()), g.quaternion[2] = float(gq.y()),
+    g.quaternion[3] = float(gq.z());
+    g.radius = float(ga.maxCoeff());
+    ToolEllipsoid t;
+    t.semi_axes = Eigen::Vector3d(0.01 * pos(rng), 0.003 * pos(rng), 0.003 * pos(rng));
+    t.rotation = Eigen::Quaterniond(n01(rng), n01(rng), n01(rng), n01(rng)).normalized();
+    // Placed a hair (up to 0.2 mm) off the Gaussian along a random direction: the tool's support
+    // point there meets the Gaussian's.
+    const Eigen::Vector3d dir = Eigen::Vector3d(n01(rng), n01(rng), n01(rng)).normalized();
+    const Eigen::Matrix3d Rg = gq.toRotationMatrix();
+    const Eigen::Vector3d g_support = Rg * (ga.cwiseAbs2().asDiagonal() * (Rg.transpose() * dir)) /
+                                      (ga.asDiagonal() * (Rg.transpose() * dir)).norm();
+    t.center = g_support - (t.surface_point(-dir) - t.center) + dir * 0.0002 * (u(rng) + 1) / 2;
+    const Eigen::Vector3d motion = (dir * u(rng) + Eigen::Vector3d(u(rng), u(rng), u(rng))).normalized() * 0.0005;
+    for (int k = 0; k < 3; ++k) g.center[k] = 0.0;
+    // (A value past 1, the motion's end, only says "not within the motion".)
+    const double plain = sweep_time(g, t, motion);
+    for (int k = 0; k < 4; ++k) {
+      double s = 16 * u(rng);
+      const double warm = sweep_time(g, t, motion, nullptr, 1.0, &s);
+      ASSERT_EQ(plain <= 1, warm <= 1) << "pair " << i << " start " << k << ": " << plain << " vs " << warm;
+      if (plain <= 1) EXPECT_NEAR(warm, plain, 1e-9) << "pair " << i << " start " << k;
+    }
+    (plain <= 1 ? (plain == 0 ? touching : hits) : misses) += 1;
+  }
+  EXPECT_GT(hits, 200);
+  EXPECT_GT(misses, 200);
+}
+
 TEST(SweepQuery, IgnoredRecordsAndHintsChangeOnlyWhatTheyShould) {
   // Two layers: ignoring the upper layer's first blocker still stops on the upper layer (its
   // neighbours), ignoring the whole upper layer stops on the lower one; hints never change a hit

@@ -422,6 +422,38 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
     if (r.stop) return r.t;
     if (r.t > best_t) best_t = r.t, best_s = r.s;
   }
+  if (best_t <= 0) {
+    // The searches say the pair touches at the start. Where the two are a hair apart, the members
+    // whose E_lambda leaves the start outside form a narrow window of lambda that the scan's steps
+    // and a warm start's Newton steps can miss (a cached start once reported a contact at t = 0
+    // for a part 0.09 mm from a Gaussian, moving off it). The static test decides: K(lambda) =
+    // 1 - lambda (1 - lambda) d^T M d is convex (Gilitschenski & Hanebeck; k_min.h), and the
+    // start lies outside the member minimising it iff the pair is apart; then that member's entry
+    // time (later, or never) is the better bound, refined as any other.
+    const auto k_at = [&](double lam) {
+      double q = 0;
+      for (int j = 0; j < 3; ++j) q += p.dg[j] * p.dg[j] / (lam * p.a2[j] + (1.0 - lam) * p.r2);
+      return 1.0 - lam * (1.0 - lam) * q;
+    };
+    double lo = 0, hi = 1;
+    for (int it = 0; it < 60; ++it) {  // golden-section search: the bracket shrinks to 1e-12
+      const double m1 = hi - 0.6180339887498949 * (hi - lo), m2 = lo + 0.6180339887498949 * (hi - lo);
+      if (k_at(m1) < k_at(m2)) {
+        hi = m2;
+      } else {
+        lo = m1;
+      }
+    }
+    const double lam = std::clamp(0.5 * (lo + hi), 1e-12, 1.0 - 1e-12);
+    const double t = entry_time(p.at(lam));
+    if (t > stop_above) return t;
+    if (t > best_t) {
+      best_t = t, best_s = std::log(lam / (1.0 - lam));
+      const Refined r = refine(best_s, best_t, 2.0);
+      if (r.stop) return r.t;
+      if (r.t > best_t) best_t = r.t, best_s = r.s;
+    }
+  }
   if (s_io != nullptr) *s_io = best_s;
   const double t_star = std::max(0.0, best_t);
   Eigen::Vector3d md;
