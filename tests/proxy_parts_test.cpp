@@ -1022,6 +1022,21 @@ TEST(ProxyRenderer, AnOverhangingDiscOfTheOtherFaceDoesNotTurnTheFaceItBlocks) {
   RecordProperty("corner_p95_deg_with", std::to_string(corner_with));
 }
 
+// Seed 32's 8 mm cube, 5 mm tool, pressed 10 mm into its corners, through the servo step: at
+// one corner the proxy slides off onto the top face against a fin (a disc of the +y face
+// standing above the top), with three blockers. The patch's hull holds the fin's rim, so its
+// support normal leaned 9 degrees off the fin, out of the corner's normal cone (p95 9.1 over
+// the corners; checked by building without the fade). The shaded normal already leaves the fin
+// out (the overhang falloff), and where front_face finds the overhang the corner's answer fades
+// out by its strength.
+TEST(ProxyRenderer, TheCornerNormalGivesWayWhereAFinBlocksTheTool) {
+  double energy = 0;
+  const double p95 = press_direction_p95(ShapeKind::kCube, 0.008, 0.005, 32, "corner", ProxyParams{}, energy);
+  EXPECT_LE(p95, 5.0);
+  EXPECT_GE(energy, 0.0);
+  RecordProperty("corner_p95_deg", std::to_string(p95));
+}
+
 // A god-object moves toward its goal and never away from it: under a loaded coupling a move away
 // from the device is energy the proxy makes. Sweeps toward the constrained goal cannot move away;
 // the step-up out of a pocket does, and it is kept only when the tick's sweeps after it end

@@ -239,8 +239,14 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     // gathered on 1.7 % of its contact ticks. Elsewhere at the shaded normal's reuse distance.)
     const double rho = tool.semi_axes.minCoeff();
     const double reuse = (corner_cache_.answer.messy ? kCornerSearch : params_.shading_reuse) * rho;
-    n = EdgeNormal::blend(
+    const Eigen::Vector3d cornered = EdgeNormal::blend(
         n, corners_.read(at, n, kCornerBand * rho, reuse, filter, corner_cache_, ConvexFeatures::kCorners, e), e);
+    // (Where a disc of the other face overhangs and blocks the tool (front_face), the shaded
+    // normal already leaves it out, and the patch's hull does not: the tool rests against the
+    // fin's flat side, inside the hull's corner, and its support normal leans off the fin, out
+    // of the corner's normal cone. The hull's answer fades out as the overhang's strength rises.)
+    const Eigen::Vector3d mix = (1.0 - front.strength) * cornered + front.strength * n;
+    if (mix.norm() > 1e-9) n = mix.normalized();
   }
   normal_ = n;
   in_contact_ = true;
