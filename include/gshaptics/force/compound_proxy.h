@@ -30,7 +30,9 @@
 ///    TCP is (c - x_tcp) x F, c the mean of the touching parts' surface points facing their
 ///    contacts, each weighted 1 - (gap / band)^2 (gap: how far the part is from a Gaussian along
 ///    -F, band: half the smallest semi-axis; a stylus lying on a wall gets the middle of its line of
-///    contact, as a penalty model with its depth-weighted contacts would (McNeely et al. 1999)); plus, when
+///    contact, as a penalty model with its depth-weighted contacts would (McNeely et al. 1999);
+///    a part whose first contact lies inside another part, where the tool's surface is the
+///    other part's, carries none: kHiddenRamp); plus, when
 ///    contact stopped a turn, the rotational coupling tau = k_r theta - b_r omega, theta the
 ///    rotation taking the device's orientation to the proxy's (axis times angle, world). The
 ///    translational spring's depth is bounded so that the contact normal's turns add no energy
