@@ -76,7 +76,7 @@ struct WrenchTools {
 /// The cases on `shape`, `sites` of each, drawn with `seed` (positions and yaw on the plane,
 /// position along the edge and which top edge on the cube). Plane: "stylus tip-first 0/30/60 deg",
 /// "stylus side-on" (lying on the surface, pressed sideways into it: the side, not the tip,
-/// makes contact), "disc flat", "disc tilted 30 deg". Cube: "stylus across an edge" (20 deg down
+/// makes contact), "disc flat", "disc tilted 30 deg". Cube: "stylus across an edge" (30 deg down
 /// over a top edge, touching it with its third part, about 0.6 L from the tip: pressed
 /// off-centre). Other shapes: none.
 [[nodiscard]] std::vector<WrenchCase> wrench_cases(ShapeKind shape, const WrenchTools& tools, int sites,
