@@ -156,14 +156,12 @@ CornerTest clean_corner(std::span<const Eigen::Vector3d> axes, std::span<const P
   return (tool_center - mid).dot(dir[0] + dir[1] + dir[2]) > 0 ? CornerTest::kCorner : CornerTest::kNo;
 }
 
-// `from` (unit) turned toward `to` (unit) by the share t in [0, 1] (normalised linear mix; `from`
-// where the mix vanishes): blend() and face_blend()'s hand-over.
-Eigen::Vector3d turned_toward(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double t) noexcept {
+}  // namespace
+
+Eigen::Vector3d EdgeNormal::turned_toward(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double t) noexcept {
   const Eigen::Vector3d mix = (1.0 - t) * from + t * to;
   return mix.norm() > 1e-9 ? Eigen::Vector3d(mix.normalized()) : from;
 }
-
-}  // namespace
 
 EdgeNormal::EdgeNormal(const CollisionWorld& world) : world_(&world) {}
 

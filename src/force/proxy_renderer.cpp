@@ -245,8 +245,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     // normal already leaves it out, and the patch's hull does not: the tool rests against the
     // fin's flat side, inside the hull's corner, and its support normal leans off the fin, out
     // of the corner's normal cone. The hull's answer fades out as the overhang's strength rises.)
-    const Eigen::Vector3d mix = (1.0 - front.strength) * cornered + front.strength * n;
-    if (mix.norm() > 1e-9) n = mix.normalized();
+    n = EdgeNormal::turned_toward(n, cornered, 1.0 - front.strength);
   }
   normal_ = n;
   in_contact_ = true;

@@ -106,6 +106,12 @@ class EdgeNormal {
   [[nodiscard]] static Eigen::Vector3d face_blend(const Eigen::Vector3d& shaded, const EdgeNormalAnswer& answer,
                                                   const Eigen::Vector3d& contact) noexcept;
 
+  /// `from` (unit) turned toward `to` (unit) by the share t in [0, 1]: the normalised linear mix,
+  /// `from` where the mix vanishes. blend()'s and face_blend()'s hand-over, and the proxy's
+  /// fading of the corner's answer where a fin blocks the tool.
+  [[nodiscard]] static Eigen::Vector3d turned_toward(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+                                                     double t) noexcept;
+
   /// The soft minimum's width, in the tool's smallest semi-axis: about the Gaussians' jitter on
   /// a 5 mm tool (0.5 mm).
   static constexpr double kSupportTau = 0.1;
