@@ -332,10 +332,7 @@ PYBIND11_MODULE(gshaptics, m) {
                apply_device_profile(device_profile(device_profile_obj.cast<std::string>(), "device_profile"),
                                     rp.safety.f_max, proxy);
              }
-             if (!is_force_model(force_model))
-               throw py::value_error("force_model: expected 'proxy' or 'paper', got '" + force_model + "'");
-             if (force_model == "paper") rp.renderer = PaperModelSpec{};
-             else rp.renderer = ProxyModelSpec{proxy};
+             rp.renderer = renderer_spec(renderer_kind(force_model), proxy);
              ProbeRunResult run;
              std::vector<ProbeSite> site_list;
              {
@@ -375,8 +372,8 @@ PYBIND11_MODULE(gshaptics, m) {
              d["site_touch_times"] = vec_to_array(t_touch);
              return d;
            },
-           py::arg("sites") = 7, py::arg("seed") = 1, py::arg("tool_radius") = py::none(),
-           py::arg("up") = py::none(), py::arg("rate_hz") = 1000.0,
+           py::arg("sites") = ProbeParams{}.sites, py::arg("seed") = ProbeParams{}.seed, py::arg("tool_radius") = py::none(),
+           py::arg("up") = py::none(), py::arg("rate_hz") = RuntimeConfig{}.rate_hz,
            py::arg("force_model") = "proxy", py::arg("device_profile") = py::none(),
            "The simulated probe run of `gshaptics simulate` (admittance device, simulated hand, "
            "inline query + force model each tick), with its defaults: tool_radius None is 1 % of "

@@ -33,6 +33,13 @@ class CheckDocs(unittest.TestCase):
             (t / "include" / "a.h").write_text(
                 "// see docs/design.md Sec. 2, docs/design.md Sec. 7 and tools/nothing.py\n"
                 "// (DESIGN.md Sec. 4)\n")
+            (t / "src").mkdir()
+            (t / "tools").mkdir()
+            (t / "cmake").mkdir()
+            (t / "tools" / "plot_a.py").write_text("")
+            (t / "tools" / "plot_b.py").write_text("")
+            (t / "cmake" / "Install.cmake").write_text("install(FILES tools/plot_a.py DESTINATION share)\n")
+            (t / "src" / "s.cpp").write_text('run(find_tool_script("plot_a.py"));\nrun(find_tool_script("plot_b.py"));\n')
             p = run(t)
             self.assertEqual(p.returncode, 1, p.stdout)
             out = p.stdout
@@ -43,7 +50,9 @@ class CheckDocs(unittest.TestCase):
             self.assertNotIn("Sec. 2,", out)
             self.assertIn("names tools/nothing.py", out)
             self.assertIn("cites DESIGN.md", out)
-            self.assertIn(", 5 broken references", out)
+            self.assertIn("src/s.cpp:2: runs tools/plot_b.py, which cmake/Install.cmake does not install", out)
+            self.assertNotIn("plot_a.py, which", out)
+            self.assertIn(", 6 broken references", out)
 
 
 if __name__ == "__main__":

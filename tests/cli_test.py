@@ -243,6 +243,23 @@ class Simulate(unittest.TestCase):
         self.assertNotEqual(bad.returncode, 0)
         self.assertIn("--device-shading", bad.stderr)
 
+    def test_an_option_that_does_not_apply_is_refused_before_the_scene_loads(self):
+        cases = [(("--tool", "stylus:0.06,0.005", "--corner-normal", "off"), "--corner-normal serves a one-part tool"),
+                 (("--tool", "stylus:0.06,0.005", "--device-shading", "0"), "--device-shading serves a one-part tool"),
+                 (("--near-lists", "off",), "--near-lists serves a tool with a shape"),
+                 (("--force-model", "paper", "--stiffness", "500"), "--stiffness applies to the proxy model only"),
+                 (("--k-base", "3"), "--k-base applies to the paper model only")]
+        for args, message in cases:
+            p = run("simulate", "--sites", "1", "--quiet", "--no-plot", *args, check=False)
+            self.assertEqual(p.returncode, 2, (args, p.stderr))
+            self.assertIn(message, p.stderr, args)
+            self.assertNotIn("scene ", p.stdout, args)  # refused before the world was built
+        # The same options where they apply still run.
+        out = tempfile.mkdtemp()
+        run("simulate", "--sites", "1", "--out", out, "--quiet", "--no-plot", "--tool", "stylus:0.06,0.005",
+            "--near-lists", "off", "--opacity-stiffness")
+        self.assertEqual(load_json(os.path.join(out, "summary.json"))["tool"]["spec"], "stylus:0.06,0.005")
+
     def test_corner_normal_is_an_option_of_the_proxy(self):
         self.assertIn("--corner-normal", run("fidelity", "--help").stdout)
         bad = run("fidelity", "--quick", "--no-plot", "--corner-normal", "maybe", check=False)

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <random>
 
+#include "gshaptics/error.h"
 #include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/force/shaded_normal.h"
 #include "support/allocation_counter.h"
@@ -143,7 +144,7 @@ TEST(CompoundProxy, APartSmallerThanTheSpacingReReadsTheFieldAtTheSpacingsScale)
     out = proxy.render({0.001 + slide * k / 400, 0.0013, z}, q, {0.01, 0, 0}, Eigen::Vector3d::Zero(), 1e-3);
   EXPECT_GT(out.force.z(), 0.5);
   const double reads = double(proxy.shading_reads() - before);
-  const CompoundProxyParams params;
+  const ProxyParams params;
   const double at_spacing = 2 * slide / (params.shading_reuse * spacing);  // both parts
   EXPECT_GE(reads, 0.5 * at_spacing);
   EXPECT_LE(reads, 1.5 * at_spacing + 4);
@@ -170,7 +171,7 @@ TEST(CompoundProxy, OnAFlatFaceThePartsNormalIsAveragedWithTheDiscsMeanAxis) {
   const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.005");
   const Eigen::Quaterniond q(Eigen::AngleAxisd(60 * M_PI / 180, Eigen::Vector3d::UnitY()));
   const auto tilt_off_z = [&](const Eigen::Vector3d& at, bool average) {
-    CompoundProxyParams params;
+    ProxyParams params;
     params.face_average = average;
     CompoundProxy proxy(w, stylus, params);
     RenderOutput out;
@@ -224,7 +225,7 @@ TEST(CompoundProxy, TheProbeTakesAPartRestingAStandOffFromItsBlockerAsSettled) {
   // that stopped it; the probe knows a part's gap to two stand-offs (kProbeTolerance), so that
   // disc, tested first as a hint, settles the part and no other candidate is read. (To half a
   // stand-off, as the translation's sweeps search, both parts read their near lists.)
-  CompoundProxyParams params;
+  ProxyParams params;
   params.mu_s = 0.5;
   params.mu_k = 0.4;
   CompoundProxy proxy(plate(), dumbbell(), params);
@@ -269,14 +270,14 @@ TEST(CompoundProxy, ATurnThatWouldSwingAStylusThroughAThinPlateStopsAtTheContact
   EXPECT_NEAR(out.torque.y(), -(1.0 * gap) - 0.001 * 2094.0, 0.05);
   // Without the plate the same turn goes all the way.
   const CollisionWorld empty = world_of({{Eigen::Vector3f(5, 5, 5), Eigen::Vector3f::Constant(0.001f), Eigen::Quaternionf::Identity()}});
-  CompoundProxy free_proxy(empty, stylus, CompoundProxyParams{.pass_isolated = false});
+  CompoundProxy free_proxy(empty, stylus, ProxyParams{.pass_isolated = false});
   free_proxy.render(x, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 1e-3);
   const RenderOutput free_out = free_proxy.render(x, about_y(120), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 1e-3);
   EXPECT_NEAR(Eigen::AngleAxisd(free_proxy.orientation()).angle() * 180 / M_PI, 120.0, 1e-6);
   EXPECT_EQ(free_out.torque, Eigen::Vector3d::Zero());
   EXPECT_EQ(free_out.force, Eigen::Vector3d::Zero());
   // A turn larger than a tick's sub-rotations catches up over ticks, with no torque in free space.
-  CompoundProxyParams few;
+  ProxyParams few;
   few.pass_isolated = false;
   few.max_rotation_steps = 2;
   CompoundProxy slow(empty, stylus, few);
@@ -373,7 +374,7 @@ struct Drag {
   bool ever_inside = false;
 };
 Drag drag(double mu_s, double mu_k) {
-  CompoundProxyParams p;
+  ProxyParams p;
   p.mu_s = mu_s;
   p.mu_k = mu_k;
   CompoundProxy proxy(plate(), dumbbell(), p);
@@ -477,6 +478,58 @@ TEST(CompoundProxy, PressedAndPulledBackItsForceNeverPointsIntoThePlate) {
     }
   }
   EXPECT_GE(fz_min, 0.0);
+}
+
+}  // namespace
+}  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+// The compound proxy reads the one ProxyParams of the renderer: the opacity-scaled stiffness and
+// the force limit reach it (the coupling is the one-ellipsoid proxy's VirtualCoupling), and a
+// field that serves only the other kind of tool is refused, not ignored.
+TEST(CompoundProxy, ReadsTheProxysOwnParametersAndRefusesTheOnesForAOnePartTool) {
+  static const CollisionWorld faint = [] {
+    std::vector<GaussianSpec> gs;
+    add_layer(gs, 0.0f, 0.004f, 0.2f);
+    return world_of(gs, 0.5f);
+  }();
+  const auto press = [](const ProxyParams& params, double f_max) {
+    CompoundProxy proxy(faint, dumbbell(), params, f_max);
+    RenderOutput out;
+    for (int k = 0; k <= 300; ++k)  // down to 5 mm into the plate, then held 0.26 s (tau_opacity 0.02 s)
+      out = proxy.render({0.001, 0.0007, 0.03 - 0.001 * std::min(k, 35)}, Eigen::Quaterniond::Identity(),
+                         Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 1e-3);
+    return out.force;
+  };
+  const Eigen::Vector3d plain = press({}, INFINITY);
+  ProxyParams scaled;
+  scaled.opacity_stiffness = true;
+  const Eigen::Vector3d faint_force = press(scaled, INFINITY);
+  ASSERT_GT(plain.z(), 4.0);
+  EXPECT_NEAR(faint_force.z() / plain.z(), 0.5, 0.01);
+  EXPECT_NEAR(press({}, 2.0).norm(), 2.0, 1e-9);
+
+  ProxyParams corner_off;
+  corner_off.corner_normal = false;
+  ProxyRenderer renderer(faint, corner_off);
+  CompoundTool stylus = parse_tool_spec("stylus:0.06,0.005");
+  try {
+    renderer.set_tool(stylus);
+    FAIL() << "a compound tool took a one-part tool's option";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("corner_normal (--corner-normal) serves one-part tools only"), std::string::npos)
+        << e.what();
+  }
+  ProxyParams lists_off;
+  lists_off.near_lists = false;
+  ProxyRenderer sphere_renderer(faint, lists_off);
+  EXPECT_THROW(sphere_renderer.set_tool(parse_tool_spec("sphere:0.005")), InputError);
+  // The same fields at their defaults for the tool they do not serve: accepted.
+  EXPECT_NO_THROW(ProxyRenderer(faint, proxy_params_for(corner_off, ProxyTool::kCompound)).set_tool(stylus));
+  EXPECT_FALSE(proxy_params_for(lists_off, ProxyTool::kOnePart).near_lists == false);
+  EXPECT_FALSE(proxy_params_for(corner_off, ProxyTool::kOnePart).corner_normal);  // it serves that tool: kept
 }
 
 }  // namespace

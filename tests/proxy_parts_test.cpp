@@ -140,7 +140,7 @@ std::vector<GaussianSpec> inside_corner(float h, float extent) {
 
 TEST(ProxySolver, FaceEdgeAndCornerHoldOneTwoAndThreeConstraintsWithoutAllocating) {
   const CollisionWorld w = world_of(inside_corner(0.002f, 0.04f));
-  ProxySolver solver(w, ProxySolverParams{});
+  ProxySolver solver(w, ProxyParams{});
   const double r = 0.004;
   struct Case {
     Eigen::Vector3d start, goal;
@@ -184,7 +184,7 @@ TEST(ProxySolver, HoldKeepsThePositionAndTheBlockers) {
   std::vector<GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.04f);
   const CollisionWorld w = world_of(gs);
-  ProxySolver solver(w, ProxySolverParams{});
+  ProxySolver solver(w, ProxyParams{});
   const ToolEllipsoid tool = ToolEllipsoid::sphere({0.001, 0.001, 0.01}, 0.005);
   solver.place(tool);
   const ProxyMove pressed = solver.move_toward(tool, {0.001, 0.001, -0.002}, false);
@@ -207,7 +207,7 @@ TEST(ProxySolver, ASlideUnderHalfTheStandOffIsNotSwept) {
   const CollisionWorld w = world_of(gs);
   const double r = 0.005, eps = ProxySolver::kStandOff * r;
   for (const double aside : {0.3 * eps, 3.0 * eps}) {
-    ProxySolver solver(w, ProxySolverParams{});
+    ProxySolver solver(w, ProxyParams{});
     const ToolEllipsoid tool = ToolEllipsoid::sphere({0.0, 0.0, 0.01}, r);  // over a disc's centre
     solver.place(tool);
     const ProxyMove rest = solver.move_toward(tool, {0.0, 0.0, -0.002}, false);
@@ -231,7 +231,7 @@ TEST(ProxySolver, FloatersAreSweptThroughAndCountedAsIsolated) {
   add_layer(gs, 0.0f, 0.004f, 0.04f);
   gs.emplace_back(Eigen::Vector3f(0, 0, 0.015f), Eigen::Vector3f::Constant(0.002f), Eigen::Quaternionf::Identity());
   const CollisionWorld w = world_of(gs);
-  ProxySolverParams sp;
+  ProxyParams sp;
   for (const bool pass : {true, false}) {
     sp.pass_isolated = pass;
     ProxySolver solver(w, sp);
@@ -241,7 +241,7 @@ TEST(ProxySolver, FloatersAreSweptThroughAndCountedAsIsolated) {
     if (pass) EXPECT_LT(m.position.z(), 0.0055);  // on the layer (tops 0.2 mm)
     else EXPECT_GT(m.position.z(), 0.015 + 0.002 + 0.005 - 1e-4);  // on the floater
   }
-  ProxySolver solver(w, ProxySolverParams{});
+  ProxySolver solver(w, ProxyParams{});
   std::uint32_t floater = 0;
   for (std::uint32_t s = 0; s < w.gaussians().size(); ++s)
     if (w.gaussians()[s].center[2] > 0.01f) floater = s;
@@ -1054,7 +1054,7 @@ TEST(ProxySolver, AStepUpNeverLeavesTheProxyFartherFromItsGoal) {
       for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
         if (site.feature != "concave") continue;
         for (double r : {0.005, 0.01}) {
-          ProxySolver solver(w, ProxySolverParams{});
+          ProxySolver solver(w, ProxyParams{});
           const Script s = press_script(shape, site, r, 0.010, 1000);
           solver.place(ToolEllipsoid::sphere(s.ticks.front().position, r));
           for (const ScriptTick& t : s.ticks) {
@@ -1083,7 +1083,7 @@ TEST(ProxySolver, AnUndoneStepUpIsNotRetriedWhileTheGoalStaysWithinALift) {
   for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
     if (site.feature != "concave") continue;
     for (double r : {0.005, 0.01}) {
-      ProxySolver solver(w, ProxySolverParams{});
+      ProxySolver solver(w, ProxyParams{});
       const Script s = press_script(shape, site, r, 0.010, 1000);
       solver.place(ToolEllipsoid::sphere(s.ticks.front().position, r));
       Eigen::Vector3d last = solver.position();
@@ -1194,7 +1194,11 @@ TEST(FrictionCone, SticksInsideTheConeAndSlidesOutsideIt) {
 }
 
 TEST(VirtualCoupling, SpringDamperAlongTheNormalNeverPullsAndIsClamped) {
-  VirtualCoupling c(1000.0, 2.0, 10.0, false, 0.0);
+  ProxyParams params;
+  params.stiffness = 1000.0;
+  params.damping = 2.0;
+  params.energy_bound = false;
+  VirtualCoupling c(params, 10.0);
   const Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
   const FrictionStep none;
   // 3 mm deep, moving in at 0.1 m/s: 3 N + 0.2 N along n; the tangential offset is not rendered.
@@ -1295,7 +1299,12 @@ TEST(SpringEnergyBound, TurnsThatRaiseTheSpringsDepthAreNotRenderedAndACycleIsPa
 }
 
 TEST(VirtualCoupling, OpacityStiffnessApproachesTheBlockersMeanOpacityWithItsTimeConstant) {
-  VirtualCoupling c(1000.0, 0.0, INFINITY, true, 0.02);
+  ProxyParams params;
+  params.stiffness = 1000.0;
+  params.damping = 0.0;
+  params.opacity_stiffness = true;
+  params.tau_opacity = 0.02;
+  VirtualCoupling c(params, INFINITY);
   Contact a, b;
   a.opacity = 0.4f;
   b.opacity = 0.6f;
@@ -1318,7 +1327,7 @@ TEST(VirtualCoupling, OpacityStiffnessApproachesTheBlockersMeanOpacityWithItsTim
 // and the sweeps after it every tick only to undo them (the fidelity side-on stylus at seed 12,
 // wedged between three discs: tick p99 81 -> 40 us).
 TEST(CompoundProxy, AnUndoneStepUpIsNotRetriedWhileTheGoalStaysWithinALift) {
-  const int per_tick = CompoundProxyParams{}.substeps + 1;  // (the substeps and the contact probe)
+  const int per_tick = ProxyParams{}.substeps + 1;  // (the substeps and the contact probe)
   int held = 0, costly = 0;
   stylus_groove_presses({4, 9}, {0.004, 0.008}, [&](CompoundProxy& proxy, const Eigen::Quaterniond& q, const Script& s) {
     for (std::size_t k = 0; k < s.ticks.size(); ++k) {

@@ -8,6 +8,8 @@
   ../shared/, and paths with placeholders (<...>, *, {..}) are not checked.
 - Section citations `docs/design.md Sec. N` (or `Sec. N-M`): docs/design.md has a heading `## N.`.
 - No citation of a DESIGN.md or STYLE.md: the repository's design notes are docs/design.md.
+- Every script a command runs (`find_tool_script("NAME")` in src/ and apps/) is installed:
+  cmake/Install.cmake names tools/NAME, so an installed package finds it in its prefix.
 A line that names a path on purpose (a test's temporary tree) says `check_docs: ignore` on it or
 on the line before.
 
@@ -51,6 +53,24 @@ def tracked_files(root: pathlib.Path):
     except (OSError, subprocess.CalledProcessError):
         files = [p for p in root.rglob("*") if p.is_file()]
     return [f for f in files if f.is_file() and "node_modules" not in f.parts and f.parts[len(root.parts)] != "build"]
+
+
+SCRIPT_CALL = re.compile(r'find_tool_script\("([\w.-]+)"\)')
+
+
+def uninstalled_scripts(root: pathlib.Path, files):
+    install = root / "cmake" / "Install.cmake"
+    installed = install.read_text() if install.exists() else ""
+    out = []
+    for f in files:
+        rel = f.relative_to(root)
+        if rel.parts[0] not in ("src", "apps"):
+            continue
+        for n, line in enumerate(f.read_text(errors="replace").splitlines(), 1):
+            for name in SCRIPT_CALL.findall(line):
+                if f"tools/{name}" not in installed:
+                    out.append(f"{rel}:{n}: runs tools/{name}, which cmake/Install.cmake does not install")
+    return out
 
 
 def main() -> int:
@@ -100,6 +120,7 @@ def main() -> int:
             if f.suffix != ".md" or rel.parts[0] != "bench":
                 for m in FOREIGN.finditer(line):
                     bad.append(f"{where}: cites {m.group(0)}, which is not in the repository (the design notes are docs/design.md)")
+    bad += uninstalled_scripts(root, files)
     for line in bad:
         print(line)
     print(f"check_docs: {len(files)} files, {len(bad)} broken references")

@@ -134,7 +134,7 @@ void register_fidelity(CLI::App& app) {
       fmt::print(stderr, "fidelity   {}\n", line);
     });
     write_fidelity_data(rep, data_dir);
-    std::string command = "gshaptics fidelity --force-model " + o->force.model + (o->quick ? " --quick" : "") +
+    std::string command = "gshaptics fidelity --force-model " + std::string(renderer_name(o->force.model)) + (o->quick ? " --quick" : "") +
                           (o->exec.inline_query != RuntimeConfig{}.inline_query
                                ? std::string(o->exec.inline_query ? " --inline" : " --decoupled")
                                : std::string()) +
@@ -149,7 +149,7 @@ void register_fidelity(CLI::App& app) {
     if (!o->no_plot) {
       const std::string script = find_tool_script("plot_fidelity.py");
       const std::filesystem::path rel = std::filesystem::relative(data_dir, out.parent_path().empty() ? "." : out.parent_path());
-      if (run_python(script, {data_dir, data_dir, o->force.model}, "fidelity")) prefix = rel.string() + "/fidelity_";
+      if (run_python(script, {data_dir, data_dir, std::string(renderer_name(o->force.model))}, "fidelity")) prefix = rel.string() + "/fidelity_";
     }
     write_fidelity_markdown(rep, o->out, command, prefix);
     fmt::print("fidelity   {} ticks in {:.0f} s; report {}; curves in {}\n", rep.ticks, rep.seconds, o->out, data_dir);

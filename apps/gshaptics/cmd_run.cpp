@@ -1,6 +1,7 @@
 // `gshaptics run [SCENE]`: the real-time runtime. A servo thread at --rate drives a device
-// (simulated admittance device + simulated hand, or a replayed pose log) while the collision
-// worker computes forces asynchronously (paper Sec. IV-V); prints a live status line, then the
+// (simulated admittance device + simulated hand, a replayed pose log, or a vendor device) and
+// computes each force inside its tick (--inline, the default) or takes it from the collision
+// worker thread (--decoupled, the paper's split, Sec. IV-V); prints a live status line, then the
 // summary; writes servo_log.csv, run_summary.json and run.png (Fig. 5 plus a jitter row).
 
 #include <memory>

@@ -26,7 +26,7 @@ void register_simulate(CLI::App& app) {
   cmd->add_option("--tool-radius", o->tool_radius,
                   "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)")
       ->check(check::positive());
-  cmd->add_option("--tool", o->tool,
+  add_tool_option(*cmd, o->tool,
                   "A tool with a shape, world units, as for `run --tool` (sphere:R, ellipsoid:A,B,C, "
                   "stylus:LENGTH,RADIUS along +z from the TCP, disc:RADIUS,THICKNESS, or FILE.json), held at the "
                   "world's orientation (a stylus probes tip first). The simulated device renders force only: the "
@@ -34,7 +34,7 @@ void register_simulate(CLI::App& app) {
                   "--tool-radius then defaults to its largest semi-axis (the trajectory's scale)");
   cmd->add_option("--rate", o->rate, "Servo rate of the simulation, Hz")->capture_default_str()
       ->check(check::range(100.0, 20000.0));
-  add_force_options(*cmd, o->force);
+  add_force_options(*cmd, o->force, &o->tool);
   add_execution_options(*cmd, o->exec, /*simulated=*/true);
   add_passivity_option(*cmd, o->safety.passivity);
   cmd->add_flag("--no-plot", o->no_plot, "Do not draw probe_run.png (needs /usr/bin/python3 with matplotlib)");

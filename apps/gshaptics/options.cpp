@@ -3,12 +3,16 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <algorithm>
 #include <functional>
+#include <map>
+#include <thread>
 #include <string>
 
 #include "gshaptics/device/device_registry.h"
 #include "gshaptics/servo/device_profile.h"
-#include "gshaptics/force/floater_test.h"
+#include "gshaptics/servo/query_pool.h"
+#include "gshaptics/force/floater_rule.h"
 
 namespace gshaptics::cli {
 
@@ -87,12 +91,19 @@ void add_execution_options(CLI::App& cmd, ExecutionOptions& o, bool simulated) {
         ->capture_default_str()->check(CLI::Range(1, 100));
 }
 
-void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
+void add_tool_option(CLI::App& cmd, ToolOption& tool, const std::string& help) {
+  cmd.add_option_function<std::string>("--tool", [&tool](const std::string& v) { tool = parse_tool_option(v); }, help)
+      ->type_name("SPEC");
+}
+
+void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* tool) {
+  std::map<std::string, RendererKind> models;
+  for (const RendererName& r : renderer_names()) models.emplace(r.name, r.kind);
   cmd.add_option("--force-model", o.model,
                  std::string("Force model: proxy (god-object on the Gaussians, virtual coupling in N/m) "
-                             "or paper (the paper's penalty force, eq. 7-11)"))
-      ->capture_default_str()
-      ->check(CLI::IsMember({"proxy", "paper"}));
+                             "or paper (the paper's penalty force, eq. 7-11). Default: ") +
+                     std::string(renderer_name(ForceModelOptions{}.model)))
+      ->transform(CLI::CheckedTransformer(models));
   ForceParams& force = o.force;
   cmd.add_option("--k-base", force.k_base, "paper: base stiffness k_base, N per contact (eq. 9)")
       ->capture_default_str()->check(check::non_negative());
@@ -151,12 +162,21 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o) {
   cmd.add_option("--floater-cluster", p.floater_cluster,
                  "proxy: a clump of at most this many overlapping Gaussians with nothing else within their own "
                  "size is a floater too (1: single Gaussians only)")
-      ->capture_default_str()->check(CLI::Range(std::size_t(1), FloaterTest::kLargestCluster));
+      ->capture_default_str()->check(CLI::Range(std::size_t(1), FloaterRule::kLargestCluster));
   cmd.add_option("--device-profile", o.profile,
                  "Device class: desktop (Touch class: --f-max 3.3, --stiffness 1000, 160x120x70 mm "
                  "workspace) or room (--f-max 30, --stiffness 1000); explicit options win")
       ->check(CLI::IsMember({"desktop", "room"}));
-  cmd.parse_complete_callback([&cmd, &o] {
+  cmd.parse_complete_callback([&cmd, &o, tool] {
+    // An option that does not apply to the model or the tool is refused, never ignored.
+    refuse_options_not_applying(o, tool ? tool->proxy_tool() : ProxyTool::kOnePart,
+                                [&cmd, tool](std::string_view option) {
+                                  // (fidelity renders tools of both kinds: its tool options apply to one kind of row)
+                                  const bool tool_specific = std::any_of(
+                                      tool_specific_proxy_fields().begin(), tool_specific_proxy_fields().end(),
+                                      [&](const ProxyToolField& f) { return f.option == option; });
+                                  return (tool || !tool_specific) && cmd.count(std::string(option)) > 0;
+                                });
     if (o.profile.empty()) return;
     apply_device_profile(device_profile(o.profile, "--device-profile"), o.f_max, o.proxy, cmd.count("--f-max") > 0,
                          cmd.count("--stiffness") > 0);
@@ -192,8 +212,9 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
       ->capture_default_str()->check(check::range(0.0, 10.0));
   cmd.add_option("--query-threads", o.query_threads,
                  "Threads sharing the narrow phase of a large query (>= 2048 candidates; the paper model), "
-                 "the collision worker included; 0: all cores but the servo's and the worker's, at most 4 "
-                 "(1 on this 2-core machine)")
+                 "the collision worker included; 0: all cores but the servo's and the worker's, at most 4 " +
+                     fmt::format("({} on this {}-core machine)", default_query_threads(std::thread::hardware_concurrency()),
+                                 std::thread::hardware_concurrency()))
       ->capture_default_str()->check(CLI::Range(0, 64));
   cmd.add_option("--sites", o.sites, "Contact sites of the simulated probe")->capture_default_str()
       ->check(CLI::Range(1, 100));
@@ -201,7 +222,7 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
   cmd.add_option("--tool-radius", o.tool_radius,
                  "Spherical tool radius, world units (default: 1% of the scene's 1-99 pct extent)")
       ->check(check::positive());
-  cmd.add_option("--tool", o.tool,
+  add_tool_option(cmd, o.tool,
                  "A tool with a shape, in the device's tool frame (origin: the tool centre point), world units: "
                  "sphere:R, ellipsoid:A,B,C, stylus:LENGTH,RADIUS (4 ellipsoids from the TCP along +z), "
                  "disc:RADIUS,THICKNESS, or FILE.json ({\"parts\": [{\"center\", \"semi_axes\", \"rotation\"}]}). "
@@ -210,7 +231,7 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
                  "(limit --tau-max)");
   cmd.add_option("--tau-max", o.safety.tau_max, "Torque limit, N m (the device's own limit binds too)")
       ->capture_default_str()->check(check::positive());
-  add_force_options(cmd, o.force);
+  add_force_options(cmd, o.force, &o.tool);
   cmd.add_option("--hold-timeout", o.safety.hold_timeout, "Hold a late result at full force this long, s")
       ->capture_default_str()->check(check::non_negative());
   cmd.add_option("--fade-time", o.safety.fade_time, "Then fade it to zero over this long, s")

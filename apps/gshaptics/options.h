@@ -28,14 +28,19 @@ void add_execution_options(CLI::App& cmd, ExecutionOptions& o, bool simulated);
 
 /// Adds --force-model, the paper model's --k-base, --damping, --tau-normal, --tau-opacity, the
 /// proxy's --stiffness, --coupling-damping, --mu-s, --mu-k, --opacity-stiffness, --substeps,
-/// --isolation-gap and --f-max.
+/// --energy-bound, --device-shading, --corner-normal, --overhang-falloff, --near-lists,
+/// --face-average, --isolation-gap, --floater-cluster, and --f-max.
 /// And --device-profile, whose values fill --f-max and --stiffness unless they are given.
-void add_force_options(CLI::App& cmd, ForceModelOptions& o);
+/// Options given that do not apply are refused (refuse_options_not_applying): the other model's,
+/// and, with `tool` (the command's --tool), the proxy's options for the other kind of tool.
+void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* tool = nullptr);
+/// Adds --tool, parsed once into `tool` (parse_tool_option) as the command line is read.
+void add_tool_option(CLI::App& cmd, ToolOption& tool, const std::string& help);
 
-/// Adds the device, rate, duration, tool, force, safety, real-time, output and world options.
-/// `devices` is the --device help text.
 /// Adds --passivity on|off and --passivity-max-damping (the servo step's passivity controller).
 void add_passivity_option(CLI::App& cmd, PassivityParams& p);
+/// Adds the device, rate, duration, tool, force, safety, real-time, output and world options.
+/// `devices` is the --device help text.
 void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& devices);
 
 }  // namespace gshaptics::cli

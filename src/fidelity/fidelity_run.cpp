@@ -151,7 +151,7 @@ void run_wrench_cases(const FidelityOptions& o, ShapeKind kind, double spacing, 
     auto it = std::find_if(groups.begin(), groups.end(), [&](const auto& g) { return g.first == c.name; });
     if (it == groups.end()) it = groups.insert(groups.end(), {c.name, Gather{}});
     Gather& g = it->second;
-    const auto renderer = make_force_renderer(o.renderer, world);
+    const auto renderer = make_force_renderer(renderer_spec_for(o.renderer, ProxyTool::kCompound), world);
     const Script s = wrench_script(c, o.wrench_depth, o.rate_hz);
     const ScriptTrace tr = play_script(*renderer, s, o.rate_hz, o.play);
     const WrenchMetrics m = wrench_metrics(c, s, tr, proxy, o.play.safety.tau_max);
@@ -253,7 +253,7 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
         if (progress) progress(fmt::format("{} at {:g} mm spacing, tool {:g} mm: {} presses{}{}", name, spacing * 1e3,
                                            radius * 1e3, sites.size(), pushable ? ", push-throughs" : "",
                                            slidable ? ", a slide" : ""));
-        const auto renderer = make_force_renderer(o.renderer, world);
+        const auto renderer = make_force_renderer(renderer_spec_for(o.renderer, ProxyTool::kOnePart), world);
         const PlayOptions& play = o.play;
         PlayOptions other = o.play;
         other.inline_query = !play.inline_query;

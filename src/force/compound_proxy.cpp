@@ -13,26 +13,6 @@ static_assert(std::size_t(kMaxToolParts) <= SweepQuery::kMaxParts, "a compound t
 
 namespace {
 
-const CompoundProxyParams& validated(const CompoundProxyParams& p) {
-  if (!(p.stiffness > 0) || !std::isfinite(p.stiffness) || !(p.damping >= 0) || !std::isfinite(p.damping))
-    throw InputError("compound proxy: stiffness must be > 0 N/m and damping >= 0 N s/m");
-  if (!(p.rot_stiffness >= 0) || !std::isfinite(p.rot_stiffness) || !(p.rot_damping >= 0) ||
-      !std::isfinite(p.rot_damping))
-    throw InputError("compound proxy: rotational stiffness and damping must be >= 0");
-  if (p.substeps < 1 || p.substeps > 16) throw InputError("compound proxy: substeps must be in [1, 16]");
-  if (!(p.rotation_step > 0) || !(p.rotation_step <= 1) || p.max_rotation_steps < 1)
-    throw InputError("compound proxy: rotation_step must be in (0, 1] and max_rotation_steps >= 1");
-  if (!(p.teleport > 0) || !(p.isolation_gap >= 0) || !(p.shading_kernel >= 0) || !(p.shading_reuse >= 0) ||
-      !(p.shading_tail > 0))
-    throw InputError("compound proxy: teleport and shading tail must be > 0, isolation gap, shading kernel and reuse >= 0");
-  if (!(p.mu_s >= 0 && p.mu_k >= 0 && p.mu_k <= p.mu_s) || !std::isfinite(p.mu_s))
-    throw InputError("compound proxy: friction needs 0 <= mu_k <= mu_s");
-  if (!(p.shading_turn >= 0) || !std::isfinite(p.shading_turn))
-    throw InputError("compound proxy: shading_turn must be >= 0 degrees");
-  return p;
-}
-
-
 // The smallest semi-axis of any part (0 for an empty tool: validated later).
 double smallest_semi_axis(const CompoundTool& tool) noexcept {
   double m = INFINITY;
@@ -42,10 +22,11 @@ double smallest_semi_axis(const CompoundTool& tool) noexcept {
 
 }  // namespace
 
-CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& tool, const CompoundProxyParams& params)
+CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& tool, const ProxyParams& params,
+                             double f_max)
     : world_(&world),
       tool_(tool),
-      params_(validated(params)),
+      params_((validate_proxy_params(params, "compound proxy"), params)),
       floaters_(world, params.floater_cluster),
       sweep_(world, 4096, params.near_lists ? smallest_semi_axis(tool) : 0.0),
       turn_sweep_(world),
@@ -54,7 +35,9 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
         q.max_contacts = 1;
         return q;
       }()),
+      coupling_(params_, f_max),
       edge_(world) {
+  if (!(f_max > 0)) throw InputError("compound proxy: f_max must be > 0 N");
   friction_ = FrictionCone(params_.mu_s, params_.mu_k);
   tool_.validate("compound proxy: tool");
   reach_ = tool_.reach();
@@ -103,7 +86,7 @@ bool CompoundProxy::blocked(const Eigen::Vector3d& position, const Eigen::Quater
 
 void CompoundProxy::release() noexcept {
   in_contact_ = false;
-  bound_.release();
+  coupling_.release();
   normal_.setZero();
   friction_.reset();
   last_constraints_ = 0;
@@ -163,9 +146,8 @@ bool CompoundProxy::turn_toward(const Eigen::Quaterniond& target) noexcept {  //
   const int needed = int(std::ceil(angle / step));
   const int steps = std::min(needed, params_.max_rotation_steps);
   const Eigen::Quaterniond start = q_;
-  FloaterTest::Filter floaters(floaters_, params_.isolation_gap * largest_);
-  BlockFilter filter;
-  if (params_.pass_isolated) filter = floaters.block_filter();
+  FloaterRule::Filter floaters(floaters_, params_.isolation_gap * largest_);
+  const BlockFilter filter = floater_filter(floaters);
   for (int k = 1; k <= steps; ++k) {
     const Eigen::Quaterniond next =
         (Eigen::Quaterniond(Eigen::AngleAxisd(angle * double(k) / double(needed), axis)) * start).normalized();
@@ -193,9 +175,8 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
   const double eps = ProxySolver::kStandOff * min_axis_;  // (the one-ellipsoid proxy's stand-off, on the thinnest part)
   int lifts = 0;
   WedgedState wedged;  // where it was wedged before its first step-up (proxy_solver.h)
-  FloaterTest::Filter floaters(floaters_, params_.isolation_gap * largest_);
-  BlockFilter filter;
-  if (params_.pass_isolated) filter = floaters.block_filter();
+  FloaterRule::Filter floaters(floaters_, params_.isolation_gap * largest_);
+  const BlockFilter filter = floater_filter(floaters);
   const auto first_of_parts = [&](const Eigen::Vector3d& at, const Eigen::Vector3d& u, std::span<const std::uint32_t> h,
                                   int& part) {
     // All parts in one traversal, one sorted list and one bar (SweepQuery's compound sweep).
@@ -225,12 +206,12 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
     p += u * std::max(0.0, hit.t - eps / len);
     // Wedged: step up and slide on (not where the last step-up was undone, at the same pose,
     // while the goal is within a lift of its goal then: ProxySolver's rule).
-    if (np >= 2 && hit.t * len < 1e-3 * largest_ && lifts < 2 &&
-        !undone_.repeats(p, goal, eps, kLift * largest_, q_, reach_)) {
+    if (params_.lift > 0 && np >= 2 && hit.t * len < 1e-3 * largest_ && lifts < 2 &&
+        !undone_.repeats(p, goal, eps, params_.lift * largest_, q_, reach_)) {
       Eigen::Vector3d up = hit.normal;
       for (int i = 0; i < np; ++i) up += planes[i].normal;
       if (up.norm() > 0) {
-        const Eigen::Vector3d lift = up.normalized() * (kLift * largest_);
+        const Eigen::Vector3d lift = up.normalized() * (params_.lift * largest_);
         int lp = 0;
         if (!first_of_parts(p, lift, {}, lp).hit) {
           if (lifts == 0) wedged.save(p, planes, np, n_blockers_, hit.normal, hit.slot, std::uint8_t(part));
@@ -255,6 +236,120 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
   }
   x_ = p;
   return np;
+}
+
+Eigen::Vector3d CompoundProxy::part_normal(int j, const SweepHit& h, double spacing, const BlockFilter& filter) noexcept {
+  const ToolEllipsoid& part = parts_[std::size_t(j)];
+  Eigen::Vector3d nj = h.normal;
+  const double rho = part.semi_axes.minCoeff();
+  // The field's scale at this part (the kernel is shading_kernel times it): its smallest
+  // semi-axis, or the Gaussians' spacing where they are sparser. The readings are kept over
+  // shading_reuse times it, as the field is smooth at that scale: on the 8 mm cube the 5 mm
+  // stylus's parts re-read every 0.4 mm, not 0.25 (their shaded and edge readings fall due on
+  // the same tick, as the parts move together: those ticks were its slowest 1 %).
+  const double scale = std::max(rho, spacing);
+  const double reuse = params_.shading_reuse * scale;
+  // Shaded (shaded_normal.h) at the centre of the sphere of the part's smallest semi-axis that
+  // touches where the part touches: the field the one-ellipsoid proxy reads, at the part's own
+  // contact (the Gaussian's own contact normal where the field disagrees with it). (The part
+  // rests free: the floaters beside it that reach into it at the reading point were passed;
+  // `up` is the part's contact normal. FreeBall.)
+  const Eigen::Vector3d at = part.surface_point(-h.normal) + h.normal * rho;
+  const Eigen::Vector3d& sn =
+      shades_[std::size_t(j)].read(*world_, at, scale, params_.shading_kernel, reuse, shading_scratch_,
+                                   {part.inner_clearance(at), h.normal}, 0, params_.shading_tail);
+  if (sn.dot(h.normal) > 0) nj = sn;
+  // At a clean convex edge the shaded field blends the faces' normals; the tool resting on
+  // the edge is pushed along the patch's support normal instead (edge_normal.h).
+  // On a clean flat face, averaged with the face's mean thin axis where the two agree
+  // (EdgeNormal::face_blend: both average the discs' tilts, the field over the few its kernel
+  // weighs near the reading point, the axis over the whole patch; their mean is the quieter).
+  const EdgeNormalAnswer patch =
+      edge_.read(part, nj, kPatchBand * min_axis_, reuse, filter, edges_[std::size_t(j)],
+                 params_.face_average ? ConvexFeatures::kEdgesAndFaces : ConvexFeatures::kEdges);
+  return EdgeNormal::face_blend(EdgeNormal::blend(nj, patch, h.normal), patch, h.normal);
+}
+
+double CompoundProxy::touching_parts(const Eigen::Vector3d& spring, Eigen::Vector3d& normal,
+                                     Eigen::Vector3d& moment) noexcept {
+  // The parts that touch: each part within the contact band (half the smallest semi-axis) of a
+  // Gaussian along the spring, weighted 1 - (gap / band)^2 (the Epanechnikov kernel: flat at
+  // touch, so gaps of the Gaussians' jitter, small against the band, barely move a weight; the
+  // linear 1 - gap / band moved the resultant of a stylus lying on the 8 mm plane by up to 15 %
+  // of its lever). A rigid tool resting on a surface along a line (a stylus's side on a wall)
+  // thus gets the resultant at the middle of the line, whatever the Gaussians' jitter. Each
+  // touching part's contact point is its surface point facing its contact normal (part_normal).
+  FloaterRule::Filter floaters(floaters_, params_.isolation_gap * largest_);
+  const BlockFilter filter = floater_filter(floaters);
+  const int count = pose_parts(x_, q_);
+  const double band = kContactBand * min_axis_;
+  const Eigen::Vector3d probe = -spring * band;
+  moment.setZero();
+  normal.setZero();
+  double weight = 0;
+  const std::span<const Contact> held_by = blockers();
+  // The blockers are the likely first contacts of the probes too: tested first, they prune
+  // the rest (the answer is the same exact search).
+  // So are each part's first contacts along the last tick's probe (a resting part's again).
+  std::uint32_t held_slots[3 + kMaxToolParts];
+  std::size_t n_held = 0;
+  for (const Contact& c : held_by) held_slots[n_held++] = c.slot;
+  for (std::size_t i = 0; i < n_probe_slots_; ++i) {
+    bool seen = false;
+    for (std::size_t k = 0; k < n_held; ++k) seen = seen || held_slots[k] == probe_slots_[i];
+    if (!seen) held_slots[n_held++] = probe_slots_[i];
+  }
+  const std::span<const std::uint32_t> hints{held_slots, n_held};
+  // The Gaussian spacing under the tool (shading_spacing), read once for every part's scale.
+  const double spacing = shading_spacing(*world_, held_by);
+  // Each part's own first contact along the probe, all parts in one traversal, to within two
+  // stand-offs (kProbeTolerance): a part's weight moves by at most that over the band. A part
+  // resting on a Gaussian a stand-off away (the translation left it there) is then settled by
+  // that hint, and its other candidates are not read (SweepQuery's settled parts).
+  std::array<SweepHit, kMaxToolParts> probes;
+  sweep_.first_contacts(std::span<const ToolEllipsoid>(parts_.data(), std::size_t(count)), probe, probes, hints,
+                        filter, kProbeTolerance * ProxySolver::kStandOff * min_axis_ / band);
+  count_sweep();
+  n_probe_slots_ = 0;
+  for (int j = 0; j < count; ++j)
+    if (probes[std::size_t(j)].hit) probe_slots_[n_probe_slots_++] = probes[std::size_t(j)].slot;
+  for (int j = 0; j < count; ++j) {
+    const ToolEllipsoid& part = parts_[std::size_t(j)];
+    const SweepHit& h = probes[std::size_t(j)];
+    if (!h.hit) continue;
+    // A part whose first contact lies inside another part is not touching with the tool's
+    // surface: there the union's surface is the other part's, which meets the Gaussian sooner
+    // (a stylus's part hanging beside the lip of an edge that its neighbour rests on: its own
+    // contact point, its support point along the shaded normal, lay at its middle, 31 mm from
+    // the lip). Its weight fades to nothing as that point sinks kHiddenRamp into the other part.
+    double hidden = 0;
+    const Eigen::Vector3d touch = part.surface_point(-h.normal);
+    for (int k = 0; k < count; ++k)
+      if (k != j) hidden = std::max(hidden, parts_[std::size_t(k)].inner_clearance(touch));
+    const double w = std::max(1e-6, 1.0 - h.t * h.t) * std::clamp(1.0 - hidden / (kHiddenRamp * min_axis_), 0.0, 1.0);
+    if (!(w > 0)) continue;
+    const Eigen::Vector3d nj = part_normal(j, h, spacing, filter);
+    moment += w * (part.surface_point(-nj) - x_);
+    normal += w * nj;
+    weight += w;
+  }
+  return weight;
+}
+
+Eigen::Vector3d CompoundProxy::turn_torque(const Eigen::Quaterniond& qd, const Eigen::Vector3d& angular_velocity,
+                                           bool turn_stopped) const noexcept {
+  const Eigen::AngleAxisd held(q_ * qd.conjugate());
+  double angle = held.angle();
+  Eigen::Vector3d axis = held.axis();
+  if (angle > M_PI) {
+    angle = 2 * M_PI - angle;
+    axis = -axis;
+  }
+  // Only a turn that contact stopped is rendered (a turn that ran out of sub-rotations this
+  // tick catches up on the next: free space stays free).
+  if (turn_stopped && angle > 1e-9 && axis.allFinite())
+    return params_.rot_stiffness * angle * axis - params_.rot_damping * angular_velocity;
+  return Eigen::Vector3d::Zero();
 }
 
 RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
@@ -284,106 +379,16 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
   out.constraints = std::uint8_t(np);
   out.counts.contacts = std::uint32_t(n_blockers_);
 
-  // 3. The wrench: the coupling in translation, applied at the contacts, and in rotation.
+  // 3. The wrench: the coupling in translation, applied at the touching parts' contacts, and in
+  // rotation.
   const Eigen::Vector3d e = x_ - position;
   const double el = e.norm();
   if (el > 1e-6 * largest_ && n_blockers_ > 0) {
     const Eigen::Vector3d spring = e / el;
-    // The parts that touch: each part within the contact band (half the smallest semi-axis) of a
-    // Gaussian along the spring, weighted 1 - (gap / band)^2 (the Epanechnikov kernel: flat at
-    // touch, so gaps of the Gaussians' jitter, small against the band, barely move a weight; the
-    // linear 1 - gap / band moved the resultant of a stylus lying on the 8 mm plane by up to 15 %
-    // of its lever). A rigid tool resting on a surface along a line (a stylus's side on a wall)
-    // thus gets the resultant at the middle of the line, whatever the Gaussians' jitter. Each
-    // touching part's contact normal is shaded
-    // (shaded_normal.h) at the centre of the sphere of the part's smallest semi-axis that
-    // touches where the part touches: the field the one-ellipsoid proxy reads, at the part's
-    // own contact (the Gaussian's own contact normal where the field disagrees with it); the
-    // part's contact point is its surface point facing that normal.
-    FloaterTest::Filter floaters(floaters_, params_.isolation_gap * largest_);
-    BlockFilter filter;
-    if (params_.pass_isolated) filter = floaters.block_filter();
-    const int count = pose_parts(x_, q_);
-    const double band = kContactBand * min_axis_;
-    const Eigen::Vector3d probe = -spring * band;
-    Eigen::Vector3d moment = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::Zero();
-    double weight = 0;
-    const std::span<const Contact> held_by = blockers();
-    // The blockers are the likely first contacts of the probes too: tested first, they prune
-    // the rest (the answer is the same exact search).
-    // So are each part's first contacts along the last tick's probe (a resting part's again).
-    std::uint32_t held_slots[3 + kMaxToolParts];
-    std::size_t n_held = 0;
-    for (const Contact& c : held_by) held_slots[n_held++] = c.slot;
-    for (std::size_t i = 0; i < n_probe_slots_; ++i) {
-      bool seen = false;
-      for (std::size_t k = 0; k < n_held; ++k) seen = seen || held_slots[k] == probe_slots_[i];
-      if (!seen) held_slots[n_held++] = probe_slots_[i];
-    }
-    const std::span<const std::uint32_t> hints{held_slots, n_held};
-    // The Gaussian spacing under the tool (shading_spacing), read once for every part's scale.
-    const double spacing = shading_spacing(*world_, held_by);
-    // Each part's own first contact along the probe, all parts in one traversal, to within two
-    // stand-offs (kProbeTolerance): a part's weight moves by at most that over the band. A part
-    // resting on a Gaussian a stand-off away (the translation left it there) is then settled by
-    // that hint, and its other candidates are not read (SweepQuery's settled parts).
-    std::array<SweepHit, kMaxToolParts> probes;
-    sweep_.first_contacts(std::span<const ToolEllipsoid>(parts_.data(), std::size_t(count)), probe, probes, hints,
-                          filter, kProbeTolerance * ProxySolver::kStandOff * min_axis_ / band);
-    count_sweep();
-    n_probe_slots_ = 0;
-    for (int j = 0; j < count; ++j)
-      if (probes[std::size_t(j)].hit) probe_slots_[n_probe_slots_++] = probes[std::size_t(j)].slot;
-    for (int j = 0; j < count; ++j) {
-      const ToolEllipsoid& part = parts_[std::size_t(j)];
-      const SweepHit& h = probes[std::size_t(j)];
-      if (!h.hit) continue;
-      // A part whose first contact lies inside another part is not touching with the tool's
-      // surface: there the union's surface is the other part's, which meets the Gaussian sooner
-      // (a stylus's part hanging beside the lip of an edge that its neighbour rests on: its own
-      // contact point, its support point along the shaded normal, lay at its middle, 31 mm from
-      // the lip). Its weight fades to nothing as that point sinks kHiddenRamp into the other part.
-      double hidden = 0;
-      const Eigen::Vector3d touch = part.surface_point(-h.normal);
-      for (int k = 0; k < count; ++k)
-        if (k != j) hidden = std::max(hidden, parts_[std::size_t(k)].inner_clearance(touch));
-      const double w = std::max(1e-6, 1.0 - h.t * h.t) * std::clamp(1.0 - hidden / (kHiddenRamp * min_axis_), 0.0, 1.0);
-      if (!(w > 0)) continue;
-      Eigen::Vector3d nj = h.normal;
-      const double rho = part.semi_axes.minCoeff();
-      // The field's scale at this part (the kernel is shading_kernel times it): its smallest
-      // semi-axis, or the Gaussians' spacing where they are sparser. The readings are kept over
-      // shading_reuse times it, as the field is smooth at that scale: on the 8 mm cube the 5 mm
-      // stylus's parts re-read every 0.4 mm, not 0.25 (their shaded and edge readings fall due on
-      // the same tick, as the parts move together: those ticks were its slowest 1 %).
-      const double scale = std::max(rho, spacing);
-      const double reuse = params_.shading_reuse * scale;
-      if (params_.shading_kernel > 0) {
-        // (The part rests free: the floaters beside it that reach into it at the reading point
-        // were passed; `up` is the part's contact normal. FreeBall.)
-        const Eigen::Vector3d at = part.surface_point(-h.normal) + h.normal * rho;
-        const Eigen::Vector3d& sn =
-            shades_[std::size_t(j)].read(*world_, at, scale, params_.shading_kernel, reuse, shading_scratch_,
-                                         {part.inner_clearance(at), h.normal}, 0, params_.shading_tail);
-        if (sn.dot(h.normal) > 0) nj = sn;
-      }
-      // At a clean convex edge the shaded field blends the faces' normals; the tool resting on
-      // the edge is pushed along the patch's support normal instead (edge_normal.h).
-      // On a clean flat face, averaged with the face's mean thin axis where the two agree
-      // (EdgeNormal::face_blend: both average the discs' tilts, the field over the few its kernel
-      // weighs near the reading point, the axis over the whole patch; their mean is the quieter).
-      const EdgeNormalAnswer patch = edge_.read(part, nj, kPatchBand * min_axis_, reuse, filter, edges_[std::size_t(j)],
-                                                params_.face_average ? ConvexFeatures::kEdgesAndFaces
-                                                                     : ConvexFeatures::kEdges);
-      nj = EdgeNormal::face_blend(EdgeNormal::blend(nj, patch, h.normal), patch, h.normal);
-      moment += w * (part.surface_point(-nj) - x_);
-      normal += w * nj;
-      weight += w;
-    }
+    Eigen::Vector3d normal, moment;
+    const double weight = touching_parts(spring, normal, moment);
     Eigen::Vector3d n = normal.norm() > 0 ? Eigen::Vector3d(normal.normalized()) : spring;
-    if (n.dot(e) < 0 && !blocked(position, qd)) {
-      // The contacts say the device is on their free side and its own pose is free: the proxy
-      // is caught in a Gaussian-scale pocket and would pull the hand in. It rejoins the device.
+    if (caught_in_pocket(n, e, [&] { return !blocked(position, qd); })) {
       place(position, qd);
       out.proxy = x_;
       out.constraints = 0;
@@ -391,26 +396,15 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       return out;
     }
     if (!(n.dot(e) > 0)) n = spring;
-    const double depth = params_.energy_bound ? bound_.depth(e, n, params_.stiffness) : e.dot(n);
-    const double fn = std::max(0.0, params_.stiffness * depth - params_.damping * velocity.dot(n));
-    out.force = coupling_force(fn, n, e, params_.stiffness, fr, params_.mu_k);  // with friction
+    out.force = coupling_.force_at_depth(coupling_.bounded_depth(e, n), e, n, velocity, dt, blockers(), fr,
+                                         params_.mu_k);  // with friction
     if (weight > 0) out.torque = (moment / weight).cross(out.force);
     in_contact_ = true;
     normal_ = n;
   } else {
     release();
   }
-  const Eigen::AngleAxisd held(q_ * qd.conjugate());
-  double angle = held.angle();
-  Eigen::Vector3d axis = held.axis();
-  if (angle > M_PI) {
-    angle = 2 * M_PI - angle;
-    axis = -axis;
-  }
-  // Only a turn that contact stopped is rendered (a turn that ran out of sub-rotations this
-  // tick catches up on the next: free space stays free).
-  if (turn_stopped && angle > 1e-9 && axis.allFinite())
-    out.torque += params_.rot_stiffness * angle * axis - params_.rot_damping * angular_velocity;
+  out.torque += turn_torque(qd, angular_velocity, turn_stopped);
   return out;
 }
 

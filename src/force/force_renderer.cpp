@@ -6,19 +6,50 @@
 
 namespace gshaptics {
 
-std::string_view force_model_names() noexcept { return "proxy, paper"; }
+namespace {
+constexpr RendererName kRenderers[] = {{"proxy", RendererKind::kProxy}, {"paper", RendererKind::kPaper}};
+}  // namespace
 
-bool is_force_model(std::string_view name) noexcept { return name == "paper" || name == "proxy"; }
+std::span<const RendererName> renderer_names() noexcept { return kRenderers; }
 
-std::string_view renderer_name(const RendererSpec& spec) noexcept {
-  return std::holds_alternative<PaperModelSpec>(spec) ? "paper" : "proxy";
+std::string_view force_model_names() noexcept {
+  static const std::string names = [] {
+    std::string s;
+    for (const RendererName& r : kRenderers) s += (s.empty() ? "" : ", ") + std::string(r.name);
+    return s;
+  }();
+  return names;
 }
 
-RendererSpec renderer_spec(std::string_view name) {
-  if (name == "paper") return PaperModelSpec{};
-  if (name == "proxy") return ProxyModelSpec{};
+RendererKind renderer_kind(std::string_view name) {
+  for (const RendererName& r : kRenderers)
+    if (r.name == name) return r.kind;
   throw InputError("force model '" + std::string(name) + "' is not known (expected one of: " +
                    std::string(force_model_names()) + ")");
+}
+
+RendererKind renderer_kind(const RendererSpec& spec) noexcept {
+  return std::holds_alternative<PaperModelSpec>(spec) ? RendererKind::kPaper : RendererKind::kProxy;
+}
+
+std::string_view renderer_name(RendererKind kind) noexcept {
+  for (const RendererName& r : kRenderers)
+    if (r.kind == kind) return r.name;
+  return "?";
+}
+
+std::string_view renderer_name(const RendererSpec& spec) noexcept { return renderer_name(renderer_kind(spec)); }
+
+RendererSpec renderer_spec(RendererKind kind, const ProxyParams& proxy, const ForceParams& paper) {
+  if (kind == RendererKind::kPaper) return PaperModelSpec{paper};
+  return ProxyModelSpec{proxy};
+}
+
+RendererSpec renderer_spec(std::string_view name) { return renderer_spec(renderer_kind(name)); }
+
+RendererSpec renderer_spec_for(const RendererSpec& spec, ProxyTool tool) {
+  if (const auto* proxy = std::get_if<ProxyModelSpec>(&spec)) return ProxyModelSpec{proxy_params_for(proxy->params, tool)};
+  return spec;
 }
 
 std::unique_ptr<ForceRenderer> make_force_renderer(const RendererSpec& spec, const CollisionWorld& world,

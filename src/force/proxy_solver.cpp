@@ -66,7 +66,7 @@ Contact blocker_contact(const CollisionWorld& world, std::uint32_t slot, std::ui
   return c;
 }
 
-ProxySolver::ProxySolver(const CollisionWorld& world, const ProxySolverParams& params)
+ProxySolver::ProxySolver(const CollisionWorld& world, const ProxyParams& params)
     : world_(&world), params_(params), sweep_(world), free_query_(world, [] {
         QueryOptions q;
         q.max_contacts = 1;  // any_contact() keeps no contact set
@@ -132,9 +132,9 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
   // goal by the end of the tick (WedgedState, below).
   WedgedState wedged;
   // Floaters do not block: the sweep asks, in its one pass, whether a Gaussian it reaches first
-  // is one (FloaterTest, cached per slot). At most FloaterTest::kQueriesPerTick uncached answers
+  // is one (FloaterRule, cached per slot). At most FloaterRule::kQueriesPerTick uncached answers
   // a tick; past that a Gaussian blocks (the safe side).
-  FloaterTest::Filter floaters(floaters_, params_.isolation_gap * r);
+  FloaterRule::Filter floaters(floaters_, params_.isolation_gap * r);
   BlockFilter filter;
   if (params_.pass_isolated) filter = floaters.block_filter();
   for (int s = 0; s < params_.substeps && !hold; ++s) {
@@ -161,7 +161,7 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
     // along the planes' mean normal by a small lift and start the planes afresh, so the proxy
     // glides over the shell's noise instead of stopping in a pocket of it.
     // (Not where the last step-up was undone while the goal is within a lift of its goal then.)
-    if (np >= 2 && hit.t * len < 1e-3 * r && lifts < 2 &&
+    if (params_.lift > 0 && np >= 2 && hit.t * len < 1e-3 * r && lifts < 2 &&
         !undone_.repeats(p, goal, eps, params_.lift * r)) {
       Eigen::Vector3d up = Eigen::Vector3d::Zero();
       for (int i = 0; i < np; ++i) up += planes[i].normal;

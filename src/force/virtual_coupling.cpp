@@ -33,9 +33,10 @@ double SpringEnergyBound::depth(const Eigen::Vector3d& e, const Eigen::Vector3d&
   return d - withheld_;
 }
 
-Eigen::Vector3d VirtualCoupling::force(const Eigen::Vector3d& e, const Eigen::Vector3d& n,
-                                       const Eigen::Vector3d& velocity, double dt, std::span<const Contact> blockers,
-                                       const FrictionStep& friction, double mu_k) noexcept {
+Eigen::Vector3d VirtualCoupling::force_at_depth(double depth, const Eigen::Vector3d& e, const Eigen::Vector3d& n,
+                                                const Eigen::Vector3d& velocity, double dt,
+                                                std::span<const Contact> blockers, const FrictionStep& friction,
+                                                double mu_k) noexcept {
   double k = k_;
   if (opacity_stiffness_ && !blockers.empty()) {
     double a = 0;
@@ -45,7 +46,7 @@ Eigen::Vector3d VirtualCoupling::force(const Eigen::Vector3d& e, const Eigen::Ve
     opacity_ += beta * (a - opacity_);
     k *= opacity_;
   }
-  const double fn = std::max(0.0, k * e.dot(n) - b_ * velocity.dot(n));
+  const double fn = std::max(0.0, k * depth - b_ * velocity.dot(n));
   Eigen::Vector3d f = coupling_force(fn, n, e, k, friction, mu_k);
   const double fm = f.norm();
   if (fm > f_max_) f *= f_max_ / fm;

@@ -9,7 +9,7 @@ const std::vector<DeviceProfile>& device_profiles() {
     DeviceProfile desktop;
     desktop.name = "desktop";
     desktop.f_max = 3.3;
-    desktop.stiffness = 1000;
+    desktop.stiffness = ProxyParams{}.stiffness;
     desktop.workspace = Eigen::Vector3d(0.16, 0.12, 0.07);
     desktop.source = "3D Systems Touch specifications: 3.3 N peak, X/Y/Z 1.26/2.31/1.02 N/mm, 160x120x70 mm";
     DeviceProfile room;

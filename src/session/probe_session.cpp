@@ -42,10 +42,44 @@ std::string describe_execution(const ExecutionOptions& o, bool simulated) {
                    : std::string("decoupled (worker thread)");
 }
 
-RendererSpec ForceModelOptions::spec() const {
-  if (model == "paper") return PaperModelSpec{force};
-  if (model == "proxy") return ProxyModelSpec{proxy};
-  return renderer_spec(model);  // throws, naming the known models
+RendererSpec ForceModelOptions::spec() const { return renderer_spec(model, proxy, force); }
+
+ToolOption parse_tool_option(const std::string& spec) {
+  ToolOption t;
+  t.tool = parse_tool_spec(spec);
+  t.spec = spec;
+  return t;
+}
+
+namespace {
+// The options only one force model reads.
+constexpr std::string_view kPaperOnly[] = {"--k-base", "--damping", "--tau-normal", "--tau-opacity"};
+constexpr std::string_view kProxyOnly[] = {"--stiffness", "--coupling-damping", "--mu-s", "--mu-k",
+                                           "--opacity-stiffness", "--substeps", "--energy-bound",
+                                           "--device-shading", "--corner-normal", "--overhang-falloff",
+                                           "--near-lists", "--face-average", "--isolation-gap",
+                                           "--floater-cluster"};
+}  // namespace
+
+void refuse_options_not_applying(const ForceModelOptions& force, ProxyTool tool,
+                                 const std::function<bool(std::string_view option)>& given) {
+  std::string refused;
+  const auto refuse = [&](std::string_view option, const std::string& why) {
+    refused += fmt::format("{}{} {}", refused.empty() ? "" : "; ", option, why);
+  };
+  const bool paper = force.model == RendererKind::kPaper;
+  for (std::string_view option : paper ? std::span<const std::string_view>(kProxyOnly) : kPaperOnly)
+    if (given(option))
+      refuse(option, fmt::format("applies to the {} model only (--force-model is {})", paper ? "proxy" : "paper",
+                                 renderer_name(force.model)));
+  if (!paper)
+    for (const ProxyToolField& f : tool_specific_proxy_fields())
+      if (!f.option.empty() && f.serves != tool && given(f.option))
+        refuse(f.option, fmt::format("serves {} only: {}", f.serves == ProxyTool::kCompound ? "a tool with a shape "
+                                                                                              "(--tool stylus:..., disc:...)"
+                                                                                            : "a one-part tool",
+                                     f.why_not));
+  if (!refused.empty()) throw InputError("options that do not apply: " + refused);
 }
 
 void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o) {
@@ -226,11 +260,8 @@ bool plot_run(const std::string& csv, const std::string& summary, const std::str
 }
 
 int run_simulate(SimulateOptions o) {
-  CompoundTool tool;
-  if (!o.tool.empty()) {  // a bad spec or file is named before the scene loads
-    tool = parse_tool_spec(o.tool);
-    if (o.tool_radius <= 0) o.tool_radius = tool.largest_semi_axis();
-  }
+  const CompoundTool& tool = o.tool.tool;
+  if (o.tool.given() && o.tool_radius <= 0) o.tool_radius = tool.largest_semi_axis();
   const SceneOptions so = with_bundled_defaults(o.scene, "simulate");
   const std::string out_dir =
       prepare_out_dir(o.out_dir, so.scene, {"probe_log.csv", "summary.json", "probe_run.png"});
@@ -253,7 +284,7 @@ int run_simulate(SimulateOptions o) {
   rp.safety.f_max = o.force.f_max;
   rp.tool = tool;
   if (tool.count > 0)
-    fmt::print("tool       {} ({} part{}, held at the world's orientation)\n", o.tool, tool.count,
+    fmt::print("tool       {} ({} part{}, held at the world's orientation)\n", o.tool.spec, tool.count,
                tool.count == 1 ? "" : "s");
   Progress bar("simulating", !o.quiet);
   const ProbeRunResult run = run_probe(world, traj, rp, [&](double f) { bar(f); });
@@ -282,7 +313,7 @@ int run_simulate(SimulateOptions o) {
     // compound tool asks for (as for any force-only device) and counts those ticks.
     std::size_t dropped = 0;
     for (const TickRecord& r : run.ticks) dropped += (r.flags & kFlagTorqueDropped) != 0;
-    sj["tool"] = {{"spec", o.tool}, {"parts", tool.count}, {"torque_dropped_ticks", dropped}};
+    sj["tool"] = {{"spec", o.tool.spec}, {"parts", tool.count}, {"torque_dropped_ticks", dropped}};
     fmt::print("torque     the simulated device renders force only: {} ticks had a torque it was not sent\n",
                dropped);
   }

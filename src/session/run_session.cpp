@@ -152,8 +152,7 @@ Eigen::Vector3d tool_start_point(const PreparedWorld& pw, double tool_radius) {
   start /= double(std::max<std::size_t>(1, pw.world.size()));
   start += (top - start.dot(up) + 12.0 * tool_radius) * up;
   try {
-    ProbeParams pp;
-    pp.sites = 7;
+    ProbeParams pp;  // (the default sites)
     pp.up = up;
     pp.tool_radius = tool_radius;
     const ProbeTrajectory traj = generate_probe_trajectory(pw.world, pp);
@@ -198,7 +197,6 @@ void validate_runtime_options(const RuntimeOptions& o, bool allow_mouse) {
   // A device's library and a replay file are checked now, before the scene is loaded.
   if (is_hardware_device(o.device)) (void)make_hardware_device(o);
   if (o.device.rfind("replay:", 0) == 0) (void)load_pose_log(o.device.substr(7));
-  if (!o.tool.empty()) (void)parse_tool_spec(o.tool);  // a bad spec or file is named before the scene loads
 }
 
 void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool hardware,
@@ -249,7 +247,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
   check_device_option(o.device, allow_mouse);
   RuntimeSetup s;
   s.tool_radius = o.tool_radius;
-  if (s.tool_radius <= 0 && !o.tool.empty()) s.tool_radius = parse_tool_spec(o.tool).largest_semi_axis();
+  if (s.tool_radius <= 0 && o.tool.given()) s.tool_radius = o.tool.tool.largest_semi_axis();
   s.planned = o.duration;
   if (o.device == "sim") {
     ProbeTrajectory traj = make_probe_trajectory(pw, is_scaled(so), o.sites, o.seed, s.tool_radius, o.force);
@@ -335,7 +333,7 @@ RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, d
   rc.latency_ticks = o.exec.latency_ticks;
   rc.duration = planned;
   rc.tool.semi_axes = Eigen::Vector3d::Constant(tool_radius);
-  if (!o.tool.empty()) rc.tool = tool_shape_for(parse_tool_spec(o.tool));
+  if (o.tool.given()) rc.tool = tool_shape_for(o.tool.tool);
   rc.renderer = o.force.spec();
   rc.safety = o.safety;
   rc.safety.f_max = o.force.f_max;
@@ -439,7 +437,7 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
       parts.push_back({{"center", {p.offset.x(), p.offset.y(), p.offset.z()}},
                        {"semi_axes", {p.semi_axes.x(), p.semi_axes.y(), p.semi_axes.z()}},
                        {"rotation", {p.rotation.w(), p.rotation.x(), p.rotation.y(), p.rotation.z()}}});
-    sj["tool"] = {{"spec", o.tool}, {"parts", parts}};
+    sj["tool"] = {{"spec", o.tool.spec}, {"parts", parts}};
   }
   sj["interrupted"] = interrupted;
   sj["runtime"] = to_json(s);

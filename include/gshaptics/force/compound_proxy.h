@@ -57,65 +57,29 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
+#include <limits>
 
 #include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/collision/sweep_query.h"
 #include "gshaptics/force/force_renderer.h"
-#include "gshaptics/force/floater_test.h"
+#include "gshaptics/force/floater_rule.h"
 #include "gshaptics/force/friction_cone.h"
 #include "gshaptics/force/shaded_normal.h"
+#include "gshaptics/force/proxy_params.h"
 #include "gshaptics/force/proxy_solver.h"
 #include "gshaptics/force/edge_normal.h"
 #include "gshaptics/force/virtual_coupling.h"
 
 namespace gshaptics {
 
-/// Parameters of the compound proxy. SI units.
-struct CompoundProxyParams {
-  double stiffness = 1000.0;   ///< k_c, N/m
-  double damping = 1.0;        ///< b_c, N s/m (passive for b > k T / 2)
-  /// k_r, N m/rad: 1 N m/rad gives 0.5 N m, a desktop 6-DoF arm's torque, at about 30 deg.
-  double rot_stiffness = 1.0;
-  /// b_r, N m s/rad: twice the sampled-spring bound k_r T / 2 at 1 kHz, as for the force.
-  double rot_damping = 0.001;
-  int substeps = 4;            ///< translational sweeps per tick, [1, 16]
-  double rotation_step = 0.25; ///< largest motion of any point per sub-rotation, in smallest semi-axes
-  int max_rotation_steps = 64; ///< sub-rotations per tick (the rest waits for the next tick)
-  /// Kernel of each touching part's shaded normal, in the part's smallest semi-axis
-  /// (ProxyParams::shading_kernel); 0: the Gaussians' own contact normals.
-  double shading_kernel = 0.5;
-  /// A part's shaded normal (and its edge reading) is re-read once its reading point (its pose)
-  /// moved this many of the field's scale there: the larger of the part's smallest semi-axis and
-  /// the Gaussians' spacing under the tool (shading_spacing), the scale its kernel is read at
-  /// (ProxyParams::shading_reuse, which is in tool radii).
-  double shading_reuse = 0.05;
-  double shading_tail = kShadingTail;  ///< the shaded normal's support (ProxyParams::shading_tail)
-  /// ... or sooner where a part's field turns fast: by at most this many degrees at the rate
-  /// it turned between the part's last two readings (ProxyParams::shading_turn; 0: off).
-  double shading_turn = 1.0;
-  bool pass_isolated = true;   ///< floaters do not block (ProxyParams::pass_isolated)
-  double isolation_gap = 0.0;  ///< ProxyParams::isolation_gap, in the largest semi-axis
-  std::size_t floater_cluster = FloaterTest::kMaxCluster;  ///< ProxyParams::floater_cluster
-  double teleport = 10.0;      ///< a device jump of more than this many reaches re-places the proxy
-  /// Coulomb friction, static and kinetic (ProxyParams::mu_s, mu_k; 0 <= mu_k <= mu_s; 0: none).
-  double mu_s = 0.0, mu_k = 0.0;
-  /// The contact normal's turns under the translational spring add no energy that earlier turns
-  /// did not take out (ProxyParams::energy_bound, SpringEnergyBound). false: the plain coupling.
-  bool energy_bound = true;
-  /// The translation's and the contact probe's sweeps keep each part's near list (SweepQuery's
-  /// reuse margin, one smallest semi-axis): a part resting on the Gaussians reads its candidates
-  /// from it instead of the BVH. The same contacts (within the exact search's tolerance); false:
-  /// the BVH every sweep.
-  bool near_lists = true;
-  /// On a clean flat face, each part's shaded normal is averaged with the face's mean thin axis
-  /// where they agree (EdgeNormal::face_blend). false: the shaded normal (and edges) only.
-  bool face_average = true;
-};
-
 class CompoundProxy {
  public:
-  /// Throws InputError for an invalid tool or parameters.
-  CompoundProxy(const CollisionWorld& world, const CompoundTool& tool, const CompoundProxyParams& params = {});
+  /// Reads the proxy's parameters (proxy_params.h: every field but the one-part tool's own; its
+  /// "tool radii" are the tool's largest semi-axis, its reach for `teleport`); `f_max` clamps the
+  /// coupling force, N (+inf: none; the safety layer limits it). Throws InputError for an invalid
+  /// tool or parameters.
+  CompoundProxy(const CollisionWorld& world, const CompoundTool& tool, const ProxyParams& params = {},
+                double f_max = std::numeric_limits<double>::infinity());
 
   /// One tick: the device's TCP position (m) and orientation (tool frame -> world), its velocity
   /// (m/s) and angular velocity (rad/s), dt (s, > 0). Force and torque (about the device's TCP)
@@ -127,6 +91,8 @@ class CompoundProxy {
   [[nodiscard]] std::span<const Contact> blockers() const noexcept { return {blockers_.data(), n_blockers_}; }
   [[nodiscard]] const Eigen::Vector3d& position() const noexcept { return x_; }
   [[nodiscard]] const Eigen::Quaterniond& orientation() const noexcept { return q_; }
+  /// The tool, in its tool frame (as given).
+  [[nodiscard]] const CompoundTool& tool() const noexcept { return tool_; }
   [[nodiscard]] std::uint64_t placements() const noexcept { return placements_; }
   [[nodiscard]] std::uint64_t lost() const noexcept { return lost_; }
   /// What the translation's and the probe's sweeps have done since construction: sweeps run,
@@ -148,8 +114,8 @@ class CompoundProxy {
  private:
   const CollisionWorld* world_;
   CompoundTool tool_;
-  CompoundProxyParams params_;
-  FloaterTest floaters_;  // the floater rule of the one-ellipsoid proxy, with its own cache
+  ProxyParams params_;
+  FloaterRule floaters_;  // the floater rule of the one-ellipsoid proxy, with its own cache
   // The translation's and the contact probe's sweeps, with near lists (SweepQuery's reuse margin:
   // the smallest semi-axis, twice the contact band), and the turns' sub-step sweeps, without.
   SweepQuery sweep_, turn_sweep_;
@@ -163,14 +129,13 @@ class CompoundProxy {
   std::array<Eigen::Quaterniond, kMaxToolParts> turned_rotation_{};
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
   FrictionCone friction_{0.0, 0.0};
-  SpringEnergyBound bound_;  // the contact normal's turns add no energy (energy_bound)
+  VirtualCoupling coupling_;  // the translational coupling, with its energy bound (energy_bound)
   bool in_contact_ = false;                             // the proxy held the device at the last tick
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();    // along this contact normal
   int last_constraints_ = 0;                            // planes holding it at the last move
   Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();
   bool placed_ = false;
   UndoneStepUp undone_;  // the last step-up translate_toward undid (ProxySolver's rule)
-  static constexpr double kLift = 0.05;  // a step-up's height, x the largest semi-axis
   std::array<Contact, 3> blockers_{};
   std::size_t n_blockers_ = 0;
   // Each part's first contact along the last tick's contact probe (the Gaussian's slot), tried
@@ -214,6 +179,19 @@ class CompoundProxy {
   bool turn_toward(const Eigen::Quaterniond& target) noexcept;  // true: a contact stopped the turn
   int translate_toward(const Eigen::Vector3d& goal) noexcept;  // the constraint planes holding it
   void release() noexcept;  // out of contact: friction and the contact normal forgotten
+  // The floater rule's filter for this tick's sweeps (empty when pass_isolated is off).
+  BlockFilter floater_filter(FloaterRule::Filter& state) noexcept {
+    return params_.pass_isolated ? state.block_filter() : BlockFilter{};
+  }
+  // The sum of the touching parts' shaded contact normals and of their contact points' moments
+  // about the proxy's TCP, each weighted (the contact band, the hidden ramp), for the spring
+  // along `spring` (unit). Returns the summed weight (0: no part touches).
+  double touching_parts(const Eigen::Vector3d& spring, Eigen::Vector3d& normal, Eigen::Vector3d& moment) noexcept;
+  // One touching part's contact normal (shaded, edge, face) for its probe hit `h`.
+  Eigen::Vector3d part_normal(int j, const SweepHit& h, double spacing, const BlockFilter& filter) noexcept;
+  // The rotational coupling's torque when contact stopped the turn toward `qd`.
+  [[nodiscard]] Eigen::Vector3d turn_torque(const Eigen::Quaterniond& qd, const Eigen::Vector3d& angular_velocity,
+                                            bool turn_stopped) const noexcept;
 };
 
 }  // namespace gshaptics

@@ -143,10 +143,4 @@ class BorrowedRenderer final : public ForceRenderer {
   ForceRenderer& inner_;
 };
 
-/// The force-model names renderer_spec() knows, for help texts: "proxy, paper".
-[[nodiscard]] std::string_view force_model_names() noexcept;
-
-/// True when renderer_spec() knows `name`.
-[[nodiscard]] bool is_force_model(std::string_view name) noexcept;
-
 }  // namespace gshaptics

@@ -23,7 +23,8 @@
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/collision/sweep_query.h"
-#include "gshaptics/force/floater_test.h"
+#include "gshaptics/force/floater_rule.h"
+#include "gshaptics/force/proxy_params.h"
 
 namespace gshaptics {
 
@@ -104,17 +105,16 @@ struct UndoneStepUp {
   }
 };
 
-/// Parameters of the solver (as the same-named fields of ProxyParams).
-struct ProxySolverParams {
-  int substeps = 4;          ///< sweeps per tick, in [1, 16]
-  double lift = 0.05;        ///< step-up out of a pocket between bumps, in tool radii (0: never)
-  /// A floater (no other kept Gaussian within `isolation_gap` tool radii of it, at most its
-  /// middle semi-axis) does not block.
-  bool pass_isolated = true;
-  double isolation_gap = 0.0;  ///< tool radii (see ProxyParams::isolation_gap)
-  std::size_t floater_cluster = FloaterTest::kMaxCluster;  ///< ProxyParams::floater_cluster
-  double shading_kernel = 0.5;  ///< kernel of the shaded normal that place() tries first, in tool radii
-};
+/// The pocket rule of both proxies (ProxyRenderer, CompoundProxy): the contact normal `n` says
+/// the device is on the surface's free side (n . offset < 0, offset = proxy - device), and the
+/// device's own pose is free (`device_free()`, asked only then): the proxy is caught in a
+/// Gaussian-scale pocket (a sharp tool rim under a neighbouring disc's rim) and would pull the
+/// hand into the surface. It rejoins the device instead (the caller re-places it there).
+template <class DeviceFree>
+[[nodiscard]] bool caught_in_pocket(const Eigen::Vector3d& n, const Eigen::Vector3d& offset,
+                                    DeviceFree&& device_free) noexcept {
+  return n.dot(offset) < 0 && device_free();
+}
 
 /// One tick's move of the proxy.
 struct ProxyMove {
@@ -130,8 +130,9 @@ struct ProxyMove {
 
 class ProxySolver {
  public:
-  /// The caller validates `params` (ProxyRenderer does).
-  ProxySolver(const CollisionWorld& world, const ProxySolverParams& params);
+  /// Reads substeps, lift, pass_isolated, isolation_gap, floater_cluster and shading_kernel of
+  /// `params` (a copy); the caller validates them (ProxyRenderer does).
+  ProxySolver(const CollisionWorld& world, const ProxyParams& params);
 
   /// Forget the proxy: the next tick places it again.
   void reset() noexcept;
@@ -167,14 +168,14 @@ class ProxySolver {
   [[nodiscard]] const Eigen::Vector3d& support_normal() const noexcept { return support_; }
   [[nodiscard]] std::uint64_t placements() const noexcept { return placements_; }
   [[nodiscard]] std::uint64_t lost() const noexcept { return lost_; }
-  /// Whether the Gaussian in `slot` is a floater (FloaterTest::isolated).
+  /// Whether the Gaussian in `slot` is a floater (FloaterRule::isolated).
   bool isolated(std::uint32_t slot, double gap) noexcept { return floaters_.isolated(slot, gap); }
   /// The floater rule with its cache, for a filter of the renderer's own readings.
-  [[nodiscard]] FloaterTest& floater_test() noexcept { return floaters_; }
+  [[nodiscard]] FloaterRule& floater_rule() noexcept { return floaters_; }
 
  private:
   const CollisionWorld* world_;
-  ProxySolverParams params_;
+  ProxyParams params_;
   SweepQuery sweep_;
   ContactQuery free_query_;
   Eigen::Vector3d proxy_ = Eigen::Vector3d::Zero();
@@ -184,7 +185,7 @@ class ProxySolver {
   Eigen::Vector3d support_ = Eigen::Vector3d::Zero();
   int last_constraints_ = 0;
   std::uint64_t placements_ = 0, lost_ = 0;
-  FloaterTest floaters_;
+  FloaterRule floaters_;
   UndoneStepUp undone_;  // the last step-up WedgedState undid
 };
 

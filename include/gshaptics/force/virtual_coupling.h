@@ -18,6 +18,7 @@
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/friction_cone.h"
+#include "gshaptics/force/proxy_params.h"
 
 namespace gshaptics {
 
@@ -82,31 +83,58 @@ class SpringEnergyBound {
   bool valid_ = false;
 };
 
+/// The coupling of both proxies (ProxyRenderer and CompoundProxy's translation): the spring's
+/// depth along the contact normal, bounded by SpringEnergyBound when ProxyParams::energy_bound is
+/// on, and the force from it with damping, friction, the opacity-scaled stiffness and the clamp.
 class VirtualCoupling {
  public:
-  /// `stiffness` k, N/m (> 0); `damping` b, N s/m (>= 0), along the normal; `f_max`, N (+inf:
-  /// none); `opacity_stiffness` and `tau_opacity` (s) as ProxyParams. The caller validates.
-  VirtualCoupling(double stiffness, double damping, double f_max, bool opacity_stiffness, double tau_opacity) noexcept
-      : k_(stiffness), b_(damping), f_max_(f_max), opacity_stiffness_(opacity_stiffness), tau_(tau_opacity) {}
+  /// Reads stiffness k (N/m), damping b (N s/m, along the normal), opacity_stiffness,
+  /// tau_opacity (s) and energy_bound of `params`; `f_max`, N (+inf: none). The caller validates.
+  VirtualCoupling(const ProxyParams& params, double f_max) noexcept
+      : k_(params.stiffness), b_(params.damping), f_max_(f_max), opacity_stiffness_(params.opacity_stiffness),
+        tau_(params.tau_opacity), energy_bound_(params.energy_bound) {}
 
-  /// The force on the device, N, world frame. `offset`: x_proxy - x_device, m; `normal`: unit
-  /// contact normal (Gaussians -> tool); `velocity`: the device's, m/s; `dt`: tick, s;
-  /// `blockers`: the Gaussians holding the proxy (for the opacity scaling); `friction`: this
-  /// tick's friction decision; `mu_k`: the kinetic coefficient.
+  /// The spring's depth to render along the unit contact `normal` for `offset` = x_proxy -
+  /// x_device (m, world): offset . normal less what SpringEnergyBound withholds (energy_bound
+  /// on; at this coupling's stiffness, opacity-scaled as at the last tick), else offset . normal.
+  /// Call once a tick while in contact. m; may be negative (no force).
+  double bounded_depth(const Eigen::Vector3d& offset, const Eigen::Vector3d& normal) noexcept {
+    return energy_bound_ ? bound_.depth(offset, normal, k_ * opacity_) : offset.dot(normal);
+  }
+
+  /// The force on the device, N, world frame, for a spring of `depth` m along the unit contact
+  /// `normal` (Gaussians -> tool): F_n = max(0, k depth - b v . n) n, plus friction (coupling_force:
+  /// `offset` = x_proxy - x_device, m, gives the tangential spring while sticking), |F| <= f_max.
+  /// `velocity`: the device's, m/s; `dt`: tick, s; `blockers`: the Gaussians holding the proxy
+  /// (for the opacity scaling); `friction`: this tick's friction decision; `mu_k`: the kinetic
+  /// coefficient.
+  Eigen::Vector3d force_at_depth(double depth, const Eigen::Vector3d& offset, const Eigen::Vector3d& normal,
+                                 const Eigen::Vector3d& velocity, double dt, std::span<const Contact> blockers,
+                                 const FrictionStep& friction, double mu_k) noexcept;
+  /// force_at_depth() at the depth offset . normal.
   Eigen::Vector3d force(const Eigen::Vector3d& offset, const Eigen::Vector3d& normal, const Eigen::Vector3d& velocity,
                         double dt, std::span<const Contact> blockers, const FrictionStep& friction,
-                        double mu_k) noexcept;
+                        double mu_k) noexcept {
+    return force_at_depth(offset.dot(normal), offset, normal, velocity, dt, blockers, friction, mu_k);
+  }
 
-  /// The proxy is free: the opacity smoothing starts again from 1.
-  void release() noexcept { opacity_ = 1.0; }
+  /// The proxy is free: the opacity smoothing starts again from 1, the energy bound anew.
+  void release() noexcept {
+    opacity_ = 1.0;
+    bound_.release();
+  }
   /// The smoothed opacity factor on k (1 without opacity stiffness).
   [[nodiscard]] double opacity_factor() const noexcept { return opacity_; }
+  /// The depth the energy bound withholds now, m (SpringEnergyBound::withheld; 0 without contact).
+  [[nodiscard]] double withheld() const noexcept { return bound_.withheld(); }
 
  private:
   double k_, b_, f_max_;
   bool opacity_stiffness_;
   double tau_;
+  bool energy_bound_;
   double opacity_ = 1.0;
+  SpringEnergyBound bound_;
 };
 
 }  // namespace gshaptics

@@ -18,7 +18,7 @@ namespace gshaptics {
 struct DeviceProfile {
   std::string name;
   double f_max = 30;        ///< peak force, N (SafetyParams::f_max, every model)
-  double stiffness = 1000;  ///< proxy coupling stiffness k_c, N/m (ProxyParams::stiffness)
+  double stiffness = ProxyParams{}.stiffness;  ///< proxy coupling stiffness k_c, N/m
   /// Workspace extents (width, height, depth), m; zero: no bound (room scale).
   Eigen::Vector3d workspace = Eigen::Vector3d::Zero();
   std::string source;       ///< where the figures come from

@@ -36,10 +36,10 @@ struct DeviceSimOptions {
   SceneOptions scene;
   bool ros2 = false;
   Ros2Options topics;
-  double rate = 1000;
+  double rate = RuntimeConfig{}.rate_hz;
   double duration = 0;
-  int sites = 7;
-  std::uint64_t seed = 1;
+  int sites = ProbeParams{}.sites;
+  std::uint64_t seed = ProbeParams{}.seed;
   double tool_radius = 0;
   double wait = 30;
   std::string out_dir;

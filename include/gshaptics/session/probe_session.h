@@ -7,9 +7,12 @@
 /// the seeded probe trajectory with scene-relative sizes, the diagnosis of a run without contact,
 /// and the figure (tools/plot_probe_run.py).
 
+#include <functional>
 #include <string>
+#include <string_view>
 #include <vector>
 
+#include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/force/force_model.h"
 #include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/servo/haptic_runtime.h"
@@ -21,7 +24,7 @@ namespace gshaptics::session {
 
 /// The force model a command renders with, and the parameters of each model.
 struct ForceModelOptions {
-  std::string model = "proxy";  ///< renderer_spec() name
+  RendererKind model = RendererKind::kProxy;  ///< --force-model (renderer_names())
   ForceParams force;            ///< the paper model's parameters
   ProxyParams proxy;            ///< the proxy's parameters
   double f_max = SafetyParams{}.f_max;  ///< --f-max: the safety layer's limit, N (every model)
@@ -29,6 +32,27 @@ struct ForceModelOptions {
   /// The renderer the options name, with its parameters.
   [[nodiscard]] RendererSpec spec() const;
 };
+
+/// A --tool option, parsed once: the text as given (for summaries) and the tool it names.
+struct ToolOption {
+  std::string spec;   ///< "" : none given (a sphere of the tool radius)
+  CompoundTool tool;  ///< parse_tool_spec(spec); count 0 when none given
+  [[nodiscard]] bool given() const noexcept { return !spec.empty(); }
+  /// Which kind of proxy renders it (a single part at the TCP, or none given: the one-part proxy).
+  [[nodiscard]] ProxyTool proxy_tool() const noexcept {
+    return given() && !tool.is_single_at_tcp() ? ProxyTool::kCompound : ProxyTool::kOnePart;
+  }
+};
+/// Parses a --tool value (parse_tool_spec: sphere:R, ellipsoid:A,B,C, stylus:L,R, disc:R,T or a
+/// JSON file). Throws InputError naming the spec or file.
+[[nodiscard]] ToolOption parse_tool_option(const std::string& spec);
+
+/// Refuses (InputError naming each option, what it serves and why) the options that `given`
+/// says were set but that do not apply: the proxy's options with the paper model and the paper
+/// model's with the proxy, and the proxy's tool-specific options (tool_specific_proxy_fields())
+/// with a tool they do not serve. `given(option)` is true for an option the user set.
+void refuse_options_not_applying(const ForceModelOptions& force, ProxyTool tool,
+                                 const std::function<bool(std::string_view option)>& given);
 
 /// How the servo step runs: inline (query inside the tick) or the decoupled worker, and, on
 /// simulated time, the worker's latency in ticks.
@@ -91,11 +115,11 @@ bool plot_run(const std::string& csv, const std::string& summary, const std::str
 struct SimulateOptions {
   SceneOptions scene;
   std::string out_dir;
-  int sites = 7;
-  std::uint64_t seed = 1;
+  int sites = ProbeParams{}.sites;
+  std::uint64_t seed = ProbeParams{}.seed;
   double tool_radius = 0;  // 0: 1% of the scene's robust extent (or --tool's largest semi-axis)
-  std::string tool;        // a tool spec or JSON file (parse_tool_spec); empty: the sphere
-  double rate = 1000;
+  ToolOption tool;         // --tool (parse_tool_option); none given: the sphere
+  double rate = RuntimeConfig{}.rate_hz;
   ForceModelOptions force;
   ExecutionOptions exec;
   SafetyParams safety;

@@ -41,18 +41,18 @@ class StopSignals {
 struct RuntimeOptions {
   SceneOptions scene;
   std::string device = "sim";
-  double rate = 1000;
+  double rate = RuntimeConfig{}.rate_hz;
   double duration = 0;
   ExecutionOptions exec;
   bool simulated_time = false;  ///< run on simulated time (SimulatedRuntime): sim and replay devices
   double candidate_cache = 0.25;  ///< candidate cache margin, fraction of the tool radius
   int query_threads = 0;          ///< 0: default_query_threads()
-  int sites = 7;
-  std::uint64_t seed = 1;
+  int sites = ProbeParams{}.sites;
+  std::uint64_t seed = ProbeParams{}.seed;
   double tool_radius = 0;
   /// --tool: a compound tool (collision/compound_tool.h: sphere:R, ellipsoid:A,B,C,
-  /// stylus:L,R, disc:R,T or FILE.json); "": a sphere of tool_radius.
-  std::string tool;
+  /// stylus:L,R, disc:R,T or FILE.json), parsed once; none given: a sphere of tool_radius.
+  ToolOption tool;
   ForceModelOptions force;
   SafetyParams safety;
   RealtimeOptions realtime;

@@ -65,8 +65,8 @@ class ProbeTrajectory {
 /// The probe parameters of the main job for a tool of `tool_radius` (> 0): the world's own up,
 /// approach at 2 tool radii per second and travel at 8, the press `press_depth_m` past first
 /// contact (world units; <= 0: one tool radius), the rest ProbeParams' defaults.
-[[nodiscard]] ProbeParams default_probe_params(const CollisionWorld& world, double tool_radius, int sites = 7,
-                                               std::uint64_t seed = 1, double press_depth_m = 0);
+[[nodiscard]] ProbeParams default_probe_params(const CollisionWorld& world, double tool_radius, int sites = ProbeParams{}.sites,
+                                               std::uint64_t seed = ProbeParams{}.seed, double press_depth_m = 0);
 
 /// How far past first contact (m) the simulated hand's target must go for the hand to push with
 /// `force` (N) at rest through a coupling of `coupling_stiffness` (N/m): the hand (a spring of

@@ -1,11 +1,11 @@
-#include "gshaptics/force/floater_test.h"
+#include "gshaptics/force/floater_rule.h"
 
 #include <algorithm>
 #include <span>
 
 namespace gshaptics {
 
-FloaterTest::FloaterTest(const CollisionWorld& world, std::size_t max_cluster)
+FloaterRule::FloaterRule(const CollisionWorld& world, std::size_t max_cluster)
     : world_(&world),
       query_(world,
              [] {
@@ -30,7 +30,7 @@ ToolEllipsoid grown(const CollisionGaussian& g, double grow) noexcept {
 double own_gap(const CollisionGaussian& g, double gap) noexcept { return std::clamp(gap, 0.0, middle_semi_axis(g)); }
 }  // namespace
 
-int FloaterTest::cached(std::uint32_t slot, double gap) noexcept {
+int FloaterRule::cached(std::uint32_t slot, double gap) noexcept {
   if (gap != gap_) {  // another tool size: the cached answers are for another neighbourhood
     state_.fill(0);
     gap_ = gap;
@@ -40,7 +40,7 @@ int FloaterTest::cached(std::uint32_t slot, double gap) noexcept {
   return 0;
 }
 
-bool FloaterTest::isolated(std::uint32_t slot, double gap) noexcept {
+bool FloaterRule::isolated(std::uint32_t slot, double gap) noexcept {
   if (const int known = cached(slot, gap); known != 0) return known == 2;
   const std::span<const CollisionGaussian> gs = world_->gaussians();
   std::array<std::uint32_t, kLargestCluster> members{slot};
@@ -51,7 +51,7 @@ bool FloaterTest::isolated(std::uint32_t slot, double gap) noexcept {
   return alone;
 }
 
-bool FloaterTest::isolated_cluster(double gap, std::array<std::uint32_t, kLargestCluster>& members,
+bool FloaterRule::isolated_cluster(double gap, std::array<std::uint32_t, kLargestCluster>& members,
                                    std::size_t& n) noexcept {
   const std::span<const CollisionGaussian> gs = world_->gaussians();
   const auto member = [&](std::uint32_t s) { return std::find(members.begin(), members.begin() + n, s) != members.begin() + n; };
@@ -83,7 +83,7 @@ bool FloaterTest::isolated_cluster(double gap, std::array<std::uint32_t, kLarges
   return true;
 }
 
-void FloaterTest::remember(std::uint32_t slot, bool alone) noexcept {
+void FloaterRule::remember(std::uint32_t slot, bool alone) noexcept {
   for (std::size_t i = 0; i < kCacheSize; ++i)
     if (state_[i] != 0 && slot_[i] == slot) {
       state_[i] = alone ? 2 : 1;
@@ -94,7 +94,7 @@ void FloaterTest::remember(std::uint32_t slot, bool alone) noexcept {
   next_ = (next_ + 1) % kCacheSize;
 }
 
-bool FloaterTest::Filter::blocks(void* context, std::uint32_t slot) noexcept {
+bool FloaterRule::Filter::blocks(void* context, std::uint32_t slot) noexcept {
   auto* f = static_cast<Filter*>(context);
   const int known = f->test_->cached(slot, f->gap_);
   if (known != 0) return known == 1;
@@ -103,7 +103,7 @@ bool FloaterTest::Filter::blocks(void* context, std::uint32_t slot) noexcept {
   return !f->test_->isolated(slot, f->gap_);
 }
 
-bool FloaterTest::Filter::known_to_pass(void* context, std::uint32_t slot) noexcept {
+bool FloaterRule::Filter::known_to_pass(void* context, std::uint32_t slot) noexcept {
   const auto* f = static_cast<const Filter*>(context);
   return f->test_->cached(slot, f->gap_) == 2;
 }

@@ -15,11 +15,11 @@
 
 namespace gshaptics {
 
-class FloaterTest {
+class FloaterRule {
  public:
   /// `max_cluster`: the largest clump the rule passes (1: single Gaussians only; at most
   /// kLargestCluster).
-  explicit FloaterTest(const CollisionWorld& world, std::size_t max_cluster = kMaxCluster);
+  explicit FloaterRule(const CollisionWorld& world, std::size_t max_cluster = kMaxCluster);
   /// Whether the Gaussian in `slot` is a floater: no other kept Gaussian overlaps its ellipsoid
   /// grown on every semi-axis by `gap` (m) or its middle semi-axis, whichever is smaller; or it
   /// belongs to a small clump in free space: its overlap cluster (the Gaussians so grown that
@@ -43,14 +43,14 @@ class FloaterTest {
   /// `budget` uncached tests ran, every Gaussian not known to be a floater blocks (the safe side).
   class Filter {
    public:
-    Filter(FloaterTest& test, double gap, int budget = kQueriesPerTick) noexcept
+    Filter(FloaterRule& test, double gap, int budget = kQueriesPerTick) noexcept
         : test_(&test), gap_(gap), left_(budget) {}
     /// The BlockFilter to hand to SweepQuery (valid while this Filter lives); it knows the
     /// cached floaters beforehand (BlockFilter::known_to_pass).
     [[nodiscard]] BlockFilter block_filter() noexcept { return {&Filter::blocks, this, &Filter::known_to_pass}; }
 
    private:
-    FloaterTest* test_;
+    FloaterRule* test_;
     double gap_;
     int left_;
     static bool blocks(void* context, std::uint32_t slot) noexcept;
