@@ -3,9 +3,10 @@
 #include <fmt/format.h>
 
 #include <cmath>
-#include <algorithm>
 #include <functional>
 #include <map>
+#include <optional>
+#include <vector>
 #include <thread>
 #include <string>
 
@@ -168,15 +169,19 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
                  "workspace) or room (--f-max 30, --stiffness 1000); explicit options win")
       ->check(CLI::IsMember({"desktop", "room"}));
   cmd.parse_complete_callback([&cmd, &o, tool] {
-    // An option that does not apply to the model or the tool is refused, never ignored.
-    refuse_options_not_applying(o, tool ? tool->proxy_tool() : ProxyTool::kOnePart,
-                                [&cmd, tool](std::string_view option) {
-                                  // (fidelity renders tools of both kinds: its tool options apply to one kind of row)
-                                  const bool tool_specific = std::any_of(
-                                      tool_specific_proxy_fields().begin(), tool_specific_proxy_fields().end(),
-                                      [&](const ProxyToolField& f) { return f.option == option; });
-                                  return (tool || !tool_specific) && cmd.count(std::string(option)) > 0;
-                                });
+    // An option that does not apply to the model or the tool is refused, never ignored. (An
+    // option's model is its help text's "proxy: " or "paper: "; fidelity, without a tool,
+    // renders both kinds of tool.)
+    std::vector<GivenOption> given;
+    for (const CLI::Option* opt : cmd.get_options()) {
+      if (opt->count() == 0 || opt->get_lnames().empty()) continue;
+      const std::string& text = opt->get_description();
+      std::optional<RendererKind> model;
+      for (const RendererName& r : renderer_names())
+        if (text.rfind(std::string(r.name) + ": ", 0) == 0) model = r.kind;
+      given.push_back({"--" + opt->get_lnames().front(), model});
+    }
+    refuse_options_not_applying(o.model, tool ? std::optional(tool->proxy_tool()) : std::nullopt, given);
     if (o.profile.empty()) return;
     apply_device_profile(device_profile(o.profile, "--device-profile"), o.f_max, o.proxy, cmd.count("--f-max") > 0,
                          cmd.count("--stiffness") > 0);

@@ -146,8 +146,8 @@ bool CompoundProxy::turn_toward(const Eigen::Quaterniond& target) noexcept {  //
   const int needed = int(std::ceil(angle / step));
   const int steps = std::min(needed, params_.max_rotation_steps);
   const Eigen::Quaterniond start = q_;
-  FloaterRule::Filter floaters(floaters_, params_.isolation_gap * largest_);
-  const BlockFilter filter = floater_filter(floaters);
+  FloaterRule::Filter floaters = floater_rule();
+  const BlockFilter filter = floaters.block_filter();
   for (int k = 1; k <= steps; ++k) {
     const Eigen::Quaterniond next =
         (Eigen::Quaterniond(Eigen::AngleAxisd(angle * double(k) / double(needed), axis)) * start).normalized();
@@ -175,8 +175,8 @@ int CompoundProxy::translate_toward(const Eigen::Vector3d& goal) noexcept {
   const double eps = ProxySolver::kStandOff * min_axis_;  // (the one-ellipsoid proxy's stand-off, on the thinnest part)
   int lifts = 0;
   WedgedState wedged;  // where it was wedged before its first step-up (proxy_solver.h)
-  FloaterRule::Filter floaters(floaters_, params_.isolation_gap * largest_);
-  const BlockFilter filter = floater_filter(floaters);
+  FloaterRule::Filter floaters = floater_rule();
+  const BlockFilter filter = floaters.block_filter();
   const auto first_of_parts = [&](const Eigen::Vector3d& at, const Eigen::Vector3d& u, std::span<const std::uint32_t> h,
                                   int& part) {
     // All parts in one traversal, one sorted list and one bar (SweepQuery's compound sweep).
@@ -279,8 +279,8 @@ double CompoundProxy::touching_parts(const Eigen::Vector3d& spring, Eigen::Vecto
   // of its lever). A rigid tool resting on a surface along a line (a stylus's side on a wall)
   // thus gets the resultant at the middle of the line, whatever the Gaussians' jitter. Each
   // touching part's contact point is its surface point facing its contact normal (part_normal).
-  FloaterRule::Filter floaters(floaters_, params_.isolation_gap * largest_);
-  const BlockFilter filter = floater_filter(floaters);
+  FloaterRule::Filter floaters = floater_rule();
+  const BlockFilter filter = floaters.block_filter();
   const int count = pose_parts(x_, q_);
   const double band = kContactBand * min_axis_;
   const Eigen::Vector3d probe = -spring * band;

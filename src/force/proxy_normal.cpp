@@ -83,8 +83,8 @@ Eigen::Vector3d ProxyNormal::with_corner_reading(const Eigen::Vector3d& n, const
   const ProxyParams& pp = params_;
   ToolEllipsoid at = tool;
   at.center = p;
-  FloaterRule::Filter filter_state(floaters, pp.isolation_gap * tool.bounding_radius());
-  const BlockFilter filter = pp.pass_isolated ? filter_state.block_filter() : BlockFilter{};
+  FloaterRule::Filter filter_state(floaters, pp.isolation_gap * tool.bounding_radius(), pp.pass_isolated);
+  const BlockFilter filter = filter_state.block_filter();
   // (Where the last reading found a messy patch, the thin axes in more than three directions as
   // on most of a real scene, it is re-read only kCornerSearch radii on: its gather costs about
   // what a shaded reading does, and at the shaded normal's distance burger's probe run

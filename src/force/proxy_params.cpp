@@ -17,48 +17,35 @@ void fail(std::string_view who, const std::string& what) { throw InputError(std:
 
 constexpr ProxyParams kDefaults{};
 
+// A row of the table for the field `Member`: its default is read from kDefaults.
+template <auto Member>
+constexpr ProxyToolField field(std::string_view name, std::string_view option, ProxyTool serves, std::string_view why_not) {
+  return {name, option, serves, [](const ProxyParams& p) { return p.*Member == kDefaults.*Member; },
+          [](ProxyParams& p) { p.*Member = kDefaults.*Member; }, why_not};
+}
+
 // The table of tool-specific fields: one row each, with its option and why the other tool has no use for it.
 const std::array<ProxyToolField, 10> kToolFields{{
-    {"device_shading", "--device-shading", ProxyTool::kOnePart,
-     [](const ProxyParams& p) { return p.device_shading == kDefaults.device_shading; },
-     [](ProxyParams& p) { p.device_shading = kDefaults.device_shading; },
-     "a compound tool's parts read the shaded normal where each touches"},
-    {"corner_normal", "--corner-normal", ProxyTool::kOnePart,
-     [](const ProxyParams& p) { return p.corner_normal == kDefaults.corner_normal; },
-     [](ProxyParams& p) { p.corner_normal = kDefaults.corner_normal; },
-     "a compound tool keeps the shaded normal at corners (its parts read clean edges and faces)"},
-    {"overhang_falloff", "--overhang-falloff", ProxyTool::kOnePart,
-     [](const ProxyParams& p) { return p.overhang_falloff == kDefaults.overhang_falloff; },
-     [](ProxyParams& p) { p.overhang_falloff = kDefaults.overhang_falloff; },
-     "a compound tool's parts read the shaded normal without the overhang falloff"},
-    {"shading_budget", "", ProxyTool::kOnePart,
-     [](const ProxyParams& p) { return p.shading_budget == kDefaults.shading_budget; },
-     [](ProxyParams& p) { p.shading_budget = kDefaults.shading_budget; },
-     "a compound tool's parts read their shaded normals whole"},
-    {"rot_stiffness", "", ProxyTool::kCompound,
-     [](const ProxyParams& p) { return p.rot_stiffness == kDefaults.rot_stiffness; },
-     [](ProxyParams& p) { p.rot_stiffness = kDefaults.rot_stiffness; },
-     "a one-part tool at its centre point is not turned by the proxy"},
-    {"rot_damping", "", ProxyTool::kCompound,
-     [](const ProxyParams& p) { return p.rot_damping == kDefaults.rot_damping; },
-     [](ProxyParams& p) { p.rot_damping = kDefaults.rot_damping; },
-     "a one-part tool at its centre point is not turned by the proxy"},
-    {"rotation_step", "", ProxyTool::kCompound,
-     [](const ProxyParams& p) { return p.rotation_step == kDefaults.rotation_step; },
-     [](ProxyParams& p) { p.rotation_step = kDefaults.rotation_step; },
-     "a one-part tool at its centre point is not turned by the proxy"},
-    {"max_rotation_steps", "", ProxyTool::kCompound,
-     [](const ProxyParams& p) { return p.max_rotation_steps == kDefaults.max_rotation_steps; },
-     [](ProxyParams& p) { p.max_rotation_steps = kDefaults.max_rotation_steps; },
-     "a one-part tool at its centre point is not turned by the proxy"},
-    {"near_lists", "--near-lists", ProxyTool::kCompound,
-     [](const ProxyParams& p) { return p.near_lists == kDefaults.near_lists; },
-     [](ProxyParams& p) { p.near_lists = kDefaults.near_lists; },
-     "the one-ellipsoid proxy's sweeps read the BVH"},
-    {"face_average", "--face-average", ProxyTool::kCompound,
-     [](const ProxyParams& p) { return p.face_average == kDefaults.face_average; },
-     [](ProxyParams& p) { p.face_average = kDefaults.face_average; },
-     "the one-ellipsoid proxy's normal is the shaded field (with its corner normal)"},
+    field<&ProxyParams::device_shading>("device_shading", "--device-shading", ProxyTool::kOnePart,
+                                 "a compound tool's parts read the shaded normal where each touches"),
+    field<&ProxyParams::corner_normal>("corner_normal", "--corner-normal", ProxyTool::kOnePart,
+                                 "a compound tool keeps the shaded normal at corners (its parts read clean edges and faces)"),
+    field<&ProxyParams::overhang_falloff>("overhang_falloff", "--overhang-falloff", ProxyTool::kOnePart,
+                                 "a compound tool's parts read the shaded normal without the overhang falloff"),
+    field<&ProxyParams::shading_budget>("shading_budget", "", ProxyTool::kOnePart,
+                                 "a compound tool's parts read their shaded normals whole"),
+    field<&ProxyParams::rot_stiffness>("rot_stiffness", "", ProxyTool::kCompound,
+                                 "a one-part tool at its centre point is not turned by the proxy"),
+    field<&ProxyParams::rot_damping>("rot_damping", "", ProxyTool::kCompound,
+                                 "a one-part tool at its centre point is not turned by the proxy"),
+    field<&ProxyParams::rotation_step>("rotation_step", "", ProxyTool::kCompound,
+                                 "a one-part tool at its centre point is not turned by the proxy"),
+    field<&ProxyParams::max_rotation_steps>("max_rotation_steps", "", ProxyTool::kCompound,
+                                 "a one-part tool at its centre point is not turned by the proxy"),
+    field<&ProxyParams::near_lists>("near_lists", "--near-lists", ProxyTool::kCompound,
+                                 "the one-ellipsoid proxy's sweeps read the BVH"),
+    field<&ProxyParams::face_average>("face_average", "--face-average", ProxyTool::kCompound,
+                                 "the one-ellipsoid proxy's normal is the shaded field (with its corner normal)"),
 }};
 
 }  // namespace

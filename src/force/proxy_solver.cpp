@@ -134,9 +134,8 @@ ProxyMove ProxySolver::move_toward(const ToolEllipsoid& tool, const Eigen::Vecto
   // Floaters do not block: the sweep asks, in its one pass, whether a Gaussian it reaches first
   // is one (FloaterRule, cached per slot). At most FloaterRule::kQueriesPerTick uncached answers
   // a tick; past that a Gaussian blocks (the safe side).
-  FloaterRule::Filter floaters(floaters_, params_.isolation_gap * r);
-  BlockFilter filter;
-  if (params_.pass_isolated) filter = floaters.block_filter();
+  FloaterRule::Filter floaters(floaters_, params_.isolation_gap * r, params_.pass_isolated);
+  const BlockFilter filter = floaters.block_filter();
   for (int s = 0; s < params_.substeps && !hold; ++s) {
     const Eigen::Vector3d target = closest_feasible_point(goal, {planes, std::size_t(np)});
     const Eigen::Vector3d u = target - p;

@@ -51,34 +51,26 @@ ToolOption parse_tool_option(const std::string& spec) {
   return t;
 }
 
-namespace {
-// The options only one force model reads.
-constexpr std::string_view kPaperOnly[] = {"--k-base", "--damping", "--tau-normal", "--tau-opacity"};
-constexpr std::string_view kProxyOnly[] = {"--stiffness", "--coupling-damping", "--mu-s", "--mu-k",
-                                           "--opacity-stiffness", "--substeps", "--energy-bound",
-                                           "--device-shading", "--corner-normal", "--overhang-falloff",
-                                           "--near-lists", "--face-average", "--isolation-gap",
-                                           "--floater-cluster"};
-}  // namespace
-
-void refuse_options_not_applying(const ForceModelOptions& force, ProxyTool tool,
-                                 const std::function<bool(std::string_view option)>& given) {
+void refuse_options_not_applying(RendererKind model, std::optional<ProxyTool> tool,
+                                 std::span<const GivenOption> given) {
   std::string refused;
   const auto refuse = [&](std::string_view option, const std::string& why) {
     refused += fmt::format("{}{} {}", refused.empty() ? "" : "; ", option, why);
   };
-  const bool paper = force.model == RendererKind::kPaper;
-  for (std::string_view option : paper ? std::span<const std::string_view>(kProxyOnly) : kPaperOnly)
-    if (given(option))
-      refuse(option, fmt::format("applies to the {} model only (--force-model is {})", paper ? "proxy" : "paper",
-                                 renderer_name(force.model)));
-  if (!paper)
+  for (const GivenOption& g : given) {
+    if (g.model && *g.model != model) {
+      refuse(g.name, fmt::format("applies to the {} model only (--force-model is {})", renderer_name(*g.model),
+                                 renderer_name(model)));
+      continue;
+    }
+    if (!tool || model != RendererKind::kProxy) continue;
     for (const ProxyToolField& f : tool_specific_proxy_fields())
-      if (!f.option.empty() && f.serves != tool && given(f.option))
-        refuse(f.option, fmt::format("serves {} only: {}", f.serves == ProxyTool::kCompound ? "a tool with a shape "
-                                                                                              "(--tool stylus:..., disc:...)"
-                                                                                            : "a one-part tool",
-                                     f.why_not));
+      if (f.option == g.name && f.serves != *tool)
+        refuse(g.name, fmt::format("serves {} only: {}",
+                                   f.serves == ProxyTool::kCompound ? "a tool with a shape (--tool stylus:..., disc:...)"
+                                                                    : "a one-part tool",
+                                   f.why_not));
+  }
   if (!refused.empty()) throw InputError("options that do not apply: " + refused);
 }
 

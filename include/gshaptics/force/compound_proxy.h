@@ -179,9 +179,9 @@ class CompoundProxy {
   bool turn_toward(const Eigen::Quaterniond& target) noexcept;  // true: a contact stopped the turn
   int translate_toward(const Eigen::Vector3d& goal) noexcept;  // the constraint planes holding it
   void release() noexcept;  // out of contact: friction and the contact normal forgotten
-  // The floater rule's filter for this tick's sweeps (empty when pass_isolated is off).
-  BlockFilter floater_filter(FloaterRule::Filter& state) noexcept {
-    return params_.pass_isolated ? state.block_filter() : BlockFilter{};
+  // The floater rule's state for one tick's sweeps (FloaterRule::Filter, off with pass_isolated).
+  [[nodiscard]] FloaterRule::Filter floater_rule() noexcept {
+    return FloaterRule::Filter(floaters_, params_.isolation_gap * largest_, params_.pass_isolated);
   }
   // The sum of the touching parts' shaded contact normals and of their contact points' moments
   // about the proxy's TCP, each weighted (the contact band, the hidden ramp), for the spring

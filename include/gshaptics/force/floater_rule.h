@@ -41,18 +41,22 @@ class FloaterRule {
 
   /// A SweepQuery BlockFilter for one tick: a Gaussian blocks unless it is a floater; once
   /// `budget` uncached tests ran, every Gaussian not known to be a floater blocks (the safe side).
+  /// With `pass_floaters` false (ProxyParams::pass_isolated off) every Gaussian blocks.
   class Filter {
    public:
-    Filter(FloaterRule& test, double gap, int budget = kQueriesPerTick) noexcept
-        : test_(&test), gap_(gap), left_(budget) {}
+    Filter(FloaterRule& test, double gap, bool pass_floaters = true, int budget = kQueriesPerTick) noexcept
+        : test_(&test), gap_(gap), left_(budget), on_(pass_floaters) {}
     /// The BlockFilter to hand to SweepQuery (valid while this Filter lives); it knows the
-    /// cached floaters beforehand (BlockFilter::known_to_pass).
-    [[nodiscard]] BlockFilter block_filter() noexcept { return {&Filter::blocks, this, &Filter::known_to_pass}; }
+    /// cached floaters beforehand (BlockFilter::known_to_pass). Empty (everything blocks) when off.
+    [[nodiscard]] BlockFilter block_filter() noexcept {
+      return on_ ? BlockFilter{&Filter::blocks, this, &Filter::known_to_pass} : BlockFilter{};
+    }
 
    private:
     FloaterRule* test_;
     double gap_;
     int left_;
+    bool on_;
     static bool blocks(void* context, std::uint32_t slot) noexcept;
     static bool known_to_pass(void* context, std::uint32_t slot) noexcept;
   };

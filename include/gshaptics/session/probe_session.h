@@ -7,7 +7,8 @@
 /// the seeded probe trajectory with scene-relative sizes, the diagnosis of a run without contact,
 /// and the figure (tools/plot_probe_run.py).
 
-#include <functional>
+#include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -47,12 +48,17 @@ struct ToolOption {
 /// JSON file). Throws InputError naming the spec or file.
 [[nodiscard]] ToolOption parse_tool_option(const std::string& spec);
 
-/// Refuses (InputError naming each option, what it serves and why) the options that `given`
-/// says were set but that do not apply: the proxy's options with the paper model and the paper
-/// model's with the proxy, and the proxy's tool-specific options (tool_specific_proxy_fields())
-/// with a tool they do not serve. `given(option)` is true for an option the user set.
-void refuse_options_not_applying(const ForceModelOptions& force, ProxyTool tool,
-                                 const std::function<bool(std::string_view option)>& given);
+/// An option the user set, and the force model it belongs to (none: every model's).
+struct GivenOption {
+  std::string name;  ///< as on the command line, "--stiffness"
+  std::optional<RendererKind> model;
+};
+/// Refuses (InputError naming each option, what it serves and why) the `given` options that do
+/// not apply: another model's options than `model`'s, and the proxy's tool-specific options
+/// (tool_specific_proxy_fields()) with a `tool` they do not serve (no `tool`: a command that
+/// renders both kinds, whose tool-specific options apply to one kind of its runs).
+void refuse_options_not_applying(RendererKind model, std::optional<ProxyTool> tool,
+                                 std::span<const GivenOption> given);
 
 /// How the servo step runs: inline (query inside the tick) or the decoupled worker, and, on
 /// simulated time, the worker's latency in ticks.
