@@ -14,6 +14,10 @@ done
 for d in ros1 ros2; do
   [ ! -e "$work/prefix/include/gshaptics/$d" ] || { echo "FAIL: $d headers installed without their library"; exit 1; }
 done
+# Every script a command runs (find_tool_script in the sources) is in the prefix's share folder.
+for script in $(grep -rhoE 'find_tool_script\("[A-Za-z0-9_.-]+"\)' "$src/src" "$src/apps" | sed -E 's/.*\("(.*)"\)/\1/' | sort -u); do
+  [ -f "$work/prefix/share/gshaptics/$script" ] || { echo "FAIL: $script, which a command runs, is not installed"; exit 1; }
+done
 cmake -S "$src/examples" -B "$work/build" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release > "$work/configure.log"
 cmake --build "$work/build" -j2 > "$work/build.log"
 "$work/build/gshaptics_embed" "$src/data"

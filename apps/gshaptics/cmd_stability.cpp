@@ -2,28 +2,16 @@
 // oscillating, swept over control scheme, servo rate, round-trip delay and passivity (a thin CLI
 // over fidelity/stability.h).
 
-#include <fmt/format.h>
-
-#include <filesystem>
 #include <memory>
 
 #include "commands.h"
 #include "options.h"
-#include "gshaptics/fidelity/stability.h"
+#include "gshaptics/session/report_session.h"
 
 namespace gshaptics::cli {
 
 void register_stability(CLI::App& app) {
-  struct Options {
-    bool quick = false, no_plot = false;
-    std::string out = "bench/STABILITY.md";
-    std::string data_dir;
-    std::string control = "both";
-    std::vector<std::string> shapes;
-    std::vector<double> stiffnesses, delays_ms, rates;
-    StabilityOptions sweep;
-  };
-  auto o = std::make_shared<Options>();
+  auto o = std::make_shared<StabilityCommandOptions>();
   CLI::App* cmd = app.add_subcommand(
       "stability",
       "Find the stiffest wall each device holds still: a simulated impedance device (0.2 kg, "
@@ -55,51 +43,7 @@ void register_stability(CLI::App& app) {
   cmd->add_option("--passivity-max-damping", o->sweep.passivity.max_damping,
                   "Cap on the passivity controller's damping when on, N s/m")
       ->capture_default_str()->check(check::non_negative());
-  cmd->callback([o] {
-    StabilityOptions so = o->quick ? quick_stability_options() : StabilityOptions{};
-    const StabilityOptions& given = o->sweep;
-    so.push = given.push;
-    if (!o->quick || given.trial.duration != StabilityOptions{}.trial.duration) so.trial.duration = given.trial.duration;
-    so.impedance_device.mass = given.impedance_device.mass;
-    so.impedance_device.damping = given.impedance_device.damping;
-    so.passivity.max_damping = given.passivity.max_damping;
-    if (!o->shapes.empty()) {
-      so.shapes.clear();
-      for (const std::string& s : o->shapes) so.shapes.push_back(parse_shape(s, "stability"));
-    }
-    if (!o->stiffnesses.empty()) so.stiffnesses = o->stiffnesses;
-    if (!o->delays_ms.empty()) {
-      so.delays.clear();
-      for (double d : o->delays_ms) so.delays.push_back(d * 1e-3);
-    }
-    if (!o->rates.empty()) so.rates = o->rates;
-    if (o->control == "impedance") so.controls = {ControlMode::kImpedance};
-    if (o->control == "admittance") so.controls = {ControlMode::kAdmittance};
-    const std::filesystem::path out(o->out);
-    if (out.extension() != ".md") throw InputError("stability: --out " + o->out + ": expected a .md file");
-    const std::filesystem::path parent = out.parent_path().empty() ? std::filesystem::path(".") : out.parent_path();
-    const std::string data_dir = o->data_dir.empty() ? (parent / "stability").string() : o->data_dir;
-    const StabilityReport rep = run_stability(so, [](const std::string& line) { fmt::print(stderr, "stability  {}\n", line); });
-    std::filesystem::create_directories(data_dir);
-    const std::string csv = (std::filesystem::path(data_dir) / "stability_trials.csv").string();
-    write_stability_csv(rep, csv);
-    std::string figure;
-    if (!o->no_plot) {
-      const std::string png = (std::filesystem::path(data_dir) / "stability.png").string();
-      if (run_python(find_tool_script("plot_stability.py"), {csv, png}, "stability"))
-        figure = std::filesystem::relative(png, parent).string();
-    }
-    const std::string command = "gshaptics stability" + std::string(o->quick ? " --quick" : "") +
-                                (o->control != "both" ? " --control " + o->control : std::string());
-    write_stability_markdown(rep, o->out, command, figure);
-    for (const StabilityRow& r : rep.rows)
-      fmt::print("{:<9} {:<10} {:>5g} Hz {:>4g} ms  passivity {:<3}  largest stable {}{:g} N/m{}\n", r.shape,
-                 control_mode_name(r.control), r.rate_hz, r.delay * 1e3, r.passivity ? "on" : "off",
-                 r.all_stable ? ">= " : "", r.largest_stable,
-                 r.predicted > 0 ? fmt::format(" (predicted {:.0f})", r.predicted) : std::string());
-    fmt::print("stability  {} trials, {} ticks in {:.1f} s; report {}; trials {}\n", rep.trials.size(), rep.ticks,
-               rep.seconds, o->out, csv);
-  });
+  cmd->callback([o] { run_stability_command(*o); });
 }
 
 }  // namespace gshaptics::cli

@@ -10,6 +10,18 @@
 #include "commands.h"
 #include "gshaptics/error.h"
 
+namespace gshaptics::cli {
+namespace {
+int g_exit_code = 0;
+}
+std::vector<std::string>& ros_arguments() {
+  static std::vector<std::string> args;
+  return args;
+}
+int exit_code() { return g_exit_code; }
+void set_exit_code(int code) { g_exit_code = code; }
+}  // namespace gshaptics::cli
+
 int main(int argc, char** argv) {
   CLI::App app{
       "gshaptics: direct haptic rendering of 3D Gaussian Splatting scenes.\n"

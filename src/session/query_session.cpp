@@ -3,10 +3,16 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <vector>
 
 #include "gshaptics/error.h"
+#include "gshaptics/session/probe_session.h"
 #include "gshaptics/sim/pose_sampler.h"
 
 namespace gshaptics::session {
@@ -66,6 +72,60 @@ ContactChange compare_contacts(const CollisionWorld& a, const CollisionWorld& b,
     if (ia != ib) ++c.changed;
   }
   return c;
+}
+
+void run_query_command(const QueryCommandOptions& o) {
+  if (o.poses.empty() && (o.center.empty() || o.axes.empty()))
+    throw InputError("query: give --tool-center and --tool-axes, or --poses FILE");
+  if (!o.poses.empty() && !o.center.empty())
+    throw InputError("query: --poses and --tool-center are exclusive");
+  if (!o.poses.empty() && std::filesystem::is_directory(o.poses))
+    throw InputError(o.poses + ": is a folder, expected a pose file");
+  if (!o.poses.empty() && !std::filesystem::exists(o.poses))
+    throw InputError(o.poses + ": no such pose file");
+  // stdout is the JSON; what the load did goes to stderr.
+  const PreparedWorld pw = prepare_world(o.scene, false, stderr);
+  const CollisionWorld& world = pw.world;
+  QueryOptions qo;
+  if (o.minimiser == "golden") {
+    qo.narrow_phase.minimiser = Minimiser::kGoldenSection;
+    qo.narrow_phase.golden_iterations = o.golden_iterations;
+  }
+  ContactQuery query(world, qo);
+  if (o.poses.empty()) {
+    const ToolEllipsoid tool =
+        make_tool(parse_vec3(o.center, "--tool-center"), parse_vec3(o.axes, "--tool-axes"),
+                  parse_vec4(o.rotation, "--tool-rotation"), "query");
+    std::printf("%s\n", query_answer_json(query, tool).c_str());
+    return;
+  }
+  std::ifstream in(o.poses);
+  if (!in) throw InputError(o.poses + ": cannot open pose file");
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    for (const std::string& m : frame_mismatches(line, o.scene))
+      std::fprintf(stderr, "gshaptics: warning: %s: the poses are in another world frame: %s\n",
+                   o.poses.c_str(), m.c_str());
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.erase(hash);
+    std::istringstream ls(line);
+    std::vector<double> v;
+    double x;
+    while (ls >> x) v.push_back(x);
+    if (!ls.eof()) throw InputError(o.poses + ": line " + std::to_string(line_no) + ": not a number");
+    if (v.empty()) continue;
+    const std::string where = o.poses + ": line " + std::to_string(line_no);
+    if (v.size() != 10)
+      throw InputError(where + ": expected 10 numbers (cx cy cz ax ay az qw qx qy qz), got " +
+                       std::to_string(v.size()));
+    for (double y : v)
+      if (!std::isfinite(y)) throw InputError(where + ": values must be finite");
+    const ToolEllipsoid tool = make_tool({v[0], v[1], v[2]}, {v[3], v[4], v[5]},
+                                         {v[6], v[7], v[8], v[9]}, where);
+    std::printf("%s\n", query_answer_json(query, tool).c_str());
+  }
 }
 
 }  // namespace gshaptics::session

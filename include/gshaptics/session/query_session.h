@@ -7,6 +7,7 @@
 #include <string>
 
 #include "gshaptics/collision/contact_query.h"
+#include "gshaptics/session/world_session.h"
 
 namespace gshaptics::session {
 
@@ -28,5 +29,20 @@ struct ContactChange {
 };
 [[nodiscard]] ContactChange compare_contacts(const CollisionWorld& a, const CollisionWorld& b, std::size_t poses = 200,
                                              std::uint64_t seed = 1);
+
+/// `gshaptics query`: the options as on the command line.
+struct QueryCommandOptions {
+  SceneOptions scene;
+  std::string center, axes, rotation = "1,0,0,0";  ///< "X,Y,Z", "A,B,C", "W,X,Y,Z" (world frame)
+  std::string poses;                                ///< a pose file (one query per line) instead
+  std::string minimiser = "newton";                 ///< K_min search: newton or golden (the paper's)
+  int golden_iterations = 30;
+};
+
+/// The query command: loads the world (reporting on stderr), then prints one query_answer_json()
+/// line for the tool, or one per pose of the pose file (cx cy cz ax ay az qw qx qy qz, '#'
+/// comments; a pose line in another world frame is warned about). Throws InputError naming the
+/// option, the file and line for bad input.
+void run_query_command(const QueryCommandOptions& o);
 
 }  // namespace gshaptics::session

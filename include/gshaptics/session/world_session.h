@@ -104,6 +104,11 @@ std::vector<std::string> frame_mismatches(const std::string& line, const SceneOp
 /// Loads a scene with a progress bar on stderr for files over a few MB.
 LoadedScene load_with_progress(const std::string& path, bool quiet = false, bool keep_color = false);
 
+/// `gshaptics info`: loads `so.scene` and prints its format, counts, load report, bounds,
+/// opacity and scale percentiles and the filter's reduction, then the world that --up and the
+/// registration make of it and the suggested --up, --reg-scale and tool radius. Throws InputError.
+void run_info_command(const SceneOptions& so, bool quiet);
+
 /// "X,Y,Z" -> vector; throws InputError naming the option.
 Eigen::Vector3d parse_vec3(const std::string& text, const std::string& option);
 Eigen::Vector4d parse_vec4(const std::string& text, const std::string& option);

@@ -1,0 +1,184 @@
+#include "gshaptics/session/report_session.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <pthread.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstring>
+#include <filesystem>
+#include <thread>
+
+#include "gshaptics/collision/compound_tool.h"
+#include "gshaptics/error.h"
+#include "gshaptics/servo/interruptions.h"
+#include "gshaptics/servo/realtime_thread.h"
+
+namespace gshaptics::session {
+
+namespace {
+
+// `out` must be a Markdown file; its folder, "." when it has none.
+std::filesystem::path report_folder(const std::string& out, const std::string& command) {
+  const std::filesystem::path path(out);
+  if (path.extension() != ".md") throw InputError(command + ": --out " + out + ": expected a .md file");
+  return path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
+}
+
+}  // namespace
+
+FidelityOptions fidelity_options_from(const FidelityCommandOptions& o) {
+  FidelityOptions fo = o.quick ? quick_fidelity_options() : FidelityOptions{};
+  fo.renderer = o.force.spec();
+  fo.play.safety.f_max = o.force.f_max;
+  fo.play.safety.passivity = o.passivity;
+  fo.seed = o.seed;
+  fo.synth = o.synth;
+  if (!o.shapes.empty()) {
+    fo.shapes.clear();
+    for (const std::string& name : o.shapes) fo.shapes.push_back(parse_shape(name, "--shape"));
+  }
+  if (!o.spacings_mm.empty()) {
+    fo.spacings.clear();
+    for (double mm : o.spacings_mm) fo.spacings.push_back(mm * 1e-3);
+  }
+  if (o.wrench_sites == 0) fo.wrench = false;
+  if (o.wrench_sites > 0) fo.wrench_sites = o.wrench_sites;
+  fo.wrench_tools.stylus = parse_tool_spec(o.stylus);
+  fo.wrench_tools.disc = parse_tool_spec(o.disc);
+  fo.play.inline_query = o.exec.inline_query;
+  fo.play.latency_ticks = o.exec.latency_ticks;
+  fo.scene_dir = o.scene_dir;
+  return fo;
+}
+
+std::string fidelity_command_line(const FidelityCommandOptions& o) {
+  std::string command = "gshaptics fidelity --force-model " + std::string(renderer_name(o.force.model));
+  if (o.quick) command += " --quick";
+  if (o.exec.inline_query != RuntimeConfig{}.inline_query) command += o.exec.inline_query ? " --inline" : " --decoupled";
+  if (o.exec.latency_ticks != 1) command += fmt::format(" --latency {}", o.exec.latency_ticks);
+  if (!o.shapes.empty()) command += fmt::format(" --shape {}", fmt::join(o.shapes, ","));
+  if (!o.spacings_mm.empty()) command += fmt::format(" --spacing {}", fmt::join(o.spacings_mm, ","));
+  if (o.wrench_sites >= 0) command += fmt::format(" --wrench-sites {}", o.wrench_sites);
+  if (o.synth.floater_share != SynthParams{}.floater_share)
+    command += fmt::format(" --floater-share {:g}", o.synth.floater_share);
+  return command;
+}
+
+void run_fidelity_command(const FidelityCommandOptions& o) {
+  const FidelityOptions fo = fidelity_options_from(o);
+  const std::filesystem::path folder = report_folder(o.out, "fidelity");
+  // (Beside the report; "fidelity" itself when the report has no folder.)
+  const std::string data_dir =
+      o.data_dir.empty() ? (std::filesystem::path(o.out).parent_path() / "fidelity").string() : o.data_dir;
+  std::filesystem::create_directories(folder);
+  const FidelityReport rep = run_fidelity(fo, [](const std::string& line) { fmt::print(stderr, "fidelity   {}\n", line); });
+  write_fidelity_data(rep, data_dir);
+  std::string prefix;
+  if (!o.no_plot) {
+    const std::string model(renderer_name(o.force.model));
+    if (run_python(find_tool_script("plot_fidelity.py"), {data_dir, data_dir, model}, "fidelity"))
+      prefix = std::filesystem::relative(data_dir, folder).string() + "/fidelity_";
+  }
+  write_fidelity_markdown(rep, o.out, fidelity_command_line(o), prefix);
+  fmt::print("fidelity   {} ticks in {:.0f} s; report {}; curves in {}\n", rep.ticks, rep.seconds, o.out, data_dir);
+}
+
+StabilityOptions stability_options_from(const StabilityCommandOptions& o) {
+  StabilityOptions so = o.quick ? quick_stability_options() : StabilityOptions{};
+  const StabilityOptions& given = o.sweep;
+  so.push = given.push;
+  if (!o.quick || given.trial.duration != StabilityOptions{}.trial.duration) so.trial.duration = given.trial.duration;
+  so.impedance_device.mass = given.impedance_device.mass;
+  so.impedance_device.damping = given.impedance_device.damping;
+  so.passivity.max_damping = given.passivity.max_damping;
+  if (!o.shapes.empty()) {
+    so.shapes.clear();
+    for (const std::string& s : o.shapes) so.shapes.push_back(parse_shape(s, "stability"));
+  }
+  if (!o.stiffnesses.empty()) so.stiffnesses = o.stiffnesses;
+  if (!o.delays_ms.empty()) {
+    so.delays.clear();
+    for (double d : o.delays_ms) so.delays.push_back(d * 1e-3);
+  }
+  if (!o.rates.empty()) so.rates = o.rates;
+  if (o.control == "impedance") so.controls = {ControlMode::kImpedance};
+  if (o.control == "admittance") so.controls = {ControlMode::kAdmittance};
+  return so;
+}
+
+void run_stability_command(const StabilityCommandOptions& o) {
+  const StabilityOptions so = stability_options_from(o);
+  const std::filesystem::path folder = report_folder(o.out, "stability");
+  const std::string data_dir = o.data_dir.empty() ? (folder / "stability").string() : o.data_dir;
+  const StabilityReport rep = run_stability(so, [](const std::string& line) { fmt::print(stderr, "stability  {}\n", line); });
+  std::filesystem::create_directories(data_dir);
+  const std::string csv = (std::filesystem::path(data_dir) / "stability_trials.csv").string();
+  write_stability_csv(rep, csv);
+  std::string figure;
+  if (!o.no_plot) {
+    const std::string png = (std::filesystem::path(data_dir) / "stability.png").string();
+    if (run_python(find_tool_script("plot_stability.py"), {csv, png}, "stability"))
+      figure = std::filesystem::relative(png, folder).string();
+  }
+  const std::string command = "gshaptics stability" + std::string(o.quick ? " --quick" : "") +
+                              (o.control != "both" ? " --control " + o.control : std::string());
+  write_stability_markdown(rep, o.out, command, figure);
+  for (const StabilityRow& r : rep.rows)
+    fmt::print("{:<9} {:<10} {:>5g} Hz {:>4g} ms  passivity {:<3}  largest stable {}{:g} N/m{}\n", r.shape,
+               control_mode_name(r.control), r.rate_hz, r.delay * 1e3, r.passivity ? "on" : "off",
+               r.all_stable ? ">= " : "", r.largest_stable,
+               r.predicted > 0 ? fmt::format(" (predicted {:.0f})", r.predicted) : std::string());
+  fmt::print("stability  {} trials, {} ticks in {:.1f} s; report {}; trials {}\n", rep.trials.size(), rep.ticks,
+             rep.seconds, o.out, csv);
+}
+
+void run_latency_command(const LatencyCommandOptions& o) {
+  const long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+  const int cpu = o.cpu >= 0 ? o.cpu : int(std::max(1L, ncpu) - 1);
+  if (ncpu > 0 && cpu >= ncpu)
+    throw InputError(fmt::format("--cpu {}: this machine has CPUs 0-{}", cpu, ncpu - 1));
+  std::string warning;
+  InterruptionProfile p;
+  std::thread t([&] {
+    if (int e = pin_thread_to_cpu(pthread_self(), cpu); e != 0)
+      warning += fmt::format("pinning to CPU {} refused: {}; ", cpu, std::strerror(e));
+    if (o.priority > 0) {
+      if (int e = set_fifo_priority(pthread_self(), o.priority); e != 0)
+        warning += fmt::format("SCHED_FIFO {} refused: {} (grant CAP_SYS_NICE or an rtprio limit); ",
+                               o.priority, std::strerror(e));
+    }
+    p = measure_interruptions(MonotonicClock::instance(), o.seconds, o.threshold_us);
+  });
+  t.join();
+  if (!warning.empty()) fmt::print(stderr, "warning: {}measured anyway\n", warning);
+  const double tick_hit = p.hit_probability(1000.0);
+  if (o.json) {
+    fmt::print(
+        "{{\"cpu\": {}, \"priority\": {}, \"seconds\": {:.6f}, \"threshold_us\": {}, \"count\": {}, "
+        "\"per_second\": {:.1f}, \"median_us\": {:.2f}, \"p99_us\": {:.2f}, \"max_us\": {:.2f}, "
+        "\"lost_fraction\": {:.5f}, \"hit_probability_10us\": {:.5f}, \"hit_probability_50us\": {:.5f}, "
+        "\"hit_probability_1ms\": {:.5f}}}\n",
+        cpu, o.priority, p.seconds, p.threshold_us, p.count, p.per_second, p.median_us, p.p99_us, p.max_us,
+        p.lost_fraction, p.hit_probability(10), p.hit_probability(50), tick_hit);
+    return;
+  }
+  fmt::print("CPU {} ({}), {:.2f} s spinning on the clock, gaps over {:g} us:\n", cpu,
+             o.priority > 0 ? fmt::format("SCHED_FIFO {}", o.priority) : std::string("normal scheduling"),
+             p.seconds, p.threshold_us);
+  if (p.count == 0) {
+    fmt::print("  none: this CPU ran the thread without a break\n");
+    return;
+  }
+  fmt::print("  {} gaps, {:.0f} per second; median {:.1f} us, p99 {:.1f} us, max {:.1f} us; {:.2f} % of the time lost\n",
+             p.count, p.per_second, p.median_us, p.p99_us, p.max_us, 100 * p.lost_fraction);
+  fmt::print("  a computation of 10 us is hit with probability {:.2f} %, one of 50 us {:.2f} %: a latency\n"
+             "  percentile rarer than that includes a gap (for `gshaptics_bench`, compare its \"median of passes\")\n",
+             100 * p.hit_probability(10), 100 * p.hit_probability(50));
+  fmt::print("  a 1 kHz servo tick is hit {:.1f} % of the time; the longest gap is {:.0f} % of its 1 ms budget\n",
+             100 * tick_hit, p.max_us / 10.0);
+}
+
+}  // namespace gshaptics::session
