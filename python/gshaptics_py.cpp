@@ -11,6 +11,7 @@
 #include <array>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,7 @@
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/servo/device_profile.h"
 #include "gshaptics/sim/pose_sampler.h"
+#include "gshaptics/session/probe_session.h"
 
 namespace py = pybind11;
 using namespace gshaptics;
@@ -318,29 +320,29 @@ PYBIND11_MODULE(gshaptics, m) {
       .def("run_probe", [](const PyWorld& w, int sites, std::uint64_t seed, const py::object& tool_radius_obj,
                            const py::object& up, double rate_hz, const std::string& force_model,
                            const py::object& device_profile_obj) {
-             // The CLI's defaults: 1 % of the robust extent, the world's own up.
-             const double tool_radius = tool_radius_obj.is_none() ? default_tool_radius(*w.world)
-                                                                  : tool_radius_obj.cast<double>();
-             if (!std::isfinite(tool_radius) || !(tool_radius > 0))
-               throw py::value_error("tool_radius: must be a finite number > 0");
-             ProbeParams pp = default_probe_params(*w.world, tool_radius, sites, seed);
-             if (!up.is_none()) pp.up = vec3(up, "up");
-             ProbeRunParams rp;
-             rp.rate_hz = rate_hz;
-             ProxyParams proxy;
-             if (!device_profile_obj.is_none()) {
+             // The session's probe run of `gshaptics simulate`, with its defaults (SimulateOptions):
+             // 1 % of the robust extent, the world's own up, the press to half the force limit.
+             session::SimulateOptions so;
+             so.sites = sites;
+             so.seed = seed;
+             so.rate = rate_hz;
+             if (!tool_radius_obj.is_none()) {
+               so.tool_radius = tool_radius_obj.cast<double>();
+               if (!std::isfinite(so.tool_radius) || !(so.tool_radius > 0))
+                 throw py::value_error("tool_radius: must be a finite number > 0");
+             }
+             so.force.model = renderer_kind(force_model);
+             if (!device_profile_obj.is_none())
                apply_device_profile(device_profile(device_profile_obj.cast<std::string>(), "device_profile"),
-                                    rp.safety.f_max, proxy);
-             }
-             rp.renderer = renderer_spec(renderer_kind(force_model), proxy);
-             ProbeRunResult run;
-             std::vector<ProbeSite> site_list;
-             {
+                                    so.force.f_max, so.force.proxy);
+             std::optional<Eigen::Vector3d> up_axis;
+             if (!up.is_none()) up_axis = vec3(up, "up");
+             const session::ProbeSessionResult probe = [&] {
                py::gil_scoped_release release;
-               const ProbeTrajectory traj = generate_probe_trajectory(*w.world, pp);
-               site_list = traj.sites();
-               run = run_probe(*w.world, traj, rp);
-             }
+               return session::simulate_probe(*w.world, so, /*scaled=*/true, nullptr, up_axis);
+             }();
+             const ProbeRunResult& run = probe.run;
+             const std::vector<ProbeSite>& site_list = probe.trajectory.sites();
              const std::size_t n = run.ticks.size();
              std::vector<double> time(n), query_us(n);
              std::vector<std::uint32_t> cand(n), pre(n), cont(n);

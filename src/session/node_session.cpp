@@ -168,7 +168,7 @@ int run_device_sim(DeviceSimOptions o) {
   const SceneOptions so = with_bundled_defaults(o.scene, "device-sim");
   const std::string out_dir = prepare_out_dir(o.out_dir, so.scene, {"device_log.csv", "device_summary.json"});
   const PreparedWorld pw = prepare_world(so, o.quiet);
-  ProbeTrajectory traj = make_probe_trajectory(pw, is_scaled(so), o.sites, o.seed, o.tool_radius, ForceModelOptions{});
+  ProbeTrajectory traj = make_probe_trajectory(pw.world, is_scaled(so), o.sites, o.seed, o.tool_radius, ForceModelOptions{});
   const double duration = o.duration > 0 ? o.duration : traj.duration() + 0.5;
   SimulatedDevice device(std::move(traj));
   Ros2DeviceLink link(o.topics);

@@ -159,33 +159,36 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
   return {std::move(s), cfg, br, std::move(world)};
 }
 
-ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool scaled, int sites, std::uint64_t seed,
-                                      double tool_radius, const ForceModelOptions& force) {
+ProbeTrajectory make_probe_trajectory(const CollisionWorld& world, bool scaled, int sites, std::uint64_t seed,
+                                      double tool_radius, const ForceModelOptions& force, std::FILE* report,
+                                      const std::optional<Eigen::Vector3d>& up) {
   // The world's up from the actual transform: the file's convention carried through --up and the
   // registration (a --reg-scale alone rotates nothing, so it changes nothing here).
-  const double extent = robust_extent(w.world);
+  const double extent = robust_extent(world);
   // Press to half the force limit through the proxy's coupling in series with the simulated hand.
   // At most kMaxPressRadii tool radii deep: a deeper target drives the proxy into the holes of
   // sparse scenes (fruitdrops' 1-sigma ellipsoids leave gaps) and is no longer a press.
   constexpr double kMaxPressRadii = 3.0;
-  const double radius = tool_radius > 0 ? tool_radius : default_tool_radius(w.world);
+  const double radius = tool_radius > 0 ? tool_radius : default_tool_radius(world);
   const double hand_k = UserHandParams{}.stiffness;
   const double depth =
       std::min(press_depth_for_force(0.5 * force.f_max, force.proxy.stiffness, hand_k), kMaxPressRadii * radius);
   const double press_force = depth / press_depth_for_force(1.0, force.proxy.stiffness, hand_k);
-  const ProbeParams pp = default_probe_params(w.world, radius, sites, seed, depth);
+  ProbeParams pp = default_probe_params(world, radius, sites, seed, depth);
+  if (up) pp.up = *up;
   if (!scaled && extent > 30.0)
     fmt::print(stderr,
                "warning: the scene is not registered and spans {:.0f} units; the simulated hand and "
                "device work in metres and newtons, so they will move it like a {:.0f} m object. "
                "Register it into metres (--registration, --reg-scale, --up) for a realistic run.\n",
                extent, extent);
-  ProbeTrajectory traj = generate_probe_trajectory(w.world, pp);
-  fmt::print("probe      {} sites, tool radius {:.4g}, up [{:.2f}, {:.2f}, {:.2f}], {:.1f} s per pass; the hand "
-             "presses {:.3g} past first contact (to {:.3g} N at {:.0f} N/m)\n",
-             traj.sites().size(), pp.tool_radius, for_print(pp.up).x(), for_print(pp.up).y(), for_print(pp.up).z(),
-             traj.duration(), depth, press_force, force.proxy.stiffness);
-  if (press_force < 0.3 * force.f_max) {
+  ProbeTrajectory traj = generate_probe_trajectory(world, pp);
+  if (report)
+    fmt::print(report, "probe      {} sites, tool radius {:.4g}, up [{:.2f}, {:.2f}, {:.2f}], {:.1f} s per pass; the hand "
+               "presses {:.3g} past first contact (to {:.3g} N at {:.0f} N/m)\n",
+               traj.sites().size(), pp.tool_radius, for_print(pp.up).x(), for_print(pp.up).y(), for_print(pp.up).z(),
+               traj.duration(), depth, press_force, force.proxy.stiffness);
+  if (report && press_force < 0.3 * force.f_max) {
     std::fflush(stdout);
     fmt::print(stderr,
                "note: the hand presses at most {:.0f} tool radii deep, so it reaches {:.2g} N of the {:.3g} N "
@@ -251,6 +254,29 @@ bool plot_run(const std::string& csv, const std::string& summary, const std::str
   return run_python(find_tool_script("plot_probe_run.py"), {csv, summary, png}, command);
 }
 
+ProbeSessionResult simulate_probe(const CollisionWorld& world, const SimulateOptions& o, bool scaled, std::FILE* report,
+                                  const std::optional<Eigen::Vector3d>& up, const std::function<void(double)>& progress) {
+  ProbeTrajectory traj = make_probe_trajectory(world, scaled, o.sites, o.seed, o.tool_radius, o.force, report, up);
+  ProbeRunParams rp;
+  rp.rate_hz = o.rate;
+  rp.renderer = o.force.spec();
+  rp.inline_query = o.exec.inline_query;
+  rp.latency_ticks = o.exec.latency_ticks;
+  rp.safety = o.safety;
+  rp.safety.f_max = o.force.f_max;
+  rp.tool = o.tool.tool;
+  if (report) {
+    fmt::print(report, "rate       {:.0f} Hz of simulated time (as fast as the CPU allows), {}\n", o.rate,
+               describe_execution(o.exec, true));
+    if (rp.tool.count > 0)
+      fmt::print(report, "tool       {} ({} part{}, held at the world's orientation)\n", o.tool.spec, rp.tool.count,
+                 rp.tool.count == 1 ? "" : "s");
+    std::fflush(report);  // a progress bar goes to stderr: keep the lines above first
+  }
+  ProbeRunResult run = run_probe(world, traj, rp, progress);
+  return {std::move(traj), std::move(run)};
+}
+
 int run_simulate(SimulateOptions o) {
   const CompoundTool& tool = o.tool.tool;
   if (o.tool.given() && o.tool_radius <= 0) o.tool_radius = tool.largest_semi_axis();
@@ -262,25 +288,11 @@ int run_simulate(SimulateOptions o) {
   const CollisionWorld& world = pw.world;
   const WorldConfig& cfg = pw.config;
   const LoadedScene& s = pw.scene;
-  const ProbeTrajectory traj = make_probe_trajectory(pw, is_scaled(so), o.sites, o.seed, o.tool_radius, o.force);
-  fmt::print("rate       {:.0f} Hz of simulated time (as fast as the CPU allows), {}\n", o.rate,
-             describe_execution(o.exec, true));
-
-  std::fflush(stdout);  // the progress bar goes to stderr: keep the lines above first
-  ProbeRunParams rp;
-  rp.rate_hz = o.rate;
-  rp.renderer = o.force.spec();
-  rp.inline_query = o.exec.inline_query;
-  rp.latency_ticks = o.exec.latency_ticks;
-  rp.safety = o.safety;
-  rp.safety.f_max = o.force.f_max;
-  rp.tool = tool;
-  if (tool.count > 0)
-    fmt::print("tool       {} ({} part{}, held at the world's orientation)\n", o.tool.spec, tool.count,
-               tool.count == 1 ? "" : "s");
   Progress bar("simulating", !o.quiet);
-  const ProbeRunResult run = run_probe(world, traj, rp, [&](double f) { bar(f); });
+  const ProbeSessionResult probe = simulate_probe(world, o, is_scaled(so), stdout, std::nullopt, [&](double f) { bar(f); });
   bar.done();
+  const ProbeTrajectory& traj = probe.trajectory;
+  const ProbeRunResult& run = probe.run;
 
   OutputStage stage(out_dir, {"probe_log.csv", "summary.json", "probe_run.png"});
   const std::string csv = stage.path("probe_log.csv");
@@ -311,7 +323,7 @@ int run_simulate(SimulateOptions o) {
   }
   sj["rate_hz"] = o.rate;
   sj["mode"] = describe_execution(o.exec, true);
-  sj["renderer"] = std::string(renderer_name(rp.renderer));
+  sj["renderer"] = std::string(renderer_name(o.force.model));
   sj["ticks"] = run.ticks.size();
   std::uint64_t pc_ticks = 0;
   double pc_min_energy = 0, pc_peak = 0;
@@ -326,7 +338,7 @@ int run_simulate(SimulateOptions o) {
                     {"max", run.query_time.max_us}, {"ticks_over_1ms", run.query_time.over_1ms}};
   nlohmann::json eps = nlohmann::json::array();
   // The proxy's contacts are the Gaussians holding it (at most three), not the paper's K_min set.
-  const bool proxy = std::holds_alternative<ProxyModelSpec>(rp.renderer);
+  const bool proxy = o.force.model == RendererKind::kProxy;
   fmt::print("\n{:>3} {:>9} {:>9} {:>13} {:>11} {:>8}  {}\n", "#", "start s", "end s",
              proxy ? "peak holding" : "peak contacts", "peak force N", "W mJ", "direction at peak");
   for (std::size_t i = 0; i < run.episodes.size(); ++i) {

@@ -250,7 +250,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
   if (s.tool_radius <= 0 && o.tool.given()) s.tool_radius = o.tool.tool.largest_semi_axis();
   s.planned = o.duration;
   if (o.device == "sim") {
-    ProbeTrajectory traj = make_probe_trajectory(pw, is_scaled(so), o.sites, o.seed, s.tool_radius, o.force);
+    ProbeTrajectory traj = make_probe_trajectory(pw.world, is_scaled(so), o.sites, o.seed, s.tool_radius, o.force);
     s.tool_radius = traj.tool_radius();
     if (s.planned == 0) s.planned = traj.duration() + 0.5;
     s.pass = traj.duration();

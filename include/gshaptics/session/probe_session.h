@@ -7,6 +7,7 @@
 /// the seeded probe trajectory with scene-relative sizes, the diagnosis of a run without contact,
 /// and the figure (tools/plot_probe_run.py).
 
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -18,6 +19,7 @@
 #include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/session/world_session.h"
+#include "gshaptics/sim/probe_run.h"
 #include "gshaptics/sim/probe_trajectory.h"
 
 namespace gshaptics::session {
@@ -99,8 +101,11 @@ void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o)
 /// (press_depth_for_force), so the peaks sit in the middle of the device's range on any scene.
 /// Prints one line. The probe approaches along -CollisionWorld::up(), the registered world's up.
 /// `scaled`: a registration or --reg-scale was given (the world is meant to be in metres).
-ProbeTrajectory make_probe_trajectory(const PreparedWorld& w, bool scaled, int sites, std::uint64_t seed,
-                                      double tool_radius, const ForceModelOptions& force);
+/// `report`: where the line goes (nullptr: nowhere; the warnings go to stderr). `up`: the
+/// approach's up instead of the world's.
+ProbeTrajectory make_probe_trajectory(const CollisionWorld& world, bool scaled, int sites, std::uint64_t seed,
+                                      double tool_radius, const ForceModelOptions& force, std::FILE* report = stdout,
+                                      const std::optional<Eigen::Vector3d>& up = std::nullopt);
 
 /// After a probe run that made no contact: the likely causes, from the numbers at hand (units,
 /// up axis, opacity filter, tool size), one line each, printed to stderr.
@@ -132,6 +137,20 @@ struct SimulateOptions {
   bool no_plot = false;
   bool quiet = false;
 };
+
+/// The probe run of `simulate` on a built world, with no files written: the seeded trajectory
+/// (make_probe_trajectory, `o`'s sites, seed, tool radius, force limit and stiffness; `up`
+/// instead of the world's when given) and the run through the servo step on simulated time
+/// (sim/probe_run.h) with `o`'s rate, force model, execution mode, safety layer and tool.
+/// `scaled`: the world is meant to be in metres (only a warning depends on it); `report`: where
+/// the trajectory's line goes (nullptr: nowhere); `progress` gets the fraction done.
+struct ProbeSessionResult {
+  ProbeTrajectory trajectory;
+  ProbeRunResult run;
+};
+ProbeSessionResult simulate_probe(const CollisionWorld& world, const SimulateOptions& o, bool scaled,
+                                  std::FILE* report = stdout, const std::optional<Eigen::Vector3d>& up = std::nullopt,
+                                  const std::function<void(double)>& progress = {});
 
 /// The main job: a seeded probe trajectory over the world, a simulated hand on a simulated
 /// admittance device, every tick through the runtime's servo step on simulated time; writes
