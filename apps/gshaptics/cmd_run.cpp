@@ -28,14 +28,14 @@ void register_run(CLI::App& app) {
                           registry_device_help(false) + " (`gshaptics devices` says which this machine has)");
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->scene, "run");
-    validate_runtime_options(*o, /*allow_mouse=*/false);  // before the (slow) scene load
+    std::unique_ptr<HapticDevice> opened = validate_runtime_options(*o, /*allow_mouse=*/false);  // before the scene load
     if (o->simulated_time && o->device != "sim" && o->device.rfind("replay:", 0) != 0)
       throw InputError("--simulated-time: only the sim and replay:FILE devices run on simulated time, not '" +
                        o->device + "'");
     prepare_run_out_dir(*o, so);
     const PreparedWorld pw = prepare_world(so, o->quiet);
     warn_if_outside_profile(pw, o->force);
-    RuntimeSetup setup = make_runtime_setup(*o, so, pw, false);
+    RuntimeSetup setup = make_runtime_setup(*o, so, pw, false, std::move(opened));
     if (o->simulated_time) {
       SimulatedRuntime sim(pw.world, *setup.device, setup.config);
       Progress bar("simulating", !o->quiet);

@@ -79,7 +79,8 @@ int run_node(NodeOptions o) {
   if (o.run.device != "ros" && !is_hardware_device(o.run.device))
     throw InputError("--device: node takes 'ros' (default), 'haply[:N]', 'dhd[:N]' or 'openhaptics[:NAME]', got '" +
                      o.run.device + "'");
-  if (o.run.device != "ros") validate_runtime_options(o.run, false);  // before the scene load
+  // A hardware device is opened before the scene load, once.
+  std::unique_ptr<HapticDevice> opened = o.run.device != "ros" ? validate_runtime_options(o.run, false) : nullptr;
   if (o.ros2) (void)Ros2Names::parse(o.topics.ros_args, o.topics.node_name);  // before the scene load too
   const SceneOptions so = with_bundled_defaults(o.run.scene, "node");
   prepare_run_out_dir(o.run, so);
@@ -94,7 +95,7 @@ int run_node(NodeOptions o) {
   std::unique_ptr<HapticDevice> bridge_owner;
   if (local) {
     // The local device drives the runtime; the bridge only publishes (wrench, markers).
-    setup.device = make_hardware_device(o.run);
+    setup.device = std::move(opened);
     setup.device->start(0);  // a missing device is an error before anything starts
     setup.device->stop(0);
     wrap_in_workspace_mapping(o.run, setup, /*hardware=*/true, tool_start_point(pw, setup.tool_radius),

@@ -189,14 +189,14 @@ Eigen::Quaterniond parse_workspace_rotation(const std::string& text) {
 }
 }  // namespace
 
-void validate_runtime_options(const RuntimeOptions& o, bool allow_mouse) {
+std::unique_ptr<HapticDevice> validate_runtime_options(const RuntimeOptions& o, bool allow_mouse) {
   check_device_option(o.device, allow_mouse);
   if (!o.workspace_scale.empty()) (void)parse_workspace_scale(o.workspace_scale);
   if (!o.workspace_offset.empty()) (void)parse_vec3(o.workspace_offset, "--workspace-offset");
   if (!o.workspace_rotation.empty()) (void)parse_workspace_rotation(o.workspace_rotation);
-  // A device's library and a replay file are checked now, before the scene is loaded.
-  if (is_hardware_device(o.device)) (void)make_hardware_device(o);
-  if (o.device.rfind("replay:", 0) == 0) (void)load_pose_log(o.device.substr(7));
+  // A device's library and a replay file are opened now, before the scene is loaded.
+  const bool needs_scene = o.device == "sim" || o.device == "mouse" || o.device == "xr";
+  return needs_scene ? nullptr : make_hardware_device(o);
 }
 
 void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool hardware,
@@ -243,7 +243,7 @@ void print_hardware_status(const HapticDevice& d) {
 }  // namespace
 
 RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
-                                bool allow_mouse) {
+                                bool allow_mouse, std::unique_ptr<HapticDevice> opened) {
   check_device_option(o.device, allow_mouse);
   RuntimeSetup s;
   s.tool_radius = o.tool_radius;
@@ -292,7 +292,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
                s.tool_radius);
   } else if (is_hardware_device(o.device)) {
     if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
-    s.device = make_hardware_device(o);
+    s.device = opened ? std::move(opened) : make_hardware_device(o);
     s.device->start(0);  // open now: a missing device is an error before the runtime starts
     s.device->stop(0);
     print_hardware_status(*s.device);
@@ -306,16 +306,16 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
                    "move with --clutch-button / --bubble-radius\n", size, reach, size / reach);
     }
     wrap_in_workspace_mapping(o, s, /*hardware=*/true, tool_start_point(pw, s.tool_radius), pw.world.up());
-  } else {
-    const std::string file = o.device.substr(7);
-    PoseLog log = load_pose_log(file);
+  } else {  // the registry's other kinds (replay:FILE)
+    s.device = opened ? std::move(opened) : make_hardware_device(o);
     if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
-    if (log.non_finite_rows > 0)
-      fmt::print(stderr, "warning: {}: {} rows hold NaN/Inf; they are replayed as a faulty device\n",
-                 file, log.non_finite_rows);
-    auto replay = std::make_unique<ReplayDevice>(std::move(log), "replay " + file);
-    fmt::print("replay     {}: {:.2f} s, tool radius {:.4g}\n", file, replay->duration(), s.tool_radius);
-    s.device = std::move(replay);
+    if (const auto* replay = dynamic_cast<const ReplayDevice*>(s.device.get())) {
+      const std::string file = o.device.substr(o.device.find(':') + 1);
+      if (replay->non_finite_rows() > 0)
+        fmt::print(stderr, "warning: {}: {} rows hold NaN/Inf; they are replayed as a faulty device\n", file,
+                   replay->non_finite_rows());
+      fmt::print("replay     {}: {:.2f} s, tool radius {:.4g}\n", file, replay->duration(), s.tool_radius);
+    }
   }
   if (!is_hardware_device(o.device)) wrap_in_workspace_mapping(o, s);
   s.config = runtime_config_from(o, s.tool_radius, s.planned);

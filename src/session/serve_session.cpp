@@ -130,7 +130,7 @@ std::string find_web_root() {
 int run_serve(ServeOptions o) {
   if (o.run.simulated_time) throw InputError("--simulated-time: serve runs in real time (use `run --simulated-time`)");
   const SceneOptions so = with_bundled_defaults(o.run.scene, "serve");
-  validate_runtime_options(o.run, /*allow_mouse=*/true);  // before the (slow) scene load
+  std::unique_ptr<HapticDevice> opened = validate_runtime_options(o.run, /*allow_mouse=*/true);  // before the scene load
   prepare_run_out_dir(o.run, so);
   ViewerConfig vc;
   vc.host = o.host;
@@ -157,7 +157,7 @@ int run_serve(ServeOptions o) {
 
   const PreparedWorld pw = prepare_world(so, o.run.quiet);
   warn_if_outside_profile(pw, o.run.force);
-  RuntimeSetup setup = make_runtime_setup(o.run, so, pw, true);
+  RuntimeSetup setup = make_runtime_setup(o.run, so, pw, true, std::move(opened));
   vc.hello_json = hello_json(pw, so, setup, o.display_rate);
   vc.repeat_targets = !setup.xr;  // a VR controller that stops reporting must time out
   if (pw.scene.report.format == SceneFormat::kSpz && pw.scene.report.version >= 4) {

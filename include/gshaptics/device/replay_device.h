@@ -47,6 +47,8 @@ class ReplayDevice final : public HapticDevice {
   void stop(Nanos now) noexcept override { (void)now, last_ = Wrench{}; }
   [[nodiscard]] bool finished() const noexcept override { return finished_; }
   [[nodiscard]] double duration() const noexcept { return log_.rows.back().time; }
+  /// Rows of the log holding NaN/Inf (replayed as a faulty device).
+  [[nodiscard]] std::size_t non_finite_rows() const noexcept { return log_.non_finite_rows; }
   [[nodiscard]] const Wrench& last_wrench() const noexcept { return last_; }
 
  private:

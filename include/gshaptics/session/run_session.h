@@ -94,21 +94,25 @@ struct RuntimeSetup {
 /// Checks --device before the scene loads (throws InputError naming the option).
 void check_device_option(const std::string& device, bool allow_mouse);
 /// Everything about the device that can be checked before the scene is loaded: the --device
-/// value, the workspace options, a hardware device's vendor library, a replay file. Throws
-/// InputError.
-void validate_runtime_options(const RuntimeOptions& o, bool allow_mouse);
+/// value, the workspace options, and the device itself when the registry makes it (a hardware
+/// device's vendor library, a replay file), opened here once: hand it to make_runtime_setup.
+/// Null for the devices that need the scene (sim, mouse, xr). Throws InputError.
+[[nodiscard]] std::unique_ptr<HapticDevice> validate_runtime_options(const RuntimeOptions& o, bool allow_mouse);
 /// "; GRAMMAR: summary" for every kind of the device registry (only the hardware ones when
 /// `hardware_only`), for --device help texts.
 [[nodiscard]] std::string registry_device_help(bool hardware_only);
 /// True for the desktop haptic devices: haply[:N], dhd[:N], openhaptics[:NAME].
 [[nodiscard]] bool is_hardware_device(const std::string& device);
-/// Opens the hardware device a --device value names (InputError: what is missing, what to install).
+/// Opens the device a --device value names through the device registry (a hardware device or a
+/// replay log; InputError: what is missing, what to install).
 [[nodiscard]] std::unique_ptr<HapticDevice> make_hardware_device(const RuntimeOptions& o);
 /// Where a tool starts over a world: above its most upward-facing probe site (or above its
 /// middle), 12 tool radii up. World frame.
 [[nodiscard]] Eigen::Vector3d tool_start_point(const PreparedWorld& pw, double tool_radius);
+/// The device, its workspace mapping and the runtime configuration for a run over `pw`.
+/// `opened`: the registry's device validate_runtime_options() opened (null: opened here).
 RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
-                                bool allow_mouse);
+                                bool allow_mouse, std::unique_ptr<HapticDevice> opened = nullptr);
 
 /// With any --workspace-* / --clutch-button / --bubble-* option, or always for a hardware device
 /// (`hardware`), puts `s.device` under a WorkspaceMapping (the original moves to `s.inner`).
