@@ -58,13 +58,7 @@ void ServoController::start(Nanos now) {
   stats_.start_ns.store(now, std::memory_order_relaxed);
 }
 
-Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noexcept {
-  const Nanos now = clock_.now();
-  const double dt = prev_now_ < now ? to_seconds(now - prev_now_) : to_seconds(period_);
-  prev_now_ = now;
-
-  // Read the device; gate 1 of the safety layer (watchdog, finite pose, workspace).
-  const DeviceSample s = device_.read(now);
+std::uint32_t ServoController::gate_device(const DeviceSample& s, Nanos now) noexcept {
   std::uint32_t device_flags = 0;
   if (s.sequence == 0) {
     device_flags |= kFlagWatchdog;  // the device has not delivered any data yet
@@ -82,21 +76,37 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   } else if (!device_.info().workspace.contains(s.position)) {
     device_flags |= kFlagOutsideWorkspace;
   }
+  return device_flags;
+}
 
-  // The tool the force model sees: the device's, or in admittance control the virtual tool (which
-  // starts at the device and restarts there after any gate failure).
-  const bool admittance = control_.mode == ControlMode::kAdmittance;
-  Eigen::Vector3d tool_position = s.position, tool_velocity = s.velocity;
-  if (admittance) {
-    if (device_flags != 0) {
-      virtual_tool_ready_ = false;
-    } else {
-      if (!virtual_tool_ready_) admittance_.reset(s.position);
-      virtual_tool_ready_ = true;
-      tool_position = admittance_.setpoint().position;
-      tool_velocity = admittance_.setpoint().velocity;
-    }
+void ServoController::tool_state(const DeviceSample& s, std::uint32_t device_flags, Eigen::Vector3d& position,
+                                 Eigen::Vector3d& velocity) noexcept {
+  // In admittance control the virtual tool starts at the device and restarts there after any
+  // gate failure.
+  position = s.position;
+  velocity = s.velocity;
+  if (control_.mode != ControlMode::kAdmittance) return;
+  if (device_flags != 0) {
+    virtual_tool_ready_ = false;
+    return;
   }
+  if (!virtual_tool_ready_) admittance_.reset(s.position);
+  virtual_tool_ready_ = true;
+  position = admittance_.setpoint().position;
+  velocity = admittance_.setpoint().velocity;
+}
+
+Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noexcept {
+  const Nanos now = clock_.now();
+  const double dt = prev_now_ < now ? to_seconds(now - prev_now_) : to_seconds(period_);
+  prev_now_ = now;
+
+  // Read the device; gate 1 of the safety layer (watchdog, finite pose, workspace).
+  const DeviceSample s = device_.read(now);
+  const std::uint32_t device_flags = gate_device(s, now);
+  const bool finite = (device_flags & kFlagInvalidPose) == 0;
+  Eigen::Vector3d tool_position, tool_velocity;
+  tool_state(s, device_flags, tool_position, tool_velocity);
 
   // Publish the pose (never a non-finite one) to the collision side.
   if (finite && (device_flags & kFlagWatchdog) == 0) {
@@ -130,24 +140,41 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   in.device_ok = device_flags == 0;
   in.device_flags = device_flags;
   in.stopping = stopping_;
-  const SafetyOutput out = safety_.apply(in, dt);
+  TickFacts t;
+  t.out = safety_.apply(in, dt);
+  const SafetyOutput& out = t.out;
   passivity_.sent(out.force);
 
   // Admittance control: the user's force and the rendered force move the virtual tool; the device
   // is commanded to be where it is.
-  if (admittance && virtual_tool_ready_) device_.write_setpoint(admittance_.step(s.user_force, out.force, dt), now);
+  if (control_.mode == ControlMode::kAdmittance && virtual_tool_ready_)
+    device_.write_setpoint(admittance_.step(s.user_force, out.force, dt), now);
   Wrench w;
   w.force = out.force;
   const bool renders_torque = device_.info().renders_torque;
-  const bool torque_dropped = !renders_torque && (out.torque.array() != 0.0).any();
+  t.torque_dropped = !renders_torque && (out.torque.array() != 0.0).any();
   if (renders_torque) w.torque = out.torque;
   device_.write(w, now);
-  const Nanos end = clock_.now();
+  t.end = clock_.now();
 
-  // Statistics and log.
-  const std::uint32_t f = out.flags | (pc.damping > 0 ? kFlagPassivity : 0u) | (torque_dropped ? kFlagTorqueDropped : 0u);
+  t.scheduled = scheduled;
+  t.now = now;
+  t.sample = &s;
+  t.torque_sent = w.torque;
+  t.damping = pc.damping;
+  t.flags = out.flags | (pc.damping > 0 ? kFlagPassivity : 0u) | (t.torque_dropped ? kFlagTorqueDropped : 0u);
+  t.fresh = fresh;
+  t.have_result = in.have_result;
+  t.result_age = in.result_age;
+  count(t);
+  if (log_ != nullptr || monitor_ != nullptr) record(t);
+  return t.end;
+}
+
+void ServoController::count(const TickFacts& t) noexcept {
+  const std::uint32_t f = t.flags;
   stats_.ticks.store(stats_.ticks.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
-  bump(stats_.deadline_misses, end > scheduled + period_);
+  bump(stats_.deadline_misses, t.end > t.scheduled + period_);
   bump(stats_.stale_ticks, (f & kFlagHeld) != 0);
   bump(stats_.fading_ticks, (f & kFlagFading) != 0);
   bump(stats_.faded_ticks, (f & kFlagFaded) != 0);
@@ -161,46 +188,46 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   bump(stats_.force_limited_ticks, (f & kFlagForceLimited) != 0);
   bump(stats_.rate_limited_ticks, (f & kFlagRateLimited) != 0);
   bump(stats_.continuous_limited_ticks, (f & kFlagContinuousLimited) != 0);
-  bump(stats_.results_used, fresh);
+  bump(stats_.results_used, t.fresh);
   bump(stats_.passivity_ticks, (f & kFlagPassivity) != 0);
   bump(stats_.torque_limited_ticks, (f & kFlagTorqueLimited) != 0);
-  bump(stats_.torque_dropped_ticks, torque_dropped);
-  max_store(stats_.peak_torque, out.torque.norm());
-  max_store(stats_.passivity_peak_damping, pc.damping);
+  bump(stats_.torque_dropped_ticks, t.torque_dropped);
+  max_store(stats_.peak_torque, t.out.torque.norm());
+  max_store(stats_.passivity_peak_damping, t.damping);
   if (passivity_.energy() < stats_.passivity_min_energy.load(std::memory_order_relaxed))
     stats_.passivity_min_energy.store(passivity_.energy(), std::memory_order_relaxed);
-  const double fm = out.force.norm();
+  const double fm = t.out.force.norm();
   stats_.last_force.store(fm, std::memory_order_relaxed);
   max_store(stats_.peak_force, fm);
   stats_.last_contacts.store(result_.counts.contacts, std::memory_order_relaxed);
-  stats_.last_tick_ns.store(now, std::memory_order_relaxed);
-  stats_.jitter.record(now - scheduled);
-  stats_.tick_time.record(end - now);
-  if (in.have_result) stats_.result_age.record(in.result_age);
+  stats_.last_tick_ns.store(t.now, std::memory_order_relaxed);
+  stats_.jitter.record(t.now - t.scheduled);
+  stats_.tick_time.record(t.end - t.now);
+  if (t.have_result) stats_.result_age.record(t.result_age);
+}
 
-  if (log_ != nullptr || monitor_ != nullptr) {
-    TickRecord r;
-    r.time = to_seconds(scheduled - t0_);
-    r.jitter_us = float(double(now - scheduled) * 1e-3);
-    r.tick_us = float(double(end - now) * 1e-3);
-    r.position = s.position;
-    r.velocity = s.velocity;
-    r.counts = result_.counts;
-    r.desired = result_.force;
-    r.force = out.force;
-    r.torque = w.torque;
-    r.user_force = s.user_force;
-    r.query_us = result_.query_us;
-    r.result_age_us = float(double(in.result_age) * 1e-3);
-    r.flags = f;
-    r.proxy = result_.pose_sequence != 0 ? result_.proxy : s.position;
-    r.constraints = result_.constraints;
-    r.energy = passivity_.energy();
-    r.damping = float(pc.damping);
-    if (log_ != nullptr) log_->push(r);
-    if (monitor_ != nullptr) monitor_->write(r);
-  }
-  return end;
+void ServoController::record(const TickFacts& t) noexcept {
+  const DeviceSample& s = *t.sample;
+  TickRecord r;
+  r.time = to_seconds(t.scheduled - t0_);
+  r.jitter_us = float(double(t.now - t.scheduled) * 1e-3);
+  r.tick_us = float(double(t.end - t.now) * 1e-3);
+  r.position = s.position;
+  r.velocity = s.velocity;
+  r.counts = result_.counts;
+  r.desired = result_.force;
+  r.force = t.out.force;
+  r.torque = t.torque_sent;
+  r.user_force = s.user_force;
+  r.query_us = result_.query_us;
+  r.result_age_us = float(double(t.result_age) * 1e-3);
+  r.flags = t.flags;
+  r.proxy = result_.pose_sequence != 0 ? result_.proxy : s.position;
+  r.constraints = result_.constraints;
+  r.energy = passivity_.energy();
+  r.damping = float(t.damping);
+  if (log_ != nullptr) log_->push(r);
+  if (monitor_ != nullptr) monitor_->write(r);
 }
 
 void ServoController::finish(Nanos now) noexcept {

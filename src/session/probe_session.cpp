@@ -277,47 +277,42 @@ ProbeSessionResult simulate_probe(const CollisionWorld& world, const SimulateOpt
   return {std::move(traj), std::move(run)};
 }
 
-int run_simulate(SimulateOptions o) {
-  const CompoundTool& tool = o.tool.tool;
-  if (o.tool.given() && o.tool_radius <= 0) o.tool_radius = tool.largest_semi_axis();
-  const SceneOptions so = with_bundled_defaults(o.scene, "simulate");
-  const std::string out_dir =
-      prepare_out_dir(o.out_dir, so.scene, {"probe_log.csv", "summary.json", "probe_run.png"});
-  const PreparedWorld pw = prepare_world(so, o.quiet);
-  warn_if_outside_profile(pw, o.force);
-  const CollisionWorld& world = pw.world;
-  const WorldConfig& cfg = pw.config;
-  const LoadedScene& s = pw.scene;
-  Progress bar("simulating", !o.quiet);
-  const ProbeSessionResult probe = simulate_probe(world, o, is_scaled(so), stdout, std::nullopt, [&](double f) { bar(f); });
-  bar.done();
-  const ProbeTrajectory& traj = probe.trajectory;
-  const ProbeRunResult& run = probe.run;
+namespace {
 
-  OutputStage stage(out_dir, {"probe_log.csv", "summary.json", "probe_run.png"});
-  const std::string csv = stage.path("probe_log.csv");
-  const std::string summary_path = stage.path("summary.json");
-  const std::string png = stage.path("probe_run.png");
-  std::vector<std::string> write_errors;  // the run is done: report a lost output, keep going
-  try {
-    write_tick_log_csv(csv, run.ticks, kProbeLogColumns);
-  } catch (const std::exception& e) {
-    write_errors.push_back(e.what());
+// The passivity controller over a run: ticks it acted on, its peak damping, the lowest energy.
+struct PassivityTally {
+  std::uint64_t ticks = 0;
+  double min_energy = 0, peak_damping = 0;
+};
+
+PassivityTally tally_passivity(const std::vector<TickRecord>& ticks) {
+  PassivityTally p;
+  for (const TickRecord& t : ticks) {
+    if (t.flags & kFlagPassivity) ++p.ticks;
+    p.min_energy = std::min(p.min_energy, t.energy);
+    p.peak_damping = std::max(p.peak_damping, double(t.damping));
   }
+  return p;
+}
 
+// summary.json's head: the scene, the world, the tool (and the torque a force-only device dropped),
+// the rate, mode, renderer, ticks, passivity and query time.
+nlohmann::json simulate_summary(const SimulateOptions& o, const SceneOptions& so, const PreparedWorld& pw,
+                                const ProbeSessionResult& probe, const PassivityTally& pc) {
+  const ProbeRunResult& run = probe.run;
   nlohmann::json sj;
   sj["scene"] = so.scene;
   sj["registration"] = so.registration_file;
-  sj["gaussians_loaded"] = s.report.loaded;
-  sj["gaussians_kept"] = world.size();
-  sj["min_opacity"] = cfg.min_opacity;
-  sj["tool_radius"] = traj.tool_radius();
-  if (tool.count > 0) {
+  sj["gaussians_loaded"] = pw.scene.report.loaded;
+  sj["gaussians_kept"] = pw.world.size();
+  sj["min_opacity"] = pw.config.min_opacity;
+  sj["tool_radius"] = probe.trajectory.tool_radius();
+  if (o.tool.tool.count > 0) {
     // The simulated device is a 3-DoF admittance device: the safety layer drops the torque a
     // compound tool asks for (as for any force-only device) and counts those ticks.
     std::size_t dropped = 0;
     for (const TickRecord& r : run.ticks) dropped += (r.flags & kFlagTorqueDropped) != 0;
-    sj["tool"] = {{"spec", o.tool.spec}, {"parts", tool.count}, {"torque_dropped_ticks", dropped}};
+    sj["tool"] = {{"spec", o.tool.spec}, {"parts", o.tool.tool.count}, {"torque_dropped_ticks", dropped}};
     fmt::print("torque     the simulated device renders force only: {} ticks had a torque it was not sent\n",
                dropped);
   }
@@ -325,20 +320,18 @@ int run_simulate(SimulateOptions o) {
   sj["mode"] = describe_execution(o.exec, true);
   sj["renderer"] = std::string(renderer_name(o.force.model));
   sj["ticks"] = run.ticks.size();
-  std::uint64_t pc_ticks = 0;
-  double pc_min_energy = 0, pc_peak = 0;
-  for (const TickRecord& t : run.ticks) {
-    if (t.flags & kFlagPassivity) ++pc_ticks;
-    pc_min_energy = std::min(pc_min_energy, t.energy);
-    pc_peak = std::max(pc_peak, double(t.damping));
-  }
-  sj["passivity"] = {{"enabled", o.safety.passivity.enabled}, {"ticks", pc_ticks},
-                     {"peak_damping", pc_peak}, {"min_energy_j", pc_min_energy}};
+  sj["passivity"] = {{"enabled", o.safety.passivity.enabled}, {"ticks", pc.ticks},
+                     {"peak_damping", pc.peak_damping}, {"min_energy_j", pc.min_energy}};
   sj["query_us"] = {{"p50", run.query_time.p50_us}, {"p99", run.query_time.p99_us},
                     {"max", run.query_time.max_us}, {"ticks_over_1ms", run.query_time.over_1ms}};
+  return sj;
+}
+
+// The episodes' table (printed) and their JSON.
+nlohmann::json report_episodes(const ProbeRunResult& run, RendererKind model) {
   nlohmann::json eps = nlohmann::json::array();
   // The proxy's contacts are the Gaussians holding it (at most three), not the paper's K_min set.
-  const bool proxy = o.force.model == RendererKind::kProxy;
+  const bool proxy = model == RendererKind::kProxy;
   fmt::print("\n{:>3} {:>9} {:>9} {:>13} {:>11} {:>8}  {}\n", "#", "start s", "end s",
              proxy ? "peak holding" : "peak contacts", "peak force N", "W mJ", "direction at peak");
   for (std::size_t i = 0; i < run.episodes.size(); ++i) {
@@ -350,10 +343,32 @@ int run_simulate(SimulateOptions o) {
                    {"peak_force", e.peak_force}, {"energy_j", e.energy_j},
                    {"peak_direction", {e.peak_direction.x(), e.peak_direction.y(), e.peak_direction.z()}}});
   }
-  sj["episodes"] = eps;
   if (!run.episodes.empty()) fmt::print("W: the energy the hand put in (< 0: the scene gave back more){}\n",
                                         active_episodes_note(run.episodes));
-  // Every planned site accounted for: touched or not, when, how hard, bounces.
+  return eps;
+}
+
+// Why a planned site was not touched, or how often it bounced ("" for a clean touch).
+std::string site_note(const SiteAccount& a, double tool_radius) {
+  if (!a.touched) {
+    // The tool came within a tool radius of the planned touch point yet met nothing: nothing
+    // dense or opaque enough is there (or the renderer let the tool pass); otherwise the run or
+    // the hand never got there.
+    return a.closest_approach <= tool_radius
+               ? fmt::format("MISSED: the tool came within {:.3g} of the planned touch point and met no Gaussian "
+                             "(sparse or low-opacity content there; try --isolation-gap 1, a lower --min-opacity or --force-model paper)",
+                             a.closest_approach)
+               : fmt::format("MISSED: the tool never came closer than {:.3g} to the planned touch point",
+                             a.closest_approach);
+  }
+  return a.episodes > 1 ? fmt::format("{} bounces", a.episodes - 1) : std::string();
+}
+
+// Every planned site accounted for: touched or not, when, how hard, bounces (printed, and into
+// `sj`: sites, sites_touched, sites_missed).
+void report_sites(const ProbeSessionResult& probe, nlohmann::json& sj) {
+  const ProbeTrajectory& traj = probe.trajectory;
+  const ProbeRunResult& run = probe.run;
   const std::vector<SiteAccount> accounts = account_sites(traj, run.ticks, run.episodes);
   nlohmann::json sites = nlohmann::json::array();
   fmt::print("\n{:>4} {:>9} {:>9} {:>12} {:>8}\n", "site", "planned s", "touched s", "peak force N", "episodes");
@@ -368,28 +383,43 @@ int run_simulate(SimulateOptions o) {
                         {"closest_approach", std::isfinite(a.closest_approach) ? a.closest_approach : -1.0}};
     if (a.touched) j["t_first_contact"] = a.t_first_contact;
     sites.push_back(j);
-    std::string note;
-    if (!a.touched) {
-      ++missed;
-      // The tool came within a tool radius of the planned touch point yet met nothing: nothing
-      // dense or opaque enough is there (or the renderer let the tool pass); otherwise the run or
-      // the hand never got there.
-      note = a.closest_approach <= traj.tool_radius()
-                 ? fmt::format("MISSED: the tool came within {:.3g} of the planned touch point and met no Gaussian "
-                               "(sparse or low-opacity content there; try --isolation-gap 1, a lower --min-opacity or --force-model paper)",
-                               a.closest_approach)
-                 : fmt::format("MISSED: the tool never came closer than {:.3g} to the planned touch point",
-                               a.closest_approach);
-    } else if (a.episodes > 1) {
-      note = fmt::format("{} bounces", a.episodes - 1);
-    }
+    if (!a.touched) ++missed;
     fmt::print("{:>4} {:>9.3f} {:>9} {:>12.2f} {:>8}  {}\n", i + 1, a.t_planned,
                a.touched ? fmt::format("{:.3f}", a.t_first_contact) : std::string("-"), a.peak_force, a.episodes,
-               note);
+               site_note(a, traj.tool_radius()));
   }
   sj["sites"] = sites;
   sj["sites_touched"] = int(accounts.size()) - missed;
   sj["sites_missed"] = missed;
+}
+
+}  // namespace
+
+int run_simulate(SimulateOptions o) {
+  if (o.tool.given() && o.tool_radius <= 0) o.tool_radius = o.tool.tool.largest_semi_axis();
+  const SceneOptions so = with_bundled_defaults(o.scene, "simulate");
+  const std::string out_dir =
+      prepare_out_dir(o.out_dir, so.scene, {"probe_log.csv", "summary.json", "probe_run.png"});
+  const PreparedWorld pw = prepare_world(so, o.quiet);
+  warn_if_outside_profile(pw, o.force);
+  Progress bar("simulating", !o.quiet);
+  const ProbeSessionResult probe = simulate_probe(pw.world, o, is_scaled(so), stdout, std::nullopt, [&](double f) { bar(f); });
+  bar.done();
+  const ProbeRunResult& run = probe.run;
+
+  OutputStage stage(out_dir, {"probe_log.csv", "summary.json", "probe_run.png"});
+  const std::string csv = stage.path("probe_log.csv");
+  const std::string summary_path = stage.path("summary.json");
+  std::vector<std::string> write_errors;  // the run is done: report a lost output, keep going
+  try {
+    write_tick_log_csv(csv, run.ticks, kProbeLogColumns);
+  } catch (const std::exception& e) {
+    write_errors.push_back(e.what());
+  }
+  const PassivityTally pc = tally_passivity(run.ticks);
+  nlohmann::json sj = simulate_summary(o, so, pw, probe, pc);
+  sj["episodes"] = report_episodes(run, o.force.model);
+  report_sites(probe, sj);
   try {
     write_file_atomically(summary_path, sj.dump(2) + "\n");
   } catch (const std::exception& e) {
@@ -397,8 +427,8 @@ int run_simulate(SimulateOptions o) {
   }
 
   fmt::print("\npassivity  {}: the controller added damping on {} ticks (peak {:.3g} N s/m); lowest observed energy "
-             "{:.3g} mJ\n", o.safety.passivity.enabled ? "on" : "off (observed only)", pc_ticks, pc_peak,
-             pc_min_energy * 1e3);
+             "{:.3g} mJ\n", o.safety.passivity.enabled ? "on" : "off (observed only)", pc.ticks, pc.peak_damping,
+             pc.min_energy * 1e3);
   fmt::print("query time p50 {:.1f} us, p99 {:.1f} us, max {:.1f} us; {} of {} ticks over 1 ms\n",
              run.query_time.p50_us, run.query_time.p99_us, run.query_time.max_us,
              run.query_time.over_1ms, run.ticks.size());
@@ -410,10 +440,10 @@ int run_simulate(SimulateOptions o) {
   int rc = 0;
   if (run.episodes.empty()) {
     fmt::print(stderr, "error: the probe run made no contact\n");
-    print_no_contact_hints(pw, so, traj.tool_radius());
+    print_no_contact_hints(pw, so, probe.trajectory.tool_radius());
     rc = 1;
   }
-  const bool plotted = !o.no_plot && plot_run(csv, summary_path, png, "simulate");
+  const bool plotted = !o.no_plot && plot_run(csv, summary_path, stage.path("probe_run.png"), "simulate");
   if (!o.no_plot && !plotted) rc = 1;
   stage.commit();
   fmt::print("log        {}\nsummary    {}\n", stage.final_path("probe_log.csv"), stage.final_path("summary.json"));

@@ -59,6 +59,25 @@ class ServoController {
   [[nodiscard]] const AdmittanceController& admittance() const noexcept { return admittance_; }
 
  private:
+  // One tick's facts, for the statistics and the log.
+  struct TickFacts {
+    Nanos scheduled = 0, now = 0, end = 0, result_age = 0;
+    const DeviceSample* sample = nullptr;
+    SafetyOutput out;
+    Eigen::Vector3d torque_sent = Eigen::Vector3d::Zero();
+    double damping = 0;  // the passivity controller's
+    std::uint32_t flags = 0;
+    bool fresh = false, have_result = false, torque_dropped = false;
+  };
+  // Gate 1 of the safety layer on the device's sample: watchdog, finite pose, workspace (flags).
+  std::uint32_t gate_device(const DeviceSample& s, Nanos now) noexcept;
+  // The tool the force model sees: the device's, or in admittance control the virtual tool.
+  void tool_state(const DeviceSample& s, std::uint32_t device_flags, Eigen::Vector3d& position,
+                  Eigen::Vector3d& velocity) noexcept;
+  // The runtime's statistics for one tick.
+  void count(const TickFacts& t) noexcept;
+  // The tick's record to the log and the monitor.
+  void record(const TickFacts& t) noexcept;
   HapticDevice& device_;
   SafetyFilter safety_;
   Nanos period_;
