@@ -296,39 +296,7 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
       fetched_leaves = n_leaves;
     }
   };
-  bool cached = false;
-  if (options_.cache_margin > 0) {
-    const bool inside = cache_valid_ && box_lo[0] >= cache_lo_[0] && box_lo[1] >= cache_lo_[1] &&
-                        box_lo[2] >= cache_lo_[2] && box_hi[0] <= cache_hi_[0] && box_hi[1] <= cache_hi_[1] &&
-                        box_hi[2] <= cache_hi_[2];
-    if (inside) {
-      ++cache_stats_.hits;
-      cached = true;
-    } else {
-      // Refill: every leaf overlapping the grown box, in traversal (depth-first) order. Any leaf
-      // overlapping a tool box inside the grown box overlaps the grown box, so it is in the list.
-      ++cache_stats_.refills;
-      const double m = options_.cache_margin;
-      for (int k = 0; k < 3; ++k) {
-        cache_lo_[k] = round_down_to_float(double(box_lo[k]) - m);
-        cache_hi_[k] = round_up_to_float(double(box_hi[k]) + m);
-      }
-      cache_.clear();
-      bool overflow = false;
-      const std::size_t cap = cache_.capacity();
-      traverse(cache_lo_, cache_hi_, [&](const BvhNode& leaf) {
-        if (cache_.size() == cap) {
-          overflow = true;
-          return false;
-        }
-        cache_.push_back(leaf);
-        return true;
-      });
-      cache_valid_ = !overflow;
-      cached = cache_valid_;
-      if (overflow) ++cache_stats_.overflows;
-    }
-  }
+  const bool cached = options_.cache_margin > 0 && cached_leaves(box_lo, box_hi);
   if (cached) {
     // The traversal's own box test, on the cached leaves, in the same order.
     for (const BvhNode& n : cache_) {
@@ -341,31 +309,67 @@ QueryStatus ContactQuery::run(const ToolEllipsoid& tool) noexcept {
   }
   // Parallel narrow phase: every overlapping leaf is in the list (none was tested early), the
   // query is large enough, and the method is the batched one.
-  if (executor_ != nullptr && !golden && !spilled) {
-    std::uint64_t total = 0;
-    for (std::size_t i = 0; i < n_leaves; ++i) total += leaves_[i].second;
-    if (total >= min_parallel_candidates_ && n_leaves >= parts_.size()) {
-      ++parallel_queries_;
-      run_parts(n_leaves, tool, batch_tool);
-      for (const auto& part : parts_) {
-        counts.candidates += part->counts.candidates;
-        counts.prefiltered += part->counts.prefiltered;
-        counts.contacts += part->counts.contacts;
-        const std::span<const Contact> from = part->contacts.contacts();
-        std::size_t granted;
-        Contact* dst = result_.append(from.size(), granted);
-        std::copy(from.begin(), from.begin() + std::ptrdiff_t(granted), dst);
-        if (granted < from.size()) status = QueryStatus::kContactOverflow;
-        if (part->overflow) status = QueryStatus::kContactOverflow;
-      }
-      result_.counts = counts;
-      return status;
-    }
+  if (executor_ != nullptr && !golden && !spilled && run_parallel(n_leaves, tool, batch_tool, counts, status)) {
+    result_.counts = counts;
+    return status;
   }
   prefetch_leaves(gs, leaves_.data() + fetched_leaves, n_leaves - fetched_leaves);
   test_leaves(leaves_.data(), n_leaves);
   result_.counts = counts;
   return status;
+}
+
+bool ContactQuery::cached_leaves(const float* box_lo, const float* box_hi) noexcept {
+  const bool inside = cache_valid_ && box_lo[0] >= cache_lo_[0] && box_lo[1] >= cache_lo_[1] &&
+                      box_lo[2] >= cache_lo_[2] && box_hi[0] <= cache_hi_[0] && box_hi[1] <= cache_hi_[1] &&
+                      box_hi[2] <= cache_hi_[2];
+  if (inside) {
+    ++cache_stats_.hits;
+    return true;
+  }
+  // Refill: every leaf overlapping the grown box, in traversal (depth-first) order. Any leaf
+  // overlapping a tool box inside the grown box overlaps the grown box, so it is in the list.
+  ++cache_stats_.refills;
+  const double m = options_.cache_margin;
+  for (int k = 0; k < 3; ++k) {
+    cache_lo_[k] = round_down_to_float(double(box_lo[k]) - m);
+    cache_hi_[k] = round_up_to_float(double(box_hi[k]) + m);
+  }
+  cache_.clear();
+  bool overflow = false;
+  const std::size_t cap = cache_.capacity();
+  traverse(cache_lo_, cache_hi_, [&](const BvhNode& leaf) {
+    if (cache_.size() == cap) {
+      overflow = true;
+      return false;
+    }
+    cache_.push_back(leaf);
+    return true;
+  });
+  cache_valid_ = !overflow;
+  if (overflow) ++cache_stats_.overflows;
+  return cache_valid_;
+}
+
+bool ContactQuery::run_parallel(std::size_t n_leaves, const ToolEllipsoid& tool, const BatchTool& batch_tool,
+                                QueryCounts& counts, QueryStatus& status) noexcept {
+  std::uint64_t total = 0;
+  for (std::size_t i = 0; i < n_leaves; ++i) total += leaves_[i].second;
+  if (total < min_parallel_candidates_ || n_leaves < parts_.size()) return false;
+  ++parallel_queries_;
+  run_parts(n_leaves, tool, batch_tool);
+  for (const auto& part : parts_) {
+    counts.candidates += part->counts.candidates;
+    counts.prefiltered += part->counts.prefiltered;
+    counts.contacts += part->counts.contacts;
+    const std::span<const Contact> from = part->contacts.contacts();
+    std::size_t granted;
+    Contact* dst = result_.append(from.size(), granted);
+    std::copy(from.begin(), from.begin() + std::ptrdiff_t(granted), dst);
+    if (granted < from.size()) status = QueryStatus::kContactOverflow;
+    if (part->overflow) status = QueryStatus::kContactOverflow;
+  }
+  return true;
 }
 
 void ContactQuery::set_executor(ParallelExecutor* executor, std::size_t min_candidates) {

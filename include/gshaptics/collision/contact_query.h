@@ -231,6 +231,14 @@ class ContactQuery {
   std::size_t early_overlaps(const ToolEllipsoid& tool, std::uint32_t exclude_slot,
                              std::span<std::uint32_t> slots) noexcept;
   void run_parts(std::size_t n_leaves, const ToolEllipsoid& tool, const BatchTool& batch_tool) noexcept;
+  // The candidate cache (QueryOptions::cache_margin) for the tool box [lo, hi]: true when cache_
+  // holds every leaf that can overlap it (a hit, or a refill that did not overflow).
+  bool cached_leaves(const float* lo, const float* hi) noexcept;
+  // The narrow phase of the `n_leaves` listed leaves split over the executor, its parts' counts and
+  // contacts merged into result_ (status set on overflow). False: the query is too small or
+  // spilled, and nothing was done.
+  bool run_parallel(std::size_t n_leaves, const ToolEllipsoid& tool, const BatchTool& batch_tool, QueryCounts& counts,
+                    QueryStatus& status) noexcept;
   void run_part(Part& part, const ToolEllipsoid& tool, const BatchTool& batch_tool) noexcept;
   friend void contact_query_part(void* ctx, int part);
   const ToolEllipsoid* part_tool_ = nullptr;
