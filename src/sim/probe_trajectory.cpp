@@ -3,6 +3,7 @@
 #include "gshaptics/sim/pose_sampler.h"
 
 #include <algorithm>
+#include <optional>
 #include <cmath>
 #include <numeric>
 #include <random>
@@ -78,19 +79,18 @@ struct SiteFinder {
   Eigen::Vector3d lift(const Eigen::Vector3d& x) const { return x + (z_safe - x.dot(up)) * up; }
 };
 
-}  // namespace
+Eigen::Vector3d center_of(const CollisionGaussian& g) { return Eigen::Vector3d(g.center[0], g.center[1], g.center[2]); }
 
-ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world, const ProbeParams& params) {
-  if (!(params.tool_radius > 0)) throw InputError("probe: tool radius must be > 0");
-  if (params.sites < 1) throw InputError("probe: need at least one site");
-  if (!(params.up.norm() > 0)) throw InputError("probe: 'up' must be a non-zero vector");
-  SiteFinder f(world, params);
-  const Eigen::Vector3d& up = f.up;
-  const double r = params.tool_radius;
+// The object: the dense middle of the scene (horizontal distance to the median centre within
+// the 35th percentile), above the lowest 5% of it (the ground, if any).
+struct ObjectRegion {
+  std::vector<double> rho;  // each Gaussian's horizontal distance to the median centre
+  double r_obj = 0, h_ground = 0, z_safe = 0;
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+};
+
+ObjectRegion object_region(const CollisionWorld& world, const Eigen::Vector3d& up, double r) {
   const auto& gs = world.gaussians();
-
-  // The object: the dense middle of the scene (horizontal distance to the median centre within
-  // the 35th percentile), above the lowest 5% of it (the ground, if any).
   std::vector<double> cx, cy, cz;
   for (const auto& g : gs) {
     cx.push_back(g.center[0]);
@@ -98,39 +98,87 @@ ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world, const Pro
     cz.push_back(g.center[2]);
   }
   const Eigen::Vector3d median(percentile(cx, 50), percentile(cy, 50), percentile(cz, 50));
-  const auto center_of = [](const CollisionGaussian& g) {
-    return Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
-  };
   const auto horizontal = [&](const Eigen::Vector3d& v) { return v - v.dot(up) * up; };
-  std::vector<double> rho(gs.size());
-  for (std::size_t i = 0; i < gs.size(); ++i) rho[i] = horizontal(center_of(gs[i]) - median).norm();
-  const double r_obj = std::max(percentile(rho, 35), 4 * r);
+  ObjectRegion o;
+  o.rho.resize(gs.size());
+  for (std::size_t i = 0; i < gs.size(); ++i) o.rho[i] = horizontal(center_of(gs[i]) - median).norm();
+  o.r_obj = std::max(percentile(o.rho, 35), 4 * r);
   std::vector<double> heights, heights_wide;
   for (std::size_t i = 0; i < gs.size(); ++i) {
     const double h = center_of(gs[i]).dot(up);
-    if (rho[i] <= r_obj) heights.push_back(h);
-    if (rho[i] <= 2 * r_obj) heights_wide.push_back(h + gs[i].bounding_radius());
+    if (o.rho[i] <= o.r_obj) heights.push_back(h);
+    if (o.rho[i] <= 2 * o.r_obj) heights_wide.push_back(h + gs[i].bounding_radius());
   }
-  const double h_ground = percentile(heights, 5);
+  o.h_ground = percentile(heights, 5);
   const double h_mid = percentile(heights, 50);
-  f.z_safe = percentile(heights_wide, 99.9) + 3 * r;
-  const Eigen::Vector3d object_center = horizontal(median) + h_mid * up;
+  o.z_safe = percentile(heights_wide, 99.9) + 3 * r;
+  o.center = horizontal(median) + h_mid * up;
+  return o;
+}
 
+// The candidate Gaussians for a site, in a seeded random order: on the object, opaque, above the
+// ground, no larger than the tool.
+std::vector<std::uint32_t> site_candidates(const CollisionWorld& world, const ObjectRegion& o, const Eigen::Vector3d& up,
+                                           double r, std::uint64_t seed) {
+  const auto& gs = world.gaussians();
   std::vector<std::uint32_t> pool;
   for (std::size_t i = 0; i < gs.size(); ++i) {
     const auto& g = gs[i];
     const double h = center_of(g).dot(up);
     const float smax = std::max({g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]});
-    if (rho[i] <= r_obj && g.opacity >= 0.5f && h >= h_ground + 2 * r && smax <= 2 * r)
+    if (o.rho[i] <= o.r_obj && g.opacity >= 0.5f && h >= o.h_ground + 2 * r && smax <= 2 * r)
       pool.push_back(std::uint32_t(i));
   }
-  std::mt19937_64 rng(params.seed);
+  std::mt19937_64 rng(seed);
   std::shuffle(pool.begin(), pool.end(), rng);
+  return pool;
+}
 
+// The site at Gaussian `g`, when it is a flat disc facing up and out whose surface the approach
+// along its normal meets first, with nothing in the way from above.
+std::optional<ProbeSite> site_at(const CollisionGaussian& g, const Eigen::Vector3d& object_center,
+                                 const Eigen::Vector3d& up, double d_app, SiteFinder& f) {
+  const double r = f.p.tool_radius;
+  const Eigen::Vector3d c = center_of(g);
+  const Eigen::Matrix3d R = rotation_matrix(g);
+  int k_min_axis = 0;
+  Eigen::Vector3d axes(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+  axes.minCoeff(&k_min_axis);
+  std::array<double, 3> sorted{axes[0], axes[1], axes[2]};
+  std::sort(sorted.begin(), sorted.end());
+  if (sorted[0] > 0.5 * sorted[1]) return std::nullopt;  // not flat enough to define a normal
+  Eigen::Vector3d n = R.col(k_min_axis).normalized();
+  if (n.dot(c - object_center) < 0) n = -n;
+  if (n.dot(up) < -0.2) return std::nullopt;  // underside: not reachable from above
+  // First contact along the approach must be this surface, with nothing in the way.
+  const Eigen::Vector3d start = c + d_app * n;
+  double s_touch = NAN;
+  const double step = r / 8;
+  for (double s = d_app; s >= -r; s -= step) {
+    if (f.contacts_at(c + s * n) > 0) {
+      s_touch = s;
+      break;
+    }
+  }
+  if (!(s_touch < d_app - step) || s_touch > r + 2 * sorted[2]) return std::nullopt;
+  if (!f.segment_clear(f.lift(start), start)) return std::nullopt;
+  ProbeSite site;
+  site.surface_point = c;
+  site.normal = n;
+  site.touch_point = c + s_touch * n;
+  site.gaussian_index = g.source_index;
+  return site;
+}
+
+// Up to params.sites sites, spaced apart (the spacing halved on each of four passes when too few).
+std::vector<ProbeSite> find_sites(const CollisionWorld& world, const ProbeParams& params, const ObjectRegion& o,
+                                  SiteFinder& f) {
+  const auto& gs = world.gaussians();
+  const double r = params.tool_radius;
+  const std::vector<std::uint32_t> pool = site_candidates(world, o, f.up, r, params.seed);
   std::vector<ProbeSite> sites;
-  const Eigen::Vector3d extent = world.bounds_hi() - world.bounds_lo();
   const double d_app = params.approach_distance * r;
-  double spacing = std::max(6 * r, 0.15 * r_obj);
+  double spacing = std::max(6 * r, 0.15 * o.r_obj);
   const std::size_t max_attempts = std::min<std::size_t>(pool.size(), 6000);
   for (int pass = 0; pass < 4 && int(sites.size()) < params.sites; ++pass, spacing *= 0.5) {
     for (std::size_t a = 0; a < max_attempts && int(sites.size()) < params.sites; ++a) {
@@ -139,42 +187,14 @@ ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world, const Pro
       bool near = false;
       for (const auto& s : sites) near = near || (s.surface_point - c).norm() < spacing;
       if (near) continue;
-      const Eigen::Matrix3d R = rotation_matrix(g);
-      int k_min_axis = 0;
-      Eigen::Vector3d axes(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
-      axes.minCoeff(&k_min_axis);
-      std::array<double, 3> sorted{axes[0], axes[1], axes[2]};
-      std::sort(sorted.begin(), sorted.end());
-      if (sorted[0] > 0.5 * sorted[1]) continue;  // not flat enough to define a normal
-      Eigen::Vector3d n = R.col(k_min_axis).normalized();
-      if (n.dot(c - object_center) < 0) n = -n;
-      if (n.dot(up) < -0.2) continue;  // underside: not reachable from above
-      // First contact along the approach must be this surface, with nothing in the way.
-      const Eigen::Vector3d start = c + d_app * n;
-      double s_touch = NAN;
-      const double step = r / 8;
-      for (double s = d_app; s >= -r; s -= step) {
-        if (f.contacts_at(c + s * n) > 0) {
-          s_touch = s;
-          break;
-        }
-      }
-      if (!(s_touch < d_app - step) || s_touch > r + 2 * sorted[2]) continue;
-      if (!f.segment_clear(f.lift(start), start)) continue;
-      ProbeSite site;
-      site.surface_point = c;
-      site.normal = n;
-      site.touch_point = c + s_touch * n;
-      site.gaussian_index = g.source_index;
-      sites.push_back(site);
+      if (std::optional<ProbeSite> site = site_at(g, o.center, f.up, d_app, f)) sites.push_back(*site);
     }
   }
-  if (sites.empty())
-    throw InputError("probe: found no reachable surface site (scene extent " +
-                     std::to_string(extent.norm()) + ", tool radius " + std::to_string(r) +
-                     "); try another seed, tool radius or up axis");
+  return sites;
+}
 
-  // Visit sites in a short order (greedy nearest neighbour from the first).
+// Visit sites in a short order (greedy nearest neighbour from the first).
+void order_sites(std::vector<ProbeSite>& sites) {
   for (std::size_t i = 1; i + 1 < sites.size(); ++i) {
     std::size_t best = i;
     for (std::size_t j = i + 1; j < sites.size(); ++j)
@@ -183,7 +203,14 @@ ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world, const Pro
         best = j;
     std::swap(sites[i], sites[best]);
   }
+}
 
+// The waypoints: above each site, down to its touch point, the press, hold and release, back up;
+// sets each site's t_touch.
+std::vector<ProbeTrajectory::Waypoint> site_waypoints(std::vector<ProbeSite>& sites, const ProbeParams& params,
+                                                      const SiteFinder& f) {
+  const double r = params.tool_radius;
+  const double d_app = params.approach_distance * r;
   std::vector<ProbeTrajectory::Waypoint> wps;
   double t = 0;
   const auto go = [&](const Eigen::Vector3d& x, double duration) {
@@ -210,6 +237,28 @@ ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world, const Pro
     travel(f.lift(start), params.travel_speed);
   }
   go(wps.back().position, 0.3);
+  return wps;
+}
+
+}  // namespace
+
+ProbeTrajectory generate_probe_trajectory(const CollisionWorld& world, const ProbeParams& params) {
+  if (!(params.tool_radius > 0)) throw InputError("probe: tool radius must be > 0");
+  if (params.sites < 1) throw InputError("probe: need at least one site");
+  if (!(params.up.norm() > 0)) throw InputError("probe: 'up' must be a non-zero vector");
+  SiteFinder f(world, params);
+  const double r = params.tool_radius;
+  const ObjectRegion o = object_region(world, f.up, r);
+  f.z_safe = o.z_safe;
+  std::vector<ProbeSite> sites = find_sites(world, params, o, f);
+  if (sites.empty()) {
+    const Eigen::Vector3d extent = world.bounds_hi() - world.bounds_lo();
+    throw InputError("probe: found no reachable surface site (scene extent " +
+                     std::to_string(extent.norm()) + ", tool radius " + std::to_string(r) +
+                     "); try another seed, tool radius or up axis");
+  }
+  order_sites(sites);
+  std::vector<ProbeTrajectory::Waypoint> wps = site_waypoints(sites, params, f);
   return ProbeTrajectory(std::move(wps), std::move(sites), r);
 }
 
