@@ -15,6 +15,7 @@ void register_poses(CLI::App& app);
 void register_convert(CLI::App& app);
 void register_synth(CLI::App& app);
 void register_fidelity(CLI::App& app);
+void register_seen_felt(CLI::App& app);
 void register_stability(CLI::App& app);
 void register_devices(CLI::App& app);
 void register_latency(CLI::App& app);

@@ -50,6 +50,7 @@ int main(int argc, char** argv) {
   gshaptics::cli::register_convert(app);
   gshaptics::cli::register_synth(app);
   gshaptics::cli::register_fidelity(app);
+  gshaptics::cli::register_seen_felt(app);
   gshaptics::cli::register_stability(app);
   gshaptics::cli::register_devices(app);
   gshaptics::cli::register_latency(app);

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <thread>
@@ -84,6 +85,78 @@ void run_fidelity_command(const FidelityCommandOptions& o) {
   }
   write_fidelity_markdown(rep, o.out, fidelity_command_line(o), prefix);
   fmt::print("fidelity   {} ticks in {:.0f} s; report {}; curves in {}\n", rep.ticks, rep.seconds, o.out, data_dir);
+}
+
+std::vector<std::string> seen_felt_default_scenes() {
+  const char* env = std::getenv("GSHAPTICS_SCENES");
+  const std::string dir = env && *env ? std::string(env) : std::string(GSHAPTICS_SOURCE_DIR) + "/../shared/data/scenes";
+  std::vector<std::string> found;
+  for (const char* name : {"truck.splat", "burger.splat", "skull.splat", "unicorn.ply", "halo.ply", "firepit.ply",
+                           "guitar.compressed.ply", "biker.ply", "donut.ply", "fruitdrops.ply"}) {
+    const std::string p = dir + "/" + name;
+    if (std::filesystem::exists(p)) found.push_back(p);
+  }
+  return found;
+}
+
+SeenFeltOptions seen_felt_options_from(const SeenFeltCommandOptions& o) {
+  SeenFeltOptions so = o.quick ? quick_seen_felt_options() : SeenFeltOptions{};
+  so.renderer = o.force.spec();
+  so.play.safety.f_max = o.force.f_max;
+  so.play.inline_query = o.exec.inline_query;
+  so.play.latency_ticks = o.exec.latency_ticks;
+  so.seed = o.seed;
+  if (o.rays > 0) so.rays = o.rays, so.max_candidates = std::max(so.max_candidates, 20 * o.rays);
+  if (!o.tools_percent.empty()) {
+    so.tool_fractions.clear();
+    for (double pct : o.tools_percent) so.tool_fractions.push_back(pct / 100);
+  }
+  if (!o.directions.empty()) {
+    so.directions.clear();
+    for (const std::string& d : o.directions) so.directions.push_back(parse_press_direction(d));
+  }
+  return so;
+}
+
+namespace {
+
+std::string seen_felt_command_line(const SeenFeltCommandOptions& o, const std::vector<std::string>& scenes) {
+  std::string command = "gshaptics seen-felt --force-model " + std::string(renderer_name(o.force.model));
+  if (o.quick) command += " --quick";
+  if (o.rays > 0) command += fmt::format(" --rays {}", o.rays);
+  if (!o.tools_percent.empty()) command += fmt::format(" --tool-percent {}", fmt::join(o.tools_percent, ","));
+  if (!o.directions.empty()) command += fmt::format(" --direction {}", fmt::join(o.directions, ","));
+  if (o.seed != SeenFeltOptions{}.seed) command += fmt::format(" --seed {}", o.seed);
+  if (!o.scenes.empty())
+    for (const std::string& s : scenes) command += " " + std::filesystem::path(s).filename().string();
+  return command;
+}
+
+}  // namespace
+
+void run_seen_felt_command(const SeenFeltCommandOptions& o) {
+  const SeenFeltOptions so = seen_felt_options_from(o);
+  const std::filesystem::path folder = report_folder(o.out, "seen-felt");
+  const std::vector<std::string> scenes = o.scenes.empty() ? seen_felt_default_scenes() : o.scenes;
+  if (scenes.empty())
+    throw InputError("seen-felt: no scene given and none of the shared scenes found (set GSHAPTICS_SCENES)");
+  const std::string data_dir = o.data_dir.empty() ? (folder / "seen_felt").string() : o.data_dir;
+  const SeenFeltReport rep =
+      run_seen_felt(scenes, so, [](const std::string& line) { fmt::print(stderr, "seen-felt  {}\n", line); });
+  std::filesystem::create_directories(data_dir);
+  const std::string csv = (std::filesystem::path(data_dir) / "seen_felt_rays.csv").string();
+  write_seen_felt_csv(rep, csv);
+  std::string figure;
+  if (!o.no_plot) {
+    const std::string png = (std::filesystem::path(data_dir) / "seen_felt.png").string();
+    if (run_python(find_tool_script("plot_seen_felt.py"), {csv, png}, "seen-felt"))
+      figure = std::filesystem::relative(png, folder).string();
+  }
+  write_seen_felt_markdown(rep, o.out, seen_felt_command_line(o, scenes), figure);
+  int through = 0, rays = 0, no_force = 0;
+  for (const SeenFeltRow& r : rep.rows) through += r.through, rays += r.rays, no_force += r.no_force;
+  fmt::print("seen-felt  {} scenes, {} rays in {:.0f} s: {} through, {} without force; report {}\n", scenes.size(), rays,
+             rep.seconds, through, no_force, o.out);
 }
 
 StabilityOptions stability_options_from(const StabilityCommandOptions& o) {

@@ -6,8 +6,7 @@
 
 namespace gshaptics {
 
-namespace {
-void percentile_box(const CollisionWorld& world, Eigen::Vector3d& p1, Eigen::Vector3d& p99) {
+void robust_box(const CollisionWorld& world, Eigen::Vector3d& p1, Eigen::Vector3d& p99) {
   std::vector<double> ax[3];
   for (auto& a : ax) a.reserve(world.size());
   for (const auto& g : world.gaussians())
@@ -17,17 +16,16 @@ void percentile_box(const CollisionWorld& world, Eigen::Vector3d& p1, Eigen::Vec
     p99[k] = percentile(ax[k], 99);
   }
 }
-}  // namespace
 
 double robust_extent(const CollisionWorld& world) {
   Eigen::Vector3d p1, p99;
-  percentile_box(world, p1, p99);
+  robust_box(world, p1, p99);
   return (p99 - p1).maxCoeff();
 }
 
 std::vector<ToolEllipsoid> sample_poses(const CollisionWorld& world, const PoseSamplerParams& params) {
   Eigen::Vector3d p1, p99;
-  percentile_box(world, p1, p99);
+  robust_box(world, p1, p99);
   const double extent = (p99 - p1).maxCoeff();
   std::mt19937_64 rng(params.seed);
   std::uniform_real_distribution<double> u(0, 1);

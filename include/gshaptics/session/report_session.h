@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "gshaptics/fidelity/fidelity_run.h"
+#include "gshaptics/fidelity/seen_felt.h"
 #include "gshaptics/fidelity/stability.h"
 #include "gshaptics/session/probe_session.h"
 
@@ -43,6 +44,31 @@ struct FidelityCommandOptions {
 /// reported on stderr and left out of the report). Throws InputError for bad options (`out` not a
 /// .md file, ...).
 void run_fidelity_command(const FidelityCommandOptions& o);
+
+/// `gshaptics seen-felt`: the options as on the command line.
+struct SeenFeltCommandOptions {
+  std::vector<std::string> scenes;  ///< scene files; empty: every shared scene found (seen_felt_default_scenes())
+  bool quick = false;               ///< quick_seen_felt_options() (CI)
+  bool no_plot = false;
+  std::string out = "bench/SEEN_FELT.md";  ///< the Markdown report (.md)
+  std::string data_dir;                    ///< rays (CSV) and figure; "": beside `out`, in seen_felt/
+  int rays = 0;                            ///< per configuration; 0: the run's default
+  std::vector<double> tools_percent;       ///< tool radii, % of the extent; empty: the run's default
+  std::vector<std::string> directions;     ///< vertical, around; empty: both
+  std::uint64_t seed = SeenFeltOptions{}.seed;
+  ForceModelOptions force;
+  ExecutionOptions exec;
+};
+
+/// The shared real scenes the benchmark runs on by default: the ten object and room captures of
+/// ../shared/data/scenes (the aerial crop left out: its tool would be metres wide), those found
+/// beside the project or under $GSHAPTICS_SCENES.
+[[nodiscard]] std::vector<std::string> seen_felt_default_scenes();
+/// The measurement `o` asks for. Throws InputError for an unknown direction.
+[[nodiscard]] SeenFeltOptions seen_felt_options_from(const SeenFeltCommandOptions& o);
+/// Runs the benchmark and writes its report, rays (CSV) and figure. Throws InputError for bad
+/// options or a scene that does not load.
+void run_seen_felt_command(const SeenFeltCommandOptions& o);
 
 /// `gshaptics stability`: the options as on the command line.
 struct StabilityCommandOptions {

@@ -22,6 +22,9 @@ struct PoseSamplerParams {
   bool anisotropic = false;  ///< random orientation and axis ratios down to 1/3
 };
 
+/// The 1st-to-99th-percentile box of the world's Gaussian centres, per axis (world frame).
+void robust_box(const CollisionWorld& world, Eigen::Vector3d& p1, Eigen::Vector3d& p99);
+
 /// Largest 1st-to-99th-percentile span of the world's Gaussian centres (world units).
 [[nodiscard]] double robust_extent(const CollisionWorld& world);
 

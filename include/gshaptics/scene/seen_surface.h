@@ -1,0 +1,75 @@
+#pragma once
+/// @file
+/// The surface a 3DGS scene shows along a ray: the 3DGS median depth (../shared/DESIGN.md
+/// Sec. 2d; the compositing of Kerbl, Kopanas, Leimkuehler and Drettakis 2023, "3D Gaussian
+/// Splatting for Real-Time Radiance Field Rendering"). The ground truth the real-scene
+/// seen-against-felt benchmark (fidelity/seen_felt.h) holds the force renderers to.
+///
+/// Every Gaussian of the scene counts (no opacity filter, no floater rule): that is what a
+/// viewer draws. Along a ray o + t u (|u| = 1) Gaussian i has its peak at depth
+/// t_i = (mu_i - o)^T P_i u / (u^T P_i u) (P_i = Sigma_i^-1) and there the value
+/// G_i = exp(-r_i^2 / 2), r_i the ray's Mahalanobis distance to mu_i; its alpha is
+/// min(0.99, o_i G_i), and a Gaussian with alpha below 1/255 is skipped, as the 3DGS rasterizer
+/// does. Taken in the order of t_i (only t_i > 0: in front of the eye), the optical depth
+/// tau(t) = -sum_{t_i <= t} log1p(-alpha_i) grows; the seen depth is the first t_i at which it
+/// reaches ln 2 (the transmittance falls to 1/2).
+///
+/// The frame is the scene's (whatever frame `scene` is given in); lengths in its units.
+/// A slow, exact reference: each ray visits every Gaussian whose alpha-1/255 ellipsoid reaches
+/// the ray (a bounding-sphere test first). Not for the servo tick.
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <optional>
+#include <vector>
+
+#include "gshaptics/io/gaussian_scene.h"
+
+namespace gshaptics {
+
+/// The seen depth along one ray.
+struct SeenDepth {
+  bool hit = false;              ///< the transmittance fell to 1/2
+  double depth = 0;              ///< t of the seen surface (valid when hit), scene units
+  double optical_depth = 0;      ///< tau accumulated over the whole ray (t in (0, t_max])
+  std::size_t composited = 0;    ///< Gaussians with alpha >= 1/255 on the ray
+};
+
+/// A seen point with the normal of the seen surface there.
+struct SeenPoint {
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();   ///< o + depth u
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit, facing the eye (n . u < 0)
+  double depth = 0;
+};
+
+class SeenSurface {
+ public:
+  /// Keeps every Gaussian of `scene` whose opacity can reach 1/255 (their precision matrices
+  /// from scale and rotation; scales below 1e-9 are raised to it).
+  explicit SeenSurface(const GaussianScene& scene);
+
+  /// Gaussians held (opacity >= 1/255).
+  [[nodiscard]] std::size_t size() const noexcept { return gaussians_.size(); }
+
+  /// The 3DGS median depth along origin + t dir for t in (0, t_max]. `dir` need not be unit
+  /// (it is normalised; the depth is in scene units along the unit direction).
+  [[nodiscard]] SeenDepth median_depth(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                                       double t_max = 1e300) const;
+
+  /// The seen point along the ray and the seen surface's normal there, from the seen depth of
+  /// four parallel rays offset by +-`h` (scene units, > 0) across the ray: the normal of the
+  /// plane through their four seen points. Empty when any of the five rays sees nothing.
+  [[nodiscard]] std::optional<SeenPoint> surface_point(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                                                       double h, double t_max = 1e300) const;
+
+ private:
+  struct Entry {
+    Eigen::Vector3d mean;
+    double p[6];       // precision Sigma^-1: xx, xy, xz, yy, yz, zz
+    double opacity;
+    double reach;      // Euclidean radius beyond which alpha < 1/255
+  };
+  std::vector<Entry> gaussians_;
+};
+
+}  // namespace gshaptics

@@ -1,0 +1,325 @@
+#include "gshaptics/fidelity/seen_felt.h"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <random>
+
+#include "gshaptics/error.h"
+#include "gshaptics/fidelity/fidelity_run.h"
+#include "gshaptics/io/atomic_file.h"
+#include "gshaptics/io/scene_loader.h"
+#include "gshaptics/percentile.h"
+#include "gshaptics/sim/pose_sampler.h"
+
+namespace gshaptics {
+
+std::string_view to_string(PressDirection d) { return d == PressDirection::kVertical ? "vertical" : "around"; }
+
+PressDirection parse_press_direction(std::string_view name) {
+  if (name == "vertical") return PressDirection::kVertical;
+  if (name == "around") return PressDirection::kAround;
+  throw InputError(fmt::format("seen-felt: unknown direction '{}' (vertical, around)", name));
+}
+
+SeenFeltOptions quick_seen_felt_options() {
+  SeenFeltOptions o;
+  o.rays = 3;
+  o.max_candidates = 60;
+  o.tool_fractions = {0.01};
+  return o;
+}
+
+bool SeenFeltRow::meets_targets(int wanted_rays) const {
+  return rays >= wanted_rays && through <= 1 && no_force == 0 && felt_p90 <= 0.5 && onset_p10 >= -1.0;
+}
+
+namespace {
+
+void validate(const SeenFeltOptions& o) {
+  const bool ok = o.rays > 0 && o.max_candidates >= o.rays && o.facing_deg > 0 && o.facing_deg < 90 && o.past > 0 &&
+                  o.start > 0 && o.speed > 0 && o.hold >= 0 && o.rate_hz > 0 && o.force_threshold > 0 &&
+                  !o.tool_fractions.empty() && !o.directions.empty() && std::abs(o.down.norm() - 1) < 1e-6;
+  if (!ok) throw InputError("seen-felt: invalid options (rays, candidates, angles, speeds and tools must be positive)");
+  for (double f : o.tool_fractions)
+    if (!(f > 0 && f < 0.5)) throw InputError(fmt::format("seen-felt: tool fraction {} outside (0, 0.5)", f));
+}
+
+/// One configuration's frame: where rays are drawn, the tool, and the draw.
+struct RayDraw {
+  Eigen::Vector3d lo, hi;  // the kept Gaussians' 1-99 percentile box
+  double radius = 0;
+  PressDirection direction = PressDirection::kVertical;
+  std::mt19937_64 rng;
+};
+
+// A ray of the configuration: aimed at a random point of the box's middle (80 % across for
+// vertical rays, 60 % for rays from around), its eye `start` R outside the box; unit u.
+std::pair<Eigen::Vector3d, Eigen::Vector3d> draw_ray(RayDraw& d, const Eigen::Vector3d& down, double start) {
+  std::uniform_real_distribution<double> uni(0, 1);
+  const Eigen::Vector3d size = d.hi - d.lo;
+  const double share = d.direction == PressDirection::kVertical ? 0.8 : 0.6;
+  Eigen::Vector3d aim;
+  for (int k = 0; k < 3; ++k) aim[k] = d.lo[k] + size[k] * ((1 - share) / 2 + share * uni(d.rng));
+  Eigen::Vector3d u = down;
+  if (d.direction == PressDirection::kAround) {
+    const double phi = 2 * std::numbers::pi * uni(d.rng);
+    const Eigen::Vector3d a = down.unitOrthogonal(), b = down.cross(a);
+    u = std::cos(phi) * a + std::sin(phi) * b;
+  }
+  double back = 1e300;  // distance from the aim to the box's boundary along -u
+  for (int k = 0; k < 3; ++k) {
+    if (u[k] > 1e-12) back = std::min(back, (aim[k] - d.lo[k]) / u[k]);
+    if (u[k] < -1e-12) back = std::min(back, (d.hi[k] - aim[k]) / -u[k]);
+  }
+  return {aim - (back + start * d.radius) * u, u};
+}
+
+// The press along a ray: the leading point from `from` to `to` (depths from the origin) at
+// `speed`, then a hold.
+Script press_along(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double radius, double from, double to,
+                   const SeenFeltOptions& o) {
+  Script s;
+  s.scenario = Scenario::kPress;
+  s.tool_radius = radius;
+  s.max_delta = to - from;
+  const double v = o.speed * radius, dt = 1.0 / o.rate_hz;
+  const auto moving = static_cast<std::size_t>(std::ceil((to - from) / (v * dt)));
+  const auto holding = static_cast<std::size_t>(std::ceil(o.hold / dt));
+  s.ticks.reserve(moving + holding + 1);
+  for (std::size_t k = 0; k <= moving + holding; ++k) {
+    ScriptTick t;
+    t.time = double(k) * dt;
+    const double lead = std::min(to, from + v * t.time);
+    t.position = origin + (lead - radius) * u;
+    t.velocity = k < moving ? Eigen::Vector3d(v * u) : Eigen::Vector3d::Zero();
+    t.loading = k < moving;
+    t.measured = true;
+    s.ticks.push_back(t);
+  }
+  return s;
+}
+
+/// Plays one kept ray and scores it; false when the tool was caught before its start.
+bool score_ray(ForceRenderer& renderer, const SeenSurface& seen, const SeenPoint& hit, SeenFeltRay& ray,
+               const SeenFeltOptions& o) {
+  const double r = ray.tool_radius;
+  const double from = std::max(0.0, hit.depth - o.start * r);
+  const Script script = press_along(ray.origin, ray.dir, r, from, hit.depth + o.past * r, o);
+  const ScriptTrace trace = play_script(renderer, script, o.rate_hz, o.play);
+  const std::size_t first = std::min<std::size_t>(trace.force.size(), std::size_t(o.play.latency_ticks) + 2);
+  for (std::size_t i = 0; i < first; ++i)
+    if (trace.force[i].norm() >= o.force_threshold) return false;
+  std::vector<double> us;
+  for (std::size_t i = 0; i < trace.force.size(); ++i) {
+    const double f = trace.force[i].norm();
+    ray.peak_force = std::max(ray.peak_force, f);
+    if (std::isnan(ray.onset_minus_seen) && f >= o.force_threshold) {
+      const double lead = (script.ticks[i].position - ray.origin).dot(ray.dir) + r;
+      ray.onset_minus_seen = (lead - hit.depth) / r;
+    }
+    us.push_back(trace.render_us[i]);
+  }
+  ray.render_p99_us = percentile(us, 99);
+  // Where the proxy rests, against the seen depth of the parallel ray through it.
+  const Eigen::Vector3d rel = trace.proxy.back() - ray.origin;
+  const double felt = rel.dot(ray.dir) + r;
+  const SeenDepth beside = seen.median_depth(ray.origin + rel - rel.dot(ray.dir) * ray.dir, ray.dir);
+  ray.felt_minus_seen = (felt - (beside.hit ? beside.depth : hit.depth)) / r;
+  ray.no_force = ray.peak_force < o.force_threshold;
+  ray.through = ray.felt_minus_seen > 1.0;
+  return true;
+}
+
+SeenFeltRow summarise(const std::vector<SeenFeltRay>& rays, SeenFeltRow row) {
+  std::vector<double> felt, onset, us;
+  for (const SeenFeltRay& r : rays) {
+    ++row.rays;
+    row.through += r.through ? 1 : 0;
+    row.no_force += r.no_force ? 1 : 0;
+    felt.push_back(r.felt_minus_seen);
+    if (!std::isnan(r.onset_minus_seen)) onset.push_back(r.onset_minus_seen);
+    us.push_back(r.render_p99_us);
+  }
+  if (!felt.empty()) row.felt_p90 = percentile(felt, 90);
+  if (!onset.empty()) row.onset_p10 = percentile(onset, 10);
+  if (!us.empty()) row.render_p99_us = percentile(us, 99);
+  return row;
+}
+
+/// One configuration: draws rays until `rays` are kept or `max_candidates` are drawn.
+void measure_configuration(const SeenSurface& seen, ForceRenderer& renderer, RayDraw draw, SeenFeltRow row,
+                           const SeenFeltOptions& o, SeenFeltReport& report) {
+  std::vector<SeenFeltRay> kept;
+  const double cos_facing = std::cos(o.facing_deg * std::numbers::pi / 180);
+  while (int(kept.size()) < o.rays && row.drawn < o.max_candidates) {
+    ++row.drawn;
+    const auto [origin, u] = draw_ray(draw, o.down, o.start);
+    const std::optional<SeenPoint> hit = seen.surface_point(origin, u, 0.5 * draw.radius);
+    if (!hit || hit->depth < o.start * draw.radius || -hit->normal.dot(u) < cos_facing) continue;
+    SeenFeltRay ray;
+    ray.scene = row.scene;
+    ray.direction = row.direction;
+    ray.tool_fraction = row.tool_fraction;
+    ray.tool_radius = draw.radius;
+    ray.origin = origin;
+    ray.dir = u;
+    ray.seen = hit->depth;
+    ray.facing_deg = std::acos(std::clamp(-hit->normal.dot(u), -1.0, 1.0)) * 180 / std::numbers::pi;
+    if (!score_ray(renderer, seen, *hit, ray, o)) {
+      ++row.caught;
+      continue;
+    }
+    kept.push_back(ray);
+  }
+  report.rows.push_back(summarise(kept, row));
+  report.rays.insert(report.rays.end(), kept.begin(), kept.end());
+}
+
+}  // namespace
+
+void measure_seen_felt(const std::string& name, const GaussianScene& scene, const CollisionWorld& world,
+                       const SeenFeltOptions& o, SeenFeltReport& report, const SeenFeltProgressFn& progress) {
+  validate(o);
+  if (!world.scene_to_world().is_identity())
+    throw InputError(fmt::format("seen-felt: {}: the world must be in the scene's own frame", name));
+  const SeenSurface seen(scene);
+  std::unique_ptr<ForceRenderer> renderer = make_force_renderer(o.renderer, world);
+  RayDraw draw;
+  robust_box(world, draw.lo, draw.hi);
+  const double extent = (draw.hi - draw.lo).maxCoeff();
+  for (PressDirection direction : o.directions) {
+    for (double fraction : o.tool_fractions) {
+      draw.radius = fraction * extent;
+      draw.direction = direction;
+      draw.rng.seed(o.seed * 1000003u + std::uint64_t(direction == PressDirection::kAround) * 7919u +
+                    std::uint64_t(std::llround(fraction * 1e5)));
+      SeenFeltRow row;
+      row.scene = name;
+      row.direction = direction;
+      row.tool_fraction = fraction;
+      row.tool_radius = draw.radius;
+      measure_configuration(seen, *renderer, draw, row, o, report);
+      if (progress) {
+        const SeenFeltRow& r = report.rows.back();
+        progress(fmt::format("{:<11} {:<8} R = {:.1f} %: {}/{} through, {} no force, felt p90 {:+.2f} R, onset p10 "
+                             "{:+.2f} R ({} drawn, {} caught)",
+                             name, to_string(direction), fraction * 100, r.through, r.rays, r.no_force, r.felt_p90,
+                             r.onset_p10, r.drawn, r.caught));
+      }
+    }
+  }
+}
+
+SeenFeltReport run_seen_felt(const std::vector<std::string>& files, const SeenFeltOptions& o,
+                             const SeenFeltProgressFn& progress) {
+  validate(o);
+  if (files.empty()) throw InputError("seen-felt: no scene given");
+  const auto t0 = std::chrono::steady_clock::now();
+  SeenFeltReport report;
+  report.options = o;
+  for (const std::string& file : files) {
+    const LoadedScene loaded = load_scene(file);
+    const CollisionWorld world = CollisionWorld::build(loaded.scene, WorldConfig{});
+    measure_seen_felt(std::filesystem::path(file).filename().string(), loaded.scene, world, o, report, progress);
+  }
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return report;
+}
+
+namespace {
+
+std::string cell(const SeenFeltRow& r) {
+  return fmt::format("{}/{}, {}", r.through, r.rays, r.no_force);
+}
+
+std::string number(double v, const char* f = "{:+.2f}") { return std::isnan(v) ? std::string("-") : fmt::format(fmt::runtime(f), v); }
+
+std::string summary_table(const SeenFeltReport& rep) {
+  const SeenFeltOptions& o = rep.options;
+  std::string md = "| scene |";
+  std::string rule = "|---|";
+  for (PressDirection d : o.directions)
+    for (double f : o.tool_fractions) {
+      md += fmt::format(" {}, R = {:g} % |", to_string(d), f * 100);
+      rule += "---|";
+    }
+  md += " earliest onset, p10 | configurations meeting the targets |\n" + rule + "---:|---:|\n";
+  std::vector<std::string> scenes;
+  for (const SeenFeltRow& r : rep.rows)
+    if (scenes.empty() || scenes.back() != r.scene) scenes.push_back(r.scene);
+  for (const std::string& s : scenes) {
+    md += "| " + s + " |";
+    double earliest = NAN;
+    int met = 0, configs = 0;
+    for (const SeenFeltRow& r : rep.rows) {
+      if (r.scene != s) continue;
+      md += " " + cell(r) + " |";
+      if (!std::isnan(r.onset_p10)) earliest = std::isnan(earliest) ? r.onset_p10 : std::min(earliest, r.onset_p10);
+      met += r.meets_targets(o.rays) ? 1 : 0;
+      ++configs;
+    }
+    md += fmt::format(" {} R | {}/{} |\n", number(earliest, "{:+.1f}"), met, configs);
+  }
+  return md;
+}
+
+std::string detail_table(const SeenFeltReport& rep) {
+  std::string md =
+      "| scene | direction | R (% / units) | rays | through | no force | felt - seen p90 (R) | onset - seen p10 (R) | "
+      "caught | drawn | render p99 (us) | targets |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
+  for (const SeenFeltRow& r : rep.rows)
+    md += fmt::format("| {} | {} | {:g} / {:.4g} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", r.scene,
+                      to_string(r.direction), r.tool_fraction * 100, r.tool_radius, r.rays, r.through, r.no_force,
+                      number(r.felt_p90), number(r.onset_p10), r.caught, r.drawn, number(r.render_p99_us, "{:.1f}"),
+                      r.meets_targets(rep.options.rays) ? "met" : "missed");
+  return md;
+}
+
+}  // namespace
+
+void write_seen_felt_markdown(const SeenFeltReport& rep, const std::string& path, const std::string& command,
+                              const std::string& figure) {
+  const SeenFeltOptions& o = rep.options;
+  int through = 0, no_force = 0, rays = 0, met = 0;
+  for (const SeenFeltRow& r : rep.rows) {
+    through += r.through;
+    no_force += r.no_force;
+    rays += r.rays;
+    met += r.meets_targets(o.rays) ? 1 : 0;
+  }
+  std::string md = "# Seen against felt on real scenes\n\n";
+  md += fmt::format(
+      "Generated by `{}` ({:.0f} s). Force model `{}`, {}; sphere tools pressed along rays at {:g} R/s from {:g} R "
+      "before the seen surface (the 3DGS median depth over every Gaussian of the file) to {:g} R past it, held {:g} s, "
+      "through the servo step of a real-time run. Rays kept where the seen surface is within {:g} deg of facing the "
+      "ray; {} per configuration wanted. Cells: rays through (felt more than 1 R past the seen surface) / rays, and "
+      "rays with no force at all.\n\n",
+      command, rep.seconds, renderer_name(o.renderer), describe_mode(o.play), o.speed, o.start, o.past, o.hold,
+      o.facing_deg, o.rays);
+  md += fmt::format("In all, {} of {} rays go more than 1 R through and {} feel nothing; {} of {} configurations meet "
+                    "the targets (at most 1 ray through, none without force, felt - seen p90 <= 0.5 R, onset p10 >= "
+                    "-1 R, all rays kept).\n\n",
+                    through, rays, no_force, met, rep.rows.size());
+  md += summary_table(rep) + "\n";
+  if (!figure.empty()) md += fmt::format("![felt and onset against seen]({})\n\n", figure);
+  md += "## Every configuration\n\n" + detail_table(rep);
+  write_file_atomically(path, md);
+}
+
+void write_seen_felt_csv(const SeenFeltReport& rep, const std::string& path) {
+  std::string csv =
+      "scene,direction,tool_fraction,tool_radius,ox,oy,oz,ux,uy,uz,seen,facing_deg,felt_minus_seen,onset_minus_seen,"
+      "peak_force,through,no_force,render_p99_us\n";
+  for (const SeenFeltRay& r : rep.rays)
+    csv += fmt::format("{},{},{:g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.3f},{:.4f},{:.4f},{:.4f},{},{},{:.2f}\n",
+                       r.scene, to_string(r.direction), r.tool_fraction, r.tool_radius, r.origin.x(), r.origin.y(),
+                       r.origin.z(), r.dir.x(), r.dir.y(), r.dir.z(), r.seen, r.facing_deg, r.felt_minus_seen,
+                       r.onset_minus_seen, r.peak_force, int(r.through), int(r.no_force), r.render_p99_us);
+  write_file_atomically(path, csv);
+}
+
+}  // namespace gshaptics

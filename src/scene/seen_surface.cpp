@@ -1,0 +1,105 @@
+#include "gshaptics/scene/seen_surface.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+namespace gshaptics {
+
+namespace {
+
+constexpr double kMinAlpha = 1.0 / 255.0;  // the 3DGS rasterizer's skip threshold
+constexpr double kMaxAlpha = 0.99;         // and its clamp
+constexpr double kMinScale = 1e-9;
+
+// (v^T P w) for the packed symmetric P.
+double form(const double* p, const Eigen::Vector3d& v, const Eigen::Vector3d& w) {
+  return v.x() * (p[0] * w.x() + p[1] * w.y() + p[2] * w.z()) + v.y() * (p[1] * w.x() + p[3] * w.y() + p[4] * w.z()) +
+         v.z() * (p[2] * w.x() + p[4] * w.y() + p[5] * w.z());
+}
+
+}  // namespace
+
+SeenSurface::SeenSurface(const GaussianScene& scene) {
+  gaussians_.reserve(scene.size());
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    const double o = std::min<double>(scene.opacities[i], kMaxAlpha);
+    if (!(o >= kMinAlpha)) continue;
+    const Eigen::Vector4f& q = scene.rotations[i];
+    Eigen::Quaterniond rot(q[0], q[1], q[2], q[3]);
+    if (!(rot.norm() > 0)) rot = Eigen::Quaterniond::Identity();
+    const Eigen::Matrix3d r = rot.normalized().toRotationMatrix();
+    Eigen::Vector3d s = scene.scales[i].cast<double>().cwiseMax(kMinScale);
+    const Eigen::Matrix3d p = r * s.cwiseInverse().cwiseAbs2().asDiagonal() * r.transpose();
+    Entry e;
+    e.mean = scene.means[i].cast<double>();
+    e.p[0] = p(0, 0), e.p[1] = p(0, 1), e.p[2] = p(0, 2), e.p[3] = p(1, 1), e.p[4] = p(1, 2), e.p[5] = p(2, 2);
+    e.opacity = o;
+    // alpha = o exp(-r^2/2) >= 1/255 needs r^2 <= 2 ln(255 o); r = |x - mu| / sigma at most.
+    e.reach = std::sqrt(2.0 * std::log(o / kMinAlpha)) * s.maxCoeff();
+    if (!std::isfinite(e.reach) || !e.mean.allFinite()) continue;
+    gaussians_.push_back(e);
+  }
+}
+
+SeenDepth SeenSurface::median_depth(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_max) const {
+  SeenDepth out;
+  const double len = dir.norm();
+  if (!(len > 0)) return out;
+  const Eigen::Vector3d u = dir / len;
+  std::vector<std::pair<double, double>> layers;  // (t_i, alpha_i)
+  for (const Entry& g : gaussians_) {
+    const Eigen::Vector3d w = g.mean - origin;
+    const double along = w.dot(u);
+    if ((w - along * u).squaredNorm() > g.reach * g.reach) continue;  // the ray misses its reach
+    const double uPu = form(g.p, u, u);
+    const double uPw = form(g.p, u, w);
+    const double t = uPw / uPu;
+    if (!(t > 0) || t > t_max) continue;
+    const double r2 = std::max(0.0, form(g.p, w, w) - uPw * t);
+    const double alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5 * r2));
+    if (alpha < kMinAlpha) continue;
+    layers.emplace_back(t, alpha);
+  }
+  std::sort(layers.begin(), layers.end());
+  out.composited = layers.size();
+  const double half = std::log(2.0);
+  for (const auto& [t, alpha] : layers) {
+    out.optical_depth -= std::log1p(-alpha);
+    if (!out.hit && out.optical_depth >= half) {
+      out.hit = true;
+      out.depth = t;
+    }
+  }
+  return out;
+}
+
+std::optional<SeenPoint> SeenSurface::surface_point(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                                                    double h, double t_max) const {
+  const double len = dir.norm();
+  if (!(len > 0) || !(h > 0)) return std::nullopt;
+  const Eigen::Vector3d u = dir / len;
+  const SeenDepth centre = median_depth(origin, u, t_max);
+  if (!centre.hit) return std::nullopt;
+  const Eigen::Vector3d a = u.unitOrthogonal();
+  const Eigen::Vector3d b = u.cross(a);
+  Eigen::Vector3d pts[4];
+  const Eigen::Vector3d offsets[4] = {h * a, -h * a, h * b, -h * b};
+  for (int k = 0; k < 4; ++k) {
+    const SeenDepth d = median_depth(origin + offsets[k], u, t_max);
+    if (!d.hit) return std::nullopt;
+    pts[k] = origin + offsets[k] + d.depth * u;
+  }
+  Eigen::Vector3d n = (pts[0] - pts[1]).cross(pts[2] - pts[3]);
+  if (!(n.norm() > 0)) return std::nullopt;
+  n.normalize();
+  if (n.dot(u) > 0) n = -n;
+  SeenPoint sp;
+  sp.depth = centre.depth;
+  sp.point = origin + centre.depth * u;
+  sp.normal = n;
+  return sp;
+}
+
+}  // namespace gshaptics
