@@ -156,6 +156,16 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
          "proxy: on a clean flat face of the Gaussians, a compound tool's part averages its shaded normal with the "
          "face's mean thin axis while they agree (off: the shaded field). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
+  cmd.add_option_function<std::string>(
+         "--surface", [&p](const std::string& v) { p.surface = v == "seen" ? ProxySurface::kSeen : ProxySurface::kEllipsoids; },
+         "proxy: the solid the proxy rests on: ellipsoids (the Gaussians' exact 1-sigma ellipsoids, opacity filter and "
+         "floater rule) or seen (where the splats composite to half transmittance along the push, as a viewer sees "
+         "them; faint Gaussians kept: the world's --min-opacity defaults to 1/255). Default: ellipsoids")
+      ->check(CLI::IsMember({"ellipsoids", "seen"}));
+  cmd.add_option("--seen-window", p.seen_window,
+                 "proxy: with --surface seen, the layers within this many tool radii behind a point along the push "
+                 "decide whether it is inside")
+      ->capture_default_str()->check(check::positive());
   cmd.add_option("--isolation-gap", p.isolation_gap,
                  "proxy: a Gaussian with no other within this many tool radii is a floater and does not block "
                  "(0: only overlapping Gaussians support each other, which lets the tool through sparse surfaces)")

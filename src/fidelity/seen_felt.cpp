@@ -223,7 +223,9 @@ SeenFeltReport run_seen_felt(const std::vector<std::string>& files, const SeenFe
   report.options = o;
   for (const std::string& file : files) {
     const LoadedScene loaded = load_scene(file);
-    const CollisionWorld world = CollisionWorld::build(loaded.scene, WorldConfig{});
+    WorldConfig config;
+    config.min_opacity = default_min_opacity(o.renderer);
+    const CollisionWorld world = CollisionWorld::build(loaded.scene, config);
     measure_seen_felt(std::filesystem::path(file).filename().string(), loaded.scene, world, o, report, progress);
   }
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

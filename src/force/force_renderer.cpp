@@ -47,6 +47,11 @@ RendererSpec renderer_spec(RendererKind kind, const ProxyParams& proxy, const Fo
 
 RendererSpec renderer_spec(std::string_view name) { return renderer_spec(renderer_kind(name)); }
 
+float default_min_opacity(const RendererSpec& spec) noexcept {
+  const auto* proxy = std::get_if<ProxyModelSpec>(&spec);
+  return proxy && proxy->params.surface == ProxySurface::kSeen ? kSeenMinOpacity : kDefaultMinOpacity;
+}
+
 RendererSpec renderer_spec_for(const RendererSpec& spec, ProxyTool tool) {
   if (const auto* proxy = std::get_if<ProxyModelSpec>(&spec)) return ProxyModelSpec{proxy_params_for(proxy->params, tool)};
   return spec;

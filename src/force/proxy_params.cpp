@@ -25,7 +25,7 @@ constexpr ProxyToolField field(std::string_view name, std::string_view option, P
 }
 
 // The table of tool-specific fields: one row each, with its option and why the other tool has no use for it.
-const std::array<ProxyToolField, 10> kToolFields{{
+const std::array<ProxyToolField, 12> kToolFields{{
     field<&ProxyParams::device_shading>("device_shading", "--device-shading", ProxyTool::kOnePart,
                                  "a compound tool's parts read the shaded normal where each touches"),
     field<&ProxyParams::corner_normal>("corner_normal", "--corner-normal", ProxyTool::kOnePart,
@@ -34,6 +34,10 @@ const std::array<ProxyToolField, 10> kToolFields{{
                                  "a compound tool's parts read the shaded normal without the overhang falloff"),
     field<&ProxyParams::shading_budget>("shading_budget", "", ProxyTool::kOnePart,
                                  "a compound tool's parts read their shaded normals whole"),
+    field<&ProxyParams::surface>("surface", "--surface", ProxyTool::kOnePart,
+                                 "a compound tool's parts rest on the Gaussians' ellipsoids (the seen solid is one-part only)"),
+    field<&ProxyParams::seen_window>("seen_window", "--seen-window", ProxyTool::kOnePart,
+                                 "a compound tool's parts rest on the Gaussians' ellipsoids (the seen solid is one-part only)"),
     field<&ProxyParams::rot_stiffness>("rot_stiffness", "", ProxyTool::kCompound,
                                  "a one-part tool at its centre point is not turned by the proxy"),
     field<&ProxyParams::rot_damping>("rot_damping", "", ProxyTool::kCompound,
@@ -68,6 +72,7 @@ void validate_proxy_params(const ProxyParams& p, std::string_view who) {
     fail(who, "shading_kernel and teleport must be > 0, tau_opacity >= 0");
   if (!finite_at_least(p.rot_stiffness, 0) || !finite_at_least(p.rot_damping, 0))
     fail(who, "rotational stiffness and damping must be >= 0");
+  if (!finite_positive(p.seen_window)) fail(who, "seen_window must be > 0 tool radii");
   if (!(p.rotation_step > 0 && p.rotation_step <= 1) || p.max_rotation_steps < 1)
     fail(who, "rotation_step must be in (0, 1] and max_rotation_steps >= 1");
 }

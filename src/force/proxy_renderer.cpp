@@ -25,7 +25,8 @@ ProxyRenderer::ProxyRenderer(const CollisionWorld& world, const ProxyParams& par
       solver_(world, params_),
       normals_(world, params_),
       friction_(params_.mu_s, params_.mu_k),
-      coupling_(params_, f_max) {}
+      coupling_(params_, f_max),
+      seen_(params_.surface == ProxySurface::kSeen ? std::make_unique<SeenProxy>(world, params_, f_max) : nullptr) {}
 
 void ProxyRenderer::set_tool(const CompoundTool& tool) {
   tool.validate("proxy: tool");
@@ -69,6 +70,7 @@ void ProxyRenderer::restart_at(const ToolEllipsoid& tool) noexcept {
 
 void ProxyRenderer::reset() noexcept {
   if (compound_) compound_->reset();
+  if (seen_) seen_->reset();
   solver_.reset();
   forget_contact();
   normal_.setZero();
@@ -118,6 +120,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     out.status = QueryStatus::kInvalidTool;
     return out;
   }
+  if (seen_) return seen_->render(tool, velocity, dt);
   const Eigen::Vector3d& xd = tool.center;
   const double r = tool.bounding_radius();
   const Eigen::Vector3d device_step = follow_device(tool);

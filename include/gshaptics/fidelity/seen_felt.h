@@ -9,8 +9,8 @@
 /// radius R along each ray, from the ray's start (the eye) to `past` R beyond the seen surface,
 /// then holds. The press is played by an ideal position-controlled device through the servo step
 /// of a real-time run (play_script: SimulatedRuntime, safety layer and execution mode included),
-/// with the force renderer of `renderer` on the default world of the scene (WorldConfig{}: the
-/// opacity filter on, the scene in its file's frame).
+/// with the force renderer of `renderer` on the default world of the scene for that renderer (the
+/// scene in its file's frame, the opacity filter at default_min_opacity()).
 ///
 /// Per ray, in tool radii R (depths of the tool's leading point, the centre + R u):
 /// - felt - seen: where the proxy's leading point rests at the end, against the seen depth of the

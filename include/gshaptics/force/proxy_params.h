@@ -19,6 +19,16 @@
 
 namespace gshaptics {
 
+/// The solid the proxy is held against.
+enum class ProxySurface {
+  /// The Gaussians' exact k-sigma ellipsoids (DESIGN.md Sec. 2b), with the opacity filter and
+  /// the floater rule: exact against the ellipsoids, not the surface a renderer shows.
+  kEllipsoids,
+  /// The seen solid (force/seen_solid.h): where the Gaussians composite to a transmittance of
+  /// 1/2 along the push, as a viewer looking along it sees them. One-part tools.
+  kSeen,
+};
+
 /// Parameters of the proxy (god-object) renderer, every tool. SI units; "tool radii" are the
 /// one-ellipsoid tool's bounding radius, or a compound tool's largest semi-axis (its smallest
 /// semi-axis where a field says so).
@@ -105,6 +115,12 @@ struct ProxyParams {
   /// back up to 12 mJ more than it took (bench/RESULTS.md, twenty-sixth session). false: the
   /// plain coupling. The rotational spring of a compound tool is not bounded.
   bool energy_bound = true;
+  /// One-part tool. The solid the proxy rests on (kEllipsoids: the Gaussians' ellipsoids).
+  ProxySurface surface = ProxySurface::kEllipsoids;
+  /// One-part tool, kSeen. How far behind the tool's leading point the eye of the seen solid may
+  /// be, in tool radii (> 0): the layers a push has come through since its approach began, up to
+  /// this far back, count toward the surface it meets.
+  double seen_window = 32.0;
 
   /// Compound tool. k_r, N m/rad: the rotational coupling; 1 N m/rad gives 0.5 N m, a desktop
   /// 6-DoF arm's torque, at about 30 deg.

@@ -44,6 +44,7 @@
 #include "gshaptics/force/friction_cone.h"
 #include "gshaptics/force/proxy_normal.h"
 #include "gshaptics/force/proxy_params.h"
+#include "gshaptics/force/seen_proxy.h"
 #include "gshaptics/force/proxy_solver.h"
 #include "gshaptics/force/virtual_coupling.h"
 
@@ -128,6 +129,7 @@ class ProxyRenderer final : public ForceRenderer {
   bool in_contact_ = false, sticking_ = false;
   ProxyMove last_move_;
   std::unique_ptr<CompoundProxy> compound_;  // a tool with a shape (set_tool)
+  std::unique_ptr<SeenProxy> seen_;          // ProxySurface::kSeen: the proxy on the seen solid
   bool compound_active_ = false;             // the last tick was the compound proxy's
 };
 

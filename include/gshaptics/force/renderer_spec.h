@@ -52,6 +52,10 @@ struct RendererName {
 /// The model `kind` with its parameters (the other model's are not read).
 [[nodiscard]] RendererSpec renderer_spec(RendererKind kind, const ProxyParams& proxy = {},
                                          const ForceParams& paper = {});
+/// The opacity filter a world rendered by `spec` is built with unless the user sets one:
+/// kSeenMinOpacity for the proxy on the seen solid (it composites the faint Gaussians a viewer
+/// draws), kDefaultMinOpacity (paper Sec. III-A) otherwise.
+[[nodiscard]] float default_min_opacity(const RendererSpec& spec) noexcept;
 /// The named model with its default parameters. Throws InputError as renderer_kind().
 [[nodiscard]] RendererSpec renderer_spec(std::string_view name);
 /// The proxy's parameters for `tool` (proxy_params_for(): the fields that do not serve it at

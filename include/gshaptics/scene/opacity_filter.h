@@ -10,6 +10,9 @@ namespace gshaptics {
 
 /// Paper Sec. III-A recommends tau in 0.1 .. 0.3; the default is 0.2 (WorldConfig::min_opacity).
 inline constexpr float kDefaultMinOpacity = 0.2f;
+/// The filter for a world whose solid composites every Gaussian a viewer draws (the seen solid,
+/// force/seen_solid.h): just under 1/255, the 3DGS rasterizer's skip threshold.
+inline constexpr float kSeenMinOpacity = 0.0039f;
 
 /// How much the filter removed.
 struct OpacityFilterReport {

@@ -1,0 +1,90 @@
+#pragma once
+/// @file
+/// The solid the splats render, as the hand meets it: seen from an eye behind the tool along
+/// the push u, a point y is inside when the Gaussians whose peaks along the ray lie between the
+/// eye and y composite to a transmittance of 1/2 or less, i.e. their optical depth
+/// sum_i -log1p(-alpha_i) reaches ln 2 (../shared/DESIGN.md Sec. 2d; the 3DGS compositing of
+/// Kerbl et al. 2023, alpha_i = min(0.99, o_i exp(-r_i^2 / 2)), alpha below 1/255 skipped).
+///
+/// With the eye behind the tool, the first such point along its approach is the 3DGS median
+/// depth a viewer looking along the approach sees: what is felt is what is seen. The eye is the
+/// caller's; eye_distance() puts it as far back as the tool is still seen from (SeenProxy: at
+/// most seen_window tool radii), so a proxy resting in a faint layer keeps the layer in front of
+/// its eye and small steps cannot creep through it, while a surface behind the tool (the floor
+/// it lifts off) never holds it. Each query searches the whole segment, so no motion tunnels. Volume haptics with a proxy on
+/// opacity (Lundin, Ynnerman and Gudmundsson 2002) is the classical ground; the normal is the
+/// seen surface's, from four parallel rays.
+///
+/// Frame and units: the world's (CollisionWorld), lengths in world units. Built once (allocates);
+/// the queries are const, allocation-free and use the caller's SeenScratch.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "gshaptics/broadphase/bvh.h"
+#include "gshaptics/collision/collision_world.h"
+
+namespace gshaptics {
+
+/// Per-caller working memory of SeenSolid queries (one per renderer / thread).
+struct SeenScratch {
+  explicit SeenScratch(std::size_t capacity = 8192) { layers.resize(capacity); }
+  struct Layer {
+    double t;    ///< peak depth along the ray
+    double tau;  ///< -log1p(-alpha)
+  };
+  std::vector<Layer> layers;
+  std::size_t gathered = 0;
+  bool overflow = false;  ///< more layers than capacity: the query answered conservatively
+};
+
+/// A blocking point along a ray.
+struct SeenHit {
+  bool hit = false;
+  double t = 0;  ///< depth of the blocking point from the ray's origin (>= t0)
+  std::uint32_t layers = 0;  ///< layers in the window at the hit
+};
+
+class SeenSolid {
+ public:
+  /// Every Gaussian of `world` whose opacity reaches 1/255 (build the world with
+  /// WorldConfig::min_opacity below the default to keep faint layers). Scales are the world's
+  /// semi-axes divided by its sigma. Builds its own BVH over each Gaussian's alpha = 1/255 box.
+  explicit SeenSolid(const CollisionWorld& world);
+
+  [[nodiscard]] std::size_t size() const noexcept { return entries_.size(); }
+
+  /// The first t in [t0, t1] at which o + t u (u unit) is inside, seen from the eye at
+  /// o + t_back u (t_back <= t0): the optical depth of the layers peaking in [t_back, t] reaches
+  /// ln 2. No hit when there is none. t0 when it is already reached at t0 (or `scratch`
+  /// overflowed: scratch.overflow is set; blocked where it stands).
+  SeenHit first_inside(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double t_back, double t0, double t1,
+                       SeenScratch& scratch) const noexcept;
+
+  /// How far behind `c` along -u (u unit) the eye of a push along u is: the farthest point, up
+  /// to `max_back`, from which c is still seen (the layers between composite to a transmittance
+  /// above 1/2), i.e. just in front of the nearest surface behind c. 0 when scratch overflows.
+  double eye_distance(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back,
+                      SeenScratch& scratch) const noexcept;
+
+  /// The seen surface's outward normal (unit, n . u < 0) at `point` (on the surface for a push
+  /// along u): the plane through the first inside points of four rays parallel to u offset by
+  /// +-h across it, searched within +-`reach` of `point`, each seen from `back` before `point`'s
+  /// depth. -u when fewer than three of them hit.
+  Eigen::Vector3d normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach, double back,
+                         SeenScratch& scratch) const noexcept;
+
+ private:
+  struct Entry {
+    double mean[3];
+    double p[6];  // precision: xx, xy, xz, yy, yz, zz
+    double opacity;
+  };
+  void gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb,
+              SeenScratch& scratch) const noexcept;
+  std::vector<Entry> entries_;  // BVH slot order
+  Bvh bvh_;
+};
+
+}  // namespace gshaptics

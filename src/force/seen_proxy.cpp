@@ -1,0 +1,88 @@
+#include "gshaptics/force/seen_proxy.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace gshaptics {
+
+SeenProxy::SeenProxy(const CollisionWorld& world, const ProxyParams& params, double f_max)
+    : solid_(world), params_(params), coupling_(params, f_max) {}
+
+void SeenProxy::reset() noexcept {
+  started_ = false;
+  in_contact_ = false;
+  normal_.setZero();
+  coupling_.release();
+}
+
+bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noexcept {
+  const Eigen::Vector3d d = device - proxy_;
+  const double len = d.norm();
+  if (!(len > 1e-9 * radius)) return false;
+  const Eigen::Vector3d u = d / len;
+  // The eye: as far behind the proxy as it is still seen from (at most seen_window R), so a
+  // surface behind it (the floor it lifted off) does not hold it, and a faint layer it is in does.
+  const double back = radius + solid_.eye_distance(proxy_, u, params_.seen_window * radius, scratch_);
+  const SeenHit hit = solid_.first_inside(proxy_ + radius * u, u, -back, 0, len, scratch_);
+  if (!hit.hit) return false;
+  axis_ = u;
+  eye_ = proxy_ + (radius - back) * u;
+  normal_.setZero();
+  return true;
+}
+
+bool SeenProxy::hold(const Eigen::Vector3d& device, double radius, double dt) noexcept {
+  const Eigen::Vector3d& a = axis_;
+  const double depth = (device + radius * a - eye_).dot(a);  // the device's leading point, from the eye plane
+  if (!(depth > 0)) return false;
+  const Eigen::Vector3d foot = device + (radius - depth) * a;  // its ray's origin on the eye plane
+  const SeenHit hit = solid_.first_inside(foot, a, 0, 0, depth, scratch_);
+  if (!hit.hit || hit.t >= depth) return false;  // the device is out of the surface
+  const double t = std::max(0.0, hit.t - 1e-6 * radius);
+  proxy_ = foot + (t - radius) * a;
+  // The normal is read afresh once the point moved kNormalReuse R from the last reading, and
+  // smoothed over kNormalTau (each reading carries the seen surface's noise).
+  const Eigen::Vector3d point = foot + hit.t * a;
+  if (normal_.squaredNorm() > 0 && (point - normal_at_).norm() < kNormalReuse * radius) {
+    normal_ = (normal_ + (1 - std::exp(-dt / kNormalTau)) * (target_normal_ - normal_)).normalized();
+    return true;
+  }
+  target_normal_ = solid_.normal(point, a, 0.5 * radius, radius, hit.t, scratch_);
+  normal_at_ = point;
+  if (!(normal_.squaredNorm() > 0)) normal_ = target_normal_;
+  const Eigen::Vector3d blended = normal_ + (1 - std::exp(-dt / kNormalTau)) * (target_normal_ - normal_);
+  normal_ = blended.norm() > 1e-9 ? Eigen::Vector3d(blended.normalized()) : target_normal_;
+  return true;
+}
+
+RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
+  RenderOutput out;
+  out.proxy = tool.center;
+  if (!tool.valid() || !velocity.allFinite() || !(dt > 0)) {
+    out.status = QueryStatus::kInvalidTool;
+    return out;
+  }
+  const double r = tool.bounding_radius();
+  if (!started_) {
+    proxy_ = tool.center;
+    started_ = true;
+  }
+  // A contact lasts while the device's leading point is past the seen surface along the axis it
+  // came in on: the proxy rests on that surface above the device (a height field along the axis).
+  if (!in_contact_) in_contact_ = begin_contact(tool.center, r);
+  if (in_contact_) in_contact_ = hold(tool.center, r, dt);
+  if (!in_contact_) {
+    proxy_ = tool.center;
+    coupling_.release();
+    return out;
+  }
+  out.proxy = proxy_;
+  out.constraints = 1;
+  const Eigen::Vector3d e = proxy_ - tool.center;
+  const Eigen::Vector3d& n = normal_;
+  out.force = coupling_.force(e, n, velocity, dt, {}, FrictionStep{}, 0.0);
+  out.counts.contacts = 1;
+  return out;
+}
+
+}  // namespace gshaptics
