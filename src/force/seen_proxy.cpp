@@ -22,9 +22,10 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
   const Eigen::Vector3d u = d / len;
   // The eye: as far behind the proxy as it is still seen from (at most seen_window R), so a
   // surface behind it (the floor it lifted off) does not hold it, and a faint layer it is in does.
-  const double back = radius + solid_.eye_distance(proxy_, u, params_.seen_window * radius, scratch_);
-  const SeenHit hit = solid_.first_inside(proxy_ + radius * u, u, -back, 0, len, scratch_);
+  double eye = 0;
+  const SeenHit hit = solid_.push(proxy_, u, radius, params_.seen_window * radius, len, eye, scratch_);
   if (!hit.hit) return false;
+  const double back = radius + eye;
   axis_ = u;
   eye_ = proxy_ + (radius - back) * u;
   normal_.setZero();
@@ -47,7 +48,7 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, double radius, double dt) no
     normal_ = (normal_ + (1 - std::exp(-dt / kNormalTau)) * (target_normal_ - normal_)).normalized();
     return true;
   }
-  target_normal_ = solid_.normal(point, a, 0.5 * radius, radius, hit.t, scratch_);
+  target_normal_ = solid_.normal(point, a, 0.5 * radius, radius, std::min(hit.t, kNormalEye * radius), scratch_);
   normal_at_ = point;
   if (!(normal_.squaredNorm() > 0)) normal_ = target_normal_;
   const Eigen::Vector3d blended = normal_ + (1 - std::exp(-dt / kNormalTau)) * (target_normal_ - normal_);

@@ -156,6 +156,44 @@ double SeenSolid::eye_distance(const Eigen::Vector3d& c, const Eigen::Vector3d& 
   return max_back;
 }
 
+SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,
+                        double& eye, SeenScratch& s) const noexcept {
+  SeenHit hit;
+  eye = 0;
+  gather(c, u, -max_back, lead + len, s);
+  if (s.overflow) {
+    hit.hit = true;  // blocked where it stands
+    return hit;
+  }
+  const auto first = s.layers.begin(), last = s.layers.begin() + std::ptrdiff_t(s.gathered);
+  std::sort(first, last, [](const SeenScratch::Layer& a, const SeenScratch::Layer& b) { return a.t < b.t; });
+  // The eye (eye_distance): back from c until a surface hides it.
+  std::size_t from = 0;  // the first layer in front of the eye
+  double tau = 0;
+  eye = max_back;
+  for (std::size_t k = s.gathered; k-- > 0;) {
+    if (s.layers[k].t > 0) continue;
+    tau += s.layers[k].tau;
+    if (tau >= kLn2) {
+      eye = -s.layers[k].t;
+      from = k + 1;
+      break;
+    }
+  }
+  // Forward from the eye (first_inside with t0 at the leading point).
+  tau = 0;
+  for (std::size_t k = from; k < s.gathered; ++k) {
+    tau += s.layers[k].tau;
+    if (tau >= kLn2) {
+      hit.hit = true;
+      hit.t = std::max(s.layers[k].t - lead, 0.0);
+      hit.layers = std::uint32_t(k + 1 - from);
+      return hit;
+    }
+  }
+  return hit;
+}
+
 Eigen::Vector3d SeenSolid::normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach,
                                   double back, SeenScratch& s) const noexcept {
   const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);

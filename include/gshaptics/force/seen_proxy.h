@@ -50,6 +50,7 @@ class SeenProxy {
   bool hold(const Eigen::Vector3d& device, double radius, double dt) noexcept;
   static constexpr double kNormalTau = 0.005;   // s
   static constexpr double kNormalReuse = 0.05;  // R
+  static constexpr double kNormalEye = 8;       // R: the normal's rays look from at most this far back
   SeenSolid solid_;
   SeenScratch scratch_;
   ProxyParams params_;

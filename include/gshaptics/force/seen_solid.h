@@ -68,6 +68,12 @@ class SeenSolid {
   double eye_distance(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back,
                       SeenScratch& scratch) const noexcept;
 
+  /// eye_distance() and first_inside() of a push in one pass over the layers: the tool's centre
+  /// `c`, its leading point `lead` ahead along u, moving `len`. Sets `eye` to the eye's distance
+  /// behind c; the hit's t is from the leading point, in [0, len].
+  SeenHit push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,
+               double& eye, SeenScratch& scratch) const noexcept;
+
   /// The seen surface's outward normal (unit, n . u < 0) at `point` (on the surface for a push
   /// along u): the plane through the first inside points of four rays parallel to u offset by
   /// +-h across it, searched within +-`reach` of `point`, each seen from `back` before `point`'s
