@@ -21,7 +21,7 @@ void register_seen_felt(CLI::App& app) {
   cmd->add_option("scenes", o->scenes, "Scene files (default: the shared real scenes)")->check(CLI::ExistingFile);
   cmd->add_flag("--quick", o->quick, "3 rays per configuration, the 1 % tool only (CI)");
   cmd->add_option("--out", o->out, "Markdown report")->capture_default_str();
-  cmd->add_option("--data-dir", o->data_dir, "Rays (CSV) and figure (default: beside --out, in seen_felt/)");
+  cmd->add_option("--data-dir", o->data_dir, "Rays (CSV) and figure (default: beside --out, in a folder named after it: seen_felt/ for SEEN_FELT.md)");
   cmd->add_option("--rays", o->rays, "Rays kept per configuration (default 20, --quick 3)")->check(check::range(1, 1000));
   cmd->add_option("--tool-percent", o->tools_percent, "Tool radii, % of the scene's extent (comma-separated)")
       ->delimiter(',')

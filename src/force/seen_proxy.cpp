@@ -48,7 +48,7 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, double radius, double dt) no
     normal_ = (normal_ + (1 - std::exp(-dt / kNormalTau)) * (target_normal_ - normal_)).normalized();
     return true;
   }
-  target_normal_ = solid_.normal(point, a, 0.5 * radius, radius, std::min(hit.t, kNormalEye * radius), scratch_);
+  target_normal_ = solid_.normal(point, a, kNormalSpan * radius, radius, std::min(hit.t, kNormalEye * radius), scratch_);
   normal_at_ = point;
   if (!(normal_.squaredNorm() > 0)) normal_ = target_normal_;
   const Eigen::Vector3d blended = normal_ + (1 - std::exp(-dt / kNormalTau)) * (target_normal_ - normal_);

@@ -180,13 +180,15 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
       break;
     }
   }
-  // Forward from the eye (first_inside with t0 at the leading point).
+  // Forward from the eye. A surface crossed behind the leading point is one the tool is
+  // leaving (the shell it rested in, seen from the side it lifts off to): it does not block.
   tau = 0;
   for (std::size_t k = from; k < s.gathered; ++k) {
     tau += s.layers[k].tau;
     if (tau >= kLn2) {
+      if (s.layers[k].t < lead) return hit;
       hit.hit = true;
-      hit.t = std::max(s.layers[k].t - lead, 0.0);
+      hit.t = s.layers[k].t - lead;
       hit.layers = std::uint32_t(k + 1 - from);
       return hit;
     }

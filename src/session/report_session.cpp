@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -140,7 +141,10 @@ void run_seen_felt_command(const SeenFeltCommandOptions& o) {
   const std::vector<std::string> scenes = o.scenes.empty() ? seen_felt_default_scenes() : o.scenes;
   if (scenes.empty())
     throw InputError("seen-felt: no scene given and none of the shared scenes found (set GSHAPTICS_SCENES)");
-  const std::string data_dir = o.data_dir.empty() ? (folder / "seen_felt").string() : o.data_dir;
+  // Beside the report, in a folder named after it (bench/SEEN_FELT.md: bench/seen_felt/).
+  std::string stem = std::filesystem::path(o.out).stem().string();
+  std::transform(stem.begin(), stem.end(), stem.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  const std::string data_dir = o.data_dir.empty() ? (folder / stem).string() : o.data_dir;
   const SeenFeltReport rep =
       run_seen_felt(scenes, so, [](const std::string& line) { fmt::print(stderr, "seen-felt  {}\n", line); });
   std::filesystem::create_directories(data_dir);

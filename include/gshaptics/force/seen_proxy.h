@@ -51,6 +51,7 @@ class SeenProxy {
   static constexpr double kNormalTau = 0.005;   // s
   static constexpr double kNormalReuse = 0.05;  // R
   static constexpr double kNormalEye = 8;       // R: the normal's rays look from at most this far back
+  static constexpr double kNormalSpan = 1.0;    // R: the normal's rays, this far to each side
   SeenSolid solid_;
   SeenScratch scratch_;
   ProxyParams params_;

@@ -70,7 +70,8 @@ class SeenSolid {
 
   /// eye_distance() and first_inside() of a push in one pass over the layers: the tool's centre
   /// `c`, its leading point `lead` ahead along u, moving `len`. Sets `eye` to the eye's distance
-  /// behind c; the hit's t is from the leading point, in [0, len].
+  /// behind c; the hit's t is from the leading point, in [0, len]. A surface that the layers
+  /// behind the leading point already make (the shell a tool lifts off from) does not block.
   SeenHit push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,
                double& eye, SeenScratch& scratch) const noexcept;
 

@@ -51,7 +51,8 @@ struct SeenFeltCommandOptions {
   bool quick = false;               ///< quick_seen_felt_options() (CI)
   bool no_plot = false;
   std::string out = "bench/SEEN_FELT.md";  ///< the Markdown report (.md)
-  std::string data_dir;                    ///< rays (CSV) and figure; "": beside `out`, in seen_felt/
+  std::string data_dir;                    ///< rays (CSV) and figure; "": beside `out`, in a folder named
+                                           ///< after it in lower case (SEEN_FELT.md: seen_felt/)
   int rays = 0;                            ///< per configuration; 0: the run's default
   std::vector<double> tools_percent;       ///< tool radii, % of the extent; empty: the run's default
   std::vector<std::string> directions;     ///< vertical, around; empty: both

@@ -1,0 +1,184 @@
+// The seen solid (force/seen_solid.h) against the independent brute-force seen surface
+// (scene/seen_surface.h), and the proxy on it (force/seen_proxy.h, --surface seen): faint layers
+// that only composite to a surface, fast motions, lifting off, pumping, and capture defects the
+// ellipsoid proxy lets through.
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <random>
+
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/error.h"
+#include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/force/seen_solid.h"
+#include "gshaptics/scene/seen_surface.h"
+
+namespace gshaptics {
+namespace {
+
+WorldConfig seen_world() {
+  WorldConfig c;
+  c.min_opacity = kSeenMinOpacity;
+  return c;
+}
+
+// A square grid of flat discs at height z (normal +z), spacing s, disc sigma s / 4 (so a ray
+// through a disc's centre meets that disc alone: its neighbours are 4 sigma away).
+void add_layer(GaussianScene& g, double z, float opacity, double s = 0.004, double half = 0.06) {
+  for (double x = -half; x <= half + 1e-12; x += s)
+    for (double y = -half; y <= half + 1e-12; y += s)
+      g.push_back(Eigen::Vector3f(float(x), float(y), float(z)), Eigen::Vector3f(float(0.25 * s), float(0.25 * s), 1e-5f),
+                  Eigen::Vector4f(1, 0, 0, 0), opacity, std::uint32_t(g.size()));
+}
+
+TEST(SeenSolid, FirstInsideFromAFarEyeIsTheSeenDepth) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> uni(0, 1);
+  GaussianScene g;
+  for (int i = 0; i < 3000; ++i) {
+    const Eigen::Quaternionf q = Eigen::Quaternionf::UnitRandom();
+    g.push_back(Eigen::Vector3f(float(uni(rng) - 0.5), float(uni(rng) - 0.5), float(uni(rng) - 0.5)),
+                Eigen::Vector3f(float(0.01 + 0.05 * uni(rng)), float(0.01 + 0.05 * uni(rng)), float(0.002 + 0.02 * uni(rng))),
+                Eigen::Vector4f(q.w(), q.x(), q.y(), q.z()), float(0.01 + 0.5 * uni(rng)), std::uint32_t(i));
+  }
+  const CollisionWorld world = CollisionWorld::build(g, seen_world());
+  const SeenSolid solid(world);
+  const SeenSurface reference(g);
+  SeenScratch scratch;
+  int hits = 0;
+  for (int k = 0; k < 60; ++k) {
+    Eigen::Vector3d u(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5);
+    u.normalize();
+    const Eigen::Vector3d o = Eigen::Vector3d(0.3 * (uni(rng) - 0.5), 0.3 * (uni(rng) - 0.5), 0.3 * (uni(rng) - 0.5)) - 1.5 * u;
+    const SeenDepth d = reference.median_depth(o, u);
+    const SeenHit h = solid.first_inside(o, u, 0, 0, 3.0, scratch);
+    ASSERT_FALSE(scratch.overflow);
+    ASSERT_EQ(h.hit, d.hit) << "ray " << k;
+    if (!d.hit) continue;
+    ++hits;
+    EXPECT_NEAR(h.t, d.depth, 1e-5) << "ray " << k;
+    // The same point from an eye half-way there: the layers before the eye no longer count.
+    const SeenDepth nearer = reference.median_depth(o + 0.5 * d.depth * u, u);
+    const SeenHit hn = solid.first_inside(o, u, 0.5 * d.depth, 0.5 * d.depth, 3.0, scratch);
+    ASSERT_EQ(hn.hit, nearer.hit);
+    if (nearer.hit) EXPECT_NEAR(hn.t, 0.5 * d.depth + nearer.depth, 1e-5);
+  }
+  EXPECT_GE(hits, 30);
+}
+
+TEST(SeenSolid, TheEyeStopsInFrontOfASurfaceBehind) {
+  GaussianScene g;
+  add_layer(g, 0.0, 0.95f);
+  const CollisionWorld world = CollisionWorld::build(g, seen_world());
+  const SeenSolid solid(world);
+  SeenScratch scratch;
+  // Looking up (+z) from 10 mm above the floor, the floor hides the point from behind.
+  const double eye = solid.eye_distance(Eigen::Vector3d(0, 0, 0.01), Eigen::Vector3d::UnitZ(), 0.1, scratch);
+  EXPECT_NEAR(eye, 0.01, 1e-6);
+  // Looking down, nothing is behind: the eye goes the whole way.
+  EXPECT_DOUBLE_EQ(solid.eye_distance(Eigen::Vector3d(0, 0, 0.01), -Eigen::Vector3d::UnitZ(), 0.1, scratch), 0.1);
+}
+
+// Presses a sphere of radius r from z0 down to z1 (tool centre) in `steps` ticks, then holds.
+struct Press {
+  double lowest_lead = 1e9;  // the proxy's lowest leading point (centre - r)
+  double last_force = 0;
+  Eigen::Vector3d proxy;
+};
+Press press(ProxyRenderer& p, double r, double z0, double z1, int steps, double x = 0.0, double y = 0.0) {
+  Press out;
+  for (int k = 0; k <= steps + 50; ++k) {
+    const double z = z0 + (z1 - z0) * std::min(1.0, double(k) / steps);
+    const RenderOutput o = p.render(ToolEllipsoid::sphere(Eigen::Vector3d(x, y, z), r), Eigen::Vector3d::Zero(), 1e-3);
+    out.lowest_lead = std::min(out.lowest_lead, o.proxy.z() - r);
+    out.last_force = o.force.z();
+    out.proxy = o.proxy;
+  }
+  return out;
+}
+
+ProxyParams seen_params() {
+  ProxyParams p;
+  p.surface = ProxySurface::kSeen;
+  return p;
+}
+
+TEST(SeenProxy, TenFaintLayersHoldAsTheRendererShowsThemAndNineDoNot) {
+  // Ten layers of opacity 0.07, 1 mm apart from z = 0 down: T = 0.93^10 < 1/2 at the tenth.
+  GaussianScene ten, nine;
+  for (int k = 0; k < 10; ++k) add_layer(ten, -0.001 * k, 0.07f);
+  for (int k = 0; k < 9; ++k) add_layer(nine, -0.001 * k, 0.07f);
+  const double r = 0.005;
+  const CollisionWorld w10 = CollisionWorld::build(ten, seen_world());
+  ProxyRenderer p10(w10, seen_params());
+  const Press slow = press(p10, r, 0.05, -0.03, 2000);
+  EXPECT_NEAR(slow.lowest_lead, -0.009, 1e-4);  // the tenth layer's plane
+  EXPECT_GT(slow.last_force, 10.0);
+  // A fast motion (the whole way in two ticks) is stopped as the slow one is.
+  p10.reset();
+  EXPECT_NEAR(press(p10, r, 0.05, -0.03, 2).lowest_lead, -0.009, 1e-4);
+  // The default world (opacity filter 0.2) has none of it to feel.
+  EXPECT_THROW(CollisionWorld::build(ten, WorldConfig{}), InputError);
+  // Nine layers composite to T = 0.52: nothing to see, nothing to feel.
+  const CollisionWorld w9 = CollisionWorld::build(nine, seen_world());
+  ProxyRenderer p9(w9, seen_params());
+  const Press through = press(p9, r, 0.05, -0.03, 2000);
+  EXPECT_NEAR(through.lowest_lead, -0.035, 1e-6);
+  EXPECT_EQ(through.last_force, 0.0);
+}
+
+TEST(SeenProxy, LiftsOffAFloorAndPumpingDoesNotCreep) {
+  GaussianScene g;
+  for (int k = 0; k < 6; ++k) add_layer(g, -0.002 * k, 0.2f);  // a thick faint shell: 0.8^4 < 1/2 at z = -6 mm
+  const CollisionWorld w = CollisionWorld::build(g, seen_world());
+  ProxyRenderer p(w, seen_params());
+  const double r = 0.005;
+  const Press first = press(p, r, 0.05, -0.01, 1000);
+  EXPECT_NEAR(first.lowest_lead, -0.006, 1e-4);
+  // Pump: out by 2 mm (still past the surface) and back in, ten times.
+  double lowest = first.lowest_lead;
+  for (int k = 0; k < 10; ++k) {
+    lowest = std::min(lowest, press(p, r, -0.01, -0.008, 20).lowest_lead);
+    lowest = std::min(lowest, press(p, r, -0.008, -0.01, 20).lowest_lead);
+  }
+  EXPECT_GT(lowest, -0.006 - 1e-4);
+  // Lift off: the proxy follows the device up, with no force once the device is out.
+  const Press up = press(p, r, -0.01, 0.03, 500);
+  EXPECT_NEAR(up.proxy.z(), 0.03, 1e-9);
+  EXPECT_EQ(up.last_force, 0.0);
+}
+
+TEST(SeenProxy, ALargeFlatGaussianTheFloaterRulePassesIsFeltWhereItIsSeen) {
+  // One opaque disc of sigma 5 cm, alone: the ellipsoid proxy's floater rule lets the tool through.
+  GaussianScene g;
+  g.push_back(Eigen::Vector3f(0, 0, 0), Eigen::Vector3f(0.05f, 0.05f, 1e-4f), Eigen::Vector4f(1, 0, 0, 0), 0.9f, 0);
+  const double r = 0.005;
+  const CollisionWorld w = CollisionWorld::build(g, seen_world());
+  ProxyRenderer seen(w, seen_params());
+  const Press held = press(seen, r, 0.05, -0.02, 1000);
+  EXPECT_NEAR(held.lowest_lead, 0.0, 1e-4);
+  EXPECT_NEAR(held.last_force, 1000.0 * 0.025, 0.5);  // k times the device centre 25 mm below the proxy's
+  ProxyRenderer ellipsoids(w);
+  EXPECT_LT(press(ellipsoids, r, 0.05, -0.02, 1000).lowest_lead, -0.02);
+}
+
+TEST(SeenProxy, RefusesACompoundToolAndTheWindowMustBePositive) {
+  GaussianScene g;
+  add_layer(g, 0.0, 0.9f);
+  const CollisionWorld w = CollisionWorld::build(g, seen_world());
+  ProxyRenderer p(w, seen_params());
+  CompoundTool stylus;
+  stylus.count = 2;
+  stylus.parts[0].semi_axes = Eigen::Vector3d::Constant(0.002);
+  stylus.parts[1].semi_axes = Eigen::Vector3d::Constant(0.002);
+  stylus.parts[1].offset = Eigen::Vector3d(0, 0, 0.02);
+  EXPECT_THROW(p.set_tool(stylus), InputError);
+  ProxyParams bad = seen_params();
+  bad.seen_window = 0;
+  EXPECT_THROW(ProxyRenderer(w, bad), InputError);
+}
+
+}  // namespace
+}  // namespace gshaptics
