@@ -1,4 +1,4 @@
-// The seen surface (3DGS median depth, DESIGN.md Sec. 2d) against hand-made layers and an
+// The seen surface (3DGS median depth, ../shared/DESIGN.md Sec. 2d) against hand-made layers and an
 // independent slow reference, and the seen-against-felt benchmark on analytic scenes, where the
 // seen surface is known (the check of the check).
 
@@ -43,7 +43,7 @@ TEST(SeenSurface, OneOpaqueGaussianIsSeenAtItsPeak) {
 }
 
 TEST(SeenSurface, TenFaintLayersMakeAnOpaqueOneAndNineDoNot) {
-  // 0.93^9 = 0.52 > 1/2, 0.93^10 = 0.48 < 1/2 (DESIGN.md Sec. 2d).
+  // 0.93^9 = 0.52 > 1/2, 0.93^10 = 0.48 < 1/2 (../shared/DESIGN.md Sec. 2d).
   GaussianScene s;
   for (int k = 1; k <= 10; ++k) add_disc(s, 0.1 * k, 0.07f);
   const SeenSurface seen(s);

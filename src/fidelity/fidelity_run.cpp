@@ -248,7 +248,9 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
       if (progress) progress(fmt::format("{} at {:g} mm spacing: generating and loading", name, spacing * 1e3));
       const std::string file = ensure_scene(o, kind, spacing);
       const LoadedScene loaded = load_scene(file);
-      const CollisionWorld world = CollisionWorld::build(loaded.scene, WorldConfig{});
+      WorldConfig config;
+      config.min_opacity = default_min_opacity(o.renderer);
+      const CollisionWorld world = CollisionWorld::build(loaded.scene, config);
       for (double radius : o.tool_radii) {
         if (progress) progress(fmt::format("{} at {:g} mm spacing, tool {:g} mm: {} presses{}{}", name, spacing * 1e3,
                                            radius * 1e3, sites.size(), pushable ? ", push-throughs" : "",

@@ -82,7 +82,8 @@ int run_node(NodeOptions o) {
   // A hardware device is opened before the scene load, once.
   std::unique_ptr<HapticDevice> opened = o.run.device != "ros" ? validate_runtime_options(o.run, false) : nullptr;
   if (o.ros2) (void)Ros2Names::parse(o.topics.ros_args, o.topics.node_name);  // before the scene load too
-  const SceneOptions so = with_bundled_defaults(o.run.scene, "node");
+  const RendererSpec renderer = o.run.force.spec();
+  const SceneOptions so = with_bundled_defaults(o.run.scene, "node", &renderer);
   prepare_run_out_dir(o.run, so);
   const PreparedWorld pw = prepare_world(so, o.run.quiet);
   warn_if_outside_profile(pw, o.run.force);

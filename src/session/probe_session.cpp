@@ -85,7 +85,8 @@ void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o)
              size, p.name, 1000 * p.workspace.maxCoeff(), desktop_scale_advice(size).reg_scale);
 }
 
-SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command) {
+SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command, const RendererSpec* renderer) {
+  if (so.min_opacity < 0) so.min_opacity = renderer ? default_min_opacity(*renderer) : kDefaultMinOpacity;
   if (so.scene.empty()) {
     so.scene = bundled_scene();
     if (so.scene.empty()) throw InputError(command + ": bundled scene data/truck.splat not found; give SCENE");
@@ -397,7 +398,8 @@ void report_sites(const ProbeSessionResult& probe, nlohmann::json& sj) {
 
 int run_simulate(SimulateOptions o) {
   if (o.tool.given() && o.tool_radius <= 0) o.tool_radius = o.tool.tool.largest_semi_axis();
-  const SceneOptions so = with_bundled_defaults(o.scene, "simulate");
+  const RendererSpec renderer = o.force.spec();
+  const SceneOptions so = with_bundled_defaults(o.scene, "simulate", &renderer);
   const std::string out_dir =
       prepare_out_dir(o.out_dir, so.scene, {"probe_log.csv", "summary.json", "probe_run.png"});
   const PreparedWorld pw = prepare_world(so, o.quiet);

@@ -68,7 +68,7 @@ SimilarityTransform registration_from(const SceneOptions& o) {
 
 WorldConfig world_config_from(const SceneOptions& o) {
   WorldConfig cfg;
-  cfg.min_opacity = o.min_opacity;
+  cfg.min_opacity = o.min_opacity >= 0 ? o.min_opacity : kDefaultMinOpacity;
   cfg.sigma = o.sigma;
   cfg.up = parse_up_axis(o.up, "--up");
   cfg.registration = registration_from(o);

@@ -21,7 +21,7 @@ namespace gshaptics {
 
 /// The solid the proxy is held against.
 enum class ProxySurface {
-  /// The Gaussians' exact k-sigma ellipsoids (DESIGN.md Sec. 2b), with the opacity filter and
+  /// The Gaussians' exact k-sigma ellipsoids (../shared/DESIGN.md Sec. 2b), with the opacity filter and
   /// the floater rule: exact against the ellipsoids, not the surface a renderer shows.
   kEllipsoids,
   /// The seen solid (force/seen_solid.h): where the Gaussians composite to a transmittance of

@@ -74,7 +74,9 @@ std::string describe_execution(const ExecutionOptions& o, bool simulated);
 
 /// Without SCENE: the bundled Truck and its registration. Throws InputError naming `command`
 /// when the bundled scene is missing.
-SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command);
+/// The opacity filter left to the model (kModelMinOpacity) becomes `renderer`'s default_min_opacity()
+/// (kDefaultMinOpacity without one).
+SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command, const RendererSpec* renderer = nullptr);
 
 /// True when a registration file, rotation, translation or --reg-scale was given: the world is
 /// then meant to be in metres (--up alone turns the scene, it does not change its units).

@@ -25,11 +25,16 @@ namespace gshaptics::session {
 /// Exit status of a run that completed but could not write its outputs (disk full, read-only).
 inline constexpr int kExitOutputsLost = 4;
 
+/// SceneOptions::min_opacity when the user gave none: the force model decides.
+inline constexpr float kModelMinOpacity = -1.0f;
+
 /// How a session opens a scene: the options every scene-consuming command shares (the CLI binds
 /// them to --min-opacity, --sigma, --registration, --reg-*, --up and --world-cache).
 struct SceneOptions {
   std::string scene;
-  float min_opacity = kDefaultMinOpacity;
+  /// Keep alpha > this; kModelMinOpacity (negative): the force model's own default
+  /// (default_min_opacity(): 0.2, or 1/255 for the proxy on the seen solid).
+  float min_opacity = kModelMinOpacity;
   double sigma = 1.0;
   std::string registration_file;
   std::string reg_scale, reg_rotation, reg_translation;  // empty: not given
@@ -49,7 +54,9 @@ std::string data_file(const std::string& name);
 /// Registration from the file and flags (flags override the file's keys).
 SimilarityTransform registration_from(const SceneOptions& o);
 
-/// World configuration from the shared options (opacity filter, sigma, --up, registration).
+/// World configuration from the shared options (opacity filter, sigma, --up, registration). An
+/// opacity filter left to the model (kModelMinOpacity) is kDefaultMinOpacity here; a run resolves
+/// it first (with_bundled_defaults with its renderer).
 WorldConfig world_config_from(const SceneOptions& o);
 
 /// The default output folder of a run on `scene`: runs/<name>-<extension> ("runs/biker-spz"), so
