@@ -163,11 +163,50 @@ class Info(unittest.TestCase):
 
     def test_help_of_every_command(self):
         top = run("--help").stdout
-        commands = ["info", "query", "simulate", "run", "serve", "poses", "convert"]
+        commands = ["info", "query", "simulate", "run", "serve", "poses", "convert", "seen-felt"]
         commands += [c for c in ("node", "device-sim") if c in top]  # with the ROS bridges
         for cmd in commands:
             p = run(cmd, "--help")
             self.assertIn("--help", p.stdout)
+
+
+class SeenFelt(unittest.TestCase):
+    """The real-scene benchmark in a small form: two scenes, the 1 % tool, 3 rays each way."""
+
+    def rays(self, out_dir, *extra):
+        report = os.path.join(out_dir, "SF.md")
+        run("seen-felt", scene_file("truck.splat"), scene_file("burger.splat"), "--quick", "--no-plot",
+            "--out", report, *extra)
+        with open(os.path.join(out_dir, "sf", "seen_felt_rays.csv"), newline="") as f:
+            rows = list(csv.DictReader(f))
+        with open(report) as f:
+            return rows, f.read()
+
+    def test_the_seen_surface_holds_where_it_is_seen(self):
+        out = tempfile.mkdtemp()
+        rows, md = self.rays(out, "--surface", "seen")
+        self.assertEqual(len(rows), 2 * 2 * 3)  # scenes x directions x rays
+        for r in rows:
+            self.assertEqual(r["no_force"], "0", r)
+            self.assertLess(abs(float(r["felt_minus_seen"])), 0.5, r)
+            self.assertGreater(float(r["onset_minus_seen"]), -1.0, r)
+        self.assertIn("| truck.splat |", md)
+        self.assertFalse(any(n.endswith(".tmp") for n in os.listdir(out)))
+
+    def test_the_paper_model_is_felt_at_the_device(self):
+        rows, _ = self.rays(tempfile.mkdtemp(), "--force-model", "paper", "--direction", "vertical")
+        self.assertEqual(len(rows), 2 * 3)
+        for r in rows:
+            self.assertAlmostEqual(float(r["felt_minus_seen"]), 4.0, delta=0.1)
+            self.assertEqual(r["through"], "1")
+
+    def test_bad_input_is_refused(self):
+        p = run("seen-felt", "--quick", "--out", os.path.join(tempfile.mkdtemp(), "x.txt"), scene_file("truck.splat"),
+                check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("expected a .md file", p.stderr)
+        p = run("seen-felt", "--quick", "--direction", "sideways", scene_file("truck.splat"), check=False)
+        self.assertNotEqual(p.returncode, 0)
 
 
 class Simulate(unittest.TestCase):

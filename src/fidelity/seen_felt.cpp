@@ -28,7 +28,7 @@ PressDirection parse_press_direction(std::string_view name) {
 SeenFeltOptions quick_seen_felt_options() {
   SeenFeltOptions o;
   o.rays = 3;
-  o.max_candidates = 60;
+  o.max_candidates = 400;
   o.tool_fractions = {0.01};
   return o;
 }

@@ -23,12 +23,13 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
   // The eye: as far behind the proxy as it is still seen from (at most seen_window R), so a
   // surface behind it (the floor it lifted off) does not hold it, and a faint layer it is in does.
   double eye = 0;
-  const SeenHit hit = solid_.push(proxy_, u, radius, params_.seen_window * radius, len, eye, scratch_);
+  const bool leaving = u.dot(normal_) > 0;  // away from the surface it last rested on
+  const SeenHit hit = solid_.push(proxy_, u, radius, params_.seen_window * radius, len, leaving, eye, scratch_);
   if (!hit.hit) return false;
   const double back = radius + eye;
   axis_ = u;
   eye_ = proxy_ + (radius - back) * u;
-  normal_.setZero();
+  normal_.setZero();  // read afresh by hold()
   return true;
 }
 

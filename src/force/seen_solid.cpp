@@ -157,7 +157,7 @@ double SeenSolid::eye_distance(const Eigen::Vector3d& c, const Eigen::Vector3d& 
 }
 
 SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,
-                        double& eye, SeenScratch& s) const noexcept {
+                        bool leaving, double& eye, SeenScratch& s) const noexcept {
   SeenHit hit;
   eye = 0;
   gather(c, u, -max_back, lead + len, s);
@@ -180,15 +180,16 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
       break;
     }
   }
-  // Forward from the eye. A surface crossed behind the leading point is one the tool is
-  // leaving (the shell it rested in, seen from the side it lifts off to): it does not block.
+  // Forward from the eye. A surface crossed behind the leading point holds the tool where it
+  // stands, unless the tool is `leaving` it (the shell it rested in, seen from the side it
+  // lifts off to).
   tau = 0;
   for (std::size_t k = from; k < s.gathered; ++k) {
     tau += s.layers[k].tau;
     if (tau >= kLn2) {
-      if (s.layers[k].t < lead) return hit;
+      if (s.layers[k].t < lead && leaving) return hit;
       hit.hit = true;
-      hit.t = s.layers[k].t - lead;
+      hit.t = std::max(0.0, s.layers[k].t - lead);
       hit.layers = std::uint32_t(k + 1 - from);
       return hit;
     }

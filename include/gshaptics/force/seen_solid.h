@@ -71,9 +71,10 @@ class SeenSolid {
   /// eye_distance() and first_inside() of a push in one pass over the layers: the tool's centre
   /// `c`, its leading point `lead` ahead along u, moving `len`. Sets `eye` to the eye's distance
   /// behind c; the hit's t is from the leading point, in [0, len]. A surface that the layers
-  /// behind the leading point already make (the shell a tool lifts off from) does not block.
+  /// behind the leading point already make holds the tool where it stands (t = 0), unless it is
+  /// `leaving` (moving away from the surface it last rested on: the shell it lifts off from).
   SeenHit push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,
-               double& eye, SeenScratch& scratch) const noexcept;
+               bool leaving, double& eye, SeenScratch& scratch) const noexcept;
 
   /// The seen surface's outward normal (unit, n . u < 0) at `point` (on the surface for a push
   /// along u): the plane through the first inside points of four rays parallel to u offset by
