@@ -298,9 +298,17 @@ void print_world_preview(const LoadedScene& s, const SceneOptions& so) {
   const double kept_share = double(w.kept) / double(std::max<std::size_t>(1, s.scene.size()));
   fmt::print("filter     opacity > {:.2f} keeps {} of {} ({:.1f}%)\n", cfg.min_opacity, w.kept,
              s.scene.size(), 100.0 * kept_share);
+  std::size_t drawn = 0, faint = 0;  // what a viewer draws (alpha >= 1/255), and of it below 0.2
+  for (float o : s.scene.opacities) {
+    drawn += o > kSeenMinOpacity ? 1 : 0;
+    faint += o > kSeenMinOpacity && o <= kDefaultMinOpacity ? 1 : 0;
+  }
+  fmt::print("faint      {} of {} Gaussians a viewer draws ({:.1f}%) have opacity <= {:.1f}: layers of them "
+             "composite to surfaces the ellipsoids miss; --surface seen keeps and composites all {}\n",
+             faint, drawn, 100.0 * double(faint) / double(std::max<std::size_t>(1, drawn)), kDefaultMinOpacity, drawn);
   if (kept_share < 0.5)
     fmt::print("warning    the filter keeps only {:.0f}%: thin or semi-transparent parts may not be "
-               "touchable; a lower --min-opacity (0.1) keeps more\n", 100 * kept_share);
+               "touchable; a lower --min-opacity (0.1) keeps more, or --surface seen\n", 100 * kept_share);
   if (w.kept == 0) return;
   const bool transformed = cfg.up != UpAxis::kNone || !cfg.registration.is_identity();
   fmt::print("\nworld      {} (kept Gaussians' centres, world frame)\n",
