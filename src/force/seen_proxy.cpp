@@ -45,13 +45,12 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, double radius, double dt) no
   // The normal is read afresh once the point moved kNormalReuse R from the last reading, and
   // smoothed over kNormalTau (each reading carries the seen surface's noise).
   const Eigen::Vector3d point = foot + hit.t * a;
-  if (normal_.squaredNorm() > 0 && (point - normal_at_).norm() < kNormalReuse * radius) {
-    normal_ = (normal_ + (1 - std::exp(-dt / kNormalTau)) * (target_normal_ - normal_)).normalized();
-    return true;
+  const bool have = normal_.squaredNorm() > 0;
+  if (!have || (point - normal_at_).norm() >= kNormalReuse * radius) {
+    target_normal_ = solid_.normal(point, a, kNormalSpan * radius, radius, std::min(hit.t, kNormalEye * radius), scratch_);
+    normal_at_ = point;
+    if (!have) normal_ = target_normal_;
   }
-  target_normal_ = solid_.normal(point, a, kNormalSpan * radius, radius, std::min(hit.t, kNormalEye * radius), scratch_);
-  normal_at_ = point;
-  if (!(normal_.squaredNorm() > 0)) normal_ = target_normal_;
   const Eigen::Vector3d blended = normal_ + (1 - std::exp(-dt / kNormalTau)) * (target_normal_ - normal_);
   normal_ = blended.norm() > 1e-9 ? Eigen::Vector3d(blended.normalized()) : target_normal_;
   return true;

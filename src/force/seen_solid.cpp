@@ -143,17 +143,9 @@ SeenHit SeenSolid::first_inside(const Eigen::Vector3d& o, const Eigen::Vector3d&
 
 double SeenSolid::eye_distance(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back,
                                SeenScratch& s) const noexcept {
-  gather(c, u, -max_back, 0, s);
-  if (s.overflow) return 0;
-  std::sort(s.layers.begin(), s.layers.begin() + std::ptrdiff_t(s.gathered),
-            [](const SeenScratch::Layer& a, const SeenScratch::Layer& b) { return a.t > b.t; });
-  // Composite backward from c: the eye sits just in front of the layer that hides c.
-  double tau = 0;
-  for (std::size_t k = 0; k < s.gathered; ++k) {
-    tau += s.layers[k].tau;
-    if (tau >= kLn2) return std::max(0.0, -s.layers[k].t * (1 - 1e-9) - 1e-12);
-  }
-  return max_back;
+  double eye = 0;
+  (void)push(c, u, 0, max_back, 0, true, eye, s);  // a push of no length: only its eye
+  return eye;
 }
 
 SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,

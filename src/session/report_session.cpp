@@ -107,7 +107,10 @@ SeenFeltOptions seen_felt_options_from(const SeenFeltCommandOptions& o) {
   so.play.inline_query = o.exec.inline_query;
   so.play.latency_ticks = o.exec.latency_ticks;
   so.seed = o.seed;
-  if (o.rays > 0) so.rays = o.rays, so.max_candidates = std::max(so.max_candidates, 20 * o.rays);
+  if (o.rays > 0) {
+    so.rays = o.rays;
+    so.max_candidates = std::max(so.max_candidates, 20 * o.rays);
+  }
   if (!o.tools_percent.empty()) {
     so.tool_fractions.clear();
     for (double pct : o.tools_percent) so.tool_fractions.push_back(pct / 100);
