@@ -8,9 +8,9 @@ install(TARGETS ${GSHAPTICS_EXPORTED_TARGETS} EXPORT gshapticsTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
-set(_gshaptics_unbuilt_headers PATTERN ros1 EXCLUDE PATTERN ros2 EXCLUDE PATTERN node_session.h EXCLUDE)
+set(_gshaptics_unbuilt_headers PATTERN ros1 EXCLUDE PATTERN ros2 EXCLUDE PATTERN session_ros EXCLUDE)
 if(NOT TARGET gshaptics_viewer)
-  list(APPEND _gshaptics_unbuilt_headers PATTERN viewer_server.h EXCLUDE PATTERN serve_session.h EXCLUDE)
+  list(APPEND _gshaptics_unbuilt_headers PATTERN viewer EXCLUDE PATTERN serve_session.h EXCLUDE)
 endif()
 install(DIRECTORY include/gshaptics DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} ${_gshaptics_unbuilt_headers})
 install(EXPORT gshapticsTargets NAMESPACE gshaptics::

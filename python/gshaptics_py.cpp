@@ -25,7 +25,7 @@
 #include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/scene/registration.h"
 #include "gshaptics/sim/probe_run.h"
-#include "gshaptics/servo/device_profile.h"
+#include "gshaptics/device/device_profile.h"
 #include "gshaptics/sim/pose_sampler.h"
 #include "gshaptics/session/probe_session.h"
 

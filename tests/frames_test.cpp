@@ -10,7 +10,7 @@
 #include "gshaptics/scene/registration.h"
 #include "gshaptics/scene/scene_stats.h"
 #include "gshaptics/scene/sh_rotation.h"
-#include "gshaptics/servo/device_profile.h"
+#include "gshaptics/device/device_profile.h"
 
 namespace gshaptics {
 namespace {

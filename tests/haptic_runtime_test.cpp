@@ -18,7 +18,8 @@
 #include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/servo/realtime_thread.h"
-#include "gshaptics/sim/simulated_device.h"
+#include "gshaptics/device/simulated_device.h"
+#include "gshaptics/sim/probe_trajectory.h"
 #include "support/allocation_counter.h"
 #include "support/scenes.h"
 

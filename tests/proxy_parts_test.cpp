@@ -608,7 +608,7 @@ struct OverhangEdge {
     const Eigen::Quaternionf side = Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f::UnitZ(), Eigen::Vector3f::UnitX());
     for (int i = 0; i < 6; ++i)
       for (int j = -5; j <= 5; ++j) {
-        const float u = (i + 0.5f) * h, y = float(j) * h;
+        const float u = (float(i) + 0.5f) * h, y = float(j) * h;
         gs.emplace_back(Eigen::Vector3f(-u, y, 0), Eigen::Vector3f(0.55f * h, 0.55f * h, 0.05f * h),
                         Eigen::Quaternionf::Identity());
         const bool fin = i == 0 && j == 0;  // (semi-axes in the disc's frame: its z is the world's x)

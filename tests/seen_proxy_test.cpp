@@ -63,7 +63,9 @@ TEST(SeenSolid, FirstInsideFromAFarEyeIsTheSeenDepth) {
     const SeenDepth nearer = reference.median_depth(o + 0.5 * d.depth * u, u);
     const SeenHit hn = solid.first_inside(o, u, 0.5 * d.depth, 0.5 * d.depth, 3.0, scratch);
     ASSERT_EQ(hn.hit, nearer.hit);
-    if (nearer.hit) EXPECT_NEAR(hn.t, 0.5 * d.depth + nearer.depth, 1e-5);
+    if (nearer.hit) {
+      EXPECT_NEAR(hn.t, 0.5 * d.depth + nearer.depth, 1e-5);
+    }
   }
   EXPECT_GE(hits, 30);
 }

@@ -180,7 +180,7 @@ TEST(SeenFelt, ThePaperModelIsFeltAtTheDevice) {
     EXPECT_TRUE(r.through);
     EXPECT_NEAR(r.felt_minus_seen, o.past, 0.2);
   }
-  EXPECT_THROW(parse_press_direction("sideways"), InputError);
+  EXPECT_THROW((void)parse_press_direction("sideways"), InputError);
 }
 
 }  // namespace

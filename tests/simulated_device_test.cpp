@@ -1,7 +1,7 @@
 // The simulated device in real time: it follows the probe trajectory through the hand, its
 // state does not depend on how often it is read, and the commanded wrench acts on it.
 
-#include "gshaptics/sim/simulated_device.h"
+#include "gshaptics/device/simulated_device.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// The simulated impedance device (sim/device_model.h) and the stability trials
+// The simulated impedance device (device/device_model.h) and the stability trials
 // (fidelity/stability.h): the model's physics, its validation against the sampled-wall limit
 // (Colgate and Schenkel 1997: b > K T / 2 + |B|), and the passivity controller on a wall above it.
 
@@ -9,7 +9,7 @@
 
 #include "gshaptics/error.h"
 #include "gshaptics/fidelity/stability.h"
-#include "gshaptics/sim/device_model.h"
+#include "gshaptics/device/device_model.h"
 #include "support/floor_renderer.h"
 
 namespace gshaptics {

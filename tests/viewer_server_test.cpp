@@ -2,7 +2,7 @@
 // WebSocket (Boost.Beast client), the mouse device steered through the protocol into contact,
 // malformed messages, and the state frame's contact encoding.
 
-#include "gshaptics/net/viewer_server.h"
+#include "gshaptics/viewer/viewer_server.h"
 
 #include <gtest/gtest.h>
 

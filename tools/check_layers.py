@@ -2,9 +2,12 @@
 """Checks that the library's folders include each other only as the CMake targets link.
 
 Folder = target = layer. Each folder src/<module>/ (and its headers in include/gshaptics/<module>/)
-belongs to the library targets whose sources it holds (read from the top-level CMakeLists.txt:
-add_library and target_sources); a file may include gshaptics headers of a module whose target
-is its own or one its target links to, directly or through others (target_link_libraries). So
+belongs to the one library target whose sources it holds (read from the top-level CMakeLists.txt:
+add_library and target_sources); a folder whose sources go to two targets is a violation (a file
+there could include what only one of them links), unless one of them is a helper only the other
+links. A file may include gshaptics headers of a
+module whose target is its own or one its target links to, directly or through others
+(target_link_libraries). So
 the allowed graph is the build's own: a new include across layers needs a new link, which shows
 in review. Inside one target, modules keep a pipeline order (INNER below):
 
@@ -78,6 +81,13 @@ def main() -> int:
         mod = module_of(f, root)
         if mod not in modules:
             bad.append(f"{f.relative_to(root)}: folder '{mod}' holds no sources of a library target in CMakeLists.txt")
+            continue
+        # (A helper target that only the folder's main target links is part of it: ros1's
+        # transport keeps roscpp's headers out of the bridge's users.)
+        mains = [t for t in modules[mod] if not any(t in links.get(o, ()) for o in modules[mod] if o != t)]
+        if len(mains) > 1:
+            bad.append(f"{f.relative_to(root)}: folder '{mod}' holds sources of several targets "
+                       f"({', '.join(sorted(modules[mod]))}): one folder per target")
             continue
         allowed = set().union(*(reach.get(t, {t}) for t in modules[mod]))
         for n, line in enumerate(f.read_text(errors="replace").splitlines(), 1):

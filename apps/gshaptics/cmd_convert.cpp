@@ -1,28 +1,12 @@
 // `gshaptics convert IN OUT`: save a (filtered, registered) scene once, load it fast later.
 
-#include <fmt/format.h>
-
-#include <cctype>
-#include <filesystem>
 #include <memory>
 
 #include "commands.h"
 #include "options.h"
-#include "gshaptics/io/scene_loader.h"
-#include "gshaptics/io/scene_writer.h"
 #include "gshaptics/session/query_session.h"
-#include "gshaptics/scene/opacity_filter.h"
-#include "gshaptics/scene/registration.h"
 
 namespace gshaptics::cli {
-
-namespace {
-std::string to_lower_ext(const std::string& path) {
-  std::string e = std::filesystem::path(path).extension().string();
-  for (char& ch : e) ch = char(std::tolower(static_cast<unsigned char>(ch)));
-  return e;
-}
-}  // namespace
 
 void register_convert(CLI::App& app) {
   auto o = std::make_shared<SceneOptions>();
@@ -50,41 +34,12 @@ void register_convert(CLI::App& app) {
   auto quiet = std::make_shared<bool>(false);
   cmd->add_flag("--quiet", *quiet, "No progress bar");
   cmd->callback([o, out, min_opacity, quiet] {
-    const SceneFrame to = output_frame(*out);  // checks the extension before the load
-    const LoadedScene s = load_with_progress(o->scene, *quiet, /*keep_color=*/true);
-    GaussianScene scene = s.scene;
-    if (*min_opacity >= 0.f) {
-      OpacityFilterReport rep;
-      scene = filter_by_opacity(scene, *min_opacity, &rep);
-      fmt::print("filter     opacity > {:.2f}: kept {} of {}\n", *min_opacity, rep.after, rep.before);
-    }
-    const WorldConfig cfg = world_config_from(*o);
-    if (rotates_twice(cfg.registration, cfg.up))
-      fmt::print(stderr, "warning: --up {} and the registration's rotation both turn the scene\n",
-                 to_string(cfg.up));
-    // The written file is in its format's own convention, so that it gives the same world under
-    // --up auto as the source does under these options.
-    const SimilarityTransform t = conversion_transform(cfg.registration, cfg.up, scene.frame, to);
-    if (!t.is_identity()) scene = transform_scene(scene, t);
-    scene.frame = to;
-    write_scene(*out, scene);
-    if (to_lower_ext(*out) == ".splat") {
-      // Measure what the bytes cost: the contacts of seeded tool poses, source against output.
-      const LoadedScene back = load_scene(*out);
-      const CollisionWorld a = CollisionWorld::build(scene, WorldConfig{});
-      const CollisionWorld b = CollisionWorld::build(back.scene, WorldConfig{});
-      const session::ContactChange c = session::compare_contacts(a, b);
-      fmt::print(stderr,
-                 "warning: .splat is lossy (rotations in 4 bytes, opacity in 1): the contacts changed for {} "
-                 "of {} tool poses near the surface; convert to .ply to keep them exact\n",
-                 c.changed, c.poses);
-    }
-    fmt::print("wrote      {} ({} Gaussians{}), in {}'s convention ({}): `--up auto` on it gives the "
-               "world the source gives{}\n",
-               *out, scene.size(), scene.colors_dc.empty() ? ", no colour" : "",
-               std::filesystem::path(*out).extension().string(), to_string(to),
-               cfg.up == UpAxis::kNone && cfg.registration.is_identity() ? " with --up auto"
-                                                                          : " with these options");
+    session::ConvertCommandOptions c;
+    c.scene = *o;
+    c.out = *out;
+    c.min_opacity = *min_opacity;
+    c.quiet = *quiet;
+    session::run_convert_command(c);
   });
 }
 

@@ -33,7 +33,6 @@ void register_devices(CLI::App& app) {
   cmd->add_option("--haply-url", *haply_url, "Where the Haply Inverse Service listens")->capture_default_str();
   cmd->callback([haply_url] {
     fmt::print("{:<22} {:<4} {}\n", "device", "here", "notes");
-    row("sim", true, "simulated admittance device and hand (run, serve, device-sim)");
 #ifdef GSHAPTICS_HAVE_VIEWER
     row("mouse", true, "the browser page steers the tool (serve)");
     row("xr", true, "a VR controller in the page's WebXR session steers the tool, vibration as feedback (serve)");
@@ -50,7 +49,7 @@ void register_devices(CLI::App& app) {
 #else
     row("ros (node --ros1)", false, "built without roscpp (GSHAPTICS_WITH_ROS1=OFF)");
 #endif
-    // Everything the device registry knows (replay, the vendor devices, Haply when built in).
+    // Everything the device registry knows (sim, replay, the vendor devices, Haply when built in).
     DeviceOptions opts;
     opts.haply_url = *haply_url;
     for (const DeviceStatus& d : list_devices(opts)) row(d.spec, d.available, d.note);

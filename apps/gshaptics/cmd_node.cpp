@@ -9,7 +9,7 @@
 
 #include "commands.h"
 #include "gshaptics/error.h"
-#include "gshaptics/session/node_session.h"
+#include "gshaptics/session_ros/node_session.h"
 #include "options.h"
 
 namespace gshaptics::cli {

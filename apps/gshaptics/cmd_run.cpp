@@ -24,8 +24,7 @@ void register_run(CLI::App& app) {
       "the same step on simulated time. Writes servo_log.csv, run_summary.json and run.png (paper "
       "Fig. 5 + jitter row).");
   add_runtime_options(*cmd, *o,
-                      "sim: simulated admittance device with a simulated hand probing the scene" +
-                          registry_device_help(false) + " (`gshaptics devices` says which this machine has)");
+                      "one of" + registry_device_help(false).substr(1) + " (`gshaptics devices` says which this machine has)");
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->scene, "run");
     std::unique_ptr<HapticDevice> opened = validate_runtime_options(*o, /*allow_mouse=*/false);  // before the scene load

@@ -11,7 +11,7 @@
 #include <string>
 
 #include "gshaptics/device/device_registry.h"
-#include "gshaptics/servo/device_profile.h"
+#include "gshaptics/device/device_profile.h"
 #include "gshaptics/servo/query_pool.h"
 #include "gshaptics/force/floater_rule.h"
 

@@ -9,6 +9,7 @@
 
 #include "gshaptics/error.h"
 #include "gshaptics/device/replay_device.h"
+#include "gshaptics/device/simulated_device.h"
 #include "gshaptics/device/vendor_devices.h"
 #include "gshaptics/device/vendor_library.h"
 
@@ -40,6 +41,23 @@ DeviceStatus started_briefly(const std::string& spec, Make make) {
 }
 
 void register_builtin_devices(DeviceRegistry& r) {
+  DeviceKind sim;
+  sim.name = "sim";
+  sim.grammar = "sim";
+  sim.summary = "a simulated device and hand pressing the scene's probe sites (the default)";
+  sim.needs_scene = true;
+  sim.check = [](const std::string& arg) {
+    if (!arg.empty()) throw InputError("--device sim takes no argument, got 'sim:" + arg + "'");
+  };
+  sim.open = [](const std::string&, const DeviceOptions& o) -> std::unique_ptr<HapticDevice> {
+    if (o.hand_path == nullptr) throw InputError("--device sim: needs a scene to press (no hand path given)");
+    return std::make_unique<SimulatedDevice>(*o.hand_path);
+  };
+  sim.probe = [](const DeviceOptions&) {
+    return std::vector<DeviceStatus>{{"sim", true, "simulated admittance device and hand (run, serve, device-sim)"}};
+  };
+  r.add(std::move(sim));
+
   DeviceKind replay;
   replay.name = "replay";
   replay.grammar = "replay:FILE";

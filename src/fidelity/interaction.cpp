@@ -146,41 +146,19 @@ Script slide_script(const AnalyticShape& shape, double r, double rate_hz, double
   return s;
 }
 
-ScriptedDevice::ScriptedDevice(const Script& script, double rate_hz) : script_(script), period_s_(1.0 / rate_hz) {
-  if (script.ticks.empty()) throw InputError("scripted device: empty script");
-  info_.name = "scripted (ideal position device)";
-  info_.max_rate_hz = 1e6;
-  info_.renders_torque = true;
+namespace {
+std::vector<ScriptedPose> script_poses(const Script& script) {
+  std::vector<ScriptedPose> poses(script.ticks.size());
+  for (std::size_t i = 0; i < poses.size(); ++i)
+    poses[i] = {script.ticks[i].position, script.ticks[i].velocity, script.ticks[i].orientation};
+  return poses;
 }
-
-void ScriptedDevice::start(Nanos now) {
-  t0_ = now;
-  sequence_ = 0;
-  done_ = false;
-}
-
-DeviceSample ScriptedDevice::read(Nanos now) noexcept {
-  const double k = std::round(to_seconds(now - t0_) / period_s_);
-  const std::size_t last = script_.ticks.size() - 1;
-  const std::size_t i = k <= 0 ? 0 : std::min(last, std::size_t(k));
-  done_ = i >= last;
-  const ScriptTick& t = script_.ticks[i];
-  DeviceSample s;
-  s.sequence = ++sequence_;
-  s.stamp = now;
-  s.position = t.position;
-  s.orientation = t.orientation;
-  s.velocity = t.velocity;
-  return s;
-}
-
-void ScriptedDevice::write(const Wrench&, Nanos) noexcept {}
-void ScriptedDevice::stop(Nanos) noexcept {}
+}  // namespace
 
 ScriptTrace play_script(ForceRenderer& renderer, const Script& script, double rate_hz, const PlayOptions& options) {
   if (script.ticks.empty()) throw InputError("play script: empty script");
   renderer.reset();
-  ScriptedDevice device(script, rate_hz);
+  ScriptedDevice device(script_poses(script), rate_hz);
   RuntimeConfig c;
   c.rate_hz = rate_hz;
   c.inline_query = options.inline_query;

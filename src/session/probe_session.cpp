@@ -1,4 +1,5 @@
 #include "gshaptics/session/probe_session.h"
+#include "gshaptics/session/report_session.h"
 
 #include <chrono>
 #include <filesystem>
@@ -20,21 +21,11 @@
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/io/atomic_file.h"
 #include "gshaptics/scene/scene_stats.h"
-#include "gshaptics/servo/device_profile.h"
-#include "gshaptics/device/admittance_device.h"
+#include "gshaptics/device/device_profile.h"
+#include "gshaptics/device/device_model.h"
 #include "gshaptics/sim/pose_sampler.h"
 
 namespace gshaptics::session {
-
-namespace {
-
-std::string shell_quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-}  // namespace
 
 std::string describe_execution(const ExecutionOptions& o, bool simulated) {
   if (o.inline_query) return "inline";
@@ -83,81 +74,6 @@ void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o)
              "warning: the world is {:.3g} m across, larger than a {} device's {:.0f} mm workspace; "
              "scale it with --reg-scale {:.3g} (x the current scale) to fit it in 0.12 m\n",
              size, p.name, 1000 * p.workspace.maxCoeff(), desktop_scale_advice(size).reg_scale);
-}
-
-SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command, const RendererSpec* renderer) {
-  if (so.min_opacity < 0) so.min_opacity = renderer ? default_min_opacity(*renderer) : kDefaultMinOpacity;
-  if (so.scene.empty()) {
-    so.scene = bundled_scene();
-    if (so.scene.empty()) throw InputError(command + ": bundled scene data/truck.splat not found; give SCENE");
-    if (so.registration_file.empty()) so.registration_file = bundled_registration();
-  }
-  return so;
-}
-
-bool is_scaled(const SceneOptions& so) {
-  return !so.registration_file.empty() || !so.reg_rotation.empty() || !so.reg_scale.empty() ||
-         !so.reg_translation.empty();
-}
-
-PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* report) {
-  const WorldConfig cfg = world_config_from(so);
-  const std::string cache_dir = world_cache_dir(so);
-  WorldCacheKey key;
-  std::string cache_file;
-  if (!cache_dir.empty()) {
-    const auto t0 = std::chrono::steady_clock::now();
-    key = world_cache_key(so.scene, cfg);
-    cache_file = world_cache_file(cache_dir, so.scene, key);
-    std::string why;
-    std::optional<CachedWorld> hit = open_world_cache(cache_file, key, &why);
-    const double ms = 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (hit) {
-      LoadedScene s;
-      s.report = hit->source;
-      s.report.path = so.scene;
-      WorldBuildReport br;
-      br.filter = {cfg.min_opacity, std::size_t(s.report.loaded), hit->world.size()};
-      br.memory_bytes = hit->world.memory_bytes();
-      const Eigen::Vector3d up = hit->world.up();
-      fmt::print(report, "scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
-                 s.report.loaded, s.report.skipped());
-      fmt::print(report, "world      {} Gaussians from the world cache {} (hashed and mapped in {:.0f} ms), up [{:.2f}, "
-                 "{:.2f}, {:.2f}]\n", hit->world.size(), cache_file, ms, up.x(), up.y(), up.z());
-      return {std::move(s), cfg, br, std::move(hit->world)};
-    }
-    if (why != "no cache file") fmt::print(stderr, "warning: world cache {}: {}; rebuilding\n", cache_file, why);
-  }
-  LoadedScene s = load_with_progress(so.scene, quiet);
-  WorldBuildReport br;
-  // The Gaussians are not needed after the build (a cached world has none either): consuming
-  // them lowers the peak memory of a large scene's build.
-  CollisionWorld world = CollisionWorld::build(std::move(s.scene), cfg, &br);
-  if (!cache_file.empty()) {
-    try {
-      std::error_code ec;
-      std::filesystem::create_directories(cache_dir, ec);
-      write_world_cache(world, key, cache_file, s.report);
-      fmt::print(report, "cache      world written to {}\n", cache_file);
-    } catch (const InputError& e) {
-      fmt::print(stderr, "warning: {} (the world is rebuilt each time)\n", e.what());
-    }
-  }
-  fmt::print(report, "scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
-             s.report.loaded, s.report.skipped());
-  fmt::print(report, "filter     opacity > {:.2f}: kept {} ({:.1f}%)\n", cfg.min_opacity, br.filter.after,
-             100 * br.filter.kept_fraction());
-  const Eigen::Vector3d up = for_print(world.up());
-  fmt::print(report, "world      {} Gaussians, BVH built in {:.0f} ms, {:.1f} MB, up [{:.2f}, {:.2f}, {:.2f}]{}\n",
-             world.size(), br.build_seconds * 1e3, double(br.memory_bytes) / 1e6, up.x(), up.y(),
-             up.z(), so.registration_file.empty() ? "" : ", registration " + so.registration_file);
-  if (rotates_twice(cfg.registration, cfg.up))
-    fmt::print(stderr,
-               "warning: --up {} and the registration's rotation both turn the scene, so the world's "
-               "up ends at [{:.2f}, {:.2f}, {:.2f}]. A registration that already turns the scene "
-               "upright (like the bundled Truck's) wants --up none.\n",
-               to_string(cfg.up), up.x(), up.y(), up.z());
-  return {std::move(s), cfg, br, std::move(world)};
 }
 
 ProbeTrajectory make_probe_trajectory(const CollisionWorld& world, bool scaled, int sites, std::uint64_t seed,
@@ -226,28 +142,6 @@ void print_no_contact_hints(const PreparedWorld& w, const SceneOptions& so, doub
   if (tool_radius < 0.002 * extent || tool_radius > 0.1 * extent)
     fmt::print(stderr, "  tool size  the tool radius {:.4g} is {:.2g}% of the scene's size {:.4g}; 0.5-5% "
                        "usually touches\n", tool_radius, 100 * tool_radius / extent, extent);
-}
-
-std::string find_tool_script(const std::string& name) {
-  if (name == "plot_probe_run.py")
-    if (const char* env = std::getenv("GSHAPTICS_PLOT_SCRIPT")) return env;
-  for (const std::string& p : {std::string(GSHAPTICS_SOURCE_DIR) + "/tools/" + name,
-                              std::string(GSHAPTICS_INSTALL_DATADIR) + "/" + name})
-    if (std::filesystem::exists(p)) return p;
-  return "";
-}
-
-bool run_python(const std::string& script, const std::vector<std::string>& args, const std::string& command) {
-  if (script.empty()) throw InputError(command + ": the plotting script is not found in tools/ (use --no-plot)");
-  const char* py = std::getenv("GSHAPTICS_PYTHON");
-  std::string cmdline = shell_quote(py ? py : "/usr/bin/python3") + " " + shell_quote(script);
-  for (const std::string& a : args) cmdline += " " + shell_quote(a);
-  if (std::system(cmdline.c_str()) != 0) {
-    fmt::print(stderr, "error: plotting failed ({}); the data files are written. Install "
-                       "python3-matplotlib or pass --no-plot\n", cmdline);
-    return false;
-  }
-  return true;
 }
 
 bool plot_run(const std::string& csv, const std::string& summary, const std::string& png,

@@ -11,7 +11,14 @@
 #include <sstream>
 #include <vector>
 
+#include <cctype>
+#include <fmt/format.h>
+
 #include "gshaptics/error.h"
+#include "gshaptics/io/scene_loader.h"
+#include "gshaptics/io/scene_writer.h"
+#include "gshaptics/scene/opacity_filter.h"
+#include "gshaptics/scene/registration.h"
 #include "gshaptics/session/probe_session.h"
 #include "gshaptics/sim/pose_sampler.h"
 
@@ -126,6 +133,52 @@ void run_query_command(const QueryCommandOptions& o) {
                                          {v[6], v[7], v[8], v[9]}, where);
     std::printf("%s\n", query_answer_json(query, tool).c_str());
   }
+}
+
+namespace {
+std::string to_lower_ext(const std::string& path) {
+  std::string e = std::filesystem::path(path).extension().string();
+  for (char& ch : e) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+  return e;
+}
+}  // namespace
+
+void run_convert_command(const ConvertCommandOptions& o) {
+  const SceneFrame to = output_frame(o.out);  // checks the extension before the load
+  const LoadedScene s = load_with_progress(o.scene.scene, o.quiet, /*keep_color=*/true);
+  GaussianScene scene = s.scene;
+  if (o.min_opacity >= 0.f) {
+    OpacityFilterReport rep;
+    scene = filter_by_opacity(scene, o.min_opacity, &rep);
+    fmt::print("filter     opacity > {:.2f}: kept {} of {}\n", o.min_opacity, rep.after, rep.before);
+  }
+  const WorldConfig cfg = world_config_from(o.scene);
+  if (rotates_twice(cfg.registration, cfg.up))
+    fmt::print(stderr, "warning: --up {} and the registration's rotation both turn the scene\n",
+               to_string(cfg.up));
+  // The written file is in its format's own convention, so that it gives the same world under
+  // --up auto as the source does under these options.
+  const SimilarityTransform t = conversion_transform(cfg.registration, cfg.up, scene.frame, to);
+  if (!t.is_identity()) scene = transform_scene(scene, t);
+  scene.frame = to;
+  write_scene(o.out, scene);
+  if (to_lower_ext(o.out) == ".splat") {
+    // Measure what the bytes cost: the contacts of seeded tool poses, source against output.
+    const LoadedScene back = load_scene(o.out);
+    const CollisionWorld a = CollisionWorld::build(scene, WorldConfig{});
+    const CollisionWorld b = CollisionWorld::build(back.scene, WorldConfig{});
+    const ContactChange c = compare_contacts(a, b);
+    fmt::print(stderr,
+               "warning: .splat is lossy (rotations in 4 bytes, opacity in 1): the contacts changed for {} "
+               "of {} tool poses near the surface; convert to .ply to keep them exact\n",
+               c.changed, c.poses);
+  }
+  fmt::print("wrote      {} ({} Gaussians{}), in {}'s convention ({}): `--up auto` on it gives the "
+             "world the source gives{}\n",
+             o.out, scene.size(), scene.colors_dc.empty() ? ", no colour" : "",
+             std::filesystem::path(o.out).extension().string(), to_string(to),
+             cfg.up == UpAxis::kNone && cfg.registration.is_identity() ? " with --up auto"
+                                                                        : " with these options");
 }
 
 }  // namespace gshaptics::session

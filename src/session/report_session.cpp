@@ -261,4 +261,36 @@ void run_latency_command(const LatencyCommandOptions& o) {
              100 * tick_hit, p.max_us / 10.0);
 }
 
+namespace {
+
+std::string shell_quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+}  // namespace
+
+std::string find_tool_script(const std::string& name) {
+  if (name == "plot_probe_run.py")
+    if (const char* env = std::getenv("GSHAPTICS_PLOT_SCRIPT")) return env;
+  for (const std::string& p : {std::string(GSHAPTICS_SOURCE_DIR) + "/tools/" + name,
+                              std::string(GSHAPTICS_INSTALL_DATADIR) + "/" + name})
+    if (std::filesystem::exists(p)) return p;
+  return "";
+}
+
+bool run_python(const std::string& script, const std::vector<std::string>& args, const std::string& command) {
+  if (script.empty()) throw InputError(command + ": the plotting script is not found in tools/ (use --no-plot)");
+  const char* py = std::getenv("GSHAPTICS_PYTHON");
+  std::string cmdline = shell_quote(py ? py : "/usr/bin/python3") + " " + shell_quote(script);
+  for (const std::string& a : args) cmdline += " " + shell_quote(a);
+  if (std::system(cmdline.c_str()) != 0) {
+    fmt::print(stderr, "error: plotting failed ({}); the data files are written. Install "
+                       "python3-matplotlib or pass --no-plot\n", cmdline);
+    return false;
+  }
+  return true;
+}
+
 }  // namespace gshaptics::session

@@ -20,7 +20,6 @@
 #include "gshaptics/device/vendor_devices.h"
 #include "gshaptics/device/workspace_mapping.h"
 #include "gshaptics/sim/probe_run.h"
-#include "gshaptics/sim/simulated_device.h"
 #include "gshaptics/sim/pose_sampler.h"
 #ifdef GSHAPTICS_HAVE_HAPLY
 #include "gshaptics/device/haply_device.h"
@@ -118,14 +117,14 @@ bool is_hardware_device(const std::string& device) {
 }
 
 void check_device_option(const std::string& device, bool allow_mouse) {
-  // The kinds that need the scene (sim, mouse, xr) are made here; every other one is the registry's.
-  if (device == "sim" || (allow_mouse && (device == "mouse" || device == "xr"))) return;
+  // The viewer's streams (mouse, xr) are fed by the page; every other kind is the registry's.
+  if (allow_mouse && (device == "mouse" || device == "xr")) return;
   if (device_registry().find(device) == nullptr) {
 #ifndef GSHAPTICS_HAVE_HAPLY
     if (device == "haply" || device.rfind("haply:", 0) == 0)
       throw InputError("--device haply: this build has no WebSocket client (built without Boost.Beast)");
 #endif
-    throw InputError("--device: expected 'sim', " + std::string(allow_mouse ? "'mouse', 'xr', " : "") +
+    throw InputError("--device: expected " + std::string(allow_mouse ? "'mouse', 'xr', " : "") +
                      device_registry().grammars() + ", got '" + device +
                      "' (`gshaptics devices` lists what this machine has)");
   }
@@ -195,8 +194,8 @@ std::unique_ptr<HapticDevice> validate_runtime_options(const RuntimeOptions& o, 
   if (!o.workspace_offset.empty()) (void)parse_vec3(o.workspace_offset, "--workspace-offset");
   if (!o.workspace_rotation.empty()) (void)parse_workspace_rotation(o.workspace_rotation);
   // A device's library and a replay file are opened now, before the scene is loaded.
-  const bool needs_scene = o.device == "sim" || o.device == "mouse" || o.device == "xr";
-  return needs_scene ? nullptr : make_hardware_device(o);
+  const DeviceKind* kind = device_registry().find(o.device);
+  return kind == nullptr || kind->needs_scene ? nullptr : make_hardware_device(o);
 }
 
 void wrap_in_workspace_mapping(const RuntimeOptions& o, RuntimeSetup& s, bool hardware,
@@ -242,6 +241,97 @@ void print_hardware_status(const HapticDevice& d) {
 }
 }  // namespace
 
+namespace {
+
+// A kind that needs the scene (sim): the probe trajectory over it, and the device opened through
+// the registry with it as the hand's path.
+void open_scene_device(const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw, RuntimeSetup& s) {
+  const ProbeTrajectory traj = make_probe_trajectory(pw.world, is_scaled(so), o.sites, o.seed, s.tool_radius, o.force);
+  s.tool_radius = traj.tool_radius();
+  if (s.planned == 0) s.planned = traj.duration() + 0.5;
+  s.pass = traj.duration();
+  for (const ProbeSite& site : traj.sites())
+    if (s.first_site < 0 || site.t_touch < s.first_site) s.first_site = site.t_touch;
+  DeviceOptions d;
+  d.hand_path = &traj;
+  s.device = device_registry().open(o.device, d);
+}
+
+// The mouse: the browser page's stream, starting above the most upward-facing probe site on the
+// object (or above the middle of the scene when none is found), so that lowering the tool
+// touches the object.
+void open_mouse_stream(const PreparedWorld& pw, RuntimeSetup& s) {
+  if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
+  const Eigen::Vector3d start = tool_start_point(pw, s.tool_radius);
+  StreamDeviceParams sp;
+  sp.name = "mouse (browser)";
+  sp.timeout_periods = 3;  // a busy page sends its keep-alive at 5-7/s, not 30: scale the timeout
+  auto dev = std::make_unique<StreamDevice>(sp, start);
+  s.mouse_start = start;
+  s.mouse = dev.get();
+  s.device = std::move(dev);
+  fmt::print("mouse      tool radius {:.4g}, starts at [{:.3f}, {:.3f}, {:.3f}]\n", s.tool_radius,
+             start.x(), start.y(), start.z());
+}
+
+// A VR controller in the page's WebXR session: 6-DoF targets at the headset's frame rate
+// (72-120 Hz), interpolated to the servo rate like the mouse; no force before the first
+// controller pose, and none once the controller stops reporting for 0.25 s or three of the
+// page's frame intervals, whichever is longer (up to 1 s: a page at 7 frames/s).
+void open_xr_stream(const PreparedWorld& pw, RuntimeSetup& s) {
+  if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
+  const Eigen::Vector3d start = tool_start_point(pw, s.tool_radius);
+  StreamDeviceParams sp;
+  sp.name = "xr controller (WebXR)";
+  sp.input_timeout = 0.25;
+  sp.timeout_periods = 3;  // a page at 7-15 frames/s: one late frame does not cut the force
+  sp.alive_before_first_target = false;
+  auto dev = std::make_unique<StreamDevice>(sp, start);
+  s.mouse_start = start;
+  s.mouse = dev.get();
+  s.xr = true;
+  s.device = std::move(dev);
+  fmt::print("xr         tool radius {:.4g}; enter VR in the page; the right controller is the tool\n",
+             s.tool_radius);
+}
+
+// A desktop device: opened and closed once now (a missing device is an error before the runtime
+// starts), a hint when the scene is larger than its reach, and its workspace mapped into the world.
+void open_hardware_device(const RuntimeOptions& o, const PreparedWorld& pw, std::unique_ptr<HapticDevice> opened,
+                          RuntimeSetup& s) {
+  if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
+  s.device = opened ? std::move(opened) : make_hardware_device(o);
+  s.device->start(0);
+  s.device->stop(0);
+  print_hardware_status(*s.device);
+  if (o.workspace_scale.empty()) {
+    const Eigen::AlignedBox3d& ws = s.device->info().workspace;
+    const double reach = ws.sizes().allFinite() && ws.sizes().maxCoeff() < 1e3 ? ws.sizes().minCoeff() : 0.12;
+    const double size = robust_extent(pw.world);
+    if (size > 2 * reach)
+      fmt::print("hint       the scene is {:.3g} units across, the device reaches {:.3g} m: --workspace-scale {:.3g} "
+                 "spans it (forces stay unscaled, so the hand feels the stiffness times that scale), or "
+                 "move with --clutch-button / --bubble-radius\n", size, reach, size / reach);
+  }
+  wrap_in_workspace_mapping(o, s, /*hardware=*/true, tool_start_point(pw, s.tool_radius), pw.world.up());
+}
+
+// The registry's other kinds (replay:FILE): a replay says what it plays and warns of its bad rows.
+void open_other_device(const RuntimeOptions& o, const PreparedWorld& pw, std::unique_ptr<HapticDevice> opened,
+                       RuntimeSetup& s) {
+  s.device = opened ? std::move(opened) : make_hardware_device(o);
+  if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
+  if (const auto* replay = dynamic_cast<const ReplayDevice*>(s.device.get())) {
+    const std::string file = o.device.substr(o.device.find(':') + 1);
+    if (replay->non_finite_rows() > 0)
+      fmt::print(stderr, "warning: {}: {} rows hold NaN/Inf; they are replayed as a faulty device\n", file,
+                 replay->non_finite_rows());
+    fmt::print("replay     {}: {:.2f} s, tool radius {:.4g}\n", file, replay->duration(), s.tool_radius);
+  }
+}
+
+}  // namespace
+
 RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
                                 bool allow_mouse, std::unique_ptr<HapticDevice> opened) {
   check_device_option(o.device, allow_mouse);
@@ -249,74 +339,17 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
   s.tool_radius = o.tool_radius;
   if (s.tool_radius <= 0 && o.tool.given()) s.tool_radius = o.tool.tool.largest_semi_axis();
   s.planned = o.duration;
-  if (o.device == "sim") {
-    ProbeTrajectory traj = make_probe_trajectory(pw.world, is_scaled(so), o.sites, o.seed, s.tool_radius, o.force);
-    s.tool_radius = traj.tool_radius();
-    if (s.planned == 0) s.planned = traj.duration() + 0.5;
-    s.pass = traj.duration();
-    for (const ProbeSite& site : traj.sites())
-      if (s.first_site < 0 || site.t_touch < s.first_site) s.first_site = site.t_touch;
-    s.device = std::make_unique<SimulatedDevice>(std::move(traj));
-  } else if (o.device == "mouse") {
-    if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
-    // Start above the most upward-facing probe site on the object (or above the middle of the
-    // scene when none is found), so that lowering the tool touches the object.
-    const Eigen::Vector3d start = tool_start_point(pw, s.tool_radius);
-    StreamDeviceParams sp;
-    sp.name = "mouse (browser)";
-    sp.timeout_periods = 3;  // a busy page sends its keep-alive at 5-7/s, not 30: scale the timeout
-    auto dev = std::make_unique<StreamDevice>(sp, start);
-    s.mouse_start = start;
-    s.mouse = dev.get();
-    s.device = std::move(dev);
-    fmt::print("mouse      tool radius {:.4g}, starts at [{:.3f}, {:.3f}, {:.3f}]\n", s.tool_radius,
-               start.x(), start.y(), start.z());
-  } else if (o.device == "xr") {
-    // A VR controller in the page's WebXR session: 6-DoF targets at the headset's frame rate
-    // (72-120 Hz), interpolated to the servo rate like the mouse; no force before the first
-    // controller pose, and none once the controller stops reporting for 0.25 s or three of the
-    // page's frame intervals, whichever is longer (up to 1 s: a page at 7 frames/s).
-    if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
-    const Eigen::Vector3d start = tool_start_point(pw, s.tool_radius);
-    StreamDeviceParams sp;
-    sp.name = "xr controller (WebXR)";
-    sp.input_timeout = 0.25;
-    sp.timeout_periods = 3;  // a page at 7-15 frames/s: one late frame does not cut the force
-    sp.alive_before_first_target = false;
-    auto dev = std::make_unique<StreamDevice>(sp, start);
-    s.mouse_start = start;
-    s.mouse = dev.get();
-    s.xr = true;
-    s.device = std::move(dev);
-    fmt::print("xr         tool radius {:.4g}; enter VR in the page; the right controller is the tool\n",
-               s.tool_radius);
-  } else if (is_hardware_device(o.device)) {
-    if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
-    s.device = opened ? std::move(opened) : make_hardware_device(o);
-    s.device->start(0);  // open now: a missing device is an error before the runtime starts
-    s.device->stop(0);
-    print_hardware_status(*s.device);
-    if (o.workspace_scale.empty()) {
-      const Eigen::AlignedBox3d& ws = s.device->info().workspace;
-      const double reach = ws.sizes().allFinite() && ws.sizes().maxCoeff() < 1e3 ? ws.sizes().minCoeff() : 0.12;
-      const double size = robust_extent(pw.world);
-      if (size > 2 * reach)
-        fmt::print("hint       the scene is {:.3g} units across, the device reaches {:.3g} m: --workspace-scale {:.3g} "
-                   "spans it (forces stay unscaled, so the hand feels the stiffness times that scale), or "
-                   "move with --clutch-button / --bubble-radius\n", size, reach, size / reach);
-    }
-    wrap_in_workspace_mapping(o, s, /*hardware=*/true, tool_start_point(pw, s.tool_radius), pw.world.up());
-  } else {  // the registry's other kinds (replay:FILE)
-    s.device = opened ? std::move(opened) : make_hardware_device(o);
-    if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
-    if (const auto* replay = dynamic_cast<const ReplayDevice*>(s.device.get())) {
-      const std::string file = o.device.substr(o.device.find(':') + 1);
-      if (replay->non_finite_rows() > 0)
-        fmt::print(stderr, "warning: {}: {} rows hold NaN/Inf; they are replayed as a faulty device\n", file,
-                   replay->non_finite_rows());
-      fmt::print("replay     {}: {:.2f} s, tool radius {:.4g}\n", file, replay->duration(), s.tool_radius);
-    }
-  }
+  const DeviceKind* kind = device_registry().find(o.device);
+  if (kind != nullptr && kind->needs_scene)
+    open_scene_device(o, so, pw, s);
+  else if (o.device == "mouse")
+    open_mouse_stream(pw, s);
+  else if (o.device == "xr")
+    open_xr_stream(pw, s);
+  else if (is_hardware_device(o.device))
+    open_hardware_device(o, pw, std::move(opened), s);
+  else
+    open_other_device(o, pw, std::move(opened), s);
   if (!is_hardware_device(o.device)) wrap_in_workspace_mapping(o, s);
   s.config = runtime_config_from(o, s.tool_radius, s.planned);
   fmt::print("runtime    {} at {:.0f} Hz, {} query, {}\n", s.device->info().name, o.rate,
@@ -399,30 +432,11 @@ int write_run_outputs(const SimulatedRuntime& rt, const RuntimeOptions& o, const
 }
 
 namespace {
-int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector<std::string>& warnings,
-                   const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
-                   const RuntimeSetup& setup, bool interrupted, const std::string& command,
-                   const nlohmann::json& extra) {
-  const auto& records = log.records();
-  const std::vector<ContactEpisode> episodes = find_episodes(records);
 
-  const std::string out_dir = o.out_dir.empty() ? default_out_dir(so.scene) : o.out_dir;
-  OutputStage stage(out_dir, {"servo_log.csv", "run_summary.json", "run.png"});
-  const std::string csv = stage.path("servo_log.csv");
-  const std::string summary_path = stage.path("run_summary.json");
-  const std::string png = stage.path("run.png");
-  // The run is over (the servo loop only filled memory): a full disk or a folder made read-only
-  // meanwhile loses these files, never the run. Each failure is reported and sets exit status 4.
-  std::vector<std::string> write_errors;
-  const auto attempt = [&write_errors](const std::function<void()>& write) {
-    try {
-      write();
-    } catch (const std::exception& e) {
-      write_errors.push_back(e.what());
-    }
-  };
-  attempt([&] { write_tick_log_csv(csv, records, kServoLogColumns); });
-
+// run_summary.json's content (without the caller's extra keys).
+nlohmann::json run_summary_json(const RuntimeSummary& s, const TickLog& log, const std::vector<std::string>& warnings,
+                                const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
+                                const RuntimeSetup& setup, bool interrupted, const std::vector<ContactEpisode>& episodes) {
   nlohmann::json sj;
   sj["scene"] = so.scene;
   sj["registration"] = so.registration_file;
@@ -442,7 +456,7 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
   sj["interrupted"] = interrupted;
   sj["runtime"] = to_json(s);
   sj["query_us"] = {{"p50", s.query_p50_us}, {"p99", s.query_p99_us}, {"max", s.query_max_us}};
-  sj["log_ticks"] = records.size();
+  sj["log_ticks"] = log.records().size();
   sj["log_dropped"] = log.dropped();
   sj["warnings"] = warnings;
   const std::vector<DeviceCounter> device_counters = setup.device->counters();
@@ -457,9 +471,16 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
     eps.push_back({{"t_start", e.t_start}, {"t_end", e.t_end}, {"peak_contacts", e.peak_contacts},
                    {"peak_force", e.peak_force}, {"energy_j", e.energy_j}});
   sj["episodes"] = eps;
-  for (const auto& [k, v] : extra.items()) sj[k] = v;
-  attempt([&] { write_file_atomically(summary_path, sj.dump(2) + "\n"); });
+  return sj;
+}
 
+// The run's summary on stdout: rate and jitter, the worker, the safety layer, passivity, the
+// force limit, the device's counters, the contact episodes and, for a probe that touched
+// nothing, why. `ran`: the time of the last logged tick, s.
+void print_run_summary(const RuntimeSummary& s, const RuntimeOptions& o, const SceneOptions& so,
+                       const PreparedWorld& pw, const RuntimeSetup& setup, bool interrupted,
+                       const std::vector<ContactEpisode>& episodes, double ran) {
+  const std::vector<DeviceCounter> device_counters = setup.device->counters();
   fmt::print("\nticks      {} in {:.2f} s: {:.1f} Hz achieved ({:.0f} Hz set); {} deadline misses, "
              "{} periods skipped\n", s.ticks, s.duration_s, s.achieved_rate_hz, s.rate_hz,
              s.deadline_misses, s.skipped_periods);
@@ -497,7 +518,6 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
   for (const DeviceCounter& c : device_counters)
     if (c.count > 0) fmt::print("device     {}: {}\n", c.name, c.count);
   fmt::print("episodes   {} contact episodes{}\n", episodes.size(), active_episodes_note(episodes));
-  const double ran = records.empty() ? 0.0 : records.back().time;
   if (episodes.empty() && o.device == "sim" && !interrupted) {
     if (setup.first_site > 0 && ran < setup.first_site)
       fmt::print("           the run ended at {:.1f} s, before the probe reached its first site (at {:.1f} s of a "
@@ -506,6 +526,37 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
     else
       print_no_contact_hints(pw, so, setup.tool_radius);
   }
+}
+
+int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector<std::string>& warnings,
+                   const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
+                   const RuntimeSetup& setup, bool interrupted, const std::string& command,
+                   const nlohmann::json& extra) {
+  const auto& records = log.records();
+  const std::vector<ContactEpisode> episodes = find_episodes(records);
+
+  const std::string out_dir = o.out_dir.empty() ? default_out_dir(so.scene) : o.out_dir;
+  OutputStage stage(out_dir, {"servo_log.csv", "run_summary.json", "run.png"});
+  const std::string csv = stage.path("servo_log.csv");
+  const std::string summary_path = stage.path("run_summary.json");
+  const std::string png = stage.path("run.png");
+  // The run is over (the servo loop only filled memory): a full disk or a folder made read-only
+  // meanwhile loses these files, never the run. Each failure is reported and sets exit status 4.
+  std::vector<std::string> write_errors;
+  const auto attempt = [&write_errors](const std::function<void()>& write) {
+    try {
+      write();
+    } catch (const std::exception& e) {
+      write_errors.push_back(e.what());
+    }
+  };
+  attempt([&] { write_tick_log_csv(csv, records, kServoLogColumns); });
+
+  nlohmann::json sj = run_summary_json(s, log, warnings, o, so, pw, setup, interrupted, episodes);
+  for (const auto& [k, v] : extra.items()) sj[k] = v;
+  attempt([&] { write_file_atomically(summary_path, sj.dump(2) + "\n"); });
+
+  print_run_summary(s, o, so, pw, setup, interrupted, episodes, records.empty() ? 0.0 : records.back().time);
   if (log.dropped() > 0)
     fmt::print(stderr, "warning: the tick log kept the first {} ticks; {} more were not logged\n",
                records.size(), log.dropped());

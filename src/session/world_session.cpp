@@ -2,7 +2,9 @@
 
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
+#include <optional>
 #include <cstdlib>
 #include <cstdio>
 #include <fmt/format.h>
@@ -14,6 +16,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "gshaptics/collision/world_cache.h"
 #include "gshaptics/error.h"
 #include "gshaptics/scene/registration.h"
 #include "gshaptics/scene/scene_stats.h"
@@ -345,6 +348,81 @@ void run_info_command(const SceneOptions& so, bool quiet) {
   const LoadedScene s = load_with_progress(so.scene, quiet);
   print_scene_report(s);
   print_world_preview(s, so);
+}
+
+SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command, const RendererSpec* renderer) {
+  if (so.min_opacity < 0) so.min_opacity = renderer ? default_min_opacity(*renderer) : kDefaultMinOpacity;
+  if (so.scene.empty()) {
+    so.scene = bundled_scene();
+    if (so.scene.empty()) throw InputError(command + ": bundled scene data/truck.splat not found; give SCENE");
+    if (so.registration_file.empty()) so.registration_file = bundled_registration();
+  }
+  return so;
+}
+
+bool is_scaled(const SceneOptions& so) {
+  return !so.registration_file.empty() || !so.reg_rotation.empty() || !so.reg_scale.empty() ||
+         !so.reg_translation.empty();
+}
+
+PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* report) {
+  const WorldConfig cfg = world_config_from(so);
+  const std::string cache_dir = world_cache_dir(so);
+  WorldCacheKey key;
+  std::string cache_file;
+  if (!cache_dir.empty()) {
+    const auto t0 = std::chrono::steady_clock::now();
+    key = world_cache_key(so.scene, cfg);
+    cache_file = world_cache_file(cache_dir, so.scene, key);
+    std::string why;
+    std::optional<CachedWorld> hit = open_world_cache(cache_file, key, &why);
+    const double ms = 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (hit) {
+      LoadedScene s;
+      s.report = hit->source;
+      s.report.path = so.scene;
+      WorldBuildReport br;
+      br.filter = {cfg.min_opacity, std::size_t(s.report.loaded), hit->world.size()};
+      br.memory_bytes = hit->world.memory_bytes();
+      const Eigen::Vector3d up = hit->world.up();
+      fmt::print(report, "scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
+                 s.report.loaded, s.report.skipped());
+      fmt::print(report, "world      {} Gaussians from the world cache {} (hashed and mapped in {:.0f} ms), up [{:.2f}, "
+                 "{:.2f}, {:.2f}]\n", hit->world.size(), cache_file, ms, up.x(), up.y(), up.z());
+      return {std::move(s), cfg, br, std::move(hit->world)};
+    }
+    if (why != "no cache file") fmt::print(stderr, "warning: world cache {}: {}; rebuilding\n", cache_file, why);
+  }
+  LoadedScene s = load_with_progress(so.scene, quiet);
+  WorldBuildReport br;
+  // The Gaussians are not needed after the build (a cached world has none either): consuming
+  // them lowers the peak memory of a large scene's build.
+  CollisionWorld world = CollisionWorld::build(std::move(s.scene), cfg, &br);
+  if (!cache_file.empty()) {
+    try {
+      std::error_code ec;
+      std::filesystem::create_directories(cache_dir, ec);
+      write_world_cache(world, key, cache_file, s.report);
+      fmt::print(report, "cache      world written to {}\n", cache_file);
+    } catch (const InputError& e) {
+      fmt::print(stderr, "warning: {} (the world is rebuilt each time)\n", e.what());
+    }
+  }
+  fmt::print(report, "scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
+             s.report.loaded, s.report.skipped());
+  fmt::print(report, "filter     opacity > {:.2f}: kept {} ({:.1f}%)\n", cfg.min_opacity, br.filter.after,
+             100 * br.filter.kept_fraction());
+  const Eigen::Vector3d up = for_print(world.up());
+  fmt::print(report, "world      {} Gaussians, BVH built in {:.0f} ms, {:.1f} MB, up [{:.2f}, {:.2f}, {:.2f}]{}\n",
+             world.size(), br.build_seconds * 1e3, double(br.memory_bytes) / 1e6, up.x(), up.y(),
+             up.z(), so.registration_file.empty() ? "" : ", registration " + so.registration_file);
+  if (rotates_twice(cfg.registration, cfg.up))
+    fmt::print(stderr,
+               "warning: --up {} and the registration's rotation both turn the scene, so the world's "
+               "up ends at [{:.2f}, {:.2f}, {:.2f}]. A registration that already turns the scene "
+               "upright (like the bundled Truck's) wants --up none.\n",
+               to_string(cfg.up), up.x(), up.y(), up.z());
+  return {std::move(s), cfg, br, std::move(world)};
 }
 
 }  // namespace gshaptics::session

@@ -9,7 +9,7 @@
 #include "gshaptics/error.h"
 #include "gshaptics/percentile.h"
 #include "gshaptics/servo/simulated_runtime.h"
-#include "gshaptics/sim/simulated_device.h"
+#include "gshaptics/device/simulated_device.h"
 
 namespace gshaptics {
 

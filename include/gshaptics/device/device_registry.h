@@ -21,6 +21,7 @@
 #include <string_view>
 #include <vector>
 
+#include "gshaptics/device/hand_trajectory.h"
 #include "gshaptics/device/haptic_device.h"
 
 namespace gshaptics {
@@ -31,6 +32,9 @@ struct DeviceOptions {
   /// Haply: render force to an Inverse3 whose status says it is not calibrated (refused by default).
   bool haply_allow_uncalibrated = false;
   double calibration_wait = 5.0;  ///< OpenHaptics: how long start() waits for inkwell calibration, s
+  /// sim: the path the simulated hand follows (the session makes it from the loaded scene; not
+  /// owned, copied by the factory). Null for a kind that needs no scene.
+  const ProbeTrajectory* hand_path = nullptr;
 };
 
 /// One row of list_devices(): a device (or a kind with none found) and whether it can be used.
@@ -46,6 +50,8 @@ struct DeviceKind {
   std::string grammar;  ///< "dhd[:N]", for help texts
   std::string summary;  ///< one line for help texts
   bool hardware = false;  ///< a physical device: placed in the world through a workspace mapping
+  /// Opened once the scene is loaded, with what the scene gives (DeviceOptions::hand_path).
+  bool needs_scene = false;
   /// Validates ARG (the text after "name:", empty when absent); throws InputError naming the
   /// value. Cheap: no library is opened.
   std::function<void(const std::string& arg)> check;
@@ -77,7 +83,7 @@ class DeviceRegistry {
   std::vector<DeviceKind> kinds_;
 };
 
-/// The process-wide registry, with the built-in kinds (replay, dhd, openhaptics) on first use.
+/// The process-wide registry, with the built-in kinds (sim, replay, dhd, openhaptics) on first use.
 /// Optional libraries add theirs (register_haply_device()).
 [[nodiscard]] DeviceRegistry& device_registry();
 

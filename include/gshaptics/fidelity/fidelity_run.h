@@ -34,7 +34,7 @@ struct FidelityOptions {
   double push_depth = 0.030;
   std::uint64_t seed = 1;     ///< scenes and sites
   SynthParams synth;          ///< how the scenes are drawn (spacing and seed are set per scene)
-  double rate_hz = 1000;
+  double rate_hz = kDefaultServoRateHz;
   std::string scene_dir;      ///< where the generated scenes are written (and reused); required
   /// How the servo step runs (SimulatedRuntime, as a real-time run): the mode every metric is
   /// measured in. Default: the runtime's default mode.

@@ -19,6 +19,7 @@
 #include "gshaptics/fidelity/analytic_shape.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/device/haptic_device.h"
+#include "gshaptics/device/scripted_device.h"
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/safety.h"
 
@@ -76,28 +77,6 @@ struct PlayOptions {
   bool inline_query = kDefaultInlineQuery;  ///< query inside the tick; false: the decoupled worker
   int latency_ticks = 1;     ///< decoupled mode: ticks from a pose to its result (>= 1)
   SafetyParams safety;  ///< the safety layer, F_max included
-};
-
-/// A HapticDevice that follows a script exactly (an ideal position-controlled 6-DoF device that
-/// renders torque, with no limits of its own): tick k of the run reads script tick k; it
-/// finishes at the script's last tick.
-class ScriptedDevice final : public HapticDevice {
- public:
-  ScriptedDevice(const Script& script, double rate_hz);
-  [[nodiscard]] const DeviceInfo& info() const noexcept override { return info_; }
-  void start(Nanos now) override;
-  [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
-  void write(const Wrench& wrench, Nanos now) noexcept override;
-  void stop(Nanos now) noexcept override;
-  [[nodiscard]] bool finished() const noexcept override { return done_; }
-
- private:
-  const Script& script_;
-  DeviceInfo info_;
-  Nanos t0_ = 0;
-  double period_s_;
-  std::uint64_t sequence_ = 0;
-  bool done_ = false;
 };
 
 /// Plays `script` through `renderer` (reset first) on a ScriptedDevice in a SimulatedRuntime:

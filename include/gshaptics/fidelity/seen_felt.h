@@ -57,7 +57,7 @@ struct SeenFeltOptions {
   double start = 16;         ///< R before the seen surface the device starts (the eye at least that far)
   double speed = 4;          ///< R per second along the ray
   double hold = 0.3;         ///< s held at the deepest point before the proxy is read
-  double rate_hz = 1000;
+  double rate_hz = kDefaultServoRateHz;
   double force_threshold = 0.1;  ///< N: "a force"
   std::uint64_t seed = 1;
   /// The scene's down (unit, scene frame): vertical presses go along it, presses from around

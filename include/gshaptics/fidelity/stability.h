@@ -21,7 +21,7 @@
 #include "gshaptics/fidelity/analytic_shape.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/servo/haptic_runtime.h"
-#include "gshaptics/sim/device_model.h"
+#include "gshaptics/device/device_model.h"
 
 namespace gshaptics {
 

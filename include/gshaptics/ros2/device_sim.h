@@ -12,13 +12,14 @@
 
 #include "gshaptics/ros2/ros2_bridge.h"
 #include "gshaptics/device/haptic_device.h"
+#include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/tick_log.h"
 
 namespace gshaptics {
 
 /// How the device side runs.
 struct DeviceLoopParams {
-  double rate_hz = 1000;    ///< device rate, Hz (> 0)
+  double rate_hz = kDefaultServoRateHz;    ///< device rate, Hz (> 0)
   double duration_s = 1.0;  ///< run length, s (> 0)
 };
 

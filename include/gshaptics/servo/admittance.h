@@ -17,7 +17,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 
-#include "gshaptics/device/admittance_device.h"
+#include "gshaptics/device/device_model.h"
 #include "gshaptics/device/haptic_device.h"
 
 namespace gshaptics {

@@ -51,8 +51,13 @@ struct RealtimeOptions {
 /// (inline_query = false) for a renderer whose p99 does not fit the tick budget.
 inline constexpr bool kDefaultInlineQuery = true;
 
+/// The servo rate every loop runs at unless told otherwise, Hz (paper Sec. IV: 1 kHz). The one
+/// home of that default: the runtime, the probe run, the benchmarks and the ROS device simulator
+/// read it.
+inline constexpr double kDefaultServoRateHz = 1000;
+
 struct RuntimeConfig {
-  double rate_hz = 1000;    ///< servo rate, Hz (paper: 1 kHz)
+  double rate_hz = kDefaultServoRateHz;  ///< servo rate, Hz (paper: 1 kHz)
   bool inline_query = kDefaultInlineQuery;  ///< query inside the tick instead of on the worker thread
   /// Simulated time only (SimulatedRuntime), decoupled mode: ticks from a pose to the first tick
   /// that renders its result (>= 1; HapticRuntime's worker thread answers within 1-2 ticks).

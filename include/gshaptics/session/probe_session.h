@@ -3,8 +3,7 @@
 /// @file
 /// The session layer (see world_session.h), probe runs: the force model a session renders with
 /// (a RendererSpec plus the safety layer's limit and a device profile), the execution mode, the
-/// prepared world (load, filter, register, cache or build) with the lines a run prints about it,
-/// the seeded probe trajectory with scene-relative sizes, the diagnosis of a run without contact,
+/// seeded probe trajectory with scene-relative sizes, the diagnosis of a run without contact,
 /// and the figure (tools/plot_probe_run.py).
 
 #include <functional>
@@ -72,27 +71,6 @@ struct ExecutionOptions {
 std::string describe_execution(const ExecutionOptions& o, bool simulated);
 
 
-/// Without SCENE: the bundled Truck and its registration. Throws InputError naming `command`
-/// when the bundled scene is missing.
-/// The opacity filter left to the model (kModelMinOpacity) becomes `renderer`'s default_min_opacity()
-/// (kDefaultMinOpacity without one).
-SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command, const RendererSpec* renderer = nullptr);
-
-/// True when a registration file, rotation, translation or --reg-scale was given: the world is
-/// then meant to be in metres (--up alone turns the scene, it does not change its units).
-bool is_scaled(const SceneOptions& so);
-
-/// A loaded scene turned into a world, with the lines `simulate` and `run` print about it.
-struct PreparedWorld {
-  LoadedScene scene;
-  WorldConfig config;
-  WorldBuildReport report;
-  CollisionWorld world;
-};
-/// Loads and builds the world (or maps it from the world cache, --world-cache), printing what it
-/// did to `report` (stdout; a command whose stdout is data passes stderr).
-PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* report = stdout);
-
 /// Warns when the world is larger than the --device-profile's workspace, with the --reg-scale
 /// that fits it.
 void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o);
@@ -112,13 +90,6 @@ ProbeTrajectory make_probe_trajectory(const CollisionWorld& world, bool scaled, 
 /// After a probe run that made no contact: the likely causes, from the numbers at hand (units,
 /// up axis, opacity filter, tool size), one line each, printed to stderr.
 void print_no_contact_hints(const PreparedWorld& w, const SceneOptions& so, double tool_radius);
-
-/// Path of a script in tools/ (source tree) or share/gshaptics (installed), "" when absent.
-std::string find_tool_script(const std::string& name);
-
-/// Runs `script` with /usr/bin/python3 (or $GSHAPTICS_PYTHON) and `args`; false (with a message
-/// naming `command`) when it fails. Throws InputError when `script` is "".
-bool run_python(const std::string& script, const std::vector<std::string>& args, const std::string& command);
 
 /// Runs tools/plot_probe_run.py on a log and summary; false (with a message) when it fails.
 bool plot_run(const std::string& csv, const std::string& summary, const std::string& png,

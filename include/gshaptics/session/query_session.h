@@ -1,7 +1,8 @@
 #pragma once
 /// @file
 /// The session layer (see world_session.h), `gshaptics query`: one collision query as the JSON
-/// line other tools rely on (the query contract: docs/usage.md).
+/// line other tools rely on (the query contract: docs/usage.md); and `gshaptics convert`, which
+/// measures what a lossy output changes with the same queries.
 
 #include <Eigen/Core>
 #include <string>
@@ -44,5 +45,20 @@ struct QueryCommandOptions {
 /// comments; a pose line in another world frame is warned about). Throws InputError naming the
 /// option, the file and line for bad input.
 void run_query_command(const QueryCommandOptions& o);
+
+/// `gshaptics convert`: the options as on the command line.
+struct ConvertCommandOptions {
+  SceneOptions scene;       ///< the input, --registration and --up (min_opacity unused: see below)
+  std::string out;          ///< .ply or .splat, written atomically
+  float min_opacity = -1;   ///< keep Gaussians with opacity > this; < 0: keep all
+  bool quiet = false;       ///< no progress bar
+};
+
+/// The convert command: loads the scene with its colours, drops Gaussians at or below
+/// min_opacity, applies --up and the registration, and writes it in the output format's own
+/// convention (so `--up auto` on it gives the world the source gives). For .splat (lossy) it
+/// measures, with compare_contacts(), how many tool poses' contacts changed and warns. Throws
+/// InputError naming the file for a bad extension or input.
+void run_convert_command(const ConvertCommandOptions& o);
 
 }  // namespace gshaptics::session

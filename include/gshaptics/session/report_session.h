@@ -17,6 +17,14 @@
 
 namespace gshaptics::session {
 
+/// Path of a script in tools/ (source tree) or share/gshaptics (installed), "" when absent.
+std::string find_tool_script(const std::string& name);
+
+/// Runs `script` with /usr/bin/python3 (or $GSHAPTICS_PYTHON) and `args`; false (with a message
+/// naming `command`) when it fails. Throws InputError when `script` is "".
+bool run_python(const std::string& script, const std::vector<std::string>& args, const std::string& command);
+
+
 /// `gshaptics fidelity`: the options as on the command line.
 struct FidelityCommandOptions {
   bool quick = false;     ///< quick_fidelity_options() (CI)

@@ -96,7 +96,8 @@ void check_device_option(const std::string& device, bool allow_mouse);
 /// Everything about the device that can be checked before the scene is loaded: the --device
 /// value, the workspace options, and the device itself when the registry makes it (a hardware
 /// device's vendor library, a replay file), opened here once: hand it to make_runtime_setup.
-/// Null for the devices that need the scene (sim, mouse, xr). Throws InputError.
+/// Null for the devices that need the scene (sim) and the viewer's streams (mouse, xr). Throws
+/// InputError.
 [[nodiscard]] std::unique_ptr<HapticDevice> validate_runtime_options(const RuntimeOptions& o, bool allow_mouse);
 /// "; GRAMMAR: summary" for every kind of the device registry (only the hardware ones when
 /// `hardware_only`), for --device help texts.

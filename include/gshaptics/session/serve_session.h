@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "gshaptics/net/viewer_server.h"
+#include "gshaptics/viewer/viewer_server.h"
 #include "gshaptics/session/run_session.h"
 
 namespace gshaptics::session {

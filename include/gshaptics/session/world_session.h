@@ -3,7 +3,7 @@
 /// The session layer (gshaptics::session): what a command does around the haptic loop, as library
 /// calls, so the CLI and an embedder (or the Python module) do it one way. This part: a world as
 /// the commands open it (scene options, registration from a file and overrides, the bundled
-/// scene, the world cache folder), output folders that lose nothing (OutputStage: a failed run
+/// scene, the world cache folder, the prepared world with the lines a run prints about it), output folders that lose nothing (OutputStage: a failed run
 /// keeps the previous results), the frame comment pose files carry, vector parsing and the
 /// console progress bar.
 ///
@@ -18,6 +18,7 @@
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/error.h"
 #include "gshaptics/io/atomic_file.h"
+#include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/io/scene_loader.h"
 
 namespace gshaptics::session {
@@ -132,5 +133,26 @@ class Progress {
   bool enabled_;
   int last_ = -1;
 };
+
+/// Without SCENE: the bundled Truck and its registration. Throws InputError naming `command`
+/// when the bundled scene is missing.
+/// The opacity filter left to the model (kModelMinOpacity) becomes `renderer`'s default_min_opacity()
+/// (kDefaultMinOpacity without one).
+SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command, const RendererSpec* renderer = nullptr);
+
+/// True when a registration file, rotation, translation or --reg-scale was given: the world is
+/// then meant to be in metres (--up alone turns the scene, it does not change its units).
+bool is_scaled(const SceneOptions& so);
+
+/// A loaded scene turned into a world, with the lines `simulate` and `run` print about it.
+struct PreparedWorld {
+  LoadedScene scene;
+  WorldConfig config;
+  WorldBuildReport report;
+  CollisionWorld world;
+};
+/// Loads and builds the world (or maps it from the world cache, --world-cache), printing what it
+/// did to `report` (stdout; a command whose stdout is data passes stderr).
+PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* report = stdout);
 
 }  // namespace gshaptics::session

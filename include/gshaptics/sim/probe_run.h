@@ -19,7 +19,7 @@
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/safety.h"
 #include "gshaptics/servo/tick_log.h"
-#include "gshaptics/device/admittance_device.h"
+#include "gshaptics/device/device_model.h"
 #include "gshaptics/sim/probe_trajectory.h"
 
 namespace gshaptics {
@@ -43,7 +43,7 @@ struct QueryTimeStats {
 };
 
 struct ProbeRunParams {
-  double rate_hz = 1000;  ///< servo rate of the simulation (paper: 1 kHz)
+  double rate_hz = kDefaultServoRateHz;  ///< servo rate of the simulation (paper: 1 kHz)
   RendererSpec renderer;              ///< the force renderer and its parameters (default: the proxy)
   AdmittanceParams device;
   UserHandParams user;

@@ -8,17 +8,9 @@
 #include <vector>
 
 #include "gshaptics/collision/collision_world.h"
+#include "gshaptics/device/hand_trajectory.h"
 
 namespace gshaptics {
-
-/// One contact site found on the surface.
-struct ProbeSite {
-  Eigen::Vector3d surface_point;  ///< centre of the Gaussian chosen on the surface (world)
-  Eigen::Vector3d normal;         ///< outward unit normal (world)
-  Eigen::Vector3d touch_point;    ///< tool centre at first contact along the approach
-  std::uint32_t gaussian_index;   ///< source index of the chosen Gaussian
-  double t_touch = 0;             ///< time (s) the target reaches touch_point
-};
 
 /// Parameters of the generator. Lengths in world units (metres for a registered scene), speeds
 /// in world units per second, times in seconds.
@@ -32,29 +24,6 @@ struct ProbeParams {
   double travel_speed = 1.0;     ///< world units / s between sites (above the object)
   double approach_speed = 0.15;  ///< world units / s toward the surface
   double press_time = 0.4, hold_time = 0.5, release_time = 0.3;
-};
-
-/// A piecewise minimum-jerk path through waypoints, sampled by time.
-class ProbeTrajectory {
- public:
-  struct Waypoint {
-    double time;
-    Eigen::Vector3d position;
-  };
-  ProbeTrajectory() = default;
-  ProbeTrajectory(std::vector<Waypoint> waypoints, std::vector<ProbeSite> sites, double tool_radius);
-
-  /// Target position and velocity at time t (clamped to the ends).
-  void sample(double t, Eigen::Vector3d& position, Eigen::Vector3d& velocity) const noexcept;
-  [[nodiscard]] double duration() const { return waypoints_.empty() ? 0 : waypoints_.back().time; }
-  [[nodiscard]] const std::vector<ProbeSite>& sites() const { return sites_; }
-  [[nodiscard]] const std::vector<Waypoint>& waypoints() const { return waypoints_; }
-  [[nodiscard]] double tool_radius() const { return tool_radius_; }
-
- private:
-  std::vector<Waypoint> waypoints_;
-  std::vector<ProbeSite> sites_;
-  double tool_radius_ = 0;
 };
 
 /// The default spherical tool radius for a world: 1 % of its robust extent (the 1-99 percentile

@@ -21,7 +21,7 @@
 #include <string>
 #include <vector>
 
-#include "gshaptics/net/viewer_security.h"
+#include "gshaptics/viewer/viewer_security.h"
 
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/net/contact_snapshot.h"

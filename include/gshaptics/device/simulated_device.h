@@ -5,8 +5,8 @@
 /// in real time behind the HapticDevice interface.
 
 #include "gshaptics/device/haptic_device.h"
-#include "gshaptics/device/admittance_device.h"
-#include "gshaptics/sim/probe_trajectory.h"
+#include "gshaptics/device/device_model.h"
+#include "gshaptics/device/hand_trajectory.h"
 
 namespace gshaptics {
 

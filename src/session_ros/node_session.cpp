@@ -1,4 +1,4 @@
-#include "gshaptics/session/node_session.h"
+#include "gshaptics/session_ros/node_session.h"
 
 #include <fmt/format.h>
 
@@ -10,7 +10,8 @@
 #include "gshaptics/io/atomic_file.h"
 #include "gshaptics/percentile.h"
 #include "gshaptics/servo/tick_log.h"
-#include "gshaptics/sim/simulated_device.h"
+#include "gshaptics/device/publishing_device.h"
+#include "gshaptics/device/simulated_device.h"
 #ifdef GSHAPTICS_HAVE_ROS2
 #include "gshaptics/ros2/ros2_bridge.h"
 #endif
@@ -21,35 +22,6 @@
 namespace gshaptics::session {
 
 namespace {
-
-/// A local device that drives the runtime, with every commanded wrench also handed to the ROS
-/// bridge, which publishes it (WrenchStamped) for whoever listens: a viewer in a headset, a
-/// logger. The bridge's own pose input is not used.
-class PublishingDevice final : public HapticDevice {
- public:
-  PublishingDevice(HapticDevice& local, HapticDevice& bridge) : local_(local), bridge_(bridge) {}
-  const DeviceInfo& info() const noexcept override { return local_.info(); }
-  void start(Nanos now) override {
-    bridge_.start(now);
-    local_.start(now);
-  }
-  DeviceSample read(Nanos now) noexcept override { return local_.read(now); }
-  void write(const Wrench& w, Nanos now) noexcept override {
-    local_.write(w, now);
-    bridge_.write(w, now);
-  }
-  void stop(Nanos now) noexcept override {
-    local_.stop(now);
-    bridge_.stop(now);
-  }
-  bool finished() const noexcept override { return local_.finished() || bridge_.finished(); }
-  std::string status() const override { return local_.status(); }
-  std::vector<DeviceCounter> counters() const override { return local_.counters(); }
-
- private:
-  HapticDevice& local_;
-  HapticDevice& bridge_;
-};
 
 std::unique_ptr<RosBridgeDevice> make_bridge(const NodeOptions& o) {
 #ifdef GSHAPTICS_HAVE_ROS2

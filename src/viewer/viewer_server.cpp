@@ -1,4 +1,4 @@
-#include "gshaptics/net/viewer_server.h"
+#include "gshaptics/viewer/viewer_server.h"
 
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/steady_timer.hpp>

@@ -1,4 +1,4 @@
-#include "gshaptics/servo/device_profile.h"
+#include "gshaptics/device/device_profile.h"
 
 #include "gshaptics/error.h"
 

@@ -1,4 +1,4 @@
-#include "gshaptics/net/viewer_security.h"
+#include "gshaptics/viewer/viewer_security.h"
 
 #include <algorithm>
 #include <cctype>

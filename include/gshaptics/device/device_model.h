@@ -1,6 +1,10 @@
 #pragma once
 /// @file
-/// A simulated haptic device that can go unstable, as real ones do. Impedance-type (the default):
+/// The simulated devices' models, in one place: the ideal mass-damper the main job's simulated
+/// device renders (AdmittanceDevice, with the simulated user hand that drives it; paper Sec. IV-V)
+/// and DeviceModel, below.
+///
+/// DeviceModel: a simulated haptic device that can go unstable, as real ones do. Impedance-type (the default):
 /// a moving mass
 /// with little physical damping, driven by the commanded force through a zero-order hold, read
 /// through an encoder of finite resolution, commanded through a force output of finite
@@ -47,9 +51,58 @@
 #include <limits>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "gshaptics/device/haptic_device.h"
 
 namespace gshaptics {
+
+// ---- The ideal device and the simulated hand (SimulatedDevice, the probe run) ----
+
+
+/// Virtual mass-damper the admittance controller renders: m a = F_user + F_render - b v.
+struct AdmittanceParams {
+  double mass = 3.0;     ///< virtual mass, kg
+  double damping = 20.0; ///< virtual damping, N s/m
+};
+
+/// Translational state of the device's tool centre point (world frame).
+struct DeviceState {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< m
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  ///< m/s
+};
+
+/// Admittance device integrated with semi-implicit Euler (stable for the default parameters at
+/// servo periods up to several ms).
+class AdmittanceDevice {
+ public:
+  explicit AdmittanceDevice(const AdmittanceParams& params = {}, const DeviceState& initial = {})
+      : params_(params), state_(initial) {}
+  /// Advances by dt seconds under the sum of external forces (N, world frame).
+  void step(const Eigen::Vector3d& external_force, double dt) noexcept;
+  [[nodiscard]] const DeviceState& state() const noexcept { return state_; }
+  void set_state(const DeviceState& s) noexcept { state_ = s; }
+
+ private:
+  AdmittanceParams params_;
+  DeviceState state_;
+};
+
+/// The user's hand as a spring-damper pulling the device toward a target pose, with a force
+/// limit (a person pushes with tens of newtons, not more).
+struct UserHandParams {
+  double stiffness = 600.0;  ///< N/m
+  double damping = 40.0;     ///< N s/m
+  double max_force = 60.0;   ///< N
+};
+
+/// Force the hand applies to the device (N, world frame).
+[[nodiscard]] Eigen::Vector3d user_hand_force(const UserHandParams& params,
+                                              const DeviceState& device,
+                                              const Eigen::Vector3d& target_position,
+                                              const Eigen::Vector3d& target_velocity) noexcept;
+
+// ---- A device that can go unstable (the stability sweep) ----
 
 /// The hand holding the device. SI units.
 struct HandImpedance {

@@ -1,4 +1,4 @@
-#include "gshaptics/sim/simulated_device.h"
+#include "gshaptics/device/simulated_device.h"
 
 #include <algorithm>
 #include <cmath>
