@@ -237,15 +237,15 @@ struct PartBounds {
 
 }  // namespace
 
-double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
-                  Eigen::Vector3d* normal, double stop_above, double* s_io) noexcept {
+namespace {
+
+// The pair's frame (PairSweep): the Gaussian's own for a spherical tool; for an ellipsoidal one,
+// the frame where both shapes are diagonal. d0: the Gaussian's centre less the tool's (world).
+PairSweep pair_frame(const Eigen::Vector3d& d0, const Eigen::Matrix3d& Rg, const Eigen::Vector3d& a,
+                     const ToolEllipsoid& tool, const Eigen::Vector3d& motion) noexcept {
   PairSweep p;
-  const Eigen::Vector3d cg(g.center[0], g.center[1], g.center[2]);
-  const Eigen::Vector3d d0 = cg - tool.center;
   const Eigen::Vector3d& b = tool.semi_axes;
   const bool spherical = std::fabs(b.x() - b.y()) <= 1e-12 * b.x() && std::fabs(b.x() - b.z()) <= 1e-12 * b.x();
-  const Eigen::Matrix3d Rg = rotation_matrix(g);
-  const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
   if (spherical) {
     p.dg = Rg.transpose() * d0;
     p.ug = Rg.transpose() * motion;
@@ -270,127 +270,144 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
     p.r2 = 1.0;
     p.back = W.transpose() * Q;
   }
-  // The maximum of t_e over s = ln(lambda / (1 - lambda)), refined by Brent's method on
-  // [centre - half, centre + half] from the point centre (where t_e is t_centre); `stop` when an
-  // evaluation proves the contact later than stop_above; `edge` when it ended at the bracket's
-  // edge (the maximum may lie outside).
-  struct Refined {
-    double t, s;
-    bool stop;
-    bool edge = false;
-  };
-  // (Out of line: with a third call site, below, GCC's inlining of it slowed the stylus's
-  // fidelity-cube bench set by 0.3-0.5 us p99; out of line at all three, by 0.1-0.2.)
-  const auto refine = [&](double centre, double t_centre, double half) __attribute__((noinline)) -> Refined {
-    // Brent's method (Brent 1973, "Algorithms for Minimization without Derivatives", ch. 5):
-    // parabolic steps through the three best points, golden-section steps where a parabola is not
-    // trusted. It needs 8-15 evaluations where plain golden section needs 34 for a bracket of
-    // 1e-6 in s; t_e is smooth and flat at its maximum, so t* is
-    // exact to far below the proxy's stand-off. Non-finite values (inside every E_lambda at t = 0:
-    // -infinity) force golden steps.
-    constexpr double kCGold = 0.3819660112501051;
-    constexpr double kTol = 1e-6;
-    double lo = centre - half, hi = centre + half;
-    double x = centre, w = centre, v = centre;
-    double fx = -t_centre, fw = fx, fv = fx;  // minimising -t_e
-    double d = 0, e = 0;
-    for (int it = 0; it < 40; ++it) {
-      const double m = 0.5 * (lo + hi);
-      const double tol2 = 2 * kTol;
-      if (std::fabs(x - m) <= tol2 - 0.5 * (hi - lo)) break;
-      bool golden = true;
-      if (std::fabs(e) > kTol && std::isfinite(fx) && std::isfinite(fw) && std::isfinite(fv)) {
-        double r = (x - w) * (fx - fv), q = (x - v) * (fx - fw);
-        double pp = (x - v) * q - (x - w) * r;
-        q = 2 * (q - r);
-        if (q > 0) pp = -pp;
-        q = std::fabs(q);
-        const double e_prev = e;
-        if (std::fabs(pp) < std::fabs(0.5 * q * e_prev) && pp > q * (lo - x) && pp < q * (hi - x)) {
-          e = d;
-          d = pp / q;
-          const double u = x + d;
-          if (u - lo < tol2 || hi - u < tol2) d = m >= x ? kTol : -kTol;
-          golden = false;
-        }
+  return p;
+}
+
+// The maximum of t_e over s = ln(lambda / (1 - lambda)), refined by Brent's method on
+// [centre - half, centre + half] from the point centre (where t_e is t_centre); `stop` when an
+// evaluation proves the contact later than stop_above; `edge` when it ended at the bracket's
+// edge (the maximum may lie outside).
+struct Refined {
+  double t, s;
+  bool stop;
+  bool edge = false;
+};
+
+// (Out of line: with a third call site, below, GCC's inlining of it slowed the stylus's
+// fidelity-cube bench set by 0.3-0.5 us p99; out of line at all three, by 0.1-0.2.)
+[[gnu::noinline]] Refined brent_refine(const PairSweep& p, double centre, double t_centre, double half,
+                                    double stop_above) noexcept {
+  // Brent's method (Brent 1973, "Algorithms for Minimization without Derivatives", ch. 5):
+  // parabolic steps through the three best points, golden-section steps where a parabola is not
+  // trusted. It needs 8-15 evaluations where plain golden section needs 34 for a bracket of
+  // 1e-6 in s; t_e is smooth and flat at its maximum, so t* is
+  // exact to far below the proxy's stand-off. Non-finite values (inside every E_lambda at t = 0:
+  // -infinity) force golden steps.
+  constexpr double kCGold = 0.3819660112501051;
+  constexpr double kTol = 1e-6;
+  double lo = centre - half, hi = centre + half;
+  double x = centre, w = centre, v = centre;
+  double fx = -t_centre, fw = fx, fv = fx;  // minimising -t_e
+  double d = 0, e = 0;
+  for (int it = 0; it < 40; ++it) {
+    const double m = 0.5 * (lo + hi);
+    const double tol2 = 2 * kTol;
+    if (std::fabs(x - m) <= tol2 - 0.5 * (hi - lo)) break;
+    bool golden = true;
+    if (std::fabs(e) > kTol && std::isfinite(fx) && std::isfinite(fw) && std::isfinite(fv)) {
+      double r = (x - w) * (fx - fv), q = (x - v) * (fx - fw);
+      double pp = (x - v) * q - (x - w) * r;
+      q = 2 * (q - r);
+      if (q > 0) pp = -pp;
+      q = std::fabs(q);
+      const double e_prev = e;
+      if (std::fabs(pp) < std::fabs(0.5 * q * e_prev) && pp > q * (lo - x) && pp < q * (hi - x)) {
+        e = d;
+        d = pp / q;
+        const double u = x + d;
+        if (u - lo < tol2 || hi - u < tol2) d = m >= x ? kTol : -kTol;
+        golden = false;
       }
-      if (golden) {
-        e = x >= m ? lo - x : hi - x;
-        d = kCGold * e;
-      }
-      const double u = std::fabs(d) >= kTol ? x + d : x + (d >= 0 ? kTol : -kTol);
-      const double tu = entry_time(p.at(lambda_of(u)));
-      if (tu > stop_above) return Refined{tu, 0, true};
-      const double fu = -tu;
-      if (fu <= fx) {
-        (u >= x ? lo : hi) = x;
+    }
+    if (golden) {
+      e = x >= m ? lo - x : hi - x;
+      d = kCGold * e;
+    }
+    const double u = std::fabs(d) >= kTol ? x + d : x + (d >= 0 ? kTol : -kTol);
+    const double tu = entry_time(p.at(lambda_of(u)));
+    if (tu > stop_above) return Refined{tu, 0, true};
+    const double fu = -tu;
+    if (fu <= fx) {
+      (u >= x ? lo : hi) = x;
+      v = w, fv = fw;
+      w = x, fw = fx;
+      x = u, fx = fu;
+    } else {
+      (u < x ? lo : hi) = u;
+      if (fu <= fw || w == x) {
         v = w, fv = fw;
-        w = x, fw = fx;
-        x = u, fx = fu;
-      } else {
-        (u < x ? lo : hi) = u;
-        if (fu <= fw || w == x) {
-          v = w, fv = fw;
-          w = u, fw = fu;
-        } else if (fu <= fv || v == x || v == w) {
-          v = u, fv = fu;
-        }
+        w = u, fw = fu;
+      } else if (fu <= fv || v == x || v == w) {
+        v = u, fv = fu;
       }
     }
-    return Refined{-fx, x, false, std::fabs(x - (centre - half)) < 1e-3 || std::fabs(x - (centre + half)) < 1e-3};
-  };
-  // Newton's method on the stationarity of t_e in s (diagonal shapes in the pair's frame, so
-  // the derivatives are a few sums): F(t, lambda) = sum e_j^2 / m_j -
-  // 1 / w with e = dg - t ug, m_j = lambda a_j^2 + (1 - lambda) r^2, w = lambda (1 - lambda);
-  // t_e(lambda) is F's smaller root, dt_e/dlambda = -F_l / F_t, and the maximum is the root of
-  // phi(lambda) = F_l(t_e(lambda), lambda). Quadratic convergence from a warm start (3-4 steps
-  // where Brent's method takes 8-15). Every iterate's t_e is a lower bound of t*, so it is as
-  // safe as the search it replaces; it gives up (edge = true: the caller runs Brent's method)
-  // when a step would not climb (phi' >= 0), leaves s0 +- 2, or does not settle in 8 steps.
-  // `t_first` receives t_e at s0 (the first iterate: the caller's fallback starts there).
-  const auto newton = [&](double s0, double& t_first) -> Refined {
-    double s = s0;
-    double t_best = -kNever, s_best = s0;
-    t_first = -kNever;
-    for (int it = 0; it < 8; ++it) {
-      const double lam = lambda_of(s);
-      const double w = lam * (1.0 - lam), w1 = 1.0 - 2.0 * lam;
-      double inv[3], qa = 0, qb = 0, qc = 0;
-      for (int j = 0; j < 3; ++j) {
-        inv[j] = 1.0 / (lam * p.a2[j] + (1.0 - lam) * p.r2);
-        qa += p.ug[j] * p.ug[j] * inv[j];
-        qb += p.ug[j] * p.dg[j] * inv[j];
-        qc += p.dg[j] * p.dg[j] * inv[j];
-      }
-      const double t = entry_time({qa, -2 * qb, qc - 1.0 / w});
-      if (it == 0) t_first = t;
-      if (t > stop_above) return Refined{t, s, true};
-      if (!std::isfinite(t)) break;
-      if (t > t_best) t_best = t, s_best = s;
-      double f_l = w1 / (w * w), f_ll = -2.0 * (w + w1 * w1) / (w * w * w), f_t = 0, f_lt = 0;
-      for (int j = 0; j < 3; ++j) {
-        const double e = p.dg[j] - t * p.ug[j], m1 = p.a2[j] - p.r2;
-        const double ei = e * inv[j], mi = m1 * inv[j];
-        f_l -= ei * ei * m1;
-        f_ll += 2.0 * ei * ei * mi * m1;  // e^2 m'^2 / m^3
-        f_t -= 2.0 * p.ug[j] * ei;
-        f_lt += 2.0 * ei * p.ug[j] * mi;  // e ug m' / m^2
-      }
-      if (!(f_t < 0)) break;  // not entering: no entry-time derivative
-      const double dt_dl = -f_l / f_t;
-      const double phi1 = f_ll + f_lt * dt_dl;
-      if (!(phi1 < 0)) break;
-      double ds = -f_l / (phi1 * w);
-      if (!std::isfinite(ds)) break;
-      // The step's gain on the local quadratic model, 0.5 (dt/ds) ds: under 1e-13 of the motion,
-      // t is the maximum to that accuracy (one step fewer than waiting for the step to vanish).
-      if (std::fabs(ds) < 1e-9 || 0.5 * std::fabs(dt_dl * w * ds) < 1e-13) return Refined{t_best, s_best, false, false};
-      ds = std::clamp(ds, -1.0, 1.0);
-      s += ds;
-      if (std::fabs(s - s0) > 2.0 || std::fabs(s) > 16.0) break;
+  }
+  return Refined{-fx, x, false, std::fabs(x - (centre - half)) < 1e-3 || std::fabs(x - (centre + half)) < 1e-3};
+}
+
+// Newton's method on the stationarity of t_e in s (diagonal shapes in the pair's frame, so
+// the derivatives are a few sums): F(t, lambda) = sum e_j^2 / m_j -
+// 1 / w with e = dg - t ug, m_j = lambda a_j^2 + (1 - lambda) r^2, w = lambda (1 - lambda);
+// t_e(lambda) is F's smaller root, dt_e/dlambda = -F_l / F_t, and the maximum is the root of
+// phi(lambda) = F_l(t_e(lambda), lambda). Quadratic convergence from a warm start (3-4 steps
+// where Brent's method takes 8-15). Every iterate's t_e is a lower bound of t*, so it is as
+// safe as the search it replaces; it gives up (edge = true: the caller runs Brent's method)
+// when a step would not climb (phi' >= 0), leaves s0 +- 2, or does not settle in 8 steps.
+// `t_first` receives t_e at s0 (the first iterate: the caller's fallback starts there).
+Refined newton_refine(const PairSweep& p, double s0, double stop_above, double& t_first) noexcept {
+  double s = s0;
+  double t_best = -kNever, s_best = s0;
+  t_first = -kNever;
+  for (int it = 0; it < 8; ++it) {
+    const double lam = lambda_of(s);
+    const double w = lam * (1.0 - lam), w1 = 1.0 - 2.0 * lam;
+    double inv[3], qa = 0, qb = 0, qc = 0;
+    for (int j = 0; j < 3; ++j) {
+      inv[j] = 1.0 / (lam * p.a2[j] + (1.0 - lam) * p.r2);
+      qa += p.ug[j] * p.ug[j] * inv[j];
+      qb += p.ug[j] * p.dg[j] * inv[j];
+      qc += p.dg[j] * p.dg[j] * inv[j];
     }
-    return Refined{t_best, s_best, false, true};
-  };
+    const double t = entry_time({qa, -2 * qb, qc - 1.0 / w});
+    if (it == 0) t_first = t;
+    if (t > stop_above) return Refined{t, s, true};
+    if (!std::isfinite(t)) break;
+    if (t > t_best) t_best = t, s_best = s;
+    double f_l = w1 / (w * w), f_ll = -2.0 * (w + w1 * w1) / (w * w * w), f_t = 0, f_lt = 0;
+    for (int j = 0; j < 3; ++j) {
+      const double e = p.dg[j] - t * p.ug[j], m1 = p.a2[j] - p.r2;
+      const double ei = e * inv[j], mi = m1 * inv[j];
+      f_l -= ei * ei * m1;
+      f_ll += 2.0 * ei * ei * mi * m1;  // e^2 m'^2 / m^3
+      f_t -= 2.0 * p.ug[j] * ei;
+      f_lt += 2.0 * ei * p.ug[j] * mi;  // e ug m' / m^2
+    }
+    if (!(f_t < 0)) break;  // not entering: no entry-time derivative
+    const double dt_dl = -f_l / f_t;
+    const double phi1 = f_ll + f_lt * dt_dl;
+    if (!(phi1 < 0)) break;
+    double ds = -f_l / (phi1 * w);
+    if (!std::isfinite(ds)) break;
+    // The step's gain on the local quadratic model, 0.5 (dt/ds) ds: under 1e-13 of the motion,
+    // t is the maximum to that accuracy (one step fewer than waiting for the step to vanish).
+    if (std::fabs(ds) < 1e-9 || 0.5 * std::fabs(dt_dl * w * ds) < 1e-13) return Refined{t_best, s_best, false, false};
+    ds = std::clamp(ds, -1.0, 1.0);
+    s += ds;
+    if (std::fabs(s - s0) > 2.0 || std::fabs(s) > 16.0) break;
+  }
+  return Refined{t_best, s_best, false, true};
+}
+
+}  // namespace
+
+double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const Eigen::Vector3d& motion,
+                  Eigen::Vector3d* normal, double stop_above, double* s_io) noexcept {
+  const Eigen::Vector3d cg(g.center[0], g.center[1], g.center[2]);
+  const Eigen::Vector3d d0 = cg - tool.center;
+  const Eigen::Vector3d& b = tool.semi_axes;
+  const Eigen::Matrix3d Rg = rotation_matrix(g);
+  const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
+  const PairSweep p = pair_frame(d0, Rg, a, tool, motion);
   double best_s = 0, best_t = -kNever;
   // Warm start: the caller's s (this Gaussian's maximiser at the last sweep, which moves little
   // from tick to tick) is evaluated first, then refined on +-2; a maximum at the bracket's edge
@@ -399,12 +416,12 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
   if (s_io != nullptr && std::isfinite(*s_io)) {
     const double s0 = std::clamp(*s_io, -16.0, 16.0);
     double t0;  // (t_e at s0: Newton's first iterate, which also stops the search when it is past stop_above)
-    const Refined nr = newton(s0, t0);
+    const Refined nr = newton_refine(p, s0, stop_above, t0);
     if (nr.stop) return nr.t;
     if (!nr.edge) {
       best_t = nr.t, best_s = nr.s;
     } else {
-      const Refined r = refine(s0, t0, 2.0);
+      const Refined r = brent_refine(p, s0, t0, 2.0, stop_above);
       if (r.stop) return r.t;
       if (!r.edge) best_t = r.t, best_s = r.s;
     }
@@ -421,7 +438,7 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
       if (t > stop_above) return t;
       if (t > best_t) best_t = t, best_s = s;
     }
-    const Refined r = refine(best_s, best_t, 4.0);
+    const Refined r = brent_refine(p, best_s, best_t, 4.0, stop_above);
     if (r.stop) return r.t;
     if (r.t > best_t) best_t = r.t, best_s = r.s;
   }
@@ -443,7 +460,7 @@ double sweep_time(const CollisionGaussian& g, const ToolEllipsoid& tool, const E
     if (t > stop_above) return t;
     if (t > best_t) {
       best_t = t, best_s = std::log(lam / (1.0 - lam));
-      const Refined r = refine(best_s, best_t, 2.0);
+      const Refined r = brent_refine(p, best_s, best_t, 2.0, stop_above);
       if (r.stop) return r.t;
       if (r.t > best_t) best_t = r.t, best_s = r.s;
     }
@@ -573,292 +590,358 @@ void SweepQuery::build_near(std::uint32_t p, const ToolEllipsoid& tool, const Ei
   nl.backoff = full ? kNearBackoff << (nl.overflows - 1) : 0;
 }
 
-void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,
-                             std::span<const std::uint32_t> ignore, std::span<const std::uint32_t> hints,
-                             BlockFilter filter, double limit, double tolerance, bool shared,
-                             std::span<SweepHit> hits) noexcept {
-  counts_ = {};
-  const double len2 = motion.squaredNorm();
-  if (parts.empty() || parts.size() > kMaxParts || !motion.allFinite() || !(len2 > 0) || !(limit > 0)) return;
-  for (const ToolEllipsoid& tool : parts)
-    if (!tool.valid()) return;
-  const double best = std::min(limit, 1.0);
+// One call of sweep_parts: its state and its stages, in the order run() takes them. (The stages
+// were lambdas of one 340-line function; as members they read the same state.)
+struct SweepQuery::PartsSweep {
+  SweepQuery& sq;
+  std::span<const ToolEllipsoid> parts;
+  const Eigen::Vector3d& motion;
+  std::span<const std::uint32_t> ignore;
+  BlockFilter filter;
+  bool shared;
+  std::span<SweepHit> hits;
+  double len2 = 0, len = 0, tol = 0;
+  Eigen::Vector3d m_hat = Eigen::Vector3d::Zero();
   // What a Gaussian must beat to count: the limit until a contact is found, then that contact
   // less the tolerance (a near-tie is not searched to the end). One bar for all parts (the
   // earliest contact of the rigid tool), or one a part (each part's own first contact).
-  const double tol = std::isfinite(tolerance) ? std::max(0.0, tolerance) : 0.0;
-  std::array<double, kMaxParts> bars;
-  bars.fill(best);
-  const auto bar_of = [&](std::uint32_t p) -> double& { return bars[shared ? 0 : p]; };
-  const double len = std::sqrt(len2);
-  const Eigen::Vector3d m_hat = motion / len;
+  std::array<double, kMaxParts> bars{};
   // Each part's bounds' constants and swept box; the BVH is traversed once, over the union of
-  // the boxes.
+  // the boxes (lo, hi).
   std::array<PartBounds, kMaxParts> pd;
   std::array<Capsule, kMaxParts> caps;
   std::array<FlatSlab, kMaxParts> flats;
-  float lo[3], hi[3];
-  // Each part's box swept up to its bar (nothing later counts), and their union.
-  const auto sweep_boxes = [&] {
-    for (std::size_t p = 0; p < parts.size(); ++p) {
-      const ToolEllipsoid& tool = parts[p];
-      PartBounds& q = pd[p];
-      const Eigen::Vector3d c1 = tool.center + motion * std::max(0.0, bar_of(std::uint32_t(p)));
-      const Eigen::Vector3d& h = q.half;
-      for (int k = 0; k < 3; ++k) {
-        q.lo[k] = round_down_to_float(std::min(tool.center[k], c1[k]) - h[k]);
-        q.hi[k] = round_up_to_float(std::max(tool.center[k], c1[k]) + h[k]);
-        lo[k] = p == 0 ? q.lo[k] : std::min(lo[k], q.lo[k]);
-        hi[k] = p == 0 ? q.hi[k] : std::max(hi[k], q.hi[k]);
-      }
-    }
-  };
-  for (std::size_t p = 0; p < parts.size(); ++p) pd[p].set(parts[p], motion, m_hat, caps[p], flats[p]);
-  const bool several = parts.size() > 1;
-  if (several) sweep_boxes();  // (the hints' bounds check each part's box; one part's is swept below)
-  const CollisionGaussian* gs = world_->gaussians().data();
-  std::size_t n = 0;
+  float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+  bool several = false;
+  const CollisionGaussian* gs = nullptr;
+  std::size_t n = 0;  // candidates in sq.scratch_
+  std::array<double, kMaxParts> near_limit{};
+
+  PartsSweep(SweepQuery& query, std::span<const ToolEllipsoid> tool_parts, const Eigen::Vector3d& tool_motion,
+             std::span<const std::uint32_t> ignored_slots, BlockFilter block_filter, bool one_bar,
+             std::span<SweepHit> out) noexcept
+      : sq(query), parts(tool_parts), motion(tool_motion), ignore(ignored_slots), filter(block_filter),
+        shared(one_bar), hits(out) {}
+  double& bar_of(std::uint32_t p) noexcept { return bars[shared ? 0 : p]; }
   // This Gaussian's maximiser from its last exact search against this part (a direct-mapped
   // cache) starts it; one part keys by the slot alone.
-  const auto cache_slot = [](std::uint32_t k, std::uint32_t p) { return (k + 977u * p) % kStartCache; };
-  const auto exact = [&](std::uint32_t k, std::uint32_t p) {
-    if (filter.known_to_pass != nullptr && filter.known_to_pass(filter.context, k)) return;
-    Eigen::Vector3d nrm;
-    ++counts_.exact;
-    const std::size_t slot_h = cache_slot(k, p);
-    const bool cached = start_slot_[slot_h] == k && start_part_[slot_h] == p;
-    double s_start = cached ? double(start_s_[slot_h]) : std::numeric_limits<double>::quiet_NaN();
-    double& bar = bar_of(p);
-    const double t = sweep_time(gs[k], parts[p], motion, &nrm, bar, &s_start);
-    if (std::isfinite(s_start)) {
-      start_slot_[slot_h] = k;
-      start_part_[slot_h] = std::uint8_t(p);
-      start_s_[slot_h] = float(s_start);
-      start_lambda_[slot_h] = lambda_of(double(start_s_[slot_h]));
+  static std::size_t cache_slot(std::uint32_t k, std::uint32_t p) noexcept { return (k + 977u * p) % kStartCache; }
+  bool ignored(std::uint32_t k) const noexcept {
+    bool out = false;
+    for (std::uint32_t s : ignore) out = out || s == k;
+    return out;
+  }
+
+  bool set_up(double limit, double tolerance) noexcept;
+  void sweep_boxes() noexcept;
+  void exact(std::uint32_t k, std::uint32_t p) noexcept;
+  [[gnu::always_inline]] double lower_bound(std::uint32_t k, std::uint32_t p) noexcept;
+  [[gnu::always_inline]] double sphere_member_bound(const CollisionGaussian& g, const PartBounds& q,
+                                                    const Eigen::Vector3d& rel, const Eigen::Matrix3d& R,
+                                                    std::uint32_t k, std::uint32_t p, double bar) noexcept;
+  [[gnu::always_inline]] double ellipsoid_member_bound(const CollisionGaussian& g, const PartBounds& q,
+                                                       const Eigen::Vector3d& rel, const Eigen::Matrix3d& R,
+                                                       std::uint32_t k, std::uint32_t p, double bar) noexcept;
+  void consider(std::uint32_t k, std::uint32_t p) noexcept;
+  void test_hints(std::span<const std::uint32_t> hints) noexcept;
+  std::uint32_t settled_parts() noexcept;
+  std::uint32_t serve_near_lists(std::span<const std::uint32_t> hints, std::uint32_t settled) noexcept;
+  void traverse_bvh(std::uint32_t skip) noexcept;
+  void scan_near_lists(std::uint32_t served) noexcept;
+  void test_sorted() noexcept;
+};
+
+// Validates the call and fills each part's constants; false: nothing to search (no hit).
+bool SweepQuery::PartsSweep::set_up(double limit, double tolerance) noexcept {
+  len2 = motion.squaredNorm();
+  if (parts.empty() || parts.size() > kMaxParts || !motion.allFinite() || !(len2 > 0) || !(limit > 0)) return false;
+  for (const ToolEllipsoid& tool : parts)
+    if (!tool.valid()) return false;
+  tol = std::isfinite(tolerance) ? std::max(0.0, tolerance) : 0.0;
+  bars.fill(std::min(limit, 1.0));
+  len = std::sqrt(len2);
+  m_hat = motion / len;
+  for (std::size_t p = 0; p < parts.size(); ++p) pd[p].set(parts[p], motion, m_hat, caps[p], flats[p]);
+  several = parts.size() > 1;
+  gs = sq.world_->gaussians().data();
+  return true;
+}
+
+// Each part's box swept up to its bar (nothing later counts), and their union.
+void SweepQuery::PartsSweep::sweep_boxes() noexcept {
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    const ToolEllipsoid& tool = parts[p];
+    PartBounds& q = pd[p];
+    const Eigen::Vector3d c1 = tool.center + motion * std::max(0.0, bar_of(std::uint32_t(p)));
+    const Eigen::Vector3d& h = q.half;
+    for (int k = 0; k < 3; ++k) {
+      q.lo[k] = round_down_to_float(std::min(tool.center[k], c1[k]) - h[k]);
+      q.hi[k] = round_up_to_float(std::max(tool.center[k], c1[k]) + h[k]);
+      lo[k] = p == 0 ? q.lo[k] : std::min(lo[k], q.lo[k]);
+      hi[k] = p == 0 ? q.hi[k] : std::max(hi[k], q.hi[k]);
     }
-    if (t <= bar && filter.blocks != nullptr && !filter.blocks(filter.context, k)) {
-      ++counts_.passed;  // reached first, but let through: it prunes nothing
-      return;
+  }
+}
+
+// The exact search of Gaussian k against part p; a contact before the bar lowers it.
+void SweepQuery::PartsSweep::exact(std::uint32_t k, std::uint32_t p) noexcept {
+  if (filter.known_to_pass != nullptr && filter.known_to_pass(filter.context, k)) return;
+  Eigen::Vector3d nrm;
+  ++sq.counts_.exact;
+  const std::size_t slot_h = cache_slot(k, p);
+  const bool cached = sq.start_slot_[slot_h] == k && sq.start_part_[slot_h] == p;
+  double s_start = cached ? double(sq.start_s_[slot_h]) : std::numeric_limits<double>::quiet_NaN();
+  double& bar = bar_of(p);
+  const double t = sweep_time(gs[k], parts[p], motion, &nrm, bar, &s_start);
+  if (std::isfinite(s_start)) {
+    sq.start_slot_[slot_h] = k;
+    sq.start_part_[slot_h] = std::uint8_t(p);
+    sq.start_s_[slot_h] = float(s_start);
+    sq.start_lambda_[slot_h] = lambda_of(double(sq.start_s_[slot_h]));
+  }
+  if (t <= bar && filter.blocks != nullptr && !filter.blocks(filter.context, k)) {
+    ++sq.counts_.passed;  // reached first, but let through: it prunes nothing
+    return;
+  }
+  if (t <= bar) {
+    bar = t - tol;
+    hits[shared ? 0 : p] = {true, t, k, nrm, int(p)};
+  }
+}
+
+// Bounds of one candidate against one part: the earliest fraction of the motion at which they
+// could touch (kNever: not within the motion or past the bar). Forced inline: it has two call
+// sites, and as a call the candidates' loop ran 5-10 % slower.
+inline double SweepQuery::PartsSweep::lower_bound(std::uint32_t k, std::uint32_t p) noexcept {
+  const CollisionGaussian& g = gs[k];
+  const PartBounds& q = pd[p];
+  if (several) {
+    // The part's own swept box first (the traversal's box is the union of the parts').
+    const float gr = g.bounding_radius();
+    for (int j = 0; j < 3; ++j)
+      if (g.center[j] + gr < q.lo[j] || g.center[j] - gr > q.hi[j]) return kNever;
+  }
+  const Eigen::Vector3d rel = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - q.c0;
+  const double reach = double(g.bounding_radius()) + q.r_tool;
+  // Bounding spheres: the earliest the two could touch along the path (capsule test).
+  const double bq = rel.dot(motion), cq = rel.squaredNorm() - reach * reach;
+  double t_lb;
+  if (cq <= 0) {
+    t_lb = 0;
+  } else {
+    const double disc = bq * bq - len2 * cq;
+    if (disc < 0 || bq <= 0) return kNever;
+    t_lb = (bq - std::sqrt(disc)) / len2;
+    if (t_lb > 1.0) return kNever;
+  }
+  if (q.capsule) {
+    // (Before the rotation's and the slab's arithmetic: beside a stylus lying on a layer it
+    // rules out most of the part's bounding sphere.)
+    const double t_cap = caps[p].entry_time(rel, double(g.bounding_radius()));
+    if (t_cap > bar_of(p)) return kNever;
+    t_lb = std::max(t_lb, t_cap);
+  }
+  // Slab bound along the motion: the ellipsoid's extent along it is sqrt(sum (a_j m.R_j)^2),
+  // tight for flat Gaussians met face-on, where the sphere bound is loose.
+  const Eigen::Matrix3d R = rotation_matrix(g);
+  if (q.capsule && caps[p].clear_until(rel, R, g.semi_axes, bar_of(p))) return kNever;
+  t_lb = std::max(t_lb, (rel.dot(m_hat) - std::sqrt(support_sq(R, g.semi_axes, m_hat)) - q.h_tool) / len);
+  const double bar = bar_of(p);
+  if (t_lb > bar) return t_lb;
+  const double te = q.spherical ? sphere_member_bound(g, q, rel, R, k, p, bar)
+                                : ellipsoid_member_bound(g, q, rel, R, k, p, bar);
+  return te == kNever ? kNever : std::max(t_lb, te);
+}
+
+// Members of the family for a spherical part: each one's entry time is a lower bound of the
+// exact one, far tighter than the spheres and slabs for the Gaussians beside a sliding tool.
+// First the member exact along the offset's direction (geometric_lambda; lambda = 1/2, the
+// bound used before, is loose by 40 % of the tool radius for a disc under the tool), then, for a
+// Gaussian searched before, its maximiser at that search (then the bound is close to the
+// contact time itself, and the candidates sort nearly as the exact search would order them).
+// Computed here, they spare most candidates the exact search. kNever: out of reach.
+inline double SweepQuery::PartsSweep::sphere_member_bound(const CollisionGaussian& g, const PartBounds& q,
+                                                   const Eigen::Vector3d& rel, const Eigen::Matrix3d& R,
+                                                   std::uint32_t k, std::uint32_t p, double bar) noexcept {
+  // Support toward the tool's centre: no point of the Gaussian is nearer it than |rel| -
+  // h(rel / |rel|), and the centre moves by at most bar |motion| (the capsule's test for a
+  // point axis).
+  if (beyond_reach(rel, q.r_tool * (1 + 1e-9) + std::max(0.0, bar) * len * (1 + 1e-9), R, g.semi_axes))
+    return kNever;
+  const std::size_t hs = cache_slot(k, p);
+  double dg[3], ug[3];
+  for (int j = 0; j < 3; ++j) {
+    dg[j] = R(0, j) * rel[0] + R(1, j) * rel[1] + R(2, j) * rel[2];
+    ug[j] = R(0, j) * motion[0] + R(1, j) * motion[1] + R(2, j) * motion[2];
+  }
+  const auto member = [&](double lam) {
+    const double w_inv = 1.0 / (lam * (1.0 - lam));
+    double qa = 0, qb = 0, qc = 0;
+    for (int j = 0; j < 3; ++j) {
+      const double inv = 1.0 / (lam * (double(g.semi_axes[j]) * g.semi_axes[j]) + (1.0 - lam) * q.r2_tool);
+      qa += ug[j] * ug[j] * inv;
+      qb += ug[j] * dg[j] * inv;
+      qc += dg[j] * dg[j] * inv;
     }
-    if (t <= bar) {
-      bar = t - tol;
-      hits[shared ? 0 : p] = {true, t, k, nrm, int(p)};
-    }
+    return entry_time({qa, -2 * qb, qc - w_inv});
   };
-  // Bounds of one candidate against one part, then the sorted list (or, past its capacity, an
-  // exact test now).
-  // (Inlined by force: it has two call sites, and as a call the candidates' loop ran 5-10 % slower.)
-  const auto lower_bound = [&](std::uint32_t k, std::uint32_t p) __attribute__((always_inline)) -> double {
-      const CollisionGaussian& g = gs[k];
-      const PartBounds& q = pd[p];
-      if (several) {
-        // The part's own swept box first (the traversal's box is the union of the parts').
-        const float gr = g.bounding_radius();
-        for (int j = 0; j < 3; ++j)
-          if (g.center[j] + gr < q.lo[j] || g.center[j] - gr > q.hi[j]) return kNever;
-      }
-      const Eigen::Vector3d rel = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - q.c0;
-      const double reach = double(g.bounding_radius()) + q.r_tool;
-      // Bounding spheres: the earliest the two could touch along the path (capsule test).
-      const double bq = rel.dot(motion), cq = rel.squaredNorm() - reach * reach;
-      double t_lb;
-      if (cq <= 0) {
-        t_lb = 0;
-      } else {
-        const double disc = bq * bq - len2 * cq;
-        if (disc < 0 || bq <= 0) return kNever;
-        t_lb = (bq - std::sqrt(disc)) / len2;
-        if (t_lb > 1.0) return kNever;
-      }
-      if (q.capsule) {
-        // (Before the rotation's and the slab's arithmetic: beside a stylus lying on a layer it
-        // rules out most of the part's bounding sphere.)
-        const double t_cap = caps[p].entry_time(rel, double(g.bounding_radius()));
-        if (t_cap > bar_of(p)) return kNever;
-        t_lb = std::max(t_lb, t_cap);
-      }
-      // Slab bound along the motion: the ellipsoid's extent along it is sqrt(sum (a_j m.R_j)^2),
-      // tight for flat Gaussians met face-on, where the sphere bound is loose.
-      const Eigen::Matrix3d R = rotation_matrix(g);
-      if (q.capsule && caps[p].clear_until(rel, R, g.semi_axes, bar_of(p))) return kNever;
-      t_lb = std::max(t_lb, (rel.dot(m_hat) - std::sqrt(support_sq(R, g.semi_axes, m_hat)) - q.h_tool) / len);
-      const double bar = bar_of(p);
-      if (q.spherical && t_lb <= bar) {
-        // Support toward the tool's centre: no point of the Gaussian is nearer it than |rel| -
-        // h(rel / |rel|), and the centre moves by at most bar |motion| (the capsule's test for a
-        // point axis).
-        if (beyond_reach(rel, q.r_tool * (1 + 1e-9) + std::max(0.0, bar) * len * (1 + 1e-9), R, g.semi_axes))
-          return kNever;
-        // Members of the family: each one's entry time is a lower bound of the exact one, far
-        // tighter than the spheres and slabs for the Gaussians beside a sliding tool. First the
-        // member exact along the offset's direction (geometric_lambda; lambda = 1/2, the bound
-        // used before, is loose by 40 % of the tool radius for a disc under the tool), then,
-        // for a Gaussian searched before, its maximiser at that search (then the bound is
-        // close to the contact time itself, and the candidates sort nearly as the exact search
-        // would order them). Computed here, they spare most candidates the exact search.
-        const std::size_t hs = cache_slot(k, p);
-        double dg[3], ug[3];
-        for (int j = 0; j < 3; ++j) {
-          dg[j] = R(0, j) * rel[0] + R(1, j) * rel[1] + R(2, j) * rel[2];
-          ug[j] = R(0, j) * motion[0] + R(1, j) * motion[1] + R(2, j) * motion[2];
-        }
-        const auto member = [&](double lam) {
-          const double w_inv = 1.0 / (lam * (1.0 - lam));
-          double qa = 0, qb = 0, qc = 0;
-          for (int j = 0; j < 3; ++j) {
-            const double inv = 1.0 / (lam * (double(g.semi_axes[j]) * g.semi_axes[j]) + (1.0 - lam) * q.r2_tool);
-            qa += ug[j] * ug[j] * inv;
-            qb += ug[j] * dg[j] * inv;
-            qc += dg[j] * dg[j] * inv;
-          }
-          return entry_time({qa, -2 * qb, qc - w_inv});
-        };
-        double te = member(geometric_lambda(g, dg, q.r_tool));
-        if (te <= bar && start_slot_[hs] == k && start_part_[hs] == p) te = std::max(te, member(start_lambda_[hs]));
-        if (te > 1.0) return kNever;
-        t_lb = std::max(t_lb, te - 1e-12);  // (a rounding's margin below the exact search's value)
-      } else if (!q.spherical && t_lb <= bar) {
-        if (q.flat) {
-          const double t_flat = flats[p].entry_time(rel, R, g.semi_axes);
-          if (t_flat > 1.0) return kNever;
-          t_lb = std::max(t_lb, t_flat);
-        }
-        // The same members for an ellipsoidal part, in the world frame: the member lambda is
-        // {x : x^T K^-1 x <= 1 / (lambda (1 - lambda))} with K = lambda Sigma_g + (1 - lambda)
-        // Sigma_t, the form the exact search reads in its whitened frame (the quadratic forms
-        // are frame-invariant), here through K's adjugate: no eigendecomposition. Its lambda:
-        // the geometric one with the part's radius along the offset, |d| / |W d|, or this
-        // Gaussian's maximiser at its last search against this part.
-        double sg[6] = {0, 0, 0, 0, 0, 0};
-        for (int j = 0; j < 3; ++j) {
-          const double a2 = double(g.semi_axes[j]) * g.semi_axes[j];
-          const double x = R(0, j), y = R(1, j), z = R(2, j);
-          sg[0] += a2 * x * x, sg[1] += a2 * y * y, sg[2] += a2 * z * z;
-          sg[3] += a2 * x * y, sg[4] += a2 * x * z, sg[5] += a2 * y * z;
-        }
-        const auto member = [&](double lam) {
-          double km[6];
-          for (int j = 0; j < 6; ++j) km[j] = lam * sg[j] + (1.0 - lam) * q.st[j];
-          // Adjugate of [[k0 k3 k4] [k3 k1 k5] [k4 k5 k2]].
-          const double c00 = km[1] * km[2] - km[5] * km[5], c11 = km[0] * km[2] - km[4] * km[4],
-                       c22 = km[0] * km[1] - km[3] * km[3], c01 = km[4] * km[5] - km[3] * km[2],
-                       c02 = km[3] * km[5] - km[4] * km[1], c12 = km[3] * km[4] - km[0] * km[5];
-          const double det = km[0] * c00 + km[3] * c01 + km[4] * c02;
-          if (!(det > 0)) return -kNever;  // (degenerate: no bound)
-          const auto form = [&](const double* x, const double* y) {
-            return x[0] * (c00 * y[0] + c01 * y[1] + c02 * y[2]) + x[1] * (c01 * y[0] + c11 * y[1] + c12 * y[2]) +
-                   x[2] * (c02 * y[0] + c12 * y[1] + c22 * y[2]);
-          };
-          const double d[3] = {rel[0], rel[1], rel[2]}, u[3] = {motion[0], motion[1], motion[2]};
-          const double inv_det = 1.0 / det;
-          return entry_time({form(u, u) * inv_det, -2 * form(u, d) * inv_det,
-                             form(d, d) * inv_det - 1.0 / (lam * (1.0 - lam))});
-        };
-        double dl[3];
-        for (int j = 0; j < 3; ++j) dl[j] = R(0, j) * rel[0] + R(1, j) * rel[1] + R(2, j) * rel[2];
-        const double wd = (q.w * rel).norm();
-        const double r_dir = wd > 0 ? rel.norm() / wd : q.r_tool;
-        const std::size_t hs = cache_slot(k, p);
-        double te = member(geometric_lambda(g, dl, r_dir));
-        if (te <= bar && start_slot_[hs] == k && start_part_[hs] == p) te = std::max(te, member(start_lambda_[hs]));
-        if (te > 1.0) return kNever;
-        // (The exact search reads the same forms in another frame: a wider margin for its rounding.)
-        t_lb = std::max(t_lb, te - 1e-9);
-      }
-      return t_lb;
+  double te = member(geometric_lambda(g, dg, q.r_tool));
+  if (te <= bar && sq.start_slot_[hs] == k && sq.start_part_[hs] == p) te = std::max(te, member(sq.start_lambda_[hs]));
+  if (te > 1.0) return kNever;
+  return te - 1e-12;  // (a rounding's margin below the exact search's value)
+}
+
+// The same members for an ellipsoidal part, in the world frame: the member lambda is
+// {x : x^T K^-1 x <= 1 / (lambda (1 - lambda))} with K = lambda Sigma_g + (1 - lambda) Sigma_t,
+// the form the exact search reads in its whitened frame (the quadratic forms are
+// frame-invariant), here through K's adjugate: no eigendecomposition. Its lambda: the geometric
+// one with the part's radius along the offset, |d| / |W d|, or this Gaussian's maximiser at its
+// last search against this part. A flat part's slab bound comes first. kNever: out of reach.
+inline double SweepQuery::PartsSweep::ellipsoid_member_bound(const CollisionGaussian& g, const PartBounds& q,
+                                                      const Eigen::Vector3d& rel, const Eigen::Matrix3d& R,
+                                                      std::uint32_t k, std::uint32_t p, double bar) noexcept {
+  double t_flat = -kNever;
+  if (q.flat) {
+    t_flat = flats[p].entry_time(rel, R, g.semi_axes);
+    if (t_flat > 1.0) return kNever;
+  }
+  double sg[6] = {0, 0, 0, 0, 0, 0};
+  for (int j = 0; j < 3; ++j) {
+    const double a2 = double(g.semi_axes[j]) * g.semi_axes[j];
+    const double x = R(0, j), y = R(1, j), z = R(2, j);
+    sg[0] += a2 * x * x, sg[1] += a2 * y * y, sg[2] += a2 * z * z;
+    sg[3] += a2 * x * y, sg[4] += a2 * x * z, sg[5] += a2 * y * z;
+  }
+  const auto member = [&](double lam) {
+    double km[6];
+    for (int j = 0; j < 6; ++j) km[j] = lam * sg[j] + (1.0 - lam) * q.st[j];
+    // Adjugate of [[k0 k3 k4] [k3 k1 k5] [k4 k5 k2]].
+    const double c00 = km[1] * km[2] - km[5] * km[5], c11 = km[0] * km[2] - km[4] * km[4],
+                 c22 = km[0] * km[1] - km[3] * km[3], c01 = km[4] * km[5] - km[3] * km[2],
+                 c02 = km[3] * km[5] - km[4] * km[1], c12 = km[3] * km[4] - km[0] * km[5];
+    const double det = km[0] * c00 + km[3] * c01 + km[4] * c02;
+    if (!(det > 0)) return -kNever;  // (degenerate: no bound)
+    const auto form = [&](const double* x, const double* y) {
+      return x[0] * (c00 * y[0] + c01 * y[1] + c02 * y[2]) + x[1] * (c01 * y[0] + c11 * y[1] + c12 * y[2]) +
+             x[2] * (c02 * y[0] + c12 * y[1] + c22 * y[2]);
+    };
+    const double d[3] = {rel[0], rel[1], rel[2]}, u[3] = {motion[0], motion[1], motion[2]};
+    const double inv_det = 1.0 / det;
+    return entry_time({form(u, u) * inv_det, -2 * form(u, d) * inv_det,
+                       form(d, d) * inv_det - 1.0 / (lam * (1.0 - lam))});
   };
-  const auto consider = [&](std::uint32_t k, std::uint32_t p) {
-      const double t_lb = lower_bound(k, p);
-      // The bar only falls and the candidates are tested in t_lb order up to it: one whose
-      // bound is past it (the best contact so far, from the hints) is never tested.
-      if (t_lb > bar_of(p)) return;
-      bool ignored = false;
-      for (std::uint32_t s : ignore) ignored = ignored || s == k;
-      if (ignored) return;
-      ++counts_.prefiltered;
-      if (n < scratch_.size())
-        scratch_[n++] = {t_lb, k, p};
-      else if (t_lb <= bar_of(p))
-        exact(k, p);
-  };
-  // The hints first (the last tick's blockers, usually the first contact again): their exact
-  // searches set the bar that prunes the rest. For a compound tool, only against the parts the
-  // hint's bounds do not rule out (each hint is usually one part's blocker, out of the others'
-  // reach).
-  for (std::uint32_t hint : hints) {
-    bool ignored = false;
-    for (std::uint32_t s : ignore) ignored = ignored || s == hint;
-    if (!ignored && hint < world_->size())
+  double dl[3];
+  for (int j = 0; j < 3; ++j) dl[j] = R(0, j) * rel[0] + R(1, j) * rel[1] + R(2, j) * rel[2];
+  const double wd = (q.w * rel).norm();
+  const double r_dir = wd > 0 ? rel.norm() / wd : q.r_tool;
+  const std::size_t hs = cache_slot(k, p);
+  double te = member(geometric_lambda(g, dl, r_dir));
+  if (te <= bar && sq.start_slot_[hs] == k && sq.start_part_[hs] == p) te = std::max(te, member(sq.start_lambda_[hs]));
+  if (te > 1.0) return kNever;
+  // (The exact search reads the same forms in another frame: a wider margin for its rounding.)
+  return std::max(t_flat, te - 1e-9);
+}
+
+// A candidate whose bound is within its part's bar goes to the sorted list (or, past its
+// capacity, to an exact test now). The bar only falls and the candidates are tested in bound
+// order up to it: one whose bound is past it (the best contact so far, from the hints) is never
+// tested.
+void SweepQuery::PartsSweep::consider(std::uint32_t k, std::uint32_t p) noexcept {
+  const double t_lb = lower_bound(k, p);
+  if (t_lb > bar_of(p)) return;
+  if (ignored(k)) return;
+  ++sq.counts_.prefiltered;
+  if (n < sq.scratch_.size())
+    sq.scratch_[n++] = {t_lb, k, p};
+  else if (t_lb <= bar_of(p))
+    exact(k, p);
+}
+
+// The hints first (the last tick's blockers, usually the first contact again): their exact
+// searches set the bar that prunes the rest. For a compound tool, only against the parts the
+// hint's bounds do not rule out (each hint is usually one part's blocker, out of the others'
+// reach).
+void SweepQuery::PartsSweep::test_hints(std::span<const std::uint32_t> hints) noexcept {
+  for (std::uint32_t hint : hints)
+    if (!ignored(hint) && hint < sq.world_->size())
       for (std::uint32_t p = 0; p < parts.size(); ++p)
         if (!several || lower_bound(hint, p) <= bar_of(p)) exact(hint, p);
-  }
-  // A hint that holds the tool (a resting contact: the bar near 0) leaves only the boxes swept
-  // up to it to traverse.
-  sweep_boxes();
-  // A part whose bar fell below 0 (a hint within the tolerance of the start) is settled: every
-  // lower bound and every exact search's contact is >= 0, so no other Gaussian can beat it, and
-  // its candidates are not looked at (the same answer; on the 8 mm cube a third of the
-  // candidates' bounds were of such parts).
+}
+
+// A part whose bar fell below 0 (a hint within the tolerance of the start) is settled: every
+// lower bound and every exact search's contact is >= 0, so no other Gaussian can beat it, and
+// its candidates are not looked at (the same answer; on the 8 mm cube a third of the
+// candidates' bounds were of such parts).
+std::uint32_t SweepQuery::PartsSweep::settled_parts() noexcept {
   std::uint32_t settled = 0;
   for (std::uint32_t p = 0; p < parts.size(); ++p)
     if (bar_of(p) < 0) settled |= 1u << p;
-  // The parts served by their near lists (reuse_margin_), each with the clearance up to which an
-  // entry can still touch it in this sweep.
+  return settled;
+}
+
+// The parts served by their near lists (reuse_margin_), each with the clearance up to which an
+// entry can still touch it in this sweep (near_limit); returns their bits.
+std::uint32_t SweepQuery::PartsSweep::serve_near_lists(std::span<const std::uint32_t> hints,
+                                                       std::uint32_t settled) noexcept {
   std::uint32_t served = 0;
-  std::array<double, kMaxParts> near_limit{};
-  if (reuse_margin_ > 0) {
-    for (std::size_t p = 0; p < parts.size(); ++p) {
-      const ToolEllipsoid& tool = parts[p];
-      const PartBounds& q = pd[p];
-      if ((settled >> p) & 1u) continue;
-      NearList& nl = near_[p];
-      const double bar_p = std::max(0.0, bar_of(std::uint32_t(p)));
-      bool fits = nl.valid && nl.rotation.coeffs() == tool.rotation.coeffs() && nl.semi_axes == tool.semi_axes;
-      for (int k = 0; k < 3 && fits; ++k) fits = q.lo[k] >= nl.lo[k] && q.hi[k] <= nl.hi[k];
-      // (A list is rebuilt once the part has drifted a quarter margin from where it was built:
-      // each sweep reads the entries up to its drift more, whose bounds rule out most of them.)
-      fits = fits && (tool.center - nl.c0).norm() <= kNearDrift * reuse_margin_;
-      // (Built only for a sweep with hints: a tool that touched at its last sweep. One that moves
-      // free would rebuild as often as it crosses a margin, for sweeps the BVH serves cheaply.)
-      // A list that overflowed (a large part in a dense scene) is not tried again for a while.
-      if (!fits && nl.backoff > 0) --nl.backoff;
-      else if (!fits && !hints.empty() && bar_p * len <= 0.5 * reuse_margin_) {
-        // The core: an elongated part's segment of half-length a - b on its long axis (the part
-        // lies within b of it, Capsule), any other part's centre (within its largest semi-axis).
-        const Eigen::Vector3d& b = tool.semi_axes;
-        const double a_long = b.maxCoeff(), b_mid = b.sum() - a_long - b.minCoeff();
-        build_near(std::uint32_t(p), tool, q.capsule ? caps[p].axis : Eigen::Vector3d::Zero(),
-                   q.capsule ? a_long - b_mid : 0.0, q.capsule ? caps[p].radius : q.r_tool * (1 + 1e-9), q.half);
-        ++counts_.rebuilt;
-        fits = nl.valid;
+  if (!(sq.reuse_margin_ > 0)) return served;
+  const double margin = sq.reuse_margin_;
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    const ToolEllipsoid& tool = parts[p];
+    const PartBounds& q = pd[p];
+    if ((settled >> p) & 1u) continue;
+    NearList& nl = sq.near_[p];
+    const double bar_p = std::max(0.0, bar_of(std::uint32_t(p)));
+    bool fits = nl.valid && nl.rotation.coeffs() == tool.rotation.coeffs() && nl.semi_axes == tool.semi_axes;
+    for (int k = 0; k < 3 && fits; ++k) fits = q.lo[k] >= nl.lo[k] && q.hi[k] <= nl.hi[k];
+    // (A list is rebuilt once the part has drifted a quarter margin from where it was built:
+    // each sweep reads the entries up to its drift more, whose bounds rule out most of them.)
+    fits = fits && (tool.center - nl.c0).norm() <= kNearDrift * margin;
+    // (Built only for a sweep with hints: a tool that touched at its last sweep. One that moves
+    // free would rebuild as often as it crosses a margin, for sweeps the BVH serves cheaply.)
+    // A list that overflowed (a large part in a dense scene) is not tried again for a while.
+    if (!fits && nl.backoff > 0) {
+      --nl.backoff;
+    } else if (!fits && !hints.empty() && bar_p * len <= 0.5 * margin) {
+      // The core: an elongated part's segment of half-length a - b on its long axis (the part
+      // lies within b of it, Capsule), any other part's centre (within its largest semi-axis).
+      const Eigen::Vector3d& b = tool.semi_axes;
+      const double a_long = b.maxCoeff(), b_mid = b.sum() - a_long - b.minCoeff();
+      sq.build_near(std::uint32_t(p), tool, q.capsule ? caps[p].axis : Eigen::Vector3d::Zero(),
+                    q.capsule ? a_long - b_mid : 0.0, q.capsule ? caps[p].radius : q.r_tool * (1 + 1e-9), q.half);
+      ++sq.counts_.rebuilt;
+      fits = nl.valid;
+    }
+    if (!fits) continue;
+    // How far the core gets from where the list was built, at most, in this sweep (the
+    // distance to it is 1-Lipschitz in its translation).
+    const double reach = (tool.center - nl.c0).norm() + bar_p * len;
+    if (!(reach <= 2 * margin)) continue;
+    served |= 1u << p;
+    near_limit[p] = (nl.rho + reach) * (1 + 1e-9);  // (a rounding's margin, outward)
+    ++sq.counts_.reused;
+  }
+  return served;
+}
+
+// One traversal over the union of the boxes of the parts not in `skip`; a leaf is read for
+// each part whose own box it overlaps (a tilted stylus's union box holds many leaves no part's
+// box reaches).
+void SweepQuery::PartsSweep::traverse_bvh(std::uint32_t skip) noexcept {
+  const auto n_parts = std::uint32_t(parts.size());
+  if (skip == (1u << n_parts) - 1) return;
+  if (skip != 0) {
+    bool first = true;
+    for (std::uint32_t p = 0; p < n_parts; ++p) {
+      if ((skip >> p) & 1u) continue;
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = first ? pd[p].lo[k] : std::min(lo[k], pd[p].lo[k]);
+        hi[k] = first ? pd[p].hi[k] : std::max(hi[k], pd[p].hi[k]);
       }
-      if (!fits) continue;
-      // How far the core gets from where the list was built, at most, in this sweep (the
-      // distance to it is 1-Lipschitz in its translation).
-      const double reach = (tool.center - nl.c0).norm() + bar_p * len;
-      if (!(reach <= 2 * reuse_margin_)) continue;
-      served |= 1u << p;
-      near_limit[p] = (nl.rho + reach) * (1 + 1e-9);  // (a rounding's margin, outward)
-      ++counts_.reused;
+      first = false;
     }
   }
-  const auto n_parts = std::uint32_t(parts.size());
-  // One traversal over the union of the other parts' boxes; a leaf is read for each part whose
-  // own box it overlaps (a tilted stylus's union box holds many leaves no part's box reaches).
-  const std::uint32_t skip = served | settled;
-  if (skip != (1u << n_parts) - 1) {
-    if (skip != 0) {
-      bool first = true;
-      for (std::uint32_t p = 0; p < n_parts; ++p) {
-        if ((skip >> p) & 1u) continue;
-        for (int k = 0; k < 3; ++k) {
-          lo[k] = first ? pd[p].lo[k] : std::min(lo[k], pd[p].lo[k]);
-          hi[k] = first ? pd[p].hi[k] : std::max(hi[k], pd[p].hi[k]);
-        }
-        first = false;
-      }
-    }
-  world_->bvh().for_each_overlapping_leaf_node(lo, hi, [&](const BvhNode& leaf) {
+  sq.world_->bvh().for_each_overlapping_leaf_node(lo, hi, [&](const BvhNode& leaf) {
     for (std::uint32_t p = 0; p < n_parts; ++p) {
       if ((skip >> p) & 1u) continue;
       const PartBounds& q = pd[p];
@@ -866,22 +949,24 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
                       leaf.lo[2] > q.hi[2] || leaf.hi[2] < q.lo[2]))
         continue;
       if ((q.capsule || q.flat) && !leaf_within_reach(leaf, q, caps[p], flats[p], bar_of(p))) continue;
-      counts_.candidates += leaf.count;
+      sq.counts_.candidates += leaf.count;
       for (std::uint32_t k = leaf.first; k < leaf.first + leaf.count; ++k) consider(k, p);
     }
     return true;
   });
-  }
-  // The served parts' near lists: an entry whose clearance rules it out is passed over; the
-  // others are the BVH's candidates (the part's own swept box, then the same bounds).
-  for (std::uint32_t p = 0; p < n_parts; ++p) {
+}
+
+// The served parts' near lists: an entry whose clearance rules it out is passed over; the
+// others are the BVH's candidates (the part's own swept box, then the same bounds).
+void SweepQuery::PartsSweep::scan_near_lists(std::uint32_t served) noexcept {
+  for (std::uint32_t p = 0; p < parts.size(); ++p) {
     if (!((served >> p) & 1u)) continue;
     const PartBounds& q = pd[p];
-    const std::uint32_t* slot = near_slot_.data() + std::size_t(p) * kNearCapacity;
-    const float* clear = near_clear_.data() + std::size_t(p) * kNearCapacity;
+    const float* clear = sq.near_clear_.data() + std::size_t(p) * kNearCapacity;
+    const std::uint32_t* slot = sq.near_slot_.data() + std::size_t(p) * kNearCapacity;
     const double limit_p = near_limit[p];
     // The buckets up to the limit's (bucket j holds clearances up to rho + j x width).
-    const NearList& nl = near_[p];
+    const NearList& nl = sq.near_[p];
     const std::size_t last = nl.bucket_of(limit_p);
     // The entry's clearance from the core where it is now, against the part's radius plus this
     // sweep's motion (no drift): what the list's clearance leaves through for the drift, this
@@ -900,21 +985,44 @@ void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::
       }
       const Eigen::Vector3d v = nl.from_core(c_now, g.center);
       if (beyond_reach(v, reach_now, rotation_matrix(g), g.semi_axes)) continue;
-      ++counts_.candidates;
+      ++sq.counts_.candidates;
       consider(k, p);
     }
   }
-  std::sort(scratch_.begin(), scratch_.begin() + std::ptrdiff_t(n),
+}
+
+// The candidates in bound order, each searched exactly while its bound is within its part's bar.
+void SweepQuery::PartsSweep::test_sorted() noexcept {
+  std::sort(sq.scratch_.begin(), sq.scratch_.begin() + std::ptrdiff_t(n),
             [](const Candidate& a, const Candidate& b) {
               return a.t < b.t || (a.t == b.t && (a.slot < b.slot || (a.slot == b.slot && a.part < b.part)));
             });
   for (std::size_t i = 0; i < n; ++i) {
-    const Candidate& c = scratch_[i];
+    const Candidate& c = sq.scratch_[i];
     if (c.t <= bar_of(c.part))
       exact(c.slot, c.part);
     else if (shared)
       break;  // (one bar: the rest come later still)
   }
+}
+
+void SweepQuery::sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,
+                             std::span<const std::uint32_t> ignore, std::span<const std::uint32_t> hints,
+                             BlockFilter filter, double limit, double tolerance, bool shared,
+                             std::span<SweepHit> hits) noexcept {
+  counts_ = {};
+  PartsSweep s(*this, parts, motion, ignore, filter, shared, hits);
+  if (!s.set_up(limit, tolerance)) return;
+  if (s.several) s.sweep_boxes();  // (the hints' bounds check each part's box; one part's is swept below)
+  s.test_hints(hints);
+  // A hint that holds the tool (a resting contact: the bar near 0) leaves only the boxes swept
+  // up to it to traverse.
+  s.sweep_boxes();
+  const std::uint32_t settled = s.settled_parts();
+  const std::uint32_t served = s.serve_near_lists(hints, settled);
+  s.traverse_bvh(served | settled);
+  s.scan_near_lists(served);
+  s.test_sorted();
 }
 
 }  // namespace gshaptics

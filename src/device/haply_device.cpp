@@ -126,161 +126,197 @@ void HaplyDevice::start(Nanos) {
                                problem.empty() ? "no answer" : problem));
 }
 
-void HaplyDevice::io_main() noexcept {
-  const auto set_problem = [this](const std::string& p) {
-    std::lock_guard<std::mutex> lock(text_mutex_);
-    // A device missing from the service's list says more than the link loss that follows it
-    // (without a device there is nothing to command, so the lock-step stops).
-    // Likewise what was wrong with the messages says more than the timeout or loss it leads to.
-    const auto protocol = [](const std::string& x) {
-      return x.rfind("the service lists", 0) == 0 || x.rfind("malformed", 0) == 0 || x.rfind("the state of", 0) == 0;
-    };
-    if (!protocol(problem_) || protocol(p)) problem_ = p;
+// One connection to the Inverse Service: the Beast objects and what this connection learnt.
+struct HaplyDevice::Link {
+  net::io_context ioc;
+  websocket::stream<beast::tcp_stream> ws{ioc};
+  beast::error_code ec;
+  bool done = false;       // the pending asynchronous operation completed
+  std::string id;          // the Inverse3's device_id (empty: nothing to address yet)
+  int format = 0;          // detected from this connection's first message
+  bool handshake = false;  // the 3.5 session handshake goes with the first command
+  std::int64_t connected_at = 0;
+  beast::flat_buffer buffer;
+  std::string out;
+};
+
+void HaplyDevice::set_problem(const std::string& p) {
+  std::lock_guard<std::mutex> lock(text_mutex_);
+  // A device missing from the service's list says more than the link loss that follows it
+  // (without a device there is nothing to command, so the lock-step stops).
+  // Likewise what was wrong with the messages says more than the timeout or loss it leads to.
+  const auto protocol = [](const std::string& x) {
+    return x.rfind("the service lists", 0) == 0 || x.rfind("malformed", 0) == 0 || x.rfind("the state of", 0) == 0;
   };
-  std::int64_t window_start = steady_ns();
-  std::uint64_t window_count = 0;
+  if (!protocol(problem_) || protocol(p)) problem_ = p;
+}
+
+// The I/O thread: connect, run the lock-step until the link is lost or stop, and reconnect
+// after reconnect_interval.
+void HaplyDevice::io_main() noexcept {
+  window_start_ = steady_ns();
+  window_count_ = 0;
   while (!stop_.load(std::memory_order_relaxed)) {
-    net::io_context ioc;
-    websocket::stream<beast::tcp_stream> ws(ioc);
-    ws.read_message_max(1 << 20);  // a state message is ~1 KB; bounds what one message may allocate
-    bool ok = false, done = false;
-    beast::error_code ec;
-    // Connect and handshake.
-    try {
-      tcp::resolver resolver(ioc);
-      const auto endpoints = resolver.resolve(params_.host, std::to_string(params_.port));
-      beast::get_lowest_layer(ws).async_connect(endpoints, [&](beast::error_code e, const tcp::endpoint&) {
-        ec = e;
-        done = true;
-      });
-      if (run_until(ioc, done, params_.connect_timeout, stop_) && !ec) {
-        beast::get_lowest_layer(ws).socket().set_option(tcp::no_delay(true));
-        done = false;
-        ws.async_handshake(fmt::format("{}:{}", params_.host, params_.port), params_.path,
-                           [&](beast::error_code e) {
-                             ec = e;
-                             done = true;
-                           });
-        ok = run_until(ioc, done, params_.connect_timeout, stop_) && !ec;
-      }
-      if (!ok) set_problem(ec ? "connecting: " + ec.message() : std::string("connecting: timed out"));
-    } catch (const std::exception& e) {
-      set_problem(std::string("connecting: ") + e.what());
-    }
-    if (ok) {
+    Link c;
+    c.ws.read_message_max(1 << 20);  // a state message is ~1 KB; bounds what one message may allocate
+    if (connect(c)) {
       connects_.fetch_add(1, std::memory_order_relaxed);
       connected_.store(true, std::memory_order_relaxed);
-      const std::int64_t connected_at = steady_ns();
-      std::string id;
-      int format = 0;          // detected from this connection's first message
-      bool handshake = false;  // the 3.5 session handshake goes with the first command
-      beast::flat_buffer buffer;
-      std::string out;
-      // Reads and writes are never abandoned half-way on stop (Beast allows one of each in
-      // flight): stop is seen between lock-step cycles, within one service period.
-      const std::atomic<bool> never{false};
-      while (!stop_.load(std::memory_order_relaxed)) {
-        done = false;
-        buffer.consume(buffer.size());
-        ws.async_read(buffer, [&](beast::error_code e, std::size_t) {
-          ec = e;
-          done = true;
-        });
-        if (!run_until(ioc, done, params_.read_timeout, never) || ec) {
-          set_problem(done ? "link lost: " + ec.message() : std::string("link lost: no message within the read timeout"));
-          break;
-        }
-        const std::int64_t t = steady_ns();
-        if (messages_.fetch_add(1, std::memory_order_relaxed) == 0) first_message_ns_.store(t, std::memory_order_relaxed);
-        ++window_count;
-        if (t - window_start >= 250'000'000) {
-          rate_hz_.store(double(window_count) * 1e9 / double(t - window_start), std::memory_order_relaxed);
-          window_start = t;
-          window_count = 0;
-        }
-        // Parse the documented state message (peer_messages.h: never throws).
-        const HaplyStateMessage state = parse_haply_state(
-            std::string_view(static_cast<const char*>(buffer.data().data()), buffer.data().size()), params_.index);
-        bool good = state.valid;
-        HaplySample s = state.sample;
-        if (format == 0 && good) {
-          format = state.has_session_id ? 35 : 31;
-          handshake = format == 35;
-          format_.store(format, std::memory_order_relaxed);
-        }
-        if (!good) set_problem(fmt::format("malformed state message: {}", state.problem));
-        if (good && state.devices_listed < 0 && !state.device_id && id.empty()) {
-          // Nothing to address commands to: refuse the device rather than run it without force.
-          set_problem(fmt::format("the state of Inverse3 {} has no \"device_id\", so it cannot be commanded",
-                                  params_.index));
-          good = false;
-        }
-        if (state.devices_listed >= 0) {
-          set_problem(fmt::format("the service lists {} Inverse3 device(s), none with index {}", state.devices_listed,
-                                  params_.index));
-          s.position.setConstant(std::nan(""));  // a valid message; just no device for us: keep the link, no sample
-        } else if (id.empty() && state.device_id) {
-          id = *state.device_id;
-          std::lock_guard<std::mutex> lock(text_mutex_);
-          device_id_ = id;
-          handedness_ = state.handedness;
-        }
-        // What the device says about itself (status, documented from 3.4): refused before the
-        // first sample, zero force during a run.
-        const bool not_ready = state.ready == 0, uncalibrated = params_.require_calibrated && state.calibrated == 0;
-        const bool blocked = good && state.devices_listed < 0 && (not_ready || uncalibrated);
-        if (blocked && !have_state_.load(std::memory_order_relaxed))
-          set_problem(fmt::format("the state of Inverse3 {} says it is {} (status.{} false){}", id.empty() ? "?" : id,
-                                  not_ready ? "not ready" : "not calibrated", not_ready ? "ready" : "calibrated",
-                                  not_ready ? ": check its power supply and Haply Hub"
-                                            : ": calibrate it in Haply Hub (or give --haply-allow-uncalibrated)"));
-        if (!good) {
-          malformed_.fetch_add(1, std::memory_order_relaxed);
-        } else if (s.position.allFinite() && (!blocked || have_state_.load(std::memory_order_relaxed))) {
-          link_.publish(LinkSample{s.position, s.velocity, s.orientation, s.buttons});
-          have_state_.store(true, std::memory_order_release);
-        }
-        // Answer with one command (lock-step), zero unless fresh and written after this connection,
-        // and zero to a malformed message.
-        Eigen::Vector3d f = good ? link_.force_to_send(connected_at) : Eigen::Vector3d::Zero();
-        if (blocked) {  // a device that says it is not ready (or not calibrated) gets no force
-          if (have_state_.load(std::memory_order_relaxed)) not_ready_.fetch_add(1, std::memory_order_relaxed);
-          f.setZero();
-        }
-        if (id.empty()) continue;  // nothing to address yet (the service sends state regardless)
-        out = force_command(id, f, format, handshake ? &params_.profile_name : nullptr);
-        handshake = false;
-        done = false;
-        ws.text(true);
-        ws.async_write(net::buffer(out), [&](beast::error_code e, std::size_t) {
-          ec = e;
-          done = true;
-        });
-        if (!run_until(ioc, done, params_.read_timeout, never) || ec) {
-          set_problem("link lost while sending: " + (done ? ec.message() : std::string("timed out")));
-          break;
-        }
-        commands_sent_.fetch_add(1, std::memory_order_relaxed);
-      }
-      // Leaving: a last zero-force command when we are stopping on a live link, then close.
-      if (stop_.load(std::memory_order_relaxed) && !id.empty() && done && !ec) {
-        out = force_command(id, Eigen::Vector3d::Zero(), format, nullptr);
-        bool sent = false;
-        ws.async_write(net::buffer(out), [&](beast::error_code, std::size_t) { sent = true; });
-        if (run_until(ioc, sent, 0.2, never)) commands_sent_.fetch_add(1, std::memory_order_relaxed);
-        bool closed = false;
-        ws.async_close(websocket::close_code::normal, [&](beast::error_code) { closed = true; });
-        run_until(ioc, closed, 0.2, never);
-      }
+      c.connected_at = steady_ns();
+      lock_step(c);
+      if (stop_.load(std::memory_order_relaxed)) say_goodbye(c);
       connected_.store(false, std::memory_order_relaxed);
     }
-    beast::get_lowest_layer(ws).close();
-    ioc.run_for(std::chrono::milliseconds(1));  // let aborted handlers run
+    beast::get_lowest_layer(c.ws).close();
+    c.ioc.run_for(std::chrono::milliseconds(1));  // let aborted handlers run
     if (stop_.load(std::memory_order_relaxed)) break;
     const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(params_.reconnect_interval);
     while (!stop_.load(std::memory_order_relaxed) && std::chrono::steady_clock::now() < until)
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
+}
+
+// TCP connect and the WebSocket handshake, each within connect_timeout; false (and the
+// problem set) when either fails.
+bool HaplyDevice::connect(Link& c) noexcept {
+  bool ok = false;
+  try {
+    tcp::resolver resolver(c.ioc);
+    const auto endpoints = resolver.resolve(params_.host, std::to_string(params_.port));
+    c.done = false;
+    beast::get_lowest_layer(c.ws).async_connect(endpoints, [&c](beast::error_code e, const tcp::endpoint&) {
+      c.ec = e;
+      c.done = true;
+    });
+    if (run_until(c.ioc, c.done, params_.connect_timeout, stop_) && !c.ec) {
+      beast::get_lowest_layer(c.ws).socket().set_option(tcp::no_delay(true));
+      c.done = false;
+      c.ws.async_handshake(fmt::format("{}:{}", params_.host, params_.port), params_.path, [&c](beast::error_code e) {
+        c.ec = e;
+        c.done = true;
+      });
+      ok = run_until(c.ioc, c.done, params_.connect_timeout, stop_) && !c.ec;
+    }
+    if (!ok) set_problem(c.ec ? "connecting: " + c.ec.message() : std::string("connecting: timed out"));
+  } catch (const std::exception& e) {
+    set_problem(std::string("connecting: ") + e.what());
+    ok = false;
+  }
+  return ok;
+}
+
+// The lock-step: each state message is read and answered with one command, until stop or the
+// link is lost. Reads and writes are never abandoned half-way on stop (Beast allows one of each
+// in flight): stop is seen between cycles, within one service period.
+void HaplyDevice::lock_step(Link& c) noexcept {
+  const std::atomic<bool> never{false};
+  while (!stop_.load(std::memory_order_relaxed)) {
+    c.done = false;
+    c.buffer.consume(c.buffer.size());
+    c.ws.async_read(c.buffer, [&c](beast::error_code e, std::size_t) {
+      c.ec = e;
+      c.done = true;
+    });
+    if (!run_until(c.ioc, c.done, params_.read_timeout, never) || c.ec) {
+      set_problem(c.done ? "link lost: " + c.ec.message() : std::string("link lost: no message within the read timeout"));
+      return;
+    }
+    count_message();
+    Eigen::Vector3d f;
+    if (!take_state(c, f)) continue;  // nothing to address yet (the service sends state regardless)
+    c.out = force_command(c.id, f, c.format, c.handshake ? &params_.profile_name : nullptr);
+    c.handshake = false;
+    c.done = false;
+    c.ws.text(true);
+    c.ws.async_write(net::buffer(c.out), [&c](beast::error_code e, std::size_t) {
+      c.ec = e;
+      c.done = true;
+    });
+    if (!run_until(c.ioc, c.done, params_.read_timeout, never) || c.ec) {
+      set_problem("link lost while sending: " + (c.done ? c.ec.message() : std::string("timed out")));
+      return;
+    }
+    commands_sent_.fetch_add(1, std::memory_order_relaxed);
+  }
+}
+
+// Counts a message and measures the service's rate over windows of 250 ms.
+void HaplyDevice::count_message() noexcept {
+  const std::int64_t t = steady_ns();
+  if (messages_.fetch_add(1, std::memory_order_relaxed) == 0) first_message_ns_.store(t, std::memory_order_relaxed);
+  ++window_count_;
+  if (t - window_start_ >= 250'000'000) {
+    rate_hz_.store(double(window_count_) * 1e9 / double(t - window_start_), std::memory_order_relaxed);
+    window_start_ = t;
+    window_count_ = 0;
+  }
+}
+
+// Reads the state message in c.buffer (peer_messages.h: never throws): publishes the sample to
+// the servo thread and gives the force to answer with, zero unless fresh and written after this
+// connection, zero to a malformed message and to a device that says it is not ready (or not
+// calibrated). False when there is no device_id to address the answer to.
+bool HaplyDevice::take_state(Link& c, Eigen::Vector3d& f) noexcept {
+  const HaplyStateMessage state = parse_haply_state(
+      std::string_view(static_cast<const char*>(c.buffer.data().data()), c.buffer.data().size()), params_.index);
+  bool good = state.valid;
+  HaplySample s = state.sample;
+  if (c.format == 0 && good) {
+    c.format = state.has_session_id ? 35 : 31;
+    c.handshake = c.format == 35;
+    format_.store(c.format, std::memory_order_relaxed);
+  }
+  if (!good) set_problem(fmt::format("malformed state message: {}", state.problem));
+  if (good && state.devices_listed < 0 && !state.device_id && c.id.empty()) {
+    // Nothing to address commands to: refuse the device rather than run it without force.
+    set_problem(fmt::format("the state of Inverse3 {} has no \"device_id\", so it cannot be commanded", params_.index));
+    good = false;
+  }
+  if (state.devices_listed >= 0) {
+    set_problem(fmt::format("the service lists {} Inverse3 device(s), none with index {}", state.devices_listed,
+                            params_.index));
+    s.position.setConstant(std::nan(""));  // a valid message; just no device for us: keep the link, no sample
+  } else if (c.id.empty() && state.device_id) {
+    c.id = *state.device_id;
+    std::lock_guard<std::mutex> lock(text_mutex_);
+    device_id_ = c.id;
+    handedness_ = state.handedness;
+  }
+  // What the device says about itself (status, documented from 3.4): refused before the first
+  // sample, zero force during a run.
+  const bool not_ready = state.ready == 0, uncalibrated = params_.require_calibrated && state.calibrated == 0;
+  const bool blocked = good && state.devices_listed < 0 && (not_ready || uncalibrated);
+  const bool had_state = have_state_.load(std::memory_order_relaxed);
+  if (blocked && !had_state)
+    set_problem(fmt::format("the state of Inverse3 {} says it is {} (status.{} false){}", c.id.empty() ? "?" : c.id,
+                            not_ready ? "not ready" : "not calibrated", not_ready ? "ready" : "calibrated",
+                            not_ready ? ": check its power supply and Haply Hub"
+                                      : ": calibrate it in Haply Hub (or give --haply-allow-uncalibrated)"));
+  if (!good) {
+    malformed_.fetch_add(1, std::memory_order_relaxed);
+  } else if (s.position.allFinite() && (!blocked || had_state)) {
+    link_.publish(LinkSample{s.position, s.velocity, s.orientation, s.buttons});
+    have_state_.store(true, std::memory_order_release);
+  }
+  f = good ? link_.force_to_send(c.connected_at) : Eigen::Vector3d::Zero();
+  if (blocked) {
+    if (have_state_.load(std::memory_order_relaxed)) not_ready_.fetch_add(1, std::memory_order_relaxed);
+    f.setZero();
+  }
+  return !c.id.empty();
+}
+
+// Leaving on a live link: a last zero-force command, then the WebSocket close (each within 0.2 s).
+void HaplyDevice::say_goodbye(Link& c) noexcept {
+  if (c.id.empty() || !c.done || c.ec) return;
+  const std::atomic<bool> never{false};
+  c.out = force_command(c.id, Eigen::Vector3d::Zero(), c.format, nullptr);
+  bool sent = false;
+  c.ws.async_write(net::buffer(c.out), [&sent](beast::error_code, std::size_t) { sent = true; });
+  if (run_until(c.ioc, sent, 0.2, never)) commands_sent_.fetch_add(1, std::memory_order_relaxed);
+  bool closed = false;
+  c.ws.async_close(websocket::close_code::normal, [&closed](beast::error_code) { closed = true; });
+  run_until(c.ioc, closed, 0.2, never);
 }
 
 DeviceSample HaplyDevice::read(Nanos now) noexcept { return link_.read(now); }

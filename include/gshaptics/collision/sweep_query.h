@@ -208,6 +208,8 @@ class SweepQuery {
   std::array<NearList, kMaxParts> near_{};
   std::vector<std::uint32_t> near_slot_;
   std::vector<float> near_clear_;
+  // One call of sweep_parts, its state and its stages (sweep_query.cpp).
+  struct PartsSweep;
   // The sweep of first_contact() and first_contacts(): one bar for all parts (`shared`: the
   // earliest contact, in hits[0]) or one a part (hits[j]).
   void sweep_parts(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& motion,

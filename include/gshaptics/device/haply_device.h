@@ -117,8 +117,17 @@ class HaplyDevice final : public HapticDevice {
   [[nodiscard]] std::string handedness() const;
 
  private:
+  struct Link;  // one connection's Boost.Beast state, I/O thread only
+  // The I/O thread and its steps (haply_device.cpp).
   void io_main() noexcept;
-  struct Link;  // Boost.Beast state, I/O thread only
+  bool connect(Link& c) noexcept;
+  void lock_step(Link& c) noexcept;
+  void count_message() noexcept;
+  bool take_state(Link& c, Eigen::Vector3d& force) noexcept;
+  void say_goodbye(Link& c) noexcept;
+  void set_problem(const std::string& problem);
+  std::int64_t window_start_ = 0;  // the service rate's measuring window (I/O thread)
+  std::uint64_t window_count_ = 0;
 
   HaplyParams params_;
   DeviceInfo info_;
