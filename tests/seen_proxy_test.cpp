@@ -33,6 +33,45 @@ void add_layer(GaussianScene& g, double z, float opacity, double s = 0.004, doub
                   Eigen::Vector4f(1, 0, 0, 0), opacity, std::uint32_t(g.size()));
 }
 
+// A needle-thin Gaussian (scales 0.5 x 1e-9 x 1e-9, turned at random) seen along one of its thin
+// axes, passing at Mahalanobis distance 0.8 (alpha 0.65: opaque) or 1.2 (alpha 0.44: not). The
+// expanded v^T Sigma^-1 v of a ray 1 away reads ~1e18 less ~1e18 and loses the 0.64 it should
+// leave; the solid and the reference whiten instead, and both must see the first and not the second.
+TEST(SeenSolid, ANeedleThinGaussianIsSeenAtItsMahalanobisDistance) {
+  std::mt19937_64 rng(11);
+  for (int trial = 0; trial < 8; ++trial) {
+    const Eigen::Quaternionf qf = Eigen::Quaternionf::UnitRandom();
+    GaussianScene g;
+    const Eigen::Vector3f mean(0.1f, -0.2f, 0.3f);
+    g.push_back(mean, Eigen::Vector3f(0.5f, 1e-9f, 1e-9f), Eigen::Vector4f(qf.w(), qf.x(), qf.y(), qf.z()), 0.9f, 0);
+    const CollisionWorld world = CollisionWorld::build(g, seen_world());
+    const SeenSolid solid(world);
+    const SeenSurface reference(g);
+    SeenScratch scratch;
+    // (Each ray from the rotation as its model stores it: a float's rounding of the turn moves a
+    // needle this thin by far more than its width.)
+    const auto rotation = [](const auto& q) {
+      return Eigen::Quaterniond(double(q[0]), double(q[1]), double(q[2]), double(q[3])).normalized().toRotationMatrix();
+    };
+    const Eigen::Matrix3d r_world = rotation(world.gaussians()[0].quaternion), r_scene = rotation(g.rotations[0]);
+    for (const double x0 : {0.4, 0.6}) {
+      const bool opaque = x0 < 0.5;
+      const Eigen::Vector3d o = mean.cast<double>() + r_world * Eigen::Vector3d(x0, -1.0, 0.0);
+      const SeenHit h = solid.first_inside(o, r_world.col(1), 0, 0, 2.0, scratch);
+      EXPECT_EQ(h.hit, opaque) << "trial " << trial << ", Mahalanobis distance " << x0 / 0.5;
+      if (opaque && h.hit) {
+        EXPECT_NEAR(h.t, 1.0, 1e-6);
+      }
+      const SeenDepth d = reference.median_depth(mean.cast<double>() + r_scene * Eigen::Vector3d(x0, -1.0, 0.0),
+                                                 r_scene.col(1), 2.0);
+      EXPECT_EQ(d.hit, opaque) << "trial " << trial << ", reference";
+      if (opaque && d.hit) {
+        EXPECT_NEAR(d.depth, 1.0, 1e-6);
+      }
+    }
+  }
+}
+
 TEST(SeenSolid, FirstInsideFromAFarEyeIsTheSeenDepth) {
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> uni(0, 1);

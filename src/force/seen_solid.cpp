@@ -13,9 +13,12 @@ constexpr double kMaxAlpha = 0.99;         // and its clamp
 constexpr double kLn2 = 0.69314718055994530942;
 constexpr int kStack = 128;
 
-double form(const double* p, const Eigen::Vector3d& v, const Eigen::Vector3d& w) noexcept {
-  return v.x() * (p[0] * w.x() + p[1] * w.y() + p[2] * w.z()) + v.y() * (p[1] * w.x() + p[3] * w.y() + p[4] * w.z()) +
-         v.z() * (p[2] * w.x() + p[4] * w.y() + p[5] * w.z());
+// W v for the whitening W = diag(1/s) R^T stored row-major: the Gaussian's frame in units of
+// its scales, where the Mahalanobis distance is the Euclidean one. (Evaluating v^T Sigma^-1 v
+// with Sigma^-1 expanded cancels catastrophically for needle-thin Gaussians.)
+inline Eigen::Vector3d whiten(const double* m, const Eigen::Vector3d& v) noexcept {
+  return {m[0] * v.x() + m[1] * v.y() + m[2] * v.z(), m[3] * v.x() + m[4] * v.y() + m[5] * v.z(),
+          m[6] * v.x() + m[7] * v.y() + m[8] * v.z()};
 }
 
 // The segment o + t u, t in [ta, tb], against a node's box (slab test).
@@ -52,13 +55,14 @@ SeenSolid::SeenSolid(const CollisionWorld& world) {
     const Eigen::Vector3d s =
         (Eigen::Vector3d(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]) / sigma).cwiseMax(1e-12);
     const Eigen::Matrix3d cov = r * s.cwiseAbs2().asDiagonal() * r.transpose();
-    const Eigen::Matrix3d p = r * s.cwiseAbs2().cwiseInverse().asDiagonal() * r.transpose();
+    const Eigen::Matrix3d wm = s.cwiseInverse().asDiagonal() * r.transpose();
     Entry e;
     for (int k = 0; k < 3; ++k) e.mean[k] = g.center[k];
-    e.p[0] = p(0, 0), e.p[1] = p(0, 1), e.p[2] = p(0, 2), e.p[3] = p(1, 1), e.p[4] = p(1, 2), e.p[5] = p(2, 2);
+    for (int j = 0; j < 9; ++j) e.m[j] = wm(j / 3, j % 3);
     e.opacity = o;
+    e.log_reach = std::log(o / kMinAlpha);
     // alpha >= 1/255 needs the Mahalanobis radius <= sqrt(2 ln(255 o)): that ellipsoid's box.
-    const double reach = std::sqrt(2.0 * std::log(o / kMinAlpha));
+    const double reach = std::sqrt(2.0 * e.log_reach);
     BvhBox b;
     for (int k = 0; k < 3; ++k) {
       const double half = reach * std::sqrt(cov(k, k));
@@ -77,8 +81,8 @@ SeenSolid::SeenSolid(const CollisionWorld& world) {
 }
 
 void SeenSolid::gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb,
-                       SeenScratch& s) const noexcept {
-  s.gathered = 0;
+                       SeenScratch& s, bool append) const noexcept {
+  if (!append) s.gathered = 0;
   s.overflow = false;
   const std::span<const BvhNode> nodes = bvh_.nodes();
   if (nodes.empty()) return;
@@ -97,10 +101,14 @@ void SeenSolid::gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, doubl
       for (std::uint32_t k = n.first; k < n.first + n.count; ++k) {
         const Entry& e = entries_[k];
         const Eigen::Vector3d w(e.mean[0] - o.x(), e.mean[1] - o.y(), e.mean[2] - o.z());
-        const double uPu = form(e.p, u, u), uPw = form(e.p, u, w);
-        const double t = uPw / uPu;
+        const Eigen::Vector3d wu = whiten(e.m, u), ww = whiten(e.m, w);
+        const double t = wu.dot(ww) / wu.squaredNorm();
         if (!(t >= ta && t <= tb)) continue;
-        const double alpha = std::min(kMaxAlpha, e.opacity * std::exp(-0.5 * std::max(0.0, form(e.p, w, w) - uPw * t)));
+        // Half the squared Mahalanobis distance of the ray from the mean (at the peak); past
+        // log_reach the alpha is below 1/255 and the layer is skipped without an exp.
+        const double half_d2 = 0.5 * (ww - t * wu).squaredNorm();
+        if (half_d2 > e.log_reach) continue;
+        const double alpha = std::min(kMaxAlpha, e.opacity * std::exp(-half_d2));
         if (alpha < kMinAlpha) continue;
         if (s.gathered == s.layers.size()) {
           s.overflow = true;
@@ -115,28 +123,47 @@ void SeenSolid::gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, doubl
 }
 
 SeenHit SeenSolid::first_inside(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double t_back, double t0,
-                                double t1, SeenScratch& s) const noexcept {
+                                double t1, SeenScratch& s, double t_guess) const noexcept {
   SeenHit hit;
   t_back = std::min(t_back, t0);
-  gather(o, u, t_back, t1, s);
-  if (s.overflow) {
-    hit.hit = true;
-    hit.t = t0;
-    return hit;
-  }
-  std::sort(s.layers.begin(), s.layers.begin() + std::ptrdiff_t(s.gathered),
-            [](const SeenScratch::Layer& a, const SeenScratch::Layer& b) { return a.t < b.t; });
-  // Composite from t_back in depth order: the optical depth only grows when a layer is passed,
-  // so the first depth at which it reaches ln 2 is a layer's peak.
+  // In two stages when a guess is given: the layers up to the guess first, then, only when they
+  // do not reach ln 2, the rest. The first crossing depends only on the layers before it, and
+  // every layer of the second stage lies deeper than every one of the first, so the answer is
+  // the one-stage answer.
+  const double split = std::isfinite(t_guess) ? std::clamp(t_guess, t_back, t1) : t1;
   double tau = 0;
-  for (std::size_t k = 0; k < s.gathered; ++k) {
-    tau += s.layers[k].tau;
-    if (tau >= kLn2) {
+  std::size_t done = 0;  // layers composited so far
+  for (int stage = 0; stage < 2; ++stage) {
+    const double ta = stage == 0 ? t_back : split, tb = stage == 0 ? split : t1;
+    if (stage == 1 && !(tb > ta)) break;
+    gather(o, u, ta, tb, s, stage == 1);
+    if (s.overflow) {
       hit.hit = true;
-      hit.t = std::max(s.layers[k].t, t0);
-      hit.layers = std::uint32_t(k + 1);
+      hit.t = t0;
       return hit;
     }
+    // (A layer exactly at the split is gathered by both stages: the second keeps t > split.)
+    std::size_t end = s.gathered;
+    if (stage == 1) {
+      end = done;
+      for (std::size_t k = done; k < s.gathered; ++k)
+        if (s.layers[k].t > split) s.layers[end++] = s.layers[k];
+      s.gathered = end;
+    }
+    std::sort(s.layers.begin() + std::ptrdiff_t(done), s.layers.begin() + std::ptrdiff_t(end),
+              [](const SeenScratch::Layer& a, const SeenScratch::Layer& b) { return a.t < b.t; });
+    // Composite from t_back in depth order: the optical depth only grows when a layer is passed,
+    // so the first depth at which it reaches ln 2 is a layer's peak.
+    for (std::size_t k = done; k < end; ++k) {
+      tau += s.layers[k].tau;
+      if (tau >= kLn2) {
+        hit.hit = true;
+        hit.t = std::max(s.layers[k].t, t0);
+        hit.layers = std::uint32_t(k + 1);
+        return hit;
+      }
+    }
+    done = end;
   }
   return hit;
 }
@@ -152,6 +179,13 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
                         bool leaving, double& eye, SeenScratch& s) const noexcept {
   SeenHit hit;
   eye = 0;
+  // The layers between the eye and c composite to less than ln 2 (that is where the eye is), so
+  // a surface needs a layer peaking ahead of c: with none there, the long look back is spared
+  // (a free tool away from the surfaces).
+  if (lead + len > 0) {
+    gather(c, u, 0.0, lead + len, s);
+    if (!s.overflow && s.gathered == 0) return hit;
+  }
   gather(c, u, -max_back, lead + len, s);
   if (s.overflow) {
     hit.hit = true;  // blocked where it stands

@@ -13,10 +13,12 @@ constexpr double kMinAlpha = 1.0 / 255.0;  // the 3DGS rasterizer's skip thresho
 constexpr double kMaxAlpha = 0.99;         // and its clamp
 constexpr double kMinScale = 1e-9;
 
-// (v^T P w) for the packed symmetric P.
-double form(const double* p, const Eigen::Vector3d& v, const Eigen::Vector3d& w) {
-  return v.x() * (p[0] * w.x() + p[1] * w.y() + p[2] * w.z()) + v.y() * (p[1] * w.x() + p[3] * w.y() + p[4] * w.z()) +
-         v.z() * (p[2] * w.x() + p[4] * w.y() + p[5] * w.z());
+// W v for the whitening W = diag(1/s) R^T stored row-major: the Gaussian's frame in units of
+// its scales, where the Mahalanobis distance is the Euclidean one. (Evaluating v^T Sigma^-1 v
+// with Sigma^-1 expanded cancels catastrophically for needle-thin Gaussians.)
+inline Eigen::Vector3d whiten(const double* m, const Eigen::Vector3d& v) noexcept {
+  return {m[0] * v.x() + m[1] * v.y() + m[2] * v.z(), m[3] * v.x() + m[4] * v.y() + m[5] * v.z(),
+          m[6] * v.x() + m[7] * v.y() + m[8] * v.z()};
 }
 
 }  // namespace
@@ -31,10 +33,10 @@ SeenSurface::SeenSurface(const GaussianScene& scene) {
     if (!(rot.norm() > 0)) rot = Eigen::Quaterniond::Identity();
     const Eigen::Matrix3d r = rot.normalized().toRotationMatrix();
     Eigen::Vector3d s = scene.scales[i].cast<double>().cwiseMax(kMinScale);
-    const Eigen::Matrix3d p = r * s.cwiseInverse().cwiseAbs2().asDiagonal() * r.transpose();
+    const Eigen::Matrix3d w = s.cwiseInverse().asDiagonal() * r.transpose();
     Entry e;
     e.mean = scene.means[i].cast<double>();
-    e.p[0] = p(0, 0), e.p[1] = p(0, 1), e.p[2] = p(0, 2), e.p[3] = p(1, 1), e.p[4] = p(1, 2), e.p[5] = p(2, 2);
+    for (int j = 0; j < 9; ++j) e.m[j] = w(j / 3, j % 3);
     e.opacity = o;
     // alpha = o exp(-r^2/2) >= 1/255 needs r^2 <= 2 ln(255 o); r = |x - mu| / sigma at most.
     e.reach = std::sqrt(2.0 * std::log(o / kMinAlpha)) * s.maxCoeff();
@@ -53,11 +55,11 @@ SeenDepth SeenSurface::median_depth(const Eigen::Vector3d& origin, const Eigen::
     const Eigen::Vector3d w = g.mean - origin;
     const double along = w.dot(u);
     if ((w - along * u).squaredNorm() > g.reach * g.reach) continue;  // the ray misses its reach
-    const double uPu = form(g.p, u, u);
-    const double uPw = form(g.p, u, w);
-    const double t = uPw / uPu;
+    const Eigen::Vector3d wu = whiten(g.m, u), ww = whiten(g.m, w);
+    const double t = wu.dot(ww) / wu.squaredNorm();
     if (!(t > 0) || t > t_max) continue;
-    const double r2 = std::max(0.0, form(g.p, w, w) - uPw * t);
+    // The ray's squared Mahalanobis distance from the mean, at its peak.
+    const double r2 = (ww - t * wu).squaredNorm();
     const double alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5 * r2));
     if (alpha < kMinAlpha) continue;
     layers.emplace_back(t, alpha);

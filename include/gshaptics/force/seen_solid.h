@@ -20,6 +20,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "gshaptics/broadphase/bvh.h"
@@ -58,9 +59,11 @@ class SeenSolid {
   /// The first t in [t0, t1] at which o + t u (u unit) is inside, seen from the eye at
   /// o + t_back u (t_back <= t0): the optical depth of the layers peaking in [t_back, t] reaches
   /// ln 2. No hit when there is none. t0 when it is already reached at t0 (or `scratch`
-  /// overflowed: scratch.overflow is set; blocked where it stands).
+  /// overflowed: scratch.overflow is set; blocked where it stands). `t_guess`: where the hit
+  /// likely is (a resting proxy's last hit); the layers up to it are read first and those past it
+  /// only when needed. The answer does not depend on it, only the cost.
   SeenHit first_inside(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double t_back, double t0, double t1,
-                       SeenScratch& scratch) const noexcept;
+                       SeenScratch& scratch, double t_guess = std::numeric_limits<double>::quiet_NaN()) const noexcept;
 
   /// How far behind `c` along -u (u unit) the eye of a push along u is: the farthest point, up
   /// to `max_back`, from which c is still seen (the layers between composite to a transmittance
@@ -73,6 +76,8 @@ class SeenSolid {
   /// behind c; the hit's t is from the leading point, in [0, len]. A surface that the layers
   /// behind the leading point already make holds the tool where it stands (t = 0), unless it is
   /// `leaving` (moving away from the surface it last rested on: the shell it lifts off from).
+  /// When no layer peaks ahead of c within lead + len, there is no hit and the eye is not
+  /// searched (`eye` = 0): the layers behind c alone never make a surface seen from the eye.
   SeenHit push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,
                bool leaving, double& eye, SeenScratch& scratch) const noexcept;
 
@@ -86,11 +91,13 @@ class SeenSolid {
  private:
   struct Entry {
     double mean[3];
-    double p[6];  // precision: xx, xy, xz, yy, yz, zz
+    double m[9];  // whitening diag(1/s) R^T, row-major: |W (x - mean)| is the Mahalanobis distance
     double opacity;
+    double log_reach;  // ln(255 opacity): alpha >= 1/255 iff half the squared Mahalanobis distance is <= this
   };
-  void gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb,
-              SeenScratch& scratch) const noexcept;
+  // The layers peaking in [ta, tb] into scratch (after the ones there when `append`).
+  void gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, SeenScratch& scratch,
+              bool append = false) const noexcept;
   std::vector<Entry> entries_;  // BVH slot order
   Bvh bvh_;
 };

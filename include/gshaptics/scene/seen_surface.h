@@ -65,7 +65,7 @@ class SeenSurface {
  private:
   struct Entry {
     Eigen::Vector3d mean;
-    double p[6];       // precision Sigma^-1: xx, xy, xz, yy, yz, zz
+    double m[9];       // whitening diag(1/s) R^T, row-major: |W (x - mean)| is the Mahalanobis distance
     double opacity;
     double reach;      // Euclidean radius beyond which alpha < 1/255
   };
