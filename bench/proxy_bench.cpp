@@ -20,7 +20,7 @@
 #include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_renderer.h"
-#include "gshaptics/device/admittance_device.h"
+#include "gshaptics/device/device_model.h"
 #include "gshaptics/error.h"
 #include "gshaptics/fidelity/interaction.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
@@ -29,6 +29,7 @@
 #include "gshaptics/io/atomic_file.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/percentile.h"
+#include "gshaptics/scene/opacity_filter.h"
 #include "gshaptics/scene/registration.h"
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/sim/probe_trajectory.h"
@@ -64,10 +65,13 @@ std::string scene_path(const std::string& file) {
 }
 
 // A real scene's probe run, as `gshaptics simulate SCENE --up auto [--reg-scale S]` runs it.
-Set probe_set(const std::string& name, const std::string& file, double reg_scale, bool bundled) {
+Set probe_set(const std::string& name, const std::string& file, double reg_scale, bool bundled, ProxySurface surface) {
   Set s;
   s.name = name;
   WorldConfig cfg;
+  // On the seen solid the world keeps the faint Gaussians (what a viewer draws), and the probe
+  // run is recorded with that proxy, as `simulate --surface seen` runs it.
+  if (surface == ProxySurface::kSeen) cfg.min_opacity = kSeenMinOpacity;
   if (bundled) {
     cfg.registration = load_registration_file(std::string(GSHAPTICS_DATA_DIR) + "/truck.registration.json");
   } else {
@@ -81,7 +85,11 @@ Set probe_set(const std::string& name, const std::string& file, double reg_scale
                                 3.0 * s.tool_radius);
   const ProbeTrajectory traj = generate_probe_trajectory(*s.world, default_probe_params(*s.world, s.tool_radius, 7, 1, depth));
   fmt::print(stderr, "proxy_bench: {}: recording the probe run ({:.0f} s simulated)\n", name, traj.duration());
-  const ProbeRunResult run = run_probe(*s.world, traj, {});
+  ProbeRunParams rp;
+  ProxyModelSpec spec;
+  spec.params.surface = surface;
+  rp.renderer = spec;
+  const ProbeRunResult run = run_probe(*s.world, traj, rp);
   for (const TickRecord& r : run.ticks) s.poses.push_back({r.position, r.velocity});
   return s;
 }
@@ -167,6 +175,12 @@ int main(int argc, char** argv) {
   app.add_flag("--no-overhang-falloff", no_overhang_falloff,
                "The one-ellipsoid proxy's shaded normal counts every disc near, overhangs too "
                "(ProxyParams::overhang_falloff off), for comparison");
+  std::string surface_name = "ellipsoids";
+  app.add_option("--surface", surface_name,
+                 "The one-part proxy's solid on the probe runs: ellipsoids (the 1-sigma ellipsoids) or seen "
+                 "(the surface the splats render; the world keeps Gaussians down to 1/255 and the probe run is "
+                 "recorded with that proxy)")
+      ->capture_default_str()->check(CLI::IsMember({"ellipsoids", "seen"}));
   bool no_near_lists = false;
   app.add_flag("--no-near-lists", no_near_lists,
                "Compound tools' sweeps take the BVH every time (ProxyParams::near_lists off), for comparison");
@@ -175,6 +189,7 @@ int main(int argc, char** argv) {
                "(stylus:6R,R, tilted 45 deg, its tip at the pose) against the sphere of radius R, and "
                "write a second table");
   CLI11_PARSE(app, argc, argv);
+  const ProxySurface surface = surface_name == "seen" ? ProxySurface::kSeen : ProxySurface::kEllipsoids;
   try {
     std::string table =
         "| set | Gaussians | tool radius | ticks | ticks in contact | proxy p50 / p99 / max us | paper p50 / p99 us | "
@@ -188,11 +203,11 @@ int main(int argc, char** argv) {
     std::string name;
     while (std::getline(ss, name, ',')) {
       Set s;
-      if (name == "truck") s = probe_set(name, "truck.splat", 1.0, true);
-      else if (name == "burger") s = probe_set(name, "burger.splat", 1.0, false);
-      else if (name == "halo") s = probe_set(name, "halo.ply", 1.0, false);
-      else if (name == "firepit") s = probe_set(name, "firepit.ply", 1.0, false);
-      else if (name == "karangkidul") s = probe_set(name, "karangkidul_crop.ply", 0.01, false);
+      if (name == "truck") s = probe_set(name, "truck.splat", 1.0, true, surface);
+      else if (name == "burger") s = probe_set(name, "burger.splat", 1.0, false, surface);
+      else if (name == "halo") s = probe_set(name, "halo.ply", 1.0, false, surface);
+      else if (name == "firepit") s = probe_set(name, "firepit.ply", 1.0, false, surface);
+      else if (name == "karangkidul") s = probe_set(name, "karangkidul_crop.ply", 0.01, false, surface);
       else if (name.rfind("fidelity-", 0) == 0) s = fidelity_set(name);
       else throw InputError("proxy_bench: unknown set '" + name + "'");
       const CollisionWorld& w = *s.world;
@@ -201,6 +216,7 @@ int main(int argc, char** argv) {
       std::size_t in_contact = 0;
       ProxyParams params;
       params.overhang_falloff = !no_overhang_falloff;
+      params.surface = surface;
       ProxyRenderer proxy(w, params);
       const Timing tp = time_replays(
           s, passes,

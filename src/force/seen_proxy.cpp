@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace gshaptics {
 
@@ -30,6 +31,7 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
   axis_ = u;
   eye_ = proxy_ + (radius - back) * u;
   normal_.setZero();  // read afresh by hold()
+  last_hit_ = std::numeric_limits<double>::quiet_NaN();
   return true;
 }
 
@@ -38,8 +40,12 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, double radius, double dt) no
   const double depth = (device + radius * a - eye_).dot(a);  // the device's leading point, from the eye plane
   if (!(depth > 0)) return false;
   const Eigen::Vector3d foot = device + (radius - depth) * a;  // its ray's origin on the eye plane
-  const SeenHit hit = solid_.first_inside(foot, a, 0, 0, depth, scratch_);
+  // (The surface moves little from tick to tick: the layers up to just past the last hit are
+  // read first, those deeper only when the surface is not among them.)
+  const double guess = std::isfinite(last_hit_) ? last_hit_ + kGuessMargin * radius : depth;
+  const SeenHit hit = solid_.first_inside(foot, a, 0, 0, depth, scratch_, guess);
   if (!hit.hit || hit.t >= depth) return false;  // the device is out of the surface
+  last_hit_ = hit.t;
   const double t = std::max(0.0, hit.t - 1e-6 * radius);
   proxy_ = foot + (t - radius) * a;
   // The normal is read afresh once the point moved kNormalReuse R from the last reading, and

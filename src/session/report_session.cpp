@@ -126,6 +126,11 @@ namespace {
 
 std::string seen_felt_command_line(const SeenFeltCommandOptions& o, const std::vector<std::string>& scenes) {
   std::string command = "gshaptics seen-felt --force-model " + std::string(renderer_name(o.force.model));
+  if (o.force.model == RendererKind::kProxy && o.force.proxy.surface == ProxySurface::kSeen) {
+    command += " --surface seen";
+    if (o.force.proxy.seen_window != ProxyParams{}.seen_window)
+      command += fmt::format(" --seen-window {:g}", o.force.proxy.seen_window);
+  }
   if (o.quick) command += " --quick";
   if (o.rays > 0) command += fmt::format(" --rays {}", o.rays);
   if (!o.tools_percent.empty()) command += fmt::format(" --tool-percent {}", fmt::join(o.tools_percent, ","));

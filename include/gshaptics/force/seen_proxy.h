@@ -52,6 +52,7 @@ class SeenProxy {
   static constexpr double kNormalReuse = 0.05;  // R
   static constexpr double kNormalEye = 8;       // R: the normal's rays look from at most this far back
   static constexpr double kNormalSpan = 1.0;    // R: the normal's rays, this far to each side
+  static constexpr double kGuessMargin = 0.25;  // R: the layers first read reach this past the last hit
   SeenSolid solid_;
   SeenScratch scratch_;
   ProxyParams params_;
@@ -61,6 +62,7 @@ class SeenProxy {
   Eigen::Vector3d axis_ = Eigen::Vector3d::Zero();  // the contact's push direction
   Eigen::Vector3d eye_ = Eigen::Vector3d::Zero();   // a point of its eye plane
   Eigen::Vector3d target_normal_ = Eigen::Vector3d::Zero(), normal_at_ = Eigen::Vector3d::Zero();  // last reading
+  double last_hit_ = 0;  // the last hit's depth from the eye plane (NaN: none in this contact)
   bool started_ = false, in_contact_ = false;
 };
 
