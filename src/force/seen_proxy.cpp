@@ -31,6 +31,7 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
   axis_ = u;
   eye_ = proxy_ + (radius - back) * u;
   normal_.setZero();  // read afresh by hold()
+  pending_ray_ = -1;
   last_hit_ = std::numeric_limits<double>::quiet_NaN();
   return true;
 }
@@ -48,18 +49,38 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, double radius, double dt) no
   last_hit_ = hit.t;
   const double t = std::max(0.0, hit.t - 1e-6 * radius);
   proxy_ = foot + (t - radius) * a;
-  // The normal is read afresh once the point moved kNormalReuse R from the last reading, and
-  // smoothed over kNormalTau (each reading carries the seen surface's noise).
-  const Eigen::Vector3d point = foot + hit.t * a;
-  const bool have = normal_.squaredNorm() > 0;
-  if (!have || (point - normal_at_).norm() >= kNormalReuse * radius) {
-    target_normal_ = solid_.normal(point, a, kNormalSpan * radius, radius, std::min(hit.t, kNormalEye * radius), scratch_);
-    normal_at_ = point;
-    if (!have) normal_ = target_normal_;
-  }
+  read_normal(foot + hit.t * a, radius, hit.t);
   const Eigen::Vector3d blended = normal_ + (1 - std::exp(-dt / kNormalTau)) * (target_normal_ - normal_);
   normal_ = blended.norm() > 1e-9 ? Eigen::Vector3d(blended.normalized()) : target_normal_;
   return true;
+}
+
+void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double depth) noexcept {
+  // The normal is read afresh once the point moved kNormalReuse R from the last reading, and
+  // smoothed over kNormalTau (each reading carries the seen surface's noise). The first reading of
+  // a contact takes its four rays at once; a later one takes one ray a tick (the solid does not
+  // move, so the rays of a reading fixed at its start give the same normal, three ticks later,
+  // and no tick pays for four).
+  const Eigen::Vector3d& a = axis_;
+  const double h = kNormalSpan * radius, back = std::min(depth, kNormalEye * radius);
+  if (normal_.squaredNorm() == 0) {
+    target_normal_ = solid_.normal(point, a, h, radius, back, scratch_);
+    normal_at_ = point;
+    normal_ = target_normal_;
+    pending_ray_ = -1;
+    return;
+  }
+  if (pending_ray_ < 0 && (point - normal_at_).norm() >= kNormalReuse * radius) {
+    pending_ray_ = 0;
+    pending_at_ = point;
+    pending_back_ = back;
+  }
+  if (pending_ray_ < 0) return;
+  pending_hits_[std::size_t(pending_ray_)] = solid_.normal_ray(pending_at_, a, pending_ray_, h, radius, pending_back_, scratch_);
+  if (++pending_ray_ < 4) return;
+  target_normal_ = SeenSolid::normal_from(pending_at_, a, pending_hits_, h);
+  normal_at_ = pending_at_;
+  pending_ray_ = -1;
 }
 
 RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {

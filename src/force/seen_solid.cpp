@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace gshaptics {
@@ -223,25 +224,33 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   return hit;
 }
 
-Eigen::Vector3d SeenSolid::normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach,
-                                  double back, SeenScratch& s) const noexcept {
+SeenHit SeenSolid::normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k, double h, double reach,
+                              double back, SeenScratch& s) const noexcept {
+  SeenHit hit = first_inside(normal_ray_origin(point, u, k, h), u, -back, -reach, reach, s);
+  hit.hit = hit.hit && !s.overflow;
+  return hit;
+}
+
+Eigen::Vector3d SeenSolid::normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
+                                             double h) noexcept {
   const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-  const Eigen::Vector3d offsets[4] = {h * a, -h * a, h * b, -h * b};
+  const Eigen::Vector3d offset = k == 0 ? Eigen::Vector3d(h * a) : k == 1 ? Eigen::Vector3d(-h * a)
+                                 : k == 2 ? Eigen::Vector3d(h * b) : Eigen::Vector3d(-h * b);
+  return point + offset;
+}
+
+Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& point, const Eigen::Vector3d& u,
+                                       const std::array<SeenHit, 4>& hits, double h) noexcept {
   Eigen::Vector3d pts[4];
-  bool found[4];
   int count = 0;
-  for (int k = 0; k < 4; ++k) {
-    const Eigen::Vector3d o = point + offsets[k];
-    const SeenHit hk = first_inside(o, u, -back, -reach, reach, s);
-    found[k] = hk.hit && !s.overflow;
-    if (found[k]) pts[k] = o + hk.t * u, ++count;
-  }
+  for (int k = 0; k < 4; ++k)
+    if (hits[k].hit) pts[k] = normal_ray_origin(point, u, k, h) + hits[k].t * u, ++count;
   Eigen::Vector3d n = -u;
   if (count == 4) {
     n = (pts[0] - pts[1]).cross(pts[2] - pts[3]);
   } else if (count == 3) {
     // Three points: the plane through them (the missing one's partner with `point`).
-    const int miss = !found[0] ? 0 : !found[1] ? 1 : !found[2] ? 2 : 3;
+    const int miss = !hits[0].hit ? 0 : !hits[1].hit ? 1 : !hits[2].hit ? 2 : 3;
     const Eigen::Vector3d da = miss < 2 ? (miss == 0 ? Eigen::Vector3d(point - pts[1]) : Eigen::Vector3d(pts[0] - point))
                                         : Eigen::Vector3d(pts[0] - pts[1]);
     const Eigen::Vector3d db = miss >= 2 ? (miss == 2 ? Eigen::Vector3d(point - pts[3]) : Eigen::Vector3d(pts[2] - point))
@@ -251,6 +260,13 @@ Eigen::Vector3d SeenSolid::normal(const Eigen::Vector3d& point, const Eigen::Vec
   if (!(n.norm() > 0) || !n.allFinite()) return -u;
   n.normalize();
   return n.dot(u) > 0 ? Eigen::Vector3d(-n) : n;
+}
+
+Eigen::Vector3d SeenSolid::normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach,
+                                  double back, SeenScratch& s) const noexcept {
+  std::array<SeenHit, 4> hits;
+  for (int k = 0; k < 4; ++k) hits[k] = normal_ray(point, u, k, h, reach, back, s);
+  return normal_from(point, u, hits, h);
 }
 
 }  // namespace gshaptics

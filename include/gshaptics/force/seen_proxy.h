@@ -12,13 +12,14 @@
 ///   proxy pressed into a faint layer keeps the layer in front of its eye: small steps do not
 ///   creep through it.
 /// The force is the virtual coupling's (Colgate, Stanley and Brown 1995) along the seen surface's
-/// normal (smoothed over 5 ms), with the proxy's stiffness, damping and the renderer's f_max; no
-/// friction, no energy bound. Limits: walls parallel to the contact's axis are not felt until the
+/// normal (four rays; after a contact's first reading one ray a tick; smoothed over 5 ms), with
+/// the proxy's stiffness, damping and the renderer's f_max; no friction, no energy bound. Limits: walls parallel to the contact's axis are not felt until the
 /// device comes out and pushes on them afresh.
 ///
 /// Frame and units: world, metres as the world's. render() does not allocate, lock, log or throw.
 
 #include <Eigen/Core>
+#include <array>
 
 #include "gshaptics/collision/tool_ellipsoid.h"
 #include "gshaptics/force/force_renderer.h"
@@ -48,6 +49,9 @@ class SeenProxy {
   // In contact: the proxy on the seen surface along the contact's axis, over the device's leading
   // point; false when the device has come out of the surface.
   bool hold(const Eigen::Vector3d& device, double radius, double dt) noexcept;
+  // The normal's reading at the resting point `point` (`depth` from the eye plane): all four rays
+  // for a contact's first, one ray a tick for the later ones.
+  void read_normal(const Eigen::Vector3d& point, double radius, double depth) noexcept;
   static constexpr double kNormalTau = 0.005;   // s
   static constexpr double kNormalReuse = 0.05;  // R
   static constexpr double kNormalEye = 8;       // R: the normal's rays look from at most this far back
@@ -62,6 +66,10 @@ class SeenProxy {
   Eigen::Vector3d axis_ = Eigen::Vector3d::Zero();  // the contact's push direction
   Eigen::Vector3d eye_ = Eigen::Vector3d::Zero();   // a point of its eye plane
   Eigen::Vector3d target_normal_ = Eigen::Vector3d::Zero(), normal_at_ = Eigen::Vector3d::Zero();  // last reading
+  int pending_ray_ = -1;  // the next ray of a reading under way (-1: none)
+  Eigen::Vector3d pending_at_ = Eigen::Vector3d::Zero();
+  double pending_back_ = 0;
+  std::array<SeenHit, 4> pending_hits_{};
   double last_hit_ = 0;  // the last hit's depth from the eye plane (NaN: none in this contact)
   bool started_ = false, in_contact_ = false;
 };

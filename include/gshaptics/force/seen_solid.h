@@ -19,6 +19,7 @@
 /// the queries are const, allocation-free and use the caller's SeenScratch.
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -87,6 +88,13 @@ class SeenSolid {
   /// depth. -u when fewer than three of them hit.
   Eigen::Vector3d normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach, double back,
                          SeenScratch& scratch) const noexcept;
+  /// normal() one ray at a time (a caller may spread the four over ticks): ray k (0-3) of the
+  /// reading at `point`, its hit's t from the ray's origin; normal_from() then combines the
+  /// four. normal() is exactly normal_from() of the four normal_ray()s.
+  SeenHit normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k, double h, double reach,
+                     double back, SeenScratch& scratch) const noexcept;
+  [[nodiscard]] static Eigen::Vector3d normal_from(const Eigen::Vector3d& point, const Eigen::Vector3d& u,
+                                                   const std::array<SeenHit, 4>& hits, double h) noexcept;
 
  private:
   struct Entry {
@@ -96,6 +104,8 @@ class SeenSolid {
     double log_reach;  // ln(255 opacity): alpha >= 1/255 iff half the squared Mahalanobis distance is <= this
   };
   // The layers peaking in [ta, tb] into scratch (after the ones there when `append`).
+  static Eigen::Vector3d normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
+                                           double h) noexcept;
   void gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, SeenScratch& scratch,
               bool append = false) const noexcept;
   std::vector<Entry> entries_;  // BVH slot order
