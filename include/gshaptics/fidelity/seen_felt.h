@@ -51,7 +51,7 @@ struct SeenFeltOptions {
   std::vector<double> tool_fractions = {0.005, 0.01, 0.02};
   std::vector<PressDirection> directions = {PressDirection::kVertical, PressDirection::kAround};
   int rays = 20;             ///< kept rays per configuration (scene, tool, direction)
-  int max_candidates = 1000;  ///< rays drawn per configuration at most
+  int max_candidates = 4000;  ///< rays drawn per configuration at most
   double facing_deg = 20;    ///< largest angle between the seen normal and -u
   double past = 4;           ///< R beyond the seen surface the device goes
   double start = 16;         ///< R before the seen surface the device starts (the eye at least that far)
