@@ -123,6 +123,17 @@ void SeenSolid::gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, doubl
   }
 }
 
+void SeenSolid::gather_more(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, double shared,
+                            SeenScratch& s) const noexcept {
+  const std::size_t before = s.gathered;
+  gather(o, u, ta, tb, s, /*append=*/true);
+  // A layer peaking exactly at the shared end was gathered by the earlier range already.
+  std::size_t end = before;
+  for (std::size_t k = before; k < s.gathered; ++k)
+    if (s.layers[k].t != shared) s.layers[end++] = s.layers[k];
+  s.gathered = end;
+}
+
 SeenHit SeenSolid::first_inside(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double t_back, double t0,
                                 double t1, SeenScratch& s, double t_guess) const noexcept {
   SeenHit hit;
@@ -137,20 +148,16 @@ SeenHit SeenSolid::first_inside(const Eigen::Vector3d& o, const Eigen::Vector3d&
   for (int stage = 0; stage < 2; ++stage) {
     const double ta = stage == 0 ? t_back : split, tb = stage == 0 ? split : t1;
     if (stage == 1 && !(tb > ta)) break;
-    gather(o, u, ta, tb, s, stage == 1);
+    if (stage == 0)
+      gather(o, u, ta, tb, s);
+    else
+      gather_more(o, u, ta, tb, split, s);
     if (s.overflow) {
       hit.hit = true;
       hit.t = t0;
       return hit;
     }
-    // (A layer exactly at the split is gathered by both stages: the second keeps t > split.)
-    std::size_t end = s.gathered;
-    if (stage == 1) {
-      end = done;
-      for (std::size_t k = done; k < s.gathered; ++k)
-        if (s.layers[k].t > split) s.layers[end++] = s.layers[k];
-      s.gathered = end;
-    }
+    const std::size_t end = s.gathered;
     std::sort(s.layers.begin() + std::ptrdiff_t(done), s.layers.begin() + std::ptrdiff_t(end),
               [](const SeenScratch::Layer& a, const SeenScratch::Layer& b) { return a.t < b.t; });
     // Composite from t_back in depth order: the optical depth only grows when a layer is passed,
@@ -186,8 +193,10 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   if (lead + len > 0) {
     gather(c, u, 0.0, lead + len, s);
     if (!s.overflow && s.gathered == 0) return hit;
+    if (!s.overflow) gather_more(c, u, -max_back, 0.0, 0.0, s);  // then the layers behind c
+  } else {
+    gather(c, u, -max_back, 0.0, s);
   }
-  gather(c, u, -max_back, lead + len, s);
   if (s.overflow) {
     hit.hit = true;  // blocked where it stands
     return hit;

@@ -257,42 +257,35 @@ void open_scene_device(const RuntimeOptions& o, const SceneOptions& so, const Pr
   s.device = device_registry().open(o.device, d);
 }
 
-// The mouse: the browser page's stream, starting above the most upward-facing probe site on the
-// object (or above the middle of the scene when none is found), so that lowering the tool
-// touches the object.
-void open_mouse_stream(const PreparedWorld& pw, RuntimeSetup& s) {
+// The viewer's streams, starting above the most upward-facing probe site on the object (or above
+// the middle of the scene when none is found), so that lowering the tool touches the object.
+// mouse: the browser page's drag and keys. xr: a VR controller in the page's WebXR session, 6-DoF
+// targets at the headset's frame rate (72-120 Hz), interpolated to the servo rate like the mouse;
+// no force before the first controller pose, and none once the controller stops reporting for
+// 0.25 s or three of the page's frame intervals, whichever is longer (up to 1 s: a page at 7
+// frames/s).
+void open_viewer_stream(const PreparedWorld& pw, bool xr, RuntimeSetup& s) {
   if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
   const Eigen::Vector3d start = tool_start_point(pw, s.tool_radius);
   StreamDeviceParams sp;
-  sp.name = "mouse (browser)";
-  sp.timeout_periods = 3;  // a busy page sends its keep-alive at 5-7/s, not 30: scale the timeout
+  sp.name = xr ? "xr controller (WebXR)" : "mouse (browser)";
+  // (A busy page sends the mouse's keep-alive at 5-7/s, not 30, and an XR page runs at 7-15
+  // frames/s: three periods, so one late message does not cut the force.)
+  sp.timeout_periods = 3;
+  if (xr) {
+    sp.input_timeout = 0.25;
+    sp.alive_before_first_target = false;
+  }
   auto dev = std::make_unique<StreamDevice>(sp, start);
   s.mouse_start = start;
   s.mouse = dev.get();
+  s.xr = xr;
   s.device = std::move(dev);
-  fmt::print("mouse      tool radius {:.4g}, starts at [{:.3f}, {:.3f}, {:.3f}]\n", s.tool_radius,
-             start.x(), start.y(), start.z());
-}
-
-// A VR controller in the page's WebXR session: 6-DoF targets at the headset's frame rate
-// (72-120 Hz), interpolated to the servo rate like the mouse; no force before the first
-// controller pose, and none once the controller stops reporting for 0.25 s or three of the
-// page's frame intervals, whichever is longer (up to 1 s: a page at 7 frames/s).
-void open_xr_stream(const PreparedWorld& pw, RuntimeSetup& s) {
-  if (s.tool_radius <= 0) s.tool_radius = default_tool_radius(pw.world);
-  const Eigen::Vector3d start = tool_start_point(pw, s.tool_radius);
-  StreamDeviceParams sp;
-  sp.name = "xr controller (WebXR)";
-  sp.input_timeout = 0.25;
-  sp.timeout_periods = 3;  // a page at 7-15 frames/s: one late frame does not cut the force
-  sp.alive_before_first_target = false;
-  auto dev = std::make_unique<StreamDevice>(sp, start);
-  s.mouse_start = start;
-  s.mouse = dev.get();
-  s.xr = true;
-  s.device = std::move(dev);
-  fmt::print("xr         tool radius {:.4g}; enter VR in the page; the right controller is the tool\n",
-             s.tool_radius);
+  if (xr)
+    fmt::print("xr         tool radius {:.4g}; enter VR in the page; the right controller is the tool\n", s.tool_radius);
+  else
+    fmt::print("mouse      tool radius {:.4g}, starts at [{:.3f}, {:.3f}, {:.3f}]\n", s.tool_radius, start.x(), start.y(),
+               start.z());
 }
 
 // A desktop device: opened and closed once now (a missing device is an error before the runtime
@@ -342,10 +335,8 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
   const DeviceKind* kind = device_registry().find(o.device);
   if (kind != nullptr && kind->needs_scene)
     open_scene_device(o, so, pw, s);
-  else if (o.device == "mouse")
-    open_mouse_stream(pw, s);
-  else if (o.device == "xr")
-    open_xr_stream(pw, s);
+  else if (o.device == "mouse" || o.device == "xr")
+    open_viewer_stream(pw, o.device == "xr", s);
   else if (is_hardware_device(o.device))
     open_hardware_device(o, pw, std::move(opened), s);
   else

@@ -108,6 +108,10 @@ class SeenSolid {
                                            double h) noexcept;
   void gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, SeenScratch& scratch,
               bool append = false) const noexcept;
+  // Appends the layers of [ta, tb], a range that shares its end `shared` with one gathered
+  // before (those peaking exactly there are not taken twice).
+  void gather_more(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, double shared,
+                   SeenScratch& scratch) const noexcept;
   std::vector<Entry> entries_;  // BVH slot order
   Bvh bvh_;
 };
