@@ -60,6 +60,9 @@ struct FakeDhd {
   void (*set_io_delay_us)(double) = hook<void (*)(double)>(GSHAPTICS_FAKE_DHD, "fake_dhd_set_io_delay_us");
   double (*peak_force)() = hook<double (*)()>(GSHAPTICS_FAKE_DHD, "fake_dhd_peak_force");
   unsigned long (*saturated_writes)() = hook<unsigned long (*)()>(GSHAPTICS_FAKE_DHD, "fake_dhd_saturated_writes");
+  double (*peak_torque)() = hook<double (*)()>(GSHAPTICS_FAKE_DHD, "fake_dhd_peak_torque");
+  void (*set_software_torque_limit)(double) = hook<void (*)(double)>(GSHAPTICS_FAKE_DHD, "fake_dhd_set_software_torque_limit");
+  void (*set_torque_saturation)(double) = hook<void (*)(double)>(GSHAPTICS_FAKE_DHD, "fake_dhd_set_torque_saturation");
   void (*reset_force_stats)() = hook<void (*)()>(GSHAPTICS_FAKE_DHD, "fake_dhd_reset_force_stats");
   void (*set_active_wrist)(int) = hook<void (*)(int)>(GSHAPTICS_FAKE_DHD, "fake_dhd_set_active_wrist");
   void (*torque_raw)(double*) = hook<void (*)(double*)>(GSHAPTICS_FAKE_DHD, "fake_dhd_torque");
@@ -71,6 +74,8 @@ struct FakeDhd {
     set_powered(1);
     set_system_type(33);
     set_software_limit(-1);
+    set_software_torque_limit(-1);
+    set_torque_saturation(1e9);
     set_saturation(12.0);
     set_io_delay_us(0);
     set_fail_reads(0);
@@ -612,6 +617,86 @@ TEST(DhdDevice, ActiveWristTakesTorqueAndEverySessionEndsAtZeroWrench) {
   EXPECT_NEAR(fake.force().z(), 2.0, 1e-12);
   EXPECT_EQ(plain.read(0).orientation.coeffs(), Eigen::Quaterniond::Identity().coeffs());
   plain.stop(0);
+  fake.defaults();
+}
+
+}  // namespace
+}  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+// A renderer that always asks for the same wrench (a stylus pressed on its side: 1 N with a
+// 0.45 N m moment), so the torque limit is tested through the servo step alone.
+class ConstantWrench final : public ForceRenderer {
+ public:
+  std::string_view name() const noexcept override { return "constant wrench"; }
+  RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d&, double) noexcept override {
+    RenderOutput out;
+    out.force = {0, 0, 1};
+    out.torque = {0.45, 0, 0};
+    out.proxy = tool.center;
+    out.counts.contacts = 1;
+    return out;
+  }
+  std::span<const Contact> contacts() const noexcept override { return {}; }
+  void reset() noexcept override {}
+};
+
+RuntimeSummary run_constant_wrench(HapticDevice& device, double tau_max) {
+  RuntimeConfig c = test::device_test_config(0.6);
+  c.safety.tau_max = tau_max;
+  HapticRuntime rt(device, c, std::make_unique<ConstantWrench>());
+  rt.start();
+  rt.wait();
+  return rt.summary();
+}
+
+// A wrist's own torque limit binds as the force limit does (issue 73, item 8): a sigma.7 is
+// rated 0.2 N m, so with --tau-max 0.5 no command reaches its wrist above 0.2 N m and none
+// saturates; a software limit (dhdGetMaxTorque) lowers it further.
+TEST(DhdDevice, AWristIsNeverCommandedAboveItsOwnTorqueLimitWhateverTauMaxSays) {
+  FakeDhd fake;
+  fake.defaults();
+  fake.set_system_type(104);  // sigma.7
+  fake.set_active_wrist(1);
+  fake.set_torque_saturation(0.2);
+  fake.set_position(0, 0, 0);
+  fake.set_velocity(0, 0, 0);
+  {
+    DhdDevice dev(0);
+    const RuntimeSummary s = run_constant_wrench(dev, 0.5);
+    EXPECT_DOUBLE_EQ(s.torque_limit, 0.2);
+    EXPECT_GT(fake.peak_torque(), 0.15) << "no torque reached the wrist: the test does not test the limit";
+    EXPECT_LE(fake.peak_torque(), 0.2 + 1e-9);
+    EXPECT_EQ(fake.saturated_writes(), 0u);
+    EXPECT_NE(dev.info().torque_limit_source.find("sigma.7"), std::string::npos) << dev.info().torque_limit_source;
+    EXPECT_EQ(fake.torque(), Eigen::Vector3d::Zero());  // every run ends at zero wrench
+  }
+  // A software limit below the rating binds instead.
+  fake.reset_force_stats();
+  fake.set_software_torque_limit(0.1);
+  {
+    DhdDevice dev(0);
+    const RuntimeSummary s = run_constant_wrench(dev, 0.5);
+    EXPECT_DOUBLE_EQ(s.torque_limit, 0.1);
+    EXPECT_LE(fake.peak_torque(), 0.1 + 1e-9);
+    EXPECT_GT(fake.peak_torque(), 0.05);
+    EXPECT_EQ(dev.info().torque_limit_source, "dhdGetMaxTorque");
+  }
+  // Without the device's limit (the pre-fix behaviour, --tau-max only) the same press saturates
+  // the wrist: the fake counts it, so the counter the run summary reports is live.
+  fake.reset_force_stats();
+  fake.set_software_torque_limit(-1);
+  {
+    DhdDevice dev(0);
+    dev.start(0);
+    Wrench w;
+    w.torque = {0.45, 0, 0};
+    dev.write(w, 0);
+    EXPECT_EQ(dev.saturated_writes(), 1u);
+    dev.stop(0);
+  }
   fake.defaults();
 }
 

@@ -54,6 +54,7 @@ struct DhdDevice::Api {
   const char* (*get_system_name)(char id);
   int (*get_system_type)(char id);                                  // DHD_DEVICE_*
   double (*get_max_force)(char id);   // N; < 0: no software limit set. Optional (newer SDKs)
+  double (*get_max_torque)(char id);  // N m; < 0: no software limit set. Optional (newer SDKs)
   const char* (*error_last)();
   // 6-DoF (optional: older SDKs and 3-DoF-only builds may lack them).
   bool (*has_active_wrist)(char id);                                // the wrist renders torque
@@ -77,14 +78,15 @@ const DhdDeviceType& dhd_device_type(int system_type) noexcept {
   // Force Dimension's and Novint's rated translational force and translational workspace
   // (a cylinder: diameter x height) per device family; dhdc.h's DHD_DEVICE_* codes.
   static const DhdDeviceType kTypes[] = {
-      {33, "omega.3", 12.0, 0.160, 0.110},        {34, "omega.6", 12.0, 0.160, 0.110},
-      {36, "omega.6 (left)", 12.0, 0.160, 0.110}, {35, "omega.7", 12.0, 0.160, 0.110},
-      {37, "omega.7 (left)", 12.0, 0.160, 0.110}, {63, "delta.3", 20.0, 0.400, 0.260},
-      {64, "delta.6", 20.0, 0.400, 0.260},        {104, "sigma.7", 20.0, 0.190, 0.130},
-      {105, "sigma.7 (left)", 20.0, 0.190, 0.130}, {60, "Novint Falcon", 8.9, 0.1016, 0.1016},
+      {33, "omega.3", 12.0, 0.160, 0.110, 0.0},         {34, "omega.6", 12.0, 0.160, 0.110, 0.0},
+      {36, "omega.6 (left)", 12.0, 0.160, 0.110, 0.0},  {35, "omega.7", 12.0, 0.160, 0.110, 0.0},
+      {37, "omega.7 (left)", 12.0, 0.160, 0.110, 0.0},  {63, "delta.3", 20.0, 0.400, 0.260, 0.0},
+      {64, "delta.6", 20.0, 0.400, 0.260, 0.2},         {104, "sigma.7", 20.0, 0.190, 0.130, 0.2},
+      {105, "sigma.7 (left)", 20.0, 0.190, 0.130, 0.2}, {60, "Novint Falcon", 8.9, 0.1016, 0.1016, 0.0},
   };
-  // An unknown type gets the lowest rating and the smallest workspace of the family.
-  static const DhdDeviceType kUnknown{-1, "unknown DHD device", 8.9, 0.1016, 0.1016};
+  // An unknown type gets the lowest ratings and the smallest workspace of the family (an active
+  // wrist of unknown type: the lowest wrist rating, 0.2 N m).
+  static const DhdDeviceType kUnknown{-1, "unknown DHD device", 8.9, 0.1016, 0.1016, 0.2};
   for (const DhdDeviceType& t : kTypes)
     if (t.system_type == system_type) return t;
   return kUnknown;
@@ -110,6 +112,7 @@ const DhdDevice::Api* load_dhd() {
     a.get_system_name = symbol<decltype(a.get_system_name)>(h, "dhdGetSystemName");
     a.get_system_type = symbol<decltype(a.get_system_type)>(h, "dhdGetSystemType");
     a.get_max_force = symbol<decltype(a.get_max_force)>(h, "dhdGetMaxForce");  // may be null
+    a.get_max_torque = symbol<decltype(a.get_max_torque)>(h, "dhdGetMaxTorque");  // may be null
     a.error_last = symbol<decltype(a.error_last)>(h, "dhdErrorGetLastStr");
     a.has_active_wrist = symbol<decltype(a.has_active_wrist)>(h, "dhdHasActiveWrist");        // may be null
     a.set_force_and_torque = symbol<decltype(a.set_force_and_torque)>(h, "dhdSetForceAndTorque");  // may be null
@@ -183,11 +186,13 @@ void DhdDevice::start(Nanos) {
   const double r = type_.workspace_diameter / 2, hz = type_.workspace_height / 2;
   info_.workspace = Eigen::AlignedBox3d(Eigen::Vector3d(-r, -r, -hz), Eigen::Vector3d(r, r, hz));
   if (const char* name = api_->get_system_name(id_)) info_.name = std::string(name) + " (dhd:" + std::to_string(index_) + ")";
-  // An active wrist (sigma.7, omega.6/7 with the active option: dhdHasActiveWrist) takes
-  // torque through dhdSetForceAndTorque; its rating is not in the type table, so --tau-max
-  // (SafetyParams::tau_max) is the limit and the device's own saturation is counted.
+  // An active wrist (sigma.7, delta.6, omega.6/7 with the active option: dhdHasActiveWrist)
+  // takes torque through dhdSetForceAndTorque, within its own limit (wrist_torque_limit).
   info_.renders_torque = api_->has_active_wrist != nullptr && api_->set_force_and_torque != nullptr &&
                          api_->has_active_wrist(id_);
+  info_.max_torque = std::numeric_limits<double>::infinity();
+  info_.torque_limit_source.clear();
+  if (info_.renders_torque) wrist_torque_limit();
   zero_output();
   // The rate: measured, one tick's I/O (position, velocity, buttons, a zero force) timed 16 times
   // (median), capped at the DHD loop's 8 kHz.
@@ -213,6 +218,22 @@ void DhdDevice::start(Nanos) {
   if (api_->enable_force(kDhdOn, id_) < 0) {
     const std::string err = api_->error_last();
     refuse("dhdEnableForce failed: " + err);
+  }
+}
+
+void DhdDevice::wrist_torque_limit() {
+  // The rating of the type (an active wrist on a type rated 0 or unknown: the family's lowest
+  // wrist rating), lowered by a software limit when one is set (dhdGetMaxTorque > 0).
+  const double lowest = dhd_device_type(-1).rated_torque;
+  info_.max_torque = type_.rated_torque > 0 ? type_.rated_torque : lowest;
+  info_.torque_limit_source = type_.rated_torque > 0 ? "rating of " + type_.name + " (dhdGetSystemType)"
+                                                     : "lowest DHD wrist rating (" + type_.name + " has none)";
+  if (api_->get_max_torque != nullptr) {
+    const double set = api_->get_max_torque(id_);
+    if (set > 0 && set < info_.max_torque) {
+      info_.max_torque = set;
+      info_.torque_limit_source = "dhdGetMaxTorque";
+    }
   }
 }
 

@@ -87,6 +87,7 @@ void MappedDevice::start(Nanos now) {
   info_.limit_source = in.limit_source;
   info_.renders_torque = in.renders_torque;
   info_.max_torque = in.max_torque;
+  info_.torque_limit_source = in.torque_limit_source;
   info_.calibration = in.calibration;
 }
 

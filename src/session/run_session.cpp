@@ -456,7 +456,9 @@ nlohmann::json run_summary_json(const RuntimeSummary& s, const TickLog& log, con
   sj["device_counters"] = dc;
   sj["device_limits"] = {{"max_force_n", std::isfinite(setup.device->info().max_force) ? nlohmann::json(setup.device->info().max_force) : nlohmann::json(nullptr)},
                          {"max_continuous_force_n", std::isfinite(setup.device->info().max_continuous_force) ? nlohmann::json(setup.device->info().max_continuous_force) : nlohmann::json(nullptr)},
-                         {"source", setup.device->info().limit_source}};
+                         {"source", setup.device->info().limit_source},
+                         {"max_torque_nm", std::isfinite(setup.device->info().max_torque) ? nlohmann::json(setup.device->info().max_torque) : nlohmann::json(nullptr)},
+                         {"torque_source", setup.device->info().torque_limit_source}};
   nlohmann::json eps = nlohmann::json::array();
   for (const auto& e : episodes)
     eps.push_back({{"t_start", e.t_start}, {"t_end", e.t_end}, {"peak_contacts", e.peak_contacts},
@@ -487,8 +489,11 @@ void print_run_summary(const RuntimeSummary& s, const RuntimeOptions& o, const S
              "rate-limited {} ticks; peak force {:.2f} N\n", s.watchdog_ticks, s.invalid_pose_ticks,
              s.outside_workspace_ticks, s.force_limited_ticks, s.rate_limited_ticks, s.peak_force);
   if (setup.config.tool.compound.count > 0 || s.peak_torque > 0 || s.torque_dropped_ticks > 0)
-    fmt::print("torque     peak {:.3g} N m after the safety layer (limit {:.3g} N m); {} ticks limited; {} ticks dropped ({})\n",
-               s.peak_torque, s.torque_limit, s.torque_limited_ticks, s.torque_dropped_ticks,
+    fmt::print("torque     peak {:.3g} N m after the safety layer (limit {:.3g} N m{}); {} ticks limited; {} ticks dropped ({})\n",
+               s.peak_torque, s.torque_limit,
+               setup.device->info().torque_limit_source.empty() || !(setup.device->info().max_torque <= s.torque_limit)
+                   ? std::string(" from --tau-max") : ", the device's: " + setup.device->info().torque_limit_source,
+               s.torque_limited_ticks, s.torque_dropped_ticks,
                setup.device->info().renders_torque ? "the device renders torque"
                                                    : "the device renders force only: torque not sent");
   fmt::print("passivity  {}: the controller added damping on {} ticks (peak {:.3g} N s/m); lowest observed "

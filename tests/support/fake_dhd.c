@@ -3,7 +3,9 @@
    Written from the public DHD SDK header (dhdc.h, SDK 3.2 to 3.17): reports two devices of type
    DHD_DEVICE_OMEGA3 (33), no software force limit (dhdGetMaxForce < 0), and saturates a force
    above its motors' capacity (12 N by default), returning DHD_MOTOR_SATURATED (2) from
-   dhdSetForce as the SDK does. Every call is appended to a log the test reads back
+   dhdSetForce as the SDK does. A sigma.7-like wrist (fake_dhd_set_active_wrist) saturates a
+   torque above fake_dhd_set_torque_saturation the same way; dhdGetMaxTorque reports the
+   software torque limit (< 0: none). Every call is appended to a log the test reads back
    (fake_dhd_log), forces are recorded (peak while force is enabled), and the test sets the
    device state (fake_dhd_set_*). Units as the DHD API: metres, newtons. */
 #include <math.h>
@@ -17,8 +19,9 @@ static size_t log_len = 0;
 static double pos[3], vel[3], force[3];
 static int buttons = 0, force_enabled = 0, fail_reads = 0, reset_mode = 0, opened = -1, powered = 1;
 static int system_type = 33;
-static double software_limit = -1, saturation = 12.0, peak_seen = 0, io_delay_us = 0;
+static double software_limit = -1, software_torque_limit = -1, torque_saturation = 1e9, saturation = 12.0, peak_seen = 0, io_delay_us = 0;
 static int active_wrist = 0;
+static double peak_torque_seen = 0;
 static double torque[3], frame[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
 static unsigned long saturated_writes = 0;
 
@@ -51,10 +54,13 @@ void fake_dhd_set_powered(int p) { powered = p; }
 void fake_dhd_set_system_type(int t) { system_type = t; }
 void fake_dhd_set_software_limit(double f) { software_limit = f; }
 void fake_dhd_set_saturation(double f) { saturation = f; }
+void fake_dhd_set_software_torque_limit(double t) { software_torque_limit = t; }
+void fake_dhd_set_torque_saturation(double t) { torque_saturation = t; }
 void fake_dhd_set_io_delay_us(double us) { io_delay_us = us; }
 double fake_dhd_peak_force(void) { return peak_seen; }
+double fake_dhd_peak_torque(void) { return peak_torque_seen; }
 unsigned long fake_dhd_saturated_writes(void) { return saturated_writes; }
-void fake_dhd_reset_force_stats(void) { peak_seen = 0; saturated_writes = 0; }
+void fake_dhd_reset_force_stats(void) { peak_seen = 0; peak_torque_seen = 0; saturated_writes = 0; }
 void fake_dhd_force(double* f) { f[0] = force[0]; f[1] = force[1]; f[2] = force[2]; }
 int fake_dhd_force_enabled(void) { return force_enabled; }
 void fake_dhd_set_active_wrist(int on) { active_wrist = on; }
@@ -125,6 +131,7 @@ int dhdGetStatus(int* status, char id) {
 const char* dhdGetSystemName(char id) { (void)id; return "fake omega.3"; }
 int dhdGetSystemType(char id) { (void)id; return system_type; }
 double dhdGetMaxForce(char id) { (void)id; return software_limit; }
+double dhdGetMaxTorque(char id) { (void)id; return software_torque_limit; }
 const char* dhdErrorGetLastStr(void) { return "no error"; }
 /* 6-DoF: dhdHasActiveWrist, dhdSetForceAndTorque (0 or DHD_MOTOR_SATURATED for the force part,
    as dhdSetForce), dhdGetOrientationFrame (identity on a device without a wrist). */
@@ -132,8 +139,19 @@ bool dhdHasActiveWrist(char id) { (void)id; return active_wrist != 0; }
 int dhdSetForceAndTorque(double fx, double fy, double fz, double tx, double ty, double tz, char id) {
   (void)id;
   if (tx == 0 && ty == 0 && tz == 0 && fx == 0 && fy == 0 && fz == 0) note("dhdSetForceAndTorque(0)");
+  double tm = sqrt(tx * tx + ty * ty + tz * tz);
+  int ret;
+  if (force_enabled && tm > peak_torque_seen) peak_torque_seen = tm;
+  if (tm > torque_saturation) { /* the wrist's motors give what they can */
+    tx *= torque_saturation / tm; ty *= torque_saturation / tm; tz *= torque_saturation / tm;
+  }
   torque[0] = tx; torque[1] = ty; torque[2] = tz;
-  return apply_force(fx, fy, fz);
+  ret = apply_force(fx, fy, fz);
+  if (tm > torque_saturation) {
+    if (ret == 0) saturated_writes++;
+    ret = 2; /* DHD_MOTOR_SATURATED */
+  }
+  return ret;
 }
 int dhdGetOrientationFrame(double m[3][3], char id) {
   int i, j;

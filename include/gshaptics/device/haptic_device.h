@@ -93,6 +93,8 @@ struct DeviceInfo {
   /// Peak torque the device may be commanded, N m; +inf: no limit of its own. The safety layer's
   /// torque limit is min(this, SafetyParams::tau_max).
   double max_torque = std::numeric_limits<double>::infinity();
+  /// Where max_torque comes from (e.g. "dhdGetMaxTorque"), for the run summary; empty: none.
+  std::string torque_limit_source;
   Calibration calibration = Calibration::kNotApplicable;
 };
 

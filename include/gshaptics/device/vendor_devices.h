@@ -59,6 +59,9 @@ struct DhdDeviceType {
   double rated_force = 0;         ///< N
   double workspace_diameter = 0;  ///< m
   double workspace_height = 0;    ///< m
+  /// Rated torque of the active wrist, N m (CHAI3D's device table: delta.6 and sigma.7 0.2);
+  /// 0: the type's rotation is not actuated.
+  double rated_torque = 0;
 };
 /// The type table; an unknown code gets the family's lowest rating and smallest workspace.
 [[nodiscard]] const DhdDeviceType& dhd_device_type(int system_type) noexcept;
@@ -105,6 +108,7 @@ class DhdDevice final : public HapticDevice {
 
  private:
   void zero_output() noexcept;  // zero force (and torque on an active wrist)
+  void wrist_torque_limit();    // DeviceInfo::max_torque of an active wrist (start())
   const Api* api_ = nullptr;
   int index_ = 0;
   char id_ = -1;
