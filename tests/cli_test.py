@@ -230,10 +230,47 @@ class Simulate(unittest.TestCase):
         self.assertIn("query time p50", p.stdout)
         self.assertFalse(any(n.endswith(".tmp") for n in os.listdir(out)))
 
+    def test_the_demo_gives_no_energy_back_under_either_control(self):
+        """Issue 73: `simulate` on the bundled Truck (the demo) with passivity on: no contact
+        episode gives energy back, with the ideal device (impedance) or the simulated robot
+        (admittance, whose log adds the virtual tool and whose sensor reads the hand)."""
+        for control in ("impedance", "admittance"):
+            out = tempfile.mkdtemp()
+            p = run("simulate", "--control", control, "--out", out, "--quiet", "--no-plot")
+            summary = load_json(os.path.join(out, "summary.json"))
+            self.assertEqual(summary["control"]["mode"], control)
+            self.assertGreaterEqual(len(summary["episodes"]), 7, control)
+            worst = min(ep["energy_j"] for ep in summary["episodes"])
+            self.assertGreaterEqual(worst, -1e-5, control)
+            self.assertNotIn("gave energy back", p.stdout)
+            self.assertEqual(summary["sites_touched"], 7, control)
+            with open(os.path.join(out, "probe_log.csv")) as f:
+                header = f.readline().strip().split(",")
+            self.assertEqual("setpoint_x" in header, control == "admittance")
+            if control == "admittance":
+                self.assertEqual(summary["control"]["virtual_mass_kg"], 3.0)
+                self.assertIn("position servo with a force sensor", p.stdout)
+
+    def test_control_must_match_the_device(self):
+        """An impedance-type device refuses admittance control, naming the device."""
+        sim_out = tempfile.mkdtemp()
+        run("simulate", "--sites", "1", "--out", sim_out, "--quiet", "--no-plot")
+        p = run("run", "--device", "replay:" + os.path.join(sim_out, "probe_log.csv"), "--simulated-time",
+                "--control", "admittance", "--quiet", "--no-plot", "--out", tempfile.mkdtemp(), check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("admittance control needs an admittance-type device", p.stderr)
+        self.assertIn("impedance-type", p.stderr)
+        p = run("simulate", "--control", "both", check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--control", p.stderr)
+
     def test_simulate_and_a_replay_of_its_log_command_the_same_force(self):
         """One servo step: `simulate` and `run --device replay:LOG --simulated-time` give the same
-        force tick by tick (within 1 % of the peak) and the same energy W, in both modes."""
-        for mode in (["--inline"], ["--decoupled", "--latency", "2"]):
+        force tick by tick (within 1 % of the peak) and the same energy W, in both modes. The
+        passivity controller's cap is given: by default it is the device's own, and a replay does
+        not know the simulated device's."""
+        for mode in (["--inline", "--passivity-max-damping", "1500"],
+                     ["--decoupled", "--latency", "2", "--passivity-max-damping", "1500"]):
             sim_out, rep_out = tempfile.mkdtemp(), tempfile.mkdtemp()
             run("simulate", "--sites", "2", "--out", sim_out, "--quiet", "--no-plot", *mode)
             summary = load_json(os.path.join(sim_out, "summary.json"))

@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <cmath>
 #include <memory>
 
@@ -55,6 +57,20 @@ TEST(PassivityController, KeepsTheEnergyOfAnActiveEnvironmentNearZero) {
       EXPECT_EQ(acted, 0);
     }
   }
+}
+
+// The cap: the option's, lowered to the device's; the device's alone; else the desktop default.
+TEST(PassivityController, DampingCapTakesTheOptionTheDeviceOrTheDefault) {
+  EXPECT_DOUBLE_EQ(passivity_damping_cap(50, 0), 50);
+  EXPECT_DOUBLE_EQ(passivity_damping_cap(50, 30), 30);
+  EXPECT_DOUBLE_EQ(passivity_damping_cap(50, 1500), 50);
+  EXPECT_DOUBLE_EQ(passivity_damping_cap(0, 1500), 1500);
+  EXPECT_DOUBLE_EQ(passivity_damping_cap(0, 0), kDefaultPassivityMaxDamping);
+  EXPECT_DOUBLE_EQ(passivity_damping_cap(0, std::numeric_limits<double>::infinity()), kDefaultPassivityMaxDamping);
+  PassivityController pc;
+  EXPECT_DOUBLE_EQ(pc.damping_cap(), kDefaultPassivityMaxDamping);
+  pc.set_damping_cap(0);  // ignored
+  EXPECT_DOUBLE_EQ(pc.damping_cap(), kDefaultPassivityMaxDamping);
 }
 
 TEST(PassivityController, LeavesAPassiveSpringAloneAndRespectsItsCap) {
@@ -158,7 +174,9 @@ TEST(PassivityController, InTheServoStepADelayedWallStopsGivingEnergyBack) {
       EXPECT_LT(s.passivity_min_energy, -1e-3);  // observed: the delayed wall was active
     } else {
       EXPECT_GT(s.passivity_ticks, 100u);
-      EXPECT_LE(s.passivity_peak_damping, c.safety.passivity.max_damping);
+      // The cap in force: the option's when given, else the desktop default (a replay gives none).
+      EXPECT_DOUBLE_EQ(s.passivity_damping_cap, mode == 2 ? 1e4 : kDefaultPassivityMaxDamping);
+      EXPECT_LE(s.passivity_peak_damping, s.passivity_damping_cap);
       EXPECT_LE(rec.back().energy, 1e-12);  // released at the end: what is left is a deficit
     }
     if (mode == 2) {

@@ -80,3 +80,65 @@ TEST(SimulatedDevice, WorkspaceCoversTheTrajectoryWithMargin) {
 
 }  // namespace
 }  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+SimulatedDeviceParams robot() {
+  SimulatedDeviceParams p;
+  p.causality = Causality::kAdmittance;
+  return p;
+}
+
+// Admittance causality (issue 73, item 2): a robot under a position servo with a force sensor.
+// It holds the setpoint against the hand (the servo's stiffness: 10 N moves it 50 um), ignores a
+// commanded wrench, and the sensor reads the hand's force on the handle.
+TEST(SimulatedDevice, AnAdmittanceRobotTracksItsSetpointAndItsSensorReadsTheHand) {
+  SimulatedDevice d(straight_line(), robot());
+  EXPECT_TRUE(d.info().admittance);
+  EXPECT_EQ(d.info().max_damping, 0.0);  // the virtual tool's cap applies, not the device's
+  d.start(0);
+  Setpoint sp;
+  sp.position = {0, 0, 0.01};  // 1 cm above the hand's target: the hand pulls down with ~6 N
+  Wrench w;
+  w.force = {0, 0, 100};  // ignored: position-controlled
+  DeviceSample s;
+  for (Nanos t = kMs; t <= 500 * kMs; t += kMs) {
+    d.write_setpoint(sp, t);
+    d.write(w, t);
+    s = d.read(t);
+  }
+  const double hand = -600.0 * s.position.z();  // the hand's spring toward its target (z = 0)
+  EXPECT_NEAR(s.user_force.z(), hand, 0.05);
+  EXPECT_LT(s.user_force.z(), -5.0);
+  // Static balance: k_p (x_sp - x) + F_hand = 0.
+  const double kp = DeviceModelParams{}.position_gain;
+  EXPECT_NEAR(s.position.z(), sp.position.z() + s.user_force.z() / kp, 2e-6);
+  EXPECT_NEAR(s.velocity.norm(), 0.0, 1e-4);
+  // A new setpoint is followed within the servo's bandwidth (tens of ms).
+  sp.position = {0.05, 0, 0.01};
+  for (Nanos t = 501 * kMs; t <= 700 * kMs; t += kMs) {
+    d.write_setpoint(sp, t);
+    s = d.read(t);
+  }
+  EXPECT_NEAR(s.position.x(), 0.05, 1e-3);
+  // A non-finite setpoint is not taken.
+  Setpoint bad;
+  bad.position = {std::nan(""), 0, 0};
+  d.write_setpoint(bad, 700 * kMs);
+  EXPECT_EQ(d.last_setpoint().position, sp.position);
+  // Stop leaves the robot at rest where it is.
+  d.stop(700 * kMs);
+  EXPECT_NEAR((d.last_setpoint().position - s.position).norm(), 0.0, 1e-12);
+  EXPECT_EQ(d.last_setpoint().velocity, Eigen::Vector3d::Zero());
+}
+
+TEST(SimulatedDevice, ImpedanceCausalityGivesItsDampingLimit) {
+  SimulatedDevice d(straight_line());
+  EXPECT_FALSE(d.info().admittance);
+  // Half of m / T: 3 kg over a 1 ms step.
+  EXPECT_DOUBLE_EQ(d.info().max_damping, 1500.0);
+}
+
+}  // namespace
+}  // namespace gshaptics

@@ -162,7 +162,7 @@ TEST(PassivityOnDelayedWall, OscillationGrowsWithoutAndDecaysWith) {
   EXPECT_LT(on.last_amplitude, 0.2 * on.first_amplitude);
   EXPECT_GT(on.min_energy, -0.01);
   EXPECT_GT(on.passivity_ticks, 100u);
-  EXPECT_LE(on.peak_damping, on_config.safety.passivity.max_damping);
+  EXPECT_LE(on.peak_damping, kDefaultPassivityMaxDamping);  // the device model gives no cap of its own
   EXPECT_NEAR(on.mean_depth, 5.0 / k, 2e-4);  // holds the hand's 5 N on the wall's spring
   // The round trip is what makes it work: told there is no delay, the observer pairs each force
   // with the wrong motion, sees a passive wall and the oscillation grows as without it.
@@ -270,6 +270,18 @@ TEST(AdmittanceControl, RefusedOnAnImpedanceDevice) {
   RuntimeConfig c = wall_config(1000, true);
   c.control.mode = ControlMode::kAdmittance;
   EXPECT_THROW((void)run_wall_trial(device, std::make_unique<test::FloorRenderer>(1000), c), InputError);
+}
+
+// And the reverse (issue 73, item 1): an admittance-type device does not apply a commanded force,
+// so impedance control on it is refused, with the option that fixes it named.
+TEST(AdmittanceControl, ImpedanceControlRefusedOnAnAdmittanceDevice) {
+  DeviceModel device(admittance_device());
+  try {
+    (void)run_wall_trial(device, std::make_unique<test::FloorRenderer>(1000), wall_config(1000, true));
+    FAIL() << "impedance control on an admittance-type device was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--control admittance"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

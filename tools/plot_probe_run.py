@@ -6,7 +6,9 @@ Usage: plot_probe_run.py probe_log.csv summary.json out.png
 Rows: (1) broad-phase candidates, pre-filtered and colliding Gaussians; (2) rendered force
 x/y/z in the world frame; (3) force of the (simulated) user's hand; (4) collision-query time;
 and for a real-time run (servo_log.csv of `gshaptics run`) a fifth row: servo tick jitter with
-the ticks that held a stale result or faded marked.
+the ticks that held a stale result or faded marked. Under admittance control (--control
+admittance) the user force row is the force/torque sensor's reading and a last row shows the
+virtual tool (the setpoint commanded) against the device's measured position.
 Vertical lines mark the start of each contact episode (t_a, t_b, ...); for a probe run
 (simulate) the planned sites are marked on the force row: S1, S2, ... (green: touched, red: missed).
 With the proxy (god-object) renderer the first row shows the Gaussians holding the proxy instead
@@ -49,7 +51,9 @@ def main(argv):
     # Compound tools: the torque sent about the tool centre point (a sphere's is zero: no row).
     has_torque = all(c in data.dtype.names for c in ("tx", "ty", "tz")) and bool(
         np.any(np.abs(np.stack([data["tx"], data["ty"], data["tz"]])) > 0))
-    rows = torque_row + (1 if has_torque else 0)
+    admittance = all(c in data.dtype.names for c in ("setpoint_x", "setpoint_y", "setpoint_z"))
+    admittance_row = torque_row + (1 if has_torque else 0)
+    rows = admittance_row + (1 if admittance else 0)
     fig, ax = plt.subplots(rows, 1, figsize=(11, 2.4 * rows + 0.4), sharex=True)
     proxy = summary.get("renderer", "proxy" if has_proxy else "paper") == "proxy"
     ax[0].plot(t, data["candidates"], lw=0.8, label="broad-phase candidates")
@@ -67,7 +71,7 @@ def main(argv):
     ax[1].set_ylabel("rendered force (N)")
     for name, lab in (("user_fx", "x"), ("user_fy", "y"), ("user_fz", "z")):
         ax[2].plot(t, data[name], lw=0.9, label=f"F_user,{lab}")
-    ax[2].set_ylabel("user force (N)")
+    ax[2].set_ylabel("sensor: user force (N)" if admittance else "user force (N)")
     ax[3].plot(t, data["query_us"], lw=0.6, color="tab:purple", label="collision query")
     ax[3].set_yscale("log")
     ax[3].axhline(1000, color="red", ls="--", lw=0.8, label="1 ms servo period")
@@ -123,6 +127,20 @@ def main(argv):
         ax[torque_row].set_ylabel("torque sent (N m)")
         tau = np.sqrt(data["tx"] ** 2 + data["ty"] ** 2 + data["tz"] ** 2)
         ax[torque_row].set_title(f"peak {tau.max():.3f} N m about the tool centre point", fontsize=9, loc="right")
+    if admittance:
+        # Admittance control: the device follows the virtual tool through its position servo; the
+        # row shows both heights (the approach axis is the world's up) and the tracking error.
+        a = ax[admittance_row]
+        a.plot(t, data["setpoint_z"] * 1e3, lw=0.9, color="tab:blue", label="virtual tool (setpoint) z")
+        a.plot(t, data["z"] * 1e3, lw=0.9, ls="--", color="tab:orange", label="device z (measured)")
+        a.set_ylabel("height (mm)")
+        err = np.sqrt((data["setpoint_x"] - data["x"]) ** 2 + (data["setpoint_y"] - data["y"]) ** 2 +
+                      (data["setpoint_z"] - data["z"]) ** 2)
+        twin = a.twinx()
+        twin.plot(t, err * 1e3, lw=0.6, color="tab:red", alpha=0.7, label="tracking error")
+        twin.set_ylabel("tracking error (mm)")
+        a.set_title(f"admittance control: tracking error p99 {np.percentile(err, 99) * 1e3:.3f} mm, "
+                    f"max {err.max() * 1e3:.3f} mm", fontsize=9, loc="right")
     q = summary.get("query_us", {})
     ax[3].set_title(f"p50 {q.get('p50', 0):.1f} us, p99 {q.get('p99', 0):.1f} us, "
                     f"max {q.get('max', 0):.1f} us", fontsize=9, loc="right")

@@ -37,6 +37,7 @@ void register_simulate(CLI::App& app) {
   add_force_options(*cmd, o->force, &o->tool);
   add_execution_options(*cmd, o->exec, /*simulated=*/true);
   add_passivity_option(*cmd, o->safety.passivity);
+  add_control_options(*cmd, o->control);
   cmd->add_flag("--no-plot", o->no_plot, "Do not draw probe_run.png (needs /usr/bin/python3 with matplotlib)");
   cmd->add_flag("--quiet", o->quiet, "No progress bars");
   add_world_options(*cmd, o->scene);

@@ -205,7 +205,29 @@ void add_passivity_option(CLI::App& cmd, PassivityParams& p) {
          "Passivity observer and controller in the servo step (Hannaford & Ryu 2002): damping where the "
          "scene would give back more energy than it took. Default: on")
       ->check(CLI::IsMember({"on", "off"}));
-  cmd.add_option("--passivity-max-damping", p.max_damping, "Cap on the passivity controller's damping, N s/m")
+  cmd.add_option("--passivity-max-damping", p.max_damping,
+                 "Cap on the passivity controller's damping, N s/m (lowered to the device's own when that is lower). "
+                 "Default: what the damped body renders without chattering: the device's own when it gives one "
+                 "(the simulated device: half its mass over the step), the virtual tool's under admittance control, "
+                 "else 20")
+      ->check(check::non_negative());
+}
+
+void add_control_options(CLI::App& cmd, ControlParams& c) {
+  cmd.add_option_function<std::string>(
+         "--control",
+         [&c](const std::string& v) { c.mode = v == "admittance" ? ControlMode::kAdmittance : ControlMode::kImpedance; },
+         "impedance: read the pose, command force (desktop devices). admittance: read the user's force "
+         "at the handle, move a virtual tool under it and the rendered force, command the device to "
+         "follow it (robots with a force/torque sensor, the paper's HapticGiant class; sim becomes a "
+         "robot under a position servo with a force sensor). Each device takes the one its causality "
+         "allows. Default: impedance")
+      ->check(CLI::IsMember({"impedance", "admittance"}));
+  cmd.add_option("--virtual-mass", c.admittance.mass,
+                 "Admittance control: the virtual tool's mass, kg (heavier: steadier, slower to follow the hand)")
+      ->capture_default_str()->check(check::positive());
+  cmd.add_option("--virtual-damping", c.admittance.damping,
+                 "Admittance control: the virtual tool's damping, N s/m (the drag the hand feels in free space)")
       ->capture_default_str()->check(check::non_negative());
 }
 
@@ -259,6 +281,7 @@ void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& de
   cmd.add_option("--device-timeout", o.safety.device_timeout, "Watchdog: zero force when device data is older, s")
       ->capture_default_str()->check(check::positive());
   add_passivity_option(cmd, o.safety.passivity);
+  add_control_options(cmd, o.control);
   cmd.add_option("--continuous-window", o.safety.continuous_window,
                  "Averaging window of the device's continuous-force limit (RMS force, I^2 t), s")
       ->capture_default_str()->check(check::positive());

@@ -39,6 +39,8 @@ void add_tool_option(CLI::App& cmd, ToolOption& tool, const std::string& help);
 
 /// Adds --passivity on|off and --passivity-max-damping (the servo step's passivity controller).
 void add_passivity_option(CLI::App& cmd, PassivityParams& p);
+/// --control impedance|admittance, --virtual-mass, --virtual-damping (servo/admittance.h).
+void add_control_options(CLI::App& cmd, ControlParams& c);
 /// Adds the device, rate, duration, tool, force, safety, real-time, output and world options.
 /// `devices` is the --device help text.
 void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& devices);

@@ -51,10 +51,12 @@ void register_builtin_devices(DeviceRegistry& r) {
   };
   sim.open = [](const std::string&, const DeviceOptions& o) -> std::unique_ptr<HapticDevice> {
     if (o.hand_path == nullptr) throw InputError("--device sim: needs a scene to press (no hand path given)");
-    return std::make_unique<SimulatedDevice>(*o.hand_path);
+    SimulatedDeviceParams p;
+    p.causality = o.causality;
+    return std::make_unique<SimulatedDevice>(*o.hand_path, p);
   };
   sim.probe = [](const DeviceOptions&) {
-    return std::vector<DeviceStatus>{{"sim", true, "simulated admittance device and hand (run, serve, device-sim)"}};
+    return std::vector<DeviceStatus>{{"sim", true, "simulated device and hand, impedance or admittance causality (run, serve, device-sim)"}};
   };
   r.add(std::move(sim));
 

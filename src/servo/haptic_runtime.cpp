@@ -45,6 +45,9 @@ Nanos validate_runtime_config(const RuntimeConfig& config, const DeviceInfo& inf
     const AdmittanceParams& a = config.control.admittance;
     if (!(a.mass > 0) || !std::isfinite(a.mass) || !(a.damping >= 0) || !std::isfinite(a.damping))
       throw InputError("runtime: the virtual tool's mass must be > 0 kg and its damping >= 0 N s/m");
+  } else if (info.admittance) {
+    throw InputError("runtime: '" + info.name + "' is admittance-type (it takes position setpoints and does not "
+                     "apply a commanded force): drive it with admittance control (--control admittance)");
   }
   const Nanos period = to_nanos(1.0 / config.rate_hz);
   if (period <= 0) throw InputError("runtime: rate too high");

@@ -5,8 +5,16 @@
 
 namespace gshaptics {
 
+double passivity_damping_cap(double option, double device) noexcept {
+  const bool has_option = option > 0 && std::isfinite(option), has_device = device > 0 && std::isfinite(device);
+  if (has_option && has_device) return std::min(option, device);
+  if (has_option) return option;
+  if (has_device) return device;
+  return kDefaultPassivityMaxDamping;
+}
+
 PassivityController::PassivityController(const PassivityParams& params)
-    : params_(params), forces_(std::size_t(std::max(0, params.max_delay_ticks)) + 1, Eigen::Vector3d::Zero()) {}
+    : params_(params), cap_(passivity_damping_cap(params.max_damping, 0)), forces_(std::size_t(std::max(0, params.max_delay_ticks)) + 1, Eigen::Vector3d::Zero()) {}
 
 void PassivityController::reset(int delay_ticks) noexcept {
   energy_ = 0;
@@ -39,7 +47,7 @@ PassivityStep PassivityController::correct(const Eigen::Vector3d& force, const E
   double e = energy_ - fv * dt;
   for (int age = 0; age < delay_; ++age) e -= force_sent(age).dot(velocity) * dt;
   if (!(e < 0) || !(v2 > params_.min_speed * params_.min_speed) || !std::isfinite(v2)) return out;
-  double alpha = std::min(-e / (v2 * dt), params_.max_damping);
+  double alpha = std::min(-e / (v2 * dt), cap_);
   // Never pull: while the force pushes along the motion (unloading) the damping may cancel that
   // component at most; a deficit left over is paid back over the next ticks.
   if (fv > 0) alpha = std::min(alpha, fv / v2);

@@ -48,6 +48,7 @@ RuntimeSummary summarize(const RuntimeStats& s, const LatencyHistogram& query, d
   r.torque_limited_ticks = ld(s.torque_limited_ticks);
   r.torque_dropped_ticks = ld(s.torque_dropped_ticks);
   r.torque_limit = s.torque_limit.load(std::memory_order_relaxed);
+  r.passivity_damping_cap = s.passivity_damping_cap.load(std::memory_order_relaxed);
   return r;
 }
 

@@ -46,6 +46,13 @@ void ServoController::start(Nanos now) {
   stats_.force_limit.store(lim.f_max, std::memory_order_relaxed);
   stats_.continuous_force_limit.store(lim.continuous, std::memory_order_relaxed);
   stats_.force_limit_by_device.store(lim.bound_by_device, std::memory_order_relaxed);
+  // The passivity controller's damping cap: what the body it damps renders without chattering
+  // (the device, or under admittance control the virtual tool: semi-implicit Euler on mass m is
+  // stable for b T / m < 2, taken with a factor 4 margin).
+  const double damps = control_.mode == ControlMode::kAdmittance
+                           ? 0.5 * control_.admittance.mass / to_seconds(period_) : info.max_damping;
+  passivity_.set_damping_cap(passivity_damping_cap(safety_.params().passivity.max_damping, damps));
+  stats_.passivity_damping_cap.store(passivity_.damping_cap(), std::memory_order_relaxed);
   virtual_tool_ready_ = false;
   t0_ = now;
   prev_now_ = now;
@@ -226,6 +233,8 @@ void ServoController::record(const TickFacts& t) noexcept {
   r.constraints = result_.constraints;
   r.energy = passivity_.energy();
   r.damping = float(t.damping);
+  r.setpoint = control_.mode == ControlMode::kAdmittance && virtual_tool_ready_ ? admittance_.setpoint().position
+                                                                                : s.position;
   if (log_ != nullptr) log_->push(r);
   if (monitor_ != nullptr) monitor_->write(r);
 }

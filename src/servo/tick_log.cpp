@@ -57,6 +57,9 @@ const Column kColumns[] = {
     GSH_COL("tx", kColumnsTorque, "%.6f", r.torque.x()),
     GSH_COL("ty", kColumnsTorque, "%.6f", r.torque.y()),
     GSH_COL("tz", kColumnsTorque, "%.6f", r.torque.z()),
+    GSH_COL("setpoint_x", kColumnsAdmittance, "%.9f", r.setpoint.x()),
+    GSH_COL("setpoint_y", kColumnsAdmittance, "%.9f", r.setpoint.y()),
+    GSH_COL("setpoint_z", kColumnsAdmittance, "%.9f", r.setpoint.z()),
 };
 
 #undef GSH_COL

@@ -144,6 +144,29 @@ void print_no_contact_hints(const PreparedWorld& w, const SceneOptions& so, doub
                        "usually touches\n", tool_radius, 100 * tool_radius / extent, extent);
 }
 
+std::string describe_control(const ControlParams& c, bool simulated) {
+  if (c.mode == ControlMode::kImpedance)
+    return simulated ? "impedance: the simulated device is an ideal mass-damper, commanded force"
+                     : "impedance: the device is commanded force";
+  return fmt::format("admittance: a virtual tool of {:.3g} kg and {:.3g} N s/m under the user's measured force and the "
+                     "rendered force; the device tracks it{}",
+                     c.admittance.mass, c.admittance.damping,
+                     simulated ? " (the simulated robot: a position servo with a force sensor at the handle)" : "");
+}
+
+nlohmann::json control_json(const ControlParams& c) {
+  nlohmann::json j = {{"mode", control_mode_name(c.mode)}};
+  if (c.mode == ControlMode::kAdmittance) {
+    j["virtual_mass_kg"] = c.admittance.mass;
+    j["virtual_damping_ns_per_m"] = c.admittance.damping;
+  }
+  return j;
+}
+
+unsigned log_columns(unsigned columns, const ControlParams& c) {
+  return c.mode == ControlMode::kAdmittance ? columns | kColumnsAdmittance : columns;
+}
+
 bool plot_run(const std::string& csv, const std::string& summary, const std::string& png,
               const std::string& command) {
   return run_python(find_tool_script("plot_probe_run.py"), {csv, summary, png}, command);
@@ -160,9 +183,11 @@ ProbeSessionResult simulate_probe(const CollisionWorld& world, const SimulateOpt
   rp.safety = o.safety;
   rp.safety.f_max = o.force.f_max;
   rp.tool = o.tool.tool;
+  rp.control = o.control;
   if (report) {
     fmt::print(report, "rate       {:.0f} Hz of simulated time (as fast as the CPU allows), {}\n", o.rate,
                describe_execution(o.exec, true));
+    fmt::print(report, "control    {}\n", describe_control(o.control, /*simulated=*/true));
     if (rp.tool.count > 0)
       fmt::print(report, "tool       {} ({} part{}, held at the world's orientation)\n", o.tool.spec, rp.tool.count,
                  rp.tool.count == 1 ? "" : "s");
@@ -213,6 +238,7 @@ nlohmann::json simulate_summary(const SimulateOptions& o, const SceneOptions& so
   }
   sj["rate_hz"] = o.rate;
   sj["mode"] = describe_execution(o.exec, true);
+  sj["control"] = control_json(o.control);
   sj["renderer"] = std::string(renderer_name(o.force.model));
   sj["ticks"] = run.ticks.size();
   sj["passivity"] = {{"enabled", o.safety.passivity.enabled}, {"ticks", pc.ticks},
@@ -308,7 +334,7 @@ int run_simulate(SimulateOptions o) {
   const std::string summary_path = stage.path("summary.json");
   std::vector<std::string> write_errors;  // the run is done: report a lost output, keep going
   try {
-    write_tick_log_csv(csv, run.ticks, kProbeLogColumns);
+    write_tick_log_csv(csv, run.ticks, log_columns(kProbeLogColumns, o.control));
   } catch (const std::exception& e) {
     write_errors.push_back(e.what());
   }

@@ -79,6 +79,7 @@ nlohmann::json to_json(const RuntimeSummary& s) {
           {"torque_limited_ticks", s.torque_limited_ticks},
           {"torque_dropped_ticks", s.torque_dropped_ticks},
           {"torque_limit_nm", s.torque_limit},
+          {"passivity_damping_cap", s.passivity_damping_cap},
           {"force_limit_n", s.force_limit},
           {"force_limit_bound_by", s.force_limit_by_device ? "device" : "option"},
           {"continuous_force_limit_n", std::isfinite(s.continuous_force_limit) ? nlohmann::json(s.continuous_force_limit)
@@ -254,6 +255,7 @@ void open_scene_device(const RuntimeOptions& o, const SceneOptions& so, const Pr
     if (s.first_site < 0 || site.t_touch < s.first_site) s.first_site = site.t_touch;
   DeviceOptions d;
   d.hand_path = &traj;
+  d.causality = o.control.mode == ControlMode::kAdmittance ? Causality::kAdmittance : Causality::kImpedance;
   s.device = device_registry().open(o.device, d);
 }
 
@@ -346,6 +348,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
   fmt::print("runtime    {} at {:.0f} Hz, {} query, {}\n", s.device->info().name, o.rate,
              describe_execution(o.exec, false),
              s.planned > 0 ? fmt::format("{:.1f} s", s.planned) : std::string("until the device ends or Ctrl-C"));
+  fmt::print("control    {}\n", describe_control(o.control, o.device == "sim"));
   std::fflush(stdout);
   return s;
 }
@@ -361,6 +364,7 @@ RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, d
   rc.renderer = o.force.spec();
   rc.safety = o.safety;
   rc.safety.f_max = o.force.f_max;
+  rc.control = o.control;
   rc.realtime = o.realtime;
   rc.realtime.worker_priority = std::max(0, o.realtime.servo_priority - 10);
   rc.realtime.pin_threads = !o.no_pin;
@@ -434,6 +438,7 @@ nlohmann::json run_summary_json(const RuntimeSummary& s, const TickLog& log, con
   sj["gaussians_kept"] = pw.world.size();
   sj["device"] = setup.device->info().name;
   sj["mode"] = o.exec.inline_query ? "inline" : "decoupled";
+  sj["control"] = control_json(o.control);
   sj["renderer"] = std::string(renderer_name(setup.config.renderer));
   sj["tool_radius"] = setup.tool_radius;
   if (setup.config.tool.compound.count > 0) {
@@ -496,9 +501,9 @@ void print_run_summary(const RuntimeSummary& s, const RuntimeOptions& o, const S
                s.torque_limited_ticks, s.torque_dropped_ticks,
                setup.device->info().renders_torque ? "the device renders torque"
                                                    : "the device renders force only: torque not sent");
-  fmt::print("passivity  {}: the controller added damping on {} ticks (peak {:.3g} N s/m); lowest observed "
-             "energy {:.3g} mJ\n", o.safety.passivity.enabled ? "on" : "off (observed only)", s.passivity_ticks,
-             s.passivity_peak_damping, s.passivity_min_energy * 1e3);
+  fmt::print("passivity  {}: the controller added damping on {} ticks (peak {:.3g} N s/m, cap {:.3g}); lowest "
+             "observed energy {:.3g} mJ\n", o.safety.passivity.enabled ? "on" : "off (observed only)", s.passivity_ticks,
+             s.passivity_peak_damping, s.passivity_damping_cap, s.passivity_min_energy * 1e3);
   const DeviceInfo& di = setup.device->info();
   fmt::print("limit      {:.3g} N, bound by {}{}{}\n", s.force_limit,
              s.force_limit_by_device ? fmt::format("the device ({}; --f-max {:.3g} N)", di.limit_source, o.force.f_max)
@@ -529,7 +534,7 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
                    const RuntimeSetup& setup, bool interrupted, const std::string& command,
                    const nlohmann::json& extra) {
   const auto& records = log.records();
-  const std::vector<ContactEpisode> episodes = find_episodes(records);
+  const std::vector<ContactEpisode> episodes = find_episodes(records, 0.1, o.control.mode == ControlMode::kAdmittance);
 
   const std::string out_dir = o.out_dir.empty() ? default_out_dir(so.scene) : o.out_dir;
   OutputStage stage(out_dir, {"servo_log.csv", "run_summary.json", "run.png"});
@@ -546,7 +551,7 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
       write_errors.push_back(e.what());
     }
   };
-  attempt([&] { write_tick_log_csv(csv, records, kServoLogColumns); });
+  attempt([&] { write_tick_log_csv(csv, records, log_columns(kServoLogColumns, o.control)); });
 
   nlohmann::json sj = run_summary_json(s, log, warnings, o, so, pw, setup, interrupted, episodes);
   for (const auto& [k, v] : extra.items()) sj[k] = v;

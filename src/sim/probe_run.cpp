@@ -21,6 +21,7 @@ ProbeRunResult run_probe(const CollisionWorld& world, const ProbeTrajectory& tra
   dp.user = params.user;
   dp.loop = false;  // one pass, then rest
   dp.max_step = 1.0 / params.rate_hz;
+  dp.causality = params.control.mode == ControlMode::kAdmittance ? Causality::kAdmittance : Causality::kImpedance;
   SimulatedDevice device(trajectory, dp);
   RuntimeConfig c;
   c.rate_hz = params.rate_hz;
@@ -36,17 +37,18 @@ ProbeRunResult run_probe(const CollisionWorld& world, const ProbeTrajectory& tra
   c.renderer = params.renderer;
   c.query = params.query;
   c.safety = params.safety;
+  c.control = params.control;
   SimulatedRuntime rt(world, device, c);
   rt.run(progress);
 
   ProbeRunResult out;
   out.ticks = rt.log().records();
-  out.episodes = find_episodes(out.ticks);
+  out.episodes = find_episodes(out.ticks, 0.1, params.control.mode == ControlMode::kAdmittance);
   out.query_time = query_time_stats(out.ticks);
   return out;
 }
 
-std::vector<ContactEpisode> find_episodes(const std::vector<TickRecord>& ticks, double merge_gap_s) {
+std::vector<ContactEpisode> find_episodes(const std::vector<TickRecord>& ticks, double merge_gap_s, bool admittance) {
   std::vector<ContactEpisode> episodes;
   bool open = false;
   double last_contact_t = -1e300;
@@ -59,7 +61,12 @@ std::vector<ContactEpisode> find_episodes(const std::vector<TickRecord>& ticks, 
     }
     ContactEpisode& e = episodes.back();
     e.t_end = r.time;
-    if (k + 1 < ticks.size()) e.energy_j -= r.force.dot(ticks[k + 1].position - r.position);
+    // The force of tick k moves the device from x_k to x_k+1; under admittance control it moves
+    // the virtual tool, whose setpoint the tick writes after the step (x_k+1 is logged at k).
+    if (admittance)
+      e.energy_j -= r.force.dot(r.setpoint - (k > 0 ? ticks[k - 1].setpoint : r.setpoint));
+    else if (k + 1 < ticks.size())
+      e.energy_j -= r.force.dot(ticks[k + 1].position - r.position);
     e.peak_contacts = std::max(e.peak_contacts, r.counts.contacts);
     const double fm = r.force.norm();
     if (fm > e.peak_force) {

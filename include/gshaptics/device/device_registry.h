@@ -21,6 +21,7 @@
 #include <string_view>
 #include <vector>
 
+#include "gshaptics/device/device_model.h"
 #include "gshaptics/device/hand_trajectory.h"
 #include "gshaptics/device/haptic_device.h"
 
@@ -35,6 +36,9 @@ struct DeviceOptions {
   /// sim: the path the simulated hand follows (the session makes it from the loaded scene; not
   /// owned, copied by the factory). Null for a kind that needs no scene.
   const ProbeTrajectory* hand_path = nullptr;
+  /// sim: the simulated device's causality (--control): the ideal mass-damper (impedance) or the
+  /// robot under a position servo with a force sensor (admittance; simulated_device.h).
+  Causality causality = Causality::kImpedance;
 };
 
 /// One row of list_devices(): a device (or a kind with none found) and whether it can be used.

@@ -76,6 +76,9 @@ struct DeviceInfo {
   double max_continuous_force = std::numeric_limits<double>::infinity();
   /// Highest stable stiffness the vendor gives, N/m; 0: not given.
   double max_stiffness = 0;
+  /// Highest damping the device renders without chattering, N s/m; 0: not given. The passivity
+  /// controller's cap (servo/passivity.h, passivity_damping_cap).
+  double max_damping = 0;
   /// Where max_force and max_continuous_force come from (e.g. "HD_NOMINAL_MAX_FORCE"), for the
   /// run summary; empty: no limit of its own.
   std::string limit_source;

@@ -74,7 +74,13 @@ struct StabilityOptions {
   /// on the shaded normal's tilt; it also pulls back a little as the tool sinks)
   double hand_stiffness = 100.0;
   double proxy_damping = 1.0;   ///< the coupling's damping B, N s/m (ProxyParams::damping)
-  PassivityParams passivity;    ///< the controller's settings when on
+  /// The controller's settings when on; the cap is the desktop default on every row (impedance and
+  /// admittance alike), so the rows compare control schemes under the same controller.
+  PassivityParams passivity = [] {
+    PassivityParams p;
+    p.max_damping = kDefaultPassivityMaxDamping;
+    return p;
+  }();
   WallTrialOptions trial;
   std::uint64_t seed = 1;
 

@@ -86,7 +86,7 @@ struct RuntimeConfig {
 
 /// Checks `config` against `device` (rate within its limit, tool axes > 0, duration >= 0,
 /// latency_ticks >= 1, admittance control only on an admittance-type device with a virtual
-/// tool of positive mass) and returns the servo period, ns. Throws InputError naming the setting.
+/// tool of positive mass, and an admittance-type device only under admittance control) and returns the servo period, ns. Throws InputError naming the setting.
 /// HapticRuntime and SimulatedRuntime both call it.
 Nanos validate_runtime_config(const RuntimeConfig& config, const DeviceInfo& device);
 

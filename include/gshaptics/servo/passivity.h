@@ -15,7 +15,8 @@
 /// Controller (impedance causality): when the coming tick would leave E < 0 (predicted with the
 /// device velocity v: E' = E - F . v dt), the force gets a damping term -alpha v with
 /// alpha = -E' / (|v|^2 dt),
-/// capped at `max_damping` (what the device renders without chattering) and applied only above
+/// capped at what the device renders without chattering (passivity_damping_cap: the device's own
+/// DeviceInfo::max_damping, else 20 N s/m; under admittance control the virtual tool's) and applied only above
 /// `min_speed` (below it no damping dissipates anything). Two rules keep it from being felt where
 /// it should not be: it never acts on a zero force (free space stays free), and while the force
 /// pushes along the motion it may cancel that component at most, never reverse it (the hand is
@@ -46,10 +47,15 @@
 
 namespace gshaptics {
 
+/// The damping cap when neither the option nor the device gives one, N s/m: what desktop devices
+/// render without chattering (CHAI3D's device table: 20-40 N s/m).
+inline constexpr double kDefaultPassivityMaxDamping = 20;
+
 /// Parameters of the passivity observer and controller. SI units.
 struct PassivityParams {
   bool enabled = true;       ///< observe and control (false: observe only)
-  double max_damping = 20;   ///< cap on the controller's damping, N s/m (>= 0)
+  /// Cap on the controller's damping, N s/m (>= 0); 0: the device's own (passivity_damping_cap).
+  double max_damping = 0;
   double min_speed = 1e-4;   ///< below this device speed the controller does not act, m/s
   /// Longest round trip the observer can pair across, ticks (sizes its force history).
   int max_delay_ticks = 1000;
@@ -60,6 +66,13 @@ struct PassivityStep {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< the force with the damping term, N
   double damping = 0;  ///< alpha applied, N s/m (0: none)
 };
+
+/// The damping cap in force, N s/m: the option's when given (> 0), lowered to the device's own when
+/// that is lower; the device's when only it gives one (> 0); else kDefaultPassivityMaxDamping.
+/// A stiff, heavy device (the simulated ideal device, an admittance virtual tool) renders far more
+/// damping than a desktop device: with the desktop cap a release at speed there gives energy back
+/// (15 N released at 0.1 m/s needs 150 N s/m; the Truck's probe run, issue 73 item 6).
+[[nodiscard]] double passivity_damping_cap(double option, double device) noexcept;
 
 class PassivityController {
  public:
@@ -82,12 +95,16 @@ class PassivityController {
   /// The observed energy, J (< 0: the environment has been active).
   [[nodiscard]] double energy() const noexcept { return energy_; }
   [[nodiscard]] const PassivityParams& params() const noexcept { return params_; }
+  /// Sets the damping cap, N s/m (> 0; at start, once the device is known: passivity_damping_cap).
+  void set_damping_cap(double cap) noexcept { if (cap > 0) cap_ = cap; }
+  [[nodiscard]] double damping_cap() const noexcept { return cap_; }
   [[nodiscard]] int delay_ticks() const noexcept { return delay_; }
 
  private:
   // The force sent `age` ticks ago (0: the newest).
   [[nodiscard]] const Eigen::Vector3d& force_sent(int age) const noexcept;
   PassivityParams params_;
+  double cap_ = kDefaultPassivityMaxDamping;
   double energy_ = 0;
   bool have_position_ = false;
   int delay_ = 0;

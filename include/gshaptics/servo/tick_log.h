@@ -34,6 +34,9 @@ struct TickRecord {
   std::uint8_t constraints = 0;                     ///< its constraint planes (0..3)
   double energy = 0;   ///< passivity observer: energy into the environment so far, J (servo/passivity.h)
   float damping = 0;   ///< passivity controller's damping this tick, N s/m
+  /// Admittance control: the setpoint commanded to the device, m (the virtual tool's position,
+  /// servo/admittance.h); the device's position under impedance control.
+  Eigen::Vector3d setpoint = Eigen::Vector3d::Zero();
 };
 
 /// Column groups of the tick log. Each column is declared once (tick_log.cpp) with its group;
@@ -47,6 +50,7 @@ enum TickColumns : unsigned {
   kColumnsProxy = 1u << 5,    ///< proxy_x, proxy_y, proxy_z, constraints
   kColumnsPassivity = 1u << 6,  ///< energy_j, pc_damping
   kColumnsTorque = 1u << 7,     ///< tx, ty, tz: torque sent about the TCP, N m (compound tools)
+  kColumnsAdmittance = 1u << 8, ///< setpoint_x, setpoint_y, setpoint_z: the virtual tool, m (admittance control)
 };
 /// The probe run's log (`simulate`, probe_log.csv): the paper's Fig. 5 quantities.
 inline constexpr unsigned kProbeLogColumns =

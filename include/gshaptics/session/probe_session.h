@@ -13,6 +13,8 @@
 #include <string_view>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/force/force_model.h"
 #include "gshaptics/force/renderer_spec.h"
@@ -71,6 +73,14 @@ struct ExecutionOptions {
 std::string describe_execution(const ExecutionOptions& o, bool simulated);
 
 
+/// "impedance: ..." or "admittance: virtual tool M kg, B N s/m, ..." for the printed header;
+/// `simulated`: the device is the simulated one (says which causality it has).
+std::string describe_control(const ControlParams& c, bool simulated);
+/// The control scheme for summaries: {"mode", "virtual_mass_kg", "virtual_damping_ns_per_m"}.
+nlohmann::json control_json(const ControlParams& c);
+/// A log's columns under `c`: admittance control adds the setpoint (kColumnsAdmittance).
+unsigned log_columns(unsigned columns, const ControlParams& c);
+
 /// Warns when the world is larger than the --device-profile's workspace, with the --reg-scale
 /// that fits it.
 void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o);
@@ -107,6 +117,8 @@ struct SimulateOptions {
   ForceModelOptions force;
   ExecutionOptions exec;
   SafetyParams safety;
+  /// --control: the simulated device's causality and the servo step's control scheme.
+  ControlParams control;
   bool no_plot = false;
   bool quiet = false;
 };

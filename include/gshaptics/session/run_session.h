@@ -55,6 +55,9 @@ struct RuntimeOptions {
   ToolOption tool;
   ForceModelOptions force;
   SafetyParams safety;
+  /// --control, --virtual-mass, --virtual-damping: impedance (command force) or admittance
+  /// control (command the virtual tool's position; servo/admittance.h).
+  ControlParams control;
   RealtimeOptions realtime;
   bool no_pin = false;
   double spin_us = 0;

@@ -16,6 +16,7 @@
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_model.h"
 #include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/servo/admittance.h"
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/servo/safety.h"
 #include "gshaptics/servo/tick_log.h"
@@ -56,6 +57,11 @@ struct ProbeRunParams {
   /// first); the simulated device renders force only, so the safety layer drops the torque
   /// (TickRecord::flags has kFlagTorqueDropped on those ticks).
   CompoundTool tool;
+  /// Impedance: the ideal mass-damper device, commanded force. Admittance (issue 73): the
+  /// simulated robot under a position servo with a force sensor (SimulatedDeviceParams), driven
+  /// through the virtual tool (servo/admittance.h); TickRecord::user_force is the sensor's
+  /// reading and TickRecord::setpoint the virtual tool.
+  ControlParams control;
 };
 
 struct ProbeRunResult {
@@ -77,9 +83,11 @@ using RunProgressFn = std::function<void(double)>;
                                        const RunProgressFn& progress = {});
 
 /// Groups ticks with contacts into episodes, bridging gaps shorter than `merge_gap_s`; `ticks`
-/// in time order (each tick's displacement to the next one counts toward its episode's energy).
+/// in time order (each tick's displacement to the next one counts toward its episode's energy:
+/// the device's, or under admittance control (`admittance`) the virtual tool's, TickRecord::setpoint,
+/// the body the rendered force acts on).
 [[nodiscard]] std::vector<ContactEpisode> find_episodes(const std::vector<TickRecord>& ticks,
-                                                        double merge_gap_s = 0.1);
+                                                        double merge_gap_s = 0.1, bool admittance = false);
 
 /// "" when no episode gave energy back; else "; N gave energy back, the worst W = X mJ" (for
 /// the commands' printed summaries).
