@@ -335,3 +335,198 @@ TEST_F(ServoTick, TorqueGoesToTorqueDevicesAndIsCountedWhereDropped) {
 
 }  // namespace
 }  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+/// An admittance-type device (a robot with a force sensor at its handle) whose sample and sensor
+/// reading the test sets; it records every setpoint written and can stall.
+class ScriptedRobot final : public HapticDevice {
+ public:
+  ScriptedRobot() {
+    info_.name = "scripted robot";
+    info_.admittance = true;
+    info_.workspace = Eigen::AlignedBox3d(Eigen::Vector3d(-0.5, -0.5, 0.05), Eigen::Vector3d(0.5, 0.5, 1.0));
+    info_.force_sensor_range = 100;
+  }
+  const DeviceInfo& info() const noexcept override { return info_; }
+  void start(Nanos) override {}
+  DeviceSample read(Nanos now) noexcept override {
+    if (!stalled) {
+      ++sample.sequence;
+      sample.stamp = now;
+    }
+    return sample;
+  }
+  void write(const Wrench&, Nanos) noexcept override {}
+  void write_setpoint(const Setpoint& s, Nanos) noexcept override {
+    setpoint = s;
+    ++setpoints;
+  }
+  void stop(Nanos) noexcept override { stopped = true; }
+
+  DeviceSample sample;
+  bool stalled = false, stopped = false;
+  Setpoint setpoint;
+  int setpoints = 0;
+
+ private:
+  DeviceInfo info_;
+};
+
+/// The servo step driving ScriptedRobot under admittance control, far above the floor (free
+/// space), tick by tick on a ManualClock.
+class RobotTick : public ::testing::Test {
+ protected:
+  void SetUp() override { make(RobotSafetyParams{}); }
+  void make(const RobotSafetyParams& robot) {
+    control_.mode = ControlMode::kAdmittance;
+    control_.robot = robot;
+    tool_.semi_axes = Eigen::Vector3d::Constant(0.02);
+    worker_ = std::make_unique<CollisionWorker>(floor_world(), tool_, ForceParams{}, QueryOptions{}, 1e-3, clock_);
+    robot_.sample.position = {0, 0, 0.5};
+    servo_ = std::make_unique<ServoController>(robot_, SafetyParams{}, kMs, poses_, results_, stats_, &log_, clock_,
+                                               nullptr, control_);
+    servo_->start(clock_.now());
+  }
+  const TickRecord& tick() {
+    clock_.advance(kMs);
+    servo_->tick(clock_.now(), worker_.get());
+    // The robot follows its setpoint exactly (an ideal position servo).
+    robot_.sample.position = robot_.setpoint.position;
+    robot_.sample.velocity = robot_.setpoint.velocity;
+    return log_.records().back();
+  }
+  void ticks(int n) {
+    for (int k = 0; k < n; ++k) tick();
+  }
+
+  ManualClock clock_{5 * kNanosPerSecond};
+  ScriptedRobot robot_;
+  ControlParams control_;
+  PoseChannel poses_;
+  ResultChannel results_;
+  RuntimeStats stats_;
+  TickLog log_{20000};
+  ToolShape tool_;
+  std::unique_ptr<CollisionWorker> worker_;
+  std::unique_ptr<ServoController> servo_;
+};
+
+// Issue 73, item 4: the setpoint's acceleration, speed and workspace are limited in the step.
+TEST_F(RobotTick, SetpointKeepsToTheRobotsAccelerationSpeedAndWorkspace) {
+  const RobotSafetyParams lim;
+  ticks(int(lim.tare_time * 1000) + 2);  // the tare: the virtual tool holds still
+  EXPECT_EQ(robot_.setpoint.velocity, Eigen::Vector3d::Zero());
+  robot_.sample.user_force = {90, 0, 0};  // 30 m/s^2 on the 3 kg virtual tool
+  Eigen::Vector3d v_prev = robot_.setpoint.velocity;
+  bool limited = false;
+  for (int k = 0; k < 3000; ++k) {
+    const TickRecord& r = tick();
+    const Eigen::Vector3d v = robot_.setpoint.velocity;
+    ASSERT_LE((v - v_prev).norm(), lim.max_acceleration * 1e-3 * (1 + 1e-9)) << k << " v " << v.transpose() << " prev " << v_prev.transpose() << " x " << robot_.setpoint.position.transpose();
+    ASSERT_LE(v.norm(), lim.max_speed * (1 + 1e-9)) << k;
+    ASSERT_TRUE(robot_.info().workspace.contains(robot_.setpoint.position)) << k;
+    limited |= (r.flags & kFlagSetpointLimited) != 0;
+    v_prev = v;
+  }
+  EXPECT_TRUE(limited);
+  // Pushed against the workspace's wall at x = 0.5: held there, not moving out.
+  EXPECT_DOUBLE_EQ(robot_.setpoint.position.x(), 0.5);
+  EXPECT_EQ(robot_.setpoint.velocity.x(), 0.0);
+  EXPECT_GT(servo_->safety().params().f_max, 0.0);
+  EXPECT_GT(stats_.setpoint_limited_ticks.load(), 100u);
+}
+
+// A stale device holds the setpoint still: the virtual tool brakes to rest within the watchdog
+// time plus speed / deceleration, and setpoints keep coming.
+TEST_F(RobotTick, AStaleDeviceBringsTheRobotToRestWithinTheWatchdogAndTheBrakingTime) {
+  ticks(110);
+  robot_.sample.user_force = {0, 12, 0};
+  ticks(300);  // toward 12 N / 20 N s/m = 0.6 m/s
+  const double v0 = robot_.setpoint.velocity.norm();
+  ASSERT_GT(v0, 0.3);
+  robot_.stalled = true;
+  const RobotSafetyParams lim;
+  const double bound = SafetyParams{}.device_timeout + v0 / lim.max_acceleration + 2e-3;
+  const int written = robot_.setpoints;
+  int k = 0;
+  while (!robot_.setpoint.velocity.isZero(0) && k < 5000) {
+    const TickRecord& r = tick();
+    if (robot_.setpoint.velocity.norm() < v0 * 0.999) EXPECT_NE(r.flags & kFlagBraking, 0u) << k;
+    ++k;
+  }
+  EXPECT_LE(k * 1e-3, bound);
+  EXPECT_GE(k * 1e-3, v0 / lim.max_acceleration - 1e-3);  // no faster than the deceleration limit
+  EXPECT_EQ(robot_.setpoints - written, k);  // a setpoint every tick
+  const Eigen::Vector3d rest = robot_.setpoint.position;
+  ticks(50);  // held still while stale
+  EXPECT_EQ(robot_.setpoint.position, rest);
+  // Fresh data again: the virtual tool moves on from where it rests (not from a reset).
+  robot_.stalled = false;
+  robot_.sample.user_force.setZero();
+  ticks(5);
+  EXPECT_NEAR((robot_.setpoint.position - rest).norm(), 0.0, 1e-12);
+}
+
+// The sensor is tared at start (a bias of the sensor does not move the robot), readings within
+// the dead band do nothing, and a reading at the sensor's range stops the run with the robot at rest.
+TEST_F(RobotTick, TareDeadBandAndASaturatedSensorStopsTheRunAtRest) {
+  robot_.sample.user_force = {1.5, -0.7, 2.0};  // the sensor's bias, nobody holding the handle
+  ticks(400);
+  EXPECT_NEAR((robot_.setpoint.position - Eigen::Vector3d(0, 0, 0.5)).norm(), 0.0, 1e-12);
+  robot_.sample.user_force += Eigen::Vector3d(0.2, 0, 0);  // within the 0.3 N dead band
+  ticks(200);
+  EXPECT_NEAR((robot_.setpoint.position - Eigen::Vector3d(0, 0, 0.5)).norm(), 0.0, 1e-12);
+  robot_.sample.user_force += Eigen::Vector3d(3.0, 0, 0);  // a push: the robot moves along +x
+  ticks(200);
+  EXPECT_GT(robot_.setpoint.position.x(), 0.01);
+  EXPECT_NEAR(robot_.setpoint.position.y(), 0.0, 1e-12);
+  EXPECT_FALSE(servo_->faulted());
+  // Saturated: the run is to stop, the virtual tool brakes, and the run ends at rest.
+  robot_.sample.user_force = {0, 0, 99.5};
+  const TickRecord& r = tick();
+  EXPECT_NE(r.flags & kFlagSensorSaturated, 0u);
+  EXPECT_TRUE(servo_->faulted());
+  servo_->request_stop();
+  int k = 0;
+  while (!servo_->force_released() && k < 5000) tick(), ++k;
+  EXPECT_TRUE(servo_->force_released());
+  servo_->finish(clock_.now());
+  EXPECT_TRUE(robot_.stopped);
+  EXPECT_EQ(robot_.setpoint.velocity, Eigen::Vector3d::Zero());
+  EXPECT_GT(stats_.sensor_saturated_ticks.load(), 0u);
+}
+
+// Every run ends with the robot at rest: a stop request brakes the moving virtual tool first.
+TEST_F(RobotTick, AStopWhileMovingBrakesToRestBeforeTheRunEnds) {
+  ticks(110);
+  robot_.sample.user_force = {0, 0, 9};
+  ticks(200);
+  ASSERT_GT(robot_.setpoint.velocity.norm(), 0.2);
+  servo_->request_stop();
+  EXPECT_FALSE(servo_->force_released());
+  int k = 0;
+  while (!servo_->force_released() && k < 5000) tick(), ++k;
+  EXPECT_GT(k, 10);
+  EXPECT_EQ(robot_.setpoint.velocity, Eigen::Vector3d::Zero());
+  const Eigen::Vector3d at = robot_.setpoint.position;
+  servo_->finish(clock_.now());
+  EXPECT_EQ(robot_.setpoint.position, at);
+  EXPECT_EQ(robot_.setpoint.velocity, Eigen::Vector3d::Zero());
+}
+
+// Admittance ticks allocate nothing either (the sensor, the limits, the braking).
+TEST_F(RobotTick, AdmittanceTicksAllocateNothing) {
+  ticks(20);
+  const std::size_t before = test::allocation_count();
+  for (int k = 0; k < 600; ++k) {
+    robot_.sample.user_force = {k % 7 == 0 ? 120.0 : 4.0, 1, 0};
+    robot_.stalled = k % 97 == 50;
+    tick();
+  }
+  EXPECT_EQ(test::allocation_count() - before, 0u);
+}
+
+}  // namespace
+}  // namespace gshaptics

@@ -208,7 +208,10 @@ TEST(AdmittanceController, VirtualToolIsAMassDamper) {
   AdmittanceParams p;
   p.mass = 2.0;
   p.damping = 4.0;
-  AdmittanceController a(p);
+  RobotSafetyParams free;  // limits far above this test's motion
+  free.max_speed = 10;
+  free.max_acceleration = 100;
+  AdmittanceController a(p, free);
   a.reset(Eigen::Vector3d(1, 2, 3));
   for (int k = 0; k < 5000; ++k) (void)a.step(Eigen::Vector3d(2, 0, 0), Eigen::Vector3d(0, 0, -1), 1e-3);
   EXPECT_NEAR(a.setpoint().velocity.x(), 0.5, 1e-4);   // F / b, after 10 time constants m / b
@@ -238,6 +241,7 @@ WallTrialResult admittance_trial(double k, DeviceModel& device) {
   c.control.mode = ControlMode::kAdmittance;
   c.control.admittance.mass = 1.0;
   c.control.admittance.damping = 20.0;
+  c.control.robot.tare_time = 0;  // the hand pushes from the first tick: nothing to tare
   return run_wall_trial(device, std::make_unique<test::FloorRenderer>(k), c);
 }
 

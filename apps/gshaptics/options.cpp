@@ -229,6 +229,21 @@ void add_control_options(CLI::App& cmd, ControlParams& c) {
   cmd.add_option("--virtual-damping", c.admittance.damping,
                  "Admittance control: the virtual tool's damping, N s/m (the drag the hand feels in free space)")
       ->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--robot-max-speed", c.robot.max_speed,
+                 "Admittance control: the setpoint's speed limit, m/s (a room-scale device; an arm guided by "
+                 "hand at reduced speed: 0.25)")
+      ->capture_default_str()->check(check::positive());
+  cmd.add_option("--robot-max-acceleration", c.robot.max_acceleration,
+                 "Admittance control: the setpoint's acceleration and braking limit, m/s^2 (a stale device or a "
+                 "stop brakes the robot to rest at it)")
+      ->capture_default_str()->check(check::positive());
+  cmd.add_option("--sensor-tare", c.robot.tare_time,
+                 "Admittance control: the force sensor is tared over this long at start, s, while the robot "
+                 "holds still (do not touch the handle); 0: no tare")
+      ->capture_default_str()->check(check::range(0.0, 10.0));
+  cmd.add_option("--sensor-dead-band", c.robot.dead_band,
+                 "Admittance control: sensor readings at or below this magnitude (after the tare) are zero, N")
+      ->capture_default_str()->check(check::non_negative());
 }
 
 void add_runtime_options(CLI::App& cmd, RuntimeOptions& o, const std::string& devices) {

@@ -19,6 +19,7 @@ SimulatedDevice::SimulatedDevice(ProbeTrajectory trajectory, const SimulatedDevi
   info_.name = admittance ? "sim (admittance robot with a force sensor + simulated hand)"
                           : "sim (ideal mass-damper device + simulated hand)";
   info_.admittance = admittance;
+  if (admittance) info_.force_sensor_range = params.sensor_range;
   // The ideal device takes damping up to b T / m < 2 per step (semi-implicit Euler with the force
   // held); the passivity controller may use a quarter of that.
   if (!admittance) info_.max_damping = 0.5 * params.device.mass / params.max_step;
@@ -81,7 +82,9 @@ DeviceSample SimulatedDevice::read(Nanos now) noexcept {
   s.stamp = now;
   s.position = device_.state().position;
   s.velocity = device_.state().velocity;
-  s.user_force = user_force_;
+  s.user_force = params_.causality == Causality::kAdmittance
+                     ? user_force_.cwiseMax(-params_.sensor_range).cwiseMin(params_.sensor_range).eval()
+                     : user_force_;
   return s;
 }
 

@@ -1,19 +1,127 @@
 #include "gshaptics/servo/admittance.h"
 
+#include <algorithm>
+#include <cmath>
+
 namespace gshaptics {
 
 const char* control_mode_name(ControlMode mode) noexcept {
   return mode == ControlMode::kAdmittance ? "admittance" : "impedance";
 }
 
+void ForceSensorFilter::reset(Nanos now, double range) noexcept {
+  range_ = range > 0 ? range : std::numeric_limits<double>::infinity();
+  tare_end_ = now + to_nanos(std::max(0.0, params_.tare_time));
+  sum_.setZero();
+  tare_.setZero();
+  count_ = 0;
+  taring_ = params_.tare_time > 0;
+  saturated_ = false;
+}
+
+Eigen::Vector3d ForceSensorFilter::apply(const Eigen::Vector3d& raw, Nanos now) noexcept {
+  if (!raw.allFinite()) return Eigen::Vector3d::Zero();
+  if (std::isfinite(range_) && raw.cwiseAbs().maxCoeff() >= 0.99 * range_) saturated_ = true;
+  if (taring_) {
+    if (now < tare_end_) {
+      sum_ += raw;
+      ++count_;
+      return Eigen::Vector3d::Zero();
+    }
+    taring_ = false;
+    if (count_ > 0) tare_ = sum_ / double(count_);
+  }
+  // A dead band, not a shrink: above it the hand's whole force counts, so a wall's reaction
+  // equals the push.
+  const Eigen::Vector3d f = raw - tare_;
+  return f.norm() > params_.dead_band ? f : Eigen::Vector3d::Zero();
+}
+
+namespace {
+
+// The highest speed from which braking by u = a dt per tick (each speed held one tick: v, v - u,
+// ..., down to the last one below u, then 0) covers at most d in ticks of dt: with n = floor(v/u)
+// the distance is dt ((n+1) v - u n (n+1) / 2), monotone in v; solved for v with n found from
+// the continuous answer and corrected by whole steps.
+double braking_speed(double d, double u, double dt) noexcept {
+  if (!(d > 0)) return 0;
+  const double guess = std::sqrt(u * u / 4 + 2 * (u / dt) * d) - u / 2;
+  long n = long(guess / u);
+  for (int k = 0; k < 8; ++k) {
+    const double v = d / (dt * double(n + 1)) + u * double(n) / 2;
+    if (v < u * double(n) && n > 0)
+      --n;
+    else if (v >= u * double(n + 1))
+      ++n;
+    else
+      return v;
+  }
+  return guess;
+}
+
+}  // namespace
+
 const Setpoint& AdmittanceController::step(const Eigen::Vector3d& user_force,
                                            const Eigen::Vector3d& environment_force, double dt) noexcept {
+  limited_ = false;
   if (!(dt > 0)) return setpoint_;
   Eigen::Vector3d f = Eigen::Vector3d::Zero();
   if (user_force.allFinite()) f += user_force;
   if (environment_force.allFinite()) f += environment_force;
+  const Eigen::Vector3d v0 = setpoint_.velocity;
+  setpoint_.velocity += (dt / params_.mass) * (f - params_.damping * v0);
+  limit(v0, dt);
+  setpoint_.position += dt * setpoint_.velocity;
+  // The workspace: the setpoint stays in the box, and does not keep pushing out of it.
+  for (int i = 0; i < 3; ++i) {
+    const double lo = workspace_.min()[i], hi = workspace_.max()[i];
+    double& x = setpoint_.position[i];
+    double& v = setpoint_.velocity[i];
+    if (x < lo || x > hi) {
+      x = std::clamp(x, lo, hi);
+      v = 0;
+      limited_ = true;
+    }
+  }
+  return setpoint_;
+}
+
+void AdmittanceController::limit(const Eigen::Vector3d& v0, double dt) noexcept {
   Eigen::Vector3d& v = setpoint_.velocity;
-  v += (dt / params_.mass) * (f - params_.damping * v);
+  // Toward a wall of the workspace no faster than braking at the limit stops at the wall
+  // (braking_speed of the distance left along each axis).
+  const double adt = limits_.max_acceleration * dt;
+  for (int i = 0; i < 3; ++i) {
+    const double d = v[i] > 0 ? workspace_.max()[i] - setpoint_.position[i]
+                              : setpoint_.position[i] - workspace_.min()[i];
+    const double cap = braking_speed(d, adt, dt);
+    if (std::abs(v[i]) > cap) {
+      v[i] = std::copysign(cap, v[i]);
+      limited_ = true;
+    }
+  }
+  const Eigen::Vector3d dv = v - v0;
+  const double dv_max = limits_.max_acceleration * dt;
+  if (dv.norm() > dv_max) {
+    v = v0 + dv * (dv_max / dv.norm());
+    limited_ = true;
+  }
+  const double speed = v.norm();
+  if (speed > limits_.max_speed) {
+    v *= limits_.max_speed / speed;
+    limited_ = true;
+  }
+}
+
+const Setpoint& AdmittanceController::brake(double dt) noexcept {
+  limited_ = false;
+  if (!(dt > 0)) return setpoint_;
+  Eigen::Vector3d& v = setpoint_.velocity;
+  const double speed = v.norm(), dv = limits_.max_acceleration * dt;
+  if (speed <= dv)
+    v.setZero();
+  else
+    v *= (speed - dv) / speed;
   setpoint_.position += dt * v;
   return setpoint_;
 }

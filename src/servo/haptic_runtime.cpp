@@ -27,6 +27,12 @@ std::size_t runtime_log_capacity(const RuntimeConfig& c) {
   return std::size_t(std::ceil(seconds * c.rate_hz));
 }
 
+Nanos stop_ramp_limit(const RuntimeConfig& c) {
+  double s = c.stop_timeout;
+  if (c.control.mode == ControlMode::kAdmittance) s += c.control.robot.max_speed / c.control.robot.max_acceleration;
+  return to_nanos(s);
+}
+
 Nanos validate_runtime_config(const RuntimeConfig& config, const DeviceInfo& info) {
   if (!(config.rate_hz > 0) || !std::isfinite(config.rate_hz))
     throw InputError("runtime: rate_hz must be a positive number of Hz");
@@ -45,6 +51,11 @@ Nanos validate_runtime_config(const RuntimeConfig& config, const DeviceInfo& inf
     const AdmittanceParams& a = config.control.admittance;
     if (!(a.mass > 0) || !std::isfinite(a.mass) || !(a.damping >= 0) || !std::isfinite(a.damping))
       throw InputError("runtime: the virtual tool's mass must be > 0 kg and its damping >= 0 N s/m");
+    const RobotSafetyParams& r = config.control.robot;
+    if (!(r.max_speed > 0) || !(r.max_acceleration > 0) || !std::isfinite(r.max_speed + r.max_acceleration) ||
+        !(r.tare_time >= 0) || !(r.tare_time <= 10) || !(r.dead_band >= 0) || !std::isfinite(r.dead_band))
+      throw InputError("runtime: the robot's speed and acceleration limits must be > 0, its tare time in [0, 10] s "
+                       "and its dead band >= 0 N");
   } else if (info.admittance) {
     throw InputError("runtime: '" + info.name + "' is admittance-type (it takes position setpoints and does not "
                      "apply a commanded force): drive it with admittance control (--control admittance)");
@@ -172,7 +183,7 @@ void HapticRuntime::servo_main() {
   CollisionWorker* inline_worker = config_.inline_query ? worker_.get() : nullptr;
   const Nanos t0 = servo_->start_time();
   const Nanos end_at = config_.duration > 0 ? t0 + to_nanos(config_.duration) : INT64_MAX;
-  const Nanos stop_timeout = to_nanos(config_.stop_timeout);
+  const Nanos stop_timeout = stop_ramp_limit(config_);
   Nanos stop_at = -1;
   Nanos deadline = t0;
   const Nanos spin = to_nanos(config_.realtime.spin_s);
@@ -190,7 +201,8 @@ void HapticRuntime::servo_main() {
       pose_signal_.notify_one();
     }
     if (stop_at < 0 &&
-        (stop_requested_.load(std::memory_order_relaxed) || deadline >= end_at || device_.finished())) {
+        (stop_requested_.load(std::memory_order_relaxed) || deadline >= end_at || device_.finished() ||
+         servo_->faulted())) {
       servo_->request_stop();
       stop_at = deadline;
     }

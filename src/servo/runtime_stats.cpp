@@ -49,6 +49,9 @@ RuntimeSummary summarize(const RuntimeStats& s, const LatencyHistogram& query, d
   r.torque_dropped_ticks = ld(s.torque_dropped_ticks);
   r.torque_limit = s.torque_limit.load(std::memory_order_relaxed);
   r.passivity_damping_cap = s.passivity_damping_cap.load(std::memory_order_relaxed);
+  r.setpoint_limited_ticks = ld(s.setpoint_limited_ticks);
+  r.braking_ticks = ld(s.braking_ticks);
+  r.sensor_saturated_ticks = ld(s.sensor_saturated_ticks);
   return r;
 }
 

@@ -26,7 +26,7 @@ ServoController::ServoController(HapticDevice& device, const SafetyParams& safet
                                  const ControlParams& control)
     : device_(device), safety_(safety), period_(period), poses_(poses), results_(results),
       stats_(stats), log_(log), clock_(clock), monitor_(monitor), passivity_(safety.passivity),
-      control_(control), admittance_(control.admittance) {}
+      control_(control), admittance_(control.admittance, control.robot), sensor_(control.robot) {}
 
 void ServoController::start(Nanos now) {
   device_.start(now);
@@ -54,6 +54,9 @@ void ServoController::start(Nanos now) {
   passivity_.set_damping_cap(passivity_damping_cap(safety_.params().passivity.max_damping, damps));
   stats_.passivity_damping_cap.store(passivity_.damping_cap(), std::memory_order_relaxed);
   virtual_tool_ready_ = false;
+  faulted_ = false;
+  admittance_.set_workspace(info.workspace);
+  sensor_.reset(now, info.force_sensor_range);
   t0_ = now;
   prev_now_ = now;
   last_device_data_ = now;
@@ -88,17 +91,16 @@ std::uint32_t ServoController::gate_device(const DeviceSample& s, Nanos now) noe
 
 void ServoController::tool_state(const DeviceSample& s, std::uint32_t device_flags, Eigen::Vector3d& position,
                                  Eigen::Vector3d& velocity) noexcept {
-  // In admittance control the virtual tool starts at the device and restarts there after any
-  // gate failure.
+  // In admittance control the virtual tool starts at rest at the device's first good sample; from
+  // then on it is the robot's setpoint, braked to rest (not reset) while the device is stale.
   position = s.position;
   velocity = s.velocity;
   if (control_.mode != ControlMode::kAdmittance) return;
-  if (device_flags != 0) {
-    virtual_tool_ready_ = false;
-    return;
+  if (!virtual_tool_ready_) {
+    if (device_flags != 0) return;
+    admittance_.reset(s.position);
+    virtual_tool_ready_ = true;
   }
-  if (!virtual_tool_ready_) admittance_.reset(s.position);
-  virtual_tool_ready_ = true;
   position = admittance_.setpoint().position;
   velocity = admittance_.setpoint().velocity;
 }
@@ -152,10 +154,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   const SafetyOutput& out = t.out;
   passivity_.sent(out.force);
 
-  // Admittance control: the user's force and the rendered force move the virtual tool; the device
-  // is commanded to be where it is.
-  if (control_.mode == ControlMode::kAdmittance && virtual_tool_ready_)
-    device_.write_setpoint(admittance_.step(s.user_force, out.force, dt), now);
+  const std::uint32_t robot_flags = drive_setpoint(s, device_flags, out.force, now, dt);
   Wrench w;
   w.force = out.force;
   const bool renders_torque = device_.info().renders_torque;
@@ -169,13 +168,35 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   t.sample = &s;
   t.torque_sent = w.torque;
   t.damping = pc.damping;
-  t.flags = out.flags | (pc.damping > 0 ? kFlagPassivity : 0u) | (t.torque_dropped ? kFlagTorqueDropped : 0u);
+  t.flags = out.flags | robot_flags | (pc.damping > 0 ? kFlagPassivity : 0u) |
+            (t.torque_dropped ? kFlagTorqueDropped : 0u);
   t.fresh = fresh;
   t.have_result = in.have_result;
   t.result_age = in.result_age;
   count(t);
   if (log_ != nullptr || monitor_ != nullptr) record(t);
   return t.end;
+}
+
+std::uint32_t ServoController::drive_setpoint(const DeviceSample& s, std::uint32_t device_flags,
+                                              const Eigen::Vector3d& force, Nanos now, double dt) noexcept {
+  if (control_.mode != ControlMode::kAdmittance || !virtual_tool_ready_) return 0;
+  std::uint32_t flags = 0;
+  // The sensor's reading is fresh only when the device's sample is.
+  Eigen::Vector3d user = Eigen::Vector3d::Zero();
+  if (device_flags == 0) user = sensor_.apply(s.user_force, now);
+  if (sensor_.saturated()) {
+    faulted_ = true;  // a saturated sensor no longer measures the hand: stop the run
+    flags |= kFlagSensorSaturated;
+  }
+  if (sensor_.taring()) flags |= kFlagTaring;
+  // The user's force and the rendered force move the virtual tool within the robot's limits; a
+  // stale device, a stop, a fault or the tare hold it or brake it to rest.
+  const bool hold = device_flags != 0 || stopping_ || faulted_ || sensor_.taring();
+  if (hold && !admittance_.at_rest()) flags |= kFlagBraking;
+  device_.write_setpoint(hold ? admittance_.brake(dt) : admittance_.step(user, force, dt), now);
+  if (admittance_.limited()) flags |= kFlagSetpointLimited;
+  return flags;
 }
 
 void ServoController::count(const TickFacts& t) noexcept {
@@ -199,6 +220,9 @@ void ServoController::count(const TickFacts& t) noexcept {
   bump(stats_.passivity_ticks, (f & kFlagPassivity) != 0);
   bump(stats_.torque_limited_ticks, (f & kFlagTorqueLimited) != 0);
   bump(stats_.torque_dropped_ticks, t.torque_dropped);
+  bump(stats_.setpoint_limited_ticks, (f & kFlagSetpointLimited) != 0);
+  bump(stats_.braking_ticks, (f & kFlagBraking) != 0);
+  bump(stats_.sensor_saturated_ticks, (f & kFlagSensorSaturated) != 0);
   max_store(stats_.peak_torque, t.out.torque.norm());
   max_store(stats_.passivity_peak_damping, t.damping);
   if (passivity_.energy() < stats_.passivity_min_energy.load(std::memory_order_relaxed))
@@ -240,6 +264,12 @@ void ServoController::record(const TickFacts& t) noexcept {
 }
 
 void ServoController::finish(Nanos now) noexcept {
+  // A robot is left at rest where its virtual tool is (braked there by the stop ramp).
+  if (control_.mode == ControlMode::kAdmittance && virtual_tool_ready_) {
+    Setpoint rest;
+    rest.position = admittance_.setpoint().position;
+    device_.write_setpoint(rest, now);
+  }
   device_.write(Wrench{}, now);
   device_.stop(now);
   stats_.last_force.store(0.0, std::memory_order_relaxed);

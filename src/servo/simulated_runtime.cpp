@@ -32,7 +32,7 @@ void SimulatedRuntime::run(const SimulatedProgressFn& progress) {
   servo_->start(clock_.now());
   const Nanos t0 = servo_->start_time();
   const Nanos end_at = config_.duration > 0 ? t0 + to_nanos(config_.duration) : INT64_MAX;
-  const Nanos stop_timeout = to_nanos(config_.stop_timeout);
+  const Nanos stop_timeout = stop_ramp_limit(config_);
   // A run with no duration ends when the device does; bound it all the same (one day).
   const Nanos hard_end = t0 + to_nanos(86400.0);
   const std::size_t lat = std::size_t(config_.latency_ticks), slots = lat + 1;
@@ -56,7 +56,8 @@ void SimulatedRuntime::run(const SimulatedProgressFn& progress) {
       const std::size_t slot = std::size_t((k + lat) % slots);
       if (worker_->step(poses_, staged_)) (void)staged_.read_if_new(in_flight_[slot]);
     }
-    if (stop_at < 0 && (stop_requested_ || deadline >= end_at || device_.finished() || deadline >= hard_end)) {
+    if (stop_at < 0 &&
+        (stop_requested_ || deadline >= end_at || device_.finished() || deadline >= hard_end || servo_->faulted())) {
       servo_->request_stop();
       stop_at = deadline;
     }

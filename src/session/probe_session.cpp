@@ -149,8 +149,10 @@ std::string describe_control(const ControlParams& c, bool simulated) {
     return simulated ? "impedance: the simulated device is an ideal mass-damper, commanded force"
                      : "impedance: the device is commanded force";
   return fmt::format("admittance: a virtual tool of {:.3g} kg and {:.3g} N s/m under the user's measured force and the "
-                     "rendered force; the device tracks it{}",
-                     c.admittance.mass, c.admittance.damping,
+                     "rendered force, within {:.3g} m/s and {:.3g} m/s^2 (sensor tared over {:.3g} s, dead band {:.3g} N); "
+                     "the device tracks it{}",
+                     c.admittance.mass, c.admittance.damping, c.robot.max_speed, c.robot.max_acceleration,
+                     c.robot.tare_time, c.robot.dead_band,
                      simulated ? " (the simulated robot: a position servo with a force sensor at the handle)" : "");
 }
 
@@ -159,6 +161,10 @@ nlohmann::json control_json(const ControlParams& c) {
   if (c.mode == ControlMode::kAdmittance) {
     j["virtual_mass_kg"] = c.admittance.mass;
     j["virtual_damping_ns_per_m"] = c.admittance.damping;
+    j["max_speed_m_per_s"] = c.robot.max_speed;
+    j["max_acceleration_m_per_s2"] = c.robot.max_acceleration;
+    j["sensor_tare_s"] = c.robot.tare_time;
+    j["sensor_dead_band_n"] = c.robot.dead_band;
   }
   return j;
 }

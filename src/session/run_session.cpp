@@ -80,6 +80,9 @@ nlohmann::json to_json(const RuntimeSummary& s) {
           {"torque_dropped_ticks", s.torque_dropped_ticks},
           {"torque_limit_nm", s.torque_limit},
           {"passivity_damping_cap", s.passivity_damping_cap},
+          {"setpoint_limited_ticks", s.setpoint_limited_ticks},
+          {"braking_ticks", s.braking_ticks},
+          {"sensor_saturated_ticks", s.sensor_saturated_ticks},
           {"force_limit_n", s.force_limit},
           {"force_limit_bound_by", s.force_limit_by_device ? "device" : "option"},
           {"continuous_force_limit_n", std::isfinite(s.continuous_force_limit) ? nlohmann::json(s.continuous_force_limit)
@@ -516,6 +519,10 @@ void print_run_summary(const RuntimeSummary& s, const RuntimeOptions& o, const S
              s.continuous_limited_ticks > 0
                  ? fmt::format(": the continuous limit held the force down for {} ticks", s.continuous_limited_ticks)
                  : std::string());
+  if (o.control.mode == ControlMode::kAdmittance)
+    fmt::print("robot      setpoint held to the robot's limits on {} ticks; braked to rest on {} ticks; force sensor "
+               "saturated on {} ticks{}\n", s.setpoint_limited_ticks, s.braking_ticks, s.sensor_saturated_ticks,
+               s.sensor_saturated_ticks > 0 ? " (the run was stopped)" : "");
   for (const DeviceCounter& c : device_counters)
     if (c.count > 0) fmt::print("device     {}: {}\n", c.name, c.count);
   fmt::print("episodes   {} contact episodes{}\n", episodes.size(), active_episodes_note(episodes));

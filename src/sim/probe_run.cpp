@@ -82,7 +82,7 @@ std::string active_episodes_note(const std::vector<ContactEpisode>& episodes) {
   int active = 0;
   double worst = 0;
   for (const ContactEpisode& e : episodes)
-    if (e.energy_j < 0) ++active, worst = std::min(worst, e.energy_j);
+    if (e.energy_j < -kEnergyTolerance) ++active, worst = std::min(worst, e.energy_j);
   if (active == 0) return {};
   char note[96];
   std::snprintf(note, sizeof note, "; %d gave energy back, the worst W = %.2f mJ", active, worst * 1e3);

@@ -90,6 +90,9 @@ struct DeviceInfo {
   /// position setpoints (HapticDevice::write_setpoint), like the paper's HapticGiant. Such a device
   /// can be driven with RuntimeConfig::control = kAdmittance.
   bool admittance = false;
+  /// Admittance-type: the force sensor's range, N per axis; a reading at it is a saturated sensor
+  /// and stops the run. +inf: none known.
+  double force_sensor_range = std::numeric_limits<double>::infinity();
   /// The device renders torque (6-DoF output). When false the runtime sends force only and
   /// counts the ticks whose torque it dropped (RuntimeStats::torque_dropped_ticks).
   bool renders_torque = false;

@@ -35,6 +35,9 @@ struct SimulatedDeviceParams {
   double position_gain = DeviceModelParams{}.position_gain;
   double velocity_gain = DeviceModelParams{}.velocity_gain;
   double servo_substep = 1e-4;
+  /// Admittance causality: the force sensor's range, N per axis (DeviceInfo::force_sensor_range);
+  /// a reading is clipped to it, as a saturated sensor's is.
+  double sensor_range = 200;
 };
 
 /// Simulated device + user. Time zero of the trajectory is the `now` given to start().

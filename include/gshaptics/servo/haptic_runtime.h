@@ -90,6 +90,11 @@ struct RuntimeConfig {
 /// HapticRuntime and SimulatedRuntime both call it.
 Nanos validate_runtime_config(const RuntimeConfig& config, const DeviceInfo& device);
 
+/// The longest stop ramp of a run, ns: config.stop_timeout, plus under admittance control the time
+/// the virtual tool takes to brake from the speed limit (max_speed / max_acceleration), so the
+/// robot comes to rest before the run ends.
+Nanos stop_ramp_limit(const RuntimeConfig& config);
+
 /// The log capacity a run reserves: config.log_capacity, or duration * rate + 1 s worth when a
 /// duration is set, else 10 minutes' worth.
 std::size_t runtime_log_capacity(const RuntimeConfig& config);

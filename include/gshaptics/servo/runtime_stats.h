@@ -42,6 +42,9 @@ struct RuntimeStats {
   std::atomic<std::uint64_t> torque_dropped_ticks{0};
   std::atomic<double> torque_limit{0};            ///< torque limit in force, N m (set at start)
   std::atomic<double> passivity_damping_cap{0};   ///< the passivity controller's cap, N s/m (set at start)
+  std::atomic<std::uint64_t> setpoint_limited_ticks{0};  ///< kFlagSetpointLimited
+  std::atomic<std::uint64_t> braking_ticks{0};           ///< kFlagBraking
+  std::atomic<std::uint64_t> sensor_saturated_ticks{0};  ///< kFlagSensorSaturated
   std::atomic<std::int64_t> start_ns{0}, last_tick_ns{0};
   LatencyHistogram jitter;      ///< wake-up time minus scheduled time, ns
   LatencyHistogram tick_time;   ///< work inside one tick (wake to device write), ns
@@ -72,6 +75,9 @@ struct RuntimeSummary {
   std::uint64_t torque_dropped_ticks = 0;  ///< torque not sent: the device renders force only
   double torque_limit = 0;  ///< min(SafetyParams::tau_max, the device's max_torque), N m
   double passivity_damping_cap = 0;  ///< the passivity controller's damping cap, N s/m (passivity_damping_cap)
+  /// Admittance control: ticks whose setpoint a robot limit held (speed, acceleration, workspace),
+  /// ticks the virtual tool braked to rest, ticks the force sensor read its range (the run stops).
+  std::uint64_t setpoint_limited_ticks = 0, braking_ticks = 0, sensor_saturated_ticks = 0;
   double force_limit = 0;  ///< peak limit applied: min(configured F_max, device's peak force), N
   double continuous_force_limit = 0;  ///< the device's continuous force, N (+inf: none)
   bool force_limit_by_device = false;  ///< the device's own limit bound (it is below F_max)

@@ -76,6 +76,11 @@ enum SafetyFlag : std::uint32_t {
   kFlagPassivity = 1u << 12,    ///< the passivity controller added damping (servo/passivity.h)
   kFlagTorqueLimited = 1u << 13,  ///< torque clipped to the torque limit or its rate
   kFlagTorqueDropped = 1u << 14,  ///< torque asked of a device that renders force only: not sent
+  // Admittance control (servo/admittance.h):
+  kFlagSetpointLimited = 1u << 15,  ///< the setpoint held to the robot's speed, acceleration or workspace
+  kFlagBraking = 1u << 16,          ///< the virtual tool brakes to rest (stale device, stop, fault)
+  kFlagSensorSaturated = 1u << 17,  ///< the force sensor read its range: the run stops
+  kFlagTaring = 1u << 18,           ///< the force sensor is being tared: the virtual tool holds still
 };
 
 /// What the safety layer knows at one tick.

@@ -44,10 +44,14 @@ class ServoController {
   Nanos tick(Nanos scheduled, CollisionWorker* inline_worker = nullptr) noexcept;
   /// Begins the shutdown: later ticks ramp the force to zero through the rate limit.
   void request_stop() noexcept { stopping_ = true; }
-  /// True after a stop request once the force sent is zero.
+  /// True after a stop request once the force sent is zero (and, under admittance control, the
+  /// virtual tool the robot follows is at rest).
   [[nodiscard]] bool force_released() const noexcept {
-    return stopping_ && safety_.last_force().squaredNorm() == 0.0;
+    return stopping_ && safety_.last_force().squaredNorm() == 0.0 &&
+           (control_.mode != ControlMode::kAdmittance || !virtual_tool_ready_ || admittance_.at_rest());
   }
+  /// A fault that ends the run (the force sensor saturated): the runtime stops as on a request.
+  [[nodiscard]] bool faulted() const noexcept { return faulted_; }
   /// Commands an exact zero wrench and stops the device (the last call of a run).
   void finish(Nanos now) noexcept;
 
@@ -74,6 +78,10 @@ class ServoController {
   // The tool the force model sees: the device's, or in admittance control the virtual tool.
   void tool_state(const DeviceSample& s, std::uint32_t device_flags, Eigen::Vector3d& position,
                   Eigen::Vector3d& velocity) noexcept;
+  // Admittance control: the virtual tool's tick (sensor, limits, braking) and its setpoint to the
+  // device; returns the tick's kFlagSetpointLimited / kFlagBraking / kFlagSensorSaturated / kFlagTaring.
+  std::uint32_t drive_setpoint(const DeviceSample& s, std::uint32_t device_flags, const Eigen::Vector3d& force,
+                               Nanos now, double dt) noexcept;
   // The runtime's statistics for one tick.
   void count(const TickFacts& t) noexcept;
   // The tick's record to the log and the monitor.
@@ -90,7 +98,8 @@ class ServoController {
   PassivityController passivity_;
   ControlParams control_;
   AdmittanceController admittance_;
-  bool virtual_tool_ready_ = false;
+  ForceSensorFilter sensor_;
+  bool virtual_tool_ready_ = false, faulted_ = false;
   Nanos t0_ = 0, prev_now_ = 0, last_device_data_ = 0;
   std::uint64_t last_device_seq_ = 0, pose_seq_ = 0;
   bool have_device_data_ = false, stopping_ = false, was_fading_ = false;

@@ -89,7 +89,11 @@ using RunProgressFn = std::function<void(double)>;
 [[nodiscard]] std::vector<ContactEpisode> find_episodes(const std::vector<TickRecord>& ticks,
                                                         double merge_gap_s = 0.1, bool admittance = false);
 
-/// "" when no episode gave energy back; else "; N gave energy back, the worst W = X mJ" (for
+/// What an episode's energy W may fall below zero by and still count as passive, J: what the
+/// passivity observer's one-tick prediction can miss (a microjoule is 20 N over 50 nm).
+inline constexpr double kEnergyTolerance = 1e-6;
+
+/// "" when no episode gave energy back (W < -kEnergyTolerance); else "; N gave energy back, the worst W = X mJ" (for
 /// the commands' printed summaries).
 [[nodiscard]] std::string active_episodes_note(const std::vector<ContactEpisode>& episodes);
 
