@@ -46,6 +46,8 @@ namespace {
 double braking_speed(double d, double u, double dt) noexcept {
   if (!(d > 0)) return 0;
   const double guess = std::sqrt(u * u / 4 + 2 * (u / dt) * d) - u / 2;
+  // Far from the wall (or an unbounded box) the tick count does not fit, and does not matter.
+  if (!(guess < 1e6 * u)) return guess;
   long n = long(guess / u);
   for (int k = 0; k < 8; ++k) {
     const double v = d / (dt * double(n + 1)) + u * double(n) / 2;
