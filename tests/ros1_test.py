@@ -184,6 +184,30 @@ class Ros1Node(unittest.TestCase):
                     n.send_signal(signal.SIGINT)
                     n.communicate(timeout=60)
 
+    def test_second_node_of_a_name_replaces_the_first(self):
+        """Issue 73, item 7: a second node under a name the first holds makes the master shut the
+        first down; the first must not re-register as it goes (roscpp's first log line subscribes a
+        cached parameter, ros/ros_comm#2018), or the master shuts the new one down too and no node
+        of that name is left."""
+        first, _ = self.start_node(tempfile.mkdtemp(), "--node-name", "twin")
+        second = None
+        try:
+            second, _ = self.start_node(tempfile.mkdtemp(), "--node-name", "twin")
+            _, err = first.communicate(timeout=60)
+            self.assertEqual(first.returncode, 0, err)
+            self.assertIn("the ROS master shut this node down", err)
+            time.sleep(5.0)  # the first node's exit has had time to reach the master
+            self.assertIsNone(second.poll(), "the second node was shut down too: " +
+                              (second.stderr.read() if second.poll() is not None else ""))
+            nodes = subprocess.run(["rosnode", "list"], env=self.env, capture_output=True, text=True,
+                                   timeout=30).stdout.split()
+            self.assertIn("/twin", nodes)
+        finally:
+            for n in (first, second):
+                if n is not None and n.poll() is None:
+                    n.send_signal(signal.SIGINT)
+                    n.communicate(timeout=60)
+
 
 if __name__ == "__main__":
     if shutil.which("roscore") is None or shutil.which("rostopic") is None:

@@ -98,6 +98,70 @@ class TwoProcesses(unittest.TestCase):
         self.assertGreater(node["ros2"]["markers_published"], 10)
 
 
+
+class AdmittanceTwoProcesses(unittest.TestCase):
+    """Issue 73: the paper's own kind of device over ROS 2. device-sim is a robot under a position
+    servo with a force sensor at its handle; the node reads the sensor and writes the robot's
+    setpoint (the virtual tool) at the servo rate. The node's run ends first: the robot must be
+    left at rest while the hand still pulls on it."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = tempfile.mkdtemp()
+        domain = str(200 + os.getpid() % 30)
+        common = ["--ros2", "--domain", domain, "--reliable", "--depth", "64", "--control", "admittance"]
+        cls.node = subprocess.Popen(
+            [EXE, "node", *common, "--duration", "12", "--quiet", "--no-plot", "--out", os.path.join(cls.dir, "node")],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        line = ""
+        while "ready" not in line:
+            line = cls.node.stdout.readline()
+            if line == "":
+                raise AssertionError("gshaptics node ended before it was ready: " + cls.node.stderr.read())
+        cls.dev = subprocess.run(
+            [EXE, "device-sim", *common, "--sites", "1", "--duration", "16", "--quiet",
+             "--out", os.path.join(cls.dir, "dev")], capture_output=True, text=True, timeout=300)
+        cls.node_out, cls.node_err = cls.node.communicate(timeout=60)
+        with open(os.path.join(cls.dir, "dev", "device_log.csv")) as f:
+            cls.rows = list(csv.DictReader(f))
+
+    def test_processes_exit_cleanly(self):
+        self.assertEqual(self.dev.returncode, 0, self.dev.stderr)
+        self.assertEqual(self.node.returncode, 0, self.node_err)
+
+    def test_setpoints_flow_and_the_sensor_is_read(self):
+        dev = load_json(os.path.join(self.dir, "dev", "device_summary.json"))
+        node = load_json(os.path.join(self.dir, "node", "run_summary.json"))
+        self.assertEqual(dev["control"], "admittance")
+        self.assertEqual(node["control"]["mode"], "admittance")
+        self.assertGreater(dev["setpoints_received"], 5000)
+        sensor = max(sum(float(r[c]) ** 2 for c in ("user_fx", "user_fy", "user_fz")) ** 0.5 for r in self.rows)
+        self.assertGreater(sensor, 2.0)
+
+    def test_the_robot_touches_the_truck_and_gives_no_energy_back(self):
+        node = load_json(os.path.join(self.dir, "node", "run_summary.json"))
+        self.assertGreaterEqual(len(node["episodes"]), 1)
+        self.assertGreater(max(e["peak_force"] for e in node["episodes"]), 2.0)
+        for e in node["episodes"]:
+            self.assertGreaterEqual(e["energy_j"], -1e-6, e)
+        self.assertEqual(node["runtime"]["sensor_saturated_ticks"], 0)
+
+    def test_the_robot_is_left_at_rest_when_the_node_stops(self):
+        # The node stops at least 2 s before device-sim; over device-sim's last 2 s the hand still
+        # follows its path, yet the robot holds the last setpoint (within the hand's pull over the
+        # position servo's stiffness: 60 N / 200 kN/m = 0.3 mm).
+        t_end = float(self.rows[-1]["time_s"])
+        last = [r for r in self.rows if float(r["time_s"]) > t_end - 2.0]
+        self.assertGreater(len(last), 1000)
+        for axis in ("x", "y", "z"):
+            values = [float(r[axis]) for r in last]
+            self.assertLess(max(values) - min(values), 1e-3, axis)
+        speed = max(sum(float(r[c]) ** 2 for c in ("vx", "vy", "vz")) ** 0.5 for r in last[len(last) // 2:])
+        self.assertLess(speed, 0.01)
+        # The node's last setpoint has zero velocity (a velocity-controlled robot would drift otherwise).
+        dev = load_json(os.path.join(self.dir, "dev", "device_summary.json"))
+        self.assertEqual(dev["last_setpoint"]["velocity"], [0.0, 0.0, 0.0])
+
 if __name__ == "__main__":
     EXE = sys.argv[1]
     unittest.main(argv=[sys.argv[0], "-v"])

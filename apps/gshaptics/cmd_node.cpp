@@ -21,6 +21,16 @@ void add_topic_options(CLI::App& cmd, RosBridgeOptions& t) {
   cmd.add_option("--twist-topic", t.twist_topic, "geometry_msgs/TwistStamped of the tool (optional)")->capture_default_str();
   cmd.add_option("--wrench-topic", t.wrench_topic, "geometry_msgs/WrenchStamped to the device")->capture_default_str();
   cmd.add_option("--markers-topic", t.markers_topic, "visualization_msgs/MarkerArray: tool and contacts")->capture_default_str();
+  cmd.add_option("--sensor-topic", t.sensor_topic,
+                 "--control admittance, ROS 2: geometry_msgs/WrenchStamped of the force/torque sensor at the "
+                 "robot's handle (the user's wrench, N; ros2_control's force_torque_sensor_broadcaster)")
+      ->capture_default_str();
+  cmd.add_option("--setpoint-topic", t.setpoint_topic,
+                 "--control admittance, ROS 2: geometry_msgs/PoseStamped setpoint for the robot's position controller")
+      ->capture_default_str();
+  cmd.add_option("--setpoint-twist-topic", t.setpoint_twist_topic,
+                 "--control admittance, ROS 2: geometry_msgs/TwistStamped setpoint velocity (feed-forward)")
+      ->capture_default_str();
   cmd.add_option("--frame-id", t.frame_id, "header.frame_id of what is published")->capture_default_str();
   cmd.add_flag("--reliable", t.reliable_input,
                "ROS 2 only: read poses RELIABLE instead of BEST_EFFORT (best-effort matches either kind of writer)");
@@ -82,8 +92,9 @@ void register_device_sim(CLI::App& app) {
   auto o = std::make_shared<DeviceSimOptions>();
   CLI::App* cmd = app.add_subcommand(
       "device-sim",
-      "The simulated admittance device and hand of `simulate` as a separate process on the "
-      "network: publishes the device's pose and twist at --rate, applies the wrench it receives, "
+      "The simulated device and hand of `simulate` as a separate process on the network: publishes "
+      "the device's pose and twist at --rate, applies the wrench it receives (or, with --control "
+      "admittance, publishes its force sensor and follows the setpoint it receives), "
       "follows the same seeded probe trajectory (so give it the same scene and options as the "
       "node). Records the round-trip pose-to-wrench latency. Writes device_log.csv and "
       "device_summary.json.");
@@ -101,6 +112,12 @@ void register_device_sim(CLI::App& app) {
   cmd->add_option("--wait", o->wait, "Wait this long for a node to match, s")->capture_default_str()->check(check::non_negative());
   cmd->add_option("--out", o->out_dir, "Output folder (default: runs/<name>-<extension>, e.g. runs/truck-splat)");
   cmd->add_flag("--quiet", o->quiet, "No progress line");
+  cmd->add_option_function<std::string>(
+         "--control", [o](const std::string& v) { o->topics.admittance = v == "admittance"; },
+         "impedance: an ideal mass-damper that applies the wrench it receives. admittance: a robot under a "
+         "position servo that follows the node's setpoint and publishes its force/torque sensor (the node "
+         "runs with --control admittance). Default: impedance")
+      ->check(CLI::IsMember({"impedance", "admittance"}));
   cmd->callback([o] {
     if (const int rc = run_device_sim(*o)) set_exit_code(rc);
   });

@@ -135,11 +135,12 @@ void RosWrenchOutbox::start() {
       seen = signal_.load();
       const bool stopping = stop_.load();
       if (items_.read_if_new(item) || stopping) {
-        if (stopping) {  // the last message: zero force, stamped when it is sent
+        if (stopping) {  // the last message: zero force, a robot at rest, stamped when it is sent
           item.wrench = Wrench{};
+          item.setpoint.velocity.setZero();
           item.echo = RosTime::now();
         }
-        publish_(item.wrench, item.echo);
+        publish_(item.wrench, item.has_setpoint ? &item.setpoint : nullptr, item.echo);
         stats_.wrenches_published.fetch_add(1);
       }
       if (stopping) break;
@@ -147,10 +148,27 @@ void RosWrenchOutbox::start() {
   });
 }
 
-void RosWrenchOutbox::post(const Wrench& wrench, const RosTime& echo) noexcept {
-  items_.write({wrench, echo});
+void RosWrenchOutbox::post(const Wrench& wrench, const RosTime& echo, const Setpoint* setpoint) noexcept {
+  Item item{wrench, echo, {}, setpoint != nullptr};
+  if (setpoint != nullptr) item.setpoint = *setpoint;
+  items_.write(item);
   signal_.fetch_add(1, std::memory_order_release);
   signal_.notify_one();
+}
+
+void RosSensorIntake::on_wrench(const Eigen::Vector3d& force) noexcept {
+  if (!force.allFinite()) {
+    dropped_.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  readings_.write({force, clock_.now()});
+  received_.fetch_add(1, std::memory_order_relaxed);
+}
+
+bool RosSensorIntake::newest(Eigen::Vector3d& force, double fresh_for) noexcept {
+  (void)readings_.read_if_new(newest_);
+  force = newest_.force;
+  return newest_.arrival >= 0 && clock_.now() - newest_.arrival <= to_nanos(fresh_for);
 }
 
 void RosWrenchOutbox::stop() {

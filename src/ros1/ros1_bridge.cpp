@@ -18,7 +18,7 @@ struct Ros1Impl {
 
   Ros1Impl(const RosBridgeOptions& o, Clock& c, StreamDevice& in)
       : options(o), intake(in, c, stats, o.input_timeout),
-        outbox([this](const Wrench& w, const RosTime& echo) {
+        outbox([this](const Wrench& w, const Setpoint*, const RosTime& echo) {
           transport->publish_wrench({w.force.x(), w.force.y(), w.force.z()}, {w.torque.x(), w.torque.y(), w.torque.z()},
                                     echo.sec, echo.nanosec);
         }, stats) {}
@@ -29,6 +29,9 @@ Ros1NetworkDevice::Ros1NetworkDevice(const RosBridgeOptions& options, Clock& clo
     : input_(network_device_params("ros1 (" + options.pose_topic + ")", options.input_timeout),
              Eigen::Vector3d::Zero()),
       impl_(std::make_unique<Ros1Impl>(options, clock, input_)) {
+  if (options.admittance)
+    throw InputError("node --ros1: admittance control over ROS 1 is not built yet; ROS 2 has it (node --ros2 "
+                     "--control admittance)");
   ros1::TransportOptions t;
   t.node_name = node_name.empty() ? options.node_name : node_name;
   t.remappings = options.ros_args;

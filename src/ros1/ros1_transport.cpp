@@ -72,6 +72,13 @@ Transport::Transport(const TransportOptions& o, std::function<void(const PoseIn&
   s.wrench.header.frame_id = o.frame_id;
   s.spinner = std::make_unique<ros::AsyncSpinner>(1);
   s.spinner->start();
+  // One log line through roscpp now, while this node is the one registered under its name. The
+  // first ROS_* line makes roscpp's rosout appender subscribe a cached parameter at the master
+  // with the node's name and URI; a node that first logs when it is shut down (roscpp's
+  // "Shutdown request received") re-registers under its name as it goes, and the master then
+  // shuts down the node that replaced it (ros/ros_comm#2018), leaving none.
+  ROS_INFO("gshaptics node %s: poses on %s, wrench on %s", ros::this_node::getName().c_str(),
+           ros::names::resolve(o.pose_topic).c_str(), ros::names::resolve(o.wrench_topic).c_str());
 }
 
 Transport::~Transport() {

@@ -22,6 +22,7 @@ DeviceLoopResult run_device_loop(HapticDevice& device, Ros2DeviceLink& link, con
   MonotonicClock& clock = MonotonicClock::instance();
   const Nanos t0 = clock.now();
   device.start(t0);
+  const bool admittance = device.info().admittance;
   Eigen::Vector3d force = Eigen::Vector3d::Zero();
   RosTime last_echo;
   const auto progress_every = std::size_t(std::max(1.0, 2.0 * params.rate_hz));
@@ -33,8 +34,19 @@ DeviceLoopResult run_device_loop(HapticDevice& device, Ros2DeviceLink& link, con
     clock.sleep_until(t0 + Nanos(k) * period);
     const Nanos now = clock.now();
     const DeviceSample s = device.read(now);
-    link.publish(s.position, s.orientation, s.velocity, RosTime::now());
+    const RosTime stamp = RosTime::now();
+    link.publish(s.position, s.orientation, s.velocity, stamp);
     ++out.poses_sent;
+    // An admittance-type device (a robot with a force sensor): its sensor out, its setpoint in.
+    if (admittance) {
+      link.publish_sensor(s.user_force, stamp);
+      Setpoint sp;
+      if (link.take_setpoint(sp)) {
+        device.write_setpoint(sp, now);
+        ++out.setpoints_received;
+        out.last_setpoint = sp;
+      }
+    }
     TickRecord r;
     Eigen::Vector3d f;
     RosTime echo;

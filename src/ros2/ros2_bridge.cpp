@@ -90,15 +90,19 @@ struct Ros2Impl {
   RosBridgeStats stats;
   dds_entity_t participant = 0;
   Endpoint pose_reader, twist_reader, wrench_writer;
+  // Admittance (options.admittance): the robot's sensor in, its setpoint out.
+  Endpoint sensor_reader, setpoint_writer, setpoint_twist_writer;
   dds_entity_t waitset = 0;
   std::thread reader_thread;
   std::atomic<bool> stop{false};
   RosPoseIntake intake;
+  RosSensorIntake sensor;
   RosWrenchOutbox outbox;
   geometry_msgs_msg_dds__WrenchStamped_ wrench_msg{};  // publisher thread only
 
   Ros2Impl(const Ros2Options& o, Clock& c, StreamDevice& in)
-      : options(o), intake(in, c, stats, o.input_timeout), outbox([this](const Wrench& w, const RosTime& echo) { publish(w, echo); }, stats) {
+      : options(o), intake(in, c, stats, o.input_timeout), sensor(c),
+        outbox([this](const Wrench& w, const Setpoint* sp, const RosTime& echo) { publish(w, sp, echo); }, stats) {
     participant = check(dds_create_participant(o.domain < 0 ? DDS_DOMAIN_DEFAULT : dds_domainid_t(o.domain), nullptr, nullptr),
                         "participant");
     pose_reader = make_reader(participant, &geometry_msgs_msg_dds__PoseStamped__desc, o.pose_topic, o);
@@ -109,6 +113,14 @@ struct Ros2Impl {
     dds_waitset_attach(waitset, twist_reader.entity, twist_reader.entity);
     dds_set_status_mask(pose_reader.entity, DDS_DATA_AVAILABLE_STATUS);
     dds_set_status_mask(twist_reader.entity, DDS_DATA_AVAILABLE_STATUS);
+    if (o.admittance) {
+      sensor_reader = make_reader(participant, &geometry_msgs_msg_dds__WrenchStamped__desc, o.sensor_topic, o);
+      setpoint_writer = make_writer(participant, &geometry_msgs_msg_dds__PoseStamped__desc, o.setpoint_topic, o);
+      setpoint_twist_writer =
+          make_writer(participant, &geometry_msgs_msg_dds__TwistStamped__desc, o.setpoint_twist_topic, o);
+      dds_waitset_attach(waitset, sensor_reader.entity, sensor_reader.entity);
+      dds_set_status_mask(sensor_reader.entity, DDS_DATA_AVAILABLE_STATUS);
+    }
   }
   ~Ros2Impl() {
     shutdown();
@@ -122,11 +134,36 @@ struct Ros2Impl {
     outbox.stop();
   }
 
-  void publish(const Wrench& w, const RosTime& echo) {
+  void publish(const Wrench& w, const Setpoint* sp, const RosTime& echo) {
+    // The setpoint first: a robot's position controller gets it as soon as it exists.
+    if (sp != nullptr && setpoint_writer.entity > 0) {
+      geometry_msgs_msg_dds__TwistStamped_ tw{};
+      fill_header(tw.header, echo, options.frame_id);
+      tw.twist.linear = {sp->velocity.x(), sp->velocity.y(), sp->velocity.z()};
+      dds_write(setpoint_twist_writer.entity, &tw);
+      geometry_msgs_msg_dds__PoseStamped_ ps{};
+      fill_header(ps.header, echo, options.frame_id);
+      ps.pose.position = {sp->position.x(), sp->position.y(), sp->position.z()};
+      ps.pose.orientation = {0, 0, 0, 1};
+      dds_write(setpoint_writer.entity, &ps);
+    }
     fill_header(wrench_msg.header, echo, options.frame_id);
     wrench_msg.wrench.force = {w.force.x(), w.force.y(), w.force.z()};
     wrench_msg.wrench.torque = {w.torque.x(), w.torque.y(), w.torque.z()};
     dds_write(wrench_writer.entity, &wrench_msg);
+  }
+
+  void take_sensor() {
+    if (sensor_reader.entity <= 0) return;
+    void* samples[16] = {};
+    dds_sample_info_t infos[16];
+    const int n = dds_take(sensor_reader.entity, samples, infos, 16, 16);
+    for (int i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      const auto* m = static_cast<const geometry_msgs_msg_dds__WrenchStamped_*>(samples[i]);
+      sensor.on_wrench({m->wrench.force.x, m->wrench.force.y, m->wrench.force.z});
+    }
+    if (n > 0) dds_return_loan(sensor_reader.entity, samples, n);
   }
 
   void take_twists() {
@@ -177,10 +214,11 @@ struct Ros2Impl {
 
   void reader_main() {
     while (!stop.load()) {
-      dds_attach_t triggered[2];
-      dds_waitset_wait(waitset, triggered, 2, DDS_MSECS(100));
+      dds_attach_t triggered[3];
+      dds_waitset_wait(waitset, triggered, 3, DDS_MSECS(100));
       if (stop.load()) break;
       take_twists();
+      take_sensor();
       take_poses();
       poll_qos();
     }
@@ -193,7 +231,9 @@ namespace {
 Ros2Options resolved(const Ros2Options& o, const Ros2Names& names) {
   Ros2Options r = o;
   r.node_name = names.node;
-  for (std::string* t : {&r.pose_topic, &r.twist_topic, &r.wrench_topic, &r.markers_topic}) *t = names.resolve(*t);
+  for (std::string* t : {&r.pose_topic, &r.twist_topic, &r.wrench_topic, &r.markers_topic, &r.sensor_topic,
+                         &r.setpoint_topic, &r.setpoint_twist_topic})
+    *t = names.resolve(*t);
   return r;
 }
 
@@ -204,21 +244,46 @@ Ros2NetworkDevice::Ros2NetworkDevice(const Ros2Options& options, Clock& clock)
       input_(network_device_params("ros2 (" + ros2_dds_topic(names_.resolve(options.pose_topic)) + ")",
                                    options.input_timeout),
              Eigen::Vector3d::Zero()),
-      impl_(std::make_unique<Ros2Impl>(resolved(options, names_), clock, input_)) {}
+      impl_(std::make_unique<Ros2Impl>(resolved(options, names_), clock, input_)) {
+  info_ = input_.info();
+  if (options.admittance) {
+    info_.admittance = true;
+    info_.name = "ros2 robot (" + ros2_dds_topic(names_.resolve(options.pose_topic)) + ", sensor " +
+                 ros2_dds_topic(names_.resolve(options.sensor_topic)) + ")";
+  }
+}
 
 Ros2NetworkDevice::~Ros2NetworkDevice() { stop_markers(); }
 
 void Ros2NetworkDevice::start(Nanos now) {
   input_.start(now);
+  has_setpoint_ = false;
+  frozen_ = 0;
   impl_->reader_thread = std::thread([this] { impl_->reader_main(); });
   impl_->outbox.start();
 }
 
-DeviceSample Ros2NetworkDevice::read(Nanos now) noexcept { return input_.read(now); }
+DeviceSample Ros2NetworkDevice::read(Nanos now) noexcept {
+  DeviceSample s = input_.read(now);
+  if (!info_.admittance) return s;
+  // The sensor is part of the device's data: while its readings are stale the sample is too
+  // (the sequence stops), so the watchdog brakes the robot as for a stale pose.
+  if (impl_->sensor.newest(s.user_force, impl_->options.input_timeout))
+    frozen_ = s.sequence;  // fresh: the pose's own sequence
+  else
+    s.sequence = frozen_;  // stale: the last one seen while it was fresh (0 before any reading)
+  return s;
+}
+
+void Ros2NetworkDevice::write_setpoint(const Setpoint& setpoint, Nanos now) noexcept {
+  (void)now;
+  setpoint_ = setpoint;
+  has_setpoint_ = true;
+}
 
 void Ros2NetworkDevice::write(const Wrench& wrench, Nanos now) noexcept {
   input_.write(wrench, now);
-  impl_->outbox.post(wrench, impl_->intake.wrench_stamp());
+  impl_->outbox.post(wrench, impl_->intake.wrench_stamp(), info_.admittance && has_setpoint_ ? &setpoint_ : nullptr);
 }
 
 void Ros2NetworkDevice::stop(Nanos now) noexcept {
@@ -317,6 +382,8 @@ struct Ros2DeviceLink::State {
   Ros2Options options;
   dds_entity_t participant = 0;
   Endpoint pose_writer, twist_writer, wrench_reader;
+  Endpoint sensor_writer, setpoint_reader, setpoint_twist_reader;  // admittance
+  Eigen::Vector3d setpoint_velocity = Eigen::Vector3d::Zero();
 };
 
 Ros2DeviceLink::Ros2DeviceLink(const Ros2Options& options) : state_(std::make_unique<State>()) {
@@ -328,6 +395,12 @@ Ros2DeviceLink::Ros2DeviceLink(const Ros2Options& options) : state_(std::make_un
     s.pose_writer = make_writer(s.participant, &geometry_msgs_msg_dds__PoseStamped__desc, options.pose_topic, options);
     s.twist_writer = make_writer(s.participant, &geometry_msgs_msg_dds__TwistStamped__desc, options.twist_topic, options);
     s.wrench_reader = make_reader(s.participant, &geometry_msgs_msg_dds__WrenchStamped__desc, options.wrench_topic, options);
+    if (options.admittance) {
+      s.sensor_writer = make_writer(s.participant, &geometry_msgs_msg_dds__WrenchStamped__desc, options.sensor_topic, options);
+      s.setpoint_reader = make_reader(s.participant, &geometry_msgs_msg_dds__PoseStamped__desc, options.setpoint_topic, options);
+      s.setpoint_twist_reader =
+          make_reader(s.participant, &geometry_msgs_msg_dds__TwistStamped__desc, options.setpoint_twist_topic, options);
+    }
   } catch (...) {
     dds_delete(s.participant);
     throw;
@@ -376,6 +449,43 @@ bool Ros2DeviceLink::take_wrench(Eigen::Vector3d& force, RosTime& echo) {
     got = true;
   }
   if (n > 0) dds_return_loan(state_->wrench_reader.entity, samples, n);
+  return got;
+}
+
+void Ros2DeviceLink::publish_sensor(const Eigen::Vector3d& force, const RosTime& stamp) {
+  State& s = *state_;
+  if (s.sensor_writer.entity <= 0) return;
+  geometry_msgs_msg_dds__WrenchStamped_ m{};
+  fill_header(m.header, stamp, s.options.frame_id);
+  m.wrench.force = {force.x(), force.y(), force.z()};
+  dds_write(s.sensor_writer.entity, &m);
+}
+
+bool Ros2DeviceLink::take_setpoint(Setpoint& setpoint) {
+  State& s = *state_;
+  if (s.setpoint_reader.entity <= 0) return false;
+  void* samples[32] = {};
+  dds_sample_info_t infos[32];
+  int n = dds_take(s.setpoint_twist_reader.entity, samples, infos, 32, 32);
+  for (int i = 0; i < n; ++i) {
+    if (!infos[i].valid_data) continue;
+    const auto* m = static_cast<const geometry_msgs_msg_dds__TwistStamped_*>(samples[i]);
+    const Eigen::Vector3d v(m->twist.linear.x, m->twist.linear.y, m->twist.linear.z);
+    if (v.allFinite()) s.setpoint_velocity = v;
+  }
+  if (n > 0) dds_return_loan(s.setpoint_twist_reader.entity, samples, n);
+  bool got = false;
+  n = dds_take(s.setpoint_reader.entity, samples, infos, 32, 32);
+  for (int i = 0; i < n; ++i) {
+    if (!infos[i].valid_data) continue;
+    const auto* m = static_cast<const geometry_msgs_msg_dds__PoseStamped_*>(samples[i]);
+    const Eigen::Vector3d p(m->pose.position.x, m->pose.position.y, m->pose.position.z);
+    if (!p.allFinite()) continue;
+    setpoint.position = p;
+    setpoint.velocity = s.setpoint_velocity;
+    got = true;
+  }
+  if (n > 0) dds_return_loan(s.setpoint_reader.entity, samples, n);
   return got;
 }
 

@@ -47,6 +47,8 @@ std::string qos_policy(std::uint32_t id) {
 
 int run_node(NodeOptions o) {
   if (!o.ros2 && !o.ros1) throw InputError("node: give --ros2 or --ros1");
+  // The remote device is a robot with a force sensor under admittance control.
+  o.topics.admittance = o.run.device == "ros" && o.run.control.mode == ControlMode::kAdmittance;
   if (o.run.simulated_time) throw InputError("--simulated-time: node runs in real time (use `run --simulated-time`)");
   if (o.run.device != "ros" && !is_hardware_device(o.run.device))
     throw InputError("--device: node takes 'ros' (default), 'haply[:N]', 'dhd[:N]' or 'openhaptics[:NAME]', got '" +
@@ -144,7 +146,9 @@ int run_device_sim(DeviceSimOptions o) {
   const PreparedWorld pw = prepare_world(so, o.quiet);
   ProbeTrajectory traj = make_probe_trajectory(pw.world, is_scaled(so), o.sites, o.seed, o.tool_radius, ForceModelOptions{});
   const double duration = o.duration > 0 ? o.duration : traj.duration() + 0.5;
-  SimulatedDevice device(std::move(traj));
+  SimulatedDeviceParams dp;
+  dp.causality = o.topics.admittance ? Causality::kAdmittance : Causality::kImpedance;
+  SimulatedDevice device(std::move(traj), dp);
   Ros2DeviceLink link(o.topics);
   fmt::print("device-sim waiting for a node on {} / {} ...\n", ros2_dds_topic(o.topics.pose_topic),
              ros2_dds_topic(o.topics.wrench_topic));
@@ -174,6 +178,11 @@ int run_device_sim(DeviceSimOptions o) {
   sj["rate_hz"] = o.rate;
   sj["poses_sent"] = r.poses_sent;
   sj["wrenches_received"] = r.wrenches_received;
+  sj["control"] = o.topics.admittance ? "admittance" : "impedance";
+  sj["setpoints_received"] = r.setpoints_received;
+  const Setpoint& ls = r.last_setpoint;
+  sj["last_setpoint"] = {{"position", {ls.position.x(), ls.position.y(), ls.position.z()}},
+                         {"velocity", {ls.velocity.x(), ls.velocity.y(), ls.velocity.z()}}};
   sj["peak_force_n"] = r.peak_force;
   sj["interrupted"] = r.interrupted;
   sj["latency_us"] = {{"count", lat.size()},
@@ -182,8 +191,9 @@ int run_device_sim(DeviceSimOptions o) {
                       {"max", lat.empty() ? 0 : *std::max_element(lat.begin(), lat.end())}};
   write_file_atomically(stage.path("device_summary.json"), sj.dump(2) + "\n");
   stage.commit();
-  fmt::print("\ndevice-sim {} poses sent, {} wrenches received, peak |F| {:.2f} N\n", r.poses_sent,
-             r.wrenches_received, r.peak_force);
+  fmt::print("\ndevice-sim {} poses sent, {} wrenches received, peak |F| {:.2f} N{}\n", r.poses_sent,
+             r.wrenches_received, r.peak_force,
+             o.topics.admittance ? fmt::format("; {} setpoints followed (admittance)", r.setpoints_received) : "");
   fmt::print("latency    pose -> wrench round trip: p50 {:.0f} us, p99 {:.0f} us, max {:.0f} us ({} samples)\n",
              sj["latency_us"]["p50"].get<double>(), sj["latency_us"]["p99"].get<double>(),
              sj["latency_us"]["max"].get<double>(), lat.size());

@@ -37,6 +37,14 @@ struct RosBridgeOptions {
   std::string wrench_topic = "gshaptics/wrench";     ///< geometry_msgs/WrenchStamped, out
   std::string markers_topic = "gshaptics/markers";   ///< visualization_msgs/MarkerArray, out
   std::string frame_id = "world";                    ///< header.frame_id of what we publish
+  /// Admittance control (issue 73): the remote device is a robot with a force/torque sensor at its
+  /// handle. The node then reads the sensor and writes the robot's setpoint as well.
+  bool admittance = false;
+  /// geometry_msgs/WrenchStamped, in (admittance): the user's wrench at the handle, world frame, N
+  /// and N m; ros2_control's force_torque_sensor_broadcaster publishes on this name.
+  std::string sensor_topic = "force_torque_sensor_broadcaster/wrench";
+  std::string setpoint_topic = "gshaptics/setpoint_pose";         ///< geometry_msgs/PoseStamped, out (admittance)
+  std::string setpoint_twist_topic = "gshaptics/setpoint_twist";  ///< geometry_msgs/TwistStamped, out (admittance)
   /// ROS 2 readers (pose, twist): BEST_EFFORT by default, which matches reliable and best-effort
   /// writers alike (as ROS 2's sensor-data profile does); true asks for RELIABLE (then a
   /// best-effort driver cannot match: the mismatch is counted, see RosBridgeStats).
@@ -182,23 +190,57 @@ class RosPoseIntake {
   Nanos prev_arrival_ = 0;
 };
 
+/// A force/torque sensor reading and when it arrived (ns on the bridge's clock; -1: none yet).
+struct RosSensorReading {
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  Nanos arrival = -1;
+};
+
+/// What the servo thread posts to the outbox: the tick's wrench, its echo stamp and, under
+/// admittance control, the robot's setpoint.
+struct RosOutboxItem {
+  Wrench wrench;
+  RosTime echo;
+  Setpoint setpoint;
+  bool has_setpoint = false;
+};
+
+/// The force/torque sensor's way in (admittance): the receive thread hands each reading over, the
+/// servo thread takes the newest and whether it is fresh. Wait-free, no allocation.
+class RosSensorIntake {
+ public:
+  explicit RosSensorIntake(Clock& clock) : clock_(clock) {}
+  /// Receive thread: a reading, N (world frame). Non-finite readings are dropped and counted.
+  void on_wrench(const Eigen::Vector3d& force) noexcept;
+  /// Servo thread: the newest reading into `force`; true when one arrived within `fresh_for` s.
+  [[nodiscard]] bool newest(Eigen::Vector3d& force, double fresh_for) noexcept;
+  [[nodiscard]] std::uint64_t received() const noexcept { return received_.load(std::memory_order_relaxed); }
+  [[nodiscard]] std::uint64_t dropped() const noexcept { return dropped_.load(std::memory_order_relaxed); }
+
+ private:
+  Clock& clock_;
+  TripleBuffer<RosSensorReading> readings_;
+  RosSensorReading newest_;
+  std::atomic<std::uint64_t> received_{0}, dropped_{0};
+};
+
 /// The wrench's way out: the servo thread post()s (wait-free, no allocation; wakes the publisher
 /// thread through a futex), a publisher thread calls `publish`. stop() publishes a zero wrench
 /// last, so the device is left at zero force.
 class RosWrenchOutbox {
  public:
-  using PublishFn = std::function<void(const Wrench&, const RosTime& echo)>;
+  /// `setpoint`: the robot's setpoint posted with the wrench (admittance), null when none was.
+  using PublishFn = std::function<void(const Wrench&, const Setpoint* setpoint, const RosTime& echo)>;
   RosWrenchOutbox(PublishFn publish, RosBridgeStats& stats) : publish_(std::move(publish)), stats_(stats) {}
   ~RosWrenchOutbox() { stop(); }
   void start();
-  void post(const Wrench& wrench, const RosTime& echo) noexcept;
+  /// Posts the tick's wrench, and under admittance control the setpoint (null: none).
+  void post(const Wrench& wrench, const RosTime& echo, const Setpoint* setpoint = nullptr) noexcept;
+  /// Publishes the last message (zero wrench; the last setpoint with zero velocity) and ends.
   void stop();
 
  private:
-  struct Item {
-    Wrench wrench;
-    RosTime echo;
-  };
+  using Item = RosOutboxItem;
   PublishFn publish_;
   RosBridgeStats& stats_;
   TripleBuffer<Item> items_;

@@ -31,6 +31,8 @@ struct DeviceLoopResult {
   std::vector<TickRecord> ticks;
   std::uint64_t poses_sent = 0;
   std::uint64_t wrenches_received = 0;
+  std::uint64_t setpoints_received = 0;  ///< admittance-type device: setpoints taken from the node
+  Setpoint last_setpoint;                ///< the newest of them (a node that stopped leaves it at rest)
   std::vector<double> latencies_us;  ///< every measured pose -> wrench round trip, microseconds
   double peak_force = 0;             ///< N
   bool interrupted = false;          ///< `stop` became non-zero before the end
@@ -41,7 +43,9 @@ using DeviceLoopProgressFn = std::function<void(double, std::uint64_t, std::uint
 
 /// Runs `device` for `params.duration_s` on absolute deadlines of the monotonic clock: each tick
 /// reads the device, publishes its pose (stamped now), takes the newest wrench (its header stamp
-/// echoes the pose it answers, giving the round trip) and writes it to the device. Stops early
+/// echoes the pose it answers, giving the round trip) and writes it to the device. An
+/// admittance-type device (DeviceInfo::admittance; the link made with RosBridgeOptions::admittance)
+/// also publishes its force sensor's reading and takes the node's newest setpoint. Stops early
 /// when `stop` (may be null) becomes non-zero; the device is stopped at the end. Call
 /// `link.wait_for_node()` first. Throws InputError for bad params and what the device throws.
 [[nodiscard]] DeviceLoopResult run_device_loop(HapticDevice& device, Ros2DeviceLink& link,

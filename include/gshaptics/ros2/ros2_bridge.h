@@ -48,10 +48,14 @@ class Ros2NetworkDevice final : public RosBridgeDevice {
   /// (`--ros-args -r ...`, Ros2Names). Throws InputError for an argument it does not understand.
   Ros2NetworkDevice(const Ros2Options& options, Clock& clock);
   ~Ros2NetworkDevice() override;
-  [[nodiscard]] const DeviceInfo& info() const noexcept override { return input_.info(); }
+  [[nodiscard]] const DeviceInfo& info() const noexcept override { return info_; }
   void start(Nanos now) override;
+  /// The newest pose; under admittance (RosBridgeOptions::admittance) with the sensor's newest
+  /// reading as the user force, and no new data while the sensor is stale.
   [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
   void write(const Wrench& wrench, Nanos now) noexcept override;
+  /// Admittance: published with the tick's wrench on the setpoint topics (PoseStamped, TwistStamped).
+  void write_setpoint(const Setpoint& setpoint, Nanos now) noexcept override;
   void stop(Nanos now) noexcept override;
   [[nodiscard]] const RosBridgeStats& stats() const noexcept override;
   void start_markers(const CollisionWorld& world, ContactSnapshotObserver& snapshots,
@@ -67,6 +71,10 @@ class Ros2NetworkDevice final : public RosBridgeDevice {
   Ros2Names names_;
   StreamDevice input_;
   std::unique_ptr<Ros2Impl> impl_;
+  DeviceInfo info_;
+  Setpoint setpoint_;  // servo thread
+  bool has_setpoint_ = false;
+  std::uint64_t frozen_ = 0;  // under admittance: the sample's sequence when the sensor was last fresh
   std::unique_ptr<Ros2MarkerPublisher> markers_;
 };
 
@@ -110,6 +118,12 @@ class Ros2DeviceLink {
   /// Takes the newest wrench since the last call; `echo` is its header stamp (the stamp of the
   /// pose the node had read when it computed it). False when none arrived.
   bool take_wrench(Eigen::Vector3d& force, RosTime& echo);
+  /// Admittance (options.admittance): publishes the force/torque sensor's reading (WrenchStamped
+  /// on the sensor topic; N, world frame).
+  void publish_sensor(const Eigen::Vector3d& force, const RosTime& stamp);
+  /// Admittance: takes the newest setpoint (PoseStamped position, TwistStamped linear velocity)
+  /// since the last call. False when none arrived.
+  bool take_setpoint(Setpoint& setpoint);
 
  private:
   struct State;
