@@ -5,10 +5,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <functional>
 
 #include "gshaptics/error.h"
 #include "gshaptics/fidelity/stability.h"
+#include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/force/renderer_spec.h"
+#include "gshaptics/collision/collision_world.h"
 #include "gshaptics/device/device_model.h"
 #include "support/floor_renderer.h"
 
@@ -286,6 +290,88 @@ TEST(AdmittanceControl, ImpedanceControlRefusedOnAnAdmittanceDevice) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("--control admittance"), std::string::npos) << e.what();
   }
+}
+
+}  // namespace
+}  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+struct PlaneTrial {
+  WallTrialResult r;
+  double contact_height = 0;  // the setpoint's height at the first tick with force, m
+};
+
+// Issue 73's targets, in process (a shortcut: DeviceModel's delay lines stand for the ROS link,
+// no network): the proxy at 20x the default coupling stiffness on a Gaussian plane from synth,
+// the hand pushing 10 N, a 2 ms round trip (1 ms each way), passivity on.
+PlaneTrial press_plane(ControlMode control) {
+  static const CollisionWorld world = [] {
+    SynthParams sp;
+    sp.spacing = 0.004;
+    return CollisionWorld::build(make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), sp).scene, WorldConfig{});
+  }();
+  const double radius = 0.005;
+  DeviceModelParams dp = control == ControlMode::kAdmittance ? StabilityOptions::default_admittance_device()
+                                                             : StabilityOptions::default_impedance_device();
+  dp.delay_up = dp.delay_down = 0.001;
+  dp.hand.push = Eigen::Vector3d(0, 0, -10.0);
+  dp.initial_position = Eigen::Vector3d(0.013, 0.021, radius + 0.0005);  // the plane is z = 0
+  DeviceModel device(dp);
+  RuntimeConfig c;
+  c.tool.semi_axes = Eigen::Vector3d::Constant(radius);
+  ProxyModelSpec spec;
+  spec.params.stiffness = 20 * ProxyParams{}.stiffness;
+  c.renderer = spec;
+  c.safety.ramp_time = 0;
+  c.safety.f_max = 50;
+  c.control.mode = control;
+  c.control.admittance = StabilityOptions{}.virtual_tool;
+  c.control.robot.tare_time = 0;  // the hand pushes from the first tick
+  c.control.robot.dead_band = 0;
+  WallTrialOptions judge;
+  judge.duration = 3.0;
+  PlaneTrial t;
+  t.r = run_wall_trial(device, make_force_renderer(c.renderer, world), c, judge);
+  for (std::size_t i = 0; i < t.r.force.size(); ++i)
+    if (t.r.force[i] != 0) {
+      t.contact_height = t.r.setpoint[i];
+      break;
+    }
+  return t;
+}
+
+TEST(AdmittanceTargets, TwentyTimesTheDefaultCouplingHoldsOnAGaussianPlaneWithATwoMillisecondRoundTrip) {
+  const PlaneTrial a = press_plane(ControlMode::kAdmittance);
+  ASSERT_GT(a.contact_height, 0.0);
+  double deepest = 0;
+  for (double z : a.r.setpoint) deepest = std::max(deepest, a.contact_height - z);
+  // The wall's reaction over the last 0.25 s against the hand's measured push.
+  double force = 0, push = 0;
+  int n = 0;
+  for (std::size_t i = 0; i < a.r.time.size(); ++i)
+    if (a.r.time[i] > a.r.time.back() - 0.25) force += a.r.force[i], push -= a.r.user_force[i], ++n;
+  force /= n;
+  push /= n;
+  const double static_depth = 10.0 / (20 * ProxyParams{}.stiffness);
+  std::printf("admittance at 20 kN/m, 2 ms: deepest %.3f mm past first contact (static %.3f), rest amplitude "
+              "%.4f mm, reaction %.3f N for a push of %.3f N, lowest energy %.3g mJ\n",
+              deepest * 1e3, static_depth * 1e3, a.r.last_amplitude * 1e3, force, push, a.r.min_energy * 1e3);
+  EXPECT_TRUE(a.r.stable);
+  // A spring under a step force overshoots to twice its static depth when undamped (here 0.5 mm
+  // static at 10 N on 20 kN/m, so the issue's "0.5 mm past the surface" cannot hold with this
+  // push); the virtual tool's approach adds a little, its damping takes a little. Measured: 1.06 mm.
+  EXPECT_LT(deepest, 2.2 * static_depth);
+  EXPECT_LT(a.r.last_amplitude, 0.05e-3);
+  EXPECT_NEAR(force, push, 0.02 * push);
+  EXPECT_GT(push, 9.0);
+  EXPECT_GE(a.r.min_energy, -1e-6);
+  // The impedance device (0.2 kg, 2 N s/m) at the same stiffness and delay goes unstable.
+  const PlaneTrial i = press_plane(ControlMode::kImpedance);
+  std::printf("impedance at 20 kN/m, 2 ms: amplitude %.3f -> %.3f mm, stable %d\n", i.r.first_amplitude * 1e3,
+              i.r.last_amplitude * 1e3, int(i.r.stable));
+  EXPECT_FALSE(i.r.stable);
 }
 
 }  // namespace

@@ -76,6 +76,8 @@ WallTrialResult run_wall_trial(HapticDevice& device, std::unique_ptr<ForceRender
     r.time.push_back(rec.time);
     r.height.push_back(rec.position.z());
     r.force.push_back(rec.force.z());
+    r.setpoint.push_back(rec.setpoint.z());
+    r.user_force.push_back(rec.user_force.z());
     min_energy = std::min(min_energy, rec.energy);
   }
   judge_wall_trace(r.time, r.height, options, r);
@@ -199,6 +201,10 @@ StabilityReport run_stability(const StabilityOptions& o, const StabilityProgress
               c.safety.passivity.enabled = passivity;
               c.control.mode = control;
               c.control.admittance = o.virtual_tool;
+              // The model's sensor is exact and the hand pushes from the first tick: nothing to tare
+              // (a tare would take the push for a bias) and no noise for a dead band.
+              c.control.robot.tare_time = 0;
+              c.control.robot.dead_band = 0;
               // A wobble of an encoder count or two is the reading, not the contact.
               WallTrialOptions judge = o.trial;
               judge.rest_amplitude = std::max(judge.rest_amplitude, 2 * dp.encoder_resolution);

@@ -45,6 +45,9 @@ struct WallTrialResult {
   std::uint64_t passivity_ticks = 0;
   double peak_damping = 0;    ///< N s/m
   std::vector<double> time, height, force;  ///< per tick: s, m (along +z), N (z component sent)
+  /// Per tick: the setpoint's height (admittance control: the virtual tool; else the device's), m,
+  /// and the user's force along z as the device measured it, N.
+  std::vector<double> setpoint, user_force;
 };
 
 /// Runs one trial: `device` (started and stopped by the runtime) driven by `renderer` with
