@@ -23,7 +23,7 @@ write_basic_package_version_file(${CMAKE_CURRENT_BINARY_DIR}/gshapticsConfigVers
 install(FILES ${CMAKE_CURRENT_BINARY_DIR}/gshapticsConfig.cmake
   ${CMAKE_CURRENT_BINARY_DIR}/gshapticsConfigVersion.cmake
   DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/gshaptics)
-install(FILES tools/plot_probe_run.py tools/plot_fidelity.py tools/plot_push.py tools/plot_stability.py tools/plot_seen_felt.py DESTINATION ${CMAKE_INSTALL_DATADIR}/gshaptics)
+install(FILES tools/plot_probe_run.py tools/plot_fidelity.py tools/plot_push.py tools/plot_stability.py tools/plot_stability_traces.py tools/plot_seen_felt.py DESTINATION ${CMAKE_INSTALL_DATADIR}/gshaptics)
 # The viewer page and its npm packages (gshaptics serve looks in share/gshaptics/web), and the
 # DDS configurations.
 install(DIRECTORY web/ DESTINATION ${CMAKE_INSTALL_DATADIR}/gshaptics/web

@@ -722,6 +722,29 @@ class Stability(unittest.TestCase):
             self.assertIn("expected a .md file", bad.stderr)
             self.assertFalse(os.path.exists(os.path.join(d, "x.txt")))
 
+    def test_traces_set_the_two_controls_side_by_side(self):
+        """Issue 73: at 20 kN/m with a 2 ms round trip and a 10 N push the impedance device bounces
+        and the admittance robot comes to rest; --trace-stiffness keeps both traces."""
+        with tempfile.TemporaryDirectory() as d:
+            out = os.path.join(d, "A.md")
+            run("stability", "--no-plot", "--out", out, "--shape", "plane", "--rate", "1000", "--delay", "2",
+                "--push", "10", "--stiffness", "20000", "--trace-stiffness", "20000", "--duration", "1.5")
+            with open(os.path.join(d, "stability", "stability_traces.csv")) as f:
+                rows = list(csv.DictReader(f))
+            heights = {}
+            for r in rows:
+                heights.setdefault((r["control"], r["passivity"]), []).append(float(r["height_mm"]))
+            self.assertEqual(len(heights), 4)
+            for (control, _), z in heights.items():
+                late = z[len(z) // 2:]
+                swing = max(late) - min(late)
+                if control == "impedance":
+                    self.assertGreater(swing, 5.0)   # bouncing, millimetres
+                else:
+                    self.assertLess(swing, 0.1)      # at rest
+            with open(out) as f:
+                self.assertIn("--trace-stiffness 20000", f.read())
+
 
 class Latency(unittest.TestCase):
     """`gshaptics latency`: the gap profile of a spinning thread, as text and JSON."""

@@ -34,6 +34,10 @@ void register_stability(CLI::App& app) {
       ->check(check::range(0.0, 500.0));
   cmd->add_option("--rate", o->rates, "Servo rates, Hz (repeatable; default 500 1000)")->check(check::range(1.0, 10000.0));
   cmd->add_option("--push", o->sweep.push, "The hand's push onto the surface, N")->capture_default_str()->check(check::positive());
+  cmd->add_option("--trace-stiffness", o->sweep.trace_stiffness,
+                  "Keep the trials' traces at this stiffness, N/m (added to the sweep): stability_traces.csv and "
+                  "a figure of the device and setpoint heights and the force, the control schemes side by side")
+      ->check(check::positive());
   cmd->add_option("--duration", o->sweep.trial.duration, "Simulated time per trial, s")
       ->capture_default_str()->check(check::range(1.2, 60.0));
   cmd->add_option("--device-mass", o->sweep.impedance_device.mass, "Impedance device's moving mass, kg")

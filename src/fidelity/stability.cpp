@@ -222,7 +222,13 @@ StabilityReport run_stability(const StabilityOptions& o, const StabilityProgress
               t.last_amplitude = r.last_amplitude;
               t.min_energy = r.min_energy;
               t.peak_force = r.peak_force;
-              rep.trials.push_back(t);
+              if (k == o.trace_stiffness) {
+                t.time = r.time;
+                t.height = r.height;
+                t.setpoint = r.setpoint;
+                t.force = r.force;
+              }
+              rep.trials.push_back(std::move(t));
               if (!unstable_seen && r.stable) row.largest_stable = k;
               if (!unstable_seen && (!r.stable || k == ks.back())) {
                 row.energy_generated = std::max(0.0, -r.min_energy);
@@ -239,6 +245,16 @@ StabilityReport run_stability(const StabilityOptions& o, const StabilityProgress
   return rep;
 }
 
+void write_stability_traces_csv(const StabilityReport& rep, const std::string& path) {
+  std::string out = "shape,control,rate_hz,delay_ms,passivity,stiffness,time_s,height_mm,setpoint_mm,force_n\n";
+  for (const StabilityTrial& t : rep.trials)
+    for (std::size_t i = 0; i < t.time.size(); ++i)
+      out += fmt::format("{},{},{:g},{:g},{},{:g},{:.4f},{:.5f},{:.5f},{:.4f}\n", t.shape, control_mode_name(t.control),
+                         t.rate_hz, t.delay * 1e3, t.passivity ? 1 : 0, t.stiffness, t.time[i], t.height[i] * 1e3,
+                         t.setpoint[i] * 1e3, t.force[i]);
+  write_file_atomically(path, out);
+}
+
 void write_stability_csv(const StabilityReport& rep, const std::string& path) {
   std::string out = "shape,control,rate_hz,delay_ms,passivity,stiffness,stable,growth,amplitude_mm,min_energy_mj,peak_force_n\n";
   for (const StabilityTrial& t : rep.trials)
@@ -249,7 +265,7 @@ void write_stability_csv(const StabilityReport& rep, const std::string& path) {
 }
 
 void write_stability_markdown(const StabilityReport& rep, const std::string& path, const std::string& command,
-                              const std::string& figure) {
+                              const std::string& figure, const std::string& traces_figure) {
   const StabilityOptions& o = rep.options;
   const DeviceModelParams& imp = o.impedance_device;
   const DeviceModelParams& adm = o.admittance_device;
@@ -291,6 +307,10 @@ void write_stability_markdown(const StabilityReport& rep, const std::string& pat
                       r.predicted > 0 ? fixed("%.0f", r.predicted) : std::string("-"),
                       fixed("%.3g", r.energy_generated * 1e3), fixed("%.3g", r.amplitude * 1e3),
                       fixed("%.3g", r.peak_force));
+  if (!traces_figure.empty())
+    md += fmt::format("\nThe trials at {:g} N/m over time (the tool centre's height and, under admittance control, the "
+                      "setpoint the robot is commanded):\n\n![traces at {:g} N/m]({})\n",
+                      o.trace_stiffness, o.trace_stiffness, traces_figure);
   write_file_atomically(path, md);
 }
 

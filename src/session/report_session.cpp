@@ -189,10 +189,32 @@ StabilityOptions stability_options_from(const StabilityCommandOptions& o) {
     for (double d : o.delays_ms) so.delays.push_back(d * 1e-3);
   }
   if (!o.rates.empty()) so.rates = o.rates;
+  so.trace_stiffness = given.trace_stiffness;
+  if (so.trace_stiffness > 0 &&
+      std::find(so.stiffnesses.begin(), so.stiffnesses.end(), so.trace_stiffness) == so.stiffnesses.end())
+    so.stiffnesses.push_back(so.trace_stiffness);
   if (o.control == "impedance") so.controls = {ControlMode::kImpedance};
   if (o.control == "admittance") so.controls = {ControlMode::kAdmittance};
   return so;
 }
+
+namespace {
+
+// The command line that reproduces the sweep, for its report.
+std::string stability_command_line(const StabilityCommandOptions& o) {
+  std::string c = "gshaptics stability";
+  if (o.quick) c += " --quick";
+  if (o.control != "both") c += " --control " + o.control;
+  for (const std::string& s : o.shapes) c += " --shape " + s;
+  for (double r : o.rates) c += fmt::format(" --rate {:g}", r);
+  for (double d : o.delays_ms) c += fmt::format(" --delay {:g}", d);
+  for (double k : o.stiffnesses) c += fmt::format(" --stiffness {:g}", k);
+  if (o.sweep.push != StabilityOptions{}.push) c += fmt::format(" --push {:g}", o.sweep.push);
+  if (o.sweep.trace_stiffness > 0) c += fmt::format(" --trace-stiffness {:g}", o.sweep.trace_stiffness);
+  return c;
+}
+
+}  // namespace
 
 void run_stability_command(const StabilityCommandOptions& o) {
   const StabilityOptions so = stability_options_from(o);
@@ -208,9 +230,17 @@ void run_stability_command(const StabilityCommandOptions& o) {
     if (run_python(find_tool_script("plot_stability.py"), {csv, png}, "stability"))
       figure = std::filesystem::relative(png, folder).string();
   }
-  const std::string command = "gshaptics stability" + std::string(o.quick ? " --quick" : "") +
-                              (o.control != "both" ? " --control " + o.control : std::string());
-  write_stability_markdown(rep, o.out, command, figure);
+  std::string traces_figure;
+  if (so.trace_stiffness > 0) {
+    // The traced trials side by side: impedance and admittance at one stiffness.
+    const std::string traces = (std::filesystem::path(data_dir) / "stability_traces.csv").string();
+    write_stability_traces_csv(rep, traces);
+    fmt::print("traces     {}\n", traces);
+    const std::string png = (std::filesystem::path(data_dir) / "stability_traces.png").string();
+    if (!o.no_plot && run_python(find_tool_script("plot_stability_traces.py"), {traces, png}, "stability"))
+      traces_figure = std::filesystem::relative(png, folder).string();
+  }
+  write_stability_markdown(rep, o.out, stability_command_line(o), figure, traces_figure);
   for (const StabilityRow& r : rep.rows)
     fmt::print("{:<9} {:<10} {:>5g} Hz {:>4g} ms  passivity {:<3}  largest stable {}{:g} N/m{}\n", r.shape,
                control_mode_name(r.control), r.rate_hz, r.delay * 1e3, r.passivity ? "on" : "off",

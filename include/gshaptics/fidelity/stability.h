@@ -85,6 +85,8 @@ struct StabilityOptions {
     return p;
   }();
   WallTrialOptions trial;
+  /// The trials at this stiffness keep their traces (StabilityTrial::trace), N/m; 0: none do.
+  double trace_stiffness = 0;
   std::uint64_t seed = 1;
 
   [[nodiscard]] static DeviceModelParams default_impedance_device();
@@ -120,6 +122,9 @@ struct StabilityTrial {
   bool passivity = false;
   bool stable = false;
   double growth = 0, last_amplitude = 0, min_energy = 0, peak_force = 0;
+  /// Per tick when the stiffness is StabilityOptions::trace_stiffness (else empty): time (s), the
+  /// device's height and the setpoint's (m, along the wall's normal), the force sent (N, z).
+  std::vector<double> time, height, setpoint, force;
 };
 
 struct StabilityReport {
@@ -137,9 +142,13 @@ using StabilityProgressFn = std::function<void(const std::string&)>;
 
 /// Writes the trials as CSV (for the figure) at `path`, atomically. Throws InputError naming it.
 void write_stability_csv(const StabilityReport& report, const std::string& path);
-/// Writes the Markdown report (settings, the table, the figure when `figure` is not empty).
+/// Writes the traced trials (StabilityOptions::trace_stiffness) as CSV at `path`, atomically: shape,
+/// control, rate_hz, delay_ms, passivity, stiffness, time_s, height_mm, setpoint_mm, force_n.
+void write_stability_traces_csv(const StabilityReport& report, const std::string& path);
+/// Writes the Markdown report (settings, the table, the figure when `figure` is not empty, the
+/// traced trials' figure when `traces_figure` is not empty).
 void write_stability_markdown(const StabilityReport& report, const std::string& path, const std::string& command,
-                              const std::string& figure);
+                              const std::string& figure, const std::string& traces_figure = {});
 
 /// Judges a height trace (s, m) as run_wall_trial does; fills stable, amplitudes and growth.
 void judge_wall_trace(const std::vector<double>& time, const std::vector<double>& height,
