@@ -208,6 +208,43 @@ class Ros1Node(unittest.TestCase):
                     n.send_signal(signal.SIGINT)
                     n.communicate(timeout=60)
 
+    def test_admittance_reads_the_sensor_and_writes_the_setpoint(self):
+        """Issue 73, item 3 on ROS 1: under --control admittance the node takes the robot's sensor
+        (WrenchStamped) and publishes the setpoint (PoseStamped + TwistStamped) it moves under
+        that force. The sensor is tared on its first readings (0 N here), then a 5 N push along
+        +x moves the setpoint along +x."""
+        node, header = self.start_node(tempfile.mkdtemp(), "__ns:=/robot", "--node-name", "adm",
+                                       "--control", "admittance")
+        wrench = "geometry_msgs/WrenchStamped"
+        far = "{header: {frame_id: world}, pose: {position: {x: 0.0, y: 0.0, z: 3.0}, orientation: {w: 1.0}}}"
+        procs = []
+        try:
+            self.assertIn("/robot/gshaptics/tool_pose", header)
+            pub = lambda topic, typ, msg: procs.append(subprocess.Popen(
+                ["rostopic", "pub", "-r", "200", topic, typ, msg], env=self.env,
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+            pub("/robot/gshaptics/tool_pose", POSE, far)
+            pub("/robot/force_torque_sensor_broadcaster/wrench", wrench, "{wrench: {force: {x: 0.0}}}")
+            time.sleep(3.0)
+            rest = echo_once("/robot/gshaptics/setpoint_twist", self.env)
+            self.assertIn("linear:", rest)
+            procs.pop().kill()
+            pub("/robot/force_torque_sensor_broadcaster/wrench", wrench, "{wrench: {force: {x: 5.0}}}")
+            time.sleep(4.0)
+            moving = [l.strip() for l in echo_once("/robot/gshaptics/setpoint_twist", self.env).splitlines()]
+            i = moving.index("linear:")
+            vx = float(moving[i + 1].split(":")[1])
+            self.assertGreater(vx, 0.05)  # 5 N on a 3 kg, 20 N s/m virtual tool: toward 0.25 m/s
+            pose = [l.strip() for l in echo_once("/robot/gshaptics/setpoint_pose", self.env).splitlines()]
+            x = float(pose[pose.index("position:") + 1].split(":")[1])
+            self.assertGreater(x, 0.05)  # it has moved along +x from the robot's x = 0
+        finally:
+            for p in procs:
+                p.kill()
+            node.send_signal(signal.SIGINT)
+            _, err = node.communicate(timeout=60)
+        self.assertEqual(node.returncode, 0, err)
+
 
 if __name__ == "__main__":
     if shutil.which("roscore") is None or shutil.which("rostopic") is None:

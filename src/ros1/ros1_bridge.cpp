@@ -12,13 +12,18 @@ struct Ros1Impl {
   RosBridgeOptions options;
   RosBridgeStats stats;
   RosPoseIntake intake;
+  RosSensorIntake sensor;
   std::unique_ptr<ros1::Transport> transport;
   RosWrenchOutbox outbox;
   std::unique_ptr<RosMarkerLoop> markers;
 
   Ros1Impl(const RosBridgeOptions& o, Clock& c, StreamDevice& in)
-      : options(o), intake(in, c, stats, o.input_timeout),
-        outbox([this](const Wrench& w, const Setpoint*, const RosTime& echo) {
+      : options(o), intake(in, c, stats, o.input_timeout), sensor(c),
+        outbox([this](const Wrench& w, const Setpoint* sp, const RosTime& echo) {
+          // The setpoint first: a robot's position controller gets it as soon as it exists.
+          if (sp != nullptr)
+            transport->publish_setpoint({sp->position.x(), sp->position.y(), sp->position.z()},
+                                        {sp->velocity.x(), sp->velocity.y(), sp->velocity.z()}, echo.sec, echo.nanosec);
           transport->publish_wrench({w.force.x(), w.force.y(), w.force.z()}, {w.torque.x(), w.torque.y(), w.torque.z()},
                                     echo.sec, echo.nanosec);
         }, stats) {}
@@ -29,10 +34,15 @@ Ros1NetworkDevice::Ros1NetworkDevice(const RosBridgeOptions& options, Clock& clo
     : input_(network_device_params("ros1 (" + options.pose_topic + ")", options.input_timeout),
              Eigen::Vector3d::Zero()),
       impl_(std::make_unique<Ros1Impl>(options, clock, input_)) {
-  if (options.admittance)
-    throw InputError("node --ros1: admittance control over ROS 1 is not built yet; ROS 2 has it (node --ros2 "
-                     "--control admittance)");
+  info_ = input_.info();
   ros1::TransportOptions t;
+  if (options.admittance) {
+    info_.admittance = true;
+    info_.name = "ros1 robot (" + options.pose_topic + ", sensor " + options.sensor_topic + ")";
+    t.sensor_topic = options.sensor_topic;
+    t.setpoint_topic = options.setpoint_topic;
+    t.setpoint_twist_topic = options.setpoint_twist_topic;
+  }
   t.node_name = node_name.empty() ? options.node_name : node_name;
   t.remappings = options.ros_args;
   // Relative names stay relative: roscpp resolves them in the node's namespace.
@@ -51,7 +61,8 @@ Ros1NetworkDevice::Ros1NetworkDevice(const RosBridgeOptions& options, Clock& clo
                            {p.orientation_xyzw[0], p.orientation_xyzw[1], p.orientation_xyzw[2], p.orientation_xyzw[3]},
                            {p.sec, p.nanosec}, std::hash<std::string>{}(p.publisher));
         },
-        [&m](const std::array<double, 3>& v) { m.intake.on_twist({v[0], v[1], v[2]}); });
+        [&m](const std::array<double, 3>& v) { m.intake.on_twist({v[0], v[1], v[2]}); },
+        [&m](const std::array<double, 3>& f) { m.sensor.on_wrench({f[0], f[1], f[2]}); });
   } catch (const std::runtime_error& e) {
     throw InputError(e.what());
   }
@@ -65,14 +76,31 @@ Ros1NetworkDevice::~Ros1NetworkDevice() {
 
 void Ros1NetworkDevice::start(Nanos now) {
   input_.start(now);
+  has_setpoint_ = false;
+  frozen_ = 0;
   impl_->outbox.start();
 }
 
-DeviceSample Ros1NetworkDevice::read(Nanos now) noexcept { return input_.read(now); }
+DeviceSample Ros1NetworkDevice::read(Nanos now) noexcept {
+  DeviceSample s = input_.read(now);
+  if (!info_.admittance) return s;
+  // As the ROS 2 bridge: a stale sensor stops the device's data as a stale pose does.
+  if (impl_->sensor.newest(s.user_force, impl_->options.input_timeout))
+    frozen_ = s.sequence;
+  else
+    s.sequence = frozen_;
+  return s;
+}
+
+void Ros1NetworkDevice::write_setpoint(const Setpoint& setpoint, Nanos now) noexcept {
+  (void)now;
+  setpoint_ = setpoint;
+  has_setpoint_ = true;
+}
 
 void Ros1NetworkDevice::write(const Wrench& wrench, Nanos now) noexcept {
   input_.write(wrench, now);
-  impl_->outbox.post(wrench, impl_->intake.wrench_stamp());
+  impl_->outbox.post(wrench, impl_->intake.wrench_stamp(), info_.admittance && has_setpoint_ ? &setpoint_ : nullptr);
 }
 
 void Ros1NetworkDevice::stop(Nanos now) noexcept {

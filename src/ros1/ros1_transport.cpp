@@ -15,10 +15,12 @@ namespace gshaptics::ros1 {
 struct Transport::State {
   TransportOptions options;
   std::function<void(const PoseIn&)> on_pose;
-  std::function<void(const std::array<double, 3>&)> on_twist;
+  std::function<void(const std::array<double, 3>&)> on_twist, on_sensor;
   std::unique_ptr<ros::NodeHandle> nh;
-  ros::Subscriber pose_sub, twist_sub;
-  ros::Publisher wrench_pub, marker_pub;
+  ros::Subscriber pose_sub, twist_sub, sensor_sub;
+  ros::Publisher wrench_pub, marker_pub, setpoint_pub, setpoint_twist_pub;
+  geometry_msgs::PoseStamped setpoint;
+  geometry_msgs::TwistStamped setpoint_twist;
   std::unique_ptr<ros::AsyncSpinner> spinner;
   geometry_msgs::WrenchStamped wrench;
 
@@ -35,15 +37,20 @@ struct Transport::State {
   void twist_cb(const geometry_msgs::TwistStamped::ConstPtr& m) {
     on_twist({m->twist.linear.x, m->twist.linear.y, m->twist.linear.z});
   }
+  void sensor_cb(const geometry_msgs::WrenchStamped::ConstPtr& m) {
+    on_sensor({m->wrench.force.x, m->wrench.force.y, m->wrench.force.z});
+  }
 };
 
 Transport::Transport(const TransportOptions& o, std::function<void(const PoseIn&)> on_pose,
-                     std::function<void(const std::array<double, 3>&)> on_twist)
+                     std::function<void(const std::array<double, 3>&)> on_twist,
+                     std::function<void(const std::array<double, 3>&)> on_sensor)
     : state_(std::make_unique<State>()) {
   State& s = *state_;
   s.options = o;
   s.on_pose = std::move(on_pose);
   s.on_twist = std::move(on_twist);
+  s.on_sensor = std::move(on_sensor);
   if (!ros::isInitialized()) {
     // roscpp reads remappings, __name and __ns from its command line (and ROS_NAMESPACE).
     std::vector<std::string> args{"gshaptics"};
@@ -70,6 +77,15 @@ Transport::Transport(const TransportOptions& o, std::function<void(const PoseIn&
   s.wrench_pub = s.nh->advertise<geometry_msgs::WrenchStamped>(o.wrench_topic, 64);
   s.marker_pub = s.nh->advertise<visualization_msgs::MarkerArray>(o.markers_topic, 2);
   s.wrench.header.frame_id = o.frame_id;
+  if (!o.sensor_topic.empty()) {
+    s.sensor_sub = s.nh->subscribe<geometry_msgs::WrenchStamped>(o.sensor_topic, 64, &State::sensor_cb, &s,
+                                                                  ros::TransportHints().tcpNoDelay());
+    s.setpoint_pub = s.nh->advertise<geometry_msgs::PoseStamped>(o.setpoint_topic, 64);
+    s.setpoint_twist_pub = s.nh->advertise<geometry_msgs::TwistStamped>(o.setpoint_twist_topic, 64);
+    s.setpoint.header.frame_id = o.frame_id;
+    s.setpoint.pose.orientation.w = 1;
+    s.setpoint_twist.header.frame_id = o.frame_id;
+  }
   s.spinner = std::make_unique<ros::AsyncSpinner>(1);
   s.spinner->start();
   // One log line through roscpp now, while this node is the one registered under its name. The
@@ -85,6 +101,20 @@ Transport::~Transport() {
   if (state_->spinner) state_->spinner->stop();
   state_->pose_sub.shutdown();
   state_->twist_sub.shutdown();
+  state_->sensor_sub.shutdown();
+}
+
+void Transport::publish_setpoint(const std::array<double, 3>& p, const std::array<double, 3>& v, std::int32_t sec,
+                                 std::uint32_t nanosec) {
+  State& s = *state_;
+  if (s.options.sensor_topic.empty()) return;
+  const ros::Time stamp(std::uint32_t(sec), nanosec);
+  s.setpoint_twist.header.stamp = stamp;
+  s.setpoint_twist.twist.linear.x = v[0], s.setpoint_twist.twist.linear.y = v[1], s.setpoint_twist.twist.linear.z = v[2];
+  s.setpoint_twist_pub.publish(s.setpoint_twist);
+  s.setpoint.header.stamp = stamp;
+  s.setpoint.pose.position.x = p[0], s.setpoint.pose.position.y = p[1], s.setpoint.pose.position.z = p[2];
+  s.setpoint_pub.publish(s.setpoint);
 }
 
 std::string Transport::resolve(const std::string& name) const { return ros::names::resolve(name); }

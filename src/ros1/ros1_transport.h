@@ -24,6 +24,9 @@ struct PoseIn {
 
 struct TransportOptions {
   std::string node_name, pose_topic, twist_topic, wrench_topic, markers_topic, frame_id;
+  /// Admittance: the force/torque sensor in (WrenchStamped), the setpoint out (PoseStamped,
+  /// TwistStamped). Empty sensor_topic: not an admittance node.
+  std::string sensor_topic, setpoint_topic, setpoint_twist_topic;
   std::vector<std::string> remappings;  ///< `from:=to`, `__name:=`, `__ns:=` as on a ROS 1 command line
   double master_timeout = 10;
 };
@@ -34,12 +37,17 @@ class Transport {
   /// command line), waits for the master,
   /// subscribes and advertises; callbacks run on an AsyncSpinner thread. Throws
   /// std::runtime_error with a message naming the master when none answers.
+  /// `on_sensor` (admittance, may be empty otherwise): the sensor's force, N.
   Transport(const TransportOptions& options, std::function<void(const PoseIn&)> on_pose,
-            std::function<void(const std::array<double, 3>&)> on_twist);
+            std::function<void(const std::array<double, 3>&)> on_twist,
+            std::function<void(const std::array<double, 3>&)> on_sensor = {});
   ~Transport();
   void publish_wrench(const std::array<double, 3>& force, const std::array<double, 3>& torque,
                       std::int32_t sec, std::uint32_t nanosec);
   void publish_markers(const std::vector<RosMarker>& markers);
+  /// Admittance: the setpoint, m and m/s (orientation identity), stamped.
+  void publish_setpoint(const std::array<double, 3>& position, const std::array<double, 3>& velocity,
+                        std::int32_t sec, std::uint32_t nanosec);
   /// `name` resolved in the node's namespace, remappings applied (what the master lists).
   [[nodiscard]] std::string resolve(const std::string& name) const;
   /// The node's full name (/namespace/name).

@@ -10,8 +10,9 @@ const char* control_mode_name(ControlMode mode) noexcept {
 }
 
 void ForceSensorFilter::reset(Nanos now, double range) noexcept {
+  (void)now;
   range_ = range > 0 ? range : std::numeric_limits<double>::infinity();
-  tare_end_ = now + to_nanos(std::max(0.0, params_.tare_time));
+  tare_end_ = -1;  // the tare starts with the first reading (a networked sensor may come late)
   sum_.setZero();
   tare_.setZero();
   count_ = 0;
@@ -23,6 +24,7 @@ Eigen::Vector3d ForceSensorFilter::apply(const Eigen::Vector3d& raw, Nanos now) 
   if (!raw.allFinite()) return Eigen::Vector3d::Zero();
   if (std::isfinite(range_) && raw.cwiseAbs().maxCoeff() >= 0.99 * range_) saturated_ = true;
   if (taring_) {
+    if (tare_end_ < 0) tare_end_ = now + to_nanos(params_.tare_time);
     if (now < tare_end_) {
       sum_ += raw;
       ++count_;

@@ -30,10 +30,14 @@ class Ros1NetworkDevice final : public RosBridgeDevice {
   Ros1NetworkDevice(const RosBridgeOptions& options, Clock& clock, const std::string& node_name = {},
                     double master_timeout = 10);
   ~Ros1NetworkDevice() override;
-  [[nodiscard]] const DeviceInfo& info() const noexcept override { return input_.info(); }
+  [[nodiscard]] const DeviceInfo& info() const noexcept override { return info_; }
   void start(Nanos now) override;
+  /// The newest pose; under admittance (RosBridgeOptions::admittance) with the sensor's newest
+  /// reading as the user force, and no new data while the sensor is stale.
   [[nodiscard]] DeviceSample read(Nanos now) noexcept override;
   void write(const Wrench& wrench, Nanos now) noexcept override;
+  /// Admittance: published with the tick's wrench on the setpoint topics (PoseStamped, TwistStamped).
+  void write_setpoint(const Setpoint& setpoint, Nanos now) noexcept override;
   void stop(Nanos now) noexcept override;
   /// True once roscpp has shut down (the master asked this node to end).
   [[nodiscard]] bool finished() const noexcept override;
@@ -47,6 +51,10 @@ class Ros1NetworkDevice final : public RosBridgeDevice {
  private:
   StreamDevice input_;
   std::unique_ptr<Ros1Impl> impl_;
+  DeviceInfo info_;
+  Setpoint setpoint_;  // servo thread
+  bool has_setpoint_ = false;
+  std::uint64_t frozen_ = 0;  // under admittance: the sample's sequence when the sensor was last fresh
 };
 
 }  // namespace gshaptics

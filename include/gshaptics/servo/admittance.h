@@ -70,7 +70,8 @@ struct ControlParams {
 class ForceSensorFilter {
  public:
   explicit ForceSensorFilter(const RobotSafetyParams& params = {}) noexcept : params_(params) {}
-  /// Starts the tare at `now`; `range`: the sensor's range, N (+inf: none known).
+  /// Re-arms the tare, which starts with the first reading apply() gets (a networked sensor may
+  /// come after the run starts); `range`: the sensor's range, N (+inf: none known).
   void reset(Nanos now, double range) noexcept;
   /// The user's force from a raw reading at `now` (N): zero while taring (the reading is
   /// averaged), then the reading less the tare, zero within the dead band. A non-finite reading
@@ -83,7 +84,7 @@ class ForceSensorFilter {
  private:
   RobotSafetyParams params_;
   double range_ = std::numeric_limits<double>::infinity();
-  Nanos tare_end_ = 0;
+  Nanos tare_end_ = -1;  // -1: the tare has not started
   Eigen::Vector3d sum_ = Eigen::Vector3d::Zero(), tare_ = Eigen::Vector3d::Zero();
   long count_ = 0;
   bool taring_ = false, saturated_ = false;
