@@ -286,3 +286,70 @@ TEST_F(Ros2Bridge, SecondPublisherIsCountedAndTheNewestSampleWins) {
 
 }  // namespace
 }  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+// Issue 73, item 5: ROS 2 tools find nodes through ros_discovery_info (rmw_dds_common
+// ParticipantEntitiesInfo). A late reader (transient local) gets the node's namespace and name
+// from --ros-args, and GIDs that are DDS GUIDs of one participant (same 12-octet prefix, the
+// participant's entity id 0x000001c1), zero padded to 24 octets; two readers and a writer, and
+// under admittance one reader and two writers more.
+TEST(Ros2Discovery, TheNodeSaysItsNameAndEntitiesOnRosDiscoveryInfo) {
+  for (const bool admittance : {false, true}) {
+    Ros2Options o;
+    o.domain = 10 + int((getpid() + 53 + (admittance ? 1 : 0)) % 200);
+    o.ros_args = {"--ros-args", "-r", "__ns:=/arm1", "-r", "__node:=left"};
+    o.admittance = admittance;
+    Ros2NetworkDevice node(o, MonotonicClock::instance());
+    const dds_entity_t pp = dds_create_participant(dds_domainid_t(o.domain), nullptr, nullptr);
+    ASSERT_GT(pp, 0);
+    const dds_entity_t topic = dds_create_topic(pp, &rmw_dds_common_msg_dds__ParticipantEntitiesInfo__desc,
+                                                "ros_discovery_info", nullptr, nullptr);
+    dds_qos_t* q = dds_create_qos();
+    dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+    dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
+    dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
+    const dds_entity_t reader = dds_create_reader(pp, topic, q, nullptr);
+    dds_delete_qos(q);
+    ASSERT_GT(reader, 0);
+    bool got = false;
+    const auto t0 = std::chrono::steady_clock::now();
+    while (!got && std::chrono::steady_clock::now() - t0 < 10s) {
+      void* s[4] = {};
+      dds_sample_info_t info[4];
+      const int n = dds_take(reader, s, info, 4, 4);
+      for (int i = 0; i < n; ++i) {
+        if (!info[i].valid_data) continue;
+        const auto* m = static_cast<const rmw_dds_common_msg_dds__ParticipantEntitiesInfo_*>(s[i]);
+        ASSERT_EQ(m->node_entities_info_seq._length, 1u);
+        const auto& node_info = m->node_entities_info_seq._buffer[0];
+        EXPECT_STREQ(node_info.node_namespace, "/arm1");
+        EXPECT_STREQ(node_info.node_name, "left");
+        EXPECT_EQ(node_info.reader_gid_seq._length, admittance ? 3u : 2u);
+        EXPECT_EQ(node_info.writer_gid_seq._length, admittance ? 3u : 1u);
+        const std::uint8_t* p = m->gid.data;
+        EXPECT_EQ(p[12], 0x00);  // ENTITYID_PARTICIPANT: 0x000001c1
+        EXPECT_EQ(p[13], 0x00);
+        EXPECT_EQ(p[14], 0x01);
+        EXPECT_EQ(p[15], 0xc1);
+        for (int k = 16; k < 24; ++k) EXPECT_EQ(p[k], 0) << k;
+        auto same_participant = [&](const rmw_dds_common_msg_dds__Gid_& g) {
+          return std::memcmp(g.data, p, 12) == 0 && std::memcmp(g.data + 12, p + 12, 4) != 0;
+        };
+        for (std::uint32_t k = 0; k < node_info.reader_gid_seq._length; ++k)
+          EXPECT_TRUE(same_participant(node_info.reader_gid_seq._buffer[k])) << k;
+        for (std::uint32_t k = 0; k < node_info.writer_gid_seq._length; ++k)
+          EXPECT_TRUE(same_participant(node_info.writer_gid_seq._buffer[k])) << k;
+        got = true;
+      }
+      if (n > 0) dds_return_loan(reader, s, n);
+      if (!got) std::this_thread::sleep_for(20ms);
+    }
+    EXPECT_TRUE(got) << "no ros_discovery_info within 10 s";
+    dds_delete(pp);
+  }
+}
+
+}  // namespace
+}  // namespace gshaptics

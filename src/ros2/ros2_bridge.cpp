@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <vector>
 
@@ -74,7 +76,42 @@ Endpoint make_writer(dds_entity_t pp, const dds_topic_descriptor_t* desc, const 
   return e;
 }
 
+// An entity's DDS GUID as a ROS 2 GID (Humble: 24 octets, the GUID's 16 then zeros), as
+// rmw_cyclonedds converts it.
+rmw_dds_common_msg_dds__Gid_ gid_of(dds_entity_t e) {
+  rmw_dds_common_msg_dds__Gid_ g{};
+  dds_guid_t guid{};
+  if (dds_get_guid(e, &guid) == DDS_RETCODE_OK) std::memcpy(g.data, guid.v, sizeof guid.v);
+  return g;
+}
+
 }  // namespace
+
+void publish_discovery_info(dds_entity_t participant, const std::string& ns, const std::string& node,
+                            const std::vector<dds_entity_t>& readers, const std::vector<dds_entity_t>& writers) {
+  const dds_entity_t topic = check(
+      dds_create_topic(participant, &rmw_dds_common_msg_dds__ParticipantEntitiesInfo__desc, kRos2DiscoveryTopic,
+                       nullptr, nullptr), "topic ros_discovery_info");
+  Qos q(stream_qos(true, 1));
+  dds_qset_durability(q.q, DDS_DURABILITY_TRANSIENT_LOCAL);
+  const dds_entity_t writer = check(dds_create_writer(participant, topic, q.q, nullptr), "writer on ros_discovery_info");
+  std::vector<rmw_dds_common_msg_dds__Gid_> reader_gids, writer_gids;
+  for (dds_entity_t r : readers) reader_gids.push_back(gid_of(r));
+  for (dds_entity_t w : writers) writer_gids.push_back(gid_of(w));
+  rmw_dds_common_msg_dds__NodeEntitiesInfo_ info{};
+  std::snprintf(info.node_namespace, sizeof info.node_namespace, "%s", ns.c_str());
+  std::snprintf(info.node_name, sizeof info.node_name, "%s", node.c_str());
+  info.reader_gid_seq._length = info.reader_gid_seq._maximum = std::uint32_t(reader_gids.size());
+  info.reader_gid_seq._buffer = reader_gids.data();
+  info.writer_gid_seq._length = info.writer_gid_seq._maximum = std::uint32_t(writer_gids.size());
+  info.writer_gid_seq._buffer = writer_gids.data();
+  rmw_dds_common_msg_dds__ParticipantEntitiesInfo_ msg{};
+  msg.gid = gid_of(participant);
+  msg.node_entities_info_seq._length = msg.node_entities_info_seq._maximum = 1;
+  msg.node_entities_info_seq._buffer = &info;
+  const dds_return_t rc = dds_write(writer, &msg);
+  if (rc != DDS_RETCODE_OK) throw InputError(dds_error("writing ros_discovery_info", rc));
+}
 
 std::string ros2_dds_topic(const std::string& ros_name) {
   std::size_t i = 0;
@@ -245,6 +282,15 @@ Ros2NetworkDevice::Ros2NetworkDevice(const Ros2Options& options, Clock& clock)
                                    options.input_timeout),
              Eigen::Vector3d::Zero()),
       impl_(std::make_unique<Ros2Impl>(resolved(options, names_), clock, input_)) {
+  // ROS 2 tools find nodes through ros_discovery_info: say which node this participant hosts.
+  Ros2Impl& m = *impl_;
+  std::vector<dds_entity_t> readers{m.pose_reader.entity, m.twist_reader.entity}, writers{m.wrench_writer.entity};
+  if (options.admittance) {
+    readers.push_back(m.sensor_reader.entity);
+    writers.push_back(m.setpoint_writer.entity);
+    writers.push_back(m.setpoint_twist_writer.entity);
+  }
+  publish_discovery_info(m.participant, names_.ns, names_.node, readers, writers);
   info_ = input_.info();
   if (options.admittance) {
     info_.admittance = true;

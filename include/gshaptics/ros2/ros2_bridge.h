@@ -24,6 +24,7 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "gshaptics/net/ros_bridge.h"
 #include "gshaptics/net/contact_snapshot.h"
@@ -36,6 +37,16 @@ using Ros2Stats = RosBridgeStats;
 
 /// "rt/" + the name without a leading '/'.
 [[nodiscard]] std::string ros2_dds_topic(const std::string& ros_name);
+
+/// The DDS topic ROS 2 tools learn the graph from (rmw_dds_common): no "rt/" prefix.
+inline constexpr const char* kRos2DiscoveryTopic = "ros_discovery_info";
+/// Publishes, on `participant` (a dds_entity_t), the rmw_dds_common ParticipantEntitiesInfo that
+/// says it hosts node `node` in namespace `ns` (absolute) with these readers and writers (their
+/// GIDs: the DDS GUIDs, zero padded to 24 octets as in Humble), reliable and transient local with
+/// keep-last 1 as rmw_cyclonedds_cpp writes it, so `ros2 node list` shows the node. Throws
+/// InputError when DDS refuses.
+void publish_discovery_info(std::int32_t participant, const std::string& ns, const std::string& node,
+                            const std::vector<std::int32_t>& readers, const std::vector<std::int32_t>& writers);
 
 struct Ros2Impl;
 
