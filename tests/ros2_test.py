@@ -40,20 +40,25 @@ def episodes(rows, force_cols, t_col="time_s", gap=0.1):
     return eps
 
 
+def start_node(*args):
+    """`gshaptics node` with `args`, once it says it is ready."""
+    node = subprocess.Popen([EXE, "node", *args, "--quiet", "--no-plot"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    line = ""
+    while "ready" not in line:
+        line = node.stdout.readline()
+        if line == "":
+            raise AssertionError("gshaptics node ended before it was ready: " + node.stderr.read())
+    return node
+
+
 class TwoProcesses(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.dir = tempfile.mkdtemp()
         domain = str(100 + os.getpid() % 100)
         common = ["--ros2", "--domain", domain, "--reliable", "--depth", "64"]
-        cls.node = subprocess.Popen(
-            [EXE, "node", *common, "--quiet", "--no-plot", "--out", os.path.join(cls.dir, "node")],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        line = ""
-        while "ready" not in line:
-            line = cls.node.stdout.readline()
-            if line == "":
-                raise AssertionError("gshaptics node ended before it was ready: " + cls.node.stderr.read())
+        cls.node = start_node(*common, "--out", os.path.join(cls.dir, "node"))
         cls.dev = subprocess.run(
             [EXE, "device-sim", *common, "--sites", SITES, "--quiet", "--out", os.path.join(cls.dir, "dev")],
             capture_output=True, text=True, timeout=300)
@@ -110,14 +115,7 @@ class AdmittanceTwoProcesses(unittest.TestCase):
         cls.dir = tempfile.mkdtemp()
         domain = str(200 + os.getpid() % 30)
         common = ["--ros2", "--domain", domain, "--reliable", "--depth", "64", "--control", "admittance"]
-        cls.node = subprocess.Popen(
-            [EXE, "node", *common, "--duration", "12", "--quiet", "--no-plot", "--out", os.path.join(cls.dir, "node")],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        line = ""
-        while "ready" not in line:
-            line = cls.node.stdout.readline()
-            if line == "":
-                raise AssertionError("gshaptics node ended before it was ready: " + cls.node.stderr.read())
+        cls.node = start_node(*common, "--duration", "12", "--out", os.path.join(cls.dir, "node"))
         cls.dev = subprocess.run(
             [EXE, "device-sim", *common, "--sites", "1", "--duration", "16", "--quiet",
              "--out", os.path.join(cls.dir, "dev")], capture_output=True, text=True, timeout=300)
