@@ -516,6 +516,24 @@ TEST_F(RobotTick, AStopWhileMovingBrakesToRestBeforeTheRunEnds) {
   EXPECT_EQ(robot_.setpoint.velocity, Eigen::Vector3d::Zero());
 }
 
+// A 6-DoF handle: the sensor's torque (tared with the force) turns the setpoint about its axis.
+TEST_F(RobotTick, TheSensorsTorqueTurnsTheSetpoint) {
+  robot_.sample.user_torque = {0, 0, 0.05};  // the sensor's bias while nobody holds the handle
+  ticks(150);
+  EXPECT_LT(robot_.setpoint.orientation.angularDistance(Eigen::Quaterniond::Identity()), 1e-12);
+  robot_.sample.user_torque.z() += 0.3;  // a wrist torque about z
+  ticks(1000);
+  const Eigen::AngleAxisd turned(robot_.setpoint.orientation);
+  EXPECT_GT(turned.angle(), 0.5);
+  EXPECT_GT(std::abs(turned.axis().z()), 0.999);
+  EXPECT_NEAR(robot_.setpoint.angular_velocity.z(), 0.3 / AdmittanceParams{}.angular_damping, 0.05);
+  // A stop brakes the turn too before the run ends.
+  servo_->request_stop();
+  int k = 0;
+  while (!servo_->force_released() && k < 5000) tick(), ++k;
+  EXPECT_EQ(robot_.setpoint.angular_velocity, Eigen::Vector3d::Zero());
+}
+
 // Admittance ticks allocate nothing either (the sensor, the limits, the braking).
 TEST_F(RobotTick, AdmittanceTicksAllocateNothing) {
   ticks(20);

@@ -227,6 +227,42 @@ TEST(AdmittanceController, VirtualToolIsAMassDamper) {
   EXPECT_GT((a.setpoint().position - before).norm(), 0.0);  // it coasts
 }
 
+// Rotation (a 6-DoF handle): a wrist torque turns the virtual tool about its axis at tau / b_r,
+// the rendered torque adds to it, and the angular speed limit binds.
+TEST(AdmittanceController, VirtualToolTurnsUnderTheTorque) {
+  AdmittanceParams p;  // 0.015 kg m^2, 0.15 N m s/rad: 0.15 s
+  AdmittanceController a(p);
+  const Eigen::Quaterniond start(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX()));
+  a.reset(Eigen::Vector3d::Zero(), start);
+  const Eigen::Vector3d zero = Eigen::Vector3d::Zero(), tau(0, 0, 0.3);
+  double turned = 0;
+  for (int k = 0; k < 2000; ++k) {
+    (void)a.step(zero, tau, zero, zero, 1e-3);
+    turned += a.setpoint().angular_velocity.z() * 1e-3;
+  }
+  EXPECT_NEAR(a.setpoint().angular_velocity.z(), 0.3 / 0.15, 1e-3);  // 2 rad/s
+  EXPECT_NEAR(a.setpoint().angular_velocity.head<2>().norm(), 0.0, 1e-12);
+  // The orientation is the start turned about the world's z by the integrated angle.
+  const Eigen::Quaterniond expected = Eigen::Quaterniond(Eigen::AngleAxisd(turned, Eigen::Vector3d::UnitZ())) * start;
+  EXPECT_LT(a.setpoint().orientation.angularDistance(expected), 1e-9);
+  EXPECT_NEAR(a.setpoint().position.norm(), 0.0, 1e-15);
+  // The environment's torque against the wrist's holds the tool still.
+  AdmittanceController b(p);
+  b.reset(Eigen::Vector3d::Zero());
+  for (int k = 0; k < 500; ++k) (void)b.step(zero, tau, zero, -tau, 1e-3);
+  EXPECT_EQ(b.setpoint().angular_velocity, Eigen::Vector3d::Zero());
+  // 1 N m asks for 6.7 rad/s: held to the 3 rad/s limit.
+  AdmittanceController c(p);
+  c.reset(Eigen::Vector3d::Zero());
+  for (int k = 0; k < 2000; ++k) (void)c.step(zero, Eigen::Vector3d(1, 0, 0), zero, zero, 1e-3);
+  EXPECT_NEAR(c.setpoint().angular_velocity.norm(), RobotSafetyParams{}.max_angular_speed, 1e-9);
+  EXPECT_TRUE(c.limited());
+  // Braking stops the turn at the angular acceleration limit.
+  int ticks = 0;
+  while (!c.at_rest() && ticks < 10000) (void)c.brake(1e-3), ++ticks;
+  EXPECT_NEAR(ticks * 1e-3, RobotSafetyParams{}.max_angular_speed / RobotSafetyParams{}.max_angular_acceleration, 2e-3);
+}
+
 // The admittance loop: the hand pushes with 5 N toward the plane z = 0; the device's position
 // servo follows the virtual tool, which the wall stops.
 DeviceModelParams admittance_device() {

@@ -229,6 +229,13 @@ void add_control_options(CLI::App& cmd, ControlParams& c) {
   cmd.add_option("--virtual-damping", c.admittance.damping,
                  "Admittance control: the virtual tool's damping, N s/m (the drag the hand feels in free space)")
       ->capture_default_str()->check(check::non_negative());
+  cmd.add_option("--virtual-inertia", c.admittance.inertia,
+                 "Admittance control: the virtual tool's moment of inertia, kg m^2 (a 6-DoF handle: the user's torque "
+                 "and the rendered torque turn it)")
+      ->capture_default_str()->check(check::positive());
+  cmd.add_option("--virtual-angular-damping", c.admittance.angular_damping,
+                 "Admittance control: the virtual tool's rotational damping, N m s/rad")
+      ->capture_default_str()->check(check::non_negative());
   cmd.add_option("--robot-max-speed", c.robot.max_speed,
                  "Admittance control: the setpoint's speed limit, m/s (a room-scale device; an arm guided by "
                  "hand at reduced speed: 0.25)")

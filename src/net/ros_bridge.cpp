@@ -156,18 +156,19 @@ void RosWrenchOutbox::post(const Wrench& wrench, const RosTime& echo, const Setp
   signal_.notify_one();
 }
 
-void RosSensorIntake::on_wrench(const Eigen::Vector3d& force) noexcept {
-  if (!force.allFinite()) {
+void RosSensorIntake::on_wrench(const Eigen::Vector3d& force, const Eigen::Vector3d& torque) noexcept {
+  if (!force.allFinite() || !torque.allFinite()) {
     dropped_.fetch_add(1, std::memory_order_relaxed);
     return;
   }
-  readings_.write({force, clock_.now()});
+  readings_.write({force, torque, clock_.now()});
   received_.fetch_add(1, std::memory_order_relaxed);
 }
 
-bool RosSensorIntake::newest(Eigen::Vector3d& force, double fresh_for) noexcept {
+bool RosSensorIntake::newest(Eigen::Vector3d& force, Eigen::Vector3d& torque, double fresh_for) noexcept {
   (void)readings_.read_if_new(newest_);
   force = newest_.force;
+  torque = newest_.torque;
   return newest_.arrival >= 0 && clock_.now() - newest_.arrival <= to_nanos(fresh_for);
 }
 

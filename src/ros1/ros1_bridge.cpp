@@ -22,8 +22,11 @@ struct Ros1Impl {
         outbox([this](const Wrench& w, const Setpoint* sp, const RosTime& echo) {
           // The setpoint first: a robot's position controller gets it as soon as it exists.
           if (sp != nullptr)
-            transport->publish_setpoint({sp->position.x(), sp->position.y(), sp->position.z()},
-                                        {sp->velocity.x(), sp->velocity.y(), sp->velocity.z()}, echo.sec, echo.nanosec);
+            transport->publish_setpoint(
+                {sp->position.x(), sp->position.y(), sp->position.z()},
+                {sp->orientation.x(), sp->orientation.y(), sp->orientation.z(), sp->orientation.w()},
+                {sp->velocity.x(), sp->velocity.y(), sp->velocity.z()},
+                {sp->angular_velocity.x(), sp->angular_velocity.y(), sp->angular_velocity.z()}, echo.sec, echo.nanosec);
           transport->publish_wrench({w.force.x(), w.force.y(), w.force.z()}, {w.torque.x(), w.torque.y(), w.torque.z()},
                                     echo.sec, echo.nanosec);
         }, stats) {}
@@ -62,7 +65,9 @@ Ros1NetworkDevice::Ros1NetworkDevice(const RosBridgeOptions& options, Clock& clo
                            {p.sec, p.nanosec}, std::hash<std::string>{}(p.publisher));
         },
         [&m](const std::array<double, 3>& v) { m.intake.on_twist({v[0], v[1], v[2]}); },
-        [&m](const std::array<double, 3>& f) { m.sensor.on_wrench({f[0], f[1], f[2]}); });
+        [&m](const std::array<double, 3>& f, const std::array<double, 3>& t) {
+          m.sensor.on_wrench({f[0], f[1], f[2]}, {t[0], t[1], t[2]});
+        });
   } catch (const std::runtime_error& e) {
     throw InputError(e.what());
   }
@@ -85,7 +90,7 @@ DeviceSample Ros1NetworkDevice::read(Nanos now) noexcept {
   DeviceSample s = input_.read(now);
   if (!info_.admittance) return s;
   // As the ROS 2 bridge: a stale sensor stops the device's data as a stale pose does.
-  if (impl_->sensor.newest(s.user_force, impl_->options.input_timeout))
+  if (impl_->sensor.newest(s.user_force, s.user_torque, impl_->options.input_timeout))
     frozen_ = s.sequence;
   else
     s.sequence = frozen_;

@@ -15,7 +15,8 @@ namespace gshaptics::ros1 {
 struct Transport::State {
   TransportOptions options;
   std::function<void(const PoseIn&)> on_pose;
-  std::function<void(const std::array<double, 3>&)> on_twist, on_sensor;
+  std::function<void(const std::array<double, 3>&)> on_twist;
+  std::function<void(const std::array<double, 3>&, const std::array<double, 3>&)> on_sensor;
   std::unique_ptr<ros::NodeHandle> nh;
   ros::Subscriber pose_sub, twist_sub, sensor_sub;
   ros::Publisher wrench_pub, marker_pub, setpoint_pub, setpoint_twist_pub;
@@ -38,13 +39,14 @@ struct Transport::State {
     on_twist({m->twist.linear.x, m->twist.linear.y, m->twist.linear.z});
   }
   void sensor_cb(const geometry_msgs::WrenchStamped::ConstPtr& m) {
-    on_sensor({m->wrench.force.x, m->wrench.force.y, m->wrench.force.z});
+    on_sensor({m->wrench.force.x, m->wrench.force.y, m->wrench.force.z},
+              {m->wrench.torque.x, m->wrench.torque.y, m->wrench.torque.z});
   }
 };
 
 Transport::Transport(const TransportOptions& o, std::function<void(const PoseIn&)> on_pose,
                      std::function<void(const std::array<double, 3>&)> on_twist,
-                     std::function<void(const std::array<double, 3>&)> on_sensor)
+                     std::function<void(const std::array<double, 3>&, const std::array<double, 3>&)> on_sensor)
     : state_(std::make_unique<State>()) {
   State& s = *state_;
   s.options = o;
@@ -104,16 +106,20 @@ Transport::~Transport() {
   state_->sensor_sub.shutdown();
 }
 
-void Transport::publish_setpoint(const std::array<double, 3>& p, const std::array<double, 3>& v, std::int32_t sec,
+void Transport::publish_setpoint(const std::array<double, 3>& p, const std::array<double, 4>& q,
+                                 const std::array<double, 3>& v, const std::array<double, 3>& w, std::int32_t sec,
                                  std::uint32_t nanosec) {
   State& s = *state_;
   if (s.options.sensor_topic.empty()) return;
   const ros::Time stamp(std::uint32_t(sec), nanosec);
   s.setpoint_twist.header.stamp = stamp;
   s.setpoint_twist.twist.linear.x = v[0], s.setpoint_twist.twist.linear.y = v[1], s.setpoint_twist.twist.linear.z = v[2];
+  s.setpoint_twist.twist.angular.x = w[0], s.setpoint_twist.twist.angular.y = w[1], s.setpoint_twist.twist.angular.z = w[2];
   s.setpoint_twist_pub.publish(s.setpoint_twist);
   s.setpoint.header.stamp = stamp;
   s.setpoint.pose.position.x = p[0], s.setpoint.pose.position.y = p[1], s.setpoint.pose.position.z = p[2];
+  s.setpoint.pose.orientation.x = q[0], s.setpoint.pose.orientation.y = q[1];
+  s.setpoint.pose.orientation.z = q[2], s.setpoint.pose.orientation.w = q[3];
   s.setpoint_pub.publish(s.setpoint);
 }
 

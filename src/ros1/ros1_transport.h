@@ -37,16 +37,17 @@ class Transport {
   /// command line), waits for the master,
   /// subscribes and advertises; callbacks run on an AsyncSpinner thread. Throws
   /// std::runtime_error with a message naming the master when none answers.
-  /// `on_sensor` (admittance, may be empty otherwise): the sensor's force, N.
+  /// `on_sensor` (admittance, may be empty otherwise): the sensor's force (N) and torque (N m).
   Transport(const TransportOptions& options, std::function<void(const PoseIn&)> on_pose,
             std::function<void(const std::array<double, 3>&)> on_twist,
-            std::function<void(const std::array<double, 3>&)> on_sensor = {});
+            std::function<void(const std::array<double, 3>&, const std::array<double, 3>&)> on_sensor = {});
   ~Transport();
   void publish_wrench(const std::array<double, 3>& force, const std::array<double, 3>& torque,
                       std::int32_t sec, std::uint32_t nanosec);
   void publish_markers(const std::vector<RosMarker>& markers);
-  /// Admittance: the setpoint, m and m/s (orientation identity), stamped.
-  void publish_setpoint(const std::array<double, 3>& position, const std::array<double, 3>& velocity,
+  /// Admittance: the setpoint, m, x y z w, m/s and rad/s, stamped.
+  void publish_setpoint(const std::array<double, 3>& position, const std::array<double, 4>& orientation_xyzw,
+                        const std::array<double, 3>& velocity, const std::array<double, 3>& angular,
                         std::int32_t sec, std::uint32_t nanosec);
   /// `name` resolved in the node's namespace, remappings applied (what the master lists).
   [[nodiscard]] std::string resolve(const std::string& name) const;

@@ -39,7 +39,7 @@ DeviceLoopResult run_device_loop(HapticDevice& device, Ros2DeviceLink& link, con
     ++out.poses_sent;
     // An admittance-type device (a robot with a force sensor): its sensor out, its setpoint in.
     if (admittance) {
-      link.publish_sensor(s.user_force, stamp);
+      link.publish_sensor(s.user_force, s.user_torque, stamp);
       Setpoint sp;
       if (link.take_setpoint(sp)) {
         device.write_setpoint(sp, now);

@@ -177,11 +177,13 @@ struct Ros2Impl {
       geometry_msgs_msg_dds__TwistStamped_ tw{};
       fill_header(tw.header, echo, options.frame_id);
       tw.twist.linear = {sp->velocity.x(), sp->velocity.y(), sp->velocity.z()};
+      tw.twist.angular = {sp->angular_velocity.x(), sp->angular_velocity.y(), sp->angular_velocity.z()};
       dds_write(setpoint_twist_writer.entity, &tw);
       geometry_msgs_msg_dds__PoseStamped_ ps{};
       fill_header(ps.header, echo, options.frame_id);
       ps.pose.position = {sp->position.x(), sp->position.y(), sp->position.z()};
-      ps.pose.orientation = {0, 0, 0, 1};
+      const Eigen::Quaterniond& q = sp->orientation;
+      ps.pose.orientation = {q.x(), q.y(), q.z(), q.w()};
       dds_write(setpoint_writer.entity, &ps);
     }
     fill_header(wrench_msg.header, echo, options.frame_id);
@@ -198,7 +200,8 @@ struct Ros2Impl {
     for (int i = 0; i < n; ++i) {
       if (!infos[i].valid_data) continue;
       const auto* m = static_cast<const geometry_msgs_msg_dds__WrenchStamped_*>(samples[i]);
-      sensor.on_wrench({m->wrench.force.x, m->wrench.force.y, m->wrench.force.z});
+      sensor.on_wrench({m->wrench.force.x, m->wrench.force.y, m->wrench.force.z},
+                       {m->wrench.torque.x, m->wrench.torque.y, m->wrench.torque.z});
     }
     if (n > 0) dds_return_loan(sensor_reader.entity, samples, n);
   }
@@ -314,7 +317,7 @@ DeviceSample Ros2NetworkDevice::read(Nanos now) noexcept {
   if (!info_.admittance) return s;
   // The sensor is part of the device's data: while its readings are stale the sample is too
   // (the sequence stops), so the watchdog brakes the robot as for a stale pose.
-  if (impl_->sensor.newest(s.user_force, impl_->options.input_timeout))
+  if (impl_->sensor.newest(s.user_force, s.user_torque, impl_->options.input_timeout))
     frozen_ = s.sequence;  // fresh: the pose's own sequence
   else
     s.sequence = frozen_;  // stale: the last one seen while it was fresh (0 before any reading)
@@ -429,7 +432,7 @@ struct Ros2DeviceLink::State {
   dds_entity_t participant = 0;
   Endpoint pose_writer, twist_writer, wrench_reader;
   Endpoint sensor_writer, setpoint_reader, setpoint_twist_reader;  // admittance
-  Eigen::Vector3d setpoint_velocity = Eigen::Vector3d::Zero();
+  Eigen::Vector3d setpoint_velocity = Eigen::Vector3d::Zero(), setpoint_angular = Eigen::Vector3d::Zero();
 };
 
 Ros2DeviceLink::Ros2DeviceLink(const Ros2Options& options) : state_(std::make_unique<State>()) {
@@ -498,12 +501,13 @@ bool Ros2DeviceLink::take_wrench(Eigen::Vector3d& force, RosTime& echo) {
   return got;
 }
 
-void Ros2DeviceLink::publish_sensor(const Eigen::Vector3d& force, const RosTime& stamp) {
+void Ros2DeviceLink::publish_sensor(const Eigen::Vector3d& force, const Eigen::Vector3d& torque, const RosTime& stamp) {
   State& s = *state_;
   if (s.sensor_writer.entity <= 0) return;
   geometry_msgs_msg_dds__WrenchStamped_ m{};
   fill_header(m.header, stamp, s.options.frame_id);
   m.wrench.force = {force.x(), force.y(), force.z()};
+  m.wrench.torque = {torque.x(), torque.y(), torque.z()};
   dds_write(s.sensor_writer.entity, &m);
 }
 
@@ -517,7 +521,8 @@ bool Ros2DeviceLink::take_setpoint(Setpoint& setpoint) {
     if (!infos[i].valid_data) continue;
     const auto* m = static_cast<const geometry_msgs_msg_dds__TwistStamped_*>(samples[i]);
     const Eigen::Vector3d v(m->twist.linear.x, m->twist.linear.y, m->twist.linear.z);
-    if (v.allFinite()) s.setpoint_velocity = v;
+    const Eigen::Vector3d w(m->twist.angular.x, m->twist.angular.y, m->twist.angular.z);
+    if (v.allFinite() && w.allFinite()) s.setpoint_velocity = v, s.setpoint_angular = w;
   }
   if (n > 0) dds_return_loan(s.setpoint_twist_reader.entity, samples, n);
   bool got = false;
@@ -527,8 +532,12 @@ bool Ros2DeviceLink::take_setpoint(Setpoint& setpoint) {
     const auto* m = static_cast<const geometry_msgs_msg_dds__PoseStamped_*>(samples[i]);
     const Eigen::Vector3d p(m->pose.position.x, m->pose.position.y, m->pose.position.z);
     if (!p.allFinite()) continue;
+    const auto& o = m->pose.orientation;
+    const Eigen::Quaterniond q(o.w, o.x, o.y, o.z);
     setpoint.position = p;
     setpoint.velocity = s.setpoint_velocity;
+    setpoint.orientation = q.coeffs().allFinite() && q.squaredNorm() > 0 ? q.normalized() : Eigen::Quaterniond::Identity();
+    setpoint.angular_velocity = s.setpoint_angular;
     got = true;
   }
   if (n > 0) dds_return_loan(s.setpoint_reader.entity, samples, n);

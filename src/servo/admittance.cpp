@@ -15,24 +15,39 @@ void ForceSensorFilter::reset(Nanos now, double range) noexcept {
   tare_end_ = -1;  // the tare starts with the first reading (a networked sensor may come late)
   sum_.setZero();
   tare_.setZero();
+  torque_sum_.setZero();
+  torque_tare_.setZero();
   count_ = 0;
   taring_ = params_.tare_time > 0;
   saturated_ = false;
 }
 
 Eigen::Vector3d ForceSensorFilter::apply(const Eigen::Vector3d& raw, Nanos now) noexcept {
-  if (!raw.allFinite()) return Eigen::Vector3d::Zero();
+  Eigen::Vector3d unused;
+  return apply(raw, Eigen::Vector3d::Zero(), now, unused);
+}
+
+Eigen::Vector3d ForceSensorFilter::apply(const Eigen::Vector3d& raw, const Eigen::Vector3d& raw_torque, Nanos now,
+                                         Eigen::Vector3d& torque) noexcept {
+  torque.setZero();
+  if (!raw.allFinite() || !raw_torque.allFinite()) return Eigen::Vector3d::Zero();
   if (std::isfinite(range_) && raw.cwiseAbs().maxCoeff() >= 0.99 * range_) saturated_ = true;
   if (taring_) {
     if (tare_end_ < 0) tare_end_ = now + to_nanos(params_.tare_time);
     if (now < tare_end_) {
       sum_ += raw;
+      torque_sum_ += raw_torque;
       ++count_;
       return Eigen::Vector3d::Zero();
     }
     taring_ = false;
-    if (count_ > 0) tare_ = sum_ / double(count_);
+    if (count_ > 0) {
+      tare_ = sum_ / double(count_);
+      torque_tare_ = torque_sum_ / double(count_);
+    }
   }
+  const Eigen::Vector3d t = raw_torque - torque_tare_;
+  if (t.norm() > params_.torque_dead_band) torque = t;
   // A dead band, not a shrink: above it the hand's whole force counts, so a wall's reaction
   // equals the push.
   const Eigen::Vector3d f = raw - tare_;
@@ -64,6 +79,42 @@ double braking_speed(double d, double u, double dt) noexcept {
 }
 
 }  // namespace
+
+const Setpoint& AdmittanceController::step(const Eigen::Vector3d& user_force, const Eigen::Vector3d& user_torque,
+                                           const Eigen::Vector3d& environment_force,
+                                           const Eigen::Vector3d& environment_torque, double dt) noexcept {
+  (void)step(user_force, environment_force, dt);
+  if (!(dt > 0)) return setpoint_;
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();
+  if (user_torque.allFinite()) t += user_torque;
+  if (environment_torque.allFinite()) t += environment_torque;
+  turn(t, dt);
+  return setpoint_;
+}
+
+void AdmittanceController::turn(const Eigen::Vector3d& torque, double dt) noexcept {
+  Eigen::Vector3d& w = setpoint_.angular_velocity;
+  const Eigen::Vector3d w0 = w;
+  w += (dt / params_.inertia) * (torque - params_.angular_damping * w0);
+  const Eigen::Vector3d dw = w - w0;
+  const double dw_max = limits_.max_angular_acceleration * dt;
+  if (dw.norm() > dw_max) {
+    w = w0 + dw * (dw_max / dw.norm());
+    limited_ = true;
+  }
+  if (w.norm() > limits_.max_angular_speed) {
+    w *= limits_.max_angular_speed / w.norm();
+    limited_ = true;
+  }
+  rotate(dt);
+}
+
+void AdmittanceController::rotate(double dt) noexcept {
+  const Eigen::Vector3d& w = setpoint_.angular_velocity;
+  const double angle = w.norm() * dt;
+  if (angle > 0)
+    setpoint_.orientation = (Eigen::Quaterniond(Eigen::AngleAxisd(angle, w.normalized())) * setpoint_.orientation).normalized();
+}
 
 const Setpoint& AdmittanceController::step(const Eigen::Vector3d& user_force,
                                            const Eigen::Vector3d& environment_force, double dt) noexcept {
@@ -127,6 +178,13 @@ const Setpoint& AdmittanceController::brake(double dt) noexcept {
   else
     v *= (speed - dv) / speed;
   setpoint_.position += dt * v;
+  Eigen::Vector3d& w = setpoint_.angular_velocity;
+  const double spin = w.norm(), dw = limits_.max_angular_acceleration * dt;
+  if (spin <= dw)
+    w.setZero();
+  else
+    w *= (spin - dw) / spin;
+  rotate(dt);
   return setpoint_;
 }
 

@@ -6,6 +6,7 @@
 #include <sys/prctl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -29,7 +30,10 @@ std::size_t runtime_log_capacity(const RuntimeConfig& c) {
 
 Nanos stop_ramp_limit(const RuntimeConfig& c) {
   double s = c.stop_timeout;
-  if (c.control.mode == ControlMode::kAdmittance) s += c.control.robot.max_speed / c.control.robot.max_acceleration;
+  if (c.control.mode == ControlMode::kAdmittance) {
+    const RobotSafetyParams& r = c.control.robot;
+    s += std::max(r.max_speed / r.max_acceleration, r.max_angular_speed / r.max_angular_acceleration);
+  }
   return to_nanos(s);
 }
 
@@ -49,10 +53,14 @@ Nanos validate_runtime_config(const RuntimeConfig& config, const DeviceInfo& inf
       throw InputError("runtime: admittance control needs an admittance-type device (one that measures the "
                        "user's force and takes position setpoints); '" + info.name + "' is impedance-type");
     const AdmittanceParams& a = config.control.admittance;
-    if (!(a.mass > 0) || !std::isfinite(a.mass) || !(a.damping >= 0) || !std::isfinite(a.damping))
-      throw InputError("runtime: the virtual tool's mass must be > 0 kg and its damping >= 0 N s/m");
+    if (!(a.mass > 0) || !std::isfinite(a.mass) || !(a.damping >= 0) || !std::isfinite(a.damping) ||
+        !(a.inertia > 0) || !std::isfinite(a.inertia) || !(a.angular_damping >= 0) || !std::isfinite(a.angular_damping))
+      throw InputError("runtime: the virtual tool's mass (kg) and inertia (kg m^2) must be > 0 and its damping "
+                       "(N s/m, N m s/rad) >= 0");
     const RobotSafetyParams& r = config.control.robot;
     if (!(r.max_speed > 0) || !(r.max_acceleration > 0) || !std::isfinite(r.max_speed + r.max_acceleration) ||
+        !(r.max_angular_speed > 0) || !(r.max_angular_acceleration > 0) ||
+        !std::isfinite(r.max_angular_speed + r.max_angular_acceleration) || !(r.torque_dead_band >= 0) ||
         !(r.tare_time >= 0) || !(r.tare_time <= 10) || !(r.dead_band >= 0) || !std::isfinite(r.dead_band))
       throw InputError("runtime: the robot's speed and acceleration limits must be > 0, its tare time in [0, 10] s "
                        "and its dead band >= 0 N");

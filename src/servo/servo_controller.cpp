@@ -90,19 +90,21 @@ std::uint32_t ServoController::gate_device(const DeviceSample& s, Nanos now) noe
 }
 
 void ServoController::tool_state(const DeviceSample& s, std::uint32_t device_flags, Eigen::Vector3d& position,
-                                 Eigen::Vector3d& velocity) noexcept {
+                                 Eigen::Vector3d& velocity, Eigen::Quaterniond& orientation) noexcept {
   // In admittance control the virtual tool starts at rest at the device's first good sample; from
   // then on it is the robot's setpoint, braked to rest (not reset) while the device is stale.
   position = s.position;
   velocity = s.velocity;
+  orientation = s.orientation;
   if (control_.mode != ControlMode::kAdmittance) return;
   if (!virtual_tool_ready_) {
     if (device_flags != 0) return;
-    admittance_.reset(s.position);
+    admittance_.reset(s.position, s.orientation);
     virtual_tool_ready_ = true;
   }
   position = admittance_.setpoint().position;
   velocity = admittance_.setpoint().velocity;
+  orientation = admittance_.setpoint().orientation;
 }
 
 Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noexcept {
@@ -115,7 +117,8 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   const std::uint32_t device_flags = gate_device(s, now);
   const bool finite = (device_flags & kFlagInvalidPose) == 0;
   Eigen::Vector3d tool_position, tool_velocity;
-  tool_state(s, device_flags, tool_position, tool_velocity);
+  Eigen::Quaterniond tool_orientation;
+  tool_state(s, device_flags, tool_position, tool_velocity, tool_orientation);
 
   // Publish the pose (never a non-finite one) to the collision side.
   if (finite && (device_flags & kFlagWatchdog) == 0) {
@@ -123,7 +126,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
     p.sequence = ++pose_seq_;
     p.stamp = now;
     p.position = tool_position;
-    p.orientation = s.orientation.normalized();
+    p.orientation = tool_orientation.normalized();
     p.velocity = tool_velocity;
     poses_.write(p);
   }
@@ -154,7 +157,7 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
   const SafetyOutput& out = t.out;
   passivity_.sent(out.force);
 
-  const std::uint32_t robot_flags = drive_setpoint(s, device_flags, out.force, now, dt);
+  const std::uint32_t robot_flags = drive_setpoint(s, device_flags, out, now, dt);
   Wrench w;
   w.force = out.force;
   const bool renders_torque = device_.info().renders_torque;
@@ -179,12 +182,12 @@ Nanos ServoController::tick(Nanos scheduled, CollisionWorker* inline_worker) noe
 }
 
 std::uint32_t ServoController::drive_setpoint(const DeviceSample& s, std::uint32_t device_flags,
-                                              const Eigen::Vector3d& force, Nanos now, double dt) noexcept {
+                                              const SafetyOutput& out, Nanos now, double dt) noexcept {
   if (control_.mode != ControlMode::kAdmittance || !virtual_tool_ready_) return 0;
   std::uint32_t flags = 0;
   // The sensor's reading is fresh only when the device's sample is.
-  Eigen::Vector3d user = Eigen::Vector3d::Zero();
-  if (device_flags == 0) user = sensor_.apply(s.user_force, now);
+  Eigen::Vector3d user = Eigen::Vector3d::Zero(), user_torque = Eigen::Vector3d::Zero();
+  if (device_flags == 0) user = sensor_.apply(s.user_force, s.user_torque, now, user_torque);
   if (sensor_.saturated()) {
     faulted_ = true;  // a saturated sensor no longer measures the hand: stop the run
     flags |= kFlagSensorSaturated;
@@ -194,7 +197,8 @@ std::uint32_t ServoController::drive_setpoint(const DeviceSample& s, std::uint32
   // stale device, a stop, a fault or the tare hold it or brake it to rest.
   const bool hold = device_flags != 0 || stopping_ || faulted_ || sensor_.taring();
   if (hold && !admittance_.at_rest()) flags |= kFlagBraking;
-  device_.write_setpoint(hold ? admittance_.brake(dt) : admittance_.step(user, force, dt), now);
+  device_.write_setpoint(hold ? admittance_.brake(dt) : admittance_.step(user, user_torque, out.force, out.torque, dt),
+                         now);
   if (admittance_.limited()) flags |= kFlagSetpointLimited;
   return flags;
 }

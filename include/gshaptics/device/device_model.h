@@ -64,6 +64,11 @@ namespace gshaptics {
 struct AdmittanceParams {
   double mass = 3.0;     ///< virtual mass, kg
   double damping = 20.0; ///< virtual damping, N s/m
+  /// Admittance control's virtual tool in rotation (a 6-DoF handle): moment of inertia about any
+  /// axis through the TCP, kg m^2, and rotational damping, N m s/rad (the same 0.15 s time
+  /// constant as the translation's defaults; 0.3 N m of wrist torque turns it at 2 rad/s).
+  double inertia = 0.015;
+  double angular_damping = 0.15;
 };
 
 /// Translational state of the device's tool centre point (world frame).

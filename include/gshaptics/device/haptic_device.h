@@ -34,6 +34,9 @@ struct DeviceSample {
   /// Force the user applies, N, world frame, when the device measures or simulates it (zero
   /// otherwise). Logged only; the force model does not use it.
   Eigen::Vector3d user_force = Eigen::Vector3d::Zero();
+  /// Torque the user applies about the tool centre point, N m, world frame, when the device
+  /// measures it (an admittance device's force/torque sensor; zero otherwise).
+  Eigen::Vector3d user_torque = Eigen::Vector3d::Zero();
   std::uint32_t buttons = 0;  ///< bit i set: button i pressed
 };
 
@@ -48,6 +51,8 @@ struct Wrench {
 struct Setpoint {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< m
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  ///< m/s (feed-forward)
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< tool frame -> world
+  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();       ///< rad/s, world frame (feed-forward)
 };
 
 /// Whether a device's position sensing is calibrated (vendor libraries report it; simulated and

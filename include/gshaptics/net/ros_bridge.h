@@ -193,6 +193,7 @@ class RosPoseIntake {
 /// A force/torque sensor reading and when it arrived (ns on the bridge's clock; -1: none yet).
 struct RosSensorReading {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  Eigen::Vector3d torque = Eigen::Vector3d::Zero();
   Nanos arrival = -1;
 };
 
@@ -210,10 +211,11 @@ struct RosOutboxItem {
 class RosSensorIntake {
  public:
   explicit RosSensorIntake(Clock& clock) : clock_(clock) {}
-  /// Receive thread: a reading, N (world frame). Non-finite readings are dropped and counted.
-  void on_wrench(const Eigen::Vector3d& force) noexcept;
-  /// Servo thread: the newest reading into `force`; true when one arrived within `fresh_for` s.
-  [[nodiscard]] bool newest(Eigen::Vector3d& force, double fresh_for) noexcept;
+  /// Receive thread: a reading, N and N m (world frame). Non-finite readings are dropped and counted.
+  void on_wrench(const Eigen::Vector3d& force, const Eigen::Vector3d& torque = Eigen::Vector3d::Zero()) noexcept;
+  /// Servo thread: the newest reading into `force` and `torque`; true when one arrived within
+  /// `fresh_for` s.
+  [[nodiscard]] bool newest(Eigen::Vector3d& force, Eigen::Vector3d& torque, double fresh_for) noexcept;
   [[nodiscard]] std::uint64_t received() const noexcept { return received_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::uint64_t dropped() const noexcept { return dropped_.load(std::memory_order_relaxed); }
 

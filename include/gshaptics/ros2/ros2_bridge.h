@@ -130,8 +130,8 @@ class Ros2DeviceLink {
   /// pose the node had read when it computed it). False when none arrived.
   bool take_wrench(Eigen::Vector3d& force, RosTime& echo);
   /// Admittance (options.admittance): publishes the force/torque sensor's reading (WrenchStamped
-  /// on the sensor topic; N, world frame).
-  void publish_sensor(const Eigen::Vector3d& force, const RosTime& stamp);
+  /// on the sensor topic; N and N m, world frame).
+  void publish_sensor(const Eigen::Vector3d& force, const Eigen::Vector3d& torque, const RosTime& stamp);
   /// Admittance: takes the newest setpoint (PoseStamped position, TwistStamped linear velocity)
   /// since the last call. False when none arrived.
   bool take_setpoint(Setpoint& setpoint);

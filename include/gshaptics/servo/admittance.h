@@ -51,10 +51,13 @@ enum class ControlMode : std::uint8_t {
 struct RobotSafetyParams {
   double max_speed = 1.5;          ///< setpoint speed limit, m/s (> 0)
   double max_acceleration = 10.0;  ///< setpoint acceleration and braking limit, m/s^2 (> 0)
+  double max_angular_speed = 3.0;         ///< setpoint angular speed limit, rad/s (> 0)
+  double max_angular_acceleration = 30.0; ///< its acceleration and braking limit, rad/s^2 (> 0)
   double tare_time = 0.1;         ///< the sensor's tare at start, s (>= 0; the virtual tool holds still)
   /// Sensor readings (after the tare) at or below this magnitude are zero, N (>= 0): the noise of
   /// a handle sensor at rest (ATI Mini40-class: about 0.1 N) does not drift the virtual tool.
   double dead_band = 0.3;
+  double torque_dead_band = 0.02;  ///< the same for the sensor's torque, N m (>= 0)
 };
 
 /// The servo step's control scheme and, for admittance, the virtual tool and the robot's limits.
@@ -77,6 +80,10 @@ class ForceSensorFilter {
   /// averaged), then the reading less the tare, zero within the dead band. A non-finite reading
   /// gives zero; one at or above 99 % of the range sets saturated().
   [[nodiscard]] Eigen::Vector3d apply(const Eigen::Vector3d& raw, Nanos now) noexcept;
+  /// The same with the sensor's torque (N m), tared and dead-banded alongside: the force is
+  /// returned, the torque written to `torque`.
+  [[nodiscard]] Eigen::Vector3d apply(const Eigen::Vector3d& raw, const Eigen::Vector3d& raw_torque, Nanos now,
+                                      Eigen::Vector3d& torque) noexcept;
   [[nodiscard]] bool taring() const noexcept { return taring_; }
   [[nodiscard]] bool saturated() const noexcept { return saturated_; }
   [[nodiscard]] const Eigen::Vector3d& tare() const noexcept { return tare_; }
@@ -86,6 +93,7 @@ class ForceSensorFilter {
   double range_ = std::numeric_limits<double>::infinity();
   Nanos tare_end_ = -1;  // -1: the tare has not started
   Eigen::Vector3d sum_ = Eigen::Vector3d::Zero(), tare_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d torque_sum_ = Eigen::Vector3d::Zero(), torque_tare_ = Eigen::Vector3d::Zero();
   long count_ = 0;
   bool taring_ = false, saturated_ = false;
 };
@@ -96,21 +104,32 @@ class AdmittanceController {
       : params_(params), limits_(limits) {}
   /// The box the setpoint stays in, world frame, m (the device's workspace; default: unbounded).
   void set_workspace(const Eigen::AlignedBox3d& box) noexcept { workspace_ = box; }
-  /// Puts the virtual tool at rest at `position` (m): at start, and whenever the device gate
-  /// failed (the tool follows the device again from where the device is).
-  void reset(const Eigen::Vector3d& position) noexcept {
+  /// Puts the virtual tool at rest at `position` (m) and `orientation`: at start, where the
+  /// device is.
+  void reset(const Eigen::Vector3d& position,
+             const Eigen::Quaterniond& orientation = Eigen::Quaterniond::Identity()) noexcept {
     setpoint_.position = position;
     setpoint_.velocity.setZero();
+    setpoint_.orientation = orientation.normalized();
+    setpoint_.angular_velocity.setZero();
   }
   /// One tick of dt s under the user's force and the environment's force (N, world frame);
   /// returns the new setpoint, within the robot's limits (limited() says whether one acted).
   /// Non-finite forces are treated as zero.
   const Setpoint& step(const Eigen::Vector3d& user_force, const Eigen::Vector3d& environment_force,
                        double dt) noexcept;
+  /// The same for a 6-DoF handle: the user's and the environment's torques (N m, world frame,
+  /// about the TCP) turn the virtual tool, I dw/dt = tau_user + tau_env - b_r w, within the
+  /// angular speed and acceleration limits (integrated as a rotation of |w| dt about w).
+  const Setpoint& step(const Eigen::Vector3d& user_force, const Eigen::Vector3d& user_torque,
+                       const Eigen::Vector3d& environment_force, const Eigen::Vector3d& environment_torque,
+                       double dt) noexcept;
   /// One tick of braking: the velocity falls toward zero by at most max_acceleration * dt, forces
   /// ignored (a stale device, a stop). Returns the new setpoint.
   const Setpoint& brake(double dt) noexcept;
-  [[nodiscard]] bool at_rest() const noexcept { return setpoint_.velocity.isZero(0); }
+  [[nodiscard]] bool at_rest() const noexcept {
+    return setpoint_.velocity.isZero(0) && setpoint_.angular_velocity.isZero(0);
+  }
   /// A limit (acceleration, speed, workspace) changed the last step's setpoint.
   [[nodiscard]] bool limited() const noexcept { return limited_; }
   [[nodiscard]] const Setpoint& setpoint() const noexcept { return setpoint_; }
@@ -119,6 +138,10 @@ class AdmittanceController {
  private:
   // Acceleration, speed and workspace limits on a step from velocity `v0`.
   void limit(const Eigen::Vector3d& v0, double dt) noexcept;
+  // The rotation's step: angular velocity within its limits, then the orientation turned.
+  void turn(const Eigen::Vector3d& torque, double dt) noexcept;
+  // The orientation turned by the angular velocity over dt.
+  void rotate(double dt) noexcept;
   AdmittanceParams params_;
   RobotSafetyParams limits_;
   Eigen::AlignedBox3d workspace_{Eigen::Vector3d::Constant(-1e300), Eigen::Vector3d::Constant(1e300)};

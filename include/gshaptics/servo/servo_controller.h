@@ -10,6 +10,7 @@
 /// logs or throws (given a device whose read()/write() keep the same promise).
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <vector>
 
@@ -77,10 +78,10 @@ class ServoController {
   std::uint32_t gate_device(const DeviceSample& s, Nanos now) noexcept;
   // The tool the force model sees: the device's, or in admittance control the virtual tool.
   void tool_state(const DeviceSample& s, std::uint32_t device_flags, Eigen::Vector3d& position,
-                  Eigen::Vector3d& velocity) noexcept;
+                  Eigen::Vector3d& velocity, Eigen::Quaterniond& orientation) noexcept;
   // Admittance control: the virtual tool's tick (sensor, limits, braking) and its setpoint to the
   // device; returns the tick's kFlagSetpointLimited / kFlagBraking / kFlagSensorSaturated / kFlagTaring.
-  std::uint32_t drive_setpoint(const DeviceSample& s, std::uint32_t device_flags, const Eigen::Vector3d& force,
+  std::uint32_t drive_setpoint(const DeviceSample& s, std::uint32_t device_flags, const SafetyOutput& out,
                                Nanos now, double dt) noexcept;
   // The runtime's statistics for one tick.
   void count(const TickFacts& t) noexcept;
