@@ -172,6 +172,13 @@ bool RosSensorIntake::newest(Eigen::Vector3d& force, Eigen::Vector3d& torque, do
   return newest_.arrival >= 0 && clock_.now() - newest_.arrival <= to_nanos(fresh_for);
 }
 
+void RosSensorIntake::fill(DeviceSample& s, double fresh_for) noexcept {
+  if (newest(s.user_force, s.user_torque, fresh_for))
+    frozen_ = s.sequence;
+  else
+    s.sequence = frozen_;
+}
+
 void RosWrenchOutbox::stop() {
   if (!thread_.joinable()) return;
   stop_.store(true);

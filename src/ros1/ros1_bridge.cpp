@@ -82,7 +82,7 @@ Ros1NetworkDevice::~Ros1NetworkDevice() {
 void Ros1NetworkDevice::start(Nanos now) {
   input_.start(now);
   has_setpoint_ = false;
-  frozen_ = 0;
+  impl_->sensor.restart();
   impl_->outbox.start();
 }
 
@@ -90,10 +90,7 @@ DeviceSample Ros1NetworkDevice::read(Nanos now) noexcept {
   DeviceSample s = input_.read(now);
   if (!info_.admittance) return s;
   // As the ROS 2 bridge: a stale sensor stops the device's data as a stale pose does.
-  if (impl_->sensor.newest(s.user_force, s.user_torque, impl_->options.input_timeout))
-    frozen_ = s.sequence;
-  else
-    s.sequence = frozen_;
+  impl_->sensor.fill(s, impl_->options.input_timeout);
   return s;
 }
 

@@ -307,7 +307,7 @@ Ros2NetworkDevice::~Ros2NetworkDevice() { stop_markers(); }
 void Ros2NetworkDevice::start(Nanos now) {
   input_.start(now);
   has_setpoint_ = false;
-  frozen_ = 0;
+  impl_->sensor.restart();
   impl_->reader_thread = std::thread([this] { impl_->reader_main(); });
   impl_->outbox.start();
 }
@@ -317,10 +317,7 @@ DeviceSample Ros2NetworkDevice::read(Nanos now) noexcept {
   if (!info_.admittance) return s;
   // The sensor is part of the device's data: while its readings are stale the sample is too
   // (the sequence stops), so the watchdog brakes the robot as for a stale pose.
-  if (impl_->sensor.newest(s.user_force, s.user_torque, impl_->options.input_timeout))
-    frozen_ = s.sequence;  // fresh: the pose's own sequence
-  else
-    s.sequence = frozen_;  // stale: the last one seen while it was fresh (0 before any reading)
+  impl_->sensor.fill(s, impl_->options.input_timeout);
   return s;
 }
 

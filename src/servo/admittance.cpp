@@ -22,11 +22,6 @@ void ForceSensorFilter::reset(Nanos now, double range) noexcept {
   saturated_ = false;
 }
 
-Eigen::Vector3d ForceSensorFilter::apply(const Eigen::Vector3d& raw, Nanos now) noexcept {
-  Eigen::Vector3d unused;
-  return apply(raw, Eigen::Vector3d::Zero(), now, unused);
-}
-
 Eigen::Vector3d ForceSensorFilter::apply(const Eigen::Vector3d& raw, const Eigen::Vector3d& raw_torque, Nanos now,
                                          Eigen::Vector3d& torque) noexcept {
   torque.setZero();
@@ -55,6 +50,31 @@ Eigen::Vector3d ForceSensorFilter::apply(const Eigen::Vector3d& raw, const Eigen
 }
 
 namespace {
+
+// v held to a change of at most `max_change` from v0; true when it was.
+bool limit_change(Eigen::Vector3d& v, const Eigen::Vector3d& v0, double max_change) noexcept {
+  const Eigen::Vector3d dv = v - v0;
+  if (!(dv.norm() > max_change)) return false;
+  v = v0 + dv * (max_change / dv.norm());
+  return true;
+}
+
+// v held to a norm of at most `max`; true when it was.
+bool limit_norm(Eigen::Vector3d& v, double max) noexcept {
+  const double n = v.norm();
+  if (!(n > max)) return false;
+  v *= max / n;
+  return true;
+}
+
+// v shortened by `by` toward zero (braking), zero when it is shorter.
+void shrink_toward_zero(Eigen::Vector3d& v, double by) noexcept {
+  const double n = v.norm();
+  if (n <= by)
+    v.setZero();
+  else
+    v *= (n - by) / n;
+}
 
 // The highest speed from which braking by u = a dt per tick (each speed held one tick: v, v - u,
 // ..., down to the last one below u, then 0) covers at most d in ticks of dt: with n = floor(v/u)
@@ -96,16 +116,8 @@ void AdmittanceController::turn(const Eigen::Vector3d& torque, double dt) noexce
   Eigen::Vector3d& w = setpoint_.angular_velocity;
   const Eigen::Vector3d w0 = w;
   w += (dt / params_.inertia) * (torque - params_.angular_damping * w0);
-  const Eigen::Vector3d dw = w - w0;
-  const double dw_max = limits_.max_angular_acceleration * dt;
-  if (dw.norm() > dw_max) {
-    w = w0 + dw * (dw_max / dw.norm());
-    limited_ = true;
-  }
-  if (w.norm() > limits_.max_angular_speed) {
-    w *= limits_.max_angular_speed / w.norm();
-    limited_ = true;
-  }
+  limited_ |= limit_change(w, w0, limits_.max_angular_acceleration * dt);
+  limited_ |= limit_norm(w, limits_.max_angular_speed);
   rotate(dt);
 }
 
@@ -155,35 +167,16 @@ void AdmittanceController::limit(const Eigen::Vector3d& v0, double dt) noexcept 
       limited_ = true;
     }
   }
-  const Eigen::Vector3d dv = v - v0;
-  const double dv_max = limits_.max_acceleration * dt;
-  if (dv.norm() > dv_max) {
-    v = v0 + dv * (dv_max / dv.norm());
-    limited_ = true;
-  }
-  const double speed = v.norm();
-  if (speed > limits_.max_speed) {
-    v *= limits_.max_speed / speed;
-    limited_ = true;
-  }
+  limited_ |= limit_change(v, v0, adt);
+  limited_ |= limit_norm(v, limits_.max_speed);
 }
 
 const Setpoint& AdmittanceController::brake(double dt) noexcept {
   limited_ = false;
   if (!(dt > 0)) return setpoint_;
-  Eigen::Vector3d& v = setpoint_.velocity;
-  const double speed = v.norm(), dv = limits_.max_acceleration * dt;
-  if (speed <= dv)
-    v.setZero();
-  else
-    v *= (speed - dv) / speed;
-  setpoint_.position += dt * v;
-  Eigen::Vector3d& w = setpoint_.angular_velocity;
-  const double spin = w.norm(), dw = limits_.max_angular_acceleration * dt;
-  if (spin <= dw)
-    w.setZero();
-  else
-    w *= (spin - dw) / spin;
+  shrink_toward_zero(setpoint_.velocity, limits_.max_acceleration * dt);
+  setpoint_.position += dt * setpoint_.velocity;
+  shrink_toward_zero(setpoint_.angular_velocity, limits_.max_angular_acceleration * dt);
   rotate(dt);
   return setpoint_;
 }

@@ -216,6 +216,13 @@ class RosSensorIntake {
   /// Servo thread: the newest reading into `force` and `torque`; true when one arrived within
   /// `fresh_for` s.
   [[nodiscard]] bool newest(Eigen::Vector3d& force, Eigen::Vector3d& torque, double fresh_for) noexcept;
+  /// Servo thread: the newest reading into the sample's user force and torque. The sensor is part
+  /// of the device's data: while it is stale (no reading within `fresh_for` s) the sample's
+  /// sequence stays at the last one seen while it was fresh (0 before any), so the watchdog
+  /// brakes the robot as for a stale pose.
+  void fill(DeviceSample& sample, double fresh_for) noexcept;
+  /// Servo thread: forgets the sequence (at the device's start).
+  void restart() noexcept { frozen_ = 0; }
   [[nodiscard]] std::uint64_t received() const noexcept { return received_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::uint64_t dropped() const noexcept { return dropped_.load(std::memory_order_relaxed); }
 
@@ -223,6 +230,7 @@ class RosSensorIntake {
   Clock& clock_;
   TripleBuffer<RosSensorReading> readings_;
   RosSensorReading newest_;
+  std::uint64_t frozen_ = 0;  // the sample's sequence when the sensor was last fresh
   std::atomic<std::uint64_t> received_{0}, dropped_{0};
 };
 

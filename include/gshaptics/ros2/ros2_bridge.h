@@ -85,7 +85,6 @@ class Ros2NetworkDevice final : public RosBridgeDevice {
   DeviceInfo info_;
   Setpoint setpoint_;  // servo thread
   bool has_setpoint_ = false;
-  std::uint64_t frozen_ = 0;  // under admittance: the sample's sequence when the sensor was last fresh
   std::unique_ptr<Ros2MarkerPublisher> markers_;
 };
 

@@ -78,10 +78,8 @@ class ForceSensorFilter {
   void reset(Nanos now, double range) noexcept;
   /// The user's force from a raw reading at `now` (N): zero while taring (the reading is
   /// averaged), then the reading less the tare, zero within the dead band. A non-finite reading
-  /// gives zero; one at or above 99 % of the range sets saturated().
-  [[nodiscard]] Eigen::Vector3d apply(const Eigen::Vector3d& raw, Nanos now) noexcept;
-  /// The same with the sensor's torque (N m), tared and dead-banded alongside: the force is
-  /// returned, the torque written to `torque`.
+  /// gives zero; one at or above 99 % of the range sets saturated(). The sensor's torque (N m) is
+  /// tared and dead-banded alongside (torque_dead_band) into `torque`.
   [[nodiscard]] Eigen::Vector3d apply(const Eigen::Vector3d& raw, const Eigen::Vector3d& raw_torque, Nanos now,
                                       Eigen::Vector3d& torque) noexcept;
   [[nodiscard]] bool taring() const noexcept { return taring_; }
