@@ -44,6 +44,12 @@ void register_fidelity(CLI::App& app) {
       ->check(check::range(0, 100));
   cmd->add_option("--stylus", o->stylus, "6-DoF cases: the stylus (a --tool spec)")->capture_default_str();
   cmd->add_option("--disc", o->disc, "6-DoF cases: the disc (a --tool spec)")->capture_default_str();
+  cmd->add_option("--defect", o->defects,
+                  "Capture defect patches on the plane, KIND[:RADIUS_MM] (faint-patch, hole, large-flat, "
+                  "interior-clutter; repeat or comma-separate; 'none' to skip). Default: one of each")
+      ->delimiter(',');
+  cmd->add_option("--defect-sites", o->defect_sites, "Capture defects: press sites per patch (default 5, --quick 2)")
+      ->check(check::range(1, 100));
   cmd->add_option("--floater-share", o->synth.floater_share, "Floaters per surface Gaussian in the scenes")
       ->capture_default_str()->check(check::range(0.0, 1.0));
   add_force_options(*cmd, o->force);

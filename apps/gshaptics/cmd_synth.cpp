@@ -16,6 +16,7 @@ void register_synth(CLI::App& app) {
   struct Options {
     std::string shape, out;
     SynthParams params;
+    std::vector<std::string> defects;
   };
   auto o = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
@@ -25,7 +26,8 @@ void register_synth(CLI::App& app) {
       "spacing, jittered along the normal and in tilt, a share below the 0.2 opacity filter, a few "
       "floaters). INRIA PLY with every parameter in its header comments, plus OUT.json with the "
       "exact surface. Shapes: plane, sphere, cube, plate-2mm, plate-5mm, cylinder, corner-90, "
-      "v-groove-60.");
+      "v-groove-60. --defect adds what real captures leave: faint layers, a hole, large flat discs, "
+      "clutter behind the surface.");
   cmd->add_option("shape", o->shape, "Shape name")->required();
   cmd->add_option("out", o->out, "Output .ply (and OUT.ply.json)")->required();
   SynthParams& p = o->params;
@@ -39,12 +41,19 @@ void register_synth(CLI::App& app) {
       ->capture_default_str()->check(check::range(0.0, 1.0));
   cmd->add_option("--floater-share", p.floater_share, "Floaters per surface Gaussian")
       ->capture_default_str()->check(check::range(0.0, 1.0));
+  cmd->add_option("--defect", o->defects,
+                  "A capture defect patch, KIND[:RADIUS_MM] (faint-patch, hole, large-flat, interior-clutter; "
+                  "radius 15 mm, a hole 4 mm), centred at the surface point nearest (0, 0, 1) m; repeatable");
   cmd->callback([o] {
+    for (const std::string& spec : o->defects) o->params.defects.push_back(parse_capture_defect(spec, "synth --defect"));
     const ShapeKind kind = parse_shape(o->shape, "synth");
     if (std::filesystem::path(o->out).extension() != ".ply")
       throw InputError("synth: " + o->out + ": the output must be a .ply file");
     const SyntheticScene s = make_synthetic_scene(AnalyticShape(kind), o->params);
     write_synthetic_scene(o->out, s);
+    for (const CaptureDefect& d : o->params.defects)
+      fmt::print("defect     {} within {:g} mm of the surface point nearest ({:g}, {:g}, {:g}) m\n", to_string(d.kind),
+                 d.radius * 1e3, d.at.x(), d.at.y(), d.at.z());
     fmt::print("wrote      {} ({} Gaussians on the surface, {} floaters, spacing {:g} mm, seed {})\n"
                "surface    {}.json\n",
                o->out, s.surface_count, s.floater_count, o->params.spacing * 1e3, o->params.seed, o->out);

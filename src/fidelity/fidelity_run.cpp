@@ -109,16 +109,19 @@ FidelityCurve curve_of(const Script& s, const ScriptTrace& tr, const std::string
   return c;
 }
 
-std::string scene_file(const FidelityOptions& o, ShapeKind k, double spacing) {
-  return fmt::format("{}/{}_{:g}mm_seed{}.ply", o.scene_dir, to_string(k), spacing * 1e3, o.seed);
+std::string scene_file(const FidelityOptions& o, ShapeKind k, double spacing, const CaptureDefect* defect) {
+  return fmt::format("{}/{}_{:g}mm_seed{}{}{}.ply", o.scene_dir, to_string(k), spacing * 1e3, o.seed,
+                     defect ? "_" : "", defect ? to_string(defect->kind) : "");
 }
 
-// The scene of a shape at a spacing: reused when the sidecar says it was made the same way.
-std::string ensure_scene(const FidelityOptions& o, ShapeKind k, double spacing) {
-  const std::string path = scene_file(o, k, spacing);
+// The scene of a shape at a spacing (with a defect patch): reused when the sidecar says it was
+// made the same way.
+std::string ensure_scene(const FidelityOptions& o, ShapeKind k, double spacing, const CaptureDefect* defect = nullptr) {
+  const std::string path = scene_file(o, k, spacing, defect);
   SynthParams p = o.synth;
   p.spacing = spacing;
   p.seed = o.seed;
+  if (defect) p.defects = {*defect};
   const SyntheticScene s = make_synthetic_scene(AnalyticShape(k), p);
   std::ifstream in(path + ".json");
   if (in && std::filesystem::exists(path)) {
@@ -193,6 +196,55 @@ void run_wrench_cases(const FidelityOptions& o, ShapeKind kind, double spacing, 
   }
 }
 
+// The press sites of a defect patch on the plane: its centre, then points half its radius out.
+std::vector<ContactSite> defect_sites(const CaptureDefect& d, double spacing, int count) {
+  const Eigen::Vector3d center = patch_center(AnalyticShape(ShapeKind::kPlane), d, spacing);
+  std::vector<ContactSite> sites;
+  for (int i = 0; i < count; ++i) {
+    ContactSite s;  // the plane's top, normal +z
+    const double a = 2 * 3.14159265358979323846 * (i - 1) / std::max(1, count - 1);
+    s.point = center;
+    if (i > 0) s.point += Eigen::Vector3d(std::cos(a), std::sin(a), 0) * (0.5 * d.radius);
+    sites.push_back(s);
+  }
+  return sites;
+}
+
+// A defect row's name: the kind and the patch's radius ("hole, 4 mm").
+std::string defect_label(const CaptureDefect& d) { return fmt::format("{}, {:g} mm", to_string(d.kind), d.radius * 1e3); }
+
+// The plane (with a defect patch, or none) pressed at `sites` with every tool radius: a row each.
+void press_defect_plane(const FidelityOptions& o, const CaptureDefect* d, double spacing,
+                        const std::vector<ContactSite>& sites, FidelityReport& rep) {
+  const AnalyticShape plane(ShapeKind::kPlane);
+  const LoadedScene loaded = load_scene(ensure_scene(o, ShapeKind::kPlane, spacing, d));
+  WorldConfig config;
+  config.min_opacity = default_min_opacity(o.renderer);
+  const CollisionWorld world = CollisionWorld::build(loaded.scene, config);
+  for (double radius : o.tool_radii) {
+    const auto renderer = make_force_renderer(renderer_spec_for(o.renderer, ProxyTool::kOnePart), world);
+    Pool pool;
+    for (const ContactSite& site : sites) {
+      const Script s = press_script(plane, site, radius, o.press_depth, o.rate_hz);
+      const ScriptTrace tr = play_script(*renderer, s, o.rate_hz, o.play);
+      pool.add_press(press_metrics(plane, s, tr), tr);
+      rep.ticks += s.ticks.size();
+    }
+    rep.defect.push_back(pool.row("plane", d ? defect_label(*d) : "none", spacing, radius));
+  }
+}
+
+// Every defect patch on the plane at every spacing and tool radius, after the plane without
+// one pressed at the same sites (the rows the defects are judged against).
+void run_defect_cases(const FidelityOptions& o, FidelityReport& rep, const FidelityProgressFn& progress) {
+  if (o.defects.empty()) return;
+  for (double spacing : o.spacings) {
+    if (progress) progress(fmt::format("plane at {:g} mm spacing: capture defects", spacing * 1e3));
+    press_defect_plane(o, nullptr, spacing, defect_sites(o.defects.front(), spacing, o.defect_sites), rep);
+    for (const CaptureDefect& d : o.defects) press_defect_plane(o, &d, spacing, defect_sites(d, spacing, o.defect_sites), rep);
+  }
+}
+
 }  // namespace
 
 PlayOptions default_play_options() {
@@ -217,6 +269,7 @@ FidelityOptions quick_fidelity_options() {
   o.press_sites = 4;
   o.push_sites = 2;
   o.wrench_sites = 1;
+  o.defect_sites = 2;
   return o;
 }
 
@@ -228,6 +281,8 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
     throw InputError("fidelity: 6-DoF cases need sites >= 1 and a depth > 0");
   if (!(o.press_sites >= 1 && o.push_sites >= 0 && o.rate_hz > 0 && o.press_depth > 0 && o.push_depth > 0))
     throw InputError("fidelity: sites >= 1, rate > 0 and depths > 0 are required");
+  if (!o.defects.empty() && o.defect_sites < 1) throw InputError("fidelity: capture defects need defect_sites >= 1");
+  for (const CaptureDefect& d : o.defects) d.validate("fidelity");
   for (double r : o.tool_radii)
     if (!(r > 0.002)) throw InputError("fidelity: tool radii must be > 2 mm (slides run 2 mm deep)");
   std::filesystem::create_directories(o.scene_dir);
@@ -302,6 +357,7 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
       if (o.wrench) run_wrench_cases(o, kind, spacing, world, rep);
     }
   }
+  run_defect_cases(o, rep, progress);
   for (auto& [shape, d] : directions) rep.press_directions.emplace_back(shape, std::move(d));
   rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return rep;
@@ -376,6 +432,65 @@ std::string slide_table(const std::vector<FidelityRow>& rows) {
   return t;
 }
 
+// Where a rigid sphere of radius `tool` first touches a plane with a round hole of radius
+// `hole` around the point it is pressed at: b = R - sqrt(R^2 - r^2) past the plane (NaN: the
+// hole is as wide as the tool, which falls in).
+double bridging_depth(double tool, double hole) {
+  return hole < tool ? tool - std::sqrt(tool * tool - hole * hole) : NAN;
+}
+
+// The defect rows against the plane without a defect at the same spacing and tool.
+std::string defect_table(const FidelityOptions& o, const std::vector<FidelityRow>& rows) {
+  std::string t =
+      "| defect | spacing mm | tool mm | runs | onset mm (median / max) | onset - without defect, mm | rigid tool's | "
+      "stiffness N/mm (median) | never lost | direction error deg p50 / p95 | W min (mJ) | tick us p99 | held where the plane is |\n"
+      "|---|---:|---:|---:|---|---:|---:|---:|---:|---|---:|---:|---|\n";
+  for (const FidelityRow& r : rows) {
+    const auto plain = std::find_if(rows.begin(), rows.end(), [&](const FidelityRow& q) {
+      return q.feature == "none" && q.spacing == r.spacing && q.tool_radius == r.tool_radius;
+    });
+    double rigid = 0;  // how much later a rigid sphere meets the defect than the plane
+    for (const CaptureDefect& d : o.defects)
+      if (d.kind == DefectKind::kHole && defect_label(d) == r.feature) rigid = bridging_depth(r.tool_radius, d.radius) * 1e3;
+    const double shift = plain == rows.end() ? NAN : r.onset_mm_median - plain->onset_mm_median;
+    const bool held = r.never_lost == r.runs && shift >= -1 && shift <= rigid + 1;
+    const std::string verdict = r.feature == "none" ? "(the reference)"
+                                : held                ? "yes"
+                                : std::isnan(rigid)   ? "- (the hole is as wide as the tool)"
+                                                      : "**no**";
+    t += fmt::format("| {} | {:g} | {:g} | {} | {} / {} | {} | {} | {} | {} / {} | {} / {} | {} | {} | {} |\n", r.feature,
+                     r.spacing * 1e3, r.tool_radius * 1e3, r.runs, num(r.onset_mm_median), num(r.onset_mm_max),
+                     r.feature == "none" ? "-" : num(shift), num(rigid), num(r.stiffness_median, "{:.3f}"), r.never_lost,
+                     r.runs, num(r.dir_p50, "{:.1f}"), num(r.dir_p95, "{:.1f}"), num(r.energy_min_j * 1e3, "{:.3f}"),
+                     num(r.tick_p99_us, "{:.1f}"), verdict);
+  }
+  return t;
+}
+
+std::string describe_defects(const FidelityOptions& o) {
+  std::string t;
+  for (const CaptureDefect& d : o.defects) {
+    t += fmt::format("- **{}**, {:g} mm around the plane's centre: ", to_string(d.kind), d.radius * 1e3);
+    switch (d.kind) {
+      case DefectKind::kFaintPatch:
+        t += fmt::format("every disc replaced by {} discs of opacity {:g}-{:g} (all under the 0.2 filter), spread half a "
+                         "spacing in the plane and by the disc's jitter along the normal: together opaque to the eye;\n",
+                         d.faint_layers, d.faint_opacity_min, d.faint_opacity_max);
+        break;
+      case DefectKind::kHole: t += "no Gaussians (the neighbours' discs still overhang its rim);\n"; break;
+      case DefectKind::kLargeFlat:
+        t += fmt::format("covered by large flat opaque discs, {:g} spacings wide and apart, instead of small ones;\n",
+                         d.large_factor);
+        break;
+      case DefectKind::kInteriorClutter:
+        t += fmt::format("the surface kept, and one Gaussian per disc floating {:g}-{:g} mm under it;\n",
+                         d.clutter_depth_min * 1e3, d.clutter_depth_max * 1e3);
+        break;
+    }
+  }
+  return t;
+}
+
 }  // namespace
 
 void write_fidelity_markdown(const FidelityReport& rep, const std::string& path, const std::string& command,
@@ -432,6 +547,17 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
         "thickness proud of it, so a proxy resting on them reads slightly negative).\n\n",
         describe(o.wrench_tools.stylus), describe(o.wrench_tools.disc), o.play.safety.tau_max);
     md += wrench_table(rep.wrench) + "\n";
+  }
+  if (!rep.defect.empty()) {
+    md += fmt::format(
+        "## Capture defects ({} site(s) per patch: its centre and points half its radius out; presses as above)\n\n"
+        "The plane with one patch of what trained captures leave (`gshaptics synth plane --defect KIND`); the analytic "
+        "plane stays the truth. Each spacing and tool first presses the plane without a defect at the same "
+        "sites (\"none\"). Held where the plane is: never lost, and the onset's median within 1 mm of that "
+        "plane's, or over a hole up to 1 mm beyond the depth at which a rigid sphere meets its rim (the rigid tool's "
+        "column).\n\n",
+        o.defect_sites);
+    md += describe_defects(o) + "\n" + defect_table(o, rep.defect) + "\n";
   }
   if (!figures_prefix.empty()) {
     md += "## Figures\n\n";

@@ -3,33 +3,20 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <nlohmann/json.hpp>
-#include <random>
 
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/error.h"
 #include "gshaptics/io/atomic_file.h"
 #include "gshaptics/io/scene_writer.h"
+#include "defect_painter.h"
 
 namespace gshaptics {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-// Our own distributions over mt19937_64, so a seed gives the same file on any standard library.
-class Rng {
- public:
-  explicit Rng(std::uint64_t seed) : g_(seed) {}
-  double uniform(double lo = 0, double hi = 1) { return lo + (hi - lo) * double(g_() >> 11) * (1.0 / 9007199254740992.0); }
-  double normal() {  // Box-Muller
-    const double u1 = std::max(uniform(), 1e-300), u2 = uniform();
-    return std::sqrt(-2 * std::log(u1)) * std::cos(2 * kPi * u2);
-  }
-
- private:
-  std::mt19937_64 g_;
-};
+using synth_detail::kPi;
+using synth_detail::Rng;
 
 Eigen::Vector4f to_wxyz(const Eigen::Quaterniond& q) {
   return {float(q.w()), float(q.x()), float(q.y()), float(q.z())};
@@ -52,6 +39,10 @@ nlohmann::json SyntheticScene::description() const {
                      {"floater_clearance_m", params.floater_clearance}};
   j["counts"] = {{"surface", surface_count}, {"floaters", floater_count}, {"total", scene.size()}};
   j["layout"] = "Gaussians 0 .. surface-1 lie on the surface, the rest are floaters";
+  if (!params.defects.empty()) {
+    j["defects"] = nlohmann::json::array();
+    for (const CaptureDefect& d : params.defects) j["defects"].push_back(d.describe());
+  }
   return j;
 }
 
@@ -82,7 +73,7 @@ SyntheticScene make_synthetic_scene(const AnalyticShape& shape, const SynthParam
     if (rng.uniform() < p.low_opacity_share) return rng.uniform(0.01, 0.2);
     return rng.uniform() < 0.7 ? rng.uniform(0.8, 1.0) : rng.uniform(0.2, 0.8);
   };
-  std::uint32_t index = 0;
+  synth_detail::DefectPainter painter(shape, p.defects, samples, p.spacing, p.seed);
   for (const SurfaceSample& s : samples) {
     // Disc frame: tangent, bitangent, normal; tilted a few degrees, spun at random in the plane.
     const Eigen::Vector3d axis = Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized();
@@ -99,10 +90,10 @@ SyntheticScene make_synthetic_scene(const AnalyticShape& shape, const SynthParam
     const double s2 = p.spacing * std::exp(p.scale_log_sigma * rng.normal());
     const double thin = rng.uniform(p.thin_min, p.thin_max) * std::min(s1, s2);
     const Eigen::Vector3d mean = s.position + s.normal * (p.normal_jitter * rng.normal());
-    g.push_back(mean.cast<float>(), Eigen::Vector3f(float(s1), float(s2), float(thin)), to_wxyz(q), float(opacity()),
-                index++);
+    painter.paint(s, {mean, q, Eigen::Vector3d(s1, s2, thin), opacity()}, g);
   }
   out.surface_count = g.size();
+  auto index = std::uint32_t(g.size());
   // The surface as the default world keeps it (opacity filter, 1 sigma), for the floaters' test.
   const CollisionWorld surface = CollisionWorld::build(g, WorldConfig{});
   ContactQuery touches(surface);

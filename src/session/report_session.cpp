@@ -48,6 +48,10 @@ FidelityOptions fidelity_options_from(const FidelityCommandOptions& o) {
   }
   if (o.wrench_sites == 0) fo.wrench = false;
   if (o.wrench_sites > 0) fo.wrench_sites = o.wrench_sites;
+  if (!o.defects.empty()) fo.defects.clear();
+  for (const std::string& spec : o.defects)
+    if (spec != "none") fo.defects.push_back(parse_capture_defect(spec, "--defect"));
+  if (o.defect_sites > 0) fo.defect_sites = o.defect_sites;
   fo.wrench_tools.stylus = parse_tool_spec(o.stylus);
   fo.wrench_tools.disc = parse_tool_spec(o.disc);
   fo.play.inline_query = o.exec.inline_query;
@@ -66,6 +70,9 @@ std::string fidelity_command_line(const FidelityCommandOptions& o) {
   if (o.wrench_sites >= 0) command += fmt::format(" --wrench-sites {}", o.wrench_sites);
   if (o.synth.floater_share != SynthParams{}.floater_share)
     command += fmt::format(" --floater-share {:g}", o.synth.floater_share);
+  if (!o.defects.empty()) command += fmt::format(" --defect {}", fmt::join(o.defects, ","));
+  if (o.defect_sites > 0) command += fmt::format(" --defect-sites {}", o.defect_sites);
+  if (o.force.model == RendererKind::kProxy && o.force.proxy.surface == ProxySurface::kSeen) command += " --surface seen";
   return command;
 }
 

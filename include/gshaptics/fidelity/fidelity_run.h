@@ -48,10 +48,15 @@ struct FidelityOptions {
   int wrench_sites = 3;
   double wrench_depth = 0.005;
   WrenchTools wrench_tools;
+  /// Capture defects (capture_defect.h, issue 71 item 5): each patch on the plane at every
+  /// spacing, pressed `press_depth` deep with every tool radius at its centre and at
+  /// `defect_sites - 1` points half its radius out. Empty: none.
+  std::vector<CaptureDefect> defects = default_capture_defects();
+  int defect_sites = 5;
 };
 
 /// The CI subset: 4 mm spacing, 5 mm tool, 4 press sites, 2 push sites, 1 site per 6-DoF case;
-/// plane, sphere, cube, 2 mm plate.
+/// plane, sphere, cube, 2 mm plate; 2 sites per defect.
 [[nodiscard]] FidelityOptions quick_fidelity_options();
 
 /// One row of a table: a shape (and feature) at one density and tool radius.
@@ -102,6 +107,9 @@ struct FidelityCurve {
 struct FidelityReport {
   FidelityOptions options;
   std::vector<FidelityRow> press, push, slide;
+  /// The capture defect rows: shape "plane", feature "none" (the plane without a defect at the same
+  /// sites, per spacing and tool) or the patch ("hole, 4 mm").
+  std::vector<FidelityRow> defect;
   std::vector<WrenchRow> wrench;
   std::vector<FidelityCurve> curves;
   /// Pooled press direction errors per shape (degrees), for the histogram.

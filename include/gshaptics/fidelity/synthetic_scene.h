@@ -9,8 +9,10 @@
 #include <cstdint>
 #include <nlohmann/json_fwd.hpp>
 #include <string>
+#include <vector>
 
 #include "gshaptics/fidelity/analytic_shape.h"
+#include "gshaptics/fidelity/capture_defect.h"
 #include "gshaptics/io/gaussian_scene.h"
 
 namespace gshaptics {
@@ -32,6 +34,9 @@ struct SynthParams {
   /// One that reached the surface's discs would be a bump the analytic answer does not know (on
   /// the 8 mm plane of seed 36 a 7.2 mm one 7.7 mm up held the side-on stylus 7.5 mm above it).
   double floater_clearance = 0.002;
+  /// Patches where the surface has what real captures leave (fidelity/capture_defect.h); none by
+  /// default. Outside its patches a scene is the defect-free one, Gaussian for Gaussian.
+  std::vector<CaptureDefect> defects;
 };
 
 /// A generated scene and what made it.

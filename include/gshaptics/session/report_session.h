@@ -36,6 +36,10 @@ struct FidelityCommandOptions {
   std::vector<std::string> shapes;     ///< shape names (parse_shape); empty: the run's default
   std::vector<double> spacings_mm;     ///< Gaussian spacings, mm; empty: the run's default
   int wrench_sites = -1;               ///< 6-DoF sites per case; 0: none; < 0: the run's default
+  /// Capture defect patches (parse_capture_defect specs); empty: one of each kind; "none": no
+  /// defect cases.
+  std::vector<std::string> defects;
+  int defect_sites = -1;               ///< press sites per patch; < 0: the run's default
   std::string stylus = "stylus:0.12,0.005", disc = "disc:0.02,0.004";  ///< the 6-DoF tools (--tool specs)
   ForceModelOptions force;
   ExecutionOptions exec;

@@ -1,0 +1,167 @@
+// Capture defects in the ground-truth scenes: each patch is what its name says (checked on the
+// Gaussians and, for the faint patch, on the seen surface a viewer composites), the rest of the
+// scene is the defect-free one, and the fidelity run's defect rows tell a proxy that holds the
+// plane through the defect from one that does not.
+
+#include "gshaptics/fidelity/capture_defect.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <set>
+#include <tuple>
+
+#include "gshaptics/error.h"
+#include "gshaptics/fidelity/fidelity_run.h"
+#include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/scene/seen_surface.h"
+
+namespace gshaptics {
+namespace {
+
+constexpr double kSpacing = 0.004;
+// A sample of the plane's 4 mm grid: every patch below is centred there.
+const Eigen::Vector3d kCenter(0.002, 0.002, 0);
+
+CaptureDefect defect(DefectKind kind) {
+  CaptureDefect d = CaptureDefect::of(kind);
+  d.at = kCenter;
+  return d;
+}
+
+SyntheticScene plane_with(const std::vector<CaptureDefect>& defects, std::uint64_t seed = 3) {
+  SynthParams p;
+  p.spacing = kSpacing;
+  p.seed = seed;
+  p.floater_share = 0;
+  p.defects = defects;
+  return make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), p);
+}
+
+// The surface Gaussians whose centre lies within `r` of the plane's centre (horizontally).
+std::vector<std::size_t> within(const SyntheticScene& s, double r) {
+  std::vector<std::size_t> out;
+  for (std::size_t i = 0; i < s.surface_count; ++i)
+    if ((s.scene.means[i].head<2>().cast<double>() - kCenter.head<2>()).norm() <= r) out.push_back(i);
+  return out;
+}
+
+using Key = std::tuple<float, float, float, float>;
+std::set<Key> gaussians_outside(const SyntheticScene& s, double r) {
+  std::set<Key> out;
+  for (std::size_t i = 0; i < s.surface_count; ++i)
+    if ((s.scene.means[i].head<2>().cast<double>() - kCenter.head<2>()).norm() > r)
+      out.insert({s.scene.means[i].x(), s.scene.means[i].y(), s.scene.means[i].z(), s.scene.opacities[i]});
+  return out;
+}
+
+TEST(CaptureDefect, ParsesKindAndRadiusAndRefusesTheRest) {
+  const CaptureDefect hole = parse_capture_defect("hole:6", "--defect");
+  EXPECT_EQ(hole.kind, DefectKind::kHole);
+  EXPECT_DOUBLE_EQ(hole.radius, 0.006);
+  EXPECT_DOUBLE_EQ(parse_capture_defect("hole", "--defect").radius, 0.004);
+  EXPECT_DOUBLE_EQ(parse_capture_defect("faint-patch", "--defect").radius, 0.015);
+  for (const char* bad : {"crater", "hole:", "hole:-2", "hole:4mm", "hole:0"}) {
+    try {
+      (void)parse_capture_defect(bad, "--defect");
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("--defect"), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(CaptureDefect, OutsideItsPatchTheSceneIsTheDefectFreeOne) {
+  const SyntheticScene plain = plane_with({});
+  for (DefectKind k : all_defects()) {
+    const CaptureDefect d = defect(k);
+    const SyntheticScene s = plane_with({d});
+    // A disc whose sample lies in the patch may have its centre jittered out of it by half a
+    // spacing (the faint layers), so compare beyond the patch and that margin.
+    EXPECT_EQ(gaussians_outside(s, d.radius + kSpacing), gaussians_outside(plain, d.radius + kSpacing)) << to_string(k);
+    EXPECT_NE(s.scene.size(), plain.scene.size()) << to_string(k) << ": the patch changed nothing";
+  }
+}
+
+TEST(CaptureDefect, AFaintPatchIsBelowTheFilterYetOpaqueToTheEye) {
+  const CaptureDefect d = defect(DefectKind::kFaintPatch);
+  const SyntheticScene s = plane_with({d});
+  const std::vector<std::size_t> patch = within(s, d.radius - kSpacing);
+  ASSERT_GT(patch.size(), 40u);
+  for (std::size_t i : patch) EXPECT_LT(s.scene.opacities[i], 0.2f);
+  // The viewer's median depth from 5 cm above, on a grid over the patch: a surface within the
+  // discs' jitter of z = 0 on every ray.
+  const SeenSurface seen(s.scene);
+  int rays = 0;
+  for (double x = -0.01; x <= 0.0101; x += 0.0025)
+    for (double y = -0.01; y <= 0.0101; y += 0.0025) {
+      const SeenDepth h = seen.median_depth(kCenter + Eigen::Vector3d(x, y, 0.05), -Eigen::Vector3d::UnitZ());
+      ASSERT_TRUE(h.hit) << x << ", " << y;
+      EXPECT_NEAR(0.05 - h.depth, 0.0, 0.0015) << x << ", " << y;
+      ++rays;
+    }
+  EXPECT_EQ(rays, 81);
+}
+
+TEST(CaptureDefect, AHoleIsEmptyLargeFlatDiscsAreLargeAndClutterLiesUnderTheSurface) {
+  const CaptureDefect hole = defect(DefectKind::kHole);
+  EXPECT_TRUE(within(plane_with({hole}), hole.radius).empty());
+
+  const CaptureDefect flat = defect(DefectKind::kLargeFlat);
+  const SyntheticScene f = plane_with({flat});
+  const std::vector<std::size_t> discs = within(f, flat.radius);
+  ASSERT_GE(discs.size(), 3u);
+  EXPECT_LT(discs.size(), within(plane_with({}), flat.radius).size() / 4);
+  for (std::size_t i : discs) EXPECT_GE(f.scene.scales[i].x(), 0.99f * float(flat.large_factor * kSpacing));
+
+  const CaptureDefect clutter = defect(DefectKind::kInteriorClutter);
+  const SyntheticScene c = plane_with({clutter});
+  int under = 0;
+  for (std::size_t i = 0; i < c.surface_count; ++i) {
+    const float z = c.scene.means[i].z();
+    if (z < -0.002f) {
+      ++under;
+      EXPECT_LE(z, -float(clutter.clutter_depth_min)) << i;
+      EXPECT_GE(z, -float(clutter.clutter_depth_max) - 1e-6f) << i;
+      EXPECT_LE((c.scene.means[i].head<2>().cast<double>() - kCenter.head<2>()).norm(), clutter.radius + kSpacing) << i;
+    }
+  }
+  EXPECT_GT(under, int(within(plane_with({}), clutter.radius).size() / 2));
+}
+
+// The defect rows of the fidelity run, small: the ellipsoid proxy's opacity filter drops the
+// whole faint patch and the tool falls through it; the seen solid holds the plane there.
+TEST(CaptureDefect, TheSeenSolidHoldsAFaintPatchThatTheEllipsoidProxyFallsThrough) {
+  const auto run = [](ProxySurface surface) {
+    FidelityOptions o;
+    ProxyModelSpec proxy;
+    proxy.params.surface = surface;
+    o.renderer = proxy;
+    o.shapes = {ShapeKind::kPlane};
+    o.spacings = {kSpacing};
+    o.tool_radii = {0.005};
+    o.press_sites = 1;
+    o.push_sites = 0;
+    o.wrench = false;
+    o.compare_modes = false;
+    o.defects = {CaptureDefect::of(DefectKind::kFaintPatch)};
+    o.defect_sites = 2;
+    o.scene_dir = (std::filesystem::temp_directory_path() / "gshaptics_capture_defect_test").string();
+    const FidelityReport rep = run_fidelity(o);
+    EXPECT_EQ(rep.defect.size(), 2u);
+    EXPECT_EQ(rep.defect.at(0).feature, "none");
+    EXPECT_EQ(rep.defect.at(0).never_lost, 2);  // the plane itself holds
+    return rep.defect.at(1);
+  };
+  const FidelityRow seen = run(ProxySurface::kSeen);
+  EXPECT_EQ(seen.feature, "faint-patch, 15 mm");
+  EXPECT_EQ(seen.never_lost, 2);
+  EXPECT_NEAR(seen.onset_mm_median, 0.0, 1.0);
+  EXPECT_NEAR(seen.stiffness_median, 1.0, 0.05);  // the default 1,000 N/m coupling
+  const FidelityRow ellipsoids = run(ProxySurface::kEllipsoids);
+  EXPECT_EQ(ellipsoids.never_lost, 0);
+  EXPECT_TRUE(std::isnan(ellipsoids.onset_mm_median));  // no force at all
+}
+
+}  // namespace
+}  // namespace gshaptics
