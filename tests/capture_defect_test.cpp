@@ -163,5 +163,45 @@ TEST(CaptureDefect, TheSeenSolidHoldsAFaintPatchThatTheEllipsoidProxyFallsThroug
   EXPECT_TRUE(std::isnan(ellipsoids.onset_mm_median));  // no force at all
 }
 
+// A hole wider than the neighbours' discs close and narrower than the tool: the seen solid is
+// open there to the eye, and a point probe would fall through; the sphere rests on the rim, no
+// deeper than 1 mm past where a rigid ball of its radius meets it.
+TEST(CaptureDefect, TheSeenProxyHoldsTheToolOnTheRimOfAHoleNarrowerThanIt) {
+  FidelityOptions o;
+  ProxyModelSpec proxy;
+  proxy.params.surface = ProxySurface::kSeen;
+  proxy.params.seen_footprint = true;
+  o.renderer = proxy;
+  o.shapes = {ShapeKind::kPlane};
+  o.spacings = {0.002};
+  o.tool_radii = {0.010};
+  o.press_sites = 1;
+  o.push_sites = 0;
+  o.wrench = false;
+  o.compare_modes = false;
+  CaptureDefect hole = CaptureDefect::of(DefectKind::kHole);
+  hole.radius = 0.008;
+  o.defects = {hole};
+  o.defect_sites = 3;
+  o.scene_dir = (std::filesystem::temp_directory_path() / "gshaptics_capture_defect_test").string();
+  const FidelityReport rep = run_fidelity(o);
+  ASSERT_EQ(rep.defect.size(), 2u);
+  const FidelityRow& plain = rep.defect[0];
+  const FidelityRow& r = rep.defect[1];
+  // The eye sees through the hole's centre: the 3DGS median depth finds nothing there.
+  SynthParams p;
+  p.spacing = 0.002;
+  p.seed = o.seed;
+  p.defects = {hole};
+  const SyntheticScene s = make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), p);
+  const Eigen::Vector3d c = patch_center(AnalyticShape(ShapeKind::kPlane), hole, 0.002);
+  EXPECT_FALSE(SeenSurface(s.scene).median_depth(c + Eigen::Vector3d(0, 0, 0.05), -Eigen::Vector3d::UnitZ()).hit);
+  EXPECT_EQ(r.never_lost, 3);
+  const double rigid_mm = (0.010 - std::sqrt(0.010 * 0.010 - 0.008 * 0.008)) * 1e3;  // 4 mm
+  EXPECT_LE(r.onset_mm_max - plain.onset_mm_median, rigid_mm + 1.0);
+  EXPECT_GE(r.onset_mm_median - plain.onset_mm_median, -1.0);
+  EXPECT_GE(r.energy_min_j, 0.0);  // passive: the rim holds it the same way in and out
+}
+
 }  // namespace
 }  // namespace gshaptics

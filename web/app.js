@@ -14,7 +14,7 @@ const PLOT_SAMPLES = 300;
 
 const view = {
   hello: null, scene: null, camera: null, renderer: null, controls: null, splat: null,
-  tool: null, contacts: null, arrow: null, target: null, up: null, upChoices: [], upIndex: 0,
+  tool: null, contacts: null, arrow: null, target: null, showFelt: true, up: null, upChoices: [], upIndex: 0,
   history: [], last: null, dragging: false, dragPlane: new THREE.Plane(), dragOffset: new THREE.Vector3(),
 };
 window.gshaptics = view; // for tests and the console
@@ -127,6 +127,15 @@ function init(h) {
   const proxy = toolShape(h.tool, 0x99ff99, 0.35, 999);
   proxy.visible = false;
   root.add(proxy);
+  // What the hand feels, beside what the eye sees: the surface the force model holds the tool on,
+  // a disc at the proxy's contact point facing the force (drawn over the splats; V hides it).
+  const felt = new THREE.Mesh(new THREE.RingGeometry(0.55, 1, 40),
+    new THREE.MeshBasicMaterial({ color: 0xffee55, transparent: true, opacity: 0.55, side: THREE.DoubleSide, depthTest: false }));
+  felt.add(new THREE.Mesh(new THREE.CircleGeometry(0.55, 40),
+    new THREE.MeshBasicMaterial({ color: 0xffee55, transparent: true, opacity: 0.18, side: THREE.DoubleSide, depthTest: false })));
+  felt.traverse((o) => { o.renderOrder = 999; });
+  felt.visible = false;
+  root.add(felt);
   // The torque about the tool centre point: a curved arrow turning about its axis (right hand).
   const twist = torqueArrow();
   root.add(twist);
@@ -155,7 +164,7 @@ function init(h) {
     root.add(helper);
   }
 
-  Object.assign(view, { scene, camera, renderer, controls, splat, tool, proxy, contacts, arrow, twist, extent, root });
+  Object.assign(view, { scene, camera, renderer, controls, splat, tool, proxy, felt, contacts, arrow, twist, extent, root });
   addEventListener("resize", () => {
     camera.aspect = innerWidth / innerHeight;
     camera.updateProjectionMatrix();
@@ -163,10 +172,11 @@ function init(h) {
   });
   if (h.mouse) setupMouseDevice(h);
   $("help").innerHTML = h.mouse
-    ? "Drag the blue tool; arrows: view plane, W/S: depth, Q/E: up/down (Shift 5x), U: camera up axis, F: follow on/off; drag elsewhere orbits."
-    : "The device drives the tool. U: camera up axis; F: follow the tool on/off; drag orbits.";
+    ? "Drag the blue tool; arrows: view plane, W/S: depth, Q/E: up/down (Shift 5x), U: camera up axis, F: follow on/off, V: felt surface on/off; drag elsewhere orbits."
+    : "The device drives the tool. U: camera up axis; F: follow the tool on/off; V: the felt surface on/off; drag orbits.";
   addEventListener("keydown", (e) => {
     if (e.key.toLowerCase() === "f") view.follow = !view.follow;
+    if (e.key.toLowerCase() === "v") view.showFelt = !view.showFelt;
   });
   renderer.setAnimationLoop((time, frame) => {
     if (frame && view.onXRFrame) view.onXRFrame(frame);
@@ -261,6 +271,7 @@ function update(m) {
     view.proxy.quaternion.copy(view.tool.quaternion);
     view.proxy.visible = p.distanceTo(c) > 0.02 * view.hello.tool.axes[0];
   }
+  showFelt(m);
 
   const n = Math.min(m.contacts.length, MAX_SHOWN);
   for (let i = 0; i < n; i++) {
@@ -320,6 +331,47 @@ function update(m) {
   view.history.push([m.counts.contacts, fm]);
   if (view.history.length > PLOT_SAMPLES) view.history.shift();
   drawPlot();
+}
+
+// The point of the tool posed at `center` (tool rotation `q`, a THREE.Quaternion) farthest along
+// world direction `w`: the support point over its parts (ellipsoids; a one-part tool is its own).
+function supportPoint(center, q, w) {
+  const parts = view.hello.tool.parts || [{ center: [0, 0, 0], axes: view.hello.tool.axes, rotation: [1, 0, 0, 0] }];
+  const wt = w.clone().applyQuaternion(q.clone().invert());
+  let best = null, bestDot = -Infinity;
+  for (const part of parts) {
+    const qp = new THREE.Quaternion(part.rotation[1], part.rotation[2], part.rotation[3], part.rotation[0]);
+    const wp = wt.clone().applyQuaternion(qp.clone().invert());
+    const a = part.axes;
+    const aw = new THREE.Vector3(a[0] * wp.x, a[1] * wp.y, a[2] * wp.z);
+    const sp = new THREE.Vector3(a[0] * aw.x, a[1] * aw.y, a[2] * aw.z).divideScalar(Math.max(aw.length(), 1e-12));
+    const st = sp.applyQuaternion(qp).add(vec(part.center));
+    const d = st.dot(wt);
+    if (d > bestDot) { bestDot = d; best = st; }
+  }
+  return best.applyQuaternion(q).add(center);
+}
+
+// The felt surface: where the proxy's tool meets what holds it, i.e. the tool's point farthest
+// against the force the model asks for (its contact normal) with the tool where the proxy holds
+// it, a disc 1.5 tool radii wide in the plane across that normal. Shown while the model holds
+// the tool with a force.
+function showFelt(m) {
+  const d = m.desired ? vec(m.desired) : new THREE.Vector3();
+  const on = view.showFelt && m.proxy && m.proxy.constraints > 0 && d.length() > 0.05;
+  view.felt.visible = !!on;
+  document.body.dataset.felt = on ? "1" : "0";
+  if (!on) {
+    $("felt").textContent = "–";
+    return;
+  }
+  const n = d.normalize();
+  const r = Math.min(...view.hello.tool.axes);
+  view.felt.position.copy(supportPoint(vec(m.proxy.center), view.tool.quaternion, n.clone().negate()));
+  view.felt.quaternion.setFromUnitVectors(zAxis, n);
+  view.felt.scale.setScalar(1.5 * r);
+  document.body.dataset.feltNormal = n.toArray().map((x) => x.toFixed(3)).join(",");
+  $("felt").textContent = `the tool ${(vec(m.proxy.center).distanceTo(vec(m.tool.center)) * 1000).toFixed(1)} mm past it`;
 }
 
 function drawPlot() {

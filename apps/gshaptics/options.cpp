@@ -167,6 +167,11 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
                  "proxy: with --surface seen, the layers within this many tool radii behind a point along the push "
                  "decide whether it is inside")
       ->capture_default_str()->check(check::positive());
+  cmd.add_option_function<std::string>(
+         "--seen-footprint", [&p](const std::string& v) { p.seen_footprint = v == "on"; },
+         "proxy: with --surface seen, rays around the tool's leading point hold it on the rim of a see-through hole "
+         "narrower than it, as a rigid ball (costs up to two more short rays a free tick). Default: off")
+      ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option("--isolation-gap", p.isolation_gap,
                  "proxy: a Gaussian with no other within this many tool radii is a floater and does not block "
                  "(0: only overlapping Gaussians support each other, which lets the tool through sparse surfaces)")

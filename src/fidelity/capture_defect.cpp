@@ -83,7 +83,13 @@ Eigen::Vector3d patch_center(const AnalyticShape& shape, const CaptureDefect& d,
 
 std::vector<CaptureDefect> default_capture_defects() {
   std::vector<CaptureDefect> out;
-  for (DefectKind k : all_defects()) out.push_back(CaptureDefect::of(k));
+  for (DefectKind k : all_defects()) {
+    out.push_back(CaptureDefect::of(k));
+    if (k == DefectKind::kHole) {  // and one wider than the neighbours' discs close, still narrower than a 10 mm tool
+      out.push_back(out.back());
+      out.back().radius = 0.007;
+    }
+  }
   return out;
 }
 

@@ -16,6 +16,71 @@ void SeenProxy::reset() noexcept {
   coupling_.release();
 }
 
+Eigen::Vector3d SeenProxy::ring_offset(int k, const Eigen::Vector3d& u, double radius) const noexcept {
+  const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
+  constexpr double kStep = 2 * 3.14159265358979323846 / kRingRays;
+  return kRingRadius[k % 3] * radius * (std::cos(kStep * k) * a + std::sin(kStep * k) * b);
+}
+
+double SeenProxy::holding(const std::array<double, kRingRays>& support) noexcept {
+  std::array<int, kRingRays> order{};
+  for (int k = 0; k < kRingRays; ++k) order[std::size_t(k)] = k;
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return support[std::size_t(a)] < support[std::size_t(b)]; });
+  unsigned mask = 0;
+  for (int k : order) {
+    if (!std::isfinite(support[std::size_t(k)])) break;
+    mask |= 1u << k;
+    // Around the circle (30 degrees a ray) no two neighbouring rays in the set lie 180 degrees
+    // or more apart.
+    int first = -1, prev = -1, widest = 0;
+    for (int j = 0; j < kRingRays; ++j) {
+      if (!(mask >> j & 1u)) continue;
+      if (prev >= 0) widest = std::max(widest, j - prev);
+      if (first < 0) first = j;
+      prev = j;
+    }
+    widest = std::max(widest, first + kRingRays - prev);
+    if (widest < kRingRays / 2) return support[std::size_t(k)];
+  }
+  return std::numeric_limits<double>::infinity();
+}
+
+double SeenProxy::ring_at(int k, const Eigen::Vector3d& centre, double radius) const noexcept {
+  const Eigen::Vector3d moved = centre - ring_from_[std::size_t(k)];
+  if ((moved - moved.dot(ring_axis_) * ring_axis_).norm() > kRingDrift * radius)
+    return std::numeric_limits<double>::infinity();
+  return ring_at_[std::size_t(k)];
+}
+
+double SeenProxy::ring_lead(int k, double radius) noexcept {
+  const double rho = kRingRadius[k % 3] * radius;
+  return std::sqrt(radius * radius - rho * rho);
+}
+
+double SeenProxy::free_ring(const Eigen::Vector3d& u, double radius, double len, bool leaving) noexcept {
+  if (u.dot(ring_axis_) < kRingAxisCos) forget_ring(u);
+  const int k = ring_next_;
+  ring_next_ = (ring_next_ + 1) % kRingRays;
+  // Seen from the sphere's surface there, or from as far behind it as it may have gone past a
+  // rim since the ray was last read (the rays before it may have met the rim already), unless
+  // the tool is leaving the surface it last rested on.
+  const Eigen::Vector3d o = proxy_ + ring_offset(k, u, radius) + ring_lead(k, radius) * u;
+  const double back = leaving ? 0.0 : -(kRingLook * radius + kRingRays * len);
+  const SeenHit hit = solid_.first_inside(o, u, back, 0, len + kRingLook * radius, scratch_);
+  ring_at_[std::size_t(k)] = hit.hit ? (o + hit.t * u).dot(ring_axis_) : std::numeric_limits<double>::infinity();
+  ring_from_[std::size_t(k)] = proxy_;
+  // How far each ray's point of the sphere is from its surface along the push.
+  std::array<double, kRingRays> travel{};
+  for (int j = 0; j < kRingRays; ++j)
+    travel[std::size_t(j)] = std::max(0.0, ring_at(j, proxy_, radius) - proxy_.dot(ring_axis_) - ring_lead(j, radius));
+  return holding(travel);
+}
+
+void SeenProxy::forget_ring(const Eigen::Vector3d& axis) noexcept {
+  ring_at_.fill(std::numeric_limits<double>::infinity());
+  ring_axis_ = axis;
+}
+
 bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noexcept {
   const Eigen::Vector3d d = device - proxy_;
   const double len = d.norm();
@@ -26,14 +91,48 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
   double eye = 0;
   const bool leaving = u.dot(normal_) > 0;  // away from the surface it last rested on
   const SeenHit hit = solid_.push(proxy_, u, radius, params_.seen_window * radius, len, leaving, eye, scratch_);
-  if (!hit.hit) return false;
+  // Where the leading point's ray sees no surface within kRingLook R past the motion, the
+  // footprint is read (one ray a tick), and rays around the sphere may hold it first (the rim of
+  // a hole narrower than it).
+  const Eigen::Vector3d lead = proxy_ + radius * u;
+  const bool see_through = params_.seen_footprint && !hit.hit &&
+                           !solid_.first_inside(lead, u, 0, 0, len + kRingLook * radius, scratch_).hit;
+  const bool by_ring = see_through && free_ring(u, radius, len, leaving) <= len;
+  if (!hit.hit && !by_ring) return false;
   const double back = radius + eye;
   axis_ = u;
   eye_ = proxy_ + (radius - back) * u;
+  if (u.dot(ring_axis_) < kRingAxisCos) forget_ring(u);
   normal_.setZero();  // read afresh by hold()
   pending_ray_ = -1;
   last_hit_ = std::numeric_limits<double>::quiet_NaN();
   return true;
+}
+
+void SeenProxy::read_ring(const Eigen::Vector3d& device, const Eigen::Vector3d& foot, double radius,
+                          double limit) noexcept {
+  const int k = ring_next_;
+  ring_next_ = (ring_next_ + 1) % kRingRays;
+  const double reach = limit - (radius - ring_lead(k, radius));  // a surface deeper does not hold the sphere
+  double& at = ring_at_[std::size_t(k)];
+  ring_from_[std::size_t(k)] = device;
+  if (!(reach > 0)) {
+    at = std::numeric_limits<double>::infinity();
+    return;
+  }
+  // Only a surface within kRingLook R above the reach matters (one higher the sphere has gone
+  // past), seen from kRingLook R above that: a short ray, whatever the eye plane's distance.
+  const Eigen::Vector3d o = foot + ring_offset(k, axis_, radius);
+  const double from = std::max(0.0, reach - kRingLook * radius);
+  const SeenHit hit = solid_.first_inside(o, axis_, std::max(0.0, from - kRingLook * radius), from, reach, scratch_);
+  at = hit.hit ? o.dot(axis_) + hit.t : std::numeric_limits<double>::infinity();
+}
+
+double SeenProxy::ring_support(const Eigen::Vector3d& device, double radius) const noexcept {
+  std::array<double, kRingRays> rest{};  // where each ray's surface holds the leading point, from the eye plane
+  for (int k = 0; k < kRingRays; ++k)
+    rest[std::size_t(k)] = ring_at(k, device, radius) - eye_.dot(axis_) + radius - ring_lead(k, radius);
+  return holding(rest);
 }
 
 bool SeenProxy::hold(const Eigen::Vector3d& device, double radius, double dt) noexcept {
@@ -45,11 +144,15 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, double radius, double dt) no
   // read first, those deeper only when the surface is not among them.)
   const double guess = std::isfinite(last_hit_) ? last_hit_ + kGuessMargin * radius : depth;
   const SeenHit hit = solid_.first_inside(foot, a, 0, 0, depth, scratch_, guess);
-  if (!hit.hit || hit.t >= depth) return false;  // the device is out of the surface
-  last_hit_ = hit.t;
-  const double t = std::max(0.0, hit.t - 1e-6 * radius);
+  // Where the leading point's ray sees through up to the device, the footprint is read (one ray
+  // a tick) and rays around the sphere hold it (a hole narrower than it).
+  if (!hit.hit && params_.seen_footprint) read_ring(device, foot, radius, depth);
+  const double rest = std::min(hit.hit ? hit.t : std::numeric_limits<double>::infinity(), ring_support(device, radius));
+  if (!(rest < depth)) return false;  // the device is out of the surface
+  if (hit.hit) last_hit_ = hit.t;
+  const double t = std::max(0.0, rest - 1e-6 * radius);
   proxy_ = foot + (t - radius) * a;
-  read_normal(foot + hit.t * a, radius, hit.t);
+  read_normal(foot + rest * a, radius, rest);
   const Eigen::Vector3d blended = normal_ + (1 - std::exp(-dt / kNormalTau)) * (target_normal_ - normal_);
   normal_ = blended.norm() > 1e-9 ? Eigen::Vector3d(blended.normalized()) : target_normal_;
   return true;

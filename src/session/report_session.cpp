@@ -72,7 +72,10 @@ std::string fidelity_command_line(const FidelityCommandOptions& o) {
     command += fmt::format(" --floater-share {:g}", o.synth.floater_share);
   if (!o.defects.empty()) command += fmt::format(" --defect {}", fmt::join(o.defects, ","));
   if (o.defect_sites > 0) command += fmt::format(" --defect-sites {}", o.defect_sites);
-  if (o.force.model == RendererKind::kProxy && o.force.proxy.surface == ProxySurface::kSeen) command += " --surface seen";
+  if (o.force.model == RendererKind::kProxy && o.force.proxy.surface == ProxySurface::kSeen) {
+    command += " --surface seen";
+    if (o.force.proxy.seen_footprint) command += " --seen-footprint on";
+  }
   return command;
 }
 
@@ -137,6 +140,7 @@ std::string seen_felt_command_line(const SeenFeltCommandOptions& o, const std::v
     command += " --surface seen";
     if (o.force.proxy.seen_window != ProxyParams{}.seen_window)
       command += fmt::format(" --seen-window {:g}", o.force.proxy.seen_window);
+    if (o.force.proxy.seen_footprint) command += " --seen-footprint on";
   }
   if (o.quick) command += " --quick";
   if (o.rays > 0) command += fmt::format(" --rays {}", o.rays);

@@ -68,12 +68,22 @@ try {
     rate: document.getElementById("rate").textContent,
     drawn: window.gshaptics.contacts.count,
     tool: window.gshaptics.last.tool.center,
+    felt: document.body.dataset.felt, feltNormal: (document.body.dataset.feltNormal || "").split(",").map(Number),
+    feltAt: window.gshaptics.felt.position.toArray(), proxy: window.gshaptics.last.proxy.center,
   }));
   console.log(`page shows ${shown.contacts} contacts, |F| = ${shown.force} N, rate ${shown.rate}, ${shown.drawn} drawn`);
   if (!(shown.contacts > 0)) fail("contacts counter is not > 0");
   if (!(shown.force > 0)) fail("force is not > 0");
   if (!(shown.drawn > 0)) fail("no colliding Gaussian is drawn");
   if (!(shown.tool[2] < start[2])) fail("the tool did not move down");
+  // The felt surface is drawn under the proxy, facing up (the tool pressed down on the sphere's
+  // top), one tool radius (the stylus: its largest semi-axis) below the proxy's centre.
+  console.log(`felt surface shown ${shown.felt}, normal ${shown.feltNormal}, at ${shown.feltAt.map((x) => x.toFixed(3))}`);
+  if (shown.felt !== "1") fail("the felt surface is not shown while the tool is held");
+  else {
+    if (!(shown.feltNormal[2] > 0.5)) fail(`the felt surface does not face up: ${shown.feltNormal}`);
+    if (!(shown.feltAt[2] < shown.proxy[2])) fail("the felt surface is not under the proxy");
+  }
   // One more frame drawn with the contacts before the screenshot (software GL is slow).
   await page.waitForTimeout(3000);
   const errorShown = await page.evaluate(() => document.body.dataset.error || "");

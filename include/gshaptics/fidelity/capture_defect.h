@@ -58,7 +58,9 @@ struct CaptureDefect {
 /// The centre of `d`'s patch on `shape` drawn at `spacing`: the surface sample nearest d.at.
 [[nodiscard]] Eigen::Vector3d patch_center(const AnalyticShape& shape, const CaptureDefect& d, double spacing);
 
-/// One patch of each kind with its defaults (CaptureDefect::of), in report order.
+/// One patch of each kind with its defaults (CaptureDefect::of), in report order, and a second
+/// hole of 7 mm (wider than the 4 mm one, which the neighbours' discs nearly close at 4 mm
+/// spacing; narrower than a 10 mm tool).
 [[nodiscard]] std::vector<CaptureDefect> default_capture_defects();
 
 /// "KIND" or "KIND:RADIUS_MM" (e.g. "hole:4"). Throws InputError naming `source`.

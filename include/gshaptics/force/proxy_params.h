@@ -121,6 +121,11 @@ struct ProxyParams {
   /// be, in tool radii (> 0): the layers a push has come through since its approach began, up to
   /// this far back, count toward the surface it meets.
   double seen_window = 32.0;
+  /// One-part tool, kSeen. The tool's footprint (SeenProxy): rays around the leading point's
+  /// hold the sphere on the rim of a see-through hole narrower than it, as a rigid ball. Off by
+  /// default: it reads up to two more short rays a free tick (probe-run render p99 about 2x,
+  /// bench/RESULTS.md).
+  bool seen_footprint = false;
 
   /// Compound tool. k_r, N m/rad: the rotational coupling; 1 N m/rad gives 0.5 N m, a desktop
   /// 6-DoF arm's torque, at about 30 deg.

@@ -13,8 +13,20 @@
 ///   creep through it.
 /// The force is the virtual coupling's (Colgate, Stanley and Brown 1995) along the seen surface's
 /// normal (four rays; after a contact's first reading one ray a tick; smoothed over 5 ms), with
-/// the proxy's stiffness, damping and the renderer's f_max; no friction, no energy bound. Limits: walls parallel to the contact's axis are not felt until the
-/// device comes out and pushes on them afresh.
+/// the proxy's stiffness, damping and the renderer's f_max; no friction, no energy bound.
+/// - With ProxyParams::seen_footprint, the tool is a sphere, not a point: beside the ray through its leading point, twelve rays
+///   parallel to the push at 0.5, 0.7 and 0.85 R from its centre line (30 degrees apart, one
+///   read a tick while the ray through the leading point sees no surface: free, none within R
+///   ahead; in contact, none up to the device) find the seen surface under the sphere's own
+///   surface there. Where the rays that meet a surface surround the centre line (no gap of 180 degrees
+///   between them), they hold the sphere as they would a rigid ball: a hole narrower than the
+///   tool holds it on its rim, at most 0.13, 0.29 or 0.47 R deeper than the rim (where the rays
+///   fall), a rigid ball's depth lying between. A surface met on one side only does not hold it
+///   (the proxy does not slide sideways: beside a feature, the surface under the leading point
+///   holds it). A crack narrower than the tool over a floor it can see is not bridged: the
+///   floor holds it.
+/// Limits: walls parallel to the contact's axis are not felt until the device comes out and
+/// pushes on them afresh.
 ///
 /// Frame and units: world, metres as the world's. render() does not allocate, lock, log or throw.
 
@@ -57,6 +69,30 @@ class SeenProxy {
   static constexpr double kNormalEye = 8;       // R: the normal's rays look from at most this far back
   static constexpr double kNormalSpan = 1.0;    // R: the normal's rays, this far to each side
   static constexpr double kGuessMargin = 0.25;  // R: the layers first read reach this past the last hit
+  // The footprint: ray k lies at kRingRadius[k % 3] R from the centre line, at 30 k degrees.
+  static constexpr int kRingRays = 12;
+  static constexpr double kRingRadius[3] = {0.5, 0.7, 0.85};
+  static constexpr double kRingLook = 1.0;      // R: free footprint rays look this far past the tick's motion
+  static constexpr double kRingAxisCos = 0.9986;  // cos 3 deg: a free push turning more forgets the footprint
+  static constexpr double kRingDrift = 0.1;     // R: a reading taken this far across is forgotten
+  // Free: the next ray of the footprint read along u, past the tick's motion `len` by kRingLook R;
+  // then how far the sphere moves before rays around it hold it (+inf: not within that).
+  double free_ring(const Eigen::Vector3d& u, double radius, double len, bool leaving) noexcept;
+  // In contact: the next footprint ray over the device (centre `device`, `foot` on the eye plane)
+  // read against the surface up to `limit` (depth from the eye plane); and where the footprint
+  // holds the leading point (depth from the eye plane; +inf: nowhere).
+  void read_ring(const Eigen::Vector3d& device, const Eigen::Vector3d& foot, double radius, double limit) noexcept;
+  [[nodiscard]] double ring_support(const Eigen::Vector3d& device, double radius) const noexcept;
+  // Ray k's surface as a coordinate along ring_axis_, +inf when none was found or when it was
+  // read more than kRingDrift R across from the tool's centre line through `centre`.
+  [[nodiscard]] double ring_at(int k, const Eigen::Vector3d& centre, double radius) const noexcept;
+  void forget_ring(const Eigen::Vector3d& axis) noexcept;
+  // How far ahead of the centre plane the sphere's surface is at ray k's offset.
+  [[nodiscard]] static double ring_lead(int k, double radius) noexcept;
+  // The least of `support` (per footprint ray) at which the rays at or below it surround the
+  // centre line (+inf: they never do).
+  [[nodiscard]] static double holding(const std::array<double, kRingRays>& support) noexcept;
+  [[nodiscard]] Eigen::Vector3d ring_offset(int k, const Eigen::Vector3d& u, double radius) const noexcept;
   SeenSolid solid_;
   SeenScratch scratch_;
   ProxyParams params_;
@@ -71,6 +107,12 @@ class SeenProxy {
   double pending_back_ = 0;
   std::array<SeenHit, 4> pending_hits_{};
   double last_hit_ = 0;  // the last hit's depth from the eye plane (NaN: none in this contact)
+  // The footprint's readings: each ray's surface as a coordinate along ring_axis_ (+inf: none
+  // found), and the tool's centre when it was read.
+  std::array<double, kRingRays> ring_at_{};
+  std::array<Eigen::Vector3d, kRingRays> ring_from_{};
+  Eigen::Vector3d ring_axis_ = Eigen::Vector3d::Zero();
+  int ring_next_ = 0;
   bool started_ = false, in_contact_ = false;
 };
 
