@@ -203,5 +203,37 @@ TEST(CaptureDefect, TheSeenProxyHoldsTheToolOnTheRimOfAHoleNarrowerThanIt) {
   EXPECT_GE(r.energy_min_j, 0.0);  // passive: the rim holds it the same way in and out
 }
 
+// The seen proxy's contact looks from an eye plane just in front of the surface behind the tool.
+// Pressed into one face of the 60-degree V-groove along its normal, that surface is the other
+// face, 7 cm behind: its layers peaked at the eye plane itself, and on the way out a rounding
+// made them a surface there, so the proxy jumped onto the far face and pushed the retreating
+// tool out at the force limit (W = -0.57 J a press). The eye now stands R/4 clear of it.
+TEST(SeenProxyOnAnalyticScenes, RetractingFromAGrooveFaceTheFaceBehindTheEyeDoesNotHoldTheTool) {
+  FidelityOptions o;
+  ProxyModelSpec proxy;
+  proxy.params.surface = ProxySurface::kSeen;
+  o.renderer = proxy;
+  o.shapes = {ShapeKind::kVGroove60};
+  o.spacings = {0.004};
+  o.tool_radii = {0.005};
+  o.press_sites = 8;
+  o.push_sites = 0;
+  o.wrench = false;
+  o.compare_modes = false;
+  o.defects.clear();
+  o.scene_dir = (std::filesystem::temp_directory_path() / "gshaptics_capture_defect_test").string();
+  const FidelityReport rep = run_fidelity(o);
+  int faces = 0;
+  for (const FidelityRow& r : rep.press) {
+    if (r.feature != "face") continue;
+    ++faces;
+    EXPECT_EQ(r.never_lost, r.runs);
+    EXPECT_EQ(r.active_cycles, 0);
+    EXPECT_GE(r.energy_min_j, 0.0);
+    EXPECT_LT(r.dir_max, 20.0);  // the far face's normal never takes over
+  }
+  EXPECT_EQ(faces, 1);
+}
+
 }  // namespace
 }  // namespace gshaptics

@@ -99,7 +99,9 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
                            !solid_.first_inside(lead, u, 0, 0, len + kRingLook * radius, scratch_).hit;
   const bool by_ring = see_through && free_ring(u, radius, len, leaving) <= len;
   if (!hit.hit && !by_ring) return false;
-  const double back = radius + eye;
+  // (The eye stands kEyeMargin R clear of the surface behind it: layers peaking at the eye
+  // itself would count or not by rounding, and the surface behind would hold the tool.)
+  const double back = radius + std::max(0.0, eye - kEyeMargin * radius);
   axis_ = u;
   eye_ = proxy_ + (radius - back) * u;
   if (u.dot(ring_axis_) < kRingAxisCos) forget_ring(u);

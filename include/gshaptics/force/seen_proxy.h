@@ -69,6 +69,7 @@ class SeenProxy {
   static constexpr double kNormalEye = 8;       // R: the normal's rays look from at most this far back
   static constexpr double kNormalSpan = 1.0;    // R: the normal's rays, this far to each side
   static constexpr double kGuessMargin = 0.25;  // R: the layers first read reach this past the last hit
+  static constexpr double kEyeMargin = 0.25;    // R: the contact's eye plane, this far in front of the surface behind
   // The footprint: ray k lies at kRingRadius[k % 3] R from the centre line, at 30 k degrees.
   static constexpr int kRingRays = 12;
   static constexpr double kRingRadius[3] = {0.5, 0.7, 0.85};
