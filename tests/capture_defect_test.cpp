@@ -208,21 +208,27 @@ TEST(CaptureDefect, TheSeenProxyHoldsTheToolOnTheRimOfAHoleNarrowerThanIt) {
 // face, 7 cm behind: its layers peaked at the eye plane itself, and on the way out a rounding
 // made them a surface there, so the proxy jumped onto the far face and pushed the retreating
 // tool out at the force limit (W = -0.57 J a press). The eye now stands R/4 clear of it.
-TEST(SeenProxyOnAnalyticScenes, RetractingFromAGrooveFaceTheFaceBehindTheEyeDoesNotHoldTheTool) {
+// Small fidelity run of the seen proxy on one shape: 4 mm spacing, one tool, presses only.
+FidelityReport seen_presses(ShapeKind shape, double tool, bool footprint) {
   FidelityOptions o;
   ProxyModelSpec proxy;
   proxy.params.surface = ProxySurface::kSeen;
+  proxy.params.seen_footprint = footprint;
   o.renderer = proxy;
-  o.shapes = {ShapeKind::kVGroove60};
+  o.shapes = {shape};
   o.spacings = {0.004};
-  o.tool_radii = {0.005};
+  o.tool_radii = {tool};
   o.press_sites = 8;
   o.push_sites = 0;
   o.wrench = false;
   o.compare_modes = false;
   o.defects.clear();
   o.scene_dir = (std::filesystem::temp_directory_path() / "gshaptics_capture_defect_test").string();
-  const FidelityReport rep = run_fidelity(o);
+  return run_fidelity(o);
+}
+
+TEST(SeenProxyOnAnalyticScenes, RetractingFromAGrooveFaceTheFaceBehindTheEyeDoesNotHoldTheTool) {
+  const FidelityReport rep = seen_presses(ShapeKind::kVGroove60, 0.005, false);
   int faces = 0;
   for (const FidelityRow& r : rep.press) {
     if (r.feature != "face") continue;
@@ -233,6 +239,19 @@ TEST(SeenProxyOnAnalyticScenes, RetractingFromAGrooveFaceTheFaceBehindTheEyeDoes
     EXPECT_LT(r.dir_max, 20.0);  // the far face's normal never takes over
   }
   EXPECT_EQ(faces, 1);
+}
+
+// The footprint meets a groove's slanted walls ray by ray, and may find them surrounding the
+// tool only after it went millimetres past them: snapping the proxy back then started the
+// contact with a force step (W = -29 mJ a press in the groove with a 10 mm tool). A footprint
+// met that late does not hold; every press stays passive.
+TEST(SeenProxyOnAnalyticScenes, TheFootprintNeverStartsAContactWithAForceStep) {
+  for (ShapeKind shape : {ShapeKind::kVGroove60, ShapeKind::kCorner90})
+    for (const FidelityRow& r : seen_presses(shape, 0.010, true).press) {
+      EXPECT_EQ(r.never_lost, r.runs) << r.shape << " " << r.feature;
+      EXPECT_EQ(r.active_cycles, 0) << r.shape << " " << r.feature;
+      EXPECT_GE(r.energy_min_j, 0.0) << r.shape << " " << r.feature;
+    }
 }
 
 }  // namespace

@@ -72,7 +72,7 @@ double SeenProxy::free_ring(const Eigen::Vector3d& u, double radius, double len,
   // How far each ray's point of the sphere is from its surface along the push.
   std::array<double, kRingRays> travel{};
   for (int j = 0; j < kRingRays; ++j)
-    travel[std::size_t(j)] = std::max(0.0, ring_at(j, proxy_, radius) - proxy_.dot(ring_axis_) - ring_lead(j, radius));
+    travel[std::size_t(j)] = ring_at(j, proxy_, radius) - proxy_.dot(ring_axis_) - ring_lead(j, radius);
   return holding(travel);
 }
 
@@ -97,14 +97,19 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
   const Eigen::Vector3d lead = proxy_ + radius * u;
   const bool see_through = params_.seen_footprint && !hit.hit &&
                            !solid_.first_inside(lead, u, 0, 0, len + kRingLook * radius, scratch_).hit;
-  const bool by_ring = see_through && free_ring(u, radius, len, leaving) <= len;
+  // A footprint found only after the sphere went past it by more than its rays' refresh allows
+  // (a slanted wall met ray by ray) does not hold it: snapping the proxy back would start the
+  // contact with a force step, and a step on the way in is energy given back on the way out.
+  const double ring = see_through ? free_ring(u, radius, len, leaving) : std::numeric_limits<double>::infinity();
+  const bool by_ring = ring <= len && ring >= -(kRingRays * len + kRingLate * radius);
   if (!hit.hit && !by_ring) return false;
   // (The eye stands kEyeMargin R clear of the surface behind it: layers peaking at the eye
   // itself would count or not by rounding, and the surface behind would hold the tool.)
   const double back = radius + std::max(0.0, eye - kEyeMargin * radius);
   axis_ = u;
   eye_ = proxy_ + (radius - back) * u;
-  if (u.dot(ring_axis_) < kRingAxisCos) forget_ring(u);
+  // The contact's footprint starts from the readings that began it, or from none.
+  if (!by_ring || u.dot(ring_axis_) < kRingAxisCos) forget_ring(u);
   normal_.setZero();  // read afresh by hold()
   pending_ray_ = -1;
   last_hit_ = std::numeric_limits<double>::quiet_NaN();

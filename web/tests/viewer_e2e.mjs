@@ -76,13 +76,16 @@ try {
   if (!(shown.force > 0)) fail("force is not > 0");
   if (!(shown.drawn > 0)) fail("no colliding Gaussian is drawn");
   if (!(shown.tool[2] < start[2])) fail("the tool did not move down");
-  // The felt surface is drawn under the proxy, facing up (the tool pressed down on the sphere's
-  // top), one tool radius (the stylus: its largest semi-axis) below the proxy's centre.
+  // The felt surface is drawn where the sphere of Gaussians is (radius 0.1 m about the origin,
+  // within the discs' thickness), facing out of it (the tool pressed down on its top).
   console.log(`felt surface shown ${shown.felt}, normal ${shown.feltNormal}, at ${shown.feltAt.map((x) => x.toFixed(3))}`);
   if (shown.felt !== "1") fail("the felt surface is not shown while the tool is held");
   else {
+    const r = Math.hypot(...shown.feltAt);
+    const outward = shown.feltAt.reduce((sum, x, i) => sum + x * shown.feltNormal[i], 0) / r;
+    if (!(Math.abs(r - 0.1) < 0.004)) fail(`the felt surface is ${r.toFixed(4)} m from the sphere's centre, not on it`);
+    if (!(outward > 0.9)) fail(`the felt surface does not face out of the sphere: ${shown.feltNormal}`);
     if (!(shown.feltNormal[2] > 0.5)) fail(`the felt surface does not face up: ${shown.feltNormal}`);
-    if (!(shown.feltAt[2] < shown.proxy[2])) fail("the felt surface is not under the proxy");
   }
   // One more frame drawn with the contacts before the screenshot (software GL is slow).
   await page.waitForTimeout(3000);

@@ -76,8 +76,10 @@ class SeenProxy {
   static constexpr double kRingLook = 1.0;      // R: free footprint rays look this far past the tick's motion
   static constexpr double kRingAxisCos = 0.9986;  // cos 3 deg: a free push turning more forgets the footprint
   static constexpr double kRingDrift = 0.1;     // R: a reading taken this far across is forgotten
+  static constexpr double kRingLate = 0.05;     // R: a footprint met later than its refresh and this does not hold
   // Free: the next ray of the footprint read along u, past the tick's motion `len` by kRingLook R;
-  // then how far the sphere moves before rays around it hold it (+inf: not within that).
+  // then how far the sphere moves before rays around it hold it (< 0: it is past them; +inf: not
+  // within the look).
   double free_ring(const Eigen::Vector3d& u, double radius, double len, bool leaving) noexcept;
   // In contact: the next footprint ray over the device (centre `device`, `foot` on the eye plane)
   // read against the surface up to `limit` (depth from the eye plane); and where the footprint
