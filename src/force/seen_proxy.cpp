@@ -154,7 +154,8 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, double radius, double dt) no
   // Where the leading point's ray sees through up to the device, the footprint is read (one ray
   // a tick) and rays around the sphere hold it (a hole narrower than it).
   if (!hit.hit && params_.seen_footprint) read_ring(device, foot, radius, depth);
-  const double rest = std::min(hit.hit ? hit.t : std::numeric_limits<double>::infinity(), ring_support(device, radius));
+  const double footprint = params_.seen_footprint ? ring_support(device, radius) : std::numeric_limits<double>::infinity();
+  const double rest = std::min(hit.hit ? hit.t : std::numeric_limits<double>::infinity(), footprint);
   if (!(rest < depth)) return false;  // the device is out of the surface
   if (hit.hit) last_hit_ = hit.t;
   const double t = std::max(0.0, rest - 1e-6 * radius);
