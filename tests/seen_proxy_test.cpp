@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -98,6 +99,10 @@ TEST(SeenSolid, FirstInsideFromAFarEyeIsTheSeenDepth) {
     if (!d.hit) continue;
     ++hits;
     EXPECT_NEAR(h.t, d.depth, 1e-5) << "ray " << k;
+    // The renderer's normal: the same Gaussians, weights and depth planes as the reference's.
+    const Eigen::Vector3d shade = solid.shade(u, h, scratch);
+    EXPECT_LT((shade - d.shade).norm(), 1e-5 * std::max(1.0, d.shade.norm())) << "ray " << k;
+    EXPECT_GE(d.shade.norm(), 0.05) << "ray " << k;
     // The same point from an eye half-way there: the layers before the eye no longer count.
     const SeenDepth nearer = reference.median_depth(o + 0.5 * d.depth * u, u);
     const SeenHit hn = solid.first_inside(o, u, 0.5 * d.depth, 0.5 * d.depth, 3.0, scratch);
@@ -120,6 +125,37 @@ TEST(SeenSolid, TheEyeStopsInFrontOfASurfaceBehind) {
   EXPECT_NEAR(eye, 0.01, 1e-6);
   // Looking down, nothing is behind: the eye goes the whole way.
   EXPECT_DOUBLE_EQ(solid.eye_distance(Eigen::Vector3d(0, 0, 0.01), -Eigen::Vector3d::UnitZ(), 0.1, scratch), 0.1);
+}
+
+// The normal as the renderer shades it: discs on a tilted plane, each lifted off it by up to
+// +-1 mm at random (a capture's jitter). The discs' own normals say where the plane faces; the
+// four seen points alone would tilt it by about atan(1 mm / 5 mm).
+TEST(SeenSolid, TheNormalOfAJitteredPlaneIsTheDiscsNormal) {
+  const Eigen::Vector3d n = Eigen::Vector3d(0.3, -0.2, 1).normalized();
+  const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> uni(-1, 1);
+  GaussianScene g;
+  for (int i = -25; i <= 25; ++i)
+    for (int j = -25; j <= 25; ++j) {
+      const Eigen::Vector3d p = 0.002 * i * (q * Eigen::Vector3d::UnitX()) + 0.002 * j * (q * Eigen::Vector3d::UnitY()) +
+                                0.001 * uni(rng) * n;
+      g.push_back(p.cast<float>(), Eigen::Vector3f(0.0015f, 0.0015f, 1e-5f),
+                  Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())), 0.9f, std::uint32_t(g.size()));
+    }
+  const SeenSolid solid(CollisionWorld::build(g, seen_world()));
+  SeenScratch scratch;
+  double worst = 0;
+  for (int k = 0; k < 20; ++k) {
+    const Eigen::Vector3d u = -Eigen::Vector3d(0.2 * uni(rng), 0.2 * uni(rng), 1).normalized();
+    const Eigen::Vector3d at(0.01 * uni(rng), 0.01 * uni(rng), 0);
+    const SeenHit h = solid.first_inside(at - 0.05 * u, u, 0, 0, 0.1, scratch);
+    ASSERT_TRUE(h.hit);
+    const Eigen::Vector3d point = at - 0.05 * u + h.t * u;
+    const Eigen::Vector3d m = solid.normal(point, u, 0.0025, 0.0025, 0.01, scratch);
+    worst = std::max(worst, std::acos(std::clamp(m.dot(n), -1.0, 1.0)) * 180 / M_PI);
+  }
+  EXPECT_LT(worst, 0.5);
 }
 
 // Presses a sphere of radius r from z0 down to z1 (tool centre) in `steps` ticks, then holds.

@@ -189,7 +189,7 @@ void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double 
   if (pending_ray_ < 0) return;
   pending_hits_[std::size_t(pending_ray_)] = solid_.normal_ray(pending_at_, a, pending_ray_, h, radius, pending_back_, scratch_);
   if (++pending_ray_ < 4) return;
-  target_normal_ = SeenSolid::normal_from(pending_at_, a, pending_hits_, h);
+  target_normal_ = SeenSolid::normal_from(a, pending_hits_);
   normal_at_ = pending_at_;
   pending_ray_ = -1;
 }

@@ -115,7 +115,7 @@ void SeenSolid::gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, doubl
           s.overflow = true;
           return;
         }
-        s.layers[s.gathered++] = {t, -std::log1p(-alpha)};
+        s.layers[s.gathered++] = {t, -std::log1p(-alpha), k};
       }
     }
     if (top == 0) return;
@@ -237,7 +237,28 @@ SeenHit SeenSolid::normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3
                               double back, SeenScratch& s) const noexcept {
   SeenHit hit = first_inside(normal_ray_origin(point, u, k, h), u, -back, -reach, reach, s);
   hit.hit = hit.hit && !s.overflow;
+  if (hit.hit) hit.shade = shade(u, hit, s);
   return hit;
+}
+
+Eigen::Vector3d SeenSolid::shade(const Eigen::Vector3d& u, const SeenHit& hit, const SeenScratch& s) const noexcept {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  if (!hit.hit || s.overflow) return sum;
+  double transmittance = 1;
+  const std::size_t end = std::min<std::size_t>(hit.layers, s.gathered);
+  for (std::size_t k = 0; k < end; ++k) {
+    const SeenScratch::Layer& l = s.layers[k];
+    const double* m = entries_[l.entry].m;
+    // Sigma^-1 u = W^T (W u): the normal of the Gaussian's depth plane along u.
+    const Eigen::Vector3d wu = whiten(m, u);
+    const Eigen::Vector3d p(m[0] * wu.x() + m[3] * wu.y() + m[6] * wu.z(), m[1] * wu.x() + m[4] * wu.y() + m[7] * wu.z(),
+                            m[2] * wu.x() + m[5] * wu.y() + m[8] * wu.z());
+    const double norm = p.norm();
+    const double alpha = -std::expm1(-l.tau);
+    if (norm > 0 && std::isfinite(norm)) sum -= (transmittance * alpha / norm) * p;
+    transmittance *= 1 - alpha;
+  }
+  return sum;
 }
 
 Eigen::Vector3d SeenSolid::normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
@@ -248,24 +269,10 @@ Eigen::Vector3d SeenSolid::normal_ray_origin(const Eigen::Vector3d& point, const
   return point + offset;
 }
 
-Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& point, const Eigen::Vector3d& u,
-                                       const std::array<SeenHit, 4>& hits, double h) noexcept {
-  Eigen::Vector3d pts[4];
-  int count = 0;
-  for (int k = 0; k < 4; ++k)
-    if (hits[k].hit) pts[k] = normal_ray_origin(point, u, k, h) + hits[k].t * u, ++count;
-  Eigen::Vector3d n = -u;
-  if (count == 4) {
-    n = (pts[0] - pts[1]).cross(pts[2] - pts[3]);
-  } else if (count == 3) {
-    // Three points: the plane through them (the missing one's partner with `point`).
-    const int miss = !hits[0].hit ? 0 : !hits[1].hit ? 1 : !hits[2].hit ? 2 : 3;
-    const Eigen::Vector3d da = miss < 2 ? (miss == 0 ? Eigen::Vector3d(point - pts[1]) : Eigen::Vector3d(pts[0] - point))
-                                        : Eigen::Vector3d(pts[0] - pts[1]);
-    const Eigen::Vector3d db = miss >= 2 ? (miss == 2 ? Eigen::Vector3d(point - pts[3]) : Eigen::Vector3d(pts[2] - point))
-                                         : Eigen::Vector3d(pts[2] - pts[3]);
-    n = da.cross(db);
-  }
+Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, 4>& hits) noexcept {
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  for (const SeenHit& h : hits)
+    if (h.hit) n += h.shade;
   if (!(n.norm() > 0) || !n.allFinite()) return -u;
   n.normalize();
   return n.dot(u) > 0 ? Eigen::Vector3d(-n) : n;
@@ -275,7 +282,7 @@ Eigen::Vector3d SeenSolid::normal(const Eigen::Vector3d& point, const Eigen::Vec
                                   double back, SeenScratch& s) const noexcept {
   std::array<SeenHit, 4> hits;
   for (int k = 0; k < 4; ++k) hits[k] = normal_ray(point, u, k, h, reach, back, s);
-  return normal_from(point, u, hits, h);
+  return normal_from(u, hits);
 }
 
 }  // namespace gshaptics

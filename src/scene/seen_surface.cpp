@@ -38,6 +38,7 @@ SeenSurface::SeenSurface(const GaussianScene& scene) {
     e.mean = scene.means[i].cast<double>();
     for (int j = 0; j < 9; ++j) e.m[j] = w(j / 3, j % 3);
     e.opacity = o;
+    e.precision = r * s.cwiseAbs2().cwiseInverse().asDiagonal() * r.transpose();
     // alpha = o exp(-r^2/2) >= 1/255 needs r^2 <= 2 ln(255 o); r = |x - mu| / sigma at most.
     e.reach = std::sqrt(2.0 * std::log(o / kMinAlpha)) * s.maxCoeff();
     if (!std::isfinite(e.reach) || !e.mean.allFinite()) continue;
@@ -50,7 +51,11 @@ SeenDepth SeenSurface::median_depth(const Eigen::Vector3d& origin, const Eigen::
   const double len = dir.norm();
   if (!(len > 0)) return out;
   const Eigen::Vector3d u = dir / len;
-  std::vector<std::pair<double, double>> layers;  // (t_i, alpha_i)
+  struct Layer {
+    double t, alpha;
+    const Entry* g;
+  };
+  std::vector<Layer> layers;
   for (const Entry& g : gaussians_) {
     const Eigen::Vector3d w = g.mean - origin;
     const double along = w.dot(u);
@@ -62,16 +67,21 @@ SeenDepth SeenSurface::median_depth(const Eigen::Vector3d& origin, const Eigen::
     const double r2 = (ww - t * wu).squaredNorm();
     const double alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5 * r2));
     if (alpha < kMinAlpha) continue;
-    layers.emplace_back(t, alpha);
+    layers.push_back({t, alpha, &g});
   }
-  std::sort(layers.begin(), layers.end());
+  std::stable_sort(layers.begin(), layers.end(), [](const Layer& a, const Layer& b) { return a.t < b.t; });
   out.composited = layers.size();
   const double half = std::log(2.0);
-  for (const auto& [t, alpha] : layers) {
-    out.optical_depth -= std::log1p(-alpha);
-    if (!out.hit && out.optical_depth >= half) {
+  double transmittance = 1;
+  for (const Layer& l : layers) {
+    out.optical_depth -= std::log1p(-l.alpha);
+    if (out.hit) continue;
+    const Eigen::Vector3d pu = l.g->precision * u;
+    out.shade -= transmittance * l.alpha * pu.normalized();
+    transmittance *= 1 - l.alpha;
+    if (out.optical_depth >= half) {
       out.hit = true;
-      out.depth = t;
+      out.depth = l.t;
     }
   }
   return out;

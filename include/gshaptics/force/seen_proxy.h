@@ -12,7 +12,8 @@
 ///   proxy pressed into a faint layer keeps the layer in front of its eye: small steps do not
 ///   creep through it.
 /// The force is the virtual coupling's (Colgate, Stanley and Brown 1995) along the seen surface's
-/// normal (four rays; after a contact's first reading one ray a tick; smoothed over 5 ms), with
+/// normal as the renderer shades it (SeenSolid::normal: the Gaussians' depth-plane normals
+/// composited along four rays; after a contact's first reading one ray a tick; smoothed over 5 ms), with
 /// the proxy's stiffness, damping and the renderer's f_max; no friction, no energy bound.
 /// - With ProxyParams::seen_footprint, the tool is a sphere, not a point: beside the ray through its leading point, twelve rays
 ///   parallel to the push at 0.5, 0.7 and 0.85 R from its centre line (30 degrees apart, one

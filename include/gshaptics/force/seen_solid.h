@@ -13,7 +13,7 @@
 /// its eye and small steps cannot creep through it, while a surface behind the tool (the floor
 /// it lifts off) never holds it. Each query searches the whole segment, so no motion tunnels. Volume haptics with a proxy on
 /// opacity (Lundin, Ynnerman and Gudmundsson 2002) is the classical ground; the normal is the
-/// seen surface's, from four parallel rays.
+/// one the renderer shades the seen surface with (its normal map along four parallel rays).
 ///
 /// Frame and units: the world's (CollisionWorld), lengths in world units. Built once (allocates);
 /// the queries are const, allocation-free and use the caller's SeenScratch.
@@ -35,6 +35,7 @@ struct SeenScratch {
   struct Layer {
     double t;    ///< peak depth along the ray
     double tau;  ///< -log1p(-alpha)
+    std::uint32_t entry;  ///< the Gaussian (SeenSolid's slot)
   };
   std::vector<Layer> layers;
   std::size_t gathered = 0;
@@ -46,6 +47,9 @@ struct SeenHit {
   bool hit = false;
   double t = 0;  ///< depth of the blocking point from the ray's origin (>= t0)
   std::uint32_t layers = 0;  ///< layers in the window at the hit
+  /// normal_ray() only: the rendered normal's sum along the ray, sum_k T_k alpha_k n_k over the
+  /// layers up to the hit (SeenSolid::normal); zero otherwise.
+  Eigen::Vector3d shade = Eigen::Vector3d::Zero();
 };
 
 class SeenSolid {
@@ -83,18 +87,27 @@ class SeenSolid {
                bool leaving, double& eye, SeenScratch& scratch) const noexcept;
 
   /// The seen surface's outward normal (unit, n . u < 0) at `point` (on the surface for a push
-  /// along u): the plane through the first inside points of four rays parallel to u offset by
-  /// +-h across it, searched within +-`reach` of `point`, each seen from `back` before `point`'s
-  /// depth. -u when fewer than three of them hit.
+  /// along u), as the renderer shades it: the normal map of 2DGS / RaDe-GS style rendering
+  /// (Huang et al. 2024; Zhang et al. 2024), composited like colour. Along a ray each Gaussian's
+  /// peaks over parallel rays lie on its depth plane u^T Sigma_i^-1 (x - mu_i) = 0, whose normal
+  /// n_i = -Sigma_i^-1 u / |Sigma_i^-1 u| is the seen depth map's own slope where Gaussian i
+  /// makes it; the normal is the sum of T_k alpha_k n_k over the layers up to the seen depth
+  /// (T_k: the transmittance in front of layer k), summed over four rays parallel to u offset by
+  /// +-h across it (searched within +-`reach` of `point`, each seen from `back` before
+  /// `point`'s depth), then normalised. A flat disc gives its own normal, a round Gaussian -u.
+  /// -u when no ray hits.
   Eigen::Vector3d normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach, double back,
                          SeenScratch& scratch) const noexcept;
   /// normal() one ray at a time (a caller may spread the four over ticks): ray k (0-3) of the
-  /// reading at `point`, its hit's t from the ray's origin; normal_from() then combines the
-  /// four. normal() is exactly normal_from() of the four normal_ray()s.
+  /// reading at `point`, its hit's t from the ray's origin and its shade; normal_from() then
+  /// combines the four. normal() is exactly normal_from() of the four normal_ray()s.
   SeenHit normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k, double h, double reach,
                      double back, SeenScratch& scratch) const noexcept;
-  [[nodiscard]] static Eigen::Vector3d normal_from(const Eigen::Vector3d& point, const Eigen::Vector3d& u,
-                                                   const std::array<SeenHit, 4>& hits, double h) noexcept;
+  [[nodiscard]] static Eigen::Vector3d normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, 4>& hits) noexcept;
+  /// The shade (SeenHit::shade) of `hit`, the last first_inside() answer on `scratch`: the sum of
+  /// T_k alpha_k n_k over its layers. Zero when it did not hit or scratch overflowed.
+  [[nodiscard]] Eigen::Vector3d shade(const Eigen::Vector3d& u, const SeenHit& hit,
+                                      const SeenScratch& scratch) const noexcept;
 
  private:
   struct Entry {

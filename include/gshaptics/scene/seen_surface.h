@@ -33,6 +33,11 @@ struct SeenDepth {
   double depth = 0;              ///< t of the seen surface (valid when hit), scene units
   double optical_depth = 0;      ///< tau accumulated over the whole ray (t in (0, t_max])
   std::size_t composited = 0;    ///< Gaussians with alpha >= 1/255 on the ray
+  /// The renderer's normal sum up to the seen depth (valid when hit): sum_k T_k alpha_k n_k over
+  /// the Gaussians in depth order up to and including the one that makes it, T_k the
+  /// transmittance in front of Gaussian k and n_k = -P_k u / |P_k u| the normal of its depth
+  /// plane (the plane of its peaks along rays parallel to u). Unnormalised; SeenSolid::normal.
+  Eigen::Vector3d shade = Eigen::Vector3d::Zero();
 };
 
 /// A seen point with the normal of the seen surface there.
@@ -68,6 +73,7 @@ class SeenSurface {
     double m[9];       // whitening diag(1/s) R^T, row-major: |W (x - mean)| is the Mahalanobis distance
     double opacity;
     double reach;      // Euclidean radius beyond which alpha < 1/255
+    Eigen::Matrix3d precision;  // Sigma^-1 = R diag(s^-2) R^T
   };
   std::vector<Entry> gaussians_;
 };
