@@ -125,6 +125,12 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
       ->capture_default_str()->check(check::non_negative());
   cmd.add_option("--mu-s", p.mu_s, "proxy: static friction coefficient (0: off)")->capture_default_str()->check(check::non_negative());
   cmd.add_option("--mu-k", p.mu_k, "proxy: kinetic friction coefficient (<= --mu-s)")->capture_default_str()->check(check::non_negative());
+  cmd.add_option_function<std::string>(
+         "--materials", [&o](const std::string& v) { o.materials = std::make_shared<const MaterialMap>(MaterialMap::load(v)); },
+         "proxy: a material map (JSON: materials with stiffness, damping, mu_s, mu_k, viscosity, assigned to boxes, "
+         "spheres or Gaussian indices; docs/usage.md). The properties under the proxy blend by weight; what a material "
+         "leaves out, and every surface no region claims, keeps --stiffness, --coupling-damping, --mu-s, --mu-k")
+      ->type_name("FILE");
   cmd.add_flag("--opacity-stiffness", p.opacity_stiffness, "proxy: scale k_c by the blocking Gaussians' opacity (paper eq. 9)");
   cmd.add_option("--substeps", p.substeps, "proxy: sweeps per tick")->capture_default_str()->check(CLI::Range(1, 16));
   cmd.add_option_function<std::string>(
@@ -198,6 +204,10 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
       given.push_back({"--" + opt->get_lnames().front(), model});
     }
     refuse_options_not_applying(o.model, tool ? std::optional(tool->proxy_tool()) : std::nullopt, given);
+    if (o.materials && tool && tool->proxy_tool() == ProxyTool::kCompound)
+      throw InputError("options that do not apply: --materials serves one-part tools only, for now");
+    if (o.materials && o.proxy.surface == ProxySurface::kSeen)
+      throw InputError("options that do not apply: --materials is read on the ellipsoids only, for now (not with --surface seen)");
     if (o.profile.empty()) return;
     apply_device_profile(device_profile(o.profile, "--device-profile"), o.f_max, o.proxy, cmd.count("--f-max") > 0,
                          cmd.count("--stiffness") > 0);

@@ -42,7 +42,7 @@ std::string_view renderer_name(const RendererSpec& spec) noexcept { return rende
 
 RendererSpec renderer_spec(RendererKind kind, const ProxyParams& proxy, const ForceParams& paper) {
   if (kind == RendererKind::kPaper) return PaperModelSpec{paper};
-  return ProxyModelSpec{proxy};
+  return ProxyModelSpec{proxy, nullptr};
 }
 
 RendererSpec renderer_spec(std::string_view name) { return renderer_spec(renderer_kind(name)); }
@@ -53,7 +53,8 @@ float default_min_opacity(const RendererSpec& spec) noexcept {
 }
 
 RendererSpec renderer_spec_for(const RendererSpec& spec, ProxyTool tool) {
-  if (const auto* proxy = std::get_if<ProxyModelSpec>(&spec)) return ProxyModelSpec{proxy_params_for(proxy->params, tool)};
+  if (const auto* proxy = std::get_if<ProxyModelSpec>(&spec))
+    return ProxyModelSpec{proxy_params_for(proxy->params, tool), tool == ProxyTool::kOnePart ? proxy->materials : nullptr};
   return spec;
 }
 
@@ -61,7 +62,10 @@ std::unique_ptr<ForceRenderer> make_force_renderer(const RendererSpec& spec, con
                                                    const QueryOptions& query) {
   if (const auto* paper = std::get_if<PaperModelSpec>(&spec))
     return std::make_unique<PaperRenderer>(world, paper->params, query);
-  return std::make_unique<ProxyRenderer>(world, std::get<ProxyModelSpec>(spec).params);
+  const ProxyModelSpec& proxy = std::get<ProxyModelSpec>(spec);
+  auto renderer = std::make_unique<ProxyRenderer>(world, proxy.params);
+  if (proxy.materials) renderer->set_materials(MaterialField::resolve(*proxy.materials, world, proxy.params));
+  return renderer;
 }
 
 Eigen::Vector3d contact_torque(const ToolEllipsoid& tool, const Eigen::Vector3d& tcp,

@@ -31,12 +31,31 @@ ProxyRenderer::ProxyRenderer(const CollisionWorld& world, const ProxyParams& par
 void ProxyRenderer::set_tool(const CompoundTool& tool) {
   tool.validate("proxy: tool");
   const bool single = tool.is_single_at_tcp();
+  if (!single && materials_)
+    throw InputError("proxy: tool: a material map (--materials) serves one-part tools only, for now");
   check_proxy_params_apply(params_, single ? ProxyTool::kOnePart : ProxyTool::kCompound, "proxy: tool");
   if (single) {
     compound_.reset();
     return;
   }
   compound_ = std::make_unique<CompoundProxy>(*world_, tool, params_, f_max_);
+}
+
+void ProxyRenderer::set_materials(std::shared_ptr<const MaterialField> field) {
+  if (field && seen_) throw InputError("proxy: a material map (--materials) is read on the ellipsoids only, for now (not with --surface seen)");
+  if (field && compound_) throw InputError("proxy: a material map (--materials) serves one-part tools only, for now");
+  materials_ = std::move(field);
+  material_ = {};
+  material_.stiffness = params_.stiffness;
+  material_.damping = params_.damping;
+  material_.mu_s = params_.mu_s;
+  material_.mu_k = params_.mu_k;
+}
+
+void ProxyRenderer::apply_material(const Eigen::Vector3d& p, double radius) noexcept {
+  material_ = materials_->at(*world_, p, radius);
+  coupling_.set_gains(material_.stiffness, material_.damping);
+  friction_.set_coefficients(material_.mu_s, material_.mu_k);
 }
 
 RenderOutput ProxyRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
@@ -155,9 +174,16 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   in_contact_ = true;
   // 4. The virtual coupling gives the force (Colgate, Stanley & Brown 1995), on a spring whose
   // depth along n is bounded so that the shaded normal's turns add no energy (SpringEnergyBound).
+  // (With a material map, the properties under the proxy: stiffness, damping and friction from
+  // this tick on, and a viscous drag on the device's tangential velocity.)
+  if (materials_) apply_material(p, r);
   Eigen::Vector3d spring = e;
   spring -= (e.dot(n) - coupling_.bounded_depth(e, n)) * n;
-  out.force = coupling_.force(spring, n, velocity, dt, blockers, fr, params_.mu_k);
+  out.force = coupling_.force(spring, n, velocity, dt, blockers, fr, materials_ ? material_.mu_k : params_.mu_k);
+  if (materials_ && material_.viscosity > 0) {
+    out.force -= material_.viscosity * (velocity - velocity.dot(n) * n);
+    if (out.force.norm() > f_max_) out.force *= f_max_ / out.force.norm();
+  }
   return out;
 }
 

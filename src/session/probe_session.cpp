@@ -33,7 +33,11 @@ std::string describe_execution(const ExecutionOptions& o, bool simulated) {
                    : std::string("decoupled (worker thread)");
 }
 
-RendererSpec ForceModelOptions::spec() const { return renderer_spec(model, proxy, force); }
+RendererSpec ForceModelOptions::spec() const {
+  RendererSpec s = renderer_spec(model, proxy, force);
+  if (auto* p = std::get_if<ProxyModelSpec>(&s)) p->materials = materials;
+  return s;
+}
 
 ToolOption parse_tool_option(const std::string& spec) {
   ToolOption t;

@@ -39,6 +39,11 @@ class FrictionCone {
   void reset() noexcept { sliding_ = false; }
   [[nodiscard]] bool sliding() const noexcept { return sliding_; }
   [[nodiscard]] double mu_k() const noexcept { return mu_k_; }
+  /// New coefficients from this tick on (a material under the contact; 0 <= mu_k <= mu_s).
+  void set_coefficients(double mu_s, double mu_k) noexcept {
+    mu_s_ = mu_s;
+    mu_k_ = mu_k;
+  }
 
  private:
   double mu_s_, mu_k_;

@@ -42,6 +42,7 @@
 #include "gshaptics/force/edge_normal.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/force/friction_cone.h"
+#include "gshaptics/force/material.h"
 #include "gshaptics/force/proxy_normal.h"
 #include "gshaptics/force/proxy_params.h"
 #include "gshaptics/force/seen_proxy.h"
@@ -101,7 +102,19 @@ class ProxyRenderer final : public ForceRenderer {
   /// kernel (unit; zero when no Gaussian is near). See gshaptics::shaded_normal().
   [[nodiscard]] Eigen::Vector3d shaded_normal(const Eigen::Vector3d& center, double radius) const noexcept;
 
+  /// Materials by region (force/material.h), resolved on this renderer's world: each tick the
+  /// coupling's stiffness and damping, the friction cone's coefficients and the viscous drag are
+  /// the blend under the proxy (MaterialField::at); nullptr: the ProxyParams' own everywhere.
+  /// One-part tools on the ellipsoids only: throws InputError with the seen surface, and
+  /// set_tool() refuses a compound tool while a field is set.
+  void set_materials(std::shared_ptr<const MaterialField> field);
+  /// The blend under the proxy at the last tick in contact (the ProxyParams' own without a field).
+  [[nodiscard]] const MaterialBlend& material() const noexcept { return material_; }
+  [[nodiscard]] const MaterialField* materials() const noexcept { return materials_.get(); }
+
  private:
+  // The material blend under the proxy at `p` applied to the coupling and the friction cone.
+  void apply_material(const Eigen::Vector3d& p, double radius) noexcept;
   // The device's new pose: the proxy is placed anew where the device jumped (teleport) or turned
   // into geometry. Returns the device's step since the last tick, m.
   Eigen::Vector3d follow_device(const ToolEllipsoid& tool) noexcept;
@@ -131,6 +144,8 @@ class ProxyRenderer final : public ForceRenderer {
   std::unique_ptr<CompoundProxy> compound_;  // a tool with a shape (set_tool)
   std::unique_ptr<SeenProxy> seen_;          // ProxySurface::kSeen: the proxy on the seen solid
   bool compound_active_ = false;             // the last tick was the compound proxy's
+  std::shared_ptr<const MaterialField> materials_;  // set_materials (nullptr: none)
+  MaterialBlend material_;
 };
 
 }  // namespace gshaptics

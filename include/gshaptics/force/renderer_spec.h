@@ -14,6 +14,7 @@
 #include <variant>
 
 #include "gshaptics/force/force_renderer.h"
+#include "gshaptics/force/material.h"
 #include "gshaptics/force/proxy_renderer.h"
 
 namespace gshaptics {
@@ -22,6 +23,9 @@ namespace gshaptics {
 /// Colgate, Stanley and Brown 1995). The default.
 struct ProxyModelSpec {
   ProxyParams params;
+  /// Materials by region (force/material.h; --materials), resolved on each world the renderer is
+  /// made for; nullptr: none.
+  std::shared_ptr<const MaterialMap> materials;
 };
 
 /// The paper's penalty model: contact query, then eq. 7-11 (PaperRenderer).
@@ -59,7 +63,8 @@ struct RendererName {
 /// The named model with its default parameters. Throws InputError as renderer_kind().
 [[nodiscard]] RendererSpec renderer_spec(std::string_view name);
 /// The proxy's parameters for `tool` (proxy_params_for(): the fields that do not serve it at
-/// their defaults); the paper model as it is.
+/// their defaults; no material map for a compound tool, which it does not serve yet); the paper
+/// model as it is.
 [[nodiscard]] RendererSpec renderer_spec_for(const RendererSpec& spec, ProxyTool tool);
 /// The renderer `spec` names, on `world`; `query` configures the paper model's contact query.
 /// Throws InputError for invalid parameters (what the renderer's constructor throws).

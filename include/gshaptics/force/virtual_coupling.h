@@ -123,6 +123,12 @@ class VirtualCoupling {
     opacity_ = 1.0;
     bound_.release();
   }
+  /// New stiffness k (N/m, > 0) and damping b (N s/m, >= 0) from this tick on: a material under
+  /// the contact (force/material.h).
+  void set_gains(double k, double b) noexcept {
+    k_ = k;
+    b_ = b;
+  }
   /// The smoothed opacity factor on k (1 without opacity stiffness).
   [[nodiscard]] double opacity_factor() const noexcept { return opacity_; }
   /// The depth the energy bound withholds now, m (SpringEnergyBound::withheld; 0 without contact).

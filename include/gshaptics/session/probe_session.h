@@ -33,6 +33,8 @@ struct ForceModelOptions {
   ProxyParams proxy;            ///< the proxy's parameters
   double f_max = SafetyParams{}.f_max;  ///< --f-max: the safety layer's limit, N (every model)
   std::string profile;  ///< --device-profile: "" (none), desktop or room
+  /// --materials: a material map (MaterialMap::load), read on the proxy; nullptr: none.
+  std::shared_ptr<const MaterialMap> materials;
   /// The renderer the options name, with its parameters.
   [[nodiscard]] RendererSpec spec() const;
 };

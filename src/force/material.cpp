@@ -1,0 +1,232 @@
+#include "gshaptics/force/material.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "gshaptics/error.h"
+
+namespace gshaptics {
+
+namespace {
+
+constexpr std::size_t kMaxMaterials = 254;  // ids 1..254 in a byte; 0 is the proxy's own
+constexpr double kReach = 3.0;              // tool radii: the blend's kernel is cut here
+
+using nlohmann::json;
+
+InputError map_error(const std::string& source, const std::string& what) { return file_error(source, what); }
+
+void check_keys(const json& j, const std::set<std::string>& known, const std::string& source, const std::string& at) {
+  for (auto it = j.begin(); it != j.end(); ++it)
+    if (!known.count(it.key())) throw map_error(source, at + ": unknown key \"" + it.key() + "\"");
+}
+
+double number(const json& j, const std::string& key, const std::string& source, const std::string& at, double lo,
+              bool lo_open = false) {
+  const json& v = j.at(key);
+  if (!v.is_number()) throw map_error(source, at + ": \"" + key + "\" must be a number");
+  const double x = v.get<double>();
+  if (!std::isfinite(x) || x < lo || (lo_open && x == lo))
+    throw map_error(source, at + ": \"" + key + "\" must be " + (lo_open ? "> " : ">= ") + std::to_string(int(lo)));
+  return x;
+}
+
+Eigen::Vector3d vec3(const json& j, const std::string& source, const std::string& at) {
+  if (!j.is_array() || j.size() != 3) throw map_error(source, at + " must be an array of 3 numbers");
+  Eigen::Vector3d v;
+  for (int k = 0; k < 3; ++k) {
+    if (!j[std::size_t(k)].is_number()) throw map_error(source, at + " must be an array of 3 numbers");
+    v[k] = j[std::size_t(k)].get<double>();
+  }
+  if (!v.allFinite()) throw map_error(source, at + " must be finite");
+  return v;
+}
+
+Material parse_material(const json& j, const std::string& source, const std::string& at) {
+  if (!j.is_object()) throw map_error(source, at + " must be an object");
+  check_keys(j, {"name", "stiffness", "damping", "mu_s", "mu_k", "viscosity", "texture_gain", "vibration"}, source, at);
+  Material m;
+  if (!j.contains("name") || !j["name"].is_string() || j["name"].get<std::string>().empty())
+    throw map_error(source, at + ": needs a \"name\"");
+  m.name = j["name"].get<std::string>();
+  if (j.contains("stiffness")) m.stiffness = number(j, "stiffness", source, at, 0, true);
+  if (j.contains("damping")) m.damping = number(j, "damping", source, at, 0);
+  if (j.contains("mu_s")) m.mu_s = number(j, "mu_s", source, at, 0);
+  if (j.contains("mu_k")) m.mu_k = number(j, "mu_k", source, at, 0);
+  if (j.contains("viscosity")) m.viscosity = number(j, "viscosity", source, at, 0);
+  if (j.contains("texture_gain")) m.texture_gain = number(j, "texture_gain", source, at, 0);
+  if (j.contains("vibration")) m.vibration = number(j, "vibration", source, at, 0);
+  return m;
+}
+
+MaterialRegion parse_region(const json& j, const std::map<std::string, std::size_t>& ids, const std::string& source,
+                            const std::string& at) {
+  if (!j.is_object()) throw map_error(source, at + " must be an object");
+  check_keys(j, {"material", "box", "sphere", "indices"}, source, at);
+  if (!j.contains("material") || !j["material"].is_string()) throw map_error(source, at + ": needs a \"material\" name");
+  const auto id = ids.find(j["material"].get<std::string>());
+  if (id == ids.end()) throw map_error(source, at + ": no material named \"" + j["material"].get<std::string>() + "\"");
+  MaterialRegion r;
+  r.material = id->second;
+  const int shapes = int(j.contains("box")) + int(j.contains("sphere")) + int(j.contains("indices"));
+  if (shapes != 1) throw map_error(source, at + ": needs exactly one of \"box\", \"sphere\", \"indices\"");
+  if (j.contains("box")) {
+    const json& b = j["box"];
+    if (!b.is_object() || !b.contains("min") || !b.contains("max"))
+      throw map_error(source, at + ".box needs \"min\" and \"max\"");
+    r.kind = MaterialRegion::Kind::kBox;
+    r.lo = vec3(b["min"], source, at + ".box.min");
+    r.hi = vec3(b["max"], source, at + ".box.max");
+    if (!(r.lo.array() < r.hi.array()).all()) throw map_error(source, at + ".box: min must be below max on every axis");
+  } else if (j.contains("sphere")) {
+    const json& s = j["sphere"];
+    if (!s.is_object() || !s.contains("center") || !s.contains("radius"))
+      throw map_error(source, at + ".sphere needs \"center\" and \"radius\"");
+    r.kind = MaterialRegion::Kind::kSphere;
+    r.center = vec3(s["center"], source, at + ".sphere.center");
+    r.radius = number(s, "radius", source, at + ".sphere", 0, true);
+  } else {
+    const json& ix = j["indices"];
+    if (!ix.is_array()) throw map_error(source, at + ".indices must be an array of Gaussian indices");
+    r.kind = MaterialRegion::Kind::kIndices;
+    for (const json& i : ix) {
+      if (!i.is_number_unsigned()) throw map_error(source, at + ".indices must hold non-negative integers");
+      r.indices.push_back(i.get<std::uint32_t>());
+    }
+    std::sort(r.indices.begin(), r.indices.end());
+  }
+  return r;
+}
+
+bool region_holds(const MaterialRegion& r, const Eigen::Vector3d& x, std::uint32_t index) {
+  switch (r.kind) {
+    case MaterialRegion::Kind::kBox: return (x.array() >= r.lo.array()).all() && (x.array() <= r.hi.array()).all();
+    case MaterialRegion::Kind::kSphere: return (x - r.center).squaredNorm() <= r.radius * r.radius;
+    case MaterialRegion::Kind::kIndices: return std::binary_search(r.indices.begin(), r.indices.end(), index);
+  }
+  return false;
+}
+
+}  // namespace
+
+MaterialMap MaterialMap::load(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw file_error(path, "cannot open the material map");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const json j = json::parse(ss.str(), nullptr, false);
+  if (j.is_discarded()) throw file_error(path, "not valid JSON");
+  return parse(j, path);
+}
+
+MaterialMap MaterialMap::parse(const json& j, const std::string& source) {
+  if (!j.is_object()) throw map_error(source, "a material map must be a JSON object");
+  check_keys(j, {"frame", "materials", "regions"}, source, "the map");
+  MaterialMap m;
+  m.source = source;
+  if (j.contains("frame")) {
+    const std::string f = j["frame"].is_string() ? j["frame"].get<std::string>() : "";
+    if (f != "scene" && f != "world") throw map_error(source, "\"frame\" must be \"scene\" or \"world\"");
+    m.frame = f == "world" ? Frame::kWorld : Frame::kScene;
+  }
+  if (!j.contains("materials") || !j["materials"].is_array() || j["materials"].empty())
+    throw map_error(source, "needs a non-empty array \"materials\"");
+  if (j["materials"].size() > kMaxMaterials)
+    throw map_error(source, std::to_string(j["materials"].size()) + " materials; at most " + std::to_string(kMaxMaterials));
+  std::map<std::string, std::size_t> ids;
+  for (std::size_t i = 0; i < j["materials"].size(); ++i) {
+    Material mat = parse_material(j["materials"][i], source, "materials[" + std::to_string(i) + "]");
+    if (!ids.emplace(mat.name, i).second) throw map_error(source, "two materials named \"" + mat.name + "\"");
+    m.materials.push_back(std::move(mat));
+  }
+  if (!j.contains("regions") || !j["regions"].is_array()) throw map_error(source, "needs an array \"regions\"");
+  for (std::size_t i = 0; i < j["regions"].size(); ++i)
+    m.regions.push_back(parse_region(j["regions"][i], ids, source, "regions[" + std::to_string(i) + "]"));
+  return m;
+}
+
+std::shared_ptr<const MaterialField> MaterialField::resolve(const MaterialMap& map, const CollisionWorld& world,
+                                                            const ProxyParams& base) {
+  auto f = std::make_shared<MaterialField>();
+  f->names_.push_back("default");
+  f->props_.push_back({{base.stiffness, base.damping, base.mu_s, base.mu_k, 0, 0, 0}});
+  for (const Material& m : map.materials) {
+    Props p{{m.stiffness.value_or(base.stiffness), m.damping.value_or(base.damping), m.mu_s.value_or(base.mu_s),
+             m.mu_k.value_or(base.mu_k), m.viscosity, m.texture_gain, m.vibration}};
+    if (p.v[3] > p.v[2])
+      throw map_error(map.source, "material \"" + m.name + "\": mu_k " + std::to_string(p.v[3]) + " exceeds mu_s " +
+                                      std::to_string(p.v[2]) + " (a property it leaves out is the proxy's own)");
+    f->props_.push_back(p);
+    f->names_.push_back(m.name);
+  }
+  // The file's frame: the world's records hold c = s R x + t (SimilarityTransform::apply).
+  const SimilarityTransform& t = world.scene_to_world();
+  const Eigen::Quaterniond inverse = t.rotation.conjugate();
+  f->slot_material_.assign(world.size(), 0);
+  f->counts_.assign(f->props_.size(), 0);
+  const std::span<const CollisionGaussian> g = world.gaussians();
+  for (std::size_t k = 0; k < g.size(); ++k) {
+    const Eigen::Vector3d c(g[k].center[0], g[k].center[1], g[k].center[2]);
+    const Eigen::Vector3d x = map.frame == MaterialMap::Frame::kWorld ? c : Eigen::Vector3d(inverse * (c - t.translation) / t.scale);
+    for (std::size_t r = map.regions.size(); r-- > 0;)
+      if (region_holds(map.regions[r], x, g[k].source_index)) {
+        f->slot_material_[k] = std::uint8_t(map.regions[r].material + 1);
+        break;
+      }
+    ++f->counts_[f->slot_material_[k]];
+  }
+  return f;
+}
+
+MaterialBlend MaterialField::at(const CollisionWorld& world, const Eigen::Vector3d& center,
+                                double radius) const noexcept {
+  // Weights per material id (at most 255 ids; summed on the stack).
+  std::array<double, kMaxMaterials + 1> w{};
+  const double reach = kReach * radius, inv2 = 1.0 / (2 * radius * radius);
+  float lo[3], hi[3];
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = round_down_to_float(center[k] - reach);
+    hi[k] = round_up_to_float(center[k] + reach);
+  }
+  const std::span<const CollisionGaussian> g = world.gaussians();
+  world.bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
+    for (std::uint32_t k = first; k < first + count; ++k) {
+      const double d2 = (Eigen::Vector3d(g[k].center[0], g[k].center[1], g[k].center[2]) - center).squaredNorm();
+      if (d2 > reach * reach) continue;
+      w[slot_material_[k]] += double(g[k].opacity) * std::exp(-d2 * inv2);
+    }
+  });
+  MaterialBlend b;
+  double total = 0, best = 0;
+  double v[7] = {0, 0, 0, 0, 0, 0, 0};
+  for (std::size_t id = 0; id < props_.size(); ++id) {
+    if (!(w[id] > 0)) continue;
+    total += w[id];
+    for (int p = 0; p < 7; ++p) v[p] += w[id] * props_[id].v[p];
+    if (w[id] > best) best = w[id], b.dominant = int(id);
+  }
+  if (!(total > 0)) {
+    for (int p = 0; p < 7; ++p) v[p] = props_[0].v[p];
+    total = 1;
+  }
+  b.stiffness = v[0] / total;
+  b.damping = v[1] / total;
+  b.mu_s = v[2] / total;
+  b.mu_k = std::min(v[3] / total, b.mu_s);
+  b.viscosity = v[4] / total;
+  b.texture_gain = v[5] / total;
+  b.vibration = v[6] / total;
+  return b;
+}
+
+std::string_view MaterialField::name(int id) const noexcept {
+  return id >= 0 && std::size_t(id) < names_.size() ? std::string_view(names_[std::size_t(id)]) : std::string_view("?");
+}
+
+}  // namespace gshaptics

@@ -1,0 +1,178 @@
+// Materials by region (force/material.h): the map's parsing and errors, the field's regions, the
+// blend's continuity across a border, and the proxy reading stiffness and friction under it.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/error.h"
+#include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/force/material.h"
+#include "gshaptics/force/proxy_renderer.h"
+
+namespace gshaptics {
+namespace {
+
+// Two materials side by side on the plane: x < 0 "soft", x >= 0 "hard" (the scene's frame).
+nlohmann::json two_materials() {
+  return nlohmann::json::parse(R"({
+    "materials": [{"name": "soft", "stiffness": 600, "mu_s": 0.4, "mu_k": 0.3},
+                  {"name": "hard", "stiffness": 1500, "mu_s": 0.8, "mu_k": 0.6, "viscosity": 0}],
+    "regions": [{"material": "soft", "box": {"min": [-1, -1, -1], "max": [0, 1, 1]}},
+                {"material": "hard", "box": {"min": [0, -1, -1], "max": [1, 1, 1]}}]})");
+}
+
+CollisionWorld plane_world(double spacing = 0.004) {
+  SynthParams p;
+  p.spacing = spacing;
+  p.seed = 5;
+  p.floater_share = 0;
+  return CollisionWorld::build(make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), p).scene, WorldConfig{});
+}
+
+std::string error_of(const std::string& text) {
+  try {
+    (void)MaterialMap::parse(nlohmann::json::parse(text), "map.json");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(MaterialMap, RefusesWhatIsWrongNamingTheFile) {
+  EXPECT_NE(error_of(R"({"materials": [{"name": "a", "stifness": 3}], "regions": []})").find("unknown key \"stifness\""),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"materials": [{"stiffness": 3}], "regions": []})").find("needs a \"name\""), std::string::npos);
+  EXPECT_NE(error_of(R"({"materials": [{"name": "a", "stiffness": 0}], "regions": []})").find("\"stiffness\" must be > 0"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"materials": [{"name": "a"}], "regions": [{"material": "b", "indices": [1]}]})")
+                .find("no material named \"b\""),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"materials": [{"name": "a"}], "regions": [{"material": "a", "box": {"min": [0,0,0], "max": [1,0,1]}}]})")
+                .find("min must be below max"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"materials": [{"name": "a"}], "regions": [{"material": "a"}]})").find("exactly one of"),
+            std::string::npos);
+  EXPECT_EQ(error_of(R"({"materials": [{"name": "a"}], "regions": [{"material": "a"}]})").rfind("map.json", 0), 0u);
+  // A file that is not JSON, and one that does not exist.
+  const std::string path = (std::filesystem::temp_directory_path() / "gshaptics_material_test.json").string();
+  std::ofstream(path) << "{\"materials\": [";
+  try {
+    (void)MaterialMap::load(path);
+    ADD_FAILURE() << "a truncated map loaded";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(path + ": not valid JSON"), std::string::npos);
+  }
+  std::filesystem::remove(path);
+  EXPECT_THROW((void)MaterialMap::load(path), InputError);
+}
+
+TEST(MaterialField, RegionsClaimTheGaussiansAndALeftOutPropertyIsTheProxysOwn) {
+  const CollisionWorld world = plane_world();
+  nlohmann::json j = two_materials();
+  j["materials"][0].erase("stiffness");
+  ProxyParams base;
+  base.stiffness = 800;
+  const auto field = MaterialField::resolve(MaterialMap::parse(j, "map"), world, base);
+  std::size_t soft = 0, hard = 0;
+  for (std::size_t k = 0; k < world.size(); ++k) {
+    const double x = world.gaussians()[k].center[0];
+    const int id = field->material_of(k);
+    EXPECT_EQ(id, x <= 0 ? 1 : 2) << "x " << x;
+    (id == 1 ? soft : hard) += 1;
+  }
+  EXPECT_EQ(field->counts()[1], soft);
+  EXPECT_EQ(field->counts()[2], hard);
+  EXPECT_GT(soft, 100u);
+  EXPECT_GT(hard, 100u);
+  // Far from the border each side's own properties; "soft" left its stiffness to the proxy.
+  const MaterialBlend left = field->at(world, Eigen::Vector3d(-0.05, 0, 0.004), 0.005);
+  const MaterialBlend right = field->at(world, Eigen::Vector3d(0.05, 0, 0.004), 0.005);
+  EXPECT_DOUBLE_EQ(left.stiffness, 800);
+  EXPECT_DOUBLE_EQ(left.mu_k, 0.3);
+  EXPECT_EQ(field->name(left.dominant), "soft");
+  EXPECT_DOUBLE_EQ(right.stiffness, 1500);
+  EXPECT_DOUBLE_EQ(right.mu_s, 0.8);
+  EXPECT_EQ(field->name(right.dominant), "hard");
+  // Nothing near: the proxy's own.
+  const MaterialBlend none = field->at(world, Eigen::Vector3d(0, 0, 1.0), 0.005);
+  EXPECT_DOUBLE_EQ(none.stiffness, 800);
+  EXPECT_EQ(none.dominant, 0);
+}
+
+// Property: across the border the blend moves in small steps for small moves (no jump), from
+// one side's value to the other's.
+TEST(MaterialField, TheBlendNeverJumpsAcrossABorder) {
+  const CollisionWorld world = plane_world();
+  const auto field = MaterialField::resolve(MaterialMap::parse(two_materials(), "map"), world, ProxyParams{});
+  for (double r : {0.0025, 0.005, 0.01}) {
+    const double step = r / 50;
+    double last = field->at(world, Eigen::Vector3d(-6 * r, 0.001, r), r).stiffness, largest = 0;
+    EXPECT_NEAR(last, 600, 1e-6);
+    for (double x = -6 * r + step; x <= 6 * r; x += step) {
+      const double k = field->at(world, Eigen::Vector3d(x, 0.001, r), r).stiffness;
+      largest = std::max(largest, std::abs(k - last));
+      last = k;
+    }
+    EXPECT_NEAR(last, 1500, 1e-6) << "r " << r;
+    // 900 N/m over 12 r in 600 steps: a step of 3 % of the difference is a smooth ramp.
+    EXPECT_LT(largest, 0.03 * 900) << "r " << r;
+  }
+}
+
+// The proxy presses each side with that side's stiffness, and slides with its kinetic friction.
+TEST(MaterialProxy, EachSideHasItsStiffnessAndFriction) {
+  const CollisionWorld world = plane_world();
+  const double r = 0.005, dt = 1e-3;
+  ProxyRenderer proxy(world, ProxyParams{});
+  proxy.set_materials(MaterialField::resolve(MaterialMap::parse(two_materials(), "map"), world, ProxyParams{}));
+  for (const auto& [x, k] : {std::pair{-0.04, 600.0}, std::pair{0.04, 1500.0}}) {
+    proxy.reset();
+    double f1 = 0, f5 = 0;
+    for (int i = 0; i <= 800; ++i) {  // from 3 mm above to 5 mm in, at 1 cm/s
+      const double delta = -0.003 + 1e-5 * i;
+      const RenderOutput o = proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, r - delta), r),
+                                          Eigen::Vector3d(0, 0, -0.01), dt);
+      if (std::abs(delta - 0.001) < 5e-6) f1 = o.force.z();
+      if (std::abs(delta - 0.005) < 5e-6) f5 = o.force.z();
+    }
+    EXPECT_NEAR((f5 - f1) / 0.004, k, 0.05 * k) << "x " << x;
+  }
+  // A slide 2 mm deep at 5 cm/s from x = -4 cm to +4 cm.
+  proxy.reset();
+  double ft[2] = {0, 0}, fn[2] = {0, 0};
+  for (int i = 0; i <= 300; ++i) {  // press in at x = -4 cm
+    const double delta = std::min(0.002, -0.001 + 1e-5 * i);
+    (void)proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(-0.04, 0, r - delta), r), Eigen::Vector3d(0, 0, -0.01), dt);
+  }
+  for (int i = 0; i <= 1600; ++i) {
+    const double x = -0.04 + 5e-5 * i;
+    const RenderOutput o = proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, r - 0.002), r),
+                                        Eigen::Vector3d(0.05, 0, 0), dt);
+    if (std::abs(x) < 3 * r || std::abs(x) > 0.035) continue;  // the blend near the border; the start
+    ft[x > 0] += std::abs(o.force.x());
+    fn[x > 0] += o.force.z();
+  }
+  EXPECT_NEAR(ft[0] / fn[0], 0.3, 0.05 * 0.3);
+  EXPECT_NEAR(ft[1] / fn[1], 0.6, 0.05 * 0.6);
+  EXPECT_EQ(proxy.materials()->name(proxy.material().dominant), "hard");
+}
+
+TEST(MaterialProxy, RefusedWhereItIsNotReadYet) {
+  const CollisionWorld world = plane_world();
+  const auto field = MaterialField::resolve(MaterialMap::parse(two_materials(), "map"), world, ProxyParams{});
+  ProxyParams seen;
+  seen.surface = ProxySurface::kSeen;
+  ProxyRenderer on_seen(world, seen);
+  EXPECT_THROW(on_seen.set_materials(field), InputError);
+  ProxyRenderer proxy(world, ProxyParams{});
+  proxy.set_materials(field);
+  EXPECT_THROW(proxy.set_tool(parse_tool_spec("stylus:0.1,0.004")), InputError);
+}
+
+}  // namespace
+}  // namespace gshaptics
