@@ -5,10 +5,13 @@
 
 #include <filesystem>
 #include <memory>
+#include <nlohmann/json.hpp>
 
 #include "commands.h"
 #include "options.h"
+#include "gshaptics/fidelity/material_fidelity.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/io/atomic_file.h"
 
 namespace gshaptics::cli {
 
@@ -17,6 +20,7 @@ void register_synth(CLI::App& app) {
     std::string shape, out;
     SynthParams params;
     std::vector<std::string> defects;
+    std::string two_materials;
   };
   auto o = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
@@ -44,6 +48,10 @@ void register_synth(CLI::App& app) {
   cmd->add_option("--defect", o->defects,
                   "A capture defect patch, KIND[:RADIUS_MM] (faint-patch, hole, large-flat, interior-clutter; "
                   "radius 15 mm, a hole 4 mm), centred at the surface point nearest (0, 0, 1) m; repeatable");
+  cmd->add_option("--two-materials", o->two_materials,
+                  "Also write a material map (JSON, for --materials) with two materials side by side: soft for x < 0, "
+                  "hard for x >= 0 (the fidelity's two-material plane)")
+      ->type_name("FILE");
   cmd->callback([o] {
     for (const std::string& spec : o->defects) o->params.defects.push_back(parse_capture_defect(spec, "synth --defect"));
     const ShapeKind kind = parse_shape(o->shape, "synth");
@@ -57,6 +65,10 @@ void register_synth(CLI::App& app) {
     fmt::print("wrote      {} ({} Gaussians on the surface, {} floaters, spacing {:g} mm, seed {})\n"
                "surface    {}.json\n",
                o->out, s.surface_count, s.floater_count, o->params.spacing * 1e3, o->params.seed, o->out);
+    if (!o->two_materials.empty()) {
+      write_file_atomically(o->two_materials, two_material_json().dump(2) + "\n");
+      fmt::print("materials  {} (soft for x < 0, hard for x >= 0)\n", o->two_materials);
+    }
   });
 }
 

@@ -245,6 +245,23 @@ void run_defect_cases(const FidelityOptions& o, FidelityReport& rep, const Fidel
   }
 }
 
+// The renderers that read a material map: the proxy on the ellipsoids.
+bool reads_materials(const RendererSpec& spec) {
+  const auto* proxy = std::get_if<ProxyModelSpec>(&spec);
+  return proxy && proxy->params.surface == ProxySurface::kEllipsoids;
+}
+
+// The two-material plane at `spacing` with every tool radius (material_fidelity.h).
+void run_material_plane(const FidelityOptions& o, double spacing, const CollisionWorld& world, FidelityReport& rep,
+                        const FidelityProgressFn& progress) {
+  if (!o.materials) return;
+  if (progress) progress(fmt::format("plane at {:g} mm spacing: two materials", spacing * 1e3));
+  for (double radius : o.tool_radii)
+    for (MaterialRow& r : run_material_cases(world, renderer_spec_for(o.renderer, ProxyTool::kOnePart), spacing, radius,
+                                             o.rate_hz, o.play, o.material_presses, &rep.ticks))
+      rep.material.push_back(std::move(r));
+}
+
 }  // namespace
 
 PlayOptions default_play_options() {
@@ -270,6 +287,7 @@ FidelityOptions quick_fidelity_options() {
   o.push_sites = 2;
   o.wrench_sites = 1;
   o.defect_sites = 2;
+  o.material_presses = 2;
   return o;
 }
 
@@ -355,6 +373,7 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
         }
       }
       if (o.wrench) run_wrench_cases(o, kind, spacing, world, rep);
+      if (kind == ShapeKind::kPlane && reads_materials(o.renderer)) run_material_plane(o, spacing, world, rep, progress);
     }
   }
   run_defect_cases(o, rep, progress);
@@ -547,6 +566,18 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
         "thickness proud of it, so a proxy resting on them reads slightly negative).\n\n",
         describe(o.wrench_tools.stylus), describe(o.wrench_tools.disc), o.play.safety.tau_max);
     md += wrench_table(rep.wrench) + "\n";
+  }
+  if (!rep.material.empty()) {
+    md += fmt::format(
+        "## Materials (the plane with two materials side by side; {} presses per side as above, one slide across the "
+        "border)\n\n"
+        "Soft for x < 0, hard for x >= 0 (`gshaptics synth plane --two-materials FILE` writes the map). Stiffness: the "
+        "presses' median against the material's coupling stiffness. F_t / F_n: the slide (2 mm deep, 5 cm/s, along +x) on each "
+        "side, mean -F_x over mean F_z (friction against the motion over the normal force), farther than 3 tool radii from the border, against the material's mu_k. Border step: the largest change "
+        "of the commanded force in one tick within 3 tool radii of the border, against the safety layer's rate limit "
+        "(a step at the limit was clipped by it).\n\n",
+        o.material_presses);
+    md += material_table(rep.material) + "\n";
   }
   if (!rep.defect.empty()) {
     md += fmt::format(

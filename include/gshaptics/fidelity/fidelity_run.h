@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "gshaptics/fidelity/interaction.h"
+#include "gshaptics/fidelity/material_fidelity.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
 #include "gshaptics/fidelity/wrench_fidelity.h"
 #include "gshaptics/force/renderer_spec.h"
@@ -53,6 +54,12 @@ struct FidelityOptions {
   /// `defect_sites - 1` points half its radius out. Empty: none.
   std::vector<CaptureDefect> defects = default_capture_defects();
   int defect_sites = 5;
+  /// Materials (material_fidelity.h, issue 74): the plane with two materials side by side at every
+  /// spacing and tool radius, `material_presses` presses per side and a slide across the border,
+  /// when the plane is in `shapes` and the renderer is the proxy on the ellipsoids (the only one
+  /// that reads materials yet).
+  bool materials = true;
+  int material_presses = 4;
 };
 
 /// The CI subset: 4 mm spacing, 5 mm tool, 4 press sites, 2 push sites, 1 site per 6-DoF case;
@@ -111,6 +118,7 @@ struct FidelityReport {
   /// sites, per spacing and tool) or the patch ("hole, 4 mm").
   std::vector<FidelityRow> defect;
   std::vector<WrenchRow> wrench;
+  std::vector<MaterialRow> material;  ///< the two-material plane's sides
   std::vector<FidelityCurve> curves;
   /// Pooled press direction errors per shape (degrees), for the histogram.
   std::vector<std::pair<std::string, std::vector<double>>> press_directions;
