@@ -17,6 +17,7 @@
 #include <sstream>
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 #include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/force_renderer.h"
@@ -25,6 +26,7 @@
 #include "gshaptics/fidelity/interaction.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
 #include "gshaptics/force/force_model.h"
+#include "gshaptics/force/material.h"
 #include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/io/atomic_file.h"
 #include "gshaptics/io/scene_loader.h"
@@ -145,6 +147,25 @@ Timing time_replays(const Set& s, int passes, Reset&& reset, Tick&& tick) {
   return {percentile(med, 50), percentile(med, 99), *std::max_element(med.begin(), med.end())};
 }
 
+// Two materials split at the world's centre along x (world frame), both textured; the second
+// with a procedural noise relief at the tool's scale. No friction: the proxy moves as without the map
+// (friction would change its path, and the cost with it), so the difference is what the blend
+// and the texture cost.
+MaterialMap split_material_map(const CollisionWorld& w, double r) {
+  const Eigen::Vector3d lo = w.bounds_lo() - Eigen::Vector3d::Ones(), hi = w.bounds_hi() + Eigen::Vector3d::Ones();
+  const double mid = 0.5 * (w.bounds_lo().x() + w.bounds_hi().x());
+  nlohmann::json j = {
+      {"frame", "world"},
+      {"materials",
+       {{{"name", "a"}, {"stiffness", 800}, {"texture_gain", 1}},
+        {{"name", "b"}, {"stiffness", 1200}, {"texture_gain", 1},
+         {"texture", {{"noise", {{"amplitude", 0.05 * r}, {"wavelength_min", 0.2 * r}, {"wavelength_max", r}}}}}}}},
+      {"regions",
+       {{{"material", "a"}, {"box", {{"min", {lo.x(), lo.y(), lo.z()}}, {"max", {mid, hi.y(), hi.z()}}}}},
+        {{"material", "b"}, {"box", {{"min", {mid, lo.y(), lo.z()}}, {"max", {hi.x(), hi.y(), hi.z()}}}}}}}};
+  return MaterialMap::parse(j, "proxy_bench --materials");
+}
+
 }  // namespace
 }  // namespace gshaptics::bench
 
@@ -188,6 +209,11 @@ int main(int argc, char** argv) {
                "Also time both models with a compound tool on the same paths: a 4-part stylus "
                "(stylus:6R,R, tilted 45 deg, its tip at the pose) against the sphere of radius R, and "
                "write a second table");
+  bool materials = false;
+  app.add_flag("--materials", materials,
+               "Also time the one-part proxy with a material map (force/material.h): two materials split at the "
+               "world's centre along x, both with texture gain 1 (the captured relief), one also with a procedural "
+               "noise relief (RMS 0.05 R, wavelengths 0.2-1 R), and write a table of what materials and texture add");
   CLI11_PARSE(app, argc, argv);
   const ProxySurface surface = surface_name == "seen" ? ProxySurface::kSeen : ProxySurface::kEllipsoids;
   try {
@@ -199,6 +225,9 @@ int main(int argc, char** argv) {
         "paper, stylus 6R x R (4 parts): p50 / p99 us | p99 stylus / sphere | proxy, sphere R: p50 / p99 us | "
         "proxy, stylus: p50 / p99 / max us | p99 stylus / sphere | proxy, bounding sphere 3R (same tip): p50 / p99 us | "
         "p99 stylus / bounding sphere |\n|---|---:|---|---|---|---:|---|---|---:|---|---:|\n";
+    std::string material_table =
+        "\n| set | ticks in contact | proxy p50 / p99 us | with materials and texture p50 / p99 us | p99 added us |\n"
+        "|---|---:|---|---|---:|\n";
     std::stringstream ss(sets);
     std::string name;
     while (std::getline(ss, name, ',')) {
@@ -286,6 +315,18 @@ int main(int argc, char** argv) {
         fmt::print(stderr, "proxy_bench: {}: the shaded normal read on {} of {} ticks ({} of them whole)\n", name,
                    reads, work.size(), proxy.shading_cache().whole_reads() - whole_before);
       }
+      if (materials) {
+        ProxyRenderer textured(w, params);
+        textured.set_materials(MaterialField::resolve(split_material_map(w, r), w, params));
+        const Timing tt = time_replays(
+            s, passes, [&](bool) { textured.reset(); },
+            [&](std::size_t i) {
+              (void)textured.render(ToolEllipsoid::sphere(s.poses[i].position, r), s.poses[i].velocity, 1e-3);
+            });
+        material_table += fmt::format("| {} | {} | {:.1f} / {:.1f} | {:.1f} / {:.1f} | {:+.1f} |\n", name, in_contact,
+                                      tp.p50, tp.p99, tt.p50, tt.p99, tt.p99 - tp.p99);
+        fmt::print(stderr, "{}", material_table.substr(material_table.rfind("\n|", material_table.size() - 2) + 1));
+      }
       ContactQuery query(w);
       ForceModel model;
       const Timing tm = time_replays(
@@ -356,6 +397,7 @@ int main(int argc, char** argv) {
       }
     }
     if (stylus) table += compound_table;
+    if (materials) table += material_table;
     fmt::print("{}", table);
     if (!out.empty()) write_file_atomically(out, table);
   } catch (const InputError& e) {

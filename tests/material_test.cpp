@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/error.h"
@@ -124,6 +125,31 @@ TEST(MaterialField, TheBlendNeverJumpsAcrossABorder) {
   }
 }
 
+// The blend from the BVH's per-node moments against a direct sum over every Gaussian.
+TEST(MaterialField, TheBlendMatchesADirectSumOverEveryGaussian) {
+  const CollisionWorld world = plane_world(0.002);
+  nlohmann::json j = two_materials();
+  j["regions"].push_back(nlohmann::json::parse(R"({"material": "hard", "sphere": {"center": [-0.02, 0.01, 0], "radius": 0.006}})"));
+  const auto field = MaterialField::resolve(MaterialMap::parse(j, "map"), world, ProxyParams{});
+  const double k_of[3] = {ProxyParams{}.stiffness, 600, 1500};
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> uni(-1, 1);
+  for (int trial = 0; trial < 200; ++trial) {
+    const Eigen::Vector3d c(0.04 * uni(rng), 0.04 * uni(rng), 0.006 + 0.004 * uni(rng));
+    const double r = 0.003 + 0.002 * uni(rng), rho2 = 4 * r * r;
+    double w = 0, wk = 0;
+    for (std::size_t k = 0; k < world.size(); ++k) {
+      const CollisionGaussian& g = world.gaussians()[k];
+      const double d2 = (Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) - c).squaredNorm();
+      if (d2 >= rho2) continue;
+      w += g.opacity * (1 - d2 / rho2);
+      wk += g.opacity * (1 - d2 / rho2) * k_of[field->material_of(k)];
+    }
+    const double expected = w > 0 ? wk / w : ProxyParams{}.stiffness;
+    EXPECT_NEAR(field->at(world, c, r).stiffness, expected, 1e-6 * expected) << "trial " << trial;
+  }
+}
+
 // The proxy presses each side with that side's stiffness, and slides with its kinetic friction.
 TEST(MaterialProxy, EachSideHasItsStiffnessAndFriction) {
   const CollisionWorld world = plane_world();
@@ -160,6 +186,34 @@ TEST(MaterialProxy, EachSideHasItsStiffnessAndFriction) {
   EXPECT_NEAR(ft[0] / fn[0], 0.3, 0.05 * 0.3);
   EXPECT_NEAR(ft[1] / fn[1], 0.6, 0.05 * 0.6);
   EXPECT_EQ(proxy.materials()->name(proxy.material().dominant), "hard");
+}
+
+// Property: sliding across the border at constant depth, the force never steps: its largest
+// change in a tick is no larger than where the tool slides over one material.
+TEST(MaterialProxy, CrossingABorderNeverStepsTheForce) {
+  const CollisionWorld world = plane_world();
+  const double r = 0.005, dt = 1e-3;
+  for (double speed : {0.02, 0.1}) {
+    ProxyRenderer proxy(world, ProxyParams{});
+    proxy.set_materials(MaterialField::resolve(MaterialMap::parse(two_materials(), "map"), world, ProxyParams{}));
+    for (int i = 0; i <= 300; ++i)
+      (void)proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(-0.04, 0, r - std::min(0.002, -0.001 + 1e-5 * i)), r),
+                         Eigen::Vector3d::Zero(), dt);
+    Eigen::Vector3d last = Eigen::Vector3d::Zero();
+    double border = 0, away = 0, k_mid = 0;
+    for (double x = -0.04; x <= 0.04; x += speed * dt) {
+      const RenderOutput o = proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, r - 0.002), r),
+                                          Eigen::Vector3d(speed, 0, 0), dt);
+      const double step = last.isZero() ? 0.0 : (o.force - last).norm();
+      last = o.force;
+      if (std::abs(x) < 2 * r) border = std::max(border, step);
+      else if (x > -0.035) away = std::max(away, step);
+      if (std::abs(x - r) < speed * dt) k_mid = proxy.material().stiffness;
+    }
+    EXPECT_LT(border, std::max(2 * away, 0.05)) << "speed " << speed;
+    EXPECT_GT(k_mid, 600) << "speed " << speed;  // blended, past the border
+    EXPECT_NEAR(proxy.material().stiffness, 1500, 1.0) << "speed " << speed;  // 8 radii of path: e^-8 of the way left
+  }
 }
 
 TEST(MaterialProxy, RefusedWhereItIsNotReadYet) {

@@ -11,9 +11,30 @@
 #include "options.h"
 #include "gshaptics/fidelity/material_fidelity.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/fidelity/texture_fidelity.h"
+#include "gshaptics/io/scene_writer.h"
 #include "gshaptics/io/atomic_file.h"
 
 namespace gshaptics::cli {
+
+namespace {
+
+// `synth grating OUT.ply --grating LAMBDA_MM,A_MM`.
+template <typename Options>
+void write_grating(const Options& o) {
+  if (std::filesystem::path(o.out).extension() != ".ply")
+    throw InputError("synth: " + o.out + ": the output must be a .ply file");
+  const Eigen::Vector2d la = parse_vec2(o.grating, "--grating");
+  GratingParams g;
+  g.wavelength = la[0] * 1e-3;
+  g.amplitude = la[1] * 1e-3;
+  const GaussianScene s = make_grating_scene(g);
+  write_scene(o.out, s);
+  fmt::print("wrote      {} ({} Gaussians: a grating of wavelength {:g} mm, amplitude {:g} mm, ridges along y)\n", o.out,
+             s.size(), la[0], la[1]);
+}
+
+}  // namespace
 
 void register_synth(CLI::App& app) {
   struct Options {
@@ -21,6 +42,7 @@ void register_synth(CLI::App& app) {
     SynthParams params;
     std::vector<std::string> defects;
     std::string two_materials;
+    std::string grating = "2,0.1";
   };
   auto o = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
@@ -30,7 +52,7 @@ void register_synth(CLI::App& app) {
       "spacing, jittered along the normal and in tilt, a share below the 0.2 opacity filter, a few "
       "floaters). INRIA PLY with every parameter in its header comments, plus OUT.json with the "
       "exact surface. Shapes: plane, sphere, cube, plate-2mm, plate-5mm, cylinder, corner-90, "
-      "v-groove-60. --defect adds what real captures leave: faint layers, a hole, large flat discs, "
+      "v-groove-60, and grating (--grating). --defect adds what real captures leave: faint layers, a hole, large flat discs, "
       "clutter behind the surface.");
   cmd->add_option("shape", o->shape, "Shape name")->required();
   cmd->add_option("out", o->out, "Output .ply (and OUT.ply.json)")->required();
@@ -52,7 +74,15 @@ void register_synth(CLI::App& app) {
                   "Also write a material map (JSON, for --materials) with two materials side by side: soft for x < 0, "
                   "hard for x >= 0 (the fidelity's two-material plane)")
       ->type_name("FILE");
+  cmd->add_option("--grating", o->grating,
+                  "For the shape 'grating': the relief's wavelength and amplitude in mm, LAMBDA_MM,A_MM (a plane with "
+                  "A sin(2 pi x / lambda), Gaussians every lambda / 8 across the ridges; A = 0: the plane without relief)")
+      ->capture_default_str();
   cmd->callback([o] {
+    if (o->shape == "grating") {
+      write_grating(*o);
+      return;
+    }
     for (const std::string& spec : o->defects) o->params.defects.push_back(parse_capture_defect(spec, "synth --defect"));
     const ShapeKind kind = parse_shape(o->shape, "synth");
     if (std::filesystem::path(o->out).extension() != ".ply")

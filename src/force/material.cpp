@@ -16,7 +16,7 @@ namespace gshaptics {
 namespace {
 
 constexpr std::size_t kMaxMaterials = 254;  // ids 1..254 in a byte; 0 is the proxy's own
-constexpr double kReach = 3.0;              // tool radii: the blend's kernel is cut here
+
 
 using nlohmann::json;
 
@@ -48,9 +48,45 @@ Eigen::Vector3d vec3(const json& j, const std::string& source, const std::string
   return v;
 }
 
+// {"grating": {"wavelength", "amplitude", "direction"}} or {"noise": {"amplitude", "wavelength_min",
+// "wavelength_max", "seed"}}.
+ProceduralTexture parse_texture(const json& j, const std::string& source, const std::string& at) {
+  if (!j.is_object() || j.size() != 1 || !(j.contains("grating") || j.contains("noise")))
+    throw map_error(source, at + " must be {\"grating\": {...}} or {\"noise\": {...}}");
+  ProceduralTexture t;
+  if (j.contains("grating")) {
+    const json& g = j["grating"];
+    const std::string here = at + ".grating";
+    if (!g.is_object() || !g.contains("wavelength") || !g.contains("amplitude"))
+      throw map_error(source, here + " needs \"wavelength\" and \"amplitude\" (m)");
+    check_keys(g, {"wavelength", "amplitude", "direction"}, source, here);
+    t.kind = ProceduralTexture::Kind::kGrating;
+    t.wavelength = number(g, "wavelength", source, here, 0, true);
+    t.amplitude = number(g, "amplitude", source, here, 0);
+    if (g.contains("direction")) t.direction = vec3(g["direction"], source, here + ".direction");
+    if (!(t.direction.norm() > 0)) throw map_error(source, here + ".direction must not be zero");
+    t.direction.normalize();
+  } else {
+    const json& n = j["noise"];
+    const std::string here = at + ".noise";
+    if (!n.is_object() || !n.contains("amplitude") || !n.contains("wavelength_min") || !n.contains("wavelength_max"))
+      throw map_error(source, here + " needs \"amplitude\", \"wavelength_min\" and \"wavelength_max\" (m)");
+    check_keys(n, {"amplitude", "wavelength_min", "wavelength_max", "seed"}, source, here);
+    t.kind = ProceduralTexture::Kind::kNoise;
+    t.amplitude = number(n, "amplitude", source, here, 0);
+    t.wavelength = number(n, "wavelength_min", source, here, 0, true);
+    t.wavelength_max = number(n, "wavelength_max", source, here, 0, true);
+    if (t.wavelength_max < t.wavelength) throw map_error(source, here + ": wavelength_max is below wavelength_min");
+    if (n.contains("seed")) t.seed = std::uint64_t(number(n, "seed", source, here, 0));
+  }
+  t.prepare();
+  return t;
+}
+
 Material parse_material(const json& j, const std::string& source, const std::string& at) {
   if (!j.is_object()) throw map_error(source, at + " must be an object");
-  check_keys(j, {"name", "stiffness", "damping", "mu_s", "mu_k", "viscosity", "texture_gain", "vibration"}, source, at);
+  check_keys(j, {"name", "stiffness", "damping", "mu_s", "mu_k", "viscosity", "texture_gain", "vibration", "texture"}, source,
+             at);
   Material m;
   if (!j.contains("name") || !j["name"].is_string() || j["name"].get<std::string>().empty())
     throw map_error(source, at + ": needs a \"name\"");
@@ -62,6 +98,7 @@ Material parse_material(const json& j, const std::string& source, const std::str
   if (j.contains("viscosity")) m.viscosity = number(j, "viscosity", source, at, 0);
   if (j.contains("texture_gain")) m.texture_gain = number(j, "texture_gain", source, at, 0);
   if (j.contains("vibration")) m.vibration = number(j, "vibration", source, at, 0);
+  if (j.contains("texture")) m.texture = parse_texture(j["texture"], source, at + ".texture");
   return m;
 }
 
@@ -156,6 +193,7 @@ std::shared_ptr<const MaterialField> MaterialField::resolve(const MaterialMap& m
   auto f = std::make_shared<MaterialField>();
   f->names_.push_back("default");
   f->props_.push_back({{base.stiffness, base.damping, base.mu_s, base.mu_k, 0, 0, 0}});
+  f->textures_.emplace_back();
   for (const Material& m : map.materials) {
     Props p{{m.stiffness.value_or(base.stiffness), m.damping.value_or(base.damping), m.mu_s.value_or(base.mu_s),
              m.mu_k.value_or(base.mu_k), m.viscosity, m.texture_gain, m.vibration}};
@@ -164,6 +202,8 @@ std::shared_ptr<const MaterialField> MaterialField::resolve(const MaterialMap& m
                                       std::to_string(p.v[2]) + " (a property it leaves out is the proxy's own)");
     f->props_.push_back(p);
     f->names_.push_back(m.name);
+    f->textures_.push_back(m.texture);
+    f->textured_ = f->textured_ || m.texture_gain > 0;
   }
   // The file's frame: the world's records hold c = s R x + t (SimilarityTransform::apply).
   const SimilarityTransform& t = world.scene_to_world();
@@ -181,27 +221,80 @@ std::shared_ptr<const MaterialField> MaterialField::resolve(const MaterialMap& m
       }
     ++f->counts_[f->slot_material_[k]];
   }
+  f->build_moments(world);
   return f;
 }
 
-MaterialBlend MaterialField::at(const CollisionWorld& world, const Eigen::Vector3d& center,
-                                double radius) const noexcept {
-  // Weights per material id (at most 255 ids; summed on the stack).
-  std::array<double, kMaxMaterials + 1> w{};
-  const double reach = kReach * radius, inv2 = 1.0 / (2 * radius * radius);
-  float lo[3], hi[3];
-  for (int k = 0; k < 3; ++k) {
-    lo[k] = round_down_to_float(center[k] - reach);
-    hi[k] = round_up_to_float(center[k] + reach);
-  }
+void MaterialField::build_moments(const CollisionWorld& world) {
+  // Bottom-up over the preorder nodes: a node's children come after it.
+  const std::span<const BvhNode> nodes = world.bvh().nodes();
   const std::span<const CollisionGaussian> g = world.gaussians();
-  world.bvh().for_each_overlapping_leaf(lo, hi, [&](std::uint32_t first, std::uint32_t count) {
-    for (std::uint32_t k = first; k < first + count; ++k) {
-      const double d2 = (Eigen::Vector3d(g[k].center[0], g[k].center[1], g[k].center[2]) - center).squaredNorm();
-      if (d2 > reach * reach) continue;
-      w[slot_material_[k]] += double(g[k].opacity) * std::exp(-d2 * inv2);
+  moments_.assign(nodes.size(), {});
+  for (std::size_t i = nodes.size(); i-- > 0;) {
+    NodeMoments& m = moments_[i];
+    const BvhNode& n = nodes[i];
+    if (n.count > 0) {
+      m.material = slot_material_[n.first];
+      for (std::uint32_t k = n.first; k < n.first + n.count; ++k) {
+        const double a = g[k].opacity;
+        const Eigen::Vector3d c(g[k].center[0], g[k].center[1], g[k].center[2]);
+        m.alpha += a;
+        for (int j = 0; j < 3; ++j) m.alpha_c[j] += a * c[j];
+        m.alpha_c2 += a * c.squaredNorm();
+        if (slot_material_[k] != m.material) m.material = -1;
+      }
+      continue;
     }
-  });
+    const NodeMoments &l = moments_[i + 1], &r = moments_[n.first];
+    m.alpha = l.alpha + r.alpha;
+    for (int j = 0; j < 3; ++j) m.alpha_c[j] = l.alpha_c[j] + r.alpha_c[j];
+    m.alpha_c2 = l.alpha_c2 + r.alpha_c2;
+    m.material = l.material == r.material ? l.material : -1;
+  }
+}
+
+MaterialBlend MaterialField::at(const CollisionWorld& world, const Eigen::Vector3d& center, double radius,
+                                const Eigen::Vector3d& contact) const noexcept {
+  // Weights per material id (at most 255 ids; summed on the stack): sum alpha (1 - d^2 / rho^2).
+  Weights w{};
+  const double rho2 = kKernel * kKernel * radius * radius;
+  const std::span<const BvhNode> nodes = world.bvh().nodes();
+  const std::span<const CollisionGaussian> g = world.gaussians();
+  std::uint32_t stack[64];
+  int top = 0;
+  if (!nodes.empty()) stack[top++] = 0;
+  while (top > 0) {
+    const std::uint32_t i = stack[--top];
+    const BvhNode& n = nodes[i];
+    double near2 = 0, far2 = 0;  // the box's nearest and farthest points from the centre
+    for (int k = 0; k < 3; ++k) {
+      const double lo = double(n.lo[k]) - center[k], hi = double(n.hi[k]) - center[k];
+      const double nearest = lo > 0 ? lo : hi < 0 ? -hi : 0.0;
+      near2 += nearest * nearest;
+      far2 += std::max(lo * lo, hi * hi);
+    }
+    if (near2 > rho2) continue;
+    const NodeMoments& m = moments_[i];
+    if (m.material >= 0 && far2 <= rho2) {  // one material, wholly inside: from its moments
+      const double pc = center.x() * m.alpha_c[0] + center.y() * m.alpha_c[1] + center.z() * m.alpha_c[2];
+      w[std::size_t(m.material)] += m.alpha - (m.alpha_c2 - 2 * pc + center.squaredNorm() * m.alpha) / rho2;
+      continue;
+    }
+    if (n.count == 0) {
+      if (top + 2 > 64) continue;  // (deeper than any BVH this world builds)
+      stack[top++] = n.first;
+      stack[top++] = i + 1;
+      continue;
+    }
+    for (std::uint32_t k = n.first; k < n.first + n.count; ++k) {
+      const double d2 = (Eigen::Vector3d(g[k].center[0], g[k].center[1], g[k].center[2]) - center).squaredNorm();
+      if (d2 < rho2) w[slot_material_[k]] += double(g[k].opacity) * (1 - d2 / rho2);
+    }
+  }
+  return blend(w, contact);
+}
+
+MaterialBlend MaterialField::blend(const Weights& w, const Eigen::Vector3d& contact) const noexcept {
   MaterialBlend b;
   double total = 0, best = 0;
   double v[7] = {0, 0, 0, 0, 0, 0, 0};
@@ -209,6 +302,8 @@ MaterialBlend MaterialField::at(const CollisionWorld& world, const Eigen::Vector
     if (!(w[id] > 0)) continue;
     total += w[id];
     for (int p = 0; p < 7; ++p) v[p] += w[id] * props_[id].v[p];
+    if (textures_[id].kind != ProceduralTexture::Kind::kNone && contact.allFinite())
+      b.procedural += w[id] * textures_[id].height(contact);
     if (w[id] > best) best = w[id], b.dominant = int(id);
   }
   if (!(total > 0)) {
@@ -222,7 +317,17 @@ MaterialBlend MaterialField::at(const CollisionWorld& world, const Eigen::Vector
   b.viscosity = v[4] / total;
   b.texture_gain = v[5] / total;
   b.vibration = v[6] / total;
+  b.procedural /= total;
   return b;
+}
+
+bool MaterialField::contact_shares(std::span<const Contact> contacts, Weights& shares) const noexcept {
+  double total = 0;
+  for (const Contact& c : contacts) total += double(c.opacity);
+  if (!(total > 0)) return false;
+  for (std::size_t id = 0; id < props_.size(); ++id) shares[id] = 0;
+  for (const Contact& c : contacts) shares[slot_material_[c.slot]] += double(c.opacity) / total;
+  return true;
 }
 
 std::string_view MaterialField::name(int id) const noexcept {

@@ -52,10 +52,44 @@ void ProxyRenderer::set_materials(std::shared_ptr<const MaterialField> field) {
   material_.mu_k = params_.mu_k;
 }
 
-void ProxyRenderer::apply_material(const Eigen::Vector3d& p, double radius) noexcept {
-  material_ = materials_->at(*world_, p, radius);
+void ProxyRenderer::apply_material(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double radius,
+                                   const Eigen::Vector3d& contact, std::span<const Contact> blockers) noexcept {
+  MaterialField::Weights target;  // (only the first material_count() entries are read)
+  const std::size_t count = materials_->material_count();
+  double held = 0;  // how much of the shares a material holds (0: none yet)
+  for (std::size_t id = 0; id < count; ++id) held += shares_[id];
+  if (materials_->contact_shares(blockers, target)) {
+    if (!material_started_ || !(held > 0)) {
+      for (std::size_t id = 0; id < count; ++id) shares_[id] = target[id];
+    } else {
+      // Followed along the path: a slide of ds moves the shares 1 - exp(-ds / R) of the way.
+      const Eigen::Vector3d step = p - material_at_;
+      const double a = 1 - std::exp(-(step - step.dot(n) * n).norm() / radius);
+      for (std::size_t id = 0; id < count; ++id) shares_[id] += a * (target[id] - shares_[id]);
+    }
+  } else if (!material_started_) {
+    for (std::size_t id = 0; id < count; ++id) shares_[id] = 0;  // the proxy's own until a Gaussian holds it
+  }
+  material_started_ = true;
+  material_at_ = p;
+  material_ = materials_->blend(shares_, contact);
   coupling_.set_gains(material_.stiffness, material_.damping);
   friction_.set_coefficients(material_.mu_s, material_.mu_k);
+}
+
+Eigen::Vector3d ProxyRenderer::add_material_forces(Eigen::Vector3d f, const Eigen::Vector3d& contact,
+                                                  const Eigen::Vector3d& n, const Eigen::Vector3d& velocity,
+                                                  double radius) noexcept {
+  if (material_.viscosity > 0) f -= material_.viscosity * (velocity - velocity.dot(n) * n);
+  if (material_.texture_gain > 0) {
+    f += texture_.force(*world_, contact, n, radius, material_.stiffness, material_.texture_gain, material_.procedural);
+    const double fn = f.dot(n);
+    if (fn < 0) f -= fn * n;  // the relief never pulls the tool in
+  } else {
+    texture_.release();
+  }
+  if (f.norm() > f_max_) f *= f_max_ / f.norm();
+  return f;
 }
 
 RenderOutput ProxyRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
@@ -74,6 +108,8 @@ RenderOutput ProxyRenderer::render_compound(std::span<const ToolEllipsoid> parts
 void ProxyRenderer::leave_contact() noexcept {
   friction_.reset();
   coupling_.release();
+  texture_.release();
+  material_started_ = false;
   in_contact_ = sticking_ = false;
 }
 
@@ -176,14 +212,17 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   // depth along n is bounded so that the shaded normal's turns add no energy (SpringEnergyBound).
   // (With a material map, the properties under the proxy: stiffness, damping and friction from
   // this tick on, and a viscous drag on the device's tangential velocity.)
-  if (materials_) apply_material(p, r);
+  Eigen::Vector3d contact = p;  // where the tool meets the surface (with materials: their reliefs are read there)
+  if (materials_) {
+    ToolEllipsoid at = tool;
+    at.center = p;
+    contact = at.surface_point(-n);
+    apply_material(p, n, r, contact, blockers);
+  }
   Eigen::Vector3d spring = e;
   spring -= (e.dot(n) - coupling_.bounded_depth(e, n)) * n;
   out.force = coupling_.force(spring, n, velocity, dt, blockers, fr, materials_ ? material_.mu_k : params_.mu_k);
-  if (materials_ && material_.viscosity > 0) {
-    out.force -= material_.viscosity * (velocity - velocity.dot(n) * n);
-    if (out.force.norm() > f_max_) out.force *= f_max_ / out.force.norm();
-  }
+  if (materials_) out.force = add_material_forces(out.force, contact, n, velocity, r);
   return out;
 }
 

@@ -227,6 +227,11 @@ std::vector<double> parse_list(const std::string& text, const std::string& optio
 }
 }  // namespace
 
+Eigen::Vector2d parse_vec2(const std::string& text, const std::string& option) {
+  const auto v = parse_list(text, option, 2);
+  return {v[0], v[1]};
+}
+
 Eigen::Vector3d parse_vec3(const std::string& text, const std::string& option) {
   const auto v = parse_list(text, option, 3);
   return {v[0], v[1], v[2]};

@@ -12,6 +12,7 @@
 
 #include "gshaptics/fidelity/interaction.h"
 #include "gshaptics/fidelity/material_fidelity.h"
+#include "gshaptics/fidelity/texture_fidelity.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
 #include "gshaptics/fidelity/wrench_fidelity.h"
 #include "gshaptics/force/renderer_spec.h"
@@ -60,6 +61,12 @@ struct FidelityOptions {
   /// that reads materials yet).
   bool materials = true;
   int material_presses = 4;
+  /// Texture (texture_fidelity.h, issue 74): every grating of `grating_wavelengths` x
+  /// `grating_amplitudes` and the plane without relief, dragged at each of `drag_speeds` with every
+  /// tool radius, when the plane is in `shapes` and the renderer reads materials. Empty: none.
+  std::vector<double> grating_wavelengths = {0.001, 0.002, 0.004};  ///< m
+  std::vector<double> grating_amplitudes = {0.00005, 0.0001, 0.0002};  ///< m
+  std::vector<double> drag_speeds = {0.02, 0.05, 0.1};  ///< m/s
 };
 
 /// The CI subset: 4 mm spacing, 5 mm tool, 4 press sites, 2 push sites, 1 site per 6-DoF case;
@@ -119,6 +126,7 @@ struct FidelityReport {
   std::vector<FidelityRow> defect;
   std::vector<WrenchRow> wrench;
   std::vector<MaterialRow> material;  ///< the two-material plane's sides
+  std::vector<TextureRow> texture;    ///< the gratings' drags
   std::vector<FidelityCurve> curves;
   /// Pooled press direction errors per shape (degrees), for the histogram.
   std::vector<std::pair<std::string, std::vector<double>>> press_directions;

@@ -16,27 +16,41 @@
 ///                  {"material": "wood", "indices": [12, 13, 14]}]}
 ///
 /// Units: stiffness N/m, damping and viscosity N s/m, friction coefficients dimensionless;
-/// texture_gain and vibration are carried for the texture renderer (0 by default). A property a
+/// texture_gain scales the relief force (force/texture.h: g k (h - h_bar); 0 by default: none),
+/// and "texture" adds a procedural relief, {"grating": {"wavelength": m, "amplitude": m,
+/// "direction": [x, y, z]}} or {"noise": {"amplitude": m, "wavelength_min": m,
+/// "wavelength_max": m, "seed": n}}; vibration is carried for vibrotactile devices. A property a
 /// material leaves out is the proxy's own (ProxyParams: --stiffness, --damping, --mu-s, --mu-k),
 /// and so is every property where no region claims the surface. Regions are tested on the
 /// Gaussians' centres in the scene file's frame ("frame": "scene", the default) or the
 /// registered world's ("world"); indices are the Gaussians' indices in the file. A Gaussian in
 /// several regions takes the last one's material.
 ///
-/// Blending (MaterialField::at): the properties at a contact are the weighted mean over the
-/// Gaussians near it, w_i = alpha_i exp(-d_i^2 / (2 R^2)) (d_i: the distance from the proxy's
-/// centre to Gaussian i's centre, R the tool's bounding radius): a kernel that varies
-/// continuously as the proxy slides, so a tool resting on two materials blends them by how much
-/// of each is under it, and crossing a border changes the force without a step.
+/// Blending. The proxy reads the materials of the Gaussians holding it, weighted by opacity
+/// (contact_shares), and follows them along its path: the shares move toward the contacts' by
+/// 1 - exp(-ds / R) for a slide of ds (ProxyRenderer), so a tool resting on two materials feels
+/// them mixed as its contacts are, and crossing a border blends over one tool radius of path,
+/// without a step. MaterialField::at gives the same properties anywhere (a viewer, a query): the
+/// weighted mean over the
+/// Gaussians near it, w_i = alpha_i (1 - d_i^2 / rho^2) for d_i < rho = 2 R (d_i: the distance
+/// from the proxy's centre to Gaussian i's centre, R the tool's bounding radius; the
+/// Epanechnikov kernel): weights that vary continuously as the proxy slides, so a tool resting on
+/// two materials blends them by how much of each is under it, and crossing a border changes the
+/// force without a step. The kernel is a polynomial in the centres, so a BVH node of one material
+/// wholly inside the kernel adds its weight from its opacity moments (sum alpha, sum alpha c,
+/// sum alpha |c|^2, kept per node) without visiting its Gaussians: the cost grows with the
+/// kernel's surface, not its volume.
 ///
 /// Threading: a MaterialField is immutable after resolve(); at() allocates, locks, logs and
 /// throws nothing.
 
 #include <Eigen/Core>
 #include <array>
+#include <limits>
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -44,7 +58,9 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "gshaptics/collision/collision_world.h"
+#include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/proxy_params.h"
+#include "gshaptics/force/texture.h"
 
 namespace gshaptics {
 
@@ -56,8 +72,9 @@ struct Material {
   std::optional<double> mu_s;       ///< >= 0 (0: no friction)
   std::optional<double> mu_k;       ///< 0 <= mu_k <= mu_s
   double viscosity = 0;             ///< N s/m, >= 0: drag on the device's tangential velocity in contact
-  double texture_gain = 0;          ///< >= 0, for the texture renderer (not yet rendered)
+  double texture_gain = 0;          ///< >= 0: the relief force's gain on k (force/texture.h; 0: no texture)
   double vibration = 0;             ///< >= 0, for vibrotactile devices (not yet rendered)
+  ProceduralTexture texture;        ///< a procedural relief added to the captured one (kind none: none)
 };
 
 /// A region of the scene that a material claims.
@@ -92,6 +109,8 @@ struct MaterialBlend {
   double stiffness = 0, damping = 0, mu_s = 0, mu_k = 0, viscosity = 0, texture_gain = 0, vibration = 0;
   /// The material with the largest weight: 0 none (the proxy's own), m + 1 MaterialMap::materials[m].
   int dominant = 0;
+  /// m: the materials' procedural reliefs at the contact point, blended by the same weights.
+  double procedural = 0;
 };
 
 /// A material map resolved on a world: each Gaussian's material, and the properties of each
@@ -106,10 +125,25 @@ class MaterialField {
                                                       const ProxyParams& base);
 
   /// The blended properties around the proxy's centre `center` (world, m) for a tool of bounding
-  /// radius `radius` (m): the weighted mean over the Gaussians whose centres lie within 3 radius
+  /// radius `radius` (m): the weighted mean over the Gaussians whose centres lie within 2 radius
   /// (weights as in the file comment); the proxy's own where none are near. No allocation.
-  [[nodiscard]] MaterialBlend at(const CollisionWorld& world, const Eigen::Vector3d& center,
-                                 double radius) const noexcept;
+  /// `contact`: where the procedural reliefs are read (the proxy's contact point; NaN: not read).
+  [[nodiscard]] MaterialBlend at(const CollisionWorld& world, const Eigen::Vector3d& center, double radius,
+                                 const Eigen::Vector3d& contact = Eigen::Vector3d::Constant(
+                                     std::numeric_limits<double>::quiet_NaN())) const noexcept;
+  /// Ids: 0 (the proxy's own) and at most 254 materials.
+  static constexpr std::size_t kMaxIds = 255;
+  /// A weight (or share) per material id.
+  using Weights = std::array<double, kMaxIds>;
+  /// The materials of the Gaussians holding the proxy, `contacts` (slots of the world the field
+  /// was resolved on), weighted by their opacities, as shares that sum to 1 (`shares` untouched
+  /// and false when there are none). No allocation.
+  bool contact_shares(std::span<const Contact> contacts, Weights& shares) const noexcept;
+  /// The properties of materials mixed by `w` (any non-negative weights; the proxy's own when all
+  /// are 0), their procedural reliefs read at `contact` (NaN: not read). No allocation.
+  [[nodiscard]] MaterialBlend blend(const Weights& w, const Eigen::Vector3d& contact) const noexcept;
+  /// True when some material has a texture (a gain above 0).
+  [[nodiscard]] bool textured() const noexcept { return textured_; }
   /// The material of world slot `slot`: 0 the proxy's own, m + 1 the map's m-th.
   [[nodiscard]] std::uint8_t material_of(std::size_t slot) const noexcept { return slot_material_[slot]; }
   /// Name of material id `id` (0: "default").
@@ -122,8 +156,17 @@ class MaterialField {
   struct Props {
     double v[7];  // stiffness, damping, mu_s, mu_k, viscosity, texture_gain, vibration
   };
+  struct NodeMoments {
+    double alpha = 0, alpha_c[3] = {0, 0, 0}, alpha_c2 = 0;  // sum alpha, sum alpha c, sum alpha |c|^2
+    int material = -1;  // the one material of its Gaussians; -1: several
+  };
+  void build_moments(const CollisionWorld& world);
+  static constexpr double kKernel = 2.0;      // tool radii: the blend's support rho
   std::vector<std::uint8_t> slot_material_;  // per world slot
+  std::vector<NodeMoments> moments_;         // per BVH node
   std::vector<Props> props_;                 // id 0: the proxy's own
+  std::vector<ProceduralTexture> textures_;  // per id
+  bool textured_ = false;
   std::vector<std::string> names_;
   std::vector<std::size_t> counts_;
 };

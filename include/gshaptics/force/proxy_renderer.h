@@ -108,13 +108,22 @@ class ProxyRenderer final : public ForceRenderer {
   /// One-part tools on the ellipsoids only: throws InputError with the seen surface, and
   /// set_tool() refuses a compound tool while a field is set.
   void set_materials(std::shared_ptr<const MaterialField> field);
-  /// The blend under the proxy at the last tick in contact (the ProxyParams' own without a field).
+  /// The blend under the proxy at the last tick in contact (the ProxyParams' own without a field):
+  /// the materials of the Gaussians holding it (MaterialField::contact_shares), followed along
+  /// its path over one tool radius (force/material.h).
   [[nodiscard]] const MaterialBlend& material() const noexcept { return material_; }
   [[nodiscard]] const MaterialField* materials() const noexcept { return materials_.get(); }
 
  private:
-  // The material blend under the proxy at `p` applied to the coupling and the friction cone.
-  void apply_material(const Eigen::Vector3d& p, double radius) noexcept;
+  // The materials of the Gaussians holding the proxy at `p` (`blockers`), followed along its path
+  // (MaterialField's shares), applied to the coupling and the friction cone; the procedural
+  // reliefs read at `contact`.
+  void apply_material(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double radius, const Eigen::Vector3d& contact,
+                      std::span<const Contact> blockers) noexcept;
+  // The material's viscous drag and texture on top of the coupling's force `f` (N) at the
+  // proxy's contact point `contact` with normal `n`; the normal force stays >= 0 and |F| <= f_max.
+  Eigen::Vector3d add_material_forces(Eigen::Vector3d f, const Eigen::Vector3d& contact, const Eigen::Vector3d& n,
+                                      const Eigen::Vector3d& velocity, double radius) noexcept;
   // The device's new pose: the proxy is placed anew where the device jumped (teleport) or turned
   // into geometry. Returns the device's step since the last tick, m.
   Eigen::Vector3d follow_device(const ToolEllipsoid& tool) noexcept;
@@ -146,6 +155,10 @@ class ProxyRenderer final : public ForceRenderer {
   bool compound_active_ = false;             // the last tick was the compound proxy's
   std::shared_ptr<const MaterialField> materials_;  // set_materials (nullptr: none)
   MaterialBlend material_;
+  MaterialField::Weights shares_{};  // the materials' shares under the proxy, followed along its path
+  Eigen::Vector3d material_at_ = Eigen::Vector3d::Zero();  // where the shares were last moved
+  bool material_started_ = false;   // false: the next contact takes its contacts' shares as they are
+  TextureState texture_;
 };
 
 }  // namespace gshaptics

@@ -117,6 +117,8 @@ LoadedScene load_with_progress(const std::string& path, bool quiet = false, bool
 /// registration make of it and the suggested --up, --reg-scale and tool radius. Throws InputError.
 void run_info_command(const SceneOptions& so, bool quiet);
 
+/// "A,B" -> vector; throws InputError naming the option.
+Eigen::Vector2d parse_vec2(const std::string& text, const std::string& option);
 /// "X,Y,Z" -> vector; throws InputError naming the option.
 Eigen::Vector3d parse_vec3(const std::string& text, const std::string& option);
 Eigen::Vector4d parse_vec4(const std::string& text, const std::string& option);
