@@ -1,0 +1,110 @@
+// Texture (force/texture.h, fidelity/texture_fidelity.h): the procedural reliefs, the point tip
+// against a direct search, the spectral peak finder, and the spectral targets in small.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/fidelity/texture_fidelity.h"
+#include "gshaptics/force/texture.h"
+
+namespace gshaptics {
+namespace {
+
+TEST(ProceduralTexture, AGratingIsItsSinusoidAndNoiseHasItsRms) {
+  ProceduralTexture g;
+  g.kind = ProceduralTexture::Kind::kGrating;
+  g.wavelength = 0.002;
+  g.amplitude = 1e-4;
+  g.prepare();
+  EXPECT_NEAR(g.height(Eigen::Vector3d(0.0005, 0.3, -1)), 1e-4, 1e-12);  // a quarter wavelength: the crest
+  EXPECT_NEAR(g.height(Eigen::Vector3d(0.0015, 0, 0)), -1e-4, 1e-12);
+  ProceduralTexture n;
+  n.kind = ProceduralTexture::Kind::kNoise;
+  n.amplitude = 1e-4;
+  n.wavelength = 0.001;
+  n.wavelength_max = 0.004;
+  n.prepare();
+  std::mt19937_64 rng(2);
+  std::uniform_real_distribution<double> uni(-1, 1);
+  double sq = 0;
+  const int samples = 20000;
+  for (int i = 0; i < samples; ++i) sq += std::pow(n.height(Eigen::Vector3d(uni(rng), uni(rng), uni(rng))), 2);
+  EXPECT_NEAR(std::sqrt(sq / samples), 1e-4, 0.1e-4);
+}
+
+// The tip's height against a dense march down the ray testing every Gaussian's ellipsoid.
+TEST(TextureTip, TheTipMeetsTheFirstEllipsoidAlongTheRay) {
+  GratingParams p;
+  p.wavelength = 0.002;
+  p.amplitude = 2e-4;
+  p.length = 0.02;
+  p.width = 0.01;
+  const CollisionWorld world = CollisionWorld::build(make_grating_scene(p), WorldConfig{});
+  std::mt19937_64 rng(8);
+  std::uniform_real_distribution<double> uni(-1, 1);
+  for (int trial = 0; trial < 40; ++trial) {
+    const Eigen::Vector3d contact(0.008 * uni(rng), 0.003 * uni(rng), 0.0);
+    const double reach = 0.001;
+    const double h = tip_height(world, contact, Eigen::Vector3d::UnitZ(), reach);
+    // March from the top in 1 um steps until a point lies inside some ellipsoid.
+    double expected = -reach;
+    for (double z = reach; z >= -reach; z -= 1e-6) {
+      bool inside = false;
+      for (const CollisionGaussian& g : world.gaussians()) {
+        const Eigen::Vector3d local = rotation_matrix(g).transpose() *
+                                      (Eigen::Vector3d(contact.x(), contact.y(), z) - Eigen::Vector3d(g.center[0], g.center[1], g.center[2]));
+        if (std::pow(local.x() / g.semi_axes[0], 2) + std::pow(local.y() / g.semi_axes[1], 2) +
+                std::pow(local.z() / g.semi_axes[2], 2) <= 1) {
+          inside = true;
+          break;
+        }
+      }
+      if (inside) {
+        expected = z;
+        break;
+      }
+    }
+    EXPECT_NEAR(h, expected, 1.5e-6) << "trial " << trial;
+    EXPECT_NEAR(h, p.amplitude * std::sin(2 * M_PI * contact.x() / p.wavelength), 5e-5) << "trial " << trial;
+  }
+}
+
+TEST(SpectralPeak, FindsASinusoidsFrequencyAndAmplitude) {
+  std::vector<double> x;
+  std::mt19937_64 rng(1);
+  std::normal_distribution<double> noise(0, 0.02);
+  for (int i = 0; i < 1500; ++i) x.push_back(0.3 + 0.1 * std::sin(2 * M_PI * 37.3 * i / 1000.0 + 0.4) + noise(rng));
+  const auto [f, a] = spectral_peak(x, 1000, 2, 490);
+  EXPECT_NEAR(f, 37.3, 0.05);
+  EXPECT_NEAR(a, 0.1, 0.01);
+}
+
+// The targets in small: the peak at v / lambda within 5 %, growing with A, and a plane
+// without relief all but quiet, through the servo step.
+TEST(TextureDrag, ThePeakIsAtSpeedOverWavelengthAndGrowsWithAmplitude) {
+  const RendererSpec proxy = ProxyModelSpec{};
+  const PlayOptions play;
+  const double r = 0.005, v = 0.05;
+  GratingParams g;
+  g.wavelength = 0.002;
+  double last = 0;
+  for (double a : {0.00005, 0.0001, 0.0002}) {
+    g.amplitude = a;
+    const TextureRow row = drag_over_grating(g, proxy, r, v, 1000, play, nullptr);
+    EXPECT_NEAR(row.peak_hz, v / g.wavelength, 0.05 * v / g.wavelength) << "A " << a;
+    EXPECT_GT(row.peak_n, last) << "A " << a;
+    last = row.peak_n;
+  }
+  g.amplitude = 0.0001;
+  const double reference = drag_over_grating(g, proxy, r, v, 1000, play, nullptr).rms_n;
+  g.amplitude = 0;
+  const double flat = drag_over_grating(g, proxy, r, v, 1000, play, nullptr).rms_n;
+  EXPECT_LT(flat, 0.1 * reference);
+  EXPECT_GT(reference, 0.01);  // 0.1 mm of relief at 1000 N/m: about 0.07 N RMS
+}
+
+}  // namespace
+}  // namespace gshaptics
