@@ -442,12 +442,13 @@ PYBIND11_MODULE(gshaptics, m) {
       "normal; face_average: on a clean flat face a compound tool's part averages its shaded normal with the "
       "face's mean thin axis; overhang_falloff: where a disc of the other face overhangs a convex edge and "
       "blocks the tool beside it, the shaded normal leaves out that face's discs behind the face under the tool; "
+      "materials: a material map (JSON, as --materials; docs/usage.md) read under the proxy; "
       "f_max clamps its output (default: none, as "
       "in a runtime the safety layer limits the force). One per device; not thread-safe.")
       .def(py::init([](const PyWorld& w, double stiffness, double damping, double mu_s, double mu_k,
                        double f_max, bool opacity_stiffness, double isolation_gap, bool energy_bound,
                        std::size_t floater_cluster, bool near_lists, double device_shading, bool corner_normal,
-                       bool face_average, bool overhang_falloff) {
+                       bool face_average, bool overhang_falloff, const std::optional<std::string>& materials) {
              ProxyParams p;
              p.overhang_falloff = overhang_falloff;
              p.device_shading = device_shading;
@@ -462,7 +463,9 @@ PYBIND11_MODULE(gshaptics, m) {
              p.mu_s = mu_s;
              p.mu_k = mu_k;
              p.opacity_stiffness = opacity_stiffness;
-             return PyProxy{w.world, std::make_unique<ProxyRenderer>(*w.world, p, f_max), {}};
+             PyProxy out{w.world, std::make_unique<ProxyRenderer>(*w.world, p, f_max), {}};
+             if (materials) out.proxy->set_materials(MaterialField::resolve(MaterialMap::load(*materials), *w.world, p));
+             return out;
            }),
            py::arg("world"), py::arg("stiffness") = ProxyParams{}.stiffness,
            py::arg("damping") = ProxyParams{}.damping, py::arg("mu_s") = 0.0, py::arg("mu_k") = 0.0,
@@ -472,7 +475,7 @@ PYBIND11_MODULE(gshaptics, m) {
            py::arg("device_shading") = ProxyParams{}.device_shading,
            py::arg("corner_normal") = ProxyParams{}.corner_normal,
            py::arg("face_average") = ProxyParams{}.face_average,
-           py::arg("overhang_falloff") = ProxyParams{}.overhang_falloff)
+           py::arg("overhang_falloff") = ProxyParams{}.overhang_falloff, py::arg("materials") = py::none())
       .def("render", [](PyProxy& p, const py::object& center, const py::object& axes, const py::object& velocity,
                         double dt) {
              if (!(dt > 0)) throw py::value_error("dt: must be > 0 seconds");
@@ -533,6 +536,23 @@ PYBIND11_MODULE(gshaptics, m) {
            "file) and part.")
       .def_property_readonly("proxy", [](const PyProxy& p) { return Eigen::Vector3d(p.proxy->proxy_position()); },
                              "proxy centre (3,), m, world frame")
+      .def_property_readonly(
+          "material",
+          [](const PyProxy& p) {
+            const MaterialBlend& b = p.proxy->material();
+            py::dict d;
+            d["name"] = p.proxy->materials() ? std::string(p.proxy->materials()->name(b.dominant)) : std::string("default");
+            d["stiffness"] = b.stiffness;
+            d["damping"] = b.damping;
+            d["mu_s"] = b.mu_s;
+            d["mu_k"] = b.mu_k;
+            d["viscosity"] = b.viscosity;
+            d["texture_gain"] = b.texture_gain;
+            return d;
+          },
+          "The material under the proxy at the last tick in contact (materials=PATH: the map's blend; "
+          "force/material.h): name (the largest share), stiffness N/m, damping N s/m, mu_s, mu_k, viscosity "
+          "N s/m, texture_gain")
       .def_property_readonly("normal", [](const PyProxy& p) { return Eigen::Vector3d(p.proxy->contact_normal()); },
                              "shaded contact normal (3,) of the last contact")
       .def_property_readonly("sticking", [](const PyProxy& p) { return p.proxy->sticking(); })

@@ -336,6 +336,27 @@ class Simulate(unittest.TestCase):
             "--near-lists", "off", "--opacity-stiffness")
         self.assertEqual(load_json(os.path.join(out, "summary.json"))["tool"]["spec"], "stylus:0.06,0.005")
 
+    def test_materials_from_synth_run_and_bad_maps_are_named(self):
+        d = tempfile.mkdtemp()
+        plane, mp = os.path.join(d, "plane.ply"), os.path.join(d, "two.json")
+        out = run("synth", "plane", plane, "--two-materials", mp).stdout
+        self.assertIn("materials  " + mp, out)
+        self.assertEqual([m["name"] for m in load_json(mp)["materials"]], ["soft", "hard"])
+        grating = os.path.join(d, "grating.ply")
+        self.assertIn("grating of wavelength 2 mm", run("synth", "grating", grating, "--grating", "2,0.1").stdout)
+        run("simulate", plane, "--sites", "1", "--out", d, "--quiet", "--no-plot", "--materials", mp)
+        self.assertEqual(load_json(os.path.join(d, "summary.json"))["renderer"], "proxy")
+        bad = os.path.join(d, "bad.json")
+        with open(bad, "w") as f:
+            f.write('{"materials": [{"name": "a"}], "regions": [{"material": "b", "indices": [1]}]}')
+        p = run("simulate", plane, "--sites", "1", "--quiet", "--no-plot", "--materials", bad, check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn(bad + ": regions[0]: no material named \"b\"", p.stderr)
+        p = run("simulate", "--sites", "1", "--quiet", "--no-plot", "--materials", mp, "--tool", "stylus:0.06,0.005",
+                check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--materials serves one-part tools only", p.stderr)
+
     def test_corner_normal_is_an_option_of_the_proxy(self):
         self.assertIn("--corner-normal", run("fidelity", "--help").stdout)
         bad = run("fidelity", "--quick", "--no-plot", "--corner-normal", "maybe", check=False)

@@ -308,3 +308,26 @@ def test_compound_tool_on_the_truck_roof_gives_force_torque_and_tagged_contacts(
     tau = np.asarray(out["torque"])
     assert np.linalg.norm(tau) > 0 and abs(np.dot(tau, out["force"])) < 1e-9 * np.linalg.norm(tau) * np.linalg.norm(out["force"]) + 1e-12
     assert np.linalg.norm(tau) <= np.linalg.norm(out["force"]) * stylus.reach * 1.01
+
+
+def test_proxy_reads_a_material_map(data_dir, tmp_path):
+    scene = gshaptics.Scene.load(os.path.join(data_dir, "truck.splat"))
+    world = gshaptics.CollisionWorld(scene, registration=os.path.join(data_dir, "truck.registration.json"))
+    stiff = tmp_path / "roof.json"
+    stiff.write_text(json.dumps({"frame": "world", "materials": [{"name": "roof", "stiffness": 2000.0}],
+                                 "regions": [{"material": "roof", "box": {"min": [-5, -5, -5], "max": [5, 5, 5]}}]}))
+    r = 0.03
+    forces = []
+    for kwargs in ({}, {"materials": str(stiff)}):
+        proxy = gshaptics.ProxyRenderer(world, stiffness=800.0, **kwargs)
+        for k in range(1100):  # from 2 m down to 0.9 m: about 0.1 m past the roof, ~1 m up
+            f = proxy.render((0.0, 0.0, 2.0 - 0.001 * k), (r, r, r), (0.0, 0.0, 0.0), 1e-3)  # (no damping term)
+        forces.append(np.linalg.norm(f))
+        if kwargs:
+            assert proxy.material["name"] == "roof" and proxy.material["stiffness"] == 2000.0
+    assert forces[0] > 2.0
+    np.testing.assert_allclose(forces[1] / forces[0], 2000.0 / 800.0, rtol=0.02)
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"materials": [{"name": "a", "stifness": 1}], "regions": []}')
+    with pytest.raises(gshaptics.InputError, match="bad.json.*unknown key"):
+        gshaptics.ProxyRenderer(world, materials=str(bad))
