@@ -503,6 +503,35 @@ TEST(ViewerState, ContactsEncodeTheWorldGeometry) {
   EXPECT_EQ(j["force"][2], 2.0);
   EXPECT_EQ(j["torque"][0], 0.125);  // the torque sent, about the tool centre point
   EXPECT_EQ(j["torque"][1], -0.25);
+  EXPECT_FALSE(j.contains("material"));  // no map, no material
+}
+
+TEST(ViewerState, TheFrameNamesTheMaterialOfTheContactsAndTheHelloItsRegions) {
+  GaussianScene s;
+  s.push_back({-1.f, 0.f, 0.f}, {0.1f, 0.1f, 0.1f}, {1.f, 0.f, 0.f, 0.f}, 0.3f, 0);
+  s.push_back({1.f, 0.f, 0.f}, {0.1f, 0.1f, 0.1f}, {1.f, 0.f, 0.f, 0.f}, 0.9f, 1);
+  const CollisionWorld world = CollisionWorld::build(s, WorldConfig{});
+  const MaterialMap map = MaterialMap::parse(json::parse(R"({"materials": [{"name": "felt"}, {"name": "steel"}],
+      "regions": [{"material": "felt", "box": {"min": [-2, -1, -1], "max": [0, 1, 1]}},
+                  {"material": "steel", "sphere": {"center": [1, 0, 0], "radius": 0.5}}]})"), "map");
+  const auto field = MaterialField::resolve(map, world, ProxyParams{});
+  ContactSnapshot snap;
+  snap.counts.contacts = 2;
+  snap.shown = 2;
+  snap.record[0] = 0;
+  snap.record[1] = 1;
+  RuntimeStats stats;
+  LatencyHistogram query;
+  const json both = json::parse(ViewerServer::state_json(TickRecord{}, snap, world, stats, query, 1000, field.get()));
+  EXPECT_EQ(both["material"], "steel");  // the more opaque contact's
+  snap.shown = 0;
+  const json none = json::parse(ViewerServer::state_json(TickRecord{}, snap, world, stats, query, 1000, field.get()));
+  EXPECT_EQ(none["material"], "default");
+  const json regions = regions_in_world(map, world);
+  ASSERT_EQ(regions.size(), 2u);
+  EXPECT_EQ(regions[0]["material"], "felt");
+  EXPECT_EQ(regions[0]["box"]["corners"].size(), 8u);
+  EXPECT_EQ(regions[1]["sphere"]["radius"], 0.5);
 }
 
 }  // namespace

@@ -174,9 +174,16 @@ function init(h) {
   $("help").innerHTML = h.mouse
     ? "Drag the blue tool; arrows: view plane, W/S: depth, Q/E: up/down (Shift 5x), U: camera up axis, F: follow on/off, V: felt surface on/off; drag elsewhere orbits."
     : "The device drives the tool. U: camera up axis; F: follow the tool on/off; V: the felt surface on/off; drag orbits.";
+  const regions = materialRegions(h.material_regions || []);
+  root.add(regions);
+  if (h.material_regions) {
+    $("material-row").hidden = false;
+    $("help").innerHTML += " M: the material regions on/off.";
+  }
   addEventListener("keydown", (e) => {
     if (e.key.toLowerCase() === "f") view.follow = !view.follow;
     if (e.key.toLowerCase() === "v") view.showFelt = !view.showFelt;
+    if (e.key.toLowerCase() === "m") regions.visible = !regions.visible;
   });
   renderer.setAnimationLoop((time, frame) => {
     if (frame && view.onXRFrame) view.onXRFrame(frame);
@@ -194,6 +201,28 @@ function init(h) {
       ? "Enter VR (button below): the right controller is the tool and vibrates on contact; left grip drags the world, left trigger resets it."
       : "--device xr: this browser offers no immersive VR session (open the page in a headset's browser).";
   }).catch((e) => showError(`WebXR: ${e.message}`));
+}
+
+// The material map's regions as wireframes (boxes from their 8 world corners, spheres), one
+// colour per material; hidden until M (--materials gives them in the hello).
+function materialRegions(list) {
+  const group = new THREE.Group();
+  group.visible = false;
+  const colours = [0xff7f0e, 0x2ca02c, 0x9467bd, 0x8c564b, 0xe377c2, 0x17becf];
+  const names = [...new Set(list.map((r) => r.material))];
+  const edges = [[0, 1], [2, 3], [4, 5], [6, 7], [0, 2], [1, 3], [4, 6], [5, 7], [0, 4], [1, 5], [2, 6], [3, 7]];
+  for (const r of list) {
+    const material = new THREE.LineBasicMaterial({ color: colours[names.indexOf(r.material) % colours.length] });
+    if (r.box) {
+      const pts = edges.flatMap(([a, b]) => [vec(r.box.corners[a]), vec(r.box.corners[b])]);
+      group.add(new THREE.LineSegments(new THREE.BufferGeometry().setFromPoints(pts), material));
+    } else if (r.sphere) {
+      const s = new THREE.LineSegments(new THREE.WireframeGeometry(new THREE.SphereGeometry(r.sphere.radius, 16, 8)), material);
+      s.position.copy(vec(r.sphere.center));
+      group.add(s);
+    }
+  }
+  return group;
 }
 
 function countFrame() {
@@ -253,6 +282,7 @@ const followDelta = new THREE.Vector3();
 
 function update(m) {
   view.last = m;
+  if (m.material !== undefined) $("material").textContent = m.material;
   const c = vec(m.tool.center);
   view.tool.position.copy(c);
   // Follow: the orbit centre glides to the tool, and the camera moves with it, so the tool stays

@@ -91,6 +91,9 @@ Material parse_material(const json& j, const std::string& source, const std::str
   if (!j.contains("name") || !j["name"].is_string() || j["name"].get<std::string>().empty())
     throw map_error(source, at + ": needs a \"name\"");
   m.name = j["name"].get<std::string>();
+  for (char c : m.name)
+    if (c == '"' || c == '\\' || static_cast<unsigned char>(c) < 0x20)
+      throw map_error(source, at + ": the name may not hold quotes, backslashes or control characters");
   if (j.contains("stiffness")) m.stiffness = number(j, "stiffness", source, at, 0, true);
   if (j.contains("damping")) m.damping = number(j, "damping", source, at, 0);
   if (j.contains("mu_s")) m.mu_s = number(j, "mu_s", source, at, 0);
@@ -319,6 +322,42 @@ MaterialBlend MaterialField::blend(const Weights& w, const Eigen::Vector3d& cont
   b.vibration = v[6] / total;
   b.procedural /= total;
   return b;
+}
+
+int MaterialField::dominant(std::span<const std::uint32_t> slots, const CollisionWorld& world) const noexcept {
+  Weights w{};
+  for (std::uint32_t s : slots)
+    if (s < slot_material_.size()) w[slot_material_[s]] += double(world.gaussians()[s].opacity);
+  int best = 0;
+  for (std::size_t id = 1; id < props_.size(); ++id)
+    if (w[id] > w[std::size_t(best)]) best = int(id);
+  return best;
+}
+
+json regions_in_world(const MaterialMap& map, const CollisionWorld& world) {
+  const SimilarityTransform& t = world.scene_to_world();
+  const bool scene = map.frame == MaterialMap::Frame::kScene;
+  const auto place = [&](const Eigen::Vector3d& x) { return scene ? t.apply(x) : x; };
+  json out = json::array();
+  for (const MaterialRegion& r : map.regions) {
+    json j{{"material", map.materials[r.material].name}};
+    if (r.kind == MaterialRegion::Kind::kBox) {
+      json corners = json::array();
+      for (int c = 0; c < 8; ++c) {
+        const Eigen::Vector3d x = place(Eigen::Vector3d(c & 1 ? r.hi.x() : r.lo.x(), c & 2 ? r.hi.y() : r.lo.y(),
+                                                        c & 4 ? r.hi.z() : r.lo.z()));
+        corners.push_back({x.x(), x.y(), x.z()});
+      }
+      j["box"] = {{"corners", corners}};
+    } else if (r.kind == MaterialRegion::Kind::kSphere) {
+      const Eigen::Vector3d c = place(r.center);
+      j["sphere"] = {{"center", {c.x(), c.y(), c.z()}}, {"radius", r.radius * (scene ? t.scale : 1.0)}};
+    } else {
+      j["indices"] = r.indices.size();
+    }
+    out.push_back(std::move(j));
+  }
+  return out;
 }
 
 bool MaterialField::contact_shares(std::span<const Contact> contacts, Weights& shares) const noexcept {

@@ -55,7 +55,7 @@ std::string spark_file_type(SceneFormat f) {
 
 /// The hello message: everything the page needs once (docs/viewer_protocol.md).
 std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const RuntimeSetup& setup,
-                       double display_hz) {
+                       double display_hz, const MaterialMap* materials) {
   const SimilarityTransform& r = pw.world.scene_to_world();
   std::vector<double> ax[3];
   for (const auto& g : pw.world.gaussians())
@@ -110,6 +110,8 @@ std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const Ru
     const Eigen::Vector3d p = setup.mouse_start;
     j["tool_start"] = {p.x(), p.y(), p.z()};
   }
+  // The material map's regions (the page draws them on request, M).
+  if (materials != nullptr) j["material_regions"] = regions_in_world(*materials, pw.world);
   return j.dump();
 }
 
@@ -159,7 +161,9 @@ int run_serve(ServeOptions o) {
   const PreparedWorld pw = prepare_world(so, o.run.quiet);
   warn_if_outside_profile(pw, o.run.force);
   RuntimeSetup setup = make_runtime_setup(o.run, so, pw, true, std::move(opened));
-  vc.hello_json = hello_json(pw, so, setup, o.display_rate);
+  vc.hello_json = hello_json(pw, so, setup, o.display_rate, o.run.force.materials.get());
+  if (o.run.force.materials && o.run.force.model == RendererKind::kProxy)
+    vc.materials = MaterialField::resolve(*o.run.force.materials, pw.world, o.run.force.proxy);
   vc.repeat_targets = !setup.xr;  // a VR controller that stops reporting must time out
   if (pw.scene.report.format == SceneFormat::kSpz && pw.scene.report.version >= 4) {
     // The page's splat renderer (Spark 2.2) reads SPZ as one gzip stream only: re-pack v4.

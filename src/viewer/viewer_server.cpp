@@ -46,7 +46,7 @@ void append_vec(std::string& s, const Eigen::Vector3d& v, int digits = 5) {
 
 std::string ViewerServer::state_json(const TickRecord& tick, const ContactSnapshot& contacts,
                                      const CollisionWorld& world, const RuntimeStats& stats,
-                                     const LatencyHistogram& query, double rate_hz) {
+                                     const LatencyHistogram& query, double rate_hz, const MaterialField* materials) {
   // Built by hand: this runs 30-60 times a second with up to 2048 contacts.
   std::string s;
   s.reserve(200 + std::size_t(contacts.shown) * 110);
@@ -92,7 +92,12 @@ std::string ViewerServer::state_json(const TickRecord& tick, const ContactSnapsh
                      double(c.semi_axes[0]), double(c.semi_axes[1]), double(c.semi_axes[2]), qc.w(),
                      qc.x(), qc.y(), qc.z());
   }
-  s += "]}";
+  s += "]";
+  // The material the shown contacts are mostly made of (by opacity).
+  if (materials != nullptr)
+    s += fmt::format(",\"material\":\"{}\"",
+                     materials->name(materials->dominant({contacts.record.data(), contacts.shown}, world)));
+  s += "}";
   return s;
 }
 
@@ -431,7 +436,8 @@ void ViewerServer::Impl::tick_display() {
   if (runtime.latest_tick(tick)) {
     contacts.take(snapshot);
     auto frame = std::make_shared<const std::string>(ViewerServer::state_json(
-        tick, snapshot, world, runtime.stats(), runtime.worker().latency(), runtime.config().rate_hz));
+        tick, snapshot, world, runtime.stats(), runtime.worker().latency(), runtime.config().rate_hz,
+        config.materials.get()));
     stats.frames_built.fetch_add(1);
     for (auto it = sessions.begin(); it != sessions.end();) {
       if (auto s = it->lock()) {

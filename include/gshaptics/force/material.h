@@ -88,6 +88,12 @@ struct MaterialRegion {
   std::vector<std::uint32_t> indices;                ///< kIndices: Gaussians of the file
 };
 
+/// The map's regions in the world frame of `world`, for a viewer: [{"material": name, "box":
+/// {"corners": 8 points}} | {"material", "sphere": {"center", "radius"}} | {"material",
+/// "indices": count}] (a scene-frame box becomes the 8 corners of its registered image).
+struct MaterialMap;
+[[nodiscard]] nlohmann::json regions_in_world(const MaterialMap& map, const CollisionWorld& world);
+
 /// A parsed material map (the JSON above).
 struct MaterialMap {
   enum class Frame { kScene, kWorld };
@@ -142,6 +148,8 @@ class MaterialField {
   /// The properties of materials mixed by `w` (any non-negative weights; the proxy's own when all
   /// are 0), their procedural reliefs read at `contact` (NaN: not read). No allocation.
   [[nodiscard]] MaterialBlend blend(const Weights& w, const Eigen::Vector3d& contact) const noexcept;
+  /// The material (id) with the largest opacity among the world slots `slots` (0 when none).
+  [[nodiscard]] int dominant(std::span<const std::uint32_t> slots, const CollisionWorld& world) const noexcept;
   /// True when some material has a texture (a gain above 0).
   [[nodiscard]] bool textured() const noexcept { return textured_; }
   /// The material of world slot `slot`: 0 the proxy's own, m + 1 the map's m-th.

@@ -24,6 +24,7 @@
 #include "gshaptics/viewer/viewer_security.h"
 
 #include "gshaptics/collision/collision_world.h"
+#include "gshaptics/force/material.h"
 #include "gshaptics/net/contact_snapshot.h"
 #include "gshaptics/servo/haptic_runtime.h"
 #include "gshaptics/device/stream_device.h"
@@ -48,6 +49,9 @@ struct ViewerConfig {
   /// compared in constant time. `gshaptics serve` makes one off loopback.
   std::string token;
   ViewerLimits limits;
+  /// With a material map (--materials): each state frame names the material of the shown
+  /// contacts ("material"); the hello carries the map's regions (serve_session).
+  std::shared_ptr<const MaterialField> materials;
   /// While a page is connected, re-send the steered device's last target at the display rate
   /// (the mouse device: a page busy rendering still holds the tool). false for a tracked device
   /// (a VR controller): when its page stops reporting, the device times out and the force fades.
@@ -98,7 +102,8 @@ class ViewerServer {
   /// The state frame for a tick record and a contact snapshot (exposed for tests).
   [[nodiscard]] static std::string state_json(const TickRecord& tick, const ContactSnapshot& contacts,
                                               const CollisionWorld& world, const RuntimeStats& stats,
-                                              const LatencyHistogram& query, double rate_hz);
+                                              const LatencyHistogram& query, double rate_hz,
+                                              const MaterialField* materials = nullptr);
 
   struct Impl;
 
