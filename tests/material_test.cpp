@@ -12,6 +12,7 @@
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/error.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/force/compound_proxy.h"
 #include "gshaptics/force/material.h"
 #include "gshaptics/force/proxy_renderer.h"
 
@@ -216,16 +217,40 @@ TEST(MaterialProxy, CrossingABorderNeverStepsTheForce) {
   }
 }
 
-TEST(MaterialProxy, RefusedWhereItIsNotReadYet) {
+TEST(MaterialProxy, RefusedOnTheSeenSurface) {
   const CollisionWorld world = plane_world();
   const auto field = MaterialField::resolve(MaterialMap::parse(two_materials(), "map"), world, ProxyParams{});
   ProxyParams seen;
   seen.surface = ProxySurface::kSeen;
   ProxyRenderer on_seen(world, seen);
   EXPECT_THROW(on_seen.set_materials(field), InputError);
-  ProxyRenderer proxy(world, ProxyParams{});
-  proxy.set_materials(field);
-  EXPECT_THROW(proxy.set_tool(parse_tool_spec("stylus:0.1,0.004")), InputError);
+}
+
+// A stylus (the compound proxy) pressed tip-first into each side feels that side's stiffness: the
+// force's slope between 4 and 8 mm of travel past the touch (the same path on both sides, so the
+// discs' jitter cancels in the slope).
+TEST(MaterialProxy, AStylusFeelsEachSidesStiffness) {
+  const CollisionWorld world = plane_world();
+  const auto field = MaterialField::resolve(MaterialMap::parse(two_materials(), "map"), world, ProxyParams{});
+  const CompoundTool stylus = parse_tool_spec("stylus:0.06,0.004");
+  // The stylus points up from its tip (the TCP): identity orientation, the tip lowered onto z = 0.
+  for (const auto& [x, k] : {std::pair{-0.04, 600.0}, std::pair{0.04, 1500.0}}) {
+    CompoundProxy proxy(world, stylus, ProxyParams{});
+    proxy.set_materials(field);
+    double f4 = 0, f8 = 0, touch = NAN;
+    for (int i = 0; i <= 1500; ++i) {
+      const double z = 0.006 - 1e-5 * i;  // 6 mm above the plane to 9 mm below
+      const RenderOutput o = proxy.render(Eigen::Vector3d(x, 0.001, z), Eigen::Quaterniond::Identity(),
+                                          Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 1e-3);
+      if (std::isnan(touch) && o.force.norm() > 0) touch = z;
+      if (!std::isnan(touch) && std::abs(touch - z - 0.004) < 5e-6) f4 = o.force.norm();
+      if (!std::isnan(touch) && std::abs(touch - z - 0.008) < 5e-6) f8 = o.force.norm();
+    }
+    ASSERT_FALSE(std::isnan(touch)) << "x " << x;
+    EXPECT_NEAR((f8 - f4) / 0.004, k, 0.05 * k) << "x " << x;
+    ASSERT_NE(proxy.material(), nullptr);
+    EXPECT_NEAR(proxy.material()->stiffness, k, 1e-9);
+  }
 }
 
 }  // namespace

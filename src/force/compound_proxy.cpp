@@ -36,6 +36,7 @@ CompoundProxy::CompoundProxy(const CollisionWorld& world, const CompoundTool& to
         return q;
       }()),
       coupling_(params_, f_max),
+      f_max_(f_max),
       edge_(world) {
   if (!(f_max > 0)) throw InputError("compound proxy: f_max must be > 0 N");
   friction_ = FrictionCone(params_.mu_s, params_.mu_k);
@@ -84,7 +85,12 @@ bool CompoundProxy::blocked(const Eigen::Vector3d& position, const Eigen::Quater
 }
 
 
+void CompoundProxy::set_materials(std::shared_ptr<const MaterialField> field) {
+  follower_ = field ? std::make_unique<MaterialFollower>(std::move(field), params_) : nullptr;
+}
+
 void CompoundProxy::release() noexcept {
+  if (follower_) follower_->release();
   in_contact_ = false;
   coupling_.release();
   normal_.setZero();
@@ -396,8 +402,17 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
       return out;
     }
     if (!(n.dot(e) > 0)) n = spring;
+    // (With materials: those of the Gaussians holding the proxy, and the texture under the
+    // touching parts' contact point.)
+    const Eigen::Vector3d contact = weight > 0 ? Eigen::Vector3d(x_ + moment / weight) : Eigen::Vector3d(x_ - min_axis_ * n);
+    if (follower_) {
+      const MaterialBlend& b = follower_->update(x_, n, min_axis_, contact, blockers());
+      coupling_.set_gains(b.stiffness, b.damping);
+      friction_.set_coefficients(b.mu_s, b.mu_k);
+    }
     out.force = coupling_.force_at_depth(coupling_.bounded_depth(e, n), e, n, velocity, dt, blockers(), fr,
-                                         params_.mu_k);  // with friction
+                                         follower_ ? follower_->blend().mu_k : params_.mu_k);  // with friction
+    if (follower_) out.force = follower_->add_forces(*world_, out.force, contact, n, velocity, min_axis_, f_max_);
     if (weight > 0) out.torque = (moment / weight).cross(out.force);
     in_contact_ = true;
     normal_ = n;

@@ -54,7 +54,7 @@ float default_min_opacity(const RendererSpec& spec) noexcept {
 
 RendererSpec renderer_spec_for(const RendererSpec& spec, ProxyTool tool) {
   if (const auto* proxy = std::get_if<ProxyModelSpec>(&spec))
-    return ProxyModelSpec{proxy_params_for(proxy->params, tool), tool == ProxyTool::kOnePart ? proxy->materials : nullptr};
+    return ProxyModelSpec{proxy_params_for(proxy->params, tool), proxy->materials};
   return spec;
 }
 

@@ -369,6 +369,58 @@ bool MaterialField::contact_shares(std::span<const Contact> contacts, Weights& s
   return true;
 }
 
+MaterialFollower::MaterialFollower(std::shared_ptr<const MaterialField> field, const ProxyParams& base)
+    : field_(std::move(field)) {
+  blend_.stiffness = base.stiffness;
+  blend_.damping = base.damping;
+  blend_.mu_s = base.mu_s;
+  blend_.mu_k = base.mu_k;
+}
+
+void MaterialFollower::release() noexcept {
+  started_ = false;
+  texture_.release();
+}
+
+const MaterialBlend& MaterialFollower::update(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double radius,
+                                              const Eigen::Vector3d& contact, std::span<const Contact> blockers) noexcept {
+  MaterialField::Weights target;  // (only the first material_count() entries are read)
+  const std::size_t count = field_->material_count();
+  double held = 0;  // how much of the shares a material holds (0: none yet)
+  for (std::size_t id = 0; id < count; ++id) held += shares_[id];
+  if (field_->contact_shares(blockers, target)) {
+    if (!started_ || !(held > 0)) {
+      for (std::size_t id = 0; id < count; ++id) shares_[id] = target[id];
+    } else {
+      // Followed along the path: a slide of ds moves the shares 1 - exp(-ds / R) of the way.
+      const Eigen::Vector3d step = p - at_;
+      const double a = 1 - std::exp(-(step - step.dot(n) * n).norm() / radius);
+      for (std::size_t id = 0; id < count; ++id) shares_[id] += a * (target[id] - shares_[id]);
+    }
+  } else if (!started_) {
+    for (std::size_t id = 0; id < count; ++id) shares_[id] = 0;  // the proxy's own until a Gaussian holds it
+  }
+  started_ = true;
+  at_ = p;
+  blend_ = field_->blend(shares_, contact);
+  return blend_;
+}
+
+Eigen::Vector3d MaterialFollower::add_forces(const CollisionWorld& world, Eigen::Vector3d f, const Eigen::Vector3d& contact,
+                                             const Eigen::Vector3d& n, const Eigen::Vector3d& velocity, double radius,
+                                             double f_max) noexcept {
+  if (blend_.viscosity > 0) f -= blend_.viscosity * (velocity - velocity.dot(n) * n);
+  if (blend_.texture_gain > 0) {
+    f += texture_.force(world, contact, n, radius, blend_.stiffness, blend_.texture_gain, blend_.procedural);
+    const double fn = f.dot(n);
+    if (fn < 0) f -= fn * n;  // the relief never pulls the tool in
+  } else {
+    texture_.release();
+  }
+  if (f.norm() > f_max) f *= f_max / f.norm();
+  return f;
+}
+
 std::string_view MaterialField::name(int id) const noexcept {
   return id >= 0 && std::size_t(id) < names_.size() ? std::string_view(names_[std::size_t(id)]) : std::string_view("?");
 }

@@ -26,70 +26,41 @@ ProxyRenderer::ProxyRenderer(const CollisionWorld& world, const ProxyParams& par
       normals_(world, params_),
       friction_(params_.mu_s, params_.mu_k),
       coupling_(params_, f_max),
-      seen_(params_.surface == ProxySurface::kSeen ? std::make_unique<SeenProxy>(world, params_, f_max) : nullptr) {}
+      seen_(params_.surface == ProxySurface::kSeen ? std::make_unique<SeenProxy>(world, params_, f_max) : nullptr) {
+  own_material_.stiffness = params_.stiffness;
+  own_material_.damping = params_.damping;
+  own_material_.mu_s = params_.mu_s;
+  own_material_.mu_k = params_.mu_k;
+}
 
 void ProxyRenderer::set_tool(const CompoundTool& tool) {
   tool.validate("proxy: tool");
   const bool single = tool.is_single_at_tcp();
-  if (!single && materials_)
-    throw InputError("proxy: tool: a material map (--materials) serves one-part tools only, for now");
   check_proxy_params_apply(params_, single ? ProxyTool::kOnePart : ProxyTool::kCompound, "proxy: tool");
   if (single) {
     compound_.reset();
     return;
   }
   compound_ = std::make_unique<CompoundProxy>(*world_, tool, params_, f_max_);
+  if (follower_) compound_->set_materials(follower_->shared_field());
 }
 
 void ProxyRenderer::set_materials(std::shared_ptr<const MaterialField> field) {
   if (field && seen_) throw InputError("proxy: a material map (--materials) is read on the ellipsoids only, for now (not with --surface seen)");
-  if (field && compound_) throw InputError("proxy: a material map (--materials) serves one-part tools only, for now");
-  materials_ = std::move(field);
-  material_ = {};
-  material_.stiffness = params_.stiffness;
-  material_.damping = params_.damping;
-  material_.mu_s = params_.mu_s;
-  material_.mu_k = params_.mu_k;
+  follower_ = field ? std::make_unique<MaterialFollower>(field, params_) : nullptr;
+  if (compound_) compound_->set_materials(field);
+}
+
+const MaterialBlend& ProxyRenderer::material() const noexcept {
+  if (compound_active_ && compound_->material() != nullptr) return *compound_->material();
+  return follower_ ? follower_->blend() : own_material_;
 }
 
 void ProxyRenderer::apply_material(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double radius,
                                    const Eigen::Vector3d& contact, std::span<const Contact> blockers) noexcept {
-  MaterialField::Weights target;  // (only the first material_count() entries are read)
-  const std::size_t count = materials_->material_count();
-  double held = 0;  // how much of the shares a material holds (0: none yet)
-  for (std::size_t id = 0; id < count; ++id) held += shares_[id];
-  if (materials_->contact_shares(blockers, target)) {
-    if (!material_started_ || !(held > 0)) {
-      for (std::size_t id = 0; id < count; ++id) shares_[id] = target[id];
-    } else {
-      // Followed along the path: a slide of ds moves the shares 1 - exp(-ds / R) of the way.
-      const Eigen::Vector3d step = p - material_at_;
-      const double a = 1 - std::exp(-(step - step.dot(n) * n).norm() / radius);
-      for (std::size_t id = 0; id < count; ++id) shares_[id] += a * (target[id] - shares_[id]);
-    }
-  } else if (!material_started_) {
-    for (std::size_t id = 0; id < count; ++id) shares_[id] = 0;  // the proxy's own until a Gaussian holds it
-  }
-  material_started_ = true;
-  material_at_ = p;
-  material_ = materials_->blend(shares_, contact);
-  coupling_.set_gains(material_.stiffness, material_.damping);
-  friction_.set_coefficients(material_.mu_s, material_.mu_k);
-}
-
-Eigen::Vector3d ProxyRenderer::add_material_forces(Eigen::Vector3d f, const Eigen::Vector3d& contact,
-                                                  const Eigen::Vector3d& n, const Eigen::Vector3d& velocity,
-                                                  double radius) noexcept {
-  if (material_.viscosity > 0) f -= material_.viscosity * (velocity - velocity.dot(n) * n);
-  if (material_.texture_gain > 0) {
-    f += texture_.force(*world_, contact, n, radius, material_.stiffness, material_.texture_gain, material_.procedural);
-    const double fn = f.dot(n);
-    if (fn < 0) f -= fn * n;  // the relief never pulls the tool in
-  } else {
-    texture_.release();
-  }
-  if (f.norm() > f_max_) f *= f_max_ / f.norm();
-  return f;
+  const MaterialBlend& b = follower_->update(p, n, radius, contact, blockers);
+  coupling_.set_gains(b.stiffness, b.damping);
+  friction_.set_coefficients(b.mu_s, b.mu_k);
 }
 
 RenderOutput ProxyRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
@@ -108,8 +79,7 @@ RenderOutput ProxyRenderer::render_compound(std::span<const ToolEllipsoid> parts
 void ProxyRenderer::leave_contact() noexcept {
   friction_.reset();
   coupling_.release();
-  texture_.release();
-  material_started_ = false;
+  if (follower_) follower_->release();
   in_contact_ = sticking_ = false;
 }
 
@@ -213,7 +183,7 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   // (With a material map, the properties under the proxy: stiffness, damping and friction from
   // this tick on, and a viscous drag on the device's tangential velocity.)
   Eigen::Vector3d contact = p;  // where the tool meets the surface (with materials: their reliefs are read there)
-  if (materials_) {
+  if (follower_) {
     ToolEllipsoid at = tool;
     at.center = p;
     contact = at.surface_point(-n);
@@ -221,8 +191,8 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   }
   Eigen::Vector3d spring = e;
   spring -= (e.dot(n) - coupling_.bounded_depth(e, n)) * n;
-  out.force = coupling_.force(spring, n, velocity, dt, blockers, fr, materials_ ? material_.mu_k : params_.mu_k);
-  if (materials_) out.force = add_material_forces(out.force, contact, n, velocity, r);
+  out.force = coupling_.force(spring, n, velocity, dt, blockers, fr, follower_ ? follower_->blend().mu_k : params_.mu_k);
+  if (follower_) out.force = follower_->add_forces(*world_, out.force, contact, n, velocity, r, f_max_);
   return out;
 }
 

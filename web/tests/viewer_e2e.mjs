@@ -9,6 +9,7 @@
 // Every wait is bounded by wall time; the whole test must finish within BUDGET_MS.
 
 import { spawnSync } from "node:child_process";
+import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 import { checkServeAndLog, fail, finish, openPage, setup, startServe, waitFor } from "./harness.mjs";
 
@@ -23,8 +24,14 @@ if (synth.status !== 0) {
   process.exit(1);
 }
 
+// A material map: the sphere's upper half is "skin" (the HUD names it under the tool).
+const materials = join(outDir, "materials.json");
+writeFileSync(materials, JSON.stringify({ materials: [{ name: "skin", stiffness: 800 }],
+  regions: [{ material: "skin", box: { min: [-1, -1, 0], max: [1, 1, 1] } }] }));
+
 // A stylus (four parts, tip at the tool centre point, pointing up): the page draws every part.
-const serve = startServe(exe, [scene, "--up", "z-up", "--tool", "stylus:0.04,0.008", "--port", "0", "--quiet", "--no-plot", "--out", outDir]);
+const serve = startServe(exe, [scene, "--up", "z-up", "--tool", "stylus:0.04,0.008", "--materials", materials,
+  "--port", "0", "--quiet", "--no-plot", "--out", outDir]);
 const { server, out, exited } = serve;
 
 let browser;
@@ -70,12 +77,15 @@ try {
     tool: window.gshaptics.last.tool.center,
     felt: document.body.dataset.felt, feltNormal: (document.body.dataset.feltNormal || "").split(",").map(Number),
     feltAt: window.gshaptics.felt.position.toArray(), proxy: window.gshaptics.last.proxy.center,
+    material: document.getElementById("material").textContent, materialRow: !document.getElementById("material-row").hidden,
   }));
   console.log(`page shows ${shown.contacts} contacts, |F| = ${shown.force} N, rate ${shown.rate}, ${shown.drawn} drawn`);
   if (!(shown.contacts > 0)) fail("contacts counter is not > 0");
   if (!(shown.force > 0)) fail("force is not > 0");
   if (!(shown.drawn > 0)) fail("no colliding Gaussian is drawn");
   if (!(shown.tool[2] < start[2])) fail("the tool did not move down");
+  console.log(`HUD material: ${shown.material}`);
+  if (!shown.materialRow || shown.material !== "skin") fail(`the HUD does not name the material under the tool: '${shown.material}'`);
   // The felt surface is drawn where the sphere of Gaussians is (radius 0.1 m about the origin,
   // within the discs' thickness), facing out of it (the tool pressed down on its top).
   console.log(`felt surface shown ${shown.felt}, normal ${shown.feltNormal}, at ${shown.feltAt.map((x) => x.toFixed(3))}`);

@@ -58,12 +58,14 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <limits>
+#include <memory>
 
 #include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/collision/sweep_query.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/force/floater_rule.h"
 #include "gshaptics/force/friction_cone.h"
+#include "gshaptics/force/material.h"
 #include "gshaptics/force/shaded_normal.h"
 #include "gshaptics/force/proxy_params.h"
 #include "gshaptics/force/proxy_solver.h"
@@ -87,6 +89,12 @@ class CompoundProxy {
   RenderOutput render(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
                       const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity, double dt) noexcept;
   void reset() noexcept;
+  /// Materials by region (force/material.h), read as the one-part proxy reads them
+  /// (MaterialFollower): its contacts' materials along its path over the smallest semi-axis, and
+  /// the texture under the touching parts' contact point. nullptr: none.
+  void set_materials(std::shared_ptr<const MaterialField> field);
+  /// The blend at the last tick in contact; nullptr without a field.
+  [[nodiscard]] const MaterialBlend* material() const noexcept { return follower_ ? &follower_->blend() : nullptr; }
   /// The Gaussians holding the proxy (at most three), Contact::part naming the part.
   [[nodiscard]] std::span<const Contact> blockers() const noexcept { return {blockers_.data(), n_blockers_}; }
   [[nodiscard]] const Eigen::Vector3d& position() const noexcept { return x_; }
@@ -152,6 +160,8 @@ class CompoundProxy {
     work_.exact += sweep_.counts().exact;
   }
   double min_axis_ = 0, reach_ = 0, largest_ = 0;
+  double f_max_ = std::numeric_limits<double>::infinity();
+  std::unique_ptr<MaterialFollower> follower_;  // set_materials (nullptr: none)
   std::array<ShadedNormalCache, kMaxToolParts> shades_{};  // each part's last shaded normal
   ShadingScratch shading_scratch_;  // the parts' readings' working memory
   EdgeNormal edge_;  // each part's normal at a clean convex edge, with its cache

@@ -179,4 +179,39 @@ class MaterialField {
   std::vector<std::size_t> counts_;
 };
 
+/// A proxy's materials along its path (ProxyRenderer, CompoundProxy): each tick in contact the
+/// shares of the Gaussians holding it (MaterialField::contact_shares) are the target, and the
+/// shares move toward it by 1 - exp(-ds / R) for a tangential slide ds of the proxy, R the tool's
+/// scale; the first contact takes the target as it is. Also the forces a material adds: a
+/// viscous drag on the device's tangential velocity and the texture (force/texture.h).
+/// Threading: one thread; update() and add_forces() allocate, lock, log and throw nothing.
+class MaterialFollower {
+ public:
+  /// `field` must not be null; `base`: the proxy's own parameters (the blend before any contact).
+  MaterialFollower(std::shared_ptr<const MaterialField> field, const ProxyParams& base);
+  /// One tick in contact: the proxy at `p` (world, m) with contact normal `n` (unit), held by
+  /// `blockers`; `radius` the tool's scale (m); the procedural reliefs read at `contact`.
+  const MaterialBlend& update(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double radius,
+                              const Eigen::Vector3d& contact, std::span<const Contact> blockers) noexcept;
+  /// The coupling force `f` (N) with the material's viscous drag on `velocity` (m/s, the
+  /// device's) and its texture at `contact` along `n` added; the normal force stays >= 0 and
+  /// |F| <= f_max.
+  [[nodiscard]] Eigen::Vector3d add_forces(const CollisionWorld& world, Eigen::Vector3d f, const Eigen::Vector3d& contact,
+                                           const Eigen::Vector3d& n, const Eigen::Vector3d& velocity, double radius,
+                                           double f_max) noexcept;
+  /// Out of contact: the next contact starts from its own contacts' shares.
+  void release() noexcept;
+  [[nodiscard]] const MaterialBlend& blend() const noexcept { return blend_; }
+  [[nodiscard]] const MaterialField& field() const noexcept { return *field_; }
+  [[nodiscard]] const std::shared_ptr<const MaterialField>& shared_field() const noexcept { return field_; }
+
+ private:
+  std::shared_ptr<const MaterialField> field_;
+  MaterialBlend blend_;
+  MaterialField::Weights shares_{};
+  Eigen::Vector3d at_ = Eigen::Vector3d::Zero();
+  bool started_ = false;
+  TextureState texture_;
+};
+
 }  // namespace gshaptics

@@ -105,25 +105,21 @@ class ProxyRenderer final : public ForceRenderer {
   /// Materials by region (force/material.h), resolved on this renderer's world: each tick the
   /// coupling's stiffness and damping, the friction cone's coefficients and the viscous drag are
   /// the blend under the proxy (MaterialField::at); nullptr: the ProxyParams' own everywhere.
-  /// One-part tools on the ellipsoids only: throws InputError with the seen surface, and
-  /// set_tool() refuses a compound tool while a field is set.
+  /// The ellipsoids only: throws InputError with the seen surface. A compound tool (set_tool)
+  /// reads the same field.
   void set_materials(std::shared_ptr<const MaterialField> field);
   /// The blend under the proxy at the last tick in contact (the ProxyParams' own without a field):
   /// the materials of the Gaussians holding it (MaterialField::contact_shares), followed along
-  /// its path over one tool radius (force/material.h).
-  [[nodiscard]] const MaterialBlend& material() const noexcept { return material_; }
-  [[nodiscard]] const MaterialField* materials() const noexcept { return materials_.get(); }
+  /// its path over one tool radius (MaterialFollower).
+  [[nodiscard]] const MaterialBlend& material() const noexcept;
+  [[nodiscard]] const MaterialField* materials() const noexcept { return follower_ ? &follower_->field() : nullptr; }
 
  private:
   // The materials of the Gaussians holding the proxy at `p` (`blockers`), followed along its path
-  // (MaterialField's shares), applied to the coupling and the friction cone; the procedural
-  // reliefs read at `contact`.
+  // (MaterialFollower), applied to the coupling and the friction cone; the procedural reliefs
+  // read at `contact`.
   void apply_material(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double radius, const Eigen::Vector3d& contact,
                       std::span<const Contact> blockers) noexcept;
-  // The material's viscous drag and texture on top of the coupling's force `f` (N) at the
-  // proxy's contact point `contact` with normal `n`; the normal force stays >= 0 and |F| <= f_max.
-  Eigen::Vector3d add_material_forces(Eigen::Vector3d f, const Eigen::Vector3d& contact, const Eigen::Vector3d& n,
-                                      const Eigen::Vector3d& velocity, double radius) noexcept;
   // The device's new pose: the proxy is placed anew where the device jumped (teleport) or turned
   // into geometry. Returns the device's step since the last tick, m.
   Eigen::Vector3d follow_device(const ToolEllipsoid& tool) noexcept;
@@ -153,12 +149,8 @@ class ProxyRenderer final : public ForceRenderer {
   std::unique_ptr<CompoundProxy> compound_;  // a tool with a shape (set_tool)
   std::unique_ptr<SeenProxy> seen_;          // ProxySurface::kSeen: the proxy on the seen solid
   bool compound_active_ = false;             // the last tick was the compound proxy's
-  std::shared_ptr<const MaterialField> materials_;  // set_materials (nullptr: none)
-  MaterialBlend material_;
-  MaterialField::Weights shares_{};  // the materials' shares under the proxy, followed along its path
-  Eigen::Vector3d material_at_ = Eigen::Vector3d::Zero();  // where the shares were last moved
-  bool material_started_ = false;   // false: the next contact takes its contacts' shares as they are
-  TextureState texture_;
+  std::unique_ptr<MaterialFollower> follower_;  // set_materials (nullptr: none)
+  MaterialBlend own_material_;                  // the ProxyParams' own, as a blend
 };
 
 }  // namespace gshaptics

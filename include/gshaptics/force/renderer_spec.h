@@ -63,8 +63,7 @@ struct RendererName {
 /// The named model with its default parameters. Throws InputError as renderer_kind().
 [[nodiscard]] RendererSpec renderer_spec(std::string_view name);
 /// The proxy's parameters for `tool` (proxy_params_for(): the fields that do not serve it at
-/// their defaults; no material map for a compound tool, which it does not serve yet); the paper
-/// model as it is.
+/// their defaults); the paper model as it is.
 [[nodiscard]] RendererSpec renderer_spec_for(const RendererSpec& spec, ProxyTool tool);
 /// The renderer `spec` names, on `world`; `query` configures the paper model's contact query.
 /// Throws InputError for invalid parameters (what the renderer's constructor throws).
