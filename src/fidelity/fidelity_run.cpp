@@ -266,8 +266,13 @@ void run_material_plane(const FidelityOptions& o, double spacing, const Collisio
 void run_texture_cases(const FidelityOptions& o, FidelityReport& rep, const FidelityProgressFn& progress) {
   if (o.grating_wavelengths.empty() || o.drag_speeds.empty()) return;
   if (progress) progress("gratings: texture drags");
-  const RendererSpec spec = renderer_spec_for(o.renderer, ProxyTool::kOnePart);
-  for (double radius : o.tool_radii)
+  // Every tool radius's sphere, then the stylus (its tip standing where the smallest sphere's
+  // lowest point was).
+  const CompoundTool& stylus = o.wrench_tools.stylus;
+  for (std::size_t t = 0; t <= o.tool_radii.size(); ++t) {
+    const bool with_stylus = t == o.tool_radii.size();
+    const double radius = with_stylus ? *std::min_element(o.tool_radii.begin(), o.tool_radii.end()) : o.tool_radii[t];
+    const RendererSpec spec = renderer_spec_for(o.renderer, with_stylus ? ProxyTool::kCompound : ProxyTool::kOnePart);
     for (double lambda : o.grating_wavelengths) {
       std::vector<double> amplitudes = o.grating_amplitudes;
       if (std::abs(lambda - 0.002) < 1e-9) amplitudes.insert(amplitudes.begin(), 0.0);  // the plane without relief
@@ -276,9 +281,11 @@ void run_texture_cases(const FidelityOptions& o, FidelityReport& rep, const Fide
           GratingParams g;
           g.wavelength = lambda;
           g.amplitude = a;
-          rep.texture.push_back(drag_over_grating(g, spec, radius, v, o.rate_hz, o.play, &rep.ticks));
+          rep.texture.push_back(
+              drag_over_grating(g, spec, radius, v, o.rate_hz, o.play, &rep.ticks, with_stylus ? &stylus : nullptr));
         }
     }
+  }
 }
 
 }  // namespace
@@ -608,8 +615,8 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
     md += "## Texture (gratings dragged 2 mm deep at constant speed; the proxy with texture gain 1)\n\n"
           "Gratings: the plane with the relief A sin(2 pi x / lambda), Gaussians every lambda / 8 across the ridges "
           "(`gshaptics synth grating --grating LAMBDA_MM,A_MM`), built in memory; the plane without relief is drawn the "
-          "same way with A = 0 (lambda 2 mm). The sphere tool drags 6 cm along x, 2 mm past the mean plane (2 N at "
-          "1000 N/m). Scored: the normal force F_z over the middle 3 cm. Peak: the strongest sinusoid between 2 and 490 Hz "
+          "same way with A = 0 (lambda 2 mm). The sphere tools, then the stylus held upright (its tip, the TCP, "
+          "where the smallest sphere's lowest point was), drag 6 cm along x, 2 mm past the mean plane (2 N at 1000 N/m). Scored: the normal force F_z over the middle 3 cm. Peak: the strongest sinusoid between 2 and 490 Hz "
           "(Hann window); held when it lies within 5 % of v / lambda and grows with A. The plane without relief holds "
           "when its RMS is under 10 % of the lambda 2 mm, A 0.1 mm grating's at the same speed and tool.\n\n";
     md += texture_table(rep.texture) + "\n";

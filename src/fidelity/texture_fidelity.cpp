@@ -100,7 +100,7 @@ std::pair<double, double> spectral_peak(const std::vector<double>& signal, doubl
 }
 
 TextureRow drag_over_grating(const GratingParams& g, const RendererSpec& spec, double tool_radius, double speed,
-                             double rate_hz, const PlayOptions& play, std::size_t* ticks) {
+                             double rate_hz, const PlayOptions& play, std::size_t* ticks, const CompoundTool* stylus) {
   const auto* proxy = std::get_if<ProxyModelSpec>(&spec);
   if (!proxy || proxy->params.surface != ProxySurface::kEllipsoids)
     throw InputError("fidelity: texture is read by the proxy on the ellipsoids only, for now");
@@ -108,7 +108,11 @@ TextureRow drag_over_grating(const GratingParams& g, const RendererSpec& spec, d
   ProxyModelSpec with = *proxy;
   with.materials = std::make_shared<const MaterialMap>(textured_everywhere_map());
   const auto renderer = make_force_renderer(with, world);
-  const Script s = slide_script(AnalyticShape(ShapeKind::kPlane), tool_radius, rate_hz, kDepth, kDragLength, speed);
+  Script s = slide_script(AnalyticShape(ShapeKind::kPlane), tool_radius, rate_hz, kDepth, kDragLength, speed);
+  if (stylus != nullptr) {  // the tip (the TCP) where the sphere's lowest point was
+    s.tool = *stylus;
+    for (ScriptTick& t : s.ticks) t.position.z() -= tool_radius;
+  }
   const ScriptTrace tr = play_script(*renderer, s, rate_hz, play);
   if (ticks) *ticks += s.ticks.size();
   std::vector<double> fz, us;
@@ -122,7 +126,8 @@ TextureRow drag_over_grating(const GratingParams& g, const RendererSpec& spec, d
   r.wavelength = g.wavelength;
   r.amplitude = g.amplitude;
   r.speed = speed;
-  r.tool_radius = tool_radius;
+  r.tool_radius = stylus != nullptr ? 0.0 : tool_radius;
+  r.stylus = stylus != nullptr;
   r.expected_hz = speed / g.wavelength;
   const auto [f, a] = spectral_peak(fz, rate_hz, 2.0, std::min(490.0, 0.49 * rate_hz));
   r.peak_hz = f;
@@ -143,7 +148,7 @@ std::string texture_table(const std::vector<TextureRow>& rows) {
     if (std::abs(r.wavelength - 0.002) < 1e-9 && std::abs(r.amplitude - 0.0001) < 1e-9)
       reference_rms[{r.tool_radius, r.speed}] = r.rms_n;
   std::string t =
-      "| tool mm | lambda mm | A mm | v mm/s | v / lambda Hz | peak Hz | peak off | peak N | RMS N | grows with A | "
+      "| tool (mm) | lambda mm | A mm | v mm/s | v / lambda Hz | peak Hz | peak off | peak N | RMS N | grows with A | "
       "tick us p99 | held |\n|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---|\n";
   for (const TextureRow& r : rows) {
     std::string grows = "-", verdict;
@@ -151,12 +156,14 @@ std::string texture_table(const std::vector<TextureRow>& rows) {
       // The next smaller amplitude at the same wavelength and speed, if any.
       double below = -1;
       for (const TextureRow& q : rows)
-        if (q.wavelength == r.wavelength && q.speed == r.speed && q.tool_radius == r.tool_radius && q.amplitude > 0 && q.amplitude < r.amplitude &&
+        if (q.wavelength == r.wavelength && q.speed == r.speed && q.tool_radius == r.tool_radius && q.stylus == r.stylus &&
+            q.amplitude > 0 && q.amplitude < r.amplitude &&
             (below < 0 || q.amplitude > below))
           below = q.amplitude;
       bool up = true;
       for (const TextureRow& q : rows)
-        if (q.wavelength == r.wavelength && q.speed == r.speed && q.tool_radius == r.tool_radius && q.amplitude == below)
+        if (q.wavelength == r.wavelength && q.speed == r.speed && q.tool_radius == r.tool_radius && q.stylus == r.stylus &&
+            q.amplitude == below)
           up = r.peak_n > q.peak_n;
       grows = below < 0 ? "(smallest)" : up ? "yes" : "**no**";
       const bool on_peak = std::abs(r.peak_hz / r.expected_hz - 1) <= 0.05;
@@ -167,8 +174,9 @@ std::string texture_table(const std::vector<TextureRow>& rows) {
       verdict = ref == reference_rms.end() ? "-" : quiet ? fmt::format("yes ({:.0f} % of the reference)", 100 * r.rms_n / ref->second)
                                                         : "**no**";
     }
-    t += fmt::format("| {:g} | {:g} | {:g} | {:g} | {:.1f} | {:.2f} | {} | {:.4f} | {:.4f} | {} | {:.1f} | {} |\n",
-                     r.tool_radius * 1e3, r.wavelength * 1e3, r.amplitude * 1e3, r.speed * 1e3, r.expected_hz, r.peak_hz,
+    t += fmt::format("| {} | {:g} | {:g} | {:g} | {:.1f} | {:.2f} | {} | {:.4f} | {:.4f} | {} | {:.1f} | {} |\n",
+                     r.stylus ? std::string("stylus") : fmt::format("sphere {:g}", r.tool_radius * 1e3), r.wavelength * 1e3,
+                     r.amplitude * 1e3, r.speed * 1e3, r.expected_hz, r.peak_hz,
                      r.amplitude > 0 ? fmt::format("{:+.1f} %", 100 * (r.peak_hz / r.expected_hz - 1)) : "-", r.peak_n,
                      r.rms_n, grows, r.tick_p99_us, verdict);
   }

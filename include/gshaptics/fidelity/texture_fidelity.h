@@ -39,7 +39,8 @@ struct GratingParams {
 /// One drag over one grating.
 struct TextureRow {
   double wavelength = 0, amplitude = 0, speed = 0;  ///< m, m, m/s (amplitude 0: the plain plane)
-  double tool_radius = 0;   ///< m
+  double tool_radius = 0;   ///< m (the sphere's; 0 for the stylus)
+  bool stylus = false;      ///< dragged with the stylus (FidelityOptions::wrench_tools.stylus)
   double expected_hz = 0;   ///< v / lambda
   double peak_hz = 0;       ///< the normal force's spectral peak (1-490 Hz)
   double peak_n = 0;        ///< the amplitude of the sinusoid at the peak, N
@@ -55,9 +56,12 @@ struct TextureRow {
 
 /// Drags the sphere of `tool_radius` 2 mm deep at `speed` over the grating `g` (a world built with
 /// the default WorldConfig) with the proxy `spec` reading textured_everywhere_map(); the scored
-/// stretch leaves out the first 2 cm and the last 1 cm of the 6 cm drag.
+/// stretch leaves out the first 2 cm and the last 1 cm of the 6 cm drag. With `stylus` (a
+/// compound tool whose tip is its TCP, held upright), the stylus instead, its tip 2 mm deep
+/// (`tool_radius` is then only the row's label).
 [[nodiscard]] TextureRow drag_over_grating(const GratingParams& g, const RendererSpec& spec, double tool_radius,
-                                           double speed, double rate_hz, const PlayOptions& play, std::size_t* ticks);
+                                           double speed, double rate_hz, const PlayOptions& play, std::size_t* ticks,
+                                           const CompoundTool* stylus = nullptr);
 
 /// The Markdown table with the verdicts: the peak within 5 % of v / lambda; the amplitude growing
 /// with A (per lambda and v); the plain plane's RMS under 10 % of the lambda 2 mm, A 0.1 mm
