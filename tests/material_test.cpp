@@ -73,6 +73,47 @@ TEST(MaterialMap, RefusesWhatIsWrongNamingTheFile) {
   EXPECT_THROW((void)MaterialMap::load(path), InputError);
 }
 
+// A corrupt map never escapes as anything but InputError: every value of a valid map replaced,
+// one at a time, by values of every JSON type (and out-of-range numbers).
+TEST(MaterialMap, AnyValueAnywhereIsRefusedWithInputErrorOrTaken) {
+  const nlohmann::json base = nlohmann::json::parse(R"({"frame": "scene",
+    "materials": [{"name": "a", "stiffness": 10, "damping": 1, "mu_s": 0.5, "mu_k": 0.4, "viscosity": 1,
+                   "texture_gain": 1, "vibration": 0, "texture": {"grating": {"wavelength": 0.001, "amplitude": 0.0001,
+                   "direction": [1, 0, 0]}}},
+                  {"name": "b", "texture": {"noise": {"amplitude": 0.001, "wavelength_min": 0.001, "wavelength_max": 0.002,
+                   "seed": 3}}}],
+    "regions": [{"material": "a", "box": {"min": [0, 0, 0], "max": [1, 1, 1]}},
+                {"material": "b", "sphere": {"center": [0, 0, 0], "radius": 1}},
+                {"material": "a", "indices": [1, 2, 3]}]})");
+  const std::vector<nlohmann::json> values = {
+      nullptr, true, -1, 0, 1e300, -1e300, 4294967296ull, 18446744073709551615ull, "x", "", nlohmann::json::array(),
+      nlohmann::json::array({1, 2}), nlohmann::json::array({"a", nullptr, 3}), nlohmann::json::object(),
+      nlohmann::json::parse(R"({"min": 1})")};
+  int tried = 0;
+  const nlohmann::json flat_base = base.flatten();  // (items() of a temporary would dangle)
+  for (const auto& item : flat_base.items()) {
+    for (const nlohmann::json& v : values) {
+      nlohmann::json flat = flat_base;
+      flat[item.key()] = v;
+      nlohmann::json j;
+      try {
+        j = flat.unflatten();
+      } catch (const nlohmann::json::exception&) {
+        continue;  // (a value that cannot stand there in JSON at all)
+      }
+      ++tried;
+      try {
+        (void)MaterialMap::parse(j, "map.json");
+      } catch (const InputError& e) {
+        EXPECT_EQ(std::string(e.what()).rfind("map.json", 0), 0u) << item.key();
+      } catch (const std::exception& e) {
+        ADD_FAILURE() << item.key() << " = " << v.dump() << ": " << e.what();
+      }
+    }
+  }
+  EXPECT_GT(tried, 300);
+}
+
 TEST(MaterialField, RegionsClaimTheGaussiansAndALeftOutPropertyIsTheProxysOwn) {
   const CollisionWorld world = plane_world();
   nlohmann::json j = two_materials();

@@ -136,7 +136,8 @@ MaterialRegion parse_region(const json& j, const std::map<std::string, std::size
     if (!ix.is_array()) throw map_error(source, at + ".indices must be an array of Gaussian indices");
     r.kind = MaterialRegion::Kind::kIndices;
     for (const json& i : ix) {
-      if (!i.is_number_unsigned()) throw map_error(source, at + ".indices must hold non-negative integers");
+      if (!i.is_number_unsigned() || i.get<std::uint64_t>() > 0xffffffffull)
+        throw map_error(source, at + ".indices must hold non-negative integers below 2^32");
       r.indices.push_back(i.get<std::uint32_t>());
     }
     std::sort(r.indices.begin(), r.indices.end());
