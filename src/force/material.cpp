@@ -15,7 +15,7 @@ namespace gshaptics {
 
 namespace {
 
-constexpr std::size_t kMaxMaterials = 254;  // ids 1..254 in a byte; 0 is the proxy's own
+constexpr std::size_t kMaxMaterials = MaterialField::kMaxIds - 1;  // ids 1..254 in a byte; 0 is the proxy's own
 
 
 using nlohmann::json;
