@@ -11,9 +11,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "gshaptics/error.h"
 #include "gshaptics/servo/haptic_runtime.h"
@@ -442,20 +444,44 @@ TEST(OpenHapticsDevice, A33NewtonTouchIsNeverCommandedAboveItsLimitsWhateverFMax
   EXPECT_GT(fake.peak_force(), 0.5) << "no contact force: the test does not test the limit";
   EXPECT_LE(fake.peak_force(), 3.3 + 1e-9);
   EXPECT_GT(s.continuous_limited_ticks, 0u);
-  // The RMS over the window, recomputed from the commanded forces, stays at the continuous force.
+  // The RMS over the window, recomputed from the commanded forces, stays at the continuous force,
+  // and no tick exceeds what the budget left allows: f_max while under 80 % of it, tapering to
+  // the continuous force as it is used up (safety.cpp). Above the continuous force is allowed
+  // only on budget saved earlier: on a busy machine a late worker result fades the force, the
+  // budget recovers, and the force may come back above 0.88 N for a while (CI saw 0.89 N).
+  const double budget = 0.88 * 0.88;
   double heat = 0, worst = 0, t_prev = 0;
   for (const TickRecord& r : run.records) {
+    const double cap = 0.88 + (3.3 - 0.88) * std::clamp((budget - heat) / (0.2 * budget), 0.0, 1.0);
+    EXPECT_LE(r.force.norm(), cap * 1.01 + 1e-3) << "t " << r.time << " flags " << r.flags;
     const double a = -std::expm1(-std::max(r.time - t_prev, 1e-4) / window);
     t_prev = r.time;
     heat += (r.force.squaredNorm() - heat) * a;
     worst = std::max(worst, heat);
   }
   EXPECT_LE(std::sqrt(worst), 0.88 * 1.01);
-  // A sustained push settles at the continuous force (from above, as the budget fills): the
-  // last 0.3 s within 1 % of 0.88 N.
+  // A sustained push settles at the continuous force (from above, as the budget fills): every
+  // tick of the last 0.3 s within 1 % of 0.88 N. Only ticks of a sustained push count: on a
+  // busy machine the device watchdog or a late worker result may zero or fade the force (a
+  // safety-layer gate, then a soft start), which spends less than the budget, so the force is
+  // allowed above 0.88 N for a while after it; those ticks and 50 ms after them (three time
+  // constants of the taper) are left to the per-tick bound above.
   const auto& rec = run.records;
   ASSERT_GT(rec.size(), 400u);
-  for (std::size_t i = rec.size() - 300; i < rec.size(); ++i) ASSERT_LE(rec[i].force.norm(), 0.88 * 1.01) << i;
+  constexpr std::uint32_t kDisturbed = kFlagWatchdog | kFlagFading | kFlagFaded | kFlagNoResult |
+                                       kFlagRamping | kFlagInvalidPose | kFlagOutsideWorkspace;
+  double settled_from = rec[rec.size() - 300].time;
+  for (const TickRecord& r : rec)
+    if ((r.flags & kDisturbed) != 0) settled_from = std::max(settled_from, r.time + 0.05);
+  std::size_t sustained = 0;
+  for (const TickRecord& r : rec) {
+    if (r.time < settled_from) continue;
+    ++sustained;
+    EXPECT_LE(r.force.norm(), 0.88 * 1.01) << "t " << r.time << " flags " << r.flags;
+    if ((r.flags & kFlagStopping) == 0) EXPECT_GE(r.force.norm(), 0.88 * 0.99) << "t " << r.time;
+  }
+  if (sustained < 100)
+    std::printf("note: only %zu ticks of sustained push at the end (machine busy): settle not judged\n", sustained);
   EXPECT_EQ(fake.force(), Eigen::Vector3d::Zero());  // the run ended with a zero-force frame
 }
 
