@@ -49,6 +49,8 @@ TEST(MaterialMap, RefusesWhatIsWrongNamingTheFile) {
   EXPECT_NE(error_of(R"({"materials": [{"name": "a", "stifness": 3}], "regions": []})").find("unknown key \"stifness\""),
             std::string::npos);
   EXPECT_NE(error_of(R"({"materials": [{"stiffness": 3}], "regions": []})").find("needs a \"name\""), std::string::npos);
+  EXPECT_NE(error_of(R"({"materials": [{"name": "a", "vibration": 1.5}], "regions": []})").find("a level in [0, 1]"),
+            std::string::npos);
   EXPECT_NE(error_of(R"({"materials": [{"name": "a", "stiffness": 0}], "regions": []})").find("\"stiffness\" must be > 0"),
             std::string::npos);
   EXPECT_NE(error_of(R"({"materials": [{"name": "a"}], "regions": [{"material": "b", "indices": [1]}]})")

@@ -5,9 +5,11 @@
 
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/fidelity/texture_fidelity.h"
+#include "gshaptics/force/material.h"
 #include "gshaptics/force/texture.h"
 
 namespace gshaptics {
@@ -104,6 +106,50 @@ TEST(TextureDrag, ThePeakIsAtSpeedOverWavelengthAndGrowsWithAmplitude) {
   const double flat = drag_over_grating(g, proxy, r, v, 1000, play, nullptr).rms_n;
   EXPECT_LT(flat, 0.1 * reference);
   EXPECT_GT(reference, 0.01);  // 0.1 mm of relief at 1000 N/m: about 0.07 N RMS
+}
+
+
+// Friction modulated by the relief (MaterialFollower::add_forces): while sliding, the tangential
+// force changes by -mu_k times the relief's normal force, against the slide; at rest it does not;
+// and texture_rms() is the texture force's RMS over its 20 ms window.
+TEST(TextureFriction, FrictionFollowsTheReliefsNormalForceWhileSliding) {
+  GratingParams g;
+  g.wavelength = 0.002;
+  g.amplitude = 1e-4;
+  g.length = 0.04;
+  const CollisionWorld world = CollisionWorld::build(make_grating_scene(g), WorldConfig{});
+  MaterialMap map = textured_everywhere_map();
+  map.materials[0].mu_s = 0.6;
+  map.materials[0].mu_k = 0.4;
+  ProxyParams base;
+  MaterialFollower follower(MaterialField::resolve(map, world, base), base);
+  const double r = 0.005, dt = 0.001, f_max = 30;
+  const Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+  std::vector<Contact> held(1);  // a Gaussian of the grating holds the proxy (all are textured)
+  held[0].opacity = 0.9f;
+  double ms = 0, swing = 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    const double v = pass == 0 ? 0.05 : 0.0;  // sliding at 50 mm/s, then pressed at rest
+    for (int i = 0; i < 300; ++i) {
+      const Eigen::Vector3d contact(-0.01 + (pass == 0 ? v * dt * i : 0.004 * std::sin(i * 0.1)), 0.001, 0);
+      const Eigen::Vector3d coupling(-0.4 * 2.0, 0, 2.0);  // 2 N pressed, sliding friction along -x
+      follower.update(contact + r * n, n, r, contact, held);
+      const Eigen::Vector3d f = follower.add_forces(world, coupling, contact, n, Eigen::Vector3d(v, 0, 0), r, f_max, dt);
+      const Eigen::Vector3d added = f - coupling;
+      if (pass == 0) {
+        EXPECT_NEAR(added.x(), -0.4 * added.z(), 1e-12) << i;  // Coulomb: mu_k of the relief's normal force
+        swing = std::max(swing, std::abs(added.z()));
+      } else {
+        EXPECT_EQ(added.x(), 0.0) << i;  // at rest: no tangential buzz
+      }
+      EXPECT_EQ(added.y(), 0.0);
+      ms += (added.squaredNorm() - ms) * -std::expm1(-dt / MaterialFollower::kVibrationWindow);
+      EXPECT_NEAR(follower.texture_rms(), std::sqrt(ms), 1e-9) << pass << " " << i;
+    }
+  }
+  EXPECT_GT(swing, 0.02);  // the relief was felt: 0.1 mm at 1000 N/m, gain 1
+  follower.release();
+  EXPECT_EQ(follower.texture_rms(), 0.0);
 }
 
 }  // namespace

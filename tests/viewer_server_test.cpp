@@ -524,6 +524,14 @@ TEST(ViewerState, TheFrameNamesTheMaterialOfTheContactsAndTheHelloItsRegions) {
   LatencyHistogram query;
   const json both = json::parse(ViewerServer::state_json(TickRecord{}, snap, world, stats, query, 1000, field.get()));
   EXPECT_EQ(both["material"], "steel");  // the more opaque contact's
+  // What the VR controller plays: the tick's texture RMS and material level.
+  TickRecord textured;
+  textured.texture_rms = 0.125f;
+  textured.vibration = 0.5f;
+  const json buzz = json::parse(ViewerServer::state_json(textured, snap, world, stats, query, 1000, field.get()));
+  EXPECT_DOUBLE_EQ(buzz["vibration"]["texture_rms"].get<double>(), 0.125);
+  EXPECT_DOUBLE_EQ(buzz["vibration"]["level"].get<double>(), 0.5);
+  EXPECT_FALSE(json::parse(ViewerServer::state_json(textured, snap, world, stats, query, 1000, nullptr)).contains("vibration"));
   snap.shown = 0;
   const json none = json::parse(ViewerServer::state_json(TickRecord{}, snap, world, stats, query, 1000, field.get()));
   EXPECT_EQ(none["material"], "default");

@@ -19,12 +19,32 @@ import { VRButton } from "three/addons/webxr/VRButton.js";
 /// vibration on the finger), so that light contacts stay perceptible. Contact onset adds one
 /// full-intensity pulse of 40 ms (a "click", after Kuchenbecker et al., "Improving contact
 /// realism through event-based haptic feedback", IEEE TVCG 2006).
-export const VIBRATION = { fMin: 0.05, fullFraction: 1 / 3, exponent: 0.6, onsetValue: 1.0, onsetMs: 40 };
+///
+/// Texture and material (`serve --materials`): a state frame's "vibration" carries the texture
+/// force's RMS over the last 20 ms and the material's vibration level (force/material.h). The
+/// relief's own frequencies (v / lambda, 10-100 Hz and more) lie above the display rate the
+/// actuator takes pulses at, and a controller's actuator plays one carrier, so texture reaches
+/// the hand as its envelope: an intensity that rises with the relief and the speed of the slide,
+///   v_texture = min(1, rms / textureFull) ^ 0.6     (textureFull 0.5 N: a strong relief)
+/// added to the contact's v and the material's level (sum clipped to 1).
+export const VIBRATION = { fMin: 0.05, fullFraction: 1 / 3, exponent: 0.6, onsetValue: 1.0, onsetMs: 40, textureFull: 0.5 };
 
 export function vibrationFor(forceN, fMax) {
   if (!(forceN > VIBRATION.fMin)) return 0;
   const full = Math.max(VIBRATION.fMin * 2, fMax * VIBRATION.fullFraction);
   return Math.pow(Math.min(1, forceN / full), VIBRATION.exponent);
+}
+
+/// The pulse intensity of a state frame in contact: the force's (vibrationFor), the texture's
+/// envelope and the material's level, summed and clipped to [0, 1]. `vibration`: the frame's
+/// "vibration" object (absent without a material map).
+export function contactVibration(forceN, fMax, vibration) {
+  const v = vibrationFor(forceN, fMax);
+  if (!(v > 0) || !vibration) return v;
+  const rms = Number(vibration.texture_rms) || 0;
+  const texture = rms > 0 ? Math.pow(Math.min(1, rms / VIBRATION.textureFull), VIBRATION.exponent) : 0;
+  const level = Math.min(1, Math.max(0, Number(vibration.level) || 0));
+  return Math.min(1, v + texture + level);
 }
 
 /// Quality presets for a standalone headset: the render's pixel scale (WebXR framebuffer scale
@@ -180,9 +200,9 @@ export function vibrate(view, m, forceN) {
       pulse(xr, VIBRATION.onsetValue, VIBRATION.onsetMs, "onset");
       xr.vibrating = true;
     }
-    const v = vibrationFor(forceN, view.hello.f_max);
+    const v = contactVibration(forceN, view.hello.f_max, m.vibration);
     if (v > 0) {
-      pulse(xr, v, 1.5 * 1000 / view.hello.display_hz, "force");
+      pulse(xr, v, 1.5 * 1000 / view.hello.display_hz, m.vibration ? "material" : "force");
       xr.vibrating = true;
     } else {
       stopVibration(xr, "stop");

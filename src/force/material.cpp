@@ -100,7 +100,10 @@ Material parse_material(const json& j, const std::string& source, const std::str
   if (j.contains("mu_k")) m.mu_k = number(j, "mu_k", source, at, 0);
   if (j.contains("viscosity")) m.viscosity = number(j, "viscosity", source, at, 0);
   if (j.contains("texture_gain")) m.texture_gain = number(j, "texture_gain", source, at, 0);
-  if (j.contains("vibration")) m.vibration = number(j, "vibration", source, at, 0);
+  if (j.contains("vibration")) {
+    m.vibration = number(j, "vibration", source, at, 0);
+    if (m.vibration > 1) throw map_error(source, at + ": \"vibration\" is a level in [0, 1]");
+  }
   if (j.contains("texture")) m.texture = parse_texture(j["texture"], source, at + ".texture");
   return m;
 }
@@ -380,6 +383,7 @@ MaterialFollower::MaterialFollower(std::shared_ptr<const MaterialField> field, c
 
 void MaterialFollower::release() noexcept {
   started_ = false;
+  texture_ms_ = 0;
   texture_.release();
 }
 
@@ -409,16 +413,28 @@ const MaterialBlend& MaterialFollower::update(const Eigen::Vector3d& p, const Ei
 
 Eigen::Vector3d MaterialFollower::add_forces(const CollisionWorld& world, Eigen::Vector3d f, const Eigen::Vector3d& contact,
                                              const Eigen::Vector3d& n, const Eigen::Vector3d& velocity, double radius,
-                                             double f_max) noexcept {
-  if (blend_.viscosity > 0) f -= blend_.viscosity * (velocity - velocity.dot(n) * n);
+                                             double f_max, double dt) noexcept {
+  const Eigen::Vector3d v_t = velocity - velocity.dot(n) * n;  // the device's slide
+  if (blend_.viscosity > 0) f -= blend_.viscosity * v_t;
+  Eigen::Vector3d texture = Eigen::Vector3d::Zero();
   if (blend_.texture_gain > 0) {
-    f += texture_.force(world, contact, n, radius, blend_.stiffness, blend_.texture_gain, blend_.procedural);
+    texture = texture_.force(world, contact, n, radius, blend_.stiffness, blend_.texture_gain, blend_.procedural);
+    // Coulomb's law on the relief's normal force: friction follows it while sliding (a bump
+    // pushes up and resists more, a groove less), faded in below kSlideSpeed so that a tool at
+    // rest feels no tangential buzz. It opposes the slide; with the normal force kept >= 0
+    // below, the sum of friction stays opposed to it.
+    const double slide = v_t.norm();
+    if (slide > 0 && blend_.mu_k > 0) texture -= blend_.mu_k * texture.dot(n) * v_t / std::max(slide, kSlideSpeed);
+    f += texture;
     const double fn = f.dot(n);
     if (fn < 0) f -= fn * n;  // the relief never pulls the tool in
   } else {
     texture_.release();
   }
   if (f.norm() > f_max) f *= f_max / f.norm();
+  // The texture's vibration envelope: its mean square force over kVibrationWindow.
+  const double a = dt > 0 ? -std::expm1(-dt / kVibrationWindow) : 1.0;
+  texture_ms_ += (texture.squaredNorm() - texture_ms_) * a;
   return f;
 }
 

@@ -192,7 +192,11 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   Eigen::Vector3d spring = e;
   spring -= (e.dot(n) - coupling_.bounded_depth(e, n)) * n;
   out.force = coupling_.force(spring, n, velocity, dt, blockers, fr, follower_ ? follower_->blend().mu_k : params_.mu_k);
-  if (follower_) out.force = follower_->add_forces(*world_, out.force, contact, n, velocity, r, f_max_);
+  if (follower_) {
+    out.force = follower_->add_forces(*world_, out.force, contact, n, velocity, r, f_max_, dt);
+    out.texture_rms = float(follower_->texture_rms());
+    out.vibration = float(follower_->blend().vibration);
+  }
   return out;
 }
 

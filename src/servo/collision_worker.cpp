@@ -82,6 +82,8 @@ bool CollisionWorker::step(PoseChannel& poses, ResultChannel& results) noexcept 
   r.status = f.status;
   r.proxy = f.proxy;
   r.constraints = f.constraints;
+  r.texture_rms = f.texture_rms;
+  r.vibration = f.vibration;
   const Nanos t1 = wall.now();
   r.done = clock_.now();
   r.query_us = float(double(t1 - t0) * 1e-3);

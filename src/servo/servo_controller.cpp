@@ -259,6 +259,8 @@ void ServoController::record(const TickFacts& t) noexcept {
   r.flags = t.flags;
   r.proxy = result_.pose_sequence != 0 ? result_.proxy : s.position;
   r.constraints = result_.constraints;
+  r.texture_rms = result_.texture_rms;
+  r.vibration = result_.vibration;
   r.energy = passivity_.energy();
   r.damping = float(t.damping);
   r.setpoint = control_.mode == ControlMode::kAdmittance && virtual_tool_ready_ ? admittance_.setpoint().position

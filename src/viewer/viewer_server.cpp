@@ -94,9 +94,12 @@ std::string ViewerServer::state_json(const TickRecord& tick, const ContactSnapsh
   }
   s += "]";
   // The material the shown contacts are mostly made of (by opacity).
+  // With it, what a vibrotactile device (the VR controller) plays: the texture's RMS force and
+  // the material's vibration level (RenderOutput).
   if (materials != nullptr)
-    s += fmt::format(",\"material\":\"{}\"",
-                     materials->name(materials->dominant({contacts.record.data(), contacts.shown}, world)));
+    s += fmt::format(",\"material\":\"{}\",\"vibration\":{{\"texture_rms\":{:.4g},\"level\":{:.3g}}}",
+                     materials->name(materials->dominant({contacts.record.data(), contacts.shown}, world)),
+                     double(tick.texture_rms), double(tick.vibration));
   s += "}";
   return s;
 }

@@ -26,7 +26,7 @@ if (synth.status !== 0) {
 
 // A material map: the sphere's upper half is "skin" (the HUD names it under the tool).
 const materials = join(outDir, "materials.json");
-writeFileSync(materials, JSON.stringify({ materials: [{ name: "skin", stiffness: 800 }],
+writeFileSync(materials, JSON.stringify({ materials: [{ name: "skin", stiffness: 800, vibration: 0.3 }],
   regions: [{ material: "skin", box: { min: [-1, -1, 0], max: [1, 1, 1] } }] }));
 
 // A stylus (four parts, tip at the tool centre point, pointing up): the page draws every part.
@@ -78,6 +78,7 @@ try {
     felt: document.body.dataset.felt, feltNormal: (document.body.dataset.feltNormal || "").split(",").map(Number),
     feltAt: window.gshaptics.felt.position.toArray(), proxy: window.gshaptics.last.proxy.center,
     material: document.getElementById("material").textContent, materialRow: !document.getElementById("material-row").hidden,
+    vibration: window.gshaptics.last.vibration,
   }));
   console.log(`page shows ${shown.contacts} contacts, |F| = ${shown.force} N, rate ${shown.rate}, ${shown.drawn} drawn`);
   if (!(shown.contacts > 0)) fail("contacts counter is not > 0");
@@ -86,6 +87,10 @@ try {
   if (!(shown.tool[2] < start[2])) fail("the tool did not move down");
   console.log(`HUD material: ${shown.material}`);
   if (!shown.materialRow || shown.material !== "skin") fail(`the HUD does not name the material under the tool: '${shown.material}'`);
+  // What a VR controller would play: skin's vibration level, and no texture (it has none).
+  console.log(`vibration: ${JSON.stringify(shown.vibration)}`);
+  if (!shown.vibration || Math.abs(shown.vibration.level - 0.3) > 1e-3 || shown.vibration.texture_rms !== 0)
+    fail(`the state frame does not carry skin's vibration level 0.3 and no texture: ${JSON.stringify(shown.vibration)}`);
   // The felt surface is drawn where the sphere of Gaussians is (radius 0.1 m about the origin,
   // within the discs' thickness), facing out of it (the tool pressed down on its top).
   console.log(`felt surface shown ${shown.felt}, normal ${shown.feltNormal}, at ${shown.feltAt.map((x) => x.toFixed(3))}`);

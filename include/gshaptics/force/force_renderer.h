@@ -34,6 +34,11 @@ struct RenderOutput {
   /// for renderers without a proxy.
   Eigen::Vector3d proxy = Eigen::Vector3d::Zero();
   std::uint8_t constraints = 0;  ///< constraint planes holding the proxy (0..3)
+  /// With a material map (force/material.h): what a vibrotactile device plays. The texture
+  /// force's RMS over the last 20 ms, N (MaterialFollower::texture_rms), and the material's
+  /// vibration level in contact, [0, 1] (Material::vibration, blended); 0 without.
+  float texture_rms = 0;
+  float vibration = 0;
 };
 
 /// The torque about `tcp` (world, m) of `force` (N) applied at the surface point of `tool` that

@@ -46,6 +46,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cmath>
 #include <limits>
 #include <cstdint>
 #include <memory>
@@ -73,7 +74,7 @@ struct Material {
   std::optional<double> mu_k;       ///< 0 <= mu_k <= mu_s
   double viscosity = 0;             ///< N s/m, >= 0: drag on the device's tangential velocity in contact
   double texture_gain = 0;          ///< >= 0: the relief force's gain on k (force/texture.h; 0: no texture)
-  double vibration = 0;             ///< >= 0, for vibrotactile devices (not yet rendered)
+  double vibration = 0;             ///< in [0, 1]: a vibrotactile device's level in contact (RenderOutput::vibration)
   ProceduralTexture texture;        ///< a procedural relief added to the captured one (kind none: none)
 };
 
@@ -194,11 +195,23 @@ class MaterialFollower {
   const MaterialBlend& update(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double radius,
                               const Eigen::Vector3d& contact, std::span<const Contact> blockers) noexcept;
   /// The coupling force `f` (N) with the material's viscous drag on `velocity` (m/s, the
-  /// device's) and its texture at `contact` along `n` added; the normal force stays >= 0 and
-  /// |F| <= f_max.
+  /// device's) and its texture at `contact` added: the relief's force along `n` and the friction
+  /// it modulates, mu_k times that normal force against the device's tangential velocity v_t
+  /// (scaled by |v_t| / max(|v_t|, 5 mm/s): none at rest), as Coulomb's law makes a bump resist
+  /// more and a groove less (the lateral texture forces of Minsky et al. 1990, here from the
+  /// normal force). The normal force stays >= 0 and |F| <= f_max. `dt` (s): the tick, for the
+  /// vibration envelope (texture_rms()).
   [[nodiscard]] Eigen::Vector3d add_forces(const CollisionWorld& world, Eigen::Vector3d f, const Eigen::Vector3d& contact,
                                            const Eigen::Vector3d& n, const Eigen::Vector3d& velocity, double radius,
-                                           double f_max) noexcept;
+                                           double f_max, double dt) noexcept;
+  /// The texture force's RMS over the last kVibrationWindow (exponential window), N: what a
+  /// vibrotactile device (a VR controller) plays as the texture's vibration; 0 out of contact.
+  [[nodiscard]] double texture_rms() const noexcept { return std::sqrt(texture_ms_); }
+  /// The window of texture_rms(), s: about one display frame at 40-60 Hz, the rate a WebXR
+  /// actuator takes pulses at.
+  static constexpr double kVibrationWindow = 0.02;
+  /// Below this tangential speed (m/s) the texture's friction fades out.
+  static constexpr double kSlideSpeed = 0.005;
   /// Out of contact: the next contact starts from its own contacts' shares.
   void release() noexcept;
   [[nodiscard]] const MaterialBlend& blend() const noexcept { return blend_; }
@@ -212,6 +225,7 @@ class MaterialFollower {
   Eigen::Vector3d at_ = Eigen::Vector3d::Zero();
   bool started_ = false;
   TextureState texture_;
+  double texture_ms_ = 0;  // the texture force's mean square, N^2 (texture_rms)
 };
 
 }  // namespace gshaptics

@@ -46,6 +46,8 @@ struct CollisionResult {
   float query_us = 0;  ///< broad + narrow phase + force model, microseconds
   Eigen::Vector3d proxy = Eigen::Vector3d::Zero();  ///< proxy centre (the pose's own centre without a proxy), m
   std::uint8_t constraints = 0;                     ///< constraint planes holding the proxy
+  float texture_rms = 0;  ///< RenderOutput::texture_rms, N
+  float vibration = 0;    ///< RenderOutput::vibration, [0, 1]
 };
 
 using PoseChannel = TripleBuffer<PoseCommand>;

@@ -34,6 +34,10 @@ struct TickRecord {
   std::uint8_t constraints = 0;                     ///< its constraint planes (0..3)
   double energy = 0;   ///< passivity observer: energy into the environment so far, J (servo/passivity.h)
   float damping = 0;   ///< passivity controller's damping this tick, N s/m
+  /// What a vibrotactile device plays, of the result rendered (RenderOutput): the texture
+  /// force's RMS over 20 ms, N, and the material's vibration level, [0, 1].
+  float texture_rms = 0;
+  float vibration = 0;
   /// Admittance control: the setpoint commanded to the device, m (the virtual tool's position,
   /// servo/admittance.h); the device's position under impedance control.
   Eigen::Vector3d setpoint = Eigen::Vector3d::Zero();
