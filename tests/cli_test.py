@@ -356,6 +356,17 @@ class Simulate(unittest.TestCase):
         run("simulate", plane, "--sites", "1", "--out", d, "--quiet", "--no-plot", "--materials", mp, "--tool",
             "stylus:0.06,0.005")
         self.assertEqual(load_json(os.path.join(d, "summary.json"))["tool"]["spec"], "stylus:0.06,0.005")
+        # Colour regions select on the scene's colours (the bundled Truck): each says how many.
+        colour = os.path.join(d, "colour.json")
+        with open(colour, "w") as f:
+            f.write('{"materials": [{"name": "paint"}, {"name": "dark"}], "regions": ['
+                    '{"material": "paint", "colour": {"rgb": [0.6, 0.3, 0.2], "clusters": 4}},'
+                    '{"material": "dark", "colour": {"rgb": [0.1, 0.1, 0.1], "tolerance": 0.15}}]}')
+        out = run("simulate", "--sites", "1", "--out", d, "--quiet", "--no-plot", "--materials", colour).stdout
+        picked = re.findall(r"materials  regions\[(\d)\] \((\w+)\): colour .* selects (\d+) of (\d+) Gaussians", out)
+        self.assertEqual([(r, m) for r, m, _, _ in picked], [("0", "paint"), ("1", "dark")], out)
+        for _, _, n, total in picked:
+            self.assertTrue(0 < int(n) < int(total), out)
 
     def test_corner_normal_is_an_option_of_the_proxy(self):
         self.assertIn("--corner-normal", run("fidelity", "--help").stdout)

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -86,7 +87,9 @@ TEST(MaterialMap, AnyValueAnywhereIsRefusedWithInputErrorOrTaken) {
                    "seed": 3}}}],
     "regions": [{"material": "a", "box": {"min": [0, 0, 0], "max": [1, 1, 1]}},
                 {"material": "b", "sphere": {"center": [0, 0, 0], "radius": 1}},
-                {"material": "a", "indices": [1, 2, 3]}]})");
+                {"material": "a", "indices": [1, 2, 3]},
+                {"material": "b", "colour": {"rgb": [0.5, 0.2, 0.1], "tolerance": 0.2}},
+                {"material": "a", "colour": {"rgb": [0.1, 0.2, 0.3], "clusters": 4}, "sphere": {"center": [0, 0, 0], "radius": 1}}]})");
   const std::vector<nlohmann::json> values = {
       nullptr, true, -1, 0, 1e300, -1e300, 4294967296ull, 18446744073709551615ull, "x", "", nlohmann::json::array(),
       nlohmann::json::array({1, 2}), nlohmann::json::array({"a", nullptr, 3}), nlohmann::json::object(),
@@ -294,6 +297,74 @@ TEST(MaterialProxy, AStylusFeelsEachSidesStiffness) {
     ASSERT_NE(proxy.material(), nullptr);
     EXPECT_NEAR(proxy.material()->stiffness, k, 1e-9);
   }
+}
+
+
+// Colour regions: the tolerance against a direct test of every Gaussian's colour, k-means
+// clusters picking a whole colour group, a box with a colour holding their intersection, and a
+// map that selects by colour refused until it is resolved on colours.
+TEST(MaterialColour, RegionsSelectTheGaussiansOfAColour) {
+  const std::array<Eigen::Vector3d, 3> groups = {Eigen::Vector3d(0.8, 0.15, 0.1), Eigen::Vector3d(0.2, 0.7, 0.25),
+                                                 Eigen::Vector3d(0.15, 0.2, 0.85)};
+  constexpr double kC0 = 0.28209479177387814;
+  GaussianScene scene;
+  std::vector<Eigen::Vector3d> rgb;
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> pos(-1, 1);
+  std::normal_distribution<double> jitter(0, 0.04);
+  for (int i = 0; i < 900; ++i) {
+    const Eigen::Vector3d c = (groups[std::size_t(i % 3)] + Eigen::Vector3d(jitter(rng), jitter(rng), jitter(rng)))
+                                  .cwiseMax(0.0).cwiseMin(1.0);
+    scene.push_back(Eigen::Vector3f(float(pos(rng)), float(pos(rng)), 0.f), {0.01f, 0.01f, 0.01f}, {1, 0, 0, 0}, 0.9f,
+                    std::uint32_t(1000 + i));
+    scene.colors_dc.push_back(((c.array() - 0.5) / kC0).cast<float>().matrix());
+    rgb.push_back(c);
+  }
+  const MaterialMap map = MaterialMap::parse(nlohmann::json::parse(R"({"materials": [{"name": "red"}, {"name": "blue"},
+      {"name": "green"}],
+      "regions": [{"material": "red", "colour": {"rgb": [0.8, 0.15, 0.1], "tolerance": 0.06}},
+                  {"material": "blue", "colour": {"rgb": [0.1, 0.1, 1.0], "clusters": 3}},
+                  {"material": "green", "colour": {"rgb": [0.2, 0.7, 0.25], "clusters": 3},
+                   "box": {"min": [-2, -2, -1], "max": [0, 2, 1]}}]})"), "map.json");
+  EXPECT_TRUE(map.needs_colours());
+  const CollisionWorld world = CollisionWorld::build(scene, WorldConfig{});
+  EXPECT_THROW((void)MaterialField::resolve(map, world, ProxyParams{}), InputError);
+  std::vector<std::size_t> selected;
+  const MaterialMap resolved = resolve_colour_regions(map, scene, &selected);
+  EXPECT_FALSE(resolved.needs_colours());
+  const auto field = MaterialField::resolve(resolved, world, ProxyParams{});
+  std::size_t by_tolerance = 0;
+  for (std::size_t slot = 0; slot < world.size(); ++slot) {
+    const std::uint32_t i = world.gaussians()[slot].source_index - 1000;
+    const double x = world.gaussians()[slot].center[0];
+    // The last region that holds a Gaussian gives its material (ids: 0 none, 1 red, 2 blue, 3 green).
+    int expected = (rgb[i] - groups[0]).norm() <= 0.06 ? 1 : 0;
+    by_tolerance += expected == 1;
+    if (i % 3 == 2) expected = 2;                 // the blue group is one cluster
+    if (i % 3 == 1 && x <= 0) expected = 3;       // the green group, within the box
+    EXPECT_EQ(int(field->material_of(slot)), expected) << "Gaussian " << i;
+  }
+  EXPECT_EQ(selected[0], by_tolerance);
+  EXPECT_GT(by_tolerance, 50u);
+  EXPECT_LT(by_tolerance, 300u);  // a tight tolerance takes part of the red group only
+  EXPECT_EQ(selected[1], 300u);
+  EXPECT_EQ(selected[2], 300u);
+  // A scene without colour is refused, naming the map.
+  GaussianScene grey = scene;
+  grey.colors_dc.clear();
+  try {
+    (void)resolve_colour_regions(map, grey);
+    ADD_FAILURE() << "a scene without colour was taken";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("map.json", 0), 0u) << e.what();
+    EXPECT_NE(std::string(e.what()).find("no colour"), std::string::npos) << e.what();
+  }
+  EXPECT_NE(error_of(R"({"materials": [{"name": "a"}], "regions": [{"material": "a", "colour": {"rgb": [2, 0, 0]}}]})")
+                .find("must lie in [0, 1]"), std::string::npos);
+  EXPECT_NE(error_of(R"({"materials": [{"name": "a"}], "regions": [{"material": "a", "colour": {"rgb": [1, 0, 0],
+                "clusters": 2.5}}]})").find("whole number"), std::string::npos);
+  EXPECT_NE(error_of(R"({"materials": [{"name": "a"}], "regions": [{"material": "a", "colour": {"rgb": [1, 0, 0]},
+                "indices": [1]}]})").find("exactly one of"), std::string::npos);
 }
 
 }  // namespace

@@ -33,6 +33,7 @@ void register_run(CLI::App& app) {
                        o->device + "'");
     prepare_run_out_dir(*o, so);
     const PreparedWorld pw = prepare_world(so, o->quiet);
+    o->force.materials = with_scene_colours(o->force.materials, so.scene);
     warn_if_outside_profile(pw, o->force);
     RuntimeSetup setup = make_runtime_setup(*o, so, pw, false, std::move(opened));
     if (o->simulated_time) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <set>
 #include <sstream>
@@ -16,6 +17,8 @@ namespace gshaptics {
 namespace {
 
 constexpr std::size_t kMaxMaterials = MaterialField::kMaxIds - 1;  // ids 1..254 in a byte; 0 is the proxy's own
+constexpr int kMaxClusters = 64;         // a colour selector's k-means clusters, at most
+constexpr int kClusterIterations = 50;   // Lloyd's iterations, at most
 
 
 using nlohmann::json;
@@ -108,18 +111,26 @@ Material parse_material(const json& j, const std::string& source, const std::str
   return m;
 }
 
+ColourSelector parse_colour(const json& j, const std::string& source, const std::string& at);
+
 MaterialRegion parse_region(const json& j, const std::map<std::string, std::size_t>& ids, const std::string& source,
                             const std::string& at) {
   if (!j.is_object()) throw map_error(source, at + " must be an object");
-  check_keys(j, {"material", "box", "sphere", "indices"}, source, at);
+  check_keys(j, {"material", "box", "sphere", "indices", "colour", "color"}, source, at);
   if (!j.contains("material") || !j["material"].is_string()) throw map_error(source, at + ": needs a \"material\" name");
   const auto id = ids.find(j["material"].get<std::string>());
   if (id == ids.end()) throw map_error(source, at + ": no material named \"" + j["material"].get<std::string>() + "\"");
   MaterialRegion r;
   r.material = id->second;
+  if (j.contains("colour") && j.contains("color")) throw map_error(source, at + ": \"colour\" and \"color\" both given");
+  if (j.contains("colour") || j.contains("color")) r.colour = parse_colour(j.contains("colour") ? j["colour"] : j["color"], source, at + ".colour");
   const int shapes = int(j.contains("box")) + int(j.contains("sphere")) + int(j.contains("indices"));
-  if (shapes != 1) throw map_error(source, at + ": needs exactly one of \"box\", \"sphere\", \"indices\"");
-  if (j.contains("box")) {
+  if (shapes > 1 || (shapes == 0 && !r.colour) || (r.colour && j.contains("indices")))
+    throw map_error(source, at + ": needs exactly one of \"box\", \"sphere\", \"indices\", \"colour\" (a colour may come "
+                                 "with a box or a sphere)");
+  if (shapes == 0) {
+    r.kind = MaterialRegion::Kind::kColour;
+  } else if (j.contains("box")) {
     const json& b = j["box"];
     if (!b.is_object() || !b.contains("min") || !b.contains("max"))
       throw map_error(source, at + ".box needs \"min\" and \"max\"");
@@ -148,13 +159,84 @@ MaterialRegion parse_region(const json& j, const std::map<std::string, std::size
   return r;
 }
 
+ColourSelector parse_colour(const json& j, const std::string& source, const std::string& at) {
+  if (!j.is_object() || !j.contains("rgb")) throw map_error(source, at + " needs \"rgb\" (3 numbers in [0, 1])");
+  check_keys(j, {"rgb", "tolerance", "clusters"}, source, at);
+  ColourSelector c;
+  c.rgb = vec3(j["rgb"], source, at + ".rgb");
+  if (!((c.rgb.array() >= 0).all() && (c.rgb.array() <= 1).all())) throw map_error(source, at + ".rgb must lie in [0, 1]");
+  if (j.contains("tolerance") && j.contains("clusters"))
+    throw map_error(source, at + ": \"tolerance\" or \"clusters\", not both");
+  if (j.contains("tolerance")) c.tolerance = number(j, "tolerance", source, at, 0, true);
+  if (j.contains("clusters")) {
+    const double k = number(j, "clusters", source, at, 2);
+    if (k != std::floor(k) || k > kMaxClusters)
+      throw map_error(source, at + ": \"clusters\" must be a whole number from 2 to " + std::to_string(kMaxClusters));
+    c.clusters = int(k);
+  }
+  return c;
+}
+
 bool region_holds(const MaterialRegion& r, const Eigen::Vector3d& x, std::uint32_t index) {
+  const auto listed = [&] { return std::binary_search(r.indices.begin(), r.indices.end(), index); };
   switch (r.kind) {
-    case MaterialRegion::Kind::kBox: return (x.array() >= r.lo.array()).all() && (x.array() <= r.hi.array()).all();
-    case MaterialRegion::Kind::kSphere: return (x - r.center).squaredNorm() <= r.radius * r.radius;
-    case MaterialRegion::Kind::kIndices: return std::binary_search(r.indices.begin(), r.indices.end(), index);
+    case MaterialRegion::Kind::kBox:
+      return (x.array() >= r.lo.array()).all() && (x.array() <= r.hi.array()).all() && (!r.colour || listed());
+    case MaterialRegion::Kind::kSphere:
+      return (x - r.center).squaredNorm() <= r.radius * r.radius && (!r.colour || listed());
+    case MaterialRegion::Kind::kIndices:
+    case MaterialRegion::Kind::kColour: return listed();
   }
   return false;
+}
+
+// The base colour a viewer shows head-on (SH band 0), clamped to [0, 1].
+Eigen::Vector3d base_colour(const Eigen::Vector3f& f_dc) {
+  constexpr double kShC0 = 0.28209479177387814;
+  return (0.5 + kShC0 * f_dc.cast<double>().array()).cwiseMax(0.0).cwiseMin(1.0).matrix();
+}
+
+// k-means of `colours` weighted by `weights` into k clusters (Lloyd's iterations from a
+// farthest-point start: the heaviest colour, then each time the colour farthest from the centres
+// chosen): the cluster of each colour.
+std::vector<int> colour_clusters(const std::vector<Eigen::Vector3d>& colours, const std::vector<double>& weights, int k,
+                                 std::vector<Eigen::Vector3d>& centres) {
+  const std::size_t n = colours.size();
+  std::vector<int> of(n, 0);
+  centres.clear();
+  if (n == 0) return of;
+  std::size_t first = std::size_t(std::max_element(weights.begin(), weights.end()) - weights.begin());
+  centres.push_back(colours[first]);
+  std::vector<double> d2(n, std::numeric_limits<double>::infinity());
+  while (int(centres.size()) < k) {
+    std::size_t far = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      d2[i] = std::min(d2[i], (colours[i] - centres.back()).squaredNorm());
+      if (d2[i] > d2[far]) far = i;
+    }
+    if (!(d2[far] > 0)) break;  // fewer distinct colours than clusters
+    centres.push_back(colours[far]);
+  }
+  for (int iteration = 0; iteration < kClusterIterations; ++iteration) {
+    bool moved = false;
+    for (std::size_t i = 0; i < n; ++i) {
+      int best = 0;
+      for (int c = 1; c < int(centres.size()); ++c)
+        if ((colours[i] - centres[std::size_t(c)]).squaredNorm() < (colours[i] - centres[std::size_t(best)]).squaredNorm()) best = c;
+      moved = moved || best != of[i];
+      of[i] = best;
+    }
+    if (!moved && iteration > 0) break;
+    std::vector<Eigen::Vector3d> sum(centres.size(), Eigen::Vector3d::Zero());
+    std::vector<double> w(centres.size(), 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      sum[std::size_t(of[i])] += weights[i] * colours[i];
+      w[std::size_t(of[i])] += weights[i];
+    }
+    for (std::size_t c = 0; c < centres.size(); ++c)
+      if (w[c] > 0) centres[c] = sum[c] / w[c];
+  }
+  return of;
 }
 
 }  // namespace
@@ -195,8 +277,59 @@ MaterialMap MaterialMap::parse(const json& j, const std::string& source) {
   return m;
 }
 
+bool MaterialMap::needs_colours() const noexcept {
+  return std::any_of(regions.begin(), regions.end(), [](const MaterialRegion& r) { return r.colour && !r.colour_resolved; });
+}
+
+MaterialMap resolve_colour_regions(const MaterialMap& map, const GaussianScene& scene, std::vector<std::size_t>* selected) {
+  MaterialMap out = map;
+  if (selected) selected->assign(map.regions.size(), 0);
+  if (!map.needs_colours()) return out;
+  if (scene.colors_dc.size() != scene.size())
+    throw map_error(map.source, "a region selects by colour, and the scene has no colour (f_dc) to select by");
+  std::vector<Eigen::Vector3d> colours(scene.size());
+  std::vector<double> weights(scene.size());
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    colours[i] = base_colour(scene.colors_dc[i]);
+    weights[i] = std::max(double(scene.opacities[i]), 1e-6);
+  }
+  std::map<int, std::pair<std::vector<int>, std::vector<Eigen::Vector3d>>> by_k;  // k-means runs, one per K
+  for (std::size_t r = 0; r < out.regions.size(); ++r) {
+    MaterialRegion& region = out.regions[r];
+    if (!region.colour || region.colour_resolved) continue;
+    const ColourSelector& c = *region.colour;
+    region.indices.clear();
+    if (c.clusters > 0) {
+      auto it = by_k.find(c.clusters);
+      if (it == by_k.end()) {
+        std::vector<Eigen::Vector3d> centres;
+        std::vector<int> of = colour_clusters(colours, weights, c.clusters, centres);
+        it = by_k.emplace(c.clusters, std::make_pair(std::move(of), std::move(centres))).first;
+      }
+      const auto& [of, centres] = it->second;
+      int nearest = 0;
+      for (int k = 1; k < int(centres.size()); ++k)
+        if ((centres[std::size_t(k)] - c.rgb).squaredNorm() < (centres[std::size_t(nearest)] - c.rgb).squaredNorm()) nearest = k;
+      for (std::size_t i = 0; i < scene.size(); ++i)
+        if (of[i] == nearest) region.indices.push_back(scene.source_index[i]);
+    } else {
+      for (std::size_t i = 0; i < scene.size(); ++i)
+        if ((colours[i] - c.rgb).norm() <= c.tolerance) region.indices.push_back(scene.source_index[i]);
+    }
+    std::sort(region.indices.begin(), region.indices.end());
+    region.colour_resolved = true;
+    if (selected) (*selected)[r] = region.indices.size();
+  }
+  return out;
+}
+
 std::shared_ptr<const MaterialField> MaterialField::resolve(const MaterialMap& map, const CollisionWorld& world,
                                                             const ProxyParams& base) {
+  for (std::size_t r = 0; r < map.regions.size(); ++r)
+    if (map.regions[r].colour && !map.regions[r].colour_resolved)
+      throw map_error(map.source, "regions[" + std::to_string(r) + "] selects by colour, which needs the scene's colours: "
+                                  "resolve it on the scene first (resolve_colour_regions; the commands do this with "
+                                  "the scene they load)");
   auto f = std::make_shared<MaterialField>();
   f->names_.push_back("default");
   f->props_.push_back({{base.stiffness, base.damping, base.mu_s, base.mu_k, 0, 0, 0}});
@@ -356,8 +489,12 @@ json regions_in_world(const MaterialMap& map, const CollisionWorld& world) {
     } else if (r.kind == MaterialRegion::Kind::kSphere) {
       const Eigen::Vector3d c = place(r.center);
       j["sphere"] = {{"center", {c.x(), c.y(), c.z()}}, {"radius", r.radius * (scene ? t.scale : 1.0)}};
-    } else {
+    } else if (r.kind == MaterialRegion::Kind::kIndices) {
       j["indices"] = r.indices.size();
+    }
+    if (r.colour) {
+      j["colour"] = {{"rgb", {r.colour->rgb.x(), r.colour->rgb.y(), r.colour->rgb.z()}}};
+      if (r.colour_resolved) j["colour"]["selected"] = r.indices.size();
     }
     out.push_back(std::move(j));
   }

@@ -333,6 +333,7 @@ int run_simulate(SimulateOptions o) {
   const std::string out_dir =
       prepare_out_dir(o.out_dir, so.scene, {"probe_log.csv", "summary.json", "probe_run.png"});
   const PreparedWorld pw = prepare_world(so, o.quiet);
+  o.force.materials = with_scene_colours(o.force.materials, so.scene);
   warn_if_outside_profile(pw, o.force);
   Progress bar("simulating", !o.quiet);
   const ProbeSessionResult probe = simulate_probe(pw.world, o, is_scaled(so), stdout, std::nullopt, [&](double f) { bar(f); });

@@ -159,6 +159,7 @@ int run_serve(ServeOptions o) {
                      "`npm ci --prefix " + vc.web_root + "` (scripts/setup.sh does)");
 
   const PreparedWorld pw = prepare_world(so, o.run.quiet);
+  o.run.force.materials = with_scene_colours(o.run.force.materials, so.scene);
   warn_if_outside_profile(pw, o.run.force);
   RuntimeSetup setup = make_runtime_setup(o.run, so, pw, true, std::move(opened));
   vc.hello_json = hello_json(pw, so, setup, o.display_rate, o.run.force.materials.get());

@@ -430,4 +430,25 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
   return {std::move(s), cfg, br, std::move(world)};
 }
 
+std::shared_ptr<const MaterialMap> with_scene_colours(std::shared_ptr<const MaterialMap> map,
+                                                      const std::string& scene_path, std::FILE* report) {
+  if (!map || !map->needs_colours()) return map;
+  LoadOptions lo;
+  lo.keep_color = true;
+  const LoadedScene s = load_scene(scene_path, lo);
+  std::vector<std::size_t> selected;
+  auto out = std::make_shared<const MaterialMap>(resolve_colour_regions(*map, s.scene, &selected));
+  for (std::size_t r = 0; r < out->regions.size(); ++r) {
+    const MaterialRegion& region = out->regions[r];
+    if (!region.colour) continue;
+    const Eigen::Vector3d& c = region.colour->rgb;
+    fmt::print(report, "materials  regions[{}] ({}): colour [{:.2f}, {:.2f}, {:.2f}] {} selects {} of {} Gaussians\n", r,
+               out->materials[region.material].name, c.x(), c.y(), c.z(),
+               region.colour->clusters > 0 ? fmt::format("(nearest of {} k-means clusters)", region.colour->clusters)
+                                           : fmt::format("(within {:.2f})", region.colour->tolerance),
+               selected[r], s.scene.size());
+  }
+  return out;
+}
+
 }  // namespace gshaptics::session

@@ -13,7 +13,10 @@
 ///                    {"name": "cushion", "stiffness": 300, "damping": 0.5, "viscosity": 2}],
 ///      "regions": [{"material": "wood", "box": {"min": [-1, -1, 0], "max": [1, 1, 0.8]}},
 ///                  {"material": "cushion", "sphere": {"center": [0, 0, 1], "radius": 0.3}},
-///                  {"material": "wood", "indices": [12, 13, 14]}]}
+///                  {"material": "wood", "indices": [12, 13, 14]},
+///                  {"material": "cushion", "colour": {"rgb": [0.8, 0.2, 0.2], "tolerance": 0.15}},
+///                  {"material": "wood", "colour": {"rgb": [0.5, 0.3, 0.1], "clusters": 6},
+///                   "box": {"min": [-1, -1, 0], "max": [1, 1, 0.8]}}]}
 ///
 /// Units: stiffness N/m, damping and viscosity N s/m, friction coefficients dimensionless;
 /// texture_gain scales the relief force (force/texture.h: g k (h - h_bar); 0 by default: none),
@@ -62,6 +65,7 @@
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/force/proxy_params.h"
 #include "gshaptics/force/texture.h"
+#include "gshaptics/io/gaussian_scene.h"
 
 namespace gshaptics {
 
@@ -78,15 +82,31 @@ struct Material {
   ProceduralTexture texture;        ///< a procedural relief added to the captured one (kind none: none)
 };
 
+/// A selection of Gaussians by their base colour (the SH band-0 colour a viewer shows head-on,
+/// rgb = clamp(0.5 + C0 f_dc, 0, 1), C0 = 0.2821): within `tolerance` of `rgb` (Euclidean, in
+/// [0, 1]^3), or, with `clusters` K > 0, the Gaussians of the k-means cluster (K clusters of the
+/// scene's colours, weighted by opacity) whose centre lies nearest `rgb`.
+struct ColourSelector {
+  Eigen::Vector3d rgb = Eigen::Vector3d::Zero();  ///< in [0, 1]
+  double tolerance = 0.1;                         ///< > 0, used without clusters
+  int clusters = 0;                               ///< 0: by tolerance; 2-64: by cluster
+};
+
 /// A region of the scene that a material claims.
 struct MaterialRegion {
-  enum class Kind { kBox, kSphere, kIndices };
+  /// kColour: the Gaussians a colour selects, anywhere (a box or sphere may carry a colour too:
+  /// then only the Gaussians inside it that the colour selects).
+  enum class Kind { kBox, kSphere, kIndices, kColour };
   Kind kind = Kind::kBox;
   std::size_t material = 0;  ///< index into MaterialMap::materials
   Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();  ///< kBox: corners
   Eigen::Vector3d center = Eigen::Vector3d::Zero();  ///< kSphere
   double radius = 0;                                 ///< kSphere
-  std::vector<std::uint32_t> indices;                ///< kIndices: Gaussians of the file
+  /// kIndices: Gaussians of the file (sorted); with a colour, the ones it selected
+  /// (resolve_colour_regions).
+  std::vector<std::uint32_t> indices;
+  std::optional<ColourSelector> colour;  ///< kColour, or a box / sphere "within" a colour
+  bool colour_resolved = false;          ///< `indices` hold the colour's selection
 };
 
 /// The map's regions in the world frame of `world`, for a viewer: [{"material": name, "box":
@@ -109,7 +129,17 @@ struct MaterialMap {
   static MaterialMap load(const std::string& path);
   /// Parses `j`; `source` names it in errors. Throws InputError as load().
   static MaterialMap parse(const nlohmann::json& j, const std::string& source);
+  /// True when a region selects by colour and has not been resolved against a scene's colours.
+  [[nodiscard]] bool needs_colours() const noexcept;
 };
+
+/// `map` with its colour regions resolved on `scene` (loaded with LoadOptions::keep_color): each
+/// selects the source indices of the Gaussians its ColourSelector picks (k-means: Lloyd's
+/// iterations from a farthest-point start, deterministic). `selected` (optional): how many
+/// Gaussians each region's colour selected (0 for regions without one). Throws InputError
+/// naming map.source when a region needs colours and the scene has none.
+[[nodiscard]] MaterialMap resolve_colour_regions(const MaterialMap& map, const GaussianScene& scene,
+                                                 std::vector<std::size_t>* selected = nullptr);
 
 /// The properties at a contact, blended (MaterialField::at).
 struct MaterialBlend {
@@ -126,8 +156,10 @@ class MaterialField {
  public:
   /// Tests every Gaussian of `world` against the regions of `map` (its centre brought back into
   /// the file's frame by the inverse of scene_to_world() for "frame": "scene"; its source index
-  /// for index lists); `base`: the proxy's parameters for what a material leaves unset. Throws
-  /// InputError (naming map.source) for a material whose mu_k exceeds its mu_s once filled in.
+  /// for index lists; the colour's selection for colour regions); `base`: the proxy's parameters
+  /// for what a material leaves unset. Throws InputError (naming map.source) for a material whose
+  /// mu_k exceeds its mu_s once filled in, and for a colour region not yet resolved on the
+  /// scene's colours (resolve_colour_regions).
   static std::shared_ptr<const MaterialField> resolve(const MaterialMap& map, const CollisionWorld& world,
                                                       const ProxyParams& base);
 

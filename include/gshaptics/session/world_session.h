@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "gshaptics/collision/collision_world.h"
+#include "gshaptics/force/material.h"
 #include "gshaptics/error.h"
 #include "gshaptics/io/atomic_file.h"
 #include "gshaptics/force/renderer_spec.h"
@@ -156,5 +157,12 @@ struct PreparedWorld {
 /// Loads and builds the world (or maps it from the world cache, --world-cache), printing what it
 /// did to `report` (stdout; a command whose stdout is data passes stderr).
 PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* report = stdout);
+
+/// `map` with its colour regions resolved on the colours of the scene file `scene_path` (loaded
+/// once more, with its colour: a world and its cache keep none), printing what each selected to
+/// `report`; `map` itself when it has no colour region (or is null). Throws InputError naming the
+/// map when the scene has no colour.
+std::shared_ptr<const MaterialMap> with_scene_colours(std::shared_ptr<const MaterialMap> map,
+                                                      const std::string& scene_path, std::FILE* report = stdout);
 
 }  // namespace gshaptics::session
