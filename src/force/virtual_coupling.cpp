@@ -19,13 +19,15 @@ double SpringEnergyBound::depth(const Eigen::Vector3d& e, const Eigen::Vector3d&
         bank_ -= cost;
       } else {
         const double base = std::max(0.0, before - withheld_);
-        withheld_ = d - std::sqrt(base * base + 2 * bank_ / k);
+        withheld_ = d - std::sqrt(base * base + 2 * std::max(bank_, 0.0) / k);
         bank_ = 0;
       }
     } else {  // a fall: pays the withheld depth back first; what is left is rendered and banked
       const double was = energy(before - withheld_);
       withheld_ = std::max(0.0, withheld_ + d - before);
-      bank_ += was - energy(d - withheld_);
+      // (A fall that the withheld depth absorbs whole banks 0, up to rounding: never below 0,
+      // or the next rise's square root would read a negative bank as a NaN depth.)
+      bank_ = std::max(0.0, bank_ + was - energy(d - withheld_));
     }
   }
   normal_ = n;
