@@ -9,6 +9,7 @@
 
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/fidelity/texture_fidelity.h"
+#include "gshaptics/fidelity/wrench_fidelity.h"
 #include "gshaptics/force/material.h"
 #include "gshaptics/force/texture.h"
 
@@ -108,6 +109,21 @@ TEST(TextureDrag, ThePeakIsAtSpeedOverWavelengthAndGrowsWithAmplitude) {
   EXPECT_GT(reference, 0.01);  // 0.1 mm of relief at 1000 N/m: about 0.07 N RMS
 }
 
+
+// The stylus (a compound tool) on a steep grating (lambda 1 mm, A 0.1 mm: slopes to 32 degrees)
+// keeps its 2 N and vibrates at v / lambda. Its ridges once read as convex edges (EdgeNormal),
+// the normal jumped to 45-56 degrees, the energy bound withheld ~95 % of the spring, and the
+// spectrum's peak fell to 3 Hz.
+TEST(TextureDrag, AStylusOnASteepGratingVibratesAtSpeedOverWavelength) {
+  const RendererSpec spec = renderer_spec_for(ProxyModelSpec{}, ProxyTool::kCompound);
+  GratingParams g;
+  g.wavelength = 0.001;
+  g.amplitude = 0.0001;
+  const CompoundTool stylus = WrenchTools{}.stylus;
+  const TextureRow row = drag_over_grating(g, spec, 0.005, 0.05, 1000, PlayOptions{}, nullptr, &stylus);
+  EXPECT_NEAR(row.peak_hz, 50.0, 2.5);
+  EXPECT_GT(row.peak_n, 0.01);
+}
 
 // Friction modulated by the relief (MaterialFollower::add_forces): while sliding, the tangential
 // force changes by -mu_k times the relief's normal force, against the slide; at rest it does not;

@@ -69,7 +69,25 @@ bool convex(std::span<const Eigen::Vector3d> axes, std::span<const PatchGaussian
     w[f] += wi;
   }
   if (!(w[0] > 0 && w[1] > 0)) return false;
-  return (c[1] / w[1] - c[0] / w[0]).dot(n[0].normalized() - n[1].normalized()) < 0;
+  if (!((c[1] / w[1] - c[0] / w[0]).dot(n[0].normalized() - n[1].normalized()) < 0)) return false;
+  // Two faces, not a corrugation: each face's thin axes tight about its mean against the angle
+  // between the faces. A clean edge's discs lie within a few degrees of their face (the fidelity
+  // cube's: 3 degrees about faces 90 degrees apart); a relief whose discs turn continuously
+  // (a grating's ridge under a stylus) splits into two "faces" as wide as they are apart, and
+  // its support normal tilts past the relief's own slopes (45-56 degrees on a 32-degree grating).
+  const Eigen::Vector3d m[2] = {n[0].normalized(), n[1].normalized()};
+  const double apart = std::acos(std::clamp(m[0].dot(m[1]), -1.0, 1.0));
+  double spread[2] = {0, 0};
+  for (std::size_t i = 0; i < axes.size(); ++i) {
+    const Eigen::Vector3d a = toward_tool(i);
+    const double wi = a.norm();
+    if (!(wi > 0)) continue;
+    const int f = a.dot(side) >= 0 ? 0 : 1;
+    const double angle = std::acos(std::clamp(a.dot(m[f]) / wi, -1.0, 1.0));
+    spread[f] += wi * angle * angle;
+  }
+  const double widest = std::sqrt(std::max(spread[0] / w[0], spread[1] / w[1]));
+  return widest <= EdgeNormal::kFaceTightness * apart;
 }
 
 // A clean convex corner (three faces). Each thin axis is turned away from the patch's weighted

@@ -120,6 +120,10 @@ class EdgeNormal {
   /// third under kEdgeShare of the second (the fidelity cube's edges pass; no patch of the Truck
   /// or burger stylus probe runs does, 19 % of halo's).
   static constexpr double kFeatureShare = 0.05;
+  /// A clean edge's faces are tight: each face's thin axes spread (rms angle about its mean) at
+  /// most kFaceTightness of the angle between the faces; a relief whose discs turn continuously
+  /// (a grating's ridges) is no edge.
+  static constexpr double kFaceTightness = 0.25;
   static constexpr double kEdgeShare = 0.05;
   /// A clean corner: each face's thin axes within kCornerSpread of its heaviest disc's (the
   /// fidelity scenes' discs tilt 3 degrees; real scenes' patches spread in every direction) and
