@@ -117,6 +117,8 @@ QueryResult collect(const ContactQuery& q, QueryStatus status) {
 struct PyWorld {
   std::shared_ptr<CollisionWorld> world;
   WorldBuildReport report;
+  // The scene's colours (empty without): what a material map's colour regions select by.
+  std::shared_ptr<const SceneColours> colours;
 };
 
 SimilarityTransform registration_from(const py::object& reg) {
@@ -193,11 +195,13 @@ PYBIND11_MODULE(gshaptics, m) {
 
   py::class_<GaussianScene, std::shared_ptr<GaussianScene>> scene(m, "Scene", py::dynamic_attr(),
       "Gaussians of a trained 3DGS scene as loaded (scene frame).");
-  scene.def_static("load", [](const std::string& path) {
+  scene.def_static("load", [](const std::string& path, bool keep_color) {
         LoadedScene s;
         {
           py::gil_scoped_release release;
-          s = load_scene(path);
+          LoadOptions lo;
+          lo.keep_color = keep_color;
+          s = load_scene(path, lo);
         }
         auto sp = std::make_shared<GaussianScene>(std::move(s.scene));
         py::object obj = py::cast(sp);
@@ -216,8 +220,9 @@ PYBIND11_MODULE(gshaptics, m) {
         obj.attr("report") = rep;
         return obj;
       },
-      py::arg("path"),
-      "Loads a scene: INRIA PLY, compressed PLY (SuperSplat/PlayCanvas), antimatter15 .splat or "
+      py::arg("path"), py::arg("keep_color") = false,
+      "Loads a scene (with `keep_color`, its colour too: a material map's colour regions select by "
+      "it): INRIA PLY, compressed PLY (SuperSplat/PlayCanvas), antimatter15 .splat or "
       "Niantic SPZ (gzip or zstd), detected from the content. Raises InputError (a ValueError) "
       "naming the file for missing, truncated, malformed or unsupported files. The load report "
       "is in `.report` (dict, with 'frame': 'RDF' for PLY/.splat, 'RUB' for SPZ).")
@@ -260,6 +265,7 @@ PYBIND11_MODULE(gshaptics, m) {
              PyWorld w;
              py::gil_scoped_release release;
              w.world = std::make_shared<CollisionWorld>(CollisionWorld::build(s, cfg, &w.report));
+             w.colours = std::make_shared<const SceneColours>(SceneColours::of(s));
              return w;
            }),
            py::arg("scene"), py::arg("min_opacity") = kDefaultMinOpacity, py::arg("sigma") = 1.0,
@@ -442,7 +448,8 @@ PYBIND11_MODULE(gshaptics, m) {
       "normal; face_average: on a clean flat face a compound tool's part averages its shaded normal with the "
       "face's mean thin axis; overhang_falloff: where a disc of the other face overhangs a convex edge and "
       "blocks the tool beside it, the shaded normal leaves out that face's discs behind the face under the tool; "
-      "materials: a material map (JSON, as --materials; docs/usage.md) read under the proxy; "
+      "materials: a material map (JSON, as --materials; docs/usage.md) read under the proxy (colour regions "
+      "select by the colour of the scene the world was built from: Scene.load(path, keep_color=True)); "
       "f_max clamps its output (default: none, as "
       "in a runtime the safety layer limits the force). One per device; not thread-safe.")
       .def(py::init([](const PyWorld& w, double stiffness, double damping, double mu_s, double mu_k,
@@ -464,7 +471,11 @@ PYBIND11_MODULE(gshaptics, m) {
              p.mu_k = mu_k;
              p.opacity_stiffness = opacity_stiffness;
              PyProxy out{w.world, std::make_unique<ProxyRenderer>(*w.world, p, f_max), {}};
-             if (materials) out.proxy->set_materials(MaterialField::resolve(MaterialMap::load(*materials), *w.world, p));
+             if (materials) {
+               MaterialMap map = MaterialMap::load(*materials);
+               if (map.needs_colours()) map = resolve_colour_regions(map, *w.colours);  // (InputError without colour)
+               out.proxy->set_materials(MaterialField::resolve(map, *w.world, p));
+             }
              return out;
            }),
            py::arg("world"), py::arg("stiffness") = ProxyParams{}.stiffness,

@@ -331,3 +331,21 @@ def test_proxy_reads_a_material_map(data_dir, tmp_path):
     bad.write_text('{"materials": [{"name": "a", "stifness": 1}], "regions": []}')
     with pytest.raises(gshaptics.InputError, match="bad.json.*unknown key"):
         gshaptics.ProxyRenderer(world, materials=str(bad))
+
+
+def test_colour_regions_select_by_the_scene_colour(data_dir, tmp_path):
+    # A colour region needs the scene's colour: a world built from a scene loaded without it refuses
+    # the map, naming it; with it, a tolerance wide enough for every colour claims the roof.
+    everything = tmp_path / "colour.json"
+    everything.write_text(json.dumps({"materials": [{"name": "any", "stiffness": 2000.0}],
+                                      "regions": [{"material": "any", "colour": {"rgb": [0.5, 0.5, 0.5], "tolerance": 2.0}}]}))
+    reg = os.path.join(data_dir, "truck.registration.json")
+    plain = gshaptics.CollisionWorld(gshaptics.Scene.load(os.path.join(data_dir, "truck.splat")), registration=reg)
+    with pytest.raises(gshaptics.InputError, match="colour.json.*no colour"):
+        gshaptics.ProxyRenderer(plain, materials=str(everything))
+    coloured = gshaptics.CollisionWorld(gshaptics.Scene.load(os.path.join(data_dir, "truck.splat"), keep_color=True),
+                                        registration=reg)
+    proxy = gshaptics.ProxyRenderer(coloured, stiffness=800.0, materials=str(everything))
+    for k in range(1100):
+        proxy.render((0.0, 0.0, 2.0 - 0.001 * k), (0.03, 0.03, 0.03), (0.0, 0.0, 0.0), 1e-3)
+    assert proxy.material["name"] == "any" and proxy.material["stiffness"] == 2000.0

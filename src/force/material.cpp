@@ -281,17 +281,31 @@ bool MaterialMap::needs_colours() const noexcept {
   return std::any_of(regions.begin(), regions.end(), [](const MaterialRegion& r) { return r.colour && !r.colour_resolved; });
 }
 
+SceneColours SceneColours::of(const GaussianScene& scene) {
+  SceneColours c;
+  if (scene.colors_dc.size() != scene.size()) return c;
+  c.f_dc = scene.colors_dc;
+  c.opacity = scene.opacities;
+  c.source_index = scene.source_index;
+  return c;
+}
+
 MaterialMap resolve_colour_regions(const MaterialMap& map, const GaussianScene& scene, std::vector<std::size_t>* selected) {
+  return resolve_colour_regions(map, SceneColours::of(scene), selected);
+}
+
+MaterialMap resolve_colour_regions(const MaterialMap& map, const SceneColours& scene, std::vector<std::size_t>* selected) {
   MaterialMap out = map;
   if (selected) selected->assign(map.regions.size(), 0);
   if (!map.needs_colours()) return out;
-  if (scene.colors_dc.size() != scene.size())
+  const std::size_t n = scene.f_dc.size();
+  if (n == 0 || scene.opacity.size() != n || scene.source_index.size() != n)
     throw map_error(map.source, "a region selects by colour, and the scene has no colour (f_dc) to select by");
-  std::vector<Eigen::Vector3d> colours(scene.size());
-  std::vector<double> weights(scene.size());
-  for (std::size_t i = 0; i < scene.size(); ++i) {
-    colours[i] = base_colour(scene.colors_dc[i]);
-    weights[i] = std::max(double(scene.opacities[i]), 1e-6);
+  std::vector<Eigen::Vector3d> colours(n);
+  std::vector<double> weights(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    colours[i] = base_colour(scene.f_dc[i]);
+    weights[i] = std::max(double(scene.opacity[i]), 1e-6);
   }
   std::map<int, std::pair<std::vector<int>, std::vector<Eigen::Vector3d>>> by_k;  // k-means runs, one per K
   for (std::size_t r = 0; r < out.regions.size(); ++r) {
@@ -310,10 +324,10 @@ MaterialMap resolve_colour_regions(const MaterialMap& map, const GaussianScene& 
       int nearest = 0;
       for (int k = 1; k < int(centres.size()); ++k)
         if ((centres[std::size_t(k)] - c.rgb).squaredNorm() < (centres[std::size_t(nearest)] - c.rgb).squaredNorm()) nearest = k;
-      for (std::size_t i = 0; i < scene.size(); ++i)
+      for (std::size_t i = 0; i < n; ++i)
         if (of[i] == nearest) region.indices.push_back(scene.source_index[i]);
     } else {
-      for (std::size_t i = 0; i < scene.size(); ++i)
+      for (std::size_t i = 0; i < n; ++i)
         if ((colours[i] - c.rgb).norm() <= c.tolerance) region.indices.push_back(scene.source_index[i]);
     }
     std::sort(region.indices.begin(), region.indices.end());

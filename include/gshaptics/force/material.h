@@ -133,11 +133,26 @@ struct MaterialMap {
   [[nodiscard]] bool needs_colours() const noexcept;
 };
 
-/// `map` with its colour regions resolved on `scene` (loaded with LoadOptions::keep_color): each
-/// selects the source indices of the Gaussians its ColourSelector picks (k-means: Lloyd's
-/// iterations from a farthest-point start, deterministic). `selected` (optional): how many
-/// Gaussians each region's colour selected (0 for regions without one). Throws InputError
-/// naming map.source when a region needs colours and the scene has none.
+/// What colour regions select by, per Gaussian of a scene file: its SH band-0 coefficients f_dc,
+/// its opacity (the k-means weight) and its index in the file. A world keeps none of these; an
+/// embedding keeps them beside it (the Python module's CollisionWorld does).
+struct SceneColours {
+  std::vector<Eigen::Vector3f> f_dc;
+  std::vector<float> opacity;
+  std::vector<std::uint32_t> source_index;
+  /// Those of `scene`; empty when it has no colour (loaded without LoadOptions::keep_color).
+  static SceneColours of(const GaussianScene& scene);
+  [[nodiscard]] bool empty() const noexcept { return f_dc.empty(); }
+};
+
+/// `map` with its colour regions resolved on `colours`: each selects the source indices of the
+/// Gaussians its ColourSelector picks (k-means: Lloyd's iterations from a farthest-point start,
+/// deterministic). `selected` (optional): how many Gaussians each region's colour selected (0 for
+/// regions without one). Throws InputError naming map.source when a region needs colours and
+/// there are none.
+[[nodiscard]] MaterialMap resolve_colour_regions(const MaterialMap& map, const SceneColours& colours,
+                                                 std::vector<std::size_t>* selected = nullptr);
+/// The same on the colours of `scene` (loaded with LoadOptions::keep_color).
 [[nodiscard]] MaterialMap resolve_colour_regions(const MaterialMap& map, const GaussianScene& scene,
                                                  std::vector<std::size_t>* selected = nullptr);
 
