@@ -127,8 +127,8 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
   cmd.add_option("--mu-k", p.mu_k, "proxy: kinetic friction coefficient (<= --mu-s)")->capture_default_str()->check(check::non_negative());
   cmd.add_option_function<std::string>(
          "--materials", [&o](const std::string& v) { o.materials = std::make_shared<const MaterialMap>(MaterialMap::load(v)); },
-         "proxy: a material map (JSON: materials with stiffness, damping, mu_s, mu_k, viscosity, assigned to boxes, "
-         "spheres or Gaussian indices; docs/usage.md). The properties under the proxy blend by weight; what a material "
+         "proxy: a material map (JSON: materials with stiffness, damping, mu_s, mu_k, viscosity, texture and vibration, "
+         "assigned to boxes, spheres, Gaussian indices or colours of the scene; docs/usage.md). The properties under the proxy blend by weight; what a material "
          "leaves out, and every surface no region claims, keeps --stiffness, --coupling-damping, --mu-s, --mu-k")
       ->type_name("FILE");
   cmd.add_flag("--opacity-stiffness", p.opacity_stiffness, "proxy: scale k_c by the blocking Gaussians' opacity (paper eq. 9)");
