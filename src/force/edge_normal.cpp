@@ -44,12 +44,12 @@ PatchShape patch_shape(std::span<const Eigen::Vector3d> axes, bool edges, bool f
   return out;
 }
 
-// Convex or concave: the patch split into its two faces (each thin axis turned toward the tool,
-// on either side of their mean across the edge), each face's weighted centroid p and normal n. At
-// a convex edge each face lies behind the other's plane, (p_B - p_A) . (n_A - n_B) < 0; in a
-// groove each rises in front of it.
-bool convex(std::span<const Eigen::Vector3d> axes, std::span<const PatchGaussian> patch,
-            const Eigen::Vector3d& tool_center, const Eigen::Vector3d& edge) noexcept {
+// A clean convex edge, or not (a groove, or a corrugation): the patch split into its two faces
+// (each thin axis turned toward the tool, on either side of their mean across the edge), each
+// face's weighted centroid p and normal n. At a convex edge each face lies behind the other's
+// plane, (p_B - p_A) . (n_A - n_B) < 0; in a groove each rises in front of it.
+bool clean_convex_edge(std::span<const Eigen::Vector3d> axes, std::span<const PatchGaussian> patch,
+                       const Eigen::Vector3d& tool_center, const Eigen::Vector3d& edge) noexcept {
   const auto toward_tool = [&](std::size_t i) {
     return axes[i].dot(tool_center - patch[i].center) >= 0 ? Eigen::Vector3d(axes[i]) : Eigen::Vector3d(-axes[i]);
   };
@@ -103,7 +103,7 @@ bool convex(std::span<const Eigen::Vector3d> axes, std::span<const PatchGaussian
 //   they face away from both; at a convex corner each face's normal is within a few degrees of
 //   square to a direction in the cone, or nearer, and a fin can turn the shaded normal far out of
 //   the cone, but not the spring too);
-// - every pair of faces is convex (each behind the other's plane, as convex() tests an edge);
+// - every pair of faces is convex (each behind the other's plane, as clean_convex_edge() tests an edge);
 // - and the tool lies on the outer side of the centroid.
 enum class CornerTest { kNo, kMessy, kCorner };  // kMessy: three directions hold under half the weight
 CornerTest clean_corner(std::span<const Eigen::Vector3d> axes, std::span<const PatchGaussian> patch,
@@ -285,8 +285,9 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
     return sc.answer;
   }
   // A groove (a concave edge) keeps the shaded normal: its hull spans the groove's opening, and
-  // the support normal there would be the bisector whichever wall the tool touches.
-  if (!convex({axis_.data(), n}, {patch_.data(), n}, part.center, shape.edge)) return sc.answer;
+  // the support normal there would be the bisector whichever wall the tool touches. So does a
+  // corrugation (faces as wide as they are apart): its ridges are no edge.
+  if (!clean_convex_edge({axis_.data(), n}, {patch_.data(), n}, part.center, shape.edge)) return sc.answer;
   // At an edge the normal lies across it: the hull's tilt along the edge is the rims' jitter.
   Eigen::Vector3d normal = sn.normal;
   if (shape.edge.squaredNorm() > 0) {
