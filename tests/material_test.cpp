@@ -16,6 +16,7 @@
 #include "gshaptics/force/compound_proxy.h"
 #include "gshaptics/force/material.h"
 #include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/scene/opacity_filter.h"
 
 namespace gshaptics {
 namespace {
@@ -263,13 +264,54 @@ TEST(MaterialProxy, CrossingABorderNeverStepsTheForce) {
   }
 }
 
-TEST(MaterialProxy, RefusedOnTheSeenSurface) {
-  const CollisionWorld world = plane_world();
-  const auto field = MaterialField::resolve(MaterialMap::parse(two_materials(), "map"), world, ProxyParams{});
+// The proxy on the seen solid reads the material from the layers that make the seen surface
+// (SeenSolid::visit_hit_layers): each side's stiffness, and its kinetic friction while sliding
+// (the friction cone moves the proxy across the contact's axis). The plane keeps its faint
+// Gaussians, as the seen solid's world does; 2 mm spacing (at 4-8 mm the seen normal's tilt
+// along one path biases F_t / F_n by up to 0.02: bench/RESULTS.md, forty-sixth session).
+TEST(MaterialProxy, OnTheSeenSurfaceEachSideHasItsStiffnessAndFriction) {
+  SynthParams sp;
+  sp.spacing = 0.002;
+  sp.seed = 5;
+  sp.floater_share = 0;
+  WorldConfig config;
+  config.min_opacity = kSeenMinOpacity;
+  const CollisionWorld world = CollisionWorld::build(make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), sp).scene, config);
   ProxyParams seen;
   seen.surface = ProxySurface::kSeen;
-  ProxyRenderer on_seen(world, seen);
-  EXPECT_THROW(on_seen.set_materials(field), InputError);
+  const double r = 0.005, dt = 1e-3;
+  ProxyRenderer proxy(world, seen);
+  proxy.set_materials(MaterialField::resolve(MaterialMap::parse(two_materials(), "map"), world, seen));
+  for (const auto& [x, k] : {std::pair{-0.04, 600.0}, std::pair{0.04, 1500.0}}) {
+    proxy.reset();
+    double f1 = 0, f5 = 0;
+    for (int i = 0; i <= 800; ++i) {  // from 3 mm above to 5 mm in, at 1 cm/s
+      const double delta = -0.003 + 1e-5 * i;
+      const RenderOutput o = proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, r - delta), r),
+                                          Eigen::Vector3d(0, 0, -0.01), dt);
+      if (std::abs(delta - 0.001) < 5e-6) f1 = o.force.z();
+      if (std::abs(delta - 0.005) < 5e-6) f5 = o.force.z();
+    }
+    EXPECT_NEAR((f5 - f1) / 0.004, k, 0.05 * k) << "x " << x;
+  }
+  proxy.reset();
+  double ft[2] = {0, 0}, fn[2] = {0, 0};
+  for (int i = 0; i <= 300; ++i) {  // press in at x = -4 cm
+    const double delta = std::min(0.002, -0.001 + 1e-5 * i);
+    (void)proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(-0.04, 0, r - delta), r), Eigen::Vector3d(0, 0, -0.01), dt);
+  }
+  for (int i = 0; i <= 1600; ++i) {  // then 2 mm deep at 5 cm/s to x = +4 cm
+    const double x = -0.04 + 5e-5 * i;
+    const RenderOutput o = proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, r - 0.002), r),
+                                        Eigen::Vector3d(0.05, 0, 0), dt);
+    ASSERT_GT(o.force.z(), 0) << "x " << x;  // held all the way
+    if (std::abs(x) < 3 * r || std::abs(x) > 0.035) continue;
+    ft[x > 0] += -o.force.x();
+    fn[x > 0] += o.force.z();
+  }
+  EXPECT_NEAR(ft[0] / fn[0], 0.3, 0.05 * 0.3);
+  EXPECT_NEAR(ft[1] / fn[1], 0.6, 0.05 * 0.6);
+  EXPECT_EQ(proxy.materials()->name(proxy.material().dominant), "hard");
 }
 
 // A stylus (the compound proxy) pressed tip-first into each side feels that side's stiffness: the

@@ -110,6 +110,32 @@ TEST(TextureDrag, ThePeakIsAtSpeedOverWavelengthAndGrowsWithAmplitude) {
 }
 
 
+// The same on the seen solid (SeenProxy): the tip reads the seen surface under the contact, and
+// the proxy's normal does not follow relief finer than the tool (kNormalPath): before, a 5 mm
+// sphere on the 1 mm grating peaked at 2 v / lambda (the normal tilting with every ridge).
+TEST(TextureDrag, OnTheSeenSurfaceThePeakIsAtSpeedOverWavelengthAndGrowsWithAmplitude) {
+  ProxyModelSpec spec;
+  spec.params.surface = ProxySurface::kSeen;
+  const double r = 0.005, v = 0.05;
+  GratingParams g;
+  for (double lambda : {0.001, 0.002}) {
+    g.wavelength = lambda;
+    double last = 0;
+    for (double a : {0.00005, 0.0001, 0.0002}) {
+      g.amplitude = a;
+      const TextureRow row = drag_over_grating(g, spec, r, v, 1000, PlayOptions{}, nullptr);
+      EXPECT_NEAR(row.peak_hz, v / lambda, 0.05 * v / lambda) << "lambda " << lambda << " A " << a;
+      EXPECT_GT(row.peak_n, last) << "lambda " << lambda << " A " << a;
+      last = row.peak_n;
+    }
+  }
+  g.wavelength = 0.002;
+  g.amplitude = 0.0001;
+  const double reference = drag_over_grating(g, spec, r, v, 1000, PlayOptions{}, nullptr).rms_n;
+  g.amplitude = 0;
+  EXPECT_LT(drag_over_grating(g, spec, r, v, 1000, PlayOptions{}, nullptr).rms_n, 0.1 * reference);
+}
+
 // The stylus (a compound tool) on a steep grating (lambda 1 mm, A 0.1 mm: slopes to 32 degrees)
 // keeps its 2 N and vibrates at v / lambda. Its ridges once read as convex edges (EdgeNormal),
 // the normal jumped to 45-56 degrees, the energy bound withheld ~95 % of the spring, and the

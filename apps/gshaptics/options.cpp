@@ -204,8 +204,6 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
       given.push_back({"--" + opt->get_lnames().front(), model});
     }
     refuse_options_not_applying(o.model, tool ? std::optional(tool->proxy_tool()) : std::nullopt, given);
-    if (o.materials && o.proxy.surface == ProxySurface::kSeen)
-      throw InputError("options that do not apply: --materials is read on the ellipsoids only, for now (not with --surface seen)");
     if (o.profile.empty()) return;
     apply_device_profile(device_profile(o.profile, "--device-profile"), o.f_max, o.proxy, cmd.count("--f-max") > 0,
                          cmd.count("--stiffness") > 0);

@@ -245,11 +245,8 @@ void run_defect_cases(const FidelityOptions& o, FidelityReport& rep, const Fidel
   }
 }
 
-// The renderers that read a material map: the proxy on the ellipsoids.
-bool reads_materials(const RendererSpec& spec) {
-  const auto* proxy = std::get_if<ProxyModelSpec>(&spec);
-  return proxy && proxy->params.surface == ProxySurface::kEllipsoids;
-}
+// The renderers that read a material map: the proxy (on either solid).
+bool reads_materials(const RendererSpec& spec) { return std::holds_alternative<ProxyModelSpec>(spec); }
 
 // The two-material plane at `spacing` with every tool radius (material_fidelity.h).
 void run_material_plane(const FidelityOptions& o, double spacing, const CollisionWorld& world, FidelityReport& rep,

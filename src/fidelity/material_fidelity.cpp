@@ -55,8 +55,7 @@ std::vector<MaterialRow> run_material_cases(const CollisionWorld& world, const R
                                             double tool_radius, double rate_hz, const PlayOptions& play, int presses,
                                             std::size_t* ticks) {
   const auto* proxy = std::get_if<ProxyModelSpec>(&spec);
-  if (!proxy || proxy->params.surface != ProxySurface::kEllipsoids)
-    throw InputError("fidelity: materials are read by the proxy on the ellipsoids only, for now");
+  if (!proxy) throw InputError("fidelity: materials are read by the proxy only (--force-model proxy)");
   const TwoMaterials set;
   ProxyModelSpec with = *proxy;
   with.materials = std::make_shared<const MaterialMap>(two_material_map(set));

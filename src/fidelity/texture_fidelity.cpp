@@ -10,6 +10,7 @@
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/error.h"
 #include "gshaptics/fidelity/analytic_shape.h"
+#include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/percentile.h"
 
 namespace gshaptics {
@@ -102,9 +103,10 @@ std::pair<double, double> spectral_peak(const std::vector<double>& signal, doubl
 TextureRow drag_over_grating(const GratingParams& g, const RendererSpec& spec, double tool_radius, double speed,
                              double rate_hz, const PlayOptions& play, std::size_t* ticks, const CompoundTool* stylus) {
   const auto* proxy = std::get_if<ProxyModelSpec>(&spec);
-  if (!proxy || proxy->params.surface != ProxySurface::kEllipsoids)
-    throw InputError("fidelity: texture is read by the proxy on the ellipsoids only, for now");
-  const CollisionWorld world = CollisionWorld::build(make_grating_scene(g), WorldConfig{});
+  if (!proxy) throw InputError("fidelity: texture is read by the proxy only (--force-model proxy)");
+  WorldConfig config;
+  config.min_opacity = default_min_opacity(spec);  // the seen solid keeps the faint Gaussians
+  const CollisionWorld world = CollisionWorld::build(make_grating_scene(g), config);
   ProxyModelSpec with = *proxy;
   with.materials = std::make_shared<const MaterialMap>(textured_everywhere_map());
   const auto renderer = make_force_renderer(with, world);

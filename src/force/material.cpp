@@ -541,17 +541,24 @@ void MaterialFollower::release() noexcept {
 const MaterialBlend& MaterialFollower::update(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double radius,
                                               const Eigen::Vector3d& contact, std::span<const Contact> blockers) noexcept {
   MaterialField::Weights target;  // (only the first material_count() entries are read)
+  const bool held = field_->contact_shares(blockers, target);
+  return follow(p, n, radius, contact, held ? &target : nullptr);
+}
+
+const MaterialBlend& MaterialFollower::follow(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double radius,
+                                              const Eigen::Vector3d& contact,
+                                              const MaterialField::Weights* target) noexcept {
   const std::size_t count = field_->material_count();
   double held = 0;  // how much of the shares a material holds (0: none yet)
   for (std::size_t id = 0; id < count; ++id) held += shares_[id];
-  if (field_->contact_shares(blockers, target)) {
+  if (target != nullptr) {
     if (!started_ || !(held > 0)) {
-      for (std::size_t id = 0; id < count; ++id) shares_[id] = target[id];
+      for (std::size_t id = 0; id < count; ++id) shares_[id] = (*target)[id];
     } else {
       // Followed along the path: a slide of ds moves the shares 1 - exp(-ds / R) of the way.
       const Eigen::Vector3d step = p - at_;
       const double a = 1 - std::exp(-(step - step.dot(n) * n).norm() / radius);
-      for (std::size_t id = 0; id < count; ++id) shares_[id] += a * (target[id] - shares_[id]);
+      for (std::size_t id = 0; id < count; ++id) shares_[id] += a * ((*target)[id] - shares_[id]);
     }
   } else if (!started_) {
     for (std::size_t id = 0; id < count; ++id) shares_[id] = 0;  // the proxy's own until a Gaussian holds it
@@ -565,11 +572,18 @@ const MaterialBlend& MaterialFollower::update(const Eigen::Vector3d& p, const Ei
 Eigen::Vector3d MaterialFollower::add_forces(const CollisionWorld& world, Eigen::Vector3d f, const Eigen::Vector3d& contact,
                                              const Eigen::Vector3d& n, const Eigen::Vector3d& velocity, double radius,
                                              double f_max, double dt) noexcept {
+  const double tip = needs_tip() ? tip_height(world, contact, n, TextureState::tip_reach(radius)) : 0.0;
+  return add_forces_at_tip(tip, f, contact, n, velocity, radius, f_max, dt);
+}
+
+Eigen::Vector3d MaterialFollower::add_forces_at_tip(double tip, Eigen::Vector3d f, const Eigen::Vector3d& contact,
+                                                    const Eigen::Vector3d& n, const Eigen::Vector3d& velocity,
+                                                    double radius, double f_max, double dt) noexcept {
   const Eigen::Vector3d v_t = velocity - velocity.dot(n) * n;  // the device's slide
   if (blend_.viscosity > 0) f -= blend_.viscosity * v_t;
   Eigen::Vector3d texture = Eigen::Vector3d::Zero();
   if (blend_.texture_gain > 0) {
-    texture = texture_.force(world, contact, n, radius, blend_.stiffness, blend_.texture_gain, blend_.procedural);
+    texture = texture_.force_at_height(tip, contact, n, radius, blend_.stiffness, blend_.texture_gain, blend_.procedural);
     // Coulomb's law on the relief's normal force: friction follows it while sliding (a bump
     // pushes up and resists more, a groove less), faded in below kSlideSpeed so that a tool at
     // rest feels no tangential buzz. It opposes the slide; with the normal force kept >= 0

@@ -46,8 +46,8 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
 }
 
 void ProxyRenderer::set_materials(std::shared_ptr<const MaterialField> field) {
-  if (field && seen_) throw InputError("proxy: a material map (--materials) is read on the ellipsoids only, for now (not with --surface seen)");
   follower_ = field ? std::make_unique<MaterialFollower>(field, params_) : nullptr;
+  if (seen_) seen_->set_follower(follower_.get());
   if (compound_) compound_->set_materials(field);
 }
 

@@ -7,13 +7,16 @@
 namespace gshaptics {
 
 SeenProxy::SeenProxy(const CollisionWorld& world, const ProxyParams& params, double f_max)
-    : solid_(world), params_(params), coupling_(params, f_max) {}
+    : solid_(world), params_(params), f_max_(f_max), coupling_(params, f_max), friction_(params.mu_s, params.mu_k) {}
 
 void SeenProxy::reset() noexcept {
   started_ = false;
   in_contact_ = false;
   normal_.setZero();
   coupling_.release();
+  friction_.reset();
+  friction_step_ = {};
+  if (follower_) follower_->release();
 }
 
 Eigen::Vector3d SeenProxy::ring_offset(int k, const Eigen::Vector3d& u, double radius) const noexcept {
@@ -142,15 +145,18 @@ double SeenProxy::ring_support(const Eigen::Vector3d& device, double radius) con
   return holding(rest);
 }
 
-bool SeenProxy::hold(const Eigen::Vector3d& device, double radius, double dt) noexcept {
+bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal, double radius, double dt) noexcept {
   const Eigen::Vector3d& a = axis_;
   const double depth = (device + radius * a - eye_).dot(a);  // the device's leading point, from the eye plane
   if (!(depth > 0)) return false;
-  const Eigen::Vector3d foot = device + (radius - depth) * a;  // its ray's origin on the eye plane
+  // The ray of the goal's leading point (the device's without friction), from the eye plane.
+  const Eigen::Vector3d foot = goal + (radius - (goal + radius * a - eye_).dot(a)) * a;
   // (The surface moves little from tick to tick: the layers up to just past the last hit are
   // read first, those deeper only when the surface is not among them.)
   const double guess = std::isfinite(last_hit_) ? last_hit_ + kGuessMargin * radius : depth;
   const SeenHit hit = solid_.first_inside(foot, a, 0, 0, depth, scratch_, guess);
+  target_held_ = false;
+  if (follower_ && hit.hit) read_material_shares(hit);
   // Where the leading point's ray sees through up to the device, the footprint is read (one ray
   // a tick) and rays around the sphere hold it (a hole narrower than it).
   if (!hit.hit && params_.seen_footprint) read_ring(device, foot, radius, depth);
@@ -159,9 +165,14 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, double radius, double dt) no
   if (!(rest < depth)) return false;  // the device is out of the surface
   if (hit.hit) last_hit_ = hit.t;
   const double t = std::max(0.0, rest - 1e-6 * radius);
-  proxy_ = foot + (t - radius) * a;
+  const Eigen::Vector3d moved = foot + (t - radius) * a - proxy_;
+  proxy_ += moved;
   read_normal(foot + rest * a, radius, rest);
-  const Eigen::Vector3d blended = normal_ + (1 - std::exp(-dt / kNormalTau)) * (target_normal_ - normal_);
+  // The normal follows its readings over kNormalTau and over kNormalPath R of the proxy's slide,
+  // whichever is slower: relief finer than the tool (a grating under a sphere) does not turn it.
+  const double slide = (moved - moved.dot(a) * a).norm();
+  const double rate = std::min(-std::expm1(-dt / kNormalTau), -std::expm1(-slide / (kNormalPath * radius)));
+  const Eigen::Vector3d blended = normal_ + rate * (target_normal_ - normal_);
   normal_ = blended.norm() > 1e-9 ? Eigen::Vector3d(blended.normalized()) : target_normal_;
   return true;
 }
@@ -194,6 +205,44 @@ void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double 
   pending_ray_ = -1;
 }
 
+void SeenProxy::read_material_shares(const SeenHit& hit) noexcept {
+  const MaterialField& field = follower_->field();
+  const std::size_t count = field.material_count();
+  for (std::size_t id = 0; id < count; ++id) target_[id] = 0;
+  double total = 0;
+  solid_.visit_hit_layers(hit, scratch_, [&](std::uint32_t slot, double w) {
+    target_[field.material_of(slot)] += w;
+    total += w;
+  });
+  if (!(total > 0)) return;
+  for (std::size_t id = 0; id < count; ++id) target_[id] /= total;
+  target_held_ = true;
+}
+
+void SeenProxy::apply_material(double radius) noexcept {
+  const Eigen::Vector3d contact = proxy_ - radius * normal_;
+  const MaterialBlend& b = follower_->follow(proxy_, normal_, radius, contact, target_held_ ? &target_ : nullptr);
+  coupling_.set_gains(b.stiffness, b.damping);
+  friction_.set_coefficients(b.mu_s, b.mu_k);
+}
+
+Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& velocity, double radius,
+                                               double dt) noexcept {
+  const Eigen::Vector3d contact = proxy_ - radius * normal_;
+  const double tip = follower_->needs_tip() ? seen_tip(contact, normal_, radius) : 0.0;
+  return follower_->add_forces_at_tip(tip, f, contact, normal_, velocity, radius, f_max_, dt);
+}
+
+double SeenProxy::seen_tip(const Eigen::Vector3d& contact, const Eigen::Vector3d& n, double radius) noexcept {
+  // Down the normal from reach above the contact point to reach below it, seen from as far back
+  // as the normal's rays look (the faint layers in front of the surface count, as they do for
+  // the proxy); -reach when the tip sees through (a hole under it).
+  const double reach = TextureState::tip_reach(radius);
+  const double back = std::min(kNormalEye * radius, std::isfinite(last_hit_) ? std::max(0.0, last_hit_ - reach) : 0.0);
+  const SeenHit hit = solid_.first_inside(contact + reach * n, -n, -back, 0, 2 * reach, scratch_);
+  return hit.hit ? reach - hit.t : -reach;
+}
+
 RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
   RenderOutput out;
   out.proxy = tool.center;
@@ -203,23 +252,38 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   }
   const double r = tool.bounding_radius();
   if (!started_) {
-    proxy_ = tool.center;
+    proxy_ = last_device_ = tool.center;
     started_ = true;
   }
+  const Eigen::Vector3d device_step = tool.center - last_device_;
+  last_device_ = tool.center;
   // A contact lasts while the device's leading point is past the seen surface along the axis it
-  // came in on: the proxy rests on that surface above the device (a height field along the axis).
+  // came in on: the proxy rests on that surface (a height field along the axis) above the device,
+  // or above where the friction cone holds it.
+  const bool was_in_contact = in_contact_;
   if (!in_contact_) in_contact_ = begin_contact(tool.center, r);
-  if (in_contact_) in_contact_ = hold(tool.center, r, dt);
+  if (in_contact_) {
+    friction_step_ = friction_.update(was_in_contact, normal_, tool.center, proxy_, device_step, r);
+    in_contact_ = hold(tool.center, friction_step_.goal, r, dt);
+  }
   if (!in_contact_) {
     proxy_ = tool.center;
     coupling_.release();
+    friction_.reset();
+    if (follower_) follower_->release();
     return out;
   }
   out.proxy = proxy_;
   out.constraints = 1;
   const Eigen::Vector3d e = proxy_ - tool.center;
-  const Eigen::Vector3d& n = normal_;
-  out.force = coupling_.force(e, n, velocity, dt, {}, FrictionStep{}, 0.0);
+  if (follower_) apply_material(r);
+  const double mu_k = follower_ ? follower_->blend().mu_k : params_.mu_k;
+  out.force = coupling_.force(e, normal_, velocity, dt, {}, friction_step_, mu_k);
+  if (follower_) {
+    out.force = add_material_forces(out.force, velocity, r, dt);
+    out.texture_rms = float(follower_->texture_rms());
+    out.vibration = float(follower_->blend().vibration);
+  }
   out.counts.contacts = 1;
   return out;
 }

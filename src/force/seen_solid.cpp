@@ -46,9 +46,11 @@ SeenSolid::SeenSolid(const CollisionWorld& world) {
   const double sigma = world.config().sigma;
   std::vector<Entry> entries;
   std::vector<BvhBox> boxes;
+  std::vector<std::uint32_t> slots;
   entries.reserve(world.size());
   boxes.reserve(world.size());
-  for (const CollisionGaussian& g : world.gaussians()) {
+  for (std::size_t slot = 0; slot < world.gaussians().size(); ++slot) {
+    const CollisionGaussian& g = world.gaussians()[slot];
     const double o = std::min<double>(g.opacity, kMaxAlpha);
     if (!(o >= kMinAlpha)) continue;
     const Eigen::Matrix3d r =
@@ -72,12 +74,17 @@ SeenSolid::SeenSolid(const CollisionWorld& world) {
     }
     entries.push_back(e);
     boxes.push_back(b);
+    slots.push_back(std::uint32_t(slot));
   }
   if (entries.empty()) return;
   bvh_ = Bvh::build(boxes, 8);
   entries_.resize(entries.size());
+  slots_.resize(entries.size());
   const std::vector<std::uint32_t>& order = bvh_.order();
-  for (std::size_t k = 0; k < order.size(); ++k) entries_[k] = entries[order[k]];
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    entries_[k] = entries[order[k]];
+    slots_[k] = slots[order[k]];
+  }
   bvh_.release_order();
 }
 

@@ -87,12 +87,18 @@ double tip_height(const CollisionWorld& world, const Eigen::Vector3d& contact, c
 Eigen::Vector3d TextureState::force(const CollisionWorld& world, const Eigen::Vector3d& contact,
                                     const Eigen::Vector3d& normal, double radius, double k, double gain,
                                     double procedural) noexcept {
+  const double tip = gain > 0 ? tip_height(world, contact, normal, tip_reach(radius)) : 0.0;
+  return force_at_height(tip, contact, normal, radius, k, gain, procedural);
+}
+
+Eigen::Vector3d TextureState::force_at_height(double tip, const Eigen::Vector3d& contact, const Eigen::Vector3d& normal,
+                                              double radius, double k, double gain, double procedural) noexcept {
   if (!(gain > 0)) {
     started_ = false;
     relief_ = 0;
     return Eigen::Vector3d::Zero();
   }
-  const double h = tip_height(world, contact, normal, 0.5 * radius) + procedural;
+  const double h = tip + procedural;
   if (!started_) {
     started_ = true;
     mean_ = h;

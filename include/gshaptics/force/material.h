@@ -241,6 +241,10 @@ class MaterialFollower {
   /// `blockers`; `radius` the tool's scale (m); the procedural reliefs read at `contact`.
   const MaterialBlend& update(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double radius,
                               const Eigen::Vector3d& contact, std::span<const Contact> blockers) noexcept;
+  /// update() with the target shares given (`target`: per material id, summing to 1; null when
+  /// nothing holds the proxy this tick): the seen solid's layers at the hit (SeenProxy).
+  const MaterialBlend& follow(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double radius,
+                              const Eigen::Vector3d& contact, const MaterialField::Weights* target) noexcept;
   /// The coupling force `f` (N) with the material's viscous drag on `velocity` (m/s, the
   /// device's) and its texture at `contact` added: the relief's force along `n` and the friction
   /// it modulates, mu_k times that normal force against the device's tangential velocity v_t
@@ -251,6 +255,13 @@ class MaterialFollower {
   [[nodiscard]] Eigen::Vector3d add_forces(const CollisionWorld& world, Eigen::Vector3d f, const Eigen::Vector3d& contact,
                                            const Eigen::Vector3d& n, const Eigen::Vector3d& velocity, double radius,
                                            double f_max, double dt) noexcept;
+  /// add_forces() with the texture tip's height `tip` (m; TextureState::force_at_height) read by
+  /// the caller on its own solid; read only when the blend has a texture (needs_tip()).
+  [[nodiscard]] Eigen::Vector3d add_forces_at_tip(double tip, Eigen::Vector3d f, const Eigen::Vector3d& contact,
+                                                  const Eigen::Vector3d& n, const Eigen::Vector3d& velocity,
+                                                  double radius, double f_max, double dt) noexcept;
+  /// True when add_forces_at_tip() reads its tip: the blend under the contact has a texture.
+  [[nodiscard]] bool needs_tip() const noexcept { return blend_.texture_gain > 0; }
   /// The texture force's RMS over the last kVibrationWindow (exponential window), N: what a
   /// vibrotactile device (a VR controller) plays as the texture's vibration; 0 out of contact.
   [[nodiscard]] double texture_rms() const noexcept { return std::sqrt(texture_ms_); }

@@ -105,8 +105,8 @@ class ProxyRenderer final : public ForceRenderer {
   /// Materials by region (force/material.h), resolved on this renderer's world: each tick the
   /// coupling's stiffness and damping, the friction cone's coefficients and the viscous drag are
   /// the blend under the proxy (MaterialField::at); nullptr: the ProxyParams' own everywhere.
-  /// The ellipsoids only: throws InputError with the seen surface. A compound tool (set_tool)
-  /// reads the same field.
+  /// On the seen surface (SeenProxy) the materials are read from the layers that make the seen
+  /// surface under the contact, weighted T_k alpha_k. A compound tool (set_tool) reads the same field.
   void set_materials(std::shared_ptr<const MaterialField> field);
   /// The blend under the proxy at the last tick in contact (the ProxyParams' own without a field):
   /// the materials of the Gaussians holding it (MaterialField::contact_shares), followed along

@@ -14,7 +14,15 @@
 /// The force is the virtual coupling's (Colgate, Stanley and Brown 1995) along the seen surface's
 /// normal as the renderer shades it (SeenSolid::normal: the Gaussians' depth-plane normals
 /// composited along four rays; after a contact's first reading one ray a tick; smoothed over 5 ms), with
-/// the proxy's stiffness, damping and the renderer's f_max; no friction, no energy bound.
+/// the proxy's stiffness, damping and the renderer's f_max; no energy bound. Friction (mu_s, mu_k)
+/// is the friction cone's (Salisbury et al. 1995): the proxy's place across the axis follows the
+/// cone's goal (it stays while the device is inside the cone, trails it by mu_k times the depth
+/// while sliding), and the height field is read there.
+/// - With a material map (set_follower), the material under the contact is read from the layers
+///   that make the seen surface under the leading point, weighted as the renderer weighs them
+///   (T_k alpha_k: SeenSolid::visit_hit_layers), and followed along the path (MaterialFollower);
+///   its texture tip is the seen surface along -n under the contact point, seen from
+///   kNormalEye R above it at most.
 /// - With ProxyParams::seen_footprint, the tool is a sphere, not a point: beside the ray through its leading point, twelve rays
 ///   parallel to the push at 0.5, 0.7 and 0.85 R from its centre line (30 degrees apart, one
 ///   read a tick while the ray through the leading point sees no surface: free, none within R
@@ -36,6 +44,8 @@
 
 #include "gshaptics/collision/tool_ellipsoid.h"
 #include "gshaptics/force/force_renderer.h"
+#include "gshaptics/force/friction_cone.h"
+#include "gshaptics/force/material.h"
 #include "gshaptics/force/proxy_params.h"
 #include "gshaptics/force/seen_solid.h"
 #include "gshaptics/force/virtual_coupling.h"
@@ -51,6 +61,10 @@ class SeenProxy {
   /// met this tick.
   RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept;
   void reset() noexcept;
+  /// The materials under the contact (force/material.h), followed by `follower` (owned by the
+  /// caller, on the same world; nullptr: none): stiffness, damping, friction, viscosity,
+  /// texture and vibration from each tick in contact on.
+  void set_follower(MaterialFollower* follower) noexcept { follower_ = follower; }
   [[nodiscard]] const SeenSolid& solid() const noexcept { return solid_; }
   [[nodiscard]] const Eigen::Vector3d& position() const noexcept { return proxy_; }
   [[nodiscard]] const Eigen::Vector3d& contact_normal() const noexcept { return normal_; }
@@ -61,11 +75,23 @@ class SeenProxy {
   bool begin_contact(const Eigen::Vector3d& device, double radius) noexcept;
   // In contact: the proxy on the seen surface along the contact's axis, over the device's leading
   // point; false when the device has come out of the surface.
-  bool hold(const Eigen::Vector3d& device, double radius, double dt) noexcept;
+  // `goal`: where the friction cone puts the proxy across the axis (the device without friction).
+  bool hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal, double radius, double dt) noexcept;
+  // With a follower: the materials of the layers that make `hit` (the last first_inside() on
+  // scratch_) into target_ (target_held_: some layer holds a material share).
+  void read_material_shares(const SeenHit& hit) noexcept;
+  // With a follower: this tick's material at the resting proxy, applied to the coupling and the
+  // friction cone (before the force); then its viscosity and texture added to the force `f`.
+  void apply_material(double radius) noexcept;
+  Eigen::Vector3d add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& velocity, double radius,
+                                      double dt) noexcept;
+  // The texture tip's height above `contact` along `n` on the seen solid (TextureState::force_at_height).
+  double seen_tip(const Eigen::Vector3d& contact, const Eigen::Vector3d& n, double radius) noexcept;
   // The normal's reading at the resting point `point` (`depth` from the eye plane): all four rays
   // for a contact's first, one ray a tick for the later ones.
   void read_normal(const Eigen::Vector3d& point, double radius, double depth) noexcept;
   static constexpr double kNormalTau = 0.005;   // s
+  static constexpr double kNormalPath = 0.5;    // R: and over this much of the proxy's slide
   static constexpr double kNormalReuse = 0.05;  // R
   static constexpr double kNormalEye = 8;       // R: the normal's rays look from at most this far back
   static constexpr double kNormalSpan = 1.0;    // R: the normal's rays, this far to each side
@@ -100,7 +126,14 @@ class SeenProxy {
   SeenSolid solid_;
   SeenScratch scratch_;
   ProxyParams params_;
+  double f_max_;
   VirtualCoupling coupling_;
+  FrictionCone friction_;
+  FrictionStep friction_step_;
+  MaterialFollower* follower_ = nullptr;
+  MaterialField::Weights target_{};  // the material shares of the last hit (read_material_shares)
+  bool target_held_ = false;
+  Eigen::Vector3d last_device_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d proxy_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d axis_ = Eigen::Vector3d::Zero();  // the contact's push direction

@@ -19,7 +19,9 @@
 /// the queries are const, allocation-free and use the caller's SeenScratch.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -108,6 +110,23 @@ class SeenSolid {
   /// T_k alpha_k n_k over its layers. Zero when it did not hit or scratch overflowed.
   [[nodiscard]] Eigen::Vector3d shade(const Eigen::Vector3d& u, const SeenHit& hit,
                                       const SeenScratch& scratch) const noexcept;
+  /// The layers that make `hit`, the last first_inside() answer on `scratch`, as the renderer
+  /// weighs them: `visit(slot, w)` for each, in depth order, with `slot` the Gaussian's position
+  /// in CollisionWorld::gaussians() and w = T_k alpha_k (T_k: the transmittance in front of it;
+  /// the weights sum to 1 - T, at least 1/2). What a material under the seen surface is read
+  /// from (SeenProxy). Nothing when it did not hit or scratch overflowed. No allocation.
+  template <class Visit>
+  void visit_hit_layers(const SeenHit& hit, const SeenScratch& scratch, Visit&& visit) const {
+    if (!hit.hit || scratch.overflow) return;
+    double transmittance = 1;
+    const std::size_t end = std::min<std::size_t>(hit.layers, scratch.gathered);
+    for (std::size_t k = 0; k < end; ++k) {
+      const SeenScratch::Layer& l = scratch.layers[k];
+      const double alpha = -std::expm1(-l.tau);
+      visit(slots_[l.entry], transmittance * alpha);
+      transmittance *= 1 - alpha;
+    }
+  }
 
  private:
   struct Entry {
@@ -126,6 +145,7 @@ class SeenSolid {
   void gather_more(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, double shared,
                    SeenScratch& scratch) const noexcept;
   std::vector<Entry> entries_;  // BVH slot order
+  std::vector<std::uint32_t> slots_;  // per entry: its Gaussian's slot in the world
   Bvh bvh_;
 };
 

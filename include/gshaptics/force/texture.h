@@ -63,6 +63,12 @@ class TextureState {
   /// contact point (m, added to the tip's height). Returns the texture force, N, along `normal`.
   Eigen::Vector3d force(const CollisionWorld& world, const Eigen::Vector3d& contact, const Eigen::Vector3d& normal,
                         double radius, double k, double gain, double procedural) noexcept;
+  /// force() with the tip's height `tip` (m, as tip_height() gives it) read by the caller on
+  /// another solid (the seen solid: SeenProxy), within +-tip_reach(radius) of the contact point.
+  Eigen::Vector3d force_at_height(double tip, const Eigen::Vector3d& contact, const Eigen::Vector3d& normal,
+                                  double radius, double k, double gain, double procedural) noexcept;
+  /// How far above and below the contact point the tip is read: half the tool's radius.
+  [[nodiscard]] static double tip_reach(double radius) noexcept { return 0.5 * radius; }
   /// Out of contact: the next contact starts its high-pass afresh.
   void release() noexcept { started_ = false; }
   /// The last relief, m (h - h_bar; 0 out of contact).
