@@ -164,6 +164,7 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   const double rest = std::min(hit.hit ? hit.t : std::numeric_limits<double>::infinity(), footprint);
   if (!(rest < depth)) return false;  // the device is out of the surface
   if (hit.hit) last_hit_ = hit.t;
+  rest_ = rest;
   const double t = std::max(0.0, rest - 1e-6 * radius);
   const Eigen::Vector3d moved = foot + (t - radius) * a - proxy_;
   proxy_ += moved;
@@ -180,9 +181,9 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
 void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double depth) noexcept {
   // The normal is read afresh once the point moved kNormalReuse R from the last reading, and
   // smoothed over kNormalTau (each reading carries the seen surface's noise). The first reading of
-  // a contact takes its four rays at once; a later one takes one ray a tick (the solid does not
+  // a contact takes its rays at once; a later one takes one ray a tick (the solid does not
   // move, so the rays of a reading fixed at its start give the same normal, three ticks later,
-  // and no tick pays for four).
+  // and no tick pays for all of them).
   const Eigen::Vector3d& a = axis_;
   const double h = kNormalSpan * radius, back = std::min(depth, kNormalEye * radius);
   if (normal_.squaredNorm() == 0) {
@@ -199,7 +200,7 @@ void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double 
   }
   if (pending_ray_ < 0) return;
   pending_hits_[std::size_t(pending_ray_)] = solid_.normal_ray(pending_at_, a, pending_ray_, h, radius, pending_back_, scratch_);
-  if (++pending_ray_ < 4) return;
+  if (++pending_ray_ < SeenSolid::kNormalRays) return;
   target_normal_ = SeenSolid::normal_from(a, pending_hits_);
   normal_at_ = pending_at_;
   pending_ray_ = -1;
@@ -229,18 +230,12 @@ void SeenProxy::apply_material(double radius) noexcept {
 Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& velocity, double radius,
                                                double dt) noexcept {
   const Eigen::Vector3d contact = proxy_ - radius * normal_;
-  const double tip = follower_->needs_tip() ? seen_tip(contact, normal_, radius) : 0.0;
+  // The texture tip is the leading point's own: the height along the contact's axis at which the
+  // seen surface holds it (-rest_). A ray of its own along -n (TextureState's tip) cost the probe
+  // runs' p99 5-18 us; the relief is high-passed over R of path, so the two read the same
+  // micro-geometry where the normal is near the axis.
+  const double tip = -rest_;
   return follower_->add_forces_at_tip(tip, f, contact, normal_, velocity, radius, f_max_, dt);
-}
-
-double SeenProxy::seen_tip(const Eigen::Vector3d& contact, const Eigen::Vector3d& n, double radius) noexcept {
-  // Down the normal from reach above the contact point to reach below it, seen from as far back
-  // as the normal's rays look (the faint layers in front of the surface count, as they do for
-  // the proxy); -reach when the tip sees through (a hole under it).
-  const double reach = TextureState::tip_reach(radius);
-  const double back = std::min(kNormalEye * radius, std::isfinite(last_hit_) ? std::max(0.0, last_hit_ - reach) : 0.0);
-  const SeenHit hit = solid_.first_inside(contact + reach * n, -n, -back, 0, 2 * reach, scratch_);
-  return hit.hit ? reach - hit.t : -reach;
 }
 
 RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {

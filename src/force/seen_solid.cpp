@@ -271,12 +271,11 @@ Eigen::Vector3d SeenSolid::shade(const Eigen::Vector3d& u, const SeenHit& hit, c
 Eigen::Vector3d SeenSolid::normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
                                              double h) noexcept {
   const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-  const Eigen::Vector3d offset = k == 0 ? Eigen::Vector3d(h * a) : k == 1 ? Eigen::Vector3d(-h * a)
-                                 : k == 2 ? Eigen::Vector3d(h * b) : Eigen::Vector3d(-h * b);
-  return point + offset;
+  const double angle = 2 * 3.14159265358979323846 * k / kNormalRays;
+  return point + h * (std::cos(angle) * a + std::sin(angle) * b);
 }
 
-Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, 4>& hits) noexcept {
+Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits) noexcept {
   Eigen::Vector3d n = Eigen::Vector3d::Zero();
   for (const SeenHit& h : hits)
     if (h.hit) n += h.shade;
@@ -287,8 +286,8 @@ Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::arra
 
 Eigen::Vector3d SeenSolid::normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach,
                                   double back, SeenScratch& s) const noexcept {
-  std::array<SeenHit, 4> hits;
-  for (int k = 0; k < 4; ++k) hits[k] = normal_ray(point, u, k, h, reach, back, s);
+  std::array<SeenHit, kNormalRays> hits;
+  for (int k = 0; k < kNormalRays; ++k) hits[std::size_t(k)] = normal_ray(point, u, k, h, reach, back, s);
   return normal_from(u, hits);
 }
 

@@ -13,7 +13,7 @@
 ///   creep through it.
 /// The force is the virtual coupling's (Colgate, Stanley and Brown 1995) along the seen surface's
 /// normal as the renderer shades it (SeenSolid::normal: the Gaussians' depth-plane normals
-/// composited along four rays; after a contact's first reading one ray a tick; smoothed over 5 ms), with
+/// composited along four rays around the point; after a contact's first reading one ray a tick; smoothed over 5 ms), with
 /// the proxy's stiffness, damping and the renderer's f_max; no energy bound. Friction (mu_s, mu_k)
 /// is the friction cone's (Salisbury et al. 1995): the proxy's place across the axis follows the
 /// cone's goal (it stays while the device is inside the cone, trails it by mu_k times the depth
@@ -21,8 +21,8 @@
 /// - With a material map (set_follower), the material under the contact is read from the layers
 ///   that make the seen surface under the leading point, weighted as the renderer weighs them
 ///   (T_k alpha_k: SeenSolid::visit_hit_layers), and followed along the path (MaterialFollower);
-///   its texture tip is the seen surface along -n under the contact point, seen from
-///   kNormalEye R above it at most.
+///   its texture tip is the leading point itself: the seen surface's depth along the axis where
+///   it holds the proxy, high-passed (TextureState::force_at_height).
 /// - With ProxyParams::seen_footprint, the tool is a sphere, not a point: beside the ray through its leading point, twelve rays
 ///   parallel to the push at 0.5, 0.7 and 0.85 R from its centre line (30 degrees apart, one
 ///   read a tick while the ray through the leading point sees no surface: free, none within R
@@ -85,9 +85,8 @@ class SeenProxy {
   void apply_material(double radius) noexcept;
   Eigen::Vector3d add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& velocity, double radius,
                                       double dt) noexcept;
-  // The texture tip's height above `contact` along `n` on the seen solid (TextureState::force_at_height).
-  double seen_tip(const Eigen::Vector3d& contact, const Eigen::Vector3d& n, double radius) noexcept;
-  // The normal's reading at the resting point `point` (`depth` from the eye plane): all four rays
+
+  // The normal's reading at the resting point `point` (`depth` from the eye plane): all its rays
   // for a contact's first, one ray a tick for the later ones.
   void read_normal(const Eigen::Vector3d& point, double radius, double depth) noexcept;
   static constexpr double kNormalTau = 0.005;   // s
@@ -142,8 +141,9 @@ class SeenProxy {
   int pending_ray_ = -1;  // the next ray of a reading under way (-1: none)
   Eigen::Vector3d pending_at_ = Eigen::Vector3d::Zero();
   double pending_back_ = 0;
-  std::array<SeenHit, 4> pending_hits_{};
+  std::array<SeenHit, SeenSolid::kNormalRays> pending_hits_{};
   double last_hit_ = 0;  // the last hit's depth from the eye plane (NaN: none in this contact)
+  double rest_ = 0;      // where the surface holds the leading point this tick, depth from the eye plane
   // The footprint's readings: each ray's surface as a coordinate along ring_axis_ (+inf: none
   // found), and the tool's centre when it was read.
   std::array<double, kRingRays> ring_at_{};

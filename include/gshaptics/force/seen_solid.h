@@ -13,7 +13,7 @@
 /// its eye and small steps cannot creep through it, while a surface behind the tool (the floor
 /// it lifts off) never holds it. Each query searches the whole segment, so no motion tunnels. Volume haptics with a proxy on
 /// opacity (Lundin, Ynnerman and Gudmundsson 2002) is the classical ground; the normal is the
-/// one the renderer shades the seen surface with (its normal map along four parallel rays).
+/// one the renderer shades the seen surface with (its normal map along kNormalRays parallel rays).
 ///
 /// Frame and units: the world's (CollisionWorld), lengths in world units. Built once (allocates);
 /// the queries are const, allocation-free and use the caller's SeenScratch.
@@ -56,6 +56,8 @@ struct SeenHit {
 
 class SeenSolid {
  public:
+  /// How many rays the normal reads (normal(), normal_ray()).
+  static constexpr int kNormalRays = 4;
   /// Every Gaussian of `world` whose opacity reaches 1/255 (build the world with
   /// WorldConfig::min_opacity below the default to keep faint layers). Scales are the world's
   /// semi-axes divided by its sigma. Builds its own BVH over each Gaussian's alpha = 1/255 box.
@@ -94,18 +96,18 @@ class SeenSolid {
   /// peaks over parallel rays lie on its depth plane u^T Sigma_i^-1 (x - mu_i) = 0, whose normal
   /// n_i = -Sigma_i^-1 u / |Sigma_i^-1 u| is the seen depth map's own slope where Gaussian i
   /// makes it; the normal is the sum of T_k alpha_k n_k over the layers up to the seen depth
-  /// (T_k: the transmittance in front of layer k), summed over four rays parallel to u offset by
-  /// +-h across it (searched within +-`reach` of `point`, each seen from `back` before
+  /// (T_k: the transmittance in front of layer k), summed over kNormalRays rays parallel to u on a
+  /// ring of radius h around `point`, evenly spaced (searched within +-`reach` of `point`, each seen from `back` before
   /// `point`'s depth), then normalised. A flat disc gives its own normal, a round Gaussian -u.
   /// -u when no ray hits.
   Eigen::Vector3d normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach, double back,
                          SeenScratch& scratch) const noexcept;
-  /// normal() one ray at a time (a caller may spread the four over ticks): ray k (0-3) of the
+  /// normal() one ray at a time (a caller may spread them over ticks): ray k (0 to kNormalRays - 1) of the
   /// reading at `point`, its hit's t from the ray's origin and its shade; normal_from() then
-  /// combines the four. normal() is exactly normal_from() of the four normal_ray()s.
+  /// combines them. normal() is exactly normal_from() of the kNormalRays normal_ray()s.
   SeenHit normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k, double h, double reach,
                      double back, SeenScratch& scratch) const noexcept;
-  [[nodiscard]] static Eigen::Vector3d normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, 4>& hits) noexcept;
+  [[nodiscard]] static Eigen::Vector3d normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits) noexcept;
   /// The shade (SeenHit::shade) of `hit`, the last first_inside() answer on `scratch`: the sum of
   /// T_k alpha_k n_k over its layers. Zero when it did not hit or scratch overflowed.
   [[nodiscard]] Eigen::Vector3d shade(const Eigen::Vector3d& u, const SeenHit& hit,
