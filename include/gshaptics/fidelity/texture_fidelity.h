@@ -55,7 +55,8 @@ struct TextureRow {
                                                        double f_hi);
 
 /// Drags the sphere of `tool_radius` 2 mm deep at `speed` over the grating `g` (a world built with
-/// the default WorldConfig) with the proxy `spec` reading textured_everywhere_map(); the scored
+/// the default WorldConfig, its opacity filter default_min_opacity(spec): the seen solid keeps the
+/// faint Gaussians) with the proxy `spec` reading textured_everywhere_map(); the scored
 /// stretch leaves out the first 2 cm and the last 1 cm of the 6 cm drag. With `stylus` (a
 /// compound tool whose tip is its TCP, held upright), the stylus instead, its tip 2 mm deep
 /// (`tool_radius` is then only the row's label).
