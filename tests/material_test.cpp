@@ -198,41 +198,56 @@ TEST(MaterialField, TheBlendMatchesADirectSumOverEveryGaussian) {
   }
 }
 
-// The proxy presses each side with that side's stiffness, and slides with its kinetic friction.
-TEST(MaterialProxy, EachSideHasItsStiffnessAndFriction) {
-  const CollisionWorld world = plane_world();
-  const double r = 0.005, dt = 1e-3;
-  ProxyRenderer proxy(world, ProxyParams{});
-  proxy.set_materials(MaterialField::resolve(MaterialMap::parse(two_materials(), "map"), world, ProxyParams{}));
-  for (const auto& [x, k] : {std::pair{-0.04, 600.0}, std::pair{0.04, 1500.0}}) {
-    proxy.reset();
-    double f1 = 0, f5 = 0;
-    for (int i = 0; i <= 800; ++i) {  // from 3 mm above to 5 mm in, at 1 cm/s
-      const double delta = -0.003 + 1e-5 * i;
-      const RenderOutput o = proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, r - delta), r),
-                                          Eigen::Vector3d(0, 0, -0.01), dt);
-      if (std::abs(delta - 0.001) < 5e-6) f1 = o.force.z();
-      if (std::abs(delta - 0.005) < 5e-6) f5 = o.force.z();
-    }
-    EXPECT_NEAR((f5 - f1) / 0.004, k, 0.05 * k) << "x " << x;
-  }
-  // A slide 2 mm deep at 5 cm/s from x = -4 cm to +4 cm.
+// Pressed at x (the plane's z = 0) from 3 mm above to 5 mm in at 1 cm/s: the slope of F_z between
+// 1 and 5 mm of depth, N/m.
+double press_stiffness(ProxyRenderer& proxy, double x, double r) {
   proxy.reset();
-  double ft[2] = {0, 0}, fn[2] = {0, 0};
-  for (int i = 0; i <= 300; ++i) {  // press in at x = -4 cm
+  double f1 = 0, f5 = 0;
+  for (int i = 0; i <= 800; ++i) {
+    const double delta = -0.003 + 1e-5 * i;
+    const RenderOutput o = proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, r - delta), r),
+                                        Eigen::Vector3d(0, 0, -0.01), 1e-3);
+    if (std::abs(delta - 0.001) < 5e-6) f1 = o.force.z();
+    if (std::abs(delta - 0.005) < 5e-6) f5 = o.force.z();
+  }
+  return (f5 - f1) / 0.004;
+}
+
+// Pressed in 2 mm at x = -4 cm, then slid 2 mm deep at 5 cm/s to x = +4 cm: the friction against
+// the motion over the normal force (mean -F_x over mean F_z) on each side, farther than 3 r from
+// the border and past the start. `held` (optional): F_z > 0 on every tick of the slide.
+std::array<double, 2> slide_ratios(ProxyRenderer& proxy, double r, bool* held = nullptr) {
+  const double dt = 1e-3;
+  proxy.reset();
+  for (int i = 0; i <= 300; ++i) {
     const double delta = std::min(0.002, -0.001 + 1e-5 * i);
     (void)proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(-0.04, 0, r - delta), r), Eigen::Vector3d(0, 0, -0.01), dt);
   }
+  double ft[2] = {0, 0}, fn[2] = {0, 0};
+  if (held) *held = true;
   for (int i = 0; i <= 1600; ++i) {
     const double x = -0.04 + 5e-5 * i;
     const RenderOutput o = proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, r - 0.002), r),
                                         Eigen::Vector3d(0.05, 0, 0), dt);
+    if (held && !(o.force.z() > 0)) *held = false;
     if (std::abs(x) < 3 * r || std::abs(x) > 0.035) continue;  // the blend near the border; the start
-    ft[x > 0] += std::abs(o.force.x());
+    ft[x > 0] += -o.force.x();
     fn[x > 0] += o.force.z();
   }
-  EXPECT_NEAR(ft[0] / fn[0], 0.3, 0.05 * 0.3);
-  EXPECT_NEAR(ft[1] / fn[1], 0.6, 0.05 * 0.6);
+  return {ft[0] / fn[0], ft[1] / fn[1]};
+}
+
+// The proxy presses each side with that side's stiffness, and slides with its kinetic friction.
+TEST(MaterialProxy, EachSideHasItsStiffnessAndFriction) {
+  const CollisionWorld world = plane_world();
+  const double r = 0.005;
+  ProxyRenderer proxy(world, ProxyParams{});
+  proxy.set_materials(MaterialField::resolve(MaterialMap::parse(two_materials(), "map"), world, ProxyParams{}));
+  for (const auto& [x, k] : {std::pair{-0.04, 600.0}, std::pair{0.04, 1500.0}})
+    EXPECT_NEAR(press_stiffness(proxy, x, r), k, 0.05 * k) << "x " << x;
+  const std::array<double, 2> ratio = slide_ratios(proxy, r);
+  EXPECT_NEAR(ratio[0], 0.3, 0.05 * 0.3);
+  EXPECT_NEAR(ratio[1], 0.6, 0.05 * 0.6);
   EXPECT_EQ(proxy.materials()->name(proxy.material().dominant), "hard");
 }
 
@@ -279,38 +294,16 @@ TEST(MaterialProxy, OnTheSeenSurfaceEachSideHasItsStiffnessAndFriction) {
   const CollisionWorld world = CollisionWorld::build(make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), sp).scene, config);
   ProxyParams seen;
   seen.surface = ProxySurface::kSeen;
-  const double r = 0.005, dt = 1e-3;
+  const double r = 0.005;
   ProxyRenderer proxy(world, seen);
   proxy.set_materials(MaterialField::resolve(MaterialMap::parse(two_materials(), "map"), world, seen));
-  for (const auto& [x, k] : {std::pair{-0.04, 600.0}, std::pair{0.04, 1500.0}}) {
-    proxy.reset();
-    double f1 = 0, f5 = 0;
-    for (int i = 0; i <= 800; ++i) {  // from 3 mm above to 5 mm in, at 1 cm/s
-      const double delta = -0.003 + 1e-5 * i;
-      const RenderOutput o = proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, r - delta), r),
-                                          Eigen::Vector3d(0, 0, -0.01), dt);
-      if (std::abs(delta - 0.001) < 5e-6) f1 = o.force.z();
-      if (std::abs(delta - 0.005) < 5e-6) f5 = o.force.z();
-    }
-    EXPECT_NEAR((f5 - f1) / 0.004, k, 0.05 * k) << "x " << x;
-  }
-  proxy.reset();
-  double ft[2] = {0, 0}, fn[2] = {0, 0};
-  for (int i = 0; i <= 300; ++i) {  // press in at x = -4 cm
-    const double delta = std::min(0.002, -0.001 + 1e-5 * i);
-    (void)proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(-0.04, 0, r - delta), r), Eigen::Vector3d(0, 0, -0.01), dt);
-  }
-  for (int i = 0; i <= 1600; ++i) {  // then 2 mm deep at 5 cm/s to x = +4 cm
-    const double x = -0.04 + 5e-5 * i;
-    const RenderOutput o = proxy.render(ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, r - 0.002), r),
-                                        Eigen::Vector3d(0.05, 0, 0), dt);
-    ASSERT_GT(o.force.z(), 0) << "x " << x;  // held all the way
-    if (std::abs(x) < 3 * r || std::abs(x) > 0.035) continue;
-    ft[x > 0] += -o.force.x();
-    fn[x > 0] += o.force.z();
-  }
-  EXPECT_NEAR(ft[0] / fn[0], 0.3, 0.05 * 0.3);
-  EXPECT_NEAR(ft[1] / fn[1], 0.6, 0.05 * 0.6);
+  for (const auto& [x, k] : {std::pair{-0.04, 600.0}, std::pair{0.04, 1500.0}})
+    EXPECT_NEAR(press_stiffness(proxy, x, r), k, 0.05 * k) << "x " << x;
+  bool held = false;
+  const std::array<double, 2> ratio = slide_ratios(proxy, r, &held);
+  EXPECT_TRUE(held);
+  EXPECT_NEAR(ratio[0], 0.3, 0.05 * 0.3);
+  EXPECT_NEAR(ratio[1], 0.6, 0.05 * 0.6);
   EXPECT_EQ(proxy.materials()->name(proxy.material().dominant), "hard");
 }
 
