@@ -516,12 +516,11 @@ json regions_in_world(const MaterialMap& map, const CollisionWorld& world) {
 }
 
 bool MaterialField::contact_shares(std::span<const Contact> contacts, Weights& shares) const noexcept {
-  double total = 0;
-  for (const Contact& c : contacts) total += double(c.opacity);
-  if (!(total > 0)) return false;
-  for (std::size_t id = 0; id < props_.size(); ++id) shares[id] = 0;
-  for (const Contact& c : contacts) shares[slot_material_[c.slot]] += double(c.opacity) / total;
-  return true;
+  return weighted_shares(
+      [&](auto&& add) {
+        for (const Contact& c : contacts) add(c.slot, double(c.opacity));
+      },
+      shares);
 }
 
 MaterialFollower::MaterialFollower(std::shared_ptr<const MaterialField> field, const ProxyParams& base)
@@ -583,7 +582,7 @@ Eigen::Vector3d MaterialFollower::add_forces_at_tip(double tip, Eigen::Vector3d 
   if (blend_.viscosity > 0) f -= blend_.viscosity * v_t;
   Eigen::Vector3d texture = Eigen::Vector3d::Zero();
   if (blend_.texture_gain > 0) {
-    texture = texture_.force_at_height(tip, contact, n, radius, blend_.stiffness, blend_.texture_gain, blend_.procedural);
+    texture = texture_.force(tip, contact, n, radius, blend_.stiffness, blend_.texture_gain, blend_.procedural);
     // Coulomb's law on the relief's normal force: friction follows it while sliding (a bump
     // pushes up and resists more, a groove less), faded in below kSlideSpeed so that a tool at
     // rest feels no tangential buzz. It opposes the slide; with the normal force kept >= 0

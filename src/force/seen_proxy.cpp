@@ -207,29 +207,18 @@ void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double 
 }
 
 void SeenProxy::read_material_shares(const SeenHit& hit) noexcept {
-  const MaterialField& field = follower_->field();
-  const std::size_t count = field.material_count();
-  for (std::size_t id = 0; id < count; ++id) target_[id] = 0;
-  double total = 0;
-  solid_.visit_hit_layers(hit, scratch_, [&](std::uint32_t slot, double w) {
-    target_[field.material_of(slot)] += w;
-    total += w;
-  });
-  if (!(total > 0)) return;
-  for (std::size_t id = 0; id < count; ++id) target_[id] /= total;
-  target_held_ = true;
+  target_held_ = follower_->field().weighted_shares(
+      [&](auto&& add) { solid_.visit_hit_layers(hit, scratch_, add); }, target_);
 }
 
-void SeenProxy::apply_material(double radius) noexcept {
-  const Eigen::Vector3d contact = proxy_ - radius * normal_;
+void SeenProxy::apply_material(const Eigen::Vector3d& contact, double radius) noexcept {
   const MaterialBlend& b = follower_->follow(proxy_, normal_, radius, contact, target_held_ ? &target_ : nullptr);
   coupling_.set_gains(b.stiffness, b.damping);
   friction_.set_coefficients(b.mu_s, b.mu_k);
 }
 
-Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& velocity, double radius,
-                                               double dt) noexcept {
-  const Eigen::Vector3d contact = proxy_ - radius * normal_;
+Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& contact,
+                                               const Eigen::Vector3d& velocity, double radius, double dt) noexcept {
   // The texture tip is the leading point's own: the height along the contact's axis at which the
   // seen surface holds it (-rest_). A ray of its own along -n (TextureState's tip) cost the probe
   // runs' p99 5-18 us; the relief is high-passed over R of path, so the two read the same
@@ -271,11 +260,12 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   out.proxy = proxy_;
   out.constraints = 1;
   const Eigen::Vector3d e = proxy_ - tool.center;
-  if (follower_) apply_material(r);
+  const Eigen::Vector3d contact = proxy_ - r * normal_;  // where the tool meets the surface
+  if (follower_) apply_material(contact, r);
   const double mu_k = follower_ ? follower_->blend().mu_k : params_.mu_k;
   out.force = coupling_.force(e, normal_, velocity, dt, {}, friction_step_, mu_k);
   if (follower_) {
-    out.force = add_material_forces(out.force, velocity, r, dt);
+    out.force = add_material_forces(out.force, contact, velocity, r, dt);
     out.texture_rms = float(follower_->texture_rms());
     out.vibration = float(follower_->blend().vibration);
   }

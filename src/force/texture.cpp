@@ -84,15 +84,8 @@ double tip_height(const CollisionWorld& world, const Eigen::Vector3d& contact, c
   return reach - best;
 }
 
-Eigen::Vector3d TextureState::force(const CollisionWorld& world, const Eigen::Vector3d& contact,
-                                    const Eigen::Vector3d& normal, double radius, double k, double gain,
-                                    double procedural) noexcept {
-  const double tip = gain > 0 ? tip_height(world, contact, normal, tip_reach(radius)) : 0.0;
-  return force_at_height(tip, contact, normal, radius, k, gain, procedural);
-}
-
-Eigen::Vector3d TextureState::force_at_height(double tip, const Eigen::Vector3d& contact, const Eigen::Vector3d& normal,
-                                              double radius, double k, double gain, double procedural) noexcept {
+Eigen::Vector3d TextureState::force(double tip, const Eigen::Vector3d& contact, const Eigen::Vector3d& normal,
+                                    double radius, double k, double gain, double procedural) noexcept {
   if (!(gain > 0)) {
     started_ = false;
     relief_ = 0;

@@ -193,6 +193,18 @@ class MaterialField {
   /// was resolved on), weighted by their opacities, as shares that sum to 1 (`shares` untouched
   /// and false when there are none). No allocation.
   bool contact_shares(std::span<const Contact> contacts, Weights& shares) const noexcept;
+  /// The same for any weighted Gaussians: `for_each(add)` calls add(slot, weight) for each (world
+  /// slot, weight >= 0), and is called twice (the total, then the shares); the seen proxy's
+  /// layers weighted T_k alpha_k (SeenSolid::visit_hit_layers). No allocation.
+  template <class ForEach>
+  bool weighted_shares(ForEach&& for_each, Weights& shares) const noexcept {
+    double total = 0;
+    for_each([&](std::uint32_t, double w) { total += w; });
+    if (!(total > 0)) return false;
+    for (std::size_t id = 0; id < props_.size(); ++id) shares[id] = 0;
+    for_each([&](std::uint32_t slot, double w) { shares[slot_material_[slot]] += w / total; });
+    return true;
+  }
   /// The properties of materials mixed by `w` (any non-negative weights; the proxy's own when all
   /// are 0), their procedural reliefs read at `contact` (NaN: not read). No allocation.
   [[nodiscard]] MaterialBlend blend(const Weights& w, const Eigen::Vector3d& contact) const noexcept;
@@ -255,7 +267,7 @@ class MaterialFollower {
   [[nodiscard]] Eigen::Vector3d add_forces(const CollisionWorld& world, Eigen::Vector3d f, const Eigen::Vector3d& contact,
                                            const Eigen::Vector3d& n, const Eigen::Vector3d& velocity, double radius,
                                            double f_max, double dt) noexcept;
-  /// add_forces() with the texture tip's height `tip` (m; TextureState::force_at_height) read by
+  /// add_forces() with the texture tip's height `tip` (m; TextureState::force) read by
   /// the caller on its own solid; read only when the blend has a texture (needs_tip()).
   [[nodiscard]] Eigen::Vector3d add_forces_at_tip(double tip, Eigen::Vector3d f, const Eigen::Vector3d& contact,
                                                   const Eigen::Vector3d& n, const Eigen::Vector3d& velocity,

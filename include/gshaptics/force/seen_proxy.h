@@ -22,7 +22,7 @@
 ///   that make the seen surface under the leading point, weighted as the renderer weighs them
 ///   (T_k alpha_k: SeenSolid::visit_hit_layers), and followed along the path (MaterialFollower);
 ///   its texture tip is the leading point itself: the seen surface's depth along the axis where
-///   it holds the proxy, high-passed (TextureState::force_at_height).
+///   it holds the proxy, high-passed (TextureState::force).
 /// - With ProxyParams::seen_footprint, the tool is a sphere, not a point: beside the ray through its leading point, twelve rays
 ///   parallel to the push at 0.5, 0.7 and 0.85 R from its centre line (30 degrees apart, one
 ///   read a tick while the ray through the leading point sees no surface: free, none within R
@@ -80,11 +80,12 @@ class SeenProxy {
   // With a follower: the materials of the layers that make `hit` (the last first_inside() on
   // scratch_) into target_ (target_held_: some layer holds a material share).
   void read_material_shares(const SeenHit& hit) noexcept;
-  // With a follower: this tick's material at the resting proxy, applied to the coupling and the
-  // friction cone (before the force); then its viscosity and texture added to the force `f`.
-  void apply_material(double radius) noexcept;
-  Eigen::Vector3d add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& velocity, double radius,
-                                      double dt) noexcept;
+  // With a follower: this tick's material at the resting proxy (its contact point `contact`),
+  // applied to the coupling and the friction cone (before the force); then its viscosity and
+  // texture added to the force `f`.
+  void apply_material(const Eigen::Vector3d& contact, double radius) noexcept;
+  Eigen::Vector3d add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& contact,
+                                      const Eigen::Vector3d& velocity, double radius, double dt) noexcept;
 
   // The normal's reading at the resting point `point` (`depth` from the eye plane): all its rays
   // for a contact's first, one ray a tick for the later ones.

@@ -57,16 +57,14 @@ struct ProceduralTexture {
 /// The texture of one contact: the tip's high-passed height and the force from it.
 class TextureState {
  public:
-  /// One tick in contact: `contact` the proxy's contact point (world, m), `normal` its unit
-  /// normal, `radius` the tool's bounding radius (m), `k` the coupling stiffness under it (N/m),
-  /// `gain` the material's texture gain (0: none), `procedural` its procedural relief at the
-  /// contact point (m, added to the tip's height). Returns the texture force, N, along `normal`.
-  Eigen::Vector3d force(const CollisionWorld& world, const Eigen::Vector3d& contact, const Eigen::Vector3d& normal,
-                        double radius, double k, double gain, double procedural) noexcept;
-  /// force() with the tip's height `tip` (m, as tip_height() gives it) read by the caller on
-  /// another solid (the seen solid: SeenProxy), within +-tip_reach(radius) of the contact point.
-  Eigen::Vector3d force_at_height(double tip, const Eigen::Vector3d& contact, const Eigen::Vector3d& normal,
-                                  double radius, double k, double gain, double procedural) noexcept;
+  /// One tick in contact: `tip` the tip's height (m: tip_height() on the ellipsoids, or the
+  /// caller's reading on its own solid, the seen proxy's leading point), `contact` the proxy's
+  /// contact point (world, m), `normal` its unit normal, `radius` the tool's bounding radius (m),
+  /// `k` the coupling stiffness under it (N/m), `gain` the material's texture gain (0: none),
+  /// `procedural` its procedural relief at the contact point (m, added to the tip's height).
+  /// Returns the texture force, N, along `normal`.
+  Eigen::Vector3d force(double tip, const Eigen::Vector3d& contact, const Eigen::Vector3d& normal, double radius,
+                        double k, double gain, double procedural) noexcept;
   /// How far above and below the contact point the tip is read: half the tool's radius.
   [[nodiscard]] static double tip_reach(double radius) noexcept { return 0.5 * radius; }
   /// Out of contact: the next contact starts its high-pass afresh.
