@@ -28,6 +28,8 @@ struct Contact {
   std::uint32_t slot = 0;     ///< position of its record in CollisionWorld::gaussians()
   float opacity = 0;          ///< alpha_i
   std::uint8_t part = 0;      ///< the compound tool's part that overlaps it (0 for one ellipsoid)
+  /// The body it belongs to: 0 the static scene, i + 1 the scene's object i (objects/rigid_object.h).
+  std::uint8_t body = 0;
   double k_min = 0;           ///< K_min in (0, 1]: larger is deeper (paper eq. 6, Fig. 2)
   Eigen::Vector3d center = Eigen::Vector3d::Zero();  ///< c_i, world frame
 };

@@ -1,0 +1,104 @@
+#pragma once
+/// @file
+/// Rigid-body dynamics of a scene's objects on MuJoCo (Todorov, Erez and Tassa 2012; Debian's
+/// libmujoco 2.2.2): each object is a MuJoCo body with a free joint whose collision geometry is
+/// the convex hull MuJoCo builds from RigidObject::hull_points, its inertia that of the given mass
+/// spread uniformly over the hull; the static scene gives the support, a plane.
+///
+/// Contacts use MuJoCo's elliptic friction cone with impratio 100 (friction constraints stiffer
+/// than the normal ones): on a box under a steady push this holds static friction within 0.3 mm
+/// over 300 ms below mu m g, where the default pyramidal cone creeps centimetres (bench/RESULTS.md).
+///
+/// Threading: one thread steps the model (the servo thread: ObjectRenderer steps it inside its
+/// render()); step(), apply_wrench() and the accessors never allocate, lock, log or throw. Other
+/// threads read the poses through poses_buffer() (a TripleBuffer, lock-free).
+
+#include <Eigen/Core>
+#include <atomic>
+#include <memory>
+#include <span>
+#include <string>
+
+#include "gshaptics/device/triple_buffer.h"
+#include "gshaptics/objects/rigid_object.h"
+
+struct mjModel_;
+struct mjData_;
+
+namespace gshaptics {
+
+/// The static support of the objects: a plane, world frame.
+struct SupportPlane {
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();      ///< on the plane, m
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();    ///< unit, pointing into free space (up)
+};
+
+/// The plane under `objects`: normal `up` (unit, world), through the lowest hull point along
+/// `up` of all of them, so each object rests on it or drops onto it as captured.
+[[nodiscard]] SupportPlane support_under(std::span<const RigidObject> objects, const Eigen::Vector3d& up);
+
+/// The dynamics' settings.
+struct DynamicsParams {
+  double timestep = 0.001;  ///< s: the servo period (or a multiple of it)
+  double gravity = 9.81;    ///< m/s^2, along -SupportPlane::normal
+};
+
+/// The MuJoCo model of a scene's objects, stepped at a fixed timestep.
+class ObjectDynamics {
+ public:
+  /// Builds the MuJoCo model (objects at their rest pose, at rest). Throws InputError with
+  /// MuJoCo's message when it rejects the model (for example, a hull of coplanar points), and
+  /// for an empty `objects` or a non-positive timestep.
+  ObjectDynamics(std::span<const RigidObject> objects, const SupportPlane& support, const DynamicsParams& params = {});
+  ~ObjectDynamics();
+  ObjectDynamics(const ObjectDynamics&) = delete;
+  ObjectDynamics& operator=(const ObjectDynamics&) = delete;
+
+  [[nodiscard]] std::size_t size() const noexcept { return bodies_; }
+  [[nodiscard]] const DynamicsParams& params() const noexcept { return params_; }
+  [[nodiscard]] const SupportPlane& support() const noexcept { return support_; }
+  /// Object i's body-frame pose and velocity now (world frame).
+  [[nodiscard]] const BodyPose& pose(std::size_t i) const noexcept { return poses_.poses[i]; }
+  /// Object i's centre of mass now, world, m; its mass, kg.
+  [[nodiscard]] Eigen::Vector3d center_of_mass(std::size_t i) const noexcept;
+  [[nodiscard]] double mass(std::size_t i) const noexcept;
+  /// Simulated time since the start, s.
+  [[nodiscard]] double time() const noexcept { return poses_.time; }
+
+  /// Adds `force` (N, world) acting at `point` (world, m), plus the pure couple `couple` (N m,
+  /// world), on object i for the next step(). Non-finite input is ignored.
+  void apply_wrench(std::size_t i, const Eigen::Vector3d& force, const Eigen::Vector3d& point,
+                    const Eigen::Vector3d& couple = Eigen::Vector3d::Zero()) noexcept;
+  /// The wrench applied for the last step(): force (N) and torque about the centre of mass (N m).
+  [[nodiscard]] Eigen::Vector3d last_force(std::size_t i) const noexcept;
+  /// One MuJoCo step of params().timestep with the wrenches applied since the last step, which
+  /// it then clears; publishes the new poses.
+  void step() noexcept;
+  /// Back to the rest poses, at rest, time 0.
+  void reset() noexcept;
+
+  /// The poses as published after each step, for other threads.
+  [[nodiscard]] TripleBuffer<ObjectPoses>& poses_buffer() noexcept { return published_; }
+  /// MuJoCo warnings raised since the start (contact buffer full, bad state ...); a step that
+  /// raised one keeps going as MuJoCo does.
+  [[nodiscard]] static long warnings() noexcept;
+
+ private:
+  void read_poses() noexcept;
+  DynamicsParams params_;
+  SupportPlane support_;
+  mjModel_* model_ = nullptr;
+  mjData_* data_ = nullptr;
+  std::size_t bodies_ = 0;
+  std::array<int, kMaxObjects> body_id_{};
+  std::array<Eigen::Matrix<double, 6, 1>, kMaxObjects> last_wrench_{};
+  ObjectPoses poses_;
+  TripleBuffer<ObjectPoses> published_;
+};
+
+/// The MJCF text of the model ObjectDynamics builds (for inspection and `--dump`): one body per
+/// object with its hull as a mesh, the support plane, the options above.
+[[nodiscard]] std::string object_model_xml(std::span<const RigidObject> objects, const SupportPlane& support,
+                                           const DynamicsParams& params);
+
+}  // namespace gshaptics

@@ -1,0 +1,86 @@
+#pragma once
+/// @file
+/// Force rendering in a scene with rigid objects (issue 72): one renderer on the static world
+/// and one per object on the object's body-frame world, each holding its own proxy; the dynamics
+/// (ObjectDynamics, MuJoCo) stepped inside the tick.
+///
+/// Each tick, per object: the tool (pose, velocity relative to the body's own motion at the tool)
+/// is moved into the object's body frame with the object's pose now, the object's renderer moves
+/// its proxy there (a sweep in the body frame sees the body's motion over the tick as the tool's
+/// relative motion, so the proxy never passes through a moving object, and an object moving into
+/// a resting proxy carries it along and pushes the hand), and its force and torque come back to
+/// the world. The hand gets the sum over the static scene and the objects (a corner between an
+/// object and the scene is felt as the two springs' sum); each object gets the reaction, -F at
+/// its proxy's tool centre plus the couple -tau, as an external wrench for the next step.
+///
+/// Sources: the god-object (Zilles and Salisbury 1995) per rigid body, as multi-object proxies
+/// do (Ruspini, Kolarov and Khatib 1997); the coupling force as the body's external wrench, as in
+/// virtual-coupling rigid-body haptics (Colgate, Stanley and Brown 1995; Otaduy and Lin 2006).
+///
+/// Threading and hot path as ForceRenderer: render() never allocates, locks, logs or throws; the
+/// MuJoCo step runs inside it at the dynamics' timestep (at most kMaxDynamicsSteps per tick).
+
+#include <memory>
+#include <vector>
+
+#include "gshaptics/force/force_renderer.h"
+#include "gshaptics/force/renderer_spec.h"
+#include "gshaptics/objects/object_dynamics.h"
+
+namespace gshaptics {
+
+/// At most this many dynamics steps in one tick: a late tick does not make the next one later.
+inline constexpr int kMaxDynamicsSteps = 4;
+
+class ObjectRenderer final : public ForceRenderer {
+ public:
+  /// `scene` renders the static world; `bodies[i]` renders objects[i].body (the same order as
+  /// the dynamics' objects); `worlds` keeps the body worlds alive. Throws InputError when the
+  /// counts differ or a renderer is null.
+  ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector<std::unique_ptr<ForceRenderer>> bodies,
+                 std::vector<std::shared_ptr<const CollisionWorld>> worlds, std::shared_ptr<ObjectDynamics> dynamics);
+  [[nodiscard]] std::string_view name() const noexcept override { return scene_->name(); }
+  RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
+  RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
+                               const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
+                               double dt) noexcept override;
+  [[nodiscard]] bool renders_compound() const noexcept override;
+  void set_tool(const CompoundTool& tool) override;
+  /// The static scene's contacts then each object's, centres in the world, Contact::body set.
+  [[nodiscard]] std::span<const Contact> contacts() const noexcept override { return merged_.contacts(); }
+  /// Forgets every proxy and puts the objects back at rest where they were captured.
+  void reset() noexcept override;
+  void set_executor(ParallelExecutor* executor, std::size_t min_candidates) override;
+
+  [[nodiscard]] ObjectDynamics& dynamics() noexcept { return *dynamics_; }
+  [[nodiscard]] const ObjectDynamics& dynamics() const noexcept { return *dynamics_; }
+  /// The force (N, world) object i's renderer put on the tool at the last tick.
+  [[nodiscard]] const Eigen::Vector3d& object_force(std::size_t i) const noexcept { return object_force_[i]; }
+
+ private:
+  template <class RenderIn>
+  RenderOutput render_all(RenderOutput scene_out, RenderIn&& render_in, double dt) noexcept;
+  void gather_contacts(std::span<const Contact> contacts, std::uint8_t body, const BodyPose* pose) noexcept;
+  void step_dynamics(double dt) noexcept;
+
+  std::unique_ptr<ForceRenderer> scene_;
+  std::vector<std::unique_ptr<ForceRenderer>> bodies_;
+  std::vector<std::shared_ptr<const CollisionWorld>> worlds_;
+  std::shared_ptr<ObjectDynamics> dynamics_;
+  struct Reaction {
+    Eigen::Vector3d force = Eigen::Vector3d::Zero(), point = Eigen::Vector3d::Zero(), couple = Eigen::Vector3d::Zero();
+  };
+  std::array<Eigen::Vector3d, kMaxObjects> object_force_{};
+  std::array<Reaction, kMaxObjects> reaction_{};  // on each object over this tick (world)
+  ContactSet merged_{1u << 12};
+  double pending_ = 0;  // simulated time owed to the dynamics, s
+};
+
+/// The renderer `spec` names on the static `scene` and on each object's body world, with the
+/// objects' dynamics. Throws InputError as make_force_renderer() and ObjectRenderer.
+[[nodiscard]] std::unique_ptr<ObjectRenderer> make_object_renderer(const RendererSpec& spec, const CollisionWorld& scene,
+                                                                   std::span<const RigidObject> objects,
+                                                                   std::shared_ptr<ObjectDynamics> dynamics,
+                                                                   const QueryOptions& query = {});
+
+}  // namespace gshaptics

@@ -1,0 +1,161 @@
+#include "gshaptics/objects/object_dynamics.h"
+
+#include <mujoco/mujoco.h>
+
+#include <Eigen/Geometry>
+#include <cstring>
+#include <limits>
+#include <sstream>
+
+#include "gshaptics/error.h"
+
+namespace gshaptics {
+namespace {
+
+std::atomic<long> g_warnings{0};
+// MuJoCo's default warning handler prints; on the servo thread nothing may log, so warnings are
+// counted instead (ObjectDynamics::warnings()).
+void count_warning(const char*) { g_warnings.fetch_add(1, std::memory_order_relaxed); }
+
+std::string vec(const Eigen::Vector3d& v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v.x() << ' ' << v.y() << ' ' << v.z();
+  return s.str();
+}
+
+// Loads MJCF text through MuJoCo's virtual file system (no file touches the disk).
+mjModel* load_model(const std::string& xml) {
+  mjVFS vfs;
+  mj_defaultVFS(&vfs);
+  const char* name = "gshaptics_objects.xml";
+  if (mj_makeEmptyFileVFS(&vfs, name, int(xml.size())) != 0) throw InputError("objects: MuJoCo's file system is full");
+  std::memcpy(vfs.filedata[mj_findFileVFS(&vfs, name)], xml.data(), xml.size());
+  char error[1000] = "";
+  mjModel* model = mj_loadXML(name, &vfs, error, sizeof error);
+  mj_deleteVFS(&vfs);
+  if (model == nullptr) throw InputError(std::string("objects: MuJoCo rejected the objects' model: ") + error);
+  return model;
+}
+
+}  // namespace
+
+SupportPlane support_under(std::span<const RigidObject> objects, const Eigen::Vector3d& up) {
+  SupportPlane plane;
+  plane.normal = up.normalized();
+  double lowest = std::numeric_limits<double>::infinity();
+  for (const RigidObject& o : objects)
+    for (const Eigen::Vector3d& p : o.hull_points) {
+      const double h = plane.normal.dot(o.rest_origin + p);
+      if (h < lowest) {
+        lowest = h;
+        plane.point = o.rest_origin + p;
+      }
+    }
+  return plane;
+}
+
+std::string object_model_xml(std::span<const RigidObject> objects, const SupportPlane& support,
+                             const DynamicsParams& params) {
+  std::ostringstream x;
+  x.precision(17);
+  const Eigen::Vector3d g = -params.gravity * support.normal.normalized();
+  // Friction combines by the larger of two geoms' (MuJoCo): the plane's is 0, so each object's own.
+  x << "<mujoco model='gshaptics_objects'>\n"
+    << "  <option timestep='" << params.timestep << "' gravity='" << vec(g)
+    << "' cone='elliptic' impratio='100'/>\n  <asset>\n";
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    x << "    <mesh name='hull" << i << "' vertex='";
+    for (const Eigen::Vector3d& p : objects[i].hull_points) x << vec(p) << ' ';
+    x << "'/>\n";
+  }
+  x << "  </asset>\n  <worldbody>\n"
+    << "    <geom name='support' type='plane' size='0 0 1' pos='" << vec(support.point) << "' zaxis='"
+    << vec(support.normal) << "' friction='0 0 0'/>\n";
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    const double mu = objects[i].spec.friction;
+    x << "    <body name='object" << i << "' pos='" << vec(objects[i].rest_origin) << "'>\n"
+      << "      <freejoint/>\n"
+      << "      <geom type='mesh' mesh='hull" << i << "' mass='" << objects[i].spec.mass << "' friction='" << mu
+      << ' ' << 0.01 * mu << ' ' << 0.0002 * mu << "'/>\n    </body>\n";
+  }
+  x << "  </worldbody>\n</mujoco>\n";
+  return x.str();
+}
+
+ObjectDynamics::ObjectDynamics(std::span<const RigidObject> objects, const SupportPlane& support,
+                               const DynamicsParams& params)
+    : params_(params), support_(support) {
+  if (objects.empty()) throw InputError("objects: no object to simulate");
+  if (objects.size() > kMaxObjects) throw InputError("objects: at most " + std::to_string(kMaxObjects) + " objects");
+  if (!(params.timestep > 0)) throw InputError("objects: the dynamics timestep must be > 0 s");
+  mju_user_warning = count_warning;
+  model_ = load_model(object_model_xml(objects, support, params));
+  data_ = mj_makeData(model_);
+  bodies_ = objects.size();
+  for (std::size_t i = 0; i < bodies_; ++i)
+    body_id_[i] = mj_name2id(model_, mjOBJ_BODY, ("object" + std::to_string(i)).c_str());
+  poses_.count = std::uint32_t(bodies_);
+  reset();
+}
+
+ObjectDynamics::~ObjectDynamics() {
+  if (data_ != nullptr) mj_deleteData(data_);
+  if (model_ != nullptr) mj_deleteModel(model_);
+}
+
+void ObjectDynamics::reset() noexcept {
+  mj_resetData(model_, data_);
+  mj_forward(model_, data_);
+  for (auto& w : last_wrench_) w.setZero();
+  read_poses();
+}
+
+Eigen::Vector3d ObjectDynamics::center_of_mass(std::size_t i) const noexcept {
+  return Eigen::Map<const Eigen::Vector3d>(data_->xipos + 3 * body_id_[i]);
+}
+
+double ObjectDynamics::mass(std::size_t i) const noexcept { return model_->body_mass[body_id_[i]]; }
+
+void ObjectDynamics::apply_wrench(std::size_t i, const Eigen::Vector3d& force, const Eigen::Vector3d& point,
+                                  const Eigen::Vector3d& couple) noexcept {
+  if (i >= bodies_ || !force.allFinite() || !point.allFinite() || !couple.allFinite()) return;
+  mjtNum* w = data_->xfrc_applied + 6 * body_id_[i];
+  const Eigen::Vector3d torque = (point - center_of_mass(i)).cross(force) + couple;
+  for (int k = 0; k < 3; ++k) {
+    w[k] += force[k];
+    w[3 + k] += torque[k];
+  }
+}
+
+Eigen::Vector3d ObjectDynamics::last_force(std::size_t i) const noexcept { return last_wrench_[i].head<3>(); }
+
+void ObjectDynamics::step() noexcept {
+  mj_step(model_, data_);
+  for (std::size_t i = 0; i < bodies_; ++i) {
+    mjtNum* w = data_->xfrc_applied + 6 * body_id_[i];
+    last_wrench_[i] = Eigen::Map<const Eigen::Matrix<double, 6, 1>>(w);
+    std::fill(w, w + 6, 0.0);
+  }
+  read_poses();
+}
+
+void ObjectDynamics::read_poses() noexcept {
+  poses_.time = data_->time;
+  for (std::size_t i = 0; i < bodies_; ++i) {
+    const int b = body_id_[i];
+    BodyPose& p = poses_.poses[i];
+    p.position = Eigen::Map<const Eigen::Vector3d>(data_->xpos + 3 * b);
+    const mjtNum* q = data_->xquat + 4 * b;
+    p.rotation = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+    mjtNum v[6];
+    mj_objectVelocity(model_, data_, mjOBJ_BODY, b, v, 0);  // [angular; linear] at xpos, world axes
+    p.angular_velocity = Eigen::Vector3d(v[0], v[1], v[2]);
+    p.linear_velocity = Eigen::Vector3d(v[3], v[4], v[5]);
+  }
+  published_.write(poses_);
+}
+
+long ObjectDynamics::warnings() noexcept { return g_warnings.load(std::memory_order_relaxed); }
+
+}  // namespace gshaptics

@@ -1,0 +1,170 @@
+#include "gshaptics/objects/object_renderer.h"
+
+#include <Eigen/Geometry>
+
+#include "gshaptics/error.h"
+
+namespace gshaptics {
+namespace {
+
+// A tool ellipsoid in a body frame: x_body = R^T (x_world - p).
+ToolEllipsoid to_body(const ToolEllipsoid& tool, const BodyPose& pose) noexcept {
+  ToolEllipsoid b = tool;
+  const Eigen::Quaterniond inv = pose.rotation.conjugate();
+  b.center = inv * (tool.center - pose.position);
+  b.rotation = (inv * tool.rotation).normalized();
+  return b;
+}
+
+// The force, torque and proxy of a body's renderer, back in the world.
+RenderOutput to_world(RenderOutput out, const BodyPose& pose) noexcept {
+  out.force = pose.rotation * out.force;
+  out.torque = pose.rotation * out.torque;
+  out.proxy = pose.rotation * out.proxy + pose.position;
+  return out;
+}
+
+void add_to(RenderOutput& sum, const RenderOutput& part, bool holds_proxy) noexcept {
+  sum.force += part.force;
+  sum.torque += part.torque;
+  sum.counts.candidates += part.counts.candidates;
+  sum.counts.prefiltered += part.counts.prefiltered;
+  sum.counts.contacts += part.counts.contacts;
+  if (part.status != QueryStatus::kOk) sum.status = part.status;
+  if (holds_proxy) {
+    sum.proxy = part.proxy;
+    sum.constraints = part.constraints;
+  }
+  sum.texture_rms = std::max(sum.texture_rms, part.texture_rms);
+  sum.vibration = std::max(sum.vibration, part.vibration);
+}
+
+}  // namespace
+
+ObjectRenderer::ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector<std::unique_ptr<ForceRenderer>> bodies,
+                               std::vector<std::shared_ptr<const CollisionWorld>> worlds,
+                               std::shared_ptr<ObjectDynamics> dynamics)
+    : scene_(std::move(scene)), bodies_(std::move(bodies)), worlds_(std::move(worlds)), dynamics_(std::move(dynamics)) {
+  if (!scene_ || !dynamics_) throw InputError("objects: a renderer needs the scene's renderer and the dynamics");
+  if (bodies_.size() != dynamics_->size() || worlds_.size() != bodies_.size())
+    throw InputError("objects: " + std::to_string(bodies_.size()) + " renderers for " +
+                     std::to_string(dynamics_->size()) + " objects");
+  for (const auto& b : bodies_)
+    if (!b) throw InputError("objects: an object has no renderer");
+  for (auto& f : object_force_) f.setZero();
+}
+
+bool ObjectRenderer::renders_compound() const noexcept {
+  bool all = scene_->renders_compound();
+  for (const auto& b : bodies_) all = all && b->renders_compound();
+  return all;
+}
+
+void ObjectRenderer::set_tool(const CompoundTool& tool) {
+  scene_->set_tool(tool);
+  for (auto& b : bodies_) b->set_tool(tool);
+}
+
+void ObjectRenderer::reset() noexcept {
+  scene_->reset();
+  for (auto& b : bodies_) b->reset();
+  dynamics_->reset();
+  for (auto& f : object_force_) f.setZero();
+  reaction_.fill({});
+  merged_.clear();
+  pending_ = 0;
+}
+
+void ObjectRenderer::set_executor(ParallelExecutor* executor, std::size_t min_candidates) {
+  scene_->set_executor(executor, min_candidates);
+  for (auto& b : bodies_) b->set_executor(executor, min_candidates);
+}
+
+void ObjectRenderer::gather_contacts(std::span<const Contact> contacts, std::uint8_t body, const BodyPose* pose) noexcept {
+  for (Contact c : contacts) {
+    c.body = body;
+    if (pose != nullptr) c.center = pose->rotation * c.center + pose->position;
+    if (!merged_.push(c)) return;
+  }
+}
+
+void ObjectRenderer::step_dynamics(double dt) noexcept {
+  const double h = dynamics_->params().timestep;
+  pending_ += dt;
+  int steps = 0;
+  while (pending_ >= h * (1 - 1e-6) && steps < kMaxDynamicsSteps) {
+    // The coupling holds over the whole tick: each step of it gets the tick's reaction.
+    for (std::size_t i = 0; i < bodies_.size(); ++i)
+      if (reaction_[i].force.squaredNorm() > 0)
+        dynamics_->apply_wrench(i, reaction_[i].force, reaction_[i].point, reaction_[i].couple);
+    dynamics_->step();
+    pending_ -= h;
+    ++steps;
+  }
+  if (steps == kMaxDynamicsSteps) pending_ = 0;  // a stall is not made up for
+}
+
+template <class RenderIn>
+RenderOutput ObjectRenderer::render_all(RenderOutput scene_out, RenderIn&& render_in, double dt) noexcept {
+  merged_.clear();
+  gather_contacts(scene_->contacts(), 0, nullptr);
+  RenderOutput sum = scene_out;
+  double strongest = scene_out.force.norm();
+  for (std::size_t i = 0; i < bodies_.size(); ++i) {
+    const BodyPose pose = dynamics_->pose(i);
+    const RenderOutput out = to_world(render_in(*bodies_[i], pose), pose);
+    object_force_[i] = out.force;
+    const double f = out.force.norm();
+    add_to(sum, out, f > strongest);
+    strongest = std::max(strongest, f);
+    gather_contacts(bodies_[i]->contacts(), std::uint8_t(i + 1), &pose);
+    // The reaction: -F at the proxy's tool centre, plus the couple -tau (the torque is about it).
+    reaction_[i] = {-out.force, out.proxy, -out.torque};
+  }
+  step_dynamics(dt);
+  return sum;
+}
+
+RenderOutput ObjectRenderer::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
+  const RenderOutput scene_out = scene_->render(tool, velocity, dt);
+  return render_all(
+      scene_out,
+      [&](ForceRenderer& r, const BodyPose& pose) {
+        const Eigen::Vector3d v_rel = pose.rotation.conjugate() * (velocity - pose.velocity_at(tool.center));
+        return r.render(to_body(tool, pose), v_rel, dt);
+      },
+      dt);
+}
+
+RenderOutput ObjectRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
+                                             const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
+                                             double dt) noexcept {
+  const RenderOutput scene_out = scene_->render_compound(parts, tcp, velocity, angular_velocity, dt);
+  return render_all(
+      scene_out,
+      [&](ForceRenderer& r, const BodyPose& pose) {
+        std::array<ToolEllipsoid, kMaxToolParts> body_parts;
+        const std::size_t n = std::min(parts.size(), body_parts.size());
+        for (std::size_t k = 0; k < n; ++k) body_parts[k] = to_body(parts[k], pose);
+        const Eigen::Quaterniond inv = pose.rotation.conjugate();
+        return r.render_compound(std::span<const ToolEllipsoid>(body_parts.data(), n), inv * (tcp - pose.position),
+                                 inv * (velocity - pose.velocity_at(tcp)),
+                                 inv * (angular_velocity - pose.angular_velocity), dt);
+      },
+      dt);
+}
+
+std::unique_ptr<ObjectRenderer> make_object_renderer(const RendererSpec& spec, const CollisionWorld& scene,
+                                                     std::span<const RigidObject> objects,
+                                                     std::shared_ptr<ObjectDynamics> dynamics, const QueryOptions& query) {
+  std::vector<std::unique_ptr<ForceRenderer>> bodies;
+  std::vector<std::shared_ptr<const CollisionWorld>> worlds;
+  for (const RigidObject& o : objects) {
+    worlds.push_back(o.body);
+    bodies.push_back(make_force_renderer(spec, *o.body, query));
+  }
+  return std::make_unique<ObjectRenderer>(make_force_renderer(spec, scene, query), std::move(bodies), std::move(worlds),
+                                          std::move(dynamics));
+}
+
+}  // namespace gshaptics

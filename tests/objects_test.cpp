@@ -1,0 +1,272 @@
+// Rigid objects (issue 72): the spec, the cut, the body-frame query against the reference, and
+// the MuJoCo dynamics against the analytic answers of a pushed box (slide at mu m g, accelerate
+// at (F - mu m g) / m, tip at m g d / h).
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "gshaptics/collision/contact_query.h"
+#include "gshaptics/error.h"
+#include "gshaptics/objects/object_dynamics.h"
+#include "gshaptics/objects/object_renderer.h"
+#include "support/reference.h"
+
+namespace gshaptics {
+namespace {
+
+constexpr double kG = 9.81;
+
+// Thin discs tiling the six faces of the box [-h, h] (world frame, centred at `center`), every
+// `spacing` m: a box a capture could give. Opacity 0.9.
+GaussianScene box_of_discs(const Eigen::Vector3d& center, const Eigen::Vector3d& h, double spacing) {
+  GaussianScene s;
+  std::uint32_t index = 0;
+  for (int axis = 0; axis < 3; ++axis)
+    for (int side : {-1, 1}) {
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      const int nu = std::max(1, int(std::round(2 * h[u] / spacing))), nv = std::max(1, int(std::round(2 * h[v] / spacing)));
+      // The disc's thin axis (z of its frame) along the face normal.
+      Eigen::Matrix3d R;
+      R.col(0) = Eigen::Vector3d::Unit(u);
+      R.col(1) = Eigen::Vector3d::Unit(v);
+      R.col(2) = Eigen::Vector3d::Unit(axis);
+      if (R.determinant() < 0) R.col(1) = -R.col(1);
+      const Eigen::Quaterniond q(R);
+      for (int i = 0; i < nu; ++i)
+        for (int j = 0; j < nv; ++j) {
+          Eigen::Vector3d p = center;
+          p[axis] += side * h[axis];
+          p[u] += -h[u] + (i + 0.5) * 2 * h[u] / nu;
+          p[v] += -h[v] + (j + 0.5) * 2 * h[v] / nv;
+          const Eigen::Vector3f scale(float(h[u] / nu), float(h[v] / nv), float(0.05 * spacing));
+          s.push_back(p.cast<float>(), scale, Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())),
+                      0.9f, index++);
+        }
+    }
+  return s;
+}
+
+RigidObject box_object(const Eigen::Vector3d& half, double mass, double mu) {
+  ObjectSpec spec;
+  spec.mass = mass;
+  spec.friction = mu;
+  spec.text = "test box";
+  return make_rigid_object(box_of_discs(Eigen::Vector3d(0, 0, half.z()), half, 0.01), spec, WorldConfig{});
+}
+
+TEST(ObjectSpec, ParsesBoxesIndicesAndProperties) {
+  const ObjectSpec box = parse_object_spec("box:0.1,-1,0,-0.1,1,2:mass=0.25:friction=0.7");
+  EXPECT_EQ(box.cut, ObjectSpec::Cut::kBox);
+  EXPECT_DOUBLE_EQ(box.box_lo.x(), -0.1);
+  EXPECT_DOUBLE_EQ(box.box_hi.x(), 0.1);
+  EXPECT_DOUBLE_EQ(box.box_hi.z(), 2);
+  EXPECT_DOUBLE_EQ(box.mass, 0.25);
+  EXPECT_DOUBLE_EQ(box.friction, 0.7);
+  const ObjectSpec ids = parse_object_spec("indices:5,3,5,9");
+  EXPECT_EQ(ids.indices, (std::vector<std::uint32_t>{3, 5, 9}));
+  EXPECT_DOUBLE_EQ(ids.mass, kDefaultObjectMass);
+  for (const char* bad : {"box:1,2,3", "box:0,0,0,1,1,1:mass=-1", "sphere:1", "indices:1,x", "box:0,0,0,1,1,1:spin=2",
+                          "box:0,0,0,0,1,1"}) {
+    try {
+      (void)parse_object_spec(bad, "--object");
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("--object '"), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(SceneCut, TheBoxTakesTheGaussiansInsideItAndNoOthers) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1, 1);
+  GaussianScene scene;
+  for (std::uint32_t i = 0; i < 4000; ++i)
+    scene.push_back(Eigen::Vector3f(u(rng), u(rng), u(rng)), Eigen::Vector3f::Constant(0.02f),
+                    Eigen::Vector4f(1, 0, 0, 0), 0.2f + 0.7f * (u(rng) + 1) / 2, i);
+  SimilarityTransform T;
+  T.scale = 2;
+  T.translation = Eigen::Vector3d(0.5, 0, 0);
+  ObjectSpec spec = parse_object_spec("box:0,0,0,1,1,1");
+  const SceneCut cut = cut_objects(scene, T, std::span<const ObjectSpec>(&spec, 1), 0.2f);
+  ASSERT_EQ(cut.objects.size(), 1u);
+  EXPECT_EQ(cut.rest.size() + cut.objects[0].size(), scene.size());
+  std::vector<bool> in_object(scene.size(), false);
+  for (std::size_t k = 0; k < cut.objects[0].size(); ++k) {
+    const std::uint32_t i = cut.objects[0].source_index[k];
+    in_object[i] = true;
+    // Moved into the world: the mean and the scale.
+    EXPECT_NEAR((cut.objects[0].means[k].cast<double>() - T.apply(scene.means[i].cast<double>())).norm(), 0, 1e-6);
+    EXPECT_NEAR(cut.objects[0].scales[k].x(), 0.04f, 1e-6);
+  }
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    const Eigen::Vector3d c = T.apply(scene.means[i].cast<double>());
+    const bool inside = (c.array() >= 0).all() && (c.array() <= 1).all();
+    EXPECT_EQ(in_object[i], inside) << i;
+  }
+  // The static world's contacts away from the box are the whole scene's.
+  WorldConfig cfg;
+  cfg.registration = T;
+  const CollisionWorld whole = CollisionWorld::build(scene, cfg), rest = CollisionWorld::build(cut.rest, cfg);
+  ContactQuery qa(whole), qb(rest);
+  for (const Eigen::Vector3d& c : {Eigen::Vector3d(-0.5, -0.5, -0.5), Eigen::Vector3d(2, -1, 0.5)}) {
+    const ToolEllipsoid tool = ToolEllipsoid::sphere(c, 0.15);
+    qa.run(tool);
+    qb.run(tool);
+    auto ids = [](std::span<const Contact> cs) {
+      std::vector<std::uint32_t> v;
+      for (const Contact& x : cs) v.push_back(x.index);
+      std::sort(v.begin(), v.end());
+      return v;
+    };
+    EXPECT_GT(qa.result().contacts().size(), 0u);
+    EXPECT_EQ(ids(qa.result().contacts()), ids(qb.result().contacts()));
+  }
+  EXPECT_THROW((void)cut_objects(scene, T, std::span<const ObjectSpec>(std::vector<ObjectSpec>{parse_object_spec("box:9,9,9,10,10,10")}), 0.2f),
+               InputError);
+}
+
+TEST(RigidObject, TheQueryInTheBodyFrameMatchesTheReferenceOnTheMovedGaussians) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1, 1);
+  GaussianScene g;
+  for (std::uint32_t i = 0; i < 600; ++i) {
+    Eigen::Vector4f q(u(rng), u(rng), u(rng), u(rng));
+    g.push_back(Eigen::Vector3f(0.3f + 0.1f * u(rng), 0.1f * u(rng), 0.2f + 0.1f * u(rng)),
+                Eigen::Vector3f(0.004f + 0.003f * u(rng), 0.01f + 0.004f * u(rng), 0.002f + 0.001f * u(rng)),
+                q.normalized(), 0.5f + 0.4f * u(rng), i);
+  }
+  ObjectSpec spec;
+  spec.text = "cloud";
+  const RigidObject object = make_rigid_object(g, spec, WorldConfig{});
+  ContactQuery query(*object.body);
+  int compared = 0;
+  for (int trial = 0; trial < 12; ++trial) {
+    BodyPose pose;
+    pose.rotation = Eigen::Quaterniond(Eigen::Vector4d(u(rng), u(rng), u(rng), u(rng)).normalized());
+    pose.position = Eigen::Vector3d(u(rng), u(rng), u(rng));
+    // The Gaussians moved by the pose: x = R (x_world_rest - origin) + p.
+    SimilarityTransform moved;
+    moved.rotation = pose.rotation;
+    moved.translation = pose.position - (pose.rotation * object.rest_origin);
+    const auto reference = test::reference_world(g, WorldConfig{}.min_opacity, 1.0, moved);
+    ToolEllipsoid tool;
+    tool.semi_axes = Eigen::Vector3d(0.03, 0.015, 0.02);
+    tool.rotation = Eigen::Quaterniond(Eigen::Vector4d(u(rng), u(rng), u(rng), u(rng)).normalized());
+    tool.center = pose.position + pose.rotation * Eigen::Vector3d(0.06 * u(rng), 0.06 * u(rng), 0.06 * u(rng));
+    ToolEllipsoid body_tool = tool;
+    body_tool.center = pose.rotation.conjugate() * (tool.center - pose.position);
+    body_tool.rotation = pose.rotation.conjugate() * tool.rotation;
+    ASSERT_EQ(query.run(body_tool), QueryStatus::kOk);
+    std::vector<test::RefContact> near;
+    const auto expected = test::reference_contacts(reference, tool, 1e-6, &near);
+    std::vector<Contact> got(query.result().contacts().begin(), query.result().contacts().end());
+    std::sort(got.begin(), got.end(), [](const Contact& a, const Contact& b) { return a.index < b.index; });
+    // Grazing pairs (|K_min| <= 1e-6) may go either way; every other one must agree.
+    auto grazing = [&](std::uint32_t i) {
+      return std::any_of(near.begin(), near.end(), [&](const test::RefContact& r) { return r.index == i; });
+    };
+    std::size_t k = 0;
+    for (const test::RefContact& r : expected) {
+      while (k < got.size() && got[k].index < r.index) {
+        EXPECT_TRUE(grazing(got[k].index)) << "extra contact " << got[k].index;
+        ++k;
+      }
+      if (k < got.size() && got[k].index == r.index) {
+        EXPECT_NEAR(got[k].k_min, r.k_min, 1e-4);
+        ++compared;
+        ++k;
+      } else {
+        EXPECT_TRUE(grazing(r.index)) << "missed contact " << r.index;
+      }
+    }
+  }
+  EXPECT_GT(compared, 30);
+}
+
+// Pushes object 0 with `force` (N, world) at its centre of mass for `seconds` after `settle` s at
+// rest; returns its displacement along the push (m) and its mean acceleration over the last
+// `window` s (m/s^2).
+struct PushResult {
+  double displacement = 0, acceleration = 0;
+};
+PushResult push(ObjectDynamics& d, const Eigen::Vector3d& force, double seconds, double window) {
+  const double h = d.params().timestep;
+  for (int k = 0; k < int(0.3 / h); ++k) d.step();  // settle on the plane
+  const Eigen::Vector3d dir = force.normalized(), x0 = d.pose(0).position;
+  double v_start = 0;
+  const int n = int(std::round(seconds / h)), n_window = int(std::round(window / h));
+  for (int k = 0; k < n; ++k) {
+    if (k == n - n_window) v_start = d.pose(0).linear_velocity.dot(dir);
+    d.apply_wrench(0, force, d.center_of_mass(0));
+    d.step();
+  }
+  return {(d.pose(0).position - x0).dot(dir), (d.pose(0).linear_velocity.dot(dir) - v_start) / window};
+}
+
+TEST(ObjectDynamics, ABoxSlidesOnlyPastMuMgThenAcceleratesAtTheRemainder) {
+  for (const double mu : {0.3, 0.6}) {
+    const RigidObject box = box_object(Eigen::Vector3d(0.05, 0.04, 0.03), 0.4, mu);
+    const std::vector<RigidObject> objects{box};
+    const SupportPlane plane = support_under(objects, Eigen::Vector3d::UnitZ());
+    for (const double ratio : {0.9, 0.95, 1.05, 1.5, 2.0}) {
+      ObjectDynamics d(objects, plane);
+      const double m = d.mass(0);
+      EXPECT_NEAR(m, 0.4, 1e-9);
+      const double F = ratio * mu * m * kG;
+      const PushResult r = push(d, Eigen::Vector3d(F, 0, 0), 0.4, 0.2);
+      SCOPED_TRACE(testing::Message() << "mu " << mu << " F/(mu m g) " << ratio);
+      if (ratio < 1) {
+        EXPECT_LT(std::abs(r.displacement), 1e-3);
+      } else {
+        EXPECT_GT(r.displacement, 2e-3);
+      }
+      if (ratio >= 1.5) {
+        const double expected = (F - mu * m * kG) / m;
+        EXPECT_NEAR(r.acceleration, expected, 0.05 * expected);
+      }
+    }
+  }
+}
+
+TEST(ObjectDynamics, ATallBoxPushedHighTipsAtTheAnalyticForce) {
+  const double mu = 1.0, mass = 0.3;
+  const RigidObject box = box_object(Eigen::Vector3d(0.03, 0.04, 0.10), mass, mu);
+  const std::vector<RigidObject> objects{box};
+  const SupportPlane plane = support_under(objects, Eigen::Vector3d::UnitZ());
+  // The pivot: the edge of the hull's face on the plane, on the far side of the push (+x); the
+  // push acts at height z_push on the near face, along +x. Torques about the pivot:
+  // F z = m g (x_pivot - x_com). The face on the plane is spanned by the bottom discs' thin-axis
+  // tips, so it ends half a disc short of the box's edge, and the box first tips about that.
+  double x_pivot = -1e9;
+  for (const Eigen::Vector3d& p : box.hull_points)
+    if (box.rest_origin.z() + p.z() < plane.point.z() + 1e-6) x_pivot = std::max(x_pivot, box.rest_origin.x() + p.x());
+  const double z_push = plane.point.z() + 0.17;
+  ObjectDynamics probe(objects, plane);
+  const Eigen::Vector3d com = probe.center_of_mass(0);
+  const double F_tip = mass * kG * (x_pivot - com.x()) / (z_push - plane.point.z());
+  ASSERT_LT(F_tip, mu * mass * kG);  // it tips before it slides
+  for (const double ratio : {0.95, 1.05}) {
+    ObjectDynamics d(objects, plane);
+    for (int k = 0; k < 300; ++k) d.step();
+    double tilt = 0;
+    for (int k = 0; k < 600; ++k) {
+      const BodyPose& p = d.pose(0);
+      const Eigen::Vector3d at = p.position + p.rotation * (Eigen::Vector3d(-0.03, 0, z_push) - box.rest_origin);
+      d.apply_wrench(0, Eigen::Vector3d(ratio * F_tip, 0, 0), at);
+      d.step();
+      tilt = std::max(tilt, Eigen::AngleAxisd(d.pose(0).rotation).angle());
+    }
+    SCOPED_TRACE(testing::Message() << "F/F_tip " << ratio << " F_tip " << F_tip << " N");
+    if (ratio < 1) {
+      EXPECT_LT(tilt, 0.02);
+    } else {
+      EXPECT_GT(tilt, 0.1);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace gshaptics
