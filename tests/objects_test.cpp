@@ -12,6 +12,8 @@
 #include "gshaptics/error.h"
 #include "gshaptics/objects/object_dynamics.h"
 #include "gshaptics/objects/object_renderer.h"
+#include "gshaptics/device/simulated_device.h"
+#include "gshaptics/servo/simulated_runtime.h"
 #include "support/reference.h"
 
 namespace gshaptics {
@@ -20,7 +22,8 @@ namespace {
 constexpr double kG = 9.81;
 
 // Thin discs tiling the six faces of the box [-h, h] (world frame, centred at `center`), every
-// `spacing` m: a box a capture could give. Opacity 0.9.
+// `spacing` m, each 1.4 cells wide so that neighbours overlap (discs that only touch would be
+// floaters to the proxy): a box a capture could give. Opacity 0.9.
 GaussianScene box_of_discs(const Eigen::Vector3d& center, const Eigen::Vector3d& h, double spacing) {
   GaussianScene s;
   std::uint32_t index = 0;
@@ -41,7 +44,7 @@ GaussianScene box_of_discs(const Eigen::Vector3d& center, const Eigen::Vector3d&
           p[axis] += side * h[axis];
           p[u] += -h[u] + (i + 0.5) * 2 * h[u] / nu;
           p[v] += -h[v] + (j + 0.5) * 2 * h[v] / nv;
-          const Eigen::Vector3f scale(float(h[u] / nu), float(h[v] / nv), float(0.05 * spacing));
+          const Eigen::Vector3f scale(float(0.7 * 2 * h[u] / nu), float(0.7 * 2 * h[v] / nv), float(0.05 * spacing));
           s.push_back(p.cast<float>(), scale, Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())),
                       0.9f, index++);
         }
@@ -266,6 +269,76 @@ TEST(ObjectDynamics, ATallBoxPushedHighTipsAtTheAnalyticForce) {
       EXPECT_GT(tilt, 0.1);
     }
   }
+}
+
+// Watches each tick of an ObjectRenderer it forwards to: the deepest K_min of object 0's
+// Gaussians against the tool at that object's proxy, and, while the object slides, its coupling
+// force and acceleration.
+class WatchedRenderer final : public ForceRenderer {
+ public:
+  WatchedRenderer(ObjectRenderer& inner, const std::shared_ptr<const CollisionWorld>& world) : inner_(inner), query_(*world) {}
+  [[nodiscard]] std::string_view name() const noexcept override { return inner_.name(); }
+  RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override {
+    const RenderOutput out = inner_.render(tool, velocity, dt);
+    const BodyPose pose = inner_.dynamics().pose(0);
+    ToolEllipsoid at_proxy = tool;
+    at_proxy.center = pose.rotation.conjugate() * (inner_.object_proxy(0) - pose.position);
+    at_proxy.rotation = pose.rotation.conjugate() * tool.rotation;
+    if (inner_.object_force(0).norm() > 0 && query_.run(at_proxy) == QueryStatus::kOk)
+      for (const Contact& c : query_.result().contacts()) deepest = std::max(deepest, c.k_min);
+    const double v = pose.linear_velocity.x();
+    if (v > 0.02 && previous_v > 0.02) {  // sliding: F_x on the object = mu m g + m a
+      push_force += -inner_.object_force(0).x();
+      acceleration += (v - previous_v) / dt;
+      ++sliding_ticks;
+    }
+    previous_v = v;
+    return out;
+  }
+  [[nodiscard]] std::span<const Contact> contacts() const noexcept override { return inner_.contacts(); }
+  void reset() noexcept override { inner_.reset(); }
+  double deepest = 0, push_force = 0, acceleration = 0, previous_v = 0;
+  int sliding_ticks = 0;
+
+ private:
+  ObjectRenderer& inner_;
+  ContactQuery query_;
+};
+
+TEST(ObjectRenderer, TheSimulatedHandPushesABoxAcrossThePlaneThroughTheServoStep) {
+  const double mu = 0.3, mass = 0.4;
+  const std::vector<RigidObject> objects{box_object(Eigen::Vector3d(0.05, 0.04, 0.03), mass, mu)};
+  // The static scene: a floor slab under the plane the box stands on.
+  const CollisionWorld floor = CollisionWorld::build(
+      box_of_discs(Eigen::Vector3d(0, 0, -0.0105), Eigen::Vector3d(0.4, 0.3, 0.01), 0.01), WorldConfig{});
+  auto dynamics = std::make_shared<ObjectDynamics>(objects, support_under(objects, Eigen::Vector3d::UnitZ()));
+  const std::unique_ptr<ObjectRenderer> renderer = make_object_renderer(RendererSpec{}, floor, objects, dynamics);
+  WatchedRenderer watched(*renderer, objects[0].body);
+  // The hand comes from -x at mid-height and pushes on through where the box stood.
+  const ProbeTrajectory path({{0, Eigen::Vector3d(-0.12, 0, 0.03)}, {0.5, Eigen::Vector3d(-0.12, 0, 0.03)},
+                              {3.0, Eigen::Vector3d(0.15, 0, 0.03)}},
+                             {}, 0.01);
+  SimulatedDeviceParams hand;
+  hand.loop = false;
+  SimulatedDevice device(path, hand);
+  RuntimeConfig config;
+  config.duration = 3.0;
+  SimulatedRuntime runtime(device, config, std::make_unique<BorrowedRenderer>(watched));
+  runtime.run();
+  const BodyPose& end = dynamics->pose(0);
+  const double travelled = end.position.x() - objects[0].rest_origin.x();
+  EXPECT_GT(travelled, 0.08) << "the box was not pushed along";
+  EXPECT_LT(std::abs(end.position.y() - objects[0].rest_origin.y()), 0.01);
+  EXPECT_LT(Eigen::AngleAxisd(end.rotation).angle(), 0.1) << "the box tipped or spun";
+  // The proxy never entered the box: no Gaussian of it overlaps the tool at the proxy by more
+  // than a graze (K_min 1e-3 is a depth of about 0.05 % of the tool's radius).
+  EXPECT_LT(watched.deepest, 1e-3);
+  // While it slides, the push is the friction plus m a (Newton, with the friction at mu m g).
+  ASSERT_GT(watched.sliding_ticks, 200);
+  const double F = watched.push_force / watched.sliding_ticks, a = watched.acceleration / watched.sliding_ticks;
+  EXPECT_NEAR(F - mass * a, mu * mass * kG, 0.05 * mu * mass * kG) << "F " << F << " N, a " << a << " m/s^2";
+  RecordProperty("friction_over_mu_m_g", std::to_string((F - mass * a) / (mu * mass * kG)));
+  RecordProperty("deepest_k_min", std::to_string(watched.deepest));
 }
 
 }  // namespace

@@ -70,6 +70,7 @@ void ObjectRenderer::reset() noexcept {
   for (auto& b : bodies_) b->reset();
   dynamics_->reset();
   for (auto& f : object_force_) f.setZero();
+  for (auto& p : object_proxy_) p.setZero();
   reaction_.fill({});
   merged_.clear();
   pending_ = 0;
@@ -114,6 +115,7 @@ RenderOutput ObjectRenderer::render_all(RenderOutput scene_out, RenderIn&& rende
     const BodyPose pose = dynamics_->pose(i);
     const RenderOutput out = to_world(render_in(*bodies_[i], pose), pose);
     object_force_[i] = out.force;
+    object_proxy_[i] = out.proxy;
     const double f = out.force.norm();
     add_to(sum, out, f > strongest);
     strongest = std::max(strongest, f);

@@ -6,8 +6,10 @@
 /// spread uniformly over the hull; the static scene gives the support, a plane.
 ///
 /// Contacts use MuJoCo's elliptic friction cone with impratio 100 (friction constraints stiffer
-/// than the normal ones): on a box under a steady push this holds static friction within 0.3 mm
-/// over 300 ms below mu m g, where the default pyramidal cone creeps centimetres (bench/RESULTS.md).
+/// than the normal ones) and a stiffer impedance than MuJoCo's default (solimp 0.95 0.99 0.001):
+/// a box under a steady push below mu m g holds within 1 mm over 400 ms, where the default
+/// pyramidal cone creeps centimetres, and slides at (F - mu m g) / m within 5 % above it
+/// (bench/RESULTS.md, tests/objects_test.cpp).
 ///
 /// Threading: one thread steps the model (the servo thread: ObjectRenderer steps it inside its
 /// render()); step(), apply_wrench() and the accessors never allocate, lock, log or throw. Other

@@ -56,6 +56,8 @@ class ObjectRenderer final : public ForceRenderer {
   [[nodiscard]] const ObjectDynamics& dynamics() const noexcept { return *dynamics_; }
   /// The force (N, world) object i's renderer put on the tool at the last tick.
   [[nodiscard]] const Eigen::Vector3d& object_force(std::size_t i) const noexcept { return object_force_[i]; }
+  /// Where object i's renderer held the tool at the last tick: its proxy's centre, world, m.
+  [[nodiscard]] const Eigen::Vector3d& object_proxy(std::size_t i) const noexcept { return object_proxy_[i]; }
 
  private:
   template <class RenderIn>
@@ -70,7 +72,7 @@ class ObjectRenderer final : public ForceRenderer {
   struct Reaction {
     Eigen::Vector3d force = Eigen::Vector3d::Zero(), point = Eigen::Vector3d::Zero(), couple = Eigen::Vector3d::Zero();
   };
-  std::array<Eigen::Vector3d, kMaxObjects> object_force_{};
+  std::array<Eigen::Vector3d, kMaxObjects> object_force_{}, object_proxy_{};
   std::array<Reaction, kMaxObjects> reaction_{};  // on each object over this tick (world)
   ContactSet merged_{1u << 12};
   double pending_ = 0;  // simulated time owed to the dynamics, s
