@@ -5,7 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 PACKAGES=(cmake g++ make pkg-config libeigen3-dev libcli11-dev nlohmann-json3-dev libfmt-dev libfcl-dev libnanoflann-dev
-          zlib1g-dev libzstd-dev libxxhash-dev libmujoco-dev
+          zlib1g-dev libzstd-dev libxxhash-dev libmujoco-dev libqhull-dev
           libgtest-dev libgmock-dev libbenchmark-dev python3 python3-dev python3-numpy python3-matplotlib
           python3-pytest pybind11-dev clang libclang-rt-14-dev
           libboost-dev chromium

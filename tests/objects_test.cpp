@@ -21,43 +21,12 @@ namespace {
 
 constexpr double kG = 9.81;
 
-// Thin discs tiling the six faces of the box [-h, h] (world frame, centred at `center`), every
-// `spacing` m, each 1.4 cells wide so that neighbours overlap (discs that only touch would be
-// floaters to the proxy): a box a capture could give. Opacity 0.9.
-GaussianScene box_of_discs(const Eigen::Vector3d& center, const Eigen::Vector3d& h, double spacing) {
-  GaussianScene s;
-  std::uint32_t index = 0;
-  for (int axis = 0; axis < 3; ++axis)
-    for (int side : {-1, 1}) {
-      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-      const int nu = std::max(1, int(std::round(2 * h[u] / spacing))), nv = std::max(1, int(std::round(2 * h[v] / spacing)));
-      // The disc's thin axis (z of its frame) along the face normal.
-      Eigen::Matrix3d R;
-      R.col(0) = Eigen::Vector3d::Unit(u);
-      R.col(1) = Eigen::Vector3d::Unit(v);
-      R.col(2) = Eigen::Vector3d::Unit(axis);
-      if (R.determinant() < 0) R.col(1) = -R.col(1);
-      const Eigen::Quaterniond q(R);
-      for (int i = 0; i < nu; ++i)
-        for (int j = 0; j < nv; ++j) {
-          Eigen::Vector3d p = center;
-          p[axis] += side * h[axis];
-          p[u] += -h[u] + (i + 0.5) * 2 * h[u] / nu;
-          p[v] += -h[v] + (j + 0.5) * 2 * h[v] / nv;
-          const Eigen::Vector3f scale(float(0.7 * 2 * h[u] / nu), float(0.7 * 2 * h[v] / nv), float(0.05 * spacing));
-          s.push_back(p.cast<float>(), scale, Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())),
-                      0.9f, index++);
-        }
-    }
-  return s;
-}
-
 RigidObject box_object(const Eigen::Vector3d& half, double mass, double mu) {
   ObjectSpec spec;
   spec.mass = mass;
   spec.friction = mu;
   spec.text = "test box";
-  return make_rigid_object(box_of_discs(Eigen::Vector3d(0, 0, half.z()), half, 0.01), spec, WorldConfig{});
+  return make_rigid_object(box_surface_gaussians(Eigen::Vector3d(0, 0, half.z()), half, 0.01), spec, WorldConfig{});
 }
 
 TEST(ObjectSpec, ParsesBoxesIndicesAndProperties) {
@@ -310,7 +279,7 @@ TEST(ObjectRenderer, TheSimulatedHandPushesABoxAcrossThePlaneThroughTheServoStep
   const std::vector<RigidObject> objects{box_object(Eigen::Vector3d(0.05, 0.04, 0.03), mass, mu)};
   // The static scene: a floor slab under the plane the box stands on.
   const CollisionWorld floor = CollisionWorld::build(
-      box_of_discs(Eigen::Vector3d(0, 0, -0.0105), Eigen::Vector3d(0.4, 0.3, 0.01), 0.01), WorldConfig{});
+      box_surface_gaussians(Eigen::Vector3d(0, 0, -0.0105), Eigen::Vector3d(0.4, 0.3, 0.01), 0.01), WorldConfig{});
   auto dynamics = std::make_shared<ObjectDynamics>(objects, support_under(objects, Eigen::Vector3d::UnitZ()));
   const std::unique_ptr<ObjectRenderer> renderer = make_object_renderer(RendererSpec{}, floor, objects, dynamics);
   WatchedRenderer watched(*renderer, objects[0].body);

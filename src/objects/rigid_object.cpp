@@ -167,11 +167,42 @@ RigidObject make_rigid_object(const GaussianScene& world_gaussians, const Object
   RigidObject object;
   object.spec = spec;
   object.rest_origin = 0.5 * (lo + hi);
+  // Every tip goes to MuJoCo, which builds their hull: cutting them down to 256 or 1024 extreme
+  // points saved little of the step and moved a sliding box's friction by up to 11 %.
   object.hull_points.reserve(tips.size());
   for (const Eigen::Vector3d& p : tips) object.hull_points.push_back(p - object.rest_origin);
   body_config.registration.translation = -object.rest_origin;
   object.body = std::make_shared<const CollisionWorld>(CollisionWorld::build(world_gaussians, body_config));
   return object;
+}
+
+GaussianScene box_surface_gaussians(const Eigen::Vector3d& center, const Eigen::Vector3d& half, double spacing,
+                                    float opacity, std::uint32_t first_index) {
+  GaussianScene s;
+  std::uint32_t index = first_index;
+  for (int axis = 0; axis < 3; ++axis)
+    for (int side : {-1, 1}) {
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      const int nu = std::max(1, int(std::round(2 * half[u] / spacing)));
+      const int nv = std::max(1, int(std::round(2 * half[v] / spacing)));
+      Eigen::Matrix3d R;  // the disc's thin axis (its z) along the face normal
+      R.col(0) = Eigen::Vector3d::Unit(u);
+      R.col(1) = Eigen::Vector3d::Unit(v);
+      R.col(2) = Eigen::Vector3d::Unit(axis);
+      if (R.determinant() < 0) R.col(1) = -R.col(1);
+      const Eigen::Quaterniond q(R);
+      const Eigen::Vector4f wxyz(float(q.w()), float(q.x()), float(q.y()), float(q.z()));
+      const Eigen::Vector3f scale(float(1.4 * half[u] / nu), float(1.4 * half[v] / nv), float(0.05 * spacing));
+      for (int i = 0; i < nu; ++i)
+        for (int j = 0; j < nv; ++j) {
+          Eigen::Vector3d p = center;
+          p[axis] += side * half[axis];
+          p[u] += -half[u] + (i + 0.5) * 2 * half[u] / nu;
+          p[v] += -half[v] + (j + 0.5) * 2 * half[v] / nv;
+          s.push_back(p.cast<float>(), scale, wxyz, opacity, index++);
+        }
+    }
+  return s;
 }
 
 }  // namespace gshaptics

@@ -90,6 +90,13 @@ struct RigidObject {
 [[nodiscard]] RigidObject make_rigid_object(const GaussianScene& world_gaussians, const ObjectSpec& spec,
                                             const WorldConfig& config);
 
+/// The six faces of the box center +- half (world frame, m) tiled with thin discs every
+/// `spacing` m, each 1.4 cells wide so that neighbours overlap as a capture's do (discs that only
+/// touch are floaters to the proxy), thin axis 5 % of `spacing`, opacity `opacity`; source
+/// indices from `first_index`. A box object or a floor slab for tests, benchmarks and demos.
+[[nodiscard]] GaussianScene box_surface_gaussians(const Eigen::Vector3d& center, const Eigen::Vector3d& half,
+                                                  double spacing, float opacity = 0.9f, std::uint32_t first_index = 0);
+
 /// A rigid pose of a body frame in the world: x_world = rotation * x_body + position.
 struct BodyPose {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< m
