@@ -110,8 +110,11 @@ ObjectDynamics::~ObjectDynamics() {
 void ObjectDynamics::reset() noexcept {
   mj_resetData(model_, data_);
   mj_forward(model_, data_);
+  resting_steps_ = 0;
+  slept_ = false;
   for (auto& w : last_wrench_) w.setZero();
   read_poses();
+  anchor_ = poses_.poses;
 }
 
 Eigen::Vector3d ObjectDynamics::center_of_mass(std::size_t i) const noexcept {
@@ -134,13 +137,27 @@ void ObjectDynamics::apply_wrench(std::size_t i, const Eigen::Vector3d& force, c
 Eigen::Vector3d ObjectDynamics::last_force(std::size_t i) const noexcept { return last_wrench_[i].head<3>(); }
 
 void ObjectDynamics::step() noexcept {
-  mj_step(model_, data_);
+  bool pushed = false;
   for (std::size_t i = 0; i < bodies_; ++i) {
     mjtNum* w = data_->xfrc_applied + 6 * body_id_[i];
     last_wrench_[i] = Eigen::Map<const Eigen::Matrix<double, 6, 1>>(w);
-    std::fill(w, w + 6, 0.0);
+    pushed = pushed || last_wrench_[i].squaredNorm() > 0;
   }
+  slept_ = !pushed && resting_steps_ >= kSleepSteps;
+  if (slept_) {
+    data_->time += params_.timestep;
+    poses_.time = data_->time;
+    return;
+  }
+  mj_step(model_, data_);
+  for (std::size_t i = 0; i < bodies_; ++i) std::fill(data_->xfrc_applied + 6 * body_id_[i], data_->xfrc_applied + 6 * body_id_[i] + 6, 0.0);
   read_poses();
+  bool resting = true;
+  for (std::size_t i = 0; i < bodies_; ++i)
+    resting = resting && (poses_.poses[i].position - anchor_[i].position).norm() < kRestDrift &&
+              poses_.poses[i].rotation.angularDistance(anchor_[i].rotation) < kRestTurn;
+  resting_steps_ = resting ? resting_steps_ + 1 : 0;
+  if (!resting) anchor_ = poses_.poses;
 }
 
 void ObjectDynamics::read_poses() noexcept {

@@ -74,8 +74,16 @@ class ObjectDynamics {
   /// The wrench applied for the last step(): force (N) and torque about the centre of mass (N m).
   [[nodiscard]] Eigen::Vector3d last_force(std::size_t i) const noexcept;
   /// One MuJoCo step of params().timestep with the wrenches applied since the last step, which
-  /// it then clears; publishes the new poses.
+  /// it then clears; publishes the new poses. Sleeping: once no object has moved more than
+  /// kRestDrift (or turned more than kRestTurn) over kSleepSteps steps, a step with no wrench
+  /// applied only advances the time (nothing could move them; MuJoCo's resting contacts chatter
+  /// at ~1e-4 m/s without going anywhere); any wrench wakes them.
   void step() noexcept;
+  /// Whether the last step() slept (see step()).
+  [[nodiscard]] bool asleep() const noexcept { return slept_; }
+  static constexpr double kRestDrift = 2e-5;  ///< m
+  static constexpr double kRestTurn = 2e-4;   ///< rad
+  static constexpr int kSleepSteps = 50;
   /// Back to the rest poses, at rest, time 0.
   void reset() noexcept;
 
@@ -96,6 +104,9 @@ class ObjectDynamics {
   std::array<Eigen::Matrix<double, 6, 1>, kMaxObjects> last_wrench_{};
   ObjectPoses poses_;
   TripleBuffer<ObjectPoses> published_;
+  int resting_steps_ = 0;  // consecutive steps with every object within the rest bounds of anchor_
+  std::array<BodyPose, kMaxObjects> anchor_{};
+  bool slept_ = false;
 };
 
 /// The MJCF text of the model ObjectDynamics builds (for inspection and `--dump`): one body per
