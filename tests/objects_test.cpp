@@ -12,8 +12,7 @@
 #include "gshaptics/error.h"
 #include "gshaptics/objects/object_dynamics.h"
 #include "gshaptics/objects/object_renderer.h"
-#include "gshaptics/device/simulated_device.h"
-#include "gshaptics/servo/simulated_runtime.h"
+#include "gshaptics/objects/push_scenario.h"
 #include "support/reference.h"
 
 namespace gshaptics {
@@ -271,74 +270,25 @@ TEST(ObjectDynamics, ATallBoxPushedHighTipsAtTheAnalyticForce) {
   }
 }
 
-// Watches each tick of an ObjectRenderer it forwards to: the deepest K_min of object 0's
-// Gaussians against the tool at that object's proxy, and, while the object slides, its coupling
-// force and acceleration.
-class WatchedRenderer final : public ForceRenderer {
- public:
-  WatchedRenderer(ObjectRenderer& inner, const std::shared_ptr<const CollisionWorld>& world) : inner_(inner), query_(*world) {}
-  [[nodiscard]] std::string_view name() const noexcept override { return inner_.name(); }
-  RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override {
-    const RenderOutput out = inner_.render(tool, velocity, dt);
-    const BodyPose pose = inner_.dynamics().pose(0);
-    ToolEllipsoid at_proxy = tool;
-    at_proxy.center = pose.rotation.conjugate() * (inner_.object_proxy(0) - pose.position);
-    at_proxy.rotation = pose.rotation.conjugate() * tool.rotation;
-    if (inner_.object_force(0).norm() > 0 && query_.run(at_proxy) == QueryStatus::kOk)
-      for (const Contact& c : query_.result().contacts()) deepest = std::max(deepest, c.k_min);
-    const double v = pose.linear_velocity.x();
-    if (v > 0.02 && previous_v > 0.02) {  // sliding: F_x on the object = mu m g + m a
-      push_force += -inner_.object_force(0).x();
-      acceleration += (v - previous_v) / dt;
-      ++sliding_ticks;
-    }
-    previous_v = v;
-    return out;
-  }
-  [[nodiscard]] std::span<const Contact> contacts() const noexcept override { return inner_.contacts(); }
-  void reset() noexcept override { inner_.reset(); }
-  double deepest = 0, push_force = 0, acceleration = 0, previous_v = 0;
-  int sliding_ticks = 0;
-
- private:
-  ObjectRenderer& inner_;
-  ContactQuery query_;
-};
-
 TEST(ObjectRenderer, TheSimulatedHandPushesABoxAcrossThePlaneThroughTheServoStep) {
-  const double mu = 0.3, mass = 0.4;
-  const std::vector<RigidObject> objects{box_object(Eigen::Vector3d(0.05, 0.04, 0.03), mass, mu)};
-  // The static scene: a floor slab under the plane the box stands on.
-  const CollisionWorld floor = CollisionWorld::build(
-      box_surface_gaussians(Eigen::Vector3d(0, 0, -0.0105), Eigen::Vector3d(0.4, 0.3, 0.01), 0.01), WorldConfig{});
-  auto dynamics = std::make_shared<ObjectDynamics>(objects, support_under(objects, Eigen::Vector3d::UnitZ()));
-  const std::unique_ptr<ObjectRenderer> renderer = make_object_renderer(RendererSpec{}, floor, objects, dynamics);
-  WatchedRenderer watched(*renderer, objects[0].body);
-  // The hand comes from -x at mid-height and pushes on through where the box stood.
-  const ProbeTrajectory path({{0, Eigen::Vector3d(-0.12, 0, 0.03)}, {0.5, Eigen::Vector3d(-0.12, 0, 0.03)},
-                              {3.0, Eigen::Vector3d(0.15, 0, 0.03)}},
-                             {}, 0.01);
-  SimulatedDeviceParams hand;
-  hand.loop = false;
-  SimulatedDevice device(path, hand);
-  RuntimeConfig config;
-  config.duration = 3.0;
-  SimulatedRuntime runtime(device, config, std::make_unique<BorrowedRenderer>(watched));
-  runtime.run();
-  const BodyPose& end = dynamics->pose(0);
-  const double travelled = end.position.x() - objects[0].rest_origin.x();
-  EXPECT_GT(travelled, 0.08) << "the box was not pushed along";
-  EXPECT_LT(std::abs(end.position.y() - objects[0].rest_origin.y()), 0.01);
-  EXPECT_LT(Eigen::AngleAxisd(end.rotation).angle(), 0.1) << "the box tipped or spun";
+  PushScenario scenario;  // a 0.4 kg box (mu 0.3) pushed by a 1 cm sphere from -x at mid-height
+  const PushRun run = run_push_scenario(scenario);
+  ASSERT_EQ(run.samples.size(), std::size_t(run.runtime.ticks));
+  EXPECT_GT(run.travelled, 0.08) << "the box was not pushed along";
+  const PushSample& end = run.samples.back();
+  EXPECT_LT(std::abs(end.box.y()), 0.01);
+  EXPECT_LT(end.box_turn, 0.1) << "the box tipped or spun";
   // The proxy never entered the box: no Gaussian of it overlaps the tool at the proxy by more
   // than a graze (K_min 1e-3 is a depth of about 0.05 % of the tool's radius).
-  EXPECT_LT(watched.deepest, 1e-3);
-  // While it slides, the push is the friction plus m a (Newton, with the friction at mu m g).
-  ASSERT_GT(watched.sliding_ticks, 200);
-  const double F = watched.push_force / watched.sliding_ticks, a = watched.acceleration / watched.sliding_ticks;
-  EXPECT_NEAR(F - mass * a, mu * mass * kG, 0.05 * mu * mass * kG) << "F " << F << " N, a " << a << " m/s^2";
-  RecordProperty("friction_over_mu_m_g", std::to_string((F - mass * a) / (mu * mass * kG)));
-  RecordProperty("deepest_k_min", std::to_string(watched.deepest));
+  EXPECT_LT(run.deepest_k_min, 1e-3);
+  // While it slides, the push less m a is the friction (Newton, with Coulomb's mu m g).
+  ASSERT_GT(run.sliding_ticks, 200);
+  EXPECT_NEAR(run.friction_estimate, run.friction_expected, 0.05 * run.friction_expected);
+  RecordProperty("friction_over_mu_m_g", std::to_string(run.friction_estimate / run.friction_expected));
+  // The hand felt the box: the device stopped short of the hand's target while pushing.
+  double lag = 0;
+  for (const PushSample& s : run.samples) lag = std::max(lag, s.hand.x() - s.device.x());
+  EXPECT_GT(lag, 0.001);
 }
 
 }  // namespace

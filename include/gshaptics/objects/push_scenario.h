@@ -1,0 +1,62 @@
+#pragma once
+/// @file
+/// The push scenario of `gshaptics simulate --scenario push` (issue 72): a simulated hand pushes
+/// a box of Gaussians across a floor of Gaussians through the servo step (SimulatedDevice,
+/// SimulatedRuntime: safety layer, execution mode), with the box's dynamics on MuJoCo. Every
+/// tick records the hand, the device, the box's pose and the coupling force on it, and whether
+/// the tool at the box's proxy overlaps the box, so the run can be held against the analytic
+/// answer: once the box slides, the push less m a is the friction mu m g.
+
+#include <Eigen/Core>
+#include <functional>
+#include <vector>
+
+#include "gshaptics/force/renderer_spec.h"
+#include "gshaptics/servo/haptic_runtime.h"
+#include "gshaptics/servo/runtime_stats.h"
+
+namespace gshaptics {
+
+/// The scenario's settings. Metres, kilograms, seconds; the world is z-up, the floor's top at z = 0.
+struct PushScenario {
+  Eigen::Vector3d box_half = Eigen::Vector3d(0.05, 0.04, 0.03);  ///< the box's half extents
+  double mass = 0.4;                                              ///< kg
+  double friction = 0.3;                                          ///< mu against the floor
+  double spacing = 0.01;     ///< Gaussian spacing of the box's faces and the floor
+  double tool_radius = 0.01;  ///< the spherical tool
+  /// The hand's path: from x = start at mid-height of the box, held for `hold` s, then to x = end
+  /// over the rest of `duration` (minimum jerk).
+  double start = -0.12, end = 0.15, hold = 0.5, duration = 3.0;
+  RuntimeConfig runtime;  ///< rate, renderer, execution mode, safety (duration and tool are set here)
+};
+
+/// One tick of the run (world frame).
+struct PushSample {
+  double t = 0;                                             ///< s
+  Eigen::Vector3d hand = Eigen::Vector3d::Zero();           ///< the hand's target, m
+  Eigen::Vector3d device = Eigen::Vector3d::Zero();         ///< the tool centre, m
+  Eigen::Vector3d box = Eigen::Vector3d::Zero();            ///< the box's body origin, m
+  Eigen::Vector3d box_velocity = Eigen::Vector3d::Zero();   ///< m/s
+  double box_turn = 0;                                      ///< the box's rotation from rest, rad
+  Eigen::Vector3d push = Eigen::Vector3d::Zero();           ///< coupling force on the box, N
+  double k_min = 0;  ///< deepest K_min of the box's Gaussians against the tool at its proxy (0: not inside)
+};
+
+/// What the run gave.
+struct PushRun {
+  PushScenario scenario;
+  std::vector<PushSample> samples;
+  RuntimeSummary runtime;         ///< of the SimulatedRuntime (ticks, forces, safety)
+  double travelled = 0;           ///< the box's displacement along x, m
+  double deepest_k_min = 0;       ///< max over the ticks of PushSample::k_min
+  int sliding_ticks = 0;          ///< ticks with the box sliding (v_x > 2 cm/s on two ticks in a row)
+  double friction_estimate = 0;   ///< over the sliding ticks: mean push_x - m mean a_x, N
+  double friction_expected = 0;   ///< mu m g, N
+};
+
+/// Runs the scenario. Throws InputError for invalid settings (non-positive sizes, mass, rate)
+/// and what the runtime's constructor throws. `progress` gets the fraction done.
+[[nodiscard]] PushRun run_push_scenario(const PushScenario& scenario,
+                                        const std::function<void(double)>& progress = {});
+
+}  // namespace gshaptics
