@@ -9,6 +9,9 @@ install(TARGETS ${GSHAPTICS_EXPORTED_TARGETS} EXPORT gshapticsTargets
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 set(_gshaptics_unbuilt_headers PATTERN ros1 EXCLUDE PATTERN ros2 EXCLUDE PATTERN session_ros EXCLUDE)
+if(NOT TARGET gshaptics_objects)
+  list(APPEND _gshaptics_unbuilt_headers PATTERN objects EXCLUDE PATTERN object_session.h EXCLUDE)
+endif()
 if(NOT TARGET gshaptics_viewer)
   list(APPEND _gshaptics_unbuilt_headers PATTERN viewer EXCLUDE PATTERN serve_session.h EXCLUDE)
 endif()
@@ -23,7 +26,7 @@ write_basic_package_version_file(${CMAKE_CURRENT_BINARY_DIR}/gshapticsConfigVers
 install(FILES ${CMAKE_CURRENT_BINARY_DIR}/gshapticsConfig.cmake
   ${CMAKE_CURRENT_BINARY_DIR}/gshapticsConfigVersion.cmake
   DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/gshaptics)
-install(FILES tools/plot_probe_run.py tools/plot_fidelity.py tools/plot_push.py tools/plot_stability.py tools/plot_stability_traces.py tools/plot_seen_felt.py DESTINATION ${CMAKE_INSTALL_DATADIR}/gshaptics)
+install(FILES tools/plot_probe_run.py tools/plot_fidelity.py tools/plot_push.py tools/plot_stability.py tools/plot_stability_traces.py tools/plot_seen_felt.py tools/plot_push_object.py DESTINATION ${CMAKE_INSTALL_DATADIR}/gshaptics)
 # The viewer page and its npm packages (gshaptics serve looks in share/gshaptics/web), and the
 # DDS configurations.
 install(DIRECTORY web/ DESTINATION ${CMAKE_INSTALL_DATADIR}/gshaptics/web

@@ -400,6 +400,32 @@ class Simulate(unittest.TestCase):
         self.assertIn("--overhang-falloff", bad.stderr)
 
 
+class SimulatePush(unittest.TestCase):
+    def test_the_hand_pushes_the_box_and_feels_its_friction(self):
+        """`simulate --scenario push`: the box slides, the friction felt while it slides is mu m g
+        within 5 %, the tool never enters the box, and a heavier box with more friction is felt as
+        such; a negative friction is refused."""
+        for mass, mu in ((None, None), ("0.8", "0.5")):
+            out = tempfile.mkdtemp()
+            extra = ["--object-mass", mass, "--object-friction", mu] if mass else []
+            run("simulate", "--scenario", "push", "--out", out, "--quiet", "--no-plot", *extra)
+            s = load_json(os.path.join(out, "summary.json"))
+            if mass:
+                self.assertEqual(s["box"]["mass_kg"], float(mass))
+                self.assertEqual(s["box"]["friction"], float(mu))
+            self.assertAlmostEqual(s["friction_expected_N"], s["box"]["mass_kg"] * s["box"]["friction"] * 9.81, places=6)
+            self.assertGreater(s["travelled_m"], 0.05)
+            self.assertGreater(s["sliding_ticks"], 200)
+            self.assertAlmostEqual(s["friction_felt_over_expected"], 1.0, delta=0.05)
+            self.assertLess(s["deepest_k_min"], 1e-3)
+            with open(os.path.join(out, "push_log.csv")) as f:
+                rows = list(csv.DictReader(f))
+            self.assertEqual(len(rows), s["ticks"])
+        bad = run("simulate", "--scenario", "push", "--object-friction", "-1", check=False)
+        self.assertNotEqual(bad.returncode, 0)
+        self.assertIn("--object-friction", bad.stderr)
+
+
 class DataSafety(unittest.TestCase):
     """Issue 35: a failed run leaves the previous results untouched and creates no folder; every
     check comes before the scene is loaded; a FIFO is refused, not waited on."""

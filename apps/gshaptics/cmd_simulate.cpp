@@ -2,6 +2,7 @@
 // simulated admittance device at 1 kHz; writes the per-tick log, a summary and the figure of
 // the paper's Fig. 5.
 
+#include <map>
 #include <memory>
 
 #include "commands.h"
@@ -18,6 +19,19 @@ void register_simulate(CLI::App& app) {
       "simulated time runs the servo step of a real-time run (safety layer included) in the "
       "runtime's execution mode. Writes probe_log.csv, summary.json and probe_run.png (the "
       "paper's Fig. 5) to --out. Without SCENE, runs the bundled Truck.");
+  const std::map<std::string, SimulateScenario> scenarios{{"probe", SimulateScenario::kProbe},
+                                                          {"push", SimulateScenario::kPush}};
+  cmd->add_option("--scenario", o->scenario,
+                  "probe (default): the paper's probe run of SCENE; push: the simulated hand pushes a 10 x 8 x 6 cm "
+                  "box of Gaussians across a floor of Gaussians, the box's dynamics on MuJoCo (writes push_log.csv, "
+                  "summary.json and push_run.png: the box's path, the contact force, the friction against mu m g)")
+      ->transform(CLI::CheckedTransformer(scenarios));
+  cmd->add_option_function<double>("--object-mass", [o](double v) { o->object_mass = v; },
+                                   "push: the box's mass, kg (default 0.4)")
+      ->check(check::positive());
+  cmd->add_option_function<double>("--object-friction", [o](double v) { o->object_friction = v; },
+                                   "push: the box's Coulomb friction against the floor (default 0.3)")
+      ->check(check::non_negative());
   cmd->add_option("scene", o->scene.scene, "Scene file (default: bundled data/truck.splat, registered z-up in metres)");
   cmd->add_option("--out", o->out_dir, "Output folder (default: runs/<name>-<extension>, e.g. runs/truck-splat)");
   cmd->add_option("--sites", o->sites, "Contact sites to probe")->capture_default_str()

@@ -1,4 +1,7 @@
 #include "gshaptics/session/probe_session.h"
+#ifdef GSHAPTICS_HAVE_OBJECTS
+#include "gshaptics/session/object_session.h"
+#endif
 #include "gshaptics/session/report_session.h"
 
 #include <chrono>
@@ -327,6 +330,13 @@ void report_sites(const ProbeSessionResult& probe, nlohmann::json& sj) {
 }  // namespace
 
 int run_simulate(SimulateOptions o) {
+  if (o.scenario == SimulateScenario::kPush) {
+#ifdef GSHAPTICS_HAVE_OBJECTS
+    return run_simulate_push(o);
+#else
+    throw InputError("--scenario push: this build has no rigid objects (libmujoco-dev was missing when it was built)");
+#endif
+  }
   if (o.tool.given() && o.tool_radius <= 0) o.tool_radius = o.tool.tool.largest_semi_axis();
   const RendererSpec renderer = o.force.spec();
   const SceneOptions so = with_bundled_defaults(o.scene, "simulate", &renderer);

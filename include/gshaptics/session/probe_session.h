@@ -108,7 +108,14 @@ bool plot_run(const std::string& csv, const std::string& summary, const std::str
               const std::string& command);
 
 /// `gshaptics simulate`: the main job's options.
+/// What `simulate` runs: the paper's probe run of a scene, or the push scenario (a box of
+/// Gaussians pushed across a floor, its dynamics on MuJoCo; session/object_session.h).
+enum class SimulateScenario { kProbe, kPush };
+
 struct SimulateOptions {
+  SimulateScenario scenario = SimulateScenario::kProbe;
+  /// The push scenario's box: mass (kg) and friction against the floor (unset: PushScenario's).
+  std::optional<double> object_mass, object_friction;
   SceneOptions scene;
   std::string out_dir;
   int sites = ProbeParams{}.sites;

@@ -1,0 +1,111 @@
+#include "gshaptics/session/object_session.h"
+
+#include <fmt/core.h>
+
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "gshaptics/io/atomic_file.h"
+#include "gshaptics/session/report_session.h"
+
+namespace gshaptics::session {
+namespace {
+
+constexpr const char* kLog = "push_log.csv";
+constexpr const char* kSummary = "summary.json";
+constexpr const char* kFigure = "push_run.png";
+
+std::string push_log_csv(const PushRun& run) {
+  std::ostringstream csv;
+  csv.precision(9);
+  csv << "t_s,hand_x,hand_y,hand_z,device_x,device_y,device_z,box_x,box_y,box_z,box_vx,box_vy,box_vz,box_turn_rad,"
+         "push_x,push_y,push_z,k_min\n";
+  for (const PushSample& s : run.samples) {
+    csv << s.t;
+    for (const Eigen::Vector3d* v : {&s.hand, &s.device, &s.box, &s.box_velocity})
+      csv << ',' << v->x() << ',' << v->y() << ',' << v->z();
+    csv << ',' << s.box_turn << ',' << s.push.x() << ',' << s.push.y() << ',' << s.push.z() << ',' << s.k_min << '\n';
+  }
+  return csv.str();
+}
+
+nlohmann::json push_summary(const PushRun& run, const SimulateOptions& o) {
+  const PushScenario& sc = run.scenario;
+  nlohmann::json j;
+  j["scenario"] = "push";
+  j["box"] = {{"half_extents_m", {sc.box_half.x(), sc.box_half.y(), sc.box_half.z()}},
+              {"mass_kg", sc.mass},
+              {"friction", sc.friction},
+              {"spacing_m", sc.spacing}};
+  j["tool_radius_m"] = sc.tool_radius;
+  j["force_model"] = renderer_name(o.force.spec());
+  j["travelled_m"] = run.travelled;
+  j["sliding_ticks"] = run.sliding_ticks;
+  j["friction_felt_N"] = run.friction_estimate;
+  j["friction_expected_N"] = run.friction_expected;
+  j["friction_felt_over_expected"] = run.friction_expected > 0 ? run.friction_estimate / run.friction_expected : 0.0;
+  j["deepest_k_min"] = run.deepest_k_min;
+  j["ticks"] = run.runtime.ticks;
+  j["rate_hz"] = run.runtime.rate_hz;
+  return j;
+}
+
+}  // namespace
+
+PushScenario push_scenario_from(const SimulateOptions& o) {
+  PushScenario sc;
+  if (o.object_mass) sc.mass = *o.object_mass;
+  if (o.object_friction) sc.friction = *o.object_friction;
+  sc.runtime.rate_hz = o.rate;
+  sc.runtime.renderer = o.force.spec();
+  sc.runtime.inline_query = o.exec.inline_query;
+  sc.runtime.latency_ticks = o.exec.latency_ticks;
+  sc.runtime.safety = o.safety;
+  sc.runtime.safety.f_max = o.force.f_max;
+  sc.runtime.control = o.control;
+  return sc;
+}
+
+int run_simulate_push(const SimulateOptions& o) {
+  const std::string out_dir = prepare_out_dir(o.out_dir, "push.box", {kLog, kSummary, kFigure});
+  const PushScenario sc = push_scenario_from(o);
+  fmt::print("scenario   push: a {:.0f} x {:.0f} x {:.0f} cm box of Gaussians, {:.3g} kg, mu {:.3g}, on a floor of "
+             "Gaussians; a sphere of {:.0f} mm radius pushes it along +x\n",
+             200 * sc.box_half.x(), 200 * sc.box_half.y(), 200 * sc.box_half.z(), sc.mass, sc.friction,
+             1e3 * sc.tool_radius);
+  fmt::print("rate       {:.0f} Hz of simulated time, {}; dynamics: MuJoCo at the servo rate\n", o.rate,
+             describe_execution(o.exec, true));
+  std::fflush(stdout);
+  Progress bar("simulating", !o.quiet);
+  const PushRun run = run_push_scenario(sc, [&](double f) { bar(f); });
+  bar.done();
+
+  OutputStage stage(out_dir, {kLog, kSummary, kFigure});
+  try {
+    write_file_atomically(stage.path(kLog), push_log_csv(run));
+    write_file_atomically(stage.path(kSummary), push_summary(run, o).dump(2) + "\n");
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "error: the run completed, but {}\nnote: {} is left as it was\n", e.what(), out_dir);
+    return kExitOutputsLost;
+  }
+  fmt::print("box        travelled {:.1f} cm; slid on {} ticks; friction felt {:.3f} N against mu m g = {:.3f} N "
+             "({:+.1f} %)\n", 100 * run.travelled, run.sliding_ticks, run.friction_estimate, run.friction_expected,
+             run.friction_expected > 0 ? 100 * (run.friction_estimate / run.friction_expected - 1) : 0.0);
+  fmt::print("contact    deepest K_min of the box's Gaussians against the tool at its proxy: {:.2g}{}\n",
+             run.deepest_k_min, run.deepest_k_min < 1e-3 ? " (never inside)" : "");
+  int rc = 0;
+  if (run.sliding_ticks == 0) {
+    fmt::print(stderr, "error: the box never slid (the push stayed below mu m g)\n");
+    rc = 1;
+  }
+  const bool plotted = !o.no_plot && run_python(find_tool_script("plot_push_object.py"),
+                                                 {stage.path(kLog), stage.path(kSummary), stage.path(kFigure)},
+                                                 "simulate --scenario push");
+  if (!o.no_plot && !plotted) rc = 1;
+  stage.commit();
+  fmt::print("log        {}\nsummary    {}\n", stage.final_path(kLog), stage.final_path(kSummary));
+  if (plotted) fmt::print("figure     {}\n", stage.final_path(kFigure));
+  return rc;
+}
+
+}  // namespace gshaptics::session
