@@ -289,6 +289,11 @@ TEST(ObjectRenderer, TheSimulatedHandPushesABoxAcrossThePlaneThroughTheServoStep
   double lag = 0;
   for (const PushSample& s : run.samples) lag = std::max(lag, s.hand.x() - s.device.x());
   EXPECT_GT(lag, 0.001);
+  // Pushing and letting go gave no energy back to the hand (the passivity observer at the
+  // device's port, which sees what went into the box and what came back).
+  EXPECT_GE(run.lowest_energy, -1e-6);
+  EXPECT_GT(run.peak_energy, 1e-3);  // the push put energy into the box (friction took it)
+  RecordProperty("lowest_energy_J", std::to_string(run.lowest_energy));
 }
 
 }  // namespace

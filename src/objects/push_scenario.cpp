@@ -59,9 +59,10 @@ class PushRecorder final : public ForceRenderer {
 
 void check(const PushScenario& s) {
   if (!(s.box_half.minCoeff() > 0) || !(s.mass > 0) || !(s.friction >= 0) || !(s.spacing > 0) ||
-      !(s.tool_radius > 0) || !(s.duration > s.hold) || !(s.hold >= 0) || !(s.end > s.start))
-    throw InputError("push scenario: sizes, mass, spacing and tool radius must be > 0, friction >= 0, "
-                     "duration > hold >= 0 and end > start");
+      !(s.tool_radius > 0) || !(s.duration > s.hold) || !(s.hold >= 0) || !(s.end > s.start) ||
+      !(s.release >= 0) || !(s.release_time > 0))
+    throw InputError("push scenario: sizes, mass, spacing, tool radius and release time must be > 0, friction and "
+                     "release >= 0, duration > hold >= 0 and end > start");
 }
 
 // Mean push less m a over the ticks where the box slides (v_x above 2 cm/s on two ticks in a row).
@@ -106,17 +107,19 @@ PushRun run_push_scenario(const PushScenario& scenario, const std::function<void
   const double z = h.z();
   const ProbeTrajectory path({{0, Eigen::Vector3d(scenario.start, 0, z)},
                               {scenario.hold, Eigen::Vector3d(scenario.start, 0, z)},
-                              {scenario.duration, Eigen::Vector3d(scenario.end, 0, z)}},
+                              {scenario.duration, Eigen::Vector3d(scenario.end, 0, z)},
+                              {scenario.duration + scenario.release_time,
+                               Eigen::Vector3d(scenario.end - scenario.release, 0, z)}},
                              {}, scenario.tool_radius);
   SimulatedDeviceParams hand;
   hand.loop = false;
   SimulatedDevice device(path, hand);
   RuntimeConfig config = scenario.runtime;
-  config.duration = scenario.duration;
+  config.duration = scenario.duration + scenario.release_time;
   config.tool = ToolShape{};
   config.tool.semi_axes = Eigen::Vector3d::Constant(scenario.tool_radius);
   PushRecorder recorder(*renderer, *objects[0].body, path,
-                        std::size_t(scenario.duration * scenario.runtime.rate_hz) + 16);
+                        std::size_t((scenario.duration + scenario.release_time) * scenario.runtime.rate_hz) + 16);
   SimulatedRuntime runtime(device, config, std::make_unique<BorrowedRenderer>(recorder));
   runtime.run(progress);
 
@@ -126,6 +129,10 @@ PushRun run_push_scenario(const PushScenario& scenario, const std::function<void
   run.runtime = runtime.summary();
   run.travelled = dynamics->pose(0).position.x() - objects[0].rest_origin.x();
   for (const PushSample& s : run.samples) run.deepest_k_min = std::max(run.deepest_k_min, s.k_min);
+  for (const TickRecord& r : runtime.log().records()) {
+    run.lowest_energy = std::min(run.lowest_energy, r.energy);
+    run.peak_energy = std::max(run.peak_energy, r.energy);
+  }
   run.friction_expected = scenario.friction * scenario.mass * dp.gravity;
   estimate_friction(run);
   return run;

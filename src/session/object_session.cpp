@@ -45,6 +45,9 @@ nlohmann::json push_summary(const PushRun& run, const SimulateOptions& o) {
   j["friction_expected_N"] = run.friction_expected;
   j["friction_felt_over_expected"] = run.friction_expected > 0 ? run.friction_estimate / run.friction_expected : 0.0;
   j["deepest_k_min"] = run.deepest_k_min;
+  j["energy_peak_J"] = run.peak_energy;
+  j["energy_lowest_J"] = run.lowest_energy;
+  j["passivity"] = o.safety.passivity.enabled ? "on" : "off (observed only)";
   j["ticks"] = run.runtime.ticks;
   j["rate_hz"] = run.runtime.rate_hz;
   return j;
@@ -93,6 +96,9 @@ int run_simulate_push(const SimulateOptions& o) {
              run.friction_expected > 0 ? 100 * (run.friction_estimate / run.friction_expected - 1) : 0.0);
   fmt::print("contact    deepest K_min of the box's Gaussians against the tool at its proxy: {:.2g}{}\n",
              run.deepest_k_min, run.deepest_k_min < 1e-3 ? " (never inside)" : "");
+  fmt::print("passivity  {}: energy into the scene and the box at most {:.3g} mJ, lowest {:.3g} mJ (below 0: "
+             "energy given to the hand)\n", o.safety.passivity.enabled ? "on" : "off (observed only)",
+             1e3 * run.peak_energy, 1e3 * run.lowest_energy);
   int rc = 0;
   if (run.sliding_ticks == 0) {
     fmt::print(stderr, "error: the box never slid (the push stayed below mu m g)\n");

@@ -24,9 +24,10 @@ struct PushScenario {
   double friction = 0.3;                                          ///< mu against the floor
   double spacing = 0.01;     ///< Gaussian spacing of the box's faces and the floor
   double tool_radius = 0.01;  ///< the spherical tool
-  /// The hand's path: from x = start at mid-height of the box, held for `hold` s, then to x = end
-  /// over the rest of `duration` (minimum jerk).
+  /// The hand's path at mid-height of the box: at x = start for `hold` s, to x = end by `duration`
+  /// (minimum jerk), then back by `release` m over `release_time` s, letting the box go.
   double start = -0.12, end = 0.15, hold = 0.5, duration = 3.0;
+  double release = 0.1, release_time = 0.5;
   RuntimeConfig runtime;  ///< rate, renderer, execution mode, safety (duration and tool are set here)
 };
 
@@ -49,6 +50,10 @@ struct PushRun {
   RuntimeSummary runtime;         ///< of the SimulatedRuntime (ticks, forces, safety)
   double travelled = 0;           ///< the box's displacement along x, m
   double deepest_k_min = 0;       ///< max over the ticks of PushSample::k_min
+  /// The passivity observer's energy into the environment (the static scene and the box) at its
+  /// highest and its lowest, J (servo/passivity.h): negative would be energy given to the hand.
+  /// (The observer forgets stored energy once nothing is held, so it reads 0 after the release.)
+  double peak_energy = 0, lowest_energy = 0;
   int sliding_ticks = 0;          ///< ticks with the box sliding (v_x > 2 cm/s on two ticks in a row)
   double friction_estimate = 0;   ///< over the sliding ticks: mean push_x - m mean a_x, N
   double friction_expected = 0;   ///< mu m g, N
