@@ -400,7 +400,7 @@ class Simulate(unittest.TestCase):
         self.assertIn("--overhang-falloff", bad.stderr)
 
 
-class SimulatePush(unittest.TestCase):
+class Objects(unittest.TestCase):
     def test_the_hand_pushes_the_box_and_feels_its_friction(self):
         """`simulate --scenario push`: the box slides, the friction felt while it slides is mu m g
         within 5 %, the tool never enters the box, and a heavier box with more friction is felt as
@@ -424,6 +424,26 @@ class SimulatePush(unittest.TestCase):
         bad = run("simulate", "--scenario", "push", "--object-friction", "-1", check=False)
         self.assertNotEqual(bad.returncode, 0)
         self.assertIn("--object-friction", bad.stderr)
+
+    def test_an_object_cut_from_the_truck_leaves_the_static_world(self):
+        """`simulate --object`: the Gaussians in the box leave the static world and become an object
+        with its dynamics; a box that holds no Gaussian, or a malformed one, is refused."""
+        plain = run("simulate", "--sites", "1", "--out", tempfile.mkdtemp(), "--quiet", "--no-plot").stdout
+        cut = run("simulate", "--sites", "1", "--out", tempfile.mkdtemp(), "--quiet", "--no-plot",
+                  "--object", "box:0,0,-1,1,1,1:mass=2:friction=0.6").stdout
+        kept = lambda text: int(re.search(r"^world +(\d+) Gaussians", text, re.M).group(1))
+        moved = int(re.search(r"^object +0: (\d+) Gaussians cut", cut, re.M).group(1))
+        self.assertGreater(moved, 1000)
+        self.assertLess(kept(cut), kept(plain))
+        self.assertGreater(kept(cut), kept(plain) - moved - 1)
+        self.assertRegex(cut, r"object +0: \d+ Gaussians kept, 2 kg, mu 0\.6")
+        self.assertIn("support    a plane", cut)
+        for spec, message in (("box:9,9,9,10,10,10", "no Gaussian with opacity above 0.2"),
+                              ("box:1,2", "a box takes six numbers")):
+            bad = run("simulate", "--sites", "1", "--no-plot", "--quiet", "--out", tempfile.mkdtemp(),
+                      "--object", spec, check=False)
+            self.assertEqual(bad.returncode, 2, bad.stderr)
+            self.assertIn(message, bad.stderr)
 
 
 class DataSafety(unittest.TestCase):

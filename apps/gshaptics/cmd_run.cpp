@@ -25,6 +25,7 @@ void register_run(CLI::App& app) {
       "Fig. 5 + jitter row).");
   add_runtime_options(*cmd, *o,
                       "one of" + registry_device_help(false).substr(1) + " (`gshaptics devices` says which this machine has)");
+  add_object_option(*cmd, o->scene);
   cmd->callback([o] {
     const SceneOptions so = with_bundled_defaults(o->scene, "run");
     std::unique_ptr<HapticDevice> opened = validate_runtime_options(*o, /*allow_mouse=*/false);  // before the scene load

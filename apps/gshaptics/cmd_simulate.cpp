@@ -55,6 +55,7 @@ void register_simulate(CLI::App& app) {
   cmd->add_flag("--no-plot", o->no_plot, "Do not draw probe_run.png (needs /usr/bin/python3 with matplotlib)");
   cmd->add_flag("--quiet", o->quiet, "No progress bars");
   add_world_options(*cmd, o->scene);
+  add_object_option(*cmd, o->scene);
   add_world_cache_option(*cmd, o->scene);
 
   cmd->callback([o] {

@@ -50,6 +50,21 @@ CLI::Validator range(double lo, double hi) {
 }
 }  // namespace check
 
+void add_object_option(CLI::App& app, SceneOptions& o) {
+  app.add_option_function<std::vector<std::string>>(
+         "--object",
+         [&o](const std::vector<std::string>& specs) {
+           for (const std::string& spec : specs) o.objects.push_back(parse_object_spec(spec, "--object"));
+         },
+         fmt::format("A rigid object cut from the scene, moved by MuJoCo (repeatable, at most {}): "
+                     "box:X0,Y0,Z0,X1,Y1,Z1 (the Gaussians whose world-frame centre is in the box, m) or "
+                     "indices:I,J,... (the file's Gaussians), then optional :mass=KG (default {:g}) and "
+                     ":friction=MU (default {:g}). It rests on a plane under its lowest point; the scene keeps "
+                     "a hole where it stood",
+                     kMaxObjects, kDefaultObjectMass, kDefaultObjectFriction))
+      ->type_name("SPEC")->allow_extra_args(false);
+}
+
 void add_world_options(CLI::App& app, SceneOptions& o) {
   app.add_option("--min-opacity", o.min_opacity,
                  "Keep Gaussians with opacity > T (paper Sec. III-A: 0.1..0.3). Default: 0.2; 0.0039 (1/255, every "

@@ -22,6 +22,9 @@ CLI::Validator range(double lo, double hi);  ///< finite and in [lo, hi]
 void add_world_options(CLI::App& app, SceneOptions& o);
 /// Adds --world-cache (the commands that build a world for a run: run, serve, node, simulate).
 void add_world_cache_option(CLI::App& app, SceneOptions& o);
+/// --object SPEC (repeatable): a rigid object cut from the scene (parse_object_spec), simulated by
+/// MuJoCo (run and simulate).
+void add_object_option(CLI::App& app, SceneOptions& o);
 
 /// Adds --inline, --decoupled and (when `simulated`) --latency. The default is the runtime's.
 void add_execution_options(CLI::App& cmd, ExecutionOptions& o, bool simulated);

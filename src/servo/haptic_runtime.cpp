@@ -73,11 +73,16 @@ Nanos validate_runtime_config(const RuntimeConfig& config, const DeviceInfo& inf
   return period;
 }
 
+std::unique_ptr<ForceRenderer> make_runtime_renderer(const RuntimeConfig& config, const CollisionWorld& world) {
+  return config.make_renderer ? config.make_renderer(world, config.renderer, config.query)
+                              : make_force_renderer(config.renderer, world, config.query);
+}
+
 HapticRuntime::HapticRuntime(const CollisionWorld& world, HapticDevice& device,
                              const RuntimeConfig& config, Clock& clock)
     : HapticRuntime(device, config,
                     (validate_runtime_config(config, device.info()),
-                     make_force_renderer(config.renderer, world, config.query)),
+                     make_runtime_renderer(config, world)),
                     clock) {}
 
 HapticRuntime::HapticRuntime(HapticDevice& device, const RuntimeConfig& config,

@@ -11,7 +11,7 @@ namespace gshaptics {
 SimulatedRuntime::SimulatedRuntime(const CollisionWorld& world, HapticDevice& device, const RuntimeConfig& config)
     : SimulatedRuntime(device, config,
                        (validate_runtime_config(config, device.info()),
-                        make_force_renderer(config.renderer, world, config.query))) {}
+                        make_runtime_renderer(config, world))) {}
 
 SimulatedRuntime::SimulatedRuntime(HapticDevice& device, const RuntimeConfig& config,
                                    std::unique_ptr<ForceRenderer> renderer)

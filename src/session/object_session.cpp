@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "gshaptics/io/atomic_file.h"
+#include "gshaptics/objects/object_renderer.h"
 #include "gshaptics/session/report_session.h"
 
 namespace gshaptics::session {
@@ -54,6 +55,30 @@ nlohmann::json push_summary(const PushRun& run, const SimulateOptions& o) {
 }
 
 }  // namespace
+
+RendererFactory object_renderer_factory(const PreparedWorld& pw, const SceneOptions& so, double rate_hz,
+                                        std::FILE* report) {
+  auto objects = std::make_shared<std::vector<RigidObject>>();
+  for (std::size_t i = 0; i < pw.objects.size(); ++i) {
+    objects->push_back(make_rigid_object(pw.objects[i], so.objects[i], pw.config));
+    const RigidObject& o = objects->back();
+    if (report != nullptr)
+      fmt::print(report, "object     {}: {} Gaussians kept, {:.3g} kg, mu {:.3g}, at [{:.3f}, {:.3f}, {:.3f}]\n", i,
+                 o.body->size(), o.spec.mass, o.spec.friction, o.rest_origin.x(), o.rest_origin.y(),
+                 o.rest_origin.z());
+  }
+  const SupportPlane support = support_under(*objects, pw.world.up());
+  if (report != nullptr)
+    fmt::print(report, "support    a plane through [{:.3f}, {:.3f}, {:.3f}], normal the world's up; MuJoCo at {:.0f} Hz\n",
+               support.point.x(), support.point.y(), support.point.z(), rate_hz);
+  DynamicsParams dp;
+  dp.timestep = 1.0 / rate_hz;
+  return [objects, support, dp](const CollisionWorld& world, const RendererSpec& spec,
+                                const QueryOptions& query) -> std::unique_ptr<ForceRenderer> {
+    auto dynamics = std::make_shared<ObjectDynamics>(*objects, support, dp);
+    return make_object_renderer(spec, world, *objects, std::move(dynamics), query);
+  };
+}
 
 PushScenario push_scenario_from(const SimulateOptions& o) {
   PushScenario sc;

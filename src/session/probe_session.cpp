@@ -186,11 +186,13 @@ bool plot_run(const std::string& csv, const std::string& summary, const std::str
 }
 
 ProbeSessionResult simulate_probe(const CollisionWorld& world, const SimulateOptions& o, bool scaled, std::FILE* report,
-                                  const std::optional<Eigen::Vector3d>& up, const std::function<void(double)>& progress) {
+                                  const std::optional<Eigen::Vector3d>& up, const std::function<void(double)>& progress,
+                                  const RendererFactory& make_renderer) {
   ProbeTrajectory traj = make_probe_trajectory(world, scaled, o.sites, o.seed, o.tool_radius, o.force, report, up);
   ProbeRunParams rp;
   rp.rate_hz = o.rate;
   rp.renderer = o.force.spec();
+  rp.make_renderer = make_renderer;
   rp.inline_query = o.exec.inline_query;
   rp.latency_ticks = o.exec.latency_ticks;
   rp.safety = o.safety;
@@ -345,8 +347,10 @@ int run_simulate(SimulateOptions o) {
   const PreparedWorld pw = prepare_world(so, o.quiet);
   o.force.materials = with_scene_colours(o.force.materials, so.scene);
   warn_if_outside_profile(pw, o.force);
+  const RendererFactory objects = scene_renderer_factory(pw, so, o.rate);
   Progress bar("simulating", !o.quiet);
-  const ProbeSessionResult probe = simulate_probe(pw.world, o, is_scaled(so), stdout, std::nullopt, [&](double f) { bar(f); });
+  const ProbeSessionResult probe =
+      simulate_probe(pw.world, o, is_scaled(so), stdout, std::nullopt, [&](double f) { bar(f); }, objects);
   bar.done();
   const ProbeRunResult& run = probe.run;
 

@@ -348,6 +348,7 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     open_other_device(o, pw, std::move(opened), s);
   if (!is_hardware_device(o.device)) wrap_in_workspace_mapping(o, s);
   s.config = runtime_config_from(o, s.tool_radius, s.planned);
+  s.config.make_renderer = scene_renderer_factory(pw, so, o.rate);
   fmt::print("runtime    {} at {:.0f} Hz, {} query, {}\n", s.device->info().name, o.rate,
              describe_execution(o.exec, false),
              s.planned > 0 ? fmt::format("{:.1f} s", s.planned) : std::string("until the device ends or Ctrl-C"));

@@ -1,4 +1,7 @@
 #include "gshaptics/session/world_session.h"
+#ifdef GSHAPTICS_HAVE_OBJECTS
+#include "gshaptics/session/object_session.h"
+#endif
 
 #include <unistd.h>
 
@@ -372,7 +375,9 @@ bool is_scaled(const SceneOptions& so) {
 
 PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* report) {
   const WorldConfig cfg = world_config_from(so);
-  const std::string cache_dir = world_cache_dir(so);
+  const std::string cache_dir = so.objects.empty() ? world_cache_dir(so) : std::string();
+  if (!so.objects.empty() && !world_cache_dir(so).empty())
+    fmt::print(stderr, "note: --world-cache is not used with --object (the static part is cut each time)\n");
   WorldCacheKey key;
   std::string cache_file;
   if (!cache_dir.empty()) {
@@ -394,12 +399,22 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
                  s.report.loaded, s.report.skipped());
       fmt::print(report, "world      {} Gaussians from the world cache {} (hashed and mapped in {:.0f} ms), up [{:.2f}, "
                  "{:.2f}, {:.2f}]\n", hit->world.size(), cache_file, ms, up.x(), up.y(), up.z());
-      return {std::move(s), cfg, br, std::move(hit->world)};
+      return {std::move(s), cfg, br, std::move(hit->world), {}};
     }
     if (why != "no cache file") fmt::print(stderr, "warning: world cache {}: {}; rebuilding\n", cache_file, why);
   }
   LoadedScene s = load_with_progress(so.scene, quiet);
   WorldBuildReport br;
+  std::vector<GaussianScene> objects;
+  if (!so.objects.empty()) {  // the objects leave the static world (scene/scene_cut.h)
+    SceneCut cut = cut_objects(s.scene, with_up_axis(cfg.registration, cfg.up, s.scene.frame), so.objects,
+                               cfg.min_opacity);
+    for (std::size_t i = 0; i < cut.objects.size(); ++i)
+      fmt::print(report, "object     {}: {} Gaussians cut from the scene ({})\n", i, cut.objects[i].size(),
+                 so.objects[i].text);
+    s.scene = std::move(cut.rest);
+    objects = std::move(cut.objects);
+  }
   // The Gaussians are not needed after the build (a cached world has none either): consuming
   // them lowers the peak memory of a large scene's build.
   CollisionWorld world = CollisionWorld::build(std::move(s.scene), cfg, &br);
@@ -427,7 +442,20 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
                "up ends at [{:.2f}, {:.2f}, {:.2f}]. A registration that already turns the scene "
                "upright (like the bundled Truck's) wants --up none.\n",
                to_string(cfg.up), up.x(), up.y(), up.z());
-  return {std::move(s), cfg, br, std::move(world)};
+  return {std::move(s), cfg, br, std::move(world), std::move(objects)};
+}
+
+RendererFactory scene_renderer_factory(const PreparedWorld& pw, const SceneOptions& so, double rate_hz,
+                                       std::FILE* report) {
+  if (pw.objects.empty()) return {};
+#ifdef GSHAPTICS_HAVE_OBJECTS
+  return object_renderer_factory(pw, so, rate_hz, report);
+#else
+  (void)so;
+  (void)rate_hz;
+  (void)report;
+  throw InputError("--object: this build has no rigid objects (libmujoco-dev was missing when it was built)");
+#endif
 }
 
 std::shared_ptr<const MaterialMap> with_scene_colours(std::shared_ptr<const MaterialMap> map,

@@ -35,6 +35,7 @@ ProbeRunResult run_probe(const CollisionWorld& world, const ProbeTrajectory& tra
     c.tool.semi_axes = Eigen::Vector3d::Constant(trajectory.tool_radius());
   }
   c.renderer = params.renderer;
+  c.make_renderer = params.make_renderer;
   c.query = params.query;
   c.safety = params.safety;
   c.control = params.control;

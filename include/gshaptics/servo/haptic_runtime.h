@@ -15,6 +15,7 @@
 ///   - log() and summary() are complete after wait() returned.
 
 #include <atomic>
+#include <functional>
 #include <memory>
 #include <string>
 #include <thread>
@@ -56,6 +57,12 @@ inline constexpr bool kDefaultInlineQuery = true;
 /// read it.
 inline constexpr double kDefaultServoRateHz = 1000;
 
+/// Makes a run's renderer on its world with the config's renderer spec and query options, instead
+/// of make_force_renderer(): a scene with rigid objects renders through its own
+/// (objects/object_renderer.h). Called once, at set-up; may throw InputError.
+using RendererFactory =
+    std::function<std::unique_ptr<ForceRenderer>(const CollisionWorld&, const RendererSpec&, const QueryOptions&)>;
+
 struct RuntimeConfig {
   double rate_hz = kDefaultServoRateHz;  ///< servo rate, Hz (paper: 1 kHz)
   bool inline_query = kDefaultInlineQuery;  ///< query inside the tick instead of on the worker thread
@@ -67,6 +74,8 @@ struct RuntimeConfig {
   double stop_timeout = 0.1;
   ToolShape tool;
   RendererSpec renderer;  ///< the force renderer and its parameters (default: the proxy)
+  /// When set, makes the renderer instead of make_force_renderer(renderer, world, query).
+  RendererFactory make_renderer;
   QueryOptions query;
   /// Threads sharing one large query's narrow phase (the paper model's contact query), the
   /// collision worker included: 1: none besides it. Workers are pinned to the CPUs below the
@@ -89,6 +98,10 @@ struct RuntimeConfig {
 /// tool of positive mass, and an admittance-type device only under admittance control) and returns the servo period, ns. Throws InputError naming the setting.
 /// HapticRuntime and SimulatedRuntime both call it.
 Nanos validate_runtime_config(const RuntimeConfig& config, const DeviceInfo& device);
+/// The renderer a run of `config` uses on `world`: config.make_renderer's when set, else
+/// make_force_renderer(config.renderer, world, config.query). Throws InputError as they do.
+[[nodiscard]] std::unique_ptr<ForceRenderer> make_runtime_renderer(const RuntimeConfig& config,
+                                                                   const CollisionWorld& world);
 
 /// The longest stop ramp of a run, ns: config.stop_timeout, plus under admittance control the time
 /// the virtual tool takes to brake from the speed limit (max_speed / max_acceleration), so the

@@ -9,6 +9,11 @@
 
 namespace gshaptics::session {
 
+/// scene_renderer_factory() of a build with objects: builds each RigidObject of `pw` once
+/// (immutable, shared by the runs) and, per run, its ObjectDynamics and ObjectRenderer.
+RendererFactory object_renderer_factory(const PreparedWorld& pw, const SceneOptions& so, double rate_hz,
+                                        std::FILE* report);
+
 /// The scenario `o` describes: its rate, force model, execution mode, safety layer and control
 /// (the scene, sites, seed and tool are not used: the scenario brings its own), with the box's
 /// mass and friction.

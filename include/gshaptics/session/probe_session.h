@@ -137,14 +137,16 @@ struct SimulateOptions {
 /// instead of the world's when given) and the run through the servo step on simulated time
 /// (sim/probe_run.h) with `o`'s rate, force model, execution mode, safety layer and tool.
 /// `scaled`: the world is meant to be in metres (only a warning depends on it); `report`: where
-/// the trajectory's line goes (nullptr: nowhere); `progress` gets the fraction done.
+/// the trajectory's line goes (nullptr: nowhere); `progress` gets the fraction done;
+/// `make_renderer`: a scene with objects (scene_renderer_factory; the sites are on `world`).
 struct ProbeSessionResult {
   ProbeTrajectory trajectory;
   ProbeRunResult run;
 };
 ProbeSessionResult simulate_probe(const CollisionWorld& world, const SimulateOptions& o, bool scaled,
                                   std::FILE* report = stdout, const std::optional<Eigen::Vector3d>& up = std::nullopt,
-                                  const std::function<void(double)>& progress = {});
+                                  const std::function<void(double)>& progress = {},
+                                  const RendererFactory& make_renderer = {});
 
 /// The main job: a seeded probe trajectory over the world, a simulated hand on a simulated
 /// admittance device, every tick through the runtime's servo step on simulated time; writes

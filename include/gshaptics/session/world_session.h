@@ -16,11 +16,13 @@
 #include <vector>
 
 #include "gshaptics/collision/collision_world.h"
+#include "gshaptics/scene/scene_cut.h"
 #include "gshaptics/force/material.h"
 #include "gshaptics/error.h"
 #include "gshaptics/io/atomic_file.h"
 #include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/io/scene_loader.h"
+#include "gshaptics/servo/haptic_runtime.h"
 
 namespace gshaptics::session {
 
@@ -42,6 +44,9 @@ struct SceneOptions {
   std::string reg_scale, reg_rotation, reg_translation;  // empty: not given
   std::string up = "none";  // scene up axis turned to world +z before the registration
   std::string world_cache;  // folder of world caches, "auto", or "" (none)
+  /// --object (run, simulate): rigid objects cut from the scene (scene/scene_cut.h); their
+  /// Gaussians leave the static world, and MuJoCo moves them (gshaptics::objects).
+  std::vector<ObjectSpec> objects;
 };
 
 /// The world-cache folder of --world-cache ("auto": $XDG_CACHE_HOME/gshaptics/worlds, else
@@ -152,11 +157,22 @@ struct PreparedWorld {
   LoadedScene scene;
   WorldConfig config;
   WorldBuildReport report;
-  CollisionWorld world;
+  CollisionWorld world;  ///< the static part when objects were cut out
+  /// The objects' Gaussians in the world frame, in the order of SceneOptions::objects.
+  std::vector<GaussianScene> objects;
 };
 /// Loads and builds the world (or maps it from the world cache, --world-cache), printing what it
-/// did to `report` (stdout; a command whose stdout is data passes stderr).
+/// did to `report` (stdout; a command whose stdout is data passes stderr). With objects, the scene
+/// is cut first (cut_objects) and the world holds the static part (never cached).
 PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* report = stdout);
+
+/// The renderer factory of a world with objects (RuntimeConfig::make_renderer): for each run, the
+/// objects of `pw` (specs in so.objects) with their MuJoCo dynamics at `rate_hz`, on a plane under
+/// them normal to the world's up, rendered through an ObjectRenderer (objects/object_renderer.h).
+/// Empty when there are no objects. Prints a line per object to `report` (nullptr: nowhere).
+/// Throws InputError when objects are given to a build without gshaptics::objects.
+RendererFactory scene_renderer_factory(const PreparedWorld& pw, const SceneOptions& so, double rate_hz,
+                                       std::FILE* report = stdout);
 
 /// `map` with its colour regions resolved on the colours of the scene file `scene_path` (loaded
 /// once more, with its colour: a world and its cache keep none), printing what each selected to

@@ -46,6 +46,7 @@ struct QueryTimeStats {
 struct ProbeRunParams {
   double rate_hz = kDefaultServoRateHz;  ///< servo rate of the simulation (paper: 1 kHz)
   RendererSpec renderer;              ///< the force renderer and its parameters (default: the proxy)
+  RendererFactory make_renderer;      ///< RuntimeConfig::make_renderer (a scene with objects)
   AdmittanceParams device;
   UserHandParams user;
   QueryOptions query;

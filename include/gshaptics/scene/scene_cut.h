@@ -1,0 +1,70 @@
+#pragma once
+/// @file
+/// A scene cut into its static part and rigid objects (issue 72): which Gaussians make each object
+/// (an axis-aligned world box, or a list of the file's Gaussian indices), its mass and friction,
+/// and the cut itself. The objects' dynamics and rendering are gshaptics::objects
+/// (objects/rigid_object.h); the cut needs neither, so every scene command can parse --object.
+///
+/// A cut leaves the static part without the Gaussians that were under the object: the capture
+/// never saw them, so where the object stood the static scene has a hole that the support plane
+/// (objects/object_dynamics.h) carries.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "gshaptics/io/gaussian_scene.h"
+#include "gshaptics/scene/registration.h"
+
+namespace gshaptics {
+
+inline constexpr double kDefaultObjectMass = 0.5;      ///< kg, when --object gives none
+inline constexpr double kDefaultObjectFriction = 0.5;  ///< Coulomb mu against the support, when none is given
+/// At most this many objects in one scene (fixed-size per-tick buffers).
+inline constexpr std::size_t kMaxObjects = 8;
+
+/// Which Gaussians make one object, and its physical properties.
+struct ObjectSpec {
+  enum class Cut { kBox, kIndices };
+  Cut cut = Cut::kBox;
+  /// kBox: the Gaussians whose world-frame centre lies in [box_lo, box_hi] (m).
+  Eigen::Vector3d box_lo = Eigen::Vector3d::Zero(), box_hi = Eigen::Vector3d::Zero();
+  /// kIndices: the file's Gaussian indices (GaussianScene::source_index).
+  std::vector<std::uint32_t> indices;
+  double mass = kDefaultObjectMass;          ///< kg, > 0
+  double friction = kDefaultObjectFriction;  ///< mu >= 0, against the support
+  std::string text;                          ///< as given, for messages
+};
+
+/// Parses one --object value:
+///   box:X0,Y0,Z0,X1,Y1,Z1[:mass=KG][:friction=MU]   (world frame, m)
+///   indices:I,J,K,...[:mass=KG][:friction=MU]       (the file's Gaussian indices)
+/// Throws InputError naming `source` (the option or the JSON field) and what is wrong.
+[[nodiscard]] ObjectSpec parse_object_spec(std::string_view text, const std::string& source = "--object");
+
+/// A scene split into its static part and its objects' Gaussians.
+struct SceneCut {
+  GaussianScene rest;  ///< the static part, in the file's frame (built as the scene was)
+  /// Each object's Gaussians, in the WORLD frame (registered: means, scales and rotations), in
+  /// the order of the specs.
+  std::vector<GaussianScene> objects;
+};
+
+/// Splits `scene` by `specs`: a Gaussian goes to the first object that claims it and to no
+/// other; the rest stay static. `scene_to_world` is the world's whole registration (scene
+/// file -> world, CollisionWorld::scene_to_world()). Throws InputError naming the spec when an
+/// object gets no Gaussian above `min_opacity`, and for more than kMaxObjects specs.
+[[nodiscard]] SceneCut cut_objects(const GaussianScene& scene, const SimilarityTransform& scene_to_world,
+                                   std::span<const ObjectSpec> specs, float min_opacity);
+
+/// The six faces of the box center +- half (world frame, m) tiled with thin discs every
+/// `spacing` m, each 1.4 cells wide so that neighbours overlap as a capture's do (discs that only
+/// touch are floaters to the proxy), thin axis 5 % of `spacing`, opacity `opacity`; source
+/// indices from `first_index`. A box object or a floor slab for tests, benchmarks and demos.
+[[nodiscard]] GaussianScene box_surface_gaussians(const Eigen::Vector3d& center, const Eigen::Vector3d& half,
+                                                  double spacing, float opacity = 0.9f, std::uint32_t first_index = 0);
+
+}  // namespace gshaptics

@@ -1,0 +1,176 @@
+#include "gshaptics/scene/scene_cut.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "gshaptics/error.h"
+
+namespace gshaptics {
+namespace {
+
+std::vector<std::string_view> split(std::string_view text, char sep) {
+  std::vector<std::string_view> out;
+  for (std::size_t start = 0;;) {
+    const std::size_t end = text.find(sep, start);
+    out.push_back(text.substr(start, end == std::string_view::npos ? std::string_view::npos : end - start));
+    if (end == std::string_view::npos) return out;
+    start = end + 1;
+  }
+}
+
+InputError spec_error(const std::string& source, std::string_view text, const std::string& what) {
+  return InputError(source + " '" + std::string(text) + "': " + what +
+                    " (expected box:X0,Y0,Z0,X1,Y1,Z1 or indices:I,J,... then optional :mass=KG and "
+                    ":friction=MU)");
+}
+
+double parse_number(std::string_view field, const std::string& source, std::string_view text) {
+  double v = 0;
+  const auto [end, ec] = std::from_chars(field.data(), field.data() + field.size(), v);
+  if (ec != std::errc() || end != field.data() + field.size() || !std::isfinite(v))
+    throw spec_error(source, text, "'" + std::string(field) + "' is not a number");
+  return v;
+}
+
+void parse_box(std::string_view list, ObjectSpec& spec, const std::string& source, std::string_view text) {
+  const auto fields = split(list, ',');
+  if (fields.size() != 6) throw spec_error(source, text, "a box takes six numbers");
+  for (int k = 0; k < 3; ++k) {
+    const double a = parse_number(fields[k], source, text), b = parse_number(fields[3 + k], source, text);
+    spec.box_lo[k] = std::min(a, b);
+    spec.box_hi[k] = std::max(a, b);
+    if (!(b > a || a > b)) throw spec_error(source, text, "the box is empty along axis " + std::to_string(k));
+  }
+}
+
+void parse_indices(std::string_view list, ObjectSpec& spec, const std::string& source, std::string_view text) {
+  for (std::string_view f : split(list, ',')) {
+    std::uint32_t i = 0;
+    const auto [end, ec] = std::from_chars(f.data(), f.data() + f.size(), i);
+    if (ec != std::errc() || end != f.data() + f.size())
+      throw spec_error(source, text, "'" + std::string(f) + "' is not a Gaussian index");
+    spec.indices.push_back(i);
+  }
+  std::sort(spec.indices.begin(), spec.indices.end());
+  spec.indices.erase(std::unique(spec.indices.begin(), spec.indices.end()), spec.indices.end());
+}
+
+void parse_property(std::string_view field, ObjectSpec& spec, const std::string& source, std::string_view text) {
+  const std::size_t eq = field.find('=');
+  const std::string_view key = field.substr(0, eq);
+  if (eq == std::string_view::npos) throw spec_error(source, text, "'" + std::string(field) + "' is not KEY=VALUE");
+  const double v = parse_number(field.substr(eq + 1), source, text);
+  if (key == "mass") {
+    if (!(v > 0)) throw spec_error(source, text, "mass must be > 0 kg");
+    spec.mass = v;
+  } else if (key == "friction") {
+    if (!(v >= 0)) throw spec_error(source, text, "friction must be >= 0");
+    spec.friction = v;
+  } else {
+    throw spec_error(source, text, "unknown property '" + std::string(key) + "' (mass, friction)");
+  }
+}
+
+bool claims(const ObjectSpec& spec, const Eigen::Vector3d& world_center, std::uint32_t source_index) {
+  if (spec.cut == ObjectSpec::Cut::kIndices)
+    return std::binary_search(spec.indices.begin(), spec.indices.end(), source_index);
+  return (world_center.array() >= spec.box_lo.array()).all() && (world_center.array() <= spec.box_hi.array()).all();
+}
+
+// Appends Gaussian i of `scene` to `out`, moved into the world by `T` (mean, scale, rotation).
+void push_registered(GaussianScene& out, const GaussianScene& scene, std::size_t i, const SimilarityTransform& T) {
+  const Eigen::Quaterniond q = T.apply_rotation(scene.rotations[i]);
+  out.push_back(T.apply(scene.means[i].cast<double>()).cast<float>(), (T.scale * scene.scales[i].cast<double>()).cast<float>(),
+                Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())), scene.opacities[i],
+                scene.source_index[i]);
+}
+
+std::string format_number(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g", v);
+  return text;
+}
+
+}  // namespace
+
+ObjectSpec parse_object_spec(std::string_view text, const std::string& source) {
+  ObjectSpec spec;
+  spec.text = std::string(text);
+  const auto parts = split(text, ':');
+  if (parts.size() < 2) throw spec_error(source, text, "no cut given");
+  if (parts[0] == "box") {
+    spec.cut = ObjectSpec::Cut::kBox;
+    parse_box(parts[1], spec, source, text);
+  } else if (parts[0] == "indices") {
+    spec.cut = ObjectSpec::Cut::kIndices;
+    parse_indices(parts[1], spec, source, text);
+  } else {
+    throw spec_error(source, text, "unknown cut '" + std::string(parts[0]) + "'");
+  }
+  for (std::size_t k = 2; k < parts.size(); ++k) parse_property(parts[k], spec, source, text);
+  return spec;
+}
+
+SceneCut cut_objects(const GaussianScene& scene, const SimilarityTransform& scene_to_world,
+                     std::span<const ObjectSpec> specs, float min_opacity) {
+  if (specs.size() > kMaxObjects)
+    throw InputError("--object: " + std::to_string(specs.size()) + " objects given, at most " +
+                     std::to_string(kMaxObjects));
+  SceneCut cut;
+  cut.objects.resize(specs.size());
+  for (GaussianScene& o : cut.objects) o.frame = scene.frame;
+  std::vector<std::size_t> kept(specs.size(), 0);
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    const Eigen::Vector3d c = scene_to_world.apply(scene.means[i].cast<double>());
+    std::size_t owner = specs.size();
+    for (std::size_t k = 0; k < specs.size() && owner == specs.size(); ++k)
+      if (claims(specs[k], c, scene.source_index[i])) owner = k;
+    if (owner == specs.size()) {
+      cut.rest.push_back_from(scene, i);
+      continue;
+    }
+    push_registered(cut.objects[owner], scene, i, scene_to_world);
+    if (scene.opacities[i] > min_opacity) ++kept[owner];
+  }
+  cut.rest.frame = scene.frame;
+  for (std::size_t k = 0; k < specs.size(); ++k)
+    if (kept[k] == 0)
+      throw InputError("--object '" + specs[k].text + "': no Gaussian with opacity above " +
+                       format_number(min_opacity) + " is in this object");
+  return cut;
+}
+
+GaussianScene box_surface_gaussians(const Eigen::Vector3d& center, const Eigen::Vector3d& half, double spacing,
+                                    float opacity, std::uint32_t first_index) {
+  GaussianScene s;
+  std::uint32_t index = first_index;
+  for (int axis = 0; axis < 3; ++axis)
+    for (int side : {-1, 1}) {
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      const int nu = std::max(1, int(std::round(2 * half[u] / spacing)));
+      const int nv = std::max(1, int(std::round(2 * half[v] / spacing)));
+      Eigen::Matrix3d R;  // the disc's thin axis (its z) along the face normal
+      R.col(0) = Eigen::Vector3d::Unit(u);
+      R.col(1) = Eigen::Vector3d::Unit(v);
+      R.col(2) = Eigen::Vector3d::Unit(axis);
+      if (R.determinant() < 0) R.col(1) = -R.col(1);
+      const Eigen::Quaterniond q(R);
+      const Eigen::Vector4f wxyz(float(q.w()), float(q.x()), float(q.y()), float(q.z()));
+      const Eigen::Vector3f scale(float(1.4 * half[u] / nu), float(1.4 * half[v] / nv), float(0.05 * spacing));
+      for (int i = 0; i < nu; ++i)
+        for (int j = 0; j < nv; ++j) {
+          Eigen::Vector3d p = center;
+          p[axis] += side * half[axis];
+          p[u] += -half[u] + (i + 0.5) * 2 * half[u] / nu;
+          p[v] += -half[v] + (j + 0.5) * 2 * half[v] / nv;
+          s.push_back(p.cast<float>(), scale, wxyz, opacity, index++);
+        }
+    }
+  return s;
+}
+
+}  // namespace gshaptics
