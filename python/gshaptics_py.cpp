@@ -28,6 +28,9 @@
 #include "gshaptics/device/device_profile.h"
 #include "gshaptics/sim/pose_sampler.h"
 #include "gshaptics/session/probe_session.h"
+#ifdef GSHAPTICS_HAVE_OBJECTS
+#include "gshaptics/session/object_session.h"
+#endif
 
 namespace py = pybind11;
 using namespace gshaptics;
@@ -634,6 +637,61 @@ PYBIND11_MODULE(gshaptics, m) {
            "about the TCP (world frame), and the contacts' index (into the scene file), part and k_min.")
       .def("reset", [](PyPaper& p) { p.paper->reset(); });
 
+#ifdef GSHAPTICS_HAVE_OBJECTS
+  m.def("push_scenario",
+        [](double mass, double friction, double rate_hz, const std::string& force_model, bool passivity) {
+          // `gshaptics simulate --scenario push`, as a library call (objects/push_scenario.h).
+          session::SimulateOptions so;
+          so.object_mass = mass;
+          so.object_friction = friction;
+          so.rate = rate_hz;
+          so.force.model = renderer_kind(force_model);
+          so.safety.passivity.enabled = passivity;
+          const PushScenario scenario = session::push_scenario_from(so);
+          const PushRun run = [&] {
+            py::gil_scoped_release release;
+            return run_push_scenario(scenario);
+          }();
+          const std::size_t n = run.samples.size();
+          std::vector<double> t(n), turn(n), k(n);
+          std::vector<Eigen::Vector3d> hand(n), device(n), box(n), box_v(n), push(n);
+          for (std::size_t i = 0; i < n; ++i) {
+            const PushSample& x = run.samples[i];
+            t[i] = x.t;
+            turn[i] = x.box_turn;
+            k[i] = x.k_min;
+            hand[i] = x.hand;
+            device[i] = x.device;
+            box[i] = x.box;
+            box_v[i] = x.box_velocity;
+            push[i] = x.push;
+          }
+          py::dict d;
+          d["time"] = vec_to_array(t);
+          d["hand"] = rows_to_array<double>(hand, 3);
+          d["device"] = rows_to_array<double>(device, 3);
+          d["object_position"] = rows_to_array<double>(box, 3);
+          d["object_velocity"] = rows_to_array<double>(box_v, 3);
+          d["object_turn"] = vec_to_array(turn);
+          d["object_wrench_force"] = rows_to_array<double>(push, 3);
+          d["k_min"] = vec_to_array(k);
+          d["travelled"] = run.travelled;
+          d["friction_felt"] = run.friction_estimate;
+          d["friction_expected"] = run.friction_expected;
+          d["deepest_k_min"] = run.deepest_k_min;
+          d["lowest_energy"] = run.lowest_energy;
+          d["peak_energy"] = run.peak_energy;
+          return d;
+        },
+        py::arg("mass") = PushScenario{}.mass, py::arg("friction") = PushScenario{}.friction,
+        py::arg("rate_hz") = RuntimeConfig{}.rate_hz, py::arg("force_model") = "proxy", py::arg("passivity") = true,
+        "`gshaptics simulate --scenario push`: the simulated hand pushes a box of Gaussians (mass kg, "
+        "Coulomb friction against the floor) across a floor of Gaussians through the servo step, MuJoCo "
+        "simulating the box. Returns a dict of per-tick arrays (time (T,); hand, device, object_position, "
+        "object_velocity, object_wrench_force: the coupling force on the box, N (T, 3); object_turn, rad, and "
+        "k_min (T,)) and travelled (m), friction_felt and friction_expected (mu m g, N), deepest_k_min, "
+        "lowest_energy and peak_energy (the passivity observer's, J).");
+#endif
   m.def("k_min", &k_min_pairs, py::arg("cov_a"), py::arg("cov_b"), py::arg("d"),
         "K_min of the Gilitschenski-Hanebeck test for ellipsoids {x: (x-c)^T cov^-1 (x-c) <= 1}, "
         "vectorised: cov_a, cov_b (..., 3, 3) symmetric positive definite, d = c_a - c_b (..., 3). "

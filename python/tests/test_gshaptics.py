@@ -349,3 +349,21 @@ def test_colour_regions_select_by_the_scene_colour(data_dir, tmp_path):
     for k in range(1100):
         proxy.render((0.0, 0.0, 2.0 - 0.001 * k), (0.03, 0.03, 0.03), (0.0, 0.0, 0.0), 1e-3)
     assert proxy.material["name"] == "any" and proxy.material["stiffness"] == 2000.0
+
+
+def test_push_scenario_slides_the_box_at_its_friction():
+    """The push scenario from Python: the box slides and the friction felt while it slides is
+    mu m g within 5 %; a heavier box is harder to push (its friction felt grows with m)."""
+    if not hasattr(gshaptics, "push_scenario"):
+        pytest.skip("built without rigid objects (libmujoco-dev)")
+    light = gshaptics.push_scenario()
+    heavy = gshaptics.push_scenario(mass=0.8, friction=0.5)
+    for r in (light, heavy):
+        assert r["time"].shape[0] == r["object_position"].shape[0] > 1000
+        assert r["object_position"].shape[1] == 3
+        assert r["travelled"] > 0.05
+        assert abs(r["friction_felt"] / r["friction_expected"] - 1) < 0.05
+        assert r["deepest_k_min"] < 1e-3
+        assert r["lowest_energy"] >= -1e-6
+    assert heavy["friction_expected"] == pytest.approx(0.8 * 0.5 * 9.81)
+    assert heavy["friction_felt"] > 2 * light["friction_felt"]
