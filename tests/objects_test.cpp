@@ -270,6 +270,67 @@ TEST(ObjectDynamics, ATallBoxPushedHighTipsAtTheAnalyticForce) {
   }
 }
 
+// The wrench an ObjectRenderer gives for an object at rest (pressed lightly from above, it stays
+// put) equals a ProxyRenderer's on a static world of the same Gaussians: the body frame, the
+// velocities and the torque are carried back correctly, for a sphere and a tilted stylus and disc
+// (the disc touches with its rim: a torque about the TCP).
+TEST(ObjectRenderer, AnObjectAtRestIsFeltAsTheSameGaussiansHeldStill) {
+  ObjectSpec spec;
+  spec.mass = 50;  // a light press never moves it
+  spec.friction = 1;
+  spec.text = "heavy box";
+  const Eigen::Vector3d half(0.05, 0.04, 0.03);
+  const GaussianScene gaussians = box_surface_gaussians(Eigen::Vector3d(0.02, -0.01, half.z()), half, 0.01);
+  const std::vector<RigidObject> objects{make_rigid_object(gaussians, spec, WorldConfig{})};
+  // The floor is far below the tool: only the box is touched.
+  const CollisionWorld floor = CollisionWorld::build(
+      box_surface_gaussians(Eigen::Vector3d(0, 0, -0.2), Eigen::Vector3d(0.3, 0.3, 0.01), 0.02), WorldConfig{});
+  for (const char* tool_spec : {"sphere:0.008", "stylus:0.06,0.004", "disc:0.012,0.002"}) {
+    SCOPED_TRACE(tool_spec);
+    const CompoundTool tool = parse_tool_spec(tool_spec);
+    auto dynamics = std::make_shared<ObjectDynamics>(objects, support_under(objects, Eigen::Vector3d::UnitZ()));
+    for (int k = 0; k < 500; ++k) dynamics->step();  // settled into the soft contact (it sinks a little)
+    // The reference: the same Gaussians held still where the object rests now.
+    const BodyPose rest = dynamics->pose(0);
+    WorldConfig where;
+    where.registration.rotation = rest.rotation;
+    where.registration.translation = rest.position - rest.rotation * objects[0].rest_origin;
+    const CollisionWorld still = CollisionWorld::build(gaussians, where);
+    const auto moving = make_object_renderer(RendererSpec{}, floor, objects, dynamics);
+    const auto reference = make_force_renderer(RendererSpec{}, still);
+    moving->set_tool(tool);
+    reference->set_tool(tool);
+    const Eigen::Quaterniond tilt(Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, 1, 0).normalized()));
+    std::array<ToolEllipsoid, kMaxToolParts> parts;
+    double peak = 0, peak_torque = 0, worst_force = 0, worst_torque = 0;
+    // The TCP's height above the tool's lowest point, as posed.
+    const int m = tool.posed(Eigen::Vector3d::Zero(), tilt, parts);
+    double lowest = 0;
+    for (int j = 0; j < m; ++j) lowest = std::min(lowest, parts[j].center.z() - parts[j].aabb_half_extent().z());
+    const double top = rest.position.z() + half.z();
+    for (int k = 0; k < 600; ++k) {  // down onto the top face, 4 mm in, then held
+      const double depth = std::min(k * 2e-5 - 0.002, 0.004);
+      const Eigen::Vector3d tcp(0.03, 0.0, top - lowest - depth);
+      const Eigen::Vector3d v(0, 0, k * 2e-5 < 0.006 ? -0.02 : 0);
+      const int n = tool.posed(tcp, tilt, parts);
+      const std::span<const ToolEllipsoid> posed(parts.data(), std::size_t(n));
+      const RenderOutput a = moving->render_compound(posed, tcp, v, Eigen::Vector3d::Zero(), 1e-3);
+      const RenderOutput b = reference->render_compound(posed, tcp, v, Eigen::Vector3d::Zero(), 1e-3);
+      peak = std::max(peak, b.force.norm());
+      peak_torque = std::max(peak_torque, b.torque.norm());
+      worst_force = std::max(worst_force, (a.force - b.force).norm());
+      worst_torque = std::max(worst_torque, (a.torque - b.torque).norm());
+    }
+    EXPECT_GT(peak, 1.0);  // it was pressed
+    EXPECT_LT((dynamics->pose(0).position - rest.position).norm(), 1e-4);  // and stayed put
+    EXPECT_LT(worst_force, 0.02 * peak);
+    EXPECT_LT(worst_torque, 0.02 * peak * tool.reach());
+    RecordProperty(std::string(tool_spec).substr(0, std::string(tool_spec).find(':')) + "_worst_force_over_peak", std::to_string(worst_force / peak));
+    RecordProperty(std::string(tool_spec).substr(0, std::string(tool_spec).find(':')) + "_torque_worst_and_peak",
+                   std::to_string(worst_torque) + " " + std::to_string(peak_torque));
+  }
+}
+
 TEST(ObjectRenderer, TheSimulatedHandPushesABoxAcrossThePlaneThroughTheServoStep) {
   PushScenario scenario;  // a 0.4 kg box (mu 0.3) pushed by a 1 cm sphere from -x at mid-height
   const PushRun run = run_push_scenario(scenario);
