@@ -429,7 +429,8 @@ class Objects(unittest.TestCase):
         """`simulate --object`: the Gaussians in the box leave the static world and become an object
         with its dynamics; a box that holds no Gaussian, or a malformed one, is refused."""
         plain = run("simulate", "--sites", "1", "--out", tempfile.mkdtemp(), "--quiet", "--no-plot").stdout
-        cut = run("simulate", "--sites", "1", "--out", tempfile.mkdtemp(), "--quiet", "--no-plot",
+        cut_out = tempfile.mkdtemp()
+        cut = run("simulate", "--sites", "1", "--out", cut_out, "--quiet", "--no-plot",
                   "--object", "box:0,0,-1,1,1,1:mass=2:friction=0.6").stdout
         kept = lambda text: int(re.search(r"^world +(\d+) Gaussians", text, re.M).group(1))
         moved = int(re.search(r"^object +0: (\d+) Gaussians cut", cut, re.M).group(1))
@@ -438,6 +439,9 @@ class Objects(unittest.TestCase):
         self.assertGreater(kept(cut), kept(plain) - moved - 1)
         self.assertRegex(cut, r"object +0: \d+ Gaussians kept, 2 kg, mu 0\.6")
         self.assertIn("support    a plane", cut)
+        objects = load_json(os.path.join(cut_out, "summary.json"))["objects"]
+        self.assertEqual(objects, [{"spec": "box:0,0,-1,1,1,1:mass=2:friction=0.6", "mass_kg": 2.0,
+                                    "friction": 0.6, "gaussians_cut": moved}])
         for spec, message in (("box:9,9,9,10,10,10", "no Gaussian with opacity above 0.2"),
                               ("box:1,2", "a box takes six numbers")):
             bad = run("simulate", "--sites", "1", "--no-plot", "--quiet", "--out", tempfile.mkdtemp(),

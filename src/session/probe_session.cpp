@@ -240,6 +240,7 @@ nlohmann::json simulate_summary(const SimulateOptions& o, const SceneOptions& so
   sj["registration"] = so.registration_file;
   sj["gaussians_loaded"] = pw.scene.report.loaded;
   sj["gaussians_kept"] = pw.world.size();
+  if (!so.objects.empty()) sj["objects"] = objects_json(so, pw);
   sj["min_opacity"] = pw.config.min_opacity;
   sj["tool_radius"] = probe.trajectory.tool_radius();
   if (o.tool.tool.count > 0) {

@@ -445,6 +445,16 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
   return {std::move(s), cfg, br, std::move(world), std::move(objects)};
 }
 
+nlohmann::json objects_json(const SceneOptions& so, const PreparedWorld& pw) {
+  nlohmann::json list = nlohmann::json::array();
+  for (std::size_t i = 0; i < so.objects.size(); ++i)
+    list.push_back({{"spec", so.objects[i].text},
+                    {"mass_kg", so.objects[i].mass},
+                    {"friction", so.objects[i].friction},
+                    {"gaussians_cut", i < pw.objects.size() ? pw.objects[i].size() : 0}});
+  return list;
+}
+
 RendererFactory scene_renderer_factory(const PreparedWorld& pw, const SceneOptions& so, double rate_hz,
                                        std::FILE* report) {
   if (pw.objects.empty()) return {};

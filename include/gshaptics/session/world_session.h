@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/scene/scene_cut.h"
 #include "gshaptics/force/material.h"
@@ -165,6 +167,10 @@ struct PreparedWorld {
 /// did to `report` (stdout; a command whose stdout is data passes stderr). With objects, the scene
 /// is cut first (cut_objects) and the world holds the static part (never cached).
 PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* report = stdout);
+
+/// The objects of a run for its summary: each one's --object text, mass (kg), friction and the
+/// Gaussians cut for it ([] without objects).
+nlohmann::json objects_json(const SceneOptions& so, const PreparedWorld& pw);
 
 /// The renderer factory of a world with objects (RuntimeConfig::make_renderer): for each run, the
 /// objects of `pw` (specs in so.objects) with their MuJoCo dynamics at `rate_hz`, on a plane under
