@@ -331,6 +331,27 @@ TEST(ObjectRenderer, AnObjectAtRestIsFeltAsTheSameGaussiansHeldStill) {
   }
 }
 
+// Where the cut left a hole (no static Gaussian under the object), the support plane carries the
+// hand: a sphere pressed 3 mm below the plane beside the box feels k_c * 3 mm straight up.
+TEST(ObjectRenderer, TheSupportPlaneCarriesTheHandWhereTheCutLeftAHole) {
+  const std::vector<RigidObject> objects{box_object(Eigen::Vector3d(0.05, 0.04, 0.03), 0.4, 0.3)};
+  const CollisionWorld far = CollisionWorld::build(
+      box_surface_gaussians(Eigen::Vector3d(0, 0, -0.3), Eigen::Vector3d(0.3, 0.3, 0.01), 0.02), WorldConfig{});
+  auto dynamics = std::make_shared<ObjectDynamics>(objects, support_under(objects, Eigen::Vector3d::UnitZ()));
+  const auto renderer = make_object_renderer(RendererSpec{}, far, objects, dynamics);
+  const double r = 0.008, plane = dynamics->support().point.z(), k = ProxyParams{}.stiffness;
+  RenderOutput out;
+  for (int k_tick = 0; k_tick < 400; ++k_tick) {  // down beside the box to 3 mm past the plane, then held
+    const double z = std::max(plane + r - 0.003, plane + r + 0.01 - k_tick * 5e-5);
+    out = renderer->render(ToolEllipsoid::sphere(Eigen::Vector3d(0.15, 0, z), r), Eigen::Vector3d::Zero(), 1e-3);
+  }
+  EXPECT_NEAR(out.force.z(), k * 0.003, 0.01 * k * 0.003);
+  EXPECT_LT(out.force.head<2>().norm(), 1e-9);
+  // Above the plane nothing pushes.
+  out = renderer->render(ToolEllipsoid::sphere(Eigen::Vector3d(0.15, 0, plane + r + 0.001), r), Eigen::Vector3d::Zero(), 1e-3);
+  EXPECT_EQ(out.force.norm(), 0.0);
+}
+
 TEST(ObjectRenderer, TheSimulatedHandPushesABoxAcrossThePlaneThroughTheServoStep) {
   PushScenario scenario;  // a 0.4 kg box (mu 0.3) pushed by a 1 cm sphere from -x at mid-height
   const PushRun run = run_push_scenario(scenario);

@@ -43,8 +43,12 @@ void add_to(RenderOutput& sum, const RenderOutput& part, bool holds_proxy) noexc
 
 ObjectRenderer::ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector<std::unique_ptr<ForceRenderer>> bodies,
                                std::vector<std::shared_ptr<const CollisionWorld>> worlds,
-                               std::shared_ptr<ObjectDynamics> dynamics)
-    : scene_(std::move(scene)), bodies_(std::move(bodies)), worlds_(std::move(worlds)), dynamics_(std::move(dynamics)) {
+                               std::shared_ptr<ObjectDynamics> dynamics, const Eigen::Vector2d& support_coupling)
+    : scene_(std::move(scene)),
+      bodies_(std::move(bodies)),
+      worlds_(std::move(worlds)),
+      dynamics_(std::move(dynamics)),
+      support_coupling_(support_coupling) {
   if (!scene_ || !dynamics_) throw InputError("objects: a renderer needs the scene's renderer and the dynamics");
   if (bodies_.size() != dynamics_->size() || worlds_.size() != bodies_.size())
     throw InputError("objects: " + std::to_string(bodies_.size()) + " renderers for " +
@@ -105,6 +109,23 @@ void ObjectRenderer::step_dynamics(double dt) noexcept {
   if (steps == kMaxDynamicsSteps) pending_ = 0;  // a stall is not made up for
 }
 
+void ObjectRenderer::add_support(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
+                                 const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
+                                 RenderOutput& sum) const noexcept {
+  const SupportPlane& plane = dynamics_->support();
+  const Eigen::Vector3d& n = plane.normal;
+  for (const ToolEllipsoid& part : parts) {
+    const Eigen::Vector3d lowest = part.surface_point(-n);  // the part's support point along -n
+    const double depth = n.dot(plane.point - lowest);
+    if (!(depth > 0)) continue;
+    const Eigen::Vector3d v = velocity + angular_velocity.cross(lowest - tcp);
+    const double push = std::max(0.0, support_coupling_.x() * depth - support_coupling_.y() * v.dot(n));
+    const Eigen::Vector3d f = push * n;
+    sum.force += f;
+    sum.torque += (lowest - tcp).cross(f);
+  }
+}
+
 template <class RenderIn>
 RenderOutput ObjectRenderer::render_all(RenderOutput scene_out, RenderIn&& render_in, double dt) noexcept {
   merged_.clear();
@@ -128,7 +149,8 @@ RenderOutput ObjectRenderer::render_all(RenderOutput scene_out, RenderIn&& rende
 }
 
 RenderOutput ObjectRenderer::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
-  const RenderOutput scene_out = scene_->render(tool, velocity, dt);
+  RenderOutput scene_out = scene_->render(tool, velocity, dt);
+  add_support(std::span<const ToolEllipsoid>(&tool, 1), tool.center, velocity, Eigen::Vector3d::Zero(), scene_out);
   return render_all(
       scene_out,
       [&](ForceRenderer& r, const BodyPose& pose) {
@@ -141,7 +163,8 @@ RenderOutput ObjectRenderer::render(const ToolEllipsoid& tool, const Eigen::Vect
 RenderOutput ObjectRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
                                              const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
                                              double dt) noexcept {
-  const RenderOutput scene_out = scene_->render_compound(parts, tcp, velocity, angular_velocity, dt);
+  RenderOutput scene_out = scene_->render_compound(parts, tcp, velocity, angular_velocity, dt);
+  add_support(parts, tcp, velocity, angular_velocity, scene_out);
   return render_all(
       scene_out,
       [&](ForceRenderer& r, const BodyPose& pose) {
@@ -165,8 +188,11 @@ std::unique_ptr<ObjectRenderer> make_object_renderer(const RendererSpec& spec, c
     worlds.push_back(o.body);
     bodies.push_back(make_force_renderer(spec, *o.body, query));
   }
+  // The support plane's coupling is the proxy's (the paper model's runs get the proxy's defaults).
+  const ProxyParams proxy = std::holds_alternative<ProxyModelSpec>(spec) ? std::get<ProxyModelSpec>(spec).params
+                                                                         : ProxyParams{};
   return std::make_unique<ObjectRenderer>(make_force_renderer(spec, scene, query), std::move(bodies), std::move(worlds),
-                                          std::move(dynamics));
+                                          std::move(dynamics), Eigen::Vector2d(proxy.stiffness, proxy.damping));
 }
 
 }  // namespace gshaptics

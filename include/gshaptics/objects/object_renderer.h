@@ -13,6 +13,11 @@
 /// object and the scene is felt as the two springs' sum); each object gets the reaction, -F at
 /// its proxy's tool centre plus the couple -tau, as an external wrench for the next step.
 ///
+/// The support plane carries the hand too: where a cut left a hole in the static scene (the
+/// capture never saw under the object), the tool meets the plane the objects stand on. A tool
+/// part below the plane by d (its support point along -n) is pushed back by the coupling's spring
+/// and damper, F = (k_c d - b_c v.n) n, never pulling, at that point (torque about the TCP).
+///
 /// Sources: the god-object (Zilles and Salisbury 1995) per rigid body, as multi-object proxies
 /// do (Ruspini, Kolarov and Khatib 1997); the coupling force as the body's external wrench, as in
 /// virtual-coupling rigid-body haptics (Colgate, Stanley and Brown 1995; Otaduy and Lin 2006).
@@ -37,8 +42,11 @@ class ObjectRenderer final : public ForceRenderer {
   /// `scene` renders the static world; `bodies[i]` renders objects[i].body (the same order as
   /// the dynamics' objects); `worlds` keeps the body worlds alive. Throws InputError when the
   /// counts differ or a renderer is null.
+  /// `support_coupling`: the plane's spring (N/m) and damper (N s/m), the proxy's k_c and b_c.
   ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector<std::unique_ptr<ForceRenderer>> bodies,
-                 std::vector<std::shared_ptr<const CollisionWorld>> worlds, std::shared_ptr<ObjectDynamics> dynamics);
+                 std::vector<std::shared_ptr<const CollisionWorld>> worlds, std::shared_ptr<ObjectDynamics> dynamics,
+                 const Eigen::Vector2d& support_coupling = Eigen::Vector2d(ProxyParams{}.stiffness,
+                                                                           ProxyParams{}.damping));
   [[nodiscard]] std::string_view name() const noexcept override { return scene_->name(); }
   RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
   RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
@@ -64,6 +72,9 @@ class ObjectRenderer final : public ForceRenderer {
   RenderOutput render_all(RenderOutput scene_out, RenderIn&& render_in, double dt) noexcept;
   void gather_contacts(std::span<const Contact> contacts, std::uint8_t body, const BodyPose* pose) noexcept;
   void step_dynamics(double dt) noexcept;
+  // The support plane's push on the tool's parts (world), added to `sum`.
+  void add_support(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp, const Eigen::Vector3d& velocity,
+                   const Eigen::Vector3d& angular_velocity, RenderOutput& sum) const noexcept;
 
   std::unique_ptr<ForceRenderer> scene_;
   std::vector<std::unique_ptr<ForceRenderer>> bodies_;
@@ -76,6 +87,7 @@ class ObjectRenderer final : public ForceRenderer {
   std::array<Reaction, kMaxObjects> reaction_{};  // on each object over this tick (world)
   ContactSet merged_{1u << 12};
   double pending_ = 0;  // simulated time owed to the dynamics, s
+  Eigen::Vector2d support_coupling_;  // k_c (N/m), b_c (N s/m)
 };
 
 /// The renderer `spec` names on the static `scene` and on each object's body world, with the
