@@ -5,6 +5,8 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <atomic>
+#include <cstdlib>
 #include <cmath>
 #include <random>
 
@@ -13,7 +15,10 @@
 #include "gshaptics/objects/object_dynamics.h"
 #include "gshaptics/objects/object_renderer.h"
 #include "gshaptics/objects/push_scenario.h"
+#include "support/allocation_counter.h"
 #include "support/reference.h"
+
+#include <mujoco/mujoco.h>
 
 namespace gshaptics {
 namespace {
@@ -350,6 +355,46 @@ TEST(ObjectRenderer, TheSupportPlaneCarriesTheHandWhereTheCutLeftAHole) {
   // Above the plane nothing pushes.
   out = renderer->render(ToolEllipsoid::sphere(Eigen::Vector3d(0.15, 0, plane + r + 0.001), r), Eigen::Vector3d::Zero(), 1e-3);
   EXPECT_EQ(out.force.norm(), 0.0);
+}
+
+// MuJoCo's heap, counted (mju_user_malloc), for the tick's no-allocation test.
+std::atomic<long> mujoco_mallocs{0};
+void* counting_malloc(std::size_t size) {
+  mujoco_mallocs.fetch_add(1);
+  return std::aligned_alloc(64, (size + 63) / 64 * 64);  // MuJoCo's own allocator aligns to 64 bytes
+}
+
+// The servo tick does not allocate: pushing a box (proxy sweeps, the reaction, MuJoCo steps with
+// contacts, waking from sleep) calls neither operator new nor MuJoCo's allocator.
+TEST(ObjectRenderer, ATickPushingABoxDoesNotAllocate) {
+  const std::vector<RigidObject> objects{box_object(Eigen::Vector3d(0.05, 0.04, 0.03), 0.4, 0.3)};
+  const CollisionWorld floor = CollisionWorld::build(
+      box_surface_gaussians(Eigen::Vector3d(0, 0, -0.0105), Eigen::Vector3d(0.4, 0.3, 0.01), 0.01), WorldConfig{});
+  auto dynamics = std::make_shared<ObjectDynamics>(objects, support_under(objects, Eigen::Vector3d::UnitZ()));
+  const auto renderer = make_object_renderer(RendererSpec{}, floor, objects, dynamics);
+  mju_user_malloc = counting_malloc;
+  mju_user_free = std::free;
+  const std::size_t before = test::allocation_count();
+  const long mujoco_before = mujoco_mallocs.load();
+  double moved = 0;
+  for (int k = 0; k < 3000; ++k) {  // rest (it sleeps), then the tool walks into the box and pushes it
+    const double x = std::min(-0.12 + std::max(0, k - 500) * 1e-4, 0.1);
+    const RenderOutput out = renderer->render(ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, 0.03), 0.01),
+                                              Eigen::Vector3d(0.1, 0, 0), 1e-3);
+    moved = std::max(moved, out.force.norm());
+  }
+  const std::size_t allocations = test::allocation_count() - before;
+  const long mujoco = mujoco_mallocs.load() - mujoco_before;
+  {  // the counter does see MuJoCo's allocations: a model and its data
+    const ObjectDynamics another(objects, dynamics->support());
+    EXPECT_GT(mujoco_mallocs.load() - mujoco_before, mujoco);
+  }
+  mju_user_malloc = nullptr;
+  mju_user_free = nullptr;
+  EXPECT_GT(moved, 1.0);
+  EXPECT_GT(dynamics->pose(0).position.x(), objects[0].rest_origin.x() + 0.02);  // it was pushed
+  EXPECT_EQ(allocations, 0u);
+  EXPECT_EQ(mujoco, 0);
 }
 
 TEST(ObjectRenderer, TheSimulatedHandPushesABoxAcrossThePlaneThroughTheServoStep) {
