@@ -3,6 +3,7 @@
 #include <mujoco/mujoco.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cstring>
 #include <limits>
 #include <sstream>
@@ -112,7 +113,6 @@ void ObjectDynamics::reset() noexcept {
   mj_forward(model_, data_);
   resting_steps_ = 0;
   slept_ = false;
-  for (auto& w : last_wrench_) w.setZero();
   read_poses();
   anchor_ = poses_.poses;
 }
@@ -134,14 +134,11 @@ void ObjectDynamics::apply_wrench(std::size_t i, const Eigen::Vector3d& force, c
   }
 }
 
-Eigen::Vector3d ObjectDynamics::last_force(std::size_t i) const noexcept { return last_wrench_[i].head<3>(); }
-
 void ObjectDynamics::step() noexcept {
   bool pushed = false;
   for (std::size_t i = 0; i < bodies_; ++i) {
-    mjtNum* w = data_->xfrc_applied + 6 * body_id_[i];
-    last_wrench_[i] = Eigen::Map<const Eigen::Matrix<double, 6, 1>>(w);
-    pushed = pushed || last_wrench_[i].squaredNorm() > 0;
+    const mjtNum* w = data_->xfrc_applied + 6 * body_id_[i];
+    pushed = pushed || std::any_of(w, w + 6, [](mjtNum x) { return x != 0; });
   }
   slept_ = !pushed && resting_steps_ >= kSleepSteps;
   if (slept_) {

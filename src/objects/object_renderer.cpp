@@ -56,6 +56,7 @@ ObjectRenderer::ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector
   for (const auto& b : bodies_)
     if (!b) throw InputError("objects: an object has no renderer");
   for (auto& f : object_force_) f.setZero();
+  for (auto& p : object_proxy_) p.setZero();
 }
 
 bool ObjectRenderer::renders_compound() const noexcept {

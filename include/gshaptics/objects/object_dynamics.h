@@ -71,8 +71,6 @@ class ObjectDynamics {
   /// world), on object i for the next step(). Non-finite input is ignored.
   void apply_wrench(std::size_t i, const Eigen::Vector3d& force, const Eigen::Vector3d& point,
                     const Eigen::Vector3d& couple = Eigen::Vector3d::Zero()) noexcept;
-  /// The wrench applied for the last step(): force (N) and torque about the centre of mass (N m).
-  [[nodiscard]] Eigen::Vector3d last_force(std::size_t i) const noexcept;
   /// One MuJoCo step of params().timestep with the wrenches applied since the last step, which
   /// it then clears; publishes the new poses. Sleeping: once no object has moved more than
   /// kRestDrift (or turned more than kRestTurn) over kSleepSteps steps, a step with no wrench
@@ -101,7 +99,6 @@ class ObjectDynamics {
   mjData_* data_ = nullptr;
   std::size_t bodies_ = 0;
   std::array<int, kMaxObjects> body_id_{};
-  std::array<Eigen::Matrix<double, 6, 1>, kMaxObjects> last_wrench_{};
   ObjectPoses poses_;
   TripleBuffer<ObjectPoses> published_;
   int resting_steps_ = 0;  // consecutive steps with every object within the rest bounds of anchor_
