@@ -1,5 +1,5 @@
 // gshaptics viewer: the original 3DGS scene (Spark on three.js) in the collision pipeline's world
-// frame, the tool ellipsoid at its live pose, the colliding Gaussians, the force arrow and live
+// frame, its rigid objects (--object) at their live poses, the tool ellipsoid at its live pose, the colliding Gaussians, the force arrow and live
 // counters, fed by `gshaptics serve` over a WebSocket (protocol: docs/viewer_protocol.md).
 // With the mouse device, the page steers the tool: drag the tool, or use the keys in #help.
 
@@ -105,7 +105,19 @@ function init(h) {
       if (e && e.total > 0) setLoading(`loading ${h.scene_name}: ${(e.loaded / 1e6).toFixed(1)} of ${(e.total / 1e6).toFixed(1)} MB`, e.loaded / e.total);
     },
   });
-  splat.initialized.then(() => {
+  // Rigid objects (--object): each one its own splat mesh (world frame at rest), under a group
+  // placed at the object's live pose: x_world = R (x_rest - rest_origin) + p.
+  const objects = (h.objects || []).map((o, i) => {
+    const group = new THREE.Group();
+    group.name = `object-${i}`;
+    group.position.set(...o.rest_origin);
+    const mesh = new SplatMesh({ url: o.url, fileType: o.file_type });
+    mesh.position.set(-o.rest_origin[0], -o.rest_origin[1], -o.rest_origin[2]);
+    group.add(mesh);
+    group.userData.mesh = mesh;
+    return group;
+  });
+  Promise.all([splat.initialized, ...objects.map((g) => g.userData.mesh.initialized)]).then(() => {
     view.perf.splats = splat.numSplats || (splat.packedSplats && splat.packedSplats.numSplats) || h.gaussians_in_file;
     view.perf.budget = quality.splats;
     setLoading(null);
@@ -120,6 +132,7 @@ function init(h) {
   splat.quaternion.set(reg.rotation[1], reg.rotation[2], reg.rotation[3], reg.rotation[0]);
   splat.position.set(...reg.translation);
   root.add(splat);
+  for (const g of objects) root.add(g);
 
   const tool = toolShape(h.tool, 0x66ccff, 0.45, 1000); // overlays: drawn after the splats, visible inside the surface
   root.add(tool);
@@ -164,7 +177,7 @@ function init(h) {
     root.add(helper);
   }
 
-  Object.assign(view, { scene, camera, renderer, controls, splat, tool, proxy, felt, contacts, arrow, twist, extent, root });
+  Object.assign(view, { scene, camera, renderer, controls, splat, objects, tool, proxy, felt, contacts, arrow, twist, extent, root });
   addEventListener("resize", () => {
     camera.aspect = innerWidth / innerHeight;
     camera.updateProjectionMatrix();
@@ -302,6 +315,13 @@ function update(m) {
     view.proxy.visible = p.distanceTo(c) > 0.02 * view.hello.tool.axes[0];
   }
   showFelt(m);
+  // The objects at their live poses ([px, py, pz, qw, qx, qy, qz]; absent until they first move).
+  (m.objects || []).forEach((p, i) => {
+    const g = view.objects[i];
+    if (!g) return;
+    g.position.set(p[0], p[1], p[2]);
+    g.quaternion.set(p[4], p[5], p[6], p[3]);
+  });
 
   const n = Math.min(m.contacts.length, MAX_SHOWN);
   for (let i = 0; i < n; i++) {

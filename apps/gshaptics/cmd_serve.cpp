@@ -24,6 +24,7 @@ void register_serve(CLI::App& app) {
   add_runtime_options(*cmd, o->run,
                       "mouse: the tool follows the browser (drag, keys); xr: the VR controller of "
                       "the page's WebXR session (vibration as feedback)" + registry_device_help(false) + " (`gshaptics devices`)");
+  add_object_option(*cmd, o->run.scene);
   cmd->add_option("--host", o->host, "Address to listen on (127.0.0.1: this machine only)")->capture_default_str();
   cmd->add_option("--port", o->port, "HTTP/WebSocket port (0: any free port)")->capture_default_str()
       ->check(CLI::Range(0, 65535));

@@ -14,6 +14,7 @@
 #include "gshaptics/fidelity/texture_fidelity.h"
 #include "gshaptics/io/scene_writer.h"
 #include "gshaptics/io/atomic_file.h"
+#include "gshaptics/scene/scene_cut.h"
 
 namespace gshaptics::cli {
 
@@ -34,6 +35,18 @@ void write_grating(const Options& o) {
              s.size(), la[0], la[1]);
 }
 
+// `synth box-on-floor OUT.ply`: a box to push (--object) on a floor, both of Gaussians.
+template <typename Options>
+void write_box_on_floor(const Options& o) {
+  if (std::filesystem::path(o.out).extension() != ".ply")
+    throw InputError("synth: " + o.out + ": the output must be a .ply file");
+  const BoxOnFloor b = box_on_floor(Eigen::Vector3d(0.05, 0.04, 0.03), Eigen::Vector2d(0.25, 0.18), o.params.spacing);
+  write_scene(o.out, b.scene);
+  fmt::print("wrote      {} ({} Gaussians: a 10 x 8 x 6 cm box on a 50 x 36 cm floor, z up, spacing {:g} mm)\n"
+             "try        gshaptics serve {} --up z-up --object {}\n",
+             o.out, b.scene.size(), o.params.spacing * 1e3, o.out, b.object_spec);
+}
+
 }  // namespace
 
 void register_synth(CLI::App& app) {
@@ -52,7 +65,7 @@ void register_synth(CLI::App& app) {
       "spacing, jittered along the normal and in tilt, a share below the 0.2 opacity filter, a few "
       "floaters). INRIA PLY with every parameter in its header comments, plus OUT.json with the "
       "exact surface. Shapes: plane, sphere, cube, plate-2mm, plate-5mm, cylinder, corner-90, "
-      "v-groove-60, and grating (--grating). --defect adds what real captures leave: faint layers, a hole, large flat discs, "
+      "v-groove-60, grating (--grating), and box-on-floor (a box to push with --object, and the command to). --defect adds what real captures leave: faint layers, a hole, large flat discs, "
       "clutter behind the surface.");
   cmd->add_option("shape", o->shape, "Shape name")->required();
   cmd->add_option("out", o->out, "Output .ply (and OUT.ply.json)")->required();
@@ -81,6 +94,10 @@ void register_synth(CLI::App& app) {
   cmd->callback([o] {
     if (o->shape == "grating") {
       write_grating(*o);
+      return;
+    }
+    if (o->shape == "box-on-floor") {
+      write_box_on_floor(*o);
       return;
     }
     for (const std::string& spec : o->defects) o->params.defects.push_back(parse_capture_defect(spec, "synth --defect"));

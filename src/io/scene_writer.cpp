@@ -62,7 +62,7 @@ void write_inria_ply(const std::string& path, const GaussianScene& s, const std:
   write_file_atomically(path, {h, std::string_view(body.data(), body.size())});
 }
 
-void write_splat(const std::string& path, const GaussianScene& s) {
+std::string splat_bytes(const GaussianScene& s) {
   const bool color = s.colors_dc.size() == s.size();
   std::vector<char> body;
   body.reserve(s.size() * 32);
@@ -74,8 +74,10 @@ void write_splat(const std::string& path, const GaussianScene& s) {
     put(body, byte(s.opacities[i] * 255.f));
     for (int k = 0; k < 4; ++k) put(body, byte(s.rotations[i][k] * 128.f + 128.f));
   }
-  write_file_atomically(path, std::string_view(body.data(), body.size()));
+  return std::string(body.data(), body.size());
 }
+
+void write_splat(const std::string& path, const GaussianScene& s) { write_file_atomically(path, splat_bytes(s)); }
 
 SceneFrame output_frame(const std::string& path) {
   const std::string ext = std::filesystem::path(path).extension().string();

@@ -88,8 +88,9 @@ std::string object_model_xml(std::span<const RigidObject> objects, const Support
 }
 
 ObjectDynamics::ObjectDynamics(std::span<const RigidObject> objects, const SupportPlane& support,
-                               const DynamicsParams& params)
-    : params_(params), support_(support) {
+                               const DynamicsParams& params, std::shared_ptr<ObjectPoseChannel> channel)
+    : params_(params), support_(support),
+      channel_(channel ? std::move(channel) : std::make_shared<ObjectPoseChannel>()) {
   if (objects.empty()) throw InputError("objects: no object to simulate");
   if (objects.size() > kMaxObjects) throw InputError("objects: at most " + std::to_string(kMaxObjects) + " objects");
   if (!(params.timestep > 0)) throw InputError("objects: the dynamics timestep must be > 0 s");
@@ -113,6 +114,7 @@ void ObjectDynamics::reset() noexcept {
   mj_forward(model_, data_);
   resting_steps_ = 0;
   slept_ = false;
+  clear_wrenches();
   read_poses();
   anchor_ = poses_.poses;
 }
@@ -144,7 +146,12 @@ void ObjectDynamics::step() noexcept {
   if (slept_) {
     data_->time += params_.timestep;
     poses_.time = data_->time;
+    if (clear_wrenches()) channel_->write(poses_);  // the readers see the hand let go
     return;
+  }
+  for (std::size_t i = 0; i < bodies_; ++i) {
+    const mjtNum* w = data_->xfrc_applied + 6 * body_id_[i];
+    poses_.wrenches[i] = {Eigen::Vector3d(w[0], w[1], w[2]), Eigen::Vector3d(w[3], w[4], w[5])};
   }
   mj_step(model_, data_);
   for (std::size_t i = 0; i < bodies_; ++i) std::fill(data_->xfrc_applied + 6 * body_id_[i], data_->xfrc_applied + 6 * body_id_[i] + 6, 0.0);
@@ -170,7 +177,17 @@ void ObjectDynamics::read_poses() noexcept {
     p.angular_velocity = Eigen::Vector3d(v[0], v[1], v[2]);
     p.linear_velocity = Eigen::Vector3d(v[3], v[4], v[5]);
   }
-  published_.write(poses_);
+  channel_->write(poses_);
+}
+
+bool ObjectDynamics::clear_wrenches() noexcept {
+  bool any = false;
+  for (std::size_t i = 0; i < bodies_; ++i) {
+    AppliedWrench& w = poses_.wrenches[i];
+    any = any || (w.force.array() != 0).any() || (w.torque.array() != 0).any();
+    w = {};
+  }
+  return any;
 }
 
 long ObjectDynamics::warnings() noexcept { return g_warnings.load(std::memory_order_relaxed); }

@@ -87,6 +87,8 @@ void push_registered(GaussianScene& out, const GaussianScene& scene, std::size_t
   out.push_back(T.apply(scene.means[i].cast<double>()).cast<float>(), (T.scale * scene.scales[i].cast<double>()).cast<float>(),
                 Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())), scene.opacities[i],
                 scene.source_index[i]);
+  // Band 0 of the colour does not turn with the Gaussian; the higher bands would (not kept).
+  if (scene.colors_dc.size() == scene.size()) out.colors_dc.push_back(scene.colors_dc[i]);
 }
 
 std::string format_number(double v) {
@@ -171,6 +173,32 @@ GaussianScene box_surface_gaussians(const Eigen::Vector3d& center, const Eigen::
         }
     }
   return s;
+}
+
+BoxOnFloor box_on_floor(const Eigen::Vector3d& box_half, const Eigen::Vector2d& floor_half, double spacing) {
+  if (!(box_half.minCoeff() > 0) || !(floor_half.minCoeff() > 0) || !(spacing > 0))
+    throw InputError("box_on_floor: the sizes and the spacing must be > 0 m");
+  GaussianScene box = box_surface_gaussians(Eigen::Vector3d(0, 0, box_half.z()), box_half, spacing);
+  const double slab = spacing;
+  const GaussianScene floor =
+      box_surface_gaussians(Eigen::Vector3d(0, 0, -0.05 * spacing - slab), Eigen::Vector3d(floor_half.x(), floor_half.y(), slab),
+                            spacing, 0.9f, std::uint32_t(box.size()));
+  // Band-0 colour f_dc for a display colour c in [0, 1]: c = 0.5 + C0 f_dc (the 3DGS convention).
+  const auto dc = [](const Eigen::Vector3f& c) -> Eigen::Vector3f { return (c.array() - 0.5f) / 0.28209479f; };
+  BoxOnFloor out;
+  out.scene = std::move(box);
+  out.scene.colors_dc.assign(out.scene.size(), dc(Eigen::Vector3f(0.95f, 0.55f, 0.15f)));
+  for (std::size_t i = 0; i < floor.size(); ++i) {
+    out.scene.push_back_from(floor, i);
+    out.scene.colors_dc.push_back(dc(Eigen::Vector3f(0.6f, 0.6f, 0.62f)));
+  }
+  // The cut: the box's disc centres lie on its faces, the floor's top ones spacing / 20 lower.
+  const double m = 0.02 * spacing;
+  char text[160];
+  std::snprintf(text, sizeof text, "box:%.4g,%.4g,%.4g,%.4g,%.4g,%.4g", -box_half.x() - m, -box_half.y() - m, -m,
+                box_half.x() + m, box_half.y() + m, 2 * box_half.z() + m);
+  out.object_spec = text;
+  return out;
 }
 
 }  // namespace gshaptics

@@ -56,8 +56,7 @@ nlohmann::json push_summary(const PushRun& run, const SimulateOptions& o) {
 
 }  // namespace
 
-RendererFactory object_renderer_factory(const PreparedWorld& pw, const SceneOptions& so, double rate_hz,
-                                        std::FILE* report) {
+SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, double rate_hz, std::FILE* report) {
   auto objects = std::make_shared<std::vector<RigidObject>>();
   for (std::size_t i = 0; i < pw.objects.size(); ++i) {
     objects->push_back(make_rigid_object(pw.objects[i], so.objects[i], pw.config));
@@ -73,11 +72,18 @@ RendererFactory object_renderer_factory(const PreparedWorld& pw, const SceneOpti
                support.point.x(), support.point.y(), support.point.z(), rate_hz);
   DynamicsParams dp;
   dp.timestep = 1.0 / rate_hz;
-  return [objects, support, dp](const CollisionWorld& world, const RendererSpec& spec,
-                                const QueryOptions& query) -> std::unique_ptr<ForceRenderer> {
-    auto dynamics = std::make_shared<ObjectDynamics>(*objects, support, dp);
+  SceneObjects out;
+  out.poses = std::make_shared<ObjectPoseChannel>();
+  for (const RigidObject& o : *objects) {
+    out.rest_origins.push_back(o.rest_origin);
+    out.bodies.push_back(o.body);
+  }
+  out.make_renderer = [objects, support, dp, channel = out.poses](const CollisionWorld& world, const RendererSpec& spec,
+                                                                  const QueryOptions& query) -> std::unique_ptr<ForceRenderer> {
+    auto dynamics = std::make_shared<ObjectDynamics>(*objects, support, dp, channel);
     return make_object_renderer(spec, world, *objects, std::move(dynamics), query);
   };
+  return out;
 }
 
 PushScenario push_scenario_from(const SimulateOptions& o) {

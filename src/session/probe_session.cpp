@@ -348,7 +348,7 @@ int run_simulate(SimulateOptions o) {
   const PreparedWorld pw = prepare_world(so, o.quiet);
   o.force.materials = with_scene_colours(o.force.materials, so.scene);
   warn_if_outside_profile(pw, o.force);
-  const RendererFactory objects = scene_renderer_factory(pw, so, o.rate);
+  const RendererFactory objects = scene_objects(pw, so, o.rate).make_renderer;
   Progress bar("simulating", !o.quiet);
   const ProbeSessionResult probe =
       simulate_probe(pw.world, o, is_scaled(so), stdout, std::nullopt, [&](double f) { bar(f); }, objects);

@@ -1,5 +1,9 @@
 #include "gshaptics/session/run_session.h"
 
+#ifdef GSHAPTICS_HAVE_OBJECTS
+#include "gshaptics/objects/object_dynamics.h"
+#endif
+
 #include "gshaptics/collision/compound_tool.h"
 
 #include <fmt/format.h>
@@ -348,7 +352,10 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     open_other_device(o, pw, std::move(opened), s);
   if (!is_hardware_device(o.device)) wrap_in_workspace_mapping(o, s);
   s.config = runtime_config_from(o, s.tool_radius, s.planned);
-  s.config.make_renderer = scene_renderer_factory(pw, so, o.rate);
+  s.objects = scene_objects(pw, so, o.rate);
+  s.config.make_renderer = s.objects.make_renderer;
+  if (!s.objects.empty())  // the objects' poses for the run's objects_log.csv
+    s.objects.poses->record_into(std::make_shared<ObjectTrack>(s.objects.rest_origins.size(), runtime_log_capacity(s.config)));
   fmt::print("runtime    {} at {:.0f} Hz, {} query, {}\n", s.device->info().name, o.rate,
              describe_execution(o.exec, false),
              s.planned > 0 ? fmt::format("{:.1f} s", s.planned) : std::string("until the device ends or Ctrl-C"));
@@ -407,8 +414,13 @@ bool run_live(HapticRuntime& rt, double planned, bool quiet, const std::function
   return stop_sent;
 }
 
+namespace {
+// What a run writes (objects_log.csv only with --object; a run without removes an old one).
+const std::vector<std::string> kRunOutputs = {"servo_log.csv", "run_summary.json", "run.png", "objects_log.csv"};
+}  // namespace
+
 void prepare_run_out_dir(RuntimeOptions& o, const SceneOptions& so) {
-  o.out_dir = prepare_out_dir(o.out_dir, so.scene, {"servo_log.csv", "run_summary.json", "run.png"});
+  o.out_dir = prepare_out_dir(o.out_dir, so.scene, kRunOutputs);
 }
 
 namespace {
@@ -538,6 +550,22 @@ void print_run_summary(const RuntimeSummary& s, const RuntimeOptions& o, const S
   }
 }
 
+// Each object's last pose and how far it moved over the run (objects_log.csv's first and last
+// rows), and the MuJoCo warnings, into the summary's "objects".
+void add_object_travel(nlohmann::json& sj, const ObjectTrack& track) {
+  if (track.rows() == 0 || !sj.contains("objects")) return;
+  for (std::size_t i = 0; i < track.objects() && i < sj["objects"].size(); ++i) {
+    const Eigen::Vector3d a = track.position(0, i), b = track.position(track.rows() - 1, i);
+    sj["objects"][i]["final_position_m"] = {b.x(), b.y(), b.z()};
+    sj["objects"][i]["moved_m"] = (b - a).norm();
+    sj["objects"][i]["turned_rad"] = track.rotation(0, i).angularDistance(track.rotation(track.rows() - 1, i));
+  }
+  sj["objects_log_rows"] = track.rows();
+#ifdef GSHAPTICS_HAVE_OBJECTS
+  sj["mujoco_warnings"] = ObjectDynamics::warnings();
+#endif
+}
+
 int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector<std::string>& warnings,
                    const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
                    const RuntimeSetup& setup, bool interrupted, const std::string& command,
@@ -546,7 +574,7 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
   const std::vector<ContactEpisode> episodes = find_episodes(records, 0.1, o.control.mode == ControlMode::kAdmittance);
 
   const std::string out_dir = o.out_dir.empty() ? default_out_dir(so.scene) : o.out_dir;
-  OutputStage stage(out_dir, {"servo_log.csv", "run_summary.json", "run.png"});
+  OutputStage stage(out_dir, kRunOutputs);
   const std::string csv = stage.path("servo_log.csv");
   const std::string summary_path = stage.path("run_summary.json");
   const std::string png = stage.path("run.png");
@@ -561,9 +589,12 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
     }
   };
   attempt([&] { write_tick_log_csv(csv, records, log_columns(kServoLogColumns, o.control)); });
+  const ObjectTrack* track = setup.objects.poses ? setup.objects.poses->track().get() : nullptr;
+  if (track != nullptr) attempt([&] { track->write_csv(stage.path("objects_log.csv")); });
 
   nlohmann::json sj = run_summary_json(s, log, warnings, o, so, pw, setup, interrupted, episodes);
   for (const auto& [k, v] : extra.items()) sj[k] = v;
+  if (track != nullptr) add_object_travel(sj, *track);
   attempt([&] { write_file_atomically(summary_path, sj.dump(2) + "\n"); });
 
   print_run_summary(s, o, so, pw, setup, interrupted, episodes, records.empty() ? 0.0 : records.back().time);
@@ -583,6 +614,9 @@ int write_outputs(const RuntimeSummary& s, const TickLog& log, const std::vector
     return kExitOutputsLost;
   }
   fmt::print("log        {}\nsummary    {}\n", stage.final_path("servo_log.csv"), stage.final_path("run_summary.json"));
+  if (track != nullptr)
+    fmt::print("objects    {} ({} dynamics steps that moved something{})\n", stage.final_path("objects_log.csv"),
+               track->rows(), track->dropped() > 0 ? fmt::format(", {} more not logged", track->dropped()) : "");
   if (plotted) fmt::print("figure     {}\n", stage.final_path("run.png"));
   return o.no_plot || records.empty() || plotted ? 0 : 1;
 }

@@ -15,6 +15,8 @@
 
 #include "gshaptics/error.h"
 #include "gshaptics/io/mapped_file.h"
+#include "gshaptics/io/scene_writer.h"
+#include "gshaptics/scene/scene_cut.h"
 #include "gshaptics/percentile.h"
 
 namespace gshaptics::session {
@@ -115,6 +117,34 @@ std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const Ru
   return j.dump();
 }
 
+// A scene with rigid objects: the page gets the static part (file frame, the registration
+// places it as it does the file) and each object (world frame at rest) as .splat bytes, their
+// colour kept. The scene is read once more, with its colour (the collision world keeps none).
+void add_object_splats(ViewerConfig& vc, const SceneOptions& so, const PreparedWorld& pw, const SceneObjects& objects,
+                       bool quiet) {
+  LoadedScene colored = load_with_progress(so.scene, quiet, /*keep_color=*/true);
+  const SceneCut cut = cut_objects(colored.scene, pw.world.scene_to_world(), so.objects, pw.config.min_opacity);
+  vc.scene_bytes = std::make_shared<const std::string>(splat_bytes(cut.rest));
+  for (const GaussianScene& o : cut.objects) vc.object_splats.push_back(std::make_shared<const std::string>(splat_bytes(o)));
+  vc.object_worlds = objects.bodies;
+  vc.object_poses = objects.poses;
+  fmt::print("viewer     the static part ({} Gaussians) and {} object(s) served as .splat, moved by their live poses\n",
+             cut.rest.size(), cut.objects.size());
+}
+
+// The hello's objects: where the page loads each one, its rest origin (world, m) and its spec.
+nlohmann::json objects_hello(const SceneOptions& so, const SceneObjects& objects) {
+  nlohmann::json list = nlohmann::json::array();
+  for (std::size_t i = 0; i < objects.rest_origins.size(); ++i) {
+    const Eigen::Vector3d& r = objects.rest_origins[i];
+    list.push_back({{"url", "/object/" + std::to_string(i)},
+                    {"file_type", "splat"},
+                    {"rest_origin", {r.x(), r.y(), r.z()}},
+                    {"spec", so.objects[i].text}});
+  }
+  return list;
+}
+
 }  // namespace
 
 std::string find_web_root() {
@@ -163,10 +193,17 @@ int run_serve(ServeOptions o) {
   warn_if_outside_profile(pw, o.run.force);
   RuntimeSetup setup = make_runtime_setup(o.run, so, pw, true, std::move(opened));
   vc.hello_json = hello_json(pw, so, setup, o.display_rate, o.run.force.materials.get());
+  if (!setup.objects.empty()) {
+    add_object_splats(vc, so, pw, setup.objects, o.run.quiet);
+    nlohmann::json hello = nlohmann::json::parse(vc.hello_json);
+    hello["objects"] = objects_hello(so, setup.objects);
+    hello["file_type"] = "splat";  // the static part, re-packed
+    vc.hello_json = hello.dump();
+  }
   if (o.run.force.materials && o.run.force.model == RendererKind::kProxy)
     vc.materials = MaterialField::resolve(*o.run.force.materials, pw.world, o.run.force.proxy);
   vc.repeat_targets = !setup.xr;  // a VR controller that stops reporting must time out
-  if (pw.scene.report.format == SceneFormat::kSpz && pw.scene.report.version >= 4) {
+  if (setup.objects.empty() && pw.scene.report.format == SceneFormat::kSpz && pw.scene.report.version >= 4) {
     // The page's splat renderer (Spark 2.2) reads SPZ as one gzip stream only: re-pack v4.
     const std::vector<std::uint8_t> gz = spz_as_gzip(MappedFile(so.scene).bytes(), so.scene);
     vc.scene_bytes = std::make_shared<const std::string>(gz.begin(), gz.end());

@@ -455,11 +455,10 @@ nlohmann::json objects_json(const SceneOptions& so, const PreparedWorld& pw) {
   return list;
 }
 
-RendererFactory scene_renderer_factory(const PreparedWorld& pw, const SceneOptions& so, double rate_hz,
-                                       std::FILE* report) {
+SceneObjects scene_objects(const PreparedWorld& pw, const SceneOptions& so, double rate_hz, std::FILE* report) {
   if (pw.objects.empty()) return {};
 #ifdef GSHAPTICS_HAVE_OBJECTS
-  return object_renderer_factory(pw, so, rate_hz, report);
+  return object_scene(pw, so, rate_hz, report);
 #else
   (void)so;
   (void)rate_hz;

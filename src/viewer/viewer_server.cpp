@@ -5,6 +5,7 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
+#include <algorithm>
 #include <cmath>
 #include <deque>
 #include <filesystem>
@@ -44,8 +45,42 @@ void append_vec(std::string& s, const Eigen::Vector3d& v, int digits = 5) {
 
 }  // namespace
 
+namespace {
+
+// Contacts: [source index, cx, cy, cz, ax, ay, az, qw, qx, qy, qz] in the world frame (an
+// object's at its pose now); contacts whose world is not known are left out.
+void append_contacts(std::string& s, const ContactSnapshot& contacts, const SnapshotWorlds& worlds) {
+  s += fmt::format(",\"contacts_total\":{},\"contacts\":[", contacts.counts.contacts);
+  bool first = true;
+  for (std::uint32_t i = 0; i < contacts.shown; ++i) {
+    const std::optional<ShownGaussian> g = shown_gaussian(contacts, i, worlds);
+    if (!g) continue;
+    const Eigen::Quaterniond& q = g->rotation;
+    s += fmt::format("{}[{},{:.6g},{:.6g},{:.6g},{:.4g},{:.4g},{:.4g},{:.4f},{:.4f},{:.4f},{:.4f}]",
+                     first ? "" : ",", g->source_index, g->center[0], g->center[1], g->center[2],
+                     double(g->semi_axes[0]), double(g->semi_axes[1]), double(g->semi_axes[2]), q.w(), q.x(),
+                     q.y(), q.z());
+    first = false;
+  }
+  s += "]";
+}
+
+// The objects' poses: [[px, py, pz, qw, qx, qy, qz], ...] (world, m).
+void append_objects(std::string& s, const ObjectPoses& poses) {
+  s += ",\"objects\":[";
+  for (std::uint32_t i = 0; i < poses.count; ++i) {
+    const BodyPose& p = poses.poses[i];
+    const Eigen::Quaterniond& q = p.rotation;
+    s += fmt::format("{}[{:.7g},{:.7g},{:.7g},{:.7g},{:.7g},{:.7g},{:.7g}]", i ? "," : "", p.position.x(),
+                     p.position.y(), p.position.z(), q.w(), q.x(), q.y(), q.z());
+  }
+  s += "]";
+}
+
+}  // namespace
+
 std::string ViewerServer::state_json(const TickRecord& tick, const ContactSnapshot& contacts,
-                                     const CollisionWorld& world, const RuntimeStats& stats,
+                                     const SnapshotWorlds& worlds, const RuntimeStats& stats,
                                      const LatencyHistogram& query, double rate_hz, const MaterialField* materials) {
   // Built by hand: this runs 30-60 times a second with up to 2048 contacts.
   std::string s;
@@ -79,27 +114,20 @@ std::string ViewerServer::state_json(const TickRecord& tick, const ContactSnapsh
       tick.flags, ticks, wall > 0 && ticks > 1 ? double(ticks - 1) / wall : 0.0, rate_hz,
       stats.jitter.percentile(99) * 1e-3, stats.deadline_misses.load(), stats.stale_ticks.load(),
       stats.fades.load(), query.percentile(99) * 1e-3);
-  // Contacts: [source index, cx, cy, cz, ax, ay, az, qw, qx, qy, qz] in the world frame.
-  s += fmt::format(",\"contacts_total\":{},\"contacts\":[", contacts.counts.contacts);
-  const auto& g = world.gaussians();
-  for (std::uint32_t i = 0; i < contacts.shown; ++i) {
-    const CollisionGaussian& c = g[contacts.record[i]];
-    const Eigen::Matrix3d r = rotation_matrix(c);
-    Eigen::Quaterniond qc(r);
-    qc.normalize();
-    s += fmt::format("{}[{},{:.6g},{:.6g},{:.6g},{:.4g},{:.4g},{:.4g},{:.4f},{:.4f},{:.4f},{:.4f}]",
-                     i ? "," : "", c.source_index, c.center[0], c.center[1], c.center[2],
-                     double(c.semi_axes[0]), double(c.semi_axes[1]), double(c.semi_axes[2]), qc.w(),
-                     qc.x(), qc.y(), qc.z());
-  }
-  s += "]";
-  // The material the shown contacts are mostly made of (by opacity).
+  append_contacts(s, contacts, worlds);
+  if (worlds.poses != nullptr) append_objects(s, *worlds.poses);
+  // The material the shown contacts of the static scene are mostly made of (by opacity).
   // With it, what a vibrotactile device (the VR controller) plays: the texture's RMS force and
   // the material's vibration level (RenderOutput).
-  if (materials != nullptr)
+  if (materials != nullptr && worlds.scene != nullptr) {
+    std::vector<std::uint32_t> scene_records;
+    scene_records.reserve(contacts.shown);
+    for (std::uint32_t i = 0; i < contacts.shown; ++i)
+      if (contacts.body[i] == 0 && contacts.record[i] < worlds.scene->size()) scene_records.push_back(contacts.record[i]);
     s += fmt::format(",\"material\":\"{}\",\"vibration\":{{\"texture_rms\":{:.4g},\"level\":{:.3g}}}",
-                     materials->name(materials->dominant({contacts.record.data(), contacts.shown}, world)),
-                     double(tick.texture_rms), double(tick.vibration));
+                     materials->name(materials->dominant(scene_records, *worlds.scene)), double(tick.texture_rms),
+                     double(tick.vibration));
+  }
   s += "}";
   return s;
 }
@@ -155,6 +183,8 @@ struct ViewerServer::Impl {
   std::optional<OriginPolicy> policy;
   nlohmann::json hello;  // config.hello_json parsed once (an object; empty when it is not one)
   std::uint32_t open_connections = 0;  // HTTP and WebSocket sessions alive (server thread only)
+  int pose_reader = -1;       // this server's slot in config.object_poses
+  ObjectPoses object_state;   // the objects' newest poses (server thread only)
   double now_s() const { return to_seconds(clock.now()); }
 };
 
@@ -376,6 +406,13 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
       return text(http::status::ok, j.dump(), "application/json");
     }
     if (target == "/favicon.ico") return text(http::status::no_content, "");
+    if (target.rfind("/object/", 0) == 0) {  // an object's splats (ViewerConfig::object_splats)
+      const std::string n = target.substr(8);
+      const bool digits = !n.empty() && n.size() < 4 && std::all_of(n.begin(), n.end(), [](char c) { return c >= '0' && c <= '9'; });
+      if (digits && std::size_t(std::stoi(n)) < srv.config.object_splats.size())
+        return text(http::status::ok, *srv.config.object_splats[std::size_t(std::stoi(n))], "application/octet-stream");
+      return text(http::status::not_found, "not found\n");
+    }
     if (target == "/scene") {
       if (srv.config.scene_bytes) return text(http::status::ok, *srv.config.scene_bytes, "application/octet-stream");
       return file(srv.config.scene_path);
@@ -438,8 +475,10 @@ void ViewerServer::Impl::tick_display() {
     mouse->set_target(mouse_target, mouse_rotation, clock.now());
   if (runtime.latest_tick(tick)) {
     contacts.take(snapshot);
+    if (config.object_poses) config.object_poses->read_if_new(pose_reader, object_state);
+    const SnapshotWorlds worlds{&world, config.object_worlds, config.object_poses ? &object_state : nullptr};
     auto frame = std::make_shared<const std::string>(ViewerServer::state_json(
-        tick, snapshot, world, runtime.stats(), runtime.worker().latency(), runtime.config().rate_hz,
+        tick, snapshot, worlds, runtime.stats(), runtime.worker().latency(), runtime.config().rate_hz,
         config.materials.get()));
     stats.frames_built.fetch_add(1);
     for (auto it = sessions.begin(); it != sessions.end();) {
@@ -479,6 +518,10 @@ void ViewerServer::start() {
     throw InputError(fmt::format("viewer: cannot listen on {}:{}: {}", m.config.host, m.config.port, ec.message()));
   m.bound_port = m.acceptor.local_endpoint().port();
   m.policy.emplace(m.config.host, m.bound_port, m.config.allow_origins);
+  if (m.config.object_poses) {
+    m.pose_reader = m.config.object_poses->subscribe();
+    if (m.pose_reader < 0) throw InputError("viewer: the objects' pose channel has no reader slot left");
+  }
   m.hello = nlohmann::json::parse(m.config.hello_json, nullptr, false);
   if (m.hello.is_discarded() || !m.hello.is_object()) m.hello = nlohmann::json::object();
   m.accept();

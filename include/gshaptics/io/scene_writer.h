@@ -20,6 +20,8 @@ void write_inria_ply(const std::string& path, const GaussianScene& scene,
 /// antimatter15 layout: position and linear scale as float, RGBA bytes (colour from f_dc,
 /// A = opacity), quaternion bytes (q * 128 + 128, w first). Higher SH bands are dropped.
 void write_splat(const std::string& path, const GaussianScene& scene);
+/// The bytes write_splat() writes (32 per Gaussian), for serving without a file.
+[[nodiscard]] std::string splat_bytes(const GaussianScene& scene);
 
 /// The coordinate convention a written file is read in: RDF for .ply and .splat (the 3DGS
 /// convention every reader of those formats assumes). Throws InputError naming `path` for an

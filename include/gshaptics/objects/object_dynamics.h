@@ -13,7 +13,7 @@
 ///
 /// Threading: one thread steps the model (the servo thread: ObjectRenderer steps it inside its
 /// render()); step(), apply_wrench() and the accessors never allocate, lock, log or throw. Other
-/// threads read the poses through poses_buffer() (a TripleBuffer, lock-free).
+/// threads read the poses through the ObjectPoseChannel it publishes to (lock-free).
 
 #include <Eigen/Core>
 #include <atomic>
@@ -51,7 +51,10 @@ class ObjectDynamics {
   /// Builds the MuJoCo model (objects at their rest pose, at rest). Throws InputError with
   /// MuJoCo's message when it rejects the model (for example, a hull of coplanar points), and
   /// for an empty `objects` or a non-positive timestep.
-  ObjectDynamics(std::span<const RigidObject> objects, const SupportPlane& support, const DynamicsParams& params = {});
+  /// `channel`: where each step's poses and applied wrenches go (the viewer, ROS and the logs
+  /// subscribe to it); null: a channel of its own (channel()).
+  ObjectDynamics(std::span<const RigidObject> objects, const SupportPlane& support, const DynamicsParams& params = {},
+                 std::shared_ptr<ObjectPoseChannel> channel = nullptr);
   ~ObjectDynamics();
   ObjectDynamics(const ObjectDynamics&) = delete;
   ObjectDynamics& operator=(const ObjectDynamics&) = delete;
@@ -85,14 +88,17 @@ class ObjectDynamics {
   /// Back to the rest poses, at rest, time 0.
   void reset() noexcept;
 
-  /// The poses as published after each step, for other threads.
-  [[nodiscard]] TripleBuffer<ObjectPoses>& poses_buffer() noexcept { return published_; }
+  /// The poses, velocities and applied wrenches as of the last step (the value published).
+  [[nodiscard]] const ObjectPoses& state() const noexcept { return poses_; }
+  /// Where the poses are published after each step, for other threads.
+  [[nodiscard]] ObjectPoseChannel& channel() noexcept { return *channel_; }
   /// MuJoCo warnings raised since the start (contact buffer full, bad state ...); a step that
   /// raised one keeps going as MuJoCo does.
   [[nodiscard]] static long warnings() noexcept;
 
  private:
   void read_poses() noexcept;
+  bool clear_wrenches() noexcept;  // true when one was not zero
   DynamicsParams params_;
   SupportPlane support_;
   mjModel_* model_ = nullptr;
@@ -100,7 +106,7 @@ class ObjectDynamics {
   std::size_t bodies_ = 0;
   std::array<int, kMaxObjects> body_id_{};
   ObjectPoses poses_;
-  TripleBuffer<ObjectPoses> published_;
+  std::shared_ptr<ObjectPoseChannel> channel_;
   int resting_steps_ = 0;  // consecutive steps with every object within the rest bounds of anchor_
   std::array<BodyPose, kMaxObjects> anchor_{};
   bool slept_ = false;

@@ -26,6 +26,7 @@
 
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/io/gaussian_scene.h"
+#include "gshaptics/scene/object_poses.h"
 #include "gshaptics/scene/scene_cut.h"
 
 namespace gshaptics {
@@ -52,25 +53,5 @@ struct RigidObject {
 /// Throws InputError (naming spec.text) when none passes the filter.
 [[nodiscard]] RigidObject make_rigid_object(const GaussianScene& world_gaussians, const ObjectSpec& spec,
                                             const WorldConfig& config);
-
-/// A rigid pose of a body frame in the world: x_world = rotation * x_body + position.
-struct BodyPose {
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< m
-  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d linear_velocity = Eigen::Vector3d::Zero();   ///< of the body origin, m/s, world
-  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  ///< rad/s, world
-  /// The world velocity of the body-fixed point now at `p` (world), m/s.
-  [[nodiscard]] Eigen::Vector3d velocity_at(const Eigen::Vector3d& p) const noexcept {
-    return linear_velocity + angular_velocity.cross(p - position);
-  }
-};
-
-/// The live poses of a scene's objects, as one value the servo thread publishes through a
-/// TripleBuffer and the viewer, ROS and logs read.
-struct ObjectPoses {
-  double time = 0;  ///< simulated time, s
-  std::uint32_t count = 0;
-  std::array<BodyPose, kMaxObjects> poses{};
-};
 
 }  // namespace gshaptics

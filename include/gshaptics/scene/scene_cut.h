@@ -49,7 +49,8 @@ struct ObjectSpec {
 struct SceneCut {
   GaussianScene rest;  ///< the static part, in the file's frame (built as the scene was)
   /// Each object's Gaussians, in the WORLD frame (registered: means, scales and rotations), in
-  /// the order of the specs.
+  /// the order of the specs; their band-0 colour when the scene has one (the higher SH bands,
+  /// which would turn with the registration, are not kept).
   std::vector<GaussianScene> objects;
 };
 
@@ -66,5 +67,16 @@ struct SceneCut {
 /// indices from `first_index`. A box object or a floor slab for tests, benchmarks and demos.
 [[nodiscard]] GaussianScene box_surface_gaussians(const Eigen::Vector3d& center, const Eigen::Vector3d& half,
                                                   double spacing, float opacity = 0.9f, std::uint32_t first_index = 0);
+
+/// A box of Gaussians standing on a floor slab of Gaussians, z up, metres: the box's faces
+/// (box_surface_gaussians, orange) from z = 0 to 2 box_half.z about the z axis, the slab's
+/// (grey) top face spacing / 20 under it, floor_half wide. `object_spec` is the --object text
+/// that cuts the box and nothing of the floor. For demos and the viewer's browser test
+/// (`gshaptics synth box-on-floor`).
+struct BoxOnFloor {
+  GaussianScene scene;  ///< the box's Gaussians first, then the floor's; band-0 colour set
+  std::string object_spec;
+};
+[[nodiscard]] BoxOnFloor box_on_floor(const Eigen::Vector3d& box_half, const Eigen::Vector2d& floor_half, double spacing);
 
 }  // namespace gshaptics

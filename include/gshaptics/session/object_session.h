@@ -9,10 +9,10 @@
 
 namespace gshaptics::session {
 
-/// scene_renderer_factory() of a build with objects: builds each RigidObject of `pw` once
-/// (immutable, shared by the runs) and, per run, its ObjectDynamics and ObjectRenderer.
-RendererFactory object_renderer_factory(const PreparedWorld& pw, const SceneOptions& so, double rate_hz,
-                                        std::FILE* report);
+/// scene_objects() of a build with objects: builds each RigidObject of `pw` once (immutable,
+/// shared by the runs) and a factory making, per run, its ObjectDynamics (publishing to the
+/// returned channel) and ObjectRenderer.
+SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, double rate_hz, std::FILE* report);
 
 /// The scenario `o` describes: its rate, force model, execution mode, safety layer and control
 /// (the scene, sites, seed and tool are not used: the scenario brings its own), with the box's

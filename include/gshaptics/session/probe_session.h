@@ -138,7 +138,7 @@ struct SimulateOptions {
 /// (sim/probe_run.h) with `o`'s rate, force model, execution mode, safety layer and tool.
 /// `scaled`: the world is meant to be in metres (only a warning depends on it); `report`: where
 /// the trajectory's line goes (nullptr: nowhere); `progress` gets the fraction done;
-/// `make_renderer`: a scene with objects (scene_renderer_factory; the sites are on `world`).
+/// `make_renderer`: a scene with objects (scene_objects().make_renderer; the sites are on `world`).
 struct ProbeSessionResult {
   ProbeTrajectory trajectory;
   ProbeRunResult run;

@@ -93,6 +93,8 @@ struct RuntimeSetup {
   /// is, s (-1: not a probe run).
   double first_site = -1, pass = -1;
   RuntimeConfig config;
+  /// The scene's rigid objects (--object): config.make_renderer is theirs; their poses' channel.
+  SceneObjects objects;
 };
 /// Checks --device before the scene loads (throws InputError naming the option).
 void check_device_option(const std::string& device, bool allow_mouse);

@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gshaptics/collision/collision_world.h"
+#include "gshaptics/scene/object_poses.h"
 #include "gshaptics/scene/scene_cut.h"
 #include "gshaptics/force/material.h"
 #include "gshaptics/error.h"
@@ -172,13 +173,28 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
 /// Gaussians cut for it ([] without objects).
 nlohmann::json objects_json(const SceneOptions& so, const PreparedWorld& pw);
 
-/// The renderer factory of a world with objects (RuntimeConfig::make_renderer): for each run, the
-/// objects of `pw` (specs in so.objects) with their MuJoCo dynamics at `rate_hz`, on a plane under
-/// them normal to the world's up, rendered through an ObjectRenderer (objects/object_renderer.h).
-/// Empty when there are no objects. Prints a line per object to `report` (nullptr: nowhere).
-/// Throws InputError when objects are given to a build without gshaptics::objects.
-RendererFactory scene_renderer_factory(const PreparedWorld& pw, const SceneOptions& so, double rate_hz,
-                                       std::FILE* report = stdout);
+/// A world's rigid objects as a run and its readers see them.
+struct SceneObjects {
+  /// RuntimeConfig::make_renderer: for each run, the objects' MuJoCo dynamics and an
+  /// ObjectRenderer (objects/object_renderer.h). Empty without objects.
+  RendererFactory make_renderer;
+  /// Every run's dynamics publish their poses and applied wrenches here (the viewer, ROS and the
+  /// logs subscribe). Null without objects.
+  std::shared_ptr<ObjectPoseChannel> poses;
+  /// Each object's body-frame origin in the world at rest, m (RigidObject::rest_origin): a body
+  /// pose p, R places a rest-frame point x at R (x - rest_origin) + p.
+  std::vector<Eigen::Vector3d> rest_origins;
+  /// Each object's Gaussians in its body frame (RigidObject::body), to draw its contacts.
+  std::vector<std::shared_ptr<const CollisionWorld>> bodies;
+  [[nodiscard]] bool empty() const noexcept { return rest_origins.empty(); }
+};
+
+/// The objects of `pw` (specs in so.objects), their MuJoCo dynamics at `rate_hz` on a plane
+/// under them normal to the world's up. Empty when there are none. Prints a line per object to
+/// `report` (nullptr: nowhere). Throws InputError when objects are given to a build without
+/// gshaptics::objects.
+SceneObjects scene_objects(const PreparedWorld& pw, const SceneOptions& so, double rate_hz,
+                           std::FILE* report = stdout);
 
 /// `map` with its colour regions resolved on the colours of the scene file `scene_path` (loaded
 /// once more, with its colour: a world and its cache keep none), printing what each selected to

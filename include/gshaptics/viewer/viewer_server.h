@@ -56,6 +56,13 @@ struct ViewerConfig {
   /// (the mouse device: a page busy rendering still holds the tool). false for a tracked device
   /// (a VR controller): when its page stops reporting, the device times out and the force fades.
   bool repeat_targets = true;
+  /// Rigid objects (--object, issue 72): each one's Gaussians as .splat bytes in the world frame
+  /// at rest, served at /object/I (the hello lists them); their body-frame worlds, to draw their
+  /// contacts; the channel their live poses come through (the server subscribes once). Each
+  /// state frame then carries every object's pose ("objects").
+  std::vector<std::shared_ptr<const std::string>> object_splats;
+  std::vector<std::shared_ptr<const CollisionWorld>> object_worlds;
+  std::shared_ptr<ObjectPoseChannel> object_poses;
 };
 
 /// Counters of the server (any thread may read).
@@ -99,11 +106,20 @@ class ViewerServer {
   [[nodiscard]] std::uint16_t port() const noexcept;
   [[nodiscard]] const ViewerStats& stats() const noexcept;
 
-  /// The state frame for a tick record and a contact snapshot (exposed for tests).
+  /// The state frame for a tick record and a contact snapshot (exposed for tests). `worlds`: the
+  /// worlds the snapshot's contacts index, with the objects' poses now; with poses, the frame
+  /// lists each object's pose as [px, py, pz, qw, qx, qy, qz] (world, m) under "objects".
+  [[nodiscard]] static std::string state_json(const TickRecord& tick, const ContactSnapshot& contacts,
+                                              const SnapshotWorlds& worlds, const RuntimeStats& stats,
+                                              const LatencyHistogram& query, double rate_hz,
+                                              const MaterialField* materials = nullptr);
+  /// The same for a scene without objects.
   [[nodiscard]] static std::string state_json(const TickRecord& tick, const ContactSnapshot& contacts,
                                               const CollisionWorld& world, const RuntimeStats& stats,
                                               const LatencyHistogram& query, double rate_hz,
-                                              const MaterialField* materials = nullptr);
+                                              const MaterialField* materials = nullptr) {
+    return state_json(tick, contacts, SnapshotWorlds{&world, {}, nullptr}, stats, query, rate_hz, materials);
+  }
 
   struct Impl;
 
