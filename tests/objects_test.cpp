@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cstdlib>
 #include <cmath>
+#include <fstream>
 #include <random>
 
 #include "gshaptics/collision/contact_query.h"
@@ -236,6 +237,97 @@ TEST(ObjectDynamics, ABoxAtRestSleepsWithoutMovingAndAPushWakesIt) {
     EXPECT_FALSE(d.asleep());
   }
   EXPECT_GT(d.pose(0).position.x() - rest.x(), 0.01);
+}
+
+// What readers get: every subscribed reader sees each step's poses and the wrench the hand put
+// on the object over that step; the track logs one row per published step (none while asleep),
+// and when the hand lets go of a sleeping object the readers see the wrench go to zero.
+TEST(ObjectPoseChannel, ReadersAndTheTrackSeeEachStepsPoseAndTheAppliedWrench) {
+  const std::vector<RigidObject> objects{box_object(Eigen::Vector3d(0.05, 0.04, 0.03), 0.4, 0.3)};
+  auto channel = std::make_shared<ObjectPoseChannel>();
+  const int viewer = channel->subscribe(), ros = channel->subscribe();
+  ASSERT_EQ(viewer, 0);
+  ASSERT_EQ(ros, 1);
+  channel->record_into(std::make_shared<ObjectTrack>(1, 100000));
+  ObjectDynamics d(objects, support_under(objects, Eigen::Vector3d::UnitZ()), {}, channel);
+  ObjectPoses seen;
+  ASSERT_TRUE(channel->read_if_new(viewer, seen));  // the rest pose, published at construction
+  EXPECT_EQ(seen.count, 1u);
+  EXPECT_LT((seen.poses[0].position - objects[0].rest_origin).norm(), 1e-3);
+  for (int k = 0; k < 300; ++k) d.step();  // settles, then sleeps
+  ASSERT_TRUE(d.asleep());
+  const std::size_t rows_asleep = channel->track()->rows();
+  for (int k = 0; k < 100; ++k) d.step();
+  EXPECT_EQ(channel->track()->rows(), rows_asleep) << "a sleeping step logged a row";
+  // A push above mu m g at the centre of mass: the readers see the force and the box moving.
+  const Eigen::Vector3d F(2 * 0.3 * 0.4 * kG, 0, 0);
+  for (int k = 0; k < 100; ++k) {
+    d.apply_wrench(0, F, d.center_of_mass(0));
+    d.step();
+  }
+  ASSERT_TRUE(channel->read_if_new(ros, seen));
+  EXPECT_NEAR((seen.wrenches[0].force - F).norm(), 0, 1e-9);
+  EXPECT_LT(seen.wrenches[0].torque.norm(), 1e-9);
+  EXPECT_GT(seen.poses[0].position.x() - objects[0].rest_origin.x(), 1e-3);
+  EXPECT_NEAR(seen.poses[0].position.x(), d.pose(0).position.x(), 1e-12);
+  const ObjectTrack& track = *channel->track();
+  EXPECT_EQ(track.rows(), rows_asleep + 100);
+  EXPECT_NEAR(track.position(track.rows() - 1, 0).x(), d.pose(0).position.x(), 1e-6);
+  EXPECT_NEAR(track.force(track.rows() - 1, 0).x(), F.x(), 1e-5);
+  // Let go: it slides to a stop and sleeps; the readers' last value has no wrench.
+  for (int k = 0; k < 2000; ++k) d.step();
+  ASSERT_TRUE(channel->read_if_new(viewer, seen));
+  EXPECT_EQ(seen.wrenches[0].force.norm(), 0.0);
+  EXPECT_FALSE(channel->read_if_new(viewer, seen)) << "nothing new was published";
+  // At most kMaxReaders readers; a reader slot never given reads nothing.
+  EXPECT_GE(channel->subscribe(), 0);
+  EXPECT_GE(channel->subscribe(), 0);
+  EXPECT_EQ(channel->subscribe(), -1);
+  EXPECT_FALSE(channel->read_if_new(7, seen));
+  // The CSV: a header naming each object's columns, one row per logged step.
+  const std::string csv = testing::TempDir() + "/objects_log.csv";
+  track.write_csv(csv);
+  std::ifstream in(csv);
+  std::string header;
+  std::getline(in, header);
+  EXPECT_EQ(header, "time_s,obj0_x,obj0_y,obj0_z,obj0_qw,obj0_qx,obj0_qy,obj0_qz,obj0_fx,obj0_fy,obj0_fz");
+  std::size_t lines = 0;
+  for (std::string line; std::getline(in, line);) ++lines;
+  EXPECT_EQ(lines, track.rows());
+}
+
+// A track full of rows drops and counts the rest rather than allocating.
+TEST(ObjectTrack, DropsPastItsCapacity) {
+  ObjectTrack track(2, 3);
+  ObjectPoses p;
+  p.count = 2;
+  for (int k = 0; k < 5; ++k) {
+    p.time = k;
+    p.poses[1].position = Eigen::Vector3d(k, 0, 0);
+    track.push(p);
+  }
+  EXPECT_EQ(track.rows(), 3u);
+  EXPECT_EQ(track.dropped(), 2u);
+  EXPECT_EQ(track.position(2, 1).x(), 2.0);
+  EXPECT_EQ(track.time(2), 2.0);
+}
+
+// `synth box-on-floor`'s scene: its --object text cuts every Gaussian of the box and none of the
+// floor, and the box's colour goes with it into the world frame.
+TEST(SceneCut, TheBoxOnFloorSpecCutsTheBoxWithItsColour) {
+  const BoxOnFloor b = box_on_floor(Eigen::Vector3d(0.05, 0.04, 0.03), Eigen::Vector2d(0.2, 0.2), 0.01);
+  const std::size_t box_count = box_surface_gaussians(Eigen::Vector3d(0, 0, 0.03), Eigen::Vector3d(0.05, 0.04, 0.03), 0.01).size();
+  ASSERT_EQ(b.scene.colors_dc.size(), b.scene.size());
+  const ObjectSpec spec = parse_object_spec(b.object_spec);
+  SimilarityTransform T;
+  T.translation = Eigen::Vector3d(0, 0, 0);
+  const SceneCut cut = cut_objects(b.scene, T, std::span<const ObjectSpec>(&spec, 1), 0.2f);
+  ASSERT_EQ(cut.objects[0].size(), box_count);
+  for (std::size_t k = 0; k < box_count; ++k) EXPECT_LT(cut.objects[0].source_index[k], box_count);
+  ASSERT_EQ(cut.objects[0].colors_dc.size(), box_count);
+  EXPECT_EQ(cut.objects[0].colors_dc[0], b.scene.colors_dc[0]);
+  EXPECT_EQ(cut.rest.colors_dc.size(), cut.rest.size());
+  EXPECT_THROW((void)box_on_floor(Eigen::Vector3d(0.05, 0, 0.03), Eigen::Vector2d(0.2, 0.2), 0.01), InputError);
 }
 
 TEST(ObjectDynamics, ATallBoxPushedHighTipsAtTheAnalyticForce) {

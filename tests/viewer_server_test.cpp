@@ -101,6 +101,7 @@ class Viewer : public ::testing::Test {
     vc.hello_json = R"({"type":"hello","protocol":1,"scene_url":"/scene"})";
     vc.token = token_;
     vc.repeat_targets = !xr_;
+    vc.object_splats = object_splats_;
     server_ = std::make_unique<ViewerServer>(vc, *runtime_, *world_, *snapshots_, mouse_.get(),
                                              MonotonicClock::instance());
     runtime_->start();
@@ -115,6 +116,7 @@ class Viewer : public ::testing::Test {
   static const CollisionWorld* world_;
   std::string token_;
   bool xr_ = false;
+  std::vector<std::shared_ptr<const std::string>> object_splats_;
   std::unique_ptr<StreamDevice> mouse_;
   std::unique_ptr<HapticRuntime> runtime_;
   std::unique_ptr<ContactSnapshotObserver> snapshots_;
@@ -359,6 +361,25 @@ class ViewerWithToken : public Viewer {
   }
 };
 
+// Rigid objects' splats are served at /object/I, and nothing else under /object/.
+class ViewerWithObjects : public Viewer {
+ protected:
+  void SetUp() override {
+    object_splats_ = {std::make_shared<const std::string>(32, 'a'), std::make_shared<const std::string>(64, 'b')};
+    Viewer::SetUp();
+  }
+};
+
+TEST_F(ViewerWithObjects, EachObjectsSplatsAtItsOwnRoute) {
+  const std::uint16_t port = server_->port();
+  const Reply first = request(port, "/object/0"), second = request(port, "/object/1");
+  EXPECT_EQ(first.status, 200);
+  EXPECT_EQ(first.body, std::string(32, 'a'));
+  EXPECT_EQ(second.body, std::string(64, 'b'));
+  for (const char* bad : {"/object/2", "/object/", "/object/x", "/object/-1", "/object/00001", "/object/1a"})
+    EXPECT_EQ(request(port, bad).status, 404) << bad;
+}
+
 TEST_F(ViewerWithToken, RefusedWithoutAcceptedWithAndCarriedAsCookie) {
   const std::uint16_t port = server_->port();
   EXPECT_EQ(request(port, "/").status, 401);
@@ -504,6 +525,49 @@ TEST(ViewerState, ContactsEncodeTheWorldGeometry) {
   EXPECT_EQ(j["torque"][0], 0.125);  // the torque sent, about the tool centre point
   EXPECT_EQ(j["torque"][1], -0.25);
   EXPECT_FALSE(j.contains("material"));  // no map, no material
+}
+
+// A contact on a moved object is drawn where the object is now: its body-frame Gaussian moved by
+// the object's pose; a contact whose world or pose is unknown, or whose slot is out of range, is
+// left out rather than read out of bounds. The frame lists every object's pose.
+TEST(ViewerState, ObjectContactsAreDrawnAtTheObjectsPose) {
+  GaussianScene floor, box;
+  floor.push_back({0.f, 0.f, 0.f}, {0.1f, 0.1f, 0.01f}, {1.f, 0.f, 0.f, 0.f}, 0.9f, 3);
+  box.push_back({0.1f, 0.f, 0.f}, {0.1f, 0.2f, 0.3f}, {1.f, 0.f, 0.f, 0.f}, 0.9f, 11);
+  const CollisionWorld world = CollisionWorld::build(floor, WorldConfig{});
+  const std::vector<std::shared_ptr<const CollisionWorld>> bodies{
+      std::make_shared<const CollisionWorld>(CollisionWorld::build(box, WorldConfig{}))};
+  ObjectPoses poses;
+  poses.count = 1;
+  poses.poses[0].position = {1, 2, 3};
+  poses.poses[0].rotation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
+  ContactSnapshot snap;
+  snap.counts.contacts = 4;
+  snap.shown = 4;
+  snap.record = {0, 0, 5, 0};
+  snap.body = {0, 1, 1, 2};  // the floor's, the box's, a slot past the box's, an object not given
+  RuntimeStats stats;
+  LatencyHistogram query;
+  const json j = json::parse(ViewerServer::state_json(TickRecord{}, snap, SnapshotWorlds{&world, bodies, &poses},
+                                                      stats, query, 1000));
+  ASSERT_EQ(j["contacts"].size(), 2u);
+  EXPECT_EQ(j["contacts"][0][0], 3);
+  const json& c = j["contacts"][1];
+  EXPECT_EQ(c[0], 11);
+  EXPECT_NEAR(c[1].get<double>(), 1.0, 1e-6);  // (0.1, 0, 0) turned 90 degrees about z is (0, 0.1, 0)
+  EXPECT_NEAR(c[2].get<double>(), 2.1, 1e-6);
+  EXPECT_NEAR(c[3].get<double>(), 3.0, 1e-6);
+  EXPECT_NEAR(std::abs(c[7].get<double>()), std::sqrt(0.5), 1e-3);  // the Gaussian turned with the box
+  EXPECT_NEAR(std::abs(c[10].get<double>()), std::sqrt(0.5), 1e-3);
+  ASSERT_EQ(j["objects"].size(), 1u);
+  EXPECT_EQ(j["objects"][0][0], 1.0);
+  EXPECT_EQ(j["objects"][0][2], 3.0);
+  EXPECT_NEAR(j["objects"][0][6].get<double>(), std::sqrt(0.5), 1e-6);
+  // Without the poses, an object's contact cannot be placed: only the floor's is drawn.
+  const json still = json::parse(ViewerServer::state_json(TickRecord{}, snap, SnapshotWorlds{&world, bodies, nullptr},
+                                                          stats, query, 1000));
+  EXPECT_EQ(still["contacts"].size(), 1u);
+  EXPECT_FALSE(still.contains("objects"));
 }
 
 TEST(ViewerState, TheFrameNamesTheMaterialOfTheContactsAndTheHelloItsRegions) {
