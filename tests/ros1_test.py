@@ -208,6 +208,30 @@ class Ros1Node(unittest.TestCase):
                     n.send_signal(signal.SIGINT)
                     n.communicate(timeout=60)
 
+    def test_object_poses_are_published(self):
+        """Issue 72 on ROS 1: with --object, each object's pose goes out as a PoseStamped on
+        gshaptics/objects/objectI, from the start (no device pose needed): a box of Gaussians
+        standing on a floor, at its rest pose (its centre 3 cm over the floor)."""
+        out = tempfile.mkdtemp()
+        scene = os.path.join(out, "box_on_floor.ply")
+        synth = subprocess.run([EXE, "synth", "box-on-floor", scene, "--spacing", "0.01"], capture_output=True,
+                               text=True, timeout=60)
+        self.assertEqual(synth.returncode, 0, synth.stderr)
+        spec = synth.stdout.split("--object ")[1].split()[0]
+        node, _ = self.start_node(out, scene, "--up", "z-up", "--object", spec, "--node-name", "objects")
+        try:
+            pose = [l.strip() for l in echo_once("/gshaptics/objects/object0", self.env).splitlines()]
+            i = pose.index("position:")
+            x, y, z = (float(pose[i + k].split(":")[1]) for k in (1, 2, 3))
+            self.assertAlmostEqual(x, 0.0, delta=0.002)
+            self.assertAlmostEqual(y, 0.0, delta=0.002)
+            self.assertAlmostEqual(z, 0.03, delta=0.002)
+            self.assertIn('frame_id: "world"', "\n".join(pose))
+        finally:
+            node.send_signal(signal.SIGINT)
+            _, err = node.communicate(timeout=60)
+        self.assertEqual(node.returncode, 0, err)
+
     def test_admittance_reads_the_sensor_and_writes_the_setpoint(self):
         """Issue 73, item 3 on ROS 1: under --control admittance the node takes the robot's sensor
         (WrenchStamped) and publishes the setpoint (PoseStamped + TwistStamped) it moves under

@@ -238,6 +238,87 @@ TEST(Ros2BridgeQos, AnIncompatibleSubscriberIsReported) {
   node.stop(MonotonicClock::instance().now());
 }
 
+// Rigid objects (issue 72): each object's pose goes out as a PoseStamped on
+// gshaptics/objects/objectI, the markers draw it as a box at that pose, and a contact on the
+// object is drawn where the object is now (its body-frame Gaussian moved by the pose).
+TEST(Ros2BridgeObjects, EachObjectsPoseIsPublishedAndDrawnAsABox) {
+  Ros2Options o;
+  o.domain = 10 + int((getpid() + 53) % 200);
+  o.marker_hz = 50;
+  Ros2NetworkDevice node(o, MonotonicClock::instance());
+  GaussianScene g;
+  g.push_back({0.05f, 0.f, 0.f}, {0.01f, 0.01f, 0.001f}, {1.f, 0.f, 0.f, 0.f}, 0.9f, 77);
+  const CollisionWorld scene = CollisionWorld::build(g, WorldConfig{});
+  const RosObjects objects{{std::make_shared<const CollisionWorld>(CollisionWorld::build(g, WorldConfig{}))},
+                           std::make_shared<ObjectPoseChannel>(), {Eigen::Vector3d(0.1, 0.08, 0.06)}};
+  ContactSnapshotObserver snapshots(0, MonotonicClock::instance());
+  Ros2MarkerPublisher markers(node, scene, snapshots, Eigen::Vector3d::Constant(0.01), objects);
+  PlainDds peer(o.domain);
+  const dds_entity_t pose_topic = dds_create_topic(peer.pp, &geometry_msgs_msg_dds__PoseStamped__desc,
+                                                   "rt/gshaptics/objects/object0", nullptr, nullptr);
+  dds_qos_t* q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+  const dds_entity_t pose_reader = dds_create_reader(peer.pp, pose_topic, q, nullptr);
+  dds_delete_qos(q);
+  ASSERT_GT(pose_reader, 0);
+  markers.start();
+  // What the servo thread would publish: the object moved and turned, the tool touching it.
+  ObjectPoses poses;
+  poses.count = 1;
+  poses.poses[0].position = {0.2, 0.1, 0.03};
+  poses.poses[0].rotation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
+  const Contact touched{77, 0, 0.9f, 0, 1, 0.5, Eigen::Vector3d::Zero()};
+  CollisionResult result;
+  result.pose_sequence = 1;
+  result.counts.contacts = 1;
+  bool pose_seen = false, box_seen = false, contact_seen = false;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (!(pose_seen && box_seen && contact_seen) && std::chrono::steady_clock::now() - t0 < 10s) {
+    objects.poses->write(poses);
+    snapshots.on_result(PoseCommand{}, std::span<const Contact>(&touched, 1), result);
+    std::this_thread::sleep_for(20ms);
+    void* s[8] = {};
+    dds_sample_info_t info[8];
+    int n = dds_take(pose_reader, s, info, 8, 8);
+    for (int i = 0; i < n; ++i) {
+      if (!info[i].valid_data) continue;
+      const auto* m = static_cast<geometry_msgs_msg_dds__PoseStamped_*>(s[i]);
+      EXPECT_NEAR(m->pose.position.x, 0.2, 1e-12);
+      EXPECT_NEAR(m->pose.position.z, 0.03, 1e-12);
+      EXPECT_NEAR(m->pose.orientation.z, std::sqrt(0.5), 1e-9);  // ROS order x, y, z, w
+      EXPECT_NEAR(m->pose.orientation.w, std::sqrt(0.5), 1e-9);
+      EXPECT_STREQ(m->header.frame_id, "world");
+      pose_seen = true;
+    }
+    if (n > 0) dds_return_loan(pose_reader, s, n);
+    n = dds_take(peer.marker_reader, s, info, 8, 8);
+    for (int i = 0; i < n; ++i) {
+      if (!info[i].valid_data) continue;
+      const auto* a = static_cast<visualization_msgs_msg_dds__MarkerArray_*>(s[i]);
+      for (std::uint32_t k = 0; k < a->markers._length; ++k) {
+        const auto& m = a->markers._buffer[k];
+        if (std::strcmp(m.ns, "objects") == 0) {
+          EXPECT_EQ(m.type, 1);  // CUBE
+          EXPECT_NEAR(m.pose.position.y, 0.1, 1e-12);
+          EXPECT_NEAR(m.scale.x, 0.1, 1e-12);
+          box_seen = true;
+        }
+        if (std::strcmp(m.ns, "contacts") == 0) {
+          EXPECT_EQ(m.id, 77);
+          EXPECT_NEAR(m.pose.position.x, 0.2, 1e-6);  // (0.05, 0, 0) turned to (0, 0.05, 0), then moved
+          EXPECT_NEAR(m.pose.position.y, 0.15, 1e-6);
+          contact_seen = true;
+        }
+      }
+    }
+    if (n > 0) dds_return_loan(peer.marker_reader, s, n);
+  }
+  markers.stop();
+  EXPECT_TRUE(pose_seen) << "no PoseStamped on rt/gshaptics/objects/object0";
+  EXPECT_TRUE(box_seen) << "no object box among the markers";
+  EXPECT_TRUE(contact_seen) << "the object's contact was not drawn";
+}
+
 TEST_F(Ros2Bridge, PublisherDiesMidContactAndTheForceGoesToZero) {
   stream(500ms);
   geometry_msgs_msg_dds__WrenchStamped_ w{};

@@ -70,6 +70,10 @@ void register_node(CLI::App& app) {
                   "ROS 1: the node's name at the master (two nodes on one master need two names; __name:= too)")
       ->capture_default_str();
   add_topic_options(*cmd, o->topics);
+  add_object_option(*cmd, o->run.scene);
+  cmd->add_option("--objects-topic", o->topics.objects_topic,
+                  "With --object: object I's pose goes out on TOPIC/objectI (geometry_msgs/PoseStamped) at the marker rate")
+      ->capture_default_str();
   cmd->footer(
       "ROS arguments pass through: ROS 1 remappings and names (pose:=/arm1/pose, __ns:=/arm1, "
       "__name:=left), or ROS 2's --ros-args -r FROM:=TO (also -r __ns:=/arm1). Relative topic "

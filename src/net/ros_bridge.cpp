@@ -1,11 +1,12 @@
 #include "gshaptics/net/ros_bridge.h"
 
-#include "gshaptics/error.h"
-
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
-#include <chrono>
+#include <optional>
+
+#include "gshaptics/error.h"
 
 namespace gshaptics {
 
@@ -187,7 +188,7 @@ void RosWrenchOutbox::stop() {
   thread_.join();
 }
 
-std::vector<RosMarker> contact_markers(const ContactSnapshot& snap, const CollisionWorld& world,
+std::vector<RosMarker> contact_markers(const ContactSnapshot& snap, const SnapshotWorlds& worlds,
                                        const Eigen::Vector3d& tool_axes, std::size_t max_contacts, double lifetime) {
   const std::size_t shown = std::min<std::size_t>(snap.shown, max_contacts);
   std::vector<RosMarker> out;
@@ -205,15 +206,15 @@ std::vector<RosMarker> contact_markers(const ContactSnapshot& snap, const Collis
   tool.lifetime = lifetime;
   out.push_back(tool);
   for (std::size_t i = 0; i < shown; ++i) {
-    const CollisionGaussian& g = world.gaussians()[snap.record[i]];
+    const std::optional<ShownGaussian> g = shown_gaussian(snap, i, worlds);
+    if (!g) continue;
     RosMarker m;
     m.ns = "contacts";
-    m.id = std::int32_t(g.source_index);
-    m.position = {g.center[0], g.center[1], g.center[2]};
-    const Eigen::Matrix3d r = rotation_matrix(g);
-    const Eigen::Quaterniond q = Eigen::Quaterniond(r).normalized();
+    m.id = std::int32_t(g->source_index);
+    m.position = {g->center.x(), g->center.y(), g->center.z()};
+    const Eigen::Quaterniond& q = g->rotation;
     m.orientation_xyzw = {q.x(), q.y(), q.z(), q.w()};
-    m.scale = {2.0 * g.semi_axes[0], 2.0 * g.semi_axes[1], 2.0 * g.semi_axes[2]};
+    m.scale = {2.0 * g->semi_axes[0], 2.0 * g->semi_axes[1], 2.0 * g->semi_axes[2]};
     m.rgba = {1.0f, 0.15f, 0.25f, 0.85f};
     m.lifetime = lifetime;
     out.push_back(m);
@@ -229,16 +230,42 @@ std::vector<RosMarker> contact_markers(const ContactSnapshot& snap, const Collis
   return out;
 }
 
+std::vector<RosMarker> object_markers(const ObjectPoses& poses, std::span<const Eigen::Vector3d> sizes,
+                                      double lifetime) {
+  std::vector<RosMarker> out;
+  for (std::size_t i = 0; i < poses.count && i < sizes.size(); ++i) {
+    const BodyPose& p = poses.poses[i];
+    RosMarker m;
+    m.ns = "objects";
+    m.id = std::int32_t(i);
+    m.type = RosMarker::kCube;
+    m.position = {p.position.x(), p.position.y(), p.position.z()};
+    m.orientation_xyzw = {p.rotation.x(), p.rotation.y(), p.rotation.z(), p.rotation.w()};
+    m.scale = {sizes[i].x(), sizes[i].y(), sizes[i].z()};
+    m.rgba = {0.95f, 0.55f, 0.15f, 0.6f};
+    m.lifetime = lifetime;
+    out.push_back(m);
+  }
+  return out;
+}
+
 RosMarkerLoop::RosMarkerLoop(PublishFn publish, const CollisionWorld& world, ContactSnapshotObserver& snapshots,
                              const Eigen::Vector3d& tool_axes, double hz, std::size_t max_contacts,
-                             RosBridgeStats& stats, double stale_after)
+                             RosBridgeStats& stats, double stale_after, RosObjects objects, PublishPosesFn publish_poses)
     : publish_(std::move(publish)), world_(world), snapshots_(snapshots), tool_axes_(tool_axes),
-      hz_(std::max(1.0, hz)), max_(max_contacts), stats_(stats), stale_after_(std::max(stale_after, 2.5 / hz_)) {}
+      hz_(std::max(1.0, hz)), max_(max_contacts), stats_(stats), stale_after_(std::max(stale_after, 2.5 / hz_)),
+      objects_(std::move(objects)), publish_poses_(std::move(publish_poses)) {
+  if (!objects_.empty()) {
+    pose_reader_ = objects_.poses->subscribe();
+    if (pose_reader_ < 0) throw InputError("ROS markers: the objects' pose channel has no reader slot left");
+  }
+}
 
 void RosMarkerLoop::start() {
   stop_.store(false);
   thread_ = std::thread([this] {
     ContactSnapshot snap;
+    ObjectPoses poses;  // count 0 until the first arrives
     bool have = false;
     const auto period = std::chrono::duration<double>(1.0 / hz_);
     const double lifetime = 3.0 / hz_;
@@ -252,9 +279,14 @@ void RosMarkerLoop::start() {
         have = true;
         last_new = now;
       }
+      if (!objects_.empty()) objects_.poses->read_if_new(pose_reader_, poses);
+      if (poses.count > 0 && publish_poses_) publish_poses_(poses);
       if (have) {
         const bool stale = std::chrono::duration<double>(now - last_new).count() > stale_after_;
-        publish_(stale ? clear_all : contact_markers(snap, world_, tool_axes_, max_, lifetime));
+        const SnapshotWorlds worlds{&world_, objects_.bodies, poses.count > 0 ? &poses : nullptr};
+        std::vector<RosMarker> markers = stale ? clear_all : contact_markers(snap, worlds, tool_axes_, max_, lifetime);
+        for (RosMarker& m : object_markers(poses, objects_.sizes, lifetime)) markers.push_back(std::move(m));
+        publish_(markers);
         stats_.markers_published.fetch_add(1);
       }
       std::this_thread::sleep_for(period);

@@ -113,11 +113,23 @@ void Ros1NetworkDevice::stop(Nanos now) noexcept {
 const RosBridgeStats& Ros1NetworkDevice::stats() const noexcept { return impl_->stats; }
 
 void Ros1NetworkDevice::start_markers(const CollisionWorld& world, ContactSnapshotObserver& snapshots,
-                                      const Eigen::Vector3d& tool_axes) {
+                                      const Eigen::Vector3d& tool_axes, const RosObjects& objects) {
   Ros1Impl& m = *impl_;
+  if (!objects.empty()) {
+    std::vector<std::string> topics;
+    for (std::size_t i = 0; i < objects.bodies.size(); ++i) topics.push_back(object_pose_topic(m.options.objects_topic, i));
+    m.transport->advertise_object_poses(topics);
+  }
   m.markers = std::make_unique<RosMarkerLoop>(
       [&m](const std::vector<RosMarker>& markers) { m.transport->publish_markers(markers); }, world, snapshots,
-      tool_axes, m.options.marker_hz, m.options.max_markers, m.stats, m.options.input_timeout + 0.01);
+      tool_axes, m.options.marker_hz, m.options.max_markers, m.stats, m.options.input_timeout + 0.01, objects,
+      [&m](const ObjectPoses& poses) {
+        for (std::size_t i = 0; i < poses.count; ++i) {
+          const BodyPose& p = poses.poses[i];
+          m.transport->publish_object_pose(i, {p.position.x(), p.position.y(), p.position.z()},
+                                           {p.rotation.x(), p.rotation.y(), p.rotation.z(), p.rotation.w()});
+        }
+      });
   m.markers->start();
 }
 

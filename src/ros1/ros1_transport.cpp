@@ -20,6 +20,8 @@ struct Transport::State {
   std::unique_ptr<ros::NodeHandle> nh;
   ros::Subscriber pose_sub, twist_sub, sensor_sub;
   ros::Publisher wrench_pub, marker_pub, setpoint_pub, setpoint_twist_pub;
+  std::vector<ros::Publisher> object_pubs;
+  geometry_msgs::PoseStamped object_pose;
   geometry_msgs::PoseStamped setpoint;
   geometry_msgs::TwistStamped setpoint_twist;
   std::unique_ptr<ros::AsyncSpinner> spinner;
@@ -159,6 +161,20 @@ void Transport::publish_markers(const std::vector<RosMarker>& markers) {
     m.lifetime = ros::Duration(in.lifetime);
   }
   state_->marker_pub.publish(arr);
+}
+
+void Transport::advertise_object_poses(const std::vector<std::string>& topics) {
+  for (const std::string& t : topics) state_->object_pubs.push_back(state_->nh->advertise<geometry_msgs::PoseStamped>(t, 8));
+  state_->object_pose.header.frame_id = state_->options.frame_id;
+}
+
+void Transport::publish_object_pose(std::size_t i, const std::array<double, 3>& p, const std::array<double, 4>& q) {
+  if (i >= state_->object_pubs.size()) return;
+  geometry_msgs::PoseStamped& m = state_->object_pose;
+  m.header.stamp = ros::Time::now();
+  m.pose.position.x = p[0], m.pose.position.y = p[1], m.pose.position.z = p[2];
+  m.pose.orientation.x = q[0], m.pose.orientation.y = q[1], m.pose.orientation.z = q[2], m.pose.orientation.w = q[3];
+  state_->object_pubs[i].publish(m);
 }
 
 }  // namespace gshaptics::ros1

@@ -45,6 +45,11 @@ class Transport {
   void publish_wrench(const std::array<double, 3>& force, const std::array<double, 3>& torque,
                       std::int32_t sec, std::uint32_t nanosec);
   void publish_markers(const std::vector<RosMarker>& markers);
+  /// Advertises one geometry_msgs/PoseStamped topic per name (the objects' poses, issue 72);
+  /// publish_object_pose(i, ...) then writes topic i, stamped now.
+  void advertise_object_poses(const std::vector<std::string>& topics);
+  void publish_object_pose(std::size_t i, const std::array<double, 3>& position,
+                           const std::array<double, 4>& orientation_xyzw);
   /// Admittance: the setpoint, m, x y z w, m/s and rad/s, stamped.
   void publish_setpoint(const std::array<double, 3>& position, const std::array<double, 4>& orientation_xyzw,
                         const std::array<double, 3>& velocity, const std::array<double, 3>& angular,

@@ -271,7 +271,7 @@ namespace {
 Ros2Options resolved(const Ros2Options& o, const Ros2Names& names) {
   Ros2Options r = o;
   r.node_name = names.node;
-  for (std::string* t : {&r.pose_topic, &r.twist_topic, &r.wrench_topic, &r.markers_topic, &r.sensor_topic,
+  for (std::string* t : {&r.pose_topic, &r.twist_topic, &r.wrench_topic, &r.markers_topic, &r.objects_topic, &r.sensor_topic,
                          &r.setpoint_topic, &r.setpoint_twist_topic})
     *t = names.resolve(*t);
   return r;
@@ -361,15 +361,39 @@ std::string ros2_qos_policy_name(std::uint32_t id) {
 struct Ros2MarkerPublisher::State {
   Ros2Impl& dds;
   Endpoint writer;
+  std::vector<Endpoint> pose_writers;  // one PoseStamped writer per object
   RosMarkerLoop loop;
   std::vector<visualization_msgs_msg_dds__Marker_> msgs;  // marker thread only
 
-  State(Ros2Impl& d, const CollisionWorld& w, ContactSnapshotObserver& s, const Eigen::Vector3d& axes)
+  State(Ros2Impl& d, const CollisionWorld& w, ContactSnapshotObserver& s, const Eigen::Vector3d& axes,
+        const RosObjects& objects)
       : dds(d),
         writer(make_writer(d.participant, &visualization_msgs_msg_dds__MarkerArray__desc, d.options.markers_topic,
                            d.options)),
+        pose_writers(object_writers(d, objects.empty() ? 0 : objects.bodies.size())),
         loop([this](const std::vector<RosMarker>& m) { publish(m); }, w, s, axes, d.options.marker_hz,
-             d.options.max_markers, d.stats, d.options.input_timeout + 0.01) {}
+             d.options.max_markers, d.stats, d.options.input_timeout + 0.01, objects,
+             [this](const ObjectPoses& p) { publish_poses(p); }) {}
+
+  static std::vector<Endpoint> object_writers(Ros2Impl& d, std::size_t n) {
+    std::vector<Endpoint> out;
+    for (std::size_t i = 0; i < n; ++i)
+      out.push_back(make_writer(d.participant, &geometry_msgs_msg_dds__PoseStamped__desc,
+                                object_pose_topic(d.options.objects_topic, i), d.options));
+    return out;
+  }
+
+  void publish_poses(const ObjectPoses& poses) {
+    const RosTime t = RosTime::now();
+    for (std::size_t i = 0; i < poses.count && i < pose_writers.size(); ++i) {
+      geometry_msgs_msg_dds__PoseStamped_ ps{};
+      fill_header(ps.header, t, dds.options.frame_id);
+      const BodyPose& p = poses.poses[i];
+      ps.pose.position = {p.position.x(), p.position.y(), p.position.z()};
+      ps.pose.orientation = {p.rotation.x(), p.rotation.y(), p.rotation.z(), p.rotation.w()};
+      dds_write(pose_writers[i].entity, &ps);
+    }
+  }
 
   void publish(const std::vector<RosMarker>& markers) {
     const RosTime t = RosTime::now();
@@ -404,14 +428,15 @@ struct Ros2MarkerPublisher::State {
 };
 
 Ros2MarkerPublisher::Ros2MarkerPublisher(Ros2NetworkDevice& device, const CollisionWorld& world,
-                                         ContactSnapshotObserver& snapshots, const Eigen::Vector3d& tool_axes)
-    : state_(std::make_unique<State>(device.impl(), world, snapshots, tool_axes)) {}
+                                         ContactSnapshotObserver& snapshots, const Eigen::Vector3d& tool_axes,
+                                         const RosObjects& objects)
+    : state_(std::make_unique<State>(device.impl(), world, snapshots, tool_axes, objects)) {}
 
 Ros2MarkerPublisher::~Ros2MarkerPublisher() { stop(); }
 
 void Ros2NetworkDevice::start_markers(const CollisionWorld& world, ContactSnapshotObserver& snapshots,
-                                      const Eigen::Vector3d& tool_axes) {
-  markers_ = std::make_unique<Ros2MarkerPublisher>(*this, world, snapshots, tool_axes);
+                                      const Eigen::Vector3d& tool_axes, const RosObjects& objects) {
+  markers_ = std::make_unique<Ros2MarkerPublisher>(*this, world, snapshots, tool_axes, objects);
   markers_->start();
 }
 

@@ -77,6 +77,9 @@ SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, doubl
   for (const RigidObject& o : *objects) {
     out.rest_origins.push_back(o.rest_origin);
     out.bodies.push_back(o.body);
+    Eigen::AlignedBox3d box;
+    for (const Eigen::Vector3d& p : o.hull_points) box.extend(p);
+    out.sizes.push_back(box.sizes());
   }
   out.make_renderer = [objects, support, dp, channel = out.poses](const CollisionWorld& world, const RendererSpec& spec,
                                                                   const QueryOptions& query) -> std::unique_ptr<ForceRenderer> {

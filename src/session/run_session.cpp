@@ -352,16 +352,20 @@ RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so,
     open_other_device(o, pw, std::move(opened), s);
   if (!is_hardware_device(o.device)) wrap_in_workspace_mapping(o, s);
   s.config = runtime_config_from(o, s.tool_radius, s.planned);
-  s.objects = scene_objects(pw, so, o.rate);
-  s.config.make_renderer = s.objects.make_renderer;
-  if (!s.objects.empty())  // the objects' poses for the run's objects_log.csv
-    s.objects.poses->record_into(std::make_shared<ObjectTrack>(s.objects.rest_origins.size(), runtime_log_capacity(s.config)));
+  attach_scene_objects(s, pw, so, o.rate);
   fmt::print("runtime    {} at {:.0f} Hz, {} query, {}\n", s.device->info().name, o.rate,
              describe_execution(o.exec, false),
              s.planned > 0 ? fmt::format("{:.1f} s", s.planned) : std::string("until the device ends or Ctrl-C"));
   fmt::print("control    {}\n", describe_control(o.control, o.device == "sim"));
   std::fflush(stdout);
   return s;
+}
+
+void attach_scene_objects(RuntimeSetup& s, const PreparedWorld& pw, const SceneOptions& so, double rate_hz) {
+  s.objects = scene_objects(pw, so, rate_hz);
+  s.config.make_renderer = s.objects.make_renderer;
+  if (!s.objects.empty())  // the objects' poses for the run's objects_log.csv
+    s.objects.poses->record_into(std::make_shared<ObjectTrack>(s.objects.rest_origins.size(), runtime_log_capacity(s.config)));
 }
 
 RuntimeConfig runtime_config_from(const RuntimeOptions& o, double tool_radius, double planned) {

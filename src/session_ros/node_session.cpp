@@ -84,6 +84,7 @@ int run_node(NodeOptions o) {
     wrap_in_workspace_mapping(o.run, setup);  // a desktop device's driver publishes device coordinates
   }
   setup.config = runtime_config_from(o.run, setup.tool_radius, setup.planned);
+  attach_scene_objects(setup, pw, so, o.run.rate);
   HapticRuntime rt(pw.world, *setup.device, setup.config);
   ContactSnapshotObserver snapshots(o.topics.marker_hz, MonotonicClock::instance());
   rt.set_observer(&snapshots);
@@ -97,7 +98,13 @@ int run_node(NodeOptions o) {
                      : std::string(), setup.tool_radius);
   fmt::print("node       ready\n");
   std::fflush(stdout);
-  net.start_markers(pw.world, snapshots, setup.config.tool.semi_axes);
+  RosObjects objects;
+  if (!setup.objects.empty()) {
+    objects = {setup.objects.bodies, setup.objects.poses, setup.objects.sizes};
+    fmt::print("node       {} object pose(s) out on {}/objectI (PoseStamped), boxes in the markers\n",
+               setup.objects.bodies.size(), net.wire_topic(o.topics.objects_topic));
+  }
+  net.start_markers(pw.world, snapshots, setup.config.tool.semi_axes, objects);
   const RosBridgeStats& st = net.stats();
   const auto qos_problem = [&st] {
     const std::uint64_t n = st.qos_incompatible.load();

@@ -9,6 +9,8 @@
 #include <cstdint>
 #include <ctime>
 #include <functional>
+#include <memory>
+#include <span>
 #include <string>
 #include <thread>
 #include <utility>
@@ -17,6 +19,7 @@
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/net/ros_marker.h"
 #include "gshaptics/net/contact_snapshot.h"
+#include "gshaptics/scene/object_poses.h"
 #include "gshaptics/device/haptic_device.h"
 #include "gshaptics/device/stream_device.h"
 #include "gshaptics/device/triple_buffer.h"
@@ -36,6 +39,9 @@ struct RosBridgeOptions {
   std::string twist_topic = "gshaptics/tool_twist";  ///< geometry_msgs/TwistStamped, in (optional)
   std::string wrench_topic = "gshaptics/wrench";     ///< geometry_msgs/WrenchStamped, out
   std::string markers_topic = "gshaptics/markers";   ///< visualization_msgs/MarkerArray, out
+  /// With rigid objects (--object): object I's pose (its body origin, world frame) as a
+  /// geometry_msgs/PoseStamped on OBJECTS_TOPIC/objectI, out, at the marker rate.
+  std::string objects_topic = "gshaptics/objects";
   std::string frame_id = "world";                    ///< header.frame_id of what we publish
   /// Admittance control (issue 73): the remote device is a robot with a force/torque sensor at its
   /// handle. The node then reads the sensor and writes the robot's setpoint as well.
@@ -109,13 +115,29 @@ struct RosBridgeStats {
   std::atomic<std::uint32_t> qos_last_policy{0};
 };
 
+/// A scene's rigid objects as the ROS side shows them (issue 72): their body-frame worlds (to place
+/// their contacts), the channel their live poses come through, and each one's box for its marker.
+struct RosObjects {
+  std::vector<std::shared_ptr<const CollisionWorld>> bodies;
+  std::shared_ptr<ObjectPoseChannel> poses;
+  /// Each object's box: the extents of its hull points (m), centred on its body origin.
+  std::vector<Eigen::Vector3d> sizes;
+  [[nodiscard]] bool empty() const noexcept { return bodies.empty() || !poses; }
+};
+
+/// Object I's pose topic: `objects_topic`/objectI (a ROS name).
+[[nodiscard]] inline std::string object_pose_topic(const std::string& objects_topic, std::size_t i) {
+  return objects_topic + "/object" + std::to_string(i);
+}
+
 /// A device on a ROS network: the pose comes in, the wrench goes out, markers on the side.
 class RosBridgeDevice : public HapticDevice {
  public:
   [[nodiscard]] virtual const RosBridgeStats& stats() const noexcept = 0;
-  /// Starts publishing the tool and colliding Gaussians as MarkerArrays (own thread).
+  /// Starts publishing the tool and colliding Gaussians as MarkerArrays (own thread), and with
+  /// `objects` each object's pose (PoseStamped) and box marker.
   virtual void start_markers(const CollisionWorld& world, ContactSnapshotObserver& snapshots,
-                             const Eigen::Vector3d& tool_axes) = 0;
+                             const Eigen::Vector3d& tool_axes, const RosObjects& objects) = 0;
   virtual void stop_markers() = 0;
   /// The full names of the pose, twist, wrench and markers topics on the wire.
   [[nodiscard]] virtual std::string wire_topic(const std::string& ros_name) const = 0;
@@ -261,25 +283,40 @@ class RosWrenchOutbox {
 
 /// The tool ellipsoid and the colliding Gaussians of a snapshot as markers: DELETEALL first, then
 /// the tool (ns "tool"), then one SPHERE per contact (ns "contacts", id = index into the original
-/// scene file, scale = the k-sigma ellipsoid's diameters), at most `max_contacts`, and last the
+/// scene file, scale = the k-sigma ellipsoid's diameters; an object's contact where the object is
+/// now, one whose world is not in `worlds` left out), at most `max_contacts`, and last the
 /// proxy (ns "proxy", a ghost of the tool) while the proxy force model holds the tool away from
 /// the device's pose. Every added marker carries `lifetime` s (0: none).
-[[nodiscard]] std::vector<RosMarker> contact_markers(const ContactSnapshot& snapshot,
-                                                     const CollisionWorld& world,
+[[nodiscard]] std::vector<RosMarker> contact_markers(const ContactSnapshot& snapshot, const SnapshotWorlds& worlds,
                                                      const Eigen::Vector3d& tool_axes,
                                                      std::size_t max_contacts, double lifetime = 0);
+[[nodiscard]] inline std::vector<RosMarker> contact_markers(const ContactSnapshot& snapshot,
+                                                            const CollisionWorld& world,
+                                                            const Eigen::Vector3d& tool_axes,
+                                                            std::size_t max_contacts, double lifetime = 0) {
+  return contact_markers(snapshot, SnapshotWorlds{&world, {}, nullptr}, tool_axes, max_contacts, lifetime);
+}
+
+/// Each object as a CUBE marker (ns "objects", id I) at its pose, `sizes[I]` its extents, with
+/// `lifetime` s. Objects without a size are left out.
+[[nodiscard]] std::vector<RosMarker> object_markers(const ObjectPoses& poses, std::span<const Eigen::Vector3d> sizes,
+                                                    double lifetime = 0);
 
 /// Publishes contact_markers() of the newest snapshot at `hz` from its own thread, every period
 /// whether or not the snapshot is new (each marker lives three periods, so a node that dies leaves
 /// nothing behind). When no new snapshot arrived for `stale_after` s (at least 2.5 periods; the
 /// poses stopped: the
 /// watchdog zeroed the force), it publishes a lone DELETEALL instead, and once more at stop().
+/// With objects, every period also hands the objects' newest poses to `publish_poses` (once the
+/// first has arrived) and adds their markers (object_markers) after the contacts'.
 class RosMarkerLoop {
  public:
   using PublishFn = std::function<void(const std::vector<RosMarker>&)>;
+  using PublishPosesFn = std::function<void(const ObjectPoses&)>;
+  /// Throws InputError when the objects' channel has no reader slot left.
   RosMarkerLoop(PublishFn publish, const CollisionWorld& world, ContactSnapshotObserver& snapshots,
                 const Eigen::Vector3d& tool_axes, double hz, std::size_t max_contacts, RosBridgeStats& stats,
-                double stale_after = 0.1);
+                double stale_after = 0.1, RosObjects objects = {}, PublishPosesFn publish_poses = {});
   ~RosMarkerLoop() { stop(); }
   void start();
   void stop();
@@ -293,6 +330,9 @@ class RosMarkerLoop {
   std::size_t max_;
   RosBridgeStats& stats_;
   double stale_after_;
+  RosObjects objects_;
+  PublishPosesFn publish_poses_;
+  int pose_reader_ = -1;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

@@ -11,6 +11,7 @@
 namespace gshaptics {
 
 struct RosMarker {
+  static constexpr std::int32_t kCube = 1;       ///< visualization_msgs/Marker CUBE
   static constexpr std::int32_t kSphere = 2;     ///< visualization_msgs/Marker SPHERE
   static constexpr std::int32_t kAdd = 0;        ///< ADD
   static constexpr std::int32_t kDeleteAll = 3;  ///< DELETEALL

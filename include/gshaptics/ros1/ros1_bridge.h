@@ -43,7 +43,7 @@ class Ros1NetworkDevice final : public RosBridgeDevice {
   [[nodiscard]] bool finished() const noexcept override;
   [[nodiscard]] const RosBridgeStats& stats() const noexcept override;
   void start_markers(const CollisionWorld& world, ContactSnapshotObserver& snapshots,
-                     const Eigen::Vector3d& tool_axes) override;
+                     const Eigen::Vector3d& tool_axes, const RosObjects& objects) override;
   void stop_markers() override;
   [[nodiscard]] std::string wire_topic(const std::string& ros_name) const override;
   [[nodiscard]] std::string shutdown_reason() const override;

@@ -70,7 +70,7 @@ class Ros2NetworkDevice final : public RosBridgeDevice {
   void stop(Nanos now) noexcept override;
   [[nodiscard]] const RosBridgeStats& stats() const noexcept override;
   void start_markers(const CollisionWorld& world, ContactSnapshotObserver& snapshots,
-                     const Eigen::Vector3d& tool_axes) override;
+                     const Eigen::Vector3d& tool_axes, const RosObjects& objects) override;
   void stop_markers() override;
   [[nodiscard]] std::string wire_topic(const std::string& ros_name) const override {
     return ros2_dds_topic(names_.resolve(ros_name));
@@ -88,15 +88,18 @@ class Ros2NetworkDevice final : public RosBridgeDevice {
   std::unique_ptr<Ros2MarkerPublisher> markers_;
 };
 
-/// Publishes MarkerArrays (tool ellipsoid + colliding Gaussians) from contact snapshots.
 /// The name of a DDS QoS policy id (RosBridgeStats::qos_last_policy), e.g. "RELIABILITY".
 [[nodiscard]] std::string ros2_qos_policy_name(std::uint32_t id);
 
+/// Publishes MarkerArrays (tool ellipsoid + colliding Gaussians, and the objects' boxes) from
+/// contact snapshots, and the objects' poses.
 class Ros2MarkerPublisher {
  public:
-  /// Uses the device's participant; `tool_axes` are the tool's semi-axes, m.
+  /// Uses the device's participant; `tool_axes` are the tool's semi-axes, m. With `objects`, also
+  /// writes each object's PoseStamped (object_pose_topic) at the marker rate.
   Ros2MarkerPublisher(Ros2NetworkDevice& device, const CollisionWorld& world,
-                      ContactSnapshotObserver& snapshots, const Eigen::Vector3d& tool_axes);
+                      ContactSnapshotObserver& snapshots, const Eigen::Vector3d& tool_axes,
+                      const RosObjects& objects = {});
   ~Ros2MarkerPublisher();
   void start();
   void stop();

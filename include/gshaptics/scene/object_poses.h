@@ -95,7 +95,7 @@ class ObjectTrack {
 ///
 /// Threading: subscribe() from any thread (once per reader, before its reads); write() from one
 /// thread; read_if_new(r) from the thread that holds reader slot r. All lock-free and
-/// allocation-free; write() costs one copy of ObjectPoses per subscribed reader.
+/// allocation-free; write() costs kMaxReaders copies of ObjectPoses (about 5 KB).
 class ObjectPoseChannel {
  public:
   static constexpr int kMaxReaders = 4;
@@ -111,10 +111,11 @@ class ObjectPoseChannel {
   /// (a run's logs: RuntimeSetup); the channel keeps it alive.
   void record_into(std::shared_ptr<ObjectTrack> track) noexcept { track_ = std::move(track); }
   [[nodiscard]] const std::shared_ptr<ObjectTrack>& track() const noexcept { return track_; }
-  /// The writer: publishes `poses` to every subscribed reader (and the track).
+  /// The writer: publishes `poses` to every reader slot, subscribed or not yet (so a reader that
+  /// subscribes later still gets the newest value, even if nothing is written after it came: the
+  /// dynamics only step while the device sends poses), and to the track.
   void write(const ObjectPoses& poses) noexcept {
-    const int n = readers_.load(std::memory_order_acquire);
-    for (int r = 0; r < n; ++r) buffers_[std::size_t(r)].write(poses);
+    for (TripleBuffer<ObjectPoses>& b : buffers_) b.write(poses);
     if (track_) track_->push(poses);
   }
   /// Reader `reader` (from subscribe()): the newest value into `out` when one was written since

@@ -117,6 +117,10 @@ void check_device_option(const std::string& device, bool allow_mouse);
 [[nodiscard]] Eigen::Vector3d tool_start_point(const PreparedWorld& pw, double tool_radius);
 /// The device, its workspace mapping and the runtime configuration for a run over `pw`.
 /// `opened`: the registry's device validate_runtime_options() opened (null: opened here).
+/// The scene's rigid objects (so.objects, cut into pw) for a run of `s`: setup.objects, their
+/// renderer factory as s.config.make_renderer (set s.config first), and a track of their poses
+/// for the run's objects_log.csv. Nothing without objects. Throws as scene_objects().
+void attach_scene_objects(RuntimeSetup& s, const PreparedWorld& pw, const SceneOptions& so, double rate_hz);
 RuntimeSetup make_runtime_setup(const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw,
                                 bool allow_mouse, std::unique_ptr<HapticDevice> opened = nullptr);
 

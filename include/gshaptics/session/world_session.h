@@ -186,6 +186,8 @@ struct SceneObjects {
   std::vector<Eigen::Vector3d> rest_origins;
   /// Each object's Gaussians in its body frame (RigidObject::body), to draw its contacts.
   std::vector<std::shared_ptr<const CollisionWorld>> bodies;
+  /// Each object's box: the extents of its hull points (m), centred on its body origin.
+  std::vector<Eigen::Vector3d> sizes;
   [[nodiscard]] bool empty() const noexcept { return rest_origins.empty(); }
 };
 
