@@ -30,6 +30,7 @@
 #include "gshaptics/session/probe_session.h"
 #ifdef GSHAPTICS_HAVE_OBJECTS
 #include "gshaptics/session/object_session.h"
+#include "gshaptics/objects/object_renderer.h"
 #endif
 
 namespace py = pybind11;
@@ -638,6 +639,102 @@ PYBIND11_MODULE(gshaptics, m) {
       .def("reset", [](PyPaper& p) { p.paper->reset(); });
 
 #ifdef GSHAPTICS_HAVE_OBJECTS
+  // A scene with rigid objects (issue 72) as the CLI's --object makes it, for a loop of one's own.
+  struct PyObjectScene {
+    std::shared_ptr<CollisionWorld> world;  // the static part
+    std::vector<RigidObject> objects;
+    std::shared_ptr<ObjectDynamics> dynamics;
+    std::unique_ptr<ObjectRenderer> renderer;
+  };
+  py::class_<PyObjectScene>(m, "ObjectScene",
+      "A scene with rigid objects (as `--object`): the objects are cut from `scene` by their specs "
+      "('box:X0,Y0,Z0,X1,Y1,Z1' world frame, m, or 'indices:I,J,...', then ':mass=KG', ':friction=MU'), "
+      "each keeps its Gaussians in its body frame, MuJoCo moves them on a plane under their lowest "
+      "point (normal the world's up), and the proxy (god-object) renders the static part and each "
+      "object; each object gets the reaction of the coupling force as an external wrench. One per "
+      "device; not thread-safe. Raises InputError for a bad spec or an object with no Gaussian.")
+      .def(py::init([](const GaussianScene& s, const std::vector<std::string>& specs, float min_opacity, double sigma,
+                       const py::object& registration, const std::string& up, double rate_hz) {
+             if (!(rate_hz > 0)) throw py::value_error("rate_hz: must be > 0");
+             WorldConfig cfg;
+             cfg.min_opacity = min_opacity;
+             cfg.sigma = sigma;
+             cfg.up = parse_up_axis(up, "up");
+             cfg.registration = registration_from(registration);
+             std::vector<ObjectSpec> parsed;
+             for (const std::string& t : specs) parsed.push_back(parse_object_spec(t, "ObjectScene"));
+             if (parsed.empty()) throw py::value_error("specs: give at least one object");
+             py::gil_scoped_release release;
+             SceneCut cut = cut_objects(s, with_up_axis(cfg.registration, cfg.up, s.frame), parsed, min_opacity);
+             PyObjectScene out;
+             out.world = std::make_shared<CollisionWorld>(CollisionWorld::build(std::move(cut.rest), cfg));
+             for (std::size_t i = 0; i < parsed.size(); ++i)
+               out.objects.push_back(make_rigid_object(cut.objects[i], parsed[i], cfg));
+             DynamicsParams dp;
+             dp.timestep = 1.0 / rate_hz;
+             out.dynamics = std::make_shared<ObjectDynamics>(out.objects, support_under(out.objects, out.world->up()), dp);
+             out.renderer = make_object_renderer(renderer_spec(RendererKind::kProxy), *out.world, out.objects, out.dynamics);
+             return out;
+           }),
+           py::arg("scene"), py::arg("specs"), py::arg("min_opacity") = kDefaultMinOpacity, py::arg("sigma") = 1.0,
+           py::arg("registration") = py::none(), py::arg("up") = "none", py::arg("rate_hz") = RuntimeConfig{}.rate_hz)
+      .def("__len__", [](const PyObjectScene& o) { return o.objects.size(); })
+      .def_property_readonly("static_size", [](const PyObjectScene& o) { return o.world->size(); },
+                             "Gaussians of the static part (after the filter)")
+      .def_property_readonly("rest_origins", [](const PyObjectScene& o) {
+             std::vector<Eigen::Vector3d> r;
+             for (const RigidObject& x : o.objects) r.push_back(x.rest_origin);
+             return rows_to_array<double>(r, 3);
+           }, "(N, 3) each object's body origin at rest, world frame, m (the centre of its hull's box)")
+      .def("render", [](PyObjectScene& o, const py::object& center, double radius, const py::object& velocity, double dt) {
+             if (!(dt > 0)) throw py::value_error("dt: must be > 0 seconds");
+             const ToolEllipsoid t = ToolEllipsoid::sphere(vec3(center, "center"), radius);
+             if (!t.valid()) throw py::value_error("center/radius: finite values and radius > 0 required");
+             const Eigen::Vector3d v = vec3(velocity, "velocity");
+             RenderOutput out;
+             {
+               py::gil_scoped_release release;
+               out = o.renderer->render(t, v, dt);
+             }
+             py::dict d;
+             d["force"] = Eigen::Vector3d(out.force);
+             d["proxy"] = Eigen::Vector3d(out.proxy);
+             d["contacts"] = out.counts.contacts;
+             return d;
+           },
+           py::arg("center"), py::arg("radius"), py::arg("velocity"), py::arg("dt"),
+           "One tick with a spherical tool: centre (3,) m, radius m, velocity (3,) m/s, dt s; the objects' "
+           "dynamics advance by dt (MuJoCo steps of 1 / rate_hz). Returns a dict: force (3,) N on the "
+           "hand, proxy (3,) m, contacts.")
+      .def("poses", [](const PyObjectScene& o) {
+             const ObjectPoses& p = o.dynamics->state();
+             std::vector<Eigen::Vector3d> pos, lin, ang, f, tau;
+             std::vector<Eigen::Vector4d> rot;
+             for (std::size_t i = 0; i < p.count; ++i) {
+               const BodyPose& b = p.poses[i];
+               pos.push_back(b.position);
+               rot.push_back(Eigen::Vector4d(b.rotation.w(), b.rotation.x(), b.rotation.y(), b.rotation.z()));
+               lin.push_back(b.linear_velocity);
+               ang.push_back(b.angular_velocity);
+               f.push_back(p.wrenches[i].force);
+               tau.push_back(p.wrenches[i].torque);
+             }
+             py::dict d;
+             d["time"] = p.time;
+             d["position"] = rows_to_array<double>(pos, 3);
+             d["rotation"] = rows_to_array<double>(rot, 4);
+             d["linear_velocity"] = rows_to_array<double>(lin, 3);
+             d["angular_velocity"] = rows_to_array<double>(ang, 3);
+             d["wrench_force"] = rows_to_array<double>(f, 3);
+             d["wrench_torque"] = rows_to_array<double>(tau, 3);
+             return d;
+           },
+           "The objects now: time (s), position (N, 3) of each body origin (m), rotation (N, 4) w first, "
+           "linear_velocity (N, 3) m/s and angular_velocity (N, 3) rad/s, and the hand's wrench on each "
+           "over the last dynamics step: wrench_force (N, 3) N and wrench_torque (N, 3) N m about its centre "
+           "of mass. World frame.")
+      .def("reset", [](PyObjectScene& o) { o.renderer->reset(); }, "Forgets the proxies; the objects back at rest.");
+
   m.def("push_scenario",
         [](double mass, double friction, double rate_hz, const std::string& force_model, bool passivity) {
           // `gshaptics simulate --scenario push`, as a library call (objects/push_scenario.h).
