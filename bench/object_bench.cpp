@@ -75,6 +75,36 @@ void BM_ObjectTick(benchmark::State& state) {
 }
 BENCHMARK(BM_ObjectTick)->Arg(0)->Arg(1)->Iterations(20000)->Unit(benchmark::kMicrosecond);
 
+// The MuJoCo step alone, the box sliding under a steady push of twice mu m g at its centre of
+// mass (arg 1), or resting untouched and awake (arg 0: the step a resting box costs before it sleeps).
+void BM_DynamicsStep(benchmark::State& state) {
+  static Bench bench;
+  ObjectDynamics d(bench.objects, support_under(bench.objects, Eigen::Vector3d::UnitZ()));
+  const Eigen::Vector3d push(2 * 0.3 * 0.4 * 9.81, 0, 0);
+  std::vector<double> steps;
+  steps.reserve(1 << 20);
+  int k = 0;
+  for (auto _ : state) {
+    if (k % 1000 == 0) {
+      state.PauseTiming();
+      d.reset();
+      state.ResumeTiming();
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    if (state.range(0) == 1) d.apply_wrench(0, push, d.center_of_mass(0));
+    d.step();
+    const auto t1 = std::chrono::steady_clock::now();
+    if (steps.size() < steps.capacity()) steps.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
+    ++k;
+  }
+  std::sort(steps.begin(), steps.end());
+  if (!steps.empty()) {
+    state.counters["p50_us"] = steps[steps.size() / 2];
+    state.counters["p99_us"] = steps[std::min(steps.size() - 1, steps.size() * 99 / 100)];
+  }
+}
+BENCHMARK(BM_DynamicsStep)->Arg(0)->Arg(1)->Iterations(20000)->Unit(benchmark::kMicrosecond);
+
 }  // namespace
 }  // namespace gshaptics
 
