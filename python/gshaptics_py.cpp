@@ -648,7 +648,8 @@ PYBIND11_MODULE(gshaptics, m) {
   };
   py::class_<PyObjectScene>(m, "ObjectScene",
       "A scene with rigid objects (as `--object`): the objects are cut from `scene` by their specs "
-      "('box:X0,Y0,Z0,X1,Y1,Z1' world frame, m, or 'indices:I,J,...', then ':mass=KG', ':friction=MU'), "
+      "('box:X0,Y0,Z0,X1,Y1,Z1' world frame, m, 'indices:I,J,...', or 'file:PATH[:registration=FILE.json]' "
+      "for a splat file of its own, then ':mass=KG', ':friction=MU'), "
       "each keeps its Gaussians in its body frame, MuJoCo moves them on a plane under their lowest "
       "point (normal the world's up), and the proxy (god-object) renders the static part and each "
       "object; each object gets the reaction of the coupling force as an external wrench. One per "
@@ -666,6 +667,7 @@ PYBIND11_MODULE(gshaptics, m) {
              if (parsed.empty()) throw py::value_error("specs: give at least one object");
              py::gil_scoped_release release;
              SceneCut cut = cut_objects(s, with_up_axis(cfg.registration, cfg.up, s.frame), parsed, min_opacity);
+             load_file_objects(cut, parsed, cfg.up, min_opacity);
              PyObjectScene out;
              out.world = std::make_shared<CollisionWorld>(CollisionWorld::build(std::move(cut.rest), cfg));
              for (std::size_t i = 0; i < parsed.size(); ++i)

@@ -13,6 +13,7 @@
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/error.h"
+#include "gshaptics/io/scene_writer.h"
 #include "gshaptics/objects/object_dynamics.h"
 #include "gshaptics/objects/object_renderer.h"
 #include "gshaptics/objects/push_scenario.h"
@@ -301,6 +302,49 @@ TEST(ObjectPoseChannel, ReadersAndTheTrackSeeEachStepsPoseAndTheAppliedWrench) {
   EXPECT_EQ(lines, track.rows());
 }
 
+// An object from a splat file of its own: placed in the world by its registration (and --up as
+// the scene is), its colour kept; the cut leaves the scene whole for it; bad specs and files
+// are errors that name them.
+TEST(SceneCut, AFileObjectIsPlacedByItsOwnRegistration) {
+  GaussianScene box = box_surface_gaussians(Eigen::Vector3d::Zero(), Eigen::Vector3d(0.05, 0.04, 0.03), 0.01);
+  box.colors_dc.assign(box.size(), Eigen::Vector3f(1, 0, 0));
+  const std::string dir = testing::TempDir();
+  const std::string ply = dir + "/file_object.ply", reg = dir + "/file_object_reg.json";
+  write_scene(ply, box);
+  {
+    std::ofstream(reg) << R"({"scale": 2, "translation": [1, 0, 0.5]})";
+  }
+  const ObjectSpec spec = parse_object_spec("file:" + ply + ":registration=" + reg + ":mass=0.3");
+  EXPECT_EQ(spec.cut, ObjectSpec::Cut::kFile);
+  EXPECT_EQ(spec.file, ply);
+  EXPECT_EQ(spec.registration_file, reg);
+  EXPECT_EQ(spec.mass, 0.3);
+  const GaussianScene placed = object_from_file(spec, UpAxis::kNone, 0.2f);
+  ASSERT_EQ(placed.size(), box.size());
+  for (std::size_t i = 0; i < box.size(); i += 37) {
+    EXPECT_NEAR((placed.means[i].cast<double>() - (2 * box.means[i].cast<double>() + Eigen::Vector3d(1, 0, 0.5))).norm(), 0, 1e-6);
+    EXPECT_NEAR(placed.scales[i].x(), 2 * box.scales[i].x(), 1e-6);
+  }
+  ASSERT_EQ(placed.colors_dc.size(), placed.size());
+  EXPECT_NEAR(placed.colors_dc[0].x(), 1.0f, 1e-6);
+  // Beside a scene: the cut claims none of the scene's Gaussians for it; load_file_objects fills it.
+  const GaussianScene scene = box_surface_gaussians(Eigen::Vector3d::Zero(), Eigen::Vector3d(0.2, 0.2, 0.01), 0.02);
+  const std::vector<ObjectSpec> specs{spec};
+  SceneCut cut = cut_objects(scene, SimilarityTransform{}, specs, 0.2f);
+  EXPECT_EQ(cut.rest.size(), scene.size());
+  EXPECT_TRUE(cut.objects[0].empty());
+  load_file_objects(cut, specs, UpAxis::kNone, 0.2f);
+  EXPECT_EQ(cut.objects[0].size(), box.size());
+  EXPECT_THROW((void)parse_object_spec("box:0,0,0,1,1,1:registration=" + reg), InputError);
+  EXPECT_THROW((void)parse_object_spec("file:"), InputError);
+  try {
+    (void)object_from_file(parse_object_spec("file:" + dir + "/missing.ply"), UpAxis::kNone, 0.2f);
+    FAIL() << "a missing file loaded";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.ply"), std::string::npos) << e.what();
+  }
+}
+
 // A track full of rows drops and counts the rest rather than allocating.
 TEST(ObjectTrack, DropsPastItsCapacity) {
   ObjectTrack track(2, 3);
@@ -435,6 +479,9 @@ TEST(ObjectRenderer, AnObjectAtRestIsFeltAsTheSameGaussiansHeldStill) {
 
 // Where the cut left a hole (no static Gaussian under the object), the support plane carries the
 // hand: a sphere pressed 3 mm below the plane beside the box feels k_c * 3 mm straight up.
+// Where the box stood, the capture has a hole; once the box is pushed away, the hand lowered
+// there meets the support plane (spring k_c), and nowhere else: not beside the footprint, and
+// not a hand that starts deep under the plane (it never reached it from above).
 TEST(ObjectRenderer, TheSupportPlaneCarriesTheHandWhereTheCutLeftAHole) {
   const std::vector<RigidObject> objects{box_object(Eigen::Vector3d(0.05, 0.04, 0.03), 0.4, 0.3)};
   const CollisionWorld far = CollisionWorld::build(
@@ -442,15 +489,30 @@ TEST(ObjectRenderer, TheSupportPlaneCarriesTheHandWhereTheCutLeftAHole) {
   auto dynamics = std::make_shared<ObjectDynamics>(objects, support_under(objects, Eigen::Vector3d::UnitZ()));
   const auto renderer = make_object_renderer(RendererSpec{}, far, objects, dynamics);
   const double r = 0.008, plane = dynamics->support().point.z(), k = ProxyParams{}.stiffness;
+  const Eigen::Vector3d away(0.5, 0, plane + 0.2);  // the hand far from everything
+  // Push the box 15 cm along +y, out of its footprint.
+  for (int t = 0; t < 1500 && dynamics->pose(0).position.y() < 0.15; ++t) {
+    dynamics->apply_wrench(0, Eigen::Vector3d(0, 4 * 0.3 * 0.4 * kG, 0), dynamics->center_of_mass(0));
+    (void)renderer->render(ToolEllipsoid::sphere(away, r), Eigen::Vector3d::Zero(), 1e-3);
+  }
+  ASSERT_GT(dynamics->pose(0).position.y(), 0.15);
   RenderOutput out;
-  for (int k_tick = 0; k_tick < 400; ++k_tick) {  // down beside the box to 3 mm past the plane, then held
-    const double z = std::max(plane + r - 0.003, plane + r + 0.01 - k_tick * 5e-5);
-    out = renderer->render(ToolEllipsoid::sphere(Eigen::Vector3d(0.15, 0, z), r), Eigen::Vector3d::Zero(), 1e-3);
+  for (int t = 0; t < 400; ++t) {  // down where the box stood to 3 mm past the plane, then held
+    const double z = std::max(plane + r - 0.003, plane + r + 0.01 - t * 5e-5);
+    out = renderer->render(ToolEllipsoid::sphere(Eigen::Vector3d(0.02, 0, z), r), Eigen::Vector3d::Zero(), 1e-3);
   }
   EXPECT_NEAR(out.force.z(), k * 0.003, 0.01 * k * 0.003);
   EXPECT_LT(out.force.head<2>().norm(), 1e-9);
   // Above the plane nothing pushes.
-  out = renderer->render(ToolEllipsoid::sphere(Eigen::Vector3d(0.15, 0, plane + r + 0.001), r), Eigen::Vector3d::Zero(), 1e-3);
+  out = renderer->render(ToolEllipsoid::sphere(Eigen::Vector3d(0.02, 0, plane + r + 0.001), r), Eigen::Vector3d::Zero(), 1e-3);
+  EXPECT_EQ(out.force.norm(), 0.0);
+  // Beside the footprint, 3 mm under the plane: the scene (here: none) holds the hand, not the plane.
+  for (int t = 0; t < 10; ++t)
+    out = renderer->render(ToolEllipsoid::sphere(Eigen::Vector3d(0.15, -0.1, plane + r - 0.003), r), Eigen::Vector3d::Zero(), 1e-3);
+  EXPECT_EQ(out.force.norm(), 0.0);
+  // A hand that arrives deep under the plane (from beside it, under the scene) is not shoved up.
+  for (int t = 0; t < 10; ++t)
+    out = renderer->render(ToolEllipsoid::sphere(Eigen::Vector3d(0.02, 0, plane - 0.05), r), Eigen::Vector3d::Zero(), 1e-3);
   EXPECT_EQ(out.force.norm(), 0.0);
 }
 

@@ -56,11 +56,12 @@ void add_object_option(CLI::App& app, SceneOptions& o) {
          [&o](const std::vector<std::string>& specs) {
            for (const std::string& spec : specs) o.objects.push_back(parse_object_spec(spec, "--object"));
          },
-         fmt::format("A rigid object cut from the scene, moved by MuJoCo (repeatable, at most {}): "
+         fmt::format("A rigid object, moved by MuJoCo (repeatable, at most {}): cut from the scene, "
                      "box:X0,Y0,Z0,X1,Y1,Z1 (the Gaussians whose world-frame centre is in the box, m) or "
-                     "indices:I,J,... (the file's Gaussians), then optional :mass=KG (default {:g}) and "
-                     ":friction=MU (default {:g}). It rests on a plane under its lowest point; the scene keeps "
-                     "a hole where it stood",
+                     "indices:I,J,... (the file's Gaussians), or a splat file of its own, "
+                     "file:PATH[:registration=FILE.json] (placed like the scene, --up included); then optional "
+                     ":mass=KG (default {:g}) and :friction=MU (default {:g}). Objects rest on a plane under their "
+                     "lowest point; a cut leaves a hole where the object stood",
                      kMaxObjects, kDefaultObjectMass, kDefaultObjectFriction))
       ->type_name("SPEC")->allow_extra_args(false);
 }

@@ -43,12 +43,14 @@ void add_to(RenderOutput& sum, const RenderOutput& part, bool holds_proxy) noexc
 
 ObjectRenderer::ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector<std::unique_ptr<ForceRenderer>> bodies,
                                std::vector<std::shared_ptr<const CollisionWorld>> worlds,
-                               std::shared_ptr<ObjectDynamics> dynamics, const Eigen::Vector2d& support_coupling)
+                               std::shared_ptr<ObjectDynamics> dynamics, const Eigen::Vector2d& support_coupling,
+                               std::vector<Eigen::AlignedBox2d> holes)
     : scene_(std::move(scene)),
       bodies_(std::move(bodies)),
       worlds_(std::move(worlds)),
       dynamics_(std::move(dynamics)),
-      support_coupling_(support_coupling) {
+      support_coupling_(support_coupling),
+      holes_(std::move(holes)) {
   if (!scene_ || !dynamics_) throw InputError("objects: a renderer needs the scene's renderer and the dynamics");
   if (bodies_.size() != dynamics_->size() || worlds_.size() != bodies_.size())
     throw InputError("objects: " + std::to_string(bodies_.size()) + " renderers for " +
@@ -79,6 +81,7 @@ void ObjectRenderer::reset() noexcept {
   reaction_.fill({});
   merged_.clear();
   pending_ = 0;
+  support_held_.fill(false);
 }
 
 void ObjectRenderer::set_executor(ParallelExecutor* executor, std::size_t min_candidates) {
@@ -110,15 +113,51 @@ void ObjectRenderer::step_dynamics(double dt) noexcept {
   if (steps == kMaxDynamicsSteps) pending_ = 0;  // a stall is not made up for
 }
 
+std::array<Eigen::Vector3d, 2> support_axes(const SupportPlane& plane) noexcept {
+  const Eigen::Vector3d n = plane.normal.normalized();
+  const Eigen::Vector3d a = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d u = (a - n.dot(a) * n).normalized();
+  return {u, n.cross(u)};
+}
+
+std::vector<Eigen::AlignedBox2d> support_holes(std::span<const RigidObject> objects, const SupportPlane& plane) {
+  const std::array<Eigen::Vector3d, 2> uv = support_axes(plane);
+  std::vector<Eigen::AlignedBox2d> out;
+  for (const RigidObject& o : objects) {
+    Eigen::AlignedBox2d box;
+    for (const Eigen::Vector3d& p : o.hull_points) {
+      const Eigen::Vector3d x = o.rest_origin + p;
+      box.extend(Eigen::Vector2d(uv[0].dot(x), uv[1].dot(x)));
+    }
+    out.push_back(box);
+  }
+  return out;
+}
+
+bool ObjectRenderer::in_hole(const Eigen::Vector3d& p) const noexcept {
+  const std::array<Eigen::Vector3d, 2> uv = support_axes(dynamics_->support());
+  const Eigen::Vector2d q(uv[0].dot(p), uv[1].dot(p));
+  return std::any_of(holes_.begin(), holes_.end(), [&q](const Eigen::AlignedBox2d& b) { return b.contains(q); });
+}
+
 void ObjectRenderer::add_support(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
                                  const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
-                                 RenderOutput& sum) const noexcept {
+                                 RenderOutput& sum) noexcept {
   const SupportPlane& plane = dynamics_->support();
   const Eigen::Vector3d& n = plane.normal;
-  for (const ToolEllipsoid& part : parts) {
+  for (std::size_t k = 0; k < parts.size() && k < support_held_.size(); ++k) {
+    const ToolEllipsoid& part = parts[k];
     const Eigen::Vector3d lowest = part.surface_point(-n);  // the part's support point along -n
     const double depth = n.dot(plane.point - lowest);
-    if (!(depth > 0)) continue;
+    bool& held = support_held_[k];
+    if (!(depth > 0) || !in_hole(lowest)) {
+      held = false;
+      continue;
+    }
+    // A part first met under the plane is held only if it is within a semi-axis of it (it came
+    // down onto it, or across from the scene beside the hole), never from deep under the scene.
+    if (!held) held = depth <= double(part.semi_axes.maxCoeff());
+    if (!held) continue;
     const Eigen::Vector3d v = velocity + angular_velocity.cross(lowest - tcp);
     const double push = std::max(0.0, support_coupling_.x() * depth - support_coupling_.y() * v.dot(n));
     const Eigen::Vector3d f = push * n;
@@ -192,8 +231,10 @@ std::unique_ptr<ObjectRenderer> make_object_renderer(const RendererSpec& spec, c
   // The support plane's coupling is the proxy's (the paper model's runs get the proxy's defaults).
   const ProxyParams proxy = std::holds_alternative<ProxyModelSpec>(spec) ? std::get<ProxyModelSpec>(spec).params
                                                                          : ProxyParams{};
+  std::vector<Eigen::AlignedBox2d> holes = support_holes(objects, dynamics->support());
   return std::make_unique<ObjectRenderer>(make_force_renderer(spec, scene, query), std::move(bodies), std::move(worlds),
-                                          std::move(dynamics), Eigen::Vector2d(proxy.stiffness, proxy.damping));
+                                          std::move(dynamics), Eigen::Vector2d(proxy.stiffness, proxy.damping),
+                                          std::move(holes));
 }
 
 }  // namespace gshaptics

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "gshaptics/error.h"
+#include "gshaptics/io/scene_loader.h"
 
 namespace gshaptics {
 namespace {
@@ -24,8 +25,8 @@ std::vector<std::string_view> split(std::string_view text, char sep) {
 
 InputError spec_error(const std::string& source, std::string_view text, const std::string& what) {
   return InputError(source + " '" + std::string(text) + "': " + what +
-                    " (expected box:X0,Y0,Z0,X1,Y1,Z1 or indices:I,J,... then optional :mass=KG and "
-                    ":friction=MU)");
+                    " (expected box:X0,Y0,Z0,X1,Y1,Z1, indices:I,J,... or file:PATH[:registration=FILE.json], "
+                    "then optional :mass=KG and :friction=MU)");
 }
 
 double parse_number(std::string_view field, const std::string& source, std::string_view text) {
@@ -63,6 +64,12 @@ void parse_property(std::string_view field, ObjectSpec& spec, const std::string&
   const std::size_t eq = field.find('=');
   const std::string_view key = field.substr(0, eq);
   if (eq == std::string_view::npos) throw spec_error(source, text, "'" + std::string(field) + "' is not KEY=VALUE");
+  if (key == "registration") {
+    if (spec.cut != ObjectSpec::Cut::kFile) throw spec_error(source, text, "registration= is for file objects");
+    spec.registration_file = std::string(field.substr(eq + 1));
+    if (spec.registration_file.empty()) throw spec_error(source, text, "registration= names no file");
+    return;
+  }
   const double v = parse_number(field.substr(eq + 1), source, text);
   if (key == "mass") {
     if (!(v > 0)) throw spec_error(source, text, "mass must be > 0 kg");
@@ -71,11 +78,12 @@ void parse_property(std::string_view field, ObjectSpec& spec, const std::string&
     if (!(v >= 0)) throw spec_error(source, text, "friction must be >= 0");
     spec.friction = v;
   } else {
-    throw spec_error(source, text, "unknown property '" + std::string(key) + "' (mass, friction)");
+    throw spec_error(source, text, "unknown property '" + std::string(key) + "' (mass, friction, registration)");
   }
 }
 
 bool claims(const ObjectSpec& spec, const Eigen::Vector3d& world_center, std::uint32_t source_index) {
+  if (spec.cut == ObjectSpec::Cut::kFile) return false;  // its Gaussians come from its own file
   if (spec.cut == ObjectSpec::Cut::kIndices)
     return std::binary_search(spec.indices.begin(), spec.indices.end(), source_index);
   return (world_center.array() >= spec.box_lo.array()).all() && (world_center.array() <= spec.box_hi.array()).all();
@@ -110,6 +118,10 @@ ObjectSpec parse_object_spec(std::string_view text, const std::string& source) {
   } else if (parts[0] == "indices") {
     spec.cut = ObjectSpec::Cut::kIndices;
     parse_indices(parts[1], spec, source, text);
+  } else if (parts[0] == "file") {
+    spec.cut = ObjectSpec::Cut::kFile;
+    spec.file = std::string(parts[1]);
+    if (spec.file.empty()) throw spec_error(source, text, "file: names no file");
   } else {
     throw spec_error(source, text, "unknown cut '" + std::string(parts[0]) + "'");
   }
@@ -140,10 +152,35 @@ SceneCut cut_objects(const GaussianScene& scene, const SimilarityTransform& scen
   }
   cut.rest.frame = scene.frame;
   for (std::size_t k = 0; k < specs.size(); ++k)
-    if (kept[k] == 0)
+    if (kept[k] == 0 && specs[k].cut != ObjectSpec::Cut::kFile)
       throw InputError("--object '" + specs[k].text + "': no Gaussian with opacity above " +
                        format_number(min_opacity) + " is in this object");
   return cut;
+}
+
+GaussianScene object_from_file(const ObjectSpec& spec, UpAxis up, float min_opacity) {
+  LoadOptions lo;
+  lo.keep_color = true;
+  const LoadedScene loaded = load_scene(spec.file, lo);
+  const SimilarityTransform reg =
+      spec.registration_file.empty() ? SimilarityTransform{} : load_registration_file(spec.registration_file);
+  const SimilarityTransform T = with_up_axis(reg, up, loaded.scene.frame);
+  GaussianScene out;
+  out.frame = loaded.scene.frame;
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < loaded.scene.size(); ++i) {
+    push_registered(out, loaded.scene, i, T);
+    if (loaded.scene.opacities[i] > min_opacity) ++kept;
+  }
+  if (kept == 0)
+    throw InputError("--object '" + spec.text + "': no Gaussian of " + spec.file + " has opacity above " +
+                     format_number(min_opacity));
+  return out;
+}
+
+void load_file_objects(SceneCut& cut, std::span<const ObjectSpec> specs, UpAxis up, float min_opacity) {
+  for (std::size_t k = 0; k < specs.size() && k < cut.objects.size(); ++k)
+    if (specs[k].cut == ObjectSpec::Cut::kFile) cut.objects[k] = object_from_file(specs[k], up, min_opacity);
 }
 
 GaussianScene box_surface_gaussians(const Eigen::Vector3d& center, const Eigen::Vector3d& half, double spacing,

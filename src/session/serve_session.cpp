@@ -123,7 +123,8 @@ std::string hello_json(const PreparedWorld& pw, const SceneOptions& so, const Ru
 void add_object_splats(ViewerConfig& vc, const SceneOptions& so, const PreparedWorld& pw, const SceneObjects& objects,
                        bool quiet) {
   LoadedScene colored = load_with_progress(so.scene, quiet, /*keep_color=*/true);
-  const SceneCut cut = cut_objects(colored.scene, pw.world.scene_to_world(), so.objects, pw.config.min_opacity);
+  SceneCut cut = cut_objects(colored.scene, pw.world.scene_to_world(), so.objects, pw.config.min_opacity);
+  load_file_objects(cut, so.objects, pw.config.up, pw.config.min_opacity);
   vc.scene_bytes = std::make_shared<const std::string>(splat_bytes(cut.rest));
   for (const GaussianScene& o : cut.objects) vc.object_splats.push_back(std::make_shared<const std::string>(splat_bytes(o)));
   vc.object_worlds = objects.bodies;

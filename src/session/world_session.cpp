@@ -409,8 +409,10 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
   if (!so.objects.empty()) {  // the objects leave the static world (scene/scene_cut.h)
     SceneCut cut = cut_objects(s.scene, with_up_axis(cfg.registration, cfg.up, s.scene.frame), so.objects,
                                cfg.min_opacity);
+    load_file_objects(cut, so.objects, cfg.up, cfg.min_opacity);
     for (std::size_t i = 0; i < cut.objects.size(); ++i)
-      fmt::print(report, "object     {}: {} Gaussians cut from the scene ({})\n", i, cut.objects[i].size(),
+      fmt::print(report, "object     {}: {} Gaussians {} ({})\n", i, cut.objects[i].size(),
+                 so.objects[i].cut == ObjectSpec::Cut::kFile ? "from " + so.objects[i].file : std::string("cut from the scene"),
                  so.objects[i].text);
     s.scene = std::move(cut.rest);
     objects = std::move(cut.objects);

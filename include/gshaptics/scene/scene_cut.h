@@ -28,12 +28,15 @@ inline constexpr std::size_t kMaxObjects = 8;
 
 /// Which Gaussians make one object, and its physical properties.
 struct ObjectSpec {
-  enum class Cut { kBox, kIndices };
+  enum class Cut { kBox, kIndices, kFile };
   Cut cut = Cut::kBox;
   /// kBox: the Gaussians whose world-frame centre lies in [box_lo, box_hi] (m).
   Eigen::Vector3d box_lo = Eigen::Vector3d::Zero(), box_hi = Eigen::Vector3d::Zero();
   /// kIndices: the file's Gaussian indices (GaussianScene::source_index).
   std::vector<std::uint32_t> indices;
+  /// kFile: a splat file of its own (any format load_scene reads), placed in the world by its
+  /// registration file (empty: none; the world's --up applies as it does to the scene).
+  std::string file, registration_file;
   double mass = kDefaultObjectMass;          ///< kg, > 0
   double friction = kDefaultObjectFriction;  ///< mu >= 0, against the support
   std::string text;                          ///< as given, for messages
@@ -42,6 +45,8 @@ struct ObjectSpec {
 /// Parses one --object value:
 ///   box:X0,Y0,Z0,X1,Y1,Z1[:mass=KG][:friction=MU]   (world frame, m)
 ///   indices:I,J,K,...[:mass=KG][:friction=MU]       (the file's Gaussian indices)
+///   file:PATH[:registration=FILE.json][:mass=KG][:friction=MU]   (a splat file of its own;
+///   PATH may not contain ':')
 /// Throws InputError naming `source` (the option or the JSON field) and what is wrong.
 [[nodiscard]] ObjectSpec parse_object_spec(std::string_view text, const std::string& source = "--object");
 
@@ -55,11 +60,22 @@ struct SceneCut {
 };
 
 /// Splits `scene` by `specs`: a Gaussian goes to the first object that claims it and to no
-/// other; the rest stay static. `scene_to_world` is the world's whole registration (scene
+/// other; the rest stay static. A file object (Cut::kFile) claims nothing: its entry in
+/// SceneCut::objects is filled by object_from_file(). `scene_to_world` is the world's whole registration (scene
 /// file -> world, CollisionWorld::scene_to_world()). Throws InputError naming the spec when an
 /// object gets no Gaussian above `min_opacity`, and for more than kMaxObjects specs.
 [[nodiscard]] SceneCut cut_objects(const GaussianScene& scene, const SimilarityTransform& scene_to_world,
                                    std::span<const ObjectSpec> specs, float min_opacity);
+
+/// A file object's Gaussians in the world frame (as SceneCut::objects holds them, band-0 colour
+/// kept): spec.file loaded, placed by with_up_axis(its registration, `up`, the file's frame).
+/// Throws InputError naming the file for a file that cannot be read, and naming the spec when
+/// no Gaussian is above `min_opacity`.
+[[nodiscard]] GaussianScene object_from_file(const ObjectSpec& spec, UpAxis up, float min_opacity);
+
+/// Fills each file object's entry of `cut` (object_from_file), so that cut.objects holds every
+/// object of `specs`. Throws as object_from_file().
+void load_file_objects(SceneCut& cut, std::span<const ObjectSpec> specs, UpAxis up, float min_opacity);
 
 /// The six faces of the box center +- half (world frame, m) tiled with thin discs every
 /// `spacing` m, each 1.4 cells wide so that neighbours overlap as a capture's do (discs that only
