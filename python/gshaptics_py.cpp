@@ -650,8 +650,8 @@ PYBIND11_MODULE(gshaptics, m) {
       "A scene with rigid objects (as `--object`): the objects are cut from `scene` by their specs "
       "('box:X0,Y0,Z0,X1,Y1,Z1' world frame, m, 'indices:I,J,...', or 'file:PATH[:registration=FILE.json]' "
       "for a splat file of its own, then ':mass=KG', ':friction=MU'), "
-      "each keeps its Gaussians in its body frame, MuJoCo moves them on a plane under their lowest "
-      "point (normal the world's up), and the proxy (god-object) renders the static part and each "
+      "each keeps its Gaussians in its body frame, MuJoCo moves them on the ground fitted to the scene "
+      "around them (fit_support_plane; without one, a plane under their lowest point), and the proxy (god-object) renders the static part and each "
       "object; each object gets the reaction of the coupling force as an external wrench. One per "
       "device; not thread-safe. Raises InputError for a bad spec or an object with no Gaussian.")
       .def(py::init([](const GaussianScene& s, const std::vector<std::string>& specs, float min_opacity, double sigma,
@@ -674,7 +674,8 @@ PYBIND11_MODULE(gshaptics, m) {
                out.objects.push_back(make_rigid_object(cut.objects[i], parsed[i], cfg));
              DynamicsParams dp;
              dp.timestep = 1.0 / rate_hz;
-             out.dynamics = std::make_shared<ObjectDynamics>(out.objects, support_under(out.objects, out.world->up()), dp);
+             out.dynamics = std::make_shared<ObjectDynamics>(
+                 out.objects, fit_support_plane(*out.world, out.objects, out.world->up()).plane, dp);
              out.renderer = make_object_renderer(renderer_spec(RendererKind::kProxy), *out.world, out.objects, out.dynamics);
              return out;
            }),

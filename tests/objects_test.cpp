@@ -345,6 +345,42 @@ TEST(SceneCut, AFileObjectIsPlacedByItsOwnRegistration) {
   }
 }
 
+// The ground is fitted to the static scene around the objects: a floor tilted 6 degrees, 2 cm
+// under a box, is found (tilt within 0.5 degree, height within 1 mm), and the box drops onto
+// it; a scene with nothing around the objects falls back on the plane under them.
+TEST(ObjectDynamics, TheSupportIsTheGroundFittedAroundTheObjects) {
+  const Eigen::Vector3d half(0.05, 0.04, 0.03);
+  const std::vector<RigidObject> objects{box_object(half, 0.4, 0.5)};  // bottom at z = 0
+  const double tilt = 6 * M_PI / 180;
+  const Eigen::Quaterniond turn(Eigen::AngleAxisd(tilt, Eigen::Vector3d::UnitY()));
+  SimilarityTransform T;
+  T.rotation = turn;
+  T.translation = Eigen::Vector3d(0, 0, -0.02);
+  WorldConfig cfg;
+  cfg.registration = T;  // a floor slab whose top is z = 0, then turned and lowered 2 cm
+  const CollisionWorld floor = CollisionWorld::build(
+      box_surface_gaussians(Eigen::Vector3d(0, 0, -0.01), Eigen::Vector3d(0.3, 0.3, 0.01), 0.01), cfg);
+  const SupportFit fit = fit_support_plane(floor, objects, Eigen::Vector3d::UnitZ());
+  ASSERT_TRUE(fit.fitted);
+  EXPECT_GT(fit.points, 100u);
+  EXPECT_NEAR(fit.tilt, tilt, 0.5 * M_PI / 180);
+  EXPECT_LT(fit.rms, 1e-3);
+  const Eigen::Vector3d n = turn * Eigen::Vector3d::UnitZ();
+  EXPECT_NEAR(fit.plane.normal.dot(n), 1.0, 1e-4);
+  EXPECT_NEAR(n.dot(fit.plane.point - T.translation), 0.0, 1e-3);  // on the floor's top face
+  // The box drops onto it and rests (mu 0.5 holds it on a 6 degree slope).
+  ObjectDynamics d(objects, fit.plane);
+  for (int k = 0; k < 1000; ++k) d.step();
+  const double gap = n.dot(d.center_of_mass(0) - fit.plane.point);
+  EXPECT_NEAR(gap, half.z(), 3e-3) << "the box's centre is not half its height over the fitted ground";
+  // Nothing around the objects: the plane under them.
+  const CollisionWorld far = CollisionWorld::build(
+      box_surface_gaussians(Eigen::Vector3d(2, 2, -1), Eigen::Vector3d(0.1, 0.1, 0.01), 0.01), WorldConfig{});
+  const SupportFit none = fit_support_plane(far, objects, Eigen::Vector3d::UnitZ());
+  EXPECT_FALSE(none.fitted);
+  EXPECT_NEAR(none.plane.point.z(), support_under(objects, Eigen::Vector3d::UnitZ()).point.z(), 1e-12);
+}
+
 // A track full of rows drops and counts the rest rather than allocating.
 TEST(ObjectTrack, DropsPastItsCapacity) {
   ObjectTrack track(2, 3);

@@ -60,8 +60,8 @@ void add_object_option(CLI::App& app, SceneOptions& o) {
                      "box:X0,Y0,Z0,X1,Y1,Z1 (the Gaussians whose world-frame centre is in the box, m) or "
                      "indices:I,J,... (the file's Gaussians), or a splat file of its own, "
                      "file:PATH[:registration=FILE.json] (placed like the scene, --up included); then optional "
-                     ":mass=KG (default {:g}) and :friction=MU (default {:g}). Objects rest on a plane under their "
-                     "lowest point; a cut leaves a hole where the object stood",
+                     ":mass=KG (default {:g}) and :friction=MU (default {:g}). Objects rest on the ground fitted to the scene "
+                     "around them; a cut leaves a hole where the object stood",
                      kMaxObjects, kDefaultObjectMass, kDefaultObjectFriction))
       ->type_name("SPEC")->allow_extra_args(false);
 }

@@ -2,8 +2,10 @@
 
 #include <mujoco/mujoco.h>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <sstream>
@@ -54,6 +56,101 @@ SupportPlane support_under(std::span<const RigidObject> objects, const Eigen::Ve
       }
     }
   return plane;
+}
+
+namespace {
+
+// The objects' footprints widened (in the plane across `up`: coordinates along u, v) and the
+// band of heights (along `up`) in which the ground around them is looked for.
+struct GroundWindow {
+  Eigen::Vector3d u, v;
+  std::vector<Eigen::AlignedBox2d> areas;
+  double lo = 0, hi = 0;
+  [[nodiscard]] bool contains(const Eigen::Vector3d& c, const Eigen::Vector3d& up) const {
+    const double h = up.dot(c);
+    if (h < lo || h > hi) return false;
+    const Eigen::Vector2d q(u.dot(c), v.dot(c));
+    return std::any_of(areas.begin(), areas.end(), [&q](const Eigen::AlignedBox2d& b) { return b.contains(q); });
+  }
+};
+
+GroundWindow ground_window(std::span<const RigidObject> objects, const Eigen::Vector3d& up) {
+  GroundWindow w;
+  const Eigen::Vector3d a = std::abs(up.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  w.u = (a - up.dot(a) * up).normalized();
+  w.v = up.cross(w.u);
+  double low = std::numeric_limits<double>::infinity(), high = -low;
+  for (const RigidObject& o : objects) {
+    Eigen::AlignedBox2d box;
+    for (const Eigen::Vector3d& p : o.hull_points) {
+      const Eigen::Vector3d x = o.rest_origin + p;
+      box.extend(Eigen::Vector2d(w.u.dot(x), w.v.dot(x)));
+      low = std::min(low, up.dot(x));
+      high = std::max(high, up.dot(x));
+    }
+    const Eigen::Vector2d grow = (0.5 * box.sizes()).cwiseMax(0.02);
+    w.areas.emplace_back(box.min() - grow, box.max() + grow);
+  }
+  const double band = std::max(0.25 * (high - low), 0.01);
+  w.lo = low - band;
+  w.hi = low + band;
+  return w;
+}
+
+// Least-squares plane through `points` (centroid, normal of least spread, along `up`).
+SupportPlane plane_through(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& p : points) mean += p;
+  mean /= double(points.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& p : points) cov += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  Eigen::Vector3d n = eig.eigenvectors().col(0);
+  if (n.dot(up) < 0) n = -n;
+  return {mean, n.normalized()};
+}
+
+}  // namespace
+
+SupportFit fit_support_plane(const CollisionWorld& static_world, std::span<const RigidObject> objects,
+                             const Eigen::Vector3d& up_in) {
+  const Eigen::Vector3d up = up_in.normalized();
+  SupportFit fit;
+  fit.plane = support_under(objects, up);
+  if (objects.empty()) return fit;
+  const GroundWindow window = ground_window(objects, up);
+  std::vector<Eigen::Vector3d> points;
+  for (const CollisionGaussian& g : static_world.gaussians()) {
+    const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
+    if (g.opacity >= kHullMinOpacity && window.contains(c, up)) points.push_back(c);
+  }
+  constexpr std::size_t kMinPoints = 20;
+  for (int round = 0; round < 3 && points.size() >= kMinPoints; ++round) {
+    const SupportPlane p = plane_through(points, up);
+    std::vector<double> d;
+    for (const Eigen::Vector3d& x : points) d.push_back(std::abs(p.normal.dot(x - p.point)));
+    std::vector<double> sorted = d;
+    std::nth_element(sorted.begin(), sorted.begin() + std::ptrdiff_t(sorted.size() / 2), sorted.end());
+    const double cut = 2.5 * std::max(sorted[sorted.size() / 2], 1e-6);
+    std::vector<Eigen::Vector3d> kept;
+    double sum = 0;
+    for (std::size_t i = 0; i < points.size(); ++i)
+      if (round == 2 || d[i] <= cut) {
+        kept.push_back(points[i]);
+        sum += d[i] * d[i];
+      }
+    if (round == 2) {
+      fit.points = kept.size();
+      fit.rms = std::sqrt(sum / double(std::max<std::size_t>(kept.size(), 1)));
+      fit.tilt = std::acos(std::clamp(p.normal.dot(up), -1.0, 1.0));
+      if (fit.tilt <= 25.0 * M_PI / 180.0) {
+        fit.plane = p;
+        fit.fitted = true;
+      }
+    }
+    points = std::move(kept);
+  }
+  return fit;
 }
 
 std::string object_model_xml(std::span<const RigidObject> objects, const SupportPlane& support,

@@ -66,10 +66,19 @@ SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, doubl
                  o.body->size(), o.spec.mass, o.spec.friction, o.rest_origin.x(), o.rest_origin.y(),
                  o.rest_origin.z());
   }
-  const SupportPlane support = support_under(*objects, pw.world.up());
-  if (report != nullptr)
-    fmt::print(report, "support    a plane through [{:.3f}, {:.3f}, {:.3f}], normal the world's up; MuJoCo at {:.0f} Hz\n",
-               support.point.x(), support.point.y(), support.point.z(), rate_hz);
+  const SupportFit fit = fit_support_plane(pw.world, *objects, pw.world.up());
+  const SupportPlane support = fit.plane;
+  if (report != nullptr) {
+    if (fit.fitted)
+      fmt::print(report, "support    a plane fitted to {} Gaussians of the scene around the objects (RMS {:.1f} mm, "
+                 "{:.1f} deg from up) through [{:.3f}, {:.3f}, {:.3f}]; MuJoCo at {:.0f} Hz\n",
+                 fit.points, 1e3 * fit.rms, fit.tilt * 180 / M_PI, support.point.x(), support.point.y(),
+                 support.point.z(), rate_hz);
+    else
+      fmt::print(report, "support    no ground around the objects in the scene: a plane under their lowest point, "
+                 "normal the world's up, through [{:.3f}, {:.3f}, {:.3f}]; MuJoCo at {:.0f} Hz\n",
+                 support.point.x(), support.point.y(), support.point.z(), rate_hz);
+  }
   DynamicsParams dp;
   dp.timestep = 1.0 / rate_hz;
   SceneObjects out;

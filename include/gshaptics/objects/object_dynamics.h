@@ -39,6 +39,25 @@ struct SupportPlane {
 /// `up` of all of them, so each object rests on it or drops onto it as captured.
 [[nodiscard]] SupportPlane support_under(std::span<const RigidObject> objects, const Eigen::Vector3d& up);
 
+/// A support plane fitted to the static scene (fit_support_plane).
+struct SupportFit {
+  SupportPlane plane;
+  bool fitted = false;      ///< false: too few Gaussians near the objects (the plane is support_under's)
+  std::size_t points = 0;   ///< Gaussians the fit kept
+  double rms = 0;           ///< their distance to the plane, RMS, m
+  double tilt = 0;          ///< the plane's normal from `up`, rad
+};
+
+/// The ground the objects stand on, fitted to the static scene: the opaque static Gaussians
+/// (opacity >= kHullMinOpacity) around the objects' footprints (each footprint widened by half
+/// its size, at least 2 cm) and near the height of their lowest points (within a quarter of the
+/// objects' height, at least 1 cm), fitted by least squares (the normal is the direction of least
+/// spread) with the points farther than 2.5 median distances dropped twice. Falls back on
+/// support_under() when fewer than 20 Gaussians are there or the fit turns more than 25 degrees
+/// from `up` (not a ground). The normal points along `up`.
+[[nodiscard]] SupportFit fit_support_plane(const CollisionWorld& static_world, std::span<const RigidObject> objects,
+                                           const Eigen::Vector3d& up);
+
 /// The dynamics' settings.
 struct DynamicsParams {
   double timestep = 0.001;  ///< s: the servo period (or a multiple of it)

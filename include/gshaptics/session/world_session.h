@@ -191,9 +191,9 @@ struct SceneObjects {
   [[nodiscard]] bool empty() const noexcept { return rest_origins.empty(); }
 };
 
-/// The objects of `pw` (specs in so.objects), their MuJoCo dynamics at `rate_hz` on a plane
-/// under them normal to the world's up. Empty when there are none. Prints a line per object to
-/// `report` (nullptr: nowhere). Throws InputError when objects are given to a build without
+/// The objects of `pw` (specs in so.objects), their MuJoCo dynamics at `rate_hz` on the ground
+/// fitted to the scene around them (fit_support_plane). Empty when there are none. Prints a line
+/// per object to `report` (nullptr: nowhere). Throws InputError when objects are given to a build without
 /// gshaptics::objects.
 SceneObjects scene_objects(const PreparedWorld& pw, const SceneOptions& so, double rate_hz,
                            std::FILE* report = stdout);
