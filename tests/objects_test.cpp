@@ -381,6 +381,46 @@ TEST(ObjectDynamics, TheSupportIsTheGroundFittedAroundTheObjects) {
   EXPECT_NEAR(none.plane.point.z(), support_under(objects, Eigen::Vector3d::UnitZ()).point.z(), 1e-12);
 }
 
+// The objects JSON (--objects): the three kinds, mass and friction, paths relative to the JSON's
+// folder, an inline registration; each error names the file and the entry.
+TEST(ObjectSpec, AnObjectsJsonGivesTheSameSpecs) {
+  const std::vector<ObjectSpec> specs = parse_object_specs_json(
+      R"({"objects": [{"box": [1, 0, 0, 0, 1, 1], "mass": 0.3},
+                      {"indices": [5, 3, 5], "friction": 0.2},
+                      {"file": "cup.ply", "registration": {"translation": [0, 0, 1]}},
+                      {"file": "/abs/mug.ply", "registration": "mug.json"}]})",
+      "scene.json", "/data/scenes");
+  ASSERT_EQ(specs.size(), 4u);
+  EXPECT_EQ(specs[0].cut, ObjectSpec::Cut::kBox);
+  EXPECT_EQ(specs[0].box_lo, Eigen::Vector3d(0, 0, 0));
+  EXPECT_EQ(specs[0].box_hi, Eigen::Vector3d(1, 1, 1));
+  EXPECT_EQ(specs[0].mass, 0.3);
+  EXPECT_EQ(specs[0].friction, kDefaultObjectFriction);
+  EXPECT_EQ(specs[1].indices, (std::vector<std::uint32_t>{3, 5}));
+  EXPECT_EQ(specs[1].friction, 0.2);
+  EXPECT_EQ(specs[2].file, "/data/scenes/cup.ply");
+  ASSERT_TRUE(specs[2].registration.has_value());
+  EXPECT_EQ(specs[2].registration->translation, Eigen::Vector3d(0, 0, 1));
+  EXPECT_EQ(specs[3].file, "/abs/mug.ply");
+  EXPECT_EQ(specs[3].registration_file, "/data/scenes/mug.json");
+  const auto error = [](const std::string& text) {
+    try {
+      (void)parse_object_specs_json(text, "scene.json", "");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(error(R"({"objects": [{"box": [0, 0, 0, 1, 1]}]})").find("scene.json: objects[0]"), std::string::npos);
+  EXPECT_NE(error(R"({"objects": [{}, {"box": [0, 0, 0, 1, 1, 1], "file": "a.ply"}]})").find("objects[0]"), std::string::npos);
+  EXPECT_NE(error(R"({"objects": [{"indices": [1]}, {"indices": [-1]}]})").find("objects[1]"), std::string::npos);
+  EXPECT_NE(error(R"({"objects": [{"indices": [1], "mass": 0}]})").find("mass"), std::string::npos);
+  EXPECT_NE(error(R"({"objects": [{"indices": [1], "registration": "r.json"}]})").find("file objects"), std::string::npos);
+  EXPECT_NE(error("{not json").find("not valid JSON"), std::string::npos);
+  EXPECT_NE(error(R"({"things": []})").find("expected"), std::string::npos);
+  EXPECT_THROW((void)load_object_specs(testing::TempDir() + "/no_such_objects.json"), InputError);
+}
+
 // A track full of rows drops and counts the rest rather than allocating.
 TEST(ObjectTrack, DropsPastItsCapacity) {
   ObjectTrack track(2, 3);

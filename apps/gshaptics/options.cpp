@@ -64,6 +64,15 @@ void add_object_option(CLI::App& app, SceneOptions& o) {
                      "around them; a cut leaves a hole where the object stood",
                      kMaxObjects, kDefaultObjectMass, kDefaultObjectFriction))
       ->type_name("SPEC")->allow_extra_args(false);
+  app.add_option_function<std::string>(
+         "--objects",
+         [&o](const std::string& path) {
+           for (ObjectSpec& spec : load_object_specs(path)) o.objects.push_back(std::move(spec));
+         },
+         "Rigid objects from a JSON file, added to the --object ones: {\"objects\": [{\"box\": [X0, Y0, Z0, X1, Y1, "
+         "Z1]} or {\"indices\": [...]} or {\"file\": PATH, \"registration\": PATH or {...}}, each with optional "
+         "\"mass\" and \"friction\"]} (paths relative to the JSON's folder; docs/usage.md)")
+      ->type_name("FILE");
 }
 
 void add_world_options(CLI::App& app, SceneOptions& o) {

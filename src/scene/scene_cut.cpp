@@ -5,6 +5,10 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 
 #include "gshaptics/error.h"
@@ -129,6 +133,86 @@ ObjectSpec parse_object_spec(std::string_view text, const std::string& source) {
   return spec;
 }
 
+namespace {
+
+// One entry of an objects JSON; `where` names it for messages ("FILE: objects[2]").
+ObjectSpec spec_from_json(const nlohmann::json& e, const std::string& where, const std::string& base_dir) {
+  if (!e.is_object()) throw InputError(where + ": not an object ({\"box\": ...}, {\"indices\": ...} or {\"file\": ...})");
+  const int kinds = int(e.contains("box")) + int(e.contains("indices")) + int(e.contains("file"));
+  if (kinds != 1) throw InputError(where + ": give exactly one of \"box\", \"indices\" and \"file\"");
+  ObjectSpec spec;
+  spec.text = e.dump();
+  const auto number = [&where](const nlohmann::json& v, const std::string& field) {
+    if (!v.is_number() || !std::isfinite(v.get<double>())) throw InputError(where + ": \"" + field + "\" is not a number");
+    return v.get<double>();
+  };
+  const auto path = [&base_dir](const std::string& p) {
+    return p.empty() || p[0] == '/' || base_dir.empty() ? p : base_dir + "/" + p;
+  };
+  if (e.contains("box")) {
+    const nlohmann::json& b = e["box"];
+    if (!b.is_array() || b.size() != 6) throw InputError(where + ": \"box\" takes six numbers [X0, Y0, Z0, X1, Y1, Z1]");
+    for (int k = 0; k < 3; ++k) {
+      const double a = number(b[std::size_t(k)], "box"), c = number(b[std::size_t(k + 3)], "box");
+      if (!(a < c || c < a)) throw InputError(where + ": the box is empty along axis " + std::to_string(k));
+      spec.box_lo[k] = std::min(a, c);
+      spec.box_hi[k] = std::max(a, c);
+    }
+  } else if (e.contains("indices")) {
+    spec.cut = ObjectSpec::Cut::kIndices;
+    const nlohmann::json& list = e["indices"];
+    if (!list.is_array() || list.empty()) throw InputError(where + ": \"indices\" takes a list of Gaussian indices");
+    for (const nlohmann::json& i : list) {
+      if (!i.is_number_unsigned()) throw InputError(where + ": \"indices\" holds " + i.dump() + ", not an index");
+      spec.indices.push_back(i.get<std::uint32_t>());
+    }
+    std::sort(spec.indices.begin(), spec.indices.end());
+    spec.indices.erase(std::unique(spec.indices.begin(), spec.indices.end()), spec.indices.end());
+  } else {
+    spec.cut = ObjectSpec::Cut::kFile;
+    if (!e["file"].is_string() || e["file"].get<std::string>().empty()) throw InputError(where + ": \"file\" names no file");
+    spec.file = path(e["file"].get<std::string>());
+    if (e.contains("registration")) {
+      const nlohmann::json& r = e["registration"];
+      if (r.is_string()) spec.registration_file = path(r.get<std::string>());
+      else spec.registration = parse_registration_json(r.dump(), where + ": registration");
+    }
+  }
+  if (spec.cut != ObjectSpec::Cut::kFile && e.contains("registration"))
+    throw InputError(where + ": \"registration\" is for file objects");
+  if (e.contains("mass")) spec.mass = number(e["mass"], "mass");
+  if (e.contains("friction")) spec.friction = number(e["friction"], "friction");
+  if (!(spec.mass > 0)) throw InputError(where + ": mass must be > 0 kg");
+  if (!(spec.friction >= 0)) throw InputError(where + ": friction must be >= 0");
+  return spec;
+}
+
+}  // namespace
+
+std::vector<ObjectSpec> parse_object_specs_json(const std::string& text, const std::string& source,
+                                                const std::string& base_dir) {
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+  if (j.is_discarded()) throw InputError(source + ": not valid JSON");
+  if (!j.is_object() || !j.contains("objects") || !j["objects"].is_array())
+    throw InputError(source + ": expected {\"objects\": [...]}");
+  const nlohmann::json& list = j["objects"];
+  if (list.size() > kMaxObjects)
+    throw InputError(source + ": " + std::to_string(list.size()) + " objects, at most " + std::to_string(kMaxObjects));
+  std::vector<ObjectSpec> out;
+  for (std::size_t i = 0; i < list.size(); ++i)
+    out.push_back(spec_from_json(list[i], source + ": objects[" + std::to_string(i) + "]", base_dir));
+  return out;
+}
+
+std::vector<ObjectSpec> load_object_specs(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot open the objects file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  const std::string dir = std::filesystem::path(path).parent_path().string();
+  return parse_object_specs_json(text.str(), path, dir);
+}
+
 SceneCut cut_objects(const GaussianScene& scene, const SimilarityTransform& scene_to_world,
                      std::span<const ObjectSpec> specs, float min_opacity) {
   if (specs.size() > kMaxObjects)
@@ -162,8 +246,9 @@ GaussianScene object_from_file(const ObjectSpec& spec, UpAxis up, float min_opac
   LoadOptions lo;
   lo.keep_color = true;
   const LoadedScene loaded = load_scene(spec.file, lo);
-  const SimilarityTransform reg =
-      spec.registration_file.empty() ? SimilarityTransform{} : load_registration_file(spec.registration_file);
+  const SimilarityTransform reg = spec.registration ? *spec.registration
+                                  : spec.registration_file.empty() ? SimilarityTransform{}
+                                                                   : load_registration_file(spec.registration_file);
   const SimilarityTransform T = with_up_axis(reg, up, loaded.scene.frame);
   GaussianScene out;
   out.frame = loaded.scene.frame;

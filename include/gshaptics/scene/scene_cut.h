@@ -11,6 +11,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -37,6 +38,8 @@ struct ObjectSpec {
   /// kFile: a splat file of its own (any format load_scene reads), placed in the world by its
   /// registration file (empty: none; the world's --up applies as it does to the scene).
   std::string file, registration_file;
+  /// kFile: a registration given inline (an objects JSON); it wins over registration_file.
+  std::optional<SimilarityTransform> registration;
   double mass = kDefaultObjectMass;          ///< kg, > 0
   double friction = kDefaultObjectFriction;  ///< mu >= 0, against the support
   std::string text;                          ///< as given, for messages
@@ -49,6 +52,18 @@ struct ObjectSpec {
 ///   PATH may not contain ':')
 /// Throws InputError naming `source` (the option or the JSON field) and what is wrong.
 [[nodiscard]] ObjectSpec parse_object_spec(std::string_view text, const std::string& source = "--object");
+
+/// Parses an objects JSON (`--objects FILE.json`):
+///   {"objects": [{"box": [X0, Y0, Z0, X1, Y1, Z1]} | {"indices": [I, J, ...]} |
+///                {"file": "cup.ply", "registration": "cup.json" or {"scale", "rotation", "translation"}},
+///                each with optional "mass" (kg) and "friction"]}
+/// Relative file paths resolve against `base_dir`. Throws InputError naming `source` and the entry
+/// (objects[I]) and what is wrong; at most kMaxObjects entries.
+[[nodiscard]] std::vector<ObjectSpec> parse_object_specs_json(const std::string& text, const std::string& source,
+                                                              const std::string& base_dir);
+/// Reads an objects JSON file (parse_object_specs_json, paths relative to its folder). Throws
+/// InputError naming the file.
+[[nodiscard]] std::vector<ObjectSpec> load_object_specs(const std::string& path);
 
 /// A scene split into its static part and its objects' Gaussians.
 struct SceneCut {
