@@ -16,7 +16,7 @@
 
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/device/clock.h"
-#include "gshaptics/scene/object_poses.h"
+#include "gshaptics/servo/object_poses.h"
 #include "gshaptics/servo/collision_worker.h"
 #include "gshaptics/device/triple_buffer.h"
 

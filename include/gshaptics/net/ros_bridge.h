@@ -19,7 +19,7 @@
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/net/ros_marker.h"
 #include "gshaptics/net/contact_snapshot.h"
-#include "gshaptics/scene/object_poses.h"
+#include "gshaptics/servo/object_poses.h"
 #include "gshaptics/device/haptic_device.h"
 #include "gshaptics/device/stream_device.h"
 #include "gshaptics/device/triple_buffer.h"

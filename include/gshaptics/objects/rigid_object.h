@@ -26,7 +26,7 @@
 
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/io/gaussian_scene.h"
-#include "gshaptics/scene/object_poses.h"
+#include "gshaptics/servo/object_poses.h"
 #include "gshaptics/scene/scene_cut.h"
 
 namespace gshaptics {

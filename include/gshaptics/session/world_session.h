@@ -18,7 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gshaptics/collision/collision_world.h"
-#include "gshaptics/scene/object_poses.h"
+#include "gshaptics/servo/object_poses.h"
 #include "gshaptics/scene/scene_cut.h"
 #include "gshaptics/force/material.h"
 #include "gshaptics/error.h"

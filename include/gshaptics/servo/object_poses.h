@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// The live poses of a scene's rigid objects (issue 72), as the servo thread publishes them and
-/// the viewer, ROS and the logs read them. Core (no MuJoCo): a reader needs only these values.
+/// the viewer, ROS and the logs read them. No MuJoCo here: a reader needs only these values.
 ///
 /// Frames: an object's body frame has its axes along the world's at rest and its origin at
 /// RigidObject::rest_origin (objects/rigid_object.h); a pose maps the body frame into the world,

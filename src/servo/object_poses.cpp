@@ -1,4 +1,4 @@
-#include "gshaptics/scene/object_poses.h"
+#include "gshaptics/servo/object_poses.h"
 
 #include <fmt/format.h>
 
