@@ -345,6 +345,44 @@ TEST(SceneCut, AFileObjectIsPlacedByItsOwnRegistration) {
   }
 }
 
+// A MuJoCo error (here its stack overflowing: a model given far too small a stack) does not end
+// the process, as MuJoCo's default handler would with the device wherever it is: the dynamics
+// stop, the objects stay where they were, the error is counted and its message kept.
+TEST(ObjectDynamics, AMuJoCoErrorStopsTheDynamicsNotTheProcess) {
+  const std::vector<RigidObject> objects{box_object(Eigen::Vector3d(0.05, 0.04, 0.03), 0.4, 0.3)};
+  const SupportPlane plane = support_under(objects, Eigen::Vector3d::UnitZ());
+  // The smallest stack MuJoCo's compiler accepts (it checks the model with its own handler, and a
+  // model it rejects is an InputError naming MuJoCo's message): too small for a step in contact.
+  DynamicsParams p;
+  std::unique_ptr<ObjectDynamics> d;
+  for (p.stack = 100; !d && p.stack < 5000; p.stack += 10) {
+    try {
+      d = std::make_unique<ObjectDynamics>(objects, plane, p);
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("MuJoCo"), std::string::npos) << e.what();
+    }
+  }
+  ASSERT_TRUE(d) << "no stack size was accepted";
+  const long before = ObjectDynamics::errors();
+  const Eigen::Vector3d rest = d->pose(0).position;
+  for (int k = 0; k < 10; ++k) {
+    d->apply_wrench(0, Eigen::Vector3d(5, 0, 0), d->center_of_mass(0));
+    d->step();
+  }
+  ASSERT_TRUE(d->failed()) << "a stack of " << p.stack - 10 << " mjtNums did not overflow";
+  EXPECT_EQ(ObjectDynamics::errors(), before + 1);  // one error, then no more steps
+  EXPECT_NE(ObjectDynamics::last_error().find("tack"), std::string::npos) << ObjectDynamics::last_error();
+  EXPECT_NEAR(d->time(), 0.01, 1e-9);  // the time goes on
+  EXPECT_LT((d->pose(0).position - rest).norm(), 1e-3);  // the box stays where it was
+  // A model with MuJoCo's own stack is unaffected.
+  ObjectDynamics fine(objects, plane);
+  for (int k = 0; k < 10; ++k) {
+    fine.apply_wrench(0, Eigen::Vector3d(5, 0, 0), fine.center_of_mass(0));
+    fine.step();
+  }
+  EXPECT_FALSE(fine.failed());
+}
+
 // The ground is fitted to the static scene around the objects: a floor tilted 6 degrees, 2 cm
 // under a box, is found (tilt within 0.5 degree, height within 1 mm), and the box drops onto
 // it; a scene with nothing around the objects falls back on the plane under them.

@@ -6,6 +6,8 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <csetjmp>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <sstream>
@@ -19,6 +21,36 @@ std::atomic<long> g_warnings{0};
 // MuJoCo's default warning handler prints; on the servo thread nothing may log, so warnings are
 // counted instead (ObjectDynamics::warnings()).
 void count_warning(const char*) { g_warnings.fetch_add(1, std::memory_order_relaxed); }
+
+// MuJoCo's errors (mju_error: its stack overflowing mid-step, an allocation failing) end the
+// process by default, wherever the device is. Instead the handler jumps back to the
+// ObjectDynamics call that ran MuJoCo (guarded()), which stops the dynamics and counts the error.
+// Only MuJoCo's C frames and a lambda without destructors lie between, so nothing is skipped.
+thread_local std::jmp_buf* t_on_error = nullptr;
+std::atomic<long> g_errors{0};
+char g_last_error[256] = "";  // written by the handler; read once the runs are over
+
+void jump_on_error(const char* msg) {
+  g_errors.fetch_add(1, std::memory_order_relaxed);
+  std::strncpy(g_last_error, msg, sizeof g_last_error - 1);
+  if (t_on_error != nullptr) std::longjmp(*t_on_error, 1);
+  std::abort();  // MuJoCo called outside ObjectDynamics: there is nothing to go back to
+}
+
+// Runs `call` (MuJoCo calls) with MuJoCo's errors coming back here: false when one was raised.
+template <class Call>
+bool guarded(Call&& call) noexcept {
+  std::jmp_buf jump;
+  std::jmp_buf* const outer = t_on_error;
+  t_on_error = &jump;
+  if (setjmp(jump) != 0) {
+    t_on_error = outer;
+    return false;
+  }
+  call();
+  t_on_error = outer;
+  return true;
+}
 
 std::string vec(const Eigen::Vector3d& v) {
   std::ostringstream s;
@@ -163,8 +195,9 @@ std::string object_model_xml(std::span<const RigidObject> objects, const Support
   // over 1 mm): less of the soft constraints' regularisation, so a sliding box feels mu N.
   x << "<mujoco model='gshaptics_objects'>\n"
     << "  <option timestep='" << params.timestep << "' gravity='" << vec(g)
-    << "' cone='elliptic' impratio='100'/>\n"
-    << "  <default><geom solimp='0.95 0.99 0.001'/></default>\n  <asset>\n";
+    << "' cone='elliptic' impratio='100'/>\n";
+  if (params.stack > 0) x << "  <size nstack='" << params.stack << "'/>\n";
+  x << "  <default><geom solimp='0.95 0.99 0.001'/></default>\n  <asset>\n";
   for (std::size_t i = 0; i < objects.size(); ++i) {
     x << "    <mesh name='hull" << i << "' vertex='";
     for (const Eigen::Vector3d& p : objects[i].hull_points) x << vec(p) << ' ';
@@ -192,8 +225,10 @@ ObjectDynamics::ObjectDynamics(std::span<const RigidObject> objects, const Suppo
   if (objects.size() > kMaxObjects) throw InputError("objects: at most " + std::to_string(kMaxObjects) + " objects");
   if (!(params.timestep > 0)) throw InputError("objects: the dynamics timestep must be > 0 s");
   mju_user_warning = count_warning;
+  mju_user_error = jump_on_error;
   model_ = load_model(object_model_xml(objects, support, params));
-  data_ = mj_makeData(model_);
+  if (!guarded([this] { data_ = mj_makeData(model_); }))
+    throw InputError(std::string("objects: MuJoCo could not make the model's data: ") + g_last_error);
   bodies_ = objects.size();
   for (std::size_t i = 0; i < bodies_; ++i)
     body_id_[i] = mj_name2id(model_, mjOBJ_BODY, ("object" + std::to_string(i)).c_str());
@@ -207,8 +242,11 @@ ObjectDynamics::~ObjectDynamics() {
 }
 
 void ObjectDynamics::reset() noexcept {
-  mj_resetData(model_, data_);
-  mj_forward(model_, data_);
+  failed_ = !guarded([this] {
+    mj_resetData(model_, data_);
+    mj_forward(model_, data_);
+  });
+  if (failed_) return;
   resting_steps_ = 0;
   slept_ = false;
   clear_wrenches();
@@ -234,6 +272,10 @@ void ObjectDynamics::apply_wrench(std::size_t i, const Eigen::Vector3d& force, c
 }
 
 void ObjectDynamics::step() noexcept {
+  if (failed_) {  // MuJoCo raised an error: the objects stay where they were
+    poses_.time += params_.timestep;
+    return;
+  }
   bool pushed = false;
   for (std::size_t i = 0; i < bodies_; ++i) {
     const mjtNum* w = data_->xfrc_applied + 6 * body_id_[i];
@@ -250,7 +292,11 @@ void ObjectDynamics::step() noexcept {
     const mjtNum* w = data_->xfrc_applied + 6 * body_id_[i];
     poses_.wrenches[i] = {Eigen::Vector3d(w[0], w[1], w[2]), Eigen::Vector3d(w[3], w[4], w[5])};
   }
-  mj_step(model_, data_);
+  if (!guarded([this] { mj_step(model_, data_); })) {
+    failed_ = true;
+    poses_.time += params_.timestep;
+    return;
+  }
   for (std::size_t i = 0; i < bodies_; ++i) std::fill(data_->xfrc_applied + 6 * body_id_[i], data_->xfrc_applied + 6 * body_id_[i] + 6, 0.0);
   read_poses();
   bool resting = true;
@@ -288,5 +334,7 @@ bool ObjectDynamics::clear_wrenches() noexcept {
 }
 
 long ObjectDynamics::warnings() noexcept { return g_warnings.load(std::memory_order_relaxed); }
+long ObjectDynamics::errors() noexcept { return g_errors.load(std::memory_order_relaxed); }
+std::string ObjectDynamics::last_error() { return g_last_error; }
 
 }  // namespace gshaptics

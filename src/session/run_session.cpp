@@ -567,6 +567,12 @@ void add_object_travel(nlohmann::json& sj, const ObjectTrack& track) {
   sj["objects_log_rows"] = track.rows();
 #ifdef GSHAPTICS_HAVE_OBJECTS
   sj["mujoco_warnings"] = ObjectDynamics::warnings();
+  sj["mujoco_errors"] = ObjectDynamics::errors();
+  if (ObjectDynamics::errors() > 0) {
+    sj["mujoco_last_error"] = ObjectDynamics::last_error();
+    fmt::print(stderr, "warning: MuJoCo raised an error and the objects stopped moving where they were: {}\n",
+               ObjectDynamics::last_error());
+  }
 #endif
 }
 

@@ -62,6 +62,7 @@ struct SupportFit {
 struct DynamicsParams {
   double timestep = 0.001;  ///< s: the servo period (or a multiple of it)
   double gravity = 9.81;    ///< m/s^2, along -SupportPlane::normal
+  int stack = 0;            ///< MuJoCo's stack, mjtNums (<size nstack>); 0: MuJoCo's default
 };
 
 /// The MuJoCo model of a scene's objects, stepped at a fixed timestep.
@@ -114,6 +115,14 @@ class ObjectDynamics {
   /// MuJoCo warnings raised since the start (contact buffer full, bad state ...); a step that
   /// raised one keeps going as MuJoCo does.
   [[nodiscard]] static long warnings() noexcept;
+  /// Whether MuJoCo raised an error (mju_error: its stack overflowed, ...) in a step or reset of
+  /// this model: the dynamics stopped there, the objects stay where they were (still felt, no
+  /// longer moved), the run goes on. MuJoCo's default would end the process.
+  [[nodiscard]] bool failed() const noexcept { return failed_; }
+  /// MuJoCo errors since the start (every model), and the last one's message (read it once the
+  /// runs are over).
+  [[nodiscard]] static long errors() noexcept;
+  [[nodiscard]] static std::string last_error();
 
  private:
   void read_poses() noexcept;
@@ -129,6 +138,7 @@ class ObjectDynamics {
   int resting_steps_ = 0;  // consecutive steps with every object within the rest bounds of anchor_
   std::array<BodyPose, kMaxObjects> anchor_{};
   bool slept_ = false;
+  bool failed_ = false;
 };
 
 /// The MJCF text of the model ObjectDynamics builds (for inspection and `--dump`): one body per
