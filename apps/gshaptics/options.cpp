@@ -57,7 +57,8 @@ void add_object_option(CLI::App& app, SceneOptions& o) {
            for (const std::string& spec : specs) o.objects.push_back(parse_object_spec(spec, "--object"));
          },
          fmt::format("A rigid object, moved by MuJoCo (repeatable, at most {}): cut from the scene, "
-                     "box:X0,Y0,Z0,X1,Y1,Z1 (the Gaussians whose world-frame centre is in the box, m) or "
+                     "box:X0,Y0,Z0,X1,Y1,Z1 (the Gaussians whose world-frame centre is in the box, m), "
+                     "obox:CX,CY,CZ,HX,HY,HZ,QW,QX,QY,QZ (an oriented box: centre, half extents, rotation) or "
                      "indices:I,J,... (the file's Gaussians), or a splat file of its own, "
                      "file:PATH[:registration=FILE.json] (placed like the scene, --up included); then optional "
                      ":mass=KG (default {:g}) and :friction=MU (default {:g}). Objects rest on the ground fitted to the scene "
@@ -70,7 +71,7 @@ void add_object_option(CLI::App& app, SceneOptions& o) {
            for (ObjectSpec& spec : load_object_specs(path)) o.objects.push_back(std::move(spec));
          },
          "Rigid objects from a JSON file, added to the --object ones: {\"objects\": [{\"box\": [X0, Y0, Z0, X1, Y1, "
-         "Z1]} or {\"indices\": [...]} or {\"file\": PATH, \"registration\": PATH or {...}}, each with optional "
+         "Z1]} or {\"obox\": {\"center\", \"half\", \"rotation\"}} or {\"indices\": [...]} or {\"file\": PATH, \"registration\": PATH or {...}}, each with optional "
          "\"mass\" and \"friction\"]} (paths relative to the JSON's folder; docs/usage.md)")
       ->type_name("FILE");
 }

@@ -29,7 +29,8 @@ std::vector<std::string_view> split(std::string_view text, char sep) {
 
 InputError spec_error(const std::string& source, std::string_view text, const std::string& what) {
   return InputError(source + " '" + std::string(text) + "': " + what +
-                    " (expected box:X0,Y0,Z0,X1,Y1,Z1, indices:I,J,... or file:PATH[:registration=FILE.json], "
+                    " (expected box:X0,Y0,Z0,X1,Y1,Z1, obox:CX,CY,CZ,HX,HY,HZ,QW,QX,QY,QZ, indices:I,J,... or "
+                    "file:PATH[:registration=FILE.json], "
                     "then optional :mass=KG and :friction=MU)");
 }
 
@@ -50,6 +51,30 @@ void parse_box(std::string_view list, ObjectSpec& spec, const std::string& sourc
     spec.box_hi[k] = std::max(a, b);
     if (!(b > a || a > b)) throw spec_error(source, text, "the box is empty along axis " + std::to_string(k));
   }
+}
+
+// An oriented box: in the box's frame (box_rotation^-1 c) it is [R^-1 centre - half, R^-1
+// centre + half]. Returns what is wrong (empty: nothing).
+std::string set_oriented_box(ObjectSpec& spec, const Eigen::Vector3d& centre, const Eigen::Vector3d& half,
+                             const Eigen::Quaterniond& q) {
+  if (!(half.minCoeff() > 0)) return "the half extents must be > 0";
+  if (!(q.norm() > 1e-9)) return "the rotation is a zero quaternion";
+  spec.box_rotation = q.normalized();
+  const Eigen::Vector3d c = spec.box_rotation.conjugate() * centre;
+  spec.box_lo = c - half;
+  spec.box_hi = c + half;
+  return {};
+}
+
+// obox:CX,CY,CZ,HX,HY,HZ,QW,QX,QY,QZ
+void parse_oriented_box(std::string_view list, ObjectSpec& spec, const std::string& source, std::string_view text) {
+  const auto fields = split(list, ',');
+  if (fields.size() != 10) throw spec_error(source, text, "an oriented box takes ten numbers (centre, half extents, w x y z)");
+  double v[10];
+  for (int k = 0; k < 10; ++k) v[k] = parse_number(fields[std::size_t(k)], source, text);
+  const std::string wrong = set_oriented_box(spec, Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5]),
+                                             Eigen::Quaterniond(v[6], v[7], v[8], v[9]));
+  if (!wrong.empty()) throw spec_error(source, text, wrong);
 }
 
 void parse_indices(std::string_view list, ObjectSpec& spec, const std::string& source, std::string_view text) {
@@ -90,7 +115,8 @@ bool claims(const ObjectSpec& spec, const Eigen::Vector3d& world_center, std::ui
   if (spec.cut == ObjectSpec::Cut::kFile) return false;  // its Gaussians come from its own file
   if (spec.cut == ObjectSpec::Cut::kIndices)
     return std::binary_search(spec.indices.begin(), spec.indices.end(), source_index);
-  return (world_center.array() >= spec.box_lo.array()).all() && (world_center.array() <= spec.box_hi.array()).all();
+  const Eigen::Vector3d c = spec.box_rotation.conjugate() * world_center;  // in the box's frame
+  return (c.array() >= spec.box_lo.array()).all() && (c.array() <= spec.box_hi.array()).all();
 }
 
 // Appends Gaussian i of `scene` to `out`, moved into the world by `T` (mean, scale, rotation).
@@ -119,6 +145,9 @@ ObjectSpec parse_object_spec(std::string_view text, const std::string& source) {
   if (parts[0] == "box") {
     spec.cut = ObjectSpec::Cut::kBox;
     parse_box(parts[1], spec, source, text);
+  } else if (parts[0] == "obox") {
+    spec.cut = ObjectSpec::Cut::kBox;
+    parse_oriented_box(parts[1], spec, source, text);
   } else if (parts[0] == "indices") {
     spec.cut = ObjectSpec::Cut::kIndices;
     parse_indices(parts[1], spec, source, text);
@@ -138,8 +167,8 @@ namespace {
 // One entry of an objects JSON; `where` names it for messages ("FILE: objects[2]").
 ObjectSpec spec_from_json(const nlohmann::json& e, const std::string& where, const std::string& base_dir) {
   if (!e.is_object()) throw InputError(where + ": not an object ({\"box\": ...}, {\"indices\": ...} or {\"file\": ...})");
-  const int kinds = int(e.contains("box")) + int(e.contains("indices")) + int(e.contains("file"));
-  if (kinds != 1) throw InputError(where + ": give exactly one of \"box\", \"indices\" and \"file\"");
+  const int kinds = int(e.contains("box")) + int(e.contains("obox")) + int(e.contains("indices")) + int(e.contains("file"));
+  if (kinds != 1) throw InputError(where + ": give exactly one of \"box\", \"obox\", \"indices\" and \"file\"");
   ObjectSpec spec;
   spec.text = e.dump();
   const auto number = [&where](const nlohmann::json& v, const std::string& field) {
@@ -158,6 +187,18 @@ ObjectSpec spec_from_json(const nlohmann::json& e, const std::string& where, con
       spec.box_lo[k] = std::min(a, c);
       spec.box_hi[k] = std::max(a, c);
     }
+  } else if (e.contains("obox")) {  // {"center": [3], "half": [3], "rotation": [w, x, y, z]}
+    const nlohmann::json& b = e["obox"];
+    const auto values = [&](const char* key, std::size_t n) {
+      if (!b.is_object() || !b.contains(key) || !b[key].is_array() || b[key].size() != n)
+        throw InputError(where + ": \"obox\" takes {\"center\": [x, y, z], \"half\": [a, b, c], \"rotation\": [w, x, y, z]}");
+      Eigen::Vector4d v = Eigen::Vector4d::Zero();
+      for (std::size_t k = 0; k < n; ++k) v[Eigen::Index(k)] = number(b[key][k], "obox");
+      return v;
+    };
+    const Eigen::Vector4d c = values("center", 3), h = values("half", 3), q = values("rotation", 4);
+    const std::string wrong = set_oriented_box(spec, c.head<3>(), h.head<3>(), Eigen::Quaterniond(q[0], q[1], q[2], q[3]));
+    if (!wrong.empty()) throw InputError(where + ": " + wrong);
   } else if (e.contains("indices")) {
     spec.cut = ObjectSpec::Cut::kIndices;
     const nlohmann::json& list = e["indices"];

@@ -10,6 +10,7 @@
 /// (objects/object_dynamics.h) carries.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -31,8 +32,10 @@ inline constexpr std::size_t kMaxObjects = 8;
 struct ObjectSpec {
   enum class Cut { kBox, kIndices, kFile };
   Cut cut = Cut::kBox;
-  /// kBox: the Gaussians whose world-frame centre lies in [box_lo, box_hi] (m).
+  /// kBox: the Gaussians whose world-frame centre c lies in [box_lo, box_hi] (m) in the box's
+  /// frame, box_rotation^-1 c (identity: an axis-aligned box; an oriented box, `obox:`, turns it).
   Eigen::Vector3d box_lo = Eigen::Vector3d::Zero(), box_hi = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond box_rotation = Eigen::Quaterniond::Identity();
   /// kIndices: the file's Gaussian indices (GaussianScene::source_index).
   std::vector<std::uint32_t> indices;
   /// kFile: a splat file of its own (any format load_scene reads), placed in the world by its
@@ -47,6 +50,8 @@ struct ObjectSpec {
 
 /// Parses one --object value:
 ///   box:X0,Y0,Z0,X1,Y1,Z1[:mass=KG][:friction=MU]   (world frame, m)
+///   obox:CX,CY,CZ,HX,HY,HZ,QW,QX,QY,QZ[:...]          (an oriented box: centre, half extents
+///                                                     along its own axes, its rotation w first)
 ///   indices:I,J,K,...[:mass=KG][:friction=MU]       (the file's Gaussian indices)
 ///   file:PATH[:registration=FILE.json][:mass=KG][:friction=MU]   (a splat file of its own;
 ///   PATH may not contain ':')
