@@ -463,6 +463,16 @@ class Objects(unittest.TestCase):
                   "--objects", broken, check=False)
         self.assertEqual(bad.returncode, 2, bad.stderr)
         self.assertIn("broken.json: objects[1]", bad.stderr)
+        # A static support (its Gaussians stay in the world: the static world keeps its size).
+        held = run("simulate", "--sites", "1", "--out", tempfile.mkdtemp(), "--quiet", "--no-plot",
+                   "--object", "box:0,0,-1,1,1,1", "--support", "box:-1,-1,-1,0,0,1").stdout
+        self.assertRegex(held, r"support +0: \d+ Gaussians of the scene \(box:-1,-1,-1,0,0,1\)")
+        self.assertEqual(kept(held), kept(cut))
+        self.assertRegex(held, r"around the supports|no ground around the supports")
+        alone = run("simulate", "--sites", "1", "--no-plot", "--quiet", "--out", tempfile.mkdtemp(),
+                    "--support", "box:-1,-1,-1,0,0,1", check=False)
+        self.assertEqual(alone.returncode, 2, alone.stderr)
+        self.assertIn("--support: give the objects", alone.stderr)
 
 
 class DataSafety(unittest.TestCase):

@@ -409,6 +409,41 @@ TEST(ObjectDynamics, AMuJoCoErrorStopsTheDynamicsNotTheProcess) {
   EXPECT_FALSE(fine.failed());
 }
 
+// A static support (a table top's hull) carries a box near its edge 30 cm over the floor; pushed
+// past the edge, the box falls to the floor plane and comes to rest on it.
+TEST(ObjectDynamics, ABoxPushedOffATableTopFallsToTheFloor) {
+  ObjectSpec spec;
+  spec.mass = 0.4;
+  spec.friction = 0.3;
+  spec.text = "box on the table";
+  const Eigen::Vector3d half(0.05, 0.04, 0.03);
+  const std::vector<RigidObject> objects{make_rigid_object(
+      box_surface_gaussians(Eigen::Vector3d(0.12, 0, 0.3 + half.z()), half, 0.01), spec, WorldConfig{})};
+  const RigidObject table = make_rigid_object(
+      box_surface_gaussians(Eigen::Vector3d(0, 0, 0.29), Eigen::Vector3d(0.2, 0.2, 0.01), 0.01), spec, WorldConfig{});
+  SupportPlane support;  // the floor at z = 0, and the table top
+  std::vector<Eigen::Vector3d>& hull = support.hulls.emplace_back();
+  for (const Eigen::Vector3d& p : table.hull_points) hull.push_back(table.rest_origin + p);
+  ObjectDynamics d(objects, support);
+  const Eigen::Quaterniond start = d.pose(0).rotation;
+  for (int k = 0; k < 300; ++k) d.step();
+  // It rests with its hull's lowest point on the table hull's top (both hulls reach past the
+  // faces by the side discs' in-plane tips).
+  double top = -1, under = 1;
+  for (const Eigen::Vector3d& p : hull) top = std::max(top, p.z());
+  for (const Eigen::Vector3d& p : objects[0].hull_points) under = std::min(under, objects[0].rest_origin.z() + p.z());
+  EXPECT_NEAR(d.center_of_mass(0).z(), top + (0.3 + half.z() - under), 1e-3) << "the table top does not carry the box";
+  EXPECT_LT(d.pose(0).rotation.angularDistance(start), 1e-3) << "the box turns on the table by itself";
+  for (int k = 0; k < 600; ++k) {  // pushed along +x at twice mu m g until it is past the edge
+    if (d.pose(0).position.x() < 0.3) d.apply_wrench(0, Eigen::Vector3d(2 * 0.3 * 0.4 * kG, 0, 0), d.center_of_mass(0));
+    d.step();
+  }
+  for (int k = 0; k < 1500; ++k) d.step();
+  EXPECT_GT(d.pose(0).position.x(), 0.2);
+  EXPECT_LT(d.center_of_mass(0).z(), 0.1) << "the box did not fall off the table";
+  EXPECT_GT(d.center_of_mass(0).z(), 0.0) << "the box fell through the floor";
+}
+
 // The ground is fitted to the static scene around the objects: a floor tilted 6 degrees, 2 cm
 // under a box, is found (tilt within 0.5 degree, height within 1 mm), and the box drops onto
 // it; a scene with nothing around the objects falls back on the plane under them.

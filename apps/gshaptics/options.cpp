@@ -65,6 +65,15 @@ void add_object_option(CLI::App& app, SceneOptions& o) {
                      "around them; a cut leaves a hole where the object stood",
                      kMaxObjects, kDefaultObjectMass, kDefaultObjectFriction))
       ->type_name("SPEC")->allow_extra_args(false);
+  app.add_option_function<std::vector<std::string>>(
+         "--support",
+         [&o](const std::vector<std::string>& specs) {
+           for (const std::string& spec : specs) o.supports.push_back(parse_object_spec(spec, "--support"));
+         },
+         "A static part of the scene the objects stand on, a table top (box:..., obox:... or indices:..., "
+         "repeatable): it stays in the scene as it was, and MuJoCo gets its convex hull, so an object pushed "
+         "off its edge falls to the ground (then fitted around the supports: the floor under the table)")
+      ->type_name("SPEC")->allow_extra_args(false);
   app.add_option_function<std::string>(
          "--objects",
          [&o](const std::string& path) {

@@ -195,7 +195,8 @@ std::string object_model_xml(std::span<const RigidObject> objects, const Support
   // over 1 mm): less of the soft constraints' regularisation, so a sliding box feels mu N.
   x << "<mujoco model='gshaptics_objects'>\n"
     << "  <option timestep='" << params.timestep << "' gravity='" << vec(g)
-    << "' cone='elliptic' impratio='100'/>\n";
+    << "' cone='elliptic' impratio='100'>\n"
+    << "    <flag multiccd='enable'/>\n  </option>\n";
   if (params.stack > 0) x << "  <size nstack='" << params.stack << "'/>\n";
   x << "  <default><geom solimp='0.95 0.99 0.001'/></default>\n  <asset>\n";
   for (std::size_t i = 0; i < objects.size(); ++i) {
@@ -203,9 +204,16 @@ std::string object_model_xml(std::span<const RigidObject> objects, const Support
     for (const Eigen::Vector3d& p : objects[i].hull_points) x << vec(p) << ' ';
     x << "'/>\n";
   }
+  for (std::size_t k = 0; k < support.hulls.size(); ++k) {
+    x << "    <mesh name='support" << k << "' vertex='";
+    for (const Eigen::Vector3d& p : support.hulls[k]) x << vec(p) << ' ';
+    x << "'/>\n";
+  }
   x << "  </asset>\n  <worldbody>\n"
     << "    <geom name='support' type='plane' size='0 0 1' pos='" << vec(support.point) << "' zaxis='"
     << vec(support.normal) << "' friction='0 0 0'/>\n";
+  for (std::size_t k = 0; k < support.hulls.size(); ++k)  // static: part of the world body
+    x << "    <geom name='support" << k << "' type='mesh' mesh='support" << k << "' friction='0 0 0'/>\n";
   for (std::size_t i = 0; i < objects.size(); ++i) {
     const double mu = objects[i].spec.friction;
     x << "    <body name='object" << i << "' pos='" << vec(objects[i].rest_origin) << "'>\n"

@@ -1,6 +1,8 @@
 #include "gshaptics/objects/object_renderer.h"
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <limits>
 
 #include "gshaptics/error.h"
 
@@ -44,7 +46,7 @@ void add_to(RenderOutput& sum, const RenderOutput& part, bool holds_proxy) noexc
 ObjectRenderer::ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector<std::unique_ptr<ForceRenderer>> bodies,
                                std::vector<std::shared_ptr<const CollisionWorld>> worlds,
                                std::shared_ptr<ObjectDynamics> dynamics, const Eigen::Vector2d& support_coupling,
-                               std::vector<Eigen::AlignedBox2d> holes)
+                               std::vector<SupportHole> holes)
     : scene_(std::move(scene)),
       bodies_(std::move(bodies)),
       worlds_(std::move(worlds)),
@@ -120,24 +122,29 @@ std::array<Eigen::Vector3d, 2> support_axes(const SupportPlane& plane) noexcept 
   return {u, n.cross(u)};
 }
 
-std::vector<Eigen::AlignedBox2d> support_holes(std::span<const RigidObject> objects, const SupportPlane& plane) {
+std::vector<SupportHole> support_holes(std::span<const RigidObject> objects, const SupportPlane& plane) {
   const std::array<Eigen::Vector3d, 2> uv = support_axes(plane);
-  std::vector<Eigen::AlignedBox2d> out;
+  const Eigen::Vector3d n = plane.normal.normalized();
+  std::vector<SupportHole> out;
   for (const RigidObject& o : objects) {
-    Eigen::AlignedBox2d box;
+    SupportHole hole;
+    hole.height = std::numeric_limits<double>::infinity();
     for (const Eigen::Vector3d& p : o.hull_points) {
       const Eigen::Vector3d x = o.rest_origin + p;
-      box.extend(Eigen::Vector2d(uv[0].dot(x), uv[1].dot(x)));
+      hole.area.extend(Eigen::Vector2d(uv[0].dot(x), uv[1].dot(x)));
+      hole.height = std::min(hole.height, n.dot(x));
     }
-    out.push_back(box);
+    out.push_back(hole);
   }
   return out;
 }
 
-bool ObjectRenderer::in_hole(const Eigen::Vector3d& p) const noexcept {
+const SupportHole* ObjectRenderer::hole_at(const Eigen::Vector3d& p) const noexcept {
   const std::array<Eigen::Vector3d, 2> uv = support_axes(dynamics_->support());
   const Eigen::Vector2d q(uv[0].dot(p), uv[1].dot(p));
-  return std::any_of(holes_.begin(), holes_.end(), [&q](const Eigen::AlignedBox2d& b) { return b.contains(q); });
+  for (const SupportHole& h : holes_)
+    if (h.area.contains(q)) return &h;
+  return nullptr;
 }
 
 void ObjectRenderer::add_support(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
@@ -148,9 +155,10 @@ void ObjectRenderer::add_support(std::span<const ToolEllipsoid> parts, const Eig
   for (std::size_t k = 0; k < parts.size() && k < support_held_.size(); ++k) {
     const ToolEllipsoid& part = parts[k];
     const Eigen::Vector3d lowest = part.surface_point(-n);  // the part's support point along -n
-    const double depth = n.dot(plane.point - lowest);
+    const SupportHole* hole = hole_at(lowest);
+    const double depth = hole != nullptr ? hole->height - n.dot(lowest) : 0.0;
     bool& held = support_held_[k];
-    if (!(depth > 0) || !in_hole(lowest)) {
+    if (!(depth > 0)) {
       held = false;
       continue;
     }
@@ -231,7 +239,7 @@ std::unique_ptr<ObjectRenderer> make_object_renderer(const RendererSpec& spec, c
   // The support plane's coupling is the proxy's (the paper model's runs get the proxy's defaults).
   const ProxyParams proxy = std::holds_alternative<ProxyModelSpec>(spec) ? std::get<ProxyModelSpec>(spec).params
                                                                          : ProxyParams{};
-  std::vector<Eigen::AlignedBox2d> holes = support_holes(objects, dynamics->support());
+  std::vector<SupportHole> holes = support_holes(objects, dynamics->support());
   return std::make_unique<ObjectRenderer>(make_force_renderer(spec, scene, query), std::move(bodies), std::move(worlds),
                                           std::move(dynamics), Eigen::Vector2d(proxy.stiffness, proxy.damping),
                                           std::move(holes));

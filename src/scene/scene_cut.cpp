@@ -304,6 +304,28 @@ GaussianScene object_from_file(const ObjectSpec& spec, UpAxis up, float min_opac
   return out;
 }
 
+std::vector<GaussianScene> select_supports(const GaussianScene& scene, const SimilarityTransform& scene_to_world,
+                                           std::span<const ObjectSpec> specs, float min_opacity) {
+  std::vector<GaussianScene> out(specs.size());
+  std::vector<std::size_t> kept(specs.size(), 0);
+  for (const ObjectSpec& spec : specs)
+    if (spec.cut == ObjectSpec::Cut::kFile)
+      throw InputError("--support '" + spec.text + "': a support is a part of the scene (box, obox or indices)");
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    const Eigen::Vector3d c = scene_to_world.apply(scene.means[i].cast<double>());
+    for (std::size_t k = 0; k < specs.size(); ++k)
+      if (claims(specs[k], c, scene.source_index[i])) {
+        push_registered(out[k], scene, i, scene_to_world);
+        if (scene.opacities[i] > min_opacity) ++kept[k];
+      }
+  }
+  for (std::size_t k = 0; k < specs.size(); ++k)
+    if (kept[k] == 0)
+      throw InputError("--support '" + specs[k].text + "': no Gaussian with opacity above " + format_number(min_opacity) +
+                       " is in it");
+  return out;
+}
+
 void load_file_objects(SceneCut& cut, std::span<const ObjectSpec> specs, UpAxis up, float min_opacity) {
   for (std::size_t k = 0; k < specs.size() && k < cut.objects.size(); ++k)
     if (specs[k].cut == ObjectSpec::Cut::kFile) cut.objects[k] = object_from_file(specs[k], up, min_opacity);

@@ -66,18 +66,27 @@ SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, doubl
                  o.body->size(), o.spec.mass, o.spec.friction, o.rest_origin.x(), o.rest_origin.y(),
                  o.rest_origin.z());
   }
-  const SupportFit fit = fit_support_plane(pw.world, *objects, pw.world.up());
-  const SupportPlane support = fit.plane;
+  // With static supports (a table top), the ground is the floor around them, and their hulls
+  // are static bodies the objects stand on.
+  std::vector<RigidObject> supports;
+  for (std::size_t i = 0; i < pw.supports.size(); ++i)
+    supports.push_back(make_rigid_object(pw.supports[i], so.supports[i], pw.config));
+  const SupportFit fit = fit_support_plane(pw.world, supports.empty() ? *objects : supports, pw.world.up());
+  SupportPlane support = fit.plane;
+  for (const RigidObject& s : supports) {
+    std::vector<Eigen::Vector3d>& hull = support.hulls.emplace_back();
+    for (const Eigen::Vector3d& p : s.hull_points) hull.push_back(s.rest_origin + p);
+  }
   if (report != nullptr) {
     if (fit.fitted)
-      fmt::print(report, "support    a plane fitted to {} Gaussians of the scene around the objects (RMS {:.1f} mm, "
+      fmt::print(report, "support    a plane fitted to {} Gaussians of the scene around the {} (RMS {:.1f} mm, "
                  "{:.1f} deg from up) through [{:.3f}, {:.3f}, {:.3f}]; MuJoCo at {:.0f} Hz\n",
-                 fit.points, 1e3 * fit.rms, fit.tilt * 180 / M_PI, support.point.x(), support.point.y(),
+                 fit.points, supports.empty() ? "objects" : "supports", 1e3 * fit.rms, fit.tilt * 180 / M_PI, support.point.x(), support.point.y(),
                  support.point.z(), rate_hz);
     else
-      fmt::print(report, "support    no ground around the objects in the scene: a plane under their lowest point, "
+      fmt::print(report, "support    no ground around the {} in the scene: a plane under their lowest point, "
                  "normal the world's up, through [{:.3f}, {:.3f}, {:.3f}]; MuJoCo at {:.0f} Hz\n",
-                 support.point.x(), support.point.y(), support.point.z(), rate_hz);
+                 supports.empty() ? "objects" : "supports", support.point.x(), support.point.y(), support.point.z(), rate_hz);
   }
   DynamicsParams dp;
   dp.timestep = 1.0 / rate_hz;

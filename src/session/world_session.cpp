@@ -399,7 +399,7 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
                  s.report.loaded, s.report.skipped());
       fmt::print(report, "world      {} Gaussians from the world cache {} (hashed and mapped in {:.0f} ms), up [{:.2f}, "
                  "{:.2f}, {:.2f}]\n", hit->world.size(), cache_file, ms, up.x(), up.y(), up.z());
-      return {std::move(s), cfg, br, std::move(hit->world), {}};
+      return {std::move(s), cfg, br, std::move(hit->world), {}, {}};
     }
     if (why != "no cache file") fmt::print(stderr, "warning: world cache {}: {}; rebuilding\n", cache_file, why);
   }
@@ -416,6 +416,13 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
                  so.objects[i].text);
     s.scene = std::move(cut.rest);
     objects = std::move(cut.objects);
+  }
+  std::vector<GaussianScene> supports;
+  if (!so.supports.empty()) {  // copies of static parts, for MuJoCo
+    if (so.objects.empty()) throw InputError("--support: give the objects that stand on it (--object)");
+    supports = select_supports(s.scene, with_up_axis(cfg.registration, cfg.up, s.scene.frame), so.supports, cfg.min_opacity);
+    for (std::size_t i = 0; i < supports.size(); ++i)
+      fmt::print(report, "support    {}: {} Gaussians of the scene ({})\n", i, supports[i].size(), so.supports[i].text);
   }
   // The Gaussians are not needed after the build (a cached world has none either): consuming
   // them lowers the peak memory of a large scene's build.
@@ -444,7 +451,7 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
                "up ends at [{:.2f}, {:.2f}, {:.2f}]. A registration that already turns the scene "
                "upright (like the bundled Truck's) wants --up none.\n",
                to_string(cfg.up), up.x(), up.y(), up.z());
-  return {std::move(s), cfg, br, std::move(world), std::move(objects)};
+  return {std::move(s), cfg, br, std::move(world), std::move(objects), std::move(supports)};
 }
 
 nlohmann::json objects_json(const SceneOptions& so, const PreparedWorld& pw) {

@@ -20,6 +20,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "gshaptics/device/triple_buffer.h"
 #include "gshaptics/objects/rigid_object.h"
@@ -29,10 +30,14 @@ struct mjData_;
 
 namespace gshaptics {
 
-/// The static support of the objects: a plane, world frame.
+/// The static support of the objects, world frame: a plane (the ground), plus the convex hulls
+/// of chosen static parts of the scene (`--support`: a table top) that the objects can stand on,
+/// slide off and fall from.
 struct SupportPlane {
   Eigen::Vector3d point = Eigen::Vector3d::Zero();      ///< on the plane, m
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();    ///< unit, pointing into free space (up)
+  /// Each static support's hull points (world frame, m): MuJoCo builds a static convex body of each.
+  std::vector<std::vector<Eigen::Vector3d>> hulls;
 };
 
 /// The plane under `objects`: normal `up` (unit, world), through the lowest hull point along
@@ -49,7 +54,8 @@ struct SupportFit {
 };
 
 /// The ground the objects stand on, fitted to the static scene: the opaque static Gaussians
-/// (opacity >= kHullMinOpacity) around the objects' footprints (each footprint widened by half
+/// (opacity >= kHullMinOpacity) around the footprints of `objects` (the rigid objects, or the
+/// static supports they stand on when there are any: then the ground is the floor under the table) (each footprint widened by half
 /// its size, at least 2 cm) and near the height of their lowest points (within a quarter of the
 /// objects' height, at least 1 cm), fitted by least squares (the normal is the direction of least
 /// spread) with the points farther than 2.5 median distances dropped twice. Falls back on

@@ -13,10 +13,10 @@
 /// object and the scene is felt as the two springs' sum); each object gets the reaction, -F at
 /// its proxy's tool centre plus the couple -tau, as an external wrench for the next step.
 ///
-/// The support plane carries the hand too, where a cut left a hole in the static scene (the
-/// capture never saw under the object): within each object's footprint at rest (its hull's
-/// extent across the plane's normal), the tool meets the plane the objects stand on. A tool part
-/// below the plane by d (its support point along -n) is pushed back by the coupling's spring and
+/// The support carries the hand too, where a cut left a hole in the static scene (the capture
+/// never saw under the object): within each object's footprint at rest (its hull's extent across
+/// the support's normal), the tool meets a plane at the height of the object's lowest point at
+/// rest (where the surface under it was; the ground's normal). A tool part below it by d (its support point along -n) is pushed back by the coupling's spring and
 /// damper, F = (k_c d - b_c v.n) n, never pulling, at that point (torque about the TCP). As a
 /// proxy would, the plane only holds a part that reached it from above (or from the scene beside
 /// the hole, within one semi-axis of the plane): a part that is already deep under it, or that
@@ -38,6 +38,14 @@
 
 namespace gshaptics {
 
+/// Where a cut left a hole in the static scene: the object's footprint at rest in the support's
+/// plane coordinates (support_axes), and the height (m, along the support's normal) of the
+/// surface there, the object's lowest point at rest.
+struct SupportHole {
+  Eigen::AlignedBox2d area;
+  double height = 0;
+};
+
 /// At most this many dynamics steps in one tick: a late tick does not make the next one later.
 inline constexpr int kMaxDynamicsSteps = 4;
 
@@ -47,13 +55,12 @@ class ObjectRenderer final : public ForceRenderer {
   /// the dynamics' objects); `worlds` keeps the body worlds alive. Throws InputError when the
   /// counts differ or a renderer is null.
   /// `support_coupling`: the plane's spring (N/m) and damper (N s/m), the proxy's k_c and b_c.
-  /// `holes`: where the support plane carries the hand, as boxes in the plane's coordinates
-  /// (support_holes(); empty: nowhere).
+  /// `holes`: where the support carries the hand (support_holes(); empty: nowhere).
   ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector<std::unique_ptr<ForceRenderer>> bodies,
                  std::vector<std::shared_ptr<const CollisionWorld>> worlds, std::shared_ptr<ObjectDynamics> dynamics,
                  const Eigen::Vector2d& support_coupling = Eigen::Vector2d(ProxyParams{}.stiffness,
                                                                            ProxyParams{}.damping),
-                 std::vector<Eigen::AlignedBox2d> holes = {});
+                 std::vector<SupportHole> holes = {});
   [[nodiscard]] std::string_view name() const noexcept override { return scene_->name(); }
   RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
   RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
@@ -82,7 +89,8 @@ class ObjectRenderer final : public ForceRenderer {
   // The support plane's push on the tool's parts (world), added to `sum`.
   void add_support(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp, const Eigen::Vector3d& velocity,
                    const Eigen::Vector3d& angular_velocity, RenderOutput& sum) noexcept;
-  [[nodiscard]] bool in_hole(const Eigen::Vector3d& p) const noexcept;
+  // The hole whose footprint holds `p` (null: none).
+  [[nodiscard]] const SupportHole* hole_at(const Eigen::Vector3d& p) const noexcept;
 
   std::unique_ptr<ForceRenderer> scene_;
   std::vector<std::unique_ptr<ForceRenderer>> bodies_;
@@ -96,7 +104,7 @@ class ObjectRenderer final : public ForceRenderer {
   ContactSet merged_{1u << 12};
   double pending_ = 0;  // simulated time owed to the dynamics, s
   Eigen::Vector2d support_coupling_;  // k_c (N/m), b_c (N s/m)
-  std::vector<Eigen::AlignedBox2d> holes_;  // in plane coordinates (support_axes)
+  std::vector<SupportHole> holes_;
   std::array<bool, kMaxToolParts> support_held_{};  // each part held by the plane since it reached it
 };
 
@@ -104,10 +112,10 @@ class ObjectRenderer final : public ForceRenderer {
 /// being (u.p, v.p).
 [[nodiscard]] std::array<Eigen::Vector3d, 2> support_axes(const SupportPlane& plane) noexcept;
 
-/// Each object's footprint on `plane` at rest: the box of its hull points (RigidObject::hull_points
-/// at rest_origin) in the plane's coordinates (support_axes), where its cut left a hole.
-[[nodiscard]] std::vector<Eigen::AlignedBox2d> support_holes(std::span<const RigidObject> objects,
-                                                             const SupportPlane& plane);
+/// Each object's footprint on `plane` at rest (where its cut left a hole): the box of its hull
+/// points at rest in the plane's coordinates (support_axes), and the height along the plane's
+/// normal of its lowest hull point at rest.
+[[nodiscard]] std::vector<SupportHole> support_holes(std::span<const RigidObject> objects, const SupportPlane& plane);
 
 /// The renderer `spec` names on the static `scene` and on each object's body world, with the
 /// objects' dynamics. Throws InputError as make_force_renderer() and ObjectRenderer.

@@ -87,6 +87,14 @@ struct SceneCut {
 [[nodiscard]] SceneCut cut_objects(const GaussianScene& scene, const SimilarityTransform& scene_to_world,
                                    std::span<const ObjectSpec> specs, float min_opacity);
 
+/// Static supports (`--support`, a table top): the Gaussians each spec claims, copied in the world
+/// frame (registered) without leaving the scene, so the hand still feels them and MuJoCo gets
+/// their hull as a static body. A Gaussian may go to several supports. Throws InputError naming
+/// the spec for a file spec (a support is a part of the scene) and for one that claims no Gaussian
+/// above `min_opacity`.
+[[nodiscard]] std::vector<GaussianScene> select_supports(const GaussianScene& scene, const SimilarityTransform& scene_to_world,
+                                                         std::span<const ObjectSpec> specs, float min_opacity);
+
 /// A file object's Gaussians in the world frame (as SceneCut::objects holds them, band-0 colour
 /// kept): spec.file loaded, placed by with_up_axis(its registration, `up`, the file's frame).
 /// Throws InputError naming the file for a file that cannot be read, and naming the spec when

@@ -50,6 +50,9 @@ struct SceneOptions {
   /// --object (run, simulate): rigid objects cut from the scene (scene/scene_cut.h); their
   /// Gaussians leave the static world, and MuJoCo moves them (gshaptics::objects).
   std::vector<ObjectSpec> objects;
+  /// --support: static parts of the scene the objects stand on (a table top): they stay in the
+  /// static world, and MuJoCo gets each one's convex hull (select_supports).
+  std::vector<ObjectSpec> supports;
 };
 
 /// The world-cache folder of --world-cache ("auto": $XDG_CACHE_HOME/gshaptics/worlds, else
@@ -163,6 +166,8 @@ struct PreparedWorld {
   CollisionWorld world;  ///< the static part when objects were cut out
   /// The objects' Gaussians in the world frame, in the order of SceneOptions::objects.
   std::vector<GaussianScene> objects;
+  /// The static supports' Gaussians in the world frame (copies: they are in `world` too).
+  std::vector<GaussianScene> supports;
 };
 /// Loads and builds the world (or maps it from the world cache, --world-cache), printing what it
 /// did to `report` (stdout; a command whose stdout is data passes stderr). With objects, the scene
