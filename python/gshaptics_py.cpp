@@ -649,38 +649,51 @@ PYBIND11_MODULE(gshaptics, m) {
   py::class_<PyObjectScene>(m, "ObjectScene",
       "A scene with rigid objects (as `--object`): the objects are cut from `scene` by their specs "
       "('box:X0,Y0,Z0,X1,Y1,Z1' world frame, m, 'indices:I,J,...', or 'file:PATH[:registration=FILE.json]' "
-      "for a splat file of its own, then ':mass=KG', ':friction=MU'), "
+      "for a splat file of its own, then ':mass=KG', ':friction=MU'); `supports`: static parts of the scene "
+      "('box:...', 'obox:...', 'indices:...') whose convex hulls they stand on and fall from (a table top), "
       "each keeps its Gaussians in its body frame, MuJoCo moves them on the ground fitted to the scene "
       "around them (fit_support_plane; without one, a plane under their lowest point), and the proxy (god-object) renders the static part and each "
       "object; each object gets the reaction of the coupling force as an external wrench. One per "
       "device; not thread-safe. Raises InputError for a bad spec or an object with no Gaussian.")
       .def(py::init([](const GaussianScene& s, const std::vector<std::string>& specs, float min_opacity, double sigma,
-                       const py::object& registration, const std::string& up, double rate_hz) {
+                       const py::object& registration, const std::string& up, double rate_hz,
+                       const std::vector<std::string>& support_specs) {
              if (!(rate_hz > 0)) throw py::value_error("rate_hz: must be > 0");
              WorldConfig cfg;
              cfg.min_opacity = min_opacity;
              cfg.sigma = sigma;
              cfg.up = parse_up_axis(up, "up");
              cfg.registration = registration_from(registration);
-             std::vector<ObjectSpec> parsed;
+             std::vector<ObjectSpec> parsed, held;
              for (const std::string& t : specs) parsed.push_back(parse_object_spec(t, "ObjectScene"));
+             for (const std::string& t : support_specs) held.push_back(parse_object_spec(t, "ObjectScene supports"));
              if (parsed.empty()) throw py::value_error("specs: give at least one object");
              py::gil_scoped_release release;
-             SceneCut cut = cut_objects(s, with_up_axis(cfg.registration, cfg.up, s.frame), parsed, min_opacity);
+             const SimilarityTransform T = with_up_axis(cfg.registration, cfg.up, s.frame);
+             SceneCut cut = cut_objects(s, T, parsed, min_opacity);
              load_file_objects(cut, parsed, cfg.up, min_opacity);
+             std::vector<RigidObject> supports;
+             for (const GaussianScene& g : select_supports(cut.rest, T, held, min_opacity))
+               supports.push_back(make_rigid_object(g, held[supports.size()], cfg));
              PyObjectScene out;
              out.world = std::make_shared<CollisionWorld>(CollisionWorld::build(std::move(cut.rest), cfg));
              for (std::size_t i = 0; i < parsed.size(); ++i)
                out.objects.push_back(make_rigid_object(cut.objects[i], parsed[i], cfg));
              DynamicsParams dp;
              dp.timestep = 1.0 / rate_hz;
-             out.dynamics = std::make_shared<ObjectDynamics>(
-                 out.objects, fit_support_plane(*out.world, out.objects, out.world->up()).plane, dp);
+             SupportPlane ground =
+                 fit_support_plane(*out.world, supports.empty() ? out.objects : supports, out.world->up()).plane;
+             for (const RigidObject& h : supports) {
+               std::vector<Eigen::Vector3d>& hull = ground.hulls.emplace_back();
+               for (const Eigen::Vector3d& p : h.hull_points) hull.push_back(h.rest_origin + p);
+             }
+             out.dynamics = std::make_shared<ObjectDynamics>(out.objects, ground, dp);
              out.renderer = make_object_renderer(renderer_spec(RendererKind::kProxy), *out.world, out.objects, out.dynamics);
              return out;
            }),
            py::arg("scene"), py::arg("specs"), py::arg("min_opacity") = kDefaultMinOpacity, py::arg("sigma") = 1.0,
-           py::arg("registration") = py::none(), py::arg("up") = "none", py::arg("rate_hz") = RuntimeConfig{}.rate_hz)
+           py::arg("registration") = py::none(), py::arg("up") = "none", py::arg("rate_hz") = RuntimeConfig{}.rate_hz,
+           py::arg("supports") = std::vector<std::string>{})
       .def("__len__", [](const PyObjectScene& o) { return o.objects.size(); })
       .def_property_readonly("static_size", [](const PyObjectScene& o) { return o.world->size(); },
                              "Gaussians of the static part (after the filter)")

@@ -406,3 +406,10 @@ def test_object_scene_pushes_a_box_and_reports_its_pose_and_wrench(tmp_path):
     np.testing.assert_allclose(scene.poses()["position"][0], scene.rest_origins[0], atol=1e-3)
     with pytest.raises(ValueError, match="unknown cut"):
         gshaptics.ObjectScene(gshaptics.Scene.load(path), ["sphere:1"])
+    # The floor as a static support (its hull): the box stands on it, still, where it was.
+    held = gshaptics.ObjectScene(gshaptics.Scene.load(path), [spec], up="z-up",
+                                 supports=["box:-0.3,-0.3,-0.05,0.3,0.3,-0.0003"])
+    for _ in range(300):
+        held.render((0.0, 0.0, 0.5), 0.01, (0.0, 0.0, 0.0), 1e-3)
+    np.testing.assert_allclose(held.poses()["position"][0, :2], [0.0, 0.0], atol=1e-3)
+    assert abs(held.poses()["position"][0, 2] - 0.03) < 0.006
