@@ -108,6 +108,22 @@ export function checkServeAndLog(ctx, exitCode, out) {
   return log;
 }
 
+// The end every test shares: the browser closed, serve stopped (SIGINT: it writes its outputs),
+// the CPU-burning neighbour killed.
+export async function closeAll(ctx, browser, server) {
+  if (browser) await browser.close();
+  server.kill("SIGINT");
+  if (ctx.burner) ctx.burner.kill("SIGKILL");
+}
+
+// serve's exit and its log, checked (checkServeAndLog) and summarised; null after a FAIL.
+export async function serveLog(ctx, serve) {
+  const { code } = await serve.exited;
+  const log = checkServeAndLog(ctx, code, serve.out);
+  if (log) console.log(`runtime log: ${log.ticks} ticks, ${log.withContact} with contacts, max |F| ${log.maxF.toFixed(3)} N`);
+  return log;
+}
+
 export function finish(ctx, verdict) {
   const wall = (Date.now() - ctx.t0) / 1000;
   console.log(`wall time ${wall.toFixed(1)} s${ctx.burner ? " with a CPU-burning process beside it" : ""} (budget ${ctx.budgetMs / 1000} s)`);

@@ -10,10 +10,10 @@
 
 import { spawnSync } from "node:child_process";
 import { join } from "node:path";
-import { checkServeAndLog, fail, finish, openPage, setup, sleep, startServe, waitFor } from "./harness.mjs";
+import { closeAll, fail, finish, serveLog, openPage, setup, sleep, startServe, waitFor } from "./harness.mjs";
 
 const ctx = setup("objects_e2e.mjs");
-const { exe, outDir, burner, t0, left } = ctx;
+const { exe, outDir, t0, left } = ctx;
 
 // The scene: a 10 x 8 x 6 cm box standing at the origin on a floor (z up), Gaussians every 1 cm.
 const scene = join(outDir, "box_on_floor.ply");
@@ -27,7 +27,7 @@ if (synth.status !== 0 || !spec) {
 // A light box (0.2 kg, mu 0.3: it slides under 0.6 N) and a 1 cm sphere as the tool.
 const serve = startServe(exe, [scene, "--up", "z-up", "--object", `${spec}:mass=0.2:friction=0.3`,
   "--tool-radius", "0.01", "--port", "0", "--quiet", "--no-plot", "--out", outDir]);
-const { server, out, exited } = serve;
+const { server } = serve;
 
 // Moves the page's mouse-device target to `to` in steps of at most `step` m every 50 ms (the
 // page sends its target to the server 30 times a second).
@@ -97,12 +97,8 @@ try {
 } catch (e) {
   fail(e.message);
 } finally {
-  if (browser) await browser.close();
-  server.kill("SIGINT");
-  if (burner) burner.kill("SIGKILL");
+  await closeAll(ctx, browser, server);
 }
 
-const { code } = await exited;
-const log = checkServeAndLog(ctx, code, out);
-if (log) console.log(`runtime log: ${log.ticks} ticks, ${log.withContact} with contacts, max |F| ${log.maxF.toFixed(3)} N`);
+await serveLog(ctx, serve);
 finish(ctx, "objects e2e");

@@ -11,10 +11,10 @@
 import { spawnSync } from "node:child_process";
 import { writeFileSync } from "node:fs";
 import { join } from "node:path";
-import { checkServeAndLog, fail, finish, openPage, setup, startServe, waitFor } from "./harness.mjs";
+import { closeAll, fail, finish, serveLog, openPage, setup, startServe, waitFor } from "./harness.mjs";
 
 const ctx = setup("viewer_e2e.mjs");
-const { exe, outDir, burner, t0, left } = ctx;
+const { exe, outDir, t0, left } = ctx;
 
 // The small scene: a 0.1 m sphere of Gaussians in metres, z up.
 const scene = join(outDir, "sphere.ply");
@@ -32,7 +32,7 @@ writeFileSync(materials, JSON.stringify({ materials: [{ name: "skin", stiffness:
 // A stylus (four parts, tip at the tool centre point, pointing up): the page draws every part.
 const serve = startServe(exe, [scene, "--up", "z-up", "--tool", "stylus:0.04,0.008", "--materials", materials,
   "--port", "0", "--quiet", "--no-plot", "--out", outDir]);
-const { server, out, exited } = serve;
+const { server, out } = serve;
 
 let browser;
 try {
@@ -111,14 +111,10 @@ try {
 } catch (e) {
   fail(e.message);
 } finally {
-  if (browser) await browser.close();
-  server.kill("SIGINT");
-  if (burner) burner.kill("SIGKILL");
+  await closeAll(ctx, browser, server);
 }
 
-const { code } = await exited;
 // The runtime's own log agrees: ticks with contacts and a non-zero force sent to the device.
-const log = checkServeAndLog(ctx, code, out);
-if (log) console.log(`runtime log: ${log.ticks} ticks, ${log.withContact} with contacts, max |F| ${log.maxF.toFixed(3)} N`);
+await serveLog(ctx, serve);
 if (!out.stdout.includes("frames sent")) fail("serve did not report its viewer statistics");
 finish(ctx, "viewer e2e");
