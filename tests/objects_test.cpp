@@ -319,7 +319,7 @@ TEST(ObjectSpec, AnOrientedBoxTakesWhatIsInsideItAsTurned) {
   EXPECT_EQ(cut.objects[0].source_index[0], 0u);
   const std::vector<ObjectSpec> json = parse_object_specs_json(
       R"({"objects": [{"obox": {"center": [1, 0, 0], "half": [0.2, 0.05, 0.1], "rotation": [0.9238795325, 0, 0, 0.3826834324]}}]})",
-      "objects.json", "");
+      "objects.json", "").objects;
   const SceneCut cut_json = cut_objects(scene, SimilarityTransform{}, json, 0.2f);
   ASSERT_EQ(cut_json.objects[0].size(), 1u);
   EXPECT_EQ(cut_json.objects[0].source_index[0], 0u);
@@ -483,12 +483,16 @@ TEST(ObjectDynamics, TheSupportIsTheGroundFittedAroundTheObjects) {
 // The objects JSON (--objects): the three kinds, mass and friction, paths relative to the JSON's
 // folder, an inline registration; each error names the file and the entry.
 TEST(ObjectSpec, AnObjectsJsonGivesTheSameSpecs) {
-  const std::vector<ObjectSpec> specs = parse_object_specs_json(
+  const ObjectSpecList list = parse_object_specs_json(
       R"({"objects": [{"box": [1, 0, 0, 0, 1, 1], "mass": 0.3},
                       {"indices": [5, 3, 5], "friction": 0.2},
                       {"file": "cup.ply", "registration": {"translation": [0, 0, 1]}},
-                      {"file": "/abs/mug.ply", "registration": "mug.json"}]})",
+                      {"file": "/abs/mug.ply", "registration": "mug.json"}],
+          "supports": [{"box": [-1, -1, -1, 1, 1, 0]}]})",
       "scene.json", "/data/scenes");
+  const std::vector<ObjectSpec>& specs = list.objects;
+  ASSERT_EQ(list.supports.size(), 1u);
+  EXPECT_EQ(list.supports[0].box_hi, Eigen::Vector3d(1, 1, 0));
   ASSERT_EQ(specs.size(), 4u);
   EXPECT_EQ(specs[0].cut, ObjectSpec::Cut::kBox);
   EXPECT_EQ(specs[0].box_lo, Eigen::Vector3d(0, 0, 0));
@@ -517,6 +521,8 @@ TEST(ObjectSpec, AnObjectsJsonGivesTheSameSpecs) {
   EXPECT_NE(error(R"({"objects": [{"indices": [1], "registration": "r.json"}]})").find("file objects"), std::string::npos);
   EXPECT_NE(error("{not json").find("not valid JSON"), std::string::npos);
   EXPECT_NE(error(R"({"things": []})").find("expected"), std::string::npos);
+  EXPECT_NE(error(R"({"objects": [], "supports": [{"file": "t.ply"}]})").find("supports[0]: a support is a part"),
+            std::string::npos);
   EXPECT_THROW((void)load_object_specs(testing::TempDir() + "/no_such_objects.json"), InputError);
 }
 

@@ -77,11 +77,13 @@ void add_object_option(CLI::App& app, SceneOptions& o) {
   app.add_option_function<std::string>(
          "--objects",
          [&o](const std::string& path) {
-           for (ObjectSpec& spec : load_object_specs(path)) o.objects.push_back(std::move(spec));
+           ObjectSpecList list = load_object_specs(path);
+           for (ObjectSpec& spec : list.objects) o.objects.push_back(std::move(spec));
+           for (ObjectSpec& spec : list.supports) o.supports.push_back(std::move(spec));
          },
          "Rigid objects from a JSON file, added to the --object ones: {\"objects\": [{\"box\": [X0, Y0, Z0, X1, Y1, "
          "Z1]} or {\"obox\": {\"center\", \"half\", \"rotation\"}} or {\"indices\": [...]} or {\"file\": PATH, \"registration\": PATH or {...}}, each with optional "
-         "\"mass\" and \"friction\"]} (paths relative to the JSON's folder; docs/usage.md)")
+         "\"mass\" and \"friction\"], \"supports\": [as --support]} (paths relative to the JSON's folder; docs/usage.md)")
       ->type_name("FILE");
 }
 

@@ -230,8 +230,7 @@ ObjectSpec spec_from_json(const nlohmann::json& e, const std::string& where, con
 
 }  // namespace
 
-std::vector<ObjectSpec> parse_object_specs_json(const std::string& text, const std::string& source,
-                                                const std::string& base_dir) {
+ObjectSpecList parse_object_specs_json(const std::string& text, const std::string& source, const std::string& base_dir) {
   const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
   if (j.is_discarded()) throw InputError(source + ": not valid JSON");
   if (!j.is_object() || !j.contains("objects") || !j["objects"].is_array())
@@ -239,13 +238,22 @@ std::vector<ObjectSpec> parse_object_specs_json(const std::string& text, const s
   const nlohmann::json& list = j["objects"];
   if (list.size() > kMaxObjects)
     throw InputError(source + ": " + std::to_string(list.size()) + " objects, at most " + std::to_string(kMaxObjects));
-  std::vector<ObjectSpec> out;
+  ObjectSpecList out;
   for (std::size_t i = 0; i < list.size(); ++i)
-    out.push_back(spec_from_json(list[i], source + ": objects[" + std::to_string(i) + "]", base_dir));
+    out.objects.push_back(spec_from_json(list[i], source + ": objects[" + std::to_string(i) + "]", base_dir));
+  if (j.contains("supports")) {
+    if (!j["supports"].is_array()) throw InputError(source + ": \"supports\" is not a list");
+    for (std::size_t i = 0; i < j["supports"].size(); ++i) {
+      const std::string where = source + ": supports[" + std::to_string(i) + "]";
+      ObjectSpec spec = spec_from_json(j["supports"][i], where, base_dir);
+      if (spec.cut == ObjectSpec::Cut::kFile) throw InputError(where + ": a support is a part of the scene (box, obox or indices)");
+      out.supports.push_back(std::move(spec));
+    }
+  }
   return out;
 }
 
-std::vector<ObjectSpec> load_object_specs(const std::string& path) {
+ObjectSpecList load_object_specs(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot open the objects file");
   std::ostringstream text;

@@ -58,17 +58,25 @@ struct ObjectSpec {
 /// Throws InputError naming `source` (the option or the JSON field) and what is wrong.
 [[nodiscard]] ObjectSpec parse_object_spec(std::string_view text, const std::string& source = "--object");
 
+/// What an objects JSON lists: the rigid objects and the static supports they stand on.
+struct ObjectSpecList {
+  std::vector<ObjectSpec> objects;
+  std::vector<ObjectSpec> supports;  ///< as --support (box, obox or indices)
+};
+
 /// Parses an objects JSON (`--objects FILE.json`):
-///   {"objects": [{"box": [X0, Y0, Z0, X1, Y1, Z1]} | {"indices": [I, J, ...]} |
+///   {"objects": [{"box": [X0, Y0, Z0, X1, Y1, Z1]} | {"obox": {"center", "half", "rotation"}} |
+///                {"indices": [I, J, ...]} |
 ///                {"file": "cup.ply", "registration": "cup.json" or {"scale", "rotation", "translation"}},
-///                each with optional "mass" (kg) and "friction"]}
+///                each with optional "mass" (kg) and "friction"],
+///    "supports": [{"box": ...} | {"obox": ...} | {"indices": ...}]   (optional)}
 /// Relative file paths resolve against `base_dir`. Throws InputError naming `source` and the entry
-/// (objects[I]) and what is wrong; at most kMaxObjects entries.
-[[nodiscard]] std::vector<ObjectSpec> parse_object_specs_json(const std::string& text, const std::string& source,
-                                                              const std::string& base_dir);
+/// (objects[I], supports[I]) and what is wrong; at most kMaxObjects objects.
+[[nodiscard]] ObjectSpecList parse_object_specs_json(const std::string& text, const std::string& source,
+                                                     const std::string& base_dir);
 /// Reads an objects JSON file (parse_object_specs_json, paths relative to its folder). Throws
 /// InputError naming the file.
-[[nodiscard]] std::vector<ObjectSpec> load_object_specs(const std::string& path);
+[[nodiscard]] ObjectSpecList load_object_specs(const std::string& path);
 
 /// A scene split into its static part and its objects' Gaussians.
 struct SceneCut {
