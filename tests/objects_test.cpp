@@ -658,8 +658,6 @@ TEST(ObjectRenderer, AnObjectAtRestIsFeltAsTheSameGaussiansHeldStill) {
   }
 }
 
-// Where the cut left a hole (no static Gaussian under the object), the support plane carries the
-// hand: a sphere pressed 3 mm below the plane beside the box feels k_c * 3 mm straight up.
 // Where the box stood, the capture has a hole; once the box is pushed away, the hand lowered
 // there meets the support plane (spring k_c), and nowhere else: not beside the footprint, and
 // not a hand that starts deep under the plane (it never reached it from above).

@@ -108,9 +108,9 @@ struct GroundWindow {
 
 GroundWindow ground_window(std::span<const RigidObject> objects, const Eigen::Vector3d& up) {
   GroundWindow w;
-  const Eigen::Vector3d a = std::abs(up.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
-  w.u = (a - up.dot(a) * up).normalized();
-  w.v = up.cross(w.u);
+  const std::array<Eigen::Vector3d, 2> uv = support_axes(up);
+  w.u = uv[0];
+  w.v = uv[1];
   double low = std::numeric_limits<double>::infinity(), high = -low;
   for (const RigidObject& o : objects) {
     Eigen::AlignedBox2d box;
@@ -143,6 +143,13 @@ SupportPlane plane_through(const std::vector<Eigen::Vector3d>& points, const Eig
 }
 
 }  // namespace
+
+std::array<Eigen::Vector3d, 2> support_axes(const Eigen::Vector3d& normal) noexcept {
+  const Eigen::Vector3d n = normal.normalized();
+  const Eigen::Vector3d a = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d u = (a - n.dot(a) * n).normalized();
+  return {u, n.cross(u)};
+}
 
 SupportFit fit_support_plane(const CollisionWorld& static_world, std::span<const RigidObject> objects,
                              const Eigen::Vector3d& up_in) {

@@ -53,6 +53,7 @@ ObjectRenderer::ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector
       dynamics_(std::move(dynamics)),
       support_coupling_(support_coupling),
       holes_(std::move(holes)) {
+  if (dynamics_) hole_axes_ = support_axes(dynamics_->support().normal);
   if (!scene_ || !dynamics_) throw InputError("objects: a renderer needs the scene's renderer and the dynamics");
   if (bodies_.size() != dynamics_->size() || worlds_.size() != bodies_.size())
     throw InputError("objects: " + std::to_string(bodies_.size()) + " renderers for " +
@@ -115,15 +116,8 @@ void ObjectRenderer::step_dynamics(double dt) noexcept {
   if (steps == kMaxDynamicsSteps) pending_ = 0;  // a stall is not made up for
 }
 
-std::array<Eigen::Vector3d, 2> support_axes(const SupportPlane& plane) noexcept {
-  const Eigen::Vector3d n = plane.normal.normalized();
-  const Eigen::Vector3d a = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
-  const Eigen::Vector3d u = (a - n.dot(a) * n).normalized();
-  return {u, n.cross(u)};
-}
-
 std::vector<SupportHole> support_holes(std::span<const RigidObject> objects, const SupportPlane& plane) {
-  const std::array<Eigen::Vector3d, 2> uv = support_axes(plane);
+  const std::array<Eigen::Vector3d, 2> uv = support_axes(plane.normal);
   const Eigen::Vector3d n = plane.normal.normalized();
   std::vector<SupportHole> out;
   for (const RigidObject& o : objects) {
@@ -140,8 +134,7 @@ std::vector<SupportHole> support_holes(std::span<const RigidObject> objects, con
 }
 
 const SupportHole* ObjectRenderer::hole_at(const Eigen::Vector3d& p) const noexcept {
-  const std::array<Eigen::Vector3d, 2> uv = support_axes(dynamics_->support());
-  const Eigen::Vector2d q(uv[0].dot(p), uv[1].dot(p));
+  const Eigen::Vector2d q(hole_axes_[0].dot(p), hole_axes_[1].dot(p));
   for (const SupportHole& h : holes_)
     if (h.area.contains(q)) return &h;
   return nullptr;

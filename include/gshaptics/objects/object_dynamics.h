@@ -16,6 +16,7 @@
 /// threads read the poses through the ObjectPoseChannel it publishes to (lock-free).
 
 #include <Eigen/Core>
+#include <array>
 #include <atomic>
 #include <memory>
 #include <span>
@@ -43,6 +44,10 @@ struct SupportPlane {
 /// The plane under `objects`: normal `up` (unit, world), through the lowest hull point along
 /// `up` of all of them, so each object rests on it or drops onto it as captured.
 [[nodiscard]] SupportPlane support_under(std::span<const RigidObject> objects, const Eigen::Vector3d& up);
+
+/// Two unit axes across `normal` (u, v): a point p's coordinates in a plane of that normal are
+/// (u.p, v.p).
+[[nodiscard]] std::array<Eigen::Vector3d, 2> support_axes(const Eigen::Vector3d& normal) noexcept;
 
 /// A support plane fitted to the static scene (fit_support_plane).
 struct SupportFit {

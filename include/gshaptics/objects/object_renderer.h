@@ -105,12 +105,9 @@ class ObjectRenderer final : public ForceRenderer {
   double pending_ = 0;  // simulated time owed to the dynamics, s
   Eigen::Vector2d support_coupling_;  // k_c (N/m), b_c (N s/m)
   std::vector<SupportHole> holes_;
+  std::array<Eigen::Vector3d, 2> hole_axes_;  // support_axes() of the dynamics' support, once
   std::array<bool, kMaxToolParts> support_held_{};  // each part held by the plane since it reached it
 };
-
-/// Two unit axes across the support plane's normal (u, v), the plane's coordinates of a point p
-/// being (u.p, v.p).
-[[nodiscard]] std::array<Eigen::Vector3d, 2> support_axes(const SupportPlane& plane) noexcept;
 
 /// Each object's footprint on `plane` at rest (where its cut left a hole): the box of its hull
 /// points at rest in the plane's coordinates (support_axes), and the height along the plane's
