@@ -196,6 +196,14 @@ TEST(Spz, BrokenFilesAreNamedErrors) {
   std::memcpy(huge.data() + 8, &big, 4);
   EXPECT_NE(error_of(huge, ".spz").find("points need"), std::string::npos) << error_of(huge, ".spz");
   EXPECT_NE(error_of(make_gzip_spz(3, 5000), ".spz").find("truncated"), std::string::npos);
+  // The header and the table of contents agree on a size the stream cannot hold (2^30 points: 9
+  // GiB for the first stream): refused before anything is allocated (found by the SPZ fuzzer).
+  auto crafted = v4;
+  const std::uint32_t n = 1u << 30;
+  const std::uint64_t usize = 9ull * n;
+  std::memcpy(crafted.data() + 8, &n, 4);
+  std::memcpy(crafted.data() + 32 + 8, &usize, 8);  // the TOC's first (compressed, uncompressed) pair
+  EXPECT_NE(error_of(crafted, ".spz").find("cannot hold"), std::string::npos) << error_of(crafted, ".spz");
 }
 
 TEST(CompressedPly, TruncatedIsNamed) {

@@ -8,6 +8,7 @@
 #include <zlib.h>
 #include <zstd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -163,6 +164,15 @@ V4Streams read_v4_streams(std::span<const std::uint8_t> bytes, const std::string
       if (usize != want[k])
         throw file_error(path, "SPZ v4: stream " + std::to_string(k) + " holds " + std::to_string(usize) +
                                    " bytes, " + std::to_string(n) + " points need " + std::to_string(want[k]));
+      // Before allocating: a zstd frame that declares its size must declare this one, and no
+      // frame decodes to more than 32768 bytes per compressed byte (an RLE block: 4 bytes for
+      // 128 KB), so a crafted header cannot make the reader allocate what the file cannot hold.
+      const unsigned long long declared = ZSTD_getFrameContentSize(bytes.data() + offset, csize);
+      if (declared == ZSTD_CONTENTSIZE_ERROR || (declared != ZSTD_CONTENTSIZE_UNKNOWN && declared != usize) ||
+          usize > 32768 * std::max<std::uint64_t>(csize, 1))
+        throw file_error_at(path, offset, "SPZ v4: stream " + std::to_string(k) + " is corrupt (its " +
+                                              std::to_string(csize) + " compressed bytes cannot hold " +
+                                              std::to_string(usize) + ")");
       data[k].resize(usize);
       const std::size_t got = ZSTD_decompress(data[k].data(), data[k].size(), bytes.data() + offset, csize);
       if (ZSTD_isError(got) || got != usize)
