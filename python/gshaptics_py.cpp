@@ -649,7 +649,7 @@ PYBIND11_MODULE(gshaptics, m) {
   py::class_<PyObjectScene>(m, "ObjectScene",
       "A scene with rigid objects (as `--object`): the objects are cut from `scene` by their specs "
       "('box:X0,Y0,Z0,X1,Y1,Z1' world frame, m, 'indices:I,J,...', or 'file:PATH[:registration=FILE.json]' "
-      "for a splat file of its own, then ':mass=KG', ':friction=MU'); `supports`: static parts of the scene "
+      "for a splat file of its own, then ':mass=KG', ':friction=MU', ':hulls=N'); `supports`: static parts of the scene "
       "('box:...', 'obox:...', 'indices:...') whose convex hulls they stand on and fall from (a table top), "
       "each keeps its Gaussians in its body frame, MuJoCo moves them on the ground fitted to the scene "
       "around them (fit_support_plane; without one, a plane under their lowest point), and the proxy (god-object) renders the static part and each "
@@ -683,10 +683,7 @@ PYBIND11_MODULE(gshaptics, m) {
              dp.timestep = 1.0 / rate_hz;
              SupportPlane ground =
                  fit_support_plane(*out.world, supports.empty() ? out.objects : supports, out.world->up()).plane;
-             for (const RigidObject& h : supports) {
-               std::vector<Eigen::Vector3d>& hull = ground.hulls.emplace_back();
-               for (const Eigen::Vector3d& p : h.hull_points) hull.push_back(h.rest_origin + p);
-             }
+             add_support_hulls(ground, supports);
              out.dynamics = std::make_shared<ObjectDynamics>(out.objects, ground, dp);
              out.renderer = make_object_renderer(renderer_spec(RendererKind::kProxy), *out.world, out.objects, out.dynamics);
              return out;

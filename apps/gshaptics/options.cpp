@@ -61,7 +61,8 @@ void add_object_option(CLI::App& app, SceneOptions& o) {
                      "obox:CX,CY,CZ,HX,HY,HZ,QW,QX,QY,QZ (an oriented box: centre, half extents, rotation) or "
                      "indices:I,J,... (the file's Gaussians), or a splat file of its own, "
                      "file:PATH[:registration=FILE.json] (placed like the scene, --up included); then optional "
-                     ":mass=KG (default {:g}) and :friction=MU (default {:g}). Objects rest on the ground fitted to the scene "
+                     ":mass=KG (default {:g}), :friction=MU (default {:g}) and :hulls=N (convex pieces for a concave object, "
+                     "default 1). Objects rest on the ground fitted to the scene "
                      "around them; a cut leaves a hole where the object stood",
                      kMaxObjects, kDefaultObjectMass, kDefaultObjectFriction))
       ->type_name("SPEC")->allow_extra_args(false);

@@ -192,8 +192,20 @@ SupportFit fit_support_plane(const CollisionWorld& static_world, std::span<const
   return fit;
 }
 
-std::string object_model_xml(std::span<const RigidObject> objects, const SupportPlane& support,
-                             const DynamicsParams& params) {
+void add_support_hulls(SupportPlane& plane, std::span<const RigidObject> supports) {
+  for (const RigidObject& s : supports)
+    for (std::size_t k = 0; k < s.piece_ends.size(); ++k) {
+      std::vector<Eigen::Vector3d>& hull = plane.hulls.emplace_back();
+      for (const Eigen::Vector3d& p : s.piece(k)) hull.push_back(s.rest_origin + p);
+    }
+}
+
+namespace {
+
+// The MJCF text; density[i] > 0: object i's pieces weigh that density (kg/m^3) over their
+// volumes, else its one hull carries its mass.
+std::string model_xml(std::span<const RigidObject> objects, const SupportPlane& support, const DynamicsParams& params,
+                      std::span<const double> density) {
   std::ostringstream x;
   x.precision(17);
   const Eigen::Vector3d g = -params.gravity * support.normal.normalized();
@@ -206,11 +218,17 @@ std::string object_model_xml(std::span<const RigidObject> objects, const Support
     << "    <flag multiccd='enable'/>\n  </option>\n";
   if (params.stack > 0) x << "  <size nstack='" << params.stack << "'/>\n";
   x << "  <default><geom solimp='0.95 0.99 0.001'/></default>\n  <asset>\n";
-  for (std::size_t i = 0; i < objects.size(); ++i) {
-    x << "    <mesh name='hull" << i << "' vertex='";
-    for (const Eigen::Vector3d& p : objects[i].hull_points) x << vec(p) << ' ';
-    x << "'/>\n";
-  }
+  const auto mesh_name = [&](std::size_t i, std::size_t k) {
+    return objects[i].piece_ends.size() <= 1 ? "hull" + std::to_string(i) : "hull" + std::to_string(i) + "_" + std::to_string(k);
+  };
+  for (std::size_t i = 0; i < objects.size(); ++i)
+    for (std::size_t k = 0; k < std::max<std::size_t>(1, objects[i].piece_ends.size()); ++k) {
+      x << "    <mesh name='" << mesh_name(i, k) << "' vertex='";
+      const std::span<const Eigen::Vector3d> points =
+          objects[i].piece_ends.empty() ? std::span<const Eigen::Vector3d>(objects[i].hull_points) : objects[i].piece(k);
+      for (const Eigen::Vector3d& p : points) x << vec(p) << ' ';
+      x << "'/>\n";
+    }
   for (std::size_t k = 0; k < support.hulls.size(); ++k) {
     x << "    <mesh name='support" << k << "' vertex='";
     for (const Eigen::Vector3d& p : support.hulls[k]) x << vec(p) << ' ';
@@ -223,13 +241,46 @@ std::string object_model_xml(std::span<const RigidObject> objects, const Support
     x << "    <geom name='support" << k << "' type='mesh' mesh='support" << k << "' friction='0 0 0'/>\n";
   for (std::size_t i = 0; i < objects.size(); ++i) {
     const double mu = objects[i].spec.friction;
-    x << "    <body name='object" << i << "' pos='" << vec(objects[i].rest_origin) << "'>\n"
-      << "      <freejoint/>\n"
-      << "      <geom type='mesh' mesh='hull" << i << "' mass='" << objects[i].spec.mass << "' friction='" << mu
-      << ' ' << 0.01 * mu << ' ' << 0.0002 * mu << "'/>\n    </body>\n";
+    x << "    <body name='object" << i << "' pos='" << vec(objects[i].rest_origin) << "'>\n      <freejoint/>\n";
+    for (std::size_t k = 0; k < std::max<std::size_t>(1, objects[i].piece_ends.size()); ++k) {
+      x << "      <geom type='mesh' mesh='" << mesh_name(i, k) << "' ";
+      if (density[i] > 0) x << "density='" << density[i] << "'";
+      else x << "mass='" << objects[i].spec.mass << "'";
+      x << " friction='" << mu << ' ' << 0.01 * mu << ' ' << 0.0002 * mu << "'/>\n";
+    }
+    x << "    </body>\n";
   }
   x << "  </worldbody>\n</mujoco>\n";
   return x.str();
+}
+
+}  // namespace
+
+std::string object_model_xml(std::span<const RigidObject> objects, const SupportPlane& support,
+                             const DynamicsParams& params) {
+  // An object of several pieces gets its mass spread over their volumes: MuJoCo weighs them at a
+  // density of 1 first, which gives their volume, then at the density that makes the mass.
+  std::vector<double> density(objects.size(), 0.0);
+  bool pieces = false;
+  for (std::size_t i = 0; i < objects.size(); ++i)
+    if (objects[i].piece_ends.size() > 1) {
+      density[i] = 1.0;
+      pieces = true;
+    }
+  if (!pieces) return model_xml(objects, support, params, density);
+  mjModel* weigh = load_model(model_xml(objects, support, params, density));
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    if (!(density[i] > 0)) continue;
+    const int b = mj_name2id(weigh, mjOBJ_BODY, ("object" + std::to_string(i)).c_str());
+    const double volume = b >= 0 ? weigh->body_mass[b] : 0.0;
+    if (!(volume > 0)) {
+      mj_deleteModel(weigh);
+      throw InputError("objects: object " + std::to_string(i) + "'s hulls have no volume");
+    }
+    density[i] = objects[i].spec.mass / volume;
+  }
+  mj_deleteModel(weigh);
+  return model_xml(objects, support, params, density);
 }
 
 ObjectDynamics::ObjectDynamics(std::span<const RigidObject> objects, const SupportPlane& support,

@@ -31,7 +31,7 @@ InputError spec_error(const std::string& source, std::string_view text, const st
   return InputError(source + " '" + std::string(text) + "': " + what +
                     " (expected box:X0,Y0,Z0,X1,Y1,Z1, obox:CX,CY,CZ,HX,HY,HZ,QW,QX,QY,QZ, indices:I,J,... or "
                     "file:PATH[:registration=FILE.json], "
-                    "then optional :mass=KG and :friction=MU)");
+                    "then optional :mass=KG, :friction=MU and :hulls=N)");
 }
 
 double parse_number(std::string_view field, const std::string& source, std::string_view text) {
@@ -100,14 +100,18 @@ void parse_property(std::string_view field, ObjectSpec& spec, const std::string&
     return;
   }
   const double v = parse_number(field.substr(eq + 1), source, text);
-  if (key == "mass") {
+  if (key == "hulls") {
+    if (!(v >= 1 && v <= kMaxObjectHulls && v == std::floor(v)))
+      throw spec_error(source, text, "hulls must be a whole number from 1 to " + std::to_string(kMaxObjectHulls));
+    spec.hulls = int(v);
+  } else if (key == "mass") {
     if (!(v > 0)) throw spec_error(source, text, "mass must be > 0 kg");
     spec.mass = v;
   } else if (key == "friction") {
     if (!(v >= 0)) throw spec_error(source, text, "friction must be >= 0");
     spec.friction = v;
   } else {
-    throw spec_error(source, text, "unknown property '" + std::string(key) + "' (mass, friction, registration)");
+    throw spec_error(source, text, "unknown property '" + std::string(key) + "' (mass, friction, hulls, registration)");
   }
 }
 
@@ -223,6 +227,12 @@ ObjectSpec spec_from_json(const nlohmann::json& e, const std::string& where, con
     throw InputError(where + ": \"registration\" is for file objects");
   if (e.contains("mass")) spec.mass = number(e["mass"], "mass");
   if (e.contains("friction")) spec.friction = number(e["friction"], "friction");
+  if (e.contains("hulls")) {
+    const double h = number(e["hulls"], "hulls");
+    if (!(h >= 1 && h <= kMaxObjectHulls && h == std::floor(h)))
+      throw InputError(where + ": hulls must be a whole number from 1 to " + std::to_string(kMaxObjectHulls));
+    spec.hulls = int(h);
+  }
   if (!(spec.mass > 0)) throw InputError(where + ": mass must be > 0 kg");
   if (!(spec.friction >= 0)) throw InputError(where + ": friction must be >= 0");
   return spec;

@@ -62,9 +62,9 @@ SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, doubl
     objects->push_back(make_rigid_object(pw.objects[i], so.objects[i], pw.config));
     const RigidObject& o = objects->back();
     if (report != nullptr)
-      fmt::print(report, "object     {}: {} Gaussians kept, {:.3g} kg, mu {:.3g}, at [{:.3f}, {:.3f}, {:.3f}]\n", i,
-                 o.body->size(), o.spec.mass, o.spec.friction, o.rest_origin.x(), o.rest_origin.y(),
-                 o.rest_origin.z());
+      fmt::print(report, "object     {}: {} Gaussians kept, {:.3g} kg, mu {:.3g}, {} convex piece{}, at [{:.3f}, {:.3f}, {:.3f}]\n", i,
+                 o.body->size(), o.spec.mass, o.spec.friction, o.piece_ends.size(), o.piece_ends.size() == 1 ? "" : "s",
+                 o.rest_origin.x(), o.rest_origin.y(), o.rest_origin.z());
   }
   // With static supports (a table top), the ground is the floor around them, and their hulls
   // are static bodies the objects stand on.
@@ -73,10 +73,7 @@ SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, doubl
     supports.push_back(make_rigid_object(pw.supports[i], so.supports[i], pw.config));
   const SupportFit fit = fit_support_plane(pw.world, supports.empty() ? *objects : supports, pw.world.up());
   SupportPlane support = fit.plane;
-  for (const RigidObject& s : supports) {
-    std::vector<Eigen::Vector3d>& hull = support.hulls.emplace_back();
-    for (const Eigen::Vector3d& p : s.hull_points) hull.push_back(s.rest_origin + p);
-  }
+  add_support_hulls(support, supports);
   if (report != nullptr) {
     if (fit.fitted)
       fmt::print(report, "support    a plane fitted to {} Gaussians of the scene around the {} (RMS {:.1f} mm, "

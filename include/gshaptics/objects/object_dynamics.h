@@ -69,6 +69,10 @@ struct SupportFit {
 [[nodiscard]] SupportFit fit_support_plane(const CollisionWorld& static_world, std::span<const RigidObject> objects,
                                            const Eigen::Vector3d& up);
 
+/// Adds each of `supports`' convex pieces (RigidObject::piece, moved to the world by its rest
+/// origin) to `plane.hulls`: the static bodies the objects stand on and fall from (a table top).
+void add_support_hulls(SupportPlane& plane, std::span<const RigidObject> supports);
+
 /// The dynamics' settings.
 struct DynamicsParams {
   double timestep = 0.001;  ///< s: the servo period (or a multiple of it)

@@ -27,6 +27,8 @@ inline constexpr double kDefaultObjectMass = 0.5;      ///< kg, when --object gi
 inline constexpr double kDefaultObjectFriction = 0.5;  ///< Coulomb mu against the support, when none is given
 /// At most this many objects in one scene (fixed-size per-tick buffers).
 inline constexpr std::size_t kMaxObjects = 8;
+/// At most this many convex pieces in one object's (or support's) collision geometry.
+inline constexpr int kMaxObjectHulls = 16;
 
 /// Which Gaussians make one object, and its physical properties.
 struct ObjectSpec {
@@ -45,16 +47,20 @@ struct ObjectSpec {
   std::optional<SimilarityTransform> registration;
   double mass = kDefaultObjectMass;          ///< kg, > 0
   double friction = kDefaultObjectFriction;  ///< mu >= 0, against the support
+  /// Convex pieces of the collision geometry, 1..kMaxObjectHulls (rigid_object.h: the opaque
+  /// Gaussians split by k-means; more than one for a concave object such as an arch or a mug).
+  int hulls = 1;
   std::string text;                          ///< as given, for messages
 };
 
 /// Parses one --object value:
-///   box:X0,Y0,Z0,X1,Y1,Z1[:mass=KG][:friction=MU]   (world frame, m)
+///   box:X0,Y0,Z0,X1,Y1,Z1[:mass=KG][:friction=MU][:hulls=N]   (world frame, m)
 ///   obox:CX,CY,CZ,HX,HY,HZ,QW,QX,QY,QZ[:...]          (an oriented box: centre, half extents
 ///                                                     along its own axes, its rotation w first)
-///   indices:I,J,K,...[:mass=KG][:friction=MU]       (the file's Gaussian indices)
+///   indices:I,J,K,...[:mass=KG][:friction=MU][:hulls=N]   (the file's Gaussian indices)
 ///   file:PATH[:registration=FILE.json][:mass=KG][:friction=MU]   (a splat file of its own;
 ///   PATH may not contain ':')
+/// `hulls=N` splits the collision geometry into N convex pieces (ObjectSpec::hulls).
 /// Throws InputError naming `source` (the option or the JSON field) and what is wrong.
 [[nodiscard]] ObjectSpec parse_object_spec(std::string_view text, const std::string& source = "--object");
 
@@ -68,7 +74,7 @@ struct ObjectSpecList {
 ///   {"objects": [{"box": [X0, Y0, Z0, X1, Y1, Z1]} | {"obox": {"center", "half", "rotation"}} |
 ///                {"indices": [I, J, ...]} |
 ///                {"file": "cup.ply", "registration": "cup.json" or {"scale", "rotation", "translation"}},
-///                each with optional "mass" (kg) and "friction"],
+///                each with optional "mass" (kg), "friction" and "hulls"],
 ///    "supports": [{"box": ...} | {"obox": ...} | {"indices": ...}]   (optional)}
 /// Relative file paths resolve against `base_dir`. Throws InputError naming `source` and the entry
 /// (objects[I], supports[I]) and what is wrong; at most kMaxObjects objects.
