@@ -746,7 +746,20 @@ PYBIND11_MODULE(gshaptics, m) {
            "linear_velocity (N, 3) m/s and angular_velocity (N, 3) rad/s, and the hand's wrench on each "
            "over the last dynamics step: wrench_force (N, 3) N and wrench_torque (N, 3) N m about its centre "
            "of mass. World frame.")
-      .def("reset", [](PyObjectScene& o) { o.renderer->reset(); }, "Forgets the proxies; the objects back at rest.");
+      .def("reset", [](PyObjectScene& o) { o.renderer->reset(); }, "Forgets the proxies; the objects back at rest.")
+      .def("untouched_drift",
+           [](const PyObjectScene& o, double seconds) {
+             if (!(seconds > 0) || !std::isfinite(seconds)) throw InputError("untouched_drift: seconds must be > 0");
+             const UntouchedDrift d = untouched_drift(o.objects, o.dynamics->support(), o.dynamics->params(), seconds);
+             py::dict out;
+             out["moved"] = std::vector<double>(d.moved.begin(), d.moved.begin() + std::ptrdiff_t(o.objects.size()));
+             out["turned"] = std::vector<double>(d.turned.begin(), d.turned.begin() + std::ptrdiff_t(o.objects.size()));
+             return out;
+           },
+           py::arg("seconds") = 1.0,
+           "How far each object goes untouched over `seconds` from rest, on a model of its own (the scene's "
+           "objects are not moved): {'moved': m, 'turned': rad} per object. An object that falls or tips by "
+           "itself does not stand on its support as cut (the commands warn past 1 cm or 5 degrees in 1 s).");
 
   m.def("push_scenario",
         [](double mass, double friction, double rate_hz, const std::string& force_model, bool passivity) {

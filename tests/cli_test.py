@@ -430,8 +430,13 @@ class Objects(unittest.TestCase):
         with its dynamics; a box that holds no Gaussian, or a malformed one, is refused."""
         plain = run("simulate", "--sites", "1", "--out", tempfile.mkdtemp(), "--quiet", "--no-plot").stdout
         cut_out = tempfile.mkdtemp()
-        cut = run("simulate", "--sites", "1", "--out", cut_out, "--quiet", "--no-plot",
-                  "--object", "box:0,0,-1,1,1,1:mass=2:friction=0.6").stdout
+        cut_run = run("simulate", "--sites", "1", "--out", cut_out, "--quiet", "--no-plot",
+                      "--object", "box:0,0,-1,1,1,1:mass=2:friction=0.6")
+        cut = cut_run.stdout
+        # A chunk of the truck's body does not stand on the ground: it falls by itself, and says so.
+        self.assertRegex(cut_run.stderr, r"warning: object 0 \(box:0,0,-1,1,1,1:mass=2:friction=0\.6\) moves "
+                                         r"[0-9.]+ m and turns \d+ deg in its first second untouched")
+        self.assertRegex(cut, r"object +0: \d+ Gaussians kept, 2 kg, mu 0\.6, 1 convex piece,")
         kept = lambda text: int(re.search(r"^world +(\d+) Gaussians", text, re.M).group(1))
         moved = int(re.search(r"^object +0: (\d+) Gaussians cut", cut, re.M).group(1))
         self.assertGreater(moved, 1000)
@@ -443,7 +448,8 @@ class Objects(unittest.TestCase):
         self.assertEqual(objects, [{"spec": "box:0,0,-1,1,1,1:mass=2:friction=0.6", "mass_kg": 2.0,
                                     "friction": 0.6, "gaussians_cut": moved}])
         for spec, message in (("box:9,9,9,10,10,10", "no Gaussian with opacity above 0.2"),
-                              ("box:1,2", "a box takes six numbers")):
+                              ("box:1,2", "a box takes six numbers"),
+                              ("box:0,0,-1,1,1,1:hulls=0", "hulls must be a whole number from 1 to 16")):
             bad = run("simulate", "--sites", "1", "--no-plot", "--quiet", "--out", tempfile.mkdtemp(),
                       "--object", spec, check=False)
             self.assertEqual(bad.returncode, 2, bad.stderr)

@@ -499,6 +499,32 @@ TEST(ObjectDynamics, AnArchInPiecesLeavesRoomForABoxUnderIt) {
   EXPECT_GT(moved[1], 1e-2) << "the arch's one hull did not hold the box (the test shows nothing)";
 }
 
+// An object that does not stand on its support as cut is told apart before a run: a box resting
+// on the plane stays (under 1 mm, 1 degree in 1 s); the same box 5 cm over it falls those 5 cm
+// (within 5 mm); a tall thin box stood on one edge tips over.
+TEST(ObjectDynamics, AnObjectThatDoesNotStandOnItsSupportIsToldApart) {
+  const RigidObject box = box_object(Eigen::Vector3d(0.05, 0.04, 0.03), 0.4, 0.5);
+  SupportPlane low = support_under(std::vector<RigidObject>{box}, Eigen::Vector3d::UnitZ());
+  const UntouchedDrift resting = untouched_drift(std::vector<RigidObject>{box}, low, DynamicsParams{});
+  EXPECT_LT(resting.moved[0], 1e-3);
+  EXPECT_LT(resting.turned[0], M_PI / 180);
+  low.point.z() -= 0.05;
+  const UntouchedDrift falling = untouched_drift(std::vector<RigidObject>{box}, low, DynamicsParams{});
+  EXPECT_NEAR(falling.moved[0], 0.05, 5e-3);
+  ObjectSpec spec;
+  spec.text = "slab on its edge";
+  const RigidObject slab = make_rigid_object(
+      box_surface_gaussians(Eigen::Vector3d(0, 0, 0.1), Eigen::Vector3d(0.005, 0.05, 0.1), 0.01), spec, WorldConfig{});
+  const std::vector<RigidObject> tall{slab};
+  // Its hull turned 10 degrees about y (the dynamics' geometry only): it stands on one bottom
+  // edge, its centre of mass past it.
+  std::vector<RigidObject> leaning = tall;
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(10 * M_PI / 180, Eigen::Vector3d::UnitY()));
+  for (Eigen::Vector3d& p : leaning[0].hull_points) p = q * p;
+  const UntouchedDrift tipping = untouched_drift(leaning, support_under(leaning, Eigen::Vector3d::UnitZ()), DynamicsParams{});
+  EXPECT_GT(tipping.turned[0], kUntouchedTurnWarn);
+}
+
 // A convex object stays one piece whatever it is allowed: every face's plane has the whole box
 // on one side.
 TEST(ObjectDynamics, ABoxAskedForPiecesStaysOne) {

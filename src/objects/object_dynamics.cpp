@@ -200,6 +200,21 @@ void add_support_hulls(SupportPlane& plane, std::span<const RigidObject> support
     }
 }
 
+UntouchedDrift untouched_drift(std::span<const RigidObject> objects, const SupportPlane& support,
+                               const DynamicsParams& params, double seconds) {
+  ObjectDynamics d(objects, support, params);
+  std::array<BodyPose, kMaxObjects> rest{};
+  for (std::size_t i = 0; i < d.size(); ++i) rest[i] = d.pose(i);
+  const long steps = std::lround(seconds / params.timestep);
+  for (long k = 0; k < steps && !d.failed(); ++k) d.step();
+  UntouchedDrift out;
+  for (std::size_t i = 0; i < d.size(); ++i) {
+    out.moved[i] = (d.pose(i).position - rest[i].position).norm();
+    out.turned[i] = d.pose(i).rotation.angularDistance(rest[i].rotation);
+  }
+  return out;
+}
+
 namespace {
 
 // The MJCF text; density[i] > 0: object i's pieces weigh that density (kg/m^3) over their

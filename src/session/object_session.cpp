@@ -54,6 +54,21 @@ nlohmann::json push_summary(const PushRun& run, const SimulateOptions& o) {
   return j;
 }
 
+// A warning for each object that falls, slides or tips by itself in its first second.
+void warn_untouched_drift(std::span<const RigidObject> objects, const SupportPlane& support, const DynamicsParams& dp,
+                          const SupportFit& fit) {
+  const UntouchedDrift drift = untouched_drift(objects, support, dp);
+  std::fflush(stdout);  // (the report so far comes first)
+  for (std::size_t i = 0; i < objects.size(); ++i)
+    if (drift.moved[i] > kUntouchedDriftWarn || drift.turned[i] > kUntouchedTurnWarn)
+      fmt::print(stderr,
+                 "warning: object {} ({}) moves {:.3f} m and turns {:.0f} deg in its first second untouched: it does "
+                 "not stand on its support as cut{}; the viewer shows it where it goes. Check the cut, or name what "
+                 "it stands on with --support\n",
+                 i, objects[i].spec.text, drift.moved[i], drift.turned[i] * 180 / M_PI,
+                 fit.fitted ? fmt::format(" (the ground fitted around it has an RMS of {:.0f} mm)", 1e3 * fit.rms) : "");
+}
+
 }  // namespace
 
 SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, double rate_hz, std::FILE* report) {
@@ -87,6 +102,7 @@ SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, doubl
   }
   DynamicsParams dp;
   dp.timestep = 1.0 / rate_hz;
+  warn_untouched_drift(*objects, support, dp, fit);
   SceneObjects out;
   out.poses = std::make_shared<ObjectPoseChannel>();
   for (const RigidObject& o : *objects) {

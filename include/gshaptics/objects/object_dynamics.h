@@ -156,6 +156,20 @@ class ObjectDynamics {
   bool failed_ = false;
 };
 
+/// How far each object goes untouched: `seconds` of dynamics from rest on a model of its own (the
+/// objects' own weight only). An object that falls, slides or tips by itself does not stand on
+/// the support as it was cut (a chunk of a larger thing, a ground fitted badly): the scene stops
+/// looking like the capture as soon as a run starts.
+struct UntouchedDrift {
+  std::array<double, kMaxObjects> moved{};   ///< m, each object's body origin from rest
+  std::array<double, kMaxObjects> turned{};  ///< rad, from rest
+};
+[[nodiscard]] UntouchedDrift untouched_drift(std::span<const RigidObject> objects, const SupportPlane& support,
+                                             const DynamicsParams& params, double seconds = 1.0);
+/// An object moving more than this untouched (untouched_drift over 1 s) gets a warning.
+inline constexpr double kUntouchedDriftWarn = 0.01;        ///< m
+inline constexpr double kUntouchedTurnWarn = 5 * M_PI / 180;  ///< rad
+
 /// The MJCF text of the model ObjectDynamics builds (for inspection and `--dump`): one body per
 /// object with its hull as a mesh, the support plane, the options above.
 [[nodiscard]] std::string object_model_xml(std::span<const RigidObject> objects, const SupportPlane& support,
