@@ -747,6 +747,10 @@ PYBIND11_MODULE(gshaptics, m) {
            "over the last dynamics step: wrench_force (N, 3) N and wrench_torque (N, 3) N m about its centre "
            "of mass. World frame.")
       .def("reset", [](PyObjectScene& o) { o.renderer->reset(); }, "Forgets the proxies; the objects back at rest.")
+      .def("mjcf",
+           [](const PyObjectScene& o) { return object_model_xml(o.objects, o.dynamics->support(), o.dynamics->params()); },
+           "The objects' MuJoCo model as MJCF text (as --objects-mjcf writes it): each object a free body of its "
+           "convex hulls, the supports' hulls, the ground plane and the contact options.")
       .def("untouched_drift",
            [](const PyObjectScene& o, double seconds) {
              if (!(seconds > 0) || !std::isfinite(seconds)) throw InputError("untouched_drift: seconds must be > 0");

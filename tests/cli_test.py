@@ -470,9 +470,17 @@ class Objects(unittest.TestCase):
         self.assertEqual(bad.returncode, 2, bad.stderr)
         self.assertIn("broken.json: objects[1]", bad.stderr)
         # A static support (its Gaussians stay in the world: the static world keeps its size).
+        mjcf = os.path.join(tempfile.mkdtemp(), "objects.xml")
         held = run("simulate", "--sites", "1", "--out", tempfile.mkdtemp(), "--quiet", "--no-plot",
-                   "--object", "box:0,0,-1,1,1,1", "--support", "box:-1,-1,-1,0,0,1").stdout
+                   "--object", "box:0,0,-1,1,1,1", "--support", "box:-1,-1,-1,0,0,1", "--objects-mjcf", mjcf).stdout
         self.assertRegex(held, r"support +0: \d+ Gaussians of the scene \(box:-1,-1,-1,0,0,1\)")
+        # The MuJoCo model as MJCF (--objects-mjcf): the object a free body of its hull, the support's hull.
+        with open(mjcf) as f:
+            model = f.read()
+        self.assertIn("<mujoco model='gshaptics_objects'>", model)
+        self.assertEqual(model.count("<freejoint/>"), 1)
+        self.assertIn("mesh='hull0'", model)
+        self.assertIn("mesh='support0'", model)
         self.assertEqual(kept(held), kept(cut))
         self.assertRegex(held, r"around the supports|no ground around the supports")
         alone = run("simulate", "--sites", "1", "--no-plot", "--quiet", "--out", tempfile.mkdtemp(),

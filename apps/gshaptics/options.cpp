@@ -84,7 +84,11 @@ void add_object_option(CLI::App& app, SceneOptions& o) {
          },
          "Rigid objects from a JSON file, added to the --object ones: {\"objects\": [{\"box\": [X0, Y0, Z0, X1, Y1, "
          "Z1]} or {\"obox\": {\"center\", \"half\", \"rotation\"}} or {\"indices\": [...]} or {\"file\": PATH, \"registration\": PATH or {...}}, each with optional "
-         "\"mass\" and \"friction\"], \"supports\": [as --support]} (paths relative to the JSON's folder; docs/usage.md)")
+         "\"mass\", \"friction\" and \"hulls\"], \"supports\": [as --support]} (paths relative to the JSON's folder; docs/usage.md)")
+      ->type_name("FILE");
+  app.add_option("--objects-mjcf", o.objects_mjcf,
+                 "Write the objects' MuJoCo model here (MJCF: each object a body of convex hulls, the supports, the "
+                 "ground plane and the contact options), to look at in MuJoCo's own viewer")
       ->type_name("FILE");
 }
 

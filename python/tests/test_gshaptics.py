@@ -414,5 +414,7 @@ def test_object_scene_pushes_a_box_and_reports_its_pose_and_wrench(tmp_path):
     np.testing.assert_allclose(held.poses()["position"][0, :2], [0.0, 0.0], atol=1e-3)
     assert abs(held.poses()["position"][0, 2] - 0.03) < 0.006
     # It stands: untouched it stays (a concave cut in pieces, hulls=2, the same for a box).
-    drift = gshaptics.ObjectScene(gshaptics.Scene.load(path), [spec + ":hulls=2"], up="z-up").untouched_drift(1.0)
+    pieces = gshaptics.ObjectScene(gshaptics.Scene.load(path), [spec + ":hulls=2"], up="z-up")
+    drift = pieces.untouched_drift(1.0)
     assert drift["moved"][0] < 0.01 and drift["turned"][0] < 0.09
+    assert pieces.mjcf().count("<freejoint/>") == 1 and "mesh='hull0'" in pieces.mjcf()  # a box stays one piece

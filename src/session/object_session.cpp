@@ -103,6 +103,10 @@ SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, doubl
   DynamicsParams dp;
   dp.timestep = 1.0 / rate_hz;
   warn_untouched_drift(*objects, support, dp, fit);
+  if (!so.objects_mjcf.empty()) {
+    write_file_atomically(so.objects_mjcf, object_model_xml(*objects, support, dp));
+    if (report != nullptr) fmt::print(report, "mjcf       {} (the objects' MuJoCo model)\n", so.objects_mjcf);
+  }
   SceneObjects out;
   out.poses = std::make_shared<ObjectPoseChannel>();
   for (const RigidObject& o : *objects) {

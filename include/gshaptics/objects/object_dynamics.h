@@ -170,8 +170,10 @@ struct UntouchedDrift {
 inline constexpr double kUntouchedDriftWarn = 0.01;        ///< m
 inline constexpr double kUntouchedTurnWarn = 5 * M_PI / 180;  ///< rad
 
-/// The MJCF text of the model ObjectDynamics builds (for inspection and `--dump`): one body per
-/// object with its hull as a mesh, the support plane, the options above.
+/// The MJCF text of the model ObjectDynamics builds (for inspection: `--objects-mjcf`): one body
+/// per object with its hulls as meshes (by density over their volumes when there are several),
+/// the support plane and hulls, the options above. Throws InputError when MuJoCo rejects the
+/// model it weighs a many-piece object with.
 [[nodiscard]] std::string object_model_xml(std::span<const RigidObject> objects, const SupportPlane& support,
                                            const DynamicsParams& params);
 

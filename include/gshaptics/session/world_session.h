@@ -53,6 +53,8 @@ struct SceneOptions {
   /// --support: static parts of the scene the objects stand on (a table top): they stay in the
   /// static world, and MuJoCo gets each one's convex hull (select_supports).
   std::vector<ObjectSpec> supports;
+  /// --objects-mjcf: where to write the objects' MuJoCo model (object_model_xml; "" none).
+  std::string objects_mjcf;
 };
 
 /// The world-cache folder of --world-cache ("auto": $XDG_CACHE_HOME/gshaptics/worlds, else
