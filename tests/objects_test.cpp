@@ -535,6 +535,10 @@ TEST(ObjectDynamics, ABoxAskedForPiecesStaysOne) {
       box_surface_gaussians(Eigen::Vector3d(0, 0, 0.03), Eigen::Vector3d(0.05, 0.04, 0.03), 0.005), spec, WorldConfig{});
   EXPECT_EQ(box.piece_ends.size(), 1u);
   EXPECT_EQ(box.piece_ends.back(), box.hull_points.size());
+  // Degenerate input: nothing to cut, or no scale to cut at.
+  EXPECT_TRUE(split_into_pieces({}, {}, 1e-3, 3).empty());
+  const std::vector<Eigen::Vector3d> two{Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitX()}, up(2, Eigen::Vector3d::UnitZ());
+  EXPECT_EQ(split_into_pieces(two, up, 0.0, 3), (std::vector<int>{0, 0}));
 }
 
 TEST(ObjectSpec, HullsAreParsedAndBounded) {

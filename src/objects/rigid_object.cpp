@@ -134,8 +134,9 @@ void cut_piece(const std::vector<std::size_t>& piece, std::size_t c, int far, st
 std::vector<int> split_into_pieces(std::span<const Eigen::Vector3d> centres, std::span<const Eigen::Vector3d> normals,
                                    double tolerance, int pieces) {
   std::vector<int> label(centres.size(), 0);
+  if (!(tolerance > 0) || !std::isfinite(tolerance)) return label;  // no scale to cut at
   for (int count = 1; count < pieces; ++count) {
-    std::vector<std::vector<std::size_t>> members{std::size_t(count)};
+    std::vector<std::vector<std::size_t>> members(static_cast<std::size_t>(count));
     for (std::size_t i = 0; i < centres.size(); ++i) members[std::size_t(label[i])].push_back(i);
     int worst = -1;
     Cut cut;
@@ -149,6 +150,13 @@ std::vector<int> split_into_pieces(std::span<const Eigen::Vector3d> centres, std
     }
     if (worst < 0) break;  // every piece is convex to within the tolerance
     cut_piece(members[std::size_t(worst)], cut.disc, count, centres, normals, tolerance, label);
+  }
+  // Dense labels in order of first appearance (a side emptied by the stray bits' moves leaves none).
+  std::vector<int> dense(std::size_t(std::max(pieces, 1)), -1);
+  int next = 0;
+  for (int& l : label) {
+    if (dense[std::size_t(l)] < 0) dense[std::size_t(l)] = next++;
+    l = dense[std::size_t(l)];
   }
   return label;
 }
