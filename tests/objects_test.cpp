@@ -499,6 +499,91 @@ TEST(ObjectDynamics, AnArchInPiecesLeavesRoomForABoxUnderIt) {
   EXPECT_GT(moved[1], 1e-2) << "the arch's one hull did not hold the box (the test shows nothing)";
 }
 
+// Several proxies on one tool push as one god-object would: side by side on one flat surface
+// once (the deeper), at a corner and when squeezed both, at 45 degrees just as far as each asks;
+// the hand's force never jumps as the forces turn or grow past each other.
+TEST(ObjectRenderer, LoadSharesPushOnceAlongOneDirection) {
+  const auto shares = [](std::vector<Eigen::Vector3d> f) {
+    std::vector<double> s(f.size());
+    load_shares(f, s);
+    return s;
+  };
+  const auto hand = [&](const std::vector<Eigen::Vector3d>& f) {
+    const std::vector<double> s = shares(f);
+    Eigen::Vector3d h = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < f.size(); ++i) h += s[i] * f[i];
+    return h;
+  };
+  const Eigen::Vector3d z(0, 0, 2), x(2, 0, 0);
+  EXPECT_LT((hand({z, z}) - z).norm(), 1e-9);                        // a seam: once
+  EXPECT_LT((hand({0.5 * z, z}) - z).norm(), 1e-9);                  // the deeper one
+  EXPECT_EQ(shares({0.5 * z, z}), (std::vector<double>{0, 1}));
+  EXPECT_EQ(shares({z, x}), (std::vector<double>{1, 1}));            // a corner: both
+  EXPECT_EQ(shares({z, -z}), (std::vector<double>{1, 1}));           // squeezed: both (they cancel)
+  EXPECT_EQ(shares({Eigen::Vector3d::Zero(), z}), (std::vector<double>{0, 1}));
+  // At 45 degrees the hand is pushed exactly as far as each asks along its own direction (the
+  // two planes' intersection, as one proxy on both), whichever comes first.
+  const Eigen::Vector3d d = 2 * Eigen::Vector3d(1, 0, 1).normalized();
+  for (const std::vector<Eigen::Vector3d>& f : {std::vector<Eigen::Vector3d>{z, d}, std::vector<Eigen::Vector3d>{d, z}}) {
+    const Eigen::Vector3d h = hand(f);
+    EXPECT_NEAR(h.dot(z.normalized()), 2, 1e-6);
+    EXPECT_NEAR(h.dot(d.normalized()), 2, 1e-6);
+  }
+  // Three proxies: two side by side and one at a corner with them.
+  EXPECT_LT((hand({z, 0.9 * z, x}) - (z + x)).norm(), 1e-6);
+  // The hand's force as the second (of the same size, so their order flips with rounding)
+  // turns from the first's direction to a right angle: from |F| = 2 to 2 sqrt 2, never a jump;
+  // and as one grows past the other at 30 degrees.
+  Eigen::Vector3d last = z;
+  for (int k = 1; k <= 90; ++k) {
+    const double a = k * M_PI / 180;
+    const Eigen::Vector3d h = hand({z, 2 * Eigen::Vector3d(std::sin(a), 0, std::cos(a))});
+    EXPECT_LT((h - last).norm(), 0.1) << k << " deg";
+    last = h;
+  }
+  EXPECT_NEAR(last.norm(), 2 * std::sqrt(2.0), 1e-6);
+  last = hand({z, 1.5 * Eigen::Vector3d(0.5, 0, std::sqrt(0.75))});
+  for (int k = 1; k <= 100; ++k) {
+    const Eigen::Vector3d h = hand({z, (1.5 + 0.01 * k) * Eigen::Vector3d(0.5, 0, std::sqrt(0.75))});
+    EXPECT_LT((h - last).norm(), 0.03) << k;
+    last = h;
+  }
+}
+
+// Where an object was cut from a flat slab, the hand pressing across the seam feels the slab as
+// it was (a ridge of twice the stiffness there before: the scene's proxy and the object's both
+// pushed); away from the seam, each side as before (the object's side up to 7 % softer: it sinks
+// into MuJoCo's soft contact under the press).
+TEST(ObjectRenderer, TheSeamOfACutIsFeltAsTheSurfaceItWas) {
+  const GaussianScene slab =
+      box_surface_gaussians(Eigen::Vector3d(0, 0, -0.005), Eigen::Vector3d(0.1, 0.1, 0.005), 0.004);
+  GaussianScene rest, half;
+  for (std::size_t i = 0; i < slab.size(); ++i) (slab.means[i].x() > 0 ? half : rest).push_back_from(slab, i);
+  ObjectSpec spec;
+  spec.mass = 5;
+  spec.text = "half slab";
+  const std::vector<RigidObject> objects{make_rigid_object(half, spec, WorldConfig{})};
+  const CollisionWorld world = CollisionWorld::build(rest, WorldConfig{}), whole = CollisionWorld::build(slab, WorldConfig{});
+  auto dynamics = std::make_shared<ObjectDynamics>(objects, support_under(objects, Eigen::Vector3d::UnitZ()));
+  const double R = 0.005;
+  for (const double x : {-0.02, -0.003, 0.0, 0.003, 0.02}) {
+    const auto cut = make_object_renderer(RendererSpec{}, world, objects, dynamics);
+    const auto uncut = make_force_renderer(RendererSpec{}, whole);
+    dynamics->reset();
+    Eigen::Vector3d felt, was;
+    for (int k = 0; k <= 300; ++k) {  // from 1 cm above the top to 2 mm into it over 0.25 s, held
+      const double z = R + 0.01 - 0.012 * std::min(1.0, k / 250.0);
+      const ToolEllipsoid tool = ToolEllipsoid::sphere(Eigen::Vector3d(x, 0.001, z), R);
+      felt = cut->render(tool, Eigen::Vector3d(0, 0, -0.05), 1e-3).force;
+      was = uncut->render(tool, Eigen::Vector3d(0, 0, -0.05), 1e-3).force;
+    }
+    SCOPED_TRACE(testing::Message() << "x " << x);
+    EXPECT_LT(felt.z(), 1.03 * was.z()) << "a ridge at the seam";  // (it was 1.93 x before the shares)
+    EXPECT_GT(felt.z(), 0.9 * was.z());  // the object's side sinks a little into its soft contact
+    EXPECT_LT(std::hypot(felt.x(), felt.y()), 0.05 * felt.z());
+  }
+}
+
 // An object that does not stand on its support as cut is told apart before a run: a box resting
 // on the plane stays (under 1 mm, 1 degree in 1 s); the same box 5 cm over it falls those 5 cm
 // (within 5 mm); a tall thin box stood on one edge tips over.

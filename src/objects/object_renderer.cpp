@@ -43,6 +43,35 @@ void add_to(RenderOutput& sum, const RenderOutput& part, bool holds_proxy) noexc
 
 }  // namespace
 
+void load_shares(std::span<const Eigen::Vector3d> forces, std::span<double> share) noexcept {
+  // The box-constrained dual: maximise sum_i b_i l_i - |sum_i l_i n_i|^2 / 2 over 0 <= l_i <= b_i
+  // (b_i = |F_i|, n_i = F_i / b_i), by projected Gauss-Seidel (coordinate ascent: each step is
+  // exact along its coordinate, so the objective never falls); F = sum_i l_i n_i, s_i = l_i / b_i.
+  constexpr std::size_t kMost = kMaxObjects + 1;
+  const std::size_t n = std::min({forces.size(), share.size(), kMost});
+  std::array<Eigen::Vector3d, kMost> unit{};
+  std::array<double, kMost> b{}, l{};
+  double largest = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    b[i] = forces[i].norm();
+    unit[i] = b[i] > 0 ? Eigen::Vector3d(forces[i] / b[i]) : Eigen::Vector3d::Zero();
+    largest = std::max(largest, b[i]);
+  }
+  Eigen::Vector3d f = Eigen::Vector3d::Zero();
+  for (int sweep = 0; sweep < kLoadShareSweeps && largest > 0; ++sweep) {
+    double moved = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!(b[i] > 0)) continue;
+      const double next = std::clamp(l[i] + (b[i] - unit[i].dot(f)), 0.0, b[i]);
+      f += (next - l[i]) * unit[i];
+      moved = std::max(moved, std::abs(next - l[i]));
+      l[i] = next;
+    }
+    if (moved <= 1e-12 * largest) break;
+  }
+  for (std::size_t i = 0; i < n; ++i) share[i] = b[i] > 0 ? l[i] / b[i] : 0.0;
+}
+
 ObjectRenderer::ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector<std::unique_ptr<ForceRenderer>> bodies,
                                std::vector<std::shared_ptr<const CollisionWorld>> worlds,
                                std::shared_ptr<ObjectDynamics> dynamics, const Eigen::Vector2d& support_coupling,
@@ -171,18 +200,34 @@ template <class RenderIn>
 RenderOutput ObjectRenderer::render_all(RenderOutput scene_out, RenderIn&& render_in, double dt) noexcept {
   merged_.clear();
   gather_contacts(scene_->contacts(), 0, nullptr);
-  RenderOutput sum = scene_out;
-  double strongest = scene_out.force.norm();
+  // Every proxy's output in the world: the static scene's (with the support plane's), then each object's.
+  std::array<RenderOutput, kMaxObjects + 1> outs;
+  std::array<Eigen::Vector3d, kMaxObjects + 1> forces;
+  outs[0] = scene_out;
   for (std::size_t i = 0; i < bodies_.size(); ++i) {
     const BodyPose pose = dynamics_->pose(i);
-    const RenderOutput out = to_world(render_in(*bodies_[i], pose), pose);
-    object_force_[i] = out.force;
-    object_proxy_[i] = out.proxy;
+    outs[i + 1] = to_world(render_in(*bodies_[i], pose), pose);
+    object_force_[i] = outs[i + 1].force;
+    object_proxy_[i] = outs[i + 1].proxy;
+    gather_contacts(bodies_[i]->contacts(), std::uint8_t(i + 1), &pose);
+  }
+  const std::size_t n = bodies_.size() + 1;
+  for (std::size_t i = 0; i < n; ++i) forces[i] = outs[i].force;
+  std::array<double, kMaxObjects + 1> share{};
+  load_shares(std::span<const Eigen::Vector3d>(forces.data(), n), std::span<double>(share.data(), n));
+  RenderOutput sum = scene_out;
+  sum.force = share[0] * scene_out.force;
+  sum.torque = share[0] * scene_out.torque;
+  double strongest = scene_out.force.norm();
+  for (std::size_t i = 0; i < bodies_.size(); ++i) {
+    RenderOutput out = outs[i + 1];
     const double f = out.force.norm();
+    out.force *= share[i + 1];
+    out.torque *= share[i + 1];
     add_to(sum, out, f > strongest);
     strongest = std::max(strongest, f);
-    gather_contacts(bodies_[i]->contacts(), std::uint8_t(i + 1), &pose);
-    // The reaction: -F at the proxy's tool centre, plus the couple -tau (the torque is about it).
+    // The reaction to its share: -s F at the proxy's tool centre, plus the couple -s tau (the
+    // torque is about it).
     reaction_[i] = {-out.force, out.proxy, -out.torque};
   }
   step_dynamics(dt);

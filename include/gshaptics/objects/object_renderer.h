@@ -9,9 +9,11 @@
 /// its proxy there (a sweep in the body frame sees the body's motion over the tick as the tool's
 /// relative motion, so the proxy never passes through a moving object, and an object moving into
 /// a resting proxy carries it along and pushes the hand), and its force and torque come back to
-/// the world. The hand gets the sum over the static scene and the objects (a corner between an
-/// object and the scene is felt as the two springs' sum); each object gets the reaction, -F at
-/// its proxy's tool centre plus the couple -tau, as an external wrench for the next step.
+/// the world. The hand gets the proxies' forces combined as one god-object on all the bodies
+/// would push (load_shares: a corner between an object and the scene is felt as the two springs'
+/// sum; a seam where an object was cut from a flat surface is felt once, not twice); each object
+/// gets the reaction to its share, -s F at its proxy's tool centre plus the couple -s tau, as an
+/// external wrench for the next step.
 ///
 /// The support carries the hand too, where a cut left a hole in the static scene (the capture
 /// never saw under the object): within each object's footprint at rest (its hull's extent across
@@ -29,7 +31,9 @@
 /// Threading and hot path as ForceRenderer: render() never allocates, locks, logs or throws; the
 /// MuJoCo step runs inside it at the dynamics' timestep (at most kMaxDynamicsSteps per tick).
 
+#include <array>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "gshaptics/force/force_renderer.h"
@@ -48,6 +52,21 @@ struct SupportHole {
 
 /// At most this many dynamics steps in one tick: a late tick does not make the next one later.
 inline constexpr int kMaxDynamicsSteps = 4;
+
+/// The share s_i in [0, 1] of each proxy's force `forces[i]` (N, world) that the hand gets when
+/// several proxies hold one tool (the static scene's and each object's): the force a single
+/// god-object on all the bodies would push with (Zilles and Salisbury 1995: one proxy, one
+/// spring), each proxy's force read as a constraint that the hand be pushed at least |F_i| along
+/// F_i: the least force F = sum_i s_i F_i with F . n_i >= |F_i| (n_i = F_i / |F_i|), each proxy
+/// giving at most its own force. Two proxies side by side on one flat surface (a seam where an
+/// object was cut from a table) push once, the deeper one's force; at a corner (orthogonal
+/// forces) both add; at 45 degrees F meets both constraints exactly; squeezed between opposed
+/// proxies, both push (they cancel). F is unique and continuous in the F_i (the shares need not
+/// be unique: side by side, any split). Solved as the box-constrained dual by projected
+/// Gauss-Seidel, at most kLoadShareSweeps sweeps. A zero force gets share 0; `share` must be as
+/// long as `forces` (at most kMaxObjects + 1 are read).
+inline constexpr int kLoadShareSweeps = 200;
+void load_shares(std::span<const Eigen::Vector3d> forces, std::span<double> share) noexcept;
 
 class ObjectRenderer final : public ForceRenderer {
  public:
