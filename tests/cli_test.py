@@ -445,8 +445,11 @@ class Objects(unittest.TestCase):
         self.assertRegex(cut, r"object +0: \d+ Gaussians kept, 2 kg, mu 0\.6")
         self.assertRegex(cut, r"support +(a plane fitted to \d+ Gaussians|no ground around the objects)")
         objects = load_json(os.path.join(cut_out, "summary.json"))["objects"]
+        self.assertEqual(len(objects), 1)
+        drift = {k: objects[0].pop(k) for k in ("untouched_moved_m", "untouched_turned_rad")}
         self.assertEqual(objects, [{"spec": "box:0,0,-1,1,1,1:mass=2:friction=0.6", "mass_kg": 2.0,
                                     "friction": 0.6, "gaussians_cut": moved}])
+        self.assertGreater(drift["untouched_moved_m"], 0.01)  # as the warning says
         for spec, message in (("box:9,9,9,10,10,10", "no Gaussian with opacity above 0.2"),
                               ("box:1,2", "a box takes six numbers"),
                               ("box:0,0,-1,1,1,1:hulls=0", "hulls must be a whole number from 1 to 16")):

@@ -54,9 +54,10 @@ nlohmann::json push_summary(const PushRun& run, const SimulateOptions& o) {
   return j;
 }
 
-// A warning for each object that falls, slides or tips by itself in its first second.
-void warn_untouched_drift(std::span<const RigidObject> objects, const SupportPlane& support, const DynamicsParams& dp,
-                          const SupportFit& fit) {
+// A warning for each object that falls, slides or tips by itself in its first second; returns
+// how far each goes.
+UntouchedDrift warn_untouched_drift(std::span<const RigidObject> objects, const SupportPlane& support,
+                                    const DynamicsParams& dp, const SupportFit& fit) {
   const UntouchedDrift drift = untouched_drift(objects, support, dp);
   std::fflush(stdout);  // (the report so far comes first)
   for (std::size_t i = 0; i < objects.size(); ++i)
@@ -67,6 +68,7 @@ void warn_untouched_drift(std::span<const RigidObject> objects, const SupportPla
                  "it stands on with --support\n",
                  i, objects[i].spec.text, drift.moved[i], drift.turned[i] * 180 / M_PI,
                  fit.fitted ? fmt::format(" (the ground fitted around it has an RMS of {:.0f} mm)", 1e3 * fit.rms) : "");
+  return drift;
 }
 
 }  // namespace
@@ -102,13 +104,15 @@ SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, doubl
   }
   DynamicsParams dp;
   dp.timestep = 1.0 / rate_hz;
-  warn_untouched_drift(*objects, support, dp, fit);
+  const UntouchedDrift drift = warn_untouched_drift(*objects, support, dp, fit);
   if (!so.objects_mjcf.empty()) {
     write_file_atomically(so.objects_mjcf, object_model_xml(*objects, support, dp));
     if (report != nullptr) fmt::print(report, "mjcf       {} (the objects' MuJoCo model)\n", so.objects_mjcf);
   }
   SceneObjects out;
   out.poses = std::make_shared<ObjectPoseChannel>();
+  out.untouched_moved.assign(drift.moved.begin(), drift.moved.begin() + std::ptrdiff_t(objects->size()));
+  out.untouched_turned.assign(drift.turned.begin(), drift.turned.begin() + std::ptrdiff_t(objects->size()));
   for (const RigidObject& o : *objects) {
     out.rest_origins.push_back(o.rest_origin);
     out.bodies.push_back(o.body);

@@ -233,14 +233,14 @@ PassivityTally tally_passivity(const std::vector<TickRecord>& ticks) {
 // summary.json's head: the scene, the world, the tool (and the torque a force-only device dropped),
 // the rate, mode, renderer, ticks, passivity and query time.
 nlohmann::json simulate_summary(const SimulateOptions& o, const SceneOptions& so, const PreparedWorld& pw,
-                                const ProbeSessionResult& probe, const PassivityTally& pc) {
+                                const SceneObjects& objects, const ProbeSessionResult& probe, const PassivityTally& pc) {
   const ProbeRunResult& run = probe.run;
   nlohmann::json sj;
   sj["scene"] = so.scene;
   sj["registration"] = so.registration_file;
   sj["gaussians_loaded"] = pw.scene.report.loaded;
   sj["gaussians_kept"] = pw.world.size();
-  if (!so.objects.empty()) sj["objects"] = objects_json(so, pw);
+  if (!so.objects.empty()) sj["objects"] = objects_json(so, pw, &objects);
   sj["min_opacity"] = pw.config.min_opacity;
   sj["tool_radius"] = probe.trajectory.tool_radius();
   if (o.tool.tool.count > 0) {
@@ -348,10 +348,10 @@ int run_simulate(SimulateOptions o) {
   const PreparedWorld pw = prepare_world(so, o.quiet);
   o.force.materials = with_scene_colours(o.force.materials, so.scene);
   warn_if_outside_profile(pw, o.force);
-  const RendererFactory objects = scene_objects(pw, so, o.rate).make_renderer;
+  const SceneObjects objects = scene_objects(pw, so, o.rate);
   Progress bar("simulating", !o.quiet);
-  const ProbeSessionResult probe =
-      simulate_probe(pw.world, o, is_scaled(so), stdout, std::nullopt, [&](double f) { bar(f); }, objects);
+  const ProbeSessionResult probe = simulate_probe(pw.world, o, is_scaled(so), stdout, std::nullopt,
+                                                  [&](double f) { bar(f); }, objects.make_renderer);
   bar.done();
   const ProbeRunResult& run = probe.run;
 
@@ -365,7 +365,7 @@ int run_simulate(SimulateOptions o) {
     write_errors.push_back(e.what());
   }
   const PassivityTally pc = tally_passivity(run.ticks);
-  nlohmann::json sj = simulate_summary(o, so, pw, probe, pc);
+  nlohmann::json sj = simulate_summary(o, so, pw, objects, probe, pc);
   sj["episodes"] = report_episodes(run, o.force.model);
   report_sites(probe, sj);
   try {

@@ -456,7 +456,7 @@ nlohmann::json run_summary_json(const RuntimeSummary& s, const TickLog& log, con
   sj["scene"] = so.scene;
   sj["registration"] = so.registration_file;
   sj["gaussians_kept"] = pw.world.size();
-  if (!so.objects.empty()) sj["objects"] = objects_json(so, pw);
+  if (!so.objects.empty()) sj["objects"] = objects_json(so, pw, &setup.objects);
   sj["device"] = setup.device->info().name;
   sj["mode"] = o.exec.inline_query ? "inline" : "decoupled";
   sj["control"] = control_json(o.control);

@@ -454,13 +454,18 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
   return {std::move(s), cfg, br, std::move(world), std::move(objects), std::move(supports)};
 }
 
-nlohmann::json objects_json(const SceneOptions& so, const PreparedWorld& pw) {
+nlohmann::json objects_json(const SceneOptions& so, const PreparedWorld& pw, const SceneObjects* objects) {
   nlohmann::json list = nlohmann::json::array();
-  for (std::size_t i = 0; i < so.objects.size(); ++i)
+  for (std::size_t i = 0; i < so.objects.size(); ++i) {
     list.push_back({{"spec", so.objects[i].text},
                     {"mass_kg", so.objects[i].mass},
                     {"friction", so.objects[i].friction},
                     {"gaussians_cut", i < pw.objects.size() ? pw.objects[i].size() : 0}});
+    if (objects != nullptr && i < objects->untouched_moved.size()) {
+      list.back()["untouched_moved_m"] = objects->untouched_moved[i];
+      list.back()["untouched_turned_rad"] = objects->untouched_turned[i];
+    }
+  }
   return list;
 }
 

@@ -176,10 +176,6 @@ struct PreparedWorld {
 /// is cut first (cut_objects) and the world holds the static part (never cached).
 PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* report = stdout);
 
-/// The objects of a run for its summary: each one's --object text, mass (kg), friction and the
-/// Gaussians cut for it ([] without objects).
-nlohmann::json objects_json(const SceneOptions& so, const PreparedWorld& pw);
-
 /// A world's rigid objects as a run and its readers see them.
 struct SceneObjects {
   /// RuntimeConfig::make_renderer: for each run, the objects' MuJoCo dynamics and an
@@ -195,8 +191,15 @@ struct SceneObjects {
   std::vector<std::shared_ptr<const CollisionWorld>> bodies;
   /// Each object's box: the extents of its hull points (m), centred on its body origin.
   std::vector<Eigen::Vector3d> sizes;
+  /// How far each object goes in 1 s untouched (untouched_drift), m and rad.
+  std::vector<double> untouched_moved, untouched_turned;
   [[nodiscard]] bool empty() const noexcept { return rest_origins.empty(); }
 };
+
+/// The objects of a run for its summary: each one's --object text, mass (kg), friction and the
+/// Gaussians cut for it, and with `objects` how far it goes in 1 s untouched
+/// (untouched_moved_m, untouched_turned_rad) ([] without objects).
+nlohmann::json objects_json(const SceneOptions& so, const PreparedWorld& pw, const SceneObjects* objects = nullptr);
 
 /// The objects of `pw` (specs in so.objects), their MuJoCo dynamics at `rate_hz` on the ground
 /// fitted to the scene around them (fit_support_plane). Empty when there are none. Prints a line
