@@ -1,5 +1,6 @@
 #include "gshaptics/force/seen_proxy.h"
 
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -187,7 +188,7 @@ void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double 
   const Eigen::Vector3d& a = axis_;
   const double h = kNormalSpan * radius, back = std::min(depth, kNormalEye * radius);
   if (normal_.squaredNorm() == 0) {
-    target_normal_ = solid_.normal(point, a, h, radius, back, scratch_);
+    target_normal_ = solid_.normal(point, a, h, std::max(radius, h), back, scratch_);
     normal_at_ = point;
     normal_ = target_normal_;
     pending_ray_ = -1;
@@ -197,11 +198,12 @@ void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double 
     pending_ray_ = 0;
     pending_at_ = point;
     pending_back_ = back;
+    pending_h_ = h;
   }
   if (pending_ray_ < 0) return;
-  pending_hits_[std::size_t(pending_ray_)] = solid_.normal_ray(pending_at_, a, pending_ray_, h, radius, pending_back_, scratch_);
+  pending_hits_[std::size_t(pending_ray_)] = solid_.normal_ray(pending_at_, a, pending_ray_, h, std::max(radius, h), pending_back_, scratch_);
   if (++pending_ray_ < SeenSolid::kNormalRays) return;
-  target_normal_ = SeenSolid::normal_from(a, pending_hits_);
+  target_normal_ = SeenSolid::normal_from(a, pending_hits_, pending_h_);
   normal_at_ = pending_at_;
   pending_ray_ = -1;
 }

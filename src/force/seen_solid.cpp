@@ -1,5 +1,6 @@
 #include "gshaptics/force/seen_solid.h"
 
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
@@ -275,20 +276,32 @@ Eigen::Vector3d SeenSolid::normal_ray_origin(const Eigen::Vector3d& point, const
   return point + h * (std::cos(angle) * a + std::sin(angle) * b);
 }
 
-Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits) noexcept {
-  Eigen::Vector3d n = Eigen::Vector3d::Zero();
-  for (const SeenHit& h : hits)
-    if (h.hit) n += h.shade;
-  if (!(n.norm() > 0) || !n.allFinite()) return -u;
-  n.normalize();
-  return n.dot(u) > 0 ? Eigen::Vector3d(-n) : n;
+Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits,
+                                       double h) noexcept {
+  Eigen::Vector3d map = Eigen::Vector3d::Zero();
+  bool all = true;
+  for (const SeenHit& x : hits) {
+    if (x.hit) map += x.shade;
+    all = all && x.hit;
+  }
+  if (!(map.norm() > 0) || !map.allFinite()) return -u;
+  map.normalize();
+  if (map.dot(u) > 0) map = -map;
+  if (!all || !(h > 0)) return map;
+  // The seen depth's own slope over the ring: rays 0 and 2 lie at +-h along a, 1 and 3 along b
+  // (normal_ray_origin); a hit's t grows into the surface.
+  const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
+  const double ga = (hits[0].t - hits[2].t) / (2 * h), gb = (hits[1].t - hits[3].t) / (2 * h);
+  const Eigen::Vector3d slope = (-u + ga * a + gb * b).normalized();
+  const Eigen::Vector3d n = map + slope;
+  return n.norm() > 1e-12 && n.allFinite() ? Eigen::Vector3d(n.normalized()) : map;
 }
 
 Eigen::Vector3d SeenSolid::normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach,
                                   double back, SeenScratch& s) const noexcept {
   std::array<SeenHit, kNormalRays> hits;
   for (int k = 0; k < kNormalRays; ++k) hits[std::size_t(k)] = normal_ray(point, u, k, h, reach, back, s);
-  return normal_from(u, hits);
+  return normal_from(u, hits, h);
 }
 
 }  // namespace gshaptics

@@ -12,8 +12,8 @@
 ///   proxy pressed into a faint layer keeps the layer in front of its eye: small steps do not
 ///   creep through it.
 /// The force is the virtual coupling's (Colgate, Stanley and Brown 1995) along the seen surface's
-/// normal as the renderer shades it (SeenSolid::normal: the Gaussians' depth-plane normals
-/// composited along four rays around the point; after a contact's first reading one ray a tick; smoothed over 5 ms), with
+/// normal (SeenSolid::normal: the renderer's normal map and the seen depth's slope, read along four
+/// rays 1.5 R around the point; after a contact's first reading one ray a tick; smoothed over 5 ms), with
 /// the proxy's stiffness, damping and the renderer's f_max; no energy bound. Friction (mu_s, mu_k)
 /// is the friction cone's (Salisbury et al. 1995): the proxy's place across the axis follows the
 /// cone's goal (it stays while the device is inside the cone, trails it by mu_k times the depth
@@ -94,7 +94,9 @@ class SeenProxy {
   static constexpr double kNormalPath = 0.5;    // R: and over this much of the proxy's slide
   static constexpr double kNormalReuse = 0.05;  // R
   static constexpr double kNormalEye = 8;       // R: the normal's rays look from at most this far back
-  static constexpr double kNormalSpan = 1.0;    // R: the normal's rays, this far to each side
+  // R: the normal's rays, this far to each side (bench/RESULTS.md, fiftieth session: 1 R let the
+  // noise of a few discs through, 2 R reached across a groove's line onto the other face)
+  static constexpr double kNormalSpan = 1.5;
   static constexpr double kGuessMargin = 0.25;  // R: the layers first read reach this past the last hit
   static constexpr double kEyeMargin = 0.25;    // R: the contact's eye plane, this far in front of the surface behind
   // The footprint: ray k lies at kRingRadius[k % 3] R from the centre line, at 30 k degrees.
@@ -142,6 +144,7 @@ class SeenProxy {
   int pending_ray_ = -1;  // the next ray of a reading under way (-1: none)
   Eigen::Vector3d pending_at_ = Eigen::Vector3d::Zero();
   double pending_back_ = 0;
+  double pending_h_ = 0;  // the ring radius of the pending reading
   std::array<SeenHit, SeenSolid::kNormalRays> pending_hits_{};
   double last_hit_ = 0;  // the last hit's depth from the eye plane (NaN: none in this contact)
   double rest_ = 0;      // where the surface holds the leading point this tick, depth from the eye plane

@@ -91,23 +91,31 @@ class SeenSolid {
                bool leaving, double& eye, SeenScratch& scratch) const noexcept;
 
   /// The seen surface's outward normal (unit, n . u < 0) at `point` (on the surface for a push
-  /// along u), as the renderer shades it: the normal map of 2DGS / RaDe-GS style rendering
-  /// (Huang et al. 2024; Zhang et al. 2024), composited like colour. Along a ray each Gaussian's
-  /// peaks over parallel rays lie on its depth plane u^T Sigma_i^-1 (x - mu_i) = 0, whose normal
-  /// n_i = -Sigma_i^-1 u / |Sigma_i^-1 u| is the seen depth map's own slope where Gaussian i
-  /// makes it; the normal is the sum of T_k alpha_k n_k over the layers up to the seen depth
-  /// (T_k: the transmittance in front of layer k), summed over kNormalRays rays parallel to u on a
-  /// ring of radius h around `point`, evenly spaced (searched within +-`reach` of `point`, each seen from `back` before
-  /// `point`'s depth), then normalised. A flat disc gives its own normal, a round Gaussian -u.
-  /// -u when no ray hits.
+  /// along u), from kNormalRays rays parallel to u on a ring of radius h around `point`, evenly
+  /// spaced (searched within +-`reach` of `point`, each seen from `back` before `point`'s depth).
+  /// It is the mean of two unit readings of the same rays, whose errors come from different
+  /// defects of a capture:
+  /// - the normal the renderer shades the surface with, the normal map of 2DGS / RaDe-GS style
+  ///   rendering (Huang et al. 2024; Zhang et al. 2024), composited like colour: along a ray each
+  ///   Gaussian's peaks over parallel rays lie on its depth plane u^T Sigma_i^-1 (x - mu_i) = 0,
+  ///   with normal n_i = -Sigma_i^-1 u / |Sigma_i^-1 u|; the reading is the sum of T_k alpha_k n_k
+  ///   over the layers up to the seen depth (T_k: the transmittance in front of layer k). It
+  ///   carries the discs' tilts: on a plane of discs tilted 3 deg at random, a few discs under a
+  ///   small ring lean it by as much, and along a slide the lean acts as friction;
+  /// - the slope of the seen depth itself, by central differences of the ring's four depths. It
+  ///   carries the depth jitter of the discs that make each point.
+  /// Where a ray sees no surface, the normal map of the rays that do (-u when none does).
+  /// Measured against the analytic normals in bench/RESULTS.md (fiftieth session).
   Eigen::Vector3d normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach, double back,
                          SeenScratch& scratch) const noexcept;
   /// normal() one ray at a time (a caller may spread them over ticks): ray k (0 to kNormalRays - 1) of the
   /// reading at `point`, its hit's t from the ray's origin and its shade; normal_from() then
-  /// combines them. normal() is exactly normal_from() of the kNormalRays normal_ray()s.
+  /// combines them (h: the ring's radius). normal() is exactly normal_from() of the kNormalRays
+  /// normal_ray()s.
   SeenHit normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k, double h, double reach,
                      double back, SeenScratch& scratch) const noexcept;
-  [[nodiscard]] static Eigen::Vector3d normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits) noexcept;
+  [[nodiscard]] static Eigen::Vector3d normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits,
+                                                  double h) noexcept;
   /// The shade (SeenHit::shade) of `hit`, the last first_inside() answer on `scratch`: the sum of
   /// T_k alpha_k n_k over its layers. Zero when it did not hit or scratch overflowed.
   [[nodiscard]] Eigen::Vector3d shade(const Eigen::Vector3d& u, const SeenHit& hit,
