@@ -14,6 +14,8 @@
 #include "gshaptics/fidelity/seen_felt.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
 #include "gshaptics/scene/seen_surface.h"
+#include "gshaptics/scene/opacity_filter.h"
+#include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/error.h"
 
 namespace gshaptics {
@@ -157,6 +159,49 @@ TEST(SeenFelt, TheProxyIsFeltWhereAnAnalyticSceneIsSeen) {
       EXPECT_GT(r.onset_p10, -0.5);
       EXPECT_LT(r.onset_p10, 0.5);
     }
+  }
+}
+
+// A viewer outside the scene draws every Gaussian on the line, also those behind the ray's
+// start (16 R outside the kept Gaussians' percentile box): a wide faint sheet high above the
+// plane (alpha 0.4) and a faint layer 2 cm over it (alpha 0.26-0.3) together hide the plane
+// (T = 0.6 x 0.74 < 1/2), while from the ray's start the faint layer alone does not (T = 0.74).
+// The seen surface is the faint layer, and the proxy on the seen solid, whose eye looks back
+// past the sheet, is held there. (Specks too faint and small to see, 5 cm up, raise the box, so
+// that the rays start 16 R above them.)
+TEST(SeenFelt, TheSeenSurfaceCountsTheGaussiansBehindTheRaysStart) {
+  GaussianScene g;
+  const Eigen::Vector4f flat(1, 0, 0, 0);
+  for (int i = -25; i <= 25; ++i)
+    for (int j = -25; j <= 25; ++j)
+      g.push_back(Eigen::Vector3f(0.004f * i, 0.004f * j, 0), Eigen::Vector3f(0.003f, 0.003f, 1e-4f), flat, 0.95f,
+                  std::uint32_t(g.size()));
+  for (int i = -25; i <= 25; ++i)
+    for (int j = -25; j <= 25; ++j)
+      g.push_back(Eigen::Vector3f(0.004f * i + 0.002f, 0.004f * j + 0.002f, 0.05f), Eigen::Vector3f(2e-4f, 2e-4f, 2e-4f),
+                  flat, 0.02f, std::uint32_t(g.size()));
+  g.push_back(Eigen::Vector3f(0, 0, 0.02f), Eigen::Vector3f(0.15f, 0.15f, 1e-4f), flat, 0.3f, std::uint32_t(g.size()));
+  g.push_back(Eigen::Vector3f(0, 0, 0.6f), Eigen::Vector3f(0.5f, 0.5f, 1e-4f), flat, 0.4f, std::uint32_t(g.size()));
+  WorldConfig config;
+  config.min_opacity = kSeenMinOpacity;
+  const CollisionWorld world = CollisionWorld::build(g, config);
+  SeenFeltOptions o;
+  o.rays = 4;
+  o.max_candidates = 100;
+  o.tool_fractions = {0.02};
+  o.down = -Eigen::Vector3d::UnitZ();
+  o.directions = {PressDirection::kVertical};
+  ProxyModelSpec seen;
+  seen.params.surface = ProxySurface::kSeen;
+  o.renderer = seen;
+  SeenFeltReport rep;
+  measure_seen_felt("plane under faint sheets", g, world, o, rep);
+  ASSERT_EQ(rep.rays.size(), 4u);
+  for (const SeenFeltRay& r : rep.rays) {
+    EXPECT_NEAR(r.origin.z() - r.seen, 0.02, 1e-3);  // the faint layer, not the plane
+    EXPECT_FALSE(r.through);
+    EXPECT_FALSE(r.no_force);
+    EXPECT_LT(std::abs(r.felt_minus_seen), 0.35);
   }
 }
 

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <numbers>
+#include <optional>
 #include <random>
 
 #include "gshaptics/error.h"
@@ -56,6 +57,45 @@ struct RayDraw {
   std::mt19937_64 rng;
 };
 
+// The seen surface as a viewer outside the scene draws it along a ray: every Gaussian on the
+// ray's line counts, those behind the ray's start too (a ray starts R outside the kept
+// Gaussians' percentile box, and the floaters beyond it are drawn all the same). The eye stands
+// past every Gaussian's centre, `back` behind the ray's origin; depths are from the origin.
+struct Viewer {
+  const SeenSurface* seen = nullptr;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // of the box of every Gaussian's centre
+  double span = 0;  // that box's diagonal plus its largest Gaussian's reach
+
+  Viewer(const SeenSurface& s, const GaussianScene& scene) : seen(&s) {
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = Eigen::Vector3d::Constant(-1e300);
+    double widest = 0;
+    for (std::size_t i = 0; i < scene.size(); ++i) {
+      const Eigen::Vector3d m = scene.means[i].cast<double>();
+      lo = lo.cwiseMin(m);
+      hi = hi.cwiseMax(m);
+      widest = std::max(widest, double(scene.scales[i].maxCoeff()));
+    }
+    if (scene.size() > 0) {
+      centre = 0.5 * (lo + hi);
+      span = (hi - lo).norm() + 4 * widest;  // alpha >= 1/255 lies within 3.3 sigma of a centre
+    }
+  }
+  [[nodiscard]] double back(const Eigen::Vector3d& origin) const { return (origin - centre).norm() + span; }
+  [[nodiscard]] SeenDepth median_depth(const Eigen::Vector3d& origin, const Eigen::Vector3d& u) const {
+    const double b = back(origin);
+    SeenDepth d = seen->median_depth(origin - b * u, u);
+    d.depth -= b;
+    return d;
+  }
+  [[nodiscard]] std::optional<SeenPoint> surface_point(const Eigen::Vector3d& origin, const Eigen::Vector3d& u,
+                                                       double h) const {
+    const double b = back(origin);
+    std::optional<SeenPoint> p = seen->surface_point(origin - b * u, u, h);
+    if (p) p->depth -= b;
+    return p;
+  }
+};
+
 // A ray of the configuration: aimed at a random point of the box's middle (80 % across for
 // vertical rays, 60 % for rays from around), its eye `start` R outside the box; unit u.
 std::pair<Eigen::Vector3d, Eigen::Vector3d> draw_ray(RayDraw& d, const Eigen::Vector3d& down, double start) {
@@ -104,7 +144,7 @@ Script press_along(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, doub
 }
 
 /// Plays one kept ray and scores it; false when the tool was caught before its start.
-bool score_ray(ForceRenderer& renderer, const SeenSurface& seen, const SeenPoint& hit, SeenFeltRay& ray,
+bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit, SeenFeltRay& ray,
                const SeenFeltOptions& o) {
   const double r = ray.tool_radius;
   const double from = std::max(0.0, hit.depth - o.start * r);
@@ -151,7 +191,7 @@ SeenFeltRow summarise(const std::vector<SeenFeltRay>& rays, SeenFeltRow row) {
 }
 
 /// One configuration: draws rays until `rays` are kept or `max_candidates` are drawn.
-void measure_configuration(const SeenSurface& seen, ForceRenderer& renderer, RayDraw draw, SeenFeltRow row,
+void measure_configuration(const Viewer& seen, ForceRenderer& renderer, RayDraw draw, SeenFeltRow row,
                            const SeenFeltOptions& o, SeenFeltReport& report) {
   std::vector<SeenFeltRay> kept;
   const double cos_facing = std::cos(o.facing_deg * std::numbers::pi / 180);
@@ -186,7 +226,8 @@ void measure_seen_felt(const std::string& name, const GaussianScene& scene, cons
   validate(o);
   if (!world.scene_to_world().is_identity())
     throw InputError(fmt::format("seen-felt: {}: the world must be in the scene's own frame", name));
-  const SeenSurface seen(scene);
+  const SeenSurface surface(scene);
+  const Viewer seen(surface, scene);
   std::unique_ptr<ForceRenderer> renderer = make_force_renderer(o.renderer, world);
   RayDraw draw;
   robust_box(world, draw.lo, draw.hi);

@@ -4,7 +4,8 @@
 /// renderer shows a surface? The benchmark of issue 71 (`gshaptics seen-felt`).
 ///
 /// For each scene, tool size and press direction it draws rays onto the seen surface
-/// (scene/seen_surface.h: the 3DGS median depth over every Gaussian of the file), keeps those
+/// (scene/seen_surface.h: the 3DGS median depth over every Gaussian of the file on the ray's
+/// line, seen from an eye outside all of them, as a viewer outside the scene draws it), keeps those
 /// whose seen surface is within `facing_deg` of facing the ray, and presses a sphere tool of
 /// radius R along each ray, from the ray's start (the eye) to `past` R beyond the seen surface,
 /// then holds. The press is played by an ideal position-controlled device through the servo step

@@ -119,8 +119,11 @@ struct ProxyParams {
   ProxySurface surface = ProxySurface::kEllipsoids;
   /// One-part tool, kSeen. How far behind the tool's leading point the eye of the seen solid may
   /// be, in tool radii (> 0): the layers a push has come through since its approach began, up to
-  /// this far back, count toward the surface it meets.
-  double seen_window = 32.0;
+  /// this far back, count toward the surface it meets. Far enough that a viewer outside an
+  /// object capture sees what the proxy is held by: at 32 R the floaters beyond it were left out
+  /// and fruitdrops' 0.5 % tool went through where a viewer sees a surface (bench/RESULTS.md,
+  /// fiftieth session).
+  double seen_window = 256.0;
   /// One-part tool, kSeen. The tool's footprint (SeenProxy): rays around the leading point's
   /// hold the sphere on the rim of a see-through hole narrower than it, as a rigid ball. Off by
   /// default: it reads up to two more short rays a free tick (probe-run render p99 about 2x,
