@@ -132,6 +132,18 @@ TEST(SeenSurface, NormalOfATiltedPlaneOfDiscs) {
   EXPECT_GT(sp->normal.dot(n), std::cos(2.0 * M_PI / 180));
 }
 
+// Small seen-felt runs on the analytic scenes: `rays` rays per configuration, the 2 % tool,
+// down along -z, vertical presses only.
+SeenFeltOptions small_vertical_run(int rays, int candidates) {
+  SeenFeltOptions o;
+  o.rays = rays;
+  o.max_candidates = candidates;
+  o.tool_fractions = {0.02};
+  o.down = -Eigen::Vector3d::UnitZ();
+  o.directions = {PressDirection::kVertical};
+  return o;
+}
+
 // The check of the check: on analytic scenes, where the seen surface is the true one, the
 // default proxy is felt where it is seen.
 TEST(SeenFelt, TheProxyIsFeltWhereAnAnalyticSceneIsSeen) {
@@ -141,12 +153,8 @@ TEST(SeenFelt, TheProxyIsFeltWhereAnAnalyticSceneIsSeen) {
     sp.spacing = 0.004;
     const SyntheticScene synth = make_synthetic_scene(shape, sp);
     const CollisionWorld world = CollisionWorld::build(synth.scene, WorldConfig{});
-    SeenFeltOptions o;
-    o.rays = 4;
-    o.max_candidates = 200;
-    o.tool_fractions = {0.02};
-    o.down = -Eigen::Vector3d::UnitZ();
-    if (kind == ShapeKind::kPlane) o.directions = {PressDirection::kVertical};
+    SeenFeltOptions o = small_vertical_run(4, 200);
+    if (kind == ShapeKind::kSphere) o.directions = {PressDirection::kVertical, PressDirection::kAround};
     SeenFeltReport rep;
     measure_seen_felt(std::string(to_string(kind)), synth.scene, world, o, rep);
     ASSERT_EQ(rep.rows.size(), o.directions.size());
@@ -185,12 +193,7 @@ TEST(SeenFelt, TheSeenSurfaceCountsTheGaussiansBehindTheRaysStart) {
   WorldConfig config;
   config.min_opacity = kSeenMinOpacity;
   const CollisionWorld world = CollisionWorld::build(g, config);
-  SeenFeltOptions o;
-  o.rays = 4;
-  o.max_candidates = 100;
-  o.tool_fractions = {0.02};
-  o.down = -Eigen::Vector3d::UnitZ();
-  o.directions = {PressDirection::kVertical};
+  SeenFeltOptions o = small_vertical_run(4, 100);
   ProxyModelSpec seen;
   seen.params.surface = ProxySurface::kSeen;
   o.renderer = seen;
@@ -211,12 +214,7 @@ TEST(SeenFelt, ThePaperModelIsFeltAtTheDevice) {
   const AnalyticShape shape{ShapeKind::kPlane};
   const SyntheticScene synth = make_synthetic_scene(shape, SynthParams{});
   const CollisionWorld world = CollisionWorld::build(synth.scene, WorldConfig{});
-  SeenFeltOptions o;
-  o.rays = 2;
-  o.max_candidates = 100;
-  o.tool_fractions = {0.02};
-  o.down = -Eigen::Vector3d::UnitZ();
-  o.directions = {PressDirection::kVertical};
+  SeenFeltOptions o = small_vertical_run(2, 100);
   o.renderer = renderer_spec(RendererKind::kPaper);
   SeenFeltReport rep;
   measure_seen_felt("plane", synth.scene, world, o, rep);
