@@ -193,6 +193,28 @@ class SeenFelt(unittest.TestCase):
         self.assertIn("| truck.splat |", md)
         self.assertFalse(any(n.endswith(".tmp") for n in os.listdir(out)))
 
+    def test_rays_aim_at_the_objects_and_the_seen_truth_is_the_captured_file(self):
+        out = tempfile.mkdtemp()
+        report = os.path.join(out, "SF.md")
+        box = (0.0, 0.0, -1.0, 1.0, 1.0, 1.0)  # a chunk of the truck, heavy enough to stay put
+        run("seen-felt", scene_file("truck.splat"), "--quick", "--no-plot", "--out", report,
+            "--object", "box:" + ",".join(str(v) for v in box) + ":mass=1000:friction=1", "--direction", "vertical")
+        with open(os.path.join(out, "sf", "seen_felt_rays.csv"), newline="") as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(len(rows), 3)
+        for r in rows:
+            seen = [float(r["o" + a]) + float(r["seen"]) * float(r["u" + a]) for a in "xyz"]
+            # The seen point lies on the object's Gaussians (within a tool radius of its box) ...
+            for k in range(3):
+                self.assertGreater(seen[k], box[k] - float(r["tool_radius"]), r)
+                self.assertLess(seen[k], box[k + 3] + float(r["tool_radius"]), r)
+            # ... and the hand meets it there.
+            self.assertEqual(r["no_force"], "0", r)
+        bad = run("seen-felt", scene_file("truck.splat"), scene_file("burger.splat"), "--quick", "--no-plot",
+                  "--out", report, "--object", "box:0,0,-1,1,1,1", check=False)
+        self.assertNotEqual(bad.returncode, 0)
+        self.assertIn("exactly one scene", bad.stderr)
+
     def test_the_paper_model_is_felt_at_the_device(self):
         rows, _ = self.rays(tempfile.mkdtemp(), "--force-model", "paper", "--direction", "vertical")
         self.assertEqual(len(rows), 2 * 3)

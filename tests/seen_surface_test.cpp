@@ -182,11 +182,11 @@ TEST(SeenFelt, TheSeenSurfaceCountsTheGaussiansBehindTheRaysStart) {
   const Eigen::Vector4f flat(1, 0, 0, 0);
   for (int i = -25; i <= 25; ++i)
     for (int j = -25; j <= 25; ++j)
-      g.push_back(Eigen::Vector3f(0.004f * i, 0.004f * j, 0), Eigen::Vector3f(0.003f, 0.003f, 1e-4f), flat, 0.95f,
+      g.push_back(Eigen::Vector3f(0.004f * float(i), 0.004f * float(j), 0), Eigen::Vector3f(0.003f, 0.003f, 1e-4f), flat, 0.95f,
                   std::uint32_t(g.size()));
   for (int i = -25; i <= 25; ++i)
     for (int j = -25; j <= 25; ++j)
-      g.push_back(Eigen::Vector3f(0.004f * i + 0.002f, 0.004f * j + 0.002f, 0.05f), Eigen::Vector3f(2e-4f, 2e-4f, 2e-4f),
+      g.push_back(Eigen::Vector3f(0.004f * float(i) + 0.002f, 0.004f * float(j) + 0.002f, 0.05f), Eigen::Vector3f(2e-4f, 2e-4f, 2e-4f),
                   flat, 0.02f, std::uint32_t(g.size()));
   g.push_back(Eigen::Vector3f(0, 0, 0.02f), Eigen::Vector3f(0.15f, 0.15f, 1e-4f), flat, 0.3f, std::uint32_t(g.size()));
   g.push_back(Eigen::Vector3f(0, 0, 0.6f), Eigen::Vector3f(0.5f, 0.5f, 1e-4f), flat, 0.4f, std::uint32_t(g.size()));

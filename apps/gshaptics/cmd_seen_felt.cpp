@@ -31,6 +31,7 @@ void register_seen_felt(CLI::App& app) {
       ->check(CLI::IsMember({"vertical", "around"}));
   cmd->add_option("--seed", o->seed, "Seed of the rays")->capture_default_str();
   cmd->add_flag("--no-plot", o->no_plot, "Skip the figure (matplotlib)");
+  add_object_option(*cmd, o->objects);
   add_force_options(*cmd, o->force);
   add_execution_options(*cmd, o->exec, /*simulated=*/true);
   cmd->callback([o] { run_seen_felt_command(*o); });

@@ -223,15 +223,25 @@ void measure_configuration(const Viewer& seen, ForceRenderer& renderer, RayDraw 
 
 void measure_seen_felt(const std::string& name, const GaussianScene& scene, const CollisionWorld& world,
                        const SeenFeltOptions& o, SeenFeltReport& report, const SeenFeltProgressFn& progress) {
+  std::unique_ptr<ForceRenderer> renderer = make_force_renderer(o.renderer, world);
+  measure_seen_felt(name, scene, world, *renderer, o, report, progress);
+}
+
+void measure_seen_felt(const std::string& name, const GaussianScene& scene, const CollisionWorld& world,
+                       ForceRenderer& renderer, const SeenFeltOptions& o, SeenFeltReport& report,
+                       const SeenFeltProgressFn& progress) {
   validate(o);
   if (!world.scene_to_world().is_identity())
     throw InputError(fmt::format("seen-felt: {}: the world must be in the scene's own frame", name));
   const SeenSurface surface(scene);
   const Viewer seen(surface, scene);
-  std::unique_ptr<ForceRenderer> renderer = make_force_renderer(o.renderer, world);
   RayDraw draw;
   robust_box(world, draw.lo, draw.hi);
   const double extent = (draw.hi - draw.lo).maxCoeff();
+  if (o.aim_box) {
+    draw.lo = (*o.aim_box)[0];
+    draw.hi = (*o.aim_box)[1];
+  }
   for (PressDirection direction : o.directions) {
     for (double fraction : o.tool_fractions) {
       draw.radius = fraction * extent;
@@ -243,7 +253,7 @@ void measure_seen_felt(const std::string& name, const GaussianScene& scene, cons
       row.direction = direction;
       row.tool_fraction = fraction;
       row.tool_radius = draw.radius;
-      measure_configuration(seen, *renderer, draw, row, o, report);
+      measure_configuration(seen, renderer, draw, row, o, report);
       if (progress) {
         const SeenFeltRow& r = report.rows.back();
         progress(fmt::format("{:<11} {:<8} R = {:.1f} %: {}/{} through, {} no force, felt p90 {:+.2f} R, onset p10 "

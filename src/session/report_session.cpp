@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -147,9 +148,43 @@ std::string seen_felt_command_line(const SeenFeltCommandOptions& o, const std::v
   if (!o.tools_percent.empty()) command += fmt::format(" --tool-percent {}", fmt::join(o.tools_percent, ","));
   if (!o.directions.empty()) command += fmt::format(" --direction {}", fmt::join(o.directions, ","));
   if (o.seed != SeenFeltOptions{}.seed) command += fmt::format(" --seed {}", o.seed);
+  for (const ObjectSpec& spec : o.objects.objects) command += " --object " + spec.text;
   if (!o.scenes.empty())
     for (const std::string& s : scenes) command += " " + std::filesystem::path(s).filename().string();
   return command;
+}
+
+}  // namespace
+
+namespace {
+
+// `seen-felt --object`: the one scene with its rigid objects (SeenFeltCommandOptions::objects).
+SeenFeltReport seen_felt_on_objects(const std::vector<std::string>& scenes, const SceneOptions& objects,
+                                    const SeenFeltOptions& o, const SeenFeltProgressFn& progress) {
+  if (scenes.size() != 1) throw InputError("seen-felt: --object needs exactly one scene");
+  const auto t0 = std::chrono::steady_clock::now();
+  SceneOptions so = objects;
+  so.scene = scenes[0];
+  if (so.min_opacity == kModelMinOpacity) so.min_opacity = default_min_opacity(o.renderer);
+  const PreparedWorld pw = prepare_world(so, /*quiet=*/true, stderr);
+  const SceneObjects bodies = scene_objects(pw, so, o.rate_hz, stderr);
+  // The rays aim at the objects as they rest: the box of their Gaussians' centres.
+  SeenFeltOptions aimed = o;
+  std::array<Eigen::Vector3d, 2> box{Eigen::Vector3d::Constant(1e300), Eigen::Vector3d::Constant(-1e300)};
+  for (const GaussianScene& g : pw.objects)
+    for (const Eigen::Vector3f& m : g.means) {
+      box[0] = box[0].cwiseMin(m.cast<double>());
+      box[1] = box[1].cwiseMax(m.cast<double>());
+    }
+  aimed.aim_box = box;
+  const std::unique_ptr<ForceRenderer> renderer = bodies.make_renderer(pw.world, o.renderer, QueryOptions{});
+  SeenFeltReport report;
+  report.options = aimed;
+  const LoadedScene captured = load_scene(so.scene);  // the seen truth: the file as captured
+  measure_seen_felt(std::filesystem::path(so.scene).filename().string(), captured.scene, pw.world, *renderer, aimed,
+                    report, progress);
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return report;
 }
 
 }  // namespace
@@ -164,8 +199,9 @@ void run_seen_felt_command(const SeenFeltCommandOptions& o) {
   std::string stem = std::filesystem::path(o.out).stem().string();
   std::transform(stem.begin(), stem.end(), stem.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   const std::string data_dir = o.data_dir.empty() ? (folder / stem).string() : o.data_dir;
-  const SeenFeltReport rep =
-      run_seen_felt(scenes, so, [](const std::string& line) { fmt::print(stderr, "seen-felt  {}\n", line); });
+  const SeenFeltProgressFn progress = [](const std::string& line) { fmt::print(stderr, "seen-felt  {}\n", line); };
+  const SeenFeltReport rep = o.objects.objects.empty() ? run_seen_felt(scenes, so, progress)
+                                                       : seen_felt_on_objects(scenes, o.objects, so, progress);
   std::filesystem::create_directories(data_dir);
   const std::string csv = (std::filesystem::path(data_dir) / "seen_felt_rays.csv").string();
   write_seen_felt_csv(rep, csv);

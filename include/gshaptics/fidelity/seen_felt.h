@@ -27,6 +27,7 @@
 /// 1-99 percentile box; presses from around are horizontal at a random azimuth, aimed at its
 /// middle 60 %. Deterministic for a seed.
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -64,6 +65,10 @@ struct SeenFeltOptions {
   /// The scene's down (unit, scene frame): vertical presses go along it, presses from around
   /// perpendicular to it. Default: the 3DGS/COLMAP file frame's +y.
   Eigen::Vector3d down = Eigen::Vector3d::UnitY();
+  /// When set (lo, hi; scene frame): rays are aimed at this box's middle instead of the kept
+  /// Gaussians' percentile box (the rigid objects of a scene: `seen-felt --object`). Tool sizes
+  /// stay fractions of the world's extent.
+  std::optional<std::array<Eigen::Vector3d, 2>> aim_box;
 };
 
 /// The CI subset: 3 rays per configuration, the 1 % tool only.
@@ -112,6 +117,14 @@ using SeenFeltProgressFn = std::function<void(const std::string&)>;
 /// rows and rays to `report`. Throws InputError for bad options.
 void measure_seen_felt(const std::string& name, const GaussianScene& scene, const CollisionWorld& world,
                        const SeenFeltOptions& options, SeenFeltReport& report, const SeenFeltProgressFn& progress = {});
+/// The same with the caller's renderer (played through the servo step as above), e.g. an
+/// ObjectRenderer over the static part of a scene and its rigid objects (objects/object_renderer.h):
+/// `world` then holds the static part, `scene` the file as captured (the seen truth), and
+/// o.renderer is not used to make one. play_script resets the renderer before each ray, which
+/// puts the objects back at rest.
+void measure_seen_felt(const std::string& name, const GaussianScene& scene, const CollisionWorld& world,
+                       ForceRenderer& renderer, const SeenFeltOptions& options, SeenFeltReport& report,
+                       const SeenFeltProgressFn& progress = {});
 
 /// Loads each scene file (load_scene), builds its default world and measures it.
 [[nodiscard]] SeenFeltReport run_seen_felt(const std::vector<std::string>& scene_files, const SeenFeltOptions& options,

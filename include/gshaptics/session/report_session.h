@@ -14,6 +14,7 @@
 #include "gshaptics/fidelity/seen_felt.h"
 #include "gshaptics/fidelity/stability.h"
 #include "gshaptics/session/probe_session.h"
+#include "gshaptics/session/world_session.h"
 
 namespace gshaptics::session {
 
@@ -71,6 +72,11 @@ struct SeenFeltCommandOptions {
   std::uint64_t seed = SeenFeltOptions{}.seed;
   ForceModelOptions force;
   ExecutionOptions exec;
+  /// --object and --support: rigid objects of the one scene given (SceneOptions::objects and
+  /// supports; the rest unused). With objects, the rays are aimed at their boxes, the force
+  /// renderer is the objects' (ObjectRenderer over the static part and MuJoCo), and the seen
+  /// truth is the file as captured: does an object at rest feel where it shows?
+  SceneOptions objects;
 };
 
 /// The shared real scenes the benchmark runs on by default: the ten object and room captures of
