@@ -1,6 +1,5 @@
 #include "gshaptics/force/seen_proxy.h"
 
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -186,9 +185,10 @@ void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double 
   // move, so the rays of a reading fixed at its start give the same normal, three ticks later,
   // and no tick pays for all of them).
   const Eigen::Vector3d& a = axis_;
+  // The ring's rays search as deep as the ring is wide (kNormalSpan >= 1: slopes to 45 deg).
   const double h = kNormalSpan * radius, back = std::min(depth, kNormalEye * radius);
   if (normal_.squaredNorm() == 0) {
-    target_normal_ = solid_.normal(point, a, h, std::max(radius, h), back, scratch_);
+    target_normal_ = solid_.normal(point, a, h, h, back, scratch_);
     normal_at_ = point;
     normal_ = target_normal_;
     pending_ray_ = -1;
@@ -201,7 +201,7 @@ void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double 
     pending_h_ = h;
   }
   if (pending_ray_ < 0) return;
-  pending_hits_[std::size_t(pending_ray_)] = solid_.normal_ray(pending_at_, a, pending_ray_, h, std::max(radius, h), pending_back_, scratch_);
+  pending_hits_[std::size_t(pending_ray_)] = solid_.normal_ray(pending_at_, a, pending_ray_, h, h, pending_back_, scratch_);
   if (++pending_ray_ < SeenSolid::kNormalRays) return;
   target_normal_ = SeenSolid::normal_from(a, pending_hits_, pending_h_);
   normal_at_ = pending_at_;

@@ -1,6 +1,5 @@
 #include "gshaptics/force/seen_solid.h"
 
-
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>

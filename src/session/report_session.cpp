@@ -154,10 +154,6 @@ std::string seen_felt_command_line(const SeenFeltCommandOptions& o, const std::v
   return command;
 }
 
-}  // namespace
-
-namespace {
-
 // `seen-felt --object`: the one scene with its rigid objects (SeenFeltCommandOptions::objects).
 SeenFeltReport seen_felt_on_objects(const std::vector<std::string>& scenes, const SceneOptions& objects,
                                     const SeenFeltOptions& o, const SeenFeltProgressFn& progress) {
