@@ -291,17 +291,23 @@ TEST(SeenProxy, ALargeFlatGaussianTheFloaterRulePassesIsFeltWhereItIsSeen) {
   EXPECT_LT(press(ellipsoids, r, 0.05, -0.02, 1000).lowest_lead, -0.02);
 }
 
-TEST(SeenProxy, RefusesACompoundToolAndTheWindowMustBePositive) {
+// (A compound tool gets the seen compound proxy: seen_compound_proxy_test.cpp.)
+TEST(SeenProxy, RefusesTheFootprintForACompoundToolAndTheWindowMustBePositive) {
   GaussianScene g;
   add_layer(g, 0.0, 0.9f);
   const CollisionWorld w = CollisionWorld::build(g, seen_world());
-  ProxyRenderer p(w, seen_params());
+  ProxyParams footprint = seen_params();
+  footprint.seen_footprint = true;
+  ProxyRenderer p(w, footprint);
   CompoundTool stylus;
   stylus.count = 2;
   stylus.parts[0].semi_axes = Eigen::Vector3d::Constant(0.002);
   stylus.parts[1].semi_axes = Eigen::Vector3d::Constant(0.002);
   stylus.parts[1].offset = Eigen::Vector3d(0, 0, 0.02);
   EXPECT_THROW(p.set_tool(stylus), InputError);
+  ProxyRenderer plain(w, seen_params());
+  plain.set_tool(stylus);
+  EXPECT_TRUE(plain.renders_compound());
   ProxyParams bad = seen_params();
   bad.seen_window = 0;
   EXPECT_THROW(ProxyRenderer(w, bad), InputError);

@@ -25,7 +25,7 @@ constexpr ProxyToolField field(std::string_view name, std::string_view option, P
 }
 
 // The table of tool-specific fields: one row each, with its option and why the other tool has no use for it.
-const std::array<ProxyToolField, 13> kToolFields{{
+const std::array<ProxyToolField, 11> kToolFields{{
     field<&ProxyParams::device_shading>("device_shading", "--device-shading", ProxyTool::kOnePart,
                                  "a compound tool's parts read the shaded normal where each touches"),
     field<&ProxyParams::corner_normal>("corner_normal", "--corner-normal", ProxyTool::kOnePart,
@@ -34,12 +34,8 @@ const std::array<ProxyToolField, 13> kToolFields{{
                                  "a compound tool's parts read the shaded normal without the overhang falloff"),
     field<&ProxyParams::shading_budget>("shading_budget", "", ProxyTool::kOnePart,
                                  "a compound tool's parts read their shaded normals whole"),
-    field<&ProxyParams::surface>("surface", "--surface", ProxyTool::kOnePart,
-                                 "a compound tool's parts rest on the Gaussians' ellipsoids (the seen solid is one-part only)"),
-    field<&ProxyParams::seen_window>("seen_window", "--seen-window", ProxyTool::kOnePart,
-                                 "a compound tool's parts rest on the Gaussians' ellipsoids (the seen solid is one-part only)"),
     field<&ProxyParams::seen_footprint>("seen_footprint", "--seen-footprint", ProxyTool::kOnePart,
-                                 "a compound tool's parts rest on the Gaussians' ellipsoids (the seen solid is one-part only)"),
+                                 "a compound tool's parts meet the seen solid at their leading points (the footprint is the sphere's)"),
     field<&ProxyParams::rot_stiffness>("rot_stiffness", "", ProxyTool::kCompound,
                                  "a one-part tool at its centre point is not turned by the proxy"),
     field<&ProxyParams::rot_damping>("rot_damping", "", ProxyTool::kCompound,

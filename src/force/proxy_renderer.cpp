@@ -10,6 +10,9 @@ namespace gshaptics {
 
 namespace {
 
+constexpr const char* kSeenCompoundMaterials =
+    "proxy: materials on the seen solid (--surface seen) serve one-part tools; a tool with a shape there has none yet";
+
 const ProxyParams& validated(const ProxyParams& p, double f_max) {
   validate_proxy_params(p, "proxy");
   if (!(f_max > 0)) throw InputError("proxy: f_max must be > 0 N");
@@ -37,8 +40,12 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   tool.validate("proxy: tool");
   const bool single = tool.is_single_at_tcp();
   check_proxy_params_apply(params_, single ? ProxyTool::kOnePart : ProxyTool::kCompound, "proxy: tool");
-  if (single) {
-    compound_.reset();
+  compound_.reset();
+  seen_compound_.reset();
+  if (single) return;
+  if (seen_) {
+    if (follower_) throw InputError(kSeenCompoundMaterials);
+    seen_compound_ = std::make_unique<SeenCompoundProxy>(seen_->solid(), tool, params_, f_max_);
     return;
   }
   compound_ = std::make_unique<CompoundProxy>(*world_, tool, params_, f_max_);
@@ -46,6 +53,7 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
 }
 
 void ProxyRenderer::set_materials(std::shared_ptr<const MaterialField> field) {
+  if (field && seen_compound_) throw InputError(kSeenCompoundMaterials);
   follower_ = field ? std::make_unique<MaterialFollower>(field, params_) : nullptr;
   if (seen_) seen_->set_follower(follower_.get());
   if (compound_) compound_->set_materials(field);
@@ -66,6 +74,11 @@ void ProxyRenderer::apply_material(const Eigen::Vector3d& p, const Eigen::Vector
 RenderOutput ProxyRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
                                             const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
                                             double dt) noexcept {
+  if (seen_compound_ && parts.size() == std::size_t(seen_compound_->tool().count)) {
+    compound_active_ = false;
+    const Eigen::Quaterniond orientation = parts[0].rotation * seen_compound_->tool().parts[0].rotation.conjugate();
+    return seen_compound_->render(tcp, orientation, velocity, angular_velocity, dt);
+  }
   if (!compound_ || parts.size() != std::size_t(compound_->tool().count)) {
     compound_active_ = false;
     return ForceRenderer::render_compound(parts, tcp, velocity, angular_velocity, dt);
@@ -96,6 +109,7 @@ void ProxyRenderer::restart_at(const ToolEllipsoid& tool) noexcept {
 void ProxyRenderer::reset() noexcept {
   if (compound_) compound_->reset();
   if (seen_) seen_->reset();
+  if (seen_compound_) seen_compound_->reset();
   solver_.reset();
   forget_contact();
   normal_.setZero();

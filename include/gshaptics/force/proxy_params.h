@@ -25,7 +25,8 @@ enum class ProxySurface {
   /// the floater rule: exact against the ellipsoids, not the surface a renderer shows.
   kEllipsoids,
   /// The seen solid (force/seen_solid.h): where the Gaussians composite to a transmittance of
-  /// 1/2 along the push, as a viewer looking along it sees them. One-part tools.
+  /// 1/2 along the push, as a viewer looking along it sees them: SeenProxy for one-part tools,
+  /// SeenCompoundProxy for tools with a shape.
   kSeen,
 };
 
@@ -115,9 +116,9 @@ struct ProxyParams {
   /// back up to 12 mJ more than it took (bench/RESULTS.md, twenty-sixth session). false: the
   /// plain coupling. The rotational spring of a compound tool is not bounded.
   bool energy_bound = true;
-  /// One-part tool. The solid the proxy rests on (kEllipsoids: the Gaussians' ellipsoids).
+  /// Every tool. The solid the proxy rests on (kEllipsoids: the Gaussians' ellipsoids).
   ProxySurface surface = ProxySurface::kEllipsoids;
-  /// One-part tool, kSeen. How far behind the tool's leading point the eye of the seen solid may
+  /// kSeen, every tool. How far behind the tool's leading point the eye of the seen solid may
   /// be, in tool radii (> 0): the layers a push has come through since its approach began, up to
   /// this far back, count toward the surface it meets. Far enough that a viewer outside an
   /// object capture sees what the proxy is held by: at 32 R the floaters beyond it were left out

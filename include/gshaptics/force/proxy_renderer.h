@@ -45,6 +45,7 @@
 #include "gshaptics/force/material.h"
 #include "gshaptics/force/proxy_normal.h"
 #include "gshaptics/force/proxy_params.h"
+#include "gshaptics/force/seen_compound_proxy.h"
 #include "gshaptics/force/seen_proxy.h"
 #include "gshaptics/force/proxy_solver.h"
 #include "gshaptics/force/virtual_coupling.h"
@@ -67,16 +68,22 @@ class ProxyRenderer final : public ForceRenderer {
   void reset() noexcept override;
   /// A tool of several parts (or one off the TCP) gets the compound proxy (force/compound_proxy.h:
   /// translation and rotation, the wrench at the contacts), reading this renderer's ProxyParams
-  /// and f_max. A single part at the TCP stays with the one-ellipsoid proxy. Throws InputError
-  /// for an invalid tool, or where a field of ProxyParams set away from its default does not
-  /// serve this tool (check_proxy_params_apply).
+  /// and f_max. A single part at the TCP stays with the one-ellipsoid proxy. On the seen solid
+  /// (ProxySurface::kSeen) the tool gets the seen compound proxy instead (seen_compound_proxy.h).
+  /// Throws InputError for an invalid tool, where a field of ProxyParams set away from its
+  /// default does not serve this tool (check_proxy_params_apply), or for a tool with a shape on
+  /// the seen solid with materials set (not served yet).
   void set_tool(const CompoundTool& tool) override;
-  [[nodiscard]] bool renders_compound() const noexcept override { return compound_ != nullptr; }
+  [[nodiscard]] bool renders_compound() const noexcept override {
+    return compound_ != nullptr || seen_compound_ != nullptr;
+  }
   RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
                                const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
                                double dt) noexcept override;
   /// The compound proxy, when set_tool() gave one (nullptr otherwise).
   [[nodiscard]] const CompoundProxy* compound() const noexcept { return compound_.get(); }
+  /// The compound proxy on the seen solid, when set_tool() gave one (nullptr otherwise).
+  [[nodiscard]] const SeenCompoundProxy* seen_compound() const noexcept { return seen_compound_.get(); }
 
   [[nodiscard]] const Eigen::Vector3d& proxy_position() const noexcept { return solver_.position(); }
   /// The one-ellipsoid proxy's last move: its sweeps, candidates and exact searches (profiling;
@@ -106,7 +113,8 @@ class ProxyRenderer final : public ForceRenderer {
   /// coupling's stiffness and damping, the friction cone's coefficients and the viscous drag are
   /// the blend under the proxy (MaterialField::at); nullptr: the ProxyParams' own everywhere.
   /// On the seen surface (SeenProxy) the materials are read from the layers that make the seen
-  /// surface under the contact, weighted T_k alpha_k. A compound tool (set_tool) reads the same field.
+  /// surface under the contact, weighted T_k alpha_k. A compound tool (set_tool) reads the same
+  /// field on the ellipsoids; on the seen solid it refuses one (InputError).
   void set_materials(std::shared_ptr<const MaterialField> field);
   /// The blend under the proxy at the last tick in contact (the ProxyParams' own without a field):
   /// the materials of the Gaussians holding it (MaterialField::contact_shares), followed along
@@ -148,6 +156,7 @@ class ProxyRenderer final : public ForceRenderer {
   ProxyMove last_move_;
   std::unique_ptr<CompoundProxy> compound_;  // a tool with a shape (set_tool)
   std::unique_ptr<SeenProxy> seen_;          // ProxySurface::kSeen: the proxy on the seen solid
+  std::unique_ptr<SeenCompoundProxy> seen_compound_;  // kSeen with a tool with a shape (on seen_'s solid)
   bool compound_active_ = false;             // the last tick was the compound proxy's
   std::unique_ptr<MaterialFollower> follower_;  // set_materials (nullptr: none)
   MaterialBlend own_material_;                  // the ProxyParams' own, as a blend

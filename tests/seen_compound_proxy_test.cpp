@@ -1,0 +1,217 @@
+// The compound proxy on the seen solid (force/seen_compound_proxy.h, --surface seen with a tool
+// of several parts), through ProxyRenderer::render_compound as the servo step calls it: where
+// the tool rests against the independent brute-force seen surface (scene/seen_surface.h), the
+// wrench's lever, a turn that swings the tool onto a surface, a fast motion through a faint
+// layer, and what it refuses.
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <array>
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "gshaptics/collision/collision_world.h"
+#include "gshaptics/collision/compound_tool.h"
+#include "gshaptics/error.h"
+#include "gshaptics/force/material.h"
+#include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/scene/seen_surface.h"
+
+namespace gshaptics {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// A square grid of flat discs at height z (normal +z), spacing s, each disc's sigma s / 2 (so
+// the discs overlap and the plane is closed to the eye).
+void add_layer(GaussianScene& g, double z, float opacity, double s = 0.004, double half = 0.16) {
+  for (double x = -half; x <= half + 1e-12; x += s)
+    for (double y = -half; y <= half + 1e-12; y += s)
+      g.push_back(Eigen::Vector3f(float(x), float(y), float(z)), Eigen::Vector3f(float(0.5 * s), float(0.5 * s), 1e-5f),
+                  Eigen::Vector4f(1, 0, 0, 0), opacity, std::uint32_t(g.size()));
+}
+
+CollisionWorld seen_world(const GaussianScene& g) {
+  WorldConfig c;
+  c.min_opacity = kSeenMinOpacity;
+  return CollisionWorld::build(g, c);
+}
+
+ProxyParams seen_params() {
+  ProxyParams p;
+  p.surface = ProxySurface::kSeen;
+  return p;
+}
+
+// The device's pose each tick, and what the renderer gave back.
+struct Tick {
+  Eigen::Vector3d tcp;
+  Eigen::Quaterniond q;
+  RenderOutput out;
+};
+
+// Drives `r` (a compound tool set) through `pose(t)` for `seconds` at 1 kHz, as the servo step
+// does (the parts posed at the device's pose, the TCP's velocity by differences).
+template <class Pose>
+std::vector<Tick> drive(ProxyRenderer& r, const CompoundTool& tool, double seconds, Pose pose) {
+  std::vector<Tick> ticks;
+  constexpr double dt = 0.001;
+  std::array<ToolEllipsoid, kMaxToolParts> parts{};
+  Eigen::Vector3d last = pose(0.0).first;
+  for (int i = 0; i * dt <= seconds; ++i) {
+    const auto [tcp, q] = pose(i * dt);
+    const int n = tool.posed(tcp, q, parts);
+    const Eigen::Vector3d v = (tcp - last) / dt;
+    last = tcp;
+    ticks.push_back({tcp, q, r.render_compound(std::span<const ToolEllipsoid>(parts.data(), std::size_t(n)), tcp, v,
+                                               Eigen::Vector3d::Zero(), dt)});
+  }
+  return ticks;
+}
+
+// The lowest point of the tool at (tcp, q) along z.
+double lowest(const CompoundTool& tool, const Eigen::Vector3d& tcp, const Eigen::Quaterniond& q) {
+  std::array<ToolEllipsoid, kMaxToolParts> parts{};
+  const int n = tool.posed(tcp, q, parts);
+  double z = 1e9;
+  for (int j = 0; j < n; ++j) z = std::min(z, parts[std::size_t(j)].surface_point(-Eigen::Vector3d::UnitZ()).z());
+  return z;
+}
+
+// A stylus lying on a plane of discs (side-on) pressed 5 mm down: the force is the coupling's
+// along +z, the proxy rests with the stylus on the seen surface (the reference's median depth
+// under it), and the torque is the force's moment about the middle of the line of contact.
+TEST(SeenCompoundProxy, AStylusLyingOnAPlaneRestsOnTheSeenSurfaceWithTheMomentOfItsLine) {
+  GaussianScene g;
+  add_layer(g, 0.0, 0.9f);
+  const CollisionWorld world = seen_world(g);
+  const ProxyParams params = seen_params();
+  ProxyRenderer r(world, params);
+  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
+  r.set_tool(stylus);
+  ASSERT_NE(r.seen_compound(), nullptr);
+  ASSERT_EQ(r.compound(), nullptr);
+  // Lying along +x, its tip (the TCP) at x = -0.06.
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitY()));
+  const Eigen::Vector3d start(-0.06, 0.01, 0.0 + 0.004 + 0.005);  // its underside 5 mm over the plane
+  const auto ticks = drive(r, stylus, 1.0, [&](double t) {
+    const double down = std::min(0.010, 0.02 * t);  // 2 cm/s to 5 mm past the plane, then held
+    return std::pair{Eigen::Vector3d(start - down * Eigen::Vector3d::UnitZ()), q};
+  });
+  const Tick& held = ticks.back();
+  const SeenSurface reference(g);
+  const SeenDepth seen = reference.median_depth(Eigen::Vector3d(0.0, 0.01, 1.0), -Eigen::Vector3d::UnitZ(), 2.0);
+  ASSERT_TRUE(seen.hit);
+  const double surface_z = 1.0 - seen.depth;
+  const double rest = lowest(stylus, held.out.proxy, q);
+  EXPECT_NEAR(rest, surface_z, 0.0005);
+  const double depth = surface_z - lowest(stylus, held.tcp, q);
+  EXPECT_NEAR(depth, 0.005, 0.0006);
+  EXPECT_NEAR(held.out.force.z(), params.stiffness * depth, 0.05 * params.stiffness * depth);
+  EXPECT_LT(held.out.force.head<2>().norm(), 0.02 * held.out.force.norm());
+  // The line of contact runs the stylus's length: its middle is 6 cm along +x from the tip.
+  const double lever = -held.out.torque.y() / held.out.force.z();
+  EXPECT_NEAR(lever, 0.06, 0.006);
+  EXPECT_LT(std::abs(held.out.torque.x()) + std::abs(held.out.torque.z()), 0.02 * held.out.torque.norm());
+  EXPECT_GE(r.seen_compound()->touching(), 3);
+}
+
+// Tip first at 30 degrees: only the tip touches; the force stands along the plane's normal and
+// its lever is the tip's, under a millimetre.
+TEST(SeenCompoundProxy, ATiltedStylusRestsOnItsTip) {
+  GaussianScene g;
+  add_layer(g, 0.0, 0.9f);
+  const CollisionWorld world = seen_world(g);
+  ProxyRenderer r(world, seen_params());
+  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
+  r.set_tool(stylus);
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(kPi / 6, Eigen::Vector3d::UnitY()));
+  const Eigen::Vector3d start(0.0, 0.0, 0.004 + 0.005);
+  const auto ticks = drive(r, stylus, 1.0, [&](double t) {
+    return std::pair{Eigen::Vector3d(start - std::min(0.010, 0.02 * t) * Eigen::Vector3d::UnitZ()), q};
+  });
+  const Tick& held = ticks.back();
+  ASSERT_GT(held.out.force.z(), 1.0);
+  EXPECT_LT(std::acos(std::min(1.0, held.out.force.normalized().z())) * 180 / kPi, 2.0);
+  EXPECT_LT(held.out.torque.norm() / held.out.force.norm(), 0.004);
+  EXPECT_EQ(r.seen_compound()->touching(), 1);
+}
+
+// A stylus held by its tip 1 cm over the plane and turned about it, so that its far end swings
+// down through the plane in one motion: the turn is stopped by the surface (the proxy rises),
+// no part goes through, and the force pushes back up.
+TEST(SeenCompoundProxy, ATurnThatSwingsTheToolOntoTheSurfaceIsStopped) {
+  GaussianScene g;
+  add_layer(g, 0.0, 0.9f);
+  const CollisionWorld world = seen_world(g);
+  ProxyRenderer r(world, seen_params());
+  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
+  r.set_tool(stylus);
+  const Eigen::Vector3d tcp(-0.06, 0.0, 0.01);
+  // From pointing up and out (+z tilted 45 deg toward +x) to 20 deg below the horizontal, in 0.4 s.
+  const auto ticks = drive(r, stylus, 0.6, [&](double t) {
+    const double angle = kPi / 4 + std::min(1.0, t / 0.4) * (kPi / 2 - kPi / 4 + 20 * kPi / 180);
+    return std::pair{tcp, Eigen::Quaterniond(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitY()))};
+  });
+  double worst = 1e9;
+  for (const Tick& k : ticks) worst = std::min(worst, lowest(stylus, k.out.proxy, k.q));
+  EXPECT_GT(worst, -0.0006);  // the discs' seen surface is at 0
+  const Tick& held = ticks.back();
+  EXPECT_LT(lowest(stylus, held.tcp, held.q), -0.02);  // the device's stylus is deep in the plane
+  EXPECT_GT(held.out.force.z(), 1.0);
+}
+
+// Two faint layers 2 mm apart that only together hide what is behind them: a stylus pressed
+// through them fast (2 m/s) is stopped where a slow one (2 cm/s) is.
+TEST(SeenCompoundProxy, AFastMotionThroughAFaintLayerIsStoppedAsASlowOne) {
+  GaussianScene g;
+  add_layer(g, 0.0, 0.45f);
+  add_layer(g, -0.002, 0.45f);
+  const CollisionWorld world = seen_world(g);
+  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(kPi / 6, Eigen::Vector3d::UnitY()));
+  std::array<double, 2> rest{};
+  for (int k = 0; k < 2; ++k) {
+    const double speed = k == 0 ? 0.02 : 2.0;
+    ProxyRenderer r(world, seen_params());
+    r.set_tool(stylus);
+    const Eigen::Vector3d start(0.0, 0.0, 0.01);
+    const auto ticks = drive(r, stylus, 0.8, [&](double t) {
+      return std::pair{Eigen::Vector3d(start - std::min(0.015, speed * t) * Eigen::Vector3d::UnitZ()), q};
+    });
+    ASSERT_GT(ticks.back().out.force.z(), 0.5) << "speed " << speed;
+    rest[std::size_t(k)] = lowest(stylus, ticks.back().out.proxy, q);
+  }
+  EXPECT_NEAR(rest[1], rest[0], 0.0003);
+  EXPECT_GT(rest[1], -0.0025);  // held at the pair, not by anything past them
+}
+
+// Materials are not served on the seen solid with a tool with a shape: refused either way round.
+// On the ellipsoids the compound proxy is the one that serves the tool.
+TEST(SeenCompoundProxy, MaterialsAreRefusedAndTheEllipsoidsKeepTheirCompoundProxy) {
+  GaussianScene g;
+  add_layer(g, 0.0, 0.9f);
+  const CollisionWorld world = seen_world(g);
+  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
+  const auto field = MaterialField::resolve(MaterialMap::parse(nlohmann::json::parse(R"({
+    "materials": [{"name": "soft", "stiffness": 600}],
+    "regions": [{"material": "soft", "box": {"min": [-1, -1, -1], "max": [1, 1, 1]}}]})"), "map"), world, ProxyParams{});
+  {
+    ProxyRenderer r(world, seen_params());
+    r.set_tool(stylus);
+    EXPECT_THROW(r.set_materials(field), InputError);
+  }
+  {
+    ProxyRenderer r(world, seen_params());
+    r.set_materials(field);
+    EXPECT_THROW(r.set_tool(stylus), InputError);
+  }
+  ProxyRenderer r(world, ProxyParams{});
+  r.set_tool(stylus);
+  EXPECT_NE(r.compound(), nullptr);
+  EXPECT_EQ(r.seen_compound(), nullptr);
+}
+
+}  // namespace
+}  // namespace gshaptics
