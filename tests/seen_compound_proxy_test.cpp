@@ -162,6 +162,48 @@ TEST(SeenCompoundProxy, ATurnThatSwingsTheToolOntoTheSurfaceIsStopped) {
   EXPECT_GT(held.out.force.z(), 1.0);
 }
 
+// A cube's edge of discs (its top at z = 0 for x < 0, its side at x = 0 below), and a stylus
+// running up over it at 30 degrees, across it, its third part on the edge: pressed down, the
+// leading points of the parts over the edge see nothing; the footprints find the edge, and the
+// stylus rests on it with the normal of its own tangent point there (30 degrees from vertical,
+// across the edge), as a rigid pen on a table's edge.
+TEST(SeenCompoundProxy, AStylusAcrossAnEdgeRestsOnItWithItsOwnTangentNormal) {
+  GaussianScene g;
+  const double s = 0.004;
+  for (double x = -0.1; x <= 1e-12; x += s)
+    for (double y = -0.06; y <= 0.06 + 1e-12; y += s)
+      g.push_back(Eigen::Vector3f(float(x), float(y), 0.f), Eigen::Vector3f(float(0.5 * s), float(0.5 * s), 1e-5f),
+                  Eigen::Vector4f(1, 0, 0, 0), 0.9f, std::uint32_t(g.size()));
+  for (double z = -0.1; z <= -s + 1e-12; z += s)
+    for (double y = -0.06; y <= 0.06 + 1e-12; y += s)
+      g.push_back(Eigen::Vector3f(0.f, float(y), float(z)), Eigen::Vector3f(1e-5f, float(0.5 * s), float(0.5 * s)),
+                  Eigen::Vector4f(1, 0, 0, 0), 0.9f, std::uint32_t(g.size()));
+  const CollisionWorld world = seen_world(g);
+  ProxyRenderer r(world, seen_params());
+  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.005");
+  r.set_tool(stylus);
+  const Eigen::Vector3d axis(-std::cos(kPi / 6), 0, std::sin(kPi / 6)), side(std::sin(kPi / 6), 0, std::cos(kPi / 6));
+  const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), axis);
+  // The third part's centre a radius off the edge along `side`, then 4 mm higher.
+  const Eigen::Vector3d part = Eigen::Vector3d(0, 0.01, 0) + 0.005 * side + Eigen::Vector3d(0, 0, 0.004);
+  const Eigen::Vector3d start = part - q * stylus.parts[2].offset;
+  const auto ticks = drive(r, stylus, 1.0, [&](double t) {
+    return std::pair{Eigen::Vector3d(start - std::min(0.009, 0.02 * t) * Eigen::Vector3d::UnitZ()), q};
+  });
+  const Tick& held = ticks.back();
+  ASSERT_GT(held.out.force.norm(), 1.0);
+  const double off = std::acos(std::min(1.0, held.out.force.normalized().dot(side))) * 180 / kPi;
+  EXPECT_LT(off, 8.0) << held.out.force.transpose();
+  // Held on the edge, not sunk past it: the third part's centre stays a radius off the edge
+  // (where a rigid part rests on it), or a little more (the edge's discs reach past it by up to
+  // half their size, 2 mm, and the eye sees the edge there).
+  std::array<ToolEllipsoid, kMaxToolParts> parts{};
+  stylus.posed(held.out.proxy, q, parts);
+  const Eigen::Vector3d c = parts[2].center;
+  EXPECT_GT(std::hypot(c.x(), c.z()), 0.0045) << c.transpose();
+  EXPECT_LT(std::hypot(c.x(), c.z()), 0.0075) << c.transpose();
+}
+
 // Two faint layers 2 mm apart that only together hide what is behind them: a stylus pressed
 // through them fast (2 m/s) is stopped where a slow one (2 cm/s) is.
 TEST(SeenCompoundProxy, AFastMotionThroughAFaintLayerIsStoppedAsASlowOne) {

@@ -42,12 +42,17 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   check_proxy_params_apply(params_, single ? ProxyTool::kOnePart : ProxyTool::kCompound, "proxy: tool");
   compound_.reset();
   seen_compound_.reset();
-  if (single) return;
-  if (seen_) {
+  // On the seen solid the one-part proxy is a sphere of the tool's bounding radius: any other
+  // shape, one ellipsoid at the TCP included, gets the seen compound proxy.
+  if (seen_ && !(single && ToolEllipsoid::is_sphere(tool.parts[0].semi_axes))) {
     if (follower_) throw InputError(kSeenCompoundMaterials);
+    if (params_.seen_footprint)
+      throw InputError("proxy: seen_footprint (--seen-footprint) serves sphere tools (the footprint is the sphere's); "
+                       "the tool is " + describe(tool));
     seen_compound_ = std::make_unique<SeenCompoundProxy>(seen_->solid(), tool, params_, f_max_);
     return;
   }
+  if (single) return;
   compound_ = std::make_unique<CompoundProxy>(*world_, tool, params_, f_max_);
   if (follower_) compound_->set_materials(follower_->shared_field());
 }
@@ -158,6 +163,10 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   if (!tool.valid() || !velocity.allFinite() || !(dt > 0)) {
     out.status = QueryStatus::kInvalidTool;
     return out;
+  }
+  if (seen_compound_) {  // (set_tool gave a tool that is not a sphere)
+    const Eigen::Quaterniond orientation = tool.rotation * seen_compound_->tool().parts[0].rotation.conjugate();
+    return seen_compound_->render(tool.center, orientation, velocity, Eigen::Vector3d::Zero(), dt);
   }
   if (seen_) return seen_->render(tool, velocity, dt);
   const Eigen::Vector3d& xd = tool.center;

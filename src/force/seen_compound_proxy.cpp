@@ -10,10 +10,44 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // The middle of a part's three semi-axes (a stylus segment's radius, a disc's radius).
-double middle_semi_axis(const ToolEllipsoid& part) noexcept {
-  Eigen::Vector3d s = part.semi_axes;
+double middle_semi_axis(const Eigen::Vector3d& semi_axes) noexcept {
+  Eigen::Vector3d s = semi_axes;
   std::sort(s.data(), s.data() + 3);
   return s[1];
+}
+
+// Where the line p + t u (u unit) leaves `part` going along u: t (NaN when the line misses it).
+double exit_along(const ToolEllipsoid& part, const Eigen::Vector3d& p, const Eigen::Vector3d& u) noexcept {
+  const Eigen::Matrix3d rt = part.rotation.toRotationMatrix().transpose();
+  const Eigen::Vector3d wo = (rt * (p - part.center)).cwiseQuotient(part.semi_axes);
+  const Eigen::Vector3d wu = (rt * u).cwiseQuotient(part.semi_axes);
+  const double a = wu.squaredNorm(), b = wo.dot(wu), c = wo.squaredNorm() - 1;
+  const double disc = b * b - a * c;
+  if (!(disc >= 0)) return std::numeric_limits<double>::quiet_NaN();
+  return (-b + std::sqrt(disc)) / a;
+}
+
+// The point of `part`'s shadow along u (unit) at `fraction` of its radius, 2 pi k / rays around
+// (an offset across u from the part's centre). The shadow is the ellipse y^T S^-1 y <= 1, S the
+// part's covariance projected on the plane across u.
+Eigen::Vector3d shadow_offset(const ToolEllipsoid& part, const Eigen::Vector3d& u, int k, int rays,
+                              double fraction) noexcept {
+  const Eigen::Vector3d e1 = u.unitOrthogonal(), e2 = u.cross(e1);
+  const Eigen::Matrix3d r = part.rotation.toRotationMatrix();
+  const Eigen::Matrix3d sigma = r * part.semi_axes.cwiseAbs2().asDiagonal() * r.transpose();
+  Eigen::Matrix2d s;
+  s << e1.dot(sigma * e1), e1.dot(sigma * e2), e2.dot(sigma * e1), e2.dot(sigma * e2);
+  const double angle = 2 * 3.14159265358979323846 * k / rays;
+  const Eigen::Vector2d d(std::cos(angle), std::sin(angle));
+  const double radial = 1 / std::sqrt(d.dot(s.inverse() * d));
+  return fraction * radial * (d.x() * e1 + d.y() * e2);
+}
+
+// The part's outward surface normal at its surface point x (unit).
+Eigen::Vector3d outward_normal(const ToolEllipsoid& part, const Eigen::Vector3d& x) noexcept {
+  const Eigen::Matrix3d r = part.rotation.toRotationMatrix();
+  const Eigen::Vector3d local = (r.transpose() * (x - part.center)).cwiseQuotient(part.semi_axes.cwiseAbs2());
+  return (r * local).normalized();
 }
 
 }  // namespace
@@ -29,7 +63,10 @@ SeenCompoundProxy::SeenCompoundProxy(const SeenSolid& solid, const CompoundTool&
   tool_.validate("seen proxy: tool");
   radius_ = tool_.largest_semi_axis();
   min_axis_ = kInf;
-  for (const ToolPart& p : tool_.view()) min_axis_ = std::min(min_axis_, p.semi_axes.minCoeff());
+  for (int j = 0; j < tool_.count; ++j) {
+    min_axis_ = std::min(min_axis_, tool_.parts[std::size_t(j)].semi_axes.minCoeff());
+    middle_[std::size_t(j)] = middle_semi_axis(tool_.parts[std::size_t(j)].semi_axes);
+  }
   reset();
 }
 
@@ -37,6 +74,7 @@ void SeenCompoundProxy::reset() noexcept {
   started_ = false;
   release();
   normal_.setZero();
+  for (int j = 0; j < tool_.count; ++j) forget_ring(j, Eigen::Vector3d::Zero());
 }
 
 void SeenCompoundProxy::release() noexcept {
@@ -45,7 +83,7 @@ void SeenCompoundProxy::release() noexcept {
   coupling_.release();
   friction_.reset();
   friction_step_ = {};
-  gap_.fill(kInf);
+  held_.fill(Hold{});
   last_hit_.fill(std::numeric_limits<double>::quiet_NaN());
 }
 
@@ -53,95 +91,339 @@ void SeenCompoundProxy::pose(const Eigen::Vector3d& x, const Eigen::Quaterniond&
   tool_.posed(x, q, std::span<ToolEllipsoid>(parts_.data(), std::size_t(tool_.count)));
 }
 
+void SeenCompoundProxy::forget_ring(int j, const Eigen::Vector3d& axis) noexcept {
+  Ring& g = rings_[std::size_t(j)];
+  g.axis = axis;
+  g.at.fill(kInf);
+  for (EdgeSearch& e : edges_[std::size_t(j)]) e = EdgeSearch{};
+}
+
+double SeenCompoundProxy::ring_gap(const ToolEllipsoid& part, int j, int k, const Eigen::Vector3d& axis,
+                                   Eigen::Vector3d& front) const noexcept {
+  const Ring& g = rings_[std::size_t(j)];
+  if (!(g.axis.dot(axis) >= kRingAxisCos) || !std::isfinite(g.at[std::size_t(k)])) return kInf;
+  const Eigen::Vector3d& p = g.foot[std::size_t(k)];
+  const double t = exit_along(part, p, g.axis);
+  if (std::isnan(t)) return kInf;  // the line is no longer under the part
+  front = p + t * g.axis;
+  return g.at[std::size_t(k)] - front.dot(g.axis);
+}
+
+double SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& from, const Eigen::Vector3d& u, double len,
+                                    bool leaving) noexcept {
+  Ring& g = rings_[std::size_t(j)];
+  if (!(g.axis.dot(u) >= kRingAxisCos)) forget_ring(j, u);
+  const int k = g.next;
+  g.next = (g.next + 1) % kRingRays;
+  // The line through the part's shadow, read from the part's front over it (or as far behind it
+  // as the part may have gone past a rim since the line was last read, unless it is leaving).
+  const Eigen::Vector3d p = from.center + shadow_offset(from, u, k, kRingRays, kRingFraction[k % 3]);
+  const Eigen::Vector3d front = p + exit_along(from, p, u) * u;
+  const double look = kRingLook * middle_[std::size_t(j)];
+  const double back = leaving ? 0.0 : -(look + kRingRays * len);
+  const SeenHit hit = solid_->first_inside(front, u, back, 0, len + look, scratch_);
+  g.foot[std::size_t(k)] = front;
+  g.at[std::size_t(k)] = hit.hit ? front.dot(u) + hit.t : kInf;
+  // A line met later than its refresh allows (a slanted wall met line by line) does not hold:
+  // snapping the proxy back would start the contact with a force step.
+  double travel = kInf;
+  for (int kk = 0; kk < kRingRays; ++kk) {
+    Eigen::Vector3d at;
+    const double gap = ring_gap(from, j, kk, u, at);
+    if (gap <= len && gap >= -(kRingRays * len + kRingSink * middle_[std::size_t(j)])) travel = std::min(travel, gap);
+  }
+  return travel;
+}
+
 bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept {
-  // Each part's leading point along its own chord, searched over the whole chord; the first to
-  // meet the seen solid (the least fraction of its chord) begins the contact.
-  std::array<Eigen::Vector3d, kMaxToolParts> from{};
+  // Each part's leading point along its own chord, searched over the whole chord, and its
+  // footprint; the first to meet the seen solid (the least fraction of its chord) begins the contact.
   pose(x_, q_);
-  for (int j = 0; j < tool_.count; ++j) from[std::size_t(j)] = parts_[std::size_t(j)].center;
   const std::array<ToolEllipsoid, kMaxToolParts> before = parts_;
   pose(x, q);
-  double first = kInf, first_eye = 0, first_lead = 0;
-  Eigen::Vector3d first_u = Eigen::Vector3d::Zero(), first_centre = Eigen::Vector3d::Zero();
+  double first = kInf;
+  Eigen::Vector3d first_u = Eigen::Vector3d::Zero(), first_eye = Eigen::Vector3d::Zero();
   for (int j = 0; j < tool_.count; ++j) {
-    const Eigen::Vector3d d = parts_[std::size_t(j)].center - from[std::size_t(j)];
+    const ToolEllipsoid& part = before[std::size_t(j)];
+    const Eigen::Vector3d d = parts_[std::size_t(j)].center - part.center;
     const double len = d.norm();
     if (!(len > 1e-9 * radius_)) continue;
     const Eigen::Vector3d u = d / len;
-    const ToolEllipsoid& part = before[std::size_t(j)];
     // The part's leading point along u, as the centre of a sphere of its support distance
     // (SeenSolid::push takes a centre and a lead along u).
     const Eigen::Vector3d tip = part.surface_point(u);
-    const double s = (tip - part.center).dot(u);
-    const Eigen::Vector3d centre = tip - s * u;
+    const double lead = (tip - part.center).dot(u);
+    const Eigen::Vector3d centre = tip - lead * u;
     double eye = 0;
     const bool leaving = u.dot(normal_) > 0;
-    const SeenHit hit = solid_->push(centre, u, s, params_.seen_window * radius_, len, leaving, eye, scratch_);
-    if (!hit.hit || hit.t / len >= first) continue;
-    first = hit.t / len;
-    first_eye = eye;
-    first_lead = s;
-    first_u = u;
-    first_centre = centre;
+    const SeenHit hit = solid_->push(centre, u, lead, params_.seen_window * radius_, len, leaving, eye, scratch_);
+    if (hit.hit && hit.t / len < first) {
+      first = hit.t / len;
+      first_u = u;
+      first_eye = tip - std::max(0.0, eye - kEyeMargin * min_axis_) * u;
+    }
+    double ring = free_ring(j, part, u, len, leaving);
+    // Within a middle semi-axis of a surface by its footprint, the edge under it is searched out
+    // (update_edges), and the part meets it at its own tangent point, not at whichever footprint
+    // line it sinks onto first: a contact found late would start with a force step.
+    const double look = kRingLook * middle_[std::size_t(j)];
+    axis_ = u;  // (the searches read along the part's chord)
+    const LineChoice c = nearest_line(j, part);
+    if (c.source[0] >= 0 && c.nearest < look) {
+      update_edges(j, c, part, len);
+      Eigen::Vector3d contact;
+      const double edge = edge_gap(part, j, u, contact);
+      if (edge <= len && edge >= -kRingSink * middle_[std::size_t(j)]) ring = std::min(ring, edge);
+    }
+    if (std::isfinite(ring) && std::max(0.0, ring) / len < first) {
+      first = std::max(0.0, ring) / len;
+      first_u = u;
+      // (The footprint's eye: from where the part's front was, as far back as it is still seen from.)
+      const double back = solid_->eye_distance(tip, u, params_.seen_window * radius_, scratch_);
+      first_eye = tip - std::max(0.0, back - kEyeMargin * min_axis_) * u;
+    }
   }
   if (!std::isfinite(first)) return false;
-  const double back = first_lead + std::max(0.0, first_eye - kEyeMargin * min_axis_);
   axis_ = first_u;
-  eye_ = first_centre + (first_lead - back) * first_u;
+  eye_ = first_eye;
   normal_.setZero();  // read afresh by the contact's first hold()
+  normal_at_.setConstant(std::numeric_limits<double>::quiet_NaN());
   pending_ray_ = -1;
   return true;
+}
+
+void SeenCompoundProxy::read_ring(int j, double reach) noexcept {
+  Ring& g = rings_[std::size_t(j)];
+  if (!(g.axis.dot(axis_) >= kRingAxisCos)) forget_ring(j, axis_);
+  const int k = g.next;
+  g.next = (g.next + 1) % kRingRays;
+  // The line through the resting part's shadow (parts_ posed at the proxy), read from kRingLook
+  // above its front down to `reach` past it (the device's depth), seen from kRingLook above that.
+  const ToolEllipsoid& part = parts_[std::size_t(j)];
+  const Eigen::Vector3d p = part.center + shadow_offset(part, axis_, k, kRingRays, kRingFraction[k % 3]);
+  const Eigen::Vector3d front = p + exit_along(part, p, axis_) * axis_;
+  const double look = kRingLook * middle_[std::size_t(j)];
+  const SeenHit hit = solid_->first_inside(front, axis_, -2 * look, -look, reach, scratch_);
+  g.foot[std::size_t(k)] = front;
+  g.at[std::size_t(k)] = hit.hit ? front.dot(axis_) + hit.t : kInf;
+}
+
+void SeenCompoundProxy::search_edge(int j, int which, int source, const ToolEllipsoid& part, double reach) noexcept {
+  EdgeSearch& e = edges_[std::size_t(j)][std::size_t(which)];
+  Ring& g = rings_[std::size_t(j)];
+  const std::size_t slot = std::size_t(kRingRays + which);
+  e.source = source;
+  g.at[slot] = kInf;
+  if (source < 0) return;
+  Eigen::Vector3d inner = g.foot[std::size_t(source)], outer = part.surface_point(axis_);
+  const double look = kRingLook * middle_[std::size_t(j)];
+  for (int step = 0; step < kEdgeSteps; ++step) {
+    const Eigen::Vector3d mid = 0.5 * (inner + outer);
+    const double t = exit_along(part, mid, axis_);
+    if (std::isnan(t)) {
+      outer = mid;
+      continue;
+    }
+    const Eigen::Vector3d front = mid + t * axis_;
+    const SeenHit hit = solid_->first_inside(front, axis_, -2 * look, -look, reach, scratch_);
+    if (!hit.hit || hit.t < -kRingSink * middle_[std::size_t(j)]) {
+      outer = mid;
+      continue;
+    }
+    inner = mid;
+    g.foot[slot] = front;
+    g.at[slot] = front.dot(axis_) + hit.t;
+  }
+}
+
+void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllipsoid& resting, double offset) noexcept {
+  // A search keeps its source while that line still holds within the contact band of the
+  // nearest; otherwise it starts afresh from the nearest (the second: the nearest 60 degrees
+  // or more from the first search's source).
+  const double band = kContactBand * min_axis_;
+  auto& e = edges_[std::size_t(j)];
+  // A search that found no edge is tried again once its line has come a quarter of the look nearer.
+  const double retry = 0.25 * kRingLook * middle_[std::size_t(j)];
+  const auto holds = [&](int r) { return r >= 0 && c.gaps[std::size_t(r)] <= c.nearest + band; };
+  const auto stale = [&](int which) {
+    const EdgeSearch& s = e[std::size_t(which)];
+    return !holds(s.source) ||
+           (!std::isfinite(rings_[std::size_t(j)].at[std::size_t(kRingRays + which)]) && c.gaps[std::size_t(s.source)] < s.tried - retry);
+  };
+  // (A line of the search holds where its surface is no deeper under the part than its source's
+  // by the contact band: past the edge, the surface it sees is the far side's.)
+  if (stale(0)) {
+    search_edge(j, 0, c.source[0], resting, c.nearest + offset + band);
+    e[0].tried = c.nearest;
+  }
+  if (stale(1) || !apart(e[1].source, e[0].source)) {
+    int second = -1;
+    for (int r = 0; r < kRingRays; ++r)
+      if (holds(r) && apart(r, e[0].source) && (second < 0 || c.gaps[std::size_t(r)] < c.gaps[std::size_t(second)]))
+        second = r;
+    search_edge(j, 1, second, resting, second >= 0 ? c.gaps[std::size_t(second)] + offset + band : 0.0);
+    e[1].tried = second >= 0 ? c.gaps[std::size_t(second)] : kInf;
+  }
+}
+
+double SeenCompoundProxy::edge_gap(const ToolEllipsoid& part, int j, const Eigen::Vector3d& axis,
+                                   Eigen::Vector3d& contact) const noexcept {
+  const Ring& g = rings_[std::size_t(j)];
+  const double at1 = g.at[kRingRays], at2 = g.at[kRingRays + 1];
+  if (!(g.axis.dot(axis) >= kRingAxisCos) || !std::isfinite(at1) || !std::isfinite(at2)) return kInf;
+  const Eigen::Vector3d& p1 = g.foot[kRingRays];
+  Eigen::Vector3d e = g.foot[kRingRays + 1] - p1;
+  e -= e.dot(axis) * axis;
+  const double span = e.norm();
+  if (!(span > kEdgeSpan * middle_[std::size_t(j)])) return kInf;
+  e /= span;
+  // The part's points whose normal is across the edge (n . e = 0) lie on the plane through its
+  // centre with normal A e (A = Sigma^-1); the edge's plane along the axis has normal w. Their
+  // line meets the part at its point resting on the edge.
+  const Eigen::Matrix3d r = part.rotation.toRotationMatrix();
+  const Eigen::Matrix3d inv = r * part.semi_axes.cwiseAbs2().cwiseInverse().asDiagonal() * r.transpose();
+  const Eigen::Vector3d n1 = inv * e, w = axis.cross(e);
+  const Eigen::Vector3d d = n1.cross(w);
+  const double a11 = n1.dot(n1), a12 = n1.dot(w), a22 = w.dot(w), det = a11 * a22 - a12 * a12;
+  if (!(std::abs(det) > 1e-18 * a11 * a22) || !(d.squaredNorm() > 0)) return kInf;
+  const double rhs = w.dot(p1 - part.center);
+  const Eigen::Vector3d x0 = (-a12 * rhs / det) * n1 + (a11 * rhs / det) * w;  // from the centre
+  const double qa = d.dot(inv * d), qb = x0.dot(inv * d), qc = x0.dot(inv * x0) - 1;
+  const double disc = qb * qb - qa * qc;
+  if (!(disc >= 0)) return kInf;  // the edge passes beside the part
+  const double t1 = (-qb + std::sqrt(disc)) / qa, t2 = (-qb - std::sqrt(disc)) / qa;
+  const Eigen::Vector3d c1 = part.center + x0 + t1 * d, c2 = part.center + x0 + t2 * d;
+  contact = c1.dot(axis) > c2.dot(axis) ? c1 : c2;
+  // The edge's surface there, between its two readings.
+  const double s = (contact - p1).dot(e) / span;
+  return at1 + s * (at2 - at1) - contact.dot(axis);
+}
+
+SeenCompoundProxy::LineChoice SeenCompoundProxy::nearest_line(int j, const ToolEllipsoid& resting) const noexcept {
+  const std::size_t k = std::size_t(j);
+  LineChoice c;
+  for (int r = 0; r < kRingRays + 2; ++r) {
+    Eigen::Vector3d front;
+    c.gaps[std::size_t(r)] = kInf;
+    if (!(ring_gap(resting, j, r, axis_, front) >= -kRingSink * middle_[k])) continue;
+    const double gap = ring_gap(parts_[k], j, r, axis_, front);
+    c.gaps[std::size_t(r)] = gap;
+    if (gap < c.gap) c.gap = gap, c.line = r;
+    if (r < kRingRays && gap < c.nearest) c.nearest = gap, c.source[0] = r;
+  }
+  Eigen::Vector3d contact;
+  if (edge_gap(resting, j, axis_, contact) >= -kRingSink * middle_[k]) {
+    const double gap = edge_gap(parts_[k], j, axis_, contact);
+    if (gap < c.gap) c.gap = gap, c.line = kEdgeLine;
+  }
+  return c;
+}
+
+double SeenCompoundProxy::leading_ray(int j, double band, double& depth) noexcept {
+  const std::size_t k = std::size_t(j);
+  const Eigen::Vector3d tip = parts_[k].surface_point(axis_);
+  depth = (tip - eye_).dot(axis_);
+  if (!(depth > 0)) return kInf;  // behind the eye plane: nothing in front of it to meet
+  // Past the part's depth by the contact band: a part just above its surface still touches.
+  const double reach = depth + band;
+  const double guess = std::isfinite(last_hit_[k]) ? last_hit_[k] + kGuessMargin * min_axis_ : reach;
+  const SeenHit hit = solid_->first_inside(tip - depth * axis_, axis_, 0, 0, reach, scratch_, guess);
+  if (!hit.hit) return kInf;
+  last_hit_[k] = hit.t;
+  return hit.t;
 }
 
 bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
                              const Eigen::Quaterniond& q) noexcept {
   const Eigen::Vector3d& a = axis_;
   const Eigen::Vector3d y = goal + (device - goal).dot(a) * a;  // the goal across the axis, the device's depth
-  pose(y, q);
   const double band = kContactBand * min_axis_;
+  // The footprints are read and judged at the resting proxy (turned to q): a line the proxy is
+  // already past by more than kRingSink does not hold.
+  pose(x_, q);
+  const std::array<ToolEllipsoid, kMaxToolParts> resting = parts_;
+  const double ahead = std::max(0.0, (y - x_).dot(a)) + band;
+  for (int j = 0; j < tool_.count; ++j) read_ring(j, ahead);
+  pose(y, q);
   std::array<double, kMaxToolParts> depth{}, at{};
+  std::array<LineChoice, kMaxToolParts> lines{};
   double push = -kInf;
   for (int j = 0; j < tool_.count; ++j) {
     const std::size_t k = std::size_t(j);
-    depth[k] = (parts_[k].surface_point(a) - eye_).dot(a);
-    at[k] = kInf;
-    if (!(depth[k] > 0)) continue;  // behind the eye plane: nothing in front of it to meet
-    const Eigen::Vector3d foot = parts_[k].surface_point(a) - depth[k] * a;
-    // Past the part's depth by the contact band: a part just above its surface still touches.
-    const double reach = depth[k] + band;
-    const double guess = std::isfinite(last_hit_[k]) ? last_hit_[k] + kGuessMargin * min_axis_ : reach;
-    const SeenHit hit = solid_->first_inside(foot, a, 0, 0, reach, scratch_, guess);
-    if (!hit.hit) continue;
-    at[k] = hit.t;
-    last_hit_[k] = hit.t;
-    push = std::max(push, depth[k] - hit.t);
+    at[k] = leading_ray(j, band, depth[k]);
+    if (std::isfinite(at[k])) push = std::max(push, depth[k] - at[k]);
+    lines[k] = nearest_line(j, resting[k]);
+    // Where the footprint holds the part before its leading point does (an edge under its side),
+    // the edge is searched out, at once when a search's line no longer holds.
+    if (lines[k].source[0] >= 0 && lines[k].gap < at[k] - depth[k]) {
+      update_edges(j, lines[k], resting[k], std::max(0.0, (y - x_).dot(a)));
+      lines[k] = nearest_line(j, resting[k]);
+    }
+    if (lines[k].line >= 0) push = std::max(push, -lines[k].gap);
   }
   if (!(push > 0)) return false;  // no part reaches its surface: the device is out
   const double back = push + 1e-6 * min_axis_;
-  for (int j = 0; j < tool_.count; ++j) {
-    const std::size_t k = std::size_t(j);
-    gap_[k] = std::isfinite(at[k]) ? std::max(0.0, at[k] - (depth[k] - back)) : kInf;
-  }
   x_ = y - back * a;
   pose(x_, q);
+  for (int j = 0; j < tool_.count; ++j) {
+    const std::size_t k = std::size_t(j);
+    Hold& h = held_[k];
+    const LineChoice& c = lines[k];
+    const double centre_gap = std::isfinite(at[k]) ? at[k] - (depth[k] - back) : kInf;
+    h.by_ring = !(centre_gap < band) && c.line >= 0 && c.gap + back < centre_gap;
+    h.line = h.by_ring ? c.line : -1;
+    if (h.by_ring) {
+      h.gap = std::max(0.0, c.gap + back);
+      if (c.line == kEdgeLine)
+        (void)edge_gap(parts_[k], j, a, h.point);
+      else
+        (void)ring_gap(parts_[k], j, c.line, a, h.point);
+    } else {
+      h.gap = std::max(0.0, centre_gap);
+      h.point = parts_[k].surface_point(a);
+    }
+  }
   return true;
 }
 
-bool SeenCompoundProxy::contact_point(Eigen::Vector3d& c, int& heaviest) const noexcept {
+bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_point, const Eigen::Vector3d& normal) noexcept {
   const double band = kContactBand * min_axis_;
-  double sum = 0, most = 0;
-  c.setZero();
-  heaviest = -1;
+  Eigen::Vector3d seen_point = Eigen::Vector3d::Zero(), own = Eigen::Vector3d::Zero();
+  double seen_w = 0, own_w = 0, sum = 0, most = 0;
+  int heaviest_seen = -1;
+  lever_point.setZero();
+  touching_ = 0;
   for (int j = 0; j < tool_.count; ++j) {
-    const double g = gap_[std::size_t(j)] / band;
+    const Hold& h = held_[std::size_t(j)];
+    const double g = h.gap / band;
     if (!(g < 1)) continue;
     const double w = 1 - g * g;
-    c += w * parts_[std::size_t(j)].surface_point(axis_);
+    ++touching_;
     sum += w;
-    if (w > most) most = w, heaviest = j;
+    if (h.by_ring) {
+      own -= w * outward_normal(parts_[std::size_t(j)], h.point);
+      own_w += w;
+      lever_point += w * h.point;
+      continue;
+    }
+    seen_point += w * (h.point + h.gap * axis_);  // the seen surface under its leading point
+    seen_w += w;
+    if (w > most) most = w, heaviest_seen = j;
+    // (at the part's surface point facing the contact: the tangent point on a surface the axis
+    // meets at a slant)
+    const Eigen::Vector3d facing = normal.squaredNorm() > 0 ? Eigen::Vector3d(-normal) : Eigen::Vector3d(axis_);
+    lever_point += w * parts_[std::size_t(j)].surface_point(facing);
   }
   if (!(sum > 0)) return false;
-  c /= sum;
+  lever_point /= sum;
+  if (seen_w > 0) {
+    seen_point /= seen_w;
+    const double h = kNormalSpan * middle_[std::size_t(heaviest_seen)];
+    read_normal(seen_point, h, std::max(0.0, (seen_point - eye_).dot(axis_)));
+  }
+  own_share_ = own_w / sum;
+  target = seen_w * seen_normal_ + own;
+  target = target.norm() > 1e-12 ? Eigen::Vector3d(target.normalized()) : Eigen::Vector3d(-axis_);
   return true;
 }
 
@@ -150,10 +432,9 @@ void SeenCompoundProxy::read_normal(const Eigen::Vector3d& point, double h, doub
   // the point has moved kNormalReuse from the last reading.
   const Eigen::Vector3d& a = axis_;
   const double back = std::min(depth, kNormalEye * h / kNormalSpan);
-  if (normal_.squaredNorm() == 0) {
-    target_normal_ = solid_->normal(point, a, h, h, back, scratch_);
+  if (!normal_at_.allFinite()) {
+    seen_normal_ = solid_->normal(point, a, h, h, back, scratch_);
     normal_at_ = point;
-    normal_ = target_normal_;
     pending_ray_ = -1;
     return;
   }
@@ -167,7 +448,7 @@ void SeenCompoundProxy::read_normal(const Eigen::Vector3d& point, double h, doub
   pending_hits_[std::size_t(pending_ray_)] =
       solid_->normal_ray(pending_at_, a, pending_ray_, pending_h_, pending_h_, pending_back_, scratch_);
   if (++pending_ray_ < SeenSolid::kNormalRays) return;
-  target_normal_ = SeenSolid::normal_from(a, pending_hits_, pending_h_);
+  seen_normal_ = SeenSolid::normal_from(a, pending_hits_, pending_h_);
   normal_at_ = pending_at_;
   pending_ray_ = -1;
 }
@@ -198,40 +479,31 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
     in_contact_ = hold(position, friction_step_.goal, q);
   }
   q_ = q;
-  Eigen::Vector3d c;
-  int heaviest = -1;
-  if (!in_contact_ || !contact_point(c, heaviest)) {
+  Eigen::Vector3d target, lever_point;
+  if (!in_contact_ || !contact(target, lever_point, normal_)) {
     x_ = position;
+    pose(x_, q_);
     release();
     return out;
   }
-  // The normal at the seen points under the touching parts' leading points.
-  const double h = kNormalSpan * middle_semi_axis(parts_[std::size_t(heaviest)]);
-  const double depth = (c - eye_).dot(axis_);
-  read_normal(c, h, std::max(0.0, depth));
-  const Eigen::Vector3d moved = x_ - before;
-  const double slide = (moved - moved.dot(axis_) * axis_).norm();
-  const double rate = std::min(-std::expm1(-dt / kNormalTau), -std::expm1(-slide / (kNormalPath * min_axis_)));
-  const Eigen::Vector3d blended = normal_ + rate * (target_normal_ - normal_);
-  normal_ = blended.norm() > 1e-9 ? Eigen::Vector3d(blended.normalized()) : target_normal_;
-
+  // The normal follows its target over kNormalTau and over kNormalPath of the proxy's slide,
+  // whichever is slower (SeenProxy's: the seen surface's relief finer than the tool does not turn
+  // it); where footprints hold the tool more than its leading points, over kNormalTau alone (the
+  // parts' own normals on an edge are geometry, refined by the edge search as the tool rests).
+  if (normal_.squaredNorm() == 0) {
+    normal_ = target;
+  } else {
+    const Eigen::Vector3d moved = x_ - before;
+    const double slide = (moved - moved.dot(axis_) * axis_).norm();
+    const double by_time = -std::expm1(-dt / kNormalTau);
+    const double rate = own_share_ > 0.5 ? by_time : std::min(by_time, -std::expm1(-slide / (kNormalPath * min_axis_)));
+    const Eigen::Vector3d blended = normal_ + rate * (target - normal_);
+    normal_ = blended.norm() > 1e-9 ? Eigen::Vector3d(blended.normalized()) : target;
+  }
   out.proxy = x_;
   out.constraints = 1;
   out.force = coupling_.force(x_ - position, normal_, velocity, dt, {}, friction_step_, params_.mu_k);
-  // Applied at the touching parts' surface points facing the contact, each weighted as in contact_point().
-  const double band = kContactBand * min_axis_;
-  Eigen::Vector3d lever = Eigen::Vector3d::Zero();
-  double sum = 0;
-  touching_ = 0;
-  for (int j = 0; j < tool_.count; ++j) {
-    const double g = gap_[std::size_t(j)] / band;
-    if (!(g < 1)) continue;
-    const double w = 1 - g * g;
-    lever += w * (parts_[std::size_t(j)].surface_point(-normal_) - x_);
-    sum += w;
-    ++touching_;
-  }
-  out.torque = (lever / sum).cross(out.force);
+  out.torque = (lever_point - x_).cross(out.force);
   out.counts.contacts = std::uint32_t(touching_);
   return out;
 }

@@ -69,10 +69,12 @@ class ProxyRenderer final : public ForceRenderer {
   /// A tool of several parts (or one off the TCP) gets the compound proxy (force/compound_proxy.h:
   /// translation and rotation, the wrench at the contacts), reading this renderer's ProxyParams
   /// and f_max. A single part at the TCP stays with the one-ellipsoid proxy. On the seen solid
-  /// (ProxySurface::kSeen) the tool gets the seen compound proxy instead (seen_compound_proxy.h).
-  /// Throws InputError for an invalid tool, where a field of ProxyParams set away from its
-  /// default does not serve this tool (check_proxy_params_apply), or for a tool with a shape on
-  /// the seen solid with materials set (not served yet).
+  /// (ProxySurface::kSeen) the seen compound proxy (seen_compound_proxy.h) takes every tool but
+  /// a sphere at the TCP, one ellipsoid included (the one-part seen proxy is a sphere of the
+  /// tool's bounding radius). Throws InputError for an invalid tool, where a field of
+  /// ProxyParams set away from its default does not serve this tool
+  /// (check_proxy_params_apply), and on the seen solid for a tool other than a sphere with
+  /// materials or seen_footprint set (not served yet).
   void set_tool(const CompoundTool& tool) override;
   [[nodiscard]] bool renders_compound() const noexcept override {
     return compound_ != nullptr || seen_compound_ != nullptr;

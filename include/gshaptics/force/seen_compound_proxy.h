@@ -18,15 +18,29 @@
 ///    depth; the proxy backs off along -a by the deepest part's depth past its surface (a rigid
 ///    body on a height field: every part on or above the seen surface under it). When no part
 ///    reaches the surface, the device has come out and the contact ends.
-/// 3. Wrench: the virtual coupling (Colgate, Stanley and Brown 1995) F = max(0, k e . n - b v . n) n,
-///    e = x_proxy - x_device, along the seen surface's normal n (SeenSolid::normal: the renderer's
-///    normal map and the seen depth's slope, read on a ring of 1.5 times the touching part's
-///    middle semi-axis, one ray a tick after a contact's first reading, smoothed over 5 ms), plus
-///    friction; applied at the touching parts' surface points facing the contact, each weighted
-///    1 - (gap / band)^2 (gap: how far the part's leading point stands above its seen surface,
-///    band: half the tool's smallest semi-axis), so a stylus lying on a wall gets the middle of
-///    its line of contact, as the compound proxy on the ellipsoids does (compound_proxy.h). The
-///    torque about the TCP is the force's moment, (c - x_tcp) x F.
+/// 3. The parts' footprints: beside the ray through its leading point, each part reads twelve
+///    rays parallel to the push through its shadow (at 0.5, 0.7 and 0.85 of the shadow ellipse's
+///    radius, 30 degrees apart; one ray a part a tick, free and in contact), each a line with
+///    the seen surface's place on it. Where the part's front over such a line reaches that surface
+///    it holds the part as its leading point's ray does, so a part whose leading point hangs past
+///    an edge rests on the edge (a stylus lying across a cube's edge), and a free part meets an
+///    edge on its side. A line whose surface lies deeper than half the part's middle semi-axis
+///    under the part's front is one the part went past between its readings (a wall beside it):
+///    it does not hold.
+///    Where a footprint line holds a part, one more line a tick bisects between it and the
+///    leading point's line, so that the part rests on the edge itself and its normal is taken
+///    there (six steps: to 1/64 of the distance).
+/// 4. Wrench: the virtual coupling (Colgate, Stanley and Brown 1995) F = max(0, k e . n - b v . n) n,
+///    e = x_proxy - x_device, plus friction; n is the touching parts' normals, each weighted
+///    1 - (gap / band)^2 (gap: how far the part's front stands above the surface under it, band:
+///    half the tool's smallest semi-axis): for a part held by its leading point's ray, the seen
+///    surface's normal (SeenSolid::normal: the renderer's normal map and the seen depth's slope,
+///    read on a ring of 1.5 times the part's middle semi-axis, one ray a tick after a contact's
+///    first reading), for one held by its footprint (an edge under its side), the part's own
+///    surface normal there (a rigid body on a sharp edge); smoothed over 5 ms. It is applied at
+///    the touching parts' contact points, so a stylus lying on a wall gets the middle of its line
+///    of contact, as the compound proxy on the ellipsoids does (compound_proxy.h): the torque
+///    about the TCP is the force's moment, (c - x_tcp) x F.
 ///
 /// Not done (the compound proxy on the ellipsoids does these): the proxy does not turn against
 /// the surface (a turn that would swing a part into the solid raises the proxy along a instead,
@@ -74,26 +88,108 @@ class SeenCompoundProxy {
   [[nodiscard]] int touching() const noexcept { return touching_; }
 
  private:
+  static constexpr int kRingRays = 12;
+  static constexpr double kRingFraction[3] = {0.5, 0.7, 0.85};  // of the shadow's radius
+  static constexpr double kRingLook = 1.0;      // middle semi-axes: rays look this far behind the front
+  static constexpr double kRingSink = 0.5;      // middle semi-axes: a surface deeper under the front does not hold
+  static constexpr double kRingAxisCos = 0.9986;  // cos 3 deg: a chord turning more forgets the footprint
+  // One part's footprint: lines parallel to `axis`, each through `foot`, with the seen surface's
+  // coordinate along the axis on it (`at`; +inf: none found).
+  // Lines kRingRays and kRingRays + 1 are the edge searches' (search_edge).
+  struct Ring {
+    Eigen::Vector3d axis = Eigen::Vector3d::Zero();
+    std::array<Eigen::Vector3d, kRingRays + 2> foot{};
+    std::array<double, kRingRays + 2> at{};
+    int next = 0;
+  };
+  // A search for the edge a part rests on by its footprint: bisection between a holding
+  // footprint line (its surface under the part) and the part's leading point's line (none), both
+  // points across the axis, kEdgeSteps lines at once; the last line that met the surface is the
+  // search's edge line. Two searches a part, from two holding lines 60 degrees or more apart
+  // around the shadow, give the edge's direction, and the part rests on the edge at its own
+  // tangent point there (edge_gap).
+  static constexpr int kEdgeSteps = 6;
+  static constexpr int kEdgeLine = kRingRays + 2;  // Hold::line of a part resting on the edge's tangent point
+  static constexpr double kEdgeSpan = 0.2;  // middle semi-axes: two edge lines closer give no direction
+  struct EdgeSearch {
+    int source = -1;  // the footprint line it started from (-1: none)
+    double tried = std::numeric_limits<double>::infinity();  // that line's gap at the last update
+  };
+  // Part j's footprint judged at the device's depth: the line nearest the surface (`line`, -1:
+  // none; kEdgeLine: the edge's tangent point) and its gap, every line's gap (+inf: does not
+  // hold), and the nearest footprint line proper (`source[0]`, its gap `nearest`).
+  struct LineChoice {
+    int line = -1;
+    double gap = std::numeric_limits<double>::infinity();
+    double nearest = std::numeric_limits<double>::infinity();
+    std::array<int, 1> source{-1};
+    std::array<double, kRingRays + 2> gaps{};
+  };
+  [[nodiscard]] static bool apart(int r1, int r2) noexcept {  // 60 degrees or more around the shadow
+    if (r1 < 0 || r2 < 0) return true;
+    const int d = (r1 > r2 ? r1 - r2 : r2 - r1) % kRingRays;
+    return (d < kRingRays - d ? d : kRingRays - d) >= 2;
+  }
+  // What holds a part after hold(): how far its front stands above the surface under it, where
+  // (its contact point), and whether a footprint line (not its leading point's ray) holds it.
+  struct Hold {
+    double gap = std::numeric_limits<double>::infinity();
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();
+    bool by_ring = false;
+    int line = -1;  // the footprint line that holds it (by_ring; kEdgeLine: the edge's tangent point)
+  };
+
   // The parts posed at (x, q) into parts_.
   void pose(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
   // Free: the parts' chords from the last pose to (x, q); true when one meets the seen solid
   // (the contact's axis and eye plane are set).
   bool begin_contact(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
+  // Free: part j's next footprint line along its chord u (its centre `from`, moving `len`), and
+  // how far the part moves before its footprint meets the surface (+inf: not within the chord).
+  double free_ring(int j, const ToolEllipsoid& from, const Eigen::Vector3d& u, double len, bool leaving) noexcept;
   // In contact: the proxy along the axis over the goal's place across it, the device's depth;
   // false when no part reaches the surface.
   bool hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal, const Eigen::Quaterniond& q) noexcept;
-  // The touching parts' weighted contact point (world) and the heaviest part; false if none.
-  bool contact_point(Eigen::Vector3d& c, int& heaviest) const noexcept;
+  // In contact: part j's next footprint line through its shadow (parts_ posed at the resting
+  // proxy), read from above its front to `reach` past it.
+  void read_ring(int j, double reach) noexcept;
+  // Part j's edge search `which` (0, 1) afresh from footprint line `source` (-1: none; dropped),
+  // on `part` posed at the resting proxy: a line holds where its surface lies at most `reach`
+  // past the part's front.
+  void search_edge(int j, int which, int source, const ToolEllipsoid& part, double reach) noexcept;
+  // Restarts those of part j's two searches whose lines no longer hold (LineChoice `c`, judged
+  // `offset` deeper along the axis than `resting`).
+  void update_edges(int j, const LineChoice& c, const ToolEllipsoid& resting, double offset) noexcept;
+  // Part j's footprint, with parts_ posed at the device's depth (`resting`: the part at the proxy).
+  [[nodiscard]] LineChoice nearest_line(int j, const ToolEllipsoid& resting) const noexcept;
+  // Part j's leading point's ray from the eye plane (parts_ posed at the device's depth): its
+  // hit's depth from the eye plane (+inf: none within the band past it), `depth` the point's.
+  double leading_ray(int j, double band, double& depth) noexcept;
+  // How far `part` (part j, posed) stands above the edge its two edge lines found, at its own
+  // tangent point on it (set: `contact`): the point of the part whose normal is across the edge,
+  // in the plane through the edge along `axis`; +inf when there is no edge or it passes beside.
+  [[nodiscard]] double edge_gap(const ToolEllipsoid& part, int j, const Eigen::Vector3d& axis,
+                                Eigen::Vector3d& contact) const noexcept;
+  // How far `part` (part j, posed) stands above footprint line k's surface along `axis`, at its
+  // front over the line (set: `front`); < 0: past it; +inf when the line is not under the part,
+  // was read along another axis, or has no surface.
+  [[nodiscard]] double ring_gap(const ToolEllipsoid& part, int j, int k, const Eigen::Vector3d& axis,
+                                Eigen::Vector3d& front) const noexcept;
+  void forget_ring(int j, const Eigen::Vector3d& axis) noexcept;
+  // The touching parts' weighted normal (`target`, unit) and contact point (world), the seen
+  // surface's normal read under those its leading point's ray holds; `normal`: the force's last
+  // (which way a part faces the contact). False when no part touches.
+  bool contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_point, const Eigen::Vector3d& normal) noexcept;
   void read_normal(const Eigen::Vector3d& point, double h, double depth) noexcept;
   void release() noexcept;
 
   static constexpr double kNormalTau = 0.005;   // s (SeenProxy's)
-  static constexpr double kNormalPath = 0.5;    // tool radii (SeenProxy's)
-  static constexpr double kNormalReuse = 0.05;  // tool radii
-  static constexpr double kNormalEye = 8;       // tool radii
+  static constexpr double kNormalPath = 0.5;    // smallest semi-axes
+  static constexpr double kNormalReuse = 0.05;  // smallest semi-axes
+  static constexpr double kNormalEye = 8;       // middle semi-axes
   static constexpr double kNormalSpan = 1.5;    // the ring, in the touching part's middle semi-axis
-  static constexpr double kGuessMargin = 0.25;  // tool radii
-  static constexpr double kEyeMargin = 0.25;    // tool radii
+  static constexpr double kGuessMargin = 0.25;  // smallest semi-axes
+  static constexpr double kEyeMargin = 0.25;    // smallest semi-axes
   static constexpr double kContactBand = 0.5;   // the smallest semi-axis (CompoundProxy's)
 
   const SeenSolid* solid_;
@@ -106,11 +202,15 @@ class SeenCompoundProxy {
   FrictionCone friction_;
   FrictionStep friction_step_;
   std::array<ToolEllipsoid, kMaxToolParts> parts_{};
-  std::array<double, kMaxToolParts> gap_{};       // each part's leading point above its surface (+inf: none)
+  std::array<double, kMaxToolParts> middle_{};    // each part's middle semi-axis
+  std::array<Hold, kMaxToolParts> held_{};
+  std::array<Ring, kMaxToolParts> rings_{};
+  std::array<std::array<EdgeSearch, 2>, kMaxToolParts> edges_{};
   std::array<double, kMaxToolParts> last_hit_{};  // each part's last hit, depth from the eye plane (NaN: none)
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d normal_ = Eigen::Vector3d::Zero(), target_normal_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();       // the force's, smoothed
+  Eigen::Vector3d seen_normal_ = Eigen::Vector3d::Zero();  // the seen surface's last reading
   Eigen::Vector3d normal_at_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d axis_ = Eigen::Vector3d::Zero(), eye_ = Eigen::Vector3d::Zero();
   int pending_ray_ = -1;
@@ -118,6 +218,7 @@ class SeenCompoundProxy {
   double pending_back_ = 0, pending_h_ = 0;
   std::array<SeenHit, SeenSolid::kNormalRays> pending_hits_{};
   int touching_ = 0;
+  double own_share_ = 0;  // the touching parts' weight held by footprints (own normals), of all
   bool started_ = false, in_contact_ = false;
 };
 
