@@ -343,7 +343,10 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
   pose(x_, q);
   const std::array<ToolEllipsoid, kMaxToolParts> resting = parts_;
   const double ahead = std::max(0.0, (y - x_).dot(a)) + band;
-  for (int j = 0; j < tool_.count; ++j) read_ring(j, ahead);
+  // (A part its leading point's ray held on the surface at the last tick reads no footprint line:
+  // on a face its side does not touch first.)
+  for (int j = 0; j < tool_.count; ++j)
+    if (held_[std::size_t(j)].by_ring || !(held_[std::size_t(j)].gap < band)) read_ring(j, ahead);
   pose(y, q);
   std::array<double, kMaxToolParts> depth{}, at{};
   std::array<LineChoice, kMaxToolParts> lines{};
