@@ -187,8 +187,7 @@ bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Qua
   axis_ = first_u;
   eye_ = first_eye;
   normal_.setZero();  // read afresh by the contact's first hold()
-  normal_at_.setConstant(std::numeric_limits<double>::quiet_NaN());
-  pending_ray_ = -1;
+  normal_reading_.forget();
   return true;
 }
 
@@ -421,39 +420,15 @@ bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_
   lever_point /= sum;
   if (seen_w > 0) {
     seen_point /= seen_w;
+    // (SeenProxy's reading, on a ring of kNormalSpan middle semi-axes of the heaviest such part)
     const double h = kNormalSpan * middle_[std::size_t(heaviest_seen)];
-    read_normal(seen_point, h, std::max(0.0, (seen_point - eye_).dot(axis_)));
+    const double back = std::min(std::max(0.0, (seen_point - eye_).dot(axis_)), kNormalEye * h / kNormalSpan);
+    seen_normal_ = normal_reading_.update(*solid_, seen_point, axis_, h, back, kNormalReuse * min_axis_, scratch_);
   }
   own_share_ = own_w / sum;
   target = seen_w * seen_normal_ + own;
   target = target.norm() > 1e-12 ? Eigen::Vector3d(target.normalized()) : Eigen::Vector3d(-axis_);
   return true;
-}
-
-void SeenCompoundProxy::read_normal(const Eigen::Vector3d& point, double h, double depth) noexcept {
-  // As SeenProxy::read_normal: a contact's first reading at once, later ones one ray a tick once
-  // the point has moved kNormalReuse from the last reading.
-  const Eigen::Vector3d& a = axis_;
-  const double back = std::min(depth, kNormalEye * h / kNormalSpan);
-  if (!normal_at_.allFinite()) {
-    seen_normal_ = solid_->normal(point, a, h, h, back, scratch_);
-    normal_at_ = point;
-    pending_ray_ = -1;
-    return;
-  }
-  if (pending_ray_ < 0 && (point - normal_at_).norm() >= kNormalReuse * min_axis_) {
-    pending_ray_ = 0;
-    pending_at_ = point;
-    pending_back_ = back;
-    pending_h_ = h;
-  }
-  if (pending_ray_ < 0) return;
-  pending_hits_[std::size_t(pending_ray_)] =
-      solid_->normal_ray(pending_at_, a, pending_ray_, pending_h_, pending_h_, pending_back_, scratch_);
-  if (++pending_ray_ < SeenSolid::kNormalRays) return;
-  seen_normal_ = SeenSolid::normal_from(a, pending_hits_, pending_h_);
-  normal_at_ = pending_at_;
-  pending_ray_ = -1;
 }
 
 RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,

@@ -114,7 +114,7 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
   // The contact's footprint starts from the readings that began it, or from none.
   if (!by_ring || u.dot(ring_axis_) < kRingAxisCos) forget_ring(u);
   normal_.setZero();  // read afresh by hold()
-  pending_ray_ = -1;
+  normal_reading_.forget();
   last_hit_ = std::numeric_limits<double>::quiet_NaN();
   return true;
 }
@@ -179,33 +179,12 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
 }
 
 void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double depth) noexcept {
-  // The normal is read afresh once the point moved kNormalReuse R from the last reading, and
-  // smoothed over kNormalTau (each reading carries the seen surface's noise). The first reading of
-  // a contact takes its rays at once; a later one takes one ray a tick (the solid does not
-  // move, so the rays of a reading fixed at its start give the same normal, three ticks later,
-  // and no tick pays for all of them).
-  const Eigen::Vector3d& a = axis_;
-  // The ring's rays search as deep as the ring is wide (kNormalSpan >= 1: slopes to 45 deg).
+  // Read afresh once the point moved kNormalReuse R from the last reading (SeenNormalReading), and
+  // smoothed by hold() over kNormalTau (each reading carries the seen surface's noise). The ring's
+  // rays search as deep as the ring is wide (kNormalSpan >= 1: slopes to 45 deg).
   const double h = kNormalSpan * radius, back = std::min(depth, kNormalEye * radius);
-  if (normal_.squaredNorm() == 0) {
-    target_normal_ = solid_.normal(point, a, h, h, back, scratch_);
-    normal_at_ = point;
-    normal_ = target_normal_;
-    pending_ray_ = -1;
-    return;
-  }
-  if (pending_ray_ < 0 && (point - normal_at_).norm() >= kNormalReuse * radius) {
-    pending_ray_ = 0;
-    pending_at_ = point;
-    pending_back_ = back;
-    pending_h_ = h;
-  }
-  if (pending_ray_ < 0) return;
-  pending_hits_[std::size_t(pending_ray_)] = solid_.normal_ray(pending_at_, a, pending_ray_, h, h, pending_back_, scratch_);
-  if (++pending_ray_ < SeenSolid::kNormalRays) return;
-  target_normal_ = SeenSolid::normal_from(a, pending_hits_, pending_h_);
-  normal_at_ = pending_at_;
-  pending_ray_ = -1;
+  target_normal_ = normal_reading_.update(solid_, point, axis_, h, back, kNormalReuse * radius, scratch_);
+  if (normal_.squaredNorm() == 0) normal_ = target_normal_;
 }
 
 void SeenProxy::read_material_shares(const SeenHit& hit) noexcept {

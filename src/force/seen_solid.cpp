@@ -303,4 +303,29 @@ Eigen::Vector3d SeenSolid::normal(const Eigen::Vector3d& point, const Eigen::Vec
   return normal_from(u, hits, h);
 }
 
+const Eigen::Vector3d& SeenNormalReading::update(const SeenSolid& solid, const Eigen::Vector3d& point,
+                                                 const Eigen::Vector3d& u, double h, double back, double reuse,
+                                                 SeenScratch& scratch) noexcept {
+  if (!fresh_) {
+    normal_ = solid.normal(point, u, h, h, back, scratch);
+    at_ = point;
+    fresh_ = true;
+    pending_ = -1;
+    return normal_;
+  }
+  if (pending_ < 0 && (point - at_).norm() >= reuse) {
+    pending_ = 0;
+    pending_at_ = point;
+    pending_back_ = back;
+    pending_h_ = h;
+  }
+  if (pending_ < 0) return normal_;
+  hits_[std::size_t(pending_)] = solid.normal_ray(pending_at_, u, pending_, pending_h_, pending_h_, pending_back_, scratch);
+  if (++pending_ < SeenSolid::kNormalRays) return normal_;
+  normal_ = SeenSolid::normal_from(u, hits_, pending_h_);
+  at_ = pending_at_;
+  pending_ = -1;
+  return normal_;
+}
+
 }  // namespace gshaptics

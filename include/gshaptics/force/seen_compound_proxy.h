@@ -180,7 +180,6 @@ class SeenCompoundProxy {
   // surface's normal read under those its leading point's ray holds; `normal`: the force's last
   // (which way a part faces the contact). False when no part touches.
   bool contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_point, const Eigen::Vector3d& normal) noexcept;
-  void read_normal(const Eigen::Vector3d& point, double h, double depth) noexcept;
   void release() noexcept;
 
   static constexpr double kNormalTau = 0.005;   // s (SeenProxy's)
@@ -211,12 +210,8 @@ class SeenCompoundProxy {
   Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();       // the force's, smoothed
   Eigen::Vector3d seen_normal_ = Eigen::Vector3d::Zero();  // the seen surface's last reading
-  Eigen::Vector3d normal_at_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d axis_ = Eigen::Vector3d::Zero(), eye_ = Eigen::Vector3d::Zero();
-  int pending_ray_ = -1;
-  Eigen::Vector3d pending_at_ = Eigen::Vector3d::Zero();
-  double pending_back_ = 0, pending_h_ = 0;
-  std::array<SeenHit, SeenSolid::kNormalRays> pending_hits_{};
+  SeenNormalReading normal_reading_;
   int touching_ = 0;
   double own_share_ = 0;  // the touching parts' weight held by footprints (own normals), of all
   bool started_ = false, in_contact_ = false;

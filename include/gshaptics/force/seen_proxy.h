@@ -140,12 +140,8 @@ class SeenProxy {
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d axis_ = Eigen::Vector3d::Zero();  // the contact's push direction
   Eigen::Vector3d eye_ = Eigen::Vector3d::Zero();   // a point of its eye plane
-  Eigen::Vector3d target_normal_ = Eigen::Vector3d::Zero(), normal_at_ = Eigen::Vector3d::Zero();  // last reading
-  int pending_ray_ = -1;  // the next ray of a reading under way (-1: none)
-  Eigen::Vector3d pending_at_ = Eigen::Vector3d::Zero();
-  double pending_back_ = 0;
-  double pending_h_ = 0;  // the ring radius of the pending reading
-  std::array<SeenHit, SeenSolid::kNormalRays> pending_hits_{};
+  Eigen::Vector3d target_normal_ = Eigen::Vector3d::Zero();  // the last reading
+  SeenNormalReading normal_reading_;
   double last_hit_ = 0;  // the last hit's depth from the eye plane (NaN: none in this contact)
   double rest_ = 0;      // where the surface holds the leading point this tick, depth from the eye plane
   // The footprint's readings: each ray's surface as a coordinate along ring_axis_ (+inf: none

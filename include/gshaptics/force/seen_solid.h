@@ -159,4 +159,32 @@ class SeenSolid {
   Bvh bvh_;
 };
 
+/// SeenSolid::normal() spread over ticks for a proxy resting on the solid (SeenProxy,
+/// SeenCompoundProxy): a contact's first reading takes its rays at once; a later one starts once
+/// the point has moved `reuse` from the last reading and takes one ray a tick (the solid does not
+/// move, so the rays of a reading fixed at its start give the same normal ticks later, and no
+/// tick pays for them all). No allocation.
+class SeenNormalReading {
+ public:
+  /// A new contact: the next update() reads at once.
+  void forget() noexcept {
+    fresh_ = false;
+    pending_ = -1;
+  }
+  /// One tick at `point` (on the seen surface for a push along the unit `u`), on a ring of radius
+  /// `h` (searched within +-h), seen from `back` before the point (SeenSolid::normal). Returns
+  /// the last whole reading (unit, outward).
+  const Eigen::Vector3d& update(const SeenSolid& solid, const Eigen::Vector3d& point, const Eigen::Vector3d& u,
+                                double h, double back, double reuse, SeenScratch& scratch) noexcept;
+  [[nodiscard]] const Eigen::Vector3d& normal() const noexcept { return normal_; }
+
+ private:
+  Eigen::Vector3d normal_ = Eigen::Vector3d::Zero(), at_ = Eigen::Vector3d::Zero();
+  bool fresh_ = false;
+  int pending_ = -1;  // the next ray of a reading under way (-1: none)
+  Eigen::Vector3d pending_at_ = Eigen::Vector3d::Zero();
+  double pending_back_ = 0, pending_h_ = 0;
+  std::array<SeenHit, SeenSolid::kNormalRays> hits_{};
+};
+
 }  // namespace gshaptics
