@@ -170,7 +170,7 @@ bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Qua
     axis_ = u;  // (the searches read along the part's chord)
     const LineChoice c = nearest_line(j, part);
     if (c.source[0] >= 0 && c.nearest < look) {
-      update_edges(j, c, part, len);
+      update_edges(j, c, part);
       Eigen::Vector3d contact;
       const double edge = edge_gap(part, j, u, contact);
       if (edge <= len && edge >= -kRingSink * middle_[std::size_t(j)]) ring = std::min(ring, edge);
@@ -207,13 +207,17 @@ void SeenCompoundProxy::read_ring(int j, double reach) noexcept {
   g.at[std::size_t(k)] = hit.hit ? front.dot(axis_) + hit.t : kInf;
 }
 
-void SeenCompoundProxy::search_edge(int j, int which, int source, const ToolEllipsoid& part, double reach) noexcept {
+void SeenCompoundProxy::search_edge(int j, int which, int source, const ToolEllipsoid& part) noexcept {
   EdgeSearch& e = edges_[std::size_t(j)][std::size_t(which)];
   Ring& g = rings_[std::size_t(j)];
   const std::size_t slot = std::size_t(kRingRays + which);
   e.source = source;
   g.at[slot] = kInf;
   if (source < 0) return;
+  // A line of the search meets the edge's surface where its surface lies no deeper along the axis
+  // than the source line's by the contact band: past the edge, a line sees the far side (the
+  // side face's discs seen edge-on, the floor).
+  const double deepest = g.at[std::size_t(source)] + kContactBand * min_axis_;
   Eigen::Vector3d inner = g.foot[std::size_t(source)], outer = part.surface_point(axis_);
   const double look = kRingLook * middle_[std::size_t(j)];
   for (int step = 0; step < kEdgeSteps; ++step) {
@@ -224,7 +228,8 @@ void SeenCompoundProxy::search_edge(int j, int which, int source, const ToolElli
       continue;
     }
     const Eigen::Vector3d front = mid + t * axis_;
-    const SeenHit hit = solid_->first_inside(front, axis_, -2 * look, -look, reach, scratch_);
+    const double reach = deepest - front.dot(axis_);
+    const SeenHit hit = reach > -look ? solid_->first_inside(front, axis_, -2 * look, -look, reach, scratch_) : SeenHit{};
     if (!hit.hit || hit.t < -kRingSink * middle_[std::size_t(j)]) {
       outer = mid;
       continue;
@@ -235,7 +240,7 @@ void SeenCompoundProxy::search_edge(int j, int which, int source, const ToolElli
   }
 }
 
-void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllipsoid& resting, double offset) noexcept {
+void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllipsoid& resting) noexcept {
   // A search keeps its source while that line still holds within the contact band of the
   // nearest; otherwise it starts afresh from the nearest (the second: the nearest 60 degrees
   // or more from the first search's source).
@@ -249,10 +254,8 @@ void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllip
     return !holds(s.source) ||
            (!std::isfinite(rings_[std::size_t(j)].at[std::size_t(kRingRays + which)]) && c.gaps[std::size_t(s.source)] < s.tried - retry);
   };
-  // (A line of the search holds where its surface is no deeper under the part than its source's
-  // by the contact band: past the edge, the surface it sees is the far side's.)
   if (stale(0)) {
-    search_edge(j, 0, c.source[0], resting, c.nearest + offset + band);
+    search_edge(j, 0, c.source[0], resting);
     e[0].tried = c.nearest;
   }
   if (stale(1) || !apart(e[1].source, e[0].source)) {
@@ -260,7 +263,7 @@ void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllip
     for (int r = 0; r < kRingRays; ++r)
       if (holds(r) && apart(r, e[0].source) && (second < 0 || c.gaps[std::size_t(r)] < c.gaps[std::size_t(second)]))
         second = r;
-    search_edge(j, 1, second, resting, second >= 0 ? c.gaps[std::size_t(second)] + offset + band : 0.0);
+    search_edge(j, 1, second, resting);
     e[1].tried = second >= 0 ? c.gaps[std::size_t(second)] : kInf;
   }
 }
@@ -358,7 +361,7 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
     // Where the footprint holds the part before its leading point does (an edge under its side),
     // the edge is searched out, at once when a search's line no longer holds.
     if (lines[k].source[0] >= 0 && lines[k].gap < at[k] - depth[k]) {
-      update_edges(j, lines[k], resting[k], std::max(0.0, (y - x_).dot(a)));
+      update_edges(j, lines[k], resting[k]);
       lines[k] = nearest_line(j, resting[k]);
     }
     if (lines[k].line >= 0) push = std::max(push, -lines[k].gap);

@@ -154,12 +154,11 @@ class SeenCompoundProxy {
   // proxy), read from above its front to `reach` past it.
   void read_ring(int j, double reach) noexcept;
   // Part j's edge search `which` (0, 1) afresh from footprint line `source` (-1: none; dropped),
-  // on `part` posed at the resting proxy: a line holds where its surface lies at most `reach`
-  // past the part's front.
-  void search_edge(int j, int which, int source, const ToolEllipsoid& part, double reach) noexcept;
-  // Restarts those of part j's two searches whose lines no longer hold (LineChoice `c`, judged
-  // `offset` deeper along the axis than `resting`).
-  void update_edges(int j, const LineChoice& c, const ToolEllipsoid& resting, double offset) noexcept;
+  // on `part` posed at the resting proxy.
+  void search_edge(int j, int which, int source, const ToolEllipsoid& part) noexcept;
+  // Restarts those of part j's two searches whose lines no longer hold (LineChoice `c`), on the
+  // part posed at the resting proxy (`resting`).
+  void update_edges(int j, const LineChoice& c, const ToolEllipsoid& resting) noexcept;
   // Part j's footprint, with parts_ posed at the device's depth (`resting`: the part at the proxy).
   [[nodiscard]] LineChoice nearest_line(int j, const ToolEllipsoid& resting) const noexcept;
   // Part j's leading point's ray from the eye plane (parts_ posed at the device's depth): its
