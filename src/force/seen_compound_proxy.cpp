@@ -241,17 +241,21 @@ void SeenCompoundProxy::search_edge(int j, int which, int source, const ToolElli
 }
 
 void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllipsoid& resting) noexcept {
-  // A search keeps its source while that line still holds within the contact band of the
-  // nearest; otherwise it starts afresh from the nearest (the second: the nearest 60 degrees
-  // or more from the first search's source).
+  // The first search keeps its source while that line still holds within the contact band of
+  // the nearest, the second while its line sees the surface under the part at all; otherwise each
+  // starts afresh, the first from the nearest line, the second from the nearest that sees the
+  // surface 60 degrees or more from the first's (one within the band alone left a lone edge
+  // point, and the part on a footprint line's own normal, 30 deg off, at 2 mm spacing).
   const double band = kContactBand * min_axis_;
   auto& e = edges_[std::size_t(j)];
   // A search that found no edge is tried again once its line has come a quarter of the look nearer.
   const double retry = 0.25 * kRingLook * middle_[std::size_t(j)];
-  const auto holds = [&](int r) { return r >= 0 && c.gaps[std::size_t(r)] <= c.nearest + band; };
+  const auto holds = [&](int which, int r) {
+    return r >= 0 && (which == 0 ? c.gaps[std::size_t(r)] <= c.nearest + band : std::isfinite(c.gaps[std::size_t(r)]));
+  };
   const auto stale = [&](int which) {
     const EdgeSearch& s = e[std::size_t(which)];
-    return !holds(s.source) ||
+    return !holds(which, s.source) ||
            (!std::isfinite(rings_[std::size_t(j)].at[std::size_t(kRingRays + which)]) && c.gaps[std::size_t(s.source)] < s.tried - retry);
   };
   if (stale(0)) {
@@ -261,7 +265,7 @@ void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllip
   if (stale(1) || !apart(e[1].source, e[0].source)) {
     int second = -1;
     for (int r = 0; r < kRingRays; ++r)
-      if (holds(r) && apart(r, e[0].source) && (second < 0 || c.gaps[std::size_t(r)] < c.gaps[std::size_t(second)]))
+      if (holds(1, r) && apart(r, e[0].source) && (second < 0 || c.gaps[std::size_t(r)] < c.gaps[std::size_t(second)]))
         second = r;
     search_edge(j, 1, second, resting);
     e[1].tried = second >= 0 ? c.gaps[std::size_t(second)] : kInf;
