@@ -193,6 +193,18 @@ class SeenFelt(unittest.TestCase):
         self.assertIn("| truck.splat |", md)
         self.assertFalse(any(n.endswith(".tmp") for n in os.listdir(out)))
 
+    def test_a_stylus_on_the_seen_surface_is_felt_where_it_is_seen(self):
+        out = tempfile.mkdtemp()
+        rows, md = self.rays(out, "--surface", "seen", "--tool-shape", "stylus", "--tool-tilt", "30")
+        self.assertEqual(len(rows), 2 * 2 * 3)
+        self.assertLessEqual(sum(r["through"] == "1" for r in rows), 1)
+        for r in rows:
+            self.assertEqual((r["tool"], r["tilt_deg"]), ("stylus", "30"))
+            self.assertEqual(r["no_force"], "0", r)
+            self.assertGreater(float(r["onset_minus_seen"]), -1.0, r)
+        self.assertIn("styluses (stylus:24R,R", md)
+        self.assertIn("--tool-shape stylus", md)
+
     def test_rays_aim_at_the_objects_and_the_seen_truth_is_the_captured_file(self):
         out = tempfile.mkdtemp()
         report = os.path.join(out, "SF.md")
@@ -229,6 +241,9 @@ class SeenFelt(unittest.TestCase):
         self.assertIn("expected a .md file", p.stderr)
         p = run("seen-felt", "--quick", "--direction", "sideways", scene_file("truck.splat"), check=False)
         self.assertNotEqual(p.returncode, 0)
+        p = run("seen-felt", "--quick", "--tool-shape", "cone", scene_file("truck.splat"), check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--tool-shape", p.stderr)
 
 
 class Simulate(unittest.TestCase):

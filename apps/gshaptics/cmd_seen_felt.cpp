@@ -14,7 +14,7 @@ void register_seen_felt(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "seen-felt",
       "Measure where the force starts and where the proxy rests against the surface the splats render, on real "
-      "scenes: sphere tools of 0.5, 1 and 2 % of the scene's extent pressed vertically (the file's +y) and from "
+      "scenes: tools (spheres by default) of 0.5, 1 and 2 % of the scene's extent pressed vertically (the file's +y) and from "
       "around along rays onto the seen surface (the 3DGS median depth over every Gaussian), 4 tool radii past it, "
       "through the runtime's servo step. Writes a Markdown report (rays through, rays without force, felt - seen "
       "p90, onset p10 per configuration), the rays as CSV and a figure. Without scenes: the shared scenes.");
@@ -29,6 +29,15 @@ void register_seen_felt(CLI::App& app) {
   cmd->add_option("--direction", o->directions, "Press directions: vertical, around (comma-separated)")
       ->delimiter(',')
       ->check(CLI::IsMember({"vertical", "around"}));
+  cmd->add_option("--tool-shape", o->tool,
+                  "Tool pressed along the rays, sized by the tool radius R: sphere (radius R), stylus (length 24 R, "
+                  "radius R, tip first) or disc (radius 4 R, thickness 2 R)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"sphere", "stylus", "disc"}));
+  cmd->add_option("--tool-tilt", o->tilt_deg,
+                  "Stylus and disc: the tool's axis against the ray, deg (its azimuth turns from ray to ray)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 89.0));
   cmd->add_option("--seed", o->seed, "Seed of the rays")->capture_default_str();
   cmd->add_flag("--no-plot", o->no_plot, "Skip the figure (matplotlib)");
   add_object_option(*cmd, o->objects);

@@ -15,6 +15,7 @@
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/percentile.h"
 #include "gshaptics/sim/pose_sampler.h"
+#include "gshaptics/collision/tool_ellipsoid.h"
 
 namespace gshaptics {
 
@@ -24,6 +25,30 @@ PressDirection parse_press_direction(std::string_view name) {
   if (name == "vertical") return PressDirection::kVertical;
   if (name == "around") return PressDirection::kAround;
   throw InputError(fmt::format("seen-felt: unknown direction '{}' (vertical, around)", name));
+}
+
+std::string_view to_string(SeenFeltTool t) {
+  switch (t) {
+    case SeenFeltTool::kStylus: return "stylus";
+    case SeenFeltTool::kDisc: return "disc";
+    case SeenFeltTool::kSphere: break;
+  }
+  return "sphere";
+}
+
+SeenFeltTool parse_seen_felt_tool(std::string_view name) {
+  for (SeenFeltTool t : {SeenFeltTool::kSphere, SeenFeltTool::kStylus, SeenFeltTool::kDisc})
+    if (name == to_string(t)) return t;
+  throw InputError(fmt::format("seen-felt: unknown tool '{}' (sphere, stylus, disc)", name));
+}
+
+CompoundTool seen_felt_tool(SeenFeltTool kind, double radius) {
+  switch (kind) {
+    case SeenFeltTool::kStylus: return parse_tool_spec(fmt::format("stylus:{},{}", 24 * radius, radius));
+    case SeenFeltTool::kDisc: return parse_tool_spec(fmt::format("disc:{},{}", 4 * radius, 2 * radius));
+    case SeenFeltTool::kSphere: break;
+  }
+  return CompoundTool::single(Eigen::Vector3d::Constant(radius));
 }
 
 SeenFeltOptions quick_seen_felt_options() {
@@ -43,8 +68,10 @@ namespace {
 void validate(const SeenFeltOptions& o) {
   const bool ok = o.rays > 0 && o.max_candidates >= o.rays && o.facing_deg > 0 && o.facing_deg < 90 && o.past > 0 &&
                   o.start > 0 && o.speed > 0 && o.hold >= 0 && o.rate_hz > 0 && o.force_threshold > 0 &&
-                  !o.tool_fractions.empty() && !o.directions.empty() && std::abs(o.down.norm() - 1) < 1e-6;
-  if (!ok) throw InputError("seen-felt: invalid options (rays, candidates, angles, speeds and tools must be positive)");
+                  o.tilt_deg >= 0 && o.tilt_deg < 90 && !o.tool_fractions.empty() && !o.directions.empty() && std::abs(o.down.norm() - 1) < 1e-6;
+  if (!ok)
+    throw InputError("seen-felt: invalid options (rays, candidates, angles, speeds and tools must be positive, the "
+                     "tilt within [0, 90) deg)");
   for (double f : o.tool_fractions)
     if (!(f > 0 && f < 0.5)) throw InputError(fmt::format("seen-felt: tool fraction {} outside (0, 0.5)", f));
 }
@@ -118,15 +145,54 @@ std::pair<Eigen::Vector3d, Eigen::Vector3d> draw_ray(RayDraw& d, const Eigen::Ve
   return {aim - (back + start * d.radius) * u, u};
 }
 
-// The press along a ray: the leading point from `from` to `to` (depths from the origin) at
-// `speed`, then a hold.
-Script press_along(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double radius, double from, double to,
-                   const SeenFeltOptions& o) {
+// The tool held through one press: its parts, orientation and leading point (its support along
+// the ray, relative to the TCP).
+struct PressedTool {
+  CompoundTool tool;  // count 0: the sphere of radius `radius` (the one-part proxy's own tool)
+  double radius = 0;
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d lead = Eigen::Vector3d::Zero();  // the support point along u, from the TCP
+  [[nodiscard]] double lead_depth(const Eigen::Vector3d& u) const { return lead.dot(u); }
+};
+
+// The tool of the options for a ray along u, its axis tilted toward the azimuth `phi` about u.
+PressedTool pressed_tool(const SeenFeltOptions& o, double radius, const Eigen::Vector3d& u, double phi) {
+  PressedTool t;
+  t.radius = radius;
+  if (o.tool == SeenFeltTool::kSphere) {
+    t.lead = radius * u;
+    return t;
+  }
+  t.tool = seen_felt_tool(o.tool, radius);
+  const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
+  const double tilt = o.tilt_deg * std::numbers::pi / 180;
+  // The stylus points back up the ray from its tip; a disc's axis lies along the ray.
+  const Eigen::Vector3d axis = (o.tool == SeenFeltTool::kStylus ? -1.0 : 1.0) * std::cos(tilt) * u +
+                               std::sin(tilt) * (std::cos(phi) * a + std::sin(phi) * b);
+  t.orientation = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), axis);
+  std::array<ToolEllipsoid, kMaxToolParts> parts{};
+  const int n = t.tool.posed(Eigen::Vector3d::Zero(), t.orientation, parts);
+  double best = -INFINITY;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d p = parts[std::size_t(i)].surface_point(u);
+    if (p.dot(u) > best) {
+      best = p.dot(u);
+      t.lead = p;
+    }
+  }
+  return t;
+}
+
+// The press along a ray: the tool's leading point from `from` to `to` (depths from the origin)
+// at `speed`, then a hold.
+Script press_along(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, const PressedTool& tool, double from,
+                   double to, const SeenFeltOptions& o) {
   Script s;
   s.scenario = Scenario::kPress;
-  s.tool_radius = radius;
+  s.tool_radius = tool.radius;
+  s.tool = tool.tool;
   s.max_delta = to - from;
-  const double v = o.speed * radius, dt = 1.0 / o.rate_hz;
+  const double v = o.speed * tool.radius, dt = 1.0 / o.rate_hz;
   const auto moving = static_cast<std::size_t>(std::ceil((to - from) / (v * dt)));
   const auto holding = static_cast<std::size_t>(std::ceil(o.hold / dt));
   s.ticks.reserve(moving + holding + 1);
@@ -134,7 +200,8 @@ Script press_along(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, doub
     ScriptTick t;
     t.time = double(k) * dt;
     const double lead = std::min(to, from + v * t.time);
-    t.position = origin + (lead - radius) * u;
+    t.position = origin + (lead - tool.lead_depth(u)) * u;
+    t.orientation = tool.orientation;
     t.velocity = k < moving ? Eigen::Vector3d(v * u) : Eigen::Vector3d::Zero();
     t.loading = k < moving;
     t.measured = true;
@@ -143,12 +210,64 @@ Script press_along(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, doub
   return s;
 }
 
-/// Plays one kept ray and scores it; false when the tool was caught before its start.
-bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit, SeenFeltRay& ray,
-               const SeenFeltOptions& o) {
+// How deep a tool with a shape, posed with its TCP at `tcp`, lies below the seen surface along
+// u: the largest front depth of a part minus the seen depth, over lines along u through the
+// middle of the tool's shadow (per part: the lines through its leading point, its centre and the
+// projections of 48 points of its interior, at 0.3 and 0.6 of its semi-axes, on a Fibonacci
+// sphere), each line seen from its own eye (Viewer). Scene units; > 0: below the seen surface.
+// Nullopt when no line sees a surface. A stylus resting on a ledge with its shaft (its tip above
+// the ground) gives 0, which a measure at its tip alone would count as early. The rim of a part is
+// left out as a sphere's sides are (its measure reads its centre's line): a tip grazing a wall
+// beside it by a tenth of its radius would read as the wall's whole height through.
+std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& tool, const Eigen::Vector3d& tcp,
+                                       const Eigen::Vector3d& origin, const Eigen::Vector3d& u) {
+  constexpr int kSphere = 24;
+  std::array<Eigen::Vector3d, 2 * kSphere + 1> interior;
+  interior[0].setZero();
+  for (int i = 0; i < kSphere; ++i) {
+    const double z = 1 - (2 * i + 1.0) / kSphere, rho = std::sqrt(1 - z * z), phi = 2.399963229728653 * i;
+    const Eigen::Vector3d w(rho * std::cos(phi), rho * std::sin(phi), z);
+    interior[std::size_t(1 + 2 * i)] = 0.3 * w;
+    interior[std::size_t(2 + 2 * i)] = 0.6 * w;
+  }
+  std::array<ToolEllipsoid, kMaxToolParts> parts{};
+  const int n = tool.tool.posed(tcp, tool.orientation, parts);
+  std::optional<double> deepest;
+  for (int k = 0; k < n; ++k) {
+    const ToolEllipsoid& e = parts[std::size_t(k)];
+    const Eigen::Matrix3d R = e.rotation.toRotationMatrix();
+    const Eigen::Matrix3d M = R * e.semi_axes.asDiagonal();
+    const Eigen::Matrix3d A = R * e.semi_axes.cwiseInverse().cwiseAbs2().asDiagonal() * R.transpose();
+    const double a = u.dot(A * u);
+    const Eigen::Vector3d leading = R.transpose() * (e.surface_point(u) - e.center);  // in the part's axes
+    for (std::size_t j = 0; j <= interior.size(); ++j) {
+      const Eigen::Vector3d w = j < interior.size() ? interior[j] : Eigen::Vector3d(leading.cwiseQuotient(e.semi_axes));
+      const Eigen::Vector3d p = e.center + M * w;
+      const Eigen::Vector3d q = p - (p - origin).dot(u) * u;  // the line's eye, on the plane through origin
+      const Eigen::Vector3d d = q - e.center;
+      const double b = u.dot(A * d), disc = b * b - a * (d.dot(A * d) - 1);
+      const double front = (-b + std::sqrt(std::max(0.0, disc))) / a;  // the part's leading crossing
+      const SeenDepth sd = seen.median_depth(q, u);
+      if (sd.hit) deepest = std::max(deepest.value_or(-INFINITY), front - sd.depth);
+    }
+  }
+  return deepest;
+}
+
+/// R: how far every part of a tool with a shape must start above the seen surface.
+constexpr double kStartClearance = 0.25;
+
+/// Plays one kept ray and scores it; false when the tool was caught before its start (a tool
+/// with a shape: also when it starts less than kStartClearance R above the seen surface).
+bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit, const PressedTool& tool,
+               SeenFeltRay& ray, const SeenFeltOptions& o) {
   const double r = ray.tool_radius;
   const double from = std::max(0.0, hit.depth - o.start * r);
-  const Script script = press_along(ray.origin, ray.dir, r, from, hit.depth + o.past * r, o);
+  const Script script = press_along(ray.origin, ray.dir, tool, from, hit.depth + o.past * r, o);
+  if (tool.tool.count > 0) {  // a tool with a shape may start with a part already inside what the eye sees
+    const std::optional<double> below = depth_below_seen(seen, tool, script.ticks.front().position, ray.origin, ray.dir);
+    if (below && *below > -kStartClearance * r) return false;
+  }
   const ScriptTrace trace = play_script(renderer, script, o.rate_hz, o.play);
   const std::size_t first = std::min<std::size_t>(trace.force.size(), std::size_t(o.play.latency_ticks) + 2);
   for (std::size_t i = 0; i < first; ++i)
@@ -158,17 +277,25 @@ bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit
     const double f = trace.force[i].norm();
     ray.peak_force = std::max(ray.peak_force, f);
     if (std::isnan(ray.onset_minus_seen) && f >= o.force_threshold) {
-      const double lead = (script.ticks[i].position - ray.origin).dot(ray.dir) + r;
+      const double lead = (script.ticks[i].position + tool.lead - ray.origin).dot(ray.dir);
       ray.onset_minus_seen = (lead - hit.depth) / r;
+      if (tool.tool.count > 0) {
+        const std::optional<double> below = depth_below_seen(seen, tool, script.ticks[i].position, ray.origin, ray.dir);
+        if (below) ray.onset_minus_seen = *below / r;
+      }
     }
     us.push_back(trace.render_us[i]);
   }
   ray.render_p99_us = percentile(us, 99);
-  // Where the proxy rests, against the seen depth of the parallel ray through it.
-  const Eigen::Vector3d rel = trace.proxy.back() - ray.origin;
-  const double felt = rel.dot(ray.dir) + r;
+  // Where the proxy's leading point rests, against the seen depth of the parallel ray through it.
+  const Eigen::Vector3d rel = trace.proxy.back() + tool.lead - ray.origin;
+  const double felt = rel.dot(ray.dir);
   const SeenDepth beside = seen.median_depth(ray.origin + rel - rel.dot(ray.dir) * ray.dir, ray.dir);
   ray.felt_minus_seen = (felt - (beside.hit ? beside.depth : hit.depth)) / r;
+  if (tool.tool.count > 0) {
+    const std::optional<double> below = depth_below_seen(seen, tool, trace.proxy.back(), ray.origin, ray.dir);
+    if (below) ray.felt_minus_seen = *below / r;
+  }
   ray.no_force = ray.peak_force < o.force_threshold;
   ray.through = ray.felt_minus_seen > 1.0;
   return true;
@@ -209,7 +336,10 @@ void measure_configuration(const Viewer& seen, ForceRenderer& renderer, RayDraw 
     ray.dir = u;
     ray.seen = hit->depth;
     ray.facing_deg = std::acos(std::clamp(-hit->normal.dot(u), -1.0, 1.0)) * 180 / std::numbers::pi;
-    if (!score_ray(renderer, seen, *hit, ray, o)) {
+    constexpr double kGoldenAngle = 2.399963229728653;  // rad: the tilt's azimuth turns by it per drawn ray
+    const PressedTool tool = pressed_tool(o, draw.radius, u, kGoldenAngle * row.drawn);
+    ray.orientation = tool.orientation;
+    if (!score_ray(renderer, seen, *hit, tool, ray, o)) {
       ++row.caught;
       continue;
     }
@@ -291,6 +421,18 @@ std::string cell(const SeenFeltRow& r) {
 
 std::string number(double v, const char* f = "{:+.2f}") { return std::isnan(v) ? std::string("-") : fmt::format(fmt::runtime(f), v); }
 
+std::string tool_description(const SeenFeltOptions& o) {
+  switch (o.tool) {
+    case SeenFeltTool::kStylus:
+      return fmt::format("styluses (stylus:24R,R: R the rod's radius; tip first, the axis {:g} deg from the ray)",
+                         o.tilt_deg);
+    case SeenFeltTool::kDisc:
+      return fmt::format("discs (disc:4R,2R: R the half thickness; the axis {:g} deg from the ray)", o.tilt_deg);
+    case SeenFeltTool::kSphere: break;
+  }
+  return "sphere tools of radius R";
+}
+
 std::string summary_table(const SeenFeltReport& rep) {
   const SeenFeltOptions& o = rep.options;
   std::string md = "| scene |";
@@ -346,12 +488,12 @@ void write_seen_felt_markdown(const SeenFeltReport& rep, const std::string& path
   }
   std::string md = "# Seen against felt on real scenes\n\n";
   md += fmt::format(
-      "Generated by `{}` ({:.0f} s). Force model `{}`, {}; sphere tools pressed along rays at {:g} R/s from {:g} R "
+      "Generated by `{}` ({:.0f} s). Force model `{}`, {}; {} pressed along rays at {:g} R/s from {:g} R "
       "before the seen surface (the 3DGS median depth over every Gaussian of the file) to {:g} R past it, held {:g} s, "
       "through the servo step of a real-time run. Rays kept where the seen surface is within {:g} deg of facing the "
       "ray; {} per configuration wanted. Cells: rays through (felt more than 1 R past the seen surface) / rays, and "
       "rays with no force at all.\n\n",
-      command, rep.seconds, renderer_name(o.renderer), describe_mode(o.play), o.speed, o.start, o.past, o.hold,
+      command, rep.seconds, renderer_name(o.renderer), describe_mode(o.play), tool_description(o), o.speed, o.start, o.past, o.hold,
       o.facing_deg, o.rays);
   md += fmt::format("In all, {} of {} rays go more than 1 R through and {} feel nothing; {} of {} configurations meet "
                     "the targets (at most 1 ray through, none without force, felt - seen p90 <= 0.5 R, onset p10 >= "
@@ -366,12 +508,13 @@ void write_seen_felt_markdown(const SeenFeltReport& rep, const std::string& path
 void write_seen_felt_csv(const SeenFeltReport& rep, const std::string& path) {
   std::string csv =
       "scene,direction,tool_fraction,tool_radius,ox,oy,oz,ux,uy,uz,seen,facing_deg,felt_minus_seen,onset_minus_seen,"
-      "peak_force,through,no_force,render_p99_us\n";
+      "peak_force,through,no_force,render_p99_us,tool,tilt_deg\n";
   for (const SeenFeltRay& r : rep.rays)
-    csv += fmt::format("{},{},{:g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.3f},{:.4f},{:.4f},{:.4f},{},{},{:.2f}\n",
+    csv += fmt::format("{},{},{:g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.3f},{:.4f},{:.4f},{:.4f},{},{},{:.2f},{},{:g}\n",
                        r.scene, to_string(r.direction), r.tool_fraction, r.tool_radius, r.origin.x(), r.origin.y(),
                        r.origin.z(), r.dir.x(), r.dir.y(), r.dir.z(), r.seen, r.facing_deg, r.felt_minus_seen,
-                       r.onset_minus_seen, r.peak_force, int(r.through), int(r.no_force), r.render_p99_us);
+                       r.onset_minus_seen, r.peak_force, int(r.through), int(r.no_force), r.render_p99_us,
+                       to_string(rep.options.tool), rep.options.tool == SeenFeltTool::kSphere ? 0.0 : rep.options.tilt_deg);
   write_file_atomically(path, csv);
 }
 

@@ -118,6 +118,8 @@ SeenFeltOptions seen_felt_options_from(const SeenFeltCommandOptions& o) {
   so.play.inline_query = o.exec.inline_query;
   so.play.latency_ticks = o.exec.latency_ticks;
   so.seed = o.seed;
+  so.tool = parse_seen_felt_tool(o.tool);
+  so.tilt_deg = o.tilt_deg;
   if (o.rays > 0) {
     so.rays = o.rays;
     so.max_candidates = std::max(so.max_candidates, 20 * o.rays);
@@ -147,6 +149,10 @@ std::string seen_felt_command_line(const SeenFeltCommandOptions& o, const std::v
   if (o.rays > 0) command += fmt::format(" --rays {}", o.rays);
   if (!o.tools_percent.empty()) command += fmt::format(" --tool-percent {}", fmt::join(o.tools_percent, ","));
   if (!o.directions.empty()) command += fmt::format(" --direction {}", fmt::join(o.directions, ","));
+  if (o.tool != SeenFeltCommandOptions{}.tool) {
+    command += fmt::format(" --tool-shape {}", o.tool);
+    if (o.tilt_deg != SeenFeltOptions{}.tilt_deg) command += fmt::format(" --tool-tilt {:g}", o.tilt_deg);
+  }
   if (o.seed != SeenFeltOptions{}.seed) command += fmt::format(" --seed {}", o.seed);
   for (const ObjectSpec& spec : o.objects.objects) command += " --object " + spec.text;
   if (!o.scenes.empty())

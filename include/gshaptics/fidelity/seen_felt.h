@@ -22,6 +22,18 @@
 /// Rays whose tool is held (|F| >= 0.1 N) on the first tick, caught before its start, are dropped
 /// and counted.
 ///
+/// Tools (SeenFeltOptions::tool): the sphere of radius R, or a tool with a shape sized by R and
+/// held at a fixed orientation through the press (seen_felt_tool()). Its leading point is its
+/// support point along the ray (the point of its posed parts furthest along u), which replaces
+/// "the centre + R u" above; the felt point is the support point of the tool posed at the proxy's
+/// TCP with the press's orientation (the proxies on the seen solid keep the device's orientation).
+/// Its depth against the seen surface is the deepest over lines along the ray through the middle
+/// of each part's shadow (the inner 60 %; each line seen from its own eye), not the line through
+/// its leading point alone: a stylus
+/// whose shaft rests on a ledge, its tip in the air, is felt at the seen surface, not early.
+/// Rays whose tool starts with a part within R/4 of the seen surface, or below it (its shaft in a
+/// wall beside the ray), are dropped as caught.
+///
 /// Directions: vertical presses go along the scene's down (SeenFeltOptions::down; the file frame's
 /// +y, the 3DGS/COLMAP convention, by default), aimed at the middle 80 % of the kept Gaussians'
 /// 1-99 percentile box; presses from around are horizontal at a random azimuth, aimed at its
@@ -35,6 +47,7 @@
 #include <vector>
 
 #include "gshaptics/collision/collision_world.h"
+#include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/fidelity/fidelity_run.h"
 #include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/scene/seen_surface.h"
@@ -46,12 +59,28 @@ enum class PressDirection { kVertical, kAround };
 /// "vertical" or "around"; InputError otherwise.
 [[nodiscard]] PressDirection parse_press_direction(std::string_view name);
 
+/// The tool pressed along the rays, sized by R (a tool fraction of the extent). Sphere: radius R
+/// (the issue's tool). Stylus: parse_tool_spec's "stylus:24R,R", the fidelity's 12 cm pen of 5 mm
+/// radius scaled, pressed tip first with its axis tilted by SeenFeltOptions::tilt_deg from the
+/// ray. Disc: "disc:4R,2R" (semi-axes 4R, 4R, R), its axis tilted by tilt_deg from the ray (at 0:
+/// face first; tilted, its rim leads).
+enum class SeenFeltTool { kSphere, kStylus, kDisc };
+[[nodiscard]] std::string_view to_string(SeenFeltTool t);
+/// "sphere", "stylus" or "disc"; InputError otherwise.
+[[nodiscard]] SeenFeltTool parse_seen_felt_tool(std::string_view name);
+/// The tool of `kind` at size `radius` (scene units). Sphere: CompoundTool::single.
+[[nodiscard]] CompoundTool seen_felt_tool(SeenFeltTool kind, double radius);
+
 /// What to measure. Tool sizes are fractions of the scene's robust extent (robust_extent()).
 struct SeenFeltOptions {
   RendererSpec renderer;                                ///< default: the proxy
   PlayOptions play = default_play_options();           ///< the runtime's execution mode and safety layer
   std::vector<double> tool_fractions = {0.005, 0.01, 0.02};
   std::vector<PressDirection> directions = {PressDirection::kVertical, PressDirection::kAround};
+  SeenFeltTool tool = SeenFeltTool::kSphere;
+  /// deg: a stylus's or disc's axis against the ray, toward an azimuth that turns by the golden
+  /// angle from one drawn ray to the next (ignored for the sphere)
+  double tilt_deg = 30;
   int rays = 20;             ///< kept rays per configuration (scene, tool, direction)
   int max_candidates = 4000;  ///< rays drawn per configuration at most
   double facing_deg = 20;    ///< largest angle between the seen normal and -u
@@ -80,6 +109,7 @@ struct SeenFeltRay {
   PressDirection direction = PressDirection::kVertical;
   double tool_fraction = 0, tool_radius = 0;  ///< fraction of the extent; scene units
   Eigen::Vector3d origin = Eigen::Vector3d::Zero(), dir = Eigen::Vector3d::Zero();  ///< the ray (eye, unit)
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< the tool's, held through the press
   double seen = 0;              ///< seen depth from the origin, scene units
   double facing_deg = 0;        ///< seen normal against -dir
   double felt_minus_seen = NAN;  ///< R

@@ -69,6 +69,8 @@ struct SeenFeltCommandOptions {
   int rays = 0;                            ///< per configuration; 0: the run's default
   std::vector<double> tools_percent;       ///< tool radii, % of the extent; empty: the run's default
   std::vector<std::string> directions;     ///< vertical, around; empty: both
+  std::string tool = "sphere";             ///< --tool-shape: sphere, stylus, disc (parse_seen_felt_tool)
+  double tilt_deg = SeenFeltOptions{}.tilt_deg;  ///< --tool-tilt, deg (stylus, disc)
   std::uint64_t seed = SeenFeltOptions{}.seed;
   ForceModelOptions force;
   ExecutionOptions exec;
@@ -83,7 +85,7 @@ struct SeenFeltCommandOptions {
 /// ../shared/data/scenes (the aerial crop left out: its tool would be metres wide), those found
 /// beside the project or under $GSHAPTICS_SCENES.
 [[nodiscard]] std::vector<std::string> seen_felt_default_scenes();
-/// The measurement `o` asks for. Throws InputError for an unknown direction.
+/// The measurement `o` asks for. Throws InputError for an unknown direction or tool.
 [[nodiscard]] SeenFeltOptions seen_felt_options_from(const SeenFeltCommandOptions& o);
 /// Runs the benchmark and writes its report, rays (CSV) and figure. Throws InputError for bad
 /// options or a scene that does not load.
