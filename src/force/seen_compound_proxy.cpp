@@ -57,7 +57,6 @@ SeenCompoundProxy::SeenCompoundProxy(const SeenSolid& solid, const CompoundTool&
     : solid_(&solid),
       tool_(tool),
       params_(params),
-      f_max_(f_max),
       coupling_(params, f_max),
       friction_(params.mu_s, params.mu_k) {
   tool_.validate("seen proxy: tool");
@@ -169,7 +168,7 @@ bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Qua
     const double look = kRingLook * middle_[std::size_t(j)];
     axis_ = u;  // (the searches read along the part's chord)
     const LineChoice c = nearest_line(j, part);
-    if (c.source[0] >= 0 && c.nearest < look) {
+    if (c.source >= 0 && c.nearest < look) {
       update_edges(j, c, part);
       Eigen::Vector3d contact;
       const double edge = edge_gap(part, j, u, contact);
@@ -259,7 +258,7 @@ void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllip
            (!std::isfinite(rings_[std::size_t(j)].at[std::size_t(kRingRays + which)]) && c.gaps[std::size_t(s.source)] < s.tried - retry);
   };
   if (stale(0)) {
-    search_edge(j, 0, c.source[0], resting);
+    search_edge(j, 0, c.source, resting);
     e[0].tried = c.nearest;
   }
   if (stale(1) || !apart(e[1].source, e[0].source)) {
@@ -315,7 +314,7 @@ SeenCompoundProxy::LineChoice SeenCompoundProxy::nearest_line(int j, const ToolE
     const double gap = ring_gap(parts_[k], j, r, axis_, front);
     c.gaps[std::size_t(r)] = gap;
     if (gap < c.gap) c.gap = gap, c.line = r;
-    if (r < kRingRays && gap < c.nearest) c.nearest = gap, c.source[0] = r;
+    if (r < kRingRays && gap < c.nearest) c.nearest = gap, c.source = r;
   }
   Eigen::Vector3d contact;
   if (edge_gap(resting, j, axis_, contact) >= -kRingSink * middle_[k]) {
@@ -364,7 +363,7 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
     lines[k] = nearest_line(j, resting[k]);
     // Where the footprint holds the part before its leading point does (an edge under its side),
     // the edge is searched out, at once when a search's line no longer holds.
-    if (lines[k].source[0] >= 0 && lines[k].gap < at[k] - depth[k]) {
+    if (lines[k].source >= 0 && lines[k].gap < at[k] - depth[k]) {
       update_edges(j, lines[k], resting[k]);
       lines[k] = nearest_line(j, resting[k]);
     }

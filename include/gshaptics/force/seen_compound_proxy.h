@@ -117,12 +117,12 @@ class SeenCompoundProxy {
   };
   // Part j's footprint judged at the device's depth: the line nearest the surface (`line`, -1:
   // none; kEdgeLine: the edge's tangent point) and its gap, every line's gap (+inf: does not
-  // hold), and the nearest footprint line proper (`source[0]`, its gap `nearest`).
+  // hold), and the nearest footprint line proper (`source`, its gap `nearest`).
   struct LineChoice {
     int line = -1;
     double gap = std::numeric_limits<double>::infinity();
     double nearest = std::numeric_limits<double>::infinity();
-    std::array<int, 1> source{-1};
+    int source = -1;
     std::array<double, kRingRays + 2> gaps{};
   };
   [[nodiscard]] static bool apart(int r1, int r2) noexcept {  // 60 degrees or more around the shadow
@@ -193,7 +193,6 @@ class SeenCompoundProxy {
   const SeenSolid* solid_;
   CompoundTool tool_;
   ProxyParams params_;
-  double f_max_;
   double radius_ = 0, min_axis_ = 0;  // the tool's largest and smallest semi-axes
   SeenScratch scratch_;
   VirtualCoupling coupling_;
