@@ -1,6 +1,8 @@
 #include "gshaptics/collision/tool_ellipsoid.h"
+#include "gshaptics/collision/ellipsoid_line.h"
 
 #include <cmath>
+#include <limits>
 
 namespace gshaptics {
 
@@ -33,6 +35,16 @@ double ToolEllipsoid::inner_clearance(const Eigen::Vector3d& p) const noexcept {
   const Eigen::Vector3d local = rotation.conjugate() * (p - center);
   const double rho = local.cwiseQuotient(semi_axes).norm();
   return rho < 1.0 ? (1.0 - rho) * semi_axes.minCoeff() : 0.0;
+}
+
+double exit_along(const ToolEllipsoid& part, const Eigen::Vector3d& p, const Eigen::Vector3d& u) noexcept {
+  const Eigen::Matrix3d rt = part.rotation.toRotationMatrix().transpose();
+  const Eigen::Vector3d wo = (rt * (p - part.center)).cwiseQuotient(part.semi_axes);
+  const Eigen::Vector3d wu = (rt * u).cwiseQuotient(part.semi_axes);
+  const double a = wu.squaredNorm(), b = wo.dot(wu), c = wo.squaredNorm() - 1;
+  const double disc = b * b - a * c;
+  if (!(disc >= 0)) return std::numeric_limits<double>::quiet_NaN();
+  return (-b + std::sqrt(disc)) / a;
 }
 
 }  // namespace gshaptics

@@ -15,7 +15,7 @@
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/percentile.h"
 #include "gshaptics/sim/pose_sampler.h"
-#include "gshaptics/collision/tool_ellipsoid.h"
+#include "gshaptics/collision/ellipsoid_line.h"
 
 namespace gshaptics {
 
@@ -75,6 +75,8 @@ void validate(const SeenFeltOptions& o) {
   for (double f : o.tool_fractions)
     if (!(f > 0 && f < 0.5)) throw InputError(fmt::format("seen-felt: tool fraction {} outside (0, 0.5)", f));
 }
+
+constexpr double kGoldenAngle = 2.399963229728653;  // rad, pi (3 - sqrt 5)
 
 /// One configuration's frame: where rays are drawn, the tool, and the draw.
 struct RayDraw {
@@ -222,36 +224,51 @@ Script press_along(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, cons
 std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& tool, const Eigen::Vector3d& tcp,
                                        const Eigen::Vector3d& origin, const Eigen::Vector3d& u) {
   constexpr int kSphere = 24;
-  std::array<Eigen::Vector3d, 2 * kSphere + 1> interior;
-  interior[0].setZero();
-  for (int i = 0; i < kSphere; ++i) {
-    const double z = 1 - (2 * i + 1.0) / kSphere, rho = std::sqrt(1 - z * z), phi = 2.399963229728653 * i;
-    const Eigen::Vector3d w(rho * std::cos(phi), rho * std::sin(phi), z);
-    interior[std::size_t(1 + 2 * i)] = 0.3 * w;
-    interior[std::size_t(2 + 2 * i)] = 0.6 * w;
-  }
+  static const std::array<Eigen::Vector3d, 2 * kSphere + 1> interior = [] {  // in a part's unit ball
+    std::array<Eigen::Vector3d, 2 * kSphere + 1> w;
+    w[0].setZero();
+    for (int i = 0; i < kSphere; ++i) {
+      const double z = 1 - (2 * i + 1.0) / kSphere, rho = std::sqrt(1 - z * z), phi = kGoldenAngle * i;
+      const Eigen::Vector3d on(rho * std::cos(phi), rho * std::sin(phi), z);
+      w[std::size_t(1 + 2 * i)] = 0.3 * on;
+      w[std::size_t(2 + 2 * i)] = 0.6 * on;
+    }
+    return w;
+  }();
   std::array<ToolEllipsoid, kMaxToolParts> parts{};
   const int n = tool.tool.posed(tcp, tool.orientation, parts);
   std::optional<double> deepest;
+  // The line along u through p, which leaves the part at p + exit u.
+  const auto read_line = [&](const Eigen::Vector3d& p, double exit) {
+    const Eigen::Vector3d q = p - (p - origin).dot(u) * u;  // the line's eye, on the plane through origin
+    const double front = exit + (p - q).dot(u);             // the part's leading crossing, from q
+    const SeenDepth sd = seen.median_depth(q, u);
+    if (sd.hit && !std::isnan(front)) deepest = std::max(deepest.value_or(-INFINITY), front - sd.depth);
+  };
   for (int k = 0; k < n; ++k) {
     const ToolEllipsoid& e = parts[std::size_t(k)];
-    const Eigen::Matrix3d R = e.rotation.toRotationMatrix();
-    const Eigen::Matrix3d M = R * e.semi_axes.asDiagonal();
-    const Eigen::Matrix3d A = R * e.semi_axes.cwiseInverse().cwiseAbs2().asDiagonal() * R.transpose();
-    const double a = u.dot(A * u);
-    const Eigen::Vector3d leading = R.transpose() * (e.surface_point(u) - e.center);  // in the part's axes
-    for (std::size_t j = 0; j <= interior.size(); ++j) {
-      const Eigen::Vector3d w = j < interior.size() ? interior[j] : Eigen::Vector3d(leading.cwiseQuotient(e.semi_axes));
+    const Eigen::Matrix3d M = e.rotation.toRotationMatrix() * e.semi_axes.asDiagonal();
+    for (const Eigen::Vector3d& w : interior) {
       const Eigen::Vector3d p = e.center + M * w;
-      const Eigen::Vector3d q = p - (p - origin).dot(u) * u;  // the line's eye, on the plane through origin
-      const Eigen::Vector3d d = q - e.center;
-      const double b = u.dot(A * d), disc = b * b - a * (d.dot(A * d) - 1);
-      const double front = (-b + std::sqrt(std::max(0.0, disc))) / a;  // the part's leading crossing
-      const SeenDepth sd = seen.median_depth(q, u);
-      if (sd.hit) deepest = std::max(deepest.value_or(-INFINITY), front - sd.depth);
+      read_line(p, exit_along(e, p, u));
     }
+    read_line(e.surface_point(u), 0.0);  // the leading point: its line is tangent there
   }
   return deepest;
+}
+
+// How far the tool with its TCP at `tcp` is past the seen surface (scene units). A sphere: its
+// leading point against the seen depth of the parallel ray through it (the ray's own seen depth
+// when that one sees nothing), so sliding along a curved surface does not count as going in. A
+// tool with a shape: depth_below_seen(), or the sphere's reading when no line of it sees a surface.
+// (The onset is read against the ray's own seen depth instead: score_ray.)
+double depth_past_seen(const Viewer& seen, const SeenPoint& hit, const PressedTool& tool, const Eigen::Vector3d& tcp,
+                       const SeenFeltRay& ray) {
+  if (tool.tool.count > 0)
+    if (const std::optional<double> below = depth_below_seen(seen, tool, tcp, ray.origin, ray.dir)) return *below;
+  const Eigen::Vector3d rel = tcp + tool.lead - ray.origin;
+  const SeenDepth beside = seen.median_depth(ray.origin + rel - rel.dot(ray.dir) * ray.dir, ray.dir);
+  return rel.dot(ray.dir) - (beside.hit ? beside.depth : hit.depth);
 }
 
 /// R: how far every part of a tool with a shape must start above the seen surface.
@@ -276,26 +293,16 @@ bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit
   for (std::size_t i = 0; i < trace.force.size(); ++i) {
     const double f = trace.force[i].norm();
     ray.peak_force = std::max(ray.peak_force, f);
-    if (std::isnan(ray.onset_minus_seen) && f >= o.force_threshold) {
-      const double lead = (script.ticks[i].position + tool.lead - ray.origin).dot(ray.dir);
-      ray.onset_minus_seen = (lead - hit.depth) / r;
-      if (tool.tool.count > 0) {
-        const std::optional<double> below = depth_below_seen(seen, tool, script.ticks[i].position, ray.origin, ray.dir);
-        if (below) ray.onset_minus_seen = *below / r;
-      }
+    if (std::isnan(ray.onset_minus_seen) && f >= o.force_threshold) {  // against the ray's own seen depth
+      const Eigen::Vector3d& tcp = script.ticks[i].position;
+      const std::optional<double> below =
+          tool.tool.count > 0 ? depth_below_seen(seen, tool, tcp, ray.origin, ray.dir) : std::nullopt;
+      ray.onset_minus_seen = (below ? *below : (tcp + tool.lead - ray.origin).dot(ray.dir) - hit.depth) / r;
     }
     us.push_back(trace.render_us[i]);
   }
   ray.render_p99_us = percentile(us, 99);
-  // Where the proxy's leading point rests, against the seen depth of the parallel ray through it.
-  const Eigen::Vector3d rel = trace.proxy.back() + tool.lead - ray.origin;
-  const double felt = rel.dot(ray.dir);
-  const SeenDepth beside = seen.median_depth(ray.origin + rel - rel.dot(ray.dir) * ray.dir, ray.dir);
-  ray.felt_minus_seen = (felt - (beside.hit ? beside.depth : hit.depth)) / r;
-  if (tool.tool.count > 0) {
-    const std::optional<double> below = depth_below_seen(seen, tool, trace.proxy.back(), ray.origin, ray.dir);
-    if (below) ray.felt_minus_seen = *below / r;
-  }
+  ray.felt_minus_seen = depth_past_seen(seen, hit, tool, trace.proxy.back(), ray) / r;
   ray.no_force = ray.peak_force < o.force_threshold;
   ray.through = ray.felt_minus_seen > 1.0;
   return true;
@@ -336,7 +343,6 @@ void measure_configuration(const Viewer& seen, ForceRenderer& renderer, RayDraw 
     ray.dir = u;
     ray.seen = hit->depth;
     ray.facing_deg = std::acos(std::clamp(-hit->normal.dot(u), -1.0, 1.0)) * 180 / std::numbers::pi;
-    constexpr double kGoldenAngle = 2.399963229728653;  // rad: the tilt's azimuth turns by it per drawn ray
     const PressedTool tool = pressed_tool(o, draw.radius, u, kGoldenAngle * row.drawn);
     ray.orientation = tool.orientation;
     if (!score_ray(renderer, seen, *hit, tool, ray, o)) {

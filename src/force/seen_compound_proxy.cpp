@@ -1,5 +1,7 @@
 #include "gshaptics/force/seen_compound_proxy.h"
 
+#include "gshaptics/collision/ellipsoid_line.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -14,17 +16,6 @@ double middle_semi_axis(const Eigen::Vector3d& semi_axes) noexcept {
   Eigen::Vector3d s = semi_axes;
   std::sort(s.data(), s.data() + 3);
   return s[1];
-}
-
-// Where the line p + t u (u unit) leaves `part` going along u: t (NaN when the line misses it).
-double exit_along(const ToolEllipsoid& part, const Eigen::Vector3d& p, const Eigen::Vector3d& u) noexcept {
-  const Eigen::Matrix3d rt = part.rotation.toRotationMatrix().transpose();
-  const Eigen::Vector3d wo = (rt * (p - part.center)).cwiseQuotient(part.semi_axes);
-  const Eigen::Vector3d wu = (rt * u).cwiseQuotient(part.semi_axes);
-  const double a = wu.squaredNorm(), b = wo.dot(wu), c = wo.squaredNorm() - 1;
-  const double disc = b * b - a * c;
-  if (!(disc >= 0)) return std::numeric_limits<double>::quiet_NaN();
-  return (-b + std::sqrt(disc)) / a;
 }
 
 // The point of `part`'s shadow along u (unit) at `fraction` of its radius, 2 pi k / rays around
