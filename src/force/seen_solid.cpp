@@ -42,11 +42,22 @@ bool segment_hits_box(const BvhNode& n, const Eigen::Vector3d& o, const Eigen::V
 
 }  // namespace
 
+SeenSolid::Bound SeenSolid::bound_of(const Entry& e, double radius) noexcept {
+  // The float centre is off by half a float ulp a coordinate; the padding covers that and the
+  // rounding of the test in gather().
+  const double pad = 1e-6 * (std::max({std::abs(e.mean[0]), std::abs(e.mean[1]), std::abs(e.mean[2])}) + radius);
+  Bound b;
+  for (int k = 0; k < 3; ++k) b.center[k] = static_cast<float>(e.mean[k]);
+  b.radius = round_up_to_float(radius + pad);
+  return b;
+}
+
 SeenSolid::SeenSolid(const CollisionWorld& world) {
   const double sigma = world.config().sigma;
   std::vector<Entry> entries;
   std::vector<BvhBox> boxes;
   std::vector<std::uint32_t> slots;
+  std::vector<Bound> bounds;
   entries.reserve(world.size());
   boxes.reserve(world.size());
   for (std::size_t slot = 0; slot < world.gaussians().size(); ++slot) {
@@ -74,15 +85,18 @@ SeenSolid::SeenSolid(const CollisionWorld& world) {
     }
     entries.push_back(e);
     boxes.push_back(b);
+    bounds.push_back(bound_of(e, reach * s.maxCoeff()));
     slots.push_back(std::uint32_t(slot));
   }
   if (entries.empty()) return;
   bvh_ = Bvh::build(boxes, 8);
   entries_.resize(entries.size());
+  bounds_.resize(entries.size());
   slots_.resize(entries.size());
   const std::vector<std::uint32_t>& order = bvh_.order();
   for (std::size_t k = 0; k < order.size(); ++k) {
     entries_[k] = entries[order[k]];
+    bounds_[k] = bounds[order[k]];
     slots_[k] = slots[order[k]];
   }
   bvh_.release_order();
@@ -95,6 +109,7 @@ void SeenSolid::gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, doubl
   const std::span<const BvhNode> nodes = bvh_.nodes();
   if (nodes.empty()) return;
   const Eigen::Vector3d inv = u.cwiseInverse();
+  const double len2 = u.squaredNorm(), inv_len2 = 1 / len2, inv_len = std::sqrt(inv_len2);
   std::uint32_t stack[kStack];
   int top = 0;
   std::uint32_t i = 0;
@@ -107,6 +122,15 @@ void SeenSolid::gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, doubl
         continue;
       }
       for (std::uint32_t k = n.first; k < n.first + n.count; ++k) {
+        // The entry's ball first: a peak with alpha >= 1/255 lies in it, so a line passing
+        // beside it, or meeting it outside [ta, tb], has no layer here.
+        const Bound& ball = bounds_[k];
+        const double bx = ball.center[0] - o.x(), by = ball.center[1] - o.y(), bz = ball.center[2] - o.z();
+        const double along = (bx * u.x() + by * u.y() + bz * u.z()) * inv_len2;
+        const double r = ball.radius * inv_len;
+        if (along + r < ta || along - r > tb) continue;
+        const double w2 = bx * bx + by * by + bz * bz;
+        if (w2 - along * along * len2 > double(ball.radius) * ball.radius + 1e-9 * w2) continue;
         const Entry& e = entries_[k];
         const Eigen::Vector3d w(e.mean[0] - o.x(), e.mean[1] - o.y(), e.mean[2] - o.z());
         const Eigen::Vector3d wu = whiten(e.m, u), ww = whiten(e.m, w);

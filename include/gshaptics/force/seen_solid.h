@@ -145,6 +145,14 @@ class SeenSolid {
     double opacity;
     double log_reach;  // ln(255 opacity): alpha >= 1/255 iff half the squared Mahalanobis distance is <= this
   };
+  // A ball holding the entry's alpha >= 1/255 ellipsoid (its centre rounded to float, its
+  // radius padded for that): 16 bytes read per entry before its whitening, which most entries
+  // of a leaf the ray passes never need.
+  struct Bound {
+    float center[3];
+    float radius;
+  };
+  static Bound bound_of(const Entry& e, double radius) noexcept;
   // The layers peaking in [ta, tb] into scratch (after the ones there when `append`).
   static Eigen::Vector3d normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
                                            double h) noexcept;
@@ -155,6 +163,7 @@ class SeenSolid {
   void gather_more(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, double shared,
                    SeenScratch& scratch) const noexcept;
   std::vector<Entry> entries_;  // BVH slot order
+  std::vector<Bound> bounds_;   // per entry
   std::vector<std::uint32_t> slots_;  // per entry: its Gaussian's slot in the world
   Bvh bvh_;
 };
