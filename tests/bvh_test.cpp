@@ -116,6 +116,58 @@ TEST(Bvh, EveryPrimitiveInExactlyOneLeaf) {
   for (int c : count) EXPECT_EQ(c, 1);
 }
 
+// The SAH split (SeenSolid's tree): every box in exactly one leaf and no overlap missed, with a
+// huge size spread and with boxes whose centroids coincide (no plane separates them: median).
+TEST(Bvh, TheSahTreeMissesNoOverlapAndKeepsEveryBoxOnce) {
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> pos(-100, 100), logsize(-5, 1.3);
+  const int n = 12000;
+  std::vector<BvhBox> boxes(n);
+  std::vector<Eigen::Vector3d> lo(n), hi(n);
+  for (int i = 0; i < n; ++i) {
+    // A tenth of the boxes share one centroid; the rest spread over a flat-ish world.
+    const Eigen::Vector3d c = i % 10 == 0 ? Eigen::Vector3d(3, -2, 0.5) : Eigen::Vector3d(pos(rng), pos(rng), pos(rng) * 0.02);
+    Eigen::Vector3d h;
+    for (int k = 0; k < 3; ++k) h[k] = std::pow(10.0, logsize(rng));
+    if (i % 997 == 0) h *= 300;  // huge floaters
+    lo[std::size_t(i)] = c - h;
+    hi[std::size_t(i)] = c + h;
+    for (int k = 0; k < 3; ++k) {
+      boxes[std::size_t(i)].lo[k] = round_down_to_float(lo[std::size_t(i)][k]);
+      boxes[std::size_t(i)].hi[k] = round_up_to_float(hi[std::size_t(i)][k]);
+    }
+  }
+  const Bvh bvh = Bvh::build(boxes, 4, BvhSplit::kSah);
+  EXPECT_LT(bvh.depth(), Bvh::kMaxDepth);
+  std::vector<int> count(n);
+  for (const BvhNode& node : bvh.nodes()) {
+    EXPECT_LE(node.count, 4u);
+    for (std::uint32_t s = node.first; node.count > 0 && s < node.first + node.count; ++s) ++count[bvh.order()[s]];
+  }
+  for (int c : count) ASSERT_EQ(c, 1);
+  std::vector<int> seen(n);
+  int hits = 0;
+  for (int q = 0; q < 200; ++q) {
+    const Eigen::Vector3d c = q % 20 == 0 ? Eigen::Vector3d(3, -2, 0.5) : Eigen::Vector3d(pos(rng), pos(rng), pos(rng) * 0.02);
+    const Eigen::Vector3d h = Eigen::Vector3d::Constant(std::pow(10.0, logsize(rng)));
+    float qlo[3], qhi[3];
+    for (int k = 0; k < 3; ++k) {
+      qlo[k] = round_down_to_float(c[k] - h[k]);
+      qhi[k] = round_up_to_float(c[k] + h[k]);
+    }
+    std::fill(seen.begin(), seen.end(), 0);
+    bvh.for_each_overlapping_leaf(qlo, qhi, [&](std::uint32_t first, std::uint32_t count) {
+      for (std::uint32_t s = first; s < first + count; ++s) seen[bvh.order()[s]] = 1;
+    });
+    for (int i = 0; i < n; ++i)
+      if (overlaps(lo[std::size_t(i)], hi[std::size_t(i)], c - h, c + h)) {
+        ++hits;
+        ASSERT_TRUE(seen[std::size_t(i)]) << "query " << q << " missed box " << i;
+      }
+  }
+  EXPECT_GT(hits, 1000);  // the queries do overlap boxes
+}
+
 TEST(Bvh, OutwardRoundingContainsTheDoubleValue) {
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(-1e5, 1e5);

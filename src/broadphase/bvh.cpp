@@ -30,7 +30,70 @@ Bvh Bvh::build(std::span<const Eigen::Vector3d> lo, std::span<const Eigen::Vecto
   return build(boxes, leaf_size);
 }
 
-Bvh Bvh::build(std::span<const BvhBox> boxes, int leaf_size) {
+namespace {
+
+// Half the surface area of a box (the SAH's weight: the chance a random line meets it).
+float half_area(const float lo[3], const float hi[3]) noexcept {
+  const float dx = hi[0] - lo[0], dy = hi[1] - lo[1], dz = hi[2] - lo[2];
+  return dx * dy + dy * dz + dz * dx;
+}
+
+// The binned SAH's split of order[begin, end) (Wald 2007), along the longest axis of the
+// centroids' bounds [clo, chi] (centroids as lo + hi): the centroids fall in kBins bins, and the
+// plane between two bins with the least area(left) n(left) + area(right) n(right) wins (binning
+// the other two axes as well cost the build 1.7x for no better tree on the shared scenes).
+// Returns the first slot of the right part after partitioning, or `begin` when no plane
+// separates the centroids.
+std::uint32_t sah_partition(const BvhBox* b, std::uint32_t* order, std::uint32_t begin, std::uint32_t end,
+                            const float clo[3], const float chi[3]) noexcept {
+  constexpr int kBins = 16;
+  struct Bin {
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    std::uint32_t count = 0;
+    void add(const float xlo[3], const float xhi[3], std::uint32_t n) noexcept {
+      count += n;
+      for (int c = 0; c < 3; ++c) {
+        lo[c] = std::min(lo[c], xlo[c]);
+        hi[c] = std::max(hi[c], xhi[c]);
+      }
+    }
+  };
+  int a = 0;
+  for (int k = 1; k < 3; ++k)
+    if (chi[k] - clo[k] > chi[a] - clo[a]) a = k;
+  if (!(chi[a] > clo[a])) return begin;
+  const float scale = kBins / (chi[a] - clo[a]);
+  const auto bin_of = [&](const BvhBox& x) { return std::min(kBins - 1, int((x.lo[a] + x.hi[a] - clo[a]) * scale)); };
+  Bin bins[kBins];
+  for (std::uint32_t k = begin; k < end; ++k) {
+    const BvhBox& x = b[order[k]];
+    bins[bin_of(x)].add(x.lo, x.hi, 1);
+  }
+  // Each plane's right-hand cost, swept from the right; then the left-hand side from the left.
+  float right_cost[kBins] = {};
+  Bin acc;
+  for (int i = kBins - 1; i > 0; --i) {
+    acc.add(bins[i].lo, bins[i].hi, bins[i].count);
+    right_cost[i] = acc.count ? half_area(acc.lo, acc.hi) * float(acc.count) : 0.0f;
+  }
+  acc = Bin{};
+  float best_cost = INFINITY;
+  int best_plane = -1;
+  for (int i = 0; i < kBins - 1; ++i) {
+    acc.add(bins[i].lo, bins[i].hi, bins[i].count);
+    if (acc.count == 0 || acc.count == end - begin) continue;
+    const float cost = half_area(acc.lo, acc.hi) * float(acc.count) + right_cost[i + 1];
+    if (cost < best_cost) best_cost = cost, best_plane = i + 1;
+  }
+  if (best_plane < 0) return begin;
+  std::uint32_t* mid =
+      std::partition(order + begin, order + end, [&](std::uint32_t p) { return bin_of(b[p]) < best_plane; });
+  return std::uint32_t(mid - order);
+}
+
+}  // namespace
+
+Bvh Bvh::build(std::span<const BvhBox> boxes, int leaf_size, BvhSplit split) {
   if (boxes.size() >= std::numeric_limits<std::uint32_t>::max())
     throw std::invalid_argument("Bvh::build: too many primitives");
   leaf_size = std::max(1, leaf_size);
@@ -87,13 +150,18 @@ Bvh Bvh::build(std::span<const BvhBox> boxes, int leaf_size) {
       nodes->push_back(node);
       continue;
     }
-    int axis = 0;
-    for (int a = 1; a < 3; ++a)
-      if (chi[a] - clo[a] > chi[axis] - clo[axis]) axis = a;
-    const std::uint32_t mid = t.begin + count / 2;
-    std::nth_element(order + t.begin, order + mid, order + t.end, [&](std::uint32_t p, std::uint32_t q) {
-      return b[p].lo[axis] + b[p].hi[axis] < b[q].lo[axis] + b[q].hi[axis];
-    });
+    // (The SAH's plane, unless the tree nears the traversal stack's depth: then balanced.)
+    std::uint32_t mid = t.begin;
+    if (split == BvhSplit::kSah && t.depth < kMaxDepth / 2) mid = sah_partition(b, order, t.begin, t.end, clo, chi);
+    if (mid == t.begin || mid == t.end) {
+      int axis = 0;
+      for (int a = 1; a < 3; ++a)
+        if (chi[a] - clo[a] > chi[axis] - clo[axis]) axis = a;
+      mid = t.begin + count / 2;
+      std::nth_element(order + t.begin, order + mid, order + t.end, [&](std::uint32_t p, std::uint32_t q) {
+        return b[p].lo[axis] + b[p].hi[axis] < b[q].lo[axis] + b[q].hi[axis];
+      });
+    }
     node.count = 0;  // inner: `first` (the right child) is set when that child is made
     nodes->push_back(node);
     tasks.push_back({mid, t.end, index, t.depth + 1});  // right, after the whole left subtree

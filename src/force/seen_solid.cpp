@@ -89,7 +89,7 @@ SeenSolid::SeenSolid(const CollisionWorld& world) {
     slots.push_back(std::uint32_t(slot));
   }
   if (entries.empty()) return;
-  bvh_ = Bvh::build(boxes, 8);
+  bvh_ = Bvh::build(boxes, 4, BvhSplit::kSah);
   entries_.resize(entries.size());
   bounds_.resize(entries.size());
   slots_.resize(entries.size());
@@ -100,6 +100,15 @@ SeenSolid::SeenSolid(const CollisionWorld& world) {
     slots_[k] = slots[order[k]];
   }
   bvh_.release_order();
+}
+
+void SeenSolid::sort_by_depth(std::vector<SeenScratch::Layer>::iterator first,
+                              std::vector<SeenScratch::Layer>::iterator last) const noexcept {
+  // Layers at the same depth in the Gaussians' own order (their slots in the world), so the
+  // compositing, to the last bit, does not depend on the order the tree reported them in.
+  std::sort(first, last, [this](const SeenScratch::Layer& a, const SeenScratch::Layer& b) {
+    return a.t < b.t || (a.t == b.t && slots_[a.entry] < slots_[b.entry]);
+  });
 }
 
 void SeenSolid::gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb,
@@ -189,8 +198,7 @@ SeenHit SeenSolid::first_inside(const Eigen::Vector3d& o, const Eigen::Vector3d&
       return hit;
     }
     const std::size_t end = s.gathered;
-    std::sort(s.layers.begin() + std::ptrdiff_t(done), s.layers.begin() + std::ptrdiff_t(end),
-              [](const SeenScratch::Layer& a, const SeenScratch::Layer& b) { return a.t < b.t; });
+    sort_by_depth(s.layers.begin() + std::ptrdiff_t(done), s.layers.begin() + std::ptrdiff_t(end));
     // Composite from t_back in depth order: the optical depth only grows when a layer is passed,
     // so the first depth at which it reaches ln 2 is a layer's peak.
     for (std::size_t k = done; k < end; ++k) {
@@ -233,7 +241,7 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
     return hit;
   }
   const auto first = s.layers.begin(), last = s.layers.begin() + std::ptrdiff_t(s.gathered);
-  std::sort(first, last, [](const SeenScratch::Layer& a, const SeenScratch::Layer& b) { return a.t < b.t; });
+  sort_by_depth(first, last);
   // The eye (eye_distance): back from c until a surface hides it.
   std::size_t from = 0;  // the first layer in front of the eye
   double tau = 0;

@@ -153,6 +153,9 @@ class SeenSolid {
     float radius;
   };
   static Bound bound_of(const Entry& e, double radius) noexcept;
+  // Sorts layers by depth, ties by their Gaussians' slots in the world.
+  void sort_by_depth(std::vector<SeenScratch::Layer>::iterator first,
+                     std::vector<SeenScratch::Layer>::iterator last) const noexcept;
   // The layers peaking in [ta, tb] into scratch (after the ones there when `append`).
   static Eigen::Vector3d normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
                                            double h) noexcept;
