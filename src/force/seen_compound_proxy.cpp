@@ -34,6 +34,15 @@ Eigen::Vector3d shadow_offset(const ToolEllipsoid& part, const Eigen::Vector3d& 
   return fraction * radial * (d.x() * e1 + d.y() * e2);
 }
 
+// Footprint line k's offset across u from the part's centre: the ring (k < 12: three radii in
+// turn, 30 degrees apart) or the inner lines (the centre, then four 45 degrees off the ring's).
+Eigen::Vector3d line_offset(const ToolEllipsoid& part, const Eigen::Vector3d& u, int k, int ring_rays,
+                            const double* ring_fraction, double inner_fraction) noexcept {
+  if (k < ring_rays) return shadow_offset(part, u, k, ring_rays, ring_fraction[k % 3]);
+  if (k == ring_rays) return Eigen::Vector3d::Zero();
+  return shadow_offset(part, u, 2 * (k - ring_rays) - 1, 8, inner_fraction);
+}
+
 // The part's outward surface normal at its surface point x (unit).
 Eigen::Vector3d outward_normal(const ToolEllipsoid& part, const Eigen::Vector3d& x) noexcept {
   const Eigen::Matrix3d r = part.rotation.toRotationMatrix();
@@ -103,26 +112,33 @@ double SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& from, const Eige
                                     bool leaving) noexcept {
   Ring& g = rings_[std::size_t(j)];
   if (!(g.axis.dot(u) >= kRingAxisCos)) forget_ring(j, u);
-  const int k = g.next;
-  g.next = (g.next + 1) % kRingRays;
-  // The line through the part's shadow, read from the part's front over it (or as far behind it
-  // as the part may have gone past a rim since the line was last read, unless it is leaving).
-  const Eigen::Vector3d p = from.center + shadow_offset(from, u, k, kRingRays, kRingFraction[k % 3]);
-  const Eigen::Vector3d front = p + exit_along(from, p, u) * u;
   const double look = kRingLook * middle_[std::size_t(j)];
-  const double back = leaving ? 0.0 : -(look + kRingRays * len);
-  const SeenHit hit = solid_->first_inside(front, u, back, 0, len + look, scratch_);
-  g.foot[std::size_t(k)] = front;
-  g.at[std::size_t(k)] = hit.hit ? front.dot(u) + hit.t : kInf;
+  for (const int k : next_lines(g)) {
+    // The line through the part's shadow, read from the part's front over it (or as far behind
+    // it as the part may have gone past a rim since the line was last read, unless it is leaving).
+    const Eigen::Vector3d p = from.center + line_offset(from, u, k, kRingRays, kRingFraction, kInnerFraction);
+    const Eigen::Vector3d front = p + exit_along(from, p, u) * u;
+    const double back = leaving ? 0.0 : -(look + refresh(k) * len);
+    const SeenHit hit = solid_->first_inside(front, u, back, 0, len + look, scratch_);
+    g.foot[std::size_t(k)] = front;
+    g.at[std::size_t(k)] = hit.hit ? front.dot(u) + hit.t : kInf;
+  }
   // A line met later than its refresh allows (a slanted wall met line by line) does not hold:
   // snapping the proxy back would start the contact with a force step.
   double travel = kInf;
-  for (int kk = 0; kk < kRingRays; ++kk) {
+  for (int kk = 0; kk < kReadLines; ++kk) {
     Eigen::Vector3d at;
     const double gap = ring_gap(from, j, kk, u, at);
-    if (gap <= len && gap >= -(kRingRays * len + kRingSink * middle_[std::size_t(j)])) travel = std::min(travel, gap);
+    if (gap <= len && gap >= -(refresh(kk) * len + kRingSink * middle_[std::size_t(j)])) travel = std::min(travel, gap);
   }
   return travel;
+}
+
+std::array<int, 2> SeenCompoundProxy::next_lines(Ring& g) noexcept {
+  const std::array<int, 2> k{g.next, kRingRays + g.next_inner};
+  g.next = (g.next + 1) % kRingRays;
+  g.next_inner = (g.next_inner + 1) % kInnerRays;
+  return k;
 }
 
 bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept {
@@ -184,23 +200,23 @@ bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Qua
 void SeenCompoundProxy::read_ring(int j, double reach) noexcept {
   Ring& g = rings_[std::size_t(j)];
   if (!(g.axis.dot(axis_) >= kRingAxisCos)) forget_ring(j, axis_);
-  const int k = g.next;
-  g.next = (g.next + 1) % kRingRays;
-  // The line through the resting part's shadow (parts_ posed at the proxy), read from kRingLook
-  // above its front down to `reach` past it (the device's depth), seen from kRingLook above that.
   const ToolEllipsoid& part = parts_[std::size_t(j)];
-  const Eigen::Vector3d p = part.center + shadow_offset(part, axis_, k, kRingRays, kRingFraction[k % 3]);
-  const Eigen::Vector3d front = p + exit_along(part, p, axis_) * axis_;
   const double look = kRingLook * middle_[std::size_t(j)];
-  const SeenHit hit = solid_->first_inside(front, axis_, -2 * look, -look, reach, scratch_);
-  g.foot[std::size_t(k)] = front;
-  g.at[std::size_t(k)] = hit.hit ? front.dot(axis_) + hit.t : kInf;
+  for (const int k : next_lines(g)) {
+    // The line through the resting part's shadow (parts_ posed at the proxy), read from kRingLook
+    // above its front down to `reach` past it (the device's depth), seen from kRingLook above that.
+    const Eigen::Vector3d p = part.center + line_offset(part, axis_, k, kRingRays, kRingFraction, kInnerFraction);
+    const Eigen::Vector3d front = p + exit_along(part, p, axis_) * axis_;
+    const SeenHit hit = solid_->first_inside(front, axis_, -2 * look, -look, reach, scratch_);
+    g.foot[std::size_t(k)] = front;
+    g.at[std::size_t(k)] = hit.hit ? front.dot(axis_) + hit.t : kInf;
+  }
 }
 
 void SeenCompoundProxy::search_edge(int j, int which, int source, const ToolEllipsoid& part) noexcept {
   EdgeSearch& e = edges_[std::size_t(j)][std::size_t(which)];
   Ring& g = rings_[std::size_t(j)];
-  const std::size_t slot = std::size_t(kRingRays + which);
+  const std::size_t slot = std::size_t(kEdgeSlot + which);
   e.source = source;
   g.at[slot] = kInf;
   if (source < 0) return;
@@ -246,7 +262,7 @@ void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllip
   const auto stale = [&](int which) {
     const EdgeSearch& s = e[std::size_t(which)];
     return !holds(which, s.source) ||
-           (!std::isfinite(rings_[std::size_t(j)].at[std::size_t(kRingRays + which)]) && c.gaps[std::size_t(s.source)] < s.tried - retry);
+           (!std::isfinite(rings_[std::size_t(j)].at[std::size_t(kEdgeSlot + which)]) && c.gaps[std::size_t(s.source)] < s.tried - retry);
   };
   if (stale(0)) {
     search_edge(j, 0, c.source, resting);
@@ -265,10 +281,10 @@ void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllip
 double SeenCompoundProxy::edge_gap(const ToolEllipsoid& part, int j, const Eigen::Vector3d& axis,
                                    Eigen::Vector3d& contact) const noexcept {
   const Ring& g = rings_[std::size_t(j)];
-  const double at1 = g.at[kRingRays], at2 = g.at[kRingRays + 1];
+  const double at1 = g.at[kEdgeSlot], at2 = g.at[kEdgeSlot + 1];
   if (!(g.axis.dot(axis) >= kRingAxisCos) || !std::isfinite(at1) || !std::isfinite(at2)) return kInf;
-  const Eigen::Vector3d& p1 = g.foot[kRingRays];
-  Eigen::Vector3d e = g.foot[kRingRays + 1] - p1;
+  const Eigen::Vector3d& p1 = g.foot[kEdgeSlot];
+  Eigen::Vector3d e = g.foot[kEdgeSlot + 1] - p1;
   e -= e.dot(axis) * axis;
   const double span = e.norm();
   if (!(span > kEdgeSpan * middle_[std::size_t(j)])) return kInf;
@@ -298,12 +314,15 @@ double SeenCompoundProxy::edge_gap(const ToolEllipsoid& part, int j, const Eigen
 SeenCompoundProxy::LineChoice SeenCompoundProxy::nearest_line(int j, const ToolEllipsoid& resting) const noexcept {
   const std::size_t k = std::size_t(j);
   LineChoice c;
-  for (int r = 0; r < kRingRays + 2; ++r) {
+  const auto line_gap = [&](int r) {
     Eigen::Vector3d front;
     c.gaps[std::size_t(r)] = kInf;
-    if (!(ring_gap(resting, j, r, axis_, front) >= -kRingSink * middle_[k])) continue;
-    const double gap = ring_gap(parts_[k], j, r, axis_, front);
-    c.gaps[std::size_t(r)] = gap;
+    if (!(ring_gap(resting, j, r, axis_, front) >= -kRingSink * middle_[k])) return kInf;
+    return c.gaps[std::size_t(r)] = ring_gap(parts_[k], j, r, axis_, front);
+  };
+  for (int r = 0; r < kLines; ++r) {
+    if (r >= kRingRays && r < kReadLines) continue;  // the inner lines: below
+    const double gap = line_gap(r);
     if (gap < c.gap) c.gap = gap, c.line = r;
     if (r < kRingRays && gap < c.nearest) c.nearest = gap, c.source = r;
   }
@@ -311,6 +330,14 @@ SeenCompoundProxy::LineChoice SeenCompoundProxy::nearest_line(int j, const ToolE
   if (edge_gap(resting, j, axis_, contact) >= -kRingSink * middle_[k]) {
     const double gap = edge_gap(parts_[k], j, axis_, contact);
     if (gap < c.gap) c.gap = gap, c.line = kEdgeLine;
+  }
+  // An inner line holds the part only where it meets a surface the ring and the edge do not (a
+  // thin feature under the middle): nearer than all of them by the contact band. On a face or an
+  // edge they agree with the ring, and the ring's edge search places the part.
+  const double band = kContactBand * min_axis_;
+  for (int r = kRingRays; r < kReadLines; ++r) {
+    const double gap = line_gap(r);
+    if (gap < c.gap - band) c.gap = gap, c.line = r;
   }
   return c;
 }

@@ -18,16 +18,17 @@
 ///    depth; the proxy backs off along -a by the deepest part's depth past its surface (a rigid
 ///    body on a height field: every part on or above the seen surface under it). When no part
 ///    reaches the surface, the device has come out and the contact ends.
-/// 3. The parts' footprints: beside the ray through its leading point, each part reads twelve
-///    rays parallel to the push through its shadow (at 0.5, 0.7 and 0.85 of the shadow ellipse's
-///    radius, 30 degrees apart; one ray a part a tick, free and in contact), each a line with
-///    the seen surface's place on it. Where the part's front over such a line reaches that surface
+/// 3. The parts' footprints: beside the ray through its leading point, each part reads seventeen
+///    rays parallel to the push through its shadow, a ring of twelve (at 0.5, 0.7 and 0.85 of the
+///    shadow ellipse's radius, 30 degrees apart) and five inner ones (the centre, and four at 0.3
+///    of the radius: a thin feature under the middle of a long part), one ring ray and one inner
+///    ray a part a tick, free and in contact, each a line with the seen surface's place on it. Where the part's front over such a line reaches that surface
 ///    it holds the part as its leading point's ray does, so a part whose leading point hangs past
 ///    an edge rests on the edge (a stylus lying across a cube's edge), and a free part meets an
 ///    edge on its side. A line whose surface lies deeper than half the part's middle semi-axis
 ///    under the part's front is one the part went past between its readings (a wall beside it):
 ///    it does not hold.
-///    Where a footprint line holds a part, one more line a tick bisects between it and the
+///    Where a ring line holds a part, one more line a tick bisects between it and the
 ///    leading point's line, so that the part rests on the edge itself and its normal is taken
 ///    there (six steps: to 1/64 of the distance).
 /// 4. Wrench: the virtual coupling (Colgate, Stanley and Brown 1995) F = max(0, k e . n - b v . n) n,
@@ -90,18 +91,30 @@ class SeenCompoundProxy {
  private:
   static constexpr int kRingRays = 12;
   static constexpr double kRingFraction[3] = {0.5, 0.7, 0.85};  // of the shadow's radius
+  // Inner lines: the shadow's centre and four at kInnerFraction of its radius, 45 degrees off
+  // the ring's, read one a tick beside the ring's (their own turn, so the ring's refresh, which
+  // the edge search leans on, stays kRingRays ticks), never an edge search's start.
+  static constexpr int kInnerRays = 5;
+  static constexpr double kInnerFraction = 0.3;
+  static constexpr int kReadLines = kRingRays + kInnerRays;
+  static constexpr int kEdgeSlot = kReadLines;  // the edge searches' two lines (search_edge)
+  static constexpr int kLines = kReadLines + 2;
   static constexpr double kRingLook = 1.0;      // middle semi-axes: rays look this far behind the front
   static constexpr double kRingSink = 0.5;      // middle semi-axes: a surface deeper under the front does not hold
   static constexpr double kRingAxisCos = 0.9986;  // cos 3 deg: a chord turning more forgets the footprint
   // One part's footprint: lines parallel to `axis`, each through `foot`, with the seen surface's
   // coordinate along the axis on it (`at`; +inf: none found).
-  // Lines kRingRays and kRingRays + 1 are the edge searches' (search_edge).
+  // Lines [0, kRingRays) are the ring, then the inner lines, then the edge searches' two.
   struct Ring {
     Eigen::Vector3d axis = Eigen::Vector3d::Zero();
-    std::array<Eigen::Vector3d, kRingRays + 2> foot{};
-    std::array<double, kRingRays + 2> at{};
-    int next = 0;
+    std::array<Eigen::Vector3d, kLines> foot{};
+    std::array<double, kLines> at{};
+    int next = 0, next_inner = 0;  // the ring's and the inner lines' next to read
   };
+  // The two lines (slots) to read this tick, the ring's and an inner one; advances their turns.
+  static std::array<int, 2> next_lines(Ring& g) noexcept;
+  // How many ticks apart footprint line k is read.
+  static constexpr int refresh(int k) noexcept { return k < kRingRays ? kRingRays : kInnerRays; }
   // A search for the edge a part rests on by its footprint: bisection between a holding
   // footprint line (its surface under the part) and the part's leading point's line (none), both
   // points across the axis, kEdgeSteps lines at once; the last line that met the surface is the
@@ -109,7 +122,7 @@ class SeenCompoundProxy {
   // around the shadow, give the edge's direction, and the part rests on the edge at its own
   // tangent point there (edge_gap).
   static constexpr int kEdgeSteps = 6;
-  static constexpr int kEdgeLine = kRingRays + 2;  // Hold::line of a part resting on the edge's tangent point
+  static constexpr int kEdgeLine = kLines;  // Hold::line of a part resting on the edge's tangent point
   static constexpr double kEdgeSpan = 0.2;  // middle semi-axes: two edge lines closer give no direction
   struct EdgeSearch {
     int source = -1;  // the footprint line it started from (-1: none)
@@ -123,7 +136,7 @@ class SeenCompoundProxy {
     double gap = std::numeric_limits<double>::infinity();
     double nearest = std::numeric_limits<double>::infinity();
     int source = -1;
-    std::array<double, kRingRays + 2> gaps{};
+    std::array<double, kLines> gaps{};
   };
   [[nodiscard]] static bool apart(int r1, int r2) noexcept {  // 60 degrees or more around the shadow
     if (r1 < 0 || r2 < 0) return true;
