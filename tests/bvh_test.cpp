@@ -16,6 +16,27 @@ bool overlaps(const Eigen::Vector3d& alo, const Eigen::Vector3d& ahi, const Eige
   return (alo.array() <= bhi.array()).all() && (blo.array() <= ahi.array()).all();
 }
 
+// The first box overlapping the query box c +- h that the BVH's leaves do not report (-1: none);
+// adds the overlapping boxes to `hits`.
+int missed(const Bvh& bvh, const std::vector<Eigen::Vector3d>& lo, const std::vector<Eigen::Vector3d>& hi,
+           const Eigen::Vector3d& c, const Eigen::Vector3d& h, int* hits = nullptr) {
+  float qlo[3], qhi[3];
+  for (int k = 0; k < 3; ++k) {
+    qlo[k] = round_down_to_float(c[k] - h[k]);
+    qhi[k] = round_up_to_float(c[k] + h[k]);
+  }
+  std::vector<int> seen(lo.size());
+  bvh.for_each_overlapping_leaf(qlo, qhi, [&](std::uint32_t first, std::uint32_t count) {
+    for (std::uint32_t s = first; s < first + count; ++s) seen[bvh.order()[s]] = 1;
+  });
+  for (std::size_t i = 0; i < lo.size(); ++i)
+    if (overlaps(lo[i], hi[i], c - h, c + h)) {
+      if (hits) ++*hits;
+      if (!seen[i]) return int(i);
+    }
+  return -1;
+}
+
 TEST(Bvh, NoFalseNegativesAgainstBruteForceWithHugeSizeSpread) {
   std::mt19937_64 rng(1);
   std::uniform_real_distribution<double> pos(-100, 100), logsize(-6, 1.3);
@@ -31,23 +52,10 @@ TEST(Bvh, NoFalseNegativesAgainstBruteForceWithHugeSizeSpread) {
   }
   const Bvh bvh = Bvh::build(lo, hi, 4);
   EXPECT_LT(bvh.depth(), Bvh::kMaxDepth);
-  std::vector<int> seen(n);
   for (int q = 0; q < 300; ++q) {
     const Eigen::Vector3d c(pos(rng), pos(rng), pos(rng) * 0.01);
     const Eigen::Vector3d h = Eigen::Vector3d::Constant(std::pow(10.0, logsize(rng)));
-    float qlo[3], qhi[3];
-    for (int k = 0; k < 3; ++k) {
-      qlo[k] = round_down_to_float(c[k] - h[k]);
-      qhi[k] = round_up_to_float(c[k] + h[k]);
-    }
-    std::fill(seen.begin(), seen.end(), 0);
-    bvh.for_each_overlapping_leaf(qlo, qhi, [&](std::uint32_t first, std::uint32_t count) {
-      for (std::uint32_t s = first; s < first + count; ++s) seen[bvh.order()[s]] = 1;
-    });
-    for (int i = 0; i < n; ++i)
-      if (overlaps(lo[std::size_t(i)], hi[std::size_t(i)], c - h, c + h)) {
-        ASSERT_TRUE(seen[std::size_t(i)]) << "query " << q << " missed box " << i;
-      }
+    ASSERT_EQ(missed(bvh, lo, hi, c, h), -1) << "query " << q;
   }
 }
 
@@ -145,25 +153,11 @@ TEST(Bvh, TheSahTreeMissesNoOverlapAndKeepsEveryBoxOnce) {
     for (std::uint32_t s = node.first; node.count > 0 && s < node.first + node.count; ++s) ++count[bvh.order()[s]];
   }
   for (int c : count) ASSERT_EQ(c, 1);
-  std::vector<int> seen(n);
   int hits = 0;
   for (int q = 0; q < 200; ++q) {
     const Eigen::Vector3d c = q % 20 == 0 ? Eigen::Vector3d(3, -2, 0.5) : Eigen::Vector3d(pos(rng), pos(rng), pos(rng) * 0.02);
     const Eigen::Vector3d h = Eigen::Vector3d::Constant(std::pow(10.0, logsize(rng)));
-    float qlo[3], qhi[3];
-    for (int k = 0; k < 3; ++k) {
-      qlo[k] = round_down_to_float(c[k] - h[k]);
-      qhi[k] = round_up_to_float(c[k] + h[k]);
-    }
-    std::fill(seen.begin(), seen.end(), 0);
-    bvh.for_each_overlapping_leaf(qlo, qhi, [&](std::uint32_t first, std::uint32_t count) {
-      for (std::uint32_t s = first; s < first + count; ++s) seen[bvh.order()[s]] = 1;
-    });
-    for (int i = 0; i < n; ++i)
-      if (overlaps(lo[std::size_t(i)], hi[std::size_t(i)], c - h, c + h)) {
-        ++hits;
-        ASSERT_TRUE(seen[std::size_t(i)]) << "query " << q << " missed box " << i;
-      }
+    ASSERT_EQ(missed(bvh, lo, hi, c, h, &hits), -1) << "query " << q;
   }
   EXPECT_GT(hits, 1000);  // the queries do overlap boxes
 }
