@@ -106,7 +106,8 @@ Bvh Bvh::build(std::span<const BvhBox> boxes, int leaf_size, BvhSplit split) {
   // directly follows its parent and the traversal walks mostly forward through memory; a
   // parent learns its right child's index when that child is created.
   auto nodes = std::make_shared<std::vector<BvhNode, internal::HugePageAllocator<BvhNode>>>();
-  nodes->reserve(2 * (2 * n / std::size_t(leaf_size) + 1));  // leaves hold >= leaf/2
+  // (Median leaves hold >= leaf/2; SAH leaves may hold fewer, and the vector then grows.)
+  nodes->reserve(2 * (2 * n / std::size_t(leaf_size) + 1));
   struct Task {
     std::uint32_t begin, end;
     std::uint32_t parent;  // node whose right-child index is this node, or ~0 (left or root)

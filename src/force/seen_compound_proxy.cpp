@@ -34,8 +34,9 @@ Eigen::Vector3d shadow_offset(const ToolEllipsoid& part, const Eigen::Vector3d& 
   return fraction * radial * (d.x() * e1 + d.y() * e2);
 }
 
-// Footprint line k's offset across u from the part's centre: the ring (k < 12: three radii in
-// turn, 30 degrees apart) or the inner lines (the centre, then four 45 degrees off the ring's).
+// Footprint line k's offset across u from the part's centre: the ring (k < ring_rays: three
+// radii in turn, 30 degrees apart) or the inner lines (the centre, then four 45 degrees off the
+// ring's).
 Eigen::Vector3d line_offset(const ToolEllipsoid& part, const Eigen::Vector3d& u, int k, int ring_rays,
                             const double* ring_fraction, double inner_fraction) noexcept {
   if (k < ring_rays) return shadow_offset(part, u, k, ring_rays, ring_fraction[k % 3]);

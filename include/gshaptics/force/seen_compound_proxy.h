@@ -157,14 +157,15 @@ class SeenCompoundProxy {
   // Free: the parts' chords from the last pose to (x, q); true when one meets the seen solid
   // (the contact's axis and eye plane are set).
   bool begin_contact(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
-  // Free: part j's next footprint line along its chord u (its centre `from`, moving `len`), and
-  // how far the part moves before its footprint meets the surface (+inf: not within the chord).
+  // Free: part j's next two footprint lines (next_lines) along its chord u (its centre `from`,
+  // moving `len`), and how far the part moves before its footprint meets the surface (+inf: not
+  // within the chord).
   double free_ring(int j, const ToolEllipsoid& from, const Eigen::Vector3d& u, double len, bool leaving) noexcept;
   // In contact: the proxy along the axis over the goal's place across it, the device's depth;
   // false when no part reaches the surface.
   bool hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal, const Eigen::Quaterniond& q) noexcept;
-  // In contact: part j's next footprint line through its shadow (parts_ posed at the resting
-  // proxy), read from above its front to `reach` past it.
+  // In contact: part j's next two footprint lines (next_lines) through its shadow (parts_ posed
+  // at the resting proxy), read from above its front to `reach` past it.
   void read_ring(int j, double reach) noexcept;
   // Part j's edge search `which` (0, 1) afresh from footprint line `source` (-1: none; dropped),
   // on `part` posed at the resting proxy.
