@@ -38,6 +38,14 @@ float half_area(const float lo[3], const float hi[3]) noexcept {
   return dx * dy + dy * dz + dz * dx;
 }
 
+// The axis along which [clo, chi] is longest.
+int longest_axis(const float clo[3], const float chi[3]) noexcept {
+  int a = 0;
+  for (int k = 1; k < 3; ++k)
+    if (chi[k] - clo[k] > chi[a] - clo[a]) a = k;
+  return a;
+}
+
 // The binned SAH's split of order[begin, end) (Wald 2007), along the longest axis of the
 // centroids' bounds [clo, chi] (centroids as lo + hi): the centroids fall in kBins bins, and the
 // plane between two bins with the least area(left) n(left) + area(right) n(right) wins (binning
@@ -58,9 +66,7 @@ std::uint32_t sah_partition(const BvhBox* b, std::uint32_t* order, std::uint32_t
       }
     }
   };
-  int a = 0;
-  for (int k = 1; k < 3; ++k)
-    if (chi[k] - clo[k] > chi[a] - clo[a]) a = k;
+  const int a = longest_axis(clo, chi);
   if (!(chi[a] > clo[a])) return begin;
   const float scale = kBins / (chi[a] - clo[a]);
   const auto bin_of = [&](const BvhBox& x) { return std::min(kBins - 1, int((x.lo[a] + x.hi[a] - clo[a]) * scale)); };
@@ -155,9 +161,7 @@ Bvh Bvh::build(std::span<const BvhBox> boxes, int leaf_size, BvhSplit split) {
     std::uint32_t mid = t.begin;
     if (split == BvhSplit::kSah && t.depth < kMaxDepth / 2) mid = sah_partition(b, order, t.begin, t.end, clo, chi);
     if (mid == t.begin || mid == t.end) {
-      int axis = 0;
-      for (int a = 1; a < 3; ++a)
-        if (chi[a] - clo[a] > chi[axis] - clo[axis]) axis = a;
+      const int axis = longest_axis(clo, chi);
       mid = t.begin + count / 2;
       std::nth_element(order + t.begin, order + mid, order + t.end, [&](std::uint32_t p, std::uint32_t q) {
         return b[p].lo[axis] + b[p].hi[axis] < b[q].lo[axis] + b[q].hi[axis];
