@@ -1,6 +1,7 @@
 #include "gshaptics/collision/tool_ellipsoid.h"
 #include "gshaptics/collision/ellipsoid_line.h"
 
+#include <Eigen/Cholesky>
 #include <cmath>
 #include <limits>
 
@@ -45,6 +46,30 @@ double exit_along(const ToolEllipsoid& part, const Eigen::Vector3d& p, const Eig
   const double disc = b * b - a * c;
   if (!(disc >= 0)) return std::numeric_limits<double>::quiet_NaN();
   return (-b + std::sqrt(disc)) / a;
+}
+
+ToolShadow shadow_along(const ToolEllipsoid& part, const Eigen::Vector3d& u) noexcept {
+  ToolShadow sh;
+  sh.e1 = u.unitOrthogonal();
+  sh.e2 = u.cross(sh.e1);
+  const Eigen::Matrix3d r = part.rotation.toRotationMatrix();
+  const Eigen::Matrix3d sigma = r * part.semi_axes.cwiseAbs2().asDiagonal() * r.transpose();
+  Eigen::Matrix2d s;
+  s << sh.e1.dot(sigma * sh.e1), sh.e1.dot(sigma * sh.e2), sh.e2.dot(sigma * sh.e1), sh.e2.dot(sigma * sh.e2);
+  sh.l = s.llt().matrixL();
+  return sh;
+}
+
+Eigen::Vector3d ToolShadow::at(const Eigen::Vector2d& disc) const noexcept {
+  const Eigen::Vector2d y = l * disc;
+  return y.x() * e1 + y.y() * e2;
+}
+
+Eigen::Vector3d ToolShadow::boundary(double angle) const noexcept {
+  // Along d, the boundary is L y with y = L^-1 d / |L^-1 d|.
+  const Eigen::Vector2d d(std::cos(angle), std::sin(angle));
+  const Eigen::Vector2d y = l.triangularView<Eigen::Lower>().solve(d);
+  return at(y / y.norm());
 }
 
 }  // namespace gshaptics

@@ -214,24 +214,22 @@ Script press_along(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, cons
 
 // How deep a tool with a shape, posed with its TCP at `tcp`, lies below the seen surface along
 // u: the largest front depth of a part minus the seen depth, over lines along u through the
-// middle of the tool's shadow (per part: the lines through its leading point, its centre and the
-// projections of 48 points of its interior, at 0.3 and 0.6 of its semi-axes, on a Fibonacci
-// sphere), each line seen from its own eye (Viewer). Scene units; > 0: below the seen surface.
-// Nullopt when no line sees a surface. A stylus resting on a ledge with its shaft (its tip above
-// the ground) gives 0, which a measure at its tip alone would count as early. The rim of a part is
-// left out as a sphere's sides are (its measure reads its centre's line): a tip grazing a wall
-// beside it by a tenth of its radius would read as the wall's whole height through.
+// middle of the tool's shadow (per part: the line through its leading point, and 96 lines on a
+// Vogel spiral over its shadow out to kMeasureFraction of its radius, uniform by area, the
+// centre's among them), each line seen from its own eye (Viewer). Scene units; > 0: below the
+// seen surface. Nullopt when no line sees a surface. A stylus resting on a ledge with its shaft
+// (its tip above the ground) gives 0, which a measure at its tip alone would count as early. The
+// rim of a part is left out as a sphere's sides are (its measure reads its centre's line): a tip
+// grazing a wall beside it by a tenth of its radius would read as the wall's whole height through.
+constexpr double kMeasureFraction = 0.6;
 std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& tool, const Eigen::Vector3d& tcp,
                                        const Eigen::Vector3d& origin, const Eigen::Vector3d& u) {
-  constexpr int kSphere = 24;
-  static const std::array<Eigen::Vector3d, 2 * kSphere + 1> interior = [] {  // in a part's unit ball
-    std::array<Eigen::Vector3d, 2 * kSphere + 1> w;
-    w[0].setZero();
-    for (int i = 0; i < kSphere; ++i) {
-      const double z = 1 - (2 * i + 1.0) / kSphere, rho = std::sqrt(1 - z * z), phi = kGoldenAngle * i;
-      const Eigen::Vector3d on(rho * std::cos(phi), rho * std::sin(phi), z);
-      w[std::size_t(1 + 2 * i)] = 0.3 * on;
-      w[std::size_t(2 + 2 * i)] = 0.6 * on;
+  constexpr int kLines = 96;
+  static const std::array<Eigen::Vector2d, kLines> spiral = [] {  // on the unit disc
+    std::array<Eigen::Vector2d, kLines> w;
+    for (int i = 0; i < kLines; ++i) {
+      const double rho = kMeasureFraction * std::sqrt(i / double(kLines - 1)), phi = kGoldenAngle * i;
+      w[std::size_t(i)] = Eigen::Vector2d(rho * std::cos(phi), rho * std::sin(phi));
     }
     return w;
   }();
@@ -247,9 +245,9 @@ std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& to
   };
   for (int k = 0; k < n; ++k) {
     const ToolEllipsoid& e = parts[std::size_t(k)];
-    const Eigen::Matrix3d M = e.rotation.toRotationMatrix() * e.semi_axes.asDiagonal();
-    for (const Eigen::Vector3d& w : interior) {
-      const Eigen::Vector3d p = e.center + M * w;
+    const ToolShadow shadow = shadow_along(e, u);
+    for (const Eigen::Vector2d& w : spiral) {
+      const Eigen::Vector3d p = e.center + shadow.at(w);
       read_line(p, exit_along(e, p, u));
     }
     read_line(e.surface_point(u), 0.0);  // the leading point: its line is tangent there

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 namespace gshaptics {
 
@@ -18,30 +19,21 @@ double middle_semi_axis(const Eigen::Vector3d& semi_axes) noexcept {
   return s[1];
 }
 
-// The point of `part`'s shadow along u (unit) at `fraction` of its radius, 2 pi k / rays around
-// (an offset across u from the part's centre). The shadow is the ellipse y^T S^-1 y <= 1, S the
-// part's covariance projected on the plane across u.
-Eigen::Vector3d shadow_offset(const ToolEllipsoid& part, const Eigen::Vector3d& u, int k, int rays,
-                              double fraction) noexcept {
-  const Eigen::Vector3d e1 = u.unitOrthogonal(), e2 = u.cross(e1);
-  const Eigen::Matrix3d r = part.rotation.toRotationMatrix();
-  const Eigen::Matrix3d sigma = r * part.semi_axes.cwiseAbs2().asDiagonal() * r.transpose();
-  Eigen::Matrix2d s;
-  s << e1.dot(sigma * e1), e1.dot(sigma * e2), e2.dot(sigma * e1), e2.dot(sigma * e2);
-  const double angle = 2 * 3.14159265358979323846 * k / rays;
-  const Eigen::Vector2d d(std::cos(angle), std::sin(angle));
-  const double radial = 1 / std::sqrt(d.dot(s.inverse() * d));
-  return fraction * radial * (d.x() * e1 + d.y() * e2);
+// Ring line k's offset across u from the part's centre: on the shadow's boundary 2 pi k / rays
+// around, scaled by kRingFraction[k % 3].
+Eigen::Vector3d ring_offset(const ToolEllipsoid& part, const Eigen::Vector3d& u, int k, int rays,
+                            const double* ring_fraction) noexcept {
+  return ring_fraction[k % 3] * shadow_along(part, u).boundary(2 * std::numbers::pi * k / rays);
 }
 
-// Footprint line k's offset across u from the part's centre: the ring (k < ring_rays: three
-// radii in turn, 30 degrees apart) or the inner lines (the centre, then four 45 degrees off the
-// ring's).
-Eigen::Vector3d line_offset(const ToolEllipsoid& part, const Eigen::Vector3d& u, int k, int ring_rays,
-                            const double* ring_fraction, double inner_fraction) noexcept {
-  if (k < ring_rays) return shadow_offset(part, u, k, ring_rays, ring_fraction[k % 3]);
-  if (k == ring_rays) return Eigen::Vector3d::Zero();
-  return shadow_offset(part, u, 2 * (k - ring_rays) - 1, 8, inner_fraction);
+// The n-th point of the R2 sequence (Roberts 2018: an additive recurrence by the plastic number's
+// powers) mapped onto the unit disc by area: low-discrepancy, so the first points of any run
+// spread over the whole disc.
+Eigen::Vector2d r2_disc(std::uint32_t n) noexcept {
+  constexpr double kA1 = 0.7548776662466927, kA2 = 0.5698402909980532;  // 1/p, 1/p^2
+  const double u1 = std::fmod(0.5 + kA1 * n, 1.0), u2 = std::fmod(0.5 + kA2 * n, 1.0);
+  const double rho = std::sqrt(u1), angle = 2 * std::numbers::pi * u2;
+  return {rho * std::cos(angle), rho * std::sin(angle)};
 }
 
 // The part's outward surface normal at its surface point x (unit).
@@ -95,6 +87,7 @@ void SeenCompoundProxy::forget_ring(int j, const Eigen::Vector3d& axis) noexcept
   Ring& g = rings_[std::size_t(j)];
   g.axis = axis;
   g.at.fill(kInf);
+  g.stamp.fill(0);
   for (EdgeSearch& e : edges_[std::size_t(j)]) e = EdgeSearch{};
 }
 
@@ -109,37 +102,58 @@ double SeenCompoundProxy::ring_gap(const ToolEllipsoid& part, int j, int k, cons
   return g.at[std::size_t(k)] - front.dot(g.axis);
 }
 
-double SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& from, const Eigen::Vector3d& u, double len,
-                                    bool leaving) noexcept {
+std::array<double, 2> SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& from, const Eigen::Vector3d& u,
+                                                   double len, bool leaving) noexcept {
   Ring& g = rings_[std::size_t(j)];
   if (!(g.axis.dot(u) >= kRingAxisCos)) forget_ring(j, u);
   const double look = kRingLook * middle_[std::size_t(j)];
-  for (const int k : next_lines(g)) {
+  for (const LineRead& line : next_lines(j, from, u)) {
     // The line through the part's shadow, read from the part's front over it (or as far behind
     // it as the part may have gone past a rim since the line was last read, unless it is leaving).
-    const Eigen::Vector3d p = from.center + line_offset(from, u, k, kRingRays, kRingFraction, kInnerFraction);
+    const Eigen::Vector3d p = from.center + line.offset;
     const Eigen::Vector3d front = p + exit_along(from, p, u) * u;
-    const double back = leaving ? 0.0 : -(look + refresh(k) * len);
+    const double back = leaving ? 0.0 : -(look + refresh(line.slot) * len);
     const SeenHit hit = solid_->first_inside(front, u, back, 0, len + look, scratch_);
-    g.foot[std::size_t(k)] = front;
-    g.at[std::size_t(k)] = hit.hit ? front.dot(u) + hit.t : kInf;
+    g.foot[std::size_t(line.slot)] = front;
+    g.at[std::size_t(line.slot)] = hit.hit ? front.dot(u) + hit.t : kInf;
   }
   // A line met later than its refresh allows (a slanted wall met line by line) does not hold:
   // snapping the proxy back would start the contact with a force step.
-  double travel = kInf;
+  std::array<double, 2> travel{kInf, kInf};  // the ring's, the inner lines'
   for (int kk = 0; kk < kReadLines; ++kk) {
     Eigen::Vector3d at;
     const double gap = ring_gap(from, j, kk, u, at);
-    if (gap <= len && gap >= -(refresh(kk) * len + kRingSink * middle_[std::size_t(j)])) travel = std::min(travel, gap);
+    double& t = travel[kk < kRingRays ? 0 : 1];
+    if (gap <= len && gap >= -(refresh(kk) * len + kRingSink * middle_[std::size_t(j)])) t = std::min(t, gap);
   }
   return travel;
 }
 
-std::array<int, 2> SeenCompoundProxy::next_lines(Ring& g) noexcept {
-  const std::array<int, 2> k{g.next, kRingRays + g.next_inner};
+std::array<SeenCompoundProxy::LineRead, 2> SeenCompoundProxy::next_lines(int j, const ToolEllipsoid& part,
+                                                                         const Eigen::Vector3d& u) noexcept {
+  Ring& g = rings_[std::size_t(j)];
+  std::array<LineRead, 2> lines;
+  lines[0] = {g.next, ring_offset(part, u, g.next, kRingRays, kRingFraction)};
   g.next = (g.next + 1) % kRingRays;
-  g.next_inner = (g.next_inner + 1) % kInnerRays;
-  return k;
+  if (g.next_inner == 0) {
+    lines[1] = {kCentreLine, Eigen::Vector3d::Zero()};
+  } else {
+    // The roaming slot that holds least: no surface, one the part is past, or the farthest below
+    // it; of equals, the oldest.
+    int slot = 0;
+    double worst = -kInf;
+    for (int s = 0; s < kRoamLines; ++s) {
+      Eigen::Vector3d front;
+      double gap = ring_gap(part, j, kRoamLine + s, u, front);
+      if (!(gap >= -kRingSink * middle_[std::size_t(j)])) gap = kInf;
+      const bool older = g.stamp[std::size_t(s)] < g.stamp[std::size_t(slot)];
+      if (gap > worst || (gap == worst && older)) worst = gap, slot = s;
+    }
+    g.stamp[std::size_t(slot)] = g.roam;
+    lines[1] = {kRoamLine + slot, shadow_along(part, u).at(kRoamFraction * r2_disc(g.roam++))};
+  }
+  g.next_inner = (g.next_inner + 1) % kInnerTurns;
+  return lines;
 }
 
 bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept {
@@ -169,7 +183,8 @@ bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Qua
       first_u = u;
       first_eye = tip - std::max(0.0, eye - kEyeMargin * min_axis_) * u;
     }
-    double ring = free_ring(j, part, u, len, leaving);
+    const std::array<double, 2> travel = free_ring(j, part, u, len, leaving);
+    double ring = travel[0];
     // Within a middle semi-axis of a surface by its footprint, the edge under it is searched out
     // (update_edges), and the part meets it at its own tangent point, not at whichever footprint
     // line it sinks onto first: a contact found late would start with a force step.
@@ -182,6 +197,9 @@ bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Qua
       const double edge = edge_gap(part, j, u, contact);
       if (edge <= len && edge >= -kRingSink * middle_[std::size_t(j)]) ring = std::min(ring, edge);
     }
+    // An inner line begins a contact only where it would hold the part (nearest_line's rule: the
+    // ring and its edge meet nothing as near, by the contact band).
+    if (c.line >= kRingRays && c.line < kReadLines) ring = std::min(ring, travel[1]);
     if (std::isfinite(ring) && std::max(0.0, ring) / len < first) {
       first = std::max(0.0, ring) / len;
       first_u = u;
@@ -203,14 +221,17 @@ void SeenCompoundProxy::read_ring(int j, double reach) noexcept {
   if (!(g.axis.dot(axis_) >= kRingAxisCos)) forget_ring(j, axis_);
   const ToolEllipsoid& part = parts_[std::size_t(j)];
   const double look = kRingLook * middle_[std::size_t(j)];
-  for (const int k : next_lines(g)) {
+  for (const LineRead& line : next_lines(j, part, axis_)) {
     // The line through the resting part's shadow (parts_ posed at the proxy), read from kRingLook
-    // above its front down to `reach` past it (the device's depth), seen from kRingLook above that.
-    const Eigen::Vector3d p = part.center + line_offset(part, axis_, k, kRingRays, kRingFraction, kInnerFraction);
+    // above its front down to `reach` past it (the device's depth), seen from the contact's eye
+    // plane (at least kRingLook above that): the layers the push came through count, as on the
+    // leading point's ray, so a surface of faint layers is met where a viewer sees it.
+    const Eigen::Vector3d p = part.center + line.offset;
     const Eigen::Vector3d front = p + exit_along(part, p, axis_) * axis_;
-    const SeenHit hit = solid_->first_inside(front, axis_, -2 * look, -look, reach, scratch_);
-    g.foot[std::size_t(k)] = front;
-    g.at[std::size_t(k)] = hit.hit ? front.dot(axis_) + hit.t : kInf;
+    const SeenHit hit = solid_->first_inside(front, axis_, std::min(-2 * look, (eye_ - front).dot(axis_)), -look, reach,
+                                             scratch_);
+    g.foot[std::size_t(line.slot)] = front;
+    g.at[std::size_t(line.slot)] = hit.hit ? front.dot(axis_) + hit.t : kInf;
   }
 }
 

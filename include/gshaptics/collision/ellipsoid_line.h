@@ -1,8 +1,9 @@
 #pragma once
 /// @file
-/// Where a line leaves a tool ellipsoid: the part's front over a line parallel to a push, which
-/// the seen compound proxy's footprints (force/seen_compound_proxy.h) and the seen-felt measure of
-/// a shaped tool (fidelity/seen_felt.h) both read.
+/// Where a line leaves a tool ellipsoid, and where lines parallel to a push pass through its
+/// shadow: the part's front over such a line, which the seen compound proxy's footprints
+/// (force/seen_compound_proxy.h) and the seen-felt measure of a shaped tool (fidelity/seen_felt.h)
+/// both read.
 
 #include <Eigen/Core>
 
@@ -14,5 +15,23 @@ namespace gshaptics {
 /// larger root of |diag(1/a) R^T (p + t u - c)|^2 = 1. NaN when the line misses the part.
 /// Never allocates, locks, logs or throws.
 [[nodiscard]] double exit_along(const ToolEllipsoid& part, const Eigen::Vector3d& p, const Eigen::Vector3d& u) noexcept;
+
+/// A tool part's shadow along a push u (unit; world frame): the ellipse {L y : |y| <= 1} on the
+/// plane across u (basis e1 = u.unitOrthogonal(), e2 = u x e1), L L^T the part's covariance
+/// R diag(a^2) R^T projected on that plane (m^2). Points are offsets across u from the part's
+/// centre (m). Never allocates, locks, logs or throws.
+struct ToolShadow {
+  Eigen::Vector3d e1 = Eigen::Vector3d::UnitX(), e2 = Eigen::Vector3d::UnitY();
+  Eigen::Matrix2d l = Eigen::Matrix2d::Zero();  ///< lower-triangular Cholesky factor
+
+  /// The point the unit disc's point `disc` (|disc| <= 1) maps to: the map is affine, so points
+  /// uniform on the disc are uniform on the shadow.
+  [[nodiscard]] Eigen::Vector3d at(const Eigen::Vector2d& disc) const noexcept;
+  /// The shadow's boundary point in the direction cos(angle) e1 + sin(angle) e2 (rad).
+  [[nodiscard]] Eigen::Vector3d boundary(double angle) const noexcept;
+};
+
+/// `part`'s shadow along u (unit). Never allocates, locks, logs or throws.
+[[nodiscard]] ToolShadow shadow_along(const ToolEllipsoid& part, const Eigen::Vector3d& u) noexcept;
 
 }  // namespace gshaptics

@@ -18,11 +18,16 @@
 ///    depth; the proxy backs off along -a by the deepest part's depth past its surface (a rigid
 ///    body on a height field: every part on or above the seen surface under it). When no part
 ///    reaches the surface, the device has come out and the contact ends.
-/// 3. The parts' footprints: beside the ray through its leading point, each part reads seventeen
-///    rays parallel to the push through its shadow, a ring of twelve (at 0.5, 0.7 and 0.85 of the
-///    shadow ellipse's radius, 30 degrees apart) and five inner ones (the centre, and four at 0.3
-///    of the radius: a thin feature under the middle of a long part), one ring ray and one inner
-///    ray a part a tick, free and in contact, each a line with the seen surface's place on it. Where the part's front over such a line reaches that surface
+/// 3. The parts' footprints: beside the ray through its leading point, each part reads rays
+///    parallel to the push through its shadow: a ring of twelve (at 0.5, 0.7 and 0.85 of the
+///    shadow ellipse's radius, 30 degrees apart), its centre, and roaming rays that sample the
+///    shadow's middle (to 0.6 of its radius) in turn (a low-discrepancy sequence; six kept, those
+///    that hold), one ring ray
+///    and one inner ray a part a tick, free and in contact, each a line with the seen surface's
+///    place on it: a thin feature anywhere under a long part is met, not only on the ring. In
+///    contact the lines are seen from the contact's eye plane, as the leading point's ray is (a
+///    surface of faint layers is met where a viewer sees it). Where
+///    the part's front over such a line reaches that surface
 ///    it holds the part as its leading point's ray does, so a part whose leading point hangs past
 ///    an edge rests on the edge (a stylus lying across a cube's edge), and a free part meets an
 ///    edge on its side. A line whose surface lies deeper than half the part's middle semi-axis
@@ -55,6 +60,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
+#include <cstdint>
 #include <limits>
 
 #include "gshaptics/collision/compound_tool.h"
@@ -91,12 +97,20 @@ class SeenCompoundProxy {
  private:
   static constexpr int kRingRays = 12;
   static constexpr double kRingFraction[3] = {0.5, 0.7, 0.85};  // of the shadow's radius
-  // Inner lines: the shadow's centre and four at kInnerFraction of its radius, 45 degrees off
-  // the ring's, read one a tick beside the ring's (their own turn, so the ring's refresh, which
-  // the edge search leans on, stays kRingRays ticks), never an edge search's start.
-  static constexpr int kInnerRays = 5;
-  static constexpr double kInnerFraction = 0.3;
-  static constexpr int kReadLines = kRingRays + kInnerRays;
+  // Inner lines, read one a tick beside the ring's (their own turn, so the ring's refresh, which
+  // the edge search leans on, stays kRingRays ticks), never an edge search's start: the shadow's
+  // centre one turn in kInnerTurns, and roaming lines the others. A roaming line is placed by a
+  // low-discrepancy sequence over the whole shadow (the R2 sequence, Roberts 2018, mapped onto
+  // the ellipse by area, out to kRoamFraction of its radius), so a thin feature anywhere under the
+  // part is met within a few dozen readings, and is written into the roaming slot that holds
+  // least (a feature found stays in memory while the part is over it). The ring covers the rim.
+  static constexpr int kInnerTurns = 4;
+  static constexpr int kRoamLines = 6;
+  static constexpr double kRoamFraction = 0.6;
+  static constexpr int kRoamRefresh = 16;  // ticks: the part's travel a roaming line allows for, as refresh()
+  static constexpr int kCentreLine = kRingRays;
+  static constexpr int kRoamLine = kCentreLine + 1;  // the first roaming slot
+  static constexpr int kReadLines = kRoamLine + kRoamLines;
   static constexpr int kEdgeSlot = kReadLines;  // the edge searches' two lines (search_edge)
   static constexpr int kLines = kReadLines + 2;
   static constexpr double kRingLook = 1.0;      // middle semi-axes: rays look this far behind the front
@@ -104,17 +118,28 @@ class SeenCompoundProxy {
   static constexpr double kRingAxisCos = 0.9986;  // cos 3 deg: a chord turning more forgets the footprint
   // One part's footprint: lines parallel to `axis`, each through `foot`, with the seen surface's
   // coordinate along the axis on it (`at`; +inf: none found).
-  // Lines [0, kRingRays) are the ring, then the inner lines, then the edge searches' two.
+  // Lines [0, kRingRays) are the ring, then the centre, the roaming lines, and the edge searches' two.
   struct Ring {
     Eigen::Vector3d axis = Eigen::Vector3d::Zero();
     std::array<Eigen::Vector3d, kLines> foot{};
     std::array<double, kLines> at{};
-    int next = 0, next_inner = 0;  // the ring's and the inner lines' next to read
+    std::array<std::uint32_t, kRoamLines> stamp{};  // the roaming slots' readings, by `roam`
+    int next = 0, next_inner = 0;  // the ring's next line, and the inner turn
+    std::uint32_t roam = 0;        // the roaming sequence's next index
   };
-  // The two lines (slots) to read this tick, the ring's and an inner one; advances their turns.
-  static std::array<int, 2> next_lines(Ring& g) noexcept;
-  // How many ticks apart footprint line k is read.
-  static constexpr int refresh(int k) noexcept { return k < kRingRays ? kRingRays : kInnerRays; }
+  // A footprint line to read: its slot, and its offset across the axis from the part's centre.
+  struct LineRead {
+    int slot = 0;
+    Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+  };
+  // The two lines part j (posed as `part`, its footprint along u) reads this tick: the ring's
+  // next, and the centre or a roaming line (into the roaming slot that holds least on `part`).
+  // Advances the turns.
+  std::array<LineRead, 2> next_lines(int j, const ToolEllipsoid& part, const Eigen::Vector3d& u) noexcept;
+  // How many ticks apart footprint line k is read (a roaming line: the travel it allows for).
+  static constexpr int refresh(int k) noexcept {
+    return k < kRingRays ? kRingRays : k == kCentreLine ? kInnerTurns : kRoamRefresh;
+  }
   // A search for the edge a part rests on by its footprint: bisection between a holding
   // footprint line (its surface under the part) and the part's leading point's line (none), both
   // points across the axis, kEdgeSteps lines at once; the last line that met the surface is the
@@ -159,8 +184,9 @@ class SeenCompoundProxy {
   bool begin_contact(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
   // Free: part j's next two footprint lines (next_lines) along its chord u (its centre `from`,
   // moving `len`), and how far the part moves before its footprint meets the surface (+inf: not
-  // within the chord).
-  double free_ring(int j, const ToolEllipsoid& from, const Eigen::Vector3d& u, double len, bool leaving) noexcept;
+  // within the chord): by the ring's lines, and by the inner lines.
+  std::array<double, 2> free_ring(int j, const ToolEllipsoid& from, const Eigen::Vector3d& u, double len,
+                                  bool leaving) noexcept;
   // In contact: the proxy along the axis over the goal's place across it, the device's depth;
   // false when no part reaches the surface.
   bool hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal, const Eigen::Quaterniond& q) noexcept;
