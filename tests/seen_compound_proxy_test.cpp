@@ -262,7 +262,7 @@ TEST(SeenCompoundProxy, APostAnywhereUnderAPartHoldsIt) {
   std::array<ToolEllipsoid, kMaxToolParts> parts{};
   stylus.posed(Eigen::Vector3d::Zero(), q, parts);
   const Eigen::Vector3d down = -Eigen::Vector3d::UnitZ();
-  for (const Eigen::Vector2d post : {Eigen::Vector2d(0.0042, 0.0013), Eigen::Vector2d(-0.0045, -0.0012),
+  for (const Eigen::Vector2d& post : {Eigen::Vector2d(0.0042, 0.0013), Eigen::Vector2d(-0.0045, -0.0012),
                                      Eigen::Vector2d(0.0016, -0.0020)}) {
     // The TCP placed so that the second part's centre is over the origin, and its underside over
     // the post (post offset from its centre) 5 mm above the post's top (z = 0).

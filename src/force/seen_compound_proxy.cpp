@@ -102,20 +102,32 @@ double SeenCompoundProxy::ring_gap(const ToolEllipsoid& part, int j, int k, cons
   return g.at[std::size_t(k)] - front.dot(g.axis);
 }
 
+double SeenCompoundProxy::line_surface(int j, const Eigen::Vector3d& front, const Eigen::Vector3d& u, double back,
+                                       double ahead) noexcept {
+  double eye = 0;
+  const SeenHit hit = solid_->push(front - back * u, u, 0, params_.seen_window * middle_[std::size_t(j)], back + ahead,
+                                   false, eye, scratch_);
+  return hit.hit ? front.dot(u) - back + hit.t : kInf;
+}
+
 std::array<double, 2> SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& from, const Eigen::Vector3d& u,
                                                    double len, bool leaving) noexcept {
   Ring& g = rings_[std::size_t(j)];
   if (!(g.axis.dot(u) >= kRingAxisCos)) forget_ring(j, u);
   const double look = kRingLook * middle_[std::size_t(j)];
   for (const LineRead& line : next_lines(j, from, u)) {
-    // The line through the part's shadow, read from the part's front over it (or as far behind
-    // it as the part may have gone past a rim since the line was last read, unless it is leaving).
+    // The line through the part's shadow, read from as far behind the part's front as the part
+    // may have gone past a rim since the line was last read (from the front itself when it is
+    // leaving: the surface it lifts off from does not count).
     const Eigen::Vector3d p = from.center + line.offset;
     const Eigen::Vector3d front = p + exit_along(from, p, u) * u;
-    const double back = leaving ? 0.0 : -(look + refresh(line.slot) * len);
-    const SeenHit hit = solid_->first_inside(front, u, back, 0, len + look, scratch_);
     g.foot[std::size_t(line.slot)] = front;
-    g.at[std::size_t(line.slot)] = hit.hit ? front.dot(u) + hit.t : kInf;
+    if (leaving) {
+      const SeenHit hit = solid_->first_inside(front, u, 0, 0, len + look, scratch_);
+      g.at[std::size_t(line.slot)] = hit.hit ? front.dot(u) + hit.t : kInf;
+    } else {
+      g.at[std::size_t(line.slot)] = line_surface(j, front, u, look + refresh(line.slot) * len, len + look);
+    }
   }
   // A line met later than its refresh allows (a slanted wall met line by line) does not hold:
   // snapping the proxy back would start the contact with a force step.
@@ -222,16 +234,12 @@ void SeenCompoundProxy::read_ring(int j, double reach) noexcept {
   const ToolEllipsoid& part = parts_[std::size_t(j)];
   const double look = kRingLook * middle_[std::size_t(j)];
   for (const LineRead& line : next_lines(j, part, axis_)) {
-    // The line through the resting part's shadow (parts_ posed at the proxy), read from kRingLook
-    // above its front down to `reach` past it (the device's depth), seen from the contact's eye
-    // plane (at least kRingLook above that): the layers the push came through count, as on the
-    // leading point's ray, so a surface of faint layers is met where a viewer sees it.
+    // The line through the resting part's shadow (parts_ posed at the proxy), read from two
+    // kRingLook above its front down to `reach` past it (the device's depth).
     const Eigen::Vector3d p = part.center + line.offset;
     const Eigen::Vector3d front = p + exit_along(part, p, axis_) * axis_;
-    const SeenHit hit = solid_->first_inside(front, axis_, std::min(-2 * look, (eye_ - front).dot(axis_)), -look, reach,
-                                             scratch_);
     g.foot[std::size_t(line.slot)] = front;
-    g.at[std::size_t(line.slot)] = hit.hit ? front.dot(axis_) + hit.t : kInf;
+    g.at[std::size_t(line.slot)] = line_surface(j, front, axis_, 2 * look, reach);
   }
 }
 
@@ -496,6 +504,9 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   const Eigen::Vector3d device_step = position - last_device_;
   last_device_ = position;
   const bool was_in_contact = in_contact_;
+  // (The last contact's normal, which says whether the tool is leaving a surface, stays while a
+  // contact that begins fails at once.)
+  const Eigen::Vector3d last_normal = normal_;
   if (!in_contact_) in_contact_ = begin_contact(position, q);
   const Eigen::Vector3d before = x_;
   if (in_contact_) {
@@ -505,6 +516,7 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   q_ = q;
   Eigen::Vector3d target, lever_point;
   if (!in_contact_ || !contact(target, lever_point, normal_)) {
+    if (!was_in_contact) normal_ = last_normal;
     x_ = position;
     pose(x_, q_);
     release();

@@ -24,9 +24,9 @@
 ///    shadow's middle (to 0.6 of its radius) in turn (a low-discrepancy sequence; six kept, those
 ///    that hold), one ring ray
 ///    and one inner ray a part a tick, free and in contact, each a line with the seen surface's
-///    place on it: a thin feature anywhere under a long part is met, not only on the ring. In
-///    contact the lines are seen from the contact's eye plane, as the leading point's ray is (a
-///    surface of faint layers is met where a viewer sees it). Where
+///    place on it: a thin feature anywhere under a long part is met, not only on the ring. Each
+///    line is seen from its own eye, as far behind as it is still seen from, as the leading
+///    point's ray is (a surface of faint layers is met where a viewer sees it). Where
 ///    the part's front over such a line reaches that surface
 ///    it holds the part as its leading point's ray does, so a part whose leading point hangs past
 ///    an edge rests on the edge (a stylus lying across a cube's edge), and a free part meets an
@@ -182,6 +182,12 @@ class SeenCompoundProxy {
   // Free: the parts' chords from the last pose to (x, q); true when one meets the seen solid
   // (the contact's axis and eye plane are set).
   bool begin_contact(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept;
+  // The seen surface's place along u (unit) on the line through `front`, read from `back` behind
+  // it to `ahead` past it, seen from the line's own eye: as far behind as the line is still seen
+  // from (SeenSolid::push; at most seen_window of part j's middle semi-axes), so the faint layers
+  // a viewer composites in front of it count, while a surface behind the eye (an overhang above
+  // the part) does not. +inf: none.
+  double line_surface(int j, const Eigen::Vector3d& front, const Eigen::Vector3d& u, double back, double ahead) noexcept;
   // Free: part j's next two footprint lines (next_lines) along its chord u (its centre `from`,
   // moving `len`), and how far the part moves before its footprint meets the surface (+inf: not
   // within the chord): by the ring's lines, and by the inner lines.
