@@ -215,20 +215,24 @@ Script press_along(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, cons
 // How deep a tool with a shape, posed with its TCP at `tcp`, lies below the seen surface along
 // u: the largest front depth of a part minus the seen depth, over lines along u through the
 // middle of the tool's shadow (per part: the line through its leading point, and 96 lines on a
-// Vogel spiral over its shadow out to kMeasureFraction of its radius, uniform by area, the
+// Vogel spiral over its shadow out to `fraction` of its radius, uniform by area, the
 // centre's among them), each line seen from its own eye (Viewer). Scene units; > 0: below the
 // seen surface. Nullopt when no line sees a surface. A stylus resting on a ledge with its shaft
 // (its tip above the ground) gives 0, which a measure at its tip alone would count as early. The
 // rim of a part is left out as a sphere's sides are (its measure reads its centre's line): a tip
 // grazing a wall beside it by a tenth of its radius would read as the wall's whole height through.
-constexpr double kMeasureFraction = 0.6;
+// The onset reads the whole shadow (kOnsetFraction: short of the rim itself, where a line is
+// tangent to the part): a force is early only when no point of the tool touches what the eye sees,
+// and a disc's or a stylus's rim landing on a surface beside the ray is a touch.
+constexpr double kMeasureFraction = 0.6, kOnsetFraction = 0.97;
 std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& tool, const Eigen::Vector3d& tcp,
-                                       const Eigen::Vector3d& origin, const Eigen::Vector3d& u) {
+                                       const Eigen::Vector3d& origin, const Eigen::Vector3d& u,
+                                       double fraction = kMeasureFraction) {
   constexpr int kLines = 96;
   static const std::array<Eigen::Vector2d, kLines> spiral = [] {  // on the unit disc
     std::array<Eigen::Vector2d, kLines> w;
     for (int i = 0; i < kLines; ++i) {
-      const double rho = kMeasureFraction * std::sqrt(i / double(kLines - 1)), phi = kGoldenAngle * i;
+      const double rho = std::sqrt(i / double(kLines - 1)), phi = kGoldenAngle * i;
       w[std::size_t(i)] = Eigen::Vector2d(rho * std::cos(phi), rho * std::sin(phi));
     }
     return w;
@@ -247,7 +251,7 @@ std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& to
     const ToolEllipsoid& e = parts[std::size_t(k)];
     const ToolShadow shadow = shadow_along(e, u);
     for (const Eigen::Vector2d& w : spiral) {
-      const Eigen::Vector3d p = e.center + shadow.at(w);
+      const Eigen::Vector3d p = e.center + shadow.at(fraction * w);
       read_line(p, exit_along(e, p, u));
     }
     read_line(e.surface_point(u), 0.0);  // the leading point: its line is tangent there
@@ -294,7 +298,7 @@ bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit
     if (std::isnan(ray.onset_minus_seen) && f >= o.force_threshold) {  // against the ray's own seen depth
       const Eigen::Vector3d& tcp = script.ticks[i].position;
       const std::optional<double> below =
-          tool.tool.count > 0 ? depth_below_seen(seen, tool, tcp, ray.origin, ray.dir) : std::nullopt;
+          tool.tool.count > 0 ? depth_below_seen(seen, tool, tcp, ray.origin, ray.dir, kOnsetFraction) : std::nullopt;
       ray.onset_minus_seen = (below ? *below : (tcp + tool.lead - ray.origin).dot(ray.dir) - hit.depth) / r;
     }
     us.push_back(trace.render_us[i]);

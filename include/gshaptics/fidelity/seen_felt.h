@@ -30,7 +30,10 @@
 /// Its depth against the seen surface is the deepest over lines along the ray through the middle
 /// of each part's shadow (the inner 60 %; each line seen from its own eye), not the line through
 /// its leading point alone: a stylus
-/// whose shaft rests on a ledge, its tip in the air, is felt at the seen surface, not early.
+/// whose shaft rests on a ledge, its tip in the air, is felt at the seen surface, not early. Its
+/// onset reads its whole shadow (to 0.97 of each part's radius): a force is early only when no
+/// point of the tool touches what the eye sees (a disc's rim landing on a surface beside the ray
+/// is a touch).
 /// Rays whose tool starts with a part within R/4 of the seen surface, or below it (its shaft in a
 /// wall beside the ray), are dropped as caught.
 ///
