@@ -223,11 +223,18 @@ Script press_along(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, cons
 // grazing a wall beside it by a tenth of its radius would read as the wall's whole height through.
 // The onset reads the whole shadow (kOnsetFraction: short of the rim itself, where a line is
 // tangent to the part): a force is early only when no point of the tool touches what the eye sees,
-// and a disc's or a stylus's rim landing on a surface beside the ray is a touch.
+// and a disc's or a stylus's rim landing on a surface beside the ray is a touch. Of those lines it
+// counts only the ones the tool started at least kStartClearance R above (LineSet::came): one it
+// started past lies beside a wall, or behind what the eye sees before the ray's start.
 constexpr double kMeasureFraction = 0.6, kOnsetFraction = 0.97;
+struct LineSet {
+  double fraction = kMeasureFraction;  // of each part's shadow radius
+  double came = NAN;                   // how far the tool has come along u since its start (NaN: every line)
+  double clearance = 0;                // how far above its seen surface the tool must have started on a line
+};
 std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& tool, const Eigen::Vector3d& tcp,
                                        const Eigen::Vector3d& origin, const Eigen::Vector3d& u,
-                                       double fraction = kMeasureFraction) {
+                                       const LineSet& lines = {}) {
   constexpr int kLines = 96;
   static const std::array<Eigen::Vector2d, kLines> spiral = [] {  // on the unit disc
     std::array<Eigen::Vector2d, kLines> w;
@@ -245,13 +252,15 @@ std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& to
     const Eigen::Vector3d q = p - (p - origin).dot(u) * u;  // the line's eye, on the plane through origin
     const double front = exit + (p - q).dot(u);             // the part's leading crossing, from q
     const SeenDepth sd = seen.median_depth(q, u);
-    if (sd.hit && !std::isnan(front)) deepest = std::max(deepest.value_or(-INFINITY), front - sd.depth);
+    if (!sd.hit || std::isnan(front)) return;
+    if (!std::isnan(lines.came) && !(front - lines.came - sd.depth <= -lines.clearance)) return;
+    deepest = std::max(deepest.value_or(-INFINITY), front - sd.depth);
   };
   for (int k = 0; k < n; ++k) {
     const ToolEllipsoid& e = parts[std::size_t(k)];
     const ToolShadow shadow = shadow_along(e, u);
     for (const Eigen::Vector2d& w : spiral) {
-      const Eigen::Vector3d p = e.center + shadow.at(fraction * w);
+      const Eigen::Vector3d p = e.center + shadow.at(lines.fraction * w);
       read_line(p, exit_along(e, p, u));
     }
     read_line(e.surface_point(u), 0.0);  // the leading point: its line is tangent there
@@ -297,8 +306,9 @@ bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit
     ray.peak_force = std::max(ray.peak_force, f);
     if (std::isnan(ray.onset_minus_seen) && f >= o.force_threshold) {  // against the ray's own seen depth
       const Eigen::Vector3d& tcp = script.ticks[i].position;
+      const LineSet whole{kOnsetFraction, (tcp - script.ticks.front().position).dot(ray.dir), kStartClearance * r};
       const std::optional<double> below =
-          tool.tool.count > 0 ? depth_below_seen(seen, tool, tcp, ray.origin, ray.dir, kOnsetFraction) : std::nullopt;
+          tool.tool.count > 0 ? depth_below_seen(seen, tool, tcp, ray.origin, ray.dir, whole) : std::nullopt;
       ray.onset_minus_seen = (below ? *below : (tcp + tool.lead - ray.origin).dot(ray.dir) - hit.depth) / r;
     }
     us.push_back(trace.render_us[i]);
