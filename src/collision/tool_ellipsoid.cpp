@@ -38,14 +38,22 @@ double ToolEllipsoid::inner_clearance(const Eigen::Vector3d& p) const noexcept {
   return rho < 1.0 ? (1.0 - rho) * semi_axes.minCoeff() : 0.0;
 }
 
-double exit_along(const ToolEllipsoid& part, const Eigen::Vector3d& p, const Eigen::Vector3d& u) noexcept {
-  const Eigen::Matrix3d rt = part.rotation.toRotationMatrix().transpose();
-  const Eigen::Vector3d wo = (rt * (p - part.center)).cwiseQuotient(part.semi_axes);
-  const Eigen::Vector3d wu = (rt * u).cwiseQuotient(part.semi_axes);
-  const double a = wu.squaredNorm(), b = wo.dot(wu), c = wo.squaredNorm() - 1;
-  const double disc = b * b - a * c;
+ExitAlong::ExitAlong(const ToolEllipsoid& part, const Eigen::Vector3d& u) noexcept
+    : rt_(part.rotation.toRotationMatrix().transpose()), center_(part.center), semi_axes_(part.semi_axes) {
+  wu_ = (rt_ * u).cwiseQuotient(semi_axes_);
+  a_ = wu_.squaredNorm();
+}
+
+double ExitAlong::operator()(const Eigen::Vector3d& p) const noexcept {
+  const Eigen::Vector3d wo = (rt_ * (p - center_)).cwiseQuotient(semi_axes_);
+  const double b = wo.dot(wu_), c = wo.squaredNorm() - 1;
+  const double disc = b * b - a_ * c;
   if (!(disc >= 0)) return std::numeric_limits<double>::quiet_NaN();
-  return (-b + std::sqrt(disc)) / a;
+  return (-b + std::sqrt(disc)) / a_;
+}
+
+double exit_along(const ToolEllipsoid& part, const Eigen::Vector3d& p, const Eigen::Vector3d& u) noexcept {
+  return ExitAlong(part, u)(p);
 }
 
 ToolShadow shadow_along(const ToolEllipsoid& part, const Eigen::Vector3d& u) noexcept {

@@ -91,12 +91,12 @@ void SeenCompoundProxy::forget_ring(int j, const Eigen::Vector3d& axis) noexcept
   for (EdgeSearch& e : edges_[std::size_t(j)]) e = EdgeSearch{};
 }
 
-double SeenCompoundProxy::ring_gap(const ToolEllipsoid& part, int j, int k, const Eigen::Vector3d& axis,
+double SeenCompoundProxy::ring_gap(const ExitAlong& exit, int j, int k, const Eigen::Vector3d& axis,
                                    Eigen::Vector3d& front) const noexcept {
   const Ring& g = rings_[std::size_t(j)];
   if (!(g.axis.dot(axis) >= kRingAxisCos) || !std::isfinite(g.at[std::size_t(k)])) return kInf;
   const Eigen::Vector3d& p = g.foot[std::size_t(k)];
-  const double t = exit_along(part, p, g.axis);
+  const double t = exit(p);
   if (std::isnan(t)) return kInf;  // the line is no longer under the part
   front = p + t * g.axis;
   return g.at[std::size_t(k)] - front.dot(g.axis);
@@ -116,25 +116,29 @@ std::array<double, 2> SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& f
   if (!(g.axis.dot(u) >= kRingAxisCos)) forget_ring(j, u);
   const double look = kRingLook * middle_[std::size_t(j)];
   for (const LineRead& line : next_lines(j, from, u)) {
-    // The line through the part's shadow, read from as far behind the part's front as the part
-    // may have gone past a rim since the line was last read (from the front itself when it is
-    // leaving: the surface it lifts off from does not count).
+    // The line through the part's shadow, from as far behind the part's front as the part may
+    // have gone past a rim since the line was last read. A ring line sees from there (it places
+    // faces and edges, met from near), an inner line from its own eye (line_surface: what lies
+    // under the part's middle may be a surface of faint layers seen only from afar); both from
+    // the front itself when the part is leaving (the surface it lifts off from does not count).
     const Eigen::Vector3d p = from.center + line.offset;
     const Eigen::Vector3d front = p + exit_along(from, p, u) * u;
+    const double back = look + refresh(line.slot) * len;
     g.foot[std::size_t(line.slot)] = front;
-    if (leaving) {
-      const SeenHit hit = solid_->first_inside(front, u, 0, 0, len + look, scratch_);
+    if (leaving || line.slot < kRingRays) {
+      const SeenHit hit = solid_->first_inside(front, u, leaving ? 0.0 : -back, 0, len + look, scratch_);
       g.at[std::size_t(line.slot)] = hit.hit ? front.dot(u) + hit.t : kInf;
     } else {
-      g.at[std::size_t(line.slot)] = line_surface(j, front, u, look + refresh(line.slot) * len, len + look);
+      g.at[std::size_t(line.slot)] = line_surface(j, front, u, back, len + look);
     }
   }
   // A line met later than its refresh allows (a slanted wall met line by line) does not hold:
   // snapping the proxy back would start the contact with a force step.
   std::array<double, 2> travel{kInf, kInf};  // the ring's, the inner lines'
+  const ExitAlong exit(from, g.axis);
   for (int kk = 0; kk < kReadLines; ++kk) {
     Eigen::Vector3d at;
-    const double gap = ring_gap(from, j, kk, u, at);
+    const double gap = ring_gap(exit, j, kk, u, at);
     double& t = travel[kk < kRingRays ? 0 : 1];
     if (gap <= len && gap >= -(refresh(kk) * len + kRingSink * middle_[std::size_t(j)])) t = std::min(t, gap);
   }
@@ -154,9 +158,10 @@ std::array<SeenCompoundProxy::LineRead, 2> SeenCompoundProxy::next_lines(int j, 
     // it; of equals, the oldest.
     int slot = 0;
     double worst = -kInf;
+    const ExitAlong exit(part, g.axis);
     for (int s = 0; s < kRoamLines; ++s) {
       Eigen::Vector3d front;
-      double gap = ring_gap(part, j, kRoamLine + s, u, front);
+      double gap = ring_gap(exit, j, kRoamLine + s, u, front);
       if (!(gap >= -kRingSink * middle_[std::size_t(j)])) gap = kInf;
       const bool older = g.stamp[std::size_t(s)] < g.stamp[std::size_t(slot)];
       if (gap > worst || (gap == worst && older)) worst = gap, slot = s;
@@ -344,11 +349,13 @@ double SeenCompoundProxy::edge_gap(const ToolEllipsoid& part, int j, const Eigen
 SeenCompoundProxy::LineChoice SeenCompoundProxy::nearest_line(int j, const ToolEllipsoid& resting) const noexcept {
   const std::size_t k = std::size_t(j);
   LineChoice c;
+  const Eigen::Vector3d& along = rings_[k].axis;
+  const ExitAlong rest(resting, along), now(parts_[k], along);
   const auto line_gap = [&](int r) {
     Eigen::Vector3d front;
     c.gaps[std::size_t(r)] = kInf;
-    if (!(ring_gap(resting, j, r, axis_, front) >= -kRingSink * middle_[k])) return kInf;
-    return c.gaps[std::size_t(r)] = ring_gap(parts_[k], j, r, axis_, front);
+    if (!(ring_gap(rest, j, r, axis_, front) >= -kRingSink * middle_[k])) return kInf;
+    return c.gaps[std::size_t(r)] = ring_gap(now, j, r, axis_, front);
   };
   for (int r = 0; r < kLines; ++r) {
     if (r >= kRingRays && r < kReadLines) continue;  // the inner lines: below
@@ -379,10 +386,21 @@ double SeenCompoundProxy::leading_ray(int j, double band, double& depth) noexcep
   if (!(depth > 0)) return kInf;  // behind the eye plane: nothing in front of it to meet
   // Past the part's depth by the contact band: a part just above its surface still touches.
   const double reach = depth + band;
+  const Eigen::Vector3d origin = tip - depth * axis_;  // on the eye plane
+  // The first crossing along a line from a fixed eye does not depend on how far the search
+  // reaches past it: a part whose line has not moved (the proxy sticking while the device
+  // presses on) meets the same hit, read again only when the line moves.
+  if (std::isfinite(last_hit_[k]) && last_hit_[k] <= reach &&
+      (origin - last_origin_[k]).squaredNorm() <= kSameLine * kSameLine * min_axis_ * min_axis_)
+    return last_hit_[k];
   const double guess = std::isfinite(last_hit_[k]) ? last_hit_[k] + kGuessMargin * min_axis_ : reach;
-  const SeenHit hit = solid_->first_inside(tip - depth * axis_, axis_, 0, 0, reach, scratch_, guess);
-  if (!hit.hit) return kInf;
+  const SeenHit hit = solid_->first_inside(origin, axis_, 0, 0, reach, scratch_, guess);
+  if (!hit.hit || scratch_.overflow) {
+    last_hit_[k] = std::numeric_limits<double>::quiet_NaN();
+    return hit.hit ? hit.t : kInf;
+  }
   last_hit_[k] = hit.t;
+  last_origin_[k] = origin;
   return hit.t;
 }
 
@@ -433,7 +451,7 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
       if (c.line == kEdgeLine)
         (void)edge_gap(parts_[k], j, a, h.point);
       else
-        (void)ring_gap(parts_[k], j, c.line, a, h.point);
+        (void)ring_gap(ExitAlong(parts_[k], rings_[k].axis), j, c.line, a, h.point);
     } else {
       h.gap = std::max(0.0, centre_gap);
       h.point = parts_[k].surface_point(a);

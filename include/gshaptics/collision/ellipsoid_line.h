@@ -16,6 +16,21 @@ namespace gshaptics {
 /// Never allocates, locks, logs or throws.
 [[nodiscard]] double exit_along(const ToolEllipsoid& part, const Eigen::Vector3d& p, const Eigen::Vector3d& u) noexcept;
 
+/// exit_along() for many lines along one u through one posed part: the part's rotation and u in
+/// its frame computed once (a footprint reads some hundred lines a tick). The same arithmetic as
+/// exit_along(), so the same answers. Never allocates, locks, logs or throws.
+class ExitAlong {
+ public:
+  ExitAlong(const ToolEllipsoid& part, const Eigen::Vector3d& u) noexcept;
+  /// exit_along(part, p, u).
+  [[nodiscard]] double operator()(const Eigen::Vector3d& p) const noexcept;
+
+ private:
+  Eigen::Matrix3d rt_;  // R^T
+  Eigen::Vector3d center_, semi_axes_, wu_;  // wu = diag(1/a) R^T u
+  double a_ = 0;                             // |wu|^2
+};
+
 /// A tool part's shadow along a push u (unit; world frame): the ellipse {L y : |y| <= 1} on the
 /// plane across u (basis e1 = u.unitOrthogonal(), e2 = u x e1), L L^T the part's covariance
 /// R diag(a^2) R^T projected on that plane (m^2). Points are offsets across u from the part's

@@ -24,9 +24,10 @@
 ///    shadow's middle (to 0.6 of its radius) in turn (a low-discrepancy sequence; six kept, those
 ///    that hold), one ring ray
 ///    and one inner ray a part a tick, free and in contact, each a line with the seen surface's
-///    place on it: a thin feature anywhere under a long part is met, not only on the ring. Each
-///    line is seen from its own eye, as far behind as it is still seen from, as the leading
-///    point's ray is (a surface of faint layers is met where a viewer sees it). Where
+///    place on it: a thin feature anywhere under a long part is met, not only on the ring. In
+///    contact every line, and in free motion the inner ones, is seen from its own eye, as far
+///    behind as it is still seen from, as the leading point's ray is (a surface of faint layers
+///    is met where a viewer sees it); a free ring line from just behind the part. Where
 ///    the part's front over such a line reaches that surface
 ///    it holds the part as its leading point's ray does, so a part whose leading point hangs past
 ///    an edge rests on the edge (a stylus lying across a cube's edge), and a free part meets an
@@ -64,6 +65,7 @@
 #include <limits>
 
 #include "gshaptics/collision/compound_tool.h"
+#include "gshaptics/collision/ellipsoid_line.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/force/friction_cone.h"
 #include "gshaptics/force/proxy_params.h"
@@ -209,16 +211,18 @@ class SeenCompoundProxy {
   [[nodiscard]] LineChoice nearest_line(int j, const ToolEllipsoid& resting) const noexcept;
   // Part j's leading point's ray from the eye plane (parts_ posed at the device's depth): its
   // hit's depth from the eye plane (+inf: none within the band past it), `depth` the point's.
+  // The last hit is kept while the ray's line stays where it was (kSameLine): the first crossing
+  // from a fixed eye does not depend on the depth searched to.
   double leading_ray(int j, double band, double& depth) noexcept;
   // How far `part` (part j, posed) stands above the edge its two edge lines found, at its own
   // tangent point on it (set: `contact`): the point of the part whose normal is across the edge,
   // in the plane through the edge along `axis`; +inf when there is no edge or it passes beside.
   [[nodiscard]] double edge_gap(const ToolEllipsoid& part, int j, const Eigen::Vector3d& axis,
                                 Eigen::Vector3d& contact) const noexcept;
-  // How far `part` (part j, posed) stands above footprint line k's surface along `axis`, at its
-  // front over the line (set: `front`); < 0: past it; +inf when the line is not under the part,
-  // was read along another axis, or has no surface.
-  [[nodiscard]] double ring_gap(const ToolEllipsoid& part, int j, int k, const Eigen::Vector3d& axis,
+  // How far a part (part j, posed; `exit`: its exits along the ring's axis) stands above footprint
+  // line k's surface along `axis`, at its front over the line (set: `front`); < 0: past it; +inf
+  // when the line is not under the part, was read along another axis, or has no surface.
+  [[nodiscard]] double ring_gap(const ExitAlong& exit, int j, int k, const Eigen::Vector3d& axis,
                                 Eigen::Vector3d& front) const noexcept;
   void forget_ring(int j, const Eigen::Vector3d& axis) noexcept;
   // The touching parts' weighted normal (`target`, unit) and contact point (world), the seen
@@ -250,6 +254,8 @@ class SeenCompoundProxy {
   std::array<Ring, kMaxToolParts> rings_{};
   std::array<std::array<EdgeSearch, 2>, kMaxToolParts> edges_{};
   std::array<double, kMaxToolParts> last_hit_{};  // each part's last hit, depth from the eye plane (NaN: none)
+  std::array<Eigen::Vector3d, kMaxToolParts> last_origin_{};  // its line's origin on the eye plane
+  static constexpr double kSameLine = 1e-9;  // smallest semi-axes: a leading point's line that has not moved
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();       // the force's, smoothed
