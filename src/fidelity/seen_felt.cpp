@@ -315,7 +315,10 @@ bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit
   }
   ray.render_p99_us = percentile(us, 99);
   ray.felt_minus_seen = depth_past_seen(seen, hit, tool, trace.proxy.back(), ray) / r;
-  ray.no_force = ray.peak_force < o.force_threshold;
+  // No force where a surface is seen: the tool ends past the seen surface under it. (A stylus's
+  // tip aimed at a feature thinner than itself can pass beside it: its middle never comes under
+  // anything the eye sees, and nothing is the right force there.)
+  ray.no_force = ray.peak_force < o.force_threshold && ray.felt_minus_seen > 0;
   ray.through = ray.felt_minus_seen > 1.0;
   return true;
 }

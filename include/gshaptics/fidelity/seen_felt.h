@@ -18,7 +18,9 @@
 ///   parallel ray through the proxy (so sliding along a curved surface does not count as going
 ///   in; the ray's own seen depth when that ray sees nothing);
 /// - onset - seen: the device's leading point at the first tick with |F| >= 0.1 N (NaN: none);
-/// - through: felt - seen > 1 R; no force: |F| < 0.1 N on every tick.
+/// - through: felt - seen > 1 R; no force: |F| < 0.1 N on every tick while the tool ends past the
+///   seen surface (felt - seen > 0; a tool with a shape can pass beside a feature thinner than
+///   itself that its ray aims at, and is then never under what the eye sees).
 /// Rays whose tool is held (|F| >= 0.1 N) on the first tick, caught before its start, are dropped
 /// and counted.
 ///
