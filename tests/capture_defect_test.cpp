@@ -241,6 +241,19 @@ TEST(SeenProxyOnAnalyticScenes, RetractingFromAGrooveFaceTheFaceBehindTheEyeDoes
   EXPECT_EQ(faces, 1);
 }
 
+// Pressed into a groove's face within the normal's ring (1.5 R) of the groove line, the ring's ray
+// past the line read the other face and leaned the force 8 deg (p95, 10 mm tool, every spacing);
+// that ray is left out (SeenSolid::past_crease).
+TEST(SeenProxyOnAnalyticScenes, AGrooveFacesForceIsTheFacesNormalNearTheGrooveLine) {
+  int faces = 0;
+  for (const FidelityRow& r : seen_presses(ShapeKind::kVGroove60, 0.010, false).press) {
+    if (r.feature != "face") continue;
+    ++faces;
+    EXPECT_LE(r.dir_p95, 3.0);
+  }
+  EXPECT_EQ(faces, 1);
+}
+
 // The footprint meets a groove's slanted walls ray by ray, and may find them surrounding the
 // tool only after it went millimetres past them: snapping the proxy back then started the
 // contact with a force step (W = -29 mJ a press in the groove with a 10 mm tool). A footprint

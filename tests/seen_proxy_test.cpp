@@ -208,6 +208,72 @@ TEST(SeenSolid, TheNormalOfAPlaneOfDiscsIsThePlanesFromEverySide) {
   }
 }
 
+// A 60-degree V-groove of flat discs along y. A point on one face within a few millimetres of
+// the groove line is hidden by the other face from 1.73 d along its normal on (d: its distance
+// from the line), so a contact there sees it from nearer. The normal's rays look from that eye
+// too: seen from the ring's radius behind (where the search began), the rays along the groove
+// met the other face and leaned the normal 39-44 deg at d = 3-6 mm.
+TEST(SeenSolid, TheNormalsRaysLookFromTheContactsEyeNotFromBehindAFaceThatHidesThePoint) {
+  const double c30 = std::cos(M_PI / 6), s30 = 0.5;
+  const std::array<Eigen::Vector3d, 2> normal = {Eigen::Vector3d(-c30, 0, s30), Eigen::Vector3d(c30, 0, s30)};
+  const std::array<Eigen::Vector3d, 2> dir = {Eigen::Vector3d(s30, 0, c30), Eigen::Vector3d(-s30, 0, c30)};
+  GaussianScene g;
+  for (int side = 0; side < 2; ++side) {
+    const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), normal[std::size_t(side)]);
+    for (double a = 0.001; a < 0.15; a += 0.002)
+      for (double y = -0.06; y <= 0.06 + 1e-12; y += 0.002) {
+        const Eigen::Vector3d p = a * dir[std::size_t(side)] + Eigen::Vector3d(0, y, 0);
+        g.push_back(p.cast<float>(), Eigen::Vector3f(0.0015f, 0.0015f, 1e-5f),
+                    Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())), 0.9f, std::uint32_t(g.size()));
+      }
+  }
+  const SeenSolid solid(CollisionWorld::build(g, seen_world()));
+  SeenScratch scratch;
+  const double h = 0.015;  // a 10 mm tool's ring (1.5 R)
+  for (const double d : {0.003, 0.006, 0.009, 0.013}) {
+    const double back = 1.5 * d;  // the eye in front of the other face
+    const Eigen::Vector3d u = -normal[0];
+    const SeenHit centre = solid.first_inside(d * dir[0] - back * u, u, 0, 0, 2 * back, scratch);
+    ASSERT_TRUE(centre.hit);
+    const Eigen::Vector3d point = d * dir[0] - back * u + centre.t * u;
+    const Eigen::Vector3d n = solid.normal(point, u, h, h, back, scratch);
+    EXPECT_LT(std::acos(std::clamp(n.dot(normal[0]), -1.0, 1.0)) * 180 / M_PI, 1.0) << "d = " << d;
+  }
+}
+
+// Which ring rays lie past a crease (SeenSolid::past_crease), on readings made up to show the
+// rule: t is each ray's seen depth from the point's, h = 10 mm.
+TEST(SeenSolid, ARayPastACreaseIsLeftOutOfTheNormal) {
+  const double h = 0.01;
+  const Eigen::Vector3d u = -Eigen::Vector3d::UnitZ(), a = u.unitOrthogonal(), b = u.cross(a);
+  const auto reading = [&](double t0, double t1, double t2, double t3) {
+    std::array<SeenHit, SeenSolid::kNormalRays> hits;
+    const std::array<double, 4> t = {t0, t1, t2, t3};
+    for (std::size_t k = 0; k < 4; ++k) {
+      hits[k].hit = true;
+      hits[k].t = t[k];
+      hits[k].shade = Eigen::Vector3d::UnitZ();
+    }
+    return hits;
+  };
+  using Past = std::array<bool, SeenSolid::kNormalRays>;
+  // A groove's other face ahead along a (ray 0 far shallower), flat behind: ray 0 is past it, and
+  // the slope along a is the flat side's.
+  auto groove = reading(-0.009, 0.0002, 0.0003, -0.0001);
+  groove[0].shade = Eigen::Vector3d(0.87, 0, 0.5);
+  EXPECT_EQ(SeenSolid::past_crease(groove, h), (Past{true, false, false, false}));
+  const Eigen::Vector3d n = SeenSolid::normal_from(u, groove, h);
+  const Eigen::Vector3d slope = (-u + (-0.0003 / h) * a + ((0.0002 + 0.0001) / (2 * h)) * b).normalized();
+  EXPECT_LT((n - (Eigen::Vector3d::UnitZ() + slope).normalized()).norm(), 1e-12);
+  // An edge's far side behind along b (ray 3 far deeper): ray 3 is past it.
+  EXPECT_EQ(SeenSolid::past_crease(reading(0.0001, -0.0002, 0.0, 0.012), h), (Past{false, false, false, true}));
+  // At the crease itself both sides rise alike: central.
+  EXPECT_EQ(SeenSolid::past_crease(reading(-0.008, 0.0, -0.0075, 0.0), h), (Past{}));
+  // A curve (both sides 2 mm deeper) and a steady slope (0.6): central.
+  EXPECT_EQ(SeenSolid::past_crease(reading(0.002, 0.002, 0.002, 0.002), h), (Past{}));
+  EXPECT_EQ(SeenSolid::past_crease(reading(0.006, 0.0, -0.006, 0.0), h), (Past{}));
+}
+
 // Presses a sphere of radius r from z0 down to z1 (tool centre) in `steps` ticks, then holds.
 struct Press {
   double lowest_lead = 1e9;  // the proxy's lowest leading point (centre - r)

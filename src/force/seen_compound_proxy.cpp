@@ -126,8 +126,8 @@ std::array<double, 2> SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& f
     const double back = look + refresh(line.slot) * len;
     g.foot[std::size_t(line.slot)] = front;
     if (leaving || line.slot < kRingRays) {
-      const double from = leaving ? 0.0 : -back;  // (the surface kept where it lies, as line_surface's)
-      const SeenHit hit = solid_->first_inside(front, u, from, from, len + look, scratch_);
+      const double eye = leaving ? 0.0 : -back;  // (the surface kept where it lies, as line_surface's)
+      const SeenHit hit = solid_->first_inside(front, u, eye, eye, len + look, scratch_);
       g.at[std::size_t(line.slot)] = hit.hit ? front.dot(u) + hit.t : kInf;
     } else {
       g.at[std::size_t(line.slot)] = line_surface(j, front, u, back, len + look);

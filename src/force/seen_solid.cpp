@@ -274,7 +274,9 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
 
 SeenHit SeenSolid::normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k, double h, double reach,
                               double back, SeenScratch& s) const noexcept {
-  SeenHit hit = first_inside(normal_ray_origin(point, u, k, h), u, -back, -reach, reach, s);
+  // (Never seen from behind the eye: a nearer eye than the search's start would let a surface
+  // that hides `point` from that eye, a groove's other face, make the reading.)
+  SeenHit hit = first_inside(normal_ray_origin(point, u, k, h), u, -back, -std::min(reach, back), reach, s);
   hit.hit = hit.hit && !s.overflow;
   if (hit.hit) hit.shade = shade(u, hit, s);
   return hit;
@@ -307,12 +309,34 @@ Eigen::Vector3d SeenSolid::normal_ray_origin(const Eigen::Vector3d& point, const
   return point + h * (std::cos(angle) * a + std::sin(angle) * b);
 }
 
+std::array<bool, SeenSolid::kNormalRays> SeenSolid::past_crease(const std::array<SeenHit, kNormalRays>& hits,
+                                                                  double h) noexcept {
+  std::array<bool, kNormalRays> past{};
+  if (!(h > 0)) return past;
+  // Per axis (rays 0 and 2 at +-h along a, 1 and 3 along b) the depth's one-sided slopes from
+  // the point (t = 0) to each ray. On a smooth surface they differ by the curvature times h; a
+  // crease within h (a groove's other face, the far side of an edge) makes one of them steep and
+  // leaves the other flat: that ray is past the crease. A crease at the point itself (both steep
+  // alike) leaves both.
+  for (int axis = 0; axis < 2; ++axis) {
+    const SeenHit &ahead = hits[std::size_t(axis)], &behind = hits[std::size_t(axis + 2)];
+    if (!ahead.hit || !behind.hit) continue;
+    const double up = std::fabs(ahead.t) / h, down = std::fabs(behind.t) / h;
+    if (!(std::fabs(ahead.t + behind.t) / h > kCreaseSlope)) continue;  // g+ - g- = (t+ + t-) / h
+    if (up > 2 * down) past[std::size_t(axis)] = true;
+    else if (down > 2 * up) past[std::size_t(axis + 2)] = true;
+  }
+  return past;
+}
+
 Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits,
                                        double h) noexcept {
+  const std::array<bool, kNormalRays> past = past_crease(hits, h);
   Eigen::Vector3d map = Eigen::Vector3d::Zero();
   bool all = true;
-  for (const SeenHit& x : hits) {
-    if (x.hit) map += x.shade;
+  for (int k = 0; k < kNormalRays; ++k) {
+    const SeenHit& x = hits[std::size_t(k)];
+    if (x.hit && !past[std::size_t(k)]) map += x.shade;
     all = all && x.hit;
   }
   if (!(map.norm() > 0) || !map.allFinite()) return -u;
@@ -322,7 +346,13 @@ Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::arra
   // The seen depth's own slope over the ring: rays 0 and 2 lie at +-h along a, 1 and 3 along b
   // (normal_ray_origin); a hit's t grows into the surface.
   const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-  const double ga = (hits[0].t - hits[2].t) / (2 * h), gb = (hits[1].t - hits[3].t) / (2 * h);
+  // (one-sided from the point, t = 0, on an axis with a ray past a crease)
+  const auto grad = [&](int ahead, int behind) {
+    if (past[std::size_t(ahead)]) return -hits[std::size_t(behind)].t / h;
+    if (past[std::size_t(behind)]) return hits[std::size_t(ahead)].t / h;
+    return (hits[std::size_t(ahead)].t - hits[std::size_t(behind)].t) / (2 * h);
+  };
+  const double ga = grad(0, 2), gb = grad(1, 3);
   const Eigen::Vector3d slope = (-u + ga * a + gb * b).normalized();
   const Eigen::Vector3d n = map + slope;
   return n.norm() > 1e-12 && n.allFinite() ? Eigen::Vector3d(n.normalized()) : map;

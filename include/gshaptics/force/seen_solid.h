@@ -104,8 +104,11 @@ class SeenSolid {
   ///   small ring lean it by as much, and along a slide the lean acts as friction;
   /// - the slope of the seen depth itself, by central differences of the ring's four depths. It
   ///   carries the depth jitter of the discs that make each point.
-  /// Where a ray sees no surface, the normal map of the rays that do (-u when none does).
-  /// Measured against the analytic normals in bench/RESULTS.md (fiftieth session).
+  /// Where a ray sees no surface, the normal map of the rays that do (-u when none does). A ray
+  /// past a crease (past_crease) is left out of both readings. Each ray is seen from `back`
+  /// before the point's depth and searched from there or from `reach` before, whichever is
+  /// nearer: never from behind the eye.
+  /// Measured against the analytic normals in bench/RESULTS.md (fiftieth and fifty-sixth sessions).
   Eigen::Vector3d normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach, double back,
                          SeenScratch& scratch) const noexcept;
   /// normal() one ray at a time (a caller may spread them over ticks): ray k (0 to kNormalRays - 1) of the
@@ -116,6 +119,15 @@ class SeenSolid {
                      double back, SeenScratch& scratch) const noexcept;
   [[nodiscard]] static Eigen::Vector3d normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits,
                                                   double h) noexcept;
+  /// Which rays of a normal reading (hits at +-h along two axes, t from the point's depth) lie
+  /// past a crease: on an axis whose one-sided depth slopes differ by more than kCreaseSlope,
+  /// the ray whose slope is over twice the other's. normal_from() leaves them out of both
+  /// readings and takes that axis's slope on the other side.
+  [[nodiscard]] static std::array<bool, kNormalRays> past_crease(const std::array<SeenHit, kNormalRays>& hits,
+                                                                 double h) noexcept;
+  /// How much the two one-sided slopes of an axis must differ to be a crease, not curvature
+  /// (tan 27 deg: a surface whose curvature radius is over 2 h / 0.5 reads central).
+  static constexpr double kCreaseSlope = 0.5;
   /// The shade (SeenHit::shade) of `hit`, the last first_inside() answer on `scratch`: the sum of
   /// T_k alpha_k n_k over its layers. Zero when it did not hit or scratch overflowed.
   [[nodiscard]] Eigen::Vector3d shade(const Eigen::Vector3d& u, const SeenHit& hit,
