@@ -66,6 +66,7 @@ void SeenCompoundProxy::reset() noexcept {
   started_ = false;
   release();
   normal_.setZero();
+  fresh_normal_ = false;
   for (int j = 0; j < tool_.count; ++j) forget_ring(j, Eigen::Vector3d::Zero());
 }
 
@@ -229,7 +230,7 @@ bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Qua
   if (!std::isfinite(first)) return false;
   axis_ = first_u;
   eye_ = first_eye;
-  normal_.setZero();  // read afresh by the contact's first hold()
+  fresh_normal_ = true;  // the contact's first reading sets the normal (render())
   normal_reading_.forget();
   return true;
 }
@@ -523,19 +524,18 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   const Eigen::Vector3d device_step = position - last_device_;
   last_device_ = position;
   const bool was_in_contact = in_contact_;
-  // (The last contact's normal, which says whether the tool is leaving a surface, stays while a
-  // contact that begins fails at once.)
-  const Eigen::Vector3d last_normal = normal_;
   if (!in_contact_) in_contact_ = begin_contact(position, q);
   const Eigen::Vector3d before = x_;
+  // (Until a contact's first reading its normal is none; the last contact's stays in normal_,
+  // which says whether the tool is leaving a surface, should the new contact fail at once.)
+  const Eigen::Vector3d held = fresh_normal_ ? Eigen::Vector3d::Zero() : normal_;
   if (in_contact_) {
-    friction_step_ = friction_.update(was_in_contact, normal_, position, x_, device_step, radius_);
+    friction_step_ = friction_.update(was_in_contact, held, position, x_, device_step, radius_);
     in_contact_ = hold(position, friction_step_.goal, q);
   }
   q_ = q;
   Eigen::Vector3d target, lever_point;
-  if (!in_contact_ || !contact(target, lever_point, normal_)) {
-    if (!was_in_contact) normal_ = last_normal;
+  if (!in_contact_ || !contact(target, lever_point, held)) {
     x_ = position;
     pose(x_, q_);
     release();
@@ -545,8 +545,9 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   // whichever is slower (SeenProxy's: the seen surface's relief finer than the tool does not turn
   // it); where footprints hold the tool more than its leading points, over kNormalTau alone (the
   // parts' own normals on an edge are geometry, refined by the edge search as the tool rests).
-  if (normal_.squaredNorm() == 0) {
+  if (fresh_normal_ || normal_.squaredNorm() == 0) {
     normal_ = target;
+    fresh_normal_ = false;
   } else {
     const Eigen::Vector3d moved = x_ - before;
     const double slide = (moved - moved.dot(axis_) * axis_).norm();

@@ -259,6 +259,7 @@ class SeenCompoundProxy {
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();       // the force's, smoothed
+  bool fresh_normal_ = false;  // a contact began: its first reading sets normal_
   Eigen::Vector3d seen_normal_ = Eigen::Vector3d::Zero();  // the seen surface's last reading
   Eigen::Vector3d axis_ = Eigen::Vector3d::Zero(), eye_ = Eigen::Vector3d::Zero();
   SeenNormalReading normal_reading_;
