@@ -262,7 +262,9 @@ TEST(SeenFelt, AStylusAndADiscAreFeltWhereAnAnalyticPlaneIsSeen) {
       EXPECT_LT(r.onset_minus_seen, 0.5);
       // Held fixed through the press: the stylus's axis 30 deg from the ray, pointing back up it.
       const Eigen::Vector3d axis = r.orientation * Eigen::Vector3d::UnitZ();
-      if (tool == SeenFeltTool::kStylus) EXPECT_NEAR(-axis.dot(r.dir), std::cos(M_PI / 6), 1e-9);
+      if (tool == SeenFeltTool::kStylus) {
+        EXPECT_NEAR(-axis.dot(r.dir), std::cos(M_PI / 6), 1e-9);
+      }
     }
   }
 }

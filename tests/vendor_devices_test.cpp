@@ -478,7 +478,9 @@ TEST(OpenHapticsDevice, A33NewtonTouchIsNeverCommandedAboveItsLimitsWhateverFMax
     if (r.time < settled_from) continue;
     ++sustained;
     EXPECT_LE(r.force.norm(), 0.88 * 1.01) << "t " << r.time << " flags " << r.flags;
-    if ((r.flags & kFlagStopping) == 0) EXPECT_GE(r.force.norm(), 0.88 * 0.99) << "t " << r.time;
+    if ((r.flags & kFlagStopping) == 0) {
+      EXPECT_GE(r.force.norm(), 0.88 * 0.99) << "t " << r.time;
+    }
   }
   if (sustained < 100)
     std::printf("note: only %zu ticks of sustained push at the end (machine busy): settle not judged\n", sustained);

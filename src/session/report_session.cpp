@@ -154,9 +154,9 @@ std::string seen_felt_command_line(const SeenFeltCommandOptions& o, const std::v
     if (o.tilt_deg != SeenFeltOptions{}.tilt_deg) command += fmt::format(" --tool-tilt {:g}", o.tilt_deg);
   }
   if (o.seed != SeenFeltOptions{}.seed) command += fmt::format(" --seed {}", o.seed);
-  for (const ObjectSpec& spec : o.objects.objects) command += " --object " + spec.text;
+  for (const ObjectSpec& spec : o.objects.objects) command += fmt::format(" --object {}", spec.text);
   if (!o.scenes.empty())
-    for (const std::string& s : scenes) command += " " + std::filesystem::path(s).filename().string();
+    for (const std::string& s : scenes) command += fmt::format(" {}", std::filesystem::path(s).filename().string());
   return command;
 }
 
@@ -368,7 +368,7 @@ bool run_python(const std::string& script, const std::vector<std::string>& args,
   if (script.empty()) throw InputError(command + ": the plotting script is not found in tools/ (use --no-plot)");
   const char* py = std::getenv("GSHAPTICS_PYTHON");
   std::string cmdline = shell_quote(py ? py : "/usr/bin/python3") + " " + shell_quote(script);
-  for (const std::string& a : args) cmdline += " " + shell_quote(a);
+  for (const std::string& a : args) cmdline += fmt::format(" {}", shell_quote(a));  // (not " " + string&&: GCC 12's -Wrestrict false positive, GCC bug 105329)
   if (std::system(cmdline.c_str()) != 0) {
     fmt::print(stderr, "error: plotting failed ({}); the data files are written. Install "
                        "python3-matplotlib or pass --no-plot\n", cmdline);
