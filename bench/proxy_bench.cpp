@@ -67,7 +67,8 @@ std::string scene_path(const std::string& file) {
 }
 
 // A real scene's probe run, as `gshaptics simulate SCENE --up auto [--reg-scale S]` runs it.
-Set probe_set(const std::string& name, const std::string& file, double reg_scale, bool bundled, ProxySurface surface) {
+Set probe_set(const std::string& name, const std::string& file, double reg_scale, bool bundled, ProxySurface surface,
+              bool footprint) {
   Set s;
   s.name = name;
   WorldConfig cfg;
@@ -90,6 +91,7 @@ Set probe_set(const std::string& name, const std::string& file, double reg_scale
   ProbeRunParams rp;
   ProxyModelSpec spec;
   spec.params.surface = surface;
+  spec.params.seen_footprint = footprint;
   rp.renderer = spec;
   const ProbeRunResult run = run_probe(*s.world, traj, rp);
   for (const TickRecord& r : run.ticks) s.poses.push_back({r.position, r.velocity});
@@ -202,6 +204,10 @@ int main(int argc, char** argv) {
                  "(the surface the splats render; the world keeps Gaussians down to 1/255 and the probe run is "
                  "recorded with that proxy)")
       ->capture_default_str()->check(CLI::IsMember({"ellipsoids", "seen"}));
+  bool seen_footprint = false;
+  app.add_flag("--seen-footprint", seen_footprint,
+               "With --surface seen: the sphere's footprint too (ProxyParams::seen_footprint; the probe run is "
+               "recorded with it)");
   bool no_near_lists = false;
   app.add_flag("--no-near-lists", no_near_lists,
                "Compound tools' sweeps take the BVH every time (ProxyParams::near_lists off), for comparison");
@@ -216,6 +222,10 @@ int main(int argc, char** argv) {
                "noise relief (RMS 0.05 R, wavelengths 0.2-1 R), and write a table of what materials and texture add");
   CLI11_PARSE(app, argc, argv);
   const ProxySurface surface = surface_name == "seen" ? ProxySurface::kSeen : ProxySurface::kEllipsoids;
+  if (seen_footprint && (surface != ProxySurface::kSeen || stylus)) {
+    fmt::print(stderr, "proxy_bench: --seen-footprint needs --surface seen and serves the sphere alone (not --stylus)\n");
+    return 2;
+  }
   try {
     std::string table =
         "| set | Gaussians | tool radius | ticks | ticks in contact | proxy p50 / p99 / max us | paper p50 / p99 us | "
@@ -232,11 +242,11 @@ int main(int argc, char** argv) {
     std::string name;
     while (std::getline(ss, name, ',')) {
       Set s;
-      if (name == "truck") s = probe_set(name, "truck.splat", 1.0, true, surface);
-      else if (name == "burger") s = probe_set(name, "burger.splat", 1.0, false, surface);
-      else if (name == "halo") s = probe_set(name, "halo.ply", 1.0, false, surface);
-      else if (name == "firepit") s = probe_set(name, "firepit.ply", 1.0, false, surface);
-      else if (name == "karangkidul") s = probe_set(name, "karangkidul_crop.ply", 0.01, false, surface);
+      if (name == "truck") s = probe_set(name, "truck.splat", 1.0, true, surface, seen_footprint);
+      else if (name == "burger") s = probe_set(name, "burger.splat", 1.0, false, surface, seen_footprint);
+      else if (name == "halo") s = probe_set(name, "halo.ply", 1.0, false, surface, seen_footprint);
+      else if (name == "firepit") s = probe_set(name, "firepit.ply", 1.0, false, surface, seen_footprint);
+      else if (name == "karangkidul") s = probe_set(name, "karangkidul_crop.ply", 0.01, false, surface, seen_footprint);
       else if (name.rfind("fidelity-", 0) == 0) s = fidelity_set(name);
       else throw InputError("proxy_bench: unknown set '" + name + "'");
       const CollisionWorld& w = *s.world;
@@ -246,6 +256,7 @@ int main(int argc, char** argv) {
       ProxyParams params;
       params.overhang_falloff = !no_overhang_falloff;
       params.surface = surface;
+      params.seen_footprint = seen_footprint;
       ProxyRenderer proxy(w, params);
       const Timing tp = time_replays(
           s, passes,

@@ -11,9 +11,12 @@
 #include <set>
 #include <tuple>
 
+#include "gshaptics/collision/collision_world.h"
 #include "gshaptics/error.h"
 #include "gshaptics/fidelity/fidelity_run.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
+#include "gshaptics/force/proxy_renderer.h"
+#include "gshaptics/scene/opacity_filter.h"
 #include "gshaptics/scene/seen_surface.h"
 
 namespace gshaptics {
@@ -252,6 +255,43 @@ TEST(SeenProxyOnAnalyticScenes, AGrooveFacesForceIsTheFacesNormalNearTheGrooveLi
     EXPECT_LE(r.dir_p95, 3.0);
   }
   EXPECT_EQ(faces, 1);
+}
+
+// A 10 mm ball pressed into the 60-degree groove's line touches both walls with its leading point
+// still 10 mm above the line. The footprint holds it there as a rigid ball: its rays read every
+// tick, before the leading point's ray sees anything within R (onset 4.4 mm late and 0.16 N/mm,
+// where a rigid wall gives 2, while they were read only then), and in contact searched from the
+// ball's own point on each ray (from R above the device's, they lost the walls once the device
+// was R past them, and the ball sank with it at 10 N).
+TEST(SeenProxyOnAnalyticScenes, TheFootprintHoldsABallOnAGroovesWalls) {
+  int lines = 0;
+  for (const FidelityRow& r : seen_presses(ShapeKind::kVGroove60, 0.010, true).press) {
+    if (r.feature != "concave") continue;
+    ++lines;
+    EXPECT_LT(r.onset_mm_median, 1.0);
+    EXPECT_GT(r.stiffness_median, 1.5);  // N/mm: k / sin 30 deg = 2 for a rigid wall
+    EXPECT_EQ(r.never_lost, r.runs);
+  }
+  EXPECT_EQ(lines, 1);
+  // Pressed 28 mm along the bisector past where the walls stop it: the ball stays on the walls and
+  // the spring's pull grows past 20 N (without the search from the ball's point: 10 N, sinking).
+  SynthParams sp;
+  sp.spacing = kSpacing;
+  sp.floater_share = 0;
+  const SyntheticScene groove = make_synthetic_scene(AnalyticShape(ShapeKind::kVGroove60), sp);
+  WorldConfig wc;
+  wc.min_opacity = kSeenMinOpacity;
+  const CollisionWorld world = CollisionWorld::build(groove.scene, wc);
+  ProxyParams pp;
+  pp.surface = ProxySurface::kSeen;
+  pp.seen_footprint = true;
+  ProxyRenderer proxy(world, pp, 30.0);
+  const double r = 0.01, walls = 2 * r;  // a rigid ball's centre on the walls: 2 R above the line
+  RenderOutput out;
+  for (double z = walls + 0.01; z > walls - 0.028; z -= 2e-5)
+    out = proxy.render(ToolEllipsoid::sphere({0, 0.01, z}, r), {0, 0, -0.02}, 1e-3);
+  EXPECT_GT(out.proxy.z(), walls - 0.0025);
+  EXPECT_GT(out.force.norm(), 20.0) << out.force.transpose() << " proxy " << out.proxy.transpose();
 }
 
 // The footprint meets a groove's slanted walls ray by ray, and may find them surrounding the

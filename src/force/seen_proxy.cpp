@@ -94,16 +94,14 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
   double eye = 0;
   const bool leaving = u.dot(normal_) > 0;  // away from the surface it last rested on
   const SeenHit hit = solid_.push(proxy_, u, radius, params_.seen_window * radius, len, leaving, eye, scratch_);
-  // Where the leading point's ray sees no surface within kRingLook R past the motion, the
-  // footprint is read (one ray a tick), and rays around the sphere may hold it first (the rim of
-  // a hole narrower than it).
-  const Eigen::Vector3d lead = proxy_ + radius * u;
-  const bool see_through = params_.seen_footprint && !hit.hit &&
-                           !solid_.first_inside(lead, u, 0, 0, len + kRingLook * radius, scratch_).hit;
+  // With the footprint, one of its rays is read a tick, and rays around the sphere may hold it
+  // before the leading point's ray does: the rim of a hole narrower than it, a groove's walls
+  // (the 10 mm ball in the 60-degree groove: its leading point 10 mm short of the groove line).
+  const bool footprint = params_.seen_footprint && !hit.hit;
   // A footprint found only after the sphere went past it by more than its rays' refresh allows
   // (a slanted wall met ray by ray) does not hold it: snapping the proxy back would start the
   // contact with a force step, and a step on the way in is energy given back on the way out.
-  const double ring = see_through ? free_ring(u, radius, len, leaving) : std::numeric_limits<double>::infinity();
+  const double ring = footprint ? free_ring(u, radius, len, leaving) : std::numeric_limits<double>::infinity();
   const bool by_ring = ring <= len && ring >= -(kRingRays * len + kRingLate * radius);
   if (!hit.hit && !by_ring) return false;
   // (The eye stands kEyeMargin R clear of the surface behind it: layers peaking at the eye
@@ -130,10 +128,14 @@ void SeenProxy::read_ring(const Eigen::Vector3d& device, const Eigen::Vector3d& 
     at = std::numeric_limits<double>::infinity();
     return;
   }
-  // Only a surface within kRingLook R above the reach matters (one higher the sphere has gone
-  // past), seen from kRingLook R above that: a short ray, whatever the eye plane's distance.
+  // Only a surface at or below the sphere's own point on this ray, where the proxy rests, matters
+  // (one higher the sphere has gone past), seen from kRingLook R above that: a short ray,
+  // whatever the eye plane's distance. (Searched from the proxy's point, not from R above the
+  // device's: pressed more than R past a groove's walls, the device is deeper than any wall the
+  // rays could meet there, and the ball sank with it.)
   const Eigen::Vector3d o = foot + ring_offset(k, axis_, radius);
-  const double from = std::max(0.0, reach - kRingLook * radius);
+  const double resting = (proxy_ + radius * axis_ - eye_).dot(axis_) - (radius - ring_lead(k, radius));
+  const double from = std::max(0.0, std::min(reach, resting) - kRingLate * radius);
   const SeenHit hit = solid_.first_inside(o, axis_, std::max(0.0, from - kRingLook * radius), from, reach, scratch_);
   at = hit.hit ? o.dot(axis_) + hit.t : std::numeric_limits<double>::infinity();
 }
@@ -157,9 +159,9 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   const SeenHit hit = solid_.first_inside(foot, a, 0, 0, depth, scratch_, guess);
   target_held_ = false;
   if (follower_ && hit.hit) read_material_shares(hit);
-  // Where the leading point's ray sees through up to the device, the footprint is read (one ray
-  // a tick) and rays around the sphere hold it (a hole narrower than it).
-  if (!hit.hit && params_.seen_footprint) read_ring(device, foot, radius, depth);
+  // With the footprint, one of its rays is read a tick, and rays around the sphere hold it where
+  // they do before the leading point's ray (a hole narrower than it, a groove's walls).
+  if (params_.seen_footprint) read_ring(device, foot, radius, depth);
   const double footprint = params_.seen_footprint ? ring_support(device, radius) : std::numeric_limits<double>::infinity();
   const double rest = std::min(hit.hit ? hit.t : std::numeric_limits<double>::infinity(), footprint);
   if (!(rest < depth)) return false;  // the device is out of the surface

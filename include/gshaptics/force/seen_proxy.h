@@ -25,14 +25,15 @@
 ///   it holds the proxy, high-passed (TextureState::force).
 /// - With ProxyParams::seen_footprint, the tool is a sphere, not a point: beside the ray through its leading point, twelve rays
 ///   parallel to the push at 0.5, 0.7 and 0.85 R from its centre line (30 degrees apart, one
-///   read a tick while the ray through the leading point sees no surface: free, none within R
-///   ahead; in contact, none up to the device) find the seen surface under the sphere's own
+///   read a tick, free and in contact; in contact each searches from the sphere's own point on
+///   it, where the proxy rests, to the device's) find the seen surface under the sphere's own
 ///   surface there. Where the rays that meet a surface surround the centre line (no gap of 180 degrees
 ///   between them), they hold the sphere as they would a rigid ball: a hole narrower than the
 ///   tool holds it on its rim, at most 0.13, 0.29 or 0.47 R deeper than the rim (where the rays
 ///   fall), a rigid ball's depth lying between. A surface met on one side only does not hold it
 ///   (the proxy does not slide sideways: beside a feature, the surface under the leading point
-///   holds it). A crack narrower than the tool over a floor it can see is not bridged: the
+///   holds it). A groove or a corner narrower than the tool holds it on its walls, as a rigid
+///   ball, before its leading point reaches the groove's line. A crack narrower than the tool over a floor it can see is not bridged: the
 ///   floor holds it.
 /// Limits: walls parallel to the contact's axis are not felt until the device comes out and
 /// pushes on them afresh.
