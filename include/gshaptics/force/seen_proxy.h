@@ -149,6 +149,20 @@ class SeenProxy {
   // found), and the tool's centre when it was read.
   std::array<double, kRingRays> ring_at_{};
   std::array<Eigen::Vector3d, kRingRays> ring_from_{};
+  // Each footprint ray's last search in contact (read_ring): its line's origin on the eye plane,
+  // its eye, window and crossing t (+inf: none), reused while the line and eye stay (a resting
+  // ball's rays over a faint patch composite dozens of layers a read).
+  struct RingRead {
+    Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+    double eye = 0, from = 0, reach = 0, t = 0;
+    bool valid = false;
+    // The crossing for the same line and eye over [from_t, reach_t] into t_out when the last
+    // search decides it; false when it must be searched.
+    bool reuse(const Eigen::Vector3d& o, double eye_t, double from_t, double reach_t, double same,
+               double& t_out) const noexcept;
+  };
+  std::array<RingRead, kRingRays> ring_read_{};
+  static constexpr double kSameRay = 1e-9;  // R: a footprint ray's line or eye that has not moved
   Eigen::Vector3d ring_axis_ = Eigen::Vector3d::Zero();
   int ring_next_ = 0;
   bool started_ = false, in_contact_ = false;
