@@ -358,13 +358,16 @@ TEST(SeenProxy, ALargeFlatGaussianTheFloaterRulePassesIsFeltWhereItIsSeen) {
 }
 
 // (A compound tool gets the seen compound proxy: seen_compound_proxy_test.cpp.)
-TEST(SeenProxy, RefusesTheFootprintForACompoundToolAndTheWindowMustBePositive) {
+// The footprint is the sphere's (on by default); a compound tool on the seen solid has footprint
+// lines of its own, so turning the sphere's off is refused for it, and the default serves it.
+TEST(SeenProxy, TurningTheFootprintOffIsRefusedForACompoundToolAndTheWindowMustBePositive) {
   GaussianScene g;
   add_layer(g, 0.0, 0.9f);
   const CollisionWorld w = CollisionWorld::build(g, seen_world());
-  ProxyParams footprint = seen_params();
-  footprint.seen_footprint = true;
-  ProxyRenderer p(w, footprint);
+  ASSERT_TRUE(seen_params().seen_footprint);
+  ProxyParams off = seen_params();
+  off.seen_footprint = false;
+  ProxyRenderer p(w, off);
   CompoundTool stylus;
   stylus.count = 2;
   stylus.parts[0].semi_axes = Eigen::Vector3d::Constant(0.002);

@@ -217,8 +217,9 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
       ->capture_default_str()->check(check::positive());
   cmd.add_option_function<std::string>(
          "--seen-footprint", [&p](const std::string& v) { p.seen_footprint = v == "on"; },
-         "proxy: with --surface seen, rays around the tool's leading point hold it on the rim of a see-through hole "
-         "narrower than it, as a rigid ball (costs up to two more short rays a free tick). Default: off")
+         "proxy: with --surface seen, a sphere tool's footprint: rays around its leading point hold it as a rigid "
+         "ball on the rim of a see-through hole narrower than it and on the walls of a groove (one more short ray "
+         "a tick; off: the leading point's ray alone). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option("--isolation-gap", p.isolation_gap,
                  "proxy: a Gaussian with no other within this many tool radii is a floater and does not block "

@@ -46,9 +46,6 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   // shape, one ellipsoid at the TCP included, gets the seen compound proxy.
   if (seen_ && !(single && ToolEllipsoid::is_sphere(tool.parts[0].semi_axes))) {
     if (follower_) throw InputError(kSeenCompoundMaterials);
-    if (params_.seen_footprint)
-      throw InputError("proxy: seen_footprint (--seen-footprint) serves sphere tools (the footprint is the sphere's); "
-                       "the tool is " + describe(tool));
     seen_compound_ = std::make_unique<SeenCompoundProxy>(seen_->solid(), tool, params_, f_max_);
     return;
   }

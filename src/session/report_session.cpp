@@ -75,7 +75,7 @@ std::string fidelity_command_line(const FidelityCommandOptions& o) {
   if (o.defect_sites > 0) command += fmt::format(" --defect-sites {}", o.defect_sites);
   if (o.force.model == RendererKind::kProxy && o.force.proxy.surface == ProxySurface::kSeen) {
     command += " --surface seen";
-    if (o.force.proxy.seen_footprint) command += " --seen-footprint on";
+    if (!o.force.proxy.seen_footprint) command += " --seen-footprint off";
   }
   return command;
 }
@@ -143,7 +143,7 @@ std::string seen_felt_command_line(const SeenFeltCommandOptions& o, const std::v
     command += " --surface seen";
     if (o.force.proxy.seen_window != ProxyParams{}.seen_window)
       command += fmt::format(" --seen-window {:g}", o.force.proxy.seen_window);
-    if (o.force.proxy.seen_footprint) command += " --seen-footprint on";
+    if (!o.force.proxy.seen_footprint) command += " --seen-footprint off";
   }
   if (o.quick) command += " --quick";
   if (o.rays > 0) command += fmt::format(" --rays {}", o.rays);

@@ -126,10 +126,11 @@ struct ProxyParams {
   /// fiftieth session).
   double seen_window = 256.0;
   /// One-part tool, kSeen. The tool's footprint (SeenProxy): rays around the leading point's
-  /// hold the sphere on the rim of a see-through hole narrower than it, as a rigid ball. Off by
-  /// default: it reads up to two more short rays a free tick (probe-run render p99 about 2x,
-  /// bench/RESULTS.md).
-  bool seen_footprint = false;
+  /// hold the sphere as a rigid ball on the rim of a see-through hole narrower than it and on the
+  /// walls of a groove or a corner. One more short ray a tick (probe-run render p99 1.3-2.4x the
+  /// seen proxy's without it, within 2x the ellipsoid proxy's; bench/RESULTS.md, fifty-sixth
+  /// session). Compound tools have footprint lines of their own (SeenCompoundProxy).
+  bool seen_footprint = true;
 
   /// Compound tool. k_r, N m/rad: the rotational coupling; 1 N m/rad gives 0.5 N m, a desktop
   /// 6-DoF arm's torque, at about 30 deg.

@@ -74,7 +74,7 @@ class ProxyRenderer final : public ForceRenderer {
   /// tool's bounding radius). Throws InputError for an invalid tool, where a field of
   /// ProxyParams set away from its default does not serve this tool
   /// (check_proxy_params_apply), and on the seen solid for a tool other than a sphere with
-  /// materials or seen_footprint set (not served yet).
+  /// materials (not served yet).
   void set_tool(const CompoundTool& tool) override;
   [[nodiscard]] bool renders_compound() const noexcept override {
     return compound_ != nullptr || seen_compound_ != nullptr;
