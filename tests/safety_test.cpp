@@ -214,7 +214,9 @@ TEST(Safety, ContinuousLimitBoundsTheMeanSquareOverTheWindow) {
     f = o.force;
     heat += (f.squaredNorm() - heat) * a;
     worst = std::max(worst, heat);
-    if (k == 20) EXPECT_NEAR(f.norm(), 3.3, 1e-12) << "a short peak passes";
+    if (k == 20) {
+      EXPECT_NEAR(f.norm(), 3.3, 1e-12) << "a short peak passes";
+    }
     limited += (o.flags & kFlagContinuousLimited) != 0;
   }
   EXPECT_LE(std::sqrt(worst), 0.88 * 1.001);

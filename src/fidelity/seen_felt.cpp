@@ -473,7 +473,7 @@ std::string summary_table(const SeenFeltReport& rep) {
     int met = 0, configs = 0;
     for (const SeenFeltRow& r : rep.rows) {
       if (r.scene != s) continue;
-      md += " " + cell(r) + " |";
+      md += fmt::format(" {} |", cell(r));
       if (!std::isnan(r.onset_p10)) earliest = std::isnan(earliest) ? r.onset_p10 : std::min(earliest, r.onset_p10);
       met += r.meets_targets(o.rays) ? 1 : 0;
       ++configs;

@@ -139,7 +139,7 @@ SupportPlane plane_through(const std::vector<Eigen::Vector3d>& points, const Eig
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
   Eigen::Vector3d n = eig.eigenvectors().col(0);
   if (n.dot(up) < 0) n = -n;
-  return {mean, n.normalized()};
+  return {mean, n.normalized(), {}};
 }
 
 }  // namespace

@@ -65,8 +65,8 @@ Ros1NetworkDevice::Ros1NetworkDevice(const RosBridgeOptions& options, Clock& clo
                            {p.sec, p.nanosec}, std::hash<std::string>{}(p.publisher));
         },
         [&m](const std::array<double, 3>& v) { m.intake.on_twist({v[0], v[1], v[2]}); },
-        [&m](const std::array<double, 3>& f, const std::array<double, 3>& t) {
-          m.sensor.on_wrench({f[0], f[1], f[2]}, {t[0], t[1], t[2]});
+        [&m](const std::array<double, 3>& f, const std::array<double, 3>& tau) {
+          m.sensor.on_wrench({f[0], f[1], f[2]}, {tau[0], tau[1], tau[2]});
         });
   } catch (const std::runtime_error& e) {
     throw InputError(e.what());

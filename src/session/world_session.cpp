@@ -91,8 +91,8 @@ Eigen::Vector3d for_print(const Eigen::Vector3d& v, int decimals) {
 std::string default_out_dir(const std::string& scene) {
   const std::filesystem::path p(scene);
   std::string ext = p.extension().string();
-  if (!ext.empty()) ext = "-" + ext.substr(1);
-  return "runs/" + p.stem().string() + ext;
+  if (!ext.empty()) ext = fmt::format("-{}", ext.substr(1));
+  return fmt::format("runs/{}{}", p.stem().string(), ext);
 }
 
 std::string prepare_out_dir(const std::string& dir, const std::string& scene,
