@@ -114,6 +114,58 @@ TEST(SeenSolid, FirstInsideFromAFarEyeIsTheSeenDepth) {
   EXPECT_GE(hits, 30);
 }
 
+// A push's guess (SeenSolid::push's two stages: the layers ahead up to the guess first) changes
+// only what the search costs: over random rays through a cloud, every guess, short of the hit,
+// at it, past it, behind the centre and past the push's end, gives the answer of no guess to the
+// bit (the hit, its depth, its layers and the eye), leaving or not. And the answer is the seen
+// surface (the independent brute-force median depth) from the push's eye.
+TEST(SeenSolid, APushsGuessChangesOnlyItsCost) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> uni(0, 1);
+  GaussianScene g;
+  for (int i = 0; i < 3000; ++i) {
+    const Eigen::Quaternionf q = Eigen::Quaternionf::UnitRandom();
+    g.push_back(Eigen::Vector3f(float(uni(rng) - 0.5), float(uni(rng) - 0.5), float(uni(rng) - 0.5)),
+                Eigen::Vector3f(float(0.01 + 0.05 * uni(rng)), float(0.01 + 0.05 * uni(rng)), float(0.002 + 0.02 * uni(rng))),
+                Eigen::Vector4f(q.w(), q.x(), q.y(), q.z()), float(0.01 + 0.5 * uni(rng)), std::uint32_t(i));
+  }
+  const CollisionWorld world = CollisionWorld::build(g, seen_world());
+  const SeenSolid solid(world);
+  const SeenSurface reference(g);
+  SeenScratch scratch;
+  int hits = 0, later = 0;
+  for (int k = 0; k < 80; ++k) {
+    Eigen::Vector3d u(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5);
+    u.normalize();
+    const Eigen::Vector3d c = Eigen::Vector3d(0.6 * (uni(rng) - 0.5), 0.6 * (uni(rng) - 0.5), 0.6 * (uni(rng) - 0.5));
+    const double lead = 0.02 * uni(rng), len = 0.8 * uni(rng);
+    const bool leaving = k % 3 == 0;
+    double eye = 0;
+    const SeenHit plain = solid.push(c, u, lead, 1.0, len, leaving, eye, scratch);
+    ASSERT_FALSE(scratch.overflow);
+    hits += plain.hit;
+    if (plain.hit && !leaving) {
+      // (From the eye, the brute-force median depth lies at the hit's layer, past the leading
+      // point; the eye sits on the peak of the layer that hides it, which does not count.)
+      const double from = eye - 1e-7;
+      const SeenDepth d = reference.median_depth(c - from * u, u, from + lead + len + 1e-9);
+      ASSERT_TRUE(d.hit) << "ray " << k;
+      EXPECT_NEAR(std::max(0.0, d.depth - from - lead), plain.t, 1e-6) << "ray " << k;
+      later += plain.t > 0;
+    }
+    for (const double guess : {-0.1, 0.0, 0.5 * plain.t, plain.t, plain.t + 0.01, 0.5 * len, len + 1.0}) {
+      double eye_g = -1;
+      const SeenHit h = solid.push(c, u, lead, 1.0, len, leaving, eye_g, scratch, guess);
+      EXPECT_EQ(h.hit, plain.hit) << "ray " << k << ", guess " << guess;
+      EXPECT_EQ(h.t, plain.t) << "ray " << k << ", guess " << guess;
+      EXPECT_EQ(h.layers, plain.layers) << "ray " << k << ", guess " << guess;
+      EXPECT_EQ(eye_g, eye) << "ray " << k << ", guess " << guess;
+    }
+  }
+  EXPECT_GE(hits, 20);
+  EXPECT_GE(later, 5);
+}
+
 TEST(SeenSolid, TheEyeStopsInFrontOfASurfaceBehind) {
   GaussianScene g;
   add_layer(g, 0.0, 0.95f);

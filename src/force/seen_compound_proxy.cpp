@@ -104,11 +104,15 @@ double SeenCompoundProxy::ring_gap(const ExitAlong& exit, int j, int k, const Ei
 }
 
 double SeenCompoundProxy::line_surface(int j, const Eigen::Vector3d& front, const Eigen::Vector3d& u, double back,
-                                       double ahead) noexcept {
+                                       double ahead, double last) noexcept {
   double eye = 0;
+  const double start = front.dot(u) - back;
+  // (A part held while the device presses on reads its lines to the device's depth, tens of
+  // middle semi-axes past the surface they meet: the layers up to the last answer come first.)
+  const double guess = std::isfinite(last) ? last - start + kRingLook * middle_[std::size_t(j)] : kInf;
   const SeenHit hit = solid_->push(front - back * u, u, 0, params_.seen_window * middle_[std::size_t(j)], back + ahead,
-                                   false, eye, scratch_);
-  return hit.hit ? front.dot(u) - back + hit.t : kInf;
+                                   false, eye, scratch_, std::isfinite(guess) ? guess : std::numeric_limits<double>::quiet_NaN());
+  return hit.hit ? start + hit.t : kInf;
 }
 
 std::array<double, 2> SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& from, const Eigen::Vector3d& u,
@@ -131,7 +135,7 @@ std::array<double, 2> SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& f
       const SeenHit hit = solid_->first_inside(front, u, eye, eye, len + look, scratch_);
       g.at[std::size_t(line.slot)] = hit.hit ? front.dot(u) + hit.t : kInf;
     } else {
-      g.at[std::size_t(line.slot)] = line_surface(j, front, u, back, len + look);
+      g.at[std::size_t(line.slot)] = line_surface(j, front, u, back, len + look, g.at[std::size_t(line.slot)]);
     }
   }
   // A line met later than its refresh allows (a slanted wall met line by line) does not hold:
@@ -246,7 +250,7 @@ void SeenCompoundProxy::read_ring(int j, double reach) noexcept {
     const Eigen::Vector3d p = part.center + line.offset;
     const Eigen::Vector3d front = p + exit_along(part, p, axis_) * axis_;
     g.foot[std::size_t(line.slot)] = front;
-    g.at[std::size_t(line.slot)] = line_surface(j, front, axis_, 2 * look, reach);
+    g.at[std::size_t(line.slot)] = line_surface(j, front, axis_, 2 * look, reach, g.at[std::size_t(line.slot)]);
   }
 }
 

@@ -223,14 +223,25 @@ double SeenSolid::eye_distance(const Eigen::Vector3d& c, const Eigen::Vector3d& 
 }
 
 SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,
-                        bool leaving, double& eye, SeenScratch& s) const noexcept {
+                        bool leaving, double& eye, SeenScratch& s, double t_guess) const noexcept {
   SeenHit hit;
   eye = 0;
+  // The layers ahead of c in two stages when a guess is given (first_inside's): up to the guess
+  // first, the rest only when those do not reach ln 2. Every layer of the second stage lies
+  // deeper than every one before it, so the answer is the one-stage answer.
+  const double end = lead + len;
+  const double split = std::isfinite(t_guess) ? std::clamp(lead + t_guess, 0.0, end) : end;
+  bool ahead_done = true;
   // The layers between the eye and c composite to less than ln 2 (that is where the eye is), so
   // a surface needs a layer peaking ahead of c: with none there, the long look back is spared
   // (a free tool away from the surfaces).
-  if (lead + len > 0) {
-    gather(c, u, 0.0, lead + len, s);
+  if (end > 0) {
+    gather(c, u, 0.0, split, s);
+    ahead_done = !(split < end);
+    if (!s.overflow && s.gathered == 0 && !ahead_done) {
+      gather_more(c, u, split, end, split, s);
+      ahead_done = true;
+    }
     if (!s.overflow && s.gathered == 0) return hit;
     if (!s.overflow) gather_more(c, u, -max_back, 0.0, 0.0, s);  // then the layers behind c
   } else {
@@ -259,7 +270,19 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   // stands, unless the tool is `leaving` it (the shell it rested in, seen from the side it
   // lifts off to).
   tau = 0;
-  for (std::size_t k = from; k < s.gathered; ++k) {
+  for (std::size_t k = from;; ++k) {
+    if (k == s.gathered) {
+      if (ahead_done) return hit;
+      gather_more(c, u, split, end, split, s);  // the second stage
+      ahead_done = true;
+      if (s.overflow) {  // (as the one stage's overflow: blocked where it stands)
+        eye = 0;
+        hit.hit = true;
+        return hit;
+      }
+      if (k == s.gathered) return hit;
+      sort_by_depth(s.layers.begin() + std::ptrdiff_t(k), s.layers.begin() + std::ptrdiff_t(s.gathered));
+    }
     tau += s.layers[k].tau;
     if (tau >= kLn2) {
       if (s.layers[k].t < lead && leaving) return hit;
@@ -269,7 +292,6 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
       return hit;
     }
   }
-  return hit;
 }
 
 SeenHit SeenSolid::normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k, double h, double reach,

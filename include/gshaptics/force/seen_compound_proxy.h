@@ -188,8 +188,10 @@ class SeenCompoundProxy {
   // it to `ahead` past it, seen from the line's own eye: as far behind as the line is still seen
   // from (SeenSolid::push; at most seen_window of part j's middle semi-axes), so the faint layers
   // a viewer composites in front of it count, while a surface behind the eye (an overhang above
-  // the part) does not. +inf: none.
-  double line_surface(int j, const Eigen::Vector3d& front, const Eigen::Vector3d& u, double back, double ahead) noexcept;
+  // the part) does not. +inf: none. `last`: the line's last answer (+inf: none), where the
+  // search reads first (SeenSolid::push's guess: only the cost depends on it).
+  double line_surface(int j, const Eigen::Vector3d& front, const Eigen::Vector3d& u, double back, double ahead,
+                      double last) noexcept;
   // Free: part j's next two footprint lines (next_lines) along its chord u (its centre `from`,
   // moving `len`), and how far the part moves before its footprint meets the surface (+inf: not
   // within the chord): by the ring's lines, and by the inner lines.

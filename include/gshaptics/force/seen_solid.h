@@ -87,8 +87,11 @@ class SeenSolid {
   /// `leaving` (moving away from the surface it last rested on: the shell it lifts off from).
   /// When no layer peaks ahead of c within lead + len, there is no hit and the eye is not
   /// searched (`eye` = 0): the layers behind c alone never make a surface seen from the eye.
+  /// `t_guess`: where the hit likely is (first_inside()'s: the layers ahead up to it are read
+  /// first, those past it only when needed; the answer does not depend on it, only the cost).
   SeenHit push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,
-               bool leaving, double& eye, SeenScratch& scratch) const noexcept;
+               bool leaving, double& eye, SeenScratch& scratch,
+               double t_guess = std::numeric_limits<double>::quiet_NaN()) const noexcept;
 
   /// The seen surface's outward normal (unit, n . u < 0) at `point` (on the surface for a push
   /// along u), from kNormalRays rays parallel to u on a ring of radius h around `point`, evenly
