@@ -22,22 +22,19 @@ inline Eigen::Vector3d whiten(const double* m, const Eigen::Vector3d& v) noexcep
           m[6] * v.x() + m[7] * v.y() + m[8] * v.z()};
 }
 
-// The segment o + t u, t in [ta, tb], against a node's box (slab test).
-bool segment_hits_box(const BvhNode& n, const Eigen::Vector3d& o, const Eigen::Vector3d& inv, double ta,
-                      double tb) noexcept {
+// The segment o + t u, t in [ta, tb], against a node's box (slab test; `neg`: which components
+// of u are negative, so each slab's near plane is chosen without a compare). A line parallel to
+// a slab reads +-inf outside it and no bound inside it; on a slab's plane it reads NaN, which
+// std::max / std::min with the bound first leave out (no bound: the plane is in the box).
+bool segment_hits_box(const BvhNode& n, const Eigen::Vector3d& o, const Eigen::Vector3d& inv,
+                      const std::array<bool, 3>& neg, double ta, double tb) noexcept {
   for (int k = 0; k < 3; ++k) {
-    double t1 = (double(n.lo[k]) - o[k]) * inv[k];
-    double t2 = (double(n.hi[k]) - o[k]) * inv[k];
-    if (std::isnan(t1) || std::isnan(t2)) {  // parallel to the slab and on its plane
-      if (o[k] < n.lo[k] || o[k] > n.hi[k]) return false;
-      continue;
-    }
-    if (t1 > t2) std::swap(t1, t2);
-    ta = std::max(ta, t1);
-    tb = std::min(tb, t2);
-    if (ta > tb) return false;
+    const double t_near = (double(neg[std::size_t(k)] ? n.hi[k] : n.lo[k]) - o[k]) * inv[k];
+    const double t_far = (double(neg[std::size_t(k)] ? n.lo[k] : n.hi[k]) - o[k]) * inv[k];
+    ta = std::max(ta, t_near);
+    tb = std::min(tb, t_far);
   }
-  return true;
+  return ta <= tb;
 }
 
 }  // namespace
@@ -118,13 +115,14 @@ void SeenSolid::gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, doubl
   const std::span<const BvhNode> nodes = bvh_.nodes();
   if (nodes.empty()) return;
   const Eigen::Vector3d inv = u.cwiseInverse();
+  const std::array<bool, 3> neg{std::signbit(inv.x()), std::signbit(inv.y()), std::signbit(inv.z())};
   const double len2 = u.squaredNorm(), inv_len2 = 1 / len2, inv_len = std::sqrt(inv_len2);
   std::uint32_t stack[kStack];
   int top = 0;
   std::uint32_t i = 0;
   for (;;) {
     const BvhNode& n = nodes[i];
-    if (segment_hits_box(n, o, inv, ta, tb)) {
+    if (segment_hits_box(n, o, inv, neg, ta, tb)) {
       if (n.count == 0 && top < kStack) {
         stack[top++] = n.first;
         i = i + 1;
@@ -226,15 +224,17 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
                         bool leaving, double& eye, SeenScratch& s, double t_guess) const noexcept {
   SeenHit hit;
   eye = 0;
-  // The layers ahead of c in two stages when a guess is given (first_inside's): up to the guess
-  // first, the rest only when those do not reach ln 2. Every layer of the second stage lies
-  // deeper than every one before it, so the answer is the one-stage answer.
+  // Both looks read in stages, and each stage's layers all lie beyond every earlier stage's, so
+  // the answer is the one-stage answer (first_inside's argument): ahead of c, up to the guess
+  // first and the rest only when those do not reach ln 2; behind c, ranges growing x4 from
+  // kEyeFirst of max_back until a surface hides c (a surface near behind spares the long look).
   const double end = lead + len;
   const double split = std::isfinite(t_guess) ? std::clamp(lead + t_guess, 0.0, end) : end;
   bool ahead_done = true;
+  std::size_t ahead = 0;  // the layers ahead, at the start of scratch
   // The layers between the eye and c composite to less than ln 2 (that is where the eye is), so
-  // a surface needs a layer peaking ahead of c: with none there, the long look back is spared
-  // (a free tool away from the surfaces).
+  // a surface needs a layer peaking ahead of c: with none there, the eye is not searched (a free
+  // tool away from the surfaces).
   if (end > 0) {
     gather(c, u, 0.0, split, s);
     ahead_done = !(split < end);
@@ -243,55 +243,90 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
       ahead_done = true;
     }
     if (!s.overflow && s.gathered == 0) return hit;
-    if (!s.overflow) gather_more(c, u, -max_back, 0.0, 0.0, s);  // then the layers behind c
+    sort_by_depth(s.layers.begin(), s.layers.begin() + std::ptrdiff_t(s.gathered));
+    ahead = s.gathered;
   } else {
-    gather(c, u, -max_back, 0.0, s);
+    s.gathered = 0;
   }
+  std::array<Span, kEyeStages> behind;
+  const int stages = look_back(c, u, max_back, end > 0, behind, eye, s);
   if (s.overflow) {
+    eye = 0;
     hit.hit = true;  // blocked where it stands
     return hit;
   }
-  const auto first = s.layers.begin(), last = s.layers.begin() + std::ptrdiff_t(s.gathered);
-  sort_by_depth(first, last);
-  // The eye (eye_distance): back from c until a surface hides it.
-  std::size_t from = 0;  // the first layer in front of the eye
+  // Forward from the eye: the stages behind c from the farthest read, then the layers ahead. A
+  // surface crossed behind the leading point holds the tool where it stands, unless the tool is
+  // `leaving` it (the shell it rested in, seen from the side it lifts off to).
   double tau = 0;
-  eye = max_back;
-  for (std::size_t k = s.gathered; k-- > 0;) {
-    if (s.layers[k].t > 0) continue;
-    tau += s.layers[k].tau;
-    if (tau >= kLn2) {
-      eye = -s.layers[k].t;
-      from = k + 1;
-      break;
-    }
-  }
-  // Forward from the eye. A surface crossed behind the leading point holds the tool where it
-  // stands, unless the tool is `leaving` it (the shell it rested in, seen from the side it
-  // lifts off to).
-  tau = 0;
-  for (std::size_t k = from;; ++k) {
-    if (k == s.gathered) {
-      if (ahead_done) return hit;
-      gather_more(c, u, split, end, split, s);  // the second stage
-      ahead_done = true;
-      if (s.overflow) {  // (as the one stage's overflow: blocked where it stands)
-        eye = 0;
-        hit.hit = true;
-        return hit;
+  std::uint32_t passed = 0;
+  const auto composite = [&](std::size_t first, std::size_t last) {
+    for (std::size_t k = first; k < last; ++k) {
+      tau += s.layers[k].tau;
+      ++passed;
+      if (tau >= kLn2) {
+        hit.hit = !(s.layers[k].t < lead && leaving);
+        hit.t = hit.hit ? std::max(0.0, s.layers[k].t - lead) : 0.0;
+        hit.layers = hit.hit ? passed : 0;
+        return true;
       }
-      if (k == s.gathered) return hit;
-      sort_by_depth(s.layers.begin() + std::ptrdiff_t(k), s.layers.begin() + std::ptrdiff_t(s.gathered));
     }
-    tau += s.layers[k].tau;
-    if (tau >= kLn2) {
-      if (s.layers[k].t < lead && leaving) return hit;
+    return false;
+  };
+  for (int st = stages; st-- > 0;)
+    if (composite(behind[std::size_t(st)].first, behind[std::size_t(st)].last)) return hit;
+  if (composite(0, ahead) || ahead_done) return hit;
+  // The layers ahead past the guess, in ranges growing x4 (the hit usually lies near the guess;
+  // the whole rest of the push may cross the solid's inside).
+  double near = split;
+  for (int st = 0; st < kEyeStages && near < end; ++st) {
+    const double far = st + 1 == kEyeStages ? end : std::min(end, split + (end - split) * kEyeFirst * std::pow(4.0, st + 1));
+    const std::size_t more = s.gathered;
+    gather_more(c, u, near, far, near, s);
+    if (s.overflow) {
+      eye = 0;
       hit.hit = true;
-      hit.t = std::max(0.0, s.layers[k].t - lead);
-      hit.layers = std::uint32_t(k + 1 - from);
       return hit;
     }
+    sort_by_depth(s.layers.begin() + std::ptrdiff_t(more), s.layers.begin() + std::ptrdiff_t(s.gathered));
+    if (composite(more, s.gathered)) return hit;
+    near = far;
   }
+  return hit;
+}
+
+int SeenSolid::look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, bool shared_zero,
+                         std::array<Span, kEyeStages>& behind, double& eye, SeenScratch& s) const noexcept {
+  // Back from c until a surface hides it: the layers of each stage after those gathered, sorted,
+  // and composited from c backwards. (A layer peaking on a stage's near end belongs to the
+  // stage before, nearer c: gather_more leaves it out; one at c itself to the look ahead, when
+  // there is one.)
+  double tau = 0;
+  double near = 0;
+  eye = max_back;
+  int stages = 0;
+  for (int st = 0; st < kEyeStages; ++st) {
+    const double far = st + 1 == kEyeStages ? max_back : std::min(max_back, max_back * kEyeFirst * std::pow(4.0, st));
+    if (st > 0 && !(far > near)) break;
+    const std::size_t first = s.gathered;
+    if (st > 0 || shared_zero)
+      gather_more(c, u, -far, -near, -near, s);
+    else
+      gather(c, u, -far, 0.0, s, /*append=*/true);
+    if (s.overflow) return stages;
+    sort_by_depth(s.layers.begin() + std::ptrdiff_t(first), s.layers.begin() + std::ptrdiff_t(s.gathered));
+    behind[std::size_t(stages++)] = {first, s.gathered};
+    for (std::size_t k = s.gathered; k-- > first;) {
+      tau += s.layers[k].tau;
+      if (tau >= kLn2) {
+        eye = -s.layers[k].t;
+        behind[std::size_t(stages - 1)].first = k + 1;  // the layers in front of the eye
+        return stages;
+      }
+    }
+    near = far;
+  }
+  return stages;
 }
 
 SeenHit SeenSolid::normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k, double h, double reach,
