@@ -77,7 +77,7 @@ void SeenCompoundProxy::release() noexcept {
   friction_.reset();
   friction_step_ = {};
   held_.fill(Hold{});
-  last_hit_.fill(std::numeric_limits<double>::quiet_NaN());
+  for (SeenLineMemo& m : leading_) m.forget();
 }
 
 void SeenCompoundProxy::pose(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept {
@@ -89,6 +89,7 @@ void SeenCompoundProxy::forget_ring(int j, const Eigen::Vector3d& axis) noexcept
   g.axis = axis;
   g.at.fill(kInf);
   g.stamp.fill(0);
+  for (SeenLineMemo& m : g.memo) m.forget();
   for (EdgeSearch& e : edges_[std::size_t(j)]) e = EdgeSearch{};
 }
 
@@ -104,14 +105,22 @@ double SeenCompoundProxy::ring_gap(const ExitAlong& exit, int j, int k, const Ei
 }
 
 double SeenCompoundProxy::line_surface(int j, const Eigen::Vector3d& front, const Eigen::Vector3d& u, double back,
-                                       double ahead, double last) noexcept {
-  double eye = 0;
-  const double start = front.dot(u) - back;
+                                       double ahead, double last, SeenLineMemo& memo) noexcept {
+  const Eigen::Vector3d c = front - back * u;
+  const double start = front.dot(u) - back, len = back + ahead;
+  // (The line's eye is its own, found from c: a line that has not moved has the same eye.)
+  double t = kInf;
+  if (memo.reuse(c, u, 0, 0, len, kSameLine * min_axis_, t)) return std::isfinite(t) ? start + t : kInf;
   // (A part held while the device presses on reads its lines to the device's depth, tens of
   // middle semi-axes past the surface they meet: the layers up to the last answer come first.)
   const double guess = std::isfinite(last) ? last - start + kRingLook * middle_[std::size_t(j)] : kInf;
-  const SeenHit hit = solid_->push(front - back * u, u, 0, params_.seen_window * middle_[std::size_t(j)], back + ahead,
-                                   false, eye, scratch_, std::isfinite(guess) ? guess : std::numeric_limits<double>::quiet_NaN());
+  double eye = 0;
+  const SeenHit hit = solid_->push(c, u, 0, params_.seen_window * middle_[std::size_t(j)], len, false, eye, scratch_,
+                                   std::isfinite(guess) ? guess : std::numeric_limits<double>::quiet_NaN());
+  if (scratch_.overflow)
+    memo.forget();
+  else
+    memo.keep(c, u, 0, 0, len, hit.hit ? hit.t : kInf);
   return hit.hit ? start + hit.t : kInf;
 }
 
@@ -135,7 +144,8 @@ std::array<double, 2> SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& f
       const SeenHit hit = solid_->first_inside(front, u, eye, eye, len + look, scratch_);
       g.at[std::size_t(line.slot)] = hit.hit ? front.dot(u) + hit.t : kInf;
     } else {
-      g.at[std::size_t(line.slot)] = line_surface(j, front, u, back, len + look, g.at[std::size_t(line.slot)]);
+      g.at[std::size_t(line.slot)] =
+          line_surface(j, front, u, back, len + look, g.at[std::size_t(line.slot)], g.memo[std::size_t(line.slot)]);
     }
   }
   // A line met later than its refresh allows (a slanted wall met line by line) does not hold:
@@ -250,7 +260,8 @@ void SeenCompoundProxy::read_ring(int j, double reach) noexcept {
     const Eigen::Vector3d p = part.center + line.offset;
     const Eigen::Vector3d front = p + exit_along(part, p, axis_) * axis_;
     g.foot[std::size_t(line.slot)] = front;
-    g.at[std::size_t(line.slot)] = line_surface(j, front, axis_, 2 * look, reach, g.at[std::size_t(line.slot)]);
+    g.at[std::size_t(line.slot)] =
+        line_surface(j, front, axis_, 2 * look, reach, g.at[std::size_t(line.slot)], g.memo[std::size_t(line.slot)]);
   }
 }
 
@@ -396,18 +407,17 @@ double SeenCompoundProxy::leading_ray(int j, double band, double& depth) noexcep
   // The first crossing along a line from a fixed eye does not depend on how far the search
   // reaches past it: a part whose line has not moved (the proxy sticking while the device
   // presses on) meets the same hit, read again only when the line moves.
-  if (std::isfinite(last_hit_[k]) && last_hit_[k] <= reach &&
-      (origin - last_origin_[k]).squaredNorm() <= kSameLine * kSameLine * min_axis_ * min_axis_)
-    return last_hit_[k];
-  const double guess = std::isfinite(last_hit_[k]) ? last_hit_[k] + kGuessMargin * min_axis_ : reach;
+  SeenLineMemo& last = leading_[k];
+  double t = kInf;
+  if (last.reuse(origin, axis_, 0, 0, reach, kSameLine * min_axis_, t)) return t;
+  const double guess = last.valid && std::isfinite(last.t) ? last.t + kGuessMargin * min_axis_ : reach;
   const SeenHit hit = solid_->first_inside(origin, axis_, 0, 0, reach, scratch_, guess);
-  if (!hit.hit || scratch_.overflow) {
-    last_hit_[k] = std::numeric_limits<double>::quiet_NaN();
+  if (scratch_.overflow) {
+    last.forget();
     return hit.hit ? hit.t : kInf;
   }
-  last_hit_[k] = hit.t;
-  last_origin_[k] = origin;
-  return hit.t;
+  last.keep(origin, axis_, 0, 0, reach, hit.hit ? hit.t : kInf);
+  return hit.hit ? hit.t : kInf;
 }
 
 bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,

@@ -16,7 +16,7 @@ void SeenProxy::reset() noexcept {
   coupling_.release();
   friction_.reset();
   friction_step_ = {};
-  ring_read_.fill(RingRead{});
+  ring_read_.fill(SeenLineMemo{});
   if (follower_) follower_->release();
 }
 
@@ -82,7 +82,7 @@ double SeenProxy::free_ring(const Eigen::Vector3d& u, double radius, double len,
 
 void SeenProxy::forget_ring(const Eigen::Vector3d& axis) noexcept {
   ring_at_.fill(std::numeric_limits<double>::infinity());
-  ring_read_.fill(RingRead{});
+  ring_read_.fill(SeenLineMemo{});
   ring_axis_ = axis;
 }
 
@@ -113,7 +113,7 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
   eye_ = proxy_ + (radius - back) * u;
   // The contact's footprint starts from the readings that began it, or from none.
   if (!by_ring || u.dot(ring_axis_) < kRingAxisCos) forget_ring(u);
-  ring_read_.fill(RingRead{});  // (searched afresh along this contact's axis and eye plane)
+  ring_read_.fill(SeenLineMemo{});  // (searched afresh along this contact's axis and eye plane)
   normal_.setZero();  // read afresh by hold()
   normal_reading_.forget();
   last_hit_ = std::numeric_limits<double>::quiet_NaN();
@@ -140,29 +140,14 @@ void SeenProxy::read_ring(const Eigen::Vector3d& device, const Eigen::Vector3d& 
   const double resting = (proxy_ + radius * axis_ - eye_).dot(axis_) - (radius - ring_lead(k, radius));
   const double from = std::max(0.0, std::min(reach, resting) - kRingLate * radius);
   const double eye = std::max(0.0, from - kRingLook * radius);
-  RingRead& last = ring_read_[std::size_t(k)];
+  SeenLineMemo& last = ring_read_[std::size_t(k)];
   double t = std::numeric_limits<double>::infinity();
-  if (!last.reuse(o, eye, from, reach, kSameRay * radius, t)) {
+  if (!last.reuse(o, axis_, eye, from, reach, kSameRay * radius, t)) {
     const SeenHit hit = solid_.first_inside(o, axis_, eye, from, reach, scratch_);
     t = hit.hit ? hit.t : std::numeric_limits<double>::infinity();
-    last = {o, eye, from, reach, t, true};
+    last.keep(o, axis_, eye, from, reach, t);
   }
   at = std::isfinite(t) ? o.dot(axis_) + t : std::numeric_limits<double>::infinity();
-}
-
-bool SeenProxy::RingRead::reuse(const Eigen::Vector3d& o, double eye_t, double from_t, double reach_t, double same,
-                                double& t_out) const noexcept {
-  // The first crossing seen from a fixed eye along a fixed line does not depend on the window
-  // around it: a crossing found past the last window's start stays while the new window holds it,
-  // and none up to the last window's end stays none up to any end short of it.
-  if (!valid || (o - origin).squaredNorm() > same * same || std::fabs(eye_t - eye) > same) return false;
-  if (std::isfinite(t)) {
-    if (!(t > from && t >= from_t && t <= reach_t)) return false;
-  } else if (!(reach_t <= reach && from_t >= from)) {
-    return false;
-  }
-  t_out = t;
-  return true;
 }
 
 double SeenProxy::ring_support(const Eigen::Vector3d& device, double radius) const noexcept {

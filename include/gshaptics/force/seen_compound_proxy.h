@@ -125,6 +125,7 @@ class SeenCompoundProxy {
     Eigen::Vector3d axis = Eigen::Vector3d::Zero();
     std::array<Eigen::Vector3d, kLines> foot{};
     std::array<double, kLines> at{};
+    std::array<SeenLineMemo, kReadLines> memo{};  // the read lines' last searches (line_surface)
     std::array<std::uint32_t, kRoamLines> stamp{};  // the roaming slots' readings, by `roam`
     int next = 0, next_inner = 0;  // the ring's next line, and the inner turn
     std::uint32_t roam = 0;        // the roaming sequence's next index
@@ -189,9 +190,10 @@ class SeenCompoundProxy {
   // from (SeenSolid::push; at most seen_window of part j's middle semi-axes), so the faint layers
   // a viewer composites in front of it count, while a surface behind the eye (an overhang above
   // the part) does not. +inf: none. `last`: the line's last answer (+inf: none), where the
-  // search reads first (SeenSolid::push's guess: only the cost depends on it).
+  // search reads first (SeenSolid::push's guess: only the cost depends on it); `memo`: its last
+  // search, the answer while the line and its window decide it (a resting part's lines).
   double line_surface(int j, const Eigen::Vector3d& front, const Eigen::Vector3d& u, double back, double ahead,
-                      double last) noexcept;
+                      double last, SeenLineMemo& memo) noexcept;
   // Free: part j's next two footprint lines (next_lines) along its chord u (its centre `from`,
   // moving `len`), and how far the part moves before its footprint meets the surface (+inf: not
   // within the chord): by the ring's lines, and by the inner lines.
@@ -213,8 +215,7 @@ class SeenCompoundProxy {
   [[nodiscard]] LineChoice nearest_line(int j, const ToolEllipsoid& resting) const noexcept;
   // Part j's leading point's ray from the eye plane (parts_ posed at the device's depth): its
   // hit's depth from the eye plane (+inf: none within the band past it), `depth` the point's.
-  // The last hit is kept while the ray's line stays where it was (kSameLine): the first crossing
-  // from a fixed eye does not depend on the depth searched to.
+  // The last search is kept while the ray's line stays where it was (kSameLine; SeenLineMemo).
   double leading_ray(int j, double band, double& depth) noexcept;
   // How far `part` (part j, posed) stands above the edge its two edge lines found, at its own
   // tangent point on it (set: `contact`): the point of the part whose normal is across the edge,
@@ -255,9 +256,8 @@ class SeenCompoundProxy {
   std::array<Hold, kMaxToolParts> held_{};
   std::array<Ring, kMaxToolParts> rings_{};
   std::array<std::array<EdgeSearch, 2>, kMaxToolParts> edges_{};
-  std::array<double, kMaxToolParts> last_hit_{};  // each part's last hit, depth from the eye plane (NaN: none)
-  std::array<Eigen::Vector3d, kMaxToolParts> last_origin_{};  // its line's origin on the eye plane
-  static constexpr double kSameLine = 1e-9;  // smallest semi-axes: a leading point's line that has not moved
+  std::array<SeenLineMemo, kMaxToolParts> leading_{};  // each part's leading point's last search
+  static constexpr double kSameLine = 1e-9;  // smallest semi-axes: a line that has not moved
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero(), last_device_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();       // the force's, smoothed

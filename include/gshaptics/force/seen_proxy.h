@@ -152,16 +152,7 @@ class SeenProxy {
   // Each footprint ray's last search in contact (read_ring): its line's origin on the eye plane,
   // its eye, window and crossing t (+inf: none), reused while the line and eye stay (a resting
   // ball's rays over a faint patch composite dozens of layers a read).
-  struct RingRead {
-    Eigen::Vector3d origin = Eigen::Vector3d::Zero();
-    double eye = 0, from = 0, reach = 0, t = 0;
-    bool valid = false;
-    // The crossing for the same line and eye over [from_t, reach_t] into t_out when the last
-    // search decides it; false when it must be searched.
-    bool reuse(const Eigen::Vector3d& o, double eye_t, double from_t, double reach_t, double same,
-               double& t_out) const noexcept;
-  };
-  std::array<RingRead, kRingRays> ring_read_{};
+  std::array<SeenLineMemo, kRingRays> ring_read_{};  // each footprint ray's last search
   static constexpr double kSameRay = 1e-9;  // R: a footprint ray's line or eye that has not moved
   Eigen::Vector3d ring_axis_ = Eigen::Vector3d::Zero();
   int ring_next_ = 0;

@@ -54,6 +54,50 @@ struct SeenHit {
   Eigen::Vector3d shade = Eigen::Vector3d::Zero();
 };
 
+/// A line's last search on a SeenSolid (first_inside() or push()), kept to answer the next one
+/// on the same line without searching: the first crossing along a fixed line seen from a fixed
+/// eye does not depend on the window searched around it, so a crossing found past the last
+/// window's start stays while the new window holds it, and none up to the last window's end
+/// stays none up to any end short of it. What SeenProxy's footprint rays and SeenCompoundProxy's
+/// leading points and footprint lines keep while the proxy rests (the device pressing on, the
+/// proxy held by static friction). Depths are along the line from its origin.
+struct SeenLineMemo {
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  Eigen::Vector3d u = Eigen::Vector3d::Zero();
+  double eye = 0, from = 0, reach = 0;
+  double t = std::numeric_limits<double>::infinity();  ///< the crossing (+inf: none up to reach)
+  bool valid = false;
+
+  /// The crossing along o + t dir seen from eye_t, searched over [from_t, reach_t], into t_out
+  /// when the last search decides it (the line's origin and eye within `same`, its direction to
+  /// rounding); false when it must be searched.
+  bool reuse(const Eigen::Vector3d& o, const Eigen::Vector3d& dir, double eye_t, double from_t, double reach_t,
+             double same, double& t_out) const noexcept {
+    if (!valid || (o - origin).squaredNorm() > same * same || (dir - u).squaredNorm() > 1e-24 ||
+        std::fabs(eye_t - eye) > same)
+      return false;
+    if (std::isfinite(t)) {
+      if (!(t > from && t >= from_t && t <= reach_t)) return false;
+    } else if (!(reach_t <= reach && from_t >= from)) {
+      return false;
+    }
+    t_out = t;
+    return true;
+  }
+  /// A search's answer (t: +inf when none).
+  void keep(const Eigen::Vector3d& o, const Eigen::Vector3d& dir, double eye_t, double from_t, double reach_t,
+            double t_found) noexcept {
+    origin = o;
+    u = dir;
+    eye = eye_t;
+    from = from_t;
+    reach = reach_t;
+    t = t_found;
+    valid = true;
+  }
+  void forget() noexcept { valid = false; }
+};
+
 class SeenSolid {
  public:
   /// How many rays the normal reads (normal(), normal_ray()).
