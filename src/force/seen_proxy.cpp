@@ -181,6 +181,22 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   const Eigen::Vector3d moved = foot + (t - radius) * a - proxy_;
   proxy_ += moved;
   read_normal(foot + rest * a, radius, rest);
+  // Cradled by its footprint well above where its leading point's ray meets the surface (a
+  // groove's walls, a hole's rim), the sphere is held by what lies under its side, beyond the
+  // reach of the reading's rays around the floating leading point (pressed 28 mm past a groove's
+  // walls, the force leaned 28 deg off its bisector). The rays that hold it surround its centre
+  // line (holding()), so the cone of the sphere's own normals over them holds the push along the
+  // contact's axis: a rigid cradle pushes back along it. Blended in from kCradleFrom to
+  // kCradleFull R of float: a 60-degree groove floats the leading point 1 R, a 90-degree corner
+  // 0.41 R, a hole's rim more; on a slope the rays that surround the centre line meet it no
+  // earlier than the leading point's own ray (no float), and its seen normal stays.
+  const double lift = (hit.hit ? hit.t : std::numeric_limits<double>::infinity()) - rest;
+  const double w = std::clamp((lift - kCradleFrom * radius) / ((kCradleFull - kCradleFrom) * radius), 0.0, 1.0);
+  if (w > 0) {
+    const Eigen::Vector3d mixed = (1 - w) * target_normal_ - w * a;
+    target_normal_ = mixed.norm() > 1e-9 ? Eigen::Vector3d(mixed.normalized()) : Eigen::Vector3d(-a);
+  }
+  if (normal_.squaredNorm() == 0) normal_ = target_normal_;
   // The normal follows its readings over kNormalTau and over kNormalPath R of the proxy's slide,
   // whichever is slower: relief finer than the tool (a grating under a sphere) does not turn it.
   const double slide = (moved - moved.dot(a) * a).norm();
@@ -196,7 +212,6 @@ void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double 
   // rays search as deep as the ring is wide (kNormalSpan >= 1: slopes to 45 deg).
   const double h = kNormalSpan * radius, back = std::min(depth, kNormalEye * radius);
   target_normal_ = normal_reading_.update(solid_, point, axis_, h, back, kNormalReuse * radius, scratch_);
-  if (normal_.squaredNorm() == 0) normal_ = target_normal_;
 }
 
 void SeenProxy::read_material_shares(const SeenHit& hit) noexcept {

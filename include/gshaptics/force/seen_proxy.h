@@ -88,8 +88,8 @@ class SeenProxy {
   Eigen::Vector3d add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& contact,
                                       const Eigen::Vector3d& velocity, double radius, double dt) noexcept;
 
-  // The normal's reading at the resting point `point` (`depth` from the eye plane): all its rays
-  // for a contact's first, one ray a tick for the later ones.
+  // The normal's reading at the resting point `point` (`depth` from the eye plane) into
+  // target_normal_: all its rays for a contact's first, one ray a tick for the later ones.
   void read_normal(const Eigen::Vector3d& point, double radius, double depth) noexcept;
   static constexpr double kNormalTau = 0.005;   // s
   static constexpr double kNormalPath = 0.5;    // R: and over this much of the proxy's slide
@@ -116,6 +116,10 @@ class SeenProxy {
   // holds the leading point (depth from the eye plane; +inf: nowhere).
   void read_ring(const Eigen::Vector3d& device, const Eigen::Vector3d& foot, double radius, double limit) noexcept;
   [[nodiscard]] double ring_support(const Eigen::Vector3d& device, double radius) const noexcept;
+  // The normal of a sphere its footprint cradles (hold()): the contact's axis, reversed, from
+  // this float of its leading point above that point's own surface on (R), wholly from kCradleFull.
+  static constexpr double kCradleFrom = 0.05;  // R: the leading point's float above its surface where the cradle's normal starts
+  static constexpr double kCradleFull = 0.3;   // R: and where it is the whole normal
   // Ray k's surface as a coordinate along ring_axis_, +inf when none was found or when it was
   // read more than kRingDrift R across from the tool's centre line through `centre`.
   [[nodiscard]] double ring_at(int k, const Eigen::Vector3d& centre, double radius) const noexcept;
