@@ -34,6 +34,20 @@ void add_layer(GaussianScene& g, double z, float opacity, double s = 0.004, doub
                   Eigen::Vector4f(1, 0, 0, 0), opacity, std::uint32_t(g.size()));
 }
 
+// 3,000 Gaussians of random turn, size (0.01-0.06 x 0.01-0.06 x 0.002-0.022) and opacity
+// (0.01-0.51) in the unit cube around the origin: faint layers and opaque ones, overlapping.
+GaussianScene random_cloud(std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> uni(0, 1);
+  GaussianScene g;
+  for (int i = 0; i < 3000; ++i) {
+    const Eigen::Quaternionf q = Eigen::Quaternionf::UnitRandom();
+    g.push_back(Eigen::Vector3f(float(uni(rng) - 0.5), float(uni(rng) - 0.5), float(uni(rng) - 0.5)),
+                Eigen::Vector3f(float(0.01 + 0.05 * uni(rng)), float(0.01 + 0.05 * uni(rng)), float(0.002 + 0.02 * uni(rng))),
+                Eigen::Vector4f(q.w(), q.x(), q.y(), q.z()), float(0.01 + 0.5 * uni(rng)), std::uint32_t(i));
+  }
+  return g;
+}
+
 // A needle-thin Gaussian (scales 0.5 x 1e-9 x 1e-9, turned at random) seen along one of its thin
 // axes, passing at Mahalanobis distance 0.8 (alpha 0.65: opaque) or 1.2 (alpha 0.44: not). The
 // expanded v^T Sigma^-1 v of a ray 1 away reads ~1e18 less ~1e18 and loses the 0.64 it should
@@ -76,13 +90,7 @@ TEST(SeenSolid, ANeedleThinGaussianIsSeenAtItsMahalanobisDistance) {
 TEST(SeenSolid, FirstInsideFromAFarEyeIsTheSeenDepth) {
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> uni(0, 1);
-  GaussianScene g;
-  for (int i = 0; i < 3000; ++i) {
-    const Eigen::Quaternionf q = Eigen::Quaternionf::UnitRandom();
-    g.push_back(Eigen::Vector3f(float(uni(rng) - 0.5), float(uni(rng) - 0.5), float(uni(rng) - 0.5)),
-                Eigen::Vector3f(float(0.01 + 0.05 * uni(rng)), float(0.01 + 0.05 * uni(rng)), float(0.002 + 0.02 * uni(rng))),
-                Eigen::Vector4f(q.w(), q.x(), q.y(), q.z()), float(0.01 + 0.5 * uni(rng)), std::uint32_t(i));
-  }
+  const GaussianScene g = random_cloud(rng);
   const CollisionWorld world = CollisionWorld::build(g, seen_world());
   const SeenSolid solid(world);
   const SeenSurface reference(g);
@@ -122,13 +130,7 @@ TEST(SeenSolid, FirstInsideFromAFarEyeIsTheSeenDepth) {
 TEST(SeenSolid, APushsGuessChangesOnlyItsCost) {
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> uni(0, 1);
-  GaussianScene g;
-  for (int i = 0; i < 3000; ++i) {
-    const Eigen::Quaternionf q = Eigen::Quaternionf::UnitRandom();
-    g.push_back(Eigen::Vector3f(float(uni(rng) - 0.5), float(uni(rng) - 0.5), float(uni(rng) - 0.5)),
-                Eigen::Vector3f(float(0.01 + 0.05 * uni(rng)), float(0.01 + 0.05 * uni(rng)), float(0.002 + 0.02 * uni(rng))),
-                Eigen::Vector4f(q.w(), q.x(), q.y(), q.z()), float(0.01 + 0.5 * uni(rng)), std::uint32_t(i));
-  }
+  const GaussianScene g = random_cloud(rng);
   const CollisionWorld world = CollisionWorld::build(g, seen_world());
   const SeenSolid solid(world);
   const SeenSurface reference(g);
