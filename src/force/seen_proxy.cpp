@@ -13,6 +13,7 @@ void SeenProxy::reset() noexcept {
   started_ = false;
   in_contact_ = false;
   normal_.setZero();
+  fresh_normal_ = false;
   coupling_.release();
   friction_.reset();
   friction_step_ = {};
@@ -114,7 +115,9 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
   // The contact's footprint starts from the readings that began it, or from none.
   if (!by_ring || u.dot(ring_axis_) < kRingAxisCos) forget_ring(u);
   ring_read_.fill(SeenLineMemo{});  // (searched afresh along this contact's axis and eye plane)
-  normal_.setZero();  // read afresh by hold()
+  // (Read afresh by hold(); until then the last contact's stays in normal_, which says whether
+  // the tool is leaving a surface, should this contact fail at once.)
+  fresh_normal_ = true;
   normal_reading_.forget();
   last_hit_ = std::numeric_limits<double>::quiet_NaN();
   return true;
@@ -196,7 +199,10 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
     const Eigen::Vector3d mixed = (1 - w) * target_normal_ - w * a;
     target_normal_ = mixed.norm() > 1e-9 ? Eigen::Vector3d(mixed.normalized()) : Eigen::Vector3d(-a);
   }
-  if (normal_.squaredNorm() == 0) normal_ = target_normal_;
+  if (fresh_normal_ || normal_.squaredNorm() == 0) {
+    normal_ = target_normal_;
+    fresh_normal_ = false;
+  }
   // The normal follows its readings over kNormalTau and over kNormalPath R of the proxy's slide,
   // whichever is slower: relief finer than the tool (a grating under a sphere) does not turn it.
   const double slide = (moved - moved.dot(a) * a).norm();
@@ -255,7 +261,8 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   const bool was_in_contact = in_contact_;
   if (!in_contact_) in_contact_ = begin_contact(tool.center, r);
   if (in_contact_) {
-    friction_step_ = friction_.update(was_in_contact, normal_, tool.center, proxy_, device_step, r);
+    const Eigen::Vector3d held = fresh_normal_ ? Eigen::Vector3d::Zero() : normal_;  // (none yet in a new contact)
+    friction_step_ = friction_.update(was_in_contact, held, tool.center, proxy_, device_step, r);
     in_contact_ = hold(tool.center, friction_step_.goal, r, dt);
   }
   if (!in_contact_) {

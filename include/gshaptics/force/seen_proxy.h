@@ -143,6 +143,7 @@ class SeenProxy {
   Eigen::Vector3d last_device_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d proxy_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
+  bool fresh_normal_ = false;  // a new contact: its first reading sets normal_ (hold())
   Eigen::Vector3d axis_ = Eigen::Vector3d::Zero();  // the contact's push direction
   Eigen::Vector3d eye_ = Eigen::Vector3d::Zero();   // a point of its eye plane
   Eigen::Vector3d target_normal_ = Eigen::Vector3d::Zero();  // the last reading
