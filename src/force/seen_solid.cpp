@@ -227,7 +227,7 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   // Both looks read in stages, and each stage's layers all lie beyond every earlier stage's, so
   // the answer is the one-stage answer (first_inside's argument): ahead of c, up to the guess
   // first and the rest only when those do not reach ln 2; behind c, ranges growing x4 from
-  // kEyeFirst of max_back until a surface hides c (a surface near behind spares the long look).
+  // kFirstStage of max_back until a surface hides c (a surface near behind spares the long look).
   const double end = lead + len;
   const double split = std::isfinite(t_guess) ? std::clamp(lead + t_guess, 0.0, end) : end;
   bool ahead_done = true;
@@ -248,7 +248,7 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   } else {
     s.gathered = 0;
   }
-  std::array<Span, kEyeStages> behind;
+  std::array<Span, kStages> behind;
   const int stages = look_back(c, u, max_back, end > 0, behind, eye, s);
   if (s.overflow) {
     eye = 0;
@@ -279,8 +279,8 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   // The layers ahead past the guess, in ranges growing x4 (the hit usually lies near the guess;
   // the whole rest of the push may cross the solid's inside).
   double near = split;
-  for (int st = 0; st < kEyeStages && near < end; ++st) {
-    const double far = st + 1 == kEyeStages ? end : std::min(end, split + (end - split) * kEyeFirst * std::pow(4.0, st + 1));
+  for (int st = 0; st < kStages && near < end; ++st) {
+    const double far = st + 1 == kStages ? end : std::min(end, split + (end - split) * kFirstStage * std::pow(4.0, st + 1));
     const std::size_t more = s.gathered;
     gather_more(c, u, near, far, near, s);
     if (s.overflow) {
@@ -296,7 +296,7 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
 }
 
 int SeenSolid::look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, bool shared_zero,
-                         std::array<Span, kEyeStages>& behind, double& eye, SeenScratch& s) const noexcept {
+                         std::array<Span, kStages>& behind, double& eye, SeenScratch& s) const noexcept {
   // Back from c until a surface hides it: the layers of each stage after those gathered, sorted,
   // and composited from c backwards. (A layer peaking on a stage's near end belongs to the
   // stage before, nearer c: gather_more leaves it out; one at c itself to the look ahead, when
@@ -305,8 +305,8 @@ int SeenSolid::look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, dou
   double near = 0;
   eye = max_back;
   int stages = 0;
-  for (int st = 0; st < kEyeStages; ++st) {
-    const double far = st + 1 == kEyeStages ? max_back : std::min(max_back, max_back * kEyeFirst * std::pow(4.0, st));
+  for (int st = 0; st < kStages; ++st) {
+    const double far = st + 1 == kStages ? max_back : std::min(max_back, max_back * kFirstStage * std::pow(4.0, st));
     if (st > 0 && !(far > near)) break;
     const std::size_t first = s.gathered;
     if (st > 0 || shared_zero)

@@ -215,16 +215,18 @@ class SeenSolid {
   // Sorts layers by depth, ties by their Gaussians' slots in the world.
   void sort_by_depth(std::vector<SeenScratch::Layer>::iterator first,
                      std::vector<SeenScratch::Layer>::iterator last) const noexcept;
-  // push()'s look behind c: how many stages it read (at most kEyeStages, their layers' spans in
+  // push()'s look behind c: how many stages it read (at most kStages, their layers' spans in
   // scratch in `behind`, the last one's from the eye on) and the eye's distance behind c
   // (max_back when nothing hides c). `shared_zero`: a look ahead took the layers peaking at c.
-  static constexpr int kEyeStages = 4;
-  static constexpr double kEyeFirst = 1.0 / 64;  // of max_back: the first stage's reach
+  // push()'s staged reads: at most kStages ranges growing x4, the first kFirstStage of the whole
+  // (behind c: of max_back; ahead: of what lies past the guess).
+  static constexpr int kStages = 4;
+  static constexpr double kFirstStage = 1.0 / 64;
   struct Span {
     std::size_t first, last;
   };
   int look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, bool shared_zero,
-                std::array<Span, kEyeStages>& behind, double& eye, SeenScratch& scratch) const noexcept;
+                std::array<Span, kStages>& behind, double& eye, SeenScratch& scratch) const noexcept;
   // The layers peaking in [ta, tb] into scratch (after the ones there when `append`).
   static Eigen::Vector3d normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
                                            double h) noexcept;
