@@ -230,26 +230,18 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   // kFirstStage of max_back until a surface hides c (a surface near behind spares the long look).
   const double end = lead + len;
   const double split = std::isfinite(t_guess) ? std::clamp(lead + t_guess, 0.0, end) : end;
-  bool ahead_done = true;
-  std::size_t ahead = 0;  // the layers ahead, at the start of scratch
+  double near = split;  // how far ahead the layers are read
+  int stage = 0;        // the next range past the guess
+  std::size_t around = kNotRead;
+  const std::size_t ahead =
+      end > 0 ? read_ahead(c, u, max_back, split, end, std::isfinite(t_guess), near, stage, around, s) : 0;
   // The layers between the eye and c composite to less than ln 2 (that is where the eye is), so
   // a surface needs a layer peaking ahead of c: with none there, the eye is not searched (a free
   // tool away from the surfaces).
-  if (end > 0) {
-    gather(c, u, 0.0, split, s);
-    ahead_done = !(split < end);
-    if (!s.overflow && s.gathered == 0 && !ahead_done) {
-      gather_more(c, u, split, end, split, s);
-      ahead_done = true;
-    }
-    if (!s.overflow && s.gathered == 0) return hit;
-    sort_by_depth(s.layers.begin(), s.layers.begin() + std::ptrdiff_t(s.gathered));
-    ahead = s.gathered;
-  } else {
-    s.gathered = 0;
-  }
+  if (end > 0 && !s.overflow && ahead == 0) return hit;
+  if (!(end > 0)) s.gathered = 0;
   std::array<Span, kStages> behind;
-  const int stages = look_back(c, u, max_back, end > 0, behind, eye, s);
+  const int stages = look_back(c, u, max_back, end > 0, around, behind, eye, s);
   if (s.overflow) {
     eye = 0;
     hit.hit = true;  // blocked where it stands
@@ -275,14 +267,12 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   };
   for (int st = stages; st-- > 0;)
     if (composite(behind[std::size_t(st)].first, behind[std::size_t(st)].last)) return hit;
-  if (composite(0, ahead) || ahead_done) return hit;
-  // The layers ahead past the guess, in ranges growing x4 (the hit usually lies near the guess;
-  // the whole rest of the push may cross the solid's inside).
-  double near = split;
-  for (int st = 0; st < kStages && near < end; ++st) {
-    const double far = st + 1 == kStages ? end : std::min(end, split + (end - split) * kFirstStage * std::pow(4.0, st + 1));
+  if (composite(0, ahead)) return hit;
+  // The rest of the ranges past the guess.
+  for (; near < end; ++stage) {
+    const double next = ahead_range_end(split, end, stage);
     const std::size_t more = s.gathered;
-    gather_more(c, u, near, far, near, s);
+    gather_more(c, u, near, next, near, s);
     if (s.overflow) {
       eye = 0;
       hit.hit = true;
@@ -290,13 +280,51 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
     }
     sort_by_depth(s.layers.begin() + std::ptrdiff_t(more), s.layers.begin() + std::ptrdiff_t(s.gathered));
     if (composite(more, s.gathered)) return hit;
-    near = far;
+    near = next;
   }
   return hit;
 }
 
+std::size_t SeenSolid::read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, double split,
+                                  double end, bool guessed, double& near, int& stage, std::size_t& around,
+                                  SeenScratch& s) const noexcept {
+  // With a guess (a resting tool's lines, which meet a surface near it), one traversal reads the
+  // layers around c: the first range ahead and the look back's first stage,
+  // [-max_back kFirstStage, 0) (the look back takes them when it is searched). Without one (a
+  // free tool, usually far from every surface), the first range ahead alone.
+  around = kNotRead;
+  gather(c, u, guessed ? -std::min(max_back, max_back * kFirstStage) : 0.0, split, s);
+  if (guessed && s.overflow) {
+    gather(c, u, 0.0, split, s);  // (read apart after all)
+  } else if (guessed) {
+    const auto first = s.layers.begin();
+    const auto behind = std::partition(first, first + std::ptrdiff_t(s.gathered),
+                                       [](const SeenScratch::Layer& l) { return l.t >= 0; });
+    around = s.gathered - std::size_t(behind - first);
+  }
+  // The ranges past the guess until one holds a layer.
+  const std::size_t read_around = around == kNotRead ? 0 : around;
+  for (; !s.overflow && s.gathered == read_around && near < end; ++stage) {
+    const double next = ahead_range_end(split, end, stage);
+    gather_more(c, u, near, next, near, s);
+    near = next;
+  }
+  const std::size_t ahead = s.gathered - read_around;
+  // (Layers those ranges found come after the first stage behind: before it now.)
+  if (read_around > 0 && ahead > 0 && s.layers[0].t < 0)
+    std::rotate(s.layers.begin(), s.layers.begin() + std::ptrdiff_t(read_around),
+                s.layers.begin() + std::ptrdiff_t(s.gathered));
+  sort_by_depth(s.layers.begin(), s.layers.begin() + std::ptrdiff_t(ahead));
+  return ahead;
+}
+
+double SeenSolid::ahead_range_end(double split, double end, int stage) noexcept {
+  return stage + 1 >= kStages ? end : std::min(end, split + (end - split) * kFirstStage * std::pow(4.0, stage + 1));
+}
+
 int SeenSolid::look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, bool shared_zero,
-                         std::array<Span, kStages>& behind, double& eye, SeenScratch& s) const noexcept {
+                         std::size_t around, std::array<Span, kStages>& behind, double& eye,
+                         SeenScratch& s) const noexcept {
   // Back from c until a surface hides it: the layers of each stage after those gathered, sorted,
   // and composited from c backwards. (A layer peaking on a stage's near end belongs to the
   // stage before, nearer c: gather_more leaves it out; one at c itself to the look ahead, when
@@ -308,8 +336,10 @@ int SeenSolid::look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, dou
   for (int st = 0; st < kStages; ++st) {
     const double far = st + 1 == kStages ? max_back : std::min(max_back, max_back * kFirstStage * std::pow(4.0, st));
     if (st > 0 && !(far > near)) break;
-    const std::size_t first = s.gathered;
-    if (st > 0 || shared_zero)
+    std::size_t first = s.gathered;
+    if (st == 0 && around != kNotRead)
+      first -= around;  // read already (push())
+    else if (st > 0 || shared_zero)
       gather_more(c, u, -far, -near, -near, s);
     else
       gather(c, u, -far, 0.0, s, /*append=*/true);

@@ -225,8 +225,21 @@ class SeenSolid {
   struct Span {
     std::size_t first, last;
   };
+  // `around`: how many layers of the first stage push() read already, at the end of scratch
+  // (kNotRead: none; read_ahead()).
+  static constexpr std::size_t kNotRead = std::size_t(-1);
+  // push()'s first read: the layers ahead of c up to `split`, then past it in ranges growing x4
+  // until one holds a layer (`near`, `stage`: how far, and the next range), sorted at the start of
+  // scratch, how many returned; when `guessed`, the look back's first stage in the same traversal,
+  // its `around` layers after them (kNotRead when not read).
+  std::size_t read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, double split, double end,
+                         bool guessed, double& near, int& stage, std::size_t& around,
+                         SeenScratch& scratch) const noexcept;
+  // Where push()'s range `stage` past the guess ends: the rest of [split, end] in ranges growing x4.
+  static double ahead_range_end(double split, double end, int stage) noexcept;
   int look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, bool shared_zero,
-                std::array<Span, kStages>& behind, double& eye, SeenScratch& scratch) const noexcept;
+                std::size_t around, std::array<Span, kStages>& behind, double& eye,
+                SeenScratch& scratch) const noexcept;
   // The layers peaking in [ta, tb] into scratch (after the ones there when `append`).
   static Eigen::Vector3d normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
                                            double h) noexcept;
