@@ -48,6 +48,21 @@ GaussianScene random_cloud(std::mt19937_64& rng) {
   return g;
 }
 
+// A random cloud (random_cloud()) with its world, seen solid, independent brute-force
+// reference and scratch: where the seen solid's tests against the reference start.
+struct CloudCase {
+  explicit CloudCase(std::uint64_t seed)
+      : rng(seed), g(random_cloud(rng)), world(CollisionWorld::build(g, seen_world())), solid(world), reference(g) {}
+  double uni() { return dist(rng); }
+  std::mt19937_64 rng;
+  std::uniform_real_distribution<double> dist{0, 1};
+  GaussianScene g;
+  CollisionWorld world;
+  SeenSolid solid;
+  SeenSurface reference;
+  SeenScratch scratch;
+};
+
 // A needle-thin Gaussian (scales 0.5 x 1e-9 x 1e-9, turned at random) seen along one of its thin
 // axes, passing at Mahalanobis distance 0.8 (alpha 0.65: opaque) or 1.2 (alpha 0.44: not). The
 // expanded v^T Sigma^-1 v of a ray 1 away reads ~1e18 less ~1e18 and loses the 0.64 it should
@@ -88,18 +103,15 @@ TEST(SeenSolid, ANeedleThinGaussianIsSeenAtItsMahalanobisDistance) {
 }
 
 TEST(SeenSolid, FirstInsideFromAFarEyeIsTheSeenDepth) {
-  std::mt19937_64 rng(3);
-  std::uniform_real_distribution<double> uni(0, 1);
-  const GaussianScene g = random_cloud(rng);
-  const CollisionWorld world = CollisionWorld::build(g, seen_world());
-  const SeenSolid solid(world);
-  const SeenSurface reference(g);
-  SeenScratch scratch;
+  CloudCase cloud(3);
+  const SeenSolid& solid = cloud.solid;
+  const SeenSurface& reference = cloud.reference;
+  SeenScratch& scratch = cloud.scratch;
   int hits = 0;
   for (int k = 0; k < 60; ++k) {
-    Eigen::Vector3d u(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5);
+    Eigen::Vector3d u(cloud.uni() - 0.5, cloud.uni() - 0.5, cloud.uni() - 0.5);
     u.normalize();
-    const Eigen::Vector3d o = Eigen::Vector3d(0.3 * (uni(rng) - 0.5), 0.3 * (uni(rng) - 0.5), 0.3 * (uni(rng) - 0.5)) - 1.5 * u;
+    const Eigen::Vector3d o = Eigen::Vector3d(0.3 * (cloud.uni() - 0.5), 0.3 * (cloud.uni() - 0.5), 0.3 * (cloud.uni() - 0.5)) - 1.5 * u;
     const SeenDepth d = reference.median_depth(o, u);
     const SeenHit h = solid.first_inside(o, u, 0, 0, 3.0, scratch);
     ASSERT_FALSE(scratch.overflow);
@@ -128,19 +140,16 @@ TEST(SeenSolid, FirstInsideFromAFarEyeIsTheSeenDepth) {
 // bit (the hit, its depth, its layers and the eye), leaving or not. And the answer is the seen
 // surface (the independent brute-force median depth) from the push's eye.
 TEST(SeenSolid, APushsGuessChangesOnlyItsCost) {
-  std::mt19937_64 rng(5);
-  std::uniform_real_distribution<double> uni(0, 1);
-  const GaussianScene g = random_cloud(rng);
-  const CollisionWorld world = CollisionWorld::build(g, seen_world());
-  const SeenSolid solid(world);
-  const SeenSurface reference(g);
-  SeenScratch scratch;
+  CloudCase cloud(5);
+  const SeenSolid& solid = cloud.solid;
+  const SeenSurface& reference = cloud.reference;
+  SeenScratch& scratch = cloud.scratch;
   int hits = 0, later = 0;
   for (int k = 0; k < 80; ++k) {
-    Eigen::Vector3d u(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5);
+    Eigen::Vector3d u(cloud.uni() - 0.5, cloud.uni() - 0.5, cloud.uni() - 0.5);
     u.normalize();
-    const Eigen::Vector3d c = Eigen::Vector3d(0.6 * (uni(rng) - 0.5), 0.6 * (uni(rng) - 0.5), 0.6 * (uni(rng) - 0.5));
-    const double lead = 0.02 * uni(rng), len = 0.8 * uni(rng);
+    const Eigen::Vector3d c = Eigen::Vector3d(0.6 * (cloud.uni() - 0.5), 0.6 * (cloud.uni() - 0.5), 0.6 * (cloud.uni() - 0.5));
+    const double lead = 0.02 * cloud.uni(), len = 0.8 * cloud.uni();
     const bool leaving = k % 3 == 0;
     double eye = 0;
     const SeenHit plain = solid.push(c, u, lead, 1.0, len, leaving, eye, scratch);
