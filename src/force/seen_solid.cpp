@@ -304,6 +304,7 @@ std::size_t SeenSolid::read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3
   }
   // The ranges past the guess until one holds a layer.
   const std::size_t read_around = around == kNotRead ? 0 : around;
+  const bool first_empty = s.gathered == read_around;  // no layer ahead in the first read
   for (; !s.overflow && s.gathered == read_around && near < end; ++stage) {
     const double next = ahead_range_end(split, end, stage);
     gather_more(c, u, near, next, near, s);
@@ -311,7 +312,7 @@ std::size_t SeenSolid::read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3
   }
   const std::size_t ahead = s.gathered - read_around;
   // (Layers those ranges found come after the first stage behind: before it now.)
-  if (read_around > 0 && ahead > 0 && s.layers[0].t < 0)
+  if (read_around > 0 && ahead > 0 && first_empty)
     std::rotate(s.layers.begin(), s.layers.begin() + std::ptrdiff_t(read_around),
                 s.layers.begin() + std::ptrdiff_t(s.gathered));
   sort_by_depth(s.layers.begin(), s.layers.begin() + std::ptrdiff_t(ahead));
