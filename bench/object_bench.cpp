@@ -2,7 +2,8 @@
 // p99, MuJoCo step included). Each benchmark iteration is one tick of a hand that sweeps into a
 // 10 x 8 x 6 cm box of discs on a floor slab and back (2 s per cycle, the scene put back at rest
 // between cycles, untimed): arg 0 renders the floor alone (the proxy), arg 1 the floor and the
-// box through ObjectRenderer (a proxy per body, the MuJoCo step in the tick). A renderer-level
+// box through ObjectRenderer as every command makes it (a proxy per body, the whole scene's proxy,
+// the MuJoCo step in the tick), arg 2 the same without the whole scene's proxy. A renderer-level
 // number: no device, no safety layer, no worker (a shortcut, labelled as such in RESULTS).
 #include <benchmark/benchmark.h>
 
@@ -42,10 +43,12 @@ Eigen::Vector3d hand(int k, Eigen::Vector3d& velocity) {
 
 void BM_ObjectTick(benchmark::State& state) {
   static Bench bench;
+  WholeSceneOptions whole;
+  whole.enabled = state.range(0) == 1;
   std::unique_ptr<ForceRenderer> renderer =
       state.range(0) == 0 ? make_force_renderer(RendererSpec{}, bench.floor)
-                          : std::unique_ptr<ForceRenderer>(make_object_renderer(RendererSpec{}, bench.floor,
-                                                                                bench.objects, bench.dynamics));
+                          : std::unique_ptr<ForceRenderer>(make_object_renderer(RendererSpec{}, bench.floor, bench.objects,
+                                                                                bench.dynamics, {}, whole));
   std::vector<double> ticks;
   ticks.reserve(1 << 22);
   int k = 0;
@@ -73,7 +76,7 @@ void BM_ObjectTick(benchmark::State& state) {
   }
   state.counters["in_contact"] = contacts / double(std::max(k, 1));
 }
-BENCHMARK(BM_ObjectTick)->Arg(0)->Arg(1)->Iterations(20000)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ObjectTick)->Arg(0)->Arg(1)->Arg(2)->Iterations(20000)->Unit(benchmark::kMicrosecond);
 
 // The MuJoCo step alone, the box sliding under a steady push of twice mu m g at its centre of
 // mass (arg 1), or resting untouched and awake (arg 0: the step a resting box costs before it sleeps).

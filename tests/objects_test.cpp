@@ -7,12 +7,14 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdlib>
+#include <cstring>
 #include <cmath>
 #include <fstream>
 #include <random>
 
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/error.h"
+#include "gshaptics/fidelity/synthetic_scene.h"
 #include "gshaptics/io/scene_writer.h"
 #include "gshaptics/objects/object_dynamics.h"
 #include "gshaptics/objects/object_renderer.h"
@@ -584,6 +586,138 @@ TEST(ObjectRenderer, TheSeamOfACutIsFeltAsTheSurfaceItWas) {
   }
 }
 
+// `half` moved by the rigid motion that takes its rest frame (body origin `origin`) to `pose`.
+GaussianScene placed(const GaussianScene& half, const Eigen::Vector3d& origin, const BodyPose& pose) {
+  SimilarityTransform m;
+  m.rotation = pose.rotation;
+  m.translation = pose.position - pose.rotation * origin;
+  GaussianScene out = half;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out.means[i] = m.apply(half.means[i].cast<double>()).cast<float>();
+    const Eigen::Quaterniond q = m.apply_rotation(half.rotations[i]);
+    out.rotations[i] = Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z()));
+  }
+  return out;
+}
+
+// A plane drawn as trained captures leave it (discs of log-normal sizes every 8 mm, jittered and
+// tilted), its side x > `cut` as an object.
+struct CutPlane {
+  GaussianScene plane, rest, half;
+  std::vector<RigidObject> objects;
+  explicit CutPlane(double cut, double mass = kDefaultObjectMass) {
+    SynthParams p;
+    p.spacing = 0.008;
+    p.floater_share = 0;
+    plane = make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), p).scene;
+    for (std::size_t i = 0; i < plane.size(); ++i) (plane.means[i].x() > cut ? half : rest).push_back_from(plane, i);
+    ObjectSpec spec;
+    spec.mass = mass;
+    spec.text = "the plane's side";
+    objects.push_back(make_rigid_object(half, spec, WorldConfig{}));
+  }
+};
+
+// Joining a world places a body world's records by a rigid motion: at the rest origin it gives
+// back every record of the uncut world (by source index: centre to 1e-12 m, the rest bit for bit,
+// the same bounds); turned and moved, the records of the Gaussians registered by that motion
+// (centre to 1e-12 m, rotation to float rounding).
+TEST(CollisionWorld, AJoinedWorldPlacesAPartsGaussiansByARigidMotion) {
+  const CutPlane cp(0.05);
+  const CollisionWorld rest = CollisionWorld::build(cp.rest, WorldConfig{});
+  const RigidObject& o = cp.objects[0];
+  ASSERT_GT(o.body->size(), 100u);
+  ASSERT_GT(o.rest_origin.norm(), 0.05);  // the body frame is not the world's
+  const auto by_source = [](const CollisionWorld& w) {
+    std::vector<const CollisionGaussian*> v;
+    for (const CollisionGaussian& g : w.gaussians()) v.push_back(&g);
+    std::sort(v.begin(), v.end(), [](auto* x, auto* y) { return x->source_index < y->source_index; });
+    return v;
+  };
+  const CollisionWorld::PlacedWorld at_rest{o.body.get(), o.rest_origin};
+  const CollisionWorld joined = CollisionWorld::joined(rest, std::span(&at_rest, 1));
+  const CollisionWorld uncut = CollisionWorld::build(cp.plane, WorldConfig{});
+  const auto a = by_source(joined), b = by_source(uncut);
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    ASSERT_EQ(a[k]->source_index, b[k]->source_index);
+    for (int j = 0; j < 3; ++j) EXPECT_NEAR(a[k]->center[j], b[k]->center[j], 1e-12);
+    EXPECT_EQ(0, std::memcmp(a[k]->quaternion, b[k]->quaternion, sizeof(float) * 9)) << k;  // rotation, axes, radius, opacity
+  }
+  EXPECT_LT((joined.bounds_lo() - uncut.bounds_lo()).norm(), 1e-12);
+  EXPECT_LT((joined.bounds_hi() - uncut.bounds_hi()).norm(), 1e-12);
+
+  BodyPose pose;
+  pose.rotation = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized());
+  pose.position = Eigen::Vector3d(0.01, -0.02, 0.03);
+  const CollisionWorld::PlacedWorld turned_part{o.body.get(), pose.position, pose.rotation};
+  const CollisionWorld turned = CollisionWorld::joined(rest, std::span(&turned_part, 1));
+  GaussianScene both = cp.rest;
+  const GaussianScene moved = placed(cp.half, o.rest_origin, pose);
+  for (std::size_t i = 0; i < moved.size(); ++i) both.push_back_from(moved, i);
+  const CollisionWorld reference = CollisionWorld::build(both, WorldConfig{});
+  const auto c = by_source(turned), d = by_source(reference);
+  ASSERT_EQ(c.size(), d.size());
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    ASSERT_EQ(c[k]->source_index, d[k]->source_index);
+    for (int j = 0; j < 3; ++j) EXPECT_NEAR(c[k]->center[j], d[k]->center[j], 1e-7);  // float means in the reference
+    const Eigen::Vector4d qc(c[k]->quaternion[0], c[k]->quaternion[1], c[k]->quaternion[2], c[k]->quaternion[3]);
+    const Eigen::Vector4d qd(d[k]->quaternion[0], d[k]->quaternion[1], d[k]->quaternion[2], d[k]->quaternion[3]);
+    EXPECT_GT(std::abs(qc.dot(qd)), 1 - 1e-6) << k;
+  }
+}
+
+// The plane cut in two, its side standing where it settles on its support (it sinks 0.3 mm and
+// tilts 0.08 degree onto its lowest discs): the hand pressing across the seam feels what one proxy
+// on all the Gaussians where they stand gives (within 1 %). Each body's proxy alone rests on half
+// the discs and sinks or tilts where the other half held it: the check below that they did (over
+// 3 % off somewhere) keeps this test about the seam.
+TEST(ObjectRenderer, AtTheSeamOfACutTheHandFeelsTheWholeScene) {
+  const CutPlane cp(0.0, 1e9);  // nothing the hand does moves it
+  const std::vector<RigidObject>& objects = cp.objects;
+  const CollisionWorld world = CollisionWorld::build(cp.rest, WorldConfig{});
+  const SupportPlane support = support_under(objects, Eigen::Vector3d::UnitZ());
+  const UntouchedDrift drift = untouched_drift(objects, support, DynamicsParams{});
+  const std::shared_ptr<const WholeSceneWorld> whole = whole_scene_world(world, objects, drift);
+  EXPECT_GT(drift.moved[0], 1e-4);  // it did settle, and it stands where it settled in the whole scene
+  EXPECT_LT((whole->poses[0].position - drift.settled[0].position).norm(), 1e-12);
+  GaussianScene both = cp.rest;
+  const GaussianScene moved = placed(cp.half, objects[0].rest_origin, drift.settled[0]);
+  for (std::size_t i = 0; i < moved.size(); ++i) both.push_back_from(moved, i);
+  const CollisionWorld standing = CollisionWorld::build(both, WorldConfig{});
+  const double R = 0.005;
+  double worst = 0, worst_alone = 0;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> across(-R, R), along(-0.1, 0.1);
+  for (int site = 0; site < 16; ++site) {
+    const Eigen::Vector2d xy(across(rng), along(rng));
+    WholeSceneOptions with, alone;
+    with.world = whole;
+    alone.enabled = false;
+    const auto felt = make_object_renderer(RendererSpec{}, world, objects, std::make_shared<ObjectDynamics>(objects, support), {}, with);
+    const auto halves = make_object_renderer(RendererSpec{}, world, objects, std::make_shared<ObjectDynamics>(objects, support), {}, alone);
+    const auto one = make_force_renderer(RendererSpec{}, standing);
+    Eigen::Vector3d f, f_alone, f_one;
+    for (int k = 0; k <= 600; ++k) {  // 0.3 s 1 cm above (the side settles), 2 mm in over 0.25 s, held
+      const double z = R + 0.01 - 0.012 * std::clamp((k - 300) / 250.0, 0.0, 1.0);
+      const ToolEllipsoid tool = ToolEllipsoid::sphere(Eigen::Vector3d(xy.x(), xy.y(), z), R);
+      const Eigen::Vector3d v(0, 0, k > 300 && k < 550 ? -0.048 : 0);
+      f = felt->render(tool, v, 1e-3).force;
+      f_alone = halves->render(tool, v, 1e-3).force;
+      f_one = one->render(tool, v, 1e-3).force;
+    }
+    SCOPED_TRACE(testing::Message() << "site " << xy.transpose());
+    ASSERT_GT(f_one.norm(), 1.0);
+    EXPECT_GT(felt->whole_scene_weight(), 0.99);
+    worst = std::max(worst, (f - f_one).norm() / f_one.norm());
+    worst_alone = std::max(worst_alone, (f_alone - f_one).norm() / f_one.norm());
+  }
+  EXPECT_LT(worst, 0.01);
+  EXPECT_GT(worst_alone, 0.03);
+  RecordProperty("worst_relative_error", std::to_string(worst));
+  RecordProperty("worst_relative_error_per_body_proxies", std::to_string(worst_alone));
+}
+
 // An object that does not stand on its support as cut is told apart before a run: a box resting
 // on the plane stays (under 1 mm, 1 degree in 1 s); the same box 5 cm over it falls those 5 cm
 // (within 5 mm); a tall thin box stood on one edge tips over.
@@ -816,7 +950,11 @@ TEST(ObjectRenderer, AnObjectAtRestIsFeltAsTheSameGaussiansHeldStill) {
     where.registration.rotation = rest.rotation;
     where.registration.translation = rest.position - rest.rotation * objects[0].rest_origin;
     const CollisionWorld still = CollisionWorld::build(gaussians, where);
-    const auto moving = make_object_renderer(RendererSpec{}, floor, objects, dynamics);
+    // The per-body proxies alone: the whole scene's proxy reads the box where it was captured, not
+    // where it settled.
+    WholeSceneOptions alone;
+    alone.enabled = false;
+    const auto moving = make_object_renderer(RendererSpec{}, floor, objects, dynamics, {}, alone);
     const auto reference = make_force_renderer(RendererSpec{}, still);
     moving->set_tool(tool);
     reference->set_tool(tool);
@@ -926,6 +1064,60 @@ TEST(ObjectRenderer, ATickPushingABoxDoesNotAllocate) {
   EXPECT_GT(dynamics->pose(0).position.x(), objects[0].rest_origin.x() + 0.02);  // it was pushed
   EXPECT_EQ(allocations, 0u);
   EXPECT_EQ(mujoco, 0);
+}
+
+// A box the hand pushes away leaves the whole scene: the whole scene's weight falls from 1 (the
+// box standing) to 0 (it slid off) within the first rest tolerance of its slide, and the hand's
+// force moves tick to tick as smoothly as with the per-body proxies alone (the blend adds no step
+// over 0.05 N), and afterwards is theirs. Away from the box, the whole scene's proxy starts again.
+TEST(ObjectRenderer, ABoxPushedAwayLeavesTheWholeSceneWithoutAJump) {
+  const std::vector<RigidObject> objects{box_object(Eigen::Vector3d(0.05, 0.04, 0.03), 0.4, 0.3)};
+  const CollisionWorld floor = CollisionWorld::build(
+      box_surface_gaussians(Eigen::Vector3d(0, 0, -0.0105), Eigen::Vector3d(0.4, 0.3, 0.01), 0.01), WorldConfig{});
+  const SupportPlane support = support_under(objects, Eigen::Vector3d::UnitZ());
+  WholeSceneOptions alone;
+  alone.enabled = false;
+  const auto dyn_with = std::make_shared<ObjectDynamics>(objects, support);
+  const auto dyn_alone = std::make_shared<ObjectDynamics>(objects, support);
+  const auto with = make_object_renderer(RendererSpec{}, floor, objects, dyn_with);
+  const auto halves = make_object_renderer(RendererSpec{}, floor, objects, dyn_alone, {}, alone);
+  Eigen::Vector3d last_with = Eigen::Vector3d::Zero(), last_alone = Eigen::Vector3d::Zero();
+  double step_with = 0, step_alone = 0, first_weight = -1, last_weight = -1, weight_at_tolerance = 1;
+  for (int k = 0; k < 2500; ++k) {  // rest, then the tool walks into the box and pushes it 8 cm
+    const double x = std::min(-0.12 + std::max(0, k - 500) * 1e-4, 0.0);
+    const ToolEllipsoid tool = ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, 0.03), 0.01);
+    const Eigen::Vector3d a = with->render(tool, Eigen::Vector3d(0.1, 0, 0), 1e-3).force;
+    const Eigen::Vector3d b = halves->render(tool, Eigen::Vector3d(0.1, 0, 0), 1e-3).force;
+    if (k > 0) {
+      step_with = std::max(step_with, (a - last_with).norm());
+      step_alone = std::max(step_alone, (b - last_alone).norm());
+    }
+    last_with = a;
+    last_alone = b;
+    const double slid = (dyn_with->pose(0).position - objects[0].rest_origin).norm();
+    if (a.norm() > 0.1 && first_weight < 0) first_weight = with->whole_scene_weight();
+    if (slid > 2 * kWholeSceneRestTolerance && weight_at_tolerance == 1) weight_at_tolerance = with->whole_scene_weight();
+    last_weight = with->whole_scene_weight();
+  }
+  EXPECT_GT(dyn_with->pose(0).position.x() - objects[0].rest_origin.x(), 0.02);  // it was pushed
+  EXPECT_NEAR(first_weight, 1.0, 1e-3);     // first touched standing: the whole scene
+  EXPECT_LT(weight_at_tolerance, 1e-12);    // gone once the box slid past the tolerance
+  EXPECT_EQ(last_weight, 0.0);
+  EXPECT_LT(step_with, step_alone + 0.05);
+  EXPECT_LT((last_with - last_alone).norm(), 0.05 * last_alone.norm() + 1e-6);
+  // Far from the box, the tool free, the whole scene's proxy starts again: pressing the floor
+  // there, the hand gets its force (weight 1), the floor as the static scene's proxy has it.
+  for (int k = 0; k < 1500; ++k) {  // back and away to x = -0.3 m over 0.6 s, then 2 mm into the floor
+    const double x = std::max(0.0 - k * 5e-4, -0.3);
+    const double z = k < 700 ? 0.03 : std::max(0.03 - (k - 700) * 1e-4, 0.01 - 0.002);
+    const ToolEllipsoid tool = ToolEllipsoid::sphere(Eigen::Vector3d(x, 0, z), 0.01);
+    last_with = with->render(tool, Eigen::Vector3d::Zero(), 1e-3).force;
+    last_alone = halves->render(tool, Eigen::Vector3d::Zero(), 1e-3).force;
+  }
+  EXPECT_DOUBLE_EQ(with->whole_scene_weight(), 1.0);
+  EXPECT_GT(last_alone.z(), 1.0);
+  EXPECT_LT((last_with - last_alone).norm(), 0.01 * last_alone.norm());
+  RecordProperty("largest_step_N_with_and_alone", std::to_string(step_with) + " " + std::to_string(step_alone));
 }
 
 TEST(ObjectRenderer, TheSimulatedHandPushesABoxAcrossThePlaneThroughTheServoStep) {

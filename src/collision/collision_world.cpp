@@ -9,10 +9,58 @@
 #include "gshaptics/narrowphase/k_min_batch.h"
 
 namespace gshaptics {
+namespace {
+// A world's records: in huge pages where the system gives them (huge_pages.h).
+using RecordVector = std::vector<CollisionGaussian, internal::HugePageAllocator<CollisionGaussian>>;
+}  // namespace
 
 Eigen::Vector3d ellipsoid_half_extent(const Eigen::Matrix3d& R,
                                       const Eigen::Vector3d& semi_axes) noexcept {
   return (R.cwiseAbs2() * semi_axes.cwiseAbs2()).cwiseSqrt();
+}
+
+template <class Records>
+void CollisionWorld::index(std::shared_ptr<Records> records) {
+  const std::size_t n = records->size();
+  // Bounds from the stored (float) values so the box holds exactly the ellipsoid we test.
+  std::vector<BvhBox> boxes(n);
+  lo_ = Eigen::Vector3d::Constant(INFINITY);
+  hi_ = -lo_;
+  for (std::size_t k = 0; k < n; ++k) {
+    const CollisionGaussian& g = (*records)[k];
+    const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
+    const Eigen::Vector3d h = ellipsoid_half_extent(
+        rotation_matrix(g), Eigen::Vector3d(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]));
+    const Eigen::Vector3d lo = c - h, hi = c + h;
+    for (int a = 0; a < 3; ++a) {
+      boxes[k].lo[a] = round_down_to_float(lo[a]);
+      boxes[k].hi[a] = round_up_to_float(hi[a]);
+    }
+    lo_ = lo_.cwiseMin(lo);
+    hi_ = hi_.cwiseMax(hi);
+  }
+  bvh_ = Bvh::build(boxes, config_.leaf_size);
+  std::vector<BvhBox>().swap(boxes);
+  // Permute into BVH order (slot k takes record order[k]) by following each cycle of the
+  // permutation; a slot done is marked by order[k] = k, so no extra memory is needed.
+  std::vector<std::uint32_t>& order = bvh_.mutable_order();
+  auto& r = *records;
+  for (std::size_t start = 0; start < order.size(); ++start) {
+    if (order[start] == start) continue;
+    const CollisionGaussian first = r[start];
+    std::size_t k = start;
+    while (order[k] != start) {
+      const std::size_t from = order[k];
+      r[k] = r[from];
+      order[k] = std::uint32_t(k);
+      k = from;
+    }
+    r[k] = first;
+    order[k] = std::uint32_t(k);
+  }
+  gaussians_ = std::span<const CollisionGaussian>(*records);
+  storage_ = std::move(records);
+  bvh_.release_order();  // records are now in BVH order: the permutation is not needed
 }
 
 CollisionWorld CollisionWorld::build(const GaussianScene& scene, const WorldConfig& config,
@@ -55,7 +103,7 @@ CollisionWorld CollisionWorld::build_impl(const GaussianScene& scene, GaussianSc
   // In place: the records are written once into their final storage; then (the scene freed
   // if it is consumed) their float boxes; the BVH over the boxes; then the records are
   // permuted into BVH order within their storage.
-  auto records = std::make_shared<std::vector<CollisionGaussian, internal::HugePageAllocator<CollisionGaussian>>>(kept);
+  auto records = std::make_shared<RecordVector>(kept);
   const double axis_scale = config.sigma * reg.scale;
   const std::size_t n_scene = scene.size();
   std::size_t j = 0;
@@ -83,54 +131,46 @@ CollisionWorld CollisionWorld::build_impl(const GaussianScene& scene, GaussianSc
     release(consume->colors_dc);
     release(consume->sh_rest);
   }
-  // Bounds from the stored (float) values so the box holds exactly the ellipsoid we test.
-  std::vector<BvhBox> boxes(kept);
-  w.lo_ = Eigen::Vector3d::Constant(INFINITY);
-  w.hi_ = -w.lo_;
-  for (std::size_t k = 0; k < kept; ++k) {
-    const CollisionGaussian& g = (*records)[k];
-    const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
-    const Eigen::Vector3d h = ellipsoid_half_extent(
-        rotation_matrix(g), Eigen::Vector3d(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]));
-    const Eigen::Vector3d lo = c - h, hi = c + h;
-    for (int a = 0; a < 3; ++a) {
-      boxes[k].lo[a] = round_down_to_float(lo[a]);
-      boxes[k].hi[a] = round_up_to_float(hi[a]);
-    }
-    w.lo_ = w.lo_.cwiseMin(lo);
-    w.hi_ = w.hi_.cwiseMax(hi);
-  }
-  w.bvh_ = Bvh::build(boxes, config.leaf_size);
-  std::vector<BvhBox>().swap(boxes);
-  // Permute into BVH order (slot k takes record order[k]) by following each cycle of the
-  // permutation; a slot done is marked by order[k] = k, so no extra memory is needed.
-  {
-    std::vector<std::uint32_t>& order = w.bvh_.mutable_order();
-    auto& r = *records;
-    for (std::size_t start = 0; start < order.size(); ++start) {
-      if (order[start] == start) continue;
-      const CollisionGaussian first = r[start];
-      std::size_t k = start;
-      while (order[k] != start) {
-        const std::size_t from = order[k];
-        r[k] = r[from];
-        order[k] = std::uint32_t(k);
-        k = from;
-      }
-      r[k] = first;
-      order[k] = std::uint32_t(k);
-    }
-  }
-  w.gaussians_ = std::span<const CollisionGaussian>(*records);
-  w.storage_ = std::move(records);
-  w.bvh_.release_order();  // records are now in BVH order: the permutation is not needed
-
+  w.index(std::move(records));
   if (report != nullptr) {
     report->filter = {config.min_opacity, n_scene, w.gaussians_.size()};
     report->build_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     report->memory_bytes = w.memory_bytes();
   }
+  return w;
+}
+
+CollisionWorld CollisionWorld::joined(const CollisionWorld& base, std::span<const PlacedWorld> parts) {
+  std::size_t n = base.size();
+  for (const PlacedWorld& p : parts) {
+    if (p.world == nullptr) throw InputError("joined world: a part has no world");
+    n += p.world->size();
+  }
+  auto records = std::make_shared<RecordVector>();
+  records->reserve(n);
+  records->insert(records->end(), base.gaussians().begin(), base.gaussians().end());
+  for (const PlacedWorld& p : parts) {
+    const bool turned = !p.rotation.isApprox(Eigen::Quaterniond::Identity(), 0.0);
+    for (CollisionGaussian g : p.world->gaussians()) {
+      const Eigen::Vector3d c = p.rotation * Eigen::Vector3d(g.center[0], g.center[1], g.center[2]) + p.offset;
+      for (int k = 0; k < 3; ++k) g.center[k] = c[k];
+      if (turned) {
+        const Eigen::Quaterniond q =
+            (p.rotation * Eigen::Quaterniond(g.quaternion[0], g.quaternion[1], g.quaternion[2], g.quaternion[3])).normalized();
+        g.quaternion[0] = float(q.w());
+        g.quaternion[1] = float(q.x());
+        g.quaternion[2] = float(q.y());
+        g.quaternion[3] = float(q.z());
+      }
+      records->push_back(g);
+    }
+  }
+  CollisionWorld w;
+  w.config_ = base.config_;
+  w.scene_to_world_ = base.scene_to_world_;
+  w.up_ = base.up_;
+  w.index(std::move(records));
   return w;
 }
 

@@ -211,6 +211,7 @@ UntouchedDrift untouched_drift(std::span<const RigidObject> objects, const Suppo
   for (std::size_t i = 0; i < d.size(); ++i) {
     out.moved[i] = (d.pose(i).position - rest[i].position).norm();
     out.turned[i] = d.pose(i).rotation.angularDistance(rest[i].rotation);
+    out.settled[i] = d.pose(i);
   }
   return out;
 }

@@ -75,13 +75,14 @@ void load_shares(std::span<const Eigen::Vector3d> forces, std::span<double> shar
 ObjectRenderer::ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector<std::unique_ptr<ForceRenderer>> bodies,
                                std::vector<std::shared_ptr<const CollisionWorld>> worlds,
                                std::shared_ptr<ObjectDynamics> dynamics, const Eigen::Vector2d& support_coupling,
-                               std::vector<SupportHole> holes)
+                               std::vector<SupportHole> holes, WholeScene whole)
     : scene_(std::move(scene)),
       bodies_(std::move(bodies)),
       worlds_(std::move(worlds)),
       dynamics_(std::move(dynamics)),
       support_coupling_(support_coupling),
-      holes_(std::move(holes)) {
+      holes_(std::move(holes)),
+      whole_(std::move(whole)) {
   if (dynamics_) hole_axes_ = support_axes(dynamics_->support().normal);
   if (!scene_ || !dynamics_) throw InputError("objects: a renderer needs the scene's renderer and the dynamics");
   if (bodies_.size() != dynamics_->size() || worlds_.size() != bodies_.size())
@@ -91,10 +92,17 @@ ObjectRenderer::ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector
     if (!b) throw InputError("objects: an object has no renderer");
   for (auto& f : object_force_) f.setZero();
   for (auto& p : object_proxy_) p.setZero();
+  if (whole_.renderer && !(whole_.rest_tolerance > 0))
+    throw InputError("objects: the whole scene's rest tolerance must be > 0 m, got " + std::to_string(whole_.rest_tolerance));
+  for (std::size_t i = 0; i < worlds_.size(); ++i) {
+    const CollisionWorld& w = *worlds_[i];
+    body_centre_[i] = 0.5 * (w.bounds_lo() + w.bounds_hi());
+    body_radius_[i] = 0.5 * (w.bounds_hi() - w.bounds_lo()).norm();
+  }
 }
 
 bool ObjectRenderer::renders_compound() const noexcept {
-  bool all = scene_->renders_compound();
+  bool all = scene_->renders_compound() && (!whole_.renderer || whole_.renderer->renders_compound());
   for (const auto& b : bodies_) all = all && b->renders_compound();
   return all;
 }
@@ -102,11 +110,15 @@ bool ObjectRenderer::renders_compound() const noexcept {
 void ObjectRenderer::set_tool(const CompoundTool& tool) {
   scene_->set_tool(tool);
   for (auto& b : bodies_) b->set_tool(tool);
+  if (whole_.renderer) whole_.renderer->set_tool(tool);
 }
 
 void ObjectRenderer::reset() noexcept {
   scene_->reset();
   for (auto& b : bodies_) b->reset();
+  if (whole_.renderer) whole_.renderer->reset();
+  whole_weight_ = 0;
+  whole_live_ = true;
   dynamics_->reset();
   for (auto& f : object_force_) f.setZero();
   for (auto& p : object_proxy_) p.setZero();
@@ -119,6 +131,7 @@ void ObjectRenderer::reset() noexcept {
 void ObjectRenderer::set_executor(ParallelExecutor* executor, std::size_t min_candidates) {
   scene_->set_executor(executor, min_candidates);
   for (auto& b : bodies_) b->set_executor(executor, min_candidates);
+  if (whole_.renderer) whole_.renderer->set_executor(executor, min_candidates);
 }
 
 void ObjectRenderer::gather_contacts(std::span<const Contact> contacts, std::uint8_t body, const BodyPose* pose) noexcept {
@@ -234,16 +247,74 @@ RenderOutput ObjectRenderer::render_all(RenderOutput scene_out, RenderIn&& rende
   return sum;
 }
 
+double ObjectRenderer::whole_weight(std::span<const ToolEllipsoid> parts) const noexcept {
+  double weight = 1;
+  for (std::size_t i = 0; i < bodies_.size(); ++i) {
+    const BodyPose& now = dynamics_->pose(i);
+    const BodyPose& rest = whole_.scene->poses[i];
+    const Eigen::Vector3d at_rest = rest.rotation * body_centre_[i] + rest.position;
+    const Eigen::Vector3d at_now = now.rotation * body_centre_[i] + now.position;
+    // How far the object stands from where it was captured, where the tool is: the rigid motion's
+    // displacement at each part's centre (the whole scene's proxy reads the object there as it was).
+    const Eigen::Quaterniond turn = now.rotation * rest.rotation.conjugate();
+    double moved = 0;
+    for (const ToolEllipsoid& part : parts)
+      moved = std::max(moved, (turn * (part.center - rest.position) + now.position - part.center).norm());
+    const double standing = std::clamp(1 - moved / whole_.rest_tolerance, 0.0, 1.0);
+    if (standing == 1) continue;
+    // Near: a part within the object's radius of its sphere at rest or now (the whole scene's
+    // proxy reads its Gaussians at rest; the object itself is now elsewhere), fading out over
+    // one more radius.
+    const double margin = body_radius_[i];
+    double gap = std::numeric_limits<double>::infinity();
+    for (const ToolEllipsoid& part : parts) {
+      const double reach = body_radius_[i] + double(part.semi_axes.maxCoeff());
+      gap = std::min({gap, (part.center - at_rest).norm() - reach, (part.center - at_now).norm() - reach});
+    }
+    const double near = std::clamp(2 - gap / margin, 0.0, 1.0);
+    weight *= 1 - near * (1 - standing);
+  }
+  return weight;
+}
+
+template <class RenderWhole>
+RenderOutput ObjectRenderer::blend_whole(RenderOutput cut, std::span<const ToolEllipsoid> parts,
+                                         RenderWhole&& render_whole) noexcept {
+  const double w = whole_weight(parts);
+  whole_weight_ = 0;
+  if (w == 0) {  // an object near the tool has left: the whole scene's proxy rests until it is wanted again
+    whole_live_ = false;
+    return cut;
+  }
+  if (!whole_live_) {
+    // It restarts only with the tool free (no contact, no force), as a proxy starts in free space.
+    if (cut.counts.contacts != 0 || cut.force.squaredNorm() > 0) return cut;
+    whole_.renderer->reset();
+    whole_live_ = true;
+  }
+  const RenderOutput whole = render_whole();
+  whole_weight_ = w;
+  cut.force = w * whole.force + (1 - w) * cut.force;
+  cut.torque = w * whole.torque + (1 - w) * cut.torque;
+  cut.texture_rms = std::max(cut.texture_rms, decltype(cut.texture_rms)(w * whole.texture_rms));
+  cut.vibration = std::max(cut.vibration, decltype(cut.vibration)(w * whole.vibration));
+  if (whole.status != QueryStatus::kOk) cut.status = whole.status;
+  return cut;
+}
+
 RenderOutput ObjectRenderer::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
   RenderOutput scene_out = scene_->render(tool, velocity, dt);
   add_support(std::span<const ToolEllipsoid>(&tool, 1), tool.center, velocity, Eigen::Vector3d::Zero(), scene_out);
-  return render_all(
+  const RenderOutput cut = render_all(
       scene_out,
       [&](ForceRenderer& r, const BodyPose& pose) {
         const Eigen::Vector3d v_rel = pose.rotation.conjugate() * (velocity - pose.velocity_at(tool.center));
         return r.render(to_body(tool, pose), v_rel, dt);
       },
       dt);
+  if (!whole_.renderer) return cut;
+  return blend_whole(cut, std::span<const ToolEllipsoid>(&tool, 1),
+                     [&] { return whole_.renderer->render(tool, velocity, dt); });
 }
 
 RenderOutput ObjectRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
@@ -251,7 +322,7 @@ RenderOutput ObjectRenderer::render_compound(std::span<const ToolEllipsoid> part
                                              double dt) noexcept {
   RenderOutput scene_out = scene_->render_compound(parts, tcp, velocity, angular_velocity, dt);
   add_support(parts, tcp, velocity, angular_velocity, scene_out);
-  return render_all(
+  const RenderOutput cut = render_all(
       scene_out,
       [&](ForceRenderer& r, const BodyPose& pose) {
         std::array<ToolEllipsoid, kMaxToolParts> body_parts;
@@ -263,11 +334,43 @@ RenderOutput ObjectRenderer::render_compound(std::span<const ToolEllipsoid> part
                                  inv * (angular_velocity - pose.angular_velocity), dt);
       },
       dt);
+  if (!whole_.renderer) return cut;
+  return blend_whole(cut, parts,
+                     [&] { return whole_.renderer->render_compound(parts, tcp, velocity, angular_velocity, dt); });
+}
+
+std::shared_ptr<const WholeSceneWorld> whole_scene_world(const CollisionWorld& scene, std::span<const RigidObject> objects,
+                                                         const UntouchedDrift& drift) {
+  auto out = std::make_shared<WholeSceneWorld>();
+  std::vector<CollisionWorld::PlacedWorld> parts;
+  for (std::size_t i = 0; i < objects.size() && i < kMaxObjects; ++i) {
+    const RigidObject& o = objects[i];
+    const CollisionWorld& body = *o.body;
+    BodyPose at;
+    at.position = o.rest_origin;
+    const BodyPose& settled = drift.settled[i];
+    double moved = 0;  // the farthest corner of its box from where it was captured
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d x((c & 1) ? body.bounds_hi().x() : body.bounds_lo().x(),
+                              (c & 2) ? body.bounds_hi().y() : body.bounds_lo().y(),
+                              (c & 4) ? body.bounds_hi().z() : body.bounds_lo().z());
+      moved = std::max(moved, (settled.rotation * x + settled.position - (x + o.rest_origin)).norm());
+    }
+    if (moved <= kWholeSceneSettleTolerance) {
+      at.position = settled.position;
+      at.rotation = settled.rotation;
+    }
+    out->poses[i] = at;
+    parts.push_back({&body, at.position, at.rotation});
+  }
+  out->world = std::make_shared<const CollisionWorld>(CollisionWorld::joined(scene, parts));
+  return out;
 }
 
 std::unique_ptr<ObjectRenderer> make_object_renderer(const RendererSpec& spec, const CollisionWorld& scene,
                                                      std::span<const RigidObject> objects,
-                                                     std::shared_ptr<ObjectDynamics> dynamics, const QueryOptions& query) {
+                                                     std::shared_ptr<ObjectDynamics> dynamics, const QueryOptions& query,
+                                                     WholeSceneOptions whole) {
   std::vector<std::unique_ptr<ForceRenderer>> bodies;
   std::vector<std::shared_ptr<const CollisionWorld>> worlds;
   for (const RigidObject& o : objects) {
@@ -278,9 +381,17 @@ std::unique_ptr<ObjectRenderer> make_object_renderer(const RendererSpec& spec, c
   const ProxyParams proxy = std::holds_alternative<ProxyModelSpec>(spec) ? std::get<ProxyModelSpec>(spec).params
                                                                          : ProxyParams{};
   std::vector<SupportHole> holes = support_holes(objects, dynamics->support());
+  WholeScene captured;
+  if (whole.enabled) {
+    captured.scene = whole.world ? std::move(whole.world)
+                                 : whole_scene_world(scene, objects,
+                                                     untouched_drift(objects, dynamics->support(), dynamics->params()));
+    captured.renderer = make_force_renderer(spec, *captured.scene->world, query);
+    captured.rest_tolerance = whole.rest_tolerance;
+  }
   return std::make_unique<ObjectRenderer>(make_force_renderer(spec, scene, query), std::move(bodies), std::move(worlds),
                                           std::move(dynamics), Eigen::Vector2d(proxy.stiffness, proxy.damping),
-                                          std::move(holes));
+                                          std::move(holes), std::move(captured));
 }
 
 }  // namespace gshaptics

@@ -120,10 +120,16 @@ SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, doubl
     for (const Eigen::Vector3d& p : o.hull_points) box.extend(p);
     out.sizes.push_back(box.sizes());
   }
-  out.make_renderer = [objects, support, dp, channel = out.poses](const CollisionWorld& world, const RendererSpec& spec,
-                                                                  const QueryOptions& query) -> std::unique_ptr<ForceRenderer> {
+  // The whole scene (the static part joined with the objects where they stand untouched), built
+  // once for every run's renderer on this static world.
+  std::shared_ptr<const WholeSceneWorld> whole = whole_scene_world(pw.world, *objects, drift);
+  out.make_renderer = [objects, support, dp, channel = out.poses, whole, base = pw.world.gaussians().data()](
+                          const CollisionWorld& world, const RendererSpec& spec,
+                          const QueryOptions& query) -> std::unique_ptr<ForceRenderer> {
     auto dynamics = std::make_shared<ObjectDynamics>(*objects, support, dp, channel);
-    return make_object_renderer(spec, world, *objects, std::move(dynamics), query);
+    WholeSceneOptions captured;
+    if (world.gaussians().data() == base) captured.world = whole;
+    return make_object_renderer(spec, world, *objects, std::move(dynamics), query, std::move(captured));
   };
   return out;
 }

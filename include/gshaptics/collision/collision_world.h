@@ -7,6 +7,7 @@
 /// from several threads at once. Per-device mutable state lives in ContactQuery and ForceModel.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cstdint>
 #include <memory>
@@ -76,6 +77,19 @@ class CollisionWorld {
   static CollisionWorld build(GaussianScene&& scene, const WorldConfig& config,
                               WorldBuildReport* report = nullptr);
 
+  /// One world joined into another (joined()): `world`'s records placed by the rigid motion
+  /// x -> rotation x + offset (m) into base's frame.
+  struct PlacedWorld {
+    const CollisionWorld* world = nullptr;
+    Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+    Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
+  };
+  /// One world of `base`'s records and every part's, each placed by its rigid motion, with a BVH
+  /// of its own; config, up and scene_to_world are base's. The records are taken as they are
+  /// (already filtered and registered): an object's body world placed at its rest origin gives
+  /// back the Gaussians the cut took out of the scene. Throws InputError for a part without a world.
+  static CollisionWorld joined(const CollisionWorld& base, std::span<const PlacedWorld> parts);
+
   [[nodiscard]] std::size_t size() const { return gaussians_.size(); }
   /// The records in BVH order (immutable; shared by copies of this world, and mapped straight
   /// from the file when the world came from a world cache).
@@ -100,6 +114,9 @@ class CollisionWorld {
   Eigen::Vector3d up_ = Eigen::Vector3d::UnitZ();
   static CollisionWorld build_impl(const GaussianScene& scene, GaussianScene* consume,
                                    const WorldConfig& config, WorldBuildReport* report);
+  // Boxes, bounds and the BVH over `records`, then the records permuted into BVH order and kept.
+  template <class Records>
+  void index(std::shared_ptr<Records> records);
   friend struct WorldCacheAccess;  // world_cache.cpp assembles a world from a mapped file
   std::span<const CollisionGaussian> gaussians_;
   std::shared_ptr<const void> storage_;  // keeps gaussians_ alive: a vector, or a mapped file

@@ -163,6 +163,8 @@ class ObjectDynamics {
 struct UntouchedDrift {
   std::array<double, kMaxObjects> moved{};   ///< m, each object's body origin from rest
   std::array<double, kMaxObjects> turned{};  ///< rad, from rest
+  /// Each object's pose at the end (where it settled, if it did; velocities as then).
+  std::array<BodyPose, kMaxObjects> settled{};
 };
 [[nodiscard]] UntouchedDrift untouched_drift(std::span<const RigidObject> objects, const SupportPlane& support,
                                              const DynamicsParams& params, double seconds = 1.0);

@@ -24,6 +24,18 @@
 /// the hole, within one semi-axis of the plane): a part that is already deep under it, or that
 /// leaves the footprint, is let go, so the plane never shoves a hand that is under the scene.
 ///
+/// The captured scene, where its objects still stand: a proxy per body rests on half a surface at
+/// the seam of a cut (it sinks or tilts where the other body's Gaussians held a single proxy), so
+/// the renderer also holds one proxy on the whole scene (WholeSceneWorld: the static part joined
+/// with every object where it stands untouched). While the objects near the tool stand within
+/// WholeScene::rest_tolerance of those poses, the hand gets that proxy's force: one god-object on
+/// all the Gaussians. As an object near the tool leaves its pose, the hand's force blends linearly,
+/// over that tolerance, into the per-body proxies' (load_shares), so the blend is continuous in the
+/// object's motion and in the tool's. Where its weight is 0 the whole scene's proxy is not moved
+/// (it would slide along an object that has left, at a cost); it starts afresh, as a proxy in free
+/// space does, once the tool touches nothing and the objects near it stand. The objects get their
+/// reactions from the per-body proxies either way.
+///
 /// Sources: the god-object (Zilles and Salisbury 1995) per rigid body, as multi-object proxies
 /// do (Ruspini, Kolarov and Khatib 1997); the coupling force as the body's external wrench, as in
 /// virtual-coupling rigid-body haptics (Colgate, Stanley and Brown 1995; Otaduy and Lin 2006).
@@ -68,6 +80,27 @@ inline constexpr int kMaxDynamicsSteps = 4;
 inline constexpr int kLoadShareSweeps = 200;
 void load_shares(std::span<const Eigen::Vector3d> forces, std::span<double> share) noexcept;
 
+/// How far (m) an object may stand, at the tool, from where the whole scene holds it and still be
+/// felt as part of that scene; the whole scene's force fades out over this distance.
+inline constexpr double kWholeSceneRestTolerance = 5e-4;
+/// An object is placed in the whole scene where it settles untouched (untouched_drift) when that
+/// moves no point of its box farther than this (m); else where it was captured.
+inline constexpr double kWholeSceneSettleTolerance = 2e-3;
+
+/// The scene as the hand meets it before it touches anything: the static part joined with each
+/// object where it stands untouched (whole_scene_world()).
+struct WholeSceneWorld {
+  std::shared_ptr<const CollisionWorld> world;
+  std::array<BodyPose, kMaxObjects> poses{};  ///< where each object is in `world` (velocities zero)
+};
+
+/// One proxy on the whole scene (ObjectRenderer's seam handling); null renderer: none.
+struct WholeScene {
+  std::unique_ptr<ForceRenderer> renderer;
+  std::shared_ptr<const WholeSceneWorld> scene;  ///< what the renderer reads (kept alive here)
+  double rest_tolerance = kWholeSceneRestTolerance;  ///< m, > 0
+};
+
 class ObjectRenderer final : public ForceRenderer {
  public:
   /// `scene` renders the static world; `bodies[i]` renders objects[i].body (the same order as
@@ -75,11 +108,13 @@ class ObjectRenderer final : public ForceRenderer {
   /// counts differ or a renderer is null.
   /// `support_coupling`: the plane's spring (N/m) and damper (N s/m), the proxy's k_c and b_c.
   /// `holes`: where the support carries the hand (support_holes(); empty: nowhere).
+  /// `whole`: the renderer on the whole scene (whole_scene_world()); without one, the hand gets
+  /// the per-body proxies' force everywhere. Throws InputError for a tolerance <= 0.
   ObjectRenderer(std::unique_ptr<ForceRenderer> scene, std::vector<std::unique_ptr<ForceRenderer>> bodies,
                  std::vector<std::shared_ptr<const CollisionWorld>> worlds, std::shared_ptr<ObjectDynamics> dynamics,
                  const Eigen::Vector2d& support_coupling = Eigen::Vector2d(ProxyParams{}.stiffness,
                                                                            ProxyParams{}.damping),
-                 std::vector<SupportHole> holes = {});
+                 std::vector<SupportHole> holes = {}, WholeScene whole = {});
   [[nodiscard]] std::string_view name() const noexcept override { return scene_->name(); }
   RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
   RenderOutput render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
@@ -99,6 +134,9 @@ class ObjectRenderer final : public ForceRenderer {
   [[nodiscard]] const Eigen::Vector3d& object_force(std::size_t i) const noexcept { return object_force_[i]; }
   /// Where object i's renderer held the tool at the last tick: its proxy's centre, world, m.
   [[nodiscard]] const Eigen::Vector3d& object_proxy(std::size_t i) const noexcept { return object_proxy_[i]; }
+  /// The weight in [0, 1] the whole scene's proxy had in the hand's force at the last tick (0
+  /// without a whole scene).
+  [[nodiscard]] double whole_scene_weight() const noexcept { return whole_weight_; }
 
  private:
   template <class RenderIn>
@@ -108,6 +146,12 @@ class ObjectRenderer final : public ForceRenderer {
   // The support plane's push on the tool's parts (world), added to `sum`.
   void add_support(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp, const Eigen::Vector3d& velocity,
                    const Eigen::Vector3d& angular_velocity, RenderOutput& sum) noexcept;
+  // The whole scene's weight for a tool whose parts are `parts` (world): 1 while every object
+  // near them stands at rest, falling to 0 as one near them leaves its rest pose.
+  [[nodiscard]] double whole_weight(std::span<const ToolEllipsoid> parts) const noexcept;
+  // `cut` (the per-body proxies' output) with the whole scene's force (render_whole()) blended in.
+  template <class RenderWhole>
+  RenderOutput blend_whole(RenderOutput cut, std::span<const ToolEllipsoid> parts, RenderWhole&& render_whole) noexcept;
   // The hole whose footprint holds `p` (null: none).
   [[nodiscard]] const SupportHole* hole_at(const Eigen::Vector3d& p) const noexcept;
 
@@ -126,6 +170,14 @@ class ObjectRenderer final : public ForceRenderer {
   std::vector<SupportHole> holes_;
   std::array<Eigen::Vector3d, 2> hole_axes_;  // support_axes() of the dynamics' support, once
   std::array<bool, kMaxToolParts> support_held_{};  // each part held by the plane since it reached it
+  WholeScene whole_;
+  // Each object's bounding sphere: centre in its body frame and radius (m), from its world's bounds.
+  std::array<Eigen::Vector3d, kMaxObjects> body_centre_{};
+  std::array<double, kMaxObjects> body_radius_{};
+  double whole_weight_ = 0;
+  // The whole scene's proxy is followed tick by tick; it stops where its weight is 0 (it would
+  // slide along an object that has left) and restarts afresh with the tool free.
+  bool whole_live_ = true;
 };
 
 /// Each object's footprint on `plane` at rest (where its cut left a hole): the box of its hull
@@ -133,11 +185,30 @@ class ObjectRenderer final : public ForceRenderer {
 /// normal of its lowest hull point at rest.
 [[nodiscard]] std::vector<SupportHole> support_holes(std::span<const RigidObject> objects, const SupportPlane& plane);
 
-/// The renderer `spec` names on the static `scene` and on each object's body world, with the
-/// objects' dynamics. Throws InputError as make_force_renderer() and ObjectRenderer.
+/// The whole scene: the static `scene` joined with each object's body world (CollisionWorld::joined)
+/// placed where `drift` says it settles untouched (UntouchedDrift::settled, when that moves no
+/// corner of its box more than kWholeSceneSettleTolerance), else at its rest pose as captured.
+/// Build it once per scene; renderers share it.
+[[nodiscard]] std::shared_ptr<const WholeSceneWorld> whole_scene_world(const CollisionWorld& scene,
+                                                                       std::span<const RigidObject> objects,
+                                                                       const UntouchedDrift& drift);
+
+/// What make_object_renderer() gives the ObjectRenderer of the scene as captured.
+struct WholeSceneOptions {
+  bool enabled = true;  ///< false: the per-body proxies alone (a seam is felt as two half surfaces)
+  /// whole_scene_world() of the same scene and objects; null: built by make_object_renderer()
+  /// (1 s of untouched dynamics first, as untouched_drift()).
+  std::shared_ptr<const WholeSceneWorld> world;
+  double rest_tolerance = kWholeSceneRestTolerance;  ///< m, > 0
+};
+
+/// The renderer `spec` names on the static `scene`, on each object's body world and on the
+/// whole scene (`whole`), with the objects' dynamics. Throws InputError as make_force_renderer()
+/// and ObjectRenderer.
 [[nodiscard]] std::unique_ptr<ObjectRenderer> make_object_renderer(const RendererSpec& spec, const CollisionWorld& scene,
                                                                    std::span<const RigidObject> objects,
                                                                    std::shared_ptr<ObjectDynamics> dynamics,
-                                                                   const QueryOptions& query = {});
+                                                                   const QueryOptions& query = {},
+                                                                   WholeSceneOptions whole = {});
 
 }  // namespace gshaptics
