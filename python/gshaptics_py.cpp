@@ -713,12 +713,14 @@ PYBIND11_MODULE(gshaptics, m) {
              d["force"] = Eigen::Vector3d(out.force);
              d["proxy"] = Eigen::Vector3d(out.proxy);
              d["contacts"] = out.counts.contacts;
+             d["whole_scene_weight"] = o.renderer->whole_scene_weight();
              return d;
            },
            py::arg("center"), py::arg("radius"), py::arg("velocity"), py::arg("dt"),
            "One tick with a spherical tool: centre (3,) m, radius m, velocity (3,) m/s, dt s; the objects' "
            "dynamics advance by dt (MuJoCo steps of 1 / rate_hz). Returns a dict: force (3,) N on the "
-           "hand, proxy (3,) m, contacts.")
+           "hand, proxy (3,) m, contacts, whole_scene_weight (0-1: the share of the proxy on the whole "
+           "scene, 1 while the objects near the tool stand where they settled; docs/design.md Sec. 11).")
       .def("poses", [](const PyObjectScene& o) {
              const ObjectPoses& p = o.dynamics->state();
              std::vector<Eigen::Vector3d> pos, lin, ang, f, tau;

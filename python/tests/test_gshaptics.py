@@ -386,13 +386,16 @@ def test_object_scene_pushes_a_box_and_reports_its_pose_and_wrench(tmp_path):
     assert len(scene) == 1 and scene.static_size > 0
     np.testing.assert_allclose(scene.rest_origins[0], [0.0, 0.0, 0.03], atol=1e-3)
     dt, speed = 1e-3, 0.1
-    pushing = []
+    pushing, weights = [], []
     for k in range(1500):  # from x = -0.1 to +0.05 at mid-height of the box
         x = -0.1 + speed * dt * k
         r = scene.render((x, 0.0, 0.03), 0.01, (speed, 0.0, 0.0), dt)
         p = scene.poses()
+        weights.append(r["whole_scene_weight"])
         if p["wrench_force"][0, 0] > 0:
             pushing.append((r["force"][0], p["wrench_force"][0, 0]))
+    # Felt through the whole scene while the box stood, through its own proxy once it slid.
+    assert max(weights) == 1.0 and weights[-1] == 0.0
     p = scene.poses()
     assert p["time"] == pytest.approx(1.5, abs=2e-3)
     assert p["position"].shape == (1, 3) and p["rotation"].shape == (1, 4)
