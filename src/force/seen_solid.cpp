@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <optional>
 #include <array>
 #include <cmath>
 
@@ -232,7 +233,7 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   const double split = std::isfinite(t_guess) ? std::clamp(lead + t_guess, 0.0, end) : end;
   double near = split;  // how far ahead the layers are read
   int stage = 0;        // the next range past the guess
-  std::size_t around = kNotRead;
+  std::optional<std::size_t> around;
   const std::size_t ahead =
       end > 0 ? read_ahead(c, u, max_back, split, end, std::isfinite(t_guess), near, stage, around, s) : 0;
   // The layers between the eye and c composite to less than ln 2 (that is where the eye is), so
@@ -270,7 +271,7 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   if (composite(0, ahead)) return hit;
   // The rest of the ranges past the guess.
   for (; near < end; ++stage) {
-    const double next = ahead_range_end(split, end, stage);
+    const double next = stage_end(split, end, stage + 1);
     const std::size_t more = s.gathered;
     gather_more(c, u, near, next, near, s);
     if (s.overflow) {
@@ -286,14 +287,14 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
 }
 
 std::size_t SeenSolid::read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, double split,
-                                  double end, bool guessed, double& near, int& stage, std::size_t& around,
-                                  SeenScratch& s) const noexcept {
+                                  double end, bool guessed, double& near, int& stage,
+                                  std::optional<std::size_t>& around, SeenScratch& s) const noexcept {
   // With a guess (a resting tool's lines, which meet a surface near it), one traversal reads the
   // layers around c: the first range ahead and the look back's first stage,
   // [-max_back kFirstStage, 0) (the look back takes them when it is searched). Without one (a
   // free tool, usually far from every surface), the first range ahead alone.
-  around = kNotRead;
-  gather(c, u, guessed ? -std::min(max_back, max_back * kFirstStage) : 0.0, split, s);
+  around.reset();
+  gather(c, u, guessed ? -stage_end(0.0, max_back, 0) : 0.0, split, s);
   if (guessed && s.overflow) {
     gather(c, u, 0.0, split, s);  // (read apart after all)
   } else if (guessed) {
@@ -303,10 +304,10 @@ std::size_t SeenSolid::read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3
     around = s.gathered - std::size_t(behind - first);
   }
   // The ranges past the guess until one holds a layer.
-  const std::size_t read_around = around == kNotRead ? 0 : around;
+  const std::size_t read_around = around.value_or(0);
   const bool first_empty = s.gathered == read_around;  // no layer ahead in the first read
   for (; !s.overflow && s.gathered == read_around && near < end; ++stage) {
-    const double next = ahead_range_end(split, end, stage);
+    const double next = stage_end(split, end, stage + 1);
     gather_more(c, u, near, next, near, s);
     near = next;
   }
@@ -319,12 +320,12 @@ std::size_t SeenSolid::read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3
   return ahead;
 }
 
-double SeenSolid::ahead_range_end(double split, double end, int stage) noexcept {
-  return stage + 1 >= kStages ? end : std::min(end, split + (end - split) * kFirstStage * std::pow(4.0, stage + 1));
+double SeenSolid::stage_end(double from, double to, int stage) noexcept {
+  return stage + 1 >= kStages ? to : std::min(to, from + (to - from) * std::ldexp(kFirstStage, 2 * stage));
 }
 
 int SeenSolid::look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, bool shared_zero,
-                         std::size_t around, std::array<Span, kStages>& behind, double& eye,
+                         std::optional<std::size_t> around, std::array<Span, kStages>& behind, double& eye,
                          SeenScratch& s) const noexcept {
   // Back from c until a surface hides it: the layers of each stage after those gathered, sorted,
   // and composited from c backwards. (A layer peaking on a stage's near end belongs to the
@@ -335,11 +336,11 @@ int SeenSolid::look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, dou
   eye = max_back;
   int stages = 0;
   for (int st = 0; st < kStages; ++st) {
-    const double far = st + 1 == kStages ? max_back : std::min(max_back, max_back * kFirstStage * std::pow(4.0, st));
+    const double far = stage_end(0.0, max_back, st);
     if (st > 0 && !(far > near)) break;
     std::size_t first = s.gathered;
-    if (st == 0 && around != kNotRead)
-      first -= around;  // read already (push())
+    if (st == 0 && around)
+      first -= *around;  // read already (push())
     else if (st > 0 || shared_zero)
       gather_more(c, u, -far, -near, -near, s);
     else

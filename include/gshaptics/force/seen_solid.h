@@ -21,6 +21,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>
+#include <optional>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -225,20 +226,21 @@ class SeenSolid {
   struct Span {
     std::size_t first, last;
   };
-  // `around`: how many layers of the first stage push() read already, at the end of scratch
-  // (kNotRead: none; read_ahead()).
-  static constexpr std::size_t kNotRead = std::size_t(-1);
   // push()'s first read: the layers ahead of c up to `split`, then past it in ranges growing x4
   // until one holds a layer (`near`, `stage`: how far, and the next range), sorted at the start of
   // scratch, how many returned; when `guessed`, the look back's first stage in the same traversal,
-  // its `around` layers after them (kNotRead when not read).
+  // its `around` layers after them (none when not read).
   std::size_t read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, double split, double end,
-                         bool guessed, double& near, int& stage, std::size_t& around,
+                         bool guessed, double& near, int& stage, std::optional<std::size_t>& around,
                          SeenScratch& scratch) const noexcept;
-  // Where push()'s range `stage` past the guess ends: the rest of [split, end] in ranges growing x4.
-  static double ahead_range_end(double split, double end, int stage) noexcept;
+  // Where stage `stage` of a look over [from, to] ends: from + (to - from) kFirstStage 4^stage, the
+  // last stage (kStages - 1 on) at `to`. The look back's stage st is stage_end(0, max_back, st);
+  // push()'s range `stage` past the guess is stage_end(split, end, stage + 1).
+  static double stage_end(double from, double to, int stage) noexcept;
+  // The look back from c; `around`: how many layers of its first stage push() read already, at
+  // the end of scratch (none: not read).
   int look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, bool shared_zero,
-                std::size_t around, std::array<Span, kStages>& behind, double& eye,
+                std::optional<std::size_t> around, std::array<Span, kStages>& behind, double& eye,
                 SeenScratch& scratch) const noexcept;
   // The layers peaking in [ta, tb] into scratch (after the ones there when `append`).
   static Eigen::Vector3d normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
