@@ -254,16 +254,16 @@ double ObjectRenderer::whole_weight(std::span<const ToolEllipsoid> parts) const 
     const BodyPose& rest = whole_.scene->poses[i];
     const Eigen::Vector3d at_rest = rest.rotation * body_centre_[i] + rest.position;
     const Eigen::Vector3d at_now = now.rotation * body_centre_[i] + now.position;
-    // How far the object stands from where it was captured, where the tool is: the rigid motion's
-    // displacement at each part's centre (the whole scene's proxy reads the object there as it was).
+    // How far the object stands, where the tool is, from where the whole scene holds it: the rigid
+    // motion's displacement at each part's centre (the whole scene's proxy reads it there as held).
     const Eigen::Quaterniond turn = now.rotation * rest.rotation.conjugate();
     double moved = 0;
     for (const ToolEllipsoid& part : parts)
       moved = std::max(moved, (turn * (part.center - rest.position) + now.position - part.center).norm());
     const double standing = std::clamp(1 - moved / whole_.rest_tolerance, 0.0, 1.0);
     if (standing == 1) continue;
-    // Near: a part within the object's radius of its sphere at rest or now (the whole scene's
-    // proxy reads its Gaussians at rest; the object itself is now elsewhere), fading out over
+    // Near: a part within the object's radius of its sphere as held or now (the whole scene's
+    // proxy reads its Gaussians as held; the object itself is now elsewhere), fading out over
     // one more radius.
     const double margin = body_radius_[i];
     double gap = std::numeric_limits<double>::infinity();
