@@ -171,7 +171,7 @@ TEST(FidelityMetrics, StiffnessThatCountsContactsDependsOnDensity) {
 }
 
 TEST(FidelityMetrics, SlidesScoreSmoothnessAndDrag) {
-  for (ShapeKind k : {ShapeKind::kPlane, ShapeKind::kSphere, ShapeKind::kCube}) {
+  for (ShapeKind k : {ShapeKind::kPlane, ShapeKind::kSphere, ShapeKind::kCube, ShapeKind::kCorner90}) {
     const AnalyticShape shape(k);
     const Script s = slide_script(shape, 0.005, 1000);
     Oracle ideal(shape, nullptr);

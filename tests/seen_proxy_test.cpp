@@ -420,6 +420,63 @@ TEST(SeenProxy, ALargeFlatGaussianTheFloaterRulePassesIsFeltWhereItIsSeen) {
   EXPECT_LT(press(ellipsoids, r, 0.05, -0.02, 1000).lowest_lead, -0.02);
 }
 
+// A floor of opaque discs (z = 0, x >= 0) and a wall of them standing on it (x = 0, z >= 0):
+// discs of sigma 0.6 s every s (opaque between their centres too).
+GaussianScene floor_and_wall(double s = 0.002) {
+  GaussianScene g;
+  const Eigen::Quaternionf upright(Eigen::AngleAxisf(float(0.5 * 3.14159265358979323846), Eigen::Vector3f::UnitY()));
+  for (double a = 0; a <= 0.08 + 1e-12; a += s)
+    for (double y = -0.04; y <= 0.04 + 1e-12; y += s) {
+      const Eigen::Vector3f scale(float(0.6 * s), float(0.6 * s), 1e-5f);
+      g.push_back(Eigen::Vector3f(float(a), float(y), 0), scale, Eigen::Vector4f(1, 0, 0, 0), 0.9f, std::uint32_t(g.size()));
+      g.push_back(Eigen::Vector3f(0, float(y), float(a)), scale,
+                  Eigen::Vector4f(upright.w(), upright.x(), upright.y(), upright.z()), 0.9f, std::uint32_t(g.size()));
+    }
+  return g;
+}
+
+// Moves a sphere of radius r in a straight line from `from` to `to` in `steps` ticks; the
+// largest force of any tick and the last tick's output.
+struct Move {
+  double peak = 0;
+  RenderOutput last;
+};
+Move move(ProxyRenderer& p, double r, const Eigen::Vector3d& from, const Eigen::Vector3d& to, int steps) {
+  Move out;
+  for (int k = 1; k <= steps; ++k) {
+    const Eigen::Vector3d c = from + (to - from) * (double(k) / steps);
+    out.last = p.render(ToolEllipsoid::sphere(c, r), (to - from) / (steps * 1e-3), 1e-3);
+    out.peak = std::max(out.peak, out.last.force.norm());
+  }
+  return out;
+}
+
+TEST(SeenProxy, SlidingAlongAFloorIntoAWallTheWallHoldsAndTheProxyRisesAlongIt) {
+  // Before the move across the contact's axis was searched, the proxy followed the device into
+  // the wall with no force, and where its leading point's ray met the wall's discs the height
+  // field threw it onto the wall's top: a 30 N kick.
+  const double r = 0.005, k = ProxyParams{}.stiffness;
+  const CollisionWorld w = CollisionWorld::build(floor_and_wall(), seen_world());
+  for (const int steps : {2000, 2}) {  // slowly, and the whole way across in two ticks
+    ProxyRenderer p(w, seen_params());
+    const Eigen::Vector3d start(0.03, 0, 0.003), wall(-0.004, 0, 0.003);  // 2 mm into the floor; 9 mm into the wall
+    move(p, r, Eigen::Vector3d(0.03, 0, 0.03), start, 500);
+    const Move in = move(p, r, start, wall, steps);
+    const Move held = move(p, r, wall, wall, 50);
+    EXPECT_NEAR(held.last.proxy.x(), r, 2e-4) << steps;  // the proxy stands against the wall's plane
+    EXPECT_NEAR(held.last.force.x(), k * (held.last.proxy.x() - wall.x()), 0.05) << steps;
+    EXPECT_GT(held.last.force.z(), 1.0) << steps;  // and on the floor
+    // No kick: at most the two springs and the damping of the move (17 m/s in two ticks).
+    const double speed = (wall - start).norm() / (steps * 1e-3);
+    EXPECT_LT(std::max(in.peak, held.peak), k * 0.011 + ProxyParams{}.damping * speed) << steps;
+    // Up along the wall, off the floor: the wall alone holds it.
+    const Move up = move(p, r, wall, Eigen::Vector3d(-0.004, 0, 0.03), 1000);
+    EXPECT_NEAR(up.last.proxy.x(), r, 5e-4) << steps;
+    EXPECT_NEAR(up.last.force.x(), k * 0.009, 0.6) << steps;
+    EXPECT_NEAR(up.last.force.z(), 0.0, 0.3) << steps;
+  }
+}
+
 // (A compound tool gets the seen compound proxy: seen_compound_proxy_test.cpp.)
 // The footprint is the sphere's (on by default); a compound tool on the seen solid has footprint
 // lines of its own, so turning the sphere's off is refused for it, and the default serves it.

@@ -303,6 +303,17 @@ std::string describe_mode(const PlayOptions& p) {
                         : fmt::format("decoupled, {} tick{} latency", p.latency_ticks, p.latency_ticks == 1 ? "" : "s");
 }
 
+namespace {
+// The slide's path as the report names it.
+std::string_view slide_path_name(ShapeKind kind) {
+  switch (kind) {
+    case ShapeKind::kCube: return "over an edge";
+    case ShapeKind::kCorner90: return "into a wall";
+    default: return "path";
+  }
+}
+}  // namespace
+
 FidelityOptions quick_fidelity_options() {
   FidelityOptions o;
   o.shapes = {ShapeKind::kPlane, ShapeKind::kSphere, ShapeKind::kCube, ShapeKind::kPlate2mm};
@@ -340,7 +351,8 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
     const AnalyticShape shape(kind);
     const std::string name(shape.name());
     const bool pushable = kind == ShapeKind::kPlate2mm || kind == ShapeKind::kPlate5mm || kind == ShapeKind::kCube;
-    const bool slidable = kind == ShapeKind::kPlane || kind == ShapeKind::kSphere || kind == ShapeKind::kCube;
+    const bool slidable = kind == ShapeKind::kPlane || kind == ShapeKind::kSphere || kind == ShapeKind::kCube ||
+                          kind == ShapeKind::kCorner90;
     const std::vector<ContactSite> sites = shape.press_sites(o.press_sites, o.seed, 0.03);
     std::vector<ContactSite> push_sites;
     for (const ContactSite& s : shape.press_sites(std::max(1, o.push_sites * 5), o.seed + 1, 0.03))
@@ -396,7 +408,7 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
           Pool pool;
           pool.add_slide(slide_metrics(shape, s, tr), tr);
           rep.ticks += s.ticks.size();
-          rep.slide.push_back(pool.row(name, kind == ShapeKind::kCube ? "over an edge" : "path", spacing, radius));
+          rep.slide.push_back(pool.row(name, std::string(slide_path_name(kind)), spacing, radius));
           rep.curves.push_back(curve_of(s, tr, name, spacing, 5));
         }
       }

@@ -127,8 +127,18 @@ Script slide_script(const AnalyticShape& shape, double r, double rate_hz, double
       };
       break;
     }
+    case ShapeKind::kCorner90: {
+      // Along the floor into the wall, then up the wall: the centre meets the wall at (rho, rho).
+      const double half = length / 2;
+      centre = [=](double u) {
+        if (u <= half) return Eigen::Vector3d(rho + half - u, 0, rho);
+        return Eigen::Vector3d(rho, 0, rho + (u - half));
+      };
+      break;
+    }
     default:
-      throw InputError("slide script: shape '" + std::string(shape.name()) + "' has no slide (plane, sphere, cube)");
+      throw InputError("slide script: shape '" + std::string(shape.name()) +
+                       "' has no slide (plane, sphere, cube, corner-90)");
   }
   Script s;
   s.scenario = Scenario::kSlide;

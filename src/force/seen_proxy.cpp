@@ -12,6 +12,7 @@ SeenProxy::SeenProxy(const CollisionWorld& world, const ProxyParams& params, dou
 void SeenProxy::reset() noexcept {
   started_ = false;
   in_contact_ = false;
+  wall_.setZero();
   normal_.setZero();
   fresh_normal_ = false;
   coupling_.release();
@@ -91,7 +92,10 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
   const Eigen::Vector3d d = device - proxy_;
   const double len = d.norm();
   if (!(len > 1e-9 * radius)) return false;
-  const Eigen::Vector3d u = d / len;
+  return begin_contact_along(d / len, len, radius);
+}
+
+bool SeenProxy::begin_contact_along(const Eigen::Vector3d& u, double len, double radius) noexcept {
   // The eye: as far behind the proxy as it is still seen from (at most seen_window R), so a
   // surface behind it (the floor it lifted off) does not hold it, and a faint layer it is in does.
   double eye = 0;
@@ -164,8 +168,10 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   const Eigen::Vector3d& a = axis_;
   const double depth = (device + radius * a - eye_).dot(a);  // the device's leading point, from the eye plane
   if (!(depth > 0)) return false;
-  // The ray of the goal's leading point (the device's without friction), from the eye plane.
-  const Eigen::Vector3d foot = goal + (radius - (goal + radius * a - eye_).dot(a)) * a;
+  // The ray of the goal's leading point (the device's without friction, stopped by a wall across
+  // the axis), from the eye plane.
+  const Eigen::Vector3d across = slide_across(goal, radius);
+  const Eigen::Vector3d foot = across + (radius - (across + radius * a - eye_).dot(a)) * a;
   // (The surface moves little from tick to tick: the layers up to just past the last hit are
   // read first, those deeper only when the surface is not among them.)
   const double guess = std::isfinite(last_hit_) ? last_hit_ + kGuessMargin * radius : depth;
@@ -212,6 +218,52 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   return true;
 }
 
+Eigen::Vector3d SeenProxy::slide_across(const Eigen::Vector3d& goal, double radius) noexcept {
+  const Eigen::Vector3d& a = axis_;
+  wall_.setZero();
+  Eigen::Vector3d step = goal - proxy_;
+  step -= step.dot(a) * a;
+  Eigen::Vector3d at = proxy_;
+  // The move across, then what is left of it along the wall it met (a second wall stops it).
+  // Each line is seen from the proxy's centre and searched from kWallDepth R inside the sphere's
+  // leading point: the wall the proxy was held against last tick may lie a little inside it now
+  // (the height field moved the proxy along the axis, and a tilted disc's crossing moves with
+  // the height). A surface that the line already crosses deeper inside the sphere (a slope the
+  // height field climbs, the footprint's groove walls) does not stop it.
+  const double lead = (1 - kWallDepth) * radius, stop = (kWallDepth + kWallGap) * radius;
+  for (int pass = 0; pass < 2; ++pass) {
+    const double len = step.norm();
+    if (!(len > kSlideMin * radius)) break;
+    const Eigen::Vector3d u = step / len;
+    const SeenHit hit = solid_.first_inside(at, u, 0, lead, lead + len + stop, scratch_);
+    // (Kept kWallGap R short of the wall, so the next tick's line meets it ahead of the leading
+    // point, not at it, where rounding would put it behind; < 0: backs out of the wall.)
+    const bool wall = hit.hit && hit.t > lead && !scratch_.overflow;
+    const double t = wall ? hit.t - lead - stop : len;
+    if (t >= len) {
+      at += step;
+      break;
+    }
+    at += t * u;
+    wall_ = wall_normal(u, hit);
+    step = std::max(0.0, len - t) * u;
+    step -= step.dot(wall_) * wall_;
+  }
+  const Eigen::Vector3d off = at - goal;
+  return goal + off - off.dot(a) * a;
+}
+
+Eigen::Vector3d SeenProxy::wall_normal(const Eigen::Vector3d& u, const SeenHit& hit) const noexcept {
+  const Eigen::Vector3d& a = axis_;
+  Eigen::Vector3d n = solid_.shade(u, hit, scratch_);
+  if (!(n.dot(u) < 0)) n = -u;
+  n -= n.dot(a) * a;  // (along the axis the height field holds it)
+  const double len = n.norm();
+  if (len > 1e-3) return n / len;
+  n = -u + u.dot(a) * a;
+  return n.normalized();
+}
+
 void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double depth) noexcept {
   // Read afresh once the point moved kNormalReuse R from the last reading (SeenNormalReading), and
   // smoothed by hold() over kNormalTau (each reading carries the seen surface's noise). The ring's
@@ -241,6 +293,20 @@ Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const E
   return follower_->add_forces_at_tip(tip, f, contact, normal_, velocity, radius, f_max_, dt);
 }
 
+Eigen::Vector3d SeenProxy::add_wall_force(const Eigen::Vector3d& f, const Eigen::Vector3d& e,
+                                          const Eigen::Vector3d& velocity, double dt) noexcept {
+  // The wall's own spring, on the part of its normal the contact's normal leaves out: the
+  // proxy stands against both, as a god-object on two planes (Zilles and Salisbury 1995).
+  Eigen::Vector3d w = wall_ - wall_.dot(normal_) * normal_;
+  const double len = w.norm();
+  if (!(len > 1e-3)) return f;
+  w /= len;
+  if (!(e.dot(w) > 0)) return f;
+  const Eigen::Vector3d sum = f + coupling_.force(e, w, velocity, dt, {}, FrictionStep{}, 0.0);
+  const double m = sum.norm();
+  return m > f_max_ ? Eigen::Vector3d(sum * (f_max_ / m)) : sum;
+}
+
 RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
   RenderOutput out;
   out.proxy = tool.center;
@@ -264,9 +330,25 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
     const Eigen::Vector3d held = fresh_normal_ ? Eigen::Vector3d::Zero() : normal_;  // (none yet in a new contact)
     friction_step_ = friction_.update(was_in_contact, held, tool.center, proxy_, device_step, r);
     in_contact_ = hold(tool.center, friction_step_.goal, r, dt);
+    // Out of the surface along this contact's axis while a wall across it held the proxy (the
+    // device came up along the wall): a contact along the wall's inward normal begins from where
+    // the proxy stands, not from the device inside the wall (a push toward the device, up and
+    // barely into the wall, would miss it with the sphere's leading point).
+    if (!in_contact_ && wall_.squaredNorm() > 0) {
+      const Eigen::Vector3d into = -wall_;
+      wall_.setZero();
+      const double len = (tool.center - proxy_).dot(into);
+      in_contact_ = len > 1e-9 * r && begin_contact_along(into, len, r);
+      if (in_contact_) {
+        friction_.reset();
+        friction_step_ = friction_.update(false, Eigen::Vector3d::Zero(), tool.center, proxy_, device_step, r);
+        in_contact_ = hold(tool.center, friction_step_.goal, r, dt);
+      }
+    }
   }
   if (!in_contact_) {
     proxy_ = tool.center;
+    wall_.setZero();
     coupling_.release();
     friction_.reset();
     if (follower_) follower_->release();
@@ -279,6 +361,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   if (follower_) apply_material(contact, r);
   const double mu_k = follower_ ? follower_->blend().mu_k : params_.mu_k;
   out.force = coupling_.force(e, normal_, velocity, dt, {}, friction_step_, mu_k);
+  if (wall_.squaredNorm() > 0) out.force = add_wall_force(out.force, e, velocity, dt);
   if (follower_) {
     out.force = add_material_forces(out.force, contact, velocity, r, dt);
     out.texture_rms = float(follower_->texture_rms());

@@ -59,7 +59,8 @@ struct Script {
 
 /// Slide: press to `delta` at 2 cm/s, slide `length` m along the surface at `speed` keeping
 /// delta constant, retract. Plane: a straight line; cube: 5 cm on the top face, around the edge,
-/// 5 cm down the side; sphere: a great-circle arc. Throws InputError for other shapes.
+/// 5 cm down the side; sphere: a great-circle arc; corner-90: 5 cm along the floor into the wall,
+/// then 5 cm up the wall. Throws InputError for other shapes.
 [[nodiscard]] Script slide_script(const AnalyticShape& shape, double tool_radius, double rate_hz,
                                   double delta = 0.002, double length = 0.1, double speed = 0.05);
 

@@ -35,8 +35,19 @@
 ///   holds it). A groove or a corner narrower than the tool holds it on its walls, as a rigid
 ///   ball, before its leading point reaches the groove's line. A crack narrower than the tool over a floor it can see is not bridged: the
 ///   floor holds it.
-/// Limits: walls parallel to the contact's axis are not felt until the device comes out and
-/// pushes on them afresh.
+/// - Across the axis, the proxy's move to the device's place is a push of its own: its line
+///   through the sphere's leading point that way, seen from the proxy's centre, stops it kWallGap
+///   R short of a wall it meets (one standing on the floor it rests on: the height field alone
+///   would let it into the wall and then, where its leading point's ray met the wall's layers,
+///   throw it onto the wall's top). What is left of the move slides it along the wall, and the
+///   wall adds its own spring along its rendered normal's part across the contact's normal (two
+///   planes, as the god-object of Zilles and Salisbury 1995). When the device comes out of the
+///   surface along the axis with a wall holding the proxy (up along the wall), a contact along
+///   the wall's inward normal begins from where the proxy stands, so the wall holds on.
+/// Limits: a wall met by the line through the sphere's centre height only (a step lower than
+/// that is climbed by the height field); no friction on the wall; the proxy on a convex edge
+/// stays on the face it rests on while the device goes down the other face (a height field
+/// along the first face's axis).
 ///
 /// Frame and units: world, metres as the world's. render() does not allocate, lock, log or throw.
 
@@ -74,10 +85,27 @@ class SeenProxy {
   // Free: the proxy moves straight toward the device; true when the seen solid stops it (a
   // contact begins: its axis and eye plane are set).
   bool begin_contact(const Eigen::Vector3d& device, double radius) noexcept;
+  // The same for a push along the unit `u` for `len` from where the proxy stands.
+  bool begin_contact_along(const Eigen::Vector3d& u, double len, double radius) noexcept;
   // In contact: the proxy on the seen surface along the contact's axis, over the device's leading
   // point; false when the device has come out of the surface.
   // `goal`: where the friction cone puts the proxy across the axis (the device without friction).
   bool hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal, double radius, double dt) noexcept;
+  // In contact: where the proxy gets across the contact's axis on its way to `goal` (the goal's
+  // own place along the axis kept): stopped by a wall of the seen solid that its move across
+  // meets (its line seen from the proxy's centre), then sliding along the wall once (a second
+  // wall stops it); sets wall_ (zero: no wall held it).
+  Eigen::Vector3d slide_across(const Eigen::Vector3d& goal, double radius) noexcept;
+  // The outward normal, across the contact's axis, of the wall `hit` (the last first_inside()
+  // along u on scratch_): the rendered normal of the layers that make it (SeenSolid::shade).
+  [[nodiscard]] Eigen::Vector3d wall_normal(const Eigen::Vector3d& u, const SeenHit& hit) const noexcept;
+  // The force `f` plus the spring of the wall holding the proxy (wall_) along its normal's part
+  // across normal_; |F| <= f_max.
+  Eigen::Vector3d add_wall_force(const Eigen::Vector3d& f, const Eigen::Vector3d& e, const Eigen::Vector3d& velocity,
+                                 double dt) noexcept;
+  static constexpr double kWallGap = 1e-3;      // R: a wall stops the proxy this far short of it
+  static constexpr double kWallDepth = 0.1;     // R: a wall this far inside the sphere still holds it
+  static constexpr double kSlideMin = 1e-4;     // R: a move across the axis shorter than this is not searched
   // With a follower: the materials of the layers that make `hit` (the last first_inside() on
   // scratch_) into target_ (target_held_: some layer holds a material share).
   void read_material_shares(const SeenHit& hit) noexcept;
@@ -145,6 +173,7 @@ class SeenProxy {
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
   bool fresh_normal_ = false;  // a new contact: its first reading sets normal_ (hold())
   Eigen::Vector3d axis_ = Eigen::Vector3d::Zero();  // the contact's push direction
+  Eigen::Vector3d wall_ = Eigen::Vector3d::Zero();  // the outward normal of a wall holding the proxy across the axis this tick
   Eigen::Vector3d eye_ = Eigen::Vector3d::Zero();   // a point of its eye plane
   Eigen::Vector3d target_normal_ = Eigen::Vector3d::Zero();  // the last reading
   SeenNormalReading normal_reading_;
