@@ -477,6 +477,36 @@ TEST(SeenProxy, SlidingAlongAFloorIntoAWallTheWallHoldsAndTheProxyRisesAlongIt) 
   }
 }
 
+TEST(SeenProxy, AWallSeenOnlyEdgeOnDoesNotThrowTheSphereOntoItsTop) {
+  // An opaque floor, and across it a sheet of faint discs (opacity 0.15, 0.5 mm thick) standing
+  // 8 cm tall: seen through from the side (the line across does not stop the proxy), but from
+  // above, along the sheet, its discs stack up to an opaque top. The height field over the
+  // device's leading point in the sheet read that top, 8 cm up in one tick.
+  const double s = 0.002, r = 0.005;
+  GaussianScene g;
+  const Eigen::Quaternionf upright(Eigen::AngleAxisf(float(0.5 * 3.14159265358979323846), Eigen::Vector3f::UnitY()));
+  for (double y = -0.04; y <= 0.04 + 1e-12; y += s) {
+    for (double x = -0.06; x <= 0.06 + 1e-12; x += s)
+      g.push_back(Eigen::Vector3f(float(x), float(y), 0), Eigen::Vector3f(float(0.6 * s), float(0.6 * s), 1e-5f),
+                  Eigen::Vector4f(1, 0, 0, 0), 0.9f, std::uint32_t(g.size()));
+    for (double z = s; z <= 0.08 + 1e-12; z += s)
+      g.push_back(Eigen::Vector3f(0, float(y), float(z)), Eigen::Vector3f(float(0.6 * s), float(0.6 * s), 5e-4f),
+                  Eigen::Vector4f(upright.w(), upright.x(), upright.y(), upright.z()), 0.15f, std::uint32_t(g.size()));
+  }
+  const CollisionWorld w = CollisionWorld::build(g, seen_world());
+  ProxyRenderer p(w, seen_params());
+  move(p, r, Eigen::Vector3d(0.03, 0, 0.03), Eigen::Vector3d(0.03, 0, 0.003), 500);
+  double peak = 0, highest = 0;
+  for (int k = 1; k <= 3000; ++k) {
+    const Eigen::Vector3d c(0.03 - 0.06 * k / 3000.0, 0, 0.003);
+    const RenderOutput o = p.render(ToolEllipsoid::sphere(c, r), Eigen::Vector3d(-0.02, 0, 0), 1e-3);
+    peak = std::max(peak, o.force.norm());
+    highest = std::max(highest, o.proxy.z());
+  }
+  EXPECT_LT(highest, 0.01);  // on the floor (its centre R above it), never on the sheet's top
+  EXPECT_LT(peak, 8.0);      // the floor's 2-3 N and the sheet held as a wall for a few mm
+}
+
 // (A compound tool gets the seen compound proxy: seen_compound_proxy_test.cpp.)
 // The footprint is the sphere's (on by default); a compound tool on the seen solid has footprint
 // lines of its own, so turning the sphere's off is refused for it, and the default serves it.

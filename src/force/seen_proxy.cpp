@@ -184,6 +184,16 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   const double footprint = params_.seen_footprint ? ring_support(device, radius) : std::numeric_limits<double>::infinity();
   const double rest = std::min(hit.hit ? hit.t : std::numeric_limits<double>::infinity(), footprint);
   if (!(rest < depth)) return false;  // the device is out of the surface
+  // A rise of more than kMaxClimb R in one tick is no surface the sphere slides onto but the top
+  // of a wall or an overhang that the ray over the goal met (a wall seen edge-on that the line
+  // across did not see): the proxy stays where it stood, held by it across the axis.
+  if (!fresh_normal_ && rest < rest_ - kMaxClimb * radius) {
+    Eigen::Vector3d refused = across - proxy_;
+    refused -= refused.dot(a) * a;
+    const double len = refused.norm();
+    if (len > 0) wall_ = -refused / len;
+    return (proxy_ + radius * a - eye_).dot(a) < depth;
+  }
   if (hit.hit) last_hit_ = hit.t;
   rest_ = rest;
   const double t = std::max(0.0, rest - 1e-6 * radius);

@@ -44,6 +44,9 @@
 ///   planes, as the god-object of Zilles and Salisbury 1995). When the device comes out of the
 ///   surface along the axis with a wall holding the proxy (up along the wall), a contact along
 ///   the wall's inward normal begins from where the proxy stands, so the wall holds on.
+///   A wall the line does not see (seen edge-on from above, see-through from the side) but whose
+///   top the height field over the device would throw the proxy onto, more than R up in one
+///   tick, holds it where it stands as a wall too.
 /// Limits: a wall met by the line through the sphere's centre height only (a step lower than
 /// that is climbed by the height field); no friction on the wall; the proxy on a convex edge
 /// stays on the face it rests on while the device goes down the other face (a height field
@@ -105,6 +108,7 @@ class SeenProxy {
                                  double dt) noexcept;
   static constexpr double kWallGap = 1e-3;      // R: a wall stops the proxy this far short of it
   static constexpr double kWallDepth = 0.1;     // R: a wall this far inside the sphere still holds it
+  static constexpr double kMaxClimb = 1.0;      // R: the height field rising more in one tick is a wall
   static constexpr double kSlideMin = 1e-4;     // R: a move across the axis shorter than this is not searched
   // With a follower: the materials of the layers that make `hit` (the last first_inside() on
   // scratch_) into target_ (target_held_: some layer holds a material share).
