@@ -50,6 +50,7 @@ SeenCompoundProxy::SeenCompoundProxy(const SeenSolid& solid, const CompoundTool&
     : solid_(&solid),
       tool_(tool),
       params_(params),
+      f_max_(f_max),
       coupling_(params, f_max),
       friction_(params.mu_s, params.mu_k) {
   tool_.validate("seen proxy: tool");
@@ -72,6 +73,7 @@ void SeenCompoundProxy::reset() noexcept {
 
 void SeenCompoundProxy::release() noexcept {
   in_contact_ = false;
+  wall_.setZero();
   touching_ = 0;
   coupling_.release();
   friction_.reset();
@@ -453,7 +455,20 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
   }
   if (!(push > 0)) return false;  // no part reaches its surface: the device is out
   const double back = push + 1e-6 * min_axis_;
-  x_ = y - back * a;
+  // A rise of more than kMaxClimb smallest semi-axes in one tick is no surface the tool slides
+  // onto but the top of a wall that a part's ray met as the tool moved across the axis
+  // (SeenProxy::kMaxClimb): the proxy stays where it stood, held by it across the axis.
+  const Eigen::Vector3d next = y - back * a;
+  wall_.setZero();
+  if (!fresh_normal_ && (x_ - next).dot(a) > kMaxClimb * min_axis_) {
+    Eigen::Vector3d refused = next - x_;
+    refused -= refused.dot(a) * a;
+    const double len = refused.norm();
+    if (len > 0) wall_ = -refused / len;
+    pose(x_, q);
+    return true;
+  }
+  x_ = next;
   pose(x_, q);
   for (int j = 0; j < tool_.count; ++j) {
     const std::size_t k = std::size_t(j);
@@ -519,6 +534,18 @@ bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_
   return true;
 }
 
+Eigen::Vector3d SeenCompoundProxy::add_wall_force(const Eigen::Vector3d& f, const Eigen::Vector3d& e,
+                                                  const Eigen::Vector3d& velocity, double dt) noexcept {
+  Eigen::Vector3d w = wall_ - wall_.dot(normal_) * normal_;
+  const double len = w.norm();
+  if (!(len > 1e-3)) return f;
+  w /= len;
+  if (!(e.dot(w) > 0)) return f;
+  const Eigen::Vector3d sum = f + coupling_.force(e, w, velocity, dt, {}, FrictionStep{}, 0.0);
+  const double m = sum.norm();
+  return m > f_max_ ? Eigen::Vector3d(sum * (f_max_ / m)) : sum;
+}
+
 RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
                                        const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
                                        double dt) noexcept {
@@ -574,6 +601,7 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   out.constraints = 1;
   out.force = coupling_.force(x_ - position, normal_, velocity, dt, {}, friction_step_, params_.mu_k);
   out.torque = (lever_point - x_).cross(out.force);
+  if (wall_.squaredNorm() > 0) out.force = add_wall_force(out.force, x_ - position, velocity, dt);
   out.counts.contacts = std::uint32_t(touching_);
   return out;
 }

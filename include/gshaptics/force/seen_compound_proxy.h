@@ -49,10 +49,16 @@
 ///    of contact, as the compound proxy on the ellipsoids does (compound_proxy.h): the torque
 ///    about the TCP is the force's moment, (c - x_tcp) x F.
 ///
+/// 5. A rise of the proxy toward the eye plane of more than the smallest semi-axis in one tick is
+///    the top of a wall that a part's ray met as the tool moved across the axis, not a surface to
+///    slide onto: the proxy stays where it stood, and that wall adds a spring across the axis (at
+///    the TCP: no torque). A stylus slid along a floor into a wall was thrown onto its top.
+///
 /// Not done (the compound proxy on the ellipsoids does these): the proxy does not turn against
 /// the surface (a turn that would swing a part into the solid raises the proxy along a instead,
 /// and no rotational coupling is rendered); walls parallel to the axis are not felt until the
-/// device comes out and pushes on them afresh (the one-part seen proxy's limit); materials are
+/// device comes out and pushes on them afresh, beyond item 5 (the one-part seen proxy searches its
+/// move across the axis, seen_proxy.h; here that would be a line per part a tick); materials are
 /// refused (ProxyRenderer::set_materials).
 ///
 /// Frame and units: world, metres as the world's; the TCP and orientation as CompoundProxy's.
@@ -247,6 +253,15 @@ class SeenCompoundProxy {
   CompoundTool tool_;
   ProxyParams params_;
   double radius_ = 0, min_axis_ = 0;  // the tool's largest and smallest semi-axes
+  double f_max_;
+  // The outward normal, across the axis, of a wall whose top the tool was refused this tick
+  // (kMaxClimb; zero: none).
+  Eigen::Vector3d wall_ = Eigen::Vector3d::Zero();
+  static constexpr double kMaxClimb = 1.0;  // smallest semi-axes
+  // The force `f` plus the spring of the wall holding the proxy (wall_) along its normal's part
+  // across normal_, at the TCP (no torque); |F| <= f_max.
+  Eigen::Vector3d add_wall_force(const Eigen::Vector3d& f, const Eigen::Vector3d& e, const Eigen::Vector3d& velocity,
+                                 double dt) noexcept;
   SeenScratch scratch_;
   VirtualCoupling coupling_;
   FrictionCone friction_;
