@@ -50,7 +50,6 @@ SeenCompoundProxy::SeenCompoundProxy(const SeenSolid& solid, const CompoundTool&
     : solid_(&solid),
       tool_(tool),
       params_(params),
-      f_max_(f_max),
       coupling_(params, f_max),
       friction_(params.mu_s, params.mu_k) {
   tool_.validate("seen proxy: tool");
@@ -534,18 +533,6 @@ bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_
   return true;
 }
 
-Eigen::Vector3d SeenCompoundProxy::add_wall_force(const Eigen::Vector3d& f, const Eigen::Vector3d& e,
-                                                  const Eigen::Vector3d& velocity, double dt) noexcept {
-  Eigen::Vector3d w = wall_ - wall_.dot(normal_) * normal_;
-  const double len = w.norm();
-  if (!(len > 1e-3)) return f;
-  w /= len;
-  if (!(e.dot(w) > 0)) return f;
-  const Eigen::Vector3d sum = f + coupling_.force(e, w, velocity, dt, {}, FrictionStep{}, 0.0);
-  const double m = sum.norm();
-  return m > f_max_ ? Eigen::Vector3d(sum * (f_max_ / m)) : sum;
-}
-
 RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
                                        const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
                                        double dt) noexcept {
@@ -601,7 +588,7 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   out.constraints = 1;
   out.force = coupling_.force(x_ - position, normal_, velocity, dt, {}, friction_step_, params_.mu_k);
   out.torque = (lever_point - x_).cross(out.force);
-  if (wall_.squaredNorm() > 0) out.force = add_wall_force(out.force, x_ - position, velocity, dt);
+  if (wall_.squaredNorm() > 0) out.force = coupling_.add_wall(out.force, wall_, normal_, x_ - position, velocity, dt);
   out.counts.contacts = std::uint32_t(touching_);
   return out;
 }

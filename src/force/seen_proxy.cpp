@@ -303,20 +303,6 @@ Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const E
   return follower_->add_forces_at_tip(tip, f, contact, normal_, velocity, radius, f_max_, dt);
 }
 
-Eigen::Vector3d SeenProxy::add_wall_force(const Eigen::Vector3d& f, const Eigen::Vector3d& e,
-                                          const Eigen::Vector3d& velocity, double dt) noexcept {
-  // The wall's own spring, on the part of its normal the contact's normal leaves out: the
-  // proxy stands against both, as a god-object on two planes (Zilles and Salisbury 1995).
-  Eigen::Vector3d w = wall_ - wall_.dot(normal_) * normal_;
-  const double len = w.norm();
-  if (!(len > 1e-3)) return f;
-  w /= len;
-  if (!(e.dot(w) > 0)) return f;
-  const Eigen::Vector3d sum = f + coupling_.force(e, w, velocity, dt, {}, FrictionStep{}, 0.0);
-  const double m = sum.norm();
-  return m > f_max_ ? Eigen::Vector3d(sum * (f_max_ / m)) : sum;
-}
-
 RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
   RenderOutput out;
   out.proxy = tool.center;
@@ -371,7 +357,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   if (follower_) apply_material(contact, r);
   const double mu_k = follower_ ? follower_->blend().mu_k : params_.mu_k;
   out.force = coupling_.force(e, normal_, velocity, dt, {}, friction_step_, mu_k);
-  if (wall_.squaredNorm() > 0) out.force = add_wall_force(out.force, e, velocity, dt);
+  if (wall_.squaredNorm() > 0) out.force = coupling_.add_wall(out.force, wall_, normal_, e, velocity, dt);
   if (follower_) {
     out.force = add_material_forces(out.force, contact, velocity, r, dt);
     out.texture_rms = float(follower_->texture_rms());

@@ -55,4 +55,17 @@ Eigen::Vector3d VirtualCoupling::force_at_depth(double depth, const Eigen::Vecto
   return f;
 }
 
+Eigen::Vector3d VirtualCoupling::add_wall(const Eigen::Vector3d& f, const Eigen::Vector3d& wall,
+                                          const Eigen::Vector3d& normal, const Eigen::Vector3d& offset,
+                                          const Eigen::Vector3d& velocity, double dt) noexcept {
+  Eigen::Vector3d w = wall - wall.dot(normal) * normal;
+  const double len = w.norm();
+  if (!(len > 1e-3)) return f;
+  w /= len;
+  if (!(offset.dot(w) > 0)) return f;
+  const Eigen::Vector3d sum = f + force_at_depth(offset.dot(w), offset, w, velocity, dt, {}, FrictionStep{}, 0.0);
+  const double m = sum.norm();
+  return m > f_max_ ? Eigen::Vector3d(sum * (f_max_ / m)) : sum;
+}
+
 }  // namespace gshaptics

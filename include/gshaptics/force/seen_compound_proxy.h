@@ -253,15 +253,10 @@ class SeenCompoundProxy {
   CompoundTool tool_;
   ProxyParams params_;
   double radius_ = 0, min_axis_ = 0;  // the tool's largest and smallest semi-axes
-  double f_max_;
   // The outward normal, across the axis, of a wall whose top the tool was refused this tick
   // (kMaxClimb; zero: none).
   Eigen::Vector3d wall_ = Eigen::Vector3d::Zero();
   static constexpr double kMaxClimb = 1.0;  // smallest semi-axes
-  // The force `f` plus the spring of the wall holding the proxy (wall_) along its normal's part
-  // across normal_, at the TCP (no torque); |F| <= f_max.
-  Eigen::Vector3d add_wall_force(const Eigen::Vector3d& f, const Eigen::Vector3d& e, const Eigen::Vector3d& velocity,
-                                 double dt) noexcept;
   SeenScratch scratch_;
   VirtualCoupling coupling_;
   FrictionCone friction_;

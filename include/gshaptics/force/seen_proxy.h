@@ -102,10 +102,6 @@ class SeenProxy {
   // The outward normal, across the contact's axis, of the wall `hit` (the last first_inside()
   // along u on scratch_): the rendered normal of the layers that make it (SeenSolid::shade).
   [[nodiscard]] Eigen::Vector3d wall_normal(const Eigen::Vector3d& u, const SeenHit& hit) const noexcept;
-  // The force `f` plus the spring of the wall holding the proxy (wall_) along its normal's part
-  // across normal_; |F| <= f_max.
-  Eigen::Vector3d add_wall_force(const Eigen::Vector3d& f, const Eigen::Vector3d& e, const Eigen::Vector3d& velocity,
-                                 double dt) noexcept;
   static constexpr double kWallGap = 1e-3;      // R: a wall stops the proxy this far short of it
   static constexpr double kWallDepth = 0.1;     // R: a wall this far inside the sphere still holds it
   static constexpr double kMaxClimb = 1.0;      // R: the height field rising more in one tick is a wall

@@ -118,6 +118,14 @@ class VirtualCoupling {
     return force_at_depth(offset.dot(normal), offset, normal, velocity, dt, blockers, friction, mu_k);
   }
 
+  /// `f` (the force along the contact's unit `normal`) plus the spring of a second plane the proxy
+  /// stands against, a wall with outward unit normal `wall`: force_at_depth() along w, the part of
+  /// `wall` that `normal` leaves out, when the device is past it (offset . w > 0); |F| <= f_max.
+  /// A god-object on two planes (Zilles and Salisbury 1995): the seen proxies' wall across their
+  /// contact's axis (seen_proxy.h, seen_compound_proxy.h). No friction on the wall.
+  Eigen::Vector3d add_wall(const Eigen::Vector3d& f, const Eigen::Vector3d& wall, const Eigen::Vector3d& normal,
+                           const Eigen::Vector3d& offset, const Eigen::Vector3d& velocity, double dt) noexcept;
+
   /// The proxy is free: the opacity smoothing starts again from 1, the energy bound anew.
   void release() noexcept {
     opacity_ = 1.0;
