@@ -220,7 +220,8 @@ int main(int argc, char** argv) {
   app.add_flag("--materials", materials,
                "Also time the one-part proxy with a material map (force/material.h): two materials split at the "
                "world's centre along x, both with texture gain 1 (the captured relief), one also with a procedural "
-               "noise relief (RMS 0.05 R, wavelengths 0.2-1 R), and write a table of what materials and texture add");
+               "noise relief (RMS 0.05 R, wavelengths 0.2-1 R), and write a table of what materials and texture add "
+               "(with --stylus, also to the stylus's proxy)");
   CLI11_PARSE(app, argc, argv);
   const ProxySurface surface = surface_name == "seen" ? ProxySurface::kSeen : ProxySurface::kEllipsoids;
   const bool seen_footprint = footprint_name == "on";
@@ -236,6 +237,9 @@ int main(int argc, char** argv) {
     std::string material_table =
         "\n| set | ticks in contact | proxy p50 / p99 us | with materials and texture p50 / p99 us | p99 added us |\n"
         "|---|---:|---|---|---:|\n";
+    std::string stylus_material_table =
+        "\n| set | proxy, stylus: p50 / p99 us | with materials and texture p50 / p99 us | p99 added us |\n"
+        "|---|---|---|---:|\n";
     std::stringstream ss(sets);
     std::string name;
     while (std::getline(ss, name, ',')) {
@@ -378,12 +382,13 @@ int main(int argc, char** argv) {
                                  .counts.contacts > 0;
             });
         // The proxy with a compound tool, tilted, its TCP on the poses.
-        const auto time_proxy = [&](const CompoundTool& t) {
+        const auto time_proxy = [&](const CompoundTool& t, bool with_materials = false) {
           ProxyParams pp;
           pp.near_lists = !no_near_lists;
           pp.surface = surface;  // (--surface seen: the seen compound proxy; it was the ellipsoids' until the fifty-sixth session)
           ProxyRenderer timed(w, pp);
           timed.set_tool(t);
+          if (with_materials) timed.set_materials(MaterialField::resolve(split_material_map(w, r), w, pp));
           return time_replays(
               s, passes, [&](bool) { timed.reset(); },
               [&](std::size_t i) {
@@ -398,6 +403,11 @@ int main(int argc, char** argv) {
         CompoundTool ball = CompoundTool::single(Eigen::Vector3d::Constant(3 * r));
         ball.parts[0].offset = Eigen::Vector3d(0, 0, 3 * r);
         const Timing tb = time_proxy(ball);
+        if (materials) {
+          const Timing tt = time_proxy(tool, true);
+          stylus_material_table += fmt::format("| {} | {:.1f} / {:.1f} | {:.1f} / {:.1f} | {:+.1f} |\n", name, tq.p50, tq.p99,
+                                               tt.p50, tt.p99, tt.p99 - tq.p99);
+        }
         compound_table += fmt::format(
             "| {} | {:.4g} | {} / {} | {:.1f} / {:.1f} | {:.1f} / {:.1f} | {:.1f}x | {:.1f} / {:.1f} | {:.1f} / {:.1f} / {:.0f} | "
             "{:.1f}x | {:.1f} / {:.1f} | {:.1f}x |\n",
@@ -408,6 +418,7 @@ int main(int argc, char** argv) {
     }
     if (stylus) table += compound_table;
     if (materials) table += material_table;
+    if (materials && stylus) table += stylus_material_table;
     fmt::print("{}", table);
     if (!out.empty()) write_file_atomically(out, table);
   } catch (const InputError& e) {

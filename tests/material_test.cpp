@@ -335,6 +335,76 @@ TEST(MaterialProxy, AStylusFeelsEachSidesStiffness) {
 }
 
 
+// One tick of an upright stylus (identity orientation: its parts above its tip, the TCP) through
+// ProxyRenderer::render_compound, as the servo step drives a tool with a shape.
+RenderOutput stylus_tick(ProxyRenderer& proxy, const CompoundTool& stylus, const Eigen::Vector3d& tip,
+                         const Eigen::Vector3d& velocity) {
+  std::array<ToolEllipsoid, kMaxToolParts> parts{};
+  const int n = stylus.posed(tip, Eigen::Quaterniond::Identity(), parts);
+  return proxy.render_compound(std::span<const ToolEllipsoid>(parts.data(), std::size_t(n)), tip, velocity,
+                               Eigen::Vector3d::Zero(), 1e-3);
+}
+
+// The stylus on the seen solid (SeenCompoundProxy) reads the materials from the layers under its
+// touching parts: pressed tip-first into each side, that side's stiffness (the slope between 1 and
+// 5 mm past the touch); slid 2 mm deep at 5 cm/s from side to side, each side's kinetic friction;
+// across the border no step in force above twice the largest away from it (at least 0.05 N:
+// without the blend the spring's 2 mm would step by 1.8 N), ending on the hard side's stiffness.
+TEST(MaterialProxy, OnTheSeenSurfaceAStylusHasEachSidesStiffnessAndFriction) {
+  SynthParams sp;
+  sp.spacing = 0.002;
+  sp.seed = 5;
+  sp.floater_share = 0;
+  WorldConfig config;
+  config.min_opacity = kSeenMinOpacity;
+  const CollisionWorld world = CollisionWorld::build(make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), sp).scene, config);
+  ProxyParams seen;
+  seen.surface = ProxySurface::kSeen;
+  const CompoundTool stylus = parse_tool_spec("stylus:0.06,0.004");
+  ProxyRenderer proxy(world, seen);
+  proxy.set_tool(stylus);
+  proxy.set_materials(MaterialField::resolve(MaterialMap::parse(two_materials(), "map"), world, seen));
+  ASSERT_NE(proxy.seen_compound(), nullptr);
+  for (const auto& [x, k] : {std::pair{-0.04, 600.0}, std::pair{0.04, 1500.0}}) {
+    proxy.reset();
+    double touch = NAN, f1 = 0, f5 = 0;
+    for (int i = 0; i <= 1000; ++i) {
+      const double z = 0.003 - 1e-5 * i;  // 3 mm above the plane to 7 mm below
+      const RenderOutput o = stylus_tick(proxy, stylus, Eigen::Vector3d(x, 0.001, z), Eigen::Vector3d(0, 0, -0.01));
+      if (std::isnan(touch) && o.force.z() > 0) touch = z;
+      if (!std::isnan(touch) && std::abs(touch - z - 0.001) < 5e-6) f1 = o.force.z();
+      if (!std::isnan(touch) && std::abs(touch - z - 0.005) < 5e-6) f5 = o.force.z();
+    }
+    ASSERT_FALSE(std::isnan(touch)) << "x " << x;
+    EXPECT_NEAR((f5 - f1) / 0.004, k, 0.05 * k) << "x " << x;
+    EXPECT_EQ(proxy.materials()->name(proxy.material().dominant), x < 0 ? "soft" : "hard");
+  }
+  proxy.reset();
+  for (int i = 0; i <= 300; ++i)
+    (void)stylus_tick(proxy, stylus, Eigen::Vector3d(-0.04, 0.001, -std::min(0.002, -0.001 + 1e-5 * i)),
+                      Eigen::Vector3d(0, 0, -0.01));
+  double ft[2] = {0, 0}, fn[2] = {0, 0}, border = 0, away = 0;
+  Eigen::Vector3d last = Eigen::Vector3d::Zero();
+  bool held = true;
+  for (int i = 0; i <= 1600; ++i) {
+    const double x = -0.04 + 5e-5 * i;
+    const RenderOutput o = stylus_tick(proxy, stylus, Eigen::Vector3d(x, 0.001, -0.002), Eigen::Vector3d(0.05, 0, 0));
+    held = held && o.force.z() > 0;
+    const double step = last.isZero() ? 0.0 : (o.force - last).norm();
+    last = o.force;
+    if (std::abs(x) < 0.008) border = std::max(border, step);
+    else if (x > -0.035) away = std::max(away, step);
+    if (std::abs(x) < 0.012 || std::abs(x) > 0.035) continue;  // the blend near the border; the start
+    ft[x > 0] += -o.force.x();
+    fn[x > 0] += o.force.z();
+  }
+  EXPECT_TRUE(held);
+  EXPECT_NEAR(ft[0] / fn[0], 0.3, 0.05 * 0.3);
+  EXPECT_NEAR(ft[1] / fn[1], 0.6, 0.05 * 0.6);
+  EXPECT_LT(border, std::max(2 * away, 0.05));
+  EXPECT_NEAR(proxy.material().stiffness, 1500, 1.0);
+}
+
 // Colour regions: the tolerance against a direct test of every Gaussian's colour, k-means
 // clusters picking a whole colour group, a box with a colour holding their intersection, and a
 // map that selects by colour refused until it is resolved on colours.

@@ -372,9 +372,10 @@ TEST(SeenCompoundProxy, AFastMotionThroughAFaintLayerIsStoppedAsASlowOne) {
   EXPECT_GT(rest[1], -0.0025);  // held at the pair, not by anything past them
 }
 
-// Materials are not served on the seen solid with a tool with a shape: refused either way round.
-// On the ellipsoids the compound proxy is the one that serves the tool.
-TEST(SeenCompoundProxy, MaterialsAreRefusedAndTheEllipsoidsKeepTheirCompoundProxy) {
+// Materials on the seen solid serve a tool with a shape whichever is set first: the stylus pressed
+// into the region feels its stiffness and the blend names it. On the ellipsoids the compound proxy
+// is the one that serves the tool.
+TEST(SeenCompoundProxy, MaterialsServeItWhicheverIsSetFirstAndTheEllipsoidsKeepTheirCompoundProxy) {
   GaussianScene g;
   add_layer(g, 0.0, 0.9f);
   const CollisionWorld world = seen_world(g);
@@ -382,15 +383,20 @@ TEST(SeenCompoundProxy, MaterialsAreRefusedAndTheEllipsoidsKeepTheirCompoundProx
   const auto field = MaterialField::resolve(MaterialMap::parse(nlohmann::json::parse(R"({
     "materials": [{"name": "soft", "stiffness": 600}],
     "regions": [{"material": "soft", "box": {"min": [-1, -1, -1], "max": [1, 1, 1]}}]})"), "map"), world, ProxyParams{});
-  {
+  for (const bool tool_first : {true, false}) {
     ProxyRenderer r(world, seen_params());
-    r.set_tool(stylus);
-    EXPECT_THROW(r.set_materials(field), InputError);
-  }
-  {
-    ProxyRenderer r(world, seen_params());
+    if (tool_first) r.set_tool(stylus);
     r.set_materials(field);
-    EXPECT_THROW(r.set_tool(stylus), InputError);
+    if (!tool_first) r.set_tool(stylus);
+    ASSERT_NE(r.seen_compound(), nullptr);
+    // Upright, the tip 3 mm above the plane down to 4 mm past it: 600 N/m over the last 3 mm.
+    const auto ticks = drive(r, stylus, 0.7, [](double t) {
+      return std::pair{Eigen::Vector3d(0.001, 0.002, 0.003 - 0.01 * t), Eigen::Quaterniond::Identity()};
+    });
+    const double f_mid = ticks[400].out.force.z(), f_end = ticks.back().out.force.z();  // tip 1 and 4 mm past
+    EXPECT_NEAR((f_end - f_mid) / (ticks[400].tcp.z() - ticks.back().tcp.z()), 600, 30) << tool_first;
+    EXPECT_EQ(r.materials()->name(r.material().dominant), "soft") << tool_first;
+    EXPECT_DOUBLE_EQ(r.material().stiffness, 600) << tool_first;
   }
   ProxyRenderer r(world, ProxyParams{});
   r.set_tool(stylus);

@@ -269,9 +269,7 @@ void run_texture_cases(const FidelityOptions& o, FidelityReport& rep, const Fide
   for (std::size_t t = 0; t <= o.tool_radii.size(); ++t) {
     const bool with_stylus = t == o.tool_radii.size();
     const double radius = with_stylus ? *std::min_element(o.tool_radii.begin(), o.tool_radii.end()) : o.tool_radii[t];
-    RendererSpec spec = renderer_spec_for(o.renderer, with_stylus ? ProxyTool::kCompound : ProxyTool::kOnePart);
-    // The seen solid has no materials for a tool with a shape yet: the stylus drags on the ellipsoids.
-    if (auto* proxy = std::get_if<ProxyModelSpec>(&spec); proxy && with_stylus) proxy->params.surface = ProxySurface::kEllipsoids;
+    const RendererSpec spec = renderer_spec_for(o.renderer, with_stylus ? ProxyTool::kCompound : ProxyTool::kOnePart);
     for (double lambda : o.grating_wavelengths) {
       std::vector<double> amplitudes = o.grating_amplitudes;
       if (std::abs(lambda - 0.002) < 1e-9) amplitudes.insert(amplitudes.begin(), 0.0);  // the plane without relief
@@ -627,8 +625,7 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
           "Gratings: the plane with the relief A sin(2 pi x / lambda), Gaussians every lambda / 8 across the ridges "
           "(`gshaptics synth grating --grating LAMBDA_MM,A_MM`), built in memory; the plane without relief is drawn the "
           "same way with A = 0 (lambda 2 mm). The sphere tools, then the stylus held upright (its tip, the TCP, "
-          "where the smallest sphere's lowest point was; on the Gaussians' ellipsoids whatever the surface: the seen solid serves "
-          "materials to one-part tools only), drag 6 cm along x, 2 mm past the mean plane (2 N at 1000 N/m). Scored: the normal force F_z over the middle 3 cm. Peak: the strongest sinusoid between 2 and 490 Hz "
+          "where the smallest sphere's lowest point was), each on the force model's own surface, drag 6 cm along x, 2 mm past the mean plane (2 N at 1000 N/m). Scored: the normal force F_z over the middle 3 cm. Peak: the strongest sinusoid between 2 and 490 Hz "
           "(Hann window); held when it lies within 5 % of v / lambda and grows with A. The plane without relief holds "
           "when its RMS is under 10 % of the lambda 2 mm, A 0.1 mm grating's at the same speed and tool.\n\n";
     md += texture_table(rep.texture) + "\n";

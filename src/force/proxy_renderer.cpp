@@ -10,9 +10,6 @@ namespace gshaptics {
 
 namespace {
 
-constexpr const char* kSeenCompoundMaterials =
-    "proxy: materials on the seen solid (--surface seen) serve one-part tools; a tool with a shape there has none yet";
-
 const ProxyParams& validated(const ProxyParams& p, double f_max) {
   validate_proxy_params(p, "proxy");
   if (!(f_max > 0)) throw InputError("proxy: f_max must be > 0 N");
@@ -45,8 +42,8 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
   // On the seen solid the one-part proxy is a sphere of the tool's bounding radius: any other
   // shape, one ellipsoid at the TCP included, gets the seen compound proxy.
   if (seen_ && !(single && ToolEllipsoid::is_sphere(tool.parts[0].semi_axes))) {
-    if (follower_) throw InputError(kSeenCompoundMaterials);
     seen_compound_ = std::make_unique<SeenCompoundProxy>(seen_->solid(), tool, params_, f_max_);
+    if (follower_) seen_compound_->set_materials(follower_->shared_field());
     return;
   }
   if (single) return;
@@ -55,14 +52,15 @@ void ProxyRenderer::set_tool(const CompoundTool& tool) {
 }
 
 void ProxyRenderer::set_materials(std::shared_ptr<const MaterialField> field) {
-  if (field && seen_compound_) throw InputError(kSeenCompoundMaterials);
   follower_ = field ? std::make_unique<MaterialFollower>(field, params_) : nullptr;
   if (seen_) seen_->set_follower(follower_.get());
   if (compound_) compound_->set_materials(field);
+  if (seen_compound_) seen_compound_->set_materials(field);
 }
 
 const MaterialBlend& ProxyRenderer::material() const noexcept {
   if (compound_active_ && compound_->material() != nullptr) return *compound_->material();
+  if (seen_compound_active_ && seen_compound_->material() != nullptr) return *seen_compound_->material();
   return follower_ ? follower_->blend() : own_material_;
 }
 
@@ -76,8 +74,10 @@ void ProxyRenderer::apply_material(const Eigen::Vector3d& p, const Eigen::Vector
 RenderOutput ProxyRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,
                                             const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity,
                                             double dt) noexcept {
+  seen_compound_active_ = false;
   if (seen_compound_ && parts.size() == std::size_t(seen_compound_->tool().count)) {
     compound_active_ = false;
+    seen_compound_active_ = true;
     const Eigen::Quaterniond orientation = parts[0].rotation * seen_compound_->tool().parts[0].rotation.conjugate();
     return seen_compound_->render(tcp, orientation, velocity, angular_velocity, dt);
   }

@@ -78,7 +78,39 @@ void SeenCompoundProxy::release() noexcept {
   friction_.reset();
   friction_step_ = {};
   held_.fill(Hold{});
+  weight_.fill(0);
   for (SeenLineMemo& m : leading_) m.forget();
+  part_held_.fill(false);
+  if (follower_) follower_->release();
+}
+
+void SeenCompoundProxy::set_materials(std::shared_ptr<const MaterialField> field) {
+  follower_ = field ? std::make_unique<MaterialFollower>(std::move(field), params_) : nullptr;
+  part_held_.fill(false);
+}
+
+void SeenCompoundProxy::read_part_shares(int j, const SeenHit& hit) noexcept {
+  const std::size_t k = std::size_t(j);
+  part_held_[k] = hit.hit && follower_->field().weighted_shares(
+                                 [&](auto&& add) { solid_->visit_hit_layers(hit, scratch_, add); }, part_shares_[k]);
+}
+
+void SeenCompoundProxy::apply_material(const Eigen::Vector3d& contact_point) noexcept {
+  // The touching parts' shares by their contact weights (SeenProxy reads its one leading point's).
+  const std::size_t count = follower_->field().material_count();
+  double sum = 0;
+  for (int j = 0; j < tool_.count; ++j) {
+    const std::size_t k = std::size_t(j);
+    if (!(weight_[k] > 0) || !part_held_[k]) continue;
+    if (!(sum > 0)) std::fill(target_shares_.begin(), target_shares_.begin() + std::ptrdiff_t(count), 0.0);
+    for (std::size_t id = 0; id < count; ++id) target_shares_[id] += weight_[k] * part_shares_[k][id];
+    sum += weight_[k];
+  }
+  if (sum > 0)
+    for (std::size_t id = 0; id < count; ++id) target_shares_[id] /= sum;
+  const MaterialBlend& b = follower_->follow(x_, normal_, min_axis_, contact_point, sum > 0 ? &target_shares_ : nullptr);
+  coupling_.set_gains(b.stiffness, b.damping);
+  friction_.set_coefficients(b.mu_s, b.mu_k);
 }
 
 void SeenCompoundProxy::pose(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept {
@@ -413,6 +445,7 @@ double SeenCompoundProxy::leading_ray(int j, double band, double& depth) noexcep
   if (last.reuse(origin, axis_, 0, 0, reach, kSameLine * min_axis_, t)) return t;
   const double guess = last.valid && std::isfinite(last.t) ? last.t + kGuessMargin * min_axis_ : reach;
   const SeenHit hit = solid_->first_inside(origin, axis_, 0, 0, reach, scratch_, guess);
+  if (follower_) read_part_shares(j, hit);  // (a kept search keeps its shares)
   if (scratch_.overflow) {
     last.forget();
     return hit.hit ? hit.t : kInf;
@@ -497,6 +530,8 @@ bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_
   int heaviest_seen = -1;
   lever_point.setZero();
   touching_ = 0;
+  weight_.fill(0);
+  double depth = 0;
   for (int j = 0; j < tool_.count; ++j) {
     const Hold& h = held_[std::size_t(j)];
     const double g = h.gap / band;
@@ -504,6 +539,8 @@ bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_
     const double w = 1 - g * g;
     ++touching_;
     sum += w;
+    weight_[std::size_t(j)] = w;
+    depth += w * (h.point + h.gap * axis_ - eye_).dot(axis_);  // the surface under it, from the eye plane
     if (h.by_ring) {
       own -= w * outward_normal(parts_[std::size_t(j)], h.point);
       own_w += w;
@@ -520,6 +557,7 @@ bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_
   }
   if (!(sum > 0)) return false;
   lever_point /= sum;
+  seen_depth_ = depth / sum;
   if (seen_w > 0) {
     seen_point /= seen_w;
     // (SeenProxy's reading, on a ring of kNormalSpan middle semi-axes of the heaviest such part)
@@ -586,7 +624,16 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   }
   out.proxy = x_;
   out.constraints = 1;
-  out.force = coupling_.force(x_ - position, normal_, velocity, dt, {}, friction_step_, params_.mu_k);
+  if (follower_) apply_material(lever_point);
+  const double mu_k = follower_ ? follower_->blend().mu_k : params_.mu_k;
+  out.force = coupling_.force(x_ - position, normal_, velocity, dt, {}, friction_step_, mu_k);
+  if (follower_) {
+    // The texture tip: the seen surface's height under the touching parts (SeenProxy's -rest_).
+    out.force = follower_->add_forces_at_tip(-seen_depth_, out.force, lever_point, normal_, velocity, min_axis_,
+                                             coupling_.f_max(), dt);
+    out.texture_rms = float(follower_->texture_rms());
+    out.vibration = float(follower_->blend().vibration);
+  }
   out.torque = (lever_point - x_).cross(out.force);
   if (wall_.squaredNorm() > 0) out.force = coupling_.add_wall(out.force, wall_, normal_, x_ - position, velocity, dt);
   out.counts.contacts = std::uint32_t(touching_);

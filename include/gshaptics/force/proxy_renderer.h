@@ -160,6 +160,7 @@ class ProxyRenderer final : public ForceRenderer {
   std::unique_ptr<SeenProxy> seen_;          // ProxySurface::kSeen: the proxy on the seen solid
   std::unique_ptr<SeenCompoundProxy> seen_compound_;  // kSeen with a tool with a shape (on seen_'s solid)
   bool compound_active_ = false;             // the last tick was the compound proxy's
+  bool seen_compound_active_ = false;        // the last tick was the seen compound proxy's
   std::unique_ptr<MaterialFollower> follower_;  // set_materials (nullptr: none)
   MaterialBlend own_material_;                  // the ProxyParams' own, as a blend
 };

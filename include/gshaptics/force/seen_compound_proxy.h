@@ -58,8 +58,13 @@
 /// the surface (a turn that would swing a part into the solid raises the proxy along a instead,
 /// and no rotational coupling is rendered); walls parallel to the axis are not felt until the
 /// device comes out and pushes on them afresh, beyond item 5 (the one-part seen proxy searches its
-/// move across the axis, seen_proxy.h; here that would be a line per part a tick); materials are
-/// refused (ProxyRenderer::set_materials).
+/// move across the axis, seen_proxy.h; here that would be a line per part a tick).
+///
+/// Materials (set_materials, force/material.h), as SeenProxy reads them: each part's leading
+/// point's ray weighs the materials of the layers that make its hit (SeenSolid::visit_hit_layers),
+/// the touching parts' shares blend by their contact weights and are followed along the proxy's
+/// path (MaterialFollower); the texture tip is the seen surface's height under the touching
+/// parts' leading points along the contact's axis (their weighted mean).
 ///
 /// Frame and units: world, metres as the world's; the TCP and orientation as CompoundProxy's.
 /// render() does not allocate, lock, log or throw.
@@ -69,11 +74,13 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <memory>
 
 #include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/collision/ellipsoid_line.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/force/friction_cone.h"
+#include "gshaptics/force/material.h"
 #include "gshaptics/force/proxy_params.h"
 #include "gshaptics/force/seen_solid.h"
 #include "gshaptics/force/virtual_coupling.h"
@@ -94,6 +101,12 @@ class SeenCompoundProxy {
   RenderOutput render(const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
                       const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity, double dt) noexcept;
   void reset() noexcept;
+
+  /// Materials by region (force/material.h) read from the seen solid under the touching parts, as
+  /// above; nullptr: none (the proxy's own parameters). Call between ticks.
+  void set_materials(std::shared_ptr<const MaterialField> field);
+  /// The material blend under the contact (the proxy's own out of contact); nullptr without materials.
+  [[nodiscard]] const MaterialBlend* material() const noexcept { return follower_ ? &follower_->blend() : nullptr; }
 
   [[nodiscard]] const CompoundTool& tool() const noexcept { return tool_; }
   [[nodiscard]] const Eigen::Vector3d& position() const noexcept { return x_; }
@@ -239,6 +252,11 @@ class SeenCompoundProxy {
   // (which way a part faces the contact). False when no part touches.
   bool contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_point, const Eigen::Vector3d& normal) noexcept;
   void release() noexcept;
+  // With materials: part j's shares from its leading ray's fresh `hit` (the layers on scratch_).
+  void read_part_shares(int j, const SeenHit& hit) noexcept;
+  // With materials, in contact: the touching parts' shares blended by their weights (held_) into
+  // target_shares_ (false: none of them has a share), the blend followed at the proxy.
+  void apply_material(const Eigen::Vector3d& contact_point) noexcept;
 
   static constexpr double kNormalTau = 0.005;   // s (SeenProxy's)
   static constexpr double kNormalPath = 0.5;    // smallest semi-axes
@@ -276,8 +294,14 @@ class SeenCompoundProxy {
   Eigen::Vector3d axis_ = Eigen::Vector3d::Zero(), eye_ = Eigen::Vector3d::Zero();
   SeenNormalReading normal_reading_;
   int touching_ = 0;
+  std::array<double, kMaxToolParts> weight_{};  // each part's contact weight at the last tick (0: not touching)
+  double seen_depth_ = 0;  // the touching parts' seen surface along the axis from the eye plane, weighted
   double own_share_ = 0;  // the touching parts' weight held by footprints (own normals), of all
   bool started_ = false, in_contact_ = false;
+  std::unique_ptr<MaterialFollower> follower_;  // set_materials (nullptr: none)
+  std::array<MaterialField::Weights, kMaxToolParts> part_shares_{};  // each part's last hit's material shares
+  std::array<bool, kMaxToolParts> part_held_{};  // whether part_shares_[j] holds a hit's shares
+  MaterialField::Weights target_shares_{};
 };
 
 }  // namespace gshaptics

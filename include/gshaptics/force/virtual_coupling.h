@@ -126,6 +126,8 @@ class VirtualCoupling {
   Eigen::Vector3d add_wall(const Eigen::Vector3d& f, const Eigen::Vector3d& wall, const Eigen::Vector3d& normal,
                            const Eigen::Vector3d& offset, const Eigen::Vector3d& velocity, double dt) noexcept;
 
+  /// The force's bound, N (+inf: none).
+  [[nodiscard]] double f_max() const noexcept { return f_max_; }
   /// The proxy is free: the opacity smoothing starts again from 1, the energy bound anew.
   void release() noexcept {
     opacity_ = 1.0;
