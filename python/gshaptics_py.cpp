@@ -652,7 +652,8 @@ PYBIND11_MODULE(gshaptics, m) {
       "for a splat file of its own, then ':mass=KG', ':friction=MU', ':hulls=N'); `supports`: static parts of the scene "
       "('box:...', 'obox:...', 'indices:...') whose convex hulls they stand on and fall from (a table top), "
       "each keeps its Gaussians in its body frame, MuJoCo moves them on the ground fitted to the scene "
-      "around them (fit_support_plane; without one, a plane under their lowest point), and the proxy (god-object) renders the static part and each "
+      "around them (fit_support_plane; without one, a plane under their lowest point; each cut is seated "
+      "on that ground, seat_on_support), and the proxy (god-object) renders the static part and each "
       "object; each object gets the reaction of the coupling force as an external wrench. One per "
       "device; not thread-safe. Raises InputError for a bad spec or an object with no Gaussian.")
       .def(py::init([](const GaussianScene& s, const std::vector<std::string>& specs, float min_opacity, double sigma,
@@ -681,10 +682,8 @@ PYBIND11_MODULE(gshaptics, m) {
                out.objects.push_back(make_rigid_object(cut.objects[i], parsed[i], cfg));
              DynamicsParams dp;
              dp.timestep = 1.0 / rate_hz;
-             SupportPlane ground =
-                 fit_support_plane(*out.world, supports.empty() ? out.objects : supports, out.world->up()).plane;
-             add_support_hulls(ground, supports);
-             out.dynamics = std::make_shared<ObjectDynamics>(out.objects, ground, dp);
+             const ObjectSupport ground = object_support(*out.world, out.objects, supports);
+             out.dynamics = std::make_shared<ObjectDynamics>(out.objects, ground.plane, dp);
              out.renderer = make_object_renderer(renderer_spec(RendererKind::kProxy), *out.world, out.objects, out.dynamics);
              return out;
            }),

@@ -470,9 +470,10 @@ class Objects(unittest.TestCase):
         cut_run = run("simulate", "--sites", "1", "--out", cut_out, "--quiet", "--no-plot",
                       "--object", "box:0,0,-1,1,1,1:mass=2:friction=0.6")
         cut = cut_run.stdout
-        # A chunk of the truck's body does not stand on the ground: it falls by itself, and says so.
-        self.assertRegex(cut_run.stderr, r"warning: object 0 \(box:0,0,-1,1,1,1:mass=2:friction=0\.6\) moves "
-                                         r"[0-9.]+ m and turns \d+ deg in its first second untouched")
+        # A chunk of the truck's body, its hull's lowest tips under the ground fitted around it, is
+        # seated on that ground (it fell 1.3 m by itself before), and stands.
+        self.assertRegex(cut, r"object +0: seated on the ground: as cut its hull's lowest point stood [0-9.]+ m under it")
+        self.assertNotIn("warning", cut_run.stderr)
         self.assertRegex(cut, r"object +0: \d+ Gaussians kept, 2 kg, mu 0\.6, 1 convex piece,")
         kept = lambda text: int(re.search(r"^world +(\d+) Gaussians", text, re.M).group(1))
         moved = int(re.search(r"^object +0: (\d+) Gaussians cut", cut, re.M).group(1))
@@ -486,7 +487,16 @@ class Objects(unittest.TestCase):
         drift = {k: objects[0].pop(k) for k in ("untouched_moved_m", "untouched_turned_rad")}
         self.assertEqual(objects, [{"spec": "box:0,0,-1,1,1,1:mass=2:friction=0.6", "mass_kg": 2.0,
                                     "friction": 0.6, "gaussians_cut": moved}])
-        self.assertGreater(drift["untouched_moved_m"], 0.01)  # as the warning says
+        self.assertLess(drift["untouched_moved_m"], 0.01)
+        # A file object is placed by its own registration, never seated: the ground-truth cube at
+        # the origin does not stand on the Truck's ground, moves by itself, and says so.
+        cube = os.path.join(tempfile.mkdtemp(), "cube.ply")
+        run("synth", "cube", cube, "--spacing", "0.01")
+        file_run = run("simulate", "--sites", "1", "--out", tempfile.mkdtemp(), "--quiet", "--no-plot",
+                       "--object", "file:" + cube + ":mass=1")
+        self.assertNotIn("seated", file_run.stdout)
+        self.assertRegex(file_run.stderr, r"warning: object 0 \(file:.*cube\.ply:mass=1\) moves "
+                                          r"[0-9.]+ m and turns \d+ deg in its first second untouched")
         for spec, message in (("box:9,9,9,10,10,10", "no Gaussian with opacity above 0.2"),
                               ("box:1,2", "a box takes six numbers"),
                               ("box:0,0,-1,1,1,1:hulls=0", "hulls must be a whole number from 1 to 16")):

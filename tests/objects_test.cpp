@@ -744,6 +744,101 @@ TEST(ObjectDynamics, AnObjectThatDoesNotStandOnItsSupportIsToldApart) {
   EXPECT_GT(tipping.turned[0], kUntouchedTurnWarn);
 }
 
+// A cut seated on its ground (seat_on_support): the box 2 cm over the plane reaches down to it,
+// and one whose hull pokes 1 cm into it is raised onto it (as cut, either moves); either then
+// stays within 1 mm and 1 degree in its first second, its lowest hull point on the plane. Only
+// the bottom pieces of an object of several reach down, each keeping its own points. A box twice
+// its height over the plane, or 0.5 mm under it, is left as it is.
+TEST(ObjectDynamics, ACutSeatedOnItsGroundStandsStill) {
+  const RigidObject box = box_object(Eigen::Vector3d(0.05, 0.04, 0.03), 0.4, 0.5);
+  const SupportPlane at = support_under(std::vector<RigidObject>{box}, Eigen::Vector3d::UnitZ());
+  const auto lowest = [&](const RigidObject& o, const SupportPlane& p) {
+    double h = 1e9;
+    for (const Eigen::Vector3d& q : o.hull_points) h = std::min(h, p.normal.dot(o.rest_origin + q - p.point));
+    return h;
+  };
+  for (const double offset : {-0.02, 0.01}) {  // the plane 2 cm under the box, then 1 cm into it
+    SupportPlane plane = at;
+    plane.point.z() += offset;
+    const UntouchedDrift before = untouched_drift(std::vector<RigidObject>{box}, plane, DynamicsParams{});
+    EXPECT_GT(before.moved[0], 2e-3) << offset;  // as cut it does not stand
+    RigidObject seated = box;
+    EXPECT_NEAR(seat_on_support(seated, plane), -offset, 1e-9) << offset;
+    EXPECT_NEAR(lowest(seated, plane), 0.0, 1e-9) << offset;
+    EXPECT_EQ(seated.piece_ends.back(), seated.hull_points.size());
+    const UntouchedDrift after = untouched_drift(std::vector<RigidObject>{seated}, plane, DynamicsParams{});
+    EXPECT_LT(after.moved[0], 1e-3) << offset;
+    EXPECT_LT(after.turned[0], M_PI / 180) << offset;
+  }
+  for (const double offset : {-0.12, 0.0005}) {  // 2 heights under it; 0.5 mm into it
+    SupportPlane plane = at;
+    plane.point.z() += offset;
+    RigidObject left = box;
+    EXPECT_EQ(seat_on_support(left, plane), 0.0) << offset;
+    EXPECT_EQ(left.hull_points, box.hull_points) << offset;
+  }
+  // An arch of three pieces 2 cm over the plane: its two legs reach down, its top does not.
+  GaussianScene arch = box_surface_gaussians(Eigen::Vector3d(-0.06, 0, 0.04), Eigen::Vector3d(0.02, 0.02, 0.04), 0.005);
+  const GaussianScene right = box_surface_gaussians(Eigen::Vector3d(0.06, 0, 0.04), Eigen::Vector3d(0.02, 0.02, 0.04), 0.005);
+  const GaussianScene top = box_surface_gaussians(Eigen::Vector3d(0, 0, 0.1), Eigen::Vector3d(0.08, 0.02, 0.02), 0.005);
+  for (const GaussianScene* g : {&right, &top})
+    for (std::size_t i = 0; i < g->size(); ++i) arch.push_back_from(*g, i);
+  ObjectSpec spec;
+  spec.hulls = 3;
+  spec.text = "arch";
+  const RigidObject cut = make_rigid_object(arch, spec, WorldConfig{});
+  ASSERT_EQ(cut.piece_ends.size(), 3u);
+  SupportPlane under = support_under(std::vector<RigidObject>{cut}, Eigen::Vector3d::UnitZ());
+  under.point.z() -= 0.02;
+  RigidObject seated = cut;
+  EXPECT_NEAR(seat_on_support(seated, under), 0.02, 1e-9);
+  int grown = 0;
+  for (std::size_t k = 0; k < 3; ++k) {
+    const std::span<const Eigen::Vector3d> was = cut.piece(k), now = seated.piece(k);
+    double piece_lowest = 1e9;
+    for (const Eigen::Vector3d& q : was) piece_lowest = std::min(piece_lowest, cut.rest_origin.z() + q.z() - under.point.z());
+    ASSERT_GE(now.size(), was.size());
+    EXPECT_TRUE(std::equal(was.begin(), was.end(), now.begin())) << k;  // its own points first, unchanged
+    const bool leg = piece_lowest < 0.021;
+    EXPECT_EQ(now.size(), leg ? 2 * was.size() : was.size()) << k;
+    grown += leg;
+  }
+  EXPECT_EQ(grown, 2);
+}
+
+// object_support seats cuts, never a file object (placed by its own registration) nor an object
+// when static supports are named (it stands on them).
+TEST(ObjectDynamics, ObjectSupportSeatsCutsOnly) {
+  // In the world's frame up is -y (CollisionWorld::up with no --up): a floor slab whose top is y = -0.5 mm.
+  const CollisionWorld floor = CollisionWorld::build(
+      box_surface_gaussians(Eigen::Vector3d(0, 0.0105, 0), Eigen::Vector3d(0.3, 0.01, 0.3), 0.01), WorldConfig{});
+  ObjectSpec spec;
+  spec.text = "hovering box";
+  // A box of discs 5 mm over the floor's top.
+  const GaussianScene g = box_surface_gaussians(Eigen::Vector3d(0, -0.035, 0), Eigen::Vector3d(0.05, 0.03, 0.04), 0.01);
+  for (const ObjectSpec::Cut cut : {ObjectSpec::Cut::kBox, ObjectSpec::Cut::kIndices, ObjectSpec::Cut::kFile}) {
+    spec.cut = cut;
+    std::vector<RigidObject> objects{make_rigid_object(g, spec, WorldConfig{})};
+    const std::size_t points = objects[0].hull_points.size();
+    const ObjectSupport held = object_support(floor, objects, {});
+    ASSERT_TRUE(held.fit.fitted);
+    if (cut == ObjectSpec::Cut::kFile) {
+      EXPECT_EQ(held.base[0], 0.0);
+      EXPECT_EQ(objects[0].hull_points.size(), points);
+    } else {
+      EXPECT_NEAR(held.base[0], 0.005, 0.002);
+      EXPECT_GT(objects[0].hull_points.size(), points);
+    }
+  }
+  spec.cut = ObjectSpec::Cut::kBox;
+  std::vector<RigidObject> objects{make_rigid_object(g, spec, WorldConfig{})};
+  const std::vector<RigidObject> table{make_rigid_object(
+      box_surface_gaussians(Eigen::Vector3d(0, 0.01, 0), Eigen::Vector3d(0.1, 0.01, 0.1), 0.01), spec, WorldConfig{})};
+  const ObjectSupport on_table = object_support(floor, objects, table);
+  EXPECT_EQ(on_table.base[0], 0.0);
+  EXPECT_EQ(on_table.plane.hulls.size(), 1u);
+}
+
 // A convex object stays one piece whatever it is allowed: every face's plane has the whole box
 // on one side.
 TEST(ObjectDynamics, ABoxAskedForPiecesStaysOne) {

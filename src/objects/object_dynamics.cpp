@@ -144,6 +144,40 @@ SupportPlane plane_through(const std::vector<Eigen::Vector3d>& points, const Eig
 
 }  // namespace
 
+double seat_on_support(RigidObject& object, const SupportPlane& support) {
+  if (object.hull_points.empty()) return 0;
+  const Eigen::Vector3d n = support.normal.normalized();
+  const auto height = [&](const Eigen::Vector3d& p) { return n.dot(object.rest_origin + p - support.point); };
+  double lowest = std::numeric_limits<double>::infinity(), highest = -lowest;
+  for (const Eigen::Vector3d& p : object.hull_points) {
+    lowest = std::min(lowest, height(p));
+    highest = std::max(highest, height(p));
+  }
+  const double size = highest - lowest;
+  if (!(size > 0) || !(std::abs(lowest) > kBaseGap * size) || std::abs(lowest) > kBaseReach * size) return 0;
+  if (lowest < 0) {  // sunk: the points under the ground are raised onto it
+    for (Eigen::Vector3d& p : object.hull_points) p -= std::min(0.0, height(p)) * n;
+    return lowest;
+  }
+  // Standing above it: the pieces at the bottom reach down (their points' shadows on the ground).
+  const std::size_t pieces = std::max<std::size_t>(1, object.piece_ends.size());
+  std::vector<Eigen::Vector3d> points;
+  std::vector<std::size_t> ends;
+  for (std::size_t k = 0; k < pieces; ++k) {
+    const std::span<const Eigen::Vector3d> piece =
+        object.piece_ends.empty() ? std::span<const Eigen::Vector3d>(object.hull_points) : object.piece(k);
+    double piece_lowest = std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3d& p : piece) piece_lowest = std::min(piece_lowest, height(p));
+    points.insert(points.end(), piece.begin(), piece.end());
+    if (piece_lowest <= lowest + kBaseBand * size)
+      for (const Eigen::Vector3d& p : piece) points.push_back(p - height(p) * n);
+    ends.push_back(points.size());
+  }
+  object.hull_points = std::move(points);
+  if (!object.piece_ends.empty()) object.piece_ends = std::move(ends);
+  return lowest;
+}
+
 std::array<Eigen::Vector3d, 2> support_axes(const Eigen::Vector3d& normal) noexcept {
   const Eigen::Vector3d n = normal.normalized();
   const Eigen::Vector3d a = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
@@ -198,6 +232,20 @@ void add_support_hulls(SupportPlane& plane, std::span<const RigidObject> support
       std::vector<Eigen::Vector3d>& hull = plane.hulls.emplace_back();
       for (const Eigen::Vector3d& p : s.piece(k)) hull.push_back(s.rest_origin + p);
     }
+}
+
+ObjectSupport object_support(const CollisionWorld& static_world, std::vector<RigidObject>& objects,
+                             std::span<const RigidObject> supports) {
+  ObjectSupport out;
+  out.fit = fit_support_plane(static_world, supports.empty() ? std::span<const RigidObject>(objects) : supports,
+                              static_world.up());
+  out.plane = out.fit.plane;
+  add_support_hulls(out.plane, supports);
+  out.base.assign(objects.size(), 0.0);
+  if (supports.empty())
+    for (std::size_t i = 0; i < objects.size(); ++i)
+      if (objects[i].spec.cut != ObjectSpec::Cut::kFile) out.base[i] = seat_on_support(objects[i], out.plane);
+  return out;
 }
 
 UntouchedDrift untouched_drift(std::span<const RigidObject> objects, const SupportPlane& support,

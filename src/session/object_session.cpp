@@ -88,9 +88,9 @@ SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, doubl
   std::vector<RigidObject> supports;
   for (std::size_t i = 0; i < pw.supports.size(); ++i)
     supports.push_back(make_rigid_object(pw.supports[i], so.supports[i], pw.config));
-  const SupportFit fit = fit_support_plane(pw.world, supports.empty() ? *objects : supports, pw.world.up());
-  SupportPlane support = fit.plane;
-  add_support_hulls(support, supports);
+  const ObjectSupport held = object_support(pw.world, *objects, supports);
+  const SupportFit& fit = held.fit;
+  const SupportPlane& support = held.plane;
   if (report != nullptr) {
     if (fit.fitted)
       fmt::print(report, "support    a plane fitted to {} Gaussians of the scene around the {} (RMS {:.1f} mm, "
@@ -101,6 +101,11 @@ SceneObjects object_scene(const PreparedWorld& pw, const SceneOptions& so, doubl
       fmt::print(report, "support    no ground around the {} in the scene: a plane under their lowest point, "
                  "normal the world's up, through [{:.3f}, {:.3f}, {:.3f}]; MuJoCo at {:.0f} Hz\n",
                  supports.empty() ? "objects" : "supports", support.point.x(), support.point.y(), support.point.z(), rate_hz);
+    for (std::size_t i = 0; i < held.base.size(); ++i)
+      if (held.base[i] != 0)
+        fmt::print(report, "object     {}: seated on the ground: as cut its hull's lowest point stood {:.3f} m {} it ({}; the "
+                   "hand feels its Gaussians as captured)\n", i, std::abs(held.base[i]), held.base[i] > 0 ? "above" : "under",
+                   held.base[i] > 0 ? "its bottom pieces now reach down to it" : "the points under it are raised onto it");
   }
   DynamicsParams dp;
   dp.timestep = 1.0 / rate_hz;

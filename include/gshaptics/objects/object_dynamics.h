@@ -69,6 +69,40 @@ struct SupportFit {
 [[nodiscard]] SupportFit fit_support_plane(const CollisionWorld& static_world, std::span<const RigidObject> objects,
                                            const Eigen::Vector3d& up);
 
+/// A cut object seated on the ground a capture shows around it. The capture never saw where an
+/// object meets the ground, and a cut's hull (the 1-sigma tips of its opaque Gaussians) rarely
+/// meets the fitted plane: large Gaussians poke their tips into it, or the cut's bottom lies above
+/// it (a fire pit sunk in sand, cut above the sand). MuJoCo then pushes the object up and tilts
+/// it, or drops it (as cut, the fire pit of firepit.ply moved 43 mm and turned 4 deg in its first
+/// second untouched, its lowest tip 105 mm under the ground: bench/RESULTS.md, sixty-first
+/// session). When the lowest hull point lies more than kBaseGap and at most kBaseReach of the
+/// object's height (along the support's normal) from `support`'s plane: below it, the points
+/// under the plane are raised onto it; above it, each convex piece whose lowest point lies within
+/// kBaseBand of the height of the object's lowest gets its points' shadows on the plane added
+/// (the hull reaches down to the ground). Farther either way is no seating (the plane is no
+/// ground for it, or it stands on something else: --support). Only `hull_points` (and
+/// `piece_ends`) change: its Gaussians, what the hand feels, stay as captured. Returns how far
+/// the lowest hull point stood above the plane as cut (m; < 0: under it), 0 when nothing changed.
+/// The caller chooses the objects: the session seats cuts, never a file object placed by its own
+/// registration.
+double seat_on_support(RigidObject& object, const SupportPlane& support);
+inline constexpr double kBaseGap = 0.01;   ///< of the object's height along the support's normal
+inline constexpr double kBaseReach = 0.5;  ///< of its height
+inline constexpr double kBaseBand = 0.05;  ///< of its height
+
+/// What the objects stand on, as every command builds it: the ground fitted around the objects
+/// (or around the static `supports` when there are any, whose hulls join it: add_support_hulls),
+/// and, with no static supports, each cut object (ObjectSpec::Cut kBox or kIndices) seated on
+/// that ground (seat_on_support; `objects` change). `base[i]`: how far object i's lowest hull
+/// point stood above the ground as cut, m (< 0: under it; 0: not seated).
+struct ObjectSupport {
+  SupportFit fit;        ///< fit.plane is without the supports' hulls
+  SupportPlane plane;    ///< the dynamics' support: the fitted plane and the supports' hulls
+  std::vector<double> base;
+};
+[[nodiscard]] ObjectSupport object_support(const CollisionWorld& static_world, std::vector<RigidObject>& objects,
+                                           std::span<const RigidObject> supports);
+
 /// Adds each of `supports`' convex pieces (RigidObject::piece, moved to the world by its rest
 /// origin) to `plane.hulls`: the static bodies the objects stand on and fall from (a table top).
 void add_support_hulls(SupportPlane& plane, std::span<const RigidObject> supports);
