@@ -136,6 +136,33 @@ TEST(TextureDrag, OnTheSeenSurfaceThePeakIsAtSpeedOverWavelengthAndGrowsWithAmpl
   EXPECT_LT(drag_over_grating(g, spec, r, v, 1000, PlayOptions{}, nullptr).rms_n, 0.1 * reference);
 }
 
+// On the seen solid the relief is rendered once, by the sphere and the stylus alike: their
+// proxies ride the seen surface under their leading points, and the texture tip adds only what
+// they do not ride (there, nothing), so on the lambda 2 mm, A 0.1 mm grating at 2 N the peak is
+// about k A = 0.1 N (the ellipsoid proxy's sphere gives 0.099 N); with the tip at the proxy's own
+// height it was 0.217 N, the relief twice. The stylus's peak lies at v / lambda and grows with A.
+TEST(TextureDrag, OnTheSeenSurfaceTheReliefIsRenderedOnceWithEveryTool) {
+  ProxyModelSpec sphere;
+  sphere.params.surface = ProxySurface::kSeen;
+  const RendererSpec stylus_spec = renderer_spec_for(sphere, ProxyTool::kCompound);
+  const CompoundTool stylus = WrenchTools{}.stylus;
+  const double r = 0.005, v = 0.05, k = ProxyParams{}.stiffness;
+  GratingParams g;
+  g.wavelength = 0.002;
+  g.amplitude = 0.0001;
+  const TextureRow ball = drag_over_grating(g, sphere, r, v, 1000, PlayOptions{}, nullptr);
+  EXPECT_NEAR(ball.peak_n, k * g.amplitude, 0.2 * k * g.amplitude);
+  double last = 0;
+  for (double a : {0.00005, 0.0001, 0.0002}) {
+    g.amplitude = a;
+    const TextureRow row = drag_over_grating(g, stylus_spec, r, v, 1000, PlayOptions{}, nullptr, &stylus);
+    EXPECT_NEAR(row.peak_hz, v / g.wavelength, 0.05 * v / g.wavelength) << "A " << a;
+    EXPECT_NEAR(row.peak_n, k * a, 0.2 * k * a) << "A " << a;
+    EXPECT_GT(row.peak_n, last) << "A " << a;
+    last = row.peak_n;
+  }
+}
+
 // The stylus (a compound tool) on a steep grating (lambda 1 mm, A 0.1 mm: slopes to 32 degrees)
 // keeps its 2 N and vibrates at v / lambda. Its ridges once read as convex edges (EdgeNormal),
 // the normal jumped to 45-56 degrees, the energy bound withheld ~95 % of the spring, and the

@@ -507,6 +507,7 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
     Hold& h = held_[k];
     const LineChoice& c = lines[k];
     const double centre_gap = std::isfinite(at[k]) ? at[k] - (depth[k] - back) : kInf;
+    under_[k] = std::max(0.0, centre_gap);
     h.by_ring = !(centre_gap < band) && c.line >= 0 && c.gap + back < centre_gap;
     h.line = h.by_ring ? c.line : -1;
     if (h.by_ring) {
@@ -531,7 +532,7 @@ bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_
   lever_point.setZero();
   touching_ = 0;
   weight_.fill(0);
-  double depth = 0;
+  double under = 0;
   for (int j = 0; j < tool_.count; ++j) {
     const Hold& h = held_[std::size_t(j)];
     const double g = h.gap / band;
@@ -540,7 +541,7 @@ bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_
     ++touching_;
     sum += w;
     weight_[std::size_t(j)] = w;
-    depth += w * (h.point + h.gap * axis_ - eye_).dot(axis_);  // the surface under it, from the eye plane
+    under += w * std::min(under_[std::size_t(j)], min_axis_);
     if (h.by_ring) {
       own -= w * outward_normal(parts_[std::size_t(j)], h.point);
       own_w += w;
@@ -557,7 +558,7 @@ bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_
   }
   if (!(sum > 0)) return false;
   lever_point /= sum;
-  seen_depth_ = depth / sum;
+  tip_under_ = under / sum;
   if (seen_w > 0) {
     seen_point /= seen_w;
     // (SeenProxy's reading, on a ring of kNormalSpan middle semi-axes of the heaviest such part)
@@ -628,8 +629,8 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   const double mu_k = follower_ ? follower_->blend().mu_k : params_.mu_k;
   out.force = coupling_.force(x_ - position, normal_, velocity, dt, {}, friction_step_, mu_k);
   if (follower_) {
-    // The texture tip: the seen surface's height under the touching parts (SeenProxy's -rest_).
-    out.force = follower_->add_forces_at_tip(-seen_depth_, out.force, lever_point, normal_, velocity, min_axis_,
+    // The texture tip: below the touching parts, the relief they do not ride (SeenProxy's).
+    out.force = follower_->add_forces_at_tip(-tip_under_, out.force, lever_point, normal_, velocity, min_axis_,
                                              coupling_.f_max(), dt);
     out.texture_rms = float(follower_->texture_rms());
     out.vibration = float(follower_->blend().vibration);

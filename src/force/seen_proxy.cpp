@@ -196,6 +196,7 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   }
   if (hit.hit) last_hit_ = hit.t;
   rest_ = rest;
+  under_ = hit.hit ? std::max(0.0, hit.t - rest) : std::numeric_limits<double>::infinity();
   const double t = std::max(0.0, rest - 1e-6 * radius);
   const Eigen::Vector3d moved = foot + (t - radius) * a - proxy_;
   proxy_ += moved;
@@ -295,11 +296,14 @@ void SeenProxy::apply_material(const Eigen::Vector3d& contact, double radius) no
 
 Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& contact,
                                                const Eigen::Vector3d& velocity, double radius, double dt) noexcept {
-  // The texture tip is the leading point's own: the height along the contact's axis at which the
-  // seen surface holds it (-rest_). A ray of its own along -n (TextureState's tip) cost the probe
-  // runs' p99 5-18 us; the relief is high-passed over R of path, so the two read the same
-  // micro-geometry where the normal is near the axis.
-  const double tip = -rest_;
+  // The texture tip hangs from where the proxy rests down to the seen surface under the leading
+  // point (a point tip under the sphere): the relief the proxy does not render itself. Where the
+  // leading point's ray holds the proxy, the proxy rides that relief and the tip adds none; held
+  // by its footprint over a valley or a hole (a sphere bridging a grating's crests), the tip reads
+  // how deep it is, as the ellipsoid proxy's tip reads under a sphere riding at its own scale.
+  // (As first built the tip was the proxy's own height, so the relief was rendered twice: the
+  // gratings' peak was 2 k A where the ellipsoids give k A; bench/RESULTS.md, sixty-first session.)
+  const double tip = -std::min(under_, radius);
   return follower_->add_forces_at_tip(tip, f, contact, normal_, velocity, radius, f_max_, dt);
 }
 

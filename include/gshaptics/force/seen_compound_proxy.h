@@ -63,8 +63,8 @@
 /// Materials (set_materials, force/material.h), as SeenProxy reads them: each part's leading
 /// point's ray weighs the materials of the layers that make its hit (SeenSolid::visit_hit_layers),
 /// the touching parts' shares blend by their contact weights and are followed along the proxy's
-/// path (MaterialFollower); the texture tip is the seen surface's height under the touching
-/// parts' leading points along the contact's axis (their weighted mean).
+/// path (MaterialFollower); the texture tip hangs from the touching parts down to the seen surface
+/// under their leading points (their weighted mean): the relief the proxy does not ride itself.
 ///
 /// Frame and units: world, metres as the world's; the TCP and orientation as CompoundProxy's.
 /// render() does not allocate, lock, log or throw.
@@ -295,7 +295,12 @@ class SeenCompoundProxy {
   SeenNormalReading normal_reading_;
   int touching_ = 0;
   std::array<double, kMaxToolParts> weight_{};  // each part's contact weight at the last tick (0: not touching)
-  double seen_depth_ = 0;  // the touching parts' seen surface along the axis from the eye plane, weighted
+  // How far the seen surface under each part's leading point lies below the part's front after
+  // hold() (0: its ray holds it; deeper where its footprint holds it; +inf: none), and the touching
+  // parts' mean of it (to one smallest semi-axis): the relief the proxy does not render, which
+  // the texture tip reads.
+  std::array<double, kMaxToolParts> under_{};
+  double tip_under_ = 0;
   double own_share_ = 0;  // the touching parts' weight held by footprints (own normals), of all
   bool started_ = false, in_contact_ = false;
   std::unique_ptr<MaterialFollower> follower_;  // set_materials (nullptr: none)

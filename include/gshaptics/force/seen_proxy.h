@@ -179,6 +179,10 @@ class SeenProxy {
   SeenNormalReading normal_reading_;
   double last_hit_ = 0;  // the last hit's depth from the eye plane (NaN: none in this contact)
   double rest_ = 0;      // where the surface holds the leading point this tick, depth from the eye plane
+  // How far the seen surface under the leading point lies below where the proxy rests (0: its
+  // ray holds it; the footprint holding it over a valley or a hole: deeper; +inf: no surface):
+  // the relief the proxy does not render, which the texture tip reads.
+  double under_ = 0;
   // The footprint's readings: each ray's surface as a coordinate along ring_axis_ (+inf: none
   // found), and the tool's centre when it was read.
   std::array<double, kRingRays> ring_at_{};
