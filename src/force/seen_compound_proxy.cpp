@@ -454,15 +454,73 @@ double SeenCompoundProxy::leading_ray(int j, double band, double& depth) noexcep
   return hit.hit ? hit.t : kInf;
 }
 
+Eigen::Vector3d SeenCompoundProxy::slide_across(const Eigen::Vector3d& goal,
+                                                const std::array<ToolEllipsoid, kMaxToolParts>& resting) noexcept {
+  // SeenProxy::slide_across part by part: each part's line along the move through its surface
+  // point that way (where its outward normal is the move's direction: the point that leads, a
+  // tilted part's side), seen and searched from kWallDepth inside that point (the wall it was
+  // held against last tick may lie a little inside it now); a surface the line crosses deeper
+  // (a slope the height field climbs) does not stop it.
+  const Eigen::Vector3d& a = axis_;
+  Eigen::Vector3d step = goal - x_;
+  step -= step.dot(a) * a;
+  Eigen::Vector3d moved = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wall = Eigen::Vector3d::Zero();
+  for (int pass = 0; pass < 2; ++pass) {
+    const double len = step.norm();
+    if (!(len > kSlideMin * min_axis_)) break;
+    const Eigen::Vector3d u = step / len;
+    double nearest = len;
+    SeenHit nearest_hit;
+    for (int j = 0; j < tool_.count; ++j) {
+      const ToolEllipsoid& part = resting[std::size_t(j)];
+      const double m = middle_[std::size_t(j)];
+      const double lead = kWallDepth * m, stop = (kWallDepth + kWallGap) * m;
+      const Eigen::Vector3d o = part.surface_point(u) + moved - lead * u;
+      const SeenHit hit = solid_->first_inside(o, u, 0, lead, lead + nearest + stop, scratch_);
+      if (!hit.hit || !(hit.t > lead) || scratch_.overflow) continue;
+      const double t = hit.t - lead - stop;
+      if (t < nearest) {
+        nearest = t;
+        wall = wall_normal(u, hit);
+      }
+    }
+    if (nearest >= len) {
+      moved += step;
+      break;
+    }
+    moved += nearest * u;
+    step = std::max(0.0, len - nearest) * u;
+    step -= step.dot(wall) * wall;
+  }
+  wall_ = wall;
+  return goal + (x_ + moved - goal) - (x_ + moved - goal).dot(a) * a;
+}
+
+Eigen::Vector3d SeenCompoundProxy::wall_normal(const Eigen::Vector3d& u, const SeenHit& hit) const noexcept {
+  // (SeenProxy::wall_normal: the seen surface's shaded normal at the hit, across the axis.)
+  const Eigen::Vector3d& a = axis_;
+  Eigen::Vector3d n = solid_->shade(u, hit, scratch_);
+  if (!(n.dot(u) < 0)) n = -u;
+  n -= n.dot(a) * a;
+  const double len = n.norm();
+  if (len > 1e-3) return n / len;
+  n = -u + u.dot(a) * a;
+  return n.normalized();
+}
+
 bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
                              const Eigen::Quaterniond& q) noexcept {
   const Eigen::Vector3d& a = axis_;
-  const Eigen::Vector3d y = goal + (device - goal).dot(a) * a;  // the goal across the axis, the device's depth
   const double band = kContactBand * min_axis_;
   // The footprints are read and judged at the resting proxy (turned to q): a line the proxy is
   // already past by more than kRingSink does not hold.
   pose(x_, q);
   const std::array<ToolEllipsoid, kMaxToolParts> resting = parts_;
+  // The goal across the axis, stopped by a wall there, at the device's depth.
+  const Eigen::Vector3d across = slide_across(goal, resting);
+  const Eigen::Vector3d lateral_wall = wall_;
+  const Eigen::Vector3d y = across + (device - across).dot(a) * a;
   const double ahead = std::max(0.0, (y - x_).dot(a)) + band;
   // (A part its leading point's ray held on the surface at the last tick reads no footprint line:
   // on a face its side does not touch first.)
@@ -491,7 +549,7 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
   // onto but the top of a wall that a part's ray met as the tool moved across the axis
   // (SeenProxy::kMaxClimb): the proxy stays where it stood, held by it across the axis.
   const Eigen::Vector3d next = y - back * a;
-  wall_.setZero();
+  wall_ = lateral_wall;
   if (!fresh_normal_ && (x_ - next).dot(a) > kMaxClimb * min_axis_) {
     Eigen::Vector3d refused = next - x_;
     refused -= refused.dot(a) * a;

@@ -218,6 +218,18 @@ class SeenCompoundProxy {
   // within the chord): by the ring's lines, and by the inner lines.
   std::array<double, 2> free_ring(int j, const ToolEllipsoid& from, const Eigen::Vector3d& u, double len,
                                   bool leaving) noexcept;
+  // In contact: the goal's place across the axis, the proxy's move toward it searched part by
+  // part (`resting`: the parts posed at the proxy): a line through each part's surface point that
+  // way, seen from its centre and searched from kWallDepth of its middle semi-axis inside it; the
+  // nearest wall stops the move kWallGap short of it, and what is left slides along that wall
+  // (one more search). Sets wall_ (the wall's rendered normal across the axis; zero: none).
+  Eigen::Vector3d slide_across(const Eigen::Vector3d& goal,
+                               const std::array<ToolEllipsoid, kMaxToolParts>& resting) noexcept;
+  // The seen surface's rendered normal at `hit` (a line along u), across the axis (unit).
+  [[nodiscard]] Eigen::Vector3d wall_normal(const Eigen::Vector3d& u, const SeenHit& hit) const noexcept;
+  static constexpr double kWallGap = 1e-3;    // middle semi-axes (SeenProxy's, in its R)
+  static constexpr double kWallDepth = 0.1;   // middle semi-axes
+  static constexpr double kSlideMin = 1e-4;   // smallest semi-axes: a shorter move is not searched
   // In contact: the proxy along the axis over the goal's place across it, the device's depth;
   // false when no part reaches the surface.
   bool hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal, const Eigen::Quaterniond& q) noexcept;
