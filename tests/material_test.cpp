@@ -279,19 +279,24 @@ TEST(MaterialProxy, CrossingABorderNeverStepsTheForce) {
   }
 }
 
-// The proxy on the seen solid reads the material from the layers that make the seen surface
-// (SeenSolid::visit_hit_layers): each side's stiffness, and its kinetic friction while sliding
-// (the friction cone moves the proxy across the contact's axis). The plane keeps its faint
-// Gaussians, as the seen solid's world does; 2 mm spacing (at 4-8 mm the seen normal's tilt
-// along one path biases F_t / F_n by up to 0.02: bench/RESULTS.md, forty-sixth session).
-TEST(MaterialProxy, OnTheSeenSurfaceEachSideHasItsStiffnessAndFriction) {
+// The 2 mm plane as the seen solid's world keeps it (its faint Gaussians too).
+CollisionWorld seen_plane_world() {
   SynthParams sp;
   sp.spacing = 0.002;
   sp.seed = 5;
   sp.floater_share = 0;
   WorldConfig config;
   config.min_opacity = kSeenMinOpacity;
-  const CollisionWorld world = CollisionWorld::build(make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), sp).scene, config);
+  return CollisionWorld::build(make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), sp).scene, config);
+}
+
+// The proxy on the seen solid reads the material from the layers that make the seen surface
+// (SeenSolid::visit_hit_layers): each side's stiffness, and its kinetic friction while sliding
+// (the friction cone moves the proxy across the contact's axis). The plane keeps its faint
+// Gaussians, as the seen solid's world does; 2 mm spacing (at 4-8 mm the seen normal's tilt
+// along one path biases F_t / F_n by up to 0.02: bench/RESULTS.md, forty-sixth session).
+TEST(MaterialProxy, OnTheSeenSurfaceEachSideHasItsStiffnessAndFriction) {
+  const CollisionWorld world = seen_plane_world();
   ProxyParams seen;
   seen.surface = ProxySurface::kSeen;
   const double r = 0.005;
@@ -351,13 +356,7 @@ RenderOutput stylus_tick(ProxyRenderer& proxy, const CompoundTool& stylus, const
 // across the border no step in force above twice the largest away from it (at least 0.05 N:
 // without the blend the spring's 2 mm would step by 1.8 N), ending on the hard side's stiffness.
 TEST(MaterialProxy, OnTheSeenSurfaceAStylusHasEachSidesStiffnessAndFriction) {
-  SynthParams sp;
-  sp.spacing = 0.002;
-  sp.seed = 5;
-  sp.floater_share = 0;
-  WorldConfig config;
-  config.min_opacity = kSeenMinOpacity;
-  const CollisionWorld world = CollisionWorld::build(make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), sp).scene, config);
+  const CollisionWorld world = seen_plane_world();
   ProxyParams seen;
   seen.surface = ProxySurface::kSeen;
   const CompoundTool stylus = parse_tool_spec("stylus:0.06,0.004");

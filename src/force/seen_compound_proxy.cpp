@@ -482,7 +482,7 @@ Eigen::Vector3d SeenCompoundProxy::slide_across(const Eigen::Vector3d& goal,
       const double t = hit.t - lead - stop;
       if (t < nearest) {
         nearest = t;
-        wall = wall_normal(u, hit);
+        wall = solid_->wall_normal(u, a, hit, scratch_);
       }
     }
     if (nearest >= len) {
@@ -495,18 +495,6 @@ Eigen::Vector3d SeenCompoundProxy::slide_across(const Eigen::Vector3d& goal,
   }
   wall_ = wall;
   return goal + (x_ + moved - goal) - (x_ + moved - goal).dot(a) * a;
-}
-
-Eigen::Vector3d SeenCompoundProxy::wall_normal(const Eigen::Vector3d& u, const SeenHit& hit) const noexcept {
-  // (SeenProxy::wall_normal: the seen surface's shaded normal at the hit, across the axis.)
-  const Eigen::Vector3d& a = axis_;
-  Eigen::Vector3d n = solid_->shade(u, hit, scratch_);
-  if (!(n.dot(u) < 0)) n = -u;
-  n -= n.dot(a) * a;
-  const double len = n.norm();
-  if (len > 1e-3) return n / len;
-  n = -u + u.dot(a) * a;
-  return n.normalized();
 }
 
 bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,

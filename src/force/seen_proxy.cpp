@@ -256,23 +256,12 @@ Eigen::Vector3d SeenProxy::slide_across(const Eigen::Vector3d& goal, double radi
       break;
     }
     at += t * u;
-    wall_ = wall_normal(u, hit);
+    wall_ = solid_.wall_normal(u, axis_, hit, scratch_);
     step = std::max(0.0, len - t) * u;
     step -= step.dot(wall_) * wall_;
   }
   const Eigen::Vector3d off = at - goal;
   return goal + off - off.dot(a) * a;
-}
-
-Eigen::Vector3d SeenProxy::wall_normal(const Eigen::Vector3d& u, const SeenHit& hit) const noexcept {
-  const Eigen::Vector3d& a = axis_;
-  Eigen::Vector3d n = solid_.shade(u, hit, scratch_);
-  if (!(n.dot(u) < 0)) n = -u;
-  n -= n.dot(a) * a;  // (along the axis the height field holds it)
-  const double len = n.norm();
-  if (len > 1e-3) return n / len;
-  n = -u + u.dot(a) * a;
-  return n.normalized();
 }
 
 void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double depth) noexcept {

@@ -371,6 +371,17 @@ SeenHit SeenSolid::normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3
   return hit;
 }
 
+Eigen::Vector3d SeenSolid::wall_normal(const Eigen::Vector3d& u, const Eigen::Vector3d& axis, const SeenHit& hit,
+                                       const SeenScratch& scratch) const noexcept {
+  Eigen::Vector3d n = shade(u, hit, scratch);
+  if (!(n.dot(u) < 0)) n = -u;
+  n -= n.dot(axis) * axis;
+  const double len = n.norm();
+  if (len > 1e-3) return n / len;
+  n = -u + u.dot(axis) * axis;
+  return n.normalized();
+}
+
 Eigen::Vector3d SeenSolid::shade(const Eigen::Vector3d& u, const SeenHit& hit, const SeenScratch& s) const noexcept {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   if (!hit.hit || s.overflow) return sum;

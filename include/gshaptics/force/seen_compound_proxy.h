@@ -49,16 +49,21 @@
 ///    of contact, as the compound proxy on the ellipsoids does (compound_proxy.h): the torque
 ///    about the TCP is the force's moment, (c - x_tcp) x F.
 ///
-/// 5. A rise of the proxy toward the eye plane of more than the smallest semi-axis in one tick is
-///    the top of a wall that a part's ray met as the tool moved across the axis, not a surface to
-///    slide onto: the proxy stays where it stood, and that wall adds a spring across the axis (at
-///    the TCP: no torque). A stylus slid along a floor into a wall was thrown onto its top.
+/// 5. Walls across the axis (SeenProxy's, part by part: slide_across). The proxy's move across the
+///    axis toward the goal is searched along a line through each part's leading side that way
+///    (its surface point whose outward normal is the move's direction), seen from just inside it;
+///    the nearest wall stops the move just short of it, the rest slides along that wall, and the
+///    wall adds a spring across the axis along its rendered normal (at the TCP: no torque; no
+///    friction). A stylus slid along a floor into a wall passed through it. A rise of the proxy
+///    toward the eye plane of more than the smallest semi-axis in one tick is still the top of a
+///    wall a part's ray met, not a surface to slide onto: the proxy stays where it stood (a stylus
+///    slid into a wall was thrown onto its top, 78-81 N).
 ///
 /// Not done (the compound proxy on the ellipsoids does these): the proxy does not turn against
 /// the surface (a turn that would swing a part into the solid raises the proxy along a instead,
-/// and no rotational coupling is rendered); walls parallel to the axis are not felt until the
-/// device comes out and pushes on them afresh, beyond item 5 (the one-part seen proxy searches its
-/// move across the axis, seen_proxy.h; here that would be a line per part a tick).
+/// and no rotational coupling is rendered). A wall is met on one line per part: one whose edge
+/// meets a part beside that line (a wall's top under a tilted part's underside) is a surface the
+/// height field climbs.
 ///
 /// Materials (set_materials, force/material.h), as SeenProxy reads them: each part's leading
 /// point's ray weighs the materials of the layers that make its hit (SeenSolid::visit_hit_layers),
@@ -225,8 +230,6 @@ class SeenCompoundProxy {
   // (one more search). Sets wall_ (the wall's rendered normal across the axis; zero: none).
   Eigen::Vector3d slide_across(const Eigen::Vector3d& goal,
                                const std::array<ToolEllipsoid, kMaxToolParts>& resting) noexcept;
-  // The seen surface's rendered normal at `hit` (a line along u), across the axis (unit).
-  [[nodiscard]] Eigen::Vector3d wall_normal(const Eigen::Vector3d& u, const SeenHit& hit) const noexcept;
   static constexpr double kWallGap = 1e-3;    // middle semi-axes (SeenProxy's, in its R)
   static constexpr double kWallDepth = 0.1;   // middle semi-axes
   static constexpr double kSlideMin = 1e-4;   // smallest semi-axes: a shorter move is not searched

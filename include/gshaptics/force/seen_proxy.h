@@ -99,9 +99,6 @@ class SeenProxy {
   // meets (its line seen from the proxy's centre), then sliding along the wall once (a second
   // wall stops it); sets wall_ (zero: no wall held it).
   Eigen::Vector3d slide_across(const Eigen::Vector3d& goal, double radius) noexcept;
-  // The outward normal, across the contact's axis, of the wall `hit` (the last first_inside()
-  // along u on scratch_): the rendered normal of the layers that make it (SeenSolid::shade).
-  [[nodiscard]] Eigen::Vector3d wall_normal(const Eigen::Vector3d& u, const SeenHit& hit) const noexcept;
   static constexpr double kWallGap = 1e-3;      // R: a wall stops the proxy this far short of it
   static constexpr double kWallDepth = 0.1;     // R: a wall this far inside the sphere still holds it
   static constexpr double kMaxClimb = 1.0;      // R: the height field rising more in one tick is a wall

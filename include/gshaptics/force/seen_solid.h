@@ -180,6 +180,13 @@ class SeenSolid {
   /// T_k alpha_k n_k over its layers. Zero when it did not hit or scratch overflowed.
   [[nodiscard]] Eigen::Vector3d shade(const Eigen::Vector3d& u, const SeenHit& hit,
                                       const SeenScratch& scratch) const noexcept;
+  /// A wall's outward normal across `axis` (unit) where a line along the unit `u` met it (`hit`,
+  /// the last first_inside() answer on `scratch`): shade()'s normal with its part along `axis`
+  /// removed (along the axis the seen proxies' height field holds them); -u across the axis where
+  /// the shade faces away or lies along the axis. The seen proxies' walls across their contact's
+  /// axis (SeenProxy, SeenCompoundProxy).
+  [[nodiscard]] Eigen::Vector3d wall_normal(const Eigen::Vector3d& u, const Eigen::Vector3d& axis, const SeenHit& hit,
+                                            const SeenScratch& scratch) const noexcept;
   /// The layers that make `hit`, the last first_inside() answer on `scratch`, as the renderer
   /// weighs them: `visit(slot, w)` for each, in depth order, with `slot` the Gaussian's position
   /// in CollisionWorld::gaussians() and w = T_k alpha_k (T_k: the transmittance in front of it;
