@@ -471,7 +471,6 @@ Eigen::Vector3d SeenCompoundProxy::slide_across(const Eigen::Vector3d& goal,
     if (!(len > kSlideMin * min_axis_)) break;
     const Eigen::Vector3d u = step / len;
     double nearest = len;
-    SeenHit nearest_hit;
     for (int j = 0; j < tool_.count; ++j) {
       const ToolEllipsoid& part = resting[std::size_t(j)];
       const double m = middle_[std::size_t(j)];
