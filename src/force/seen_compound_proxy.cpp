@@ -476,7 +476,9 @@ Eigen::Vector3d SeenCompoundProxy::slide_across(const Eigen::Vector3d& goal,
       const double m = middle_[std::size_t(j)];
       const double lead = kWallDepth * m, stop = (kWallDepth + kWallGap) * m;
       const Eigen::Vector3d o = part.surface_point(u) + moved - lead * u;
-      const SeenHit hit = solid_->first_inside(o, u, 0, lead, lead + nearest + stop, scratch_);
+      // (A wall that holds the part lies just ahead: the layers up to kWallLook past the part's
+      // point are read first, the rest of the line only when they do not make a surface.)
+      const SeenHit hit = solid_->first_inside(o, u, 0, lead, lead + nearest + stop, scratch_, lead + stop + kWallLook * m);
       if (!hit.hit || !(hit.t > lead) || scratch_.overflow) continue;
       const double t = hit.t - lead - stop;
       if (t < nearest) {

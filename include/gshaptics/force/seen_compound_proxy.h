@@ -232,6 +232,7 @@ class SeenCompoundProxy {
                                const std::array<ToolEllipsoid, kMaxToolParts>& resting) noexcept;
   static constexpr double kWallGap = 1e-3;    // middle semi-axes (SeenProxy's, in its R)
   static constexpr double kWallDepth = 0.1;   // middle semi-axes
+  static constexpr double kWallLook = 0.25;   // middle semi-axes: a wall's line reads this far ahead first
   static constexpr double kSlideMin = 1e-4;   // smallest semi-axes: a shorter move is not searched
   // In contact: the proxy along the axis over the goal's place across it, the device's depth;
   // false when no part reaches the surface.
