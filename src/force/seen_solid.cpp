@@ -13,7 +13,6 @@ namespace {
 constexpr double kMinAlpha = 1.0 / 255.0;  // the 3DGS rasterizer's skip threshold
 constexpr double kMaxAlpha = 0.99;         // and its clamp
 constexpr double kLn2 = 0.69314718055994530942;
-constexpr int kStack = 128;
 
 // W v for the whitening W = diag(1/s) R^T stored row-major: the Gaussian's frame in units of
 // its scales, where the Mahalanobis distance is the Euclidean one. (Evaluating v^T Sigma^-1 v
@@ -21,21 +20,6 @@ constexpr int kStack = 128;
 inline Eigen::Vector3d whiten(const double* m, const Eigen::Vector3d& v) noexcept {
   return {m[0] * v.x() + m[1] * v.y() + m[2] * v.z(), m[3] * v.x() + m[4] * v.y() + m[5] * v.z(),
           m[6] * v.x() + m[7] * v.y() + m[8] * v.z()};
-}
-
-// The segment o + t u, t in [ta, tb], against a node's box (slab test; `neg`: which components
-// of u are negative, so each slab's near plane is chosen without a compare). A line parallel to
-// a slab reads +-inf outside it and no bound inside it; on a slab's plane it reads NaN, which
-// std::max / std::min with the bound first leave out (no bound: the plane is in the box).
-bool segment_hits_box(const BvhNode& n, const Eigen::Vector3d& o, const Eigen::Vector3d& inv,
-                      const std::array<bool, 3>& neg, double ta, double tb) noexcept {
-  for (int k = 0; k < 3; ++k) {
-    const double t_near = (double(neg[std::size_t(k)] ? n.hi[k] : n.lo[k]) - o[k]) * inv[k];
-    const double t_far = (double(neg[std::size_t(k)] ? n.lo[k] : n.hi[k]) - o[k]) * inv[k];
-    ta = std::max(ta, t_near);
-    tb = std::min(tb, t_far);
-  }
-  return ta <= tb;
 }
 
 }  // namespace
@@ -87,17 +71,18 @@ SeenSolid::SeenSolid(const CollisionWorld& world) {
     slots.push_back(std::uint32_t(slot));
   }
   if (entries.empty()) return;
-  bvh_ = Bvh::build(boxes, 4, BvhSplit::kSah);
+  Bvh binary = Bvh::build(boxes, 2, BvhSplit::kSah);
   entries_.resize(entries.size());
   bounds_.resize(entries.size());
   slots_.resize(entries.size());
-  const std::vector<std::uint32_t>& order = bvh_.order();
+  const std::vector<std::uint32_t>& order = binary.order();
   for (std::size_t k = 0; k < order.size(); ++k) {
     entries_[k] = entries[order[k]];
     bounds_[k] = bounds[order[k]];
     slots_[k] = slots[order[k]];
   }
-  bvh_.release_order();
+  binary.release_order();
+  bvh_ = WideBvh::collapse(binary);
 }
 
 void SeenSolid::sort_by_depth(std::vector<SeenScratch::Layer>::iterator first,
@@ -113,53 +98,37 @@ void SeenSolid::gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, doubl
                        SeenScratch& s, bool append) const noexcept {
   if (!append) s.gathered = 0;
   s.overflow = false;
-  const std::span<const BvhNode> nodes = bvh_.nodes();
-  if (nodes.empty()) return;
-  const Eigen::Vector3d inv = u.cwiseInverse();
-  const std::array<bool, 3> neg{std::signbit(inv.x()), std::signbit(inv.y()), std::signbit(inv.z())};
   const double len2 = u.squaredNorm(), inv_len2 = 1 / len2, inv_len = std::sqrt(inv_len2);
-  std::uint32_t stack[kStack];
-  int top = 0;
-  std::uint32_t i = 0;
-  for (;;) {
-    const BvhNode& n = nodes[i];
-    if (segment_hits_box(n, o, inv, neg, ta, tb)) {
-      if (n.count == 0 && top < kStack) {
-        stack[top++] = n.first;
-        i = i + 1;
-        continue;
+  bvh_.for_each_leaf_on_segment(o, u, ta, tb, [&](std::uint32_t first, std::uint32_t count) {
+    for (std::uint32_t k = first; k < first + count; ++k) {
+      // The entry's ball first: a peak with alpha >= 1/255 lies in it, so a line passing
+      // beside it, or meeting it outside [ta, tb], has no layer here.
+      const Bound& ball = bounds_[k];
+      const double bx = ball.center[0] - o.x(), by = ball.center[1] - o.y(), bz = ball.center[2] - o.z();
+      const double along = (bx * u.x() + by * u.y() + bz * u.z()) * inv_len2;
+      const double r = ball.radius * inv_len;
+      if (along + r < ta || along - r > tb) continue;
+      const double w2 = bx * bx + by * by + bz * bz;
+      if (w2 - along * along * len2 > double(ball.radius) * ball.radius + 1e-9 * w2) continue;
+      const Entry& e = entries_[k];
+      const Eigen::Vector3d w(e.mean[0] - o.x(), e.mean[1] - o.y(), e.mean[2] - o.z());
+      const Eigen::Vector3d wu = whiten(e.m, u), ww = whiten(e.m, w);
+      const double t = wu.dot(ww) / wu.squaredNorm();
+      if (!(t >= ta && t <= tb)) continue;
+      // Half the squared Mahalanobis distance of the ray from the mean (at the peak); past
+      // log_reach the alpha is below 1/255 and the layer is skipped without an exp.
+      const double half_d2 = 0.5 * (ww - t * wu).squaredNorm();
+      if (half_d2 > e.log_reach) continue;
+      const double alpha = std::min(kMaxAlpha, e.opacity * std::exp(-half_d2));
+      if (alpha < kMinAlpha) continue;
+      if (s.gathered == s.layers.size()) {
+        s.overflow = true;
+        return false;
       }
-      for (std::uint32_t k = n.first; k < n.first + n.count; ++k) {
-        // The entry's ball first: a peak with alpha >= 1/255 lies in it, so a line passing
-        // beside it, or meeting it outside [ta, tb], has no layer here.
-        const Bound& ball = bounds_[k];
-        const double bx = ball.center[0] - o.x(), by = ball.center[1] - o.y(), bz = ball.center[2] - o.z();
-        const double along = (bx * u.x() + by * u.y() + bz * u.z()) * inv_len2;
-        const double r = ball.radius * inv_len;
-        if (along + r < ta || along - r > tb) continue;
-        const double w2 = bx * bx + by * by + bz * bz;
-        if (w2 - along * along * len2 > double(ball.radius) * ball.radius + 1e-9 * w2) continue;
-        const Entry& e = entries_[k];
-        const Eigen::Vector3d w(e.mean[0] - o.x(), e.mean[1] - o.y(), e.mean[2] - o.z());
-        const Eigen::Vector3d wu = whiten(e.m, u), ww = whiten(e.m, w);
-        const double t = wu.dot(ww) / wu.squaredNorm();
-        if (!(t >= ta && t <= tb)) continue;
-        // Half the squared Mahalanobis distance of the ray from the mean (at the peak); past
-        // log_reach the alpha is below 1/255 and the layer is skipped without an exp.
-        const double half_d2 = 0.5 * (ww - t * wu).squaredNorm();
-        if (half_d2 > e.log_reach) continue;
-        const double alpha = std::min(kMaxAlpha, e.opacity * std::exp(-half_d2));
-        if (alpha < kMinAlpha) continue;
-        if (s.gathered == s.layers.size()) {
-          s.overflow = true;
-          return;
-        }
-        s.layers[s.gathered++] = {t, -std::log1p(-alpha), k};
-      }
+      s.layers[s.gathered++] = {t, -std::log1p(-alpha), k};
     }
-    if (top == 0) return;
-    i = stack[--top];
-  }
+    return true;
+  });
 }
 
 void SeenSolid::gather_more(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, double shared,

@@ -27,7 +27,7 @@
 #include <limits>
 #include <vector>
 
-#include "gshaptics/broadphase/bvh.h"
+#include "gshaptics/broadphase/wide_bvh.h"
 #include "gshaptics/collision/collision_world.h"
 
 namespace gshaptics {
@@ -261,8 +261,41 @@ class SeenSolid {
   std::vector<Entry> entries_;  // BVH slot order
   std::vector<Bound> bounds_;   // per entry
   std::vector<std::uint32_t> slots_;  // per entry: its Gaussian's slot in the world
-  Bvh bvh_;
+  WideBvh bvh_;  // over the entries' alpha >= 1/255 boxes (the binary SAH tree, collapsed)
 };
+
+/// A seen proxy's move across its contact's axis, stopped by walls (SeenProxy::slide_across,
+/// SeenCompoundProxy::slide_across): `step` (world, metres; across the axis) is searched along
+/// its direction u by `nearest_wall(u, moved, len, wall)`, which returns how far along u, from the
+/// proxy moved by `moved`, the first wall stops it (>= len: none within the step's length len)
+/// and sets that wall's unit normal. The proxy goes there, and what is left of the step slides
+/// along that wall, searched again: a second wall stops it (no third search). Steps no longer
+/// than `min_len` are not searched. Returns how far the proxy moved and the last wall it met
+/// (zero: none). The god-object's constrained move (Zilles and Salisbury 1995) on the seen solid.
+struct WallSlide {
+  Eigen::Vector3d moved = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wall = Eigen::Vector3d::Zero();
+};
+template <typename NearestWall>
+[[nodiscard]] WallSlide slide_along_walls(Eigen::Vector3d step, double min_len, NearestWall&& nearest_wall) noexcept {
+  WallSlide s;
+  for (int pass = 0; pass < 2; ++pass) {
+    const double len = step.norm();
+    if (!(len > min_len)) break;
+    const Eigen::Vector3d u = step / len;
+    Eigen::Vector3d wall = Eigen::Vector3d::Zero();
+    const double t = nearest_wall(u, s.moved, len, wall);
+    if (t >= len) {
+      s.moved += step;
+      break;
+    }
+    s.moved += t * u;
+    s.wall = wall;
+    step = std::max(0.0, len - t) * u;
+    step -= step.dot(wall) * wall;
+  }
+  return s;
+}
 
 /// SeenSolid::normal() spread over ticks for a proxy resting on the solid (SeenProxy,
 /// SeenCompoundProxy): a contact's first reading takes its rays at once; a later one starts once
