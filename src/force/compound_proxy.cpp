@@ -406,9 +406,7 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     // touching parts' contact point.)
     const Eigen::Vector3d contact = weight > 0 ? Eigen::Vector3d(x_ + moment / weight) : Eigen::Vector3d(x_ - min_axis_ * n);
     if (follower_) {
-      const MaterialBlend& b = follower_->update(x_, n, min_axis_, contact, blockers());
-      coupling_.set_gains(b.stiffness, b.damping);
-      friction_.set_coefficients(b.mu_s, b.mu_k);
+      apply_blend(follower_->update(x_, n, min_axis_, contact, blockers()), coupling_, friction_);
     }
     out.force = coupling_.force_at_depth(coupling_.bounded_depth(e, n), e, n, velocity, dt, blockers(), fr,
                                          follower_ ? follower_->blend().mu_k : params_.mu_k);  // with friction

@@ -11,6 +11,8 @@
 #include <nlohmann/json.hpp>
 
 #include "gshaptics/error.h"
+#include "gshaptics/force/friction_cone.h"
+#include "gshaptics/force/virtual_coupling.h"
 
 namespace gshaptics {
 
@@ -604,6 +606,11 @@ Eigen::Vector3d MaterialFollower::add_forces_at_tip(double tip, Eigen::Vector3d 
 
 std::string_view MaterialField::name(int id) const noexcept {
   return id >= 0 && std::size_t(id) < names_.size() ? std::string_view(names_[std::size_t(id)]) : std::string_view("?");
+}
+
+void apply_blend(const MaterialBlend& blend, VirtualCoupling& coupling, FrictionCone& friction) noexcept {
+  coupling.set_gains(blend.stiffness, blend.damping);
+  friction.set_coefficients(blend.mu_s, blend.mu_k);
 }
 
 }  // namespace gshaptics

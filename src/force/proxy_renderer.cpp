@@ -66,9 +66,7 @@ const MaterialBlend& ProxyRenderer::material() const noexcept {
 
 void ProxyRenderer::apply_material(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double radius,
                                    const Eigen::Vector3d& contact, std::span<const Contact> blockers) noexcept {
-  const MaterialBlend& b = follower_->update(p, n, radius, contact, blockers);
-  coupling_.set_gains(b.stiffness, b.damping);
-  friction_.set_coefficients(b.mu_s, b.mu_k);
+  apply_blend(follower_->update(p, n, radius, contact, blockers), coupling_, friction_);
 }
 
 RenderOutput ProxyRenderer::render_compound(std::span<const ToolEllipsoid> parts, const Eigen::Vector3d& tcp,

@@ -108,9 +108,7 @@ void SeenCompoundProxy::apply_material(const Eigen::Vector3d& contact_point) noe
   }
   if (sum > 0)
     for (std::size_t id = 0; id < count; ++id) target_shares_[id] /= sum;
-  const MaterialBlend& b = follower_->follow(x_, normal_, min_axis_, contact_point, sum > 0 ? &target_shares_ : nullptr);
-  coupling_.set_gains(b.stiffness, b.damping);
-  friction_.set_coefficients(b.mu_s, b.mu_k);
+  apply_blend(follower_->follow(x_, normal_, min_axis_, contact_point, sum > 0 ? &target_shares_ : nullptr), coupling_, friction_);
 }
 
 void SeenCompoundProxy::pose(const Eigen::Vector3d& x, const Eigen::Quaterniond& q) noexcept {
@@ -460,42 +458,32 @@ Eigen::Vector3d SeenCompoundProxy::slide_across(const Eigen::Vector3d& goal,
   // point that way (where its outward normal is the move's direction: the point that leads, a
   // tilted part's side), seen and searched from kWallDepth inside that point (the wall it was
   // held against last tick may lie a little inside it now); a surface the line crosses deeper
-  // (a slope the height field climbs) does not stop it.
+  // (a slope the height field climbs) does not stop it. The nearest part's wall stops the move.
   const Eigen::Vector3d& a = axis_;
   Eigen::Vector3d step = goal - x_;
   step -= step.dot(a) * a;
-  Eigen::Vector3d moved = Eigen::Vector3d::Zero();
-  Eigen::Vector3d wall = Eigen::Vector3d::Zero();
-  for (int pass = 0; pass < 2; ++pass) {
-    const double len = step.norm();
-    if (!(len > kSlideMin * min_axis_)) break;
-    const Eigen::Vector3d u = step / len;
-    double nearest = len;
-    for (int j = 0; j < tool_.count; ++j) {
-      const ToolEllipsoid& part = resting[std::size_t(j)];
-      const double m = middle_[std::size_t(j)];
-      const double lead = kWallDepth * m, stop = (kWallDepth + kWallGap) * m;
-      const Eigen::Vector3d o = part.surface_point(u) + moved - lead * u;
-      // (A wall that holds the part lies just ahead: the layers up to kWallLook past the part's
-      // point are read first, the rest of the line only when they do not make a surface.)
-      const SeenHit hit = solid_->first_inside(o, u, 0, lead, lead + nearest + stop, scratch_, lead + stop + kWallLook * m);
-      if (!hit.hit || !(hit.t > lead) || scratch_.overflow) continue;
-      const double t = hit.t - lead - stop;
-      if (t < nearest) {
-        nearest = t;
-        wall = solid_->wall_normal(u, a, hit, scratch_);
-      }
-    }
-    if (nearest >= len) {
-      moved += step;
-      break;
-    }
-    moved += nearest * u;
-    step = std::max(0.0, len - nearest) * u;
-    step -= step.dot(wall) * wall;
-  }
-  wall_ = wall;
-  return goal + (x_ + moved - goal) - (x_ + moved - goal).dot(a) * a;
+  const WallSlide slide = slide_along_walls(
+      step, kSlideMin * min_axis_, [&](const Eigen::Vector3d& u, const Eigen::Vector3d& moved, double len, Eigen::Vector3d& wall) {
+        double nearest = len;
+        for (int j = 0; j < tool_.count; ++j) {
+          const double m = middle_[std::size_t(j)];
+          const double lead = kWallDepth * m, stop = (kWallDepth + kWallGap) * m;
+          const Eigen::Vector3d o = resting[std::size_t(j)].surface_point(u) + moved - lead * u;
+          // (A wall that holds the part lies just ahead: the layers up to kWallLook past the
+          // part's point are read first, the rest of the line only when they do not make a surface.)
+          const SeenHit hit = solid_->first_inside(o, u, 0, lead, lead + nearest + stop, scratch_, lead + stop + kWallLook * m);
+          if (!hit.hit || !(hit.t > lead) || scratch_.overflow) continue;
+          const double t = hit.t - lead - stop;
+          if (t < nearest) {
+            nearest = t;
+            wall = solid_->wall_normal(u, a, hit, scratch_);
+          }
+        }
+        return nearest;
+      });
+  wall_ = slide.wall;
+  const Eigen::Vector3d off = x_ + slide.moved - goal;
+  return goal + off - off.dot(a) * a;
 }
 
 bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
@@ -549,6 +537,15 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
   }
   x_ = next;
   pose(x_, q);
+  record_holds(lines, at, depth, back);
+  return true;
+}
+
+void SeenCompoundProxy::record_holds(const std::array<LineChoice, kMaxToolParts>& lines,
+                                     const std::array<double, kMaxToolParts>& at,
+                                     const std::array<double, kMaxToolParts>& depth, double back) noexcept {
+  const Eigen::Vector3d& a = axis_;
+  const double band = kContactBand * min_axis_;
   for (int j = 0; j < tool_.count; ++j) {
     const std::size_t k = std::size_t(j);
     Hold& h = held_[k];
@@ -568,7 +565,6 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
       h.point = parts_[k].surface_point(a);
     }
   }
-  return true;
 }
 
 bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_point, const Eigen::Vector3d& normal) noexcept {

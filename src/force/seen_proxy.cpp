@@ -231,36 +231,25 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
 
 Eigen::Vector3d SeenProxy::slide_across(const Eigen::Vector3d& goal, double radius) noexcept {
   const Eigen::Vector3d& a = axis_;
-  wall_.setZero();
   Eigen::Vector3d step = goal - proxy_;
   step -= step.dot(a) * a;
-  Eigen::Vector3d at = proxy_;
-  // The move across, then what is left of it along the wall it met (a second wall stops it).
   // Each line is seen from the proxy's centre and searched from kWallDepth R inside the sphere's
   // leading point: the wall the proxy was held against last tick may lie a little inside it now
   // (the height field moved the proxy along the axis, and a tilted disc's crossing moves with
   // the height). A surface that the line already crosses deeper inside the sphere (a slope the
   // height field climbs, the footprint's groove walls) does not stop it.
   const double lead = (1 - kWallDepth) * radius, stop = (kWallDepth + kWallGap) * radius;
-  for (int pass = 0; pass < 2; ++pass) {
-    const double len = step.norm();
-    if (!(len > kSlideMin * radius)) break;
-    const Eigen::Vector3d u = step / len;
-    const SeenHit hit = solid_.first_inside(at, u, 0, lead, lead + len + stop, scratch_);
-    // (Kept kWallGap R short of the wall, so the next tick's line meets it ahead of the leading
-    // point, not at it, where rounding would put it behind; < 0: backs out of the wall.)
-    const bool wall = hit.hit && hit.t > lead && !scratch_.overflow;
-    const double t = wall ? hit.t - lead - stop : len;
-    if (t >= len) {
-      at += step;
-      break;
-    }
-    at += t * u;
-    wall_ = solid_.wall_normal(u, axis_, hit, scratch_);
-    step = std::max(0.0, len - t) * u;
-    step -= step.dot(wall_) * wall_;
-  }
-  const Eigen::Vector3d off = at - goal;
+  const WallSlide slide = slide_along_walls(
+      step, kSlideMin * radius, [&](const Eigen::Vector3d& u, const Eigen::Vector3d& moved, double len, Eigen::Vector3d& wall) {
+        const SeenHit hit = solid_.first_inside(proxy_ + moved, u, 0, lead, lead + len + stop, scratch_);
+        // (Kept kWallGap R short of the wall, so the next tick's line meets it ahead of the
+        // leading point, not at it, where rounding would put it behind; < 0: backs out of the wall.)
+        if (!hit.hit || !(hit.t > lead) || scratch_.overflow) return std::numeric_limits<double>::infinity();
+        wall = solid_.wall_normal(u, a, hit, scratch_);
+        return hit.t - lead - stop;
+      });
+  wall_ = slide.wall;
+  const Eigen::Vector3d off = proxy_ + slide.moved - goal;
   return goal + off - off.dot(a) * a;
 }
 
@@ -278,9 +267,7 @@ void SeenProxy::read_material_shares(const SeenHit& hit) noexcept {
 }
 
 void SeenProxy::apply_material(const Eigen::Vector3d& contact, double radius) noexcept {
-  const MaterialBlend& b = follower_->follow(proxy_, normal_, radius, contact, target_held_ ? &target_ : nullptr);
-  coupling_.set_gains(b.stiffness, b.damping);
-  friction_.set_coefficients(b.mu_s, b.mu_k);
+  apply_blend(follower_->follow(proxy_, normal_, radius, contact, target_held_ ? &target_ : nullptr), coupling_, friction_);
 }
 
 Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& contact,

@@ -165,6 +165,12 @@ struct MaterialBlend {
   double procedural = 0;
 };
 
+class VirtualCoupling;
+class FrictionCone;
+/// Gives a proxy's coupling and friction cone a blend's stiffness and damping (N/m, N s/m) and
+/// static and kinetic friction: what every proxy does with the material under its contact.
+void apply_blend(const MaterialBlend& blend, VirtualCoupling& coupling, FrictionCone& friction) noexcept;
+
 /// A material map resolved on a world: each Gaussian's material, and the properties of each
 /// material with the proxy's own filled in.
 class MaterialField {

@@ -237,6 +237,11 @@ class SeenCompoundProxy {
   // In contact: the proxy along the axis over the goal's place across it, the device's depth;
   // false when no part reaches the surface.
   bool hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal, const Eigen::Quaterniond& q) noexcept;
+  // What holds each part of the proxy hold() just placed (`back`: how far it backed off along -a
+  // from the device's depth; per part, its leading point's surface `at` and depth `depth` there
+  // and its footprint's choice `lines`): held_ and under_.
+  void record_holds(const std::array<LineChoice, kMaxToolParts>& lines, const std::array<double, kMaxToolParts>& at,
+                    const std::array<double, kMaxToolParts>& depth, double back) noexcept;
   // In contact: part j's next two footprint lines (next_lines) through its shadow (parts_ posed
   // at the resting proxy), read from above its front to `reach` past it.
   void read_ring(int j, double reach) noexcept;
