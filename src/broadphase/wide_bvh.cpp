@@ -14,15 +14,11 @@ double half_area(const BvhNode& n) noexcept {
   return x * y + y * z + z * x;
 }
 
-// Builds the wide node for binary inner node `i` (and, recursively, its inner children) at the
-// end of `out`; returns its index. `depth` is the wide depth of this node (0: the root).
-std::uint32_t collapse_from(std::span<const BvhNode> b, std::uint32_t i, int depth, int& max_depth,
-                            std::vector<WideBvhNode>& out) {
-  if (depth >= Bvh::kMaxDepth) throw std::length_error("WideBvh: the binary tree is deeper than Bvh::kMaxDepth");
-  max_depth = std::max(max_depth, depth + 1);
-  // The four children: the two binary children, then the inner one of largest area opened,
-  // until there are four or only leaves.
-  std::array<std::uint32_t, 4> kids{i + 1, b[i].first, 0, 0};
+// The binary nodes that become the four children of the wide node made for binary inner node i:
+// its two children, then the inner one of largest area opened, until there are four or only
+// leaves. Returns how many.
+int wide_children(std::span<const BvhNode> b, std::uint32_t i, std::array<std::uint32_t, 4>& kids) noexcept {
+  kids = {i + 1, b[i].first, 0, 0};
   int n = 2;
   while (n < 4) {
     int open = -1;
@@ -36,6 +32,27 @@ std::uint32_t collapse_from(std::span<const BvhNode> b, std::uint32_t i, int dep
     kids[std::size_t(open)] = c + 1;  // preorder: the left child follows its parent
     kids[std::size_t(n++)] = b[c].first;
   }
+  return n;
+}
+
+// How many wide nodes collapse_from(i) makes.
+std::size_t wide_count(std::span<const BvhNode> b, std::uint32_t i) noexcept {
+  std::array<std::uint32_t, 4> kids;
+  const int n = wide_children(b, i, kids);
+  std::size_t count = 1;
+  for (int c = 0; c < n; ++c)
+    if (b[kids[std::size_t(c)]].count == 0) count += wide_count(b, kids[std::size_t(c)]);
+  return count;
+}
+
+// Builds the wide node for binary inner node `i` (and, recursively, its inner children) at the
+// end of `out`; returns its index. `depth` is the wide depth of this node (0: the root).
+std::uint32_t collapse_from(std::span<const BvhNode> b, std::uint32_t i, int depth, int& max_depth,
+                            std::vector<WideBvhNode>& out) {
+  if (depth >= Bvh::kMaxDepth) throw std::length_error("WideBvh: the binary tree is deeper than Bvh::kMaxDepth");
+  max_depth = std::max(max_depth, depth + 1);
+  std::array<std::uint32_t, 4> kids;
+  const int n = wide_children(b, i, kids);
   const auto me = std::uint32_t(out.size());
   WideBvhNode node{};
   for (int c = 0; c < 4; ++c) {
@@ -63,7 +80,6 @@ WideBvh WideBvh::collapse(const Bvh& binary) {
   WideBvh w;
   const std::span<const BvhNode> b = binary.nodes();
   if (b.empty()) return w;
-  w.nodes_.reserve(b.size() / 2 + 1);
   for (const BvhNode& n : b)
     for (int k = 0; k < 3; ++k) w.scale_ = std::max({w.scale_, std::abs(double(n.lo[k])), std::abs(double(n.hi[k]))});
   if (b[0].count != 0) {
@@ -79,9 +95,9 @@ WideBvh WideBvh::collapse(const Bvh& binary) {
     w.nodes_.push_back(node);
     w.depth_ = 1;
   } else {
+    w.nodes_.reserve(wide_count(b, 0));
     collapse_from(b, 0, 0, w.depth_, w.nodes_);
   }
-  w.nodes_.shrink_to_fit();
   return w;
 }
 
