@@ -178,6 +178,27 @@ TEST(TextureDrag, AStylusOnASteepGratingVibratesAtSpeedOverWavelength) {
   EXPECT_GT(row.peak_n, 0.01);
 }
 
+// On the ellipsoids the stylus's tip sits in a pocket between a grating's Gaussians and hops to
+// the next (lambda 2 mm, 20 mm/s): the texture's tip follows the hand across the surface
+// (CompoundProxy::texture_tip), so the peak grows with the relief's amplitude. With the tip on
+// the proxy it read 0.040 N for A 0.05, 0.1 and 0.2 mm alike.
+TEST(TextureDrag, OnTheEllipsoidsAStylusCaughtInThePocketsFeelsTheReliefGrow) {
+  const RendererSpec spec = renderer_spec_for(ProxyModelSpec{}, ProxyTool::kCompound);
+  const CompoundTool stylus = WrenchTools{}.stylus;
+  const double v = 0.02, k = ProxyParams{}.stiffness;
+  GratingParams g;
+  g.wavelength = 0.002;
+  double last = 0;
+  for (double a : {0.00005, 0.0001, 0.0002}) {
+    g.amplitude = a;
+    const TextureRow row = drag_over_grating(g, spec, 0.005, v, 1000, PlayOptions{}, nullptr, &stylus);
+    EXPECT_NEAR(row.peak_hz, v / g.wavelength, 0.05 * v / g.wavelength) << "A " << a;
+    EXPECT_NEAR(row.peak_n, k * a, 0.2 * k * a) << "A " << a;
+    EXPECT_GT(row.peak_n, last) << "A " << a;
+    last = row.peak_n;
+  }
+}
+
 // Friction modulated by the relief (MaterialFollower::add_forces): while sliding, the tangential
 // force changes by -mu_k times the relief's normal force, against the slide; at rest it does not;
 // and texture_rms() is the texture force's RMS over its 20 ms window.

@@ -411,7 +411,8 @@ RenderOutput CompoundProxy::render(const Eigen::Vector3d& position, const Eigen:
     out.force = coupling_.force_at_depth(coupling_.bounded_depth(e, n), e, n, velocity, dt, blockers(), fr,
                                          follower_ ? follower_->blend().mu_k : params_.mu_k);  // with friction
     if (follower_) {
-      out.force = follower_->add_forces(*world_, out.force, contact, n, velocity, min_axis_, f_max_, dt);
+      out.force = follower_->add_forces(*world_, out.force, texture_tip(contact, position, n), n, velocity, min_axis_,
+                                        f_max_, dt);
       out.texture_rms = float(follower_->texture_rms());
       out.vibration = float(follower_->blend().vibration);
     }

@@ -91,7 +91,8 @@ class CompoundProxy {
   void reset() noexcept;
   /// Materials by region (force/material.h), read as the one-part proxy reads them
   /// (MaterialFollower): its contacts' materials along its path over the smallest semi-axis, and
-  /// the texture under the touching parts' contact point. nullptr: none.
+  /// the texture under the touching parts' contact point, carried across the normal by the
+  /// device's lag behind or ahead of the proxy (texture_tip). nullptr: none.
   void set_materials(std::shared_ptr<const MaterialField> field);
   /// The blend at the last tick in contact; nullptr without a field.
   [[nodiscard]] const MaterialBlend* material() const noexcept { return follower_ ? &follower_->blend() : nullptr; }
@@ -197,6 +198,19 @@ class CompoundProxy {
   // about the proxy's TCP, each weighted (the contact band, the hidden ramp), for the spring
   // along `spring` (unit). Returns the summed weight (0: no part touches).
   double touching_parts(const Eigen::Vector3d& spring, Eigen::Vector3d& normal, Eigen::Vector3d& moment) noexcept;
+  // Where the texture's tip reads the relief: the touching parts' contact point moved across the
+  // normal n by the device's offset from the proxy's TCP there, at most the smallest semi-axis.
+  // A proxy caught between a relief's Gaussians lags the hand by up to a wavelength and then
+  // hops (the stick-hop of a god-object in a row of pockets); a tip on the proxy read the relief
+  // at the pocket, and its force's fundamental stayed at 0.04 N whatever the relief's amplitude
+  // (lambda 2 mm, 20 mm/s). The tip follows the hand's path instead, as a stylus's tip does.
+  [[nodiscard]] Eigen::Vector3d texture_tip(const Eigen::Vector3d& contact, const Eigen::Vector3d& device,
+                                            const Eigen::Vector3d& n) const noexcept {
+    Eigen::Vector3d lag = device - x_;
+    lag -= lag.dot(n) * n;
+    const double len = lag.norm();
+    return contact + (len > min_axis_ ? Eigen::Vector3d(lag * (min_axis_ / len)) : lag);
+  }
   // One touching part's contact normal (shaded, edge, face) for its probe hit `h`.
   Eigen::Vector3d part_normal(int j, const SweepHit& h, double spacing, const BlockFilter& filter) noexcept;
   // The rotational coupling's torque when contact stopped the turn toward `qd`.
