@@ -105,7 +105,10 @@ class SeenSolid {
   static constexpr int kNormalRays = 4;
   /// Every Gaussian of `world` whose opacity reaches 1/255 (build the world with
   /// WorldConfig::min_opacity below the default to keep faint layers). Scales are the world's
-  /// semi-axes divided by its sigma. Builds its own BVH over each Gaussian's alpha = 1/255 box.
+  /// semi-axes divided by its sigma. Builds its own BVH over each Gaussian's alpha = 1/255 box
+  /// (binned SAH, leaves of 2, collapsed four-wide: broadphase/wide_bvh.h). Throws
+  /// std::length_error for a tree deeper than Bvh::kMaxDepth (the SAH falls back to the median
+  /// where centroids do not spread, so a real scene stays far under it).
   explicit SeenSolid(const CollisionWorld& world);
 
   [[nodiscard]] std::size_t size() const noexcept { return entries_.size(); }
