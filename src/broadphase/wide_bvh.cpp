@@ -9,6 +9,16 @@ namespace gshaptics {
 
 namespace {
 
+// A node whose four lanes are unused (kEmpty), their boxes far from any query.
+WideBvhNode empty_node() noexcept {
+  WideBvhNode node{};
+  for (int c = 0; c < 4; ++c) {
+    node.child[c] = WideBvhNode::kEmpty;
+    for (int k = 0; k < 3; ++k) node.lo[k][c] = node.hi[k][c] = std::numeric_limits<float>::max();
+  }
+  return node;
+}
+
 double half_area(const BvhNode& n) noexcept {
   const double x = double(n.hi[0]) - n.lo[0], y = double(n.hi[1]) - n.lo[1], z = double(n.hi[2]) - n.lo[2];
   return x * y + y * z + z * x;
@@ -54,12 +64,7 @@ std::uint32_t collapse_from(std::span<const BvhNode> b, std::uint32_t i, int dep
   std::array<std::uint32_t, 4> kids;
   const int n = wide_children(b, i, kids);
   const auto me = std::uint32_t(out.size());
-  WideBvhNode node{};
-  for (int c = 0; c < 4; ++c) {
-    node.child[c] = WideBvhNode::kEmpty;
-    for (int k = 0; k < 3; ++k) node.lo[k][c] = node.hi[k][c] = std::numeric_limits<float>::max();
-  }
-  out.push_back(node);
+  out.push_back(empty_node());
   for (int c = 0; c < n; ++c) {
     const BvhNode& kid = b[kids[std::size_t(c)]];
     const std::uint32_t child = kid.count != 0 ? kid.first : collapse_from(b, kids[std::size_t(c)], depth + 1, max_depth, out);
@@ -84,11 +89,7 @@ WideBvh WideBvh::collapse(const Bvh& binary) {
     for (int k = 0; k < 3; ++k) w.scale_ = std::max({w.scale_, std::abs(double(n.lo[k])), std::abs(double(n.hi[k]))});
   if (b[0].count != 0) {
     // A root that is a leaf: one wide node with that leaf in its first lane.
-    WideBvhNode node{};
-    for (int c = 0; c < 4; ++c) {
-      node.child[c] = WideBvhNode::kEmpty;
-      for (int k = 0; k < 3; ++k) node.lo[k][c] = node.hi[k][c] = std::numeric_limits<float>::max();
-    }
+    WideBvhNode node = empty_node();
     for (int k = 0; k < 3; ++k) node.lo[k][0] = b[0].lo[k], node.hi[k][0] = b[0].hi[k];
     node.child[0] = b[0].first;
     node.count[0] = b[0].count;
