@@ -36,11 +36,10 @@ SeenSolid::Bound SeenSolid::bound_of(const Entry& e, double radius) noexcept {
 
 SeenSolid::SeenSolid(const CollisionWorld& world) {
   const double sigma = world.config().sigma;
-  std::vector<Entry> entries;
   std::vector<BvhBox> boxes;
-  std::vector<std::uint32_t> slots;
-  std::vector<Bound> bounds;
-  entries.reserve(world.size());
+  entries_.reserve(world.size());
+  bounds_.reserve(world.size());
+  slots_.reserve(world.size());
   boxes.reserve(world.size());
   for (std::size_t slot = 0; slot < world.gaussians().size(); ++slot) {
     const CollisionGaussian& g = world.gaussians()[slot];
@@ -65,24 +64,42 @@ SeenSolid::SeenSolid(const CollisionWorld& world) {
       b.lo[k] = round_down_to_float(e.mean[k] - half);
       b.hi[k] = round_up_to_float(e.mean[k] + half);
     }
-    entries.push_back(e);
+    entries_.push_back(e);
     boxes.push_back(b);
-    bounds.push_back(bound_of(e, reach * s.maxCoeff()));
-    slots.push_back(std::uint32_t(slot));
+    bounds_.push_back(bound_of(e, reach * s.maxCoeff()));
+    slots_.push_back(std::uint32_t(slot));
   }
-  if (entries.empty()) return;
+  if (entries_.empty()) return;
   Bvh binary = Bvh::build(boxes, 2, BvhSplit::kSah);
-  entries_.resize(entries.size());
-  bounds_.resize(entries.size());
-  slots_.resize(entries.size());
-  const std::vector<std::uint32_t>& order = binary.order();
-  for (std::size_t k = 0; k < order.size(); ++k) {
-    entries_[k] = entries[order[k]];
-    bounds_[k] = bounds[order[k]];
-    slots_[k] = slots[order[k]];
-  }
+  std::vector<BvhBox>().swap(boxes);
+  put_in_tree_order(binary.order());
   binary.release_order();
   bvh_ = WideBvh::collapse(binary);
+}
+
+void SeenSolid::put_in_tree_order(std::span<const std::uint32_t> order) {
+  // Slot k takes what was at order[k]: each cycle of the permutation is walked once, in place
+  // (one bit per entry instead of a second copy of the entries).
+  std::vector<bool> placed(order.size(), false);
+  for (std::size_t start = 0; start < order.size(); ++start) {
+    if (placed[start]) continue;
+    const Entry entry = entries_[start];
+    const Bound bound = bounds_[start];
+    const std::uint32_t slot = slots_[start];
+    std::size_t k = start;
+    for (;;) {
+      placed[k] = true;
+      const std::size_t from = order[k];
+      if (from == start) break;
+      entries_[k] = entries_[from];
+      bounds_[k] = bounds_[from];
+      slots_[k] = slots_[from];
+      k = from;
+    }
+    entries_[k] = entry;
+    bounds_[k] = bound;
+    slots_[k] = slot;
+  }
 }
 
 void SeenSolid::sort_by_depth(std::vector<SeenScratch::Layer>::iterator first,
