@@ -41,23 +41,8 @@ void CollisionWorld::index(std::shared_ptr<Records> records) {
   }
   bvh_ = Bvh::build(boxes, config_.leaf_size);
   std::vector<BvhBox>().swap(boxes);
-  // Permute into BVH order (slot k takes record order[k]) by following each cycle of the
-  // permutation; a slot done is marked by order[k] = k, so no extra memory is needed.
-  std::vector<std::uint32_t>& order = bvh_.mutable_order();
   auto& r = *records;
-  for (std::size_t start = 0; start < order.size(); ++start) {
-    if (order[start] == start) continue;
-    const CollisionGaussian first = r[start];
-    std::size_t k = start;
-    while (order[k] != start) {
-      const std::size_t from = order[k];
-      r[k] = r[from];
-      order[k] = std::uint32_t(k);
-      k = from;
-    }
-    r[k] = first;
-    order[k] = std::uint32_t(k);
-  }
+  permute_to_order(std::span<std::uint32_t>(bvh_.mutable_order()), std::span<CollisionGaussian>(r.data(), r.size()));
   gaussians_ = std::span<const CollisionGaussian>(*records);
   storage_ = std::move(records);
   bvh_.release_order();  // records are now in BVH order: the permutation is not needed

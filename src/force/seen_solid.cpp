@@ -72,34 +72,10 @@ SeenSolid::SeenSolid(const CollisionWorld& world) {
   if (entries_.empty()) return;
   Bvh binary = Bvh::build(boxes, 2, BvhSplit::kSah);
   std::vector<BvhBox>().swap(boxes);
-  put_in_tree_order(binary.order());
+  permute_to_order(std::span<std::uint32_t>(binary.mutable_order()), std::span<Entry>(entries_),
+                   std::span<Bound>(bounds_), std::span<std::uint32_t>(slots_));
   binary.release_order();
   bvh_ = WideBvh::collapse(binary);
-}
-
-void SeenSolid::put_in_tree_order(std::span<const std::uint32_t> order) {
-  // Slot k takes what was at order[k]: each cycle of the permutation is walked once, in place
-  // (one bit per entry instead of a second copy of the entries).
-  std::vector<bool> placed(order.size(), false);
-  for (std::size_t start = 0; start < order.size(); ++start) {
-    if (placed[start]) continue;
-    const Entry entry = entries_[start];
-    const Bound bound = bounds_[start];
-    const std::uint32_t slot = slots_[start];
-    std::size_t k = start;
-    for (;;) {
-      placed[k] = true;
-      const std::size_t from = order[k];
-      if (from == start) break;
-      entries_[k] = entries_[from];
-      bounds_[k] = bounds_[from];
-      slots_[k] = slots_[from];
-      k = from;
-    }
-    entries_[k] = entry;
-    bounds_[k] = bound;
-    slots_[k] = slot;
-  }
 }
 
 void SeenSolid::sort_by_depth(std::vector<SeenScratch::Layer>::iterator first,

@@ -10,6 +10,7 @@
 #include <limits>
 #include <memory>
 #include <span>
+#include <tuple>
 #include <type_traits>
 #include <utility>
 #include <vector>
@@ -234,5 +235,26 @@ class Bvh {
   std::vector<std::uint32_t> order_;
   int depth_ = 0;
 };
+
+/// Puts arrays of primitives into a Bvh's slot order in place: slot k of each takes what was at
+/// order[k] (Bvh::mutable_order()). Each cycle of the permutation is followed once, a slot done
+/// marked by order[k] = k, so no copy of the arrays is made and `order` is left the identity
+/// (release it after). All arrays must be order.size() long.
+template <class... Items>
+void permute_to_order(std::span<std::uint32_t> order, std::span<Items>... items) {
+  for (std::size_t start = 0; start < order.size(); ++start) {
+    if (order[start] == start) continue;
+    const std::tuple<Items...> first{items[start]...};
+    std::size_t k = start;
+    while (order[k] != start) {
+      const std::size_t from = order[k];
+      ((items[k] = items[from]), ...);
+      order[k] = std::uint32_t(k);
+      k = from;
+    }
+    std::apply([&](const Items&... held) { ((items[k] = held), ...); }, first);
+    order[k] = std::uint32_t(k);
+  }
+}
 
 }  // namespace gshaptics

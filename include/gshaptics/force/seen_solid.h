@@ -22,7 +22,6 @@
 #include <algorithm>
 #include <array>
 #include <optional>
-#include <span>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -224,9 +223,6 @@ class SeenSolid {
     float radius;
   };
   static Bound bound_of(const Entry& e, double radius) noexcept;
-  // Puts the entries, their bounds and slots in the tree's order: slot k takes what was at
-  // order[k] (a permutation of the slots).
-  void put_in_tree_order(std::span<const std::uint32_t> order);
   // Sorts layers by depth, ties by their Gaussians' slots in the world.
   void sort_by_depth(std::vector<SeenScratch::Layer>::iterator first,
                      std::vector<SeenScratch::Layer>::iterator last) const noexcept;
