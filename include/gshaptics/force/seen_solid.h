@@ -103,6 +103,7 @@ class SeenSolid {
  public:
   /// How many rays the normal reads (normal(), normal_ray()).
   static constexpr int kNormalRays = 4;
+  static_assert(kNormalRays % 2 == 0, "the rays come in opposite pairs");
   /// Every Gaussian of `world` whose opacity reaches 1/255 (build the world with
   /// WorldConfig::min_opacity below the default to keep faint layers). Scales are the world's
   /// semi-axes divided by its sigma. Builds its own BVH over each Gaussian's alpha = 1/255 box
@@ -153,7 +154,7 @@ class SeenSolid {
   ///   over the layers up to the seen depth (T_k: the transmittance in front of layer k). It
   ///   carries the discs' tilts: on a plane of discs tilted 3 deg at random, a few discs under a
   ///   small ring lean it by as much, and along a slide the lean acts as friction;
-  /// - the slope of the seen depth itself, by central differences of the ring's four depths. It
+  /// - the slope of the seen depth itself, by central differences over the ring's opposite pairs. It
   ///   carries the depth jitter of the discs that make each point.
   /// Where a ray sees no surface, the normal map of the rays that do (-u when none does). A ray
   /// past a crease (past_crease) is left out of both readings. Each ray is seen from `back`
@@ -170,15 +171,29 @@ class SeenSolid {
                      double back, SeenScratch& scratch) const noexcept;
   [[nodiscard]] static Eigen::Vector3d normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits,
                                                   double h) noexcept;
-  /// Which rays of a normal reading (hits at +-h along two axes, t from the point's depth) lie
-  /// past a crease: on an axis whose one-sided depth slopes differ by more than kCreaseSlope,
-  /// the ray whose slope is over twice the other's. normal_from() leaves them out of both
-  /// readings and takes that axis's slope on the other side.
-  [[nodiscard]] static std::array<bool, kNormalRays> past_crease(const std::array<SeenHit, kNormalRays>& hits,
+  /// Which rays of a normal reading (opposite pairs at +-h across u, t from the point's depth, along
+  /// the unit u) lie past a crease within h. Per axis, two measures a ray each, which a smooth
+  /// surface (a tilt, a curvature) makes alike on both sides and a crease does not: the one-sided
+  /// depth slope from the point (a crease ahead makes one steep: they differ by more than
+  /// kCreaseSlope), and the ray's shade slope (shade_slope) less that depth slope (a ray that
+  /// reads a face its chord does not run along, a groove's other face a few mm shallower: they
+  /// differ by more than kCreaseShade). The ray whose measure is over twice the other's is past
+  /// it; normal_from() leaves it out of both readings and takes that axis's slope on the other
+  /// side.
+  [[nodiscard]] static std::array<bool, kNormalRays> past_crease(const Eigen::Vector3d& u,
+                                                                 const std::array<SeenHit, kNormalRays>& hits,
                                                                  double h) noexcept;
-  /// How much the two one-sided slopes of an axis must differ to be a crease, not curvature
-  /// (tan 27 deg: a surface whose curvature radius is over 2 h / 0.5 reads central).
+  /// The slope dt/dx along the unit `e` (across the unit u) of the surface a shade `n` faces out
+  /// of, t the depth along u: n.e / (-n.u); +inf where n is edge-on or faces away.
+  [[nodiscard]] static double shade_slope(const Eigen::Vector3d& n, const Eigen::Vector3d& u,
+                                          const Eigen::Vector3d& e) noexcept;
+  /// How much an axis's two sides must differ to be a crease, not curvature (past_crease; tan
+  /// 27 deg: a surface whose curvature radius is over 2 h / 0.5 reads central).
   static constexpr double kCreaseSlope = 0.5;
+  /// How much an axis's two shade-less-depth slopes must differ to be a crease (past_crease; tan
+  /// 45 deg): a 60-degree groove's other face read near its line, across the axis, by 1.6; the sparse
+  /// discs of a curved surface (8 mm apart on a 50 mm cylinder, h 15 mm) by up to about 0.5.
+  static constexpr double kCreaseShade = 1.0;
   /// The shade (SeenHit::shade) of `hit`, the last first_inside() answer on `scratch`: the sum of
   /// T_k alpha_k n_k over its layers. Zero when it did not hit or scratch overflowed.
   [[nodiscard]] Eigen::Vector3d shade(const Eigen::Vector3d& u, const SeenHit& hit,
@@ -255,6 +270,9 @@ class SeenSolid {
   // The layers peaking in [ta, tb] into scratch (after the ones there when `append`).
   static Eigen::Vector3d normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
                                            double h) noexcept;
+  // Where ray k of a normal reading lies from its point: the unit 2 pi k / kNormalRays around u
+  // from u.unitOrthogonal() towards u x that.
+  static Eigen::Vector3d ring_direction(const Eigen::Vector3d& u, int k) noexcept;
   void gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, SeenScratch& scratch,
               bool append = false) const noexcept;
   // Appends the layers of [ta, tb], a range that shares its end `shared` with one gathered
