@@ -66,6 +66,37 @@ struct CloudCase {
   SeenScratch scratch;
 };
 
+// The typical scale is the median over the Gaussians it keeps (opacity >= 1/255) of each one's
+// middle scale, whatever its axes' order and orientation.
+TEST(SeenSolid, ItsTypicalScaleIsTheMedianMiddleScale) {
+  GaussianScene g;
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> uni(-1, 1);
+  const std::array<double, 5> middle = {0.004, 0.001, 0.005, 0.002, 0.003};  // median 3 mm
+  for (std::size_t k = 0; k < middle.size(); ++k) {
+    // The middle scale among a larger and a smaller, in a different axis each time.
+    std::array<float, 3> axes = {float(2 * middle[k]), float(middle[k]), float(middle[k] / 3)};
+    std::rotate(axes.begin(), axes.begin() + std::ptrdiff_t(k % 3), axes.end());
+    const Eigen::Quaterniond q = Eigen::Quaterniond(uni(rng), uni(rng), uni(rng), uni(rng)).normalized();
+    g.push_back(Eigen::Vector3f(0.01f * float(k), 0, 0), Eigen::Vector3f(axes[0], axes[1], axes[2]),
+                Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())), 0.5f, std::uint32_t(g.size()));
+  }
+  // Too faint to be drawn: not counted (with them the median would be 0.1 mm).
+  for (int k = 0; k < 6; ++k)
+    g.push_back(Eigen::Vector3f(0, 0.01f * float(k + 1), 0), Eigen::Vector3f(0.0001f, 0.0001f, 0.0001f),
+                Eigen::Vector4f(1, 0, 0, 0), 0.001f, std::uint32_t(g.size()));
+  WorldConfig c = seen_world();
+  c.min_opacity = 0;
+  const SeenSolid solid(CollisionWorld::build(g, c));
+  ASSERT_EQ(solid.size(), middle.size());
+  EXPECT_NEAR(solid.typical_scale(), 0.003, 1e-6);
+  GaussianScene faint;
+  faint.push_back(Eigen::Vector3f(0, 0, 0), Eigen::Vector3f(0.001f, 0.001f, 0.001f), Eigen::Vector4f(1, 0, 0, 0), 0.001f, 0);
+  const SeenSolid none(CollisionWorld::build(faint, c));
+  EXPECT_EQ(none.size(), 0u);
+  EXPECT_EQ(none.typical_scale(), 0.0);
+}
+
 // A needle-thin Gaussian (scales 0.5 x 1e-9 x 1e-9, turned at random) seen along one of its thin
 // axes, passing at Mahalanobis distance 0.8 (alpha 0.65: opaque) or 1.2 (alpha 0.44: not). The
 // expanded v^T Sigma^-1 v of a ray 1 away reads ~1e18 less ~1e18 and loses the 0.64 it should

@@ -605,8 +605,8 @@ bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_
   if (seen_w > 0) {
     seen_point /= seen_w;
     // (SeenProxy's reading, on a ring of kNormalSpan middle semi-axes of the heaviest such part)
-    const double h = kNormalSpan * middle_[std::size_t(heaviest_seen)];
-    const double back = std::min(std::max(0.0, (seen_point - eye_).dot(axis_)), kNormalEye * h / kNormalSpan);
+    const double h = kNormalSpan * std::max(middle_[std::size_t(heaviest_seen)], solid_->typical_scale());
+    const double back = std::min(std::max(0.0, (seen_point - eye_).dot(axis_)), kNormalEye * middle_[std::size_t(heaviest_seen)]);
     seen_normal_ = normal_reading_.update(*solid_, seen_point, axis_, h, back, kNormalReuse * min_axis_, scratch_);
   }
   own_share_ = own_w / sum;

@@ -257,7 +257,7 @@ void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double 
   // Read afresh once the point moved kNormalReuse R from the last reading (SeenNormalReading), and
   // smoothed by hold() over kNormalTau (each reading carries the seen surface's noise). The ring's
   // rays search as deep as the ring is wide (kNormalSpan >= 1: slopes to 45 deg).
-  const double h = kNormalSpan * radius, back = std::min(depth, kNormalEye * radius);
+  const double h = kNormalSpan * std::max(radius, solid_.typical_scale()), back = std::min(depth, kNormalEye * radius);
   target_normal_ = normal_reading_.update(solid_, point, axis_, h, back, kNormalReuse * radius, scratch_);
 }
 

@@ -38,6 +38,8 @@ SeenSolid::Bound SeenSolid::bound_of(const Entry& e, double radius) noexcept {
 SeenSolid::SeenSolid(const CollisionWorld& world) {
   const double sigma = world.config().sigma;
   std::vector<BvhBox> boxes;
+  std::vector<double> middle_scales;
+  middle_scales.reserve(world.size());
   entries_.reserve(world.size());
   bounds_.reserve(world.size());
   slots_.reserve(world.size());
@@ -69,8 +71,13 @@ SeenSolid::SeenSolid(const CollisionWorld& world) {
     boxes.push_back(b);
     bounds_.push_back(bound_of(e, reach * s.maxCoeff()));
     slots_.push_back(std::uint32_t(slot));
+    middle_scales.push_back(s.sum() - s.maxCoeff() - s.minCoeff());
   }
   if (entries_.empty()) return;
+  const auto mid = middle_scales.begin() + std::ptrdiff_t(middle_scales.size() / 2);
+  std::nth_element(middle_scales.begin(), mid, middle_scales.end());
+  typical_scale_ = *mid;
+  std::vector<double>().swap(middle_scales);
   Bvh binary = Bvh::build(boxes, 2, BvhSplit::kSah);
   std::vector<BvhBox>().swap(boxes);
   permute_to_order(std::span<std::uint32_t>(binary.mutable_order()), std::span<Entry>(entries_),

@@ -113,6 +113,10 @@ class SeenSolid {
   explicit SeenSolid(const CollisionWorld& world);
 
   [[nodiscard]] std::size_t size() const noexcept { return entries_.size(); }
+  /// The median over its Gaussians of the middle of their three scales (world units; 0 when
+  /// empty): the in-plane size of a typical disc. A normal's ring narrower than that reads one
+  /// or two discs and carries their tilts (SeenProxy, SeenCompoundProxy widen it to this).
+  [[nodiscard]] double typical_scale() const noexcept { return typical_scale_; }
 
   /// The first t in [t0, t1] at which o + t u (u unit) is inside, seen from the eye at
   /// o + t_back u (t_back <= t0): the optical depth of the layers peaking in [t_back, t] reaches
@@ -283,6 +287,7 @@ class SeenSolid {
   std::vector<Bound> bounds_;   // per entry
   std::vector<std::uint32_t> slots_;  // per entry: its Gaussian's slot in the world
   WideBvh bvh_;  // over the entries' alpha >= 1/255 boxes (the binary SAH tree, collapsed)
+  double typical_scale_ = 0;
 };
 
 /// A seen proxy's move across its contact's axis, stopped by walls (SeenProxy::slide_across,
