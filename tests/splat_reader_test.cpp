@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <utility>
 #include <limits>
 
 #include "gshaptics/error.h"
@@ -99,3 +100,21 @@ TEST(SplatReader, TruncatedFileIsAnErrorNamingTheFile) {
 
 }  // namespace
 }  // namespace gshaptics
+
+// What `info` reports as the seen normal's least ring: the median middle axis over the Gaussians a
+// viewer draws (opacity >= 1/255), whatever the axes' order; fainter ones are not counted.
+TEST(SceneStats, DrawnMiddleScaleIsTheMedianMiddleAxisOfTheDrawnGaussians) {
+  gshaptics::GaussianScene g;
+  const float middle[5] = {0.4f, 0.1f, 0.5f, 0.2f, 0.3f};  // median 0.3
+  for (int k = 0; k < 5; ++k) {
+    Eigen::Vector3f axes(2 * middle[k], middle[k], middle[k] / 3);
+    if (k % 2) std::swap(axes[0], axes[1]);
+    if (k % 3 == 2) std::swap(axes[1], axes[2]);
+    g.push_back(Eigen::Vector3f(float(k), 0, 0), axes, Eigen::Vector4f(1, 0, 0, 0), 0.5f, std::uint32_t(k));
+  }
+  for (int k = 0; k < 6; ++k)  // not drawn
+    g.push_back(Eigen::Vector3f(0, float(k), 0), Eigen::Vector3f(0.01f, 0.01f, 0.01f), Eigen::Vector4f(1, 0, 0, 0),
+                0.001f, std::uint32_t(5 + k));
+  EXPECT_FLOAT_EQ(float(gshaptics::compute_scene_stats(g).drawn_middle_scale), 0.3f);
+  EXPECT_EQ(gshaptics::compute_scene_stats(gshaptics::GaussianScene{}).drawn_middle_scale, 0.0);
+}

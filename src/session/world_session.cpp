@@ -298,6 +298,8 @@ void print_scene_report(const LoadedScene& s) {
              st.scale_pct[0], st.scale_pct[1], st.scale_pct[2], st.scale_pct[3]);
   fmt::print("           largest axis pct 1/50/99/99.9: {:.4g} / {:.4g} / {:.4g} / {:.4g}\n",
              st.max_scale_pct[0], st.max_scale_pct[1], st.max_scale_pct[2], st.max_scale_pct[3]);
+  fmt::print("           middle axis median, drawn Gaussians: {:.4g} (--surface seen reads its normal on a ring "
+             "of at least 1.5 times this, scaled by the registration)\n", st.drawn_middle_scale);
 }
 
 // The world the options make of it (filter, --up, registration) and the suggested options.

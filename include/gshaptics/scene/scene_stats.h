@@ -22,6 +22,9 @@ struct SceneStats {
   std::array<double, 3> opacity_above{};   ///< fraction with opacity > 0.1, 0.2, 0.3
   std::array<double, 4> scale_pct{};       ///< all axes pooled, percentiles 1, 50, 99, 99.9
   std::array<double, 4> max_scale_pct{};   ///< largest axis, percentiles 1, 50, 99, 99.9
+  /// Median middle axis over the Gaussians a viewer draws (opacity >= 1/255): a typical disc's
+  /// in-plane scale, SeenSolid::typical_scale() before the registration's scale (0: none drawn).
+  double drawn_middle_scale = 0;
 };
 
 /// Computes the statistics; an empty scene gives zeros.
