@@ -453,7 +453,9 @@ TEST_F(RobotTick, AStaleDeviceBringsTheRobotToRestWithinTheWatchdogAndTheBraking
   int k = 0;
   while (!robot_.setpoint.velocity.isZero(0) && k < 5000) {
     const TickRecord& r = tick();
-    if (robot_.setpoint.velocity.norm() < v0 * 0.999) EXPECT_NE(r.flags & kFlagBraking, 0u) << k;
+    if (robot_.setpoint.velocity.norm() < v0 * 0.999) {
+      EXPECT_NE(r.flags & kFlagBraking, 0u) << k;
+    }
     ++k;
   }
   EXPECT_LE(k * 1e-3, bound);
