@@ -7,6 +7,8 @@
 #include <cmath>
 #include <limits>
 
+#include "gshaptics/percentile.h"
+
 namespace gshaptics {
 
 namespace {
@@ -74,10 +76,7 @@ SeenSolid::SeenSolid(const CollisionWorld& world) {
     middle_scales.push_back(s.sum() - s.maxCoeff() - s.minCoeff());
   }
   if (entries_.empty()) return;
-  const auto mid = middle_scales.begin() + std::ptrdiff_t(middle_scales.size() / 2);
-  std::nth_element(middle_scales.begin(), mid, middle_scales.end());
-  typical_scale_ = *mid;
-  std::vector<double>().swap(middle_scales);
+  typical_scale_ = percentile(std::move(middle_scales), 50);
   Bvh binary = Bvh::build(boxes, 2, BvhSplit::kSah);
   std::vector<BvhBox>().swap(boxes);
   permute_to_order(std::span<std::uint32_t>(binary.mutable_order()), std::span<Entry>(entries_),

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "gshaptics/percentile.h"
+
 namespace gshaptics {
 
 namespace {
@@ -41,17 +43,13 @@ SceneStats compute_scene_stats(const GaussianScene& scene) {
   for (std::size_t i = 0; i < n; ++i) v[i] = scene.scales[i].maxCoeff();
   std::sort(v.begin(), v.end());
   for (std::size_t i = 0; i < 4; ++i) s.max_scale_pct[i] = sorted_percentile(v, sp[i]);
-  v.clear();
+  std::vector<double> middle;  // (SeenSolid::typical_scale's statistic)
   for (std::size_t i = 0; i < n; ++i)
     if (scene.opacities[i] >= 1.0f / 255.0f) {
       const Eigen::Vector3f& a = scene.scales[i];
-      v.push_back(a.sum() - a.maxCoeff() - a.minCoeff());
+      middle.push_back(a.sum() - a.maxCoeff() - a.minCoeff());
     }
-  if (!v.empty()) {
-    const auto mid = v.begin() + std::ptrdiff_t(v.size() / 2);
-    std::nth_element(v.begin(), mid, v.end());
-    s.drawn_middle_scale = *mid;
-  }
+  s.drawn_middle_scale = percentile(std::move(middle), 50);
   v.resize(3 * n);
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) v[3 * i + std::size_t(k)] = scene.scales[i][k];
