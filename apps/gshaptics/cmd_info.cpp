@@ -12,6 +12,7 @@ void register_info(CLI::App& app) {
   auto quiet = std::make_shared<bool>(false);
   CLI::App* cmd = app.add_subcommand(
       "info", "Print a scene's format, counts, load report, bounds, opacity and scale percentiles "
+              "(and the drawn Gaussians' median middle axis, --surface seen's least normal ring) "
               "and the opacity filter's reduction; then preview the world that --up and a "
               "registration make of it (bounds, size, up axis) and suggest --up, --reg-scale and "
               "a tool radius for a desktop device and for room scale");
