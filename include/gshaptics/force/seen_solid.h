@@ -195,8 +195,9 @@ class SeenSolid {
   /// 27 deg: a surface whose curvature radius is over 2 h / 0.5 reads central).
   static constexpr double kCreaseSlope = 0.5;
   /// How much an axis's two shade-less-depth slopes must differ to be a crease (past_crease; tan
-  /// 45 deg): a 60-degree groove's other face read near its line, across the axis, by 1.6; the sparse
-  /// discs of a curved surface (8 mm apart on a 50 mm cylinder, h 15 mm) by up to about 0.5.
+  /// 45 deg): a 60-degree groove's other face read near its line differs by 1.04-2.19 over the
+  /// line's turns in `SeenSolid.TheNormalsRaysLook...`; the sparse discs of a curved surface (8 mm
+  /// apart on a 50 mm cylinder, h 15 mm) by up to about 0.5.
   static constexpr double kCreaseShade = 1.0;
   /// The shade (SeenHit::shade) of `hit`, the last first_inside() answer on `scratch`: the sum of
   /// T_k alpha_k n_k over its layers. Zero when it did not hit or scratch overflowed.
