@@ -604,8 +604,8 @@ bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_
   tip_under_ = under / sum;
   if (seen_w > 0) {
     seen_point /= seen_w;
-    // (SeenProxy's reading, on a ring of kNormalSpan middle semi-axes of the heaviest such part)
-    const double h = kNormalSpan * std::max(middle_[std::size_t(heaviest_seen)], solid_->typical_scale());
+    // (SeenProxy's reading, on the ring of the heaviest such part's middle semi-axis)
+    const double h = solid_->normal_ring(middle_[std::size_t(heaviest_seen)]);
     const double back = std::min(std::max(0.0, (seen_point - eye_).dot(axis_)), kNormalEye * middle_[std::size_t(heaviest_seen)]);
     seen_normal_ = normal_reading_.update(*solid_, seen_point, axis_, h, back, kNormalReuse * min_axis_, scratch_);
   }

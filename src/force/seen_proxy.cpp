@@ -256,8 +256,8 @@ Eigen::Vector3d SeenProxy::slide_across(const Eigen::Vector3d& goal, double radi
 void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double depth) noexcept {
   // Read afresh once the point moved kNormalReuse R from the last reading (SeenNormalReading), and
   // smoothed by hold() over kNormalTau (each reading carries the seen surface's noise). The ring's
-  // rays search as deep as the ring is wide (kNormalSpan >= 1: slopes to 45 deg).
-  const double h = kNormalSpan * std::max(radius, solid_.typical_scale()), back = std::min(depth, kNormalEye * radius);
+  // rays search as deep as the ring is wide (SeenSolid::kNormalSpan >= 1: slopes to 45 deg).
+  const double h = solid_.normal_ring(radius), back = std::min(depth, kNormalEye * radius);
   target_normal_ = normal_reading_.update(solid_, point, axis_, h, back, kNormalReuse * radius, scratch_);
 }
 

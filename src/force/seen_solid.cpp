@@ -390,7 +390,19 @@ double SeenSolid::shade_slope(const Eigen::Vector3d& n, const Eigen::Vector3d& u
   return n.dot(e) / facing;
 }
 
+std::array<Eigen::Vector3d, SeenSolid::kNormalRays / 2> SeenSolid::ring_axes(const Eigen::Vector3d& u) noexcept {
+  std::array<Eigen::Vector3d, kNormalRays / 2> axes;
+  for (int k = 0; k < kNormalRays / 2; ++k) axes[std::size_t(k)] = ring_direction(u, k);
+  return axes;
+}
+
 std::array<bool, SeenSolid::kNormalRays> SeenSolid::past_crease(const Eigen::Vector3d& u,
+                                                                  const std::array<SeenHit, kNormalRays>& hits,
+                                                                  double h) noexcept {
+  return past_crease(u, ring_axes(u), hits, h);
+}
+
+std::array<bool, SeenSolid::kNormalRays> SeenSolid::past_crease(const Eigen::Vector3d& u, const RingAxes& axes,
                                                                   const std::array<SeenHit, kNormalRays>& hits,
                                                                   double h) noexcept {
   std::array<bool, kNormalRays> past{};
@@ -420,7 +432,7 @@ std::array<bool, SeenSolid::kNormalRays> SeenSolid::past_crease(const Eigen::Vec
       far_side(std::fabs(up), std::fabs(down));
       continue;
     }
-    const Eigen::Vector3d e = ring_direction(u, axis);
+    const Eigen::Vector3d& e = axes[std::size_t(axis)];
     const double off_up = shade_slope(hits[ahead].shade, u, e) - up;
     const double off_down = shade_slope(hits[behind].shade, u, -e) - down;
     if (std::fabs(off_up - off_down) > kCreaseShade) far_side(std::fabs(off_up), std::fabs(off_down));
@@ -430,7 +442,8 @@ std::array<bool, SeenSolid::kNormalRays> SeenSolid::past_crease(const Eigen::Vec
 
 Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits,
                                        double h) noexcept {
-  const std::array<bool, kNormalRays> past = past_crease(u, hits, h);
+  const RingAxes axes = ring_axes(u);
+  const std::array<bool, kNormalRays> past = past_crease(u, axes, hits, h);
   Eigen::Vector3d map = Eigen::Vector3d::Zero();
   bool all = true;
   for (int k = 0; k < kNormalRays; ++k) {
@@ -454,7 +467,7 @@ Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::arra
   };
   Eigen::Vector3d gradient = Eigen::Vector3d::Zero();
   for (int axis = 0; axis < kNormalRays / 2; ++axis)
-    gradient += grad(axis, axis + kNormalRays / 2) * ring_direction(u, axis);
+    gradient += grad(axis, axis + kNormalRays / 2) * axes[std::size_t(axis)];
   const Eigen::Vector3d slope = (-u + (4.0 / kNormalRays) * gradient).normalized();
   const Eigen::Vector3d n = map + slope;
   return n.norm() > 1e-12 && n.allFinite() ? Eigen::Vector3d(n.normalized()) : map;

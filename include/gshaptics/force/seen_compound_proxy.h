@@ -283,7 +283,6 @@ class SeenCompoundProxy {
   static constexpr double kNormalPath = 0.5;    // smallest semi-axes
   static constexpr double kNormalReuse = 0.05;  // smallest semi-axes
   static constexpr double kNormalEye = 8;       // middle semi-axes
-  static constexpr double kNormalSpan = 1.5;    // the ring, in the touching part's middle semi-axis
   static constexpr double kGuessMargin = 0.25;  // smallest semi-axes
   static constexpr double kEyeMargin = 0.25;    // smallest semi-axes
   static constexpr double kContactBand = 0.5;   // the smallest semi-axis (CompoundProxy's)

@@ -120,9 +120,6 @@ class SeenProxy {
   static constexpr double kNormalPath = 0.5;    // R: and over this much of the proxy's slide
   static constexpr double kNormalReuse = 0.05;  // R
   static constexpr double kNormalEye = 8;       // R: the normal's rays look from at most this far back
-  // R: the normal's rays, this far to each side (bench/RESULTS.md, fiftieth session: 1 R let the
-  // noise of a few discs through, 2 R reached across a groove's line onto the other face)
-  static constexpr double kNormalSpan = 1.5;
   static constexpr double kGuessMargin = 0.25;  // R: the layers first read reach this past the last hit
   static constexpr double kEyeMargin = 0.25;    // R: the contact's eye plane, this far in front of the surface behind
   // The footprint: ray k lies at kRingRadius[k % 3] R from the centre line, at 30 k degrees.

@@ -115,8 +115,18 @@ class SeenSolid {
   [[nodiscard]] std::size_t size() const noexcept { return entries_.size(); }
   /// The median over its Gaussians of the middle of their three scales (world units; 0 when
   /// empty): the in-plane size of a typical disc. A normal's ring narrower than that reads one
-  /// or two discs and carries their tilts (SeenProxy, SeenCompoundProxy widen it to this).
+  /// or two discs and carries their tilts (normal_ring() widens it to this).
   [[nodiscard]] double typical_scale() const noexcept { return typical_scale_; }
+  /// The normal's ring, in a tool's (middle) semi-axis or the typical scale, whichever is larger
+  /// (bench/RESULTS.md, fiftieth session: 1 let the noise of a few discs through, 2 reached across
+  /// a groove's line onto the other face; sixty-fourth: discs wider than the tool).
+  static constexpr double kNormalSpan = 1.5;
+  /// The radius h of the normal's ring (normal()) for a tool of (middle) semi-axis `semi_axis`:
+  /// kNormalSpan times the larger of it and typical_scale(). World units. What SeenProxy and
+  /// SeenCompoundProxy read their normals on.
+  [[nodiscard]] double normal_ring(double semi_axis) const noexcept {
+    return kNormalSpan * std::max(semi_axis, typical_scale_);
+  }
 
   /// The first t in [t0, t1] at which o + t u (u unit) is inside, seen from the eye at
   /// o + t_back u (t_back <= t0): the optical depth of the layers peaking in [t_back, t] reaches
@@ -278,6 +288,12 @@ class SeenSolid {
   // Where ray k of a normal reading lies from its point: the unit 2 pi k / kNormalRays around u
   // from u.unitOrthogonal() towards u x that.
   static Eigen::Vector3d ring_direction(const Eigen::Vector3d& u, int k) noexcept;
+  // ring_direction() of rays 0 to kNormalRays / 2 - 1: one per opposite pair (read once a reading).
+  using RingAxes = std::array<Eigen::Vector3d, kNormalRays / 2>;
+  static RingAxes ring_axes(const Eigen::Vector3d& u) noexcept;
+  // past_crease() along those axes.
+  static std::array<bool, kNormalRays> past_crease(const Eigen::Vector3d& u, const RingAxes& axes,
+                                                   const std::array<SeenHit, kNormalRays>& hits, double h) noexcept;
   void gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, SeenScratch& scratch,
               bool append = false) const noexcept;
   // Appends the layers of [ta, tb], a range that shares its end `shared` with one gathered
