@@ -66,9 +66,11 @@ std::string scene_path(const std::string& file) {
   return std::string(GSHAPTICS_SCENES_DIR) + "/" + file;
 }
 
-// A real scene's probe run, as `gshaptics simulate SCENE --up auto [--reg-scale S]` runs it.
+// A real scene's probe run, as `gshaptics simulate SCENE --up auto [--reg-scale S]` runs it,
+// recorded with the proxy on `surface`, or on the ellipsoids of the same world when
+// `ellipsoid_path` (a path the seen solid's code does not shape: for A/Bs of its cost).
 Set probe_set(const std::string& name, const std::string& file, double reg_scale, bool bundled, ProxySurface surface,
-              bool footprint) {
+              bool footprint, bool ellipsoid_path) {
   Set s;
   s.name = name;
   WorldConfig cfg;
@@ -90,7 +92,7 @@ Set probe_set(const std::string& name, const std::string& file, double reg_scale
   fmt::print(stderr, "proxy_bench: {}: recording the probe run ({:.0f} s simulated)\n", name, traj.duration());
   ProbeRunParams rp;
   ProxyModelSpec spec;
-  spec.params.surface = surface;
+  spec.params.surface = ellipsoid_path ? ProxySurface::kEllipsoids : surface;
   spec.params.seen_footprint = footprint;
   rp.renderer = spec;
   const ProbeRunResult run = run_probe(*s.world, traj, rp);
@@ -209,6 +211,12 @@ int main(int argc, char** argv) {
                  "With --surface seen: the sphere's footprint (ProxyParams::seen_footprint; the probe run is "
                  "recorded with it)")
       ->capture_default_str()->check(CLI::IsMember({"on", "off"}));
+  std::string path_name = "own";
+  app.add_option("--path-from", path_name,
+                 "The probe runs' recording: own (with the proxy timed, as `simulate` runs it: a change to the "
+                 "proxy's force changes the path) or ellipsoids (with the ellipsoid proxy on the same world: the "
+                 "same path whatever the seen solid's code, for A/Bs of its cost)")
+      ->capture_default_str()->check(CLI::IsMember({"own", "ellipsoids"}));
   bool no_near_lists = false;
   app.add_flag("--no-near-lists", no_near_lists,
                "Compound tools' sweeps take the BVH every time (ProxyParams::near_lists off), for comparison");
@@ -225,6 +233,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   const ProxySurface surface = surface_name == "seen" ? ProxySurface::kSeen : ProxySurface::kEllipsoids;
   const bool seen_footprint = footprint_name == "on";
+  const bool ellipsoid_path = path_name == "ellipsoids";
   try {
     std::string table =
         "| set | Gaussians | tool radius | ticks | ticks in contact | proxy p50 / p99 / max us | paper p50 / p99 us | "
@@ -244,11 +253,11 @@ int main(int argc, char** argv) {
     std::string name;
     while (std::getline(ss, name, ',')) {
       Set s;
-      if (name == "truck") s = probe_set(name, "truck.splat", 1.0, true, surface, seen_footprint);
-      else if (name == "burger") s = probe_set(name, "burger.splat", 1.0, false, surface, seen_footprint);
-      else if (name == "halo") s = probe_set(name, "halo.ply", 1.0, false, surface, seen_footprint);
-      else if (name == "firepit") s = probe_set(name, "firepit.ply", 1.0, false, surface, seen_footprint);
-      else if (name == "karangkidul") s = probe_set(name, "karangkidul_crop.ply", 0.01, false, surface, seen_footprint);
+      if (name == "truck") s = probe_set(name, "truck.splat", 1.0, true, surface, seen_footprint, ellipsoid_path);
+      else if (name == "burger") s = probe_set(name, "burger.splat", 1.0, false, surface, seen_footprint, ellipsoid_path);
+      else if (name == "halo") s = probe_set(name, "halo.ply", 1.0, false, surface, seen_footprint, ellipsoid_path);
+      else if (name == "firepit") s = probe_set(name, "firepit.ply", 1.0, false, surface, seen_footprint, ellipsoid_path);
+      else if (name == "karangkidul") s = probe_set(name, "karangkidul_crop.ply", 0.01, false, surface, seen_footprint, ellipsoid_path);
       else if (name.rfind("fidelity-", 0) == 0) s = fidelity_set(name);
       else throw InputError("proxy_bench: unknown set '" + name + "'");
       const CollisionWorld& w = *s.world;
