@@ -443,6 +443,37 @@ std::array<bool, SeenSolid::kNormalRays> SeenSolid::past_crease(const Eigen::Vec
 Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits,
                                        double h) noexcept {
   const RingAxes axes = ring_axes(u);
+  return on_crest(u, axes, hits, h, shaded_normal(u, axes, hits, h));
+}
+
+Eigen::Vector3d SeenSolid::on_crest(const Eigen::Vector3d& u, const RingAxes& axes,
+                                    const std::array<SeenHit, kNormalRays>& hits, double h,
+                                    const Eigen::Vector3d& n) noexcept {
+  const double facing = -n.dot(u);
+  if (!(h > 0) || !(facing > 1e-6)) return n;
+  // The plane t = g . x through the point (t grows into the surface along u) has the normal
+  // -u + g. A rigid sphere held at the point touches the surface where its plane is over every
+  // ray's depth, t_k >= g . (h e_k): along an axis, g . e in [-down, up] (one-sided slopes); on
+  // a convex crease that holds 0, so the plane facing the push. Elsewhere n's own slope stays.
+  Eigen::Vector3d g = (n - n.dot(u) * u) / facing, turn = Eigen::Vector3d::Zero();
+  bool any = false;
+  for (int axis = 0; axis < kNormalRays / 2; ++axis) {
+    const SeenHit& ahead = hits[std::size_t(axis)];
+    const SeenHit& behind = hits[std::size_t(axis + kNormalRays / 2)];
+    const double up = ahead.hit ? ahead.t / h : 1.0, down = behind.hit ? behind.t / h : 1.0;
+    const double w = crest_weight(up, down);
+    if (!(w > 0)) continue;
+    const Eigen::Vector3d& e = axes[std::size_t(axis)];
+    turn -= w * g.dot(e) * e;  // (both sides fall away: 0 is in [-down, up])
+    any = true;
+  }
+  if (!any) return n;
+  g += (4.0 / kNormalRays) * turn;  // the least-squares gradient's change (exact for 4 rays)
+  return (g - u).normalized();
+}
+
+Eigen::Vector3d SeenSolid::shaded_normal(const Eigen::Vector3d& u, const RingAxes& axes,
+                                         const std::array<SeenHit, kNormalRays>& hits, double h) noexcept {
   const std::array<bool, kNormalRays> past = past_crease(u, axes, hits, h);
   Eigen::Vector3d map = Eigen::Vector3d::Zero();
   bool all = true;

@@ -171,7 +171,13 @@ class SeenSolid {
   /// - the slope of the seen depth itself, by central differences over the ring's opposite pairs. It
   ///   carries the depth jitter of the discs that make each point.
   /// Where a ray sees no surface, the normal map of the rays that do (-u when none does). A ray
-  /// past a crease (past_crease) is left out of both readings. Each ray is seen from `back`
+  /// past a crease (past_crease) is left out of both readings. Where the point lies on a convex
+  /// crease along an axis (crest_weight(): a cube's edge or corner under the tool), the rays each
+  /// side read different faces, and a rigid sphere resting on the crease is pushed back along
+  /// the push (the god-object's answer at a convex vertex, Zilles and Salisbury 1995): that
+  /// axis's slope is turned to 0 by the weight, the plane facing the push, which holds both
+  /// rays' depths. Limit: an edge pushed obliquely along its line reads the push's direction
+  /// too (a rigid sphere would slide along the edge). Each ray is seen from `back`
   /// before the point's depth and searched from there or from `reach` before, whichever is
   /// nearer: never from behind the eye.
   /// Measured against the analytic normals in bench/RESULTS.md (fiftieth and fifty-sixth sessions).
@@ -209,6 +215,22 @@ class SeenSolid {
   /// line's turns in `SeenSolid.TheNormalsRaysLook...`; the sparse discs of a curved surface (8 mm
   /// apart on a 50 mm cylinder, h 15 mm) by up to about 0.5.
   static constexpr double kCreaseShade = 1.0;
+  /// How surely the point of a normal reading lies on a convex crease along one of its axes (its
+  /// depths one each side, `up` and `down`, over h; a ray that sees nothing within h counts 1:
+  /// the surface falls at least that far), 0 to 1: both sides fall away together by more than
+  /// kCreaseSlope (1 from 1.5 kCreaseSlope on), and neither by over kCrestRatio times the other
+  /// (1 up to kCrestRatio - 0.5; past_crease flags the steeper side from 2 on). An edge or a
+  /// corner of the surface under the point pressed within about 11 deg of its bisector (fading
+  /// out by 18 deg on a 90-degree edge), or the top of an object narrower than about
+  /// 2 h / kCreaseSlope.
+  [[nodiscard]] static double crest_weight(double up, double down) noexcept {
+    const double low = std::min(up, down), high = std::max(up, down);
+    if (!(low > 0)) return 0;
+    const double together = std::clamp((up + down - kCreaseSlope) / (0.5 * kCreaseSlope), 0.0, 1.0);
+    const double alike = std::clamp((kCrestRatio - high / low) / 0.5, 0.0, 1.0);
+    return together * alike;
+  }
+  static constexpr double kCrestRatio = 2.0;
   /// The shade (SeenHit::shade) of `hit`, the last first_inside() answer on `scratch`: the sum of
   /// T_k alpha_k n_k over its layers. Zero when it did not hit or scratch overflowed.
   [[nodiscard]] Eigen::Vector3d shade(const Eigen::Vector3d& u, const SeenHit& hit,
@@ -294,6 +316,13 @@ class SeenSolid {
   // past_crease() along those axes.
   static std::array<bool, kNormalRays> past_crease(const Eigen::Vector3d& u, const RingAxes& axes,
                                                    const std::array<SeenHit, kNormalRays>& hits, double h) noexcept;
+  // normal_from() before on_crest(): the shade and the depth's slope, rays past a crease left out.
+  static Eigen::Vector3d shaded_normal(const Eigen::Vector3d& u, const RingAxes& axes,
+                                       const std::array<SeenHit, kNormalRays>& hits, double h) noexcept;
+  // The normal `n` with each axis's slope turned toward 0 by its crest_weight() (the rigid
+  // sphere's on a convex crease).
+  static Eigen::Vector3d on_crest(const Eigen::Vector3d& u, const RingAxes& axes,
+                                  const std::array<SeenHit, kNormalRays>& hits, double h, const Eigen::Vector3d& n) noexcept;
   void gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, SeenScratch& scratch,
               bool append = false) const noexcept;
   // Appends the layers of [ta, tb], a range that shares its end `shared` with one gathered
