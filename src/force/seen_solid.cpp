@@ -334,9 +334,13 @@ SeenHit SeenSolid::normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3
                               double back, SeenScratch& s) const noexcept {
   // (Never seen from behind the eye: a nearer eye than the search's start would let a surface
   // that hides `point` from that eye, a groove's other face, make the reading.)
-  SeenHit hit = first_inside(normal_ray_origin(point, u, k, h), u, -back, -std::min(reach, back), reach, s);
+  const double from = -std::min(reach, back);
+  SeenHit hit = first_inside(normal_ray_origin(point, u, k, h), u, -back, from, reach, s);
   hit.hit = hit.hit && !s.overflow;
-  if (hit.hit) hit.shade = shade(u, hit, s);
+  // (Its shade from the layers in its window only: those in front lie between the contact's eye
+  // and the surface there, a face that hides the ray's point or a floater, and their normals are
+  // not the surface's under the tool; a ray hidden from the eye altogether reads no shade.)
+  if (hit.hit) hit.shade = shade(u, hit, s, from);
   return hit;
 }
 
@@ -351,7 +355,8 @@ Eigen::Vector3d SeenSolid::wall_normal(const Eigen::Vector3d& u, const Eigen::Ve
   return n.normalized();
 }
 
-Eigen::Vector3d SeenSolid::shade(const Eigen::Vector3d& u, const SeenHit& hit, const SeenScratch& s) const noexcept {
+Eigen::Vector3d SeenSolid::shade(const Eigen::Vector3d& u, const SeenHit& hit, const SeenScratch& s,
+                                 double t_from) const noexcept {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   if (!hit.hit || s.overflow) return sum;
   double transmittance = 1;
@@ -365,7 +370,7 @@ Eigen::Vector3d SeenSolid::shade(const Eigen::Vector3d& u, const SeenHit& hit, c
                             m[2] * wu.x() + m[5] * wu.y() + m[8] * wu.z());
     const double norm = p.norm();
     const double alpha = -std::expm1(-l.tau);
-    if (norm > 0 && std::isfinite(norm)) sum -= (transmittance * alpha / norm) * p;
+    if (norm > 0 && std::isfinite(norm) && !(l.t < t_from)) sum -= (transmittance * alpha / norm) * p;
     transmittance *= 1 - alpha;
   }
   return sum;

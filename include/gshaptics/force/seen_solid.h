@@ -51,7 +51,7 @@ struct SeenHit {
   double t = 0;  ///< depth of the blocking point from the ray's origin (>= t0)
   std::uint32_t layers = 0;  ///< layers in the window at the hit
   /// normal_ray() only: the rendered normal's sum along the ray, sum_k T_k alpha_k n_k over the
-  /// layers up to the hit (SeenSolid::normal); zero otherwise.
+  /// layers of its window up to the hit (SeenSolid::normal); zero otherwise.
   Eigen::Vector3d shade = Eigen::Vector3d::Zero();
 };
 
@@ -165,7 +165,10 @@ class SeenSolid {
   ///   rendering (Huang et al. 2024; Zhang et al. 2024), composited like colour: along a ray each
   ///   Gaussian's peaks over parallel rays lie on its depth plane u^T Sigma_i^-1 (x - mu_i) = 0,
   ///   with normal n_i = -Sigma_i^-1 u / |Sigma_i^-1 u|; the reading is the sum of T_k alpha_k n_k
-  ///   over the layers up to the seen depth (T_k: the transmittance in front of layer k). It
+  ///   over the layers from the ray's window (`reach` before the point) up to the seen depth
+  ///   (T_k: the transmittance in front of layer k, from the eye; the layers in front of the
+  ///   window, a face that hides the ray's point from the eye or a floater, are not the surface
+  ///   there and add no normal). It
   ///   carries the discs' tilts: on a plane of discs tilted 3 deg at random, a few discs under a
   ///   small ring lean it by as much, and along a slide the lean acts as friction;
   /// - the slope of the seen depth itself, by central differences over the ring's opposite pairs. It
@@ -232,9 +235,10 @@ class SeenSolid {
   }
   static constexpr double kCrestRatio = 2.0;
   /// The shade (SeenHit::shade) of `hit`, the last first_inside() answer on `scratch`: the sum of
-  /// T_k alpha_k n_k over its layers. Zero when it did not hit or scratch overflowed.
-  [[nodiscard]] Eigen::Vector3d shade(const Eigen::Vector3d& u, const SeenHit& hit,
-                                      const SeenScratch& scratch) const noexcept;
+  /// T_k alpha_k n_k over its layers peaking at t_from or later (T_k over every layer in front).
+  /// Zero when it did not hit or scratch overflowed.
+  [[nodiscard]] Eigen::Vector3d shade(const Eigen::Vector3d& u, const SeenHit& hit, const SeenScratch& scratch,
+                                      double t_from = -std::numeric_limits<double>::infinity()) const noexcept;
   /// A wall's outward normal across `axis` (unit) where a line along the unit `u` met it (`hit`,
   /// the last first_inside() answer on `scratch`): shade()'s normal with its part along `axis`
   /// removed (along the axis the seen proxies' height field holds them); -u across the axis where
