@@ -233,6 +233,8 @@ class SeenSolid {
     const double alike = std::clamp((kCrestRatio - high / low) / 0.5, 0.0, 1.0);
     return together * alike;
   }
+  /// The ratio of a crest's two sides' falls at which crest_weight() reaches 0 (past_crease's
+  /// own "over twice the other"); it is 1 up to kCrestRatio - 0.5.
   static constexpr double kCrestRatio = 2.0;
   /// The shade (SeenHit::shade) of `hit`, the last first_inside() answer on `scratch`: the sum of
   /// T_k alpha_k n_k over its layers peaking at t_from or later (T_k over every layer in front).
