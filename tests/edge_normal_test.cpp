@@ -246,5 +246,92 @@ TEST(EdgeNormal, AnInsideCornerAndABevelledEdgeAreNoCorner) {
   EXPECT_TRUE(on_block.read(at_tip, diagonal, 0.005, 0.0, {}, c4, ConvexFeatures::kCorners, diagonal).corner);
 }
 
+// The normal cones of a clean edge and corner (ConvexFeatures::kEdgeCones and kCorners, the
+// proxy's crest hold) and crest_depth() against slow references: at the edge, the angles from a
+// direction's part across the edge to the two faces' normals (inside the wedge they add up to
+// its opening); at the corner, the angle to the nearest of 200 points along each of the cone's
+// three boundary arcs, and inside iff the direction is a non-negative mix of the faces' normals.
+TEST(EdgeNormal, AnEdgesAndACornersNormalConeHoldTheDirectionsBetweenTheirFaces) {
+  const CollisionWorld block = two_faces({0, 0, 1}, {1, 0, 0}, {1, 0, 0}, {0, 0, 1});
+  EdgeNormal edges(block);
+  EdgeNormalCache cache;
+  const Eigen::Vector3d bisector = Eigen::Vector3d(1, 0, 1).normalized();
+  const ToolEllipsoid on_edge = ToolEllipsoid::sphere(bisector * 0.0052, 0.005);
+  const EdgeNormalAnswer edge = edges.read(on_edge, bisector, 0.005, 0.0, {}, cache, ConvexFeatures::kEdgeCones);
+  ASSERT_TRUE(edge.edge);
+  ASSERT_EQ(edge.face_count, 2);
+  EXPECT_LT(angle_deg(edge.edge_line.cwiseAbs(), Eigen::Vector3d::UnitY()), 1.0);
+  const Eigen::Vector3d& a = edge.faces[0];
+  const Eigen::Vector3d& b = edge.faces[1];
+  EXPECT_LT(std::min(angle_deg(a, Eigen::Vector3d::UnitX()), angle_deg(a, Eigen::Vector3d::UnitZ())), 1.0);
+  EXPECT_NEAR(angle_deg(a, b), 90.0, 1.0);
+  // A tool beside the edge on one face only is no edge, so no cone.
+  EdgeNormalCache face_cache;
+  EXPECT_FALSE(edges.read(ToolEllipsoid::sphere({-0.03, 0, 0.0052}, 0.005), Eigen::Vector3d::UnitZ(), 0.005, 0.0, {},
+                          face_cache, ConvexFeatures::kEdgeCones)
+                   .feature());
+  std::mt19937 rng(5);
+  std::normal_distribution<double> g;
+  const double opening = angle_deg(a, b);
+  int inside = 0, outside = 0;
+  for (int i = 0; i < 400; ++i) {
+    const Eigen::Vector3d d(g(rng), g(rng), g(rng));
+    const Eigen::Vector3d across = d - d.dot(edge.edge_line) * edge.edge_line;
+    const double to_a = angle_deg(across, a), to_b = angle_deg(across, b);
+    const bool in = to_a + to_b <= opening + 1e-9;
+    const double depth = EdgeNormal::crest_depth(edge, d) * 180 / M_PI;
+    if (in) {
+      ++inside;
+      EXPECT_NEAR(depth, std::min(to_a, to_b), 1e-6) << d.transpose();
+    } else {
+      ++outside;
+      EXPECT_LT(depth, 0.0) << d.transpose();
+    }
+  }
+  EXPECT_GT(inside, 20);
+  EXPECT_GT(outside, 20);
+
+  const CollisionWorld cube = octant(false);
+  EdgeNormal corners(cube);
+  EdgeNormalCache cc;
+  const Eigen::Vector3d diagonal = Eigen::Vector3d::Ones().normalized();
+  const EdgeNormalAnswer corner = corners.read(ToolEllipsoid::sphere(diagonal * 0.0052, 0.005), diagonal, 0.005, 0.0,
+                                               {}, cc, ConvexFeatures::kEdgeConesAndCorners, diagonal);
+  ASSERT_TRUE(corner.corner);
+  ASSERT_EQ(corner.face_count, 3);
+  Eigen::Matrix3d faces;
+  for (int k = 0; k < 3; ++k) {
+    faces.col(k) = corner.faces[k];
+    EXPECT_GT(corner.faces[k].maxCoeff(), std::cos(2 * M_PI / 180));  // an axis, within its discs' tilts
+  }
+  inside = outside = 0;
+  for (int i = 0; i < 400; ++i) {
+    const Eigen::Vector3d d = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
+    const Eigen::Vector3d mix = faces.inverse() * d;
+    const bool in = mix.minCoeff() >= 0;
+    double nearest = 180;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d& p = corner.faces[(k + 1) % 3];
+      const Eigen::Vector3d& q = corner.faces[(k + 2) % 3];
+      for (int j = 0; j <= 200; ++j) {
+        const double t = j / 200.0;
+        nearest = std::min(nearest, angle_deg(d, ((1 - t) * p + t * q).normalized()));
+      }
+    }
+    const double depth = EdgeNormal::crest_depth(corner, d) * 180 / M_PI;
+    if (in) {
+      ++inside;
+      EXPECT_NEAR(depth, nearest, 0.3) << d.transpose();
+    } else {
+      ++outside;
+      EXPECT_LT(depth, 0.0) << d.transpose();
+    }
+  }
+  EXPECT_GT(inside, 20);
+  EXPECT_GT(outside, 200);
+  // No feature, no cone.
+  EXPECT_LT(EdgeNormal::crest_depth(EdgeNormalAnswer{}, diagonal), 0.0);
+}
+
 }  // namespace
 }  // namespace gshaptics

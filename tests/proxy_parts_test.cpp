@@ -857,6 +857,9 @@ TEST(ShadedNormalCache, ATurnToleranceKeepsAReadingOnlyWhileTheFieldTurnsLessTha
 // neither the turn tolerance nor the energy bound they gave back up to 3.2 mJ; with the defaults
 // none gives energy back. (The tolerance alone held them to -0.5 mJ until the step-up rule of
 // WedgedState changed seed 1's 4 mm corner path: -1.45 mJ there without the bound, +0.89 with.)
+// The crest hold keeps the proxy still under these presses, so "without" leaves it off too: it
+// is the sliding proxy whose turns the bound must take care of (with the hold and without the
+// two, no press gave energy back either).
 TEST(ProxyRenderer, PressesIntoCubeEdgesAndCornersGiveBackNoEnergy) {
   const AnalyticShape shape(ShapeKind::kCube);
   double worst[2] = {0, 0};
@@ -868,6 +871,7 @@ TEST(ProxyRenderer, PressesIntoCubeEdgesAndCornersGiveBackNoEnergy) {
         if (!with) {
           pp.energy_bound = false;
           pp.shading_turn = 0;
+          pp.crest_hold = false;
         }
         ProxyRenderer proxy(w, pp);
         for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
@@ -980,9 +984,11 @@ TEST(ProxyRenderer, TheCornerNormalKeepsACubeCornersForceInItsConeAndLeavesCreas
                              bool with, double& worst_energy) {
     ProxyParams pp;
     pp.corner_normal = with;
-    // (The overhang falloff alone also keeps this corner in its cone, 2.0 degrees p95: off, so
-    // that the corner normal is what is measured.)
+    // (The overhang falloff alone also keeps this corner in its cone, 2.0 degrees p95, and so
+    // does the crest hold, which keeps the proxy off the face: both off, so that the corner
+    // normal is what is measured.)
     pp.overhang_falloff = false;
+    pp.crest_hold = false;
     return press_direction_p95(kind, spacing, radius, seed, feature, pp, worst_energy);
   };
   double energy = 0, ignored = 0;
@@ -998,6 +1004,60 @@ TEST(ProxyRenderer, TheCornerNormalKeepsACubeCornersForceInItsConeAndLeavesCreas
   RecordProperty("crease_p95_deg", std::to_string(crease));
 }
 
+// The fidelity cube (seed 1) pressed 10 mm into its edges and corners along their bisectors
+// through the servo step, at 2 and 8 mm spacing with the 5 mm tool. Without the crest hold the
+// frictionless proxy rolls off the discs' rims toward a face once the device passes under the
+// crest, at a depth the discs decide: the 2 mm edges read 0.75 N/mm and the 8 mm corners 0.83
+// where every face reads 1.00 (stiffness across densities 1.12-1.31 on seed 1). Held, every edge
+// and corner reads the coupling's 1.00 N/mm, its force inside the feature's normal cone, and no
+// press gives energy back. A slide over the edge (the device moving across the spring) is the
+// same with and without.
+TEST(ProxyRenderer, PressedIntoACubesEdgeOrCornerTheProxyHoldsOnTheCrest) {
+  const AnalyticShape shape(ShapeKind::kCube);
+  const double radius = 0.005;
+  double lowest_without = 10, worst_energy = 1;
+  for (const double spacing : {0.002, 0.008}) {
+    const CollisionWorld w = synthetic_world(shape, spacing, 1);
+    for (const bool hold : {false, true}) {
+      ProxyParams pp;
+      pp.crest_hold = hold;
+      ProxyRenderer proxy(w, pp);
+      for (const char* feature : {"edge", "corner"}) {
+        std::vector<double> stiffness, directions;
+        for (const ContactSite& site : shape.press_sites(20, 1, 0.03)) {
+          if (site.feature != feature) continue;
+          const Script s = press_script(shape, site, radius, 0.010, 1000);
+          const PressMetrics m = press_metrics(shape, s, play_script(proxy, s, 1000));
+          stiffness.push_back(m.stiffness_n_per_mm);
+          directions.insert(directions.end(), m.direction_deg.begin(), m.direction_deg.end());
+          if (hold) worst_energy = std::min(worst_energy, m.energy_j);
+        }
+        ASSERT_GE(stiffness.size(), 4u);
+        const double median = percentile(stiffness, 50);
+        if (!hold) {
+          lowest_without = std::min(lowest_without, median);
+          continue;
+        }
+        EXPECT_NEAR(median, 1.0, 0.01) << feature << " at " << spacing;
+        EXPECT_LE(percentile(directions, 95), 5.0) << feature << " at " << spacing;
+      }
+    }
+    // The slide over the cube's edge, 2 mm deep at 5 cm/s.
+    double p95[2];
+    for (const bool hold : {false, true}) {
+      ProxyParams pp;
+      pp.crest_hold = hold;
+      ProxyRenderer proxy(w, pp);
+      const Script s = slide_script(shape, radius, 1000);
+      p95[hold] = percentile(slide_metrics(shape, s, play_script(proxy, s, 1000)).direction_deg, 95);
+    }
+    EXPECT_NEAR(p95[1], p95[0], 0.1) << spacing;
+  }
+  EXPECT_LT(lowest_without, 0.9);  // (what the hold is for: not vacuous on this cube)
+  EXPECT_GE(worst_energy, 0.0);
+  RecordProperty("lowest_median_stiffness_without", std::to_string(lowest_without));
+}
+
 // The fidelity cube at 8 mm spacing with the 5 mm tool, through the servo step: on seed 25 a -y
 // face disc 16 mm across reaches 12 mm below the -z face, and the tool pressed into that edge
 // rests on the -z face against its flat side; on seed 19 a corner's tool rests in the same way
@@ -1008,6 +1068,7 @@ TEST(ProxyRenderer, AnOverhangingDiscOfTheOtherFaceDoesNotTurnTheFaceItBlocks) {
   const auto p95 = [](std::uint64_t seed, const char* feature, bool with, double& worst_energy) {
     ProxyParams pp;
     pp.overhang_falloff = with;
+    pp.crest_hold = false;  // (held on the crest, the tool does not come to rest against the fin)
     return press_direction_p95(ShapeKind::kCube, 0.008, 0.005, seed, feature, pp, worst_energy);
   };
   double energy = 0, ignored = 0;

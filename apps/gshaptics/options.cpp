@@ -190,6 +190,12 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
          "support normal, which stays in the corner's normal cone (off: the shaded field). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option_function<std::string>(
+         "--crest-hold", [&p](const std::string& v) { p.crest_hold = v == "on"; },
+         "proxy: pressed into a clean convex edge or corner of the Gaussians (the spring inside its normal cone, "
+         "the device moving along the spring), the proxy holds where it rests, as a god-object on a polyhedron "
+         "does (off: it slides off the crest). Default: on")
+      ->check(CLI::IsMember({"on", "off"}));
+  cmd.add_option_function<std::string>(
          "--overhang-falloff", [&p](const std::string& v) { p.overhang_falloff = v == "on"; },
          "proxy: where a disc of the other face overhangs a convex edge and blocks the tool beside it, the "
          "shaded normal leaves out that face's discs behind the face under the tool (off: every disc near "

@@ -31,7 +31,7 @@ void add_execution_options(CLI::App& cmd, ExecutionOptions& o, bool simulated);
 
 /// Adds --force-model, the paper model's --k-base, --damping, --tau-normal, --tau-opacity, the
 /// proxy's --stiffness, --coupling-damping, --mu-s, --mu-k, --opacity-stiffness, --substeps,
-/// --energy-bound, --device-shading, --corner-normal, --overhang-falloff, --near-lists,
+/// --energy-bound, --device-shading, --corner-normal, --crest-hold, --overhang-falloff, --near-lists,
 /// --face-average, --isolation-gap, --floater-cluster, and --f-max.
 /// And --device-profile, whose values fill --f-max and --stiffness unless they are given.
 /// Options given that do not apply are refused (refuse_options_not_applying): the other model's,

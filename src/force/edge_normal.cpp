@@ -1,7 +1,9 @@
 #include "gshaptics/force/edge_normal.h"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "gshaptics/broadphase/bvh.h"
@@ -48,8 +50,10 @@ PatchShape patch_shape(std::span<const Eigen::Vector3d> axes, bool edges, bool f
 // (each thin axis turned toward the tool, on either side of their mean across the edge), each
 // face's weighted centroid p and normal n. At a convex edge each face lies behind the other's
 // plane, (p_B - p_A) . (n_A - n_B) < 0; in a groove each rises in front of it.
+// `faces` gets the two faces' unit normals (toward the tool: outward at a convex edge).
 bool clean_convex_edge(std::span<const Eigen::Vector3d> axes, std::span<const PatchGaussian> patch,
-                       const Eigen::Vector3d& tool_center, const Eigen::Vector3d& edge) noexcept {
+                       const Eigen::Vector3d& tool_center, const Eigen::Vector3d& edge,
+                       std::array<Eigen::Vector3d, 3>& faces, Eigen::Vector3d& apex) noexcept {
   const auto toward_tool = [&](std::size_t i) {
     return axes[i].dot(tool_center - patch[i].center) >= 0 ? Eigen::Vector3d(axes[i]) : Eigen::Vector3d(-axes[i]);
   };
@@ -87,6 +91,11 @@ bool clean_convex_edge(std::span<const Eigen::Vector3d> axes, std::span<const Pa
     spread[f] += wi * angle * angle;
   }
   const double widest = std::sqrt(std::max(spread[0] / w[0], spread[1] / w[1]));
+  faces[0] = m[0], faces[1] = m[1];
+  // The edge line's point nearest the tool: tool + a m0 + b m1 on both faces' planes.
+  const double g = m[0].dot(m[1]), det = 1 - g * g;
+  const double r0 = m[0].dot(c[0] / w[0] - tool_center), r1 = m[1].dot(c[1] / w[1] - tool_center);
+  apex = tool_center + ((r0 - g * r1) * m[0] + (r1 - g * r0) * m[1]) / std::max(det, 1e-9);
   return widest <= EdgeNormal::kFaceTightness * apart;
 }
 
@@ -106,9 +115,11 @@ bool clean_convex_edge(std::span<const Eigen::Vector3d> axes, std::span<const Pa
 // - every pair of faces is convex (each behind the other's plane, as clean_convex_edge() tests an edge);
 // - and the tool lies on the outer side of the centroid.
 enum class CornerTest { kNo, kMessy, kCorner };  // kMessy: three directions hold under half the weight
+// `faces` gets the three faces' unit outward normals.
 CornerTest clean_corner(std::span<const Eigen::Vector3d> axes, std::span<const PatchGaussian> patch,
                         const Eigen::Vector3d& tool_center, const Eigen::Vector3d& start, const Eigen::Vector3d& away,
-                        double spread, double apart, double share, double leftover) noexcept {
+                        double spread, double apart, double share, double leftover,
+                        std::array<Eigen::Vector3d, 3>& normals, Eigen::Vector3d& vertex) noexcept {
   constexpr double kAgainst = 0.25;  // the cosine a face's normal may reach against `start` or `away`
   constexpr double kSpan = 0.25;     // |d0 . (d1 x d2)| at least (1 for a cube's corner)
   const std::size_t n = std::min(axes.size(), EdgeNormal::kMaxPatch);
@@ -171,6 +182,10 @@ CornerTest clean_corner(std::span<const Eigen::Vector3d> axes, std::span<const P
   for (int f = 0; f < 3; ++f)
     for (int g = f + 1; g < 3; ++g)
       if (dir[f].dot(dir[g]) > cos_apart || !((c[g] - c[f]).dot(dir[f] - dir[g]) < 0)) return CornerTest::kNo;
+  normals = {dir[0], dir[1], dir[2]};
+  Eigen::Matrix3d planes;  // (invertible: the three directions span space, kSpan above)
+  planes << dir[0].transpose(), dir[1].transpose(), dir[2].transpose();
+  vertex = planes.partialPivLu().solve(Eigen::Vector3d(dir[0].dot(c[0]), dir[1].dot(c[1]), dir[2].dot(c[2])));
   return (tool_center - mid).dot(dir[0] + dir[1] + dir[2]) > 0 ? CornerTest::kCorner : CornerTest::kNo;
 }
 
@@ -230,17 +245,21 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
       patch_[n++] = {c, r * a.array().square().matrix().asDiagonal() * r.transpose(), double(g.opacity)};
     }
   });
-  const bool edges = (std::uint8_t(features) & std::uint8_t(ConvexFeatures::kEdges)) != 0;
+  const bool cones_only = (std::uint8_t(features) & std::uint8_t(ConvexFeatures::kEdges)) == 0 &&
+                          (std::uint8_t(features) & std::uint8_t(ConvexFeatures::kEdgeCones)) != 0;
+  const bool edges = cones_only || (std::uint8_t(features) & std::uint8_t(ConvexFeatures::kEdges)) != 0;
   const bool corners = (std::uint8_t(features) & std::uint8_t(ConvexFeatures::kCorners)) != 0;
   const bool faces = (std::uint8_t(features) & std::uint8_t(ConvexFeatures::kFaces)) != 0;
   // A clean edge (when asked for), else a clean convex corner (when asked for), else nothing.
   PatchShape shape;
   bool corner = false;
+  std::array<Eigen::Vector3d, 3> faces_found{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  Eigen::Vector3d apex = Eigen::Vector3d::Zero();
   const auto classify = [&] {
     shape = edges || faces ? patch_shape({axis_.data(), n}, edges, faces) : PatchShape{};
     const CornerTest c = !shape.feature && corners ? clean_corner({axis_.data(), n}, {patch_.data(), n}, part.center,
                                                                   start, away, kCornerSpread, kCornerApart,
-                                                                  kFeatureShare, kEdgeShare)
+                                                                  kFeatureShare, kEdgeShare, faces_found, apex)
                                                    : CornerTest::kNo;
     corner = c == CornerTest::kCorner;
     sc.answer.messy = c == CornerTest::kMessy;
@@ -253,6 +272,7 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
     }
     return sc.answer;
   }
+  if (shape.feature && cones_only) return edge_cone(shape.edge, part.center, n, sc);
   // Floaters that the part did not pass but that the grown part reaches (one hanging beside a
   // stylus) would bend the hull: the Gaussians that hold the answer (within a few soft-minimum
   // widths of the smallest gap) are put to the floater rule, and floaters leave the patch (with
@@ -282,12 +302,16 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
   if (!(sn.normal.squaredNorm() > 0)) return sc.answer;
   if (corner) {  // (convex, with the tool outside: clean_corner)
     sc.answer = {sn.normal, false, true, false};
+    sc.answer.faces = faces_found;
+    sc.answer.face_count = 3;
+    sc.answer.apex = apex;
     return sc.answer;
   }
   // A groove (a concave edge) keeps the shaded normal: its hull spans the groove's opening, and
   // the support normal there would be the bisector whichever wall the tool touches. So does a
   // corrugation (faces as wide as they are apart): its ridges are no edge.
-  if (!clean_convex_edge({axis_.data(), n}, {patch_.data(), n}, part.center, shape.edge)) return sc.answer;
+  if (!clean_convex_edge({axis_.data(), n}, {patch_.data(), n}, part.center, shape.edge, faces_found, apex))
+    return sc.answer;
   // At an edge the normal lies across it: the hull's tilt along the edge is the rims' jitter.
   Eigen::Vector3d normal = sn.normal;
   if (shape.edge.squaredNorm() > 0) {
@@ -295,7 +319,58 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
     if (across.norm() > 0.5) normal = across.normalized();
   }
   sc.answer = {normal, true, false, false};
+  sc.answer.faces = faces_found;
+  sc.answer.face_count = 2;
+  sc.answer.edge_line = shape.edge;
+  sc.answer.apex = apex;
   return sc.answer;
+}
+
+const EdgeNormalAnswer& EdgeNormal::edge_cone(const Eigen::Vector3d& edge, const Eigen::Vector3d& tool_center,
+                                              std::size_t n, EdgeNormalCache& sc) const noexcept {
+  std::array<Eigen::Vector3d, 3> faces{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  Eigen::Vector3d apex = Eigen::Vector3d::Zero();
+  if (!clean_convex_edge({axis_.data(), n}, {patch_.data(), n}, tool_center, edge, faces, apex)) return sc.answer;
+  const Eigen::Vector3d mean = faces[0] + faces[1];
+  if (!(mean.norm() > 1e-9)) return sc.answer;
+  sc.answer = {mean.normalized(), true, false, false};
+  sc.answer.faces = faces;
+  sc.answer.face_count = 2;
+  sc.answer.edge_line = edge;
+  sc.answer.apex = apex;
+  return sc.answer;
+}
+
+double EdgeNormal::crest_depth(const EdgeNormalAnswer& answer, const Eigen::Vector3d& direction) noexcept {
+  constexpr double kOutside = -1.5707963267948966;
+  if (!answer.feature() || !(direction.norm() > 0)) return kOutside;
+  if (answer.face_count == 2) {
+    // The wedge between the two faces' normals, in the plane across the edge line.
+    const Eigen::Vector3d& a = answer.faces[0];
+    const Eigen::Vector3d& b = answer.faces[1];
+    const Eigen::Vector3d across = direction - direction.dot(answer.edge_line) * answer.edge_line;
+    const Eigen::Vector3d axis = a.cross(b);
+    if (!(axis.norm() > 1e-6) || !(across.norm() > 1e-12 * direction.norm())) return kOutside;
+    const Eigen::Vector3d u = axis.normalized();
+    const double from_a = std::atan2(a.cross(across).dot(u), a.dot(across));
+    const double to_b = std::atan2(across.cross(b).dot(u), across.dot(b));
+    return std::min(from_a, to_b);
+  }
+  if (answer.face_count != 3) return kOutside;
+  // The trihedral cone: the angle to each bounding plane (spanned by two faces' normals), signed
+  // positive on the third's side.
+  const Eigen::Vector3d d = direction.normalized();
+  double depth = 1.5707963267948966;
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d& p = answer.faces[(k + 1) % 3];
+    const Eigen::Vector3d& q = answer.faces[(k + 2) % 3];
+    Eigen::Vector3d m = p.cross(q);
+    if (!(m.norm() > 1e-6)) return kOutside;
+    m.normalize();
+    if (m.dot(answer.faces[k]) < 0) m = -m;
+    depth = std::min(depth, std::asin(std::clamp(m.dot(d), -1.0, 1.0)));
+  }
+  return depth;
 }
 
 Eigen::Vector3d EdgeNormal::blend(const Eigen::Vector3d& shaded, const EdgeNormalAnswer& answer,

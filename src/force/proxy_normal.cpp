@@ -47,7 +47,7 @@ Eigen::Vector3d ProxyNormal::refined(const Eigen::Vector3d& n, const ToolEllipso
                                      const Eigen::Vector3d& xd, FloaterRule& floaters) noexcept {
   const Eigen::Vector3d e = p - xd;
   const Eigen::Vector3d shaded = with_device_reading(n, p, xd, tool.bounding_radius(), e);
-  return params_.corner_normal ? with_corner_reading(shaded, tool, p, e, floaters) : shaded;
+  return params_.corner_normal || params_.crest_hold ? with_corner_reading(shaded, tool, p, e, floaters) : shaded;
 }
 
 Eigen::Vector3d ProxyNormal::with_device_reading(const Eigen::Vector3d& n, const Eigen::Vector3d& p,
@@ -91,8 +91,13 @@ Eigen::Vector3d ProxyNormal::with_corner_reading(const Eigen::Vector3d& n, const
   // gathered on 1.7 % of its contact ticks. Elsewhere at the shaded normal's reuse distance.)
   const double rho = tool.semi_axes.minCoeff();
   const double reuse = (corner_cache_.answer.messy ? kCornerSearch : pp.shading_reuse) * rho;
-  const Eigen::Vector3d cornered = EdgeNormal::blend(
-      n, corners_.read(at, n, kCornerBand * rho, reuse, filter, corner_cache_, ConvexFeatures::kCorners, e), e);
+  // (With crest_hold, edges are read too, by their faces alone: for the renderer's hold, while the
+  // force at an edge keeps the shaded field.)
+  const EdgeNormalAnswer& answer = corners_.read(
+      at, n, kCornerBand * rho, reuse, filter, corner_cache_,
+      pp.crest_hold ? ConvexFeatures::kEdgeConesAndCorners : ConvexFeatures::kCorners, e);
+  if (!pp.corner_normal || !answer.corner) return n;
+  const Eigen::Vector3d cornered = EdgeNormal::blend(n, answer, e);
   // (Where a disc of the other face overhangs and blocks the tool (front_face), the shaded
   // normal already leaves it out, and the patch's hull does not: the tool rests against the
   // fin's flat side, inside the hull's corner, and its support normal leans off the fin, out

@@ -25,11 +25,13 @@ constexpr ProxyToolField field(std::string_view name, std::string_view option, P
 }
 
 // The table of tool-specific fields: one row each, with its option and why the other tool has no use for it.
-const std::array<ProxyToolField, 11> kToolFields{{
+const std::array<ProxyToolField, 12> kToolFields{{
     field<&ProxyParams::device_shading>("device_shading", "--device-shading", ProxyTool::kOnePart,
                                  "a compound tool's parts read the shaded normal where each touches"),
     field<&ProxyParams::corner_normal>("corner_normal", "--corner-normal", ProxyTool::kOnePart,
                                  "a compound tool keeps the shaded normal at corners (its parts read clean edges and faces)"),
+    field<&ProxyParams::crest_hold>("crest_hold", "--crest-hold", ProxyTool::kOnePart,
+                                 "a compound tool's parts slide on a crest as on a face"),
     field<&ProxyParams::overhang_falloff>("overhang_falloff", "--overhang-falloff", ProxyTool::kOnePart,
                                  "a compound tool's parts read the shaded normal without the overhang falloff"),
     field<&ProxyParams::shading_budget>("shading_budget", "", ProxyTool::kOnePart,

@@ -135,6 +135,33 @@ Eigen::Vector3d ProxyRenderer::follow_device(const ToolEllipsoid& tool) noexcept
   return device_step;
 }
 
+bool ProxyRenderer::held_on_crest(const Eigen::Vector3d& xd, const Eigen::Vector3d& velocity, double radius) const noexcept {
+  // A god-object on a polyhedron rests on an edge or a vertex while the device lies in that
+  // feature's normal cone from it: two or three constraints are active (Zilles & Salisbury 1995).
+  // On the Gaussians the crest is the discs' rims, bumpy at their scale, and the frictionless
+  // proxy rolls off it toward either face as soon as the device passes under it. So while the
+  // spring lies inside the crest's cone (by kCrestMargin) and the device moves along it (a press
+  // or its release, or rests), the proxy holds. A device moving across the spring (a slide over
+  // the edge) lets the proxy roll over the crest as before.
+  if (!params_.crest_hold || !in_contact_) return false;
+  const EdgeNormalAnswer* crest = normals_.crest();
+  if (crest == nullptr) return false;
+  const Eigen::Vector3d e = solver_.position() - xd;
+  const double speed = velocity.norm();
+  const bool along = speed <= kCrestStill || std::abs(velocity.dot(e)) >= kCrestAlong * speed * e.norm();
+  // ... and the device lies on the line from the proxy through the crest's apex (across an
+  // edge's line), within kCrestCorridor tool radii: short of the crest or under it. A device
+  // beside it, as one sliding down the side face after passing over the edge, is not pressing
+  // into it.
+  const Eigen::Vector3d& t = crest->edge_line;  // (zero at a corner)
+  Eigen::Vector3d axis = solver_.position() - crest->apex, from_apex = xd - crest->apex;
+  axis -= axis.dot(t) * t;
+  from_apex -= from_apex.dot(t) * t;
+  if (!(axis.norm() > 0)) return false;
+  const double off_axis = from_apex.cross(axis.normalized()).norm();
+  return along && off_axis <= kCrestCorridor * radius && EdgeNormal::crest_depth(*crest, e) >= kCrestMargin;
+}
+
 bool ProxyRenderer::contact_normal(const ToolEllipsoid& tool, const ProxyMove& move, Eigen::Vector3d& n) noexcept {
   const Eigen::Vector3d& p = move.position;
   const Eigen::Vector3d e = p - tool.center;
@@ -171,8 +198,11 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
   // 1. Friction decides where the proxy heads (Salisbury et al. 1995).
   const FrictionStep fr = friction_.update(in_contact_, normal_, xd, solver_.position(), device_step, r);
   sticking_ = fr.sticking;
-  // 2. The god-object moves toward it (Zilles & Salisbury 1995).
-  const ProxyMove move = solver_.move_toward(tool, fr.goal, fr.sticking);
+  // 2. The god-object moves toward it (Zilles & Salisbury 1995), or holds on a crest it is
+  // pressed into.
+  const bool on_crest = !fr.sticking && held_on_crest(xd, velocity, r);
+  const Eigen::Vector3d crest_line = on_crest ? normals_.crest()->edge_line : Eigen::Vector3d::Zero();
+  const ProxyMove move = solver_.move_toward(tool, fr.goal, fr.sticking || on_crest);
   last_move_ = move;
   const Eigen::Vector3d& p = move.position;
   const std::span<const Contact> blockers = solver_.blockers();
@@ -194,6 +224,9 @@ RenderOutput ProxyRenderer::render(const ToolEllipsoid& tool, const Eigen::Vecto
     out.constraints = 0;
     return out;
   }
+  // On a crest the spring's part across it (all of it at a corner) pushes back: along an edge the
+  // god-object is free to slide, so the spring's part along the line is no force.
+  if (on_crest) n = (e - e.dot(crest_line) * crest_line).normalized();
   normal_ = n;
   in_contact_ = true;
   // 4. The virtual coupling gives the force (Colgate, Stanley & Brown 1995), on a spring whose

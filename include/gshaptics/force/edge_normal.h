@@ -49,17 +49,32 @@ struct EdgeNormalAnswer {
   /// (faces asked for) the patch is one flat face: `normal` is its Gaussians' mean thin axis,
   /// turned toward the tool's side (`start`); no feature
   bool face = false;
+  /// (edge or corner) the unit outward normals of the feature's faces, world frame: two at an
+  /// edge, three at a corner (each face's Gaussians' mean thin axis). They span the feature's
+  /// normal cone (crest_depth()).
+  std::array<Eigen::Vector3d, 3> faces{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  std::uint8_t face_count = 0;
+  /// (edge) the unit direction of the edge line, world frame
+  Eigen::Vector3d edge_line = Eigen::Vector3d::Zero();
+  /// (edge) the point of the edge line nearest the tool's centre; (corner) its vertex: where the
+  /// faces' planes meet, each through its Gaussians' weighted centre. World frame, m.
+  Eigen::Vector3d apex = Eigen::Vector3d::Zero();
   [[nodiscard]] bool feature() const noexcept { return edge || corner; }
 };
 
 /// The convex features EdgeNormal::read() answers at (a bit set).
-/// kFaces adds the flat face's answer (EdgeNormalAnswer::face), for face_blend().
+/// kFaces adds the flat face's answer (EdgeNormalAnswer::face), for face_blend(). kEdgeCones
+/// answers clean convex edges by their faces alone (faces, edge_line, and the faces' mean as the
+/// normal), without the support normal's search: for a caller that wants an edge's normal cone,
+/// not its normal (ProxyRenderer's crest hold).
 enum class ConvexFeatures : std::uint8_t {
   kEdges = 1,
   kCorners = 2,
   kEdgesAndCorners = 3,
   kFaces = 4,
-  kEdgesAndFaces = 5
+  kEdgesAndFaces = 5,
+  kEdgeCones = 8,
+  kEdgeConesAndCorners = 10
 };
 
 /// One tool ellipsoid's last answer and the pose it was found at.
@@ -106,6 +121,15 @@ class EdgeNormal {
   [[nodiscard]] static Eigen::Vector3d face_blend(const Eigen::Vector3d& shaded, const EdgeNormalAnswer& answer,
                                                   const Eigen::Vector3d& contact) noexcept;
 
+  /// How deep `direction` (any length, world frame) lies inside the normal cone of the answer's
+  /// feature: the smallest angle, rad, between it and the cone's bounding planes (at an edge,
+  /// of its part across the edge line, between the two faces' normals; at a corner, between the
+  /// planes of each pair of the three), negative outside the cone and -pi/2 when the answer is no
+  /// feature or `direction` is zero. A god-object on a convex polyhedron rests on an edge or a
+  /// vertex while the device lies in that feature's normal cone from it (Zilles & Salisbury 1995:
+  /// two or three constraints active); ProxyRenderer's crest hold reads this.
+  [[nodiscard]] static double crest_depth(const EdgeNormalAnswer& answer, const Eigen::Vector3d& direction) noexcept;
+
   /// `from` (unit) turned toward `to` (unit) by the share t in [0, 1]: the normalised linear mix,
   /// `from` where the mix vanishes. blend()'s and face_blend()'s hand-over, and the proxy's
   /// fading of the corner's answer where a fin blocks the tool.
@@ -147,6 +171,11 @@ class EdgeNormal {
   static constexpr std::size_t kMaxPatch = kSupportPatchOnePass;
 
  private:
+  // ConvexFeatures::kEdgeCones: the clean convex edge `edge` of the first `n` patch Gaussians
+  // answered by its faces (sc's answer; unchanged when the edge is not clean and convex).
+  const EdgeNormalAnswer& edge_cone(const Eigen::Vector3d& edge, const Eigen::Vector3d& tool_center, std::size_t n,
+                                    EdgeNormalCache& sc) const noexcept;
+
   const CollisionWorld* world_;
   std::array<PatchGaussian, kMaxPatch> patch_{};
   std::array<std::uint32_t, kMaxPatch> slot_{};

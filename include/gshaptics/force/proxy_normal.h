@@ -49,6 +49,12 @@ class ProxyNormal {
                           const Eigen::Vector3d& device, FloaterRule& floaters) noexcept;
   /// Forgets every cached reading (a new contact, a re-placed proxy).
   void forget() noexcept;
+  /// The clean convex edge or corner the last corner reading found under the proxy (its faces'
+  /// normals and edge line, EdgeNormalAnswer), or null: none, no reading since forget(), or
+  /// corner_normal off.
+  [[nodiscard]] const EdgeNormalAnswer* crest() const noexcept {
+    return corner_cache_.valid && corner_cache_.answer.feature() ? &corner_cache_.answer : nullptr;
+  }
 
   /// Readings of the shaded normal so far (the cache's misses; profiling).
   [[nodiscard]] std::uint64_t reads() const noexcept { return shade_.reads(); }

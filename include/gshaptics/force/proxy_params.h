@@ -86,6 +86,16 @@ struct ProxyParams {
   /// within 4.0 degrees p95, were up to 8.9, but seed 12's fin; bench/RESULTS.md, thirty-fourth
   /// session). false: the shaded field everywhere.
   bool corner_normal = true;
+  /// One-ellipsoid tool. Pressed into a clean convex edge or corner of the Gaussians (EdgeNormal's
+  /// tests), with the spring inside the feature's normal cone and the device moving along the
+  /// spring, the god-object holds where it rests and the force acts along the spring: a
+  /// god-object on a polyhedron stays on the edge or vertex while two or three of its
+  /// constraints are active (Zilles & Salisbury 1995). Without it the frictionless proxy rolls
+  /// off the bumpy crest the discs' rims make, at a depth that depends on the training run: the
+  /// fidelity cube's edge and corner stiffness varied 1.05-1.31x across densities, and now reads
+  /// the faces' (bench/RESULTS.md, sixty-sixth session). A slide over the edge (the device moving
+  /// across the spring) and a compound tool are unchanged. false: the proxy slides off.
+  bool crest_hold = true;
   /// One-ellipsoid tool. Where a disc of the other face overhangs a convex edge and blocks the
   /// tool beside it (a fin), the shaded normal leaves out that face's discs behind the plane of
   /// the face under the tool (front_face, FreeBall::face; fidelity seeds 1-30, 8 mm cube, 5 mm

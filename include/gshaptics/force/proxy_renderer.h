@@ -107,6 +107,19 @@ class ProxyRenderer final : public ForceRenderer {
   [[nodiscard]] std::uint64_t lost() const noexcept { return solver_.lost() + (compound_ ? compound_->lost() : 0); }
   [[nodiscard]] const ProxyParams& params() const noexcept { return params_; }
 
+  /// ProxyParams::crest_hold: how deep inside the crest's normal cone the spring must lie, rad
+  /// (EdgeNormal::crest_depth): 10 degrees, past the discs' tilts (3 degrees on the fidelity
+  /// scenes), so a tool resting on a face beside an edge, its spring along the face's normal, is
+  /// not held.
+  static constexpr double kCrestMargin = 10.0 * 3.14159265358979323846 / 180;
+  /// ... and the device moves along the spring: |v . e| >= kCrestAlong |v| |e| (within 45
+  /// degrees), or slower than kCrestStill m/s (a hand resting; a device's velocity noise).
+  static constexpr double kCrestAlong = 0.7;
+  static constexpr double kCrestStill = 2e-3;
+  /// ... and the device lies within kCrestCorridor tool radii of the line from the proxy through
+  /// the crest's apex (EdgeNormalAnswer::apex; across an edge's line).
+  static constexpr double kCrestCorridor = 0.25;
+
   /// The shaded normal at `center` for a tool of bounding radius `radius` with this renderer's
   /// kernel (unit; zero when no Gaussian is near). See gshaptics::shaded_normal().
   [[nodiscard]] Eigen::Vector3d shaded_normal(const Eigen::Vector3d& center, double radius) const noexcept;
@@ -133,6 +146,10 @@ class ProxyRenderer final : public ForceRenderer {
   // The device's new pose: the proxy is placed anew where the device jumped (teleport) or turned
   // into geometry. Returns the device's step since the last tick, m.
   Eigen::Vector3d follow_device(const ToolEllipsoid& tool) noexcept;
+  // ProxyParams::crest_hold: whether the proxy, in contact on a clean convex edge or corner,
+  // holds this tick for the device at `device` (m) moving at `velocity` (m/s).
+  [[nodiscard]] bool held_on_crest(const Eigen::Vector3d& device, const Eigen::Vector3d& velocity,
+                                   double radius) const noexcept;
   // The contact normal for the proxy at rest at `move`'s position (ProxyNormal's two stages, the
   // pocket rule between them). False: the proxy was caught in a pocket and rejoined the device.
   bool contact_normal(const ToolEllipsoid& tool, const ProxyMove& move, Eigen::Vector3d& n) noexcept;
