@@ -200,6 +200,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-overhang-falloff", no_overhang_falloff,
                "The one-ellipsoid proxy's shaded normal counts every disc near, overhangs too "
                "(ProxyParams::overhang_falloff off), for comparison");
+  bool no_crest_hold = false;
+  app.add_flag("--no-crest-hold", no_crest_hold,
+               "The one-ellipsoid proxy slides off a convex edge or corner it is pressed into "
+               "(ProxyParams::crest_hold off; nor are edges read), for comparison");
   std::string surface_name = "ellipsoids";
   app.add_option("--surface", surface_name,
                  "The one-part proxy's solid on the probe runs: ellipsoids (the 1-sigma ellipsoids) or seen "
@@ -266,6 +270,7 @@ int main(int argc, char** argv) {
       std::size_t in_contact = 0;
       ProxyParams params;
       params.overhang_falloff = !no_overhang_falloff;
+      params.crest_hold = !no_crest_hold;
       params.surface = surface;
       params.seen_footprint = seen_footprint;
       ProxyRenderer proxy(w, params);

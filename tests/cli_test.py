@@ -413,6 +413,25 @@ class Simulate(unittest.TestCase):
         self.assertNotEqual(bad.returncode, 0)
         self.assertIn("--corner-normal", bad.stderr)
 
+    def test_crest_hold_is_an_option_of_the_proxy_and_evens_the_cube_corners_stiffness(self):
+        # Seed 1's cube, 5 mm tool: the corners' stiffness across the three densities (the
+        # fidelity table "Stiffness across densities"), with the proxy held on the crest and not.
+        self.assertIn("--crest-hold", run("fidelity", "--help").stdout)
+        ratio = {}
+        work = tempfile.mkdtemp()
+        for value in ("on", "off"):
+            out = os.path.join(work, value + ".md")
+            run("fidelity", "--seed", "1", "--shape", "cube", "--wrench-sites", "0", "--defect", "none", "--no-plot",
+                "--scene-dir", os.path.join(work, "scenes"), "--out", out, "--crest-hold", value)
+            with open(out) as f:
+                row = next(line for line in f if line.startswith("| cube | corner | 5 | 2 mm:"))
+            ratio[value] = float(row.split("|")[5])
+        self.assertLessEqual(ratio["on"], 1.05, ratio)
+        self.assertGreater(ratio["off"], 1.05, ratio)
+        bad = run("fidelity", "--quick", "--no-plot", "--crest-hold", "maybe", check=False)
+        self.assertNotEqual(bad.returncode, 0)
+        self.assertIn("--crest-hold", bad.stderr)
+
     def test_face_average_is_an_option_of_the_proxy(self):
         self.assertIn("--face-average", run("fidelity", "--help").stdout)
         bad = run("fidelity", "--quick", "--no-plot", "--face-average", "maybe", check=False)
@@ -421,14 +440,16 @@ class Simulate(unittest.TestCase):
 
     def test_overhang_falloff_is_an_option_of_the_proxy_and_changes_the_cube_edge(self):
         # Seed 25's 8 mm cube: a disc overhanging an edge turns the 5 mm tool's force at one edge
-        # site (ProxyRenderer.AnOverhangingDiscOfTheOtherFaceDoesNotTurnTheFaceItBlocks).
+        # site (ProxyRenderer.AnOverhangingDiscOfTheOtherFaceDoesNotTurnTheFaceItBlocks). The
+        # crest hold keeps that tool off the fin: off, so that the falloff is what is measured.
         self.assertIn("--overhang-falloff", run("fidelity", "--help").stdout)
         p95 = {}
         work = tempfile.mkdtemp()
         for value in ("on", "off"):
             out = os.path.join(work, value + ".md")
             run("fidelity", "--seed", "25", "--shape", "cube", "--spacing", "8", "--wrench-sites", "0", "--no-plot",
-                "--scene-dir", os.path.join(work, "scenes"), "--out", out, "--overhang-falloff", value)
+                "--scene-dir", os.path.join(work, "scenes"), "--out", out, "--overhang-falloff", value,
+                "--crest-hold", "off")
             with open(out) as f:
                 row = next(line for line in f if line.startswith("| cube | edge | 8 | 5 |"))
             p95[value] = float(row.split("|")[10].split("/")[1])
