@@ -186,6 +186,33 @@ TEST(FidelityMetrics, SlidesScoreSmoothnessAndDrag) {
   }
 }
 
+// A slide's force is scored against the faces the sphere reaches: in the concave corner a rigid
+// 5 mm sphere 3 mm above the floor and 4 mm from the wall touches both, and the exact god-object
+// (the sphere's centre held at 5 mm from each) pushes it along (1, 0, 2). The face nearest the
+// device alone (the floor) would call that 26.6 degrees off; 8 mm from the wall the sphere reaches
+// the floor only, and the same push is 26.6 degrees off. Convex shapes keep their normal cone.
+TEST(FidelityMetrics, ASlideIsScoredAgainstTheFacesTheSphereReaches) {
+  const AnalyticShape corner(ShapeKind::kCorner90);
+  const double r = 0.005;
+  const Eigen::Vector3d device(0.004, 0, 0.003);
+  const Eigen::Vector3d push = Eigen::Vector3d(r, 0, r) - device;  // to the god-object
+  const double off = std::atan2(1.0, 2.0) * 180 / M_PI;
+  EXPECT_NEAR(corner.normal_cone(device).angle_deg(push), off, 1e-6);
+  EXPECT_NEAR(corner.sphere_cone(device, r).angle_deg(push), 0.0, 1e-9);
+  EXPECT_NEAR(corner.sphere_cone({0.008, 0, 0.003}, r).angle_deg(push), off, 1e-6);
+  // ... a push out of both walls' cone is still off (into the wall: 45 degrees from the floor).
+  EXPECT_NEAR(corner.sphere_cone(device, r).angle_deg({-1, 0, 1}), 45.0, 1e-6);
+  // The 60-degree groove: a sphere 1.1 and 2.9 mm from its walls reaches both; one of 1.5 mm the
+  // nearer only.
+  const AnalyticShape groove(ShapeKind::kVGroove60);
+  EXPECT_EQ(groove.sphere_cone({0.001, 0, 0.004}, r).count, 2);
+  EXPECT_EQ(groove.sphere_cone({0.001, 0, 0.004}, 0.0015).count, 1);
+  const AnalyticShape cube(ShapeKind::kCube);
+  const Eigen::Vector3d beside(0.103, 0.0, 0.099);
+  EXPECT_EQ(cube.sphere_cone(beside, r).count, cube.normal_cone(beside).count);
+  EXPECT_NEAR(cube.sphere_cone(beside, r).angle_deg({0, 0, 1}), cube.normal_cone(beside).angle_deg({0, 0, 1}), 1e-12);
+}
+
 TEST(FidelityMetrics, NormalConeAnglesAtEdgesAndCorners) {
   const AnalyticShape cube(ShapeKind::kCube);
   const NormalCone edge = cube.normal_cone({0.1, 0.0, 0.1});

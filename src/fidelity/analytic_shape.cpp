@@ -170,6 +170,23 @@ NormalCone AnalyticShape::normal_cone(const Eigen::Vector3d& p, double tolerance
   return c;
 }
 
+NormalCone AnalyticShape::sphere_cone(const Eigen::Vector3d& center, double radius) const {
+  // A concave shape's two faces, by their outward normals (the free side): the sphere reaches a
+  // face when its centre lies within `radius` of the face's plane.
+  Eigen::Vector3d normals[2];
+  switch (kind_) {
+    case ShapeKind::kCorner90: normals[0] = Eigen::Vector3d::UnitZ(), normals[1] = Eigen::Vector3d::UnitX(); break;
+    case ShapeKind::kVGroove60: normals[0] = groove_normal(0), normals[1] = groove_normal(1); break;
+    default: return normal_cone(center);
+  }
+  if (!(center.dot(normals[0]) < radius && center.dot(normals[1]) < radius)) return normal_cone(center);
+  NormalCone c;
+  c.generators[0] = normals[0];
+  c.generators[1] = normals[1];
+  c.count = 2;
+  return c;
+}
+
 std::vector<SurfaceSample> AnalyticShape::sample_surface(double spacing) const {
   std::vector<SurfaceSample> out;
   const Eigen::Vector3d X = Eigen::Vector3d::UnitX(), Y = Eigen::Vector3d::UnitY(), Z = Eigen::Vector3d::UnitZ();

@@ -265,7 +265,7 @@ SlideMetrics slide_metrics(const AnalyticShape& shape, const Script& script, con
     fn += f_n;
     ft += (f - f_n * nrm).norm();
     ++count;
-    if (fm >= kOnsetForce) m.direction_deg.push_back(shape.normal_cone(t.position).angle_deg(f));
+    if (fm >= kOnsetForce) m.direction_deg.push_back(shape.sphere_cone(t.position, script.tool_radius).angle_deg(f));
   }
   if (count == 0) return m;
   m.mean_force = s / count;

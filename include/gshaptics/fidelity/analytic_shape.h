@@ -73,6 +73,13 @@ class AnalyticShape {
   /// The normal cone of the surface point nearest `p` (features within `tolerance` m of the
   /// nearest one count as nearest).
   [[nodiscard]] NormalCone normal_cone(const Eigen::Vector3d& p, double tolerance = 1e-6) const;
+  /// The directions the faces push a rigid sphere of `radius` m centred at `center` along: on a
+  /// concave shape (corner-90, v-groove-60) the normals of every face the sphere reaches (within
+  /// `radius` of its plane, the centre on the face's side of the other), so that in a concave
+  /// corner it is the corner's cone as soon as the sphere touches both walls, the exact
+  /// god-object's constraints (Zilles & Salisbury 1995); elsewhere, and where it reaches fewer
+  /// than two faces, normal_cone(center). The slides score their force against it.
+  [[nodiscard]] NormalCone sphere_cone(const Eigen::Vector3d& center, double radius) const;
   /// Points covering the surface at about `spacing` m apart (cell-centred grids on flat faces,
   /// a Fibonacci lattice on the sphere), with outward normals. Deterministic.
   [[nodiscard]] std::vector<SurfaceSample> sample_surface(double spacing) const;
