@@ -248,7 +248,28 @@ class SeenFelt(unittest.TestCase):
         self.assertIn("--tool-shape", p.stderr)
 
 
+def fidelity_cells_on_and_off(option, row_start, pick, *args):
+    """Runs `fidelity` with `option` on and off (and `args`); returns {value: pick(cells)} for the
+    first report row starting with `row_start` (its cells split on "|")."""
+    cells = {}
+    work = tempfile.mkdtemp()
+    for value in ("on", "off"):
+        out = os.path.join(work, value + ".md")
+        run("fidelity", *args, "--no-plot", "--scene-dir", os.path.join(work, "scenes"), "--out", out, option, value)
+        with open(out) as f:
+            row = next(line for line in f if line.startswith(row_start))
+        cells[value] = pick(row.split("|"))
+    return cells
+
+
 class Simulate(unittest.TestCase):
+    def assert_on_off_option(self, option):
+        """`option` is in fidelity's help, and a value other than on or off is refused by name."""
+        self.assertIn(option, run("fidelity", "--help").stdout)
+        bad = run("fidelity", "--quick", "--no-plot", option, "maybe", check=False)
+        self.assertNotEqual(bad.returncode, 0)
+        self.assertIn(option, bad.stderr)
+
     def test_probe_run_on_bundled_truck(self):
         out = tempfile.mkdtemp()
         p = run("simulate", "--out", out, "--quiet")
@@ -408,56 +429,30 @@ class Simulate(unittest.TestCase):
             self.assertTrue(0 < int(n) < int(total), out)
 
     def test_corner_normal_is_an_option_of_the_proxy(self):
-        self.assertIn("--corner-normal", run("fidelity", "--help").stdout)
-        bad = run("fidelity", "--quick", "--no-plot", "--corner-normal", "maybe", check=False)
-        self.assertNotEqual(bad.returncode, 0)
-        self.assertIn("--corner-normal", bad.stderr)
+        self.assert_on_off_option("--corner-normal")
 
     def test_crest_hold_is_an_option_of_the_proxy_and_evens_the_cube_corners_stiffness(self):
         # Seed 1's cube, 5 mm tool: the corners' stiffness across the three densities (the
         # fidelity table "Stiffness across densities"), with the proxy held on the crest and not.
-        self.assertIn("--crest-hold", run("fidelity", "--help").stdout)
-        ratio = {}
-        work = tempfile.mkdtemp()
-        for value in ("on", "off"):
-            out = os.path.join(work, value + ".md")
-            run("fidelity", "--seed", "1", "--shape", "cube", "--wrench-sites", "0", "--defect", "none", "--no-plot",
-                "--scene-dir", os.path.join(work, "scenes"), "--out", out, "--crest-hold", value)
-            with open(out) as f:
-                row = next(line for line in f if line.startswith("| cube | corner | 5 | 2 mm:"))
-            ratio[value] = float(row.split("|")[5])
+        self.assert_on_off_option("--crest-hold")
+        ratio = fidelity_cells_on_and_off("--crest-hold", "| cube | corner | 5 | 2 mm:", lambda c: float(c[5]),
+                                          "--seed", "1", "--shape", "cube", "--wrench-sites", "0", "--defect", "none")
         self.assertLessEqual(ratio["on"], 1.05, ratio)
         self.assertGreater(ratio["off"], 1.05, ratio)
-        bad = run("fidelity", "--quick", "--no-plot", "--crest-hold", "maybe", check=False)
-        self.assertNotEqual(bad.returncode, 0)
-        self.assertIn("--crest-hold", bad.stderr)
 
     def test_face_average_is_an_option_of_the_proxy(self):
-        self.assertIn("--face-average", run("fidelity", "--help").stdout)
-        bad = run("fidelity", "--quick", "--no-plot", "--face-average", "maybe", check=False)
-        self.assertNotEqual(bad.returncode, 0)
-        self.assertIn("--face-average", bad.stderr)
+        self.assert_on_off_option("--face-average")
 
     def test_overhang_falloff_is_an_option_of_the_proxy_and_changes_the_cube_edge(self):
         # Seed 25's 8 mm cube: a disc overhanging an edge turns the 5 mm tool's force at one edge
         # site (ProxyRenderer.AnOverhangingDiscOfTheOtherFaceDoesNotTurnTheFaceItBlocks). The
         # crest hold keeps that tool off the fin: off, so that the falloff is what is measured.
-        self.assertIn("--overhang-falloff", run("fidelity", "--help").stdout)
-        p95 = {}
-        work = tempfile.mkdtemp()
-        for value in ("on", "off"):
-            out = os.path.join(work, value + ".md")
-            run("fidelity", "--seed", "25", "--shape", "cube", "--spacing", "8", "--wrench-sites", "0", "--no-plot",
-                "--scene-dir", os.path.join(work, "scenes"), "--out", out, "--overhang-falloff", value,
-                "--crest-hold", "off")
-            with open(out) as f:
-                row = next(line for line in f if line.startswith("| cube | edge | 8 | 5 |"))
-            p95[value] = float(row.split("|")[10].split("/")[1])
+        self.assert_on_off_option("--overhang-falloff")
+        p95 = fidelity_cells_on_and_off("--overhang-falloff", "| cube | edge | 8 | 5 |",
+                                        lambda c: float(c[10].split("/")[1]), "--seed", "25", "--shape", "cube",
+                                        "--spacing", "8", "--wrench-sites", "0", "--crest-hold", "off")
         self.assertLessEqual(p95["on"], 5.0, p95)
         self.assertGreater(p95["off"], 10.0, p95)
-        bad = run("fidelity", "--quick", "--no-plot", "--overhang-falloff", "maybe", check=False)
-        self.assertNotEqual(bad.returncode, 0)
-        self.assertIn("--overhang-falloff", bad.stderr)
 
 
 class Objects(unittest.TestCase):
