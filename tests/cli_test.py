@@ -428,6 +428,20 @@ class Simulate(unittest.TestCase):
         for _, _, n, total in picked:
             self.assertTrue(0 < int(n) < int(total), out)
 
+    def test_a_reports_command_names_the_force_options_and_seed_given(self):
+        # The fidelity report cites the command that reproduces it: the force options as given
+        # (a flag without a value), the seed, and nothing it did not take.
+        work = tempfile.mkdtemp()
+        out = os.path.join(work, "q.md")
+        run("fidelity", "--quick", "--no-plot", "--seed", "3", "--crest-hold", "off", "--stiffness", "800",
+            "--opacity-stiffness", "--scene-dir", os.path.join(work, "scenes"), "--out", out)
+        with open(out) as f:
+            command = next(line for line in f if line.startswith("Command:"))
+        self.assertIn("--force-model proxy --stiffness 800 --opacity-stiffness --crest-hold off", command)
+        self.assertIn("--seed 3", command)
+        self.assertNotIn("--out", command)
+        self.assertNotIn("true", command)
+
     def test_corner_normal_is_an_option_of_the_proxy(self):
         self.assert_on_off_option("--corner-normal")
 

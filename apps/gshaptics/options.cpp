@@ -141,6 +141,7 @@ void add_tool_option(CLI::App& cmd, ToolOption& tool, const std::string& help) {
 }
 
 void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* tool) {
+  const std::size_t first = cmd.get_options().size();  // (the options below are the force options)
   std::map<std::string, RendererKind> models;
   for (const RendererName& r : renderer_names()) models.emplace(r.name, r.kind);
   cmd.add_option("--force-model", o.model,
@@ -239,7 +240,7 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
                  "Device class: desktop (Touch class: --f-max 3.3, --stiffness 1000, 160x120x70 mm "
                  "workspace) or room (--f-max 30, --stiffness 1000); explicit options win")
       ->check(CLI::IsMember({"desktop", "room"}));
-  cmd.parse_complete_callback([&cmd, &o, tool] {
+  cmd.parse_complete_callback([&cmd, &o, tool, first] {
     // An option that does not apply to the model or the tool is refused, never ignored. (An
     // option's model is its help text's "proxy: " or "paper: "; fidelity, without a tool,
     // renders both kinds of tool.)
@@ -251,6 +252,14 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
       for (const RendererName& r : renderer_names())
         if (text.rfind(std::string(r.name) + ": ", 0) == 0) model = r.kind;
       given.push_back({"--" + opt->get_lnames().front(), model});
+    }
+    // (The force options as given, for a report's command line: those this function added.)
+    for (std::size_t i = first; i < cmd.get_options().size(); ++i) {
+      const CLI::Option* opt = cmd.get_options()[i];
+      if (opt->count() == 0 || opt->get_lnames().empty()) continue;
+      o.given.push_back("--" + opt->get_lnames().front());
+      if (opt->get_expected_max() != 0)
+        for (const std::string& value : opt->results()) o.given.push_back(value);
     }
     refuse_options_not_applying(o.model, tool ? std::optional(tool->proxy_tool()) : std::nullopt, given);
     if (o.profile.empty()) return;

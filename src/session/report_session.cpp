@@ -61,8 +61,35 @@ FidelityOptions fidelity_options_from(const FidelityCommandOptions& o) {
   return fo;
 }
 
+namespace {
+
+// " --force-model M" and the force options: as given on the command line, or (a library call)
+// the seen surface's from the parameters.
+std::string force_command_line(const ForceModelOptions& f) {
+  std::string text = " --force-model " + std::string(renderer_name(f.model));
+  if (!f.given.empty()) {
+    for (std::size_t i = 0; i < f.given.size(); ++i) {
+      if (f.given[i] == "--force-model") {
+        ++i;  // (its value; the model is named above)
+        continue;
+      }
+      text += " " + f.given[i];
+    }
+    return text;
+  }
+  if (f.model == RendererKind::kProxy && f.proxy.surface == ProxySurface::kSeen) {
+    text += " --surface seen";
+    if (f.proxy.seen_window != ProxyParams{}.seen_window) text += fmt::format(" --seen-window {:g}", f.proxy.seen_window);
+    if (!f.proxy.seen_footprint) text += " --seen-footprint off";
+  }
+  return text;
+}
+
+}  // namespace
+
 std::string fidelity_command_line(const FidelityCommandOptions& o) {
-  std::string command = "gshaptics fidelity --force-model " + std::string(renderer_name(o.force.model));
+  std::string command = "gshaptics fidelity" + force_command_line(o.force);
+  if (o.seed != FidelityOptions{}.seed) command += fmt::format(" --seed {}", o.seed);
   if (o.quick) command += " --quick";
   if (o.exec.inline_query != RuntimeConfig{}.inline_query) command += o.exec.inline_query ? " --inline" : " --decoupled";
   if (o.exec.latency_ticks != 1) command += fmt::format(" --latency {}", o.exec.latency_ticks);
@@ -73,10 +100,6 @@ std::string fidelity_command_line(const FidelityCommandOptions& o) {
     command += fmt::format(" --floater-share {:g}", o.synth.floater_share);
   if (!o.defects.empty()) command += fmt::format(" --defect {}", fmt::join(o.defects, ","));
   if (o.defect_sites > 0) command += fmt::format(" --defect-sites {}", o.defect_sites);
-  if (o.force.model == RendererKind::kProxy && o.force.proxy.surface == ProxySurface::kSeen) {
-    command += " --surface seen";
-    if (!o.force.proxy.seen_footprint) command += " --seen-footprint off";
-  }
   return command;
 }
 
@@ -138,13 +161,7 @@ SeenFeltOptions seen_felt_options_from(const SeenFeltCommandOptions& o) {
 namespace {
 
 std::string seen_felt_command_line(const SeenFeltCommandOptions& o, const std::vector<std::string>& scenes) {
-  std::string command = "gshaptics seen-felt --force-model " + std::string(renderer_name(o.force.model));
-  if (o.force.model == RendererKind::kProxy && o.force.proxy.surface == ProxySurface::kSeen) {
-    command += " --surface seen";
-    if (o.force.proxy.seen_window != ProxyParams{}.seen_window)
-      command += fmt::format(" --seen-window {:g}", o.force.proxy.seen_window);
-    if (!o.force.proxy.seen_footprint) command += " --seen-footprint off";
-  }
+  std::string command = "gshaptics seen-felt" + force_command_line(o.force);
   if (o.quick) command += " --quick";
   if (o.rays > 0) command += fmt::format(" --rays {}", o.rays);
   if (!o.tools_percent.empty()) command += fmt::format(" --tool-percent {}", fmt::join(o.tools_percent, ","));

@@ -35,6 +35,9 @@ struct ForceModelOptions {
   std::string profile;  ///< --device-profile: "" (none), desktop or room
   /// --materials: a material map (MaterialMap::load), read on the proxy; nullptr: none.
   std::shared_ptr<const MaterialMap> materials;
+  /// The force options as given on a command line, each name followed by its value
+  /// ("--stiffness", "500"), for a report's command line; empty from a library call.
+  std::vector<std::string> given;
   /// The renderer the options name, with its parameters.
   [[nodiscard]] RendererSpec spec() const;
 };
