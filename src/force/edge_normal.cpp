@@ -189,6 +189,17 @@ CornerTest clean_corner(std::span<const Eigen::Vector3d> axes, std::span<const P
   return (tool_center - mid).dot(dir[0] + dir[1] + dir[2]) > 0 ? CornerTest::kCorner : CornerTest::kNo;
 }
 
+// A clean convex edge's answer: its normal, its two faces' normals, its line and apex.
+EdgeNormalAnswer edge_answer(const Eigen::Vector3d& normal, const std::array<Eigen::Vector3d, 3>& faces,
+                             const Eigen::Vector3d& line, const Eigen::Vector3d& apex) noexcept {
+  EdgeNormalAnswer a{normal, true, false, false};
+  a.faces = faces;
+  a.face_count = 2;
+  a.edge_line = line;
+  a.apex = apex;
+  return a;
+}
+
 }  // namespace
 
 Eigen::Vector3d EdgeNormal::turned_toward(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double t) noexcept {
@@ -318,11 +329,7 @@ EdgeNormalAnswer EdgeNormal::read(const ToolEllipsoid& part, const Eigen::Vector
     const Eigen::Vector3d across = normal - normal.dot(shape.edge) * shape.edge;
     if (across.norm() > 0.5) normal = across.normalized();
   }
-  sc.answer = {normal, true, false, false};
-  sc.answer.faces = faces_found;
-  sc.answer.face_count = 2;
-  sc.answer.edge_line = shape.edge;
-  sc.answer.apex = apex;
+  sc.answer = edge_answer(normal, faces_found, shape.edge, apex);
   return sc.answer;
 }
 
@@ -333,11 +340,7 @@ const EdgeNormalAnswer& EdgeNormal::edge_cone(const Eigen::Vector3d& edge, const
   if (!clean_convex_edge({axis_.data(), n}, {patch_.data(), n}, tool_center, edge, faces, apex)) return sc.answer;
   const Eigen::Vector3d mean = faces[0] + faces[1];
   if (!(mean.norm() > 1e-9)) return sc.answer;
-  sc.answer = {mean.normalized(), true, false, false};
-  sc.answer.faces = faces;
-  sc.answer.face_count = 2;
-  sc.answer.edge_line = edge;
-  sc.answer.apex = apex;
+  sc.answer = edge_answer(mean.normalized(), faces, edge, apex);
   return sc.answer;
 }
 
