@@ -108,6 +108,60 @@ TEST(Bvh, LevelOrderReportsTheDepthFirstLeavesInOrder) {
   EXPECT_GT(reported, 4000);  // the queries reach leaves: not a comparison of empty lists
 }
 
+// A ball query reported by ranges (for_each_overlapping_range: a node wholly inside the ball as
+// its subtree's slots, in one call) reports the same slots, in the same order, as the leaves that
+// come within the ball, one by one; and it does so in fewer calls where the ball holds whole
+// subtrees. Both split rules.
+TEST(Bvh, RangesReportTheNearLeavesSlotsInOrderWithFewerCalls) {
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> pos(-100, 100), logsize(-2, 0.5), radius(1, 40);
+  const int n = 20000;
+  std::vector<BvhBox> boxes(n);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d c(pos(rng), pos(rng), pos(rng) * 0.2);
+    for (int k = 0; k < 3; ++k) {
+      const double h = std::pow(10.0, logsize(rng));
+      boxes[std::size_t(i)].lo[k] = round_down_to_float(c[k] - h);
+      boxes[std::size_t(i)].hi[k] = round_up_to_float(c[k] + h);
+    }
+  }
+  for (BvhSplit split : {BvhSplit::kMedian, BvhSplit::kSah}) {
+    const Bvh bvh = Bvh::build(boxes, 8, split);
+    std::size_t leaves = 0, calls = 0, slots = 0;
+    for (int q = 0; q < 200; ++q) {
+      const Eigen::Vector3d c(pos(rng), pos(rng), pos(rng) * 0.2);
+      const double rho = radius(rng), reach = rho * rho;
+      float lo[3], hi[3];
+      for (int k = 0; k < 3; ++k) lo[k] = round_down_to_float(c[k] - rho), hi[k] = round_up_to_float(c[k] + rho);
+      const auto d2 = [&](const BvhNode& node, bool farthest) {
+        double sum = 0;
+        for (int k = 0; k < 3; ++k) {
+          const double a = double(node.lo[k]) - c[k], b = c[k] - double(node.hi[k]);
+          const double e = farthest ? std::max(-a, -b) : std::max({a, b, 0.0});
+          sum += e * e;
+        }
+        return sum;
+      };
+      const auto within = [&](const BvhNode& node) { return d2(node, true) <= reach; };
+      const auto near = [&](const BvhNode& node) { return d2(node, false) <= reach; };
+      std::vector<std::uint32_t> by_leaf, by_range;
+      bvh.for_each_overlapping_leaf_node(lo, hi, [&](const BvhNode& leaf) {
+        if (!near(leaf)) return;
+        ++leaves;
+        for (std::uint32_t k = leaf.first; k < leaf.first + leaf.count; ++k) by_leaf.push_back(k);
+      });
+      bvh.for_each_overlapping_range(lo, hi, within, near, [&](std::uint32_t first, std::uint32_t count) {
+        ++calls;
+        for (std::uint32_t k = first; k < first + count; ++k) by_range.push_back(k);
+      });
+      ASSERT_EQ(by_range, by_leaf) << "query " << q;
+      slots += by_leaf.size();
+    }
+    EXPECT_GT(slots, 10000u);        // (the balls hold slots: not a comparison of empty lists)
+    EXPECT_LT(10 * calls, 9 * leaves);  // whole subtrees in one call
+  }
+}
+
 TEST(Bvh, EveryPrimitiveInExactlyOneLeaf) {
   std::mt19937_64 rng(2);
   std::uniform_real_distribution<double> u(0, 1);

@@ -517,8 +517,43 @@ TEST(ShadedNormal, TheLanesMatchASlowScalarReading) {
   RecordProperty("worst_deg", std::to_string(worst));
 }
 
+// Where a kernel's leaves hold more than kMaxKernelVisits Gaussians (a large tool on a dense
+// surface: 4 and 6 cm tools on 2 mm spacing), the reading takes an even sample of them. The
+// plain call, the call with working memory and the slow reference's own sample read the same
+// normal; and the sample's normal lies within 3 degrees of the sum over every Gaussian of the
+// support on faces, the sphere, edges and corners (the most at the cube's edges and corners,
+// where the field turns), well under a degree on average.
+TEST(ShadedNormal, ADenseKernelIsReadFromAnEvenSampleNearTheWholeSum) {
+  double worst = 0, sum = 0;
+  int n = 0, sampled = 0;
+  for (ShapeKind kind : {ShapeKind::kPlane, ShapeKind::kSphere, ShapeKind::kCube})
+    for (double r : {0.04, 0.06}) {
+      const AnalyticShape shape(kind);
+      const double spacing = 0.002;
+      const CollisionWorld w = synthetic_world(shape, spacing, 7);
+      ShadingScratch scratch;
+      for (const Eigen::Vector3d& p : resting_centres(w, shape, r, 6, 7)) {
+        const Eigen::Vector3d plain = shaded_normal(w, p, r, 0.5, {}, spacing);
+        ASSERT_FALSE(plain.isZero(0));
+        ASSERT_EQ(plain, shaded_normal(w, p, r, 0.5, scratch, {}, spacing));
+        EXPECT_LT(angle_deg(plain, test::reference_shaded_normal(w, p, r, 0.5, {}, spacing)), 1e-6) << p.transpose();
+        const Eigen::Vector3d every = test::reference_shaded_normal(w, p, r, 0.5, {}, spacing, kShadingTail, false);
+        if (scratch.last_steps() <= 2 * kMaxKernelVisits && every != plain) ++sampled;
+        const double gap = angle_deg(plain, every);
+        worst = std::max(worst, gap);
+        sum += gap;
+        ++n;
+      }
+    }
+  EXPECT_EQ(sampled, n);  // (every reading here is a sample)
+  EXPECT_LT(worst, 3.0);
+  EXPECT_LT(sum / n, 0.6);
+  RecordProperty("worst_deg", std::to_string(worst));
+  RecordProperty("mean_deg", std::to_string(sum / n));
+}
+
 // The shaded normal's support stops at q <= (1 + radius / s)^2 + kShadingTail: against the sum
-// over every Gaussian of the scene (a tail so long that the support holds them all), resting
+// over every Gaussian of the scene (the slow reference, unsampled on both sides) (a tail so long that the support holds them all), resting
 // tools at random sites (faces, edges and corners) of the fidelity cube, sphere, cylinder and
 // concave corner, floaters included, read the same normal within 0.5 deg, and within 0.02 deg
 // on average. A support cut at a short tail (6) does not: the check can tell.
@@ -531,13 +566,17 @@ TEST(ShadedNormal, TheSupportsTailChangesTheNormalByAFewHundredthsOfADegree) {
         const AnalyticShape shape(kind);
         const CollisionWorld w = synthetic_world(shape, spacing, 11);
         for (const Eigen::Vector3d& p : resting_centres(w, shape, r, 6, 11)) {
-          const Eigen::Vector3d all = shaded_normal(w, p, r, 0.5, {}, spacing, 1e5);
+          // (Every Gaussian of the support, none left out by the sampling of dense kernels.)
+          const auto every = [&](double tail) {
+            return test::reference_shaded_normal(w, p, r, 0.5, {}, spacing, tail, /*sampled=*/false);
+          };
+          const Eigen::Vector3d all = every(1e5);
           ASSERT_FALSE(all.isZero(0));
-          const double gap = angle_deg(all, shaded_normal(w, p, r, 0.5, {}, spacing));
+          const double gap = angle_deg(all, every(kShadingTail));
           worst = std::max(worst, gap);
           sum += gap;
           ++n;
-          worst_short = std::max(worst_short, angle_deg(all, shaded_normal(w, p, r, 0.5, {}, spacing, 6.0)));
+          worst_short = std::max(worst_short, angle_deg(all, every(6.0)));
         }
       }
   EXPECT_LT(worst, 0.5);

@@ -263,7 +263,8 @@ Eigen::Vector3d CompoundProxy::part_normal(int j, const SweepHit& h, double spac
   const Eigen::Vector3d at = part.surface_point(-h.normal) + h.normal * rho;
   const Eigen::Vector3d& sn =
       shades_[std::size_t(j)].read(*world_, at, scale, params_.shading_kernel, reuse, shading_scratch_,
-                                   {part.inner_clearance(at), h.normal}, 0, params_.shading_tail);
+                                   {part.inner_clearance(at), h.normal}, 0, params_.shading_tail,
+                                   params_.shading_visits);
   if (sn.dot(h.normal) > 0) nj = sn;
   // At a clean convex edge the shaded field blends the faces' normals; the tool resting on
   // the edge is pushed along the patch's support normal instead (edge_normal.h).

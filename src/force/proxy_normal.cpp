@@ -40,7 +40,7 @@ Eigen::Vector3d ProxyNormal::shaded(const ToolEllipsoid& tool, const Eigen::Vect
   }
   face_ = ball_.face;
   return shade_.read_ahead(*world_, p, std::max(r, spacing_), pp.shading_kernel, pp.shading_reuse * r,
-                           shading_scratch_, pp.shading_budget, ball_, spacing_, pp.shading_tail);
+                           shading_scratch_, pp.shading_budget, ball_, spacing_, pp.shading_tail, pp.shading_visits);
 }
 
 Eigen::Vector3d ProxyNormal::refined(const Eigen::Vector3d& n, const ToolEllipsoid& tool, const Eigen::Vector3d& p,
@@ -68,7 +68,8 @@ Eigen::Vector3d ProxyNormal::with_device_reading(const Eigen::Vector3d& n, const
   if (!(shift > 2 * pp.shading_reuse * r)) return n;  // (nearer, the proxy's own reading holds)
   if (shift > cap) lateral *= cap / shift;
   const Eigen::Vector3d& nd = shade_device_.read(*world_, p + lateral, std::max(r, spacing_), pp.shading_kernel,
-                                                 pp.shading_reuse * r, device_scratch_, ball_, spacing_, pp.shading_tail);
+                                                 pp.shading_reuse * r, device_scratch_, ball_, spacing_, pp.shading_tail,
+                                                 pp.shading_visits);
   const double apart = std::atan2(nd.cross(n).norm(), nd.dot(n)) * 180 / M_PI;
   const double w = std::clamp((kDeviceShadingTo - apart) / (kDeviceShadingTo - kDeviceShadingFrom), 0.0, 1.0);
   return w > 0 && nd.dot(e) > 0 ? Eigen::Vector3d(((1 - w) * n + w * nd).normalized()) : n;

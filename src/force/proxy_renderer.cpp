@@ -117,7 +117,8 @@ void ProxyRenderer::reset() noexcept {
 }
 
 Eigen::Vector3d ProxyRenderer::shaded_normal(const Eigen::Vector3d& center, double radius) const noexcept {
-  return gshaptics::shaded_normal(*world_, center, radius, params_.shading_kernel, {}, 0, params_.shading_tail);
+  return gshaptics::shaded_normal(*world_, center, radius, params_.shading_kernel, {}, 0, params_.shading_tail,
+                                  params_.shading_visits);
 }
 
 Eigen::Vector3d ProxyRenderer::follow_device(const ToolEllipsoid& tool) noexcept {

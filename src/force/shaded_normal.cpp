@@ -76,6 +76,7 @@ struct alignas(64) TermLanes {
 struct Support {
   double s2 = 0, q_cut = 0, rim = 0;  // kernel width squared, q's cut-off, rim falloff scale
   FreeBall ball;
+  std::size_t max_visits = kMaxKernelVisits;  // (sampling_stride)
 };
 
 // The terms of kLanes gathered Gaussians at c (which `in` holds as offsets); a padding lane
@@ -354,9 +355,10 @@ inline double q_cutoff(double radius, double s, double tail = kShadingTail) noex
   return (1 + radius / s) * (1 + radius / s) + tail;
 }
 
-// Calls f(first, count) for the BVH leaves that may hold such Gaussians: those whose box comes
-// within s sqrt(q_cut) of c (a ball: the box around it alone would take about twice as many
-// Gaussians off a volumetric scene).
+// Calls f(first, count) for the slots of the BVH leaves that may hold such Gaussians: those whose
+// box comes within s sqrt(q_cut) of c (a ball: the box around it alone would take about twice as
+// many Gaussians off a volumetric scene), in slot order; a subtree wholly inside the ball comes
+// as one range (Bvh::for_each_overlapping_range), so a wide kernel is not walked leaf by leaf.
 template <typename F>
 void for_each_kernel_leaf(const CollisionWorld& world, const Eigen::Vector3d& c, double s, double q_cut, F&& f) noexcept {
   const double half = s * std::sqrt(q_cut);
@@ -366,15 +368,68 @@ void for_each_kernel_leaf(const CollisionWorld& world, const Eigen::Vector3d& c,
     hi[k] = round_up_to_float(c[k] + half);
   }
   const double reach = half * half * (1 + 1e-6);
-  world.bvh().for_each_overlapping_leaf_node(lo, hi, [&](const BvhNode& leaf) {
+  // (A node wholly within the ball, its farthest corner within reach, is reported as one range.)
+  const auto within = [&](const BvhNode& node) {
+    double d2 = 0;
+    for (int k = 0; k < 3; ++k) {
+      const double e = std::max(c[k] - double(node.lo[k]), double(node.hi[k]) - c[k]);
+      d2 += e * e;
+    }
+    return d2 <= reach;
+  };
+  const auto near = [&](const BvhNode& leaf) {
     double d2 = 0;
     for (int k = 0; k < 3; ++k) {
       const double e = std::max({double(leaf.lo[k]) - c[k], c[k] - double(leaf.hi[k]), 0.0});
       d2 += e * e;
     }
-    if (d2 <= reach) f(leaf.first, leaf.count);
-    return true;
-  });
+    return d2 <= reach;
+  };
+  world.bvh().for_each_overlapping_range(lo, hi, within, near, f);
+}
+
+// The stride of a reading whose kernel's leaves hold `held` Gaussians: 1 up to `max_visits`
+// (kMaxKernelVisits; 0: no limit), else the smallest power of two that brings the Gaussians
+// visited under it.
+std::uint32_t sampling_stride(std::size_t held, std::size_t max_visits) noexcept {
+  std::uint32_t stride = 1;
+  while (max_visits > 0 && held > max_visits * std::size_t(stride)) stride *= 2;
+  return stride;
+}
+
+// The stride of a reading at c (sampling_stride of the Gaussians its kernel's leaves hold).
+std::uint32_t kernel_stride(const CollisionWorld& world, const Eigen::Vector3d& c, double s, const Support& sp) noexcept {
+  if (sp.max_visits == 0) return 1;
+  std::size_t held = 0;
+  for_each_kernel_leaf(world, c, s, sp.q_cut, [&](std::uint32_t, std::uint32_t count) { held += count; });
+  return sampling_stride(held, sp.max_visits);
+}
+
+// The sampled slots of a leaf's range [first, first + count): the multiples of `stride`, as the
+// first of them and how many. The world keeps its Gaussians in the BVH's leaf order, so the
+// multiples of a stride are spread evenly over the space a kernel covers, and a coarser
+// stride's slots are a subset of a finer one's.
+struct SampledRange {
+  std::uint32_t first, count;
+};
+SampledRange sampled(std::uint32_t first, std::uint32_t count, std::uint32_t stride) noexcept {
+  const std::uint32_t start = (first + stride - 1) / stride * stride, end = first + count;
+  return {start, start < end ? (end - start + stride - 1) / stride : 0};
+}
+
+// Sampled slots are a cache line each (CollisionGaussian) and, past stride 1, too far apart for
+// the hardware's prefetcher: slot i + kPrefetchAhead is fetched while slot i is gathered.
+constexpr std::uint32_t kPrefetchAhead = 8;
+
+// Calls f(g) for the Gaussians in the sampled slots of a leaf's range, in slot order.
+template <typename F>
+void for_each_sampled(const CollisionGaussian* gs, std::uint32_t first, std::uint32_t count, std::uint32_t stride,
+                      F&& f) noexcept {
+  const SampledRange r = sampled(first, count, stride);
+  for (std::uint32_t i = 0; i < r.count; ++i) {
+    if (stride > 1 && i + kPrefetchAhead < r.count) __builtin_prefetch(&gs[r.first + (i + kPrefetchAhead) * stride]);
+    f(gs[r.first + i * stride]);
+  }
 }
 
 // Gathers visited Gaussians kLanes at a time and passes each kept term, in visiting order, to a
@@ -429,22 +484,25 @@ Eigen::Vector3d finish(const Eigen::Vector3d& sum) noexcept {
   return n > 0 && std::isfinite(n) ? Eigen::Vector3d(sum / n) : Eigen::Vector3d::Zero();
 }
 
-Support support_of(double radius, double kernel, const FreeBall& ball, double min_width, double tail) noexcept {
+Support support_of(double radius, double kernel, const FreeBall& ball, double min_width, double tail,
+                   std::size_t max_visits) noexcept {
   Support sp;
   sp.rim = kernel * radius;
   const double s = std::max(sp.rim, min_width);
   sp.s2 = s * s;
   sp.q_cut = q_cutoff(radius, s, tail);
+  sp.max_visits = max_visits;
   sp.ball = ball;
   return sp;
 }
 
 // The plain reading: two traversals, the terms staged kLanes at a time (no working memory).
 Eigen::Vector3d plain_reading(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
-                              const FreeBall& ball, double min_width, double tail) noexcept {
-  const Support sp = support_of(radius, kernel, ball, min_width, tail);
+                              const FreeBall& ball, double min_width, double tail, std::size_t max_visits) noexcept {
+  const Support sp = support_of(radius, kernel, ball, min_width, tail, max_visits);
   const double s = std::sqrt(sp.s2);
   const CollisionGaussian* gs = world.gaussians().data();
+  const std::uint32_t stride = kernel_stride(world, c, s, sp);
   alignas(64) double staged[kFields * kLanes] = {};
   const TermStore st{staged};
   int m = 0;
@@ -458,7 +516,7 @@ Eigen::Vector3d plain_reading(const CollisionWorld& world, const Eigen::Vector3d
       if (++m == kLanes) lanes(kLanes), m = 0;
     };
     for_each_kernel_leaf(world, c, s, sp.q_cut, [&](std::uint32_t first, std::uint32_t count) {
-      for (std::uint32_t k = first; k < first + count; ++k) gather.add(gs[k], sink);
+      for_each_sampled(gs, first, count, stride, [&](const CollisionGaussian& g) { gather.add(g, sink); });
     });
     gather.flush(sink);
     if (m > 0) lanes(m);
@@ -481,13 +539,11 @@ struct ShadingScratch::Terms {
   std::vector<double> store;
   std::size_t stride = 0;
   [[nodiscard]] TermStore terms() noexcept { return {store.data()}; }
-  // A reading spread over calls (ShadedNormalCache::read_ahead): the BVH leaves of its support,
+  // A reading spread over calls (ShadedNormalCache::read_ahead): the sampled slot ranges of its support,
   // then its terms in visiting order (each full kLanes of them added to the first pass as they
   // come), then the second pass over them kLanes at a time.
-  struct Range {
-    std::uint32_t first, count;
-  };
-  std::vector<Range> ranges;
+  std::vector<SampledRange> ranges;
+  std::uint32_t sample_stride = 1;  // (sampling_stride)
   std::size_t n_ranges = 0, range_i = 0, offset = 0, n = 0, fit_i = 0, steps = 0;
   int phase = 0;  // 1: terms, 2: the second pass
   bool overflow = false;
@@ -519,9 +575,9 @@ struct ShadingScratch::Terms {
     return true;
   }
   void start(const Eigen::Vector3d& at, double radius, double kernel, const FreeBall& ball, double min_width,
-             double tail) noexcept {
+             double tail, std::size_t max_visits) noexcept {
     c = at;
-    sp = support_of(radius, kernel, ball, min_width, tail);
+    sp = support_of(radius, kernel, ball, min_width, tail, max_visits);
     s = std::sqrt(sp.s2);
     gather.start(c, sp);
     first = FirstLanes{};
@@ -531,18 +587,27 @@ struct ShadingScratch::Terms {
     outward = Eigen::Vector3d::Zero();
   }
 
-  // Starts reading at `at`: false when the support holds more leaves than `ranges` (read it at once).
+  // Starts reading at `at`: false when the support comes in more ranges than `ranges` holds (read it at once).
   bool begin(const CollisionWorld& world, const Eigen::Vector3d& at, double radius, double kernel,
-             const FreeBall& ball, double min_width, double tail) noexcept {
-    start(at, radius, kernel, ball, min_width, tail);
+             const FreeBall& ball, double min_width, double tail, std::size_t max_visits) noexcept {
+    start(at, radius, kernel, ball, min_width, tail, max_visits);
     n_ranges = 0;
     bool fits = true;
+    std::size_t held = 0;
     for_each_kernel_leaf(world, c, s, sp.q_cut, [&](std::uint32_t f, std::uint32_t count) {
+      held += count;
       if (n_ranges < ranges.size())
         ranges[n_ranges++] = {f, count};
       else
         fits = false;
     });
+    // The leaves' ranges to their sampled slots (one past the last has none).
+    sample_stride = sampling_stride(held, sp.max_visits);
+    std::size_t kept = 0;
+    for (std::size_t i = 0; fits && i < n_ranges; ++i)
+      if (const SampledRange r = sampled(ranges[i].first, ranges[i].count, sample_stride); r.count > 0)
+        ranges[kept++] = r;
+    n_ranges = kept;
     phase = 1;
     return fits;
   }
@@ -562,8 +627,10 @@ struct ShadingScratch::Terms {
         phase = 2;
         break;
       }
-      const Range& rg = ranges[range_i];
-      gather.add(gs[rg.first + std::uint32_t(offset)], sink);
+      const SampledRange& rg = ranges[range_i];
+      if (sample_stride > 1 && offset + kPrefetchAhead < rg.count)
+        __builtin_prefetch(&gs[rg.first + std::uint32_t(offset + kPrefetchAhead) * sample_stride]);
+      gather.add(gs[rg.first + std::uint32_t(offset) * sample_stride], sink);
       ++steps;
       if (++offset == rg.count) offset = 0, ++range_i;
       --budget;
@@ -605,27 +672,29 @@ ShadingScratch& ShadingScratch::operator=(const ShadingScratch& o) {
 std::size_t ShadingScratch::capacity() const noexcept { return terms_->stride; }
 
 Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
-                              const FreeBall& ball, double min_width, double tail) noexcept {
-  return plain_reading(world, c, radius, kernel, ball, min_width, tail);
+                              const FreeBall& ball, double min_width, double tail, std::size_t max_visits) noexcept {
+  return plain_reading(world, c, radius, kernel, ball, min_width, tail, max_visits);
 }
 
 Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius, double kernel,
-                              ShadingScratch& scratch, const FreeBall& ball, double min_width, double tail) noexcept {
+                              ShadingScratch& scratch, const FreeBall& ball, double min_width, double tail,
+                              std::size_t max_visits) noexcept {
   ShadingScratch::Terms& t = *scratch.terms_;
   t.phase = 0;  // (a reading spread over calls in this scratch is given up)
-  t.start(c, radius, kernel, ball, min_width, tail);
+  t.start(c, radius, kernel, ball, min_width, tail, max_visits);
   const CollisionGaussian* gs = world.gaussians().data();
+  const std::uint32_t stride = kernel_stride(world, c, t.s, t.sp);
   std::size_t visited = 0;
   const auto sink = [&t](const TermLanes& tl, int l) { t.keep(tl, l); };
   for_each_kernel_leaf(world, c, t.s, t.sp.q_cut, [&](std::uint32_t first, std::uint32_t count) {
-    visited += count;
-    for (std::uint32_t k = first; k < first + count; ++k) t.gather.add(gs[k], sink);
+    visited += sampled(first, count, stride).count;
+    for_each_sampled(gs, first, count, stride, [&](const CollisionGaussian& g) { t.gather.add(g, sink); });
   });
   const bool found = t.close_first();
   scratch.last_terms_ = t.n;
   scratch.last_overflow_ = t.overflow;
   scratch.last_steps_ = visited + t.n;
-  if (t.overflow) return plain_reading(world, c, radius, kernel, ball, min_width, tail);  // more than it holds
+  if (t.overflow) return plain_reading(world, c, radius, kernel, ball, min_width, tail, max_visits);  // more than it holds
   if (!found) return Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < t.n; i += kLanes) fit_lanes(t.terms(), i, int(std::min<std::size_t>(kLanes, t.n - i)), t.outward, t.fit);
   return finish(fit_result(t.fit, t.outward, t.s));
@@ -634,7 +703,7 @@ Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d
 const Eigen::Vector3d& ShadedNormalCache::read_ahead(const CollisionWorld& world, const Eigen::Vector3d& at,
                                                      double scale, double kernel, double reuse, ShadingScratch& scratch,
                                                      std::size_t budget, const FreeBall& ball,
-                                                     double min_width, double tail) noexcept {
+                                                     double min_width, double tail, std::size_t max_visits) noexcept {
   ShadingScratch::Terms& pending = *scratch.terms_;
   // The field's turn bounds how far a reading is kept (reuse_within), but a reading that costs
   // more than the tick's budget is kept at least as far as a reading ahead needs to be prepared:
@@ -668,7 +737,7 @@ const Eigen::Vector3d& ShadedNormalCache::read_ahead(const CollisionWorld& world
       ++reads_;
       return normal_;
     }
-    return read(world, at, scale, kernel, largest_reuse, scratch, ball, min_width, tail);
+    return read(world, at, scale, kernel, largest_reuse, scratch, ball, min_width, tail, max_visits);
   }
   if (budget == 0) return normal_;
   // A reading ahead is started only where one costs more than a tick's budget, and only on a
@@ -688,7 +757,7 @@ const Eigen::Vector3d& ShadedNormalCache::read_ahead(const CollisionWorld& world
       moved >= kStraight * path_ && share <= budget && calls_ <= kAheadCalls) {
     ahead_share_ = share;
     pending_at_ = at + (at - at_);  // as far on again as it came
-    pending_ = pending.begin(world, pending_at_, scale, kernel, ball, min_width, tail);
+    pending_ = pending.begin(world, pending_at_, scale, kernel, ball, min_width, tail, max_visits);
     if (!pending_) {
       pending.phase = 0;
       ahead_blocked_ = true;  // (too many leaves: this stretch reads at once)

@@ -3,7 +3,9 @@
 // the formulas in docs/design.md Sec. 7 with matrices, not from the library's lanes: q and the
 // density gradient from A = R diag(a^2) R^T + s^2 I and its inverse, the two passes and the
 // local linear fit summed one Gaussian after another. The candidates are the library's support:
-// the Gaussians of the BVH leaves within s sqrt(q_cut) of the point.
+// the Gaussians of the BVH leaves within s sqrt(q_cut) of the point; with `sampled` (the
+// library's rule, kMaxKernelVisits), where they number more than kMaxKernelVisits, the slots
+// that are multiples of the smallest power of two that brings them under it.
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -23,7 +25,7 @@ struct ReferenceTerm {
 
 inline Eigen::Vector3d reference_shaded_normal(const CollisionWorld& world, const Eigen::Vector3d& c, double radius,
                                                double kernel, const FreeBall& ball = {}, double min_width = 0,
-                                               double tail = kShadingTail) {
+                                               double tail = kShadingTail, bool sampled = true) {
   constexpr double kAgree = 0.3, kGain = 0.2, kRimFalloff = 0.5, kFitFull = 0.95, kFitNone = 0.85, kFitRidge = 0.25;
   const double rim_scale = kernel * radius, s = std::max(rim_scale, min_width);
   const double q_cut = (1 + radius / s) * (1 + radius / s) + tail;
@@ -41,8 +43,11 @@ inline Eigen::Vector3d reference_shaded_normal(const CollisionWorld& world, cons
       for (std::uint32_t k = leaf.first; k < leaf.first + leaf.count; ++k) slots.push_back(k);
     return true;
   });
+  std::size_t stride = 1;
+  while (sampled && slots.size() > kMaxKernelVisits * stride) stride *= 2;
   std::vector<ReferenceTerm> terms;
   for (std::uint32_t k : slots) {
+    if (k % stride != 0) continue;
     const CollisionGaussian& g = world.gaussians()[k];
     const Eigen::Vector3d a(g.semi_axes[0], g.semi_axes[1], g.semi_axes[2]);
     const Eigen::Vector3d d = c - Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);

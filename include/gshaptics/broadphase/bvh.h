@@ -184,6 +184,52 @@ class Bvh {
       if (!call_on_leaf(on_leaf, nodes[level[k] & ~kLeafTag])) return;
   }
 
+  /// The slots [first, end) under node `i`: in preorder a subtree's leaves are consecutive
+  /// and cover consecutive slots, from its leftmost leaf (left children down) to its rightmost
+  /// (right children down). O(depth of the subtree).
+  [[nodiscard]] std::pair<std::uint32_t, std::uint32_t> subtree_slots(std::uint32_t i) const noexcept {
+    const BvhNode* nodes = nodes_.data();
+    std::uint32_t l = i, r = i;
+    while (nodes[l].count == 0) l = l + 1;
+    while (nodes[r].count == 0) r = nodes[r].first;
+    return {nodes[l].first, nodes[r].first + nodes[r].count};
+  }
+
+  /// Calls `on_range(first, count)` for slot ranges, in slot order: an inner node whose box
+  /// overlaps [box_lo, box_hi] and for which `within(node)` holds is reported whole, its
+  /// subtree's slots (subtree_slots) as one range, and not descended; an overlapping leaf is
+  /// reported when `within` or `near(leaf)` holds. Where `within(node)` implies `near` of
+  /// every leaf under it (a region's inside and what touches it), the slots reported are those
+  /// of the overlapping leaves that are near, in the same order, for fewer node visits where
+  /// the region holds whole subtrees. Allocation-free.
+  template <typename Within, typename Near, typename OnRange>
+  void for_each_overlapping_range(const float box_lo[3], const float box_hi[3], const Within& within,
+                                  const Near& near, const OnRange& on_range) const noexcept {
+    if (nodes_.empty()) return;
+    std::uint32_t stack[kMaxDepth];
+    int top = 0;
+    std::uint32_t i = 0;
+    const BvhNode* nodes = nodes_.data();
+    for (;;) {
+      const BvhNode& n = nodes[i];
+      if (overlaps(n, box_lo, box_hi)) {
+        if (n.count != 0) {
+          if (within(n) || near(n)) on_range(n.first, n.count);
+        } else if (within(n)) {
+          const auto [first, end] = subtree_slots(i);
+          on_range(first, end - first);
+        } else {
+          __builtin_prefetch(&nodes[n.first]);
+          stack[top++] = n.first;
+          i = i + 1;
+          continue;
+        }
+      }
+      if (top == 0) return;
+      i = stack[--top];
+    }
+  }
+
   /// Traversal stack size; the median split bounds the depth by log2(N) + 2 < kMaxDepth.
   static constexpr int kMaxDepth = 96;
 

@@ -53,6 +53,9 @@ struct ProxyParams {
   /// How far the shaded normal's support reaches past the Gaussians that touch the tool, in q
   /// (kShadingTail, shaded_normal()): a term left out weighs under exp(-tail / 2) of theirs.
   double shading_tail = kShadingTail;
+  /// How many Gaussians a shaded normal reading visits at most (kMaxKernelVisits): a denser
+  /// support is read from an even sample of its slots. 0: every Gaussian of the support.
+  std::size_t shading_visits = kMaxKernelVisits;
   /// The shaded normal is recomputed once the proxy moved this many tool radii (a compound
   /// tool's part: this many of the field's scale there, the larger of its smallest semi-axis and
   /// the Gaussians' spacing under the tool).
