@@ -587,10 +587,9 @@ struct ShadingScratch::Terms {
     outward = Eigen::Vector3d::Zero();
   }
 
-  // Starts reading at `at`: false when the support comes in more ranges than `ranges` holds (read it at once).
-  bool begin(const CollisionWorld& world, const Eigen::Vector3d& at, double radius, double kernel,
-             const FreeBall& ball, double min_width, double tail, std::size_t max_visits) noexcept {
-    start(at, radius, kernel, ball, min_width, tail, max_visits);
+  // The support's slot ranges (started at c) kept in `ranges` while they are counted: false when
+  // they outgrow it. Sets sample_stride from the count.
+  bool collect_ranges(const CollisionWorld& world) noexcept {
     n_ranges = 0;
     bool fits = true;
     std::size_t held = 0;
@@ -601,8 +600,16 @@ struct ShadingScratch::Terms {
       else
         fits = false;
     });
-    // The leaves' ranges to their sampled slots (one past the last has none).
     sample_stride = sampling_stride(held, sp.max_visits);
+    return fits;
+  }
+
+  // Starts reading at `at`: false when the support comes in more ranges than `ranges` holds (read it at once).
+  bool begin(const CollisionWorld& world, const Eigen::Vector3d& at, double radius, double kernel,
+             const FreeBall& ball, double min_width, double tail, std::size_t max_visits) noexcept {
+    start(at, radius, kernel, ball, min_width, tail, max_visits);
+    const bool fits = collect_ranges(world);
+    // The leaves' ranges to their sampled slots (one past the last has none).
     std::size_t kept = 0;
     for (std::size_t i = 0; fits && i < n_ranges; ++i)
       if (const SampledRange r = sampled(ranges[i].first, ranges[i].count, sample_stride); r.count > 0)
@@ -683,13 +690,21 @@ Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d
   t.phase = 0;  // (a reading spread over calls in this scratch is given up)
   t.start(c, radius, kernel, ball, min_width, tail, max_visits);
   const CollisionGaussian* gs = world.gaussians().data();
-  const std::uint32_t stride = kernel_stride(world, c, t.s, t.sp);
+  // One traversal: the support's slot ranges kept while they are counted (the sample's stride
+  // needs the count before the first Gaussian is gathered); a second only where they outgrow
+  // the scratch's room for ranges.
+  const bool fits = t.collect_ranges(world);
+  const std::uint32_t stride = t.sample_stride;
   std::size_t visited = 0;
   const auto sink = [&t](const TermLanes& tl, int l) { t.keep(tl, l); };
-  for_each_kernel_leaf(world, c, t.s, t.sp.q_cut, [&](std::uint32_t first, std::uint32_t count) {
+  const auto gather = [&](std::uint32_t first, std::uint32_t count) {
     visited += sampled(first, count, stride).count;
     for_each_sampled(gs, first, count, stride, [&](const CollisionGaussian& g) { t.gather.add(g, sink); });
-  });
+  };
+  if (fits)
+    for (std::size_t i = 0; i < t.n_ranges; ++i) gather(t.ranges[i].first, t.ranges[i].count);
+  else
+    for_each_kernel_leaf(world, c, t.s, t.sp.q_cut, gather);
   const bool found = t.close_first();
   scratch.last_terms_ = t.n;
   scratch.last_overflow_ = t.overflow;
