@@ -244,20 +244,20 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
     // An option that does not apply to the model or the tool is refused, never ignored. (An
     // option's model is its help text's "proxy: " or "paper: "; fidelity, without a tool,
     // renders both kinds of tool.)
+    // (The force options as given are also kept for a report's command line: those this
+    // function added, from `first` on.)
     std::vector<GivenOption> given;
-    for (const CLI::Option* opt : cmd.get_options()) {
+    const auto options = cmd.get_options();
+    for (std::size_t i = 0; i < options.size(); ++i) {
+      const CLI::Option* opt = options[i];
       if (opt->count() == 0 || opt->get_lnames().empty()) continue;
       const std::string& text = opt->get_description();
       std::optional<RendererKind> model;
       for (const RendererName& r : renderer_names())
         if (text.rfind(std::string(r.name) + ": ", 0) == 0) model = r.kind;
       given.push_back({"--" + opt->get_lnames().front(), model});
-    }
-    // (The force options as given, for a report's command line: those this function added.)
-    for (std::size_t i = first; i < cmd.get_options().size(); ++i) {
-      const CLI::Option* opt = cmd.get_options()[i];
-      if (opt->count() == 0 || opt->get_lnames().empty()) continue;
-      o.given.push_back("--" + opt->get_lnames().front());
+      if (i < first) continue;
+      o.given.push_back(given.back().name);
       if (opt->get_expected_max() != 0)
         for (const std::string& value : opt->results()) o.given.push_back(value);
     }

@@ -6,7 +6,7 @@
 namespace gshaptics {
 
 ProxyNormal::ProxyNormal(const CollisionWorld& world, const ProxyParams& params)
-    : world_(&world), params_(params), corners_(world) {
+    : world_(&world), params_(params), crests_(world) {
   shade_.set_turn_tolerance(params.shading_turn * M_PI / 180);
 }
 
@@ -14,7 +14,7 @@ void ProxyNormal::forget() noexcept {
   shade_.reset();
   shade_device_.reset();
   face_.setZero();
-  corner_cache_.reset();
+  crest_cache_.reset();
 }
 
 Eigen::Vector3d ProxyNormal::shaded(const ToolEllipsoid& tool, const Eigen::Vector3d& p,
@@ -47,7 +47,7 @@ Eigen::Vector3d ProxyNormal::refined(const Eigen::Vector3d& n, const ToolEllipso
                                      const Eigen::Vector3d& xd, FloaterRule& floaters) noexcept {
   const Eigen::Vector3d e = p - xd;
   const Eigen::Vector3d shaded = with_device_reading(n, p, xd, tool.bounding_radius(), e);
-  return params_.corner_normal || params_.crest_hold ? with_corner_reading(shaded, tool, p, e, floaters) : shaded;
+  return params_.corner_normal || params_.crest_hold ? with_crest_reading(shaded, tool, p, e, floaters) : shaded;
 }
 
 Eigen::Vector3d ProxyNormal::with_device_reading(const Eigen::Vector3d& n, const Eigen::Vector3d& p,
@@ -75,7 +75,7 @@ Eigen::Vector3d ProxyNormal::with_device_reading(const Eigen::Vector3d& n, const
   return w > 0 && nd.dot(e) > 0 ? Eigen::Vector3d(((1 - w) * n + w * nd).normalized()) : n;
 }
 
-Eigen::Vector3d ProxyNormal::with_corner_reading(const Eigen::Vector3d& n, const ToolEllipsoid& tool,
+Eigen::Vector3d ProxyNormal::with_crest_reading(const Eigen::Vector3d& n, const ToolEllipsoid& tool,
                                                  const Eigen::Vector3d& p, const Eigen::Vector3d& e,
                                                  FloaterRule& floaters) noexcept {
   // At a clean convex corner the patch's support normal (edge_normal.h): the shaded field of the
@@ -91,11 +91,11 @@ Eigen::Vector3d ProxyNormal::with_corner_reading(const Eigen::Vector3d& n, const
   // what a shaded reading does, and at the shaded normal's distance burger's probe run
   // gathered on 1.7 % of its contact ticks. Elsewhere at the shaded normal's reuse distance.)
   const double rho = tool.semi_axes.minCoeff();
-  const double reuse = (corner_cache_.answer.messy ? kCornerSearch : pp.shading_reuse) * rho;
+  const double reuse = (crest_cache_.answer.messy ? kCornerSearch : pp.shading_reuse) * rho;
   // (With crest_hold, edges are read too, by their faces alone: for the renderer's hold, while the
   // force at an edge keeps the shaded field.)
-  const EdgeNormalAnswer& answer = corners_.read(
-      at, n, kCornerBand * rho, reuse, filter, corner_cache_,
+  const EdgeNormalAnswer& answer = crests_.read(
+      at, n, kCornerBand * rho, reuse, filter, crest_cache_,
       pp.crest_hold ? ConvexFeatures::kEdgeConesAndCorners : ConvexFeatures::kCorners, e);
   if (!pp.corner_normal || !answer.corner) return n;
   const Eigen::Vector3d cornered = EdgeNormal::blend(n, answer, e);

@@ -49,11 +49,11 @@ class ProxyNormal {
                           const Eigen::Vector3d& device, FloaterRule& floaters) noexcept;
   /// Forgets every cached reading (a new contact, a re-placed proxy).
   void forget() noexcept;
-  /// The clean convex edge or corner the last corner reading found under the proxy (its faces'
+  /// The clean convex edge or corner the last crest reading found under the proxy (its faces'
   /// normals and edge line, EdgeNormalAnswer), or null: none, no reading since forget(), or
-  /// corner_normal off.
+  /// corner_normal and crest_hold both off.
   [[nodiscard]] const EdgeNormalAnswer* crest() const noexcept {
-    return corner_cache_.valid && corner_cache_.answer.feature() ? &corner_cache_.answer : nullptr;
+    return crest_cache_.valid && crest_cache_.answer.feature() ? &crest_cache_.answer : nullptr;
   }
 
   /// Readings of the shaded normal so far (the cache's misses; profiling).
@@ -83,8 +83,9 @@ class ProxyNormal {
   Eigen::Vector3d with_device_reading(const Eigen::Vector3d& n, const Eigen::Vector3d& proxy,
                                       const Eigen::Vector3d& device, double radius,
                                       const Eigen::Vector3d& offset) noexcept;
-  // The corner's support normal blended in (corner_normal), giving way to a fin.
-  Eigen::Vector3d with_corner_reading(const Eigen::Vector3d& n, const ToolEllipsoid& tool, const Eigen::Vector3d& proxy,
+  // Reads the clean convex edge or corner under the proxy (kept for crest(): crest_hold) and
+  // blends a corner's support normal in (corner_normal), giving way to a fin.
+  Eigen::Vector3d with_crest_reading(const Eigen::Vector3d& n, const ToolEllipsoid& tool, const Eigen::Vector3d& proxy,
                                       const Eigen::Vector3d& offset, FloaterRule& floaters) noexcept;
 
   const CollisionWorld* world_;
@@ -94,8 +95,10 @@ class ProxyNormal {
   ShadingScratch shading_scratch_;  // the shaded normal's working memory
   // Its own working memory: a reading in shading_scratch_ would give up shade_'s reading ahead.
   ShadingScratch device_scratch_;
-  EdgeNormal corners_;  // the patch's support normal at a clean convex corner (corner_normal)
-  EdgeNormalCache corner_cache_;
+  // The patch's clean convex edge or corner: its support normal at a corner (corner_normal),
+  // an edge's or corner's faces and normal cone for the renderer's hold (crest_hold).
+  EdgeNormal crests_;
+  EdgeNormalCache crest_cache_;
   // The last stage 1's inputs that stage 2 reads again.
   FreeBall ball_{};
   FrontFace front_{};
