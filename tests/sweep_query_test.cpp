@@ -535,6 +535,64 @@ TEST(SweepQuery, AnElongatedPartSlidingOnABumpyLayerMeetsTheFirstContact) {
   EXPECT_GE(hits, 8) << "many slides meet a bump";
 }
 
+TEST(SweepQuery, AnUprightTipAndARestingSphereSlideOnADenseLayerToTheFirstContact) {
+  // A dense layer of thin discs (1 mm apart, jittered heights and tilts) under two tools that
+  // rest on it and slide 0.05-2 mm: a stylus's part standing on its tip (5 x 5 x 20 mm, tilted
+  // up to 15 degrees; the capsule round its axis and its box hold every disc within about 5 mm
+  // of the tip, the separating axis along the centres keeps the few under it) and a 5 mm sphere
+  // (its swept box's floor holds a hundred discs; the leaves beyond its radius from its path are
+  // not read). Each contact is the earliest of every Gaussian's own exact search, and the sphere
+  // reads under half the Gaussians that reach into its swept box.
+  std::vector<GaussianSpec> gs;
+  std::mt19937 rng(71);
+  std::uniform_real_distribution<float> jitter(-1.0f, 1.0f);
+  for (float x = -0.03f; x <= 0.03f; x += 0.001f)
+    for (float y = -0.03f; y <= 0.03f; y += 0.001f) {
+      const Eigen::Quaternionf tilt(Eigen::AngleAxisf(0.2f * jitter(rng), Eigen::Vector3f(jitter(rng), jitter(rng), 0).normalized()));
+      gs.emplace_back(Eigen::Vector3f(x, y, 0.0002f * jitter(rng)), Eigen::Vector3f(0.0008f, 0.0006f, 0.0001f), tilt);
+    }
+  const CollisionWorld w = world_of(gs);
+  SweepQuery sweep(w);
+  for (const bool upright : {true, false}) {
+    ToolEllipsoid part = upright ? ToolEllipsoid{} : ToolEllipsoid::sphere(Eigen::Vector3d::Zero(), 0.005);
+    if (upright) part.semi_axes = {0.005, 0.005, 0.02};
+    int hits = 0;
+    std::uint64_t read = 0, in_box = 0;
+    for (int i = 0; i < 40; ++i) {
+      if (upright)
+        part.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(
+            0.26 * jitter(rng), Eigen::Vector3d(jitter(rng), jitter(rng), 0).normalized()));
+      part.center = {0.01 * jitter(rng), 0.01 * jitter(rng), 0.03};
+      const SweepHit rest = sweep.first_contact(part, Eigen::Vector3d(0, 0, -0.05));
+      ASSERT_TRUE(rest.hit);
+      part.center.z() -= 0.05 * rest.t - 1e-6;
+      const double heading = 3.2 * jitter(rng), slope = 0.2 * jitter(rng),
+                   len = 0.00005 * std::pow(40.0, 0.5 * (1 + jitter(rng)));
+      const Eigen::Vector3d motion = len * Eigen::Vector3d(std::cos(heading), std::sin(heading), slope).normalized();
+      SCOPED_TRACE(::testing::Message() << (upright ? "upright part " : "sphere ") << i);
+      const SweepHit hit = sweep.first_contact(part, motion);
+      read += sweep.counts().candidates;
+      {  // the Gaussians whose bounding box overlaps the swept box: what a box traversal reads at least
+        const Eigen::Vector3d h = part.aabb_half_extent();
+        const Eigen::Vector3d lo = part.center.cwiseMin(part.center + motion) - h;
+        const Eigen::Vector3d hi = part.center.cwiseMax(part.center + motion) + h;
+        for (const CollisionGaussian& g : w.gaussians()) {
+          const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
+          const double gr = g.bounding_radius();
+          in_box += ((c.array() + gr) >= lo.array()).all() && ((c.array() - gr) <= hi.array()).all() ? 1 : 0;
+        }
+      }
+      double t_ref = INFINITY;
+      for (const CollisionGaussian& g : w.gaussians()) t_ref = std::min(t_ref, sweep_time(g, part, motion));
+      ASSERT_EQ(hit.hit, t_ref <= 1.0) << "brute force: t = " << t_ref;
+      if (hit.hit) expect_brute_force_first_contact(w, part, motion, hit);
+      hits += hit.hit ? 1 : 0;
+    }
+    EXPECT_GE(hits, 8) << "many slides meet a bump";
+    if (!upright) EXPECT_LT(2 * read, in_box) << read << " Gaussians read of " << in_box << " reaching into the swept boxes";
+  }
+}
+
 TEST(SweepQuery, AGaussianTheFilterKnowsToPassIsNotSearched) {
   // A tool resting in a lone Gaussian above a layer, moved down onto the layer: the filter lets
   // the lone one pass. Asked only after its search, it costs a search at every sweep; known

@@ -180,6 +180,8 @@ struct PartBounds {
   // W = diag(1/b) R_t^T, for the family members' bound.
   double st[6];
   Eigen::Matrix3d w;
+  // diag(b) R_t^T: the part's support along a world direction n is |bt n|.
+  Eigen::Matrix3d bt;
   bool capsule;  // elongated: its capsule bound applies (Capsule)
   bool flat;     // flat: its slab along the shortest axis applies (FlatSlab)
   // Fills the constants (not the boxes) for `tool` moved by `motion` (m_hat its direction).
@@ -207,6 +209,7 @@ struct PartBounds {
       const Eigen::Matrix3d S = Rt * b.cwiseAbs2().asDiagonal() * Rt.transpose();
       st[0] = S(0, 0), st[1] = S(1, 1), st[2] = S(2, 2), st[3] = S(0, 1), st[4] = S(0, 2), st[5] = S(1, 2);
       w = b.cwiseInverse().asDiagonal() * Rt.transpose();
+      bt = b.asDiagonal() * Rt.transpose();
     }
     int i_long = 0;
     const double a_long = b.maxCoeff(&i_long), b_mid = b.sum() - a_long - b.minCoeff();
@@ -233,6 +236,24 @@ struct PartBounds {
   const double r_leaf = half_diag.norm() * (1 + 1e-9);
   if (q.capsule && capsule.entry_time(rel, r_leaf) > bar) return false;
   return !(q.flat && slab.entry_time(rel, r_leaf) > bar);
+}
+
+// Whether a leaf's box comes within a spherical part's radius of its centre's path up to `bar`
+// (the segment from c0 to c0 + bar motion): the box's distance from the segment's midpoint, less
+// the segment's half-length, bounds its distance from the segment below (the distance is
+// 1-Lipschitz along it). A sphere resting on a layer spans a box whose floor holds hundreds of
+// Gaussians; only those under its cap can touch it.
+[[gnu::always_inline]] inline bool leaf_near_sphere_path(const BvhNode& leaf, const PartBounds& q,
+                                                         const Eigen::Vector3d& motion, double bar) noexcept {
+  const double t = 0.5 * std::max(0.0, bar);
+  double d2 = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double m = q.c0[k] + t * motion[k];
+    const double e = std::max({double(leaf.lo[k]) - m, m - double(leaf.hi[k]), 0.0});
+    d2 += e * e;
+  }
+  const double reach = (q.r_tool + t * motion.norm()) * (1 + 1e-9);  // (a rounding's margin, outward)
+  return d2 <= reach * reach;
 }
 
 }  // namespace
@@ -805,6 +826,23 @@ inline double SweepQuery::PartsSweep::ellipsoid_member_bound(const CollisionGaus
     t_flat = flats[p].entry_time(rel, R, g.semi_axes);
     if (t_flat > 1.0) return kNever;
   }
+  // A separating axis along the centres' direction n: the Gaussian reaches h_g(n) toward the part
+  // and the part h_t(n) = |diag(b) R_t^T n| toward it, and the gap between them closes at most at
+  // n.motion. Under the sharp tip of an upright stylus part (curvature radius b^2 / a) the
+  // capsule's round end lets through every Gaussian within about b of the tip; this keeps those
+  // under the tip itself.
+  double t_sep = -kNever;
+  if (const double d = rel.norm(); d > 0) {
+    const Eigen::Vector3d nv = rel / d;
+    const double gap = d - (std::sqrt(support_sq(R, g.semi_axes, nv)) + (q.bt * nv).norm()) * (1 + 1e-9) - 1e-12 * d;
+    if (gap > 0) {
+      const double closing = nv.dot(motion);
+      if (!(closing > 0)) return kNever;
+      t_sep = gap / closing;
+      if (t_sep > 1.0) return kNever;
+      if (t_sep > bar) return t_sep;
+    }
+  }
   double sg[6] = {0, 0, 0, 0, 0, 0};
   for (int j = 0; j < 3; ++j) {
     const double a2 = double(g.semi_axes[j]) * g.semi_axes[j];
@@ -839,7 +877,7 @@ inline double SweepQuery::PartsSweep::ellipsoid_member_bound(const CollisionGaus
   if (te <= bar && sq.start_slot_[hs] == k && sq.start_part_[hs] == p) te = std::max(te, member(sq.start_lambda_[hs]));
   if (te > 1.0) return kNever;
   // (The exact search reads the same forms in another frame: a wider margin for its rounding.)
-  return std::max(t_flat, te - 1e-9);
+  return std::max({t_flat, t_sep, te - 1e-9});
 }
 
 // A candidate whose bound is within its part's bar goes to the sorted list (or, past its
@@ -949,6 +987,7 @@ void SweepQuery::PartsSweep::traverse_bvh(std::uint32_t skip) noexcept {
                       leaf.lo[2] > q.hi[2] || leaf.hi[2] < q.lo[2]))
         continue;
       if ((q.capsule || q.flat) && !leaf_within_reach(leaf, q, caps[p], flats[p], bar_of(p))) continue;
+      if (q.spherical && !leaf_near_sphere_path(leaf, q, motion, bar_of(p))) continue;
       sq.counts_.candidates += leaf.count;
       for (std::uint32_t k = leaf.first; k < leaf.first + leaf.count; ++k) consider(k, p);
     }
