@@ -758,18 +758,20 @@ const Eigen::Vector3d& ShadedNormalCache::read_ahead(const CollisionWorld& world
   // A reading ahead is started only where one costs more than a tick's budget, and only on a
   // steady motion: it took `calls_` calls to move half of `reuse` on a nearly straight path, so
   // about as many remain, and the reading, made for where the proxy will then be, is spread
-  // evenly over them. A cheaper reading, or one on a faster or wandering motion, is made whole
-  // when due. So is one on a motion so slow that readings are rare (more than kAheadCalls calls
-  // to half of `reuse`): spread over that many ticks it only adds to many ticks what one paid
-  // (on the real scenes' probe runs it raised the p99 by 2-9 us and left the maximum as it
-  // was; bench/RESULTS.md).
-  constexpr std::size_t kAheadCalls = 8;
+  // evenly over them, even where its share of a call is over the budget (a fast slide: half a
+  // reading a tick is still half the spike). A reading due on the first call, or on a wandering
+  // motion, is made whole when due; so is one on a motion so slow that readings are rare (more
+  // than kAheadCalls calls to half of `reuse`). Up to 8 calls and within the budget only, the
+  // fidelity gratings' drags read tick p99 of 60-90 us with the 10 mm sphere at 20 mm/s (a whole
+  // reading every 10-30 ticks), 27-37 us with this; the real scenes' probe runs rise by 0.2-1.1 us
+  // at p99 (bench/RESULTS.md).
+  constexpr std::size_t kAheadCalls = 64;
   constexpr double kStraight = 0.8;  // displacement over path length
   ++calls_;
   const double moved = (at - at_).norm();
   const std::size_t share = (scratch.last_steps_ + calls_ - 1) / calls_;
   if (!pending_ && !ready_ && !ahead_blocked_ && scratch.last_steps_ > budget && moved > 0.5 * reuse &&
-      moved >= kStraight * path_ && share <= budget && calls_ <= kAheadCalls) {
+      moved >= kStraight * path_ && calls_ >= 2 && calls_ <= kAheadCalls) {
     ahead_share_ = share;
     pending_at_ = at + (at - at_);  // as far on again as it came
     pending_ = pending.begin(world, pending_at_, scale, kernel, ball, min_width, tail, max_visits);

@@ -69,7 +69,8 @@ struct ProxyParams {
   /// One-ellipsoid tool. Steps (Gaussians visited or fitted) a tick may spend preparing the next
   /// shaded normal while the proxy slides steadily, so the tick it is due does not pay for a whole
   /// reading (about 1700 steps, 70 us, for a 10 mm tool on 2 mm spacing);
-  /// ShadedNormalCache::read_ahead. A reading within this budget, or on a slow or wandering
+  /// ShadedNormalCache::read_ahead (on a fast slide a tick may spend more: the reading's even
+  /// share of the ticks left). A reading within this budget, or on a very slow or wandering
   /// motion, is made whole when due. 0: every reading whole, when due.
   std::size_t shading_budget = 384;
   /// One-ellipsoid tool. Where the field turns slowly (shading_turn does not bind), the shaded

@@ -235,15 +235,17 @@ class ShadedNormalCache {
   /// read() that prepares the next reading ahead, so that the tick it is due does not pay for a
   /// whole one. Where the last reading cost more than `budget` steps (a Gaussian visited, or a
   /// term fitted: ShadingScratch::last_steps) and the proxy moved half of `reuse` from the cached
-  /// reading steadily (in at most 8 calls, on a path at most 1.25 times the displacement), a
+  /// reading steadily (in 2 to 64 calls, on a path at most 1.25 times the displacement), a
   /// reading starts for the point as far on again, and each later call advances it by an even
-  /// share over the calls left (at most `budget` steps). When the cached normal is due (`at`
+  /// share over as many calls (the last reading's steps over the calls it took to get here; on
+  /// a fast slide over `budget`). When the cached normal is due (`at`
   /// more than `reuse` from where it was read), that reading replaces it if it was made for a
   /// point within `reuse` of `at` (what is left of it is done then); otherwise `at` is read
   /// whole, as read() does. So the normal returned was read within `reuse` of `at`, is
   /// bit-identical to shaded_normal() at the point where it was read, and there are no more
-  /// readings than read() makes; only which point of that range differs. A cheaper reading, or
-  /// one on a fast, slow or wandering motion, is made whole when due (budget 0: read() exactly).
+  /// readings than read() makes; only which point of that range differs. A reading within the
+  /// budget, or one due on the first call or on a slow or wandering motion, is made whole when
+  /// due (budget 0: read() exactly).
   /// The pending reading lives in `scratch`: one cache a scratch, and no other reading with it
   /// in between (one cancels the pending reading).
   const Eigen::Vector3d& read_ahead(const CollisionWorld& world, const Eigen::Vector3d& at, double scale,
