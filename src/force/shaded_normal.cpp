@@ -417,19 +417,12 @@ SampledRange sampled(std::uint32_t first, std::uint32_t count, std::uint32_t str
   return {start, start < end ? (end - start + stride - 1) / stride : 0};
 }
 
-// Sampled slots are a cache line each (CollisionGaussian) and, past stride 1, too far apart for
-// the hardware's prefetcher: slot i + kPrefetchAhead is fetched while slot i is gathered.
-constexpr std::uint32_t kPrefetchAhead = 8;
-
 // Calls f(g) for the Gaussians in the sampled slots of a leaf's range, in slot order.
 template <typename F>
 void for_each_sampled(const CollisionGaussian* gs, std::uint32_t first, std::uint32_t count, std::uint32_t stride,
                       F&& f) noexcept {
   const SampledRange r = sampled(first, count, stride);
-  for (std::uint32_t i = 0; i < r.count; ++i) {
-    if (stride > 1 && i + kPrefetchAhead < r.count) __builtin_prefetch(&gs[r.first + (i + kPrefetchAhead) * stride]);
-    f(gs[r.first + i * stride]);
-  }
+  for (std::uint32_t i = 0; i < r.count; ++i) f(gs[r.first + i * stride]);
 }
 
 // Gathers visited Gaussians kLanes at a time and passes each kept term, in visiting order, to a
@@ -635,8 +628,6 @@ struct ShadingScratch::Terms {
         break;
       }
       const SampledRange& rg = ranges[range_i];
-      if (sample_stride > 1 && offset + kPrefetchAhead < rg.count)
-        __builtin_prefetch(&gs[rg.first + std::uint32_t(offset + kPrefetchAhead) * sample_stride]);
       gather.add(gs[rg.first + std::uint32_t(offset) * sample_stride], sink);
       ++steps;
       if (++offset == rg.count) offset = 0, ++range_i;
