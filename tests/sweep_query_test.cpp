@@ -492,21 +492,45 @@ TEST(SweepQuery, AnElongatedPartsCandidatesAreTheGaussiansWithinReachOfItsAxis) 
   }
 }
 
+// A layer of thin discs on a grid `step` apart over [-half, half]^2, with heights jittered by up to
+// `height` and tilts by up to `tilt` radians about a random horizontal axis.
+std::vector<GaussianSpec> bumpy_layer(std::mt19937& rng, float half, float step, float height, float tilt,
+                                      const Eigen::Vector3f& axes) {
+  std::uniform_real_distribution<float> jitter(-1.0f, 1.0f);
+  std::vector<GaussianSpec> gs;
+  for (float x = -half; x <= half; x += step)
+    for (float y = -half; y <= half; y += step) {
+      const Eigen::Quaternionf q(Eigen::AngleAxisf(tilt * jitter(rng), Eigen::Vector3f(jitter(rng), jitter(rng), 0).normalized()));
+      gs.emplace_back(Eigen::Vector3f(x, y, height * jitter(rng)), axes, q);
+    }
+  return gs;
+}
+
+// Rests `part` on the layer below it (swept down by `drop` from where it is, stopped 1 um short of
+// the contact), slides it by `motion`, and checks the slide's contact against every Gaussian's own
+// exact search; whether the slide met one.
+bool slide_meets_the_first_contact(const CollisionWorld& w, SweepQuery& sweep, ToolEllipsoid& part, double drop,
+                                   const Eigen::Vector3d& motion) {
+  const SweepHit rest = sweep.first_contact(part, Eigen::Vector3d(0, 0, -drop));
+  EXPECT_TRUE(rest.hit);
+  part.center.z() -= drop * rest.t - 1e-6;
+  const SweepHit hit = sweep.first_contact(part, motion);
+  double t_ref = INFINITY;
+  for (const CollisionGaussian& g : w.gaussians()) t_ref = std::min(t_ref, sweep_time(g, part, motion));
+  EXPECT_EQ(hit.hit, t_ref <= 1.0) << "brute force: t = " << t_ref;
+  if (hit.hit) expect_brute_force_first_contact(w, part, motion, hit);
+  return hit.hit;
+}
+
 TEST(SweepQuery, AnElongatedPartSlidingOnABumpyLayerMeetsTheFirstContact) {
   // A stylus segment (40 x 4 x 4 mm) resting on a layer of thin discs with jittered heights
   // and tilts, sliding along it in every direction (a little down, or a little up): the
   // Gaussians beside its axis are ruled out by their support toward the axis and the motion
   // across it (Capsule's bound); each contact is still the earliest of every Gaussian's own
   // exact search.
-  std::vector<GaussianSpec> gs;
   std::mt19937 rng(38);
   std::uniform_real_distribution<float> jitter(-1.0f, 1.0f);
-  for (float x = -0.04f; x <= 0.04f; x += 0.002f)
-    for (float y = -0.04f; y <= 0.04f; y += 0.002f) {
-      const Eigen::Quaternionf tilt(Eigen::AngleAxisf(0.3f * jitter(rng), Eigen::Vector3f(jitter(rng), jitter(rng), 0).normalized()));
-      gs.emplace_back(Eigen::Vector3f(x, y, 0.0005f * jitter(rng)), Eigen::Vector3f(0.002f, 0.0015f, 0.0002f), tilt);
-    }
-  const CollisionWorld w = world_of(gs);
+  const CollisionWorld w = world_of(bumpy_layer(rng, 0.04f, 0.002f, 0.0005f, 0.3f, {0.002f, 0.0015f, 0.0002f}));
   SweepQuery sweep(w);
   ToolEllipsoid part;
   part.semi_axes = {0.02, 0.004, 0.004};
@@ -518,19 +542,11 @@ TEST(SweepQuery, AnElongatedPartSlidingOnABumpyLayerMeetsTheFirstContact) {
     // Rest it on the layer: lift it out, then sweep it down to its first contact. Then slide it
     // 0.1 to 5 mm (a short slide leaves little margin to the motion's part of the bound).
     part.center.z() = 0.02;
-    const SweepHit rest = sweep.first_contact(part, Eigen::Vector3d(0, 0, -0.03));
-    ASSERT_TRUE(rest.hit);
-    part.center.z() -= 0.03 * rest.t - 1e-6;
     const double heading = 3.2 * jitter(rng), slope = 0.3 * jitter(rng), len = 0.0001 * std::pow(50.0, 0.5 * (1 + jitter(rng)));
     const Eigen::Vector3d motion =
         len * Eigen::Vector3d(std::cos(heading), std::sin(heading), slope).normalized();
     SCOPED_TRACE(i);
-    const SweepHit hit = sweep.first_contact(part, motion);
-    double t_ref = INFINITY;
-    for (const CollisionGaussian& g : w.gaussians()) t_ref = std::min(t_ref, sweep_time(g, part, motion));
-    ASSERT_EQ(hit.hit, t_ref <= 1.0) << "brute force: t = " << t_ref;
-    if (hit.hit) expect_brute_force_first_contact(w, part, motion, hit);
-    hits += hit.hit ? 1 : 0;
+    hits += slide_meets_the_first_contact(w, sweep, part, 0.03, motion) ? 1 : 0;
   }
   EXPECT_GE(hits, 8) << "many slides meet a bump";
 }
@@ -543,15 +559,9 @@ TEST(SweepQuery, AnUprightTipAndARestingSphereSlideOnADenseLayerToTheFirstContac
   // (its swept box's floor holds a hundred discs; the leaves beyond its radius from its path are
   // not read). Each contact is the earliest of every Gaussian's own exact search, and the sphere
   // reads under half the Gaussians that reach into its swept box.
-  std::vector<GaussianSpec> gs;
   std::mt19937 rng(71);
   std::uniform_real_distribution<float> jitter(-1.0f, 1.0f);
-  for (float x = -0.03f; x <= 0.03f; x += 0.001f)
-    for (float y = -0.03f; y <= 0.03f; y += 0.001f) {
-      const Eigen::Quaternionf tilt(Eigen::AngleAxisf(0.2f * jitter(rng), Eigen::Vector3f(jitter(rng), jitter(rng), 0).normalized()));
-      gs.emplace_back(Eigen::Vector3f(x, y, 0.0002f * jitter(rng)), Eigen::Vector3f(0.0008f, 0.0006f, 0.0001f), tilt);
-    }
-  const CollisionWorld w = world_of(gs);
+  const CollisionWorld w = world_of(bumpy_layer(rng, 0.03f, 0.001f, 0.0002f, 0.2f, {0.0008f, 0.0006f, 0.0001f}));
   SweepQuery sweep(w);
   for (const bool upright : {true, false}) {
     ToolEllipsoid part = upright ? ToolEllipsoid{} : ToolEllipsoid::sphere(Eigen::Vector3d::Zero(), 0.005);
@@ -563,30 +573,21 @@ TEST(SweepQuery, AnUprightTipAndARestingSphereSlideOnADenseLayerToTheFirstContac
         part.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(
             0.26 * jitter(rng), Eigen::Vector3d(jitter(rng), jitter(rng), 0).normalized()));
       part.center = {0.01 * jitter(rng), 0.01 * jitter(rng), 0.03};
-      const SweepHit rest = sweep.first_contact(part, Eigen::Vector3d(0, 0, -0.05));
-      ASSERT_TRUE(rest.hit);
-      part.center.z() -= 0.05 * rest.t - 1e-6;
       const double heading = 3.2 * jitter(rng), slope = 0.2 * jitter(rng),
                    len = 0.00005 * std::pow(40.0, 0.5 * (1 + jitter(rng)));
       const Eigen::Vector3d motion = len * Eigen::Vector3d(std::cos(heading), std::sin(heading), slope).normalized();
       SCOPED_TRACE(::testing::Message() << (upright ? "upright part " : "sphere ") << i);
-      const SweepHit hit = sweep.first_contact(part, motion);
-      read += sweep.counts().candidates;
-      {  // the Gaussians whose bounding box overlaps the swept box: what a box traversal reads at least
-        const Eigen::Vector3d h = part.aabb_half_extent();
-        const Eigen::Vector3d lo = part.center.cwiseMin(part.center + motion) - h;
-        const Eigen::Vector3d hi = part.center.cwiseMax(part.center + motion) + h;
-        for (const CollisionGaussian& g : w.gaussians()) {
-          const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
-          const double gr = g.bounding_radius();
-          in_box += ((c.array() + gr) >= lo.array()).all() && ((c.array() - gr) <= hi.array()).all() ? 1 : 0;
-        }
+      hits += slide_meets_the_first_contact(w, sweep, part, 0.05, motion) ? 1 : 0;
+      read += sweep.counts().candidates;  // (the slide's)
+      // The Gaussians whose bounding box overlaps the slide's swept box: what a box traversal reads at least.
+      const Eigen::Vector3d h = part.aabb_half_extent();
+      const Eigen::Vector3d lo = part.center.cwiseMin(part.center + motion) - h;
+      const Eigen::Vector3d hi = part.center.cwiseMax(part.center + motion) + h;
+      for (const CollisionGaussian& g : w.gaussians()) {
+        const Eigen::Vector3d c(g.center[0], g.center[1], g.center[2]);
+        const double gr = g.bounding_radius();
+        in_box += ((c.array() + gr) >= lo.array()).all() && ((c.array() - gr) <= hi.array()).all() ? 1 : 0;
       }
-      double t_ref = INFINITY;
-      for (const CollisionGaussian& g : w.gaussians()) t_ref = std::min(t_ref, sweep_time(g, part, motion));
-      ASSERT_EQ(hit.hit, t_ref <= 1.0) << "brute force: t = " << t_ref;
-      if (hit.hit) expect_brute_force_first_contact(w, part, motion, hit);
-      hits += hit.hit ? 1 : 0;
     }
     EXPECT_GE(hits, 8) << "many slides meet a bump";
     if (!upright) EXPECT_LT(2 * read, in_box) << read << " Gaussians read of " << in_box << " reaching into the swept boxes";
