@@ -260,7 +260,7 @@ TEST(SafetyTorque, LimitedOnItsOwnKeepingDirectionAndTheDeviceLimitBinds) {
   // A device that allows 0.25 N m binds below the option; +inf or 0 leaves the option.
   s.set_device_torque_limit(0.25);
   EXPECT_DOUBLE_EQ(s.tau_max(), 0.25);
-  EXPECT_NEAR(s.apply(fresh_wrench(12 * kMs, {}, {0, 3, 4}), kDt).torque.norm(), 0.25, 1e-12);
+  EXPECT_NEAR(s.apply(fresh_wrench(12 * kMs, Eigen::Vector3d::Zero(), {0, 3, 4}), kDt).torque.norm(), 0.25, 1e-12);
   s.set_device_torque_limit(std::numeric_limits<double>::infinity());
   EXPECT_DOUBLE_EQ(s.tau_max(), 0.4);
 }
@@ -271,13 +271,13 @@ TEST(SafetyTorque, RateLimitedRampedGatedAndFadedLikeTheForce) {
   p.max_torque_rate = 50;  // 0.05 N m per 1 ms tick
   SafetyFilter s(p);
   s.reset(0);
-  const SafetyOutput a = s.apply(fresh_wrench(10 * kMs, {}, {0, 0, 1}), kDt);
+  const SafetyOutput a = s.apply(fresh_wrench(10 * kMs, Eigen::Vector3d::Zero(), {0, 0, 1}), kDt);
   EXPECT_NEAR(a.torque.z(), 0.05, 1e-12);
   EXPECT_TRUE(a.flags & kFlagTorqueLimited);
-  const SafetyOutput b = s.apply(fresh_wrench(11 * kMs, {}, {0, 0, 1}), kDt);
+  const SafetyOutput b = s.apply(fresh_wrench(11 * kMs, Eigen::Vector3d::Zero(), {0, 0, 1}), kDt);
   EXPECT_NEAR(b.torque.z(), 0.10, 1e-12);
   // The device gate zeroes the torque at once.
-  SafetyInput bad = fresh_wrench(12 * kMs, {}, {0, 0, 1});
+  SafetyInput bad = fresh_wrench(12 * kMs, Eigen::Vector3d::Zero(), {0, 0, 1});
   bad.device_ok = false;
   bad.device_flags = kFlagWatchdog;
   EXPECT_EQ(s.apply(bad, kDt).torque, Eigen::Vector3d::Zero());

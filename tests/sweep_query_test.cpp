@@ -590,7 +590,9 @@ TEST(SweepQuery, AnUprightTipAndARestingSphereSlideOnADenseLayerToTheFirstContac
       }
     }
     EXPECT_GE(hits, 8) << "many slides meet a bump";
-    if (!upright) EXPECT_LT(2 * read, in_box) << read << " Gaussians read of " << in_box << " reaching into the swept boxes";
+    if (!upright) {
+      EXPECT_LT(2 * read, in_box) << read << " Gaussians read of " << in_box << " reaching into the swept boxes";
+    }
   }
 }
 
