@@ -417,12 +417,14 @@ SampledRange sampled(std::uint32_t first, std::uint32_t count, std::uint32_t str
   return {start, start < end ? (end - start + stride - 1) / stride : 0};
 }
 
-// Calls f(g) for the Gaussians in the sampled slots of a leaf's range, in slot order.
+// Calls f(g) for the Gaussians in the sampled slots of a leaf's range, in slot order; returns how
+// many it visited.
 template <typename F>
-void for_each_sampled(const CollisionGaussian* gs, std::uint32_t first, std::uint32_t count, std::uint32_t stride,
-                      F&& f) noexcept {
+std::uint32_t for_each_sampled(const CollisionGaussian* gs, std::uint32_t first, std::uint32_t count,
+                               std::uint32_t stride, F&& f) noexcept {
   const SampledRange r = sampled(first, count, stride);
   for (std::uint32_t i = 0; i < r.count; ++i) f(gs[r.first + i * stride]);
+  return r.count;
 }
 
 // Gathers visited Gaussians kLanes at a time and passes each kept term, in visiting order, to a
@@ -689,8 +691,7 @@ Eigen::Vector3d shaded_normal(const CollisionWorld& world, const Eigen::Vector3d
   std::size_t visited = 0;
   const auto sink = [&t](const TermLanes& tl, int l) { t.keep(tl, l); };
   const auto gather = [&](std::uint32_t first, std::uint32_t count) {
-    visited += sampled(first, count, stride).count;
-    for_each_sampled(gs, first, count, stride, [&](const CollisionGaussian& g) { t.gather.add(g, sink); });
+    visited += for_each_sampled(gs, first, count, stride, [&](const CollisionGaussian& g) { t.gather.add(g, sink); });
   };
   if (fits)
     for (std::size_t i = 0; i < t.n_ranges; ++i) gather(t.ranges[i].first, t.ranges[i].count);
