@@ -204,11 +204,11 @@ int main(int argc, char** argv) {
   app.add_flag("--no-crest-hold", no_crest_hold,
                "The one-ellipsoid proxy slides off a convex edge or corner it is pressed into "
                "(ProxyParams::crest_hold off; nor are edges read), for comparison");
-  std::string surface_name = "ellipsoids";
+  std::string surface_name(proxy_surface_name(ProxyParams{}.surface));
   app.add_option("--surface", surface_name,
-                 "The one-part proxy's solid on the probe runs: ellipsoids (the 1-sigma ellipsoids) or seen "
-                 "(the surface the splats render; the world keeps Gaussians down to 1/255 and the probe run is "
-                 "recorded with that proxy)")
+                 "The proxy's solid on the probe runs: seen (the surface the splats render; the world keeps "
+                 "Gaussians down to 1/255 and the probe run is recorded with that proxy) or ellipsoids (the "
+                 "1-sigma ellipsoids)")
       ->capture_default_str()->check(CLI::IsMember({"ellipsoids", "seen"}));
   std::string footprint_name = ProxyParams{}.seen_footprint ? "on" : "off";
   app.add_option("--seen-footprint", footprint_name,
@@ -235,7 +235,7 @@ int main(int argc, char** argv) {
                "noise relief (RMS 0.05 R, wavelengths 0.2-1 R), and write a table of what materials and texture add "
                "(with --stylus, also to the stylus's proxy)");
   CLI11_PARSE(app, argc, argv);
-  const ProxySurface surface = surface_name == "seen" ? ProxySurface::kSeen : ProxySurface::kEllipsoids;
+  const ProxySurface surface = proxy_surface_from(surface_name, "--surface");
   const bool seen_footprint = footprint_name == "on";
   const bool ellipsoid_path = path_name == "ellipsoids";
   try {

@@ -384,7 +384,10 @@ class Simulate(unittest.TestCase):
                  (("--tool", "stylus:0.06,0.005", "--device-shading", "0"), "--device-shading serves a one-part tool"),
                  (("--near-lists", "off",), "--near-lists serves a tool with a shape"),
                  (("--force-model", "paper", "--stiffness", "500"), "--stiffness applies to the proxy model only"),
-                 (("--k-base", "3"), "--k-base applies to the paper model only")]
+                 (("--k-base", "3"), "--k-base applies to the paper model only"),
+                 (("--surface", "seen", "--crest-hold", "off"),
+                  "--crest-hold serves --surface ellipsoids only (--surface is seen)"),
+                 (("--surface", "ellipsoids", "--seen-window", "64"), "--seen-window serves --surface seen only")]
         for args, message in cases:
             p = run("simulate", "--sites", "1", "--quiet", "--no-plot", *args, check=False)
             self.assertEqual(p.returncode, 2, (args, p.stderr))

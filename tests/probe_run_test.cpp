@@ -13,6 +13,8 @@
 #include "gshaptics/error.h"
 #include "gshaptics/servo/safety.h"
 #include "gshaptics/io/scene_loader.h"
+#include "gshaptics/scene/seen_surface.h"
+#include "gshaptics/session/probe_session.h"
 #include "support/allocation_counter.h"
 #include "support/scenes.h"
 
@@ -141,6 +143,49 @@ TEST_F(TruckRun, SameSeedSameTrajectoryOtherSeedOtherSites) {
   for (std::size_t i = 0; i < a.sites().size(); ++i)
     EXPECT_EQ(a.sites()[i].gaussian_index, b.sites()[i].gaussian_index);
   EXPECT_NE(a.sites()[0].gaussian_index, c.sites()[0].gaussian_index);
+}
+
+// On the seen solid the probe run's touch points lie where the sphere's leading point meets the
+// surface the splats render (the 3DGS median depth from the approach's start, an independent slow
+// reference), not on the 1-sigma ellipsoids: on thick discs (sigma 8 x 8 x 3 mm) these stand
+// 3 mm proud of the discs' plane, where a viewer sees the surface. A plateau 3 cm over a floor.
+TEST(ProbeRun, OnTheSeenSurfaceTheTouchPointsAreWhereTheSurfaceIsSeen) {
+  GaussianScene g;
+  const double s = 0.008, top = 0.03;
+  const auto layer = [&](double half, double z) {
+    for (double x = -half; x <= half + 1e-12; x += s)
+      for (double y = -half; y <= half + 1e-12; y += s)
+        g.push_back(Eigen::Vector3f(float(x), float(y), float(z)), Eigen::Vector3f(0.008f, 0.008f, 0.003f),
+                    Eigen::Vector4f(1, 0, 0, 0), 0.9f, std::uint32_t(g.size()));
+  };
+  layer(0.08, 0.0);
+  layer(0.032, top);
+  WorldConfig config;
+  config.min_opacity = kSeenMinOpacity;
+  const CollisionWorld world = CollisionWorld::build(g, config);
+  const double r = 0.005;
+  ProbeParams pp;
+  pp.tool_radius = r;
+  pp.sites = 3;
+  const ProbeTrajectory on_ellipsoids = generate_probe_trajectory(world, pp);
+  pp.first_touch = session::seen_first_touch(world, r);
+  const ProbeTrajectory on_seen = generate_probe_trajectory(world, pp);
+  ASSERT_EQ(on_seen.sites().size(), 3u);
+  ASSERT_EQ(on_ellipsoids.sites().size(), 3u);
+  const SeenSurface reference(g);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const ProbeSite& site = on_seen.sites()[i];
+    const Eigen::Vector3d start = site.surface_point + pp.approach_distance * r * site.normal;
+    const SeenDepth seen = reference.median_depth(start, -site.normal);
+    ASSERT_TRUE(seen.hit);
+    const Eigen::Vector3d lead = site.touch_point - r * site.normal;
+    EXPECT_NEAR((lead - (start - seen.depth * site.normal)).norm(), 0.0, 1e-3 * r) << "site " << i;
+    EXPECT_NEAR(lead.z(), top, 1e-3 * r);  // the discs' plane, where their peaks composite
+    // The same site on the ellipsoids is touched 3 mm higher (within the r / 8 steps).
+    const ProbeSite& e = on_ellipsoids.sites()[i];
+    ASSERT_EQ(e.gaussian_index, site.gaussian_index);
+    EXPECT_NEAR(e.touch_point.z() - site.touch_point.z(), 0.003, r / 8);
+  }
 }
 
 TEST(ProbeRun, EpisodesMergeShortGapsAndRecordPeaks) {

@@ -637,6 +637,36 @@ TEST(SeenProxy, ALargeFlatGaussianTheFloaterRulePassesIsFeltWhereItIsSeen) {
   EXPECT_LT(press(ellipsoids, r, 0.05, -0.02, 1000).lowest_lead, -0.02);
 }
 
+// A sphere that came along an opaque sheet of flat discs with its centre 1 mm over it (the sheet
+// seen edge-on along that motion: nothing seen, nothing felt) and then pushes down is, seen
+// along its new motion, already 9 mm into the surface. The contact starts where the device is,
+// without a force step (the old rule snapped the proxy back onto the sheet: k times the 9 mm at
+// once), and then holds as any other: the force grows with the push.
+TEST(SeenProxy, AContactBegunPastASurfaceNotCrossedStartsWithoutAStep) {
+  GaussianScene g;
+  add_layer(g, 0.0, 0.9f);
+  const double r = 0.01;
+  const CollisionWorld w = CollisionWorld::build(g, seen_world());
+  ProxyRenderer p(w, seen_params());
+  const auto tick = [&](const Eigen::Vector3d& x) {
+    return p.render(ToolEllipsoid::sphere(x, r), Eigen::Vector3d::Zero(), 1e-3).force;
+  };
+  const Eigen::Vector3d along(-0.02, 0.0, 0.001);
+  for (int k = 0; k <= 200; ++k) EXPECT_EQ(tick(along + Eigen::Vector3d(1e-4 * k, 0, 0)).norm(), 0.0) << k;
+  // Down, 0.02 mm a tick for 4 mm.
+  const Eigen::Vector3d from = along + Eigen::Vector3d(0.02, 0, 0);
+  double first = 0, last = 0;
+  int touching = 0;
+  for (int k = 1; k <= 200; ++k) {
+    const double f = tick(from - Eigen::Vector3d(0, 0, 2e-5 * k)).norm();
+    if (f > 0 && touching++ == 0) first = f;
+    last = f;
+  }
+  EXPECT_EQ(touching, 200);
+  EXPECT_LT(first, 1.0);  // (k times the footprint's allowance for a late ray, 0.05 R + 12 ticks' motion: 0.74 N)
+  EXPECT_NEAR(last - first, 1000.0 * 2e-5 * 199, 0.3);  // then the spring, k times the push
+}
+
 // A floor of opaque discs (z = 0, x >= 0) and a wall of them standing on it (x = 0, z >= 0):
 // discs of sigma 0.6 s every s (opaque between their centres too).
 GaussianScene floor_and_wall(double s = 0.002) {
@@ -747,6 +777,47 @@ TEST(SeenProxy, TurningTheFootprintOffIsRefusedForACompoundToolAndTheWindowMustB
   ProxyParams bad = seen_params();
   bad.seen_window = 0;
   EXPECT_THROW(ProxyRenderer(w, bad), InputError);
+}
+
+// A field that only one surface reads, set for the other, is refused by name with its option,
+// never ignored; at its default it is accepted on either surface.
+TEST(SeenProxy, AnotherSurfacesFieldIsRefusedByNameNotIgnored) {
+  GaussianScene g;
+  add_layer(g, 0.0, 0.9f);
+  const CollisionWorld w = CollisionWorld::build(g, seen_world());
+  const auto message = [&](const ProxyParams& p) -> std::string {
+    try {
+      ProxyRenderer r(w, p);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  ProxyParams crest = seen_params();
+  crest.crest_hold = false;
+  EXPECT_NE(message(crest).find("crest_hold (--crest-hold) serves the surface ellipsoids only"), std::string::npos)
+      << message(crest);
+  ProxyParams gap = seen_params();
+  gap.isolation_gap = 1.0;
+  gap.energy_bound = false;
+  const std::string both = message(gap);
+  EXPECT_NE(both.find("isolation_gap (--isolation-gap)"), std::string::npos) << both;
+  EXPECT_NE(both.find("energy_bound (--energy-bound)"), std::string::npos) << both;
+  ProxyParams footprint;
+  footprint.surface = ProxySurface::kEllipsoids;
+  footprint.seen_footprint = false;
+  EXPECT_NE(message(footprint).find("seen_footprint (--seen-footprint) serves the surface seen only"), std::string::npos)
+      << message(footprint);
+  crest.surface = ProxySurface::kEllipsoids;  // where it serves
+  EXPECT_EQ(message(crest), "");
+  EXPECT_EQ(message(seen_params()), "");
+  for (const ProxySurfaceField& f : surface_specific_proxy_fields()) {
+    EXPECT_TRUE(f.at_default(ProxyParams{})) << f.name;
+    EXPECT_FALSE(f.option.empty()) << f.name;
+  }
+  EXPECT_EQ(proxy_surface_from(proxy_surface_name(ProxySurface::kSeen), "t"), ProxySurface::kSeen);
+  EXPECT_EQ(proxy_surface_from("ellipsoids", "t"), ProxySurface::kEllipsoids);
+  EXPECT_THROW((void)proxy_surface_from("mesh", "t"), InputError);
 }
 
 }  // namespace

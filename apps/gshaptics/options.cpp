@@ -213,10 +213,11 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
          "face's mean thin axis while they agree (off: the shaded field). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option_function<std::string>(
-         "--surface", [&p](const std::string& v) { p.surface = v == "seen" ? ProxySurface::kSeen : ProxySurface::kEllipsoids; },
-         "proxy: the solid the proxy rests on: ellipsoids (the Gaussians' exact 1-sigma ellipsoids, opacity filter and "
-         "floater rule) or seen (where the splats composite to half transmittance along the push, as a viewer sees "
-         "them; faint Gaussians kept: the world's --min-opacity defaults to 1/255). Default: ellipsoids")
+         "--surface", [&p](const std::string& v) { p.surface = proxy_surface_from(v, "--surface"); },
+         "proxy: the solid the proxy rests on: seen (where the splats composite to half transmittance along the push, "
+         "as a viewer sees them; faint Gaussians kept: the world's --min-opacity defaults to 1/255) or ellipsoids (the "
+         "Gaussians' exact 1-sigma ellipsoids, opacity filter 0.2 and floater rule). Default: " +
+             std::string(proxy_surface_name(ProxyParams{}.surface)))
       ->check(CLI::IsMember({"ellipsoids", "seen"}));
   cmd.add_option("--seen-window", p.seen_window,
                  "proxy: with --surface seen, the layers within this many tool radii behind a point along the push "
@@ -261,7 +262,8 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
       if (opt->get_expected_max() != 0)
         for (const std::string& value : opt->results()) o.given.push_back(value);
     }
-    refuse_options_not_applying(o.model, tool ? std::optional(tool->proxy_tool()) : std::nullopt, given);
+    refuse_options_not_applying(o.model, tool ? std::optional(tool->proxy_tool()) : std::nullopt, o.proxy.surface,
+                                given);
     if (o.profile.empty()) return;
     apply_device_profile(device_profile(o.profile, "--device-profile"), o.f_max, o.proxy, cmd.count("--f-max") > 0,
                          cmd.count("--stiffness") > 0);

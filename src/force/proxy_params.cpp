@@ -52,7 +52,51 @@ const std::array<ProxyToolField, 12> kToolFields{{
                                  "the one-ellipsoid proxy's normal is the shaded field (with its corner normal)"),
 }};
 
+// A row of the surface table for the field `Member`.
+template <auto Member>
+constexpr ProxySurfaceField surface_field(std::string_view name, std::string_view option, ProxySurface serves,
+                                          std::string_view why_not) {
+  return {name, option, serves, [](const ProxyParams& p) { return p.*Member == kDefaults.*Member; }, why_not};
+}
+
+constexpr std::string_view kNoEllipsoids = "the seen solid has no ellipsoids to sweep, shade or pass as floaters";
+
+// The table of surface-specific fields.
+const std::array<ProxySurfaceField, 13> kSurfaceFields{{
+    surface_field<&ProxyParams::opacity_stiffness>("opacity_stiffness", "--opacity-stiffness", ProxySurface::kEllipsoids,
+                                                   "the seen solid's surface is already where the opacity composites to 1/2"),
+    surface_field<&ProxyParams::substeps>("substeps", "--substeps", ProxySurface::kEllipsoids,
+                                          "the seen solid searches each motion's whole segment"),
+    surface_field<&ProxyParams::energy_bound>("energy_bound", "--energy-bound", ProxySurface::kEllipsoids,
+                                              "it bounds the ellipsoid proxy's shaded normal's turns"),
+    surface_field<&ProxyParams::device_shading>("device_shading", "--device-shading", ProxySurface::kEllipsoids, kNoEllipsoids),
+    surface_field<&ProxyParams::corner_normal>("corner_normal", "--corner-normal", ProxySurface::kEllipsoids, kNoEllipsoids),
+    surface_field<&ProxyParams::crest_hold>("crest_hold", "--crest-hold", ProxySurface::kEllipsoids,
+                                            "the seen normal on a convex crease is already the rigid sphere's"),
+    surface_field<&ProxyParams::overhang_falloff>("overhang_falloff", "--overhang-falloff", ProxySurface::kEllipsoids,
+                                                  kNoEllipsoids),
+    surface_field<&ProxyParams::near_lists>("near_lists", "--near-lists", ProxySurface::kEllipsoids, kNoEllipsoids),
+    surface_field<&ProxyParams::face_average>("face_average", "--face-average", ProxySurface::kEllipsoids, kNoEllipsoids),
+    surface_field<&ProxyParams::isolation_gap>("isolation_gap", "--isolation-gap", ProxySurface::kEllipsoids,
+                                               "the seen solid keeps every Gaussian a viewer draws"),
+    surface_field<&ProxyParams::floater_cluster>("floater_cluster", "--floater-cluster", ProxySurface::kEllipsoids,
+                                                 "the seen solid keeps every Gaussian a viewer draws"),
+    surface_field<&ProxyParams::seen_window>("seen_window", "--seen-window", ProxySurface::kSeen,
+                                             "the ellipsoid proxy's solid does not depend on where it is seen from"),
+    surface_field<&ProxyParams::seen_footprint>("seen_footprint", "--seen-footprint", ProxySurface::kSeen,
+                                                "the ellipsoid proxy's sweep holds the whole sphere already"),
+}};
+
 }  // namespace
+
+std::string_view proxy_surface_name(ProxySurface s) noexcept { return s == ProxySurface::kSeen ? "seen" : "ellipsoids"; }
+
+ProxySurface proxy_surface_from(std::string_view name, std::string_view who) {
+  for (ProxySurface s : {ProxySurface::kEllipsoids, ProxySurface::kSeen})
+    if (name == proxy_surface_name(s)) return s;
+  fail(who, "--surface must be ellipsoids or seen, not '" + std::string(name) + "'");
+  return ProxySurface::kSeen;  // (not reached)
+}
 
 void validate_proxy_params(const ProxyParams& p, std::string_view who) {
   if (!finite_positive(p.stiffness)) fail(who, "stiffness must be > 0 N/m");
@@ -75,9 +119,18 @@ void validate_proxy_params(const ProxyParams& p, std::string_view who) {
   if (!finite_positive(p.seen_window)) fail(who, "seen_window must be > 0 tool radii");
   if (!(p.rotation_step > 0 && p.rotation_step <= 1) || p.max_rotation_steps < 1)
     fail(who, "rotation_step must be in (0, 1] and max_rotation_steps >= 1");
+  std::string refused;
+  for (const ProxySurfaceField& f : kSurfaceFields) {
+    if (f.serves == p.surface || f.at_default(p)) continue;
+    refused += std::string(refused.empty() ? "" : "; ") + std::string(f.name) + " (" + std::string(f.option) +
+               ") serves the surface " + std::string(proxy_surface_name(f.serves)) + " only: " + std::string(f.why_not);
+  }
+  if (!refused.empty()) fail(who, refused);
 }
 
 std::span<const ProxyToolField> tool_specific_proxy_fields() noexcept { return kToolFields; }
+
+std::span<const ProxySurfaceField> surface_specific_proxy_fields() noexcept { return kSurfaceFields; }
 
 ProxyParams proxy_params_for(const ProxyParams& p, ProxyTool tool) {
   ProxyParams out = p;

@@ -124,6 +124,8 @@ bool SeenProxy::begin_contact_along(const Eigen::Vector3d& u, double len, double
   fresh_normal_ = true;
   normal_reading_.forget();
   last_hit_ = std::numeric_limits<double>::quiet_NaN();
+  sunk_ = 0;
+  entry_motion_ = len;
   return true;
 }
 
@@ -183,7 +185,13 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   if (params_.seen_footprint) read_ring(device, foot, radius, depth);
   const double footprint = params_.seen_footprint ? ring_support(device, radius) : std::numeric_limits<double>::infinity();
   const double rest = std::min(hit.hit ? hit.t : std::numeric_limits<double>::infinity(), footprint);
-  if (!(rest < depth)) return false;  // the device is out of the surface
+  // (A new contact's surface more than the tick's motion behind the leading point, and more than
+  // a footprint ray may be late: the device was already in it, seen along this axis; the contact
+  // holds the proxy that much deeper; sunk_.)
+  if (fresh_normal_ && std::isfinite(rest))
+    sunk_ = std::max(0.0, depth - rest - (kRingRays * entry_motion_ + kRingLate * radius));
+  const double held = rest + sunk_;
+  if (!(held < depth)) return false;  // the device is out of the surface
   // A rise of more than kMaxClimb R in one tick is no surface the sphere slides onto but the top
   // of a wall or an overhang that the ray over the goal met (a wall seen edge-on that the line
   // across did not see): the proxy stays where it stood, held by it across the axis.
@@ -197,7 +205,7 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   if (hit.hit) last_hit_ = hit.t;
   rest_ = rest;
   under_ = hit.hit ? std::max(0.0, hit.t - rest) : std::numeric_limits<double>::infinity();
-  const double t = std::max(0.0, rest - 1e-6 * radius);
+  const double t = std::max(0.0, held - 1e-6 * radius);
   const Eigen::Vector3d moved = foot + (t - radius) * a - proxy_;
   proxy_ += moved;
   read_normal(foot + rest * a, radius, rest);

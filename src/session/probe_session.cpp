@@ -27,6 +27,7 @@
 #include "gshaptics/device/device_profile.h"
 #include "gshaptics/device/device_model.h"
 #include "gshaptics/sim/pose_sampler.h"
+#include "gshaptics/force/seen_solid.h"
 
 namespace gshaptics::session {
 
@@ -49,7 +50,7 @@ ToolOption parse_tool_option(const std::string& spec) {
   return t;
 }
 
-void refuse_options_not_applying(RendererKind model, std::optional<ProxyTool> tool,
+void refuse_options_not_applying(RendererKind model, std::optional<ProxyTool> tool, ProxySurface surface,
                                  std::span<const GivenOption> given) {
   std::string refused;
   const auto refuse = [&](std::string_view option, const std::string& why) {
@@ -61,7 +62,12 @@ void refuse_options_not_applying(RendererKind model, std::optional<ProxyTool> to
                                  renderer_name(model)));
       continue;
     }
-    if (!tool || model != RendererKind::kProxy) continue;
+    if (model != RendererKind::kProxy) continue;
+    for (const ProxySurfaceField& f : surface_specific_proxy_fields())
+      if (f.option == g.name && f.serves != surface)
+        refuse(g.name, fmt::format("serves --surface {} only (--surface is {}): {}", proxy_surface_name(f.serves),
+                                   proxy_surface_name(surface), f.why_not));
+    if (!tool) continue;
     for (const ProxyToolField& f : tool_specific_proxy_fields())
       if (f.option == g.name && f.serves != *tool)
         refuse(g.name, fmt::format("serves {} only: {}",
@@ -83,6 +89,18 @@ void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o)
              size, p.name, 1000 * p.workspace.maxCoeff(), desktop_scale_advice(size).reg_scale);
 }
 
+std::function<double(const Eigen::Vector3d&, const Eigen::Vector3d&, double)> seen_first_touch(
+    const CollisionWorld& world, double tool_radius) {
+  // The sphere's leading point meets the seen solid, seen from where the approach starts (it
+  // came there through free space); a private solid, built once for the few sites.
+  auto solid = std::make_shared<const SeenSolid>(world);
+  return [solid, tool_radius](const Eigen::Vector3d& start, const Eigen::Vector3d& dir, double reach) {
+    SeenScratch scratch;
+    const SeenHit hit = solid->first_inside(start, dir, 0, tool_radius, reach + tool_radius, scratch);
+    return hit.hit && !scratch.overflow ? hit.t - tool_radius : std::numeric_limits<double>::quiet_NaN();
+  };
+}
+
 ProbeTrajectory make_probe_trajectory(const CollisionWorld& world, bool scaled, int sites, std::uint64_t seed,
                                       double tool_radius, const ForceModelOptions& force, std::FILE* report,
                                       const std::optional<Eigen::Vector3d>& up) {
@@ -100,6 +118,8 @@ ProbeTrajectory make_probe_trajectory(const CollisionWorld& world, bool scaled, 
   const double press_force = depth / press_depth_for_force(1.0, force.proxy.stiffness, hand_k);
   ProbeParams pp = default_probe_params(world, radius, sites, seed, depth);
   if (up) pp.up = *up;
+  if (force.model == RendererKind::kProxy && force.proxy.surface == ProxySurface::kSeen)
+    pp.first_touch = seen_first_touch(world, radius);
   if (!scaled && extent > 30.0)
     fmt::print(stderr,
                "warning: the scene is not registered and spans {:.0f} units; the simulated hand and "

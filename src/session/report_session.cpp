@@ -64,7 +64,7 @@ FidelityOptions fidelity_options_from(const FidelityCommandOptions& o) {
 namespace {
 
 // " --force-model M" and the force options: as given on the command line, or (a library call)
-// the seen surface's from the parameters.
+// the surface's (where it is not the default) from the parameters.
 std::string force_command_line(const ForceModelOptions& f) {
   std::string text = " --force-model " + std::string(renderer_name(f.model));
   if (!f.given.empty()) {
@@ -77,8 +77,9 @@ std::string force_command_line(const ForceModelOptions& f) {
     }
     return text;
   }
-  if (f.model == RendererKind::kProxy && f.proxy.surface == ProxySurface::kSeen) {
-    text += " --surface seen";
+  if (f.model != RendererKind::kProxy) return text;
+  if (f.proxy.surface != ProxyParams{}.surface) text += " --surface " + std::string(proxy_surface_name(f.proxy.surface));
+  if (f.proxy.surface == ProxySurface::kSeen) {
     if (f.proxy.seen_window != ProxyParams{}.seen_window) text += fmt::format(" --seen-window {:g}", f.proxy.seen_window);
     if (!f.proxy.seen_footprint) text += " --seen-footprint off";
   }

@@ -118,10 +118,14 @@ std::optional<ProbeSite> site_at(const CollisionGaussian& g, const Eigen::Vector
   const Eigen::Vector3d start = c + d_app * n;
   double s_touch = NAN;
   const double step = r / 8;
-  for (double s = d_app; s >= -r; s -= step) {
-    if (f.contacts_at(c + s * n) > 0) {
-      s_touch = s;
-      break;
+  if (f.p.first_touch) {
+    s_touch = d_app - f.p.first_touch(start, -n, d_app + r);
+  } else {
+    for (double s = d_app; s >= -r; s -= step) {
+      if (f.contacts_at(c + s * n) > 0) {
+        s_touch = s;
+        break;
+      }
     }
   }
   if (!(s_touch < d_app - step) || s_touch > r + 2 * sorted[2]) return std::nullopt;

@@ -30,6 +30,11 @@ enum class ProxySurface {
   kSeen,
 };
 
+/// The --surface value naming `s`: "ellipsoids" or "seen".
+[[nodiscard]] std::string_view proxy_surface_name(ProxySurface s) noexcept;
+/// The surface a --surface value names ("ellipsoids" or "seen"); InputError naming `who` otherwise.
+[[nodiscard]] ProxySurface proxy_surface_from(std::string_view name, std::string_view who);
+
 /// Parameters of the proxy (god-object) renderer, every tool. SI units; "tool radii" are the
 /// one-ellipsoid tool's bounding radius, or a compound tool's largest semi-axis (its smallest
 /// semi-axis where a field says so).
@@ -171,7 +176,8 @@ struct ProxyParams {
 /// negative lift, isolation gap, device shading or shading turn, a non-positive shading kernel,
 /// tail, teleport, a negative tau_opacity or shading reuse, floater_cluster outside
 /// [1, FloaterRule::kLargestCluster], negative rotational stiffness or damping, rotation_step
-/// outside (0, 1] or max_rotation_steps < 1.
+/// outside (0, 1], max_rotation_steps < 1, or a surface-specific field
+/// (surface_specific_proxy_fields()) set away from its default for the other surface.
 void validate_proxy_params(const ProxyParams& p, std::string_view who);
 
 /// Which tool a field of ProxyParams serves.
@@ -190,6 +196,20 @@ struct ProxyToolField {
 
 /// Every tool-specific field (a fixed table).
 [[nodiscard]] std::span<const ProxyToolField> tool_specific_proxy_fields() noexcept;
+
+/// A field of ProxyParams that one surface only reads: the ellipsoid proxy's floater rule,
+/// shaded normal, crest hold, sweeps and energy bound; the seen solid's window and footprint.
+/// Its name, option, the surface it serves, whether `p` holds it at its default, and why the
+/// other surface has no use for it.
+struct ProxySurfaceField {
+  std::string_view name, option;
+  ProxySurface serves;
+  bool (*at_default)(const ProxyParams& p);
+  std::string_view why_not;
+};
+
+/// Every surface-specific field (a fixed table).
+[[nodiscard]] std::span<const ProxySurfaceField> surface_specific_proxy_fields() noexcept;
 
 /// `p` with every field that does not serve `tool` at its default: for a caller that renders
 /// tools of both kinds from one set (the fidelity benchmark's point-tool and 6-DoF rows), so

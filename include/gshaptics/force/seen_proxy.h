@@ -173,6 +173,13 @@ class SeenProxy {
   SeenNormalReading normal_reading_;
   double last_hit_ = 0;  // the last hit's depth from the eye plane (NaN: none in this contact)
   double rest_ = 0;      // where the surface holds the leading point this tick, depth from the eye plane
+  // A contact that begins with the device's leading point already past the surface by more than
+  // this tick's motion brought it (seen along a new axis, a surface it did not cross: a faint
+  // sheet seen obliquely): how much deeper than that surface the contact holds the proxy, so it
+  // starts where the device is instead of snapping back with a force step (constant over the
+  // contact: a spring with a fixed rest offset gives back no more than it took).
+  double sunk_ = 0;
+  double entry_motion_ = 0;  // the leading point's motion along the axis in the tick the contact began
   // How far the seen surface under the leading point lies below where the proxy rests (0: its
   // ray holds it; the footprint holding it over a valley or a hole: deeper; +inf: no surface):
   // the relief the proxy does not render, which the texture tip reads.

@@ -62,10 +62,11 @@ struct GivenOption {
   std::optional<RendererKind> model;
 };
 /// Refuses (InputError naming each option, what it serves and why) the `given` options that do
-/// not apply: another model's options than `model`'s, and the proxy's tool-specific options
-/// (tool_specific_proxy_fields()) with a `tool` they do not serve (no `tool`: a command that
-/// renders both kinds, whose tool-specific options apply to one kind of its runs).
-void refuse_options_not_applying(RendererKind model, std::optional<ProxyTool> tool,
+/// not apply: another model's options than `model`'s, the proxy's surface-specific options
+/// (surface_specific_proxy_fields()) with a `surface` they do not serve, and its tool-specific
+/// options (tool_specific_proxy_fields()) with a `tool` they do not serve (no `tool`: a command
+/// that renders both kinds, whose tool-specific options apply to one kind of its runs).
+void refuse_options_not_applying(RendererKind model, std::optional<ProxyTool> tool, ProxySurface surface,
                                  std::span<const GivenOption> given);
 
 /// How the servo step runs: inline (query inside the tick) or the decoupled worker, and, on
@@ -90,7 +91,15 @@ unsigned log_columns(unsigned columns, const ControlParams& c);
 /// that fits it.
 void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o);
 
+/// ProbeParams::first_touch on the seen solid of `world` (the proxy's --surface seen): the
+/// sphere of `tool_radius` moved from a start in free space meets it where its leading point
+/// first reaches half transmittance, seen from the start (SeenSolid::first_inside). Builds the
+/// solid once (allocates); the function keeps it.
+std::function<double(const Eigen::Vector3d&, const Eigen::Vector3d&, double)> seen_first_touch(
+    const CollisionWorld& world, double tool_radius);
+
 /// The seeded probe trajectory; tool_radius <= 0 picks 1 % of the scene's robust extent.
+/// On the proxy's seen surface the touch points lie on the seen solid (seen_first_touch).
 /// Speeds scale with the tool so that any scene unit gives a similar run. The simulated hand
 /// presses to half of `force`'s limit (f_max) through the proxy's coupling stiffness
 /// (press_depth_for_force), so the peaks sit in the middle of the device's range on any scene.

@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "gshaptics/collision/collision_world.h"
@@ -24,6 +25,12 @@ struct ProbeParams {
   double travel_speed = 1.0;     ///< world units / s between sites (above the object)
   double approach_speed = 0.15;  ///< world units / s toward the surface
   double press_time = 0.4, hold_time = 0.5, release_time = 0.3;
+  /// Where the force model's surface first holds the tool: for the sphere's centre moving from
+  /// `start` along the unit `dir`, the distance moved at first contact, or NaN when none within
+  /// `reach` (world units). Each site's touch point is there, so the press goes press_depth
+  /// past the surface the proxy rests on. Empty: the first overlap with the world's ellipsoids,
+  /// stepped at tool_radius / 8 (the ellipsoid proxy's and the paper model's surface).
+  std::function<double(const Eigen::Vector3d& start, const Eigen::Vector3d& dir, double reach)> first_touch;
 };
 
 /// The default spherical tool radius for a world: 1 % of its robust extent (the 1-99 percentile
