@@ -33,6 +33,7 @@
 #include "gshaptics/percentile.h"
 #include "gshaptics/scene/opacity_filter.h"
 #include "gshaptics/scene/registration.h"
+#include "gshaptics/session/probe_session.h"
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/sim/probe_trajectory.h"
 
@@ -75,7 +76,8 @@ Set probe_set(const std::string& name, const std::string& file, double reg_scale
   s.name = name;
   WorldConfig cfg;
   // On the seen solid the world keeps the faint Gaussians (what a viewer draws), and the probe
-  // run is recorded with that proxy, as `simulate --surface seen` runs it.
+  // run is recorded with that proxy, its touch points on the seen solid, as `simulate --surface
+  // seen` runs it.
   if (surface == ProxySurface::kSeen) cfg.min_opacity = kSeenMinOpacity;
   if (bundled) {
     cfg.registration = load_registration_file(std::string(GSHAPTICS_DATA_DIR) + "/truck.registration.json");
@@ -88,7 +90,9 @@ Set probe_set(const std::string& name, const std::string& file, double reg_scale
   s.tool_radius = default_tool_radius(*s.world);
   const double depth = std::min(press_depth_for_force(15.0, ProxyParams{}.stiffness, UserHandParams{}.stiffness),
                                 3.0 * s.tool_radius);
-  const ProbeTrajectory traj = generate_probe_trajectory(*s.world, default_probe_params(*s.world, s.tool_radius, 7, 1, depth));
+  ProbeParams pp = default_probe_params(*s.world, s.tool_radius, 7, 1, depth);
+  if (surface == ProxySurface::kSeen && !ellipsoid_path) pp.first_touch = session::seen_first_touch(*s.world, s.tool_radius);
+  const ProbeTrajectory traj = generate_probe_trajectory(*s.world, pp);
   fmt::print(stderr, "proxy_bench: {}: recording the probe run ({:.0f} s simulated)\n", name, traj.duration());
   ProbeRunParams rp;
   ProxyModelSpec spec;
