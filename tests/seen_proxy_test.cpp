@@ -663,7 +663,7 @@ TEST(SeenProxy, AContactBegunPastASurfaceNotCrossedStartsWithoutAStep) {
     last = f;
   }
   EXPECT_EQ(touching, 200);
-  EXPECT_LT(first, 1.0);  // (k times the footprint's allowance for a late ray, 0.05 R + 12 ticks' motion: 0.74 N)
+  EXPECT_LT(first, 0.1);  // (k times the tick's motion and R / 1000: 0.03 N)
   EXPECT_NEAR(last - first, 1000.0 * 2e-5 * 199, 0.3);  // then the spring, k times the push
 }
 
@@ -799,10 +799,10 @@ TEST(SeenProxy, AnotherSurfacesFieldIsRefusedByNameNotIgnored) {
       << message(crest);
   ProxyParams gap = seen_params();
   gap.isolation_gap = 1.0;
-  gap.energy_bound = false;
+  gap.substeps = 2;
   const std::string both = message(gap);
   EXPECT_NE(both.find("isolation_gap (--isolation-gap)"), std::string::npos) << both;
-  EXPECT_NE(both.find("energy_bound (--energy-bound)"), std::string::npos) << both;
+  EXPECT_NE(both.find("substeps (--substeps)"), std::string::npos) << both;
   ProxyParams footprint;
   footprint.surface = ProxySurface::kEllipsoids;
   footprint.seen_footprint = false;

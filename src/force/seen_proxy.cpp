@@ -185,11 +185,11 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   if (params_.seen_footprint) read_ring(device, foot, radius, depth);
   const double footprint = params_.seen_footprint ? ring_support(device, radius) : std::numeric_limits<double>::infinity();
   const double rest = std::min(hit.hit ? hit.t : std::numeric_limits<double>::infinity(), footprint);
-  // (A new contact's surface more than the tick's motion behind the leading point, and more than
-  // a footprint ray may be late: the device was already in it, seen along this axis; the contact
-  // holds the proxy that much deeper; sunk_.)
+  // (A new contact's surface more than the tick's motion behind the leading point: the device was
+  // already in it, seen along this axis, or a footprint ray met it late; the contact holds the
+  // proxy that much deeper; sunk_.)
   if (fresh_normal_ && std::isfinite(rest))
-    sunk_ = std::max(0.0, depth - rest - (kRingRays * entry_motion_ + kRingLate * radius));
+    sunk_ = std::max(0.0, depth - rest - (entry_motion_ + kSunkSlack * radius));
   const double held = rest + sunk_;
   if (!(held < depth)) return false;  // the device is out of the surface
   // A rise of more than kMaxClimb R in one tick is no surface the sphere slides onto but the top

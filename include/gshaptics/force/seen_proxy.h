@@ -129,6 +129,7 @@ class SeenProxy {
   static constexpr double kRingAxisCos = 0.9986;  // cos 3 deg: a free push turning more forgets the footprint
   static constexpr double kRingDrift = 0.1;     // R: a reading taken this far across is forgotten
   static constexpr double kRingLate = 0.05;     // R: a footprint met later than its refresh and this does not hold
+  static constexpr double kSunkSlack = 1e-3;    // R: a new contact's surface deeper behind than its motion and this is sunk_
   // Free: the next ray of the footprint read along u, past the tick's motion `len` by kRingLook R;
   // then how far the sphere moves before rays around it hold it (< 0: it is past them; +inf: not
   // within the look).
