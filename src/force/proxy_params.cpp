@@ -17,11 +17,16 @@ void fail(std::string_view who, const std::string& what) { throw InputError(std:
 
 constexpr ProxyParams kDefaults{};
 
+// Whether `p` holds the field `Member` at its default (kDefaults), for both tables' rows.
+template <auto Member>
+bool at_default(const ProxyParams& p) {
+  return p.*Member == kDefaults.*Member;
+}
+
 // A row of the table for the field `Member`: its default is read from kDefaults.
 template <auto Member>
 constexpr ProxyToolField field(std::string_view name, std::string_view option, ProxyTool serves, std::string_view why_not) {
-  return {name, option, serves, [](const ProxyParams& p) { return p.*Member == kDefaults.*Member; },
-          [](ProxyParams& p) { p.*Member = kDefaults.*Member; }, why_not};
+  return {name, option, serves, &at_default<Member>, [](ProxyParams& p) { p.*Member = kDefaults.*Member; }, why_not};
 }
 
 // The table of tool-specific fields: one row each, with its option and why the other tool has no use for it.
@@ -56,7 +61,7 @@ const std::array<ProxyToolField, 12> kToolFields{{
 template <auto Member>
 constexpr ProxySurfaceField surface_field(std::string_view name, std::string_view option, ProxySurface serves,
                                           std::string_view why_not) {
-  return {name, option, serves, [](const ProxyParams& p) { return p.*Member == kDefaults.*Member; }, why_not};
+  return {name, option, serves, &at_default<Member>, why_not};
 }
 
 constexpr std::string_view kNoEllipsoids = "the seen solid has no ellipsoids to sweep, shade or pass as floaters";
