@@ -698,6 +698,36 @@ Move move(ProxyRenderer& p, double r, const Eigen::Vector3d& from, const Eigen::
   return out;
 }
 
+// A sphere pressed 2 mm into an opaque floor slides slowly (0.01 mm a tick) onto a step 1.5 mm
+// high. The height field of its leading point rises the whole step in one tick (k times 1.5 mm
+// at once); a rigid sphere rises onto it over a stretch of its slide. The proxy climbs at most
+// the slope it slides (tan 76 deg) plus R / 240 a tick: the force ramps, and the proxy ends on the
+// step's top as on any floor.
+TEST(SeenProxy, AStepLowerThanTheSphereIsClimbedAsARampNotAForceStep) {
+  const double s = 0.001, r = 0.005, h = 0.0015, k = ProxyParams{}.stiffness;
+  GaussianScene g;
+  for (double x = -0.04; x <= 0.04 + 1e-12; x += s)
+    for (double y = -0.02; y <= 0.02 + 1e-12; y += s)
+      g.push_back(Eigen::Vector3f(float(x), float(y), float(x >= 0 ? h : 0.0)), Eigen::Vector3f(float(0.6 * s), float(0.6 * s), 1e-5f),
+                  Eigen::Vector4f(1, 0, 0, 0), 0.9f, std::uint32_t(g.size()));
+  const CollisionWorld w = CollisionWorld::build(g, seen_world());
+  ProxyRenderer p(w, seen_params());
+  const double z = r - 0.002;
+  move(p, r, Eigen::Vector3d(-0.02, 0, 0.03), Eigen::Vector3d(-0.02, 0, z), 500);
+  const Move settle = move(p, r, Eigen::Vector3d(-0.02, 0, z), Eigen::Vector3d(-0.02, 0, z), 50);
+  double last = settle.last.force.z(), rise = 0;
+  for (int i = 1; i <= 4000; ++i) {
+    const Eigen::Vector3d c(-0.02 + 1e-5 * i, 0, z);
+    const double f = p.render(ToolEllipsoid::sphere(c, r), Eigen::Vector3d(0.01, 0, 0), 1e-3).force.z();
+    rise = std::max(rise, f - last);
+    last = f;
+  }
+  EXPECT_NEAR(settle.last.force.z(), k * 0.002, 0.1);
+  // At most k (4 x 0.01 mm + R / 240) a tick, with the damping's share; the step is k x 1.5 mm.
+  EXPECT_LT(rise, k * (4e-5 + r / 240) + 0.05);
+  EXPECT_GT(last, k * (0.002 + h) - 0.2);  // on the step's top, pressed 3.5 mm
+}
+
 TEST(SeenProxy, SlidingAlongAFloorIntoAWallTheWallHoldsAndTheProxyRisesAlongIt) {
   // Before the move across the contact's axis was searched, the proxy followed the device into
   // the wall with no force, and where its leading point's ray met the wall's discs the height

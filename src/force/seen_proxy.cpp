@@ -190,7 +190,8 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   // proxy that much deeper; sunk_.)
   if (fresh_normal_ && std::isfinite(rest))
     sunk_ = std::max(0.0, depth - rest - (entry_motion_ + kSunkSlack * radius));
-  const double held = rest + sunk_;
+  const double climbed = climb(rest, (across - proxy_ - (across - proxy_).dot(a) * a).norm(), radius);
+  const double held = climbed + sunk_;
   if (!(held < depth)) return false;  // the device is out of the surface
   // A rise of more than kMaxClimb R in one tick is no surface the sphere slides onto but the top
   // of a wall or an overhang that the ray over the goal met (a wall seen edge-on that the line
@@ -203,8 +204,8 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
     return (proxy_ + radius * a - eye_).dot(a) < depth;
   }
   if (hit.hit) last_hit_ = hit.t;
-  rest_ = rest;
-  under_ = hit.hit ? std::max(0.0, hit.t - rest) : std::numeric_limits<double>::infinity();
+  rest_ = climbed;
+  under_ = hit.hit ? std::max(0.0, hit.t - climbed) : std::numeric_limits<double>::infinity();
   const double t = std::max(0.0, held - 1e-6 * radius);
   const Eigen::Vector3d moved = foot + (t - radius) * a - proxy_;
   proxy_ += moved;
@@ -235,6 +236,18 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   const Eigen::Vector3d blended = normal_ + rate * (target_normal_ - normal_);
   normal_ = blended.norm() > 1e-9 ? Eigen::Vector3d(blended.normalized()) : target_normal_;
   return true;
+}
+
+double SeenProxy::climb(double rest, double slide, double radius) const noexcept {
+  // A rigid sphere rises onto a bump before its centre line reaches it, over the part of its
+  // shadow the bump is in; the height field of its leading point (and its footprint's surround,
+  // read one ray a tick) rises at once. The rise a tick is bounded by the slope a sphere climbs
+  // sliding (kClimbSlope) and, over that, by kClimbTick R: the footprint's lateness (kRingLate R)
+  // spread over one turn of its rays, so a rise the sphere's own slide does not explain comes
+  // as a ramp, not a force step. A new contact starts where its surface is; the proxy never
+  // sinks below the surface it rested on.
+  if (fresh_normal_ || !std::isfinite(rest) || !std::isfinite(rest_)) return rest;
+  return std::max(rest, rest_ - (kClimbSlope * slide + kClimbTick * radius));
 }
 
 Eigen::Vector3d SeenProxy::slide_across(const Eigen::Vector3d& goal, double radius) noexcept {

@@ -10,7 +10,9 @@
 ///   over the device's leading point (a height field along the axis: the device slides it
 ///   freely across), until the device comes out of the surface. The eye plane stays put, so a
 ///   proxy pressed into a faint layer keeps the layer in front of its eye: small steps do not
-///   creep through it.
+///   creep through it. The proxy rises at most the slope it slides (tan 76 deg) plus R / 240 a
+///   tick (SeenProxy::climb): a rise its slide does not explain (a step lower than the sphere,
+///   its footprint closing round it) comes as a ramp of force, not a step.
 /// The force is the virtual coupling's (Colgate, Stanley and Brown 1995) along the seen surface's
 /// normal (SeenSolid::normal: the renderer's normal map and the seen depth's slope, read along four
 /// rays 1.5 R around the point; after a contact's first reading one ray a tick; smoothed over 5 ms), with
@@ -103,6 +105,9 @@ class SeenProxy {
   static constexpr double kWallDepth = 0.1;     // R: a wall this far inside the sphere still holds it
   static constexpr double kMaxClimb = 1.0;      // R: the height field rising more in one tick is a wall
   static constexpr double kSlideMin = 1e-4;     // R: a move across the axis shorter than this is not searched
+  // Where the proxy rests this tick (depth from the eye plane): the surface's `rest`, risen from
+  // last tick's by at most kClimbSlope times its `slide` across the axis plus kClimbTick R.
+  [[nodiscard]] double climb(double rest, double slide, double radius) const noexcept;
   // With a follower: the materials of the layers that make `hit` (the last first_inside() on
   // scratch_) into target_ (target_held_: some layer holds a material share).
   void read_material_shares(const SeenHit& hit) noexcept;
@@ -130,6 +135,8 @@ class SeenProxy {
   static constexpr double kRingDrift = 0.1;     // R: a reading taken this far across is forgotten
   static constexpr double kRingLate = 0.05;     // R: a footprint met later than its refresh and this does not hold
   static constexpr double kSunkSlack = 1e-3;    // R: a new contact's surface deeper behind than its motion and this is sunk_
+  static constexpr double kClimbSlope = 4.0;    // tan 76 deg: a slope the sliding sphere climbs tick by tick
+  static constexpr double kClimbTick = kRingLate / kRingRays;  // R a tick, over the slide's
   // Free: the next ray of the footprint read along u, past the tick's motion `len` by kRingLook R;
   // then how far the sphere moves before rays around it hold it (< 0: it is past them; +inf: not
   // within the look).
