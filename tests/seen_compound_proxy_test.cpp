@@ -199,6 +199,72 @@ TEST(SeenCompoundProxy, ATiltedStylusRestsOnItsTip) {
   EXPECT_EQ(r.seen_compound()->touching(), 1);
 }
 
+// A stylus lying along an opaque sheet with its axis 1 mm over it, its underside 3 mm below
+// (sliding along the sheet it sees it edge-on: nothing seen, nothing felt), then pressed down:
+// seen along its new motion, its parts are already 3 mm into the surface. The contact starts
+// where the device is, with no force step (before, the proxy was thrown back by how far each
+// part was past its surface: k times 3 mm here, 3.7 m on the Truck's probe run), and then
+// holds as any other: the force grows with the push.
+TEST(SeenCompoundProxy, AContactBegunPastASurfaceNotCrossedStartsWithoutAStep) {
+  GaussianScene g;
+  add_layer(g, 0.0, 0.9f);
+  const CollisionWorld world = seen_world(g);
+  ProxyRenderer r(world, seen_params());
+  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
+  r.set_tool(stylus);
+  const Eigen::Quaterniond along_x(Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitY()));
+  const Eigen::Vector3d start(-0.1, 0.0, 0.001);
+  const double k = ProxyParams{}.stiffness;
+  // Along the sheet for 0.2 s (0.1 m/s), then down 0.02 mm a tick for 0.2 s.
+  const auto ticks = drive(r, stylus, 0.4, [&](double t) {
+    const Eigen::Vector3d slid = start + std::min(0.02, 0.1 * t) * Eigen::Vector3d::UnitX();
+    return std::pair{Eigen::Vector3d(slid - std::max(0.0, 0.02 * (t - 0.2)) * Eigen::Vector3d::UnitZ()), along_x};
+  });
+  double first = -1, last = 0;
+  int touching = 0;
+  for (const Tick& tick : ticks) {
+    const double f = tick.out.force.norm();
+    if (tick.tcp.z() == start.z()) {
+      EXPECT_EQ(f, 0.0);
+      continue;
+    }
+    if (f > 0 && touching++ == 0) first = f;
+    last = f;
+  }
+  EXPECT_GT(touching, 190);
+  EXPECT_LT(first, 0.1);  // k times the tick's motion and a thousandth of the smallest semi-axis
+  EXPECT_NEAR(last - first, k * (ticks.back().tcp.z() - start.z() + 2e-5) * -1, 0.3);  // then the spring
+}
+
+// A stylus lying along x, pressed 2 mm into an opaque floor, slides slowly (0.01 mm a tick)
+// across onto a step 1.5 mm high (y >= 0). Its parts' rays rise onto the step at once (k times
+// 1.5 mm in a tick); the proxy climbs at most the slope it slides (tan 76 deg) plus a 240th of
+// its smallest semi-axis a tick (SeenProxy's), so the force ramps, and it ends on the step's top.
+TEST(SeenCompoundProxy, AStepLowerThanThePartsIsClimbedAsARampNotAForceStep) {
+  const double s = 0.002, h = 0.0015, k = ProxyParams{}.stiffness;
+  GaussianScene g;
+  for (double x = -0.16; x <= 0.16 + 1e-12; x += s)
+    for (double y = -0.04; y <= 0.04 + 1e-12; y += s)
+      g.push_back(Eigen::Vector3f(float(x), float(y), float(y >= 0 ? h : 0.0)), Eigen::Vector3f(float(0.5 * s), float(0.5 * s), 1e-5f),
+                  Eigen::Vector4f(1, 0, 0, 0), 0.9f, std::uint32_t(g.size()));
+  const CollisionWorld world = seen_world(g);
+  ProxyRenderer r(world, seen_params());
+  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
+  r.set_tool(stylus);
+  const Eigen::Quaterniond along_x(Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitY()));
+  const double z = 0.004 - 0.002;  // the axis 2 mm lower than resting on the floor
+  const auto ticks = drive(r, stylus, 4.5, [&](double t) {
+    const Eigen::Vector3d over(-0.06, -0.02, 0.02);
+    if (t < 0.5) return std::pair{Eigen::Vector3d(over + std::min(1.0, t / 0.4) * (z - over.z()) * Eigen::Vector3d::UnitZ()), along_x};
+    return std::pair{Eigen::Vector3d(-0.06, -0.02 + 0.01 * (t - 0.5), z), along_x};
+  });
+  double rise = 0;
+  for (std::size_t i = 501; i < ticks.size(); ++i) rise = std::max(rise, ticks[i].out.force.z() - ticks[i - 1].out.force.z());
+  EXPECT_NEAR(ticks[499].out.force.z(), k * 0.002, 0.1);
+  EXPECT_LT(rise, k * (4e-5 + 0.004 / 240) + 0.05);
+  EXPECT_NEAR(ticks.back().out.force.z(), k * (0.002 + h), 0.2);  // on the step's top, pressed 3.5 mm
+}
+
 // A stylus held by its tip 1 cm over the plane and turned about it, so that its far end swings
 // down through the plane in one motion: the turn is stopped by the surface (the proxy rises),
 // no part goes through, and the force pushes back up.

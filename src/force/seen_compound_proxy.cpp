@@ -58,6 +58,7 @@ SeenCompoundProxy::SeenCompoundProxy(const SeenSolid& solid, const CompoundTool&
   for (int j = 0; j < tool_.count; ++j) {
     min_axis_ = std::min(min_axis_, tool_.parts[std::size_t(j)].semi_axes.minCoeff());
     middle_[std::size_t(j)] = middle_semi_axis(tool_.parts[std::size_t(j)].semi_axes);
+    reach_ = std::max(reach_, tool_.parts[std::size_t(j)].offset.norm() + tool_.parts[std::size_t(j)].semi_axes.maxCoeff());
   }
   reset();
 }
@@ -228,10 +229,12 @@ bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Qua
   pose(x, q);
   double first = kInf;
   Eigen::Vector3d first_u = Eigen::Vector3d::Zero(), first_eye = Eigen::Vector3d::Zero();
+  entry_motion_.fill(0);
   for (int j = 0; j < tool_.count; ++j) {
     const ToolEllipsoid& part = before[std::size_t(j)];
     const Eigen::Vector3d d = parts_[std::size_t(j)].center - part.center;
     const double len = d.norm();
+    entry_motion_[std::size_t(j)] = len;
     if (!(len > 1e-9 * radius_)) continue;
     const Eigen::Vector3d u = d / len;
     // The part's leading point along u, as the centre of a sphere of its support distance
@@ -486,6 +489,25 @@ Eigen::Vector3d SeenCompoundProxy::slide_across(const Eigen::Vector3d& goal,
   return goal + off - off.dot(a) * a;
 }
 
+double SeenCompoundProxy::sink(const std::array<double, kMaxToolParts>& past) noexcept {
+  // SeenProxy's sunk_, part by part: at a contact's first tick, a part already past its surface
+  // by more than its own motion this tick (and kSunkSlack) was in it before, seen along the new
+  // axis (a stylus's far part behind a panel it passed seen edge-on): it holds that much deeper
+  // for the contact, instead of throwing the proxy back by it (3.7 m on the Truck's probe run).
+  double push = -kInf;
+  for (int j = 0; j < tool_.count; ++j) {
+    const std::size_t k = std::size_t(j);
+    if (fresh_normal_)
+      sunk_[k] = std::isfinite(past[k]) ? std::max(0.0, past[k] - (entry_motion_[k] + kSunkSlack * min_axis_)) : 0.0;
+    push = std::max(push, past[k] - sunk_[k]);
+  }
+  return push;
+}
+
+double SeenCompoundProxy::climb(double back, double ahead, double slide) const noexcept {
+  return std::min(back, ahead + kClimbSlope * slide + kClimbTick * min_axis_);
+}
+
 bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
                              const Eigen::Quaterniond& q) noexcept {
   const Eigen::Vector3d& a = axis_;
@@ -504,13 +526,11 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
   for (int j = 0; j < tool_.count; ++j)
     if (held_[std::size_t(j)].by_ring || !(held_[std::size_t(j)].gap < band)) read_ring(j, ahead);
   pose(y, q);
-  std::array<double, kMaxToolParts> depth{}, at{};
+  std::array<double, kMaxToolParts> depth{}, at{}, past{};
   std::array<LineChoice, kMaxToolParts> lines{};
-  double push = -kInf;
   for (int j = 0; j < tool_.count; ++j) {
     const std::size_t k = std::size_t(j);
     at[k] = leading_ray(j, band, depth[k]);
-    if (std::isfinite(at[k])) push = std::max(push, depth[k] - at[k]);
     lines[k] = nearest_line(j, resting[k]);
     // Where the footprint holds the part before its leading point does (an edge under its side),
     // the edge is searched out, at once when a search's line no longer holds.
@@ -518,8 +538,10 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
       update_edges(j, lines[k], resting[k]);
       lines[k] = nearest_line(j, resting[k]);
     }
-    if (lines[k].line >= 0) push = std::max(push, -lines[k].gap);
+    // How far the part is past its surface (its leading point's ray or its footprint's line).
+    past[k] = std::max(std::isfinite(at[k]) ? depth[k] - at[k] : -kInf, lines[k].line >= 0 ? -lines[k].gap : -kInf);
   }
+  const double push = sink(past);
   if (!(push > 0)) return false;  // no part reaches its surface: the device is out
   const double back = push + 1e-6 * min_axis_;
   // A rise of more than kMaxClimb smallest semi-axes in one tick is no surface the tool slides
@@ -535,9 +557,17 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
     pose(x_, q);
     return true;
   }
-  x_ = next;
+  // The rise a tick, bounded as SeenProxy::climb bounds it: the slope of the move across the axis
+  // and kClimbTick smallest semi-axes (footprint lines read in turn find, one by one, surfaces
+  // the parts are already past: on the Truck's probe run a 5 cm stylus stepped 10 mm at a time);
+  // the slide counts the parts' motion by the turn as well (a turn that swings a part onto the
+  // surface lifts the proxy at once).
+  // (A turn moves the parts by up to its angle times the tool's reach from the TCP.)
+  const double slide = (y - x_ - (y - x_).dot(a) * a).norm() + q_.angularDistance(q) * reach_;
+  const double climbed = fresh_normal_ ? back : climb(back, (y - x_).dot(a), slide);
+  x_ = y - climbed * a;
   pose(x_, q);
-  record_holds(lines, at, depth, back);
+  record_holds(lines, at, depth, climbed);
   return true;
 }
 
@@ -550,12 +580,13 @@ void SeenCompoundProxy::record_holds(const std::array<LineChoice, kMaxToolParts>
     const std::size_t k = std::size_t(j);
     Hold& h = held_[k];
     const LineChoice& c = lines[k];
-    const double centre_gap = std::isfinite(at[k]) ? at[k] - (depth[k] - back) : kInf;
+    // (A sunk part's surfaces lie sunk_ deeper: sink().)
+    const double centre_gap = std::isfinite(at[k]) ? at[k] + sunk_[k] - (depth[k] - back) : kInf;
     under_[k] = std::max(0.0, centre_gap);
-    h.by_ring = !(centre_gap < band) && c.line >= 0 && c.gap + back < centre_gap;
+    h.by_ring = !(centre_gap < band) && c.line >= 0 && c.gap + sunk_[k] + back < centre_gap;
     h.line = h.by_ring ? c.line : -1;
     if (h.by_ring) {
-      h.gap = std::max(0.0, c.gap + back);
+      h.gap = std::max(0.0, c.gap + sunk_[k] + back);
       if (c.line == kEdgeLine)
         (void)edge_gap(parts_[k], j, a, h.point);
       else

@@ -240,6 +240,16 @@ class SeenCompoundProxy {
   // What holds each part of the proxy hold() just placed (`back`: how far it backed off along -a
   // from the device's depth; per part, its leading point's surface `at` and depth `depth` there
   // and its footprint's choice `lines`): held_ and under_.
+  // How far the proxy backs off along -a: the most any part is past its surfaces (`past`, from
+  // its leading point's ray and its footprint), less what it was past them when the contact began
+  // beyond its own motion (sunk_, set at the contact's first tick).
+  [[nodiscard]] double sink(const std::array<double, kMaxToolParts>& past) noexcept;
+  // How far the proxy backs off along -a from the device's place `y` in contact: `back`, unless
+  // that rises it past where it stood by more than kClimbSlope times its `slide` across the
+  // axis plus kClimbTick smallest semi-axes (`ahead`: how far y is past the proxy along a).
+  [[nodiscard]] double climb(double back, double ahead, double slide) const noexcept;
+  static constexpr double kClimbSlope = 4.0;  // SeenProxy's: tan 76 deg
+  static constexpr double kClimbTick = 0.05 / 12;  // smallest semi-axes a tick (SeenProxy's)
   void record_holds(const std::array<LineChoice, kMaxToolParts>& lines, const std::array<double, kMaxToolParts>& at,
                     const std::array<double, kMaxToolParts>& depth, double back) noexcept;
   // In contact: part j's next two footprint lines (next_lines) through its shadow (parts_ posed
@@ -291,6 +301,7 @@ class SeenCompoundProxy {
   CompoundTool tool_;
   ProxyParams params_;
   double radius_ = 0, min_axis_ = 0;  // the tool's largest and smallest semi-axes
+  double reach_ = 0;  // the farthest any part's surface reaches from the TCP
   // The outward normal, across the axis, of a wall whose top the tool was refused this tick
   // (kMaxClimb; zero: none).
   Eigen::Vector3d wall_ = Eigen::Vector3d::Zero();
@@ -321,6 +332,10 @@ class SeenCompoundProxy {
   // the texture tip reads.
   std::array<double, kMaxToolParts> under_{};
   double tip_under_ = 0;
+  // Each part's motion along its chord in the tick its contact began (begin_contact), and how
+  // much deeper than its surfaces it holds for the contact (sink()).
+  std::array<double, kMaxToolParts> entry_motion_{}, sunk_{};
+  static constexpr double kSunkSlack = 1e-3;  // smallest semi-axes (SeenProxy::kSunkSlack)
   double own_share_ = 0;  // the touching parts' weight held by footprints (own normals), of all
   bool started_ = false, in_contact_ = false;
   std::unique_ptr<MaterialFollower> follower_;  // set_materials (nullptr: none)
