@@ -180,13 +180,24 @@ TEST(SeenCompoundProxy, AStylusSlidIntoAWallIsHeldByIt) {
   }
 }
 
+// An opaque sheet of discs at z = 0 (add_layer), and a renderer on its seen solid with the
+// 12 cm stylus of radius 4 mm set.
+struct StylusOverSheet {
+  StylusOverSheet() : world(seen_world(sheet())), r(world, seen_params()) { r.set_tool(stylus); }
+  static GaussianScene sheet() {
+    GaussianScene g;
+    add_layer(g, 0.0, 0.9f);
+    return g;
+  }
+  CollisionWorld world;
+  ProxyRenderer r;
+  CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
+};
+
 TEST(SeenCompoundProxy, ATiltedStylusRestsOnItsTip) {
-  GaussianScene g;
-  add_layer(g, 0.0, 0.9f);
-  const CollisionWorld world = seen_world(g);
-  ProxyRenderer r(world, seen_params());
-  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
-  r.set_tool(stylus);
+  StylusOverSheet sheet;
+  ProxyRenderer& r = sheet.r;
+  const CompoundTool& stylus = sheet.stylus;
   const Eigen::Quaterniond q(Eigen::AngleAxisd(kPi / 6, Eigen::Vector3d::UnitY()));
   const Eigen::Vector3d start(0.0, 0.0, 0.004 + 0.005);
   const auto ticks = drive(r, stylus, 1.0, [&](double t) {
@@ -206,12 +217,9 @@ TEST(SeenCompoundProxy, ATiltedStylusRestsOnItsTip) {
 // part was past its surface: k times 3 mm here, 3.7 m on the Truck's probe run), and then
 // holds as any other: the force grows with the push.
 TEST(SeenCompoundProxy, AContactBegunPastASurfaceNotCrossedStartsWithoutAStep) {
-  GaussianScene g;
-  add_layer(g, 0.0, 0.9f);
-  const CollisionWorld world = seen_world(g);
-  ProxyRenderer r(world, seen_params());
-  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
-  r.set_tool(stylus);
+  StylusOverSheet sheet;
+  ProxyRenderer& r = sheet.r;
+  const CompoundTool& stylus = sheet.stylus;
   const Eigen::Quaterniond along_x(Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitY()));
   const Eigen::Vector3d start(-0.1, 0.0, 0.001);
   const double k = ProxyParams{}.stiffness;
@@ -269,12 +277,9 @@ TEST(SeenCompoundProxy, AStepLowerThanThePartsIsClimbedAsARampNotAForceStep) {
 // down through the plane in one motion: the turn is stopped by the surface (the proxy rises),
 // no part goes through, and the force pushes back up.
 TEST(SeenCompoundProxy, ATurnThatSwingsTheToolOntoTheSurfaceIsStopped) {
-  GaussianScene g;
-  add_layer(g, 0.0, 0.9f);
-  const CollisionWorld world = seen_world(g);
-  ProxyRenderer r(world, seen_params());
-  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
-  r.set_tool(stylus);
+  StylusOverSheet sheet;
+  ProxyRenderer& r = sheet.r;
+  const CompoundTool& stylus = sheet.stylus;
   const Eigen::Vector3d tcp(-0.06, 0.0, 0.01);
   // From pointing up and out (+z tilted 45 deg toward +x) to 20 deg below the horizontal, in 0.4 s.
   const auto ticks = drive(r, stylus, 0.6, [&](double t) {
