@@ -511,7 +511,7 @@ double SeenCompoundProxy::sink(const std::array<double, kMaxToolParts>& past) no
 }
 
 double SeenCompoundProxy::climb(double back, double ahead, double slide) const noexcept {
-  return std::min(back, ahead + kClimbSlope * slide + kClimbTick * min_axis_);
+  return std::min(back, ahead + seen_footprint::rise_allowance(slide, min_axis_));
 }
 
 bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
@@ -564,7 +564,7 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
     return true;
   }
   // The rise a tick, bounded as SeenProxy::climb bounds it: the slope of the move across the axis
-  // and kClimbTick smallest semi-axes (footprint lines read in turn find, one by one, surfaces
+  // and a small rise a tick (seen_footprint::rise_allowance; footprint lines read in turn find, one by one, surfaces
   // the parts are already past: on the Truck's probe run a 5 cm stylus stepped 10 mm at a time);
   // the slide counts the parts' motion by the turn as well (a turn that swings a part onto the
   // surface lifts the proxy at once).

@@ -241,13 +241,13 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
 double SeenProxy::climb(double rest, double slide, double radius) const noexcept {
   // A rigid sphere rises onto a bump before its centre line reaches it, over the part of its
   // shadow the bump is in; the height field of its leading point (and its footprint's surround,
-  // read one ray a tick) rises at once. The rise a tick is bounded by the slope a sphere climbs
-  // sliding (kClimbSlope) and, over that, by kClimbTick R: the footprint's lateness (kRingLate R)
-  // spread over one turn of its rays, so a rise the sphere's own slide does not explain comes
-  // as a ramp, not a force step. A new contact starts where its surface is; the proxy never
+  // read one ray a tick) rises at once. The rise a tick is bounded by seen_footprint::
+  // rise_allowance: the slope a sliding sphere climbs and the footprint's lateness spread over one
+  // turn of its rays, so a rise the sphere's own slide does not explain comes as a ramp, not a
+  // force step. A new contact starts where its surface is; the proxy never
   // sinks below the surface it rested on.
   if (fresh_normal_ || !std::isfinite(rest) || !std::isfinite(rest_)) return rest;
-  return std::max(rest, rest_ - (kClimbSlope * slide + kClimbTick * radius));
+  return std::max(rest, rest_ - seen_footprint::rise_allowance(slide, radius));
 }
 
 Eigen::Vector3d SeenProxy::slide_across(const Eigen::Vector3d& goal, double radius) noexcept {

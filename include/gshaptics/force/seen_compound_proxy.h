@@ -121,8 +121,8 @@ class SeenCompoundProxy {
   [[nodiscard]] int touching() const noexcept { return touching_; }
 
  private:
-  static constexpr int kRingRays = 12;
-  static constexpr double kRingFraction[3] = {0.5, 0.7, 0.85};  // of the shadow's radius
+  static constexpr int kRingRays = seen_footprint::kRays;
+  static constexpr const double (&kRingFraction)[3] = seen_footprint::kRadius;  // of the shadow's radius
   // Inner lines, read one a tick beside the ring's (their own turn, so the ring's refresh, which
   // the edge search leans on, stays kRingRays ticks), never an edge search's start: the shadow's
   // centre one turn in kInnerTurns, and roaming lines the others. A roaming line is placed by a
@@ -245,11 +245,9 @@ class SeenCompoundProxy {
   // beyond its own motion (sunk_, set at the contact's first tick).
   [[nodiscard]] double sink(const std::array<double, kMaxToolParts>& past) noexcept;
   // How far the proxy backs off along -a from the device's place `y` in contact: `back`, unless
-  // that rises it past where it stood by more than kClimbSlope times its `slide` across the
-  // axis plus kClimbTick smallest semi-axes (`ahead`: how far y is past the proxy along a).
+  // that rises it past where it stood by more than the rise allowance of its `slide` across the
+  // axis (seen_footprint::rise_allowance; `ahead`: how far y is past the proxy along a).
   [[nodiscard]] double climb(double back, double ahead, double slide) const noexcept;
-  static constexpr double kClimbSlope = 4.0;  // SeenProxy's: tan 76 deg
-  static constexpr double kClimbTick = 0.05 / 12;  // smallest semi-axes a tick (SeenProxy's)
   void record_holds(const std::array<LineChoice, kMaxToolParts>& lines, const std::array<double, kMaxToolParts>& at,
                     const std::array<double, kMaxToolParts>& depth, double back) noexcept;
   // In contact: part j's next two footprint lines (next_lines) through its shadow (parts_ posed
@@ -305,7 +303,7 @@ class SeenCompoundProxy {
   // The outward normal, across the axis, of a wall whose top the tool was refused this tick
   // (kMaxClimb; zero: none).
   Eigen::Vector3d wall_ = Eigen::Vector3d::Zero();
-  static constexpr double kMaxClimb = 1.0;  // smallest semi-axes
+  static constexpr double kMaxClimb = seen_footprint::kMaxClimb;  // smallest semi-axes
   SeenScratch scratch_;
   VirtualCoupling coupling_;
   FrictionCone friction_;
@@ -335,7 +333,7 @@ class SeenCompoundProxy {
   // Each part's motion along its chord in the tick its contact began (begin_contact), and how
   // much deeper than its surfaces it holds for the contact (sink()).
   std::array<double, kMaxToolParts> entry_motion_{}, sunk_{};
-  static constexpr double kSunkSlack = 1e-3;  // smallest semi-axes (SeenProxy::kSunkSlack)
+  static constexpr double kSunkSlack = seen_footprint::kSunkSlack;  // smallest semi-axes
   double own_share_ = 0;  // the touching parts' weight held by footprints (own normals), of all
   bool started_ = false, in_contact_ = false;
   std::unique_ptr<MaterialFollower> follower_;  // set_materials (nullptr: none)

@@ -103,10 +103,10 @@ class SeenProxy {
   Eigen::Vector3d slide_across(const Eigen::Vector3d& goal, double radius) noexcept;
   static constexpr double kWallGap = 1e-3;      // R: a wall stops the proxy this far short of it
   static constexpr double kWallDepth = 0.1;     // R: a wall this far inside the sphere still holds it
-  static constexpr double kMaxClimb = 1.0;      // R: the height field rising more in one tick is a wall
+  static constexpr double kMaxClimb = seen_footprint::kMaxClimb;  // R: the height field rising more in one tick is a wall
   static constexpr double kSlideMin = 1e-4;     // R: a move across the axis shorter than this is not searched
   // Where the proxy rests this tick (depth from the eye plane): the surface's `rest`, risen from
-  // last tick's by at most kClimbSlope times its `slide` across the axis plus kClimbTick R.
+  // last tick's by at most seen_footprint::rise_allowance(slide, R).
   [[nodiscard]] double climb(double rest, double slide, double radius) const noexcept;
   // With a follower: the materials of the layers that make `hit` (the last first_inside() on
   // scratch_) into target_ (target_held_: some layer holds a material share).
@@ -128,15 +128,13 @@ class SeenProxy {
   static constexpr double kGuessMargin = 0.25;  // R: the layers first read reach this past the last hit
   static constexpr double kEyeMargin = 0.25;    // R: the contact's eye plane, this far in front of the surface behind
   // The footprint: ray k lies at kRingRadius[k % 3] R from the centre line, at 30 k degrees.
-  static constexpr int kRingRays = 12;
-  static constexpr double kRingRadius[3] = {0.5, 0.7, 0.85};
+  static constexpr int kRingRays = seen_footprint::kRays;
+  static constexpr const double (&kRingRadius)[3] = seen_footprint::kRadius;
   static constexpr double kRingLook = 1.0;      // R: free footprint rays look this far past the tick's motion
   static constexpr double kRingAxisCos = 0.9986;  // cos 3 deg: a free push turning more forgets the footprint
   static constexpr double kRingDrift = 0.1;     // R: a reading taken this far across is forgotten
-  static constexpr double kRingLate = 0.05;     // R: a footprint met later than its refresh and this does not hold
-  static constexpr double kSunkSlack = 1e-3;    // R: a new contact's surface deeper behind than its motion and this is sunk_
-  static constexpr double kClimbSlope = 4.0;    // tan 76 deg: a slope the sliding sphere climbs tick by tick
-  static constexpr double kClimbTick = kRingLate / kRingRays;  // R a tick, over the slide's
+  static constexpr double kRingLate = seen_footprint::kLate;  // R: a footprint met later than its refresh and this does not hold
+  static constexpr double kSunkSlack = seen_footprint::kSunkSlack;  // R: a new contact's surface deeper behind than its motion and this is sunk_
   // Free: the next ray of the footprint read along u, past the tick's motion `len` by kRingLook R;
   // then how far the sphere moves before rays around it hold it (< 0: it is past them; +inf: not
   // within the look).

@@ -99,6 +99,36 @@ struct SeenLineMemo {
   void forget() noexcept { valid = false; }
 };
 
+/// The footprint and the rise bound the seen proxies share: SeenProxy (a sphere; lengths in its
+/// radius R) and SeenCompoundProxy (parts; lengths in the tool's smallest semi-axis). One place,
+/// so the sphere and the compound tool cannot drift apart.
+namespace seen_footprint {
+/// Footprint ray k lies at kRadius[k % 3] of the shadow's radius from the centre line, at
+/// 360 / kRays * k degrees; one ray is read a tick.
+inline constexpr int kRays = 12;
+inline constexpr double kRadius[3] = {0.5, 0.7, 0.85};
+/// A footprint ray met later than its refresh and this does not hold (the ray was read up to
+/// kRays ticks ago).
+inline constexpr double kLate = 0.05;
+/// A new contact's surface deeper behind than its motion and this was entered before the contact.
+inline constexpr double kSunkSlack = 1e-3;
+/// The slope a sliding rigid body climbs tick by tick (tan 76 deg), and the rise a tick over it:
+/// the footprint's lateness spread over one turn of its rays.
+inline constexpr double kClimbSlope = 4.0;
+inline constexpr double kClimbTick = kLate / kRays;
+/// A rise of more than this in one tick is the top of a wall, not a surface slid onto.
+inline constexpr double kMaxClimb = 1.0;
+
+/// How far the resting proxy may rise along its axis in one tick (same unit as `slide`): a rigid
+/// body rises onto a bump over the part of its shadow the bump is in, while the seen height field
+/// of its leading point and footprint rises at once; bounding the rise by the slope of the
+/// `slide` across the axis plus kClimbTick `scale` turns that into a ramp, not a force step.
+/// `slide`: the move across the axis this tick (>= 0); `scale`: R or the smallest semi-axis.
+[[nodiscard]] constexpr double rise_allowance(double slide, double scale) noexcept {
+  return kClimbSlope * slide + kClimbTick * scale;
+}
+}  // namespace seen_footprint
+
 class SeenSolid {
  public:
   /// How many rays the normal reads (normal(), normal_ray()).
