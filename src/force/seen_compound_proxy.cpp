@@ -494,16 +494,23 @@ double SeenCompoundProxy::sink(const std::array<double, kMaxToolParts>& past) no
   // by more than its own motion this tick (and kSunkSlack) was in it before, seen along the new
   // axis (a stylus's far part behind a panel it passed seen edge-on): it holds that much deeper
   // for the contact, instead of throwing the proxy back by it (3.7 m on the Truck's probe run).
-  // Within kRingSink middle semi-axes of it a part still holds where its surface is, as a
-  // footprint line read late does (sunk from any depth, the stylus pressed along seen-felt's rays
-  // rested up to 0.3 R deeper: a rough capture's surface a few millimetres above a part's front
-  // at the first touch is the surface, not one it was in).
+  // Within kRingSink middle semi-axes of it, but deeper than its footprint's lateness explains
+  // (kRingRays ticks of its motion and kLate middle semi-axes, SeenProxy's rule for a footprint
+  // that begins a contact), a part was met late by a footprint line on a rough capture: its
+  // surface is the surface, not one it was in. It starts sunk too (held where the surface is at
+  // once, it began the contact with a step: 13.5 N on the Truck's probe run) and is brought back
+  // onto the surface as a ramp of kClimbTick smallest semi-axes a tick (sunk for the contact, the
+  // stylus pressed along seen-felt's rays rested up to 0.3 R deeper).
   double push = -kInf;
   for (int j = 0; j < tool_.count; ++j) {
     const std::size_t k = std::size_t(j);
     if (fresh_normal_) {
       const double beyond = std::isfinite(past[k]) ? past[k] - (entry_motion_[k] + kSunkSlack * min_axis_) : 0.0;
-      sunk_[k] = beyond > kRingSink * middle_[k] ? beyond : 0.0;
+      const double late = kRingRays * entry_motion_[k] + seen_footprint::kLate * middle_[k];
+      sunk_[k] = beyond > late ? beyond : 0.0;
+      fading_[k] = !(beyond > kRingSink * middle_[k]);
+    } else if (fading_[k] && sunk_[k] > 0) {
+      sunk_[k] = std::max(0.0, sunk_[k] - seen_footprint::kClimbTick * min_axis_);
     }
     push = std::max(push, past[k] - sunk_[k]);
   }

@@ -242,7 +242,8 @@ class SeenCompoundProxy {
   // and its footprint's choice `lines`): held_ and under_.
   // How far the proxy backs off along -a: the most any part is past its surfaces (`past`, from
   // its leading point's ray and its footprint), less what it was past them when the contact began
-  // beyond its own motion (sunk_, set at the contact's first tick).
+  // beyond its own motion (sunk_, set at the contact's first tick; where that is less than
+  // kRingSink middle semi-axes, brought back to zero at kClimbTick smallest semi-axes a tick).
   [[nodiscard]] double sink(const std::array<double, kMaxToolParts>& past) noexcept;
   // How far the proxy backs off along -a from the device's place `y` in contact: `back`, unless
   // that rises it past where it stood by more than the rise allowance of its `slide` across the
@@ -333,6 +334,7 @@ class SeenCompoundProxy {
   // Each part's motion along its chord in the tick its contact began (begin_contact), and how
   // much deeper than its surfaces it holds for the contact (sink()).
   std::array<double, kMaxToolParts> entry_motion_{}, sunk_{};
+  std::array<bool, kMaxToolParts> fading_{};  // sunk_ brought back to the surface as a ramp (sink())
   static constexpr double kSunkSlack = seen_footprint::kSunkSlack;  // smallest semi-axes
   double own_share_ = 0;  // the touching parts' weight held by footprints (own normals), of all
   bool started_ = false, in_contact_ = false;
