@@ -7,9 +7,11 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
+#include <random>
 #include <nlohmann/json.hpp>
 
 #include "gshaptics/collision/collision_world.h"
@@ -255,6 +257,58 @@ TEST(SeenCompoundProxy, AContactBegunPastASurfaceNotCrossedStartsWithoutAStep) {
     const double held = past > 0.5 * radius ? pushed : pushed + past;  // sunk, or back on the surface
     EXPECT_NEAR(last, k * held, 0.3);
   }
+}
+
+// A stylus standing on its tip 3 mm over a floor, a shelf crossing the side of its lowest part
+// 1.2 mm under that part's top (the Truck's probe run, seed 2: a 5 cm stylus brought down beside
+// a panel it met edge-on). The hand holds still: the device wanders by a micrometre a tick in
+// random directions. Such a chord says nothing about where the tool goes, and a footprint line
+// along it that finds the shelf already 1.2 mm inside the part met nothing: no contact begins
+// (before, one began along a chord pointing up, out of the floor, and the proxy, pushed back
+// toward its eye, walked through the floor: 40 cm in half a second on the Truck). Then the hand
+// moves away from the shelf and presses down 5 mm: the tip rests on the floor.
+TEST(SeenCompoundProxy, AToolHeldStillBesideASurfaceItsSideIsInFeelsNothing) {
+  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
+  const Eigen::Quaterniond upright = Eigen::Quaterniond::Identity();
+  const Eigen::Vector3d start(0.0, 0.0, 0.003);
+  std::array<ToolEllipsoid, kMaxToolParts> parts{};
+  stylus.posed(start, upright, parts);
+  const double shelf = parts[0].surface_point(Eigen::Vector3d::UnitZ()).z() - 0.0012;
+  GaussianScene g;
+  add_layer(g, 0.0, 0.9f);
+  const double s = 0.002;
+  for (double x = 0.003; x <= 0.06; x += s)
+    for (double y = -0.03; y <= 0.03; y += s)
+      g.push_back(Eigen::Vector3f(float(x), float(y), float(shelf)), Eigen::Vector3f(float(0.5 * s), float(0.5 * s), 1e-5f),
+                  Eigen::Vector4f(1, 0, 0, 0), 0.9f, std::uint32_t(g.size()));
+  const CollisionWorld world = seen_world(g);
+  ProxyRenderer r(world, seen_params());
+  r.set_tool(stylus);
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  Eigen::Vector3d wander = start;
+  const auto held = drive(r, stylus, 0.5, [&](double) {
+    wander += 1e-6 * Eigen::Vector3d(noise(rng), noise(rng), noise(rng)).normalized();
+    return std::pair{wander, upright};
+  });
+  double most = 0, apart = 0;
+  for (const Tick& tick : held) {
+    most = std::max(most, tick.out.force.norm());
+    apart = std::max(apart, (tick.out.proxy - tick.tcp).norm());
+  }
+  EXPECT_LT(most, 0.05);
+  EXPECT_LT(apart, 5e-5);
+  const Eigen::Vector3d rest = wander;
+  // Away from the shelf (8 mm along -x in 0.4 s), then down 5 mm.
+  const auto pressed = drive(r, stylus, 1.0, [&](double t) {
+    const Eigen::Vector3d away = rest - std::min(0.008, 0.02 * t) * Eigen::Vector3d::UnitX();
+    return std::pair{Eigen::Vector3d(away - std::clamp(0.02 * (t - 0.4), 0.0, 0.005) * Eigen::Vector3d::UnitZ()),
+                     upright};
+  });
+  const Tick& last = pressed.back();
+  ASSERT_GT(last.out.force.z(), 0.5);
+  EXPECT_LT(std::acos(std::min(1.0, last.out.force.normalized().z())) * 180 / kPi, 5.0);
+  EXPECT_NEAR(lowest(stylus, last.out.proxy, upright), 0.0, 0.001);
 }
 
 // A stylus lying along x, pressed 2 mm into an opaque floor, slides slowly (0.01 mm a tick)

@@ -184,13 +184,25 @@ std::array<double, 2> SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& f
   // snapping the proxy back would start the contact with a force step.
   std::array<double, 2> travel{kInf, kInf};  // the ring's, the inner lines'
   const ExitAlong exit(from, g.axis);
+  const double sink = begin_sink(j, len);
   for (int kk = 0; kk < kReadLines; ++kk) {
     Eigen::Vector3d at;
     const double gap = ring_gap(exit, j, kk, u, at);
     double& t = travel[kk < kRingRays ? 0 : 1];
-    if (gap <= len && gap >= -(refresh(kk) * len + kRingSink * middle_[std::size_t(j)])) t = std::min(t, gap);
+    if (gap <= len && gap >= -(refresh(kk) * len + sink)) t = std::min(t, gap);
   }
   return travel;
+}
+
+double SeenCompoundProxy::begin_sink(int j, double len) const noexcept {
+  // A part that moved less than kSunkSlack smallest semi-axes this tick is at rest: the direction
+  // of its chord is the device's noise, and a surface its footprint is already past by more than
+  // a footprint's lateness (kLate, SeenProxy's rule) was not met along it. Begun there, the
+  // contact's axis pointed out of the surface, and the proxy, pushed back toward the eye at the
+  // rise allowance, walked through the face under the tool (the Truck's probe run, seed 2: 40 cm
+  // in half a second, then 30 N pulling the hand down for 30 s).
+  const double scale = len >= kSunkSlack * min_axis_ ? kRingSink : seen_footprint::kLate;
+  return scale * middle_[std::size_t(j)];
 }
 
 std::array<SeenCompoundProxy::LineRead, 2> SeenCompoundProxy::next_lines(int j, const ToolEllipsoid& part,
@@ -262,7 +274,7 @@ bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Qua
       update_edges(j, c, part);
       Eigen::Vector3d contact;
       const double edge = edge_gap(part, j, u, contact);
-      if (edge <= len && edge >= -kRingSink * middle_[std::size_t(j)]) ring = std::min(ring, edge);
+      if (edge <= len && edge >= -begin_sink(j, len)) ring = std::min(ring, edge);
     }
     // An inner line begins a contact only where it would hold the part (nearest_line's rule: the
     // ring and its edge meet nothing as near, by the contact band).

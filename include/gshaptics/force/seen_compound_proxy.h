@@ -218,6 +218,9 @@ class SeenCompoundProxy {
   // search, the answer while the line and its window decide it (a resting part's lines).
   double line_surface(int j, const Eigen::Vector3d& front, const Eigen::Vector3d& u, double back, double ahead,
                       double last, SeenLineMemo& memo) noexcept;
+  // How far past its surface a part's footprint may find it and still begin a contact, m: kRingSink
+  // middle semi-axes for a part that moved `len` this tick, kLate for one at rest.
+  double begin_sink(int j, double len) const noexcept;
   // Free: part j's next two footprint lines (next_lines) along its chord u (its centre `from`,
   // moving `len`), and how far the part moves before its footprint meets the surface (+inf: not
   // within the chord): by the ring's lines, and by the inner lines.
