@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include <cstdlib>
@@ -185,6 +186,81 @@ TEST(ProbeRun, OnTheSeenSurfaceTheTouchPointsAreWhereTheSurfaceIsSeen) {
     const ProbeSite& e = on_ellipsoids.sites()[i];
     ASSERT_EQ(e.gaussian_index, site.gaussian_index);
     EXPECT_NEAR(e.touch_point.z() - site.touch_point.z(), 0.003, r / 8);
+  }
+}
+
+// A stylus held upright (the world's orientation) and pressed on a wall's side under a roof that
+// overhangs the wall by 25 mm meets the roof with its body before its tip reaches the wall: the
+// probe run leaves such sites out (ProbeParams::tool_touch), on the ellipsoids and on the seen
+// solid, and keeps the ones its tip reaches first. A box of discs (x in [-40, 0] mm) under a roof
+// 30 mm above its top, reaching from x = -30 mm to 25 mm past its +x face. (The probe's sphere
+// is the stylus's largest semi-axis, 17 mm, 12 mm wider than the rod: a roof within that of the
+// face is one the sphere's touch point already stands clear of.)
+TEST(ProbeRun, AStylusIsNotSentToASiteItsBodyMeetsAnOverhangBefore) {
+  GaussianScene g;
+  const double s = 0.002, sigma = 0.002;
+  const auto disc = [&](const Eigen::Vector3d& c, const Eigen::Vector3d& n) {
+    const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n);
+    g.push_back(c.cast<float>(), Eigen::Vector3f(float(sigma), float(sigma), 0.0005f),
+                Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())), 0.9f, std::uint32_t(g.size()));
+  };
+  for (double a = -0.04; a <= 1e-9; a += s)        // x across the box
+    for (double b = -0.04; b <= 0.04 + 1e-9; b += s) {  // y
+      disc({a, b, 0.06}, Eigen::Vector3d::UnitZ());       // the box's top
+    }
+  for (double b = -0.04; b <= 0.04 + 1e-9; b += s)
+    for (double z = 0; z <= 0.06 + 1e-9; z += s) {
+      disc({0, b, z}, Eigen::Vector3d::UnitX());          // the +x face, under the roof
+      disc({-0.04, b, z}, -Eigen::Vector3d::UnitX());     // the -x face
+    }
+  for (double a = -0.04; a <= 1e-9; a += s)
+    for (double z = 0; z <= 0.06 + 1e-9; z += s) {
+      disc({a, 0.04, z}, Eigen::Vector3d::UnitY());
+      disc({a, -0.04, z}, -Eigen::Vector3d::UnitY());
+    }
+  for (double a = -0.03; a <= 0.025 + 1e-9; a += s)
+    for (double b = -0.03; b <= 0.03 + 1e-9; b += s) disc({a, b, 0.09}, Eigen::Vector3d::UnitZ());  // the roof
+  WorldConfig config;
+  config.min_opacity = kSeenMinOpacity;
+  const CollisionWorld world = CollisionWorld::build(g, config);
+  const double rod = 0.005;
+  const CompoundTool stylus = parse_tool_spec("stylus:0.1,0.005");
+  const double r = stylus.largest_semi_axis();
+  // The tool's first touch along -x from 40 mm in front of the +x face, 30 mm up: the roof's
+  // edge (25 mm out, its discs 2 mm wide) meets the rod's side 25-27 mm before the face would.
+  const Eigen::Vector3d start(0.04, 0, 0.03);
+  for (const bool seen : {false, true}) {
+    const auto touch = session::tool_first_touch(world, stylus, seen);
+    const double met = touch(start, -Eigen::Vector3d::UnitX(), 0.05);
+    const double face = 0.04 - rod;  // the rod's side to the face's plane
+    // (The ellipsoids at the outermost discs' 1-sigma rim; the seen solid a few mm in, where the
+    // discs seen edge-on composite to half transmittance.)
+    EXPECT_GE(met, face - 0.025 - sigma - 0.001) << (seen ? "seen" : "ellipsoids");
+    EXPECT_LE(met, face - 0.02) << (seen ? "seen" : "ellipsoids");
+    // (The parts are ellipsoids, narrower than the rod away from their middles; steps of 0.6 mm.)
+    if (!seen) {
+      EXPECT_NEAR(met, face - 0.025 - sigma, 0.002);
+    }
+    EXPECT_TRUE(std::isnan(touch(start, Eigen::Vector3d::UnitX(), 0.05))) << "moving away meets nothing";
+  }
+  ProbeParams pp;
+  pp.tool_radius = r;
+  pp.sites = 12;
+  pp.approach_distance = 6;
+  // (The roof spans y in [-30, 30] mm; the face, y in [-40, 40].)
+  const auto under_roof = [](const ProbeSite& site) {
+    return site.normal.x() > 0.7 && std::abs(site.surface_point.y()) < 0.025;
+  };
+  const ProbeTrajectory sphere = generate_probe_trajectory(world, pp);
+  EXPECT_TRUE(std::any_of(sphere.sites().begin(), sphere.sites().end(), under_roof))
+      << "the sphere reaches the +x face under the roof";
+  for (const bool seen : {false, true}) {
+    pp.first_touch = seen ? session::seen_first_touch(world, r) : nullptr;
+    pp.tool_touch = session::tool_first_touch(world, stylus, seen);
+    const ProbeTrajectory traj = generate_probe_trajectory(world, pp);
+    EXPECT_GE(traj.sites().size(), 4u) << (seen ? "seen" : "ellipsoids");
+    for (const ProbeSite& site : traj.sites())
+      EXPECT_FALSE(under_roof(site)) << (seen ? "seen" : "ellipsoids") << ": site " << site.gaussian_index << " at " << site.surface_point.transpose();
   }
 }
 

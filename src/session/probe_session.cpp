@@ -28,6 +28,9 @@
 #include "gshaptics/device/device_model.h"
 #include "gshaptics/sim/pose_sampler.h"
 #include "gshaptics/force/seen_solid.h"
+#include "gshaptics/collision/contact_query.h"
+#include "gshaptics/collision/ellipsoid_line.h"
+#include <numbers>
 
 namespace gshaptics::session {
 
@@ -101,9 +104,76 @@ std::function<double(const Eigen::Vector3d&, const Eigen::Vector3d&, double)> se
   };
 }
 
+namespace {
+
+using TouchFn = std::function<double(const Eigen::Vector3d&, const Eigen::Vector3d&, double)>;
+
+// The tool's parts posed at `tcp`, held at the world's orientation (simulate --tool).
+int posed_upright(const CompoundTool& tool, const Eigen::Vector3d& tcp, std::array<ToolEllipsoid, kMaxToolParts>& parts) {
+  return tool.posed(tcp, Eigen::Quaterniond::Identity(), std::span<ToolEllipsoid>(parts.data(), parts.size()));
+}
+
+// tool_first_touch on the seen solid: each part's front over its centre line and the seen
+// proxies' footprint lines (kRays around at each of kRadius of its shadow's radius), pushed as
+// SeenCompoundProxy pushes a part (seen from as far behind as the line is still seen from, up to
+// `window`).
+TouchFn seen_tool_touch(const CollisionWorld& world, const CompoundTool& tool, double window) {
+  auto solid = std::make_shared<const SeenSolid>(world);
+  return [solid, tool, window](const Eigen::Vector3d& start, const Eigen::Vector3d& dir, double reach) {
+    std::array<ToolEllipsoid, kMaxToolParts> parts;
+    const int count = posed_upright(tool, start, parts);
+    SeenScratch scratch;
+    double met = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < count; ++j) {
+      const ToolEllipsoid& part = parts[std::size_t(j)];
+      const ToolShadow shadow = shadow_along(part, dir);
+      for (int k = -1; k < 3 * seen_footprint::kRays; ++k) {  // (-1: the centre line)
+        const double angle = 2 * std::numbers::pi * k / seen_footprint::kRays;
+        const Eigen::Vector3d across =
+            k < 0 ? Eigen::Vector3d::Zero()
+                  : Eigen::Vector3d(seen_footprint::kRadius[k / seen_footprint::kRays] * shadow.boundary(angle));
+        const Eigen::Vector3d p = part.center + across;
+        const double front = exit_along(part, p, dir);
+        if (std::isnan(front)) continue;
+        double eye = 0;
+        const SeenHit hit = solid->push(p, dir, front, window, reach, false, eye, scratch);
+        if (hit.hit && !scratch.overflow) met = std::min(met, hit.t);
+      }
+    }
+    return std::isfinite(met) ? met : std::numeric_limits<double>::quiet_NaN();
+  };
+}
+
+// tool_first_touch on the ellipsoids: the first overlap of any part, stepped at an eighth of the
+// tool's smallest semi-axis.
+TouchFn ellipsoid_tool_touch(const CollisionWorld& world, const CompoundTool& tool) {
+  double smallest = std::numeric_limits<double>::infinity();
+  for (const ToolPart& part : tool.view()) smallest = std::min(smallest, part.semi_axes.minCoeff());
+  auto query = std::make_shared<ContactQuery>(world);
+  return [query, tool, step = smallest / 8](const Eigen::Vector3d& start, const Eigen::Vector3d& dir, double reach) {
+    constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
+    if (!(reach >= 0) || !std::isfinite(reach)) return kNone;
+    std::array<ToolEllipsoid, kMaxToolParts> parts;
+    for (double s = 0;; s = std::min(reach, s + step)) {
+      const int count = posed_upright(tool, start + s * dir, parts);
+      for (int j = 0; j < count; ++j)
+        if (query->any_contact(parts[std::size_t(j)])) return s;
+      if (s >= reach) return kNone;
+    }
+  };
+}
+
+}  // namespace
+
+std::function<double(const Eigen::Vector3d&, const Eigen::Vector3d&, double)> tool_first_touch(
+    const CollisionWorld& world, const CompoundTool& tool, bool seen, double seen_window) {
+  tool.validate("probe: tool");
+  return seen ? seen_tool_touch(world, tool, seen_window * tool.largest_semi_axis()) : ellipsoid_tool_touch(world, tool);
+}
+
 ProbeTrajectory make_probe_trajectory(const CollisionWorld& world, bool scaled, int sites, std::uint64_t seed,
                                       double tool_radius, const ForceModelOptions& force, std::FILE* report,
-                                      const std::optional<Eigen::Vector3d>& up) {
+                                      const std::optional<Eigen::Vector3d>& up, const CompoundTool* tool) {
   // The world's up from the actual transform: the file's convention carried through --up and the
   // registration (a --reg-scale alone rotates nothing, so it changes nothing here).
   const double extent = robust_extent(world);
@@ -118,8 +188,9 @@ ProbeTrajectory make_probe_trajectory(const CollisionWorld& world, bool scaled, 
   const double press_force = depth / press_depth_for_force(1.0, force.proxy.stiffness, hand_k);
   ProbeParams pp = default_probe_params(world, radius, sites, seed, depth);
   if (up) pp.up = *up;
-  if (force.model == RendererKind::kProxy && force.proxy.surface == ProxySurface::kSeen)
-    pp.first_touch = seen_first_touch(world, radius);
+  const bool seen = force.model == RendererKind::kProxy && force.proxy.surface == ProxySurface::kSeen;
+  if (seen) pp.first_touch = seen_first_touch(world, radius);
+  if (tool && tool->count > 0 && !tool->is_single_at_tcp()) pp.tool_touch = tool_first_touch(world, *tool, seen, force.proxy.seen_window);
   if (!scaled && extent > 30.0)
     fmt::print(stderr,
                "warning: the scene is not registered and spans {:.0f} units; the simulated hand and "
@@ -208,7 +279,8 @@ bool plot_run(const std::string& csv, const std::string& summary, const std::str
 ProbeSessionResult simulate_probe(const CollisionWorld& world, const SimulateOptions& o, bool scaled, std::FILE* report,
                                   const std::optional<Eigen::Vector3d>& up, const std::function<void(double)>& progress,
                                   const RendererFactory& make_renderer) {
-  ProbeTrajectory traj = make_probe_trajectory(world, scaled, o.sites, o.seed, o.tool_radius, o.force, report, up);
+  ProbeTrajectory traj =
+      make_probe_trajectory(world, scaled, o.sites, o.seed, o.tool_radius, o.force, report, up, &o.tool.tool);
   ProbeRunParams rp;
   rp.rate_hz = o.rate;
   rp.renderer = o.force.spec();

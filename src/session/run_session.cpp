@@ -254,7 +254,8 @@ namespace {
 // A kind that needs the scene (sim): the probe trajectory over it, and the device opened through
 // the registry with it as the hand's path.
 void open_scene_device(const RuntimeOptions& o, const SceneOptions& so, const PreparedWorld& pw, RuntimeSetup& s) {
-  const ProbeTrajectory traj = make_probe_trajectory(pw.world, is_scaled(so), o.sites, o.seed, s.tool_radius, o.force);
+  const ProbeTrajectory traj = make_probe_trajectory(pw.world, is_scaled(so), o.sites, o.seed, s.tool_radius, o.force,
+                                                     stdout, std::nullopt, &o.tool.tool);
   s.tool_radius = traj.tool_radius();
   if (s.planned == 0) s.planned = traj.duration() + 0.5;
   s.pass = traj.duration();

@@ -98,6 +98,17 @@ std::vector<std::uint32_t> site_candidates(const CollisionWorld& world, const Ob
   return pool;
 }
 
+// With a tool of a shape (ProbeParams::tool_touch): the tool comes down from above to the
+// approach's `start` touching nothing, and along the approach (-n) it meets the surface no
+// earlier than the sphere does after `travel`, by a quarter of the tool radius.
+bool tool_reaches(SiteFinder& f, const Eigen::Vector3d& start, const Eigen::Vector3d& n, double travel) {
+  const Eigen::Vector3d top = f.lift(start);
+  const double drop = (start - top).norm();
+  if (drop > 0 && std::isfinite(f.p.tool_touch(top, (start - top) / drop, drop))) return false;
+  const double met = f.p.tool_touch(start, -n, travel);
+  return !(met < travel - 0.25 * f.p.tool_radius);
+}
+
 // The site at Gaussian `g`, when it is a flat disc facing up and out whose surface the approach
 // along its normal meets first, with nothing in the way from above.
 std::optional<ProbeSite> site_at(const CollisionGaussian& g, const Eigen::Vector3d& object_center,
@@ -130,6 +141,7 @@ std::optional<ProbeSite> site_at(const CollisionGaussian& g, const Eigen::Vector
   }
   if (!(s_touch < d_app - step) || s_touch > r + 2 * sorted[2]) return std::nullopt;
   if (!f.segment_clear(f.lift(start), start)) return std::nullopt;
+  if (f.p.tool_touch && !tool_reaches(f, start, n, d_app - s_touch)) return std::nullopt;
   ProbeSite site;
   site.surface_point = c;
   site.normal = n;

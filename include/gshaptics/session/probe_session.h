@@ -98,7 +98,20 @@ void warn_if_outside_profile(const PreparedWorld& w, const ForceModelOptions& o)
 std::function<double(const Eigen::Vector3d&, const Eigen::Vector3d&, double)> seen_first_touch(
     const CollisionWorld& world, double tool_radius);
 
+/// ProbeParams::tool_touch for a compound tool held at the world's orientation: on the seen
+/// solid (`seen`: the proxy's --surface seen) the first of its parts' fronts to meet it, over
+/// each part's centre line and the seen proxies' footprint lines (seen_footprint), each pushed
+/// as SeenCompoundProxy pushes a part (SeenSolid::push, its eye up to `seen_window` times the
+/// tool's largest semi-axis behind: ProxyParams::seen_window); on the world's ellipsoids the
+/// first overlap of any part (ContactQuery::any_contact), stepped at an eighth of its smallest
+/// semi-axis. Throws InputError for an invalid tool. Builds its solid or query once; the
+/// function keeps it.
+std::function<double(const Eigen::Vector3d&, const Eigen::Vector3d&, double)> tool_first_touch(
+    const CollisionWorld& world, const CompoundTool& tool, bool seen, double seen_window = ProxyParams{}.seen_window);
+
 /// The seeded probe trajectory; tool_radius <= 0 picks 1 % of the scene's robust extent.
+/// With a compound `tool` (not nullptr, not a single part at the TCP), sites where another part
+/// of it meets the object before the tip does are left out (ProbeParams::tool_touch).
 /// On the proxy's seen surface the touch points lie on the seen solid (seen_first_touch).
 /// Speeds scale with the tool so that any scene unit gives a similar run. The simulated hand
 /// presses to half of `force`'s limit (f_max) through the proxy's coupling stiffness
@@ -109,7 +122,8 @@ std::function<double(const Eigen::Vector3d&, const Eigen::Vector3d&, double)> se
 /// approach's up instead of the world's.
 ProbeTrajectory make_probe_trajectory(const CollisionWorld& world, bool scaled, int sites, std::uint64_t seed,
                                       double tool_radius, const ForceModelOptions& force, std::FILE* report = stdout,
-                                      const std::optional<Eigen::Vector3d>& up = std::nullopt);
+                                      const std::optional<Eigen::Vector3d>& up = std::nullopt,
+                                      const CompoundTool* tool = nullptr);
 
 /// After a probe run that made no contact: the likely causes, from the numbers at hand (units,
 /// up axis, opacity filter, tool size), one line each, printed to stderr.

@@ -31,6 +31,15 @@ struct ProbeParams {
   /// past the surface the proxy rests on. Empty: the first overlap with the world's ellipsoids,
   /// stepped at tool_radius / 8 (the ellipsoid proxy's and the paper model's surface).
   std::function<double(const Eigen::Vector3d& start, const Eigen::Vector3d& dir, double reach)> first_touch;
+  /// For a tool with a shape (a compound tool, held at the world's orientation, its TCP where
+  /// the sphere's centre is): how far the TCP moves from `start` along the unit `dir` before any
+  /// of its parts meets the force model's surface, or NaN when none does within `reach` (world
+  /// units). A site is kept only where the tool comes down from above to the approach's start
+  /// touching nothing and meets the surface no earlier along the approach than the sphere does
+  /// (by tool_radius / 4): a long tool's body does not meet the object before its tip reaches
+  /// the site (a stylus held upright, pressed on a side under an overhang). Empty: the sphere
+  /// alone decides.
+  std::function<double(const Eigen::Vector3d& start, const Eigen::Vector3d& dir, double reach)> tool_touch;
 };
 
 /// The default spherical tool radius for a world: 1 % of its robust extent (the 1-99 percentile
