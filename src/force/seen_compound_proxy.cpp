@@ -19,13 +19,6 @@ double middle_semi_axis(const Eigen::Vector3d& semi_axes) noexcept {
   return s[1];
 }
 
-// Ring line k's offset across u from the part's centre: on the shadow's boundary 2 pi k / rays
-// around, scaled by kRingFraction[k % 3].
-Eigen::Vector3d ring_offset(const ToolEllipsoid& part, const Eigen::Vector3d& u, int k, int rays,
-                            const double* ring_fraction) noexcept {
-  return ring_fraction[k % 3] * shadow_along(part, u).boundary(2 * std::numbers::pi * k / rays);
-}
-
 // The n-th point of the R2 sequence (Roberts 2018: an additive recurrence by the plastic number's
 // powers) mapped onto the unit disc by area: low-discrepancy, so the first points of any run
 // spread over the whole disc.
@@ -195,21 +188,19 @@ std::array<double, 2> SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& f
 }
 
 double SeenCompoundProxy::begin_sink(int j, double len) const noexcept {
-  // A part that moved less than kSunkSlack smallest semi-axes this tick is at rest: the direction
-  // of its chord is the device's noise, and a surface its footprint is already past by more than
-  // a footprint's lateness (kLate, SeenProxy's rule) was not met along it. Begun there, the
-  // contact's axis pointed out of the surface, and the proxy, pushed back toward the eye at the
-  // rise allowance, walked through the face under the tool (the Truck's probe run, seed 2: 40 cm
-  // in half a second, then 30 N pulling the hand down for 30 s).
-  const double scale = len >= kSunkSlack * min_axis_ ? kRingSink : seen_footprint::kLate;
-  return scale * middle_[std::size_t(j)];
+  // At rest, a footprint's lateness (SeenProxy's rule, seen_footprint::begin_lateness): begun
+  // from a surface the resting part was already past, the contact's axis pointed out of the
+  // surface, and the proxy, pushed back toward the eye at the rise allowance, walked through the
+  // face under the tool (the Truck's probe run, seed 2: 40 cm in half a second, then 30 N pulling
+  // the hand down for 30 s).
+  return seen_footprint::begin_lateness(len, min_axis_, middle_[std::size_t(j)], kRingSink);
 }
 
 std::array<SeenCompoundProxy::LineRead, 2> SeenCompoundProxy::next_lines(int j, const ToolEllipsoid& part,
                                                                          const Eigen::Vector3d& u) noexcept {
   Ring& g = rings_[std::size_t(j)];
   std::array<LineRead, 2> lines;
-  lines[0] = {g.next, ring_offset(part, u, g.next, kRingRays, kRingFraction)};
+  lines[0] = {g.next, seen_footprint::ray_offset(shadow_along(part, u), g.next)};
   g.next = (g.next + 1) % kRingRays;
   if (g.next_inner == 0) {
     lines[1] = {kCentreLine, Eigen::Vector3d::Zero()};

@@ -24,8 +24,8 @@ void SeenProxy::reset() noexcept {
 
 Eigen::Vector3d SeenProxy::ring_offset(int k, const Eigen::Vector3d& u, double radius) const noexcept {
   const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-  constexpr double kStep = 2 * 3.14159265358979323846 / kRingRays;
-  return kRingRadius[k % 3] * radius * (std::cos(kStep * k) * a + std::sin(kStep * k) * b);
+  const double angle = seen_footprint::ray_angle(k);
+  return kRingRadius[k % 3] * radius * (std::cos(angle) * a + std::sin(angle) * b);
 }
 
 double SeenProxy::holding(const std::array<double, kRingRays>& support) noexcept {
@@ -109,7 +109,7 @@ bool SeenProxy::begin_contact_along(const Eigen::Vector3d& u, double len, double
   // (a slanted wall met ray by ray) does not hold it: snapping the proxy back would start the
   // contact with a force step, and a step on the way in is energy given back on the way out.
   const double ring = footprint ? free_ring(u, radius, len, leaving) : std::numeric_limits<double>::infinity();
-  const bool by_ring = ring <= len && ring >= -(kRingRays * len + kRingLate * radius);
+  const bool by_ring = ring <= len && ring >= -(kRingRays * len + seen_footprint::begin_lateness(len, radius, radius, kRingLate));
   if (!hit.hit && !by_ring) return false;
   // (The eye stands kEyeMargin R clear of the surface behind it: layers peaking at the eye
   // itself would count or not by rounding, and the surface behind would hold the tool.)

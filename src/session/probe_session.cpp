@@ -114,7 +114,7 @@ int posed_upright(const CompoundTool& tool, const Eigen::Vector3d& tcp, std::arr
 }
 
 // tool_first_touch on the seen solid: each part's front over its centre line and the seen
-// proxies' footprint lines (kRays around at each of kRadius of its shadow's radius), pushed as
+// proxies' footprint rays on every ring (seen_footprint::ray_offset), pushed as
 // SeenCompoundProxy pushes a part (seen from as far behind as the line is still seen from, up to
 // `window`).
 TouchFn seen_tool_touch(const CollisionWorld& world, const CompoundTool& tool, double window) {
@@ -128,10 +128,9 @@ TouchFn seen_tool_touch(const CollisionWorld& world, const CompoundTool& tool, d
       const ToolEllipsoid& part = parts[std::size_t(j)];
       const ToolShadow shadow = shadow_along(part, dir);
       for (int k = -1; k < 3 * seen_footprint::kRays; ++k) {  // (-1: the centre line)
-        const double angle = 2 * std::numbers::pi * k / seen_footprint::kRays;
         const Eigen::Vector3d across =
             k < 0 ? Eigen::Vector3d::Zero()
-                  : Eigen::Vector3d(seen_footprint::kRadius[k / seen_footprint::kRays] * shadow.boundary(angle));
+                  : seen_footprint::ray_offset(shadow, k % seen_footprint::kRays, k / seen_footprint::kRays);
         const Eigen::Vector3d p = part.center + across;
         const double front = exit_along(part, p, dir);
         if (std::isnan(front)) continue;

@@ -122,7 +122,6 @@ class SeenCompoundProxy {
 
  private:
   static constexpr int kRingRays = seen_footprint::kRays;
-  static constexpr const double (&kRingFraction)[3] = seen_footprint::kRadius;  // of the shadow's radius
   // Inner lines, read one a tick beside the ring's (their own turn, so the ring's refresh, which
   // the edge search leans on, stays kRingRays ticks), never an edge search's start: the shadow's
   // centre one turn in kInnerTurns, and roaming lines the others. A roaming line is placed by a

@@ -25,10 +25,12 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <numbers>
 #include <vector>
 
 #include "gshaptics/broadphase/wide_bvh.h"
 #include "gshaptics/collision/collision_world.h"
+#include "gshaptics/collision/ellipsoid_line.h"
 
 namespace gshaptics {
 
@@ -126,6 +128,27 @@ inline constexpr double kMaxClimb = 1.0;
 /// `slide`: the move across the axis this tick (>= 0); `scale`: R or the smallest semi-axis.
 [[nodiscard]] constexpr double rise_allowance(double slide, double scale) noexcept {
   return kClimbSlope * slide + kClimbTick * scale;
+}
+
+/// Footprint ray k's direction around the push, rad: 2 pi k / kRays.
+[[nodiscard]] inline double ray_angle(int k) noexcept { return 2 * std::numbers::pi * k / kRays; }
+
+/// Footprint ray k's offset across the push from a part's centre line, m (world frame): on
+/// `shadow` (the part's shadow along the push, shadow_along), kRadius[ring] of the way to its
+/// boundary in direction ray_angle(k). The seen proxies read ring kRadius[k % 3] (ring < 0);
+/// the probe planner reads every ring at every direction. Never allocates, locks, logs or throws.
+[[nodiscard]] inline Eigen::Vector3d ray_offset(const ToolShadow& shadow, int k, int ring = -1) noexcept {
+  return kRadius[ring < 0 ? k % 3 : ring] * shadow.boundary(ray_angle(k));
+}
+
+/// How far past its surface a footprint ray may find it and still begin a contact, m, beyond the
+/// tool's motion since the ray was read: kLate `unit` for a tool at rest (it moved `len` < kSunkSlack
+/// `rest_unit` this tick: the direction of its chord is the device's noise, and a surface its
+/// footprint is already past was not met along it), `moving` `unit` for one in motion.
+/// SeenProxy: unit = rest_unit = R, moving = kLate (one rule); SeenCompoundProxy: unit = the
+/// part's middle semi-axis, rest_unit = the tool's smallest, moving = its kRingSink.
+[[nodiscard]] constexpr double begin_lateness(double len, double rest_unit, double unit, double moving) noexcept {
+  return (len >= kSunkSlack * rest_unit ? moving : kLate) * unit;
 }
 }  // namespace seen_footprint
 
