@@ -117,6 +117,37 @@ TEST(PassivityController, LeavesAPassiveSpringAloneAndRespectsItsCap) {
   EXPECT_EQ(np.force.y(), 0.2);           // the rest untouched
 }
 
+// A deficit left at a release is paid back over the next contact with at most the contact's own
+// force on top, not at once at the clamp (the Truck's stylus probe run, seed 7: 9.5 mJ met a 1.2 N
+// touch at 8 cm/s and sent 30 N for 12 ms).
+TEST(PassivityController, PaysAStaleDeficitBackWithAtMostTheContactsForce) {
+  const double dt = 1e-3;
+  PassivityParams p;
+  p.max_damping = 20;  // the desktop cap while unloading...
+  PassivityController pc(p);
+  Eigen::Vector3d x = Eigen::Vector3d::Zero();
+  // Unloading 10 N along a 0.1 m/s motion for 10 ticks, 2 N of it cancelled: a deficit is left.
+  for (int i = 0; i < 10; ++i) (void)tick(pc, Eigen::Vector3d(0, 0, 10), x, Eigen::Vector3d(0, 0, 0.1), dt);
+  pc.set_damping_cap(1500);  // ...then the ideal device's: the bound, not the cap, must hold the force
+  for (int i = 0; i < 50; ++i) (void)tick(pc, Eigen::Vector3d::Zero(), x, Eigen::Vector3d(0, 0, 0.1), dt);
+  const double deficit = pc.energy();
+  ASSERT_LT(deficit, -5e-3);
+  // The next touch: a 1.2 N contact against an 8 cm/s approach.
+  const Eigen::Vector3d v(0, 0, -0.08), contact(0, 0, 1.2);
+  double peak = 0;
+  int ticks = 0;
+  while (pc.energy() < 0 && ticks < 5000) {
+    const Eigen::Vector3d f = tick(pc, contact, x, v, dt);
+    peak = std::max(peak, f.norm());
+    ++ticks;
+  }
+  EXPECT_LE(peak, 2 * contact.norm() + 1e-9);  // at most the contact's force on top
+  EXPECT_GT(peak, 1.9 * contact.norm());       // and that much while the deficit lasts
+  EXPECT_GE(pc.energy(), 0.0);                 // paid back in full...
+  // ...over the ticks that takes: the damping and the contact each take |F| |v| dt a tick.
+  EXPECT_NEAR(ticks, -deficit / (2 * 1.2 * 0.08 * dt), 2.0);
+}
+
 TEST(PassivityController, ZeroForceDropsStoredEnergyButKeepsADeficit) {
   const double dt = 1e-3;
   PassivityParams p;
@@ -184,7 +215,9 @@ TEST(PassivityController, InTheServoStepADelayedWallStopsGivingEnergyBack) {
     }
   }
   EXPECT_LT(work[0], -5e-3);                  // off: the scene gave back more than 5 mJ
-  EXPECT_LT(std::fabs(work[1]), 0.15 * std::fabs(work[0]));  // default cap: under 15 % of that
+  // Default cap: under 17 % of that (2.38 of 14.99 mJ; 2.25 when a deficit carried from one press
+  // to the next was paid at once, before its payback was bounded by the contact's force).
+  EXPECT_LT(std::fabs(work[1]), 0.17 * std::fabs(work[0]));
   EXPECT_GE(work[2], -0.02 * std::fabs(work[0]));  // uncapped: at most what the prediction misses
 }
 

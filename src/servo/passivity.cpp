@@ -18,6 +18,7 @@ PassivityController::PassivityController(const PassivityParams& params)
 
 void PassivityController::reset(int delay_ticks) noexcept {
   energy_ = 0;
+  stale_ = 0;
   have_position_ = false;
   delay_ = std::clamp(delay_ticks, 0, int(forces_.size()) - 1);
   for (auto& f : forces_) f.setZero();
@@ -44,10 +45,20 @@ PassivityStep PassivityController::correct(const Eigen::Vector3d& force, const E
   const double fv = force.dot(velocity);
   // With this tick's force as it is, and the forces still in flight to the device (sent, not yet
   // paired with the motion they cause), each over one tick at this velocity.
-  double e = energy_ - fv * dt;
-  for (int age = 0; age < delay_; ++age) e -= force_sent(age).dot(velocity) * dt;
+  double given = fv * dt;  // what they would give the hand over the coming ticks, J (> 0: active)
+  for (int age = 0; age < delay_; ++age) given += force_sent(age).dot(velocity) * dt;
+  const double e = energy_ - given;
   if (!(e < 0) || !(v2 > params_.min_speed * params_.min_speed) || !std::isfinite(v2)) return out;
   double alpha = std::min(-e / (v2 * dt), cap_);
+  // What the coming ticks would give, and a deficit run up in this contact, are dissipated in
+  // full; a deficit carried over from before the contact (left at a release: stale_) is paid
+  // back with at most the force's own magnitude on top, over as many ticks as that takes. Paid at
+  // once it was a knock: on the Truck's stylus probe run (seed 7) a 9.5 mJ deficit left 8 s
+  // earlier met a 1.2 N touch at 8 cm/s, asked for 1,317 N s/m and sent 30 N for 12 ms. (A
+  // passivity controller's abrupt payback is the drawback Ryu, Preusche, Hannaford and Hirzinger
+  // 2005 address with reference energy following; this bound is a simpler remedy.)
+  const double fresh = std::max(0.0, given) - std::min(0.0, energy_ - stale_);
+  alpha = std::min(alpha, fresh / (v2 * dt) + force.norm() / std::sqrt(v2));
   // Never pull: while the force pushes along the motion (unloading) the damping may cancel that
   // component at most; a deficit left over is paid back over the next ticks.
   if (fv > 0) alpha = std::min(alpha, fv / v2);
@@ -62,6 +73,8 @@ void PassivityController::account(const Eigen::Vector3d& position) noexcept {
   if (have_position_ && held.allFinite()) {
     energy_ -= held.dot(position - last_position_);
     if (held.isZero(0) && energy_ > 0) energy_ = 0;  // the environment held nothing
+    // The deficit carried out of the last contact, less what has been paid back since.
+    stale_ = held.isZero(0) ? std::min(0.0, energy_) : std::max(stale_, std::min(0.0, energy_));
   }
   last_position_ = position;
   have_position_ = true;

@@ -20,13 +20,17 @@
 /// `min_speed` (below it no damping dissipates anything). Two rules keep it from being felt where
 /// it should not be: it never acts on a zero force (free space stays free), and while the force
 /// pushes along the motion it may cancel that component at most, never reverse it (the hand is
-/// never pulled into the surface; a deficit left over is paid back over the next ticks). The
-/// safety layer's limits apply after it, and the observer counts the force actually sent.
+/// never pulled into the surface; a deficit left over is paid back over the next ticks), and a
+/// deficit carried over from before the contact (left at a release) is paid back with a damping
+/// force no larger than the force it corrects (what the coming tick would give, and a deficit run
+/// up within the contact, are always dissipated in full): a stale deficit met at the next touch
+/// doubles the touch's force at most instead of knocking at the clamp. The safety
+/// layer's limits apply after it, and the observer counts the force actually sent.
 ///
 /// Reset: when the force held is zero the environment holds no energy (the proxy sits on the
 /// device; the paper's penalty has no memory), so a positive E is dropped there and a deficit is
 /// kept: a long passive contact cannot mask an active one later (the observer's drift that
-/// Hannaford & Ryu discuss), and a deficit left at release is paid back at the next contact.
+/// Hannaford & Ryu discuss), and a deficit left at release is paid back over the next contact.
 ///
 /// Transport delay (a network link, a device-side loop): a force sent at tick k acts at the device
 /// d_down later, and the position read at tick j was measured d_up earlier. With the round trip
@@ -106,6 +110,7 @@ class PassivityController {
   PassivityParams params_;
   double cap_ = kDefaultPassivityMaxDamping;
   double energy_ = 0;
+  double stale_ = 0;  // the part of a deficit carried over a zero-force hold not yet paid, J (<= 0)
   bool have_position_ = false;
   int delay_ = 0;
   Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero();
