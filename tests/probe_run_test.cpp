@@ -259,8 +259,13 @@ TEST(ProbeRun, AStylusIsNotSentToASiteItsBodyMeetsAnOverhangBefore) {
     pp.tool_touch = session::tool_first_touch(world, stylus, seen);
     const ProbeTrajectory traj = generate_probe_trajectory(world, pp);
     EXPECT_GE(traj.sites().size(), 4u) << (seen ? "seen" : "ellipsoids");
-    for (const ProbeSite& site : traj.sites())
+    for (const ProbeSite& site : traj.sites()) {
       EXPECT_FALSE(under_roof(site)) << (seen ? "seen" : "ellipsoids") << ": site " << site.gaussian_index << " at " << site.surface_point.transpose();
+      // The touch point is the tool's: from r back along the approach, the stylus meets the
+      // surface after r (the ellipsoid search's step r / 8 aside), not short of the sphere's.
+      const double met = pp.tool_touch(site.touch_point + r * site.normal, -site.normal, 3 * r);
+      EXPECT_NEAR(met, r, r / 8 + 1e-9) << (seen ? "seen" : "ellipsoids") << ": site " << site.gaussian_index;
+    }
   }
 }
 

@@ -98,15 +98,18 @@ std::vector<std::uint32_t> site_candidates(const CollisionWorld& world, const Ob
   return pool;
 }
 
-// With a tool of a shape (ProbeParams::tool_touch): the tool comes down from above to the
-// approach's `start` touching nothing, and along the approach (-n) it meets the surface no
-// earlier than the sphere does after `travel`, by a quarter of the tool radius.
-bool tool_reaches(SiteFinder& f, const Eigen::Vector3d& start, const Eigen::Vector3d& n, double travel) {
+// With a tool of a shape (ProbeParams::tool_touch): how far the TCP goes along the approach (-n)
+// from `start` before a part meets the surface, when the tool comes down from above to `start`
+// touching nothing, meets the surface within `reach`, and no earlier than the sphere does after
+// `travel` by more than a quarter of the tool radius; else nothing (the site is refused).
+std::optional<double> tool_travel(SiteFinder& f, const Eigen::Vector3d& start, const Eigen::Vector3d& n, double travel,
+                                  double reach) {
   const Eigen::Vector3d top = f.lift(start);
   const double drop = (start - top).norm();
-  if (drop > 0 && std::isfinite(f.p.tool_touch(top, (start - top) / drop, drop))) return false;
-  const double met = f.p.tool_touch(start, -n, travel);
-  return !(met < travel - 0.25 * f.p.tool_radius);
+  if (drop > 0 && std::isfinite(f.p.tool_touch(top, (start - top) / drop, drop))) return std::nullopt;
+  const double met = f.p.tool_touch(start, -n, reach);
+  if (!(met >= travel - 0.25 * f.p.tool_radius)) return std::nullopt;  // (NaN: meets nothing)
+  return met;
 }
 
 // The site at Gaussian `g`, when it is a flat disc facing up and out whose surface the approach
@@ -141,7 +144,13 @@ std::optional<ProbeSite> site_at(const CollisionGaussian& g, const Eigen::Vector
   }
   if (!(s_touch < d_app - step) || s_touch > r + 2 * sorted[2]) return std::nullopt;
   if (!f.segment_clear(f.lift(start), start)) return std::nullopt;
-  if (f.p.tool_touch && !tool_reaches(f, start, n, d_app - s_touch)) return std::nullopt;
+  if (f.p.tool_touch) {
+    // The touch point is where the tool meets the surface, not the sphere of its largest
+    // semi-axis: a stylus's tip is narrower, and stopped there it hovered over the surface.
+    const std::optional<double> met = tool_travel(f, start, n, d_app - s_touch, d_app + r);
+    if (!met) return std::nullopt;
+    s_touch = d_app - *met;
+  }
   ProbeSite site;
   site.surface_point = c;
   site.normal = n;

@@ -37,8 +37,9 @@ struct ProbeParams {
   /// units). A site is kept only where the tool comes down from above to the approach's start
   /// touching nothing and meets the surface no earlier along the approach than the sphere does
   /// (by tool_radius / 4): a long tool's body does not meet the object before its tip reaches
-  /// the site (a stylus held upright, pressed on a side under an overhang). Empty: the sphere
-  /// alone decides.
+  /// the site (a stylus held upright, pressed on a side under an overhang), and meets it within
+  /// tool_radius past the site's centre; the site's touch point is then where the tool meets it
+  /// (a stylus's tip, narrower than the sphere, reaches further). Empty: the sphere alone decides.
   std::function<double(const Eigen::Vector3d& start, const Eigen::Vector3d& dir, double reach)> tool_touch;
 };
 
