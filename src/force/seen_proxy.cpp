@@ -23,9 +23,12 @@ void SeenProxy::reset() noexcept {
 }
 
 Eigen::Vector3d SeenProxy::ring_offset(int k, const Eigen::Vector3d& u, double radius) const noexcept {
-  const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-  const double angle = seen_footprint::ray_angle(k);
-  return kRingRadius[k % 3] * radius * (std::cos(angle) * a + std::sin(angle) * b);
+  // The sphere's shadow along u: the disc of its radius (ToolShadow's basis, L = radius I).
+  ToolShadow shadow;
+  shadow.e1 = u.unitOrthogonal();
+  shadow.e2 = u.cross(shadow.e1);
+  shadow.l = radius * Eigen::Matrix2d::Identity();
+  return seen_footprint::ray_offset(shadow, k);
 }
 
 double SeenProxy::holding(const std::array<double, kRingRays>& support) noexcept {
