@@ -4,6 +4,7 @@
 // not with it on.
 
 #include "gshaptics/servo/passivity.h"
+#include "gshaptics/servo/tick_log.h"
 
 #include <gtest/gtest.h>
 
@@ -219,6 +220,38 @@ TEST(PassivityController, InTheServoStepADelayedWallStopsGivingEnergyBack) {
   // to the next was paid at once, before its payback was bounded by the contact's force).
   EXPECT_LT(std::fabs(work[1]), 0.17 * std::fabs(work[0]));
   EXPECT_GE(work[2], -0.02 * std::fabs(work[0]));  // uncapped: at most what the prediction misses
+}
+
+}  // namespace
+}  // namespace gshaptics
+
+namespace gshaptics {
+namespace {
+
+// A 1,000 N/m coupling with the device standing at the origin: the proxy's own steps away from
+// it store 0.5 k (|x1|^2 - |x0|^2) in the coupling, and steps toward it take it out; ticks out
+// of contact (constraints 0) count nothing, whatever the proxy does there.
+TEST(ProxyStepWork, CountsWhatTheProxysOwnStepsStoreInTheCoupling) {
+  constexpr double k = 1000;
+  std::vector<TickRecord> ticks;
+  const auto add = [&](double x, std::uint8_t constraints) {
+    TickRecord t;
+    t.proxy = Eigen::Vector3d(x, 0, 0);
+    t.desired = k * t.proxy;  // the coupling's force on the device at the origin
+    t.constraints = constraints;
+    ticks.push_back(t);
+  };
+  for (int i = 0; i <= 10; ++i) add(0.010 + 0.001 * i, 1);  // away: 10 mm -> 20 mm
+  for (int i = 1; i <= 10; ++i) add(0.020 - 0.001 * i, 1);  // back toward the device
+  add(0.5, 0);                                              // out of contact
+  add(0.010, 1);
+  const double away = 0.5 * k * (0.020 * 0.020 - 0.010 * 0.010);
+  EXPECT_NEAR(proxy_step_work(ticks).stored, away, 1e-12);
+  EXPECT_NEAR(proxy_step_work(ticks).net, 0.0, 1e-12);  // out and back along the same line
+  // A proxy that only ever moves toward the device stores nothing and takes what it held.
+  std::vector<TickRecord> toward(ticks.begin() + 10, ticks.begin() + 21);
+  EXPECT_EQ(proxy_step_work(toward).stored, 0.0);
+  EXPECT_NEAR(proxy_step_work(toward).net, -away, 1e-12);
 }
 
 }  // namespace

@@ -1,4 +1,5 @@
 #include "gshaptics/servo/passivity.h"
+#include "gshaptics/servo/tick_log.h"
 
 #include <algorithm>
 #include <cmath>
@@ -78,6 +79,20 @@ void PassivityController::account(const Eigen::Vector3d& position) noexcept {
   }
   last_position_ = position;
   have_position_ = true;
+}
+
+ProxyStepWork proxy_step_work(std::span<const TickRecord> ticks) noexcept {
+  ProxyStepWork work;
+  for (std::size_t i = 1; i < ticks.size(); ++i) {
+    const TickRecord& a = ticks[i - 1];
+    const TickRecord& b = ticks[i];
+    if (a.constraints == 0 || b.constraints == 0) continue;
+    const double w = 0.5 * (a.desired + b.desired).dot(b.proxy - a.proxy);
+    if (!std::isfinite(w)) continue;
+    work.net += w;
+    if (w > 0) work.stored += w;
+  }
+  return work;
 }
 
 }  // namespace gshaptics

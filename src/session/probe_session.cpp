@@ -20,6 +20,7 @@
 #include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/error.h"
 #include "gshaptics/servo/safety.h"
+#include "gshaptics/servo/passivity.h"
 #include "gshaptics/servo/tick_log.h"
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/io/atomic_file.h"
@@ -309,6 +310,7 @@ namespace {
 struct PassivityTally {
   std::uint64_t ticks = 0;
   double min_energy = 0, peak_damping = 0;
+  ProxyStepWork proxy_work;  // what the proxy's own steps did on the coupling
 };
 
 PassivityTally tally_passivity(const std::vector<TickRecord>& ticks) {
@@ -318,6 +320,7 @@ PassivityTally tally_passivity(const std::vector<TickRecord>& ticks) {
     p.min_energy = std::min(p.min_energy, t.energy);
     p.peak_damping = std::max(p.peak_damping, double(t.damping));
   }
+  p.proxy_work = proxy_step_work(ticks);
   return p;
 }
 
@@ -349,7 +352,8 @@ nlohmann::json simulate_summary(const SimulateOptions& o, const SceneOptions& so
   sj["renderer"] = std::string(renderer_name(o.force.model));
   sj["ticks"] = run.ticks.size();
   sj["passivity"] = {{"enabled", o.safety.passivity.enabled}, {"ticks", pc.ticks},
-                     {"peak_damping", pc.peak_damping}, {"min_energy_j", pc.min_energy}};
+                     {"peak_damping", pc.peak_damping}, {"min_energy_j", pc.min_energy},
+                     {"proxy_step_stored_j", pc.proxy_work.stored}, {"proxy_step_net_j", pc.proxy_work.net}};
   sj["query_us"] = {{"p50", run.query_time.p50_us}, {"p99", run.query_time.p99_us},
                     {"max", run.query_time.max_us}, {"ticks_over_1ms", run.query_time.over_1ms}};
   return sj;
@@ -466,8 +470,9 @@ int run_simulate(SimulateOptions o) {
   }
 
   fmt::print("\npassivity  {}: the controller added damping on {} ticks (peak {:.3g} N s/m); lowest observed energy "
-             "{:.3g} mJ\n", o.safety.passivity.enabled ? "on" : "off (observed only)", pc.ticks, pc.peak_damping,
-             pc.min_energy * 1e3);
+             "{:.3g} mJ; the proxy's own steps stored {:.3g} mJ in the coupling (net {:.3g} mJ)\n",
+             o.safety.passivity.enabled ? "on" : "off (observed only)", pc.ticks, pc.peak_damping, pc.min_energy * 1e3,
+             pc.proxy_work.stored * 1e3, pc.proxy_work.net * 1e3);
   fmt::print("query time p50 {:.1f} us, p99 {:.1f} us, max {:.1f} us; {} of {} ticks over 1 ms\n",
              run.query_time.p50_us, run.query_time.p99_us, run.query_time.max_us,
              run.query_time.over_1ms, run.ticks.size());
