@@ -358,6 +358,37 @@ TEST(ProbeRun, SiteAccountsNameTouchedAndMissedSites) {
   EXPECT_NEAR(a[2].closest_approach, std::hypot(0.5, 0.0), 1e-3);  // never dipped there
 }
 
+// A site's note says what a miss means on the renderer's own solid and names only options that
+// renderer reads (the seen solid refuses the ellipsoids' --isolation-gap).
+TEST(ProbeRun, AMissedSitesNoteNamesTheRenderersOwnOptions) {
+  SiteAccount bounced;
+  bounced.touched = true;
+  bounced.episodes = 3;
+  SiteAccount reached;  // came within the tool's radius, met nothing
+  reached.closest_approach = 0.02;
+  SiteAccount far = reached;
+  far.closest_approach = 0.5;
+  ProxyParams seen;
+  seen.surface = ProxySurface::kSeen;
+  const RendererSpec on_seen = renderer_spec(RendererKind::kProxy, seen);
+  const RendererSpec on_ellipsoids = renderer_spec(RendererKind::kProxy);
+  const RendererSpec paper = renderer_spec(RendererKind::kPaper);
+  EXPECT_EQ(site_note(bounced, 0.05, on_seen), "2 bounces");
+  EXPECT_EQ(site_note(SiteAccount{.touched = true, .episodes = 1}, 0.05, on_seen), "");
+  const std::string s = site_note(reached, 0.05, on_seen);
+  EXPECT_EQ(s.rfind("MISSED: the tool came within 0.02 of", 0), 0u) << s;
+  EXPECT_NE(s.find("no seen surface"), std::string::npos) << s;
+  EXPECT_EQ(s.find("--isolation-gap"), std::string::npos) << s;
+  const std::string e = site_note(reached, 0.05, on_ellipsoids);
+  EXPECT_NE(e.find("met no Gaussian"), std::string::npos) << e;
+  EXPECT_NE(e.find("--isolation-gap"), std::string::npos) << e;
+  const std::string p = site_note(reached, 0.05, paper);
+  EXPECT_EQ(p.find("--isolation-gap"), std::string::npos) << p;
+  EXPECT_EQ(p.find("--surface"), std::string::npos) << p;
+  for (const RendererSpec* r : {&on_seen, &on_ellipsoids, &paper})
+    EXPECT_EQ(site_note(far, 0.05, *r), "MISSED: the tool never came closer than 0.5 to the planned touch point");
+}
+
 TEST(ProbeRun, CsvLogIsWrittenAtomicallyWithHeader) {
   std::vector<TickRecord> ticks(3);
   ticks[1].time = 0.001;

@@ -381,24 +381,9 @@ nlohmann::json report_episodes(const ProbeRunResult& run, RendererKind model) {
 }
 
 // Why a planned site was not touched, or how often it bounced ("" for a clean touch).
-std::string site_note(const SiteAccount& a, double tool_radius) {
-  if (!a.touched) {
-    // The tool came within a tool radius of the planned touch point yet met nothing: nothing
-    // dense or opaque enough is there (or the renderer let the tool pass); otherwise the run or
-    // the hand never got there.
-    return a.closest_approach <= tool_radius
-               ? fmt::format("MISSED: the tool came within {:.3g} of the planned touch point and met no Gaussian "
-                             "(sparse or low-opacity content there; try --isolation-gap 1, a lower --min-opacity or --force-model paper)",
-                             a.closest_approach)
-               : fmt::format("MISSED: the tool never came closer than {:.3g} to the planned touch point",
-                             a.closest_approach);
-  }
-  return a.episodes > 1 ? fmt::format("{} bounces", a.episodes - 1) : std::string();
-}
-
 // Every planned site accounted for: touched or not, when, how hard, bounces (printed, and into
 // `sj`: sites, sites_touched, sites_missed).
-void report_sites(const ProbeSessionResult& probe, nlohmann::json& sj) {
+void report_sites(const ProbeSessionResult& probe, const RendererSpec& renderer, nlohmann::json& sj) {
   const ProbeTrajectory& traj = probe.trajectory;
   const ProbeRunResult& run = probe.run;
   const std::vector<SiteAccount> accounts = account_sites(traj, run.ticks, run.episodes);
@@ -418,7 +403,7 @@ void report_sites(const ProbeSessionResult& probe, nlohmann::json& sj) {
     if (!a.touched) ++missed;
     fmt::print("{:>4} {:>9.3f} {:>9} {:>12.2f} {:>8}  {}\n", i + 1, a.t_planned,
                a.touched ? fmt::format("{:.3f}", a.t_first_contact) : std::string("-"), a.peak_force, a.episodes,
-               site_note(a, traj.tool_radius()));
+               site_note(a, traj.tool_radius(), renderer));
   }
   sj["sites"] = sites;
   sj["sites_touched"] = int(accounts.size()) - missed;
@@ -462,7 +447,7 @@ int run_simulate(SimulateOptions o) {
   const PassivityTally pc = tally_passivity(run.ticks);
   nlohmann::json sj = simulate_summary(o, so, pw, objects, probe, pc);
   sj["episodes"] = report_episodes(run, o.force.model);
-  report_sites(probe, sj);
+  report_sites(probe, renderer, sj);
   try {
     write_file_atomically(summary_path, sj.dump(2) + "\n");
   } catch (const std::exception& e) {

@@ -5,6 +5,9 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string>
+#include <string_view>
+#include <variant>
 
 #include "gshaptics/error.h"
 #include "gshaptics/percentile.h"
@@ -88,6 +91,40 @@ std::string active_episodes_note(const std::vector<ContactEpisode>& episodes) {
   char note[96];
   std::snprintf(note, sizeof note, "; %d gave energy back, the worst W = %.2f mJ", active, worst * 1e3);
   return note;
+}
+
+namespace {
+
+// What a missed site means on `renderer`'s solid, and that renderer's options that change it.
+std::string_view missed_site_advice(const RendererSpec& renderer) {
+  if (const auto* proxy = std::get_if<ProxyModelSpec>(&renderer)) {
+    if (proxy->params.surface == ProxySurface::kSeen)
+      return "met no seen surface (the Gaussians there composite to under half opacity along the approach: "
+             "faint or open content; try a larger --seen-window or --surface ellipsoids)";
+    return "met no Gaussian (sparse or low-opacity content there; try --isolation-gap 1, a lower --min-opacity "
+           "or --surface seen)";
+  }
+  return "met no Gaussian (sparse or low-opacity content there; try a lower --min-opacity)";
+}
+
+}  // namespace
+
+std::string site_note(const SiteAccount& a, double tool_radius, const RendererSpec& renderer) {
+  char head[96];
+  if (a.touched) {
+    if (a.episodes <= 1) return {};
+    std::snprintf(head, sizeof head, "%d bounces", a.episodes - 1);
+    return head;
+  }
+  // The tool came within a tool radius of the planned touch point yet met nothing: nothing the
+  // renderer holds is there; otherwise the run or the hand never got there.
+  if (a.closest_approach <= tool_radius) {
+    std::snprintf(head, sizeof head, "MISSED: the tool came within %.3g of the planned touch point and ", a.closest_approach);
+    return std::string(head) + std::string(missed_site_advice(renderer));
+  }
+  std::snprintf(head, sizeof head, "MISSED: the tool never came closer than %.3g to the planned touch point",
+                a.closest_approach);
+  return head;
 }
 
 std::vector<SiteAccount> account_sites(const ProbeTrajectory& trajectory, const std::vector<TickRecord>& ticks,

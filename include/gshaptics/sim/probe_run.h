@@ -121,6 +121,15 @@ struct SiteAccount {
                                                      const std::vector<TickRecord>& ticks,
                                                      const std::vector<ContactEpisode>& episodes);
 
+/// The note a command prints beside a site's row: "" for a site touched once, "N bounces" for
+/// more episodes, and for a missed site what it means and what to try with `renderer`'s own
+/// options: a tool that came within `tool_radius` (world units) of the planned touch point met
+/// nothing the renderer holds there (the ellipsoids: no Gaussian kept by the opacity filter and
+/// the floater rule; the seen solid: no layer that composites to half transmittance along the
+/// approach; the paper's model: no Gaussian kept); one that never came so close was not brought
+/// there by the run or the hand.
+[[nodiscard]] std::string site_note(const SiteAccount& a, double tool_radius, const RendererSpec& renderer);
+
 /// p50/p99/max of the ticks' query times.
 [[nodiscard]] QueryTimeStats query_time_stats(const std::vector<TickRecord>& ticks);
 
