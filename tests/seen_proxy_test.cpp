@@ -15,6 +15,7 @@
 
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/error.h"
+#include "gshaptics/force/climb_ledger.h"
 #include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/force/seen_solid.h"
 #include "gshaptics/scene/seen_surface.h"
@@ -698,19 +699,77 @@ Move move(ProxyRenderer& p, double r, const Eigen::Vector3d& from, const Eigen::
   return out;
 }
 
-// A sphere pressed 2 mm into an opaque floor slides slowly (0.01 mm a tick) onto a step 1.5 mm
-// high. The height field of its leading point rises the whole step in one tick (k times 1.5 mm
-// at once); a rigid sphere rises onto it over a stretch of its slide. The proxy climbs at most
-// the slope it slides (tan 76 deg) plus R / 240 a tick: the force ramps, and the proxy ends on the
-// step's top as on any floor.
-TEST(SeenProxy, AStepLowerThanTheSphereIsClimbedAsARampNotAForceStep) {
-  const double s = 0.001, r = 0.005, h = 0.0015, k = ProxyParams{}.stiffness;
+// The ledger's account, by hand: a 10 N contact whose proxy falls 1 mm earns what a 1 mm rise
+// then spends; a normal leaning against the slide pays for the slope it renders; a rise owed is
+// charged to a moving hand only, ramped, and what the hand does against it is credit.
+TEST(ClimbLedger, AFallPaysForTheSameRiseAndNoMore) {
+  const Eigen::Vector3d n(0, 0, 1), a(0, 0, -1), f(0, 0, 10), none = Eigen::Vector3d::Zero();
+  const double scale = 0.01;  // the cap: 0.2 scale F_n = 20 mJ
+  ClimbLedger l;
+  EXPECT_TRUE(std::isinf(l.rise_room(none, n, a)));  // no load, no cost
+  l.book(none, f, n, scale);                           // a contact's first tick: its force only
+  EXPECT_EQ(l.credit(), 0.0);
+  EXPECT_EQ(l.rise_room(none, n, a), 0.0);
+  l.book(Eigen::Vector3d(0, 0, -0.001), f, n, scale);  // the proxy falls 1 mm toward the device
+  EXPECT_NEAR(l.credit(), 0.01, 1e-12);
+  EXPECT_NEAR(l.rise_room(none, n, a), 0.001, 1e-12);
+  l.book(Eigen::Vector3d(0, 0, 0.001), f, n, scale);   // and rises it again
+  EXPECT_NEAR(l.credit(), 0.0, 1e-12);
+  EXPECT_NEAR(l.rise_room(none, n, a), 0.0, 1e-12);
+  for (int i = 0; i < 5; ++i) l.book(Eigen::Vector3d(0, 0, -0.001), f, n, scale);  // 5 mm of falls
+  EXPECT_NEAR(l.credit(), 0.2 * scale * 10, 1e-12);  // kept up to the cap only
+}
+
+TEST(ClimbLedger, TheNormalsLeanPaysForTheSlopeItRenders) {
+  const Eigen::Vector3d a(0, 0, -1), f(0, 0, 10), none = Eigen::Vector3d::Zero();
+  const Eigen::Vector3d lean = Eigen::Vector3d(-0.1, 0, 1).normalized();  // a 5.7 deg slope rising along +x
+  ClimbLedger l;
+  l.book(none, f, lean, 0.01);
+  EXPECT_NEAR(l.rise_room(Eigen::Vector3d(0.001, 0, 0), lean, a), 1e-4, 1e-9);  // tan x slide, uphill
+  EXPECT_EQ(l.rise_room(Eigen::Vector3d(-0.001, 0, 0), lean, a), 0.0);          // downhill: nothing
+}
+
+TEST(ClimbLedger, ARiseOwedIsChargedToAMovingHandOnlyAndItsPaymentIsCredit) {
+  const Eigen::Vector3d n(0, 0, 1), f(0, 0, 10), v(0.01, 0, 0), none = Eigen::Vector3d::Zero();
+  const double scale = 0.005, dt = 1e-3;
+  ClimbLedger l;
+  l.book(none, f, n, scale);
+  EXPECT_EQ(l.reaction(1e-3, none, n, scale, dt).norm(), 0.0);  // a still hand pays nothing
+  l.forget();
+  l.book(none, f, n, scale);
+  EXPECT_EQ(l.reaction(0.04 * scale, v, n, scale, dt).norm(), 0.0);  // under the floor: not charged
+  // 1.5 mm owed on a 5 mm tool: the slope sqrt(2 (1.5 - 0.25) / 5) = 0.707, reached by a ramp of
+  // kPaySlope per kPayRamp (0.2 a tick), against the slide.
+  Eigen::Vector3d r = l.reaction(1.5e-3, v, n, scale, dt);
+  EXPECT_NEAR(r.x(), -0.2 * 10, 1e-9);
+  EXPECT_NEAR(r.y(), 0.0, 1e-12);
+  EXPECT_NEAR(r.z(), 0.0, 1e-12);
+  for (int i = 0; i < 10; ++i) r = l.reaction(1.5e-3, v, n, scale, dt);
+  EXPECT_NEAR(r.x(), -std::sqrt(2 * 1.25 / 5) * 10, 1e-9);
+  l.pay(Eigen::Vector3d(1e-5, 0, 0));  // the hand slides 0.01 mm against it
+  EXPECT_NEAR(l.credit(), std::sqrt(0.5) * 10 * 1e-5, 1e-12);
+  EXPECT_EQ(l.reaction(0.0, v, n, scale, dt).norm(), 0.0);  // paid: it falls at once
+}
+
+// An opaque floor of 1 mm discs, 8 x 4 cm, rising by a step `h` high (m) at x = 0.
+CollisionWorld step_floor(double h) {
+  const double s = 0.001;
   GaussianScene g;
   for (double x = -0.04; x <= 0.04 + 1e-12; x += s)
     for (double y = -0.02; y <= 0.02 + 1e-12; y += s)
       g.push_back(Eigen::Vector3f(float(x), float(y), float(x >= 0 ? h : 0.0)), Eigen::Vector3f(float(0.6 * s), float(0.6 * s), 1e-5f),
                   Eigen::Vector4f(1, 0, 0, 0), 0.9f, std::uint32_t(g.size()));
-  const CollisionWorld w = CollisionWorld::build(g, seen_world());
+  return CollisionWorld::build(g, seen_world());
+}
+
+// A sphere pressed 2 mm into an opaque floor slides slowly (0.01 mm a tick) onto a step 1.5 mm
+// high. The height field of its leading point rises the whole step in one tick (k times 1.5 mm
+// at once); a rigid sphere rises onto it over a stretch of its slide. The proxy climbs at most
+// the slope it slides (tan 76 deg) plus R / 240 a tick, and only as far as the hand pays for it
+// (ClimbLedger): the force ramps, and the proxy ends on the step's top as on any floor.
+TEST(SeenProxy, AStepLowerThanTheSphereIsClimbedAsARampNotAForceStep) {
+  const double r = 0.005, h = 0.0015, k = ProxyParams{}.stiffness;
+  const CollisionWorld w = step_floor(h);
   ProxyRenderer p(w, seen_params());
   const double z = r - 0.002;
   move(p, r, Eigen::Vector3d(-0.02, 0, 0.03), Eigen::Vector3d(-0.02, 0, z), 500);
@@ -726,6 +785,41 @@ TEST(SeenProxy, AStepLowerThanTheSphereIsClimbedAsARampNotAForceStep) {
   // At most k (4 x 0.01 mm + R / 240) a tick, with the damping's share; the step is k x 1.5 mm.
   EXPECT_LT(rise, k * (4e-5 + r / 240) + 0.05);
   EXPECT_GT(last, k * (0.002 + h) - 0.2);  // on the step's top, pressed 3.5 mm
+}
+
+// The god-object's passivity on the seen solid: a sphere pressed 2 mm into a floor, slid onto a
+// 1.5 mm step (the height field lifts the proxy onto its top, away from the device) and taken
+// straight up from there. Before the proxy's rises were paid for (ClimbLedger) the hand got
+// back 1.55-1.63 mJ more than it put in over the cycle; now its slide pays for the climb.
+TEST(SeenProxy, ASlideOntoAStepAndARetractFromItsTopGiveBackNoMoreThanTheHandPutIn) {
+  const double r = 0.005, h = 0.0015, k = ProxyParams{}.stiffness;
+  const CollisionWorld w = step_floor(h);
+  for (const int steps : {2000, 400}) {  // 1 cm/s and 5 cm/s across
+    ProxyRenderer p(w, seen_params());
+    const double z = r - 0.002;
+    double work = 0, jump = 0;  // the hand's work on the coupling (J: -sum F . dp); the slide's largest change of F in a tick
+    RenderOutput last;
+    Eigen::Vector3d at(-0.02, 0, 0.03);
+    const auto go = [&](const Eigen::Vector3d& to, int n, bool sliding = false) {
+      const Eigen::Vector3d from = at, v = (to - from) / (n * 1e-3);
+      for (int i = 1; i <= n; ++i) {
+        const Eigen::Vector3d c = from + (to - from) * (double(i) / n);
+        const RenderOutput out = p.render(ToolEllipsoid::sphere(c, r), v, 1e-3);
+        work -= 0.5 * (out.force + last.force).dot(c - at);
+        if (sliding) jump = std::max(jump, (out.force - last.force).norm());
+        at = c;
+        last = out;
+      }
+    };
+    go(Eigen::Vector3d(-0.02, 0, z), 500);
+    go(Eigen::Vector3d(0.02, 0, z), steps, true);
+    const double on_top = last.force.z();
+    go(Eigen::Vector3d(0.02, 0, 0.03), 500);
+    EXPECT_GT(on_top, k * (0.002 + h) - 0.3) << steps;  // it did climb the step
+    EXPECT_EQ(last.force.norm(), 0.0) << steps;         // and came off it
+    EXPECT_GT(work, -1e-4) << steps;                    // within 0.1 mJ of passive (it was -1.6 mJ)
+    EXPECT_LT(jump, 1.0) << steps;                      // and the hand paid for it smoothly
+  }
 }
 
 TEST(SeenProxy, SlidingAlongAFloorIntoAWallTheWallHoldsAndTheProxyRisesAlongIt) {

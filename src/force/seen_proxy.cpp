@@ -19,7 +19,13 @@ void SeenProxy::reset() noexcept {
   friction_.reset();
   friction_step_ = {};
   ring_read_.fill(SeenLineMemo{});
+  forget_ledger();
   if (follower_) follower_->release();
+}
+
+void SeenProxy::forget_ledger() noexcept {
+  ledger_.forget();
+  deficit_ = 0;
 }
 
 Eigen::Vector3d SeenProxy::ring_offset(int k, const Eigen::Vector3d& u, double radius) const noexcept {
@@ -129,6 +135,7 @@ bool SeenProxy::begin_contact_along(const Eigen::Vector3d& u, double len, double
   last_hit_ = std::numeric_limits<double>::quiet_NaN();
   sunk_ = 0;
   entry_motion_ = len;
+  forget_ledger();  // (a new contact's ledger starts empty)
   return true;
 }
 
@@ -172,6 +179,7 @@ double SeenProxy::ring_support(const Eigen::Vector3d& device, double radius) con
 bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal, double radius, double dt) noexcept {
   const Eigen::Vector3d& a = axis_;
   const double depth = (device + radius * a - eye_).dot(a);  // the device's leading point, from the eye plane
+  deficit_ = 0;
   if (!(depth > 0)) return false;
   // The ray of the goal's leading point (the device's without friction, stopped by a wall across
   // the axis), from the eye plane.
@@ -193,7 +201,7 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   // proxy that much deeper; sunk_.)
   if (fresh_normal_ && std::isfinite(rest))
     sunk_ = std::max(0.0, depth - rest - (entry_motion_ + kSunkSlack * radius));
-  const double climbed = climb(rest, (across - proxy_ - (across - proxy_).dot(a) * a).norm(), radius);
+  const double climbed = climb(rest, across - proxy_ - (across - proxy_).dot(a) * a, radius);
   const double held = climbed + sunk_;
   if (!(held < depth)) return false;  // the device is out of the surface
   // A rise of more than kMaxClimb R in one tick is no surface the sphere slides onto but the top
@@ -208,7 +216,8 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   }
   if (hit.hit) last_hit_ = hit.t;
   rest_ = climbed;
-  under_ = hit.hit ? std::max(0.0, hit.t - climbed) : std::numeric_limits<double>::infinity();
+  deficit_ = std::isfinite(rest) ? std::max(0.0, climbed - rest) : 0.0;  // (a wall's top refused above owes nothing)
+  under_ = hit.hit ? hit.t - climbed : std::numeric_limits<double>::infinity();
   const double t = std::max(0.0, held - 1e-6 * radius);
   const Eigen::Vector3d moved = foot + (t - radius) * a - proxy_;
   proxy_ += moved;
@@ -241,16 +250,18 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   return true;
 }
 
-double SeenProxy::climb(double rest, double slide, double radius) const noexcept {
+double SeenProxy::climb(double rest, const Eigen::Vector3d& slide, double radius) const noexcept {
   // A rigid sphere rises onto a bump before its centre line reaches it, over the part of its
   // shadow the bump is in; the height field of its leading point (and its footprint's surround,
   // read one ray a tick) rises at once. The rise a tick is bounded by seen_footprint::
   // rise_allowance: the slope a sliding sphere climbs and the footprint's lateness spread over one
   // turn of its rays, so a rise the sphere's own slide does not explain comes as a ramp, not a
   // force step. A new contact starts where its surface is; the proxy never
-  // sinks below the surface it rested on.
+  // sinks below the surface it rested on. Under load it rises only as far as the rise is paid for
+  // (ClimbLedger::rise_room); what is left is deficit_, which the ledger's reaction charges.
   if (fresh_normal_ || !std::isfinite(rest) || !std::isfinite(rest_)) return rest;
-  return std::max(rest, rest_ - seen_footprint::rise_allowance(slide, radius));
+  const double most = std::min(seen_footprint::rise_allowance(slide.norm(), radius), ledger_.rise_room(slide, normal_, axis_));
+  return std::max(rest, rest_ - most);
 }
 
 Eigen::Vector3d SeenProxy::slide_across(const Eigen::Vector3d& goal, double radius) noexcept {
@@ -300,10 +311,11 @@ Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const E
   // point (a point tip under the sphere): the relief the proxy does not render itself. Where the
   // leading point's ray holds the proxy, the proxy rides that relief and the tip adds none; held
   // by its footprint over a valley or a hole (a sphere bridging a grating's crests), the tip reads
-  // how deep it is, as the ellipsoid proxy's tip reads under a sphere riding at its own scale.
+  // how deep it is, as the ellipsoid proxy's tip reads under a sphere riding at its own scale;
+  // kept below a crest it has not paid to climb (SeenProxy::climb), the tip reads how high it is.
   // (As first built the tip was the proxy's own height, so the relief was rendered twice: the
   // gratings' peak was 2 k A where the ellipsoids give k A; bench/RESULTS.md, sixty-first session.)
-  const double tip = -std::min(under_, radius);
+  const double tip = -std::clamp(under_, -radius, radius);
   return follower_->add_forces_at_tip(tip, f, contact, normal_, velocity, radius, f_max_, dt);
 }
 
@@ -320,6 +332,8 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
     started_ = true;
   }
   const Eigen::Vector3d device_step = tool.center - last_device_;
+  const Eigen::Vector3d before = proxy_;
+  if (in_contact_) ledger_.pay(device_step);  // (before the climb asks what is paid for)
   last_device_ = tool.center;
   // A contact lasts while the device's leading point is past the seen surface along the axis it
   // came in on: the proxy rests on that surface (a height field along the axis) above the device,
@@ -347,6 +361,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
     }
   }
   if (!in_contact_) {
+    forget_ledger();
     proxy_ = tool.center;
     wall_.setZero();
     coupling_.release();
@@ -361,6 +376,10 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   if (follower_) apply_material(contact, r);
   const double mu_k = follower_ ? follower_->blend().mu_k : params_.mu_k;
   out.force = coupling_.force(e, normal_, velocity, dt, {}, friction_step_, mu_k);
+  // The proxy's own step against the coupling, and the hand's payment for a rise still owed.
+  ledger_.book(proxy_ - before, out.force, normal_, r);
+  out.force += ledger_.reaction(deficit_, velocity, normal_, r, dt);
+  if (out.force.norm() > f_max_) out.force *= f_max_ / out.force.norm();
   if (wall_.squaredNorm() > 0) out.force = coupling_.add_wall(out.force, wall_, normal_, e, velocity, dt);
   if (follower_) {
     out.force = add_material_forces(out.force, contact, velocity, r, dt);

@@ -13,6 +13,13 @@
 ///   creep through it. The proxy rises at most the slope it slides (tan 76 deg) plus R / 240 a
 ///   tick (SeenProxy::climb): a rise its slide does not explain (a step lower than the sphere,
 ///   its footprint closing round it) comes as a ramp of force, not a step.
+/// - The proxy's climb is paid for (force/climb_ledger.h): a god-object's step never stretches the
+///   coupling (Zilles and Salisbury 1995), and the height field rising under a loaded proxy would,
+///   giving the hand back energy it never put in. Under load the proxy rises only on what its
+///   falls, and the normal's lean against its slide, paid for; a rise still owed past
+///   ClimbLedger::kOweFloor R is charged to the hand as a reaction across the normal against its
+///   slide, the slope a rigid sphere climbs onto a step that high. A still hand pays nothing and
+///   the proxy keeps its level; relief the proxy does not ride reaches a material's texture tip.
 /// The force is the virtual coupling's (Colgate, Stanley and Brown 1995) along the seen surface's
 /// normal (SeenSolid::normal: the renderer's normal map and the seen depth's slope, read along four
 /// rays 1.5 R around the point; after a contact's first reading one ray a tick; smoothed over 5 ms), with
@@ -60,6 +67,7 @@
 #include <array>
 
 #include "gshaptics/collision/tool_ellipsoid.h"
+#include "gshaptics/force/climb_ledger.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/force/friction_cone.h"
 #include "gshaptics/force/material.h"
@@ -106,8 +114,10 @@ class SeenProxy {
   static constexpr double kMaxClimb = seen_footprint::kMaxClimb;  // R: the height field rising more in one tick is a wall
   static constexpr double kSlideMin = 1e-4;     // R: a move across the axis shorter than this is not searched
   // Where the proxy rests this tick (depth from the eye plane): the surface's `rest`, risen from
-  // last tick's by at most seen_footprint::rise_allowance(slide, R).
-  [[nodiscard]] double climb(double rest, double slide, double radius) const noexcept;
+  // last tick's by at most seen_footprint::rise_allowance of the `slide` across the axis (m,
+  // world) and, under load, by what ledger_ says is paid for (ClimbLedger::rise_room).
+  [[nodiscard]] double climb(double rest, const Eigen::Vector3d& slide, double radius) const noexcept;
+  void forget_ledger() noexcept;  // a new contact, or none: no credit, deficit or reaction
   // With a follower: the materials of the layers that make `hit` (the last first_inside() on
   // scratch_) into target_ (target_held_: some layer holds a material share).
   void read_material_shares(const SeenHit& hit) noexcept;
@@ -186,9 +196,12 @@ class SeenProxy {
   // contact: a spring with a fixed rest offset gives back no more than it took).
   double sunk_ = 0;
   double entry_motion_ = 0;  // the leading point's motion along the axis in the tick the contact began
+  ClimbLedger ledger_;  // the proxy's own steps against the coupling, and the hand's payments
+  double deficit_ = 0;  // m: how far the surface lies above where the proxy rests this tick
   // How far the seen surface under the leading point lies below where the proxy rests (0: its
-  // ray holds it; the footprint holding it over a valley or a hole: deeper; +inf: no surface):
-  // the relief the proxy does not render, which the texture tip reads.
+  // ray holds it; the footprint holding it over a valley or a hole: deeper; < 0: above it, a rise
+  // not yet paid for; +inf: no surface): the relief the proxy does not render, which the texture
+  // tip reads.
   double under_ = 0;
   // The footprint's readings: each ray's surface as a coordinate along ring_axis_ (+inf: none
   // found), and the tool's centre when it was read.
