@@ -220,11 +220,12 @@ TEST(SeenCompoundProxy, ATiltedStylusRestsOnItsTip) {
 // for a part 1.5 mm past, under half its middle semi-axis). A part past by more than half its
 // middle semi-axis was in the surface before (seen edge-on): it holds that much deeper for the
 // contact. A part past by less was met late by its footprint: it is brought back to the surface
-// as a ramp (at most a 240th of the smallest semi-axis a tick), so the stylus ends where the
-// surface is. Then the force grows with the push.
+// as a rise like any other (ClimbLedger): a straight press keeps its level and the force grows
+// with the push alone; a slide along the sheet pays for the rise, and the stylus ends where the
+// surface is.
 TEST(SeenCompoundProxy, AContactBegunPastASurfaceNotCrossedStartsWithoutAStep) {
   const double radius = 0.004;
-  for (const double over : {0.001, 0.0025}) {  // 3 mm past (sunk for the contact), 1.5 mm (ramped back)
+  for (const double over : {0.001, 0.0025}) {  // 3 mm past (sunk for the contact), 1.5 mm (paid back)
     SCOPED_TRACE(over);
     StylusOverSheet sheet;
     ProxyRenderer& r = sheet.r;
@@ -232,12 +233,14 @@ TEST(SeenCompoundProxy, AContactBegunPastASurfaceNotCrossedStartsWithoutAStep) {
     const Eigen::Quaterniond along_x(Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitY()));
     const Eigen::Vector3d start(-0.1, 0.0, over);
     const double k = ProxyParams{}.stiffness;
-    // Along the sheet for 0.2 s (0.1 m/s), then down 0.02 mm a tick for 0.2 s.
-    const auto ticks = drive(r, stylus, 0.4, [&](double t) {
-      const Eigen::Vector3d slid = start + std::min(0.02, 0.1 * t) * Eigen::Vector3d::UnitX();
-      return std::pair{Eigen::Vector3d(slid - std::max(0.0, 0.02 * (t - 0.2)) * Eigen::Vector3d::UnitZ()), along_x};
+    // Along the sheet for 0.2 s (0.1 m/s), down 0.02 mm a tick for 0.2 s, along it again for
+    // 0.6 s at 2 cm/s.
+    const auto ticks = drive(r, stylus, 1.0, [&](double t) {
+      const double along = std::min(0.02, 0.1 * t) + 0.02 * std::max(0.0, t - 0.4);
+      const double down = 0.02 * std::clamp(t - 0.2, 0.0, 0.2);
+      return std::pair{Eigen::Vector3d(start + along * Eigen::Vector3d::UnitX() - down * Eigen::Vector3d::UnitZ()), along_x};
     });
-    double first = -1, last = 0, prev = 0, rise = 0;
+    double first = -1, pressed = 0, prev = 0, rise = 0;
     int touching = 0;
     for (const Tick& tick : ticks) {
       const double f = tick.out.force.norm();
@@ -246,16 +249,18 @@ TEST(SeenCompoundProxy, AContactBegunPastASurfaceNotCrossedStartsWithoutAStep) {
         continue;
       }
       if (f > 0 && touching++ == 0) first = f;
-      rise = std::max(rise, f - prev);
-      prev = last = f;
+      if (touching <= 200) rise = std::max(rise, f - prev);  // the press (the slide's drag ramps in)
+      prev = f;
+      if (touching == 200) pressed = tick.out.force.z();  // the press's end, before the slide
     }
-    EXPECT_GT(touching, 190);
+    EXPECT_GT(touching, 790);
     EXPECT_LT(first, 0.1);  // k times the tick's motion and a thousandth of the smallest semi-axis
-    EXPECT_LT(rise, k * (2e-5 + radius / 240) + 0.05);  // the push and the ramp, never a step
+    EXPECT_LT(rise, k * 2e-5 + 0.05);  // the push alone, never a step
     const double pushed = start.z() - ticks.back().tcp.z();
     const double past = radius - over;  // how far the underside was through at the start
+    EXPECT_NEAR(pressed, k * pushed, 0.3);  // a straight press keeps the contact's level
     const double held = past > 0.5 * radius ? pushed : pushed + past;  // sunk, or back on the surface
-    EXPECT_NEAR(last, k * held, 0.3);
+    EXPECT_NEAR(ticks.back().out.force.z(), k * held, 0.3);
   }
 }
 

@@ -751,6 +751,28 @@ TEST(ClimbLedger, ARiseOwedIsChargedToAMovingHandOnlyAndItsPaymentIsCredit) {
   EXPECT_EQ(l.reaction(0.0, v, n, scale, dt).norm(), 0.0);  // paid: it falls at once
 }
 
+// A compound tool turned onto a surface lifts its proxy through its own lever: the hand's turn
+// against the torque on the device is what pays for that lift, and a turn with the torque is debt.
+TEST(ClimbLedger, AHandsTurnAgainstTheTorqueIsCreditAndWithItIsDebt) {
+  const Eigen::Vector3d n(0, 0, 1), a(0, 0, -1), f(0, 0, 10), none = Eigen::Vector3d::Zero();
+  const double scale = 0.01;
+  ClimbLedger l;
+  l.book(none, f, n, scale);
+  // 10 N up at 6 cm along +x: 0.6 N m about -y on the device; the hand turns 1 mrad about +y.
+  const Eigen::Vector3d torque = Eigen::Vector3d(0.06, 0, 0).cross(f);
+  ASSERT_NEAR(torque.y(), -0.6, 1e-12);
+  l.torque_on_device(torque);
+  l.pay(none, Eigen::Vector3d(0, 1e-3, 0));
+  EXPECT_NEAR(l.credit(), 0.6e-3, 1e-12);
+  EXPECT_NEAR(l.rise_room(none, n, a), 0.6e-3 / 10, 1e-12);  // 0.06 mm: the lever's 6 cm x 1 mrad
+  l.pay(none, Eigen::Vector3d(0, -2e-3, 0));  // turned back twice as far, with the torque
+  EXPECT_NEAR(l.credit(), -0.6e-3, 1e-12);
+  EXPECT_EQ(l.rise_room(none, n, a), 0.0);
+  l.forget();  // a new contact: no torque remembered
+  l.pay(none, Eigen::Vector3d(0, 1e-3, 0));
+  EXPECT_EQ(l.credit(), 0.0);
+}
+
 // An opaque floor of 1 mm discs, 8 x 4 cm, rising by a step `h` high (m) at x = 0.
 CollisionWorld step_floor(double h) {
   const double s = 0.001;

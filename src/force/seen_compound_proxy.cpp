@@ -75,6 +75,8 @@ void SeenCompoundProxy::release() noexcept {
   weight_.fill(0);
   for (SeenLineMemo& m : leading_) m.forget();
   part_held_.fill(false);
+  ledger_.forget();
+  deficit_ = 0;
   if (follower_) follower_->release();
 }
 
@@ -501,9 +503,12 @@ double SeenCompoundProxy::sink(const std::array<double, kMaxToolParts>& past) no
   // (kRingRays ticks of its motion and kLate middle semi-axes, SeenProxy's rule for a footprint
   // that begins a contact), a part was met late by a footprint line on a rough capture: its
   // surface is the surface, not one it was in. It starts sunk too (held where the surface is at
-  // once, it began the contact with a step: 13.5 N on the Truck's probe run) and is brought back
-  // onto the surface as a ramp of kClimbTick smallest semi-axes a tick (sunk for the contact, the
-  // stylus pressed along seen-felt's rays rested up to 0.3 R deeper).
+  // once, it began the contact with a step: 13.5 N on the Truck's probe run), and its surface is
+  // given back as a ramp of kClimbTick smallest semi-axes a tick (sunk for the contact, the
+  // stylus pressed along seen-felt's rays rested up to 0.3 R deeper). The proxy rises onto it as
+  // onto any rise, as far as the hand pays for it (climb(), ClimbLedger): a straight press keeps
+  // its level, a slide pays its way up (let free, the ramp gave a loaded proxy energy the hand
+  // never paid: bench/RESULTS.md, seventy-seventh session).
   double push = -kInf;
   for (int j = 0; j < tool_.count; ++j) {
     const std::size_t k = std::size_t(j);
@@ -520,14 +525,16 @@ double SeenCompoundProxy::sink(const std::array<double, kMaxToolParts>& past) no
   return push;
 }
 
-double SeenCompoundProxy::climb(double back, double ahead, double slide) const noexcept {
-  return std::min(back, ahead + seen_footprint::rise_allowance(slide, min_axis_));
+double SeenCompoundProxy::climb(double back, double ahead, double slide, const Eigen::Vector3d& lateral) const noexcept {
+  return std::min(back, ahead + std::min(seen_footprint::rise_allowance(slide, min_axis_),
+                                         ledger_.rise_room(lateral, normal_, axis_)));
 }
 
 bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
                              const Eigen::Quaterniond& q) noexcept {
   const Eigen::Vector3d& a = axis_;
   const double band = kContactBand * min_axis_;
+  deficit_ = 0;
   // The footprints are read and judged at the resting proxy (turned to q): a line the proxy is
   // already past by more than kRingSink does not hold.
   pose(x_, q);
@@ -580,7 +587,8 @@ bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3
   // surface lifts the proxy at once).
   // (A turn moves the parts by up to its angle times the tool's reach from the TCP.)
   const double slide = (y - x_ - (y - x_).dot(a) * a).norm() + q_.angularDistance(q) * reach_;
-  const double climbed = fresh_normal_ ? back : climb(back, (y - x_).dot(a), slide);
+  const double climbed = fresh_normal_ ? back : climb(back, (y - x_).dot(a), slide, y - x_ - (y - x_).dot(a) * a);
+  deficit_ = std::max(0.0, back - climbed);
   x_ = y - climbed * a;
   pose(x_, q);
   record_holds(lines, at, depth, climbed);
@@ -598,7 +606,7 @@ void SeenCompoundProxy::record_holds(const std::array<LineChoice, kMaxToolParts>
     const LineChoice& c = lines[k];
     // (A sunk part's surfaces lie sunk_ deeper: sink().)
     const double centre_gap = std::isfinite(at[k]) ? at[k] + sunk_[k] - (depth[k] - back) : kInf;
-    under_[k] = std::max(0.0, centre_gap);
+    under_[k] = centre_gap;  // (< 0: a crest above the part, a rise not yet paid for: ClimbLedger)
     h.by_ring = !(centre_gap < band) && c.line >= 0 && c.gap + sunk_[k] + back < centre_gap;
     h.line = h.by_ring ? c.line : -1;
     if (h.by_ring) {
@@ -631,7 +639,7 @@ bool SeenCompoundProxy::contact(Eigen::Vector3d& target, Eigen::Vector3d& lever_
     ++touching_;
     sum += w;
     weight_[std::size_t(j)] = w;
-    under += w * std::min(under_[std::size_t(j)], min_axis_);
+    under += w * std::clamp(under_[std::size_t(j)], -min_axis_, min_axis_);
     if (h.by_ring) {
       own -= w * outward_normal(parts_[std::size_t(j)], h.point);
       own_w += w;
@@ -681,7 +689,12 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   const Eigen::Vector3d device_step = position - last_device_;
   last_device_ = position;
   const bool was_in_contact = in_contact_;
+  if (in_contact_) {  // (before the climb asks what is paid for)
+    const Eigen::AngleAxisd turn(q * q_.conjugate());
+    ledger_.pay(device_step, turn.angle() * turn.axis());  // (the hand's turn against the torque pays too)
+  }
   if (!in_contact_) in_contact_ = begin_contact(position, q);
+  if (in_contact_ && !was_in_contact) ledger_.forget();  // (a new contact's ledger starts empty)
   const Eigen::Vector3d before = x_;
   // (Until a contact's first reading its normal is none; the last contact's stays in normal_,
   // which says whether the tool is leaving a surface, should the new contact fail at once.)
@@ -718,6 +731,10 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   if (follower_) apply_material(lever_point);
   const double mu_k = follower_ ? follower_->blend().mu_k : params_.mu_k;
   out.force = coupling_.force(x_ - position, normal_, velocity, dt, {}, friction_step_, mu_k);
+  // The proxy's own step against the coupling, and the hand's payment for a rise still owed.
+  ledger_.book(x_ - before, out.force, normal_, min_axis_);
+  out.force += ledger_.reaction(deficit_, velocity, normal_, min_axis_, dt);
+  if (out.force.norm() > coupling_.f_max()) out.force *= coupling_.f_max() / out.force.norm();
   if (follower_) {
     // The texture tip: below the touching parts, the relief they do not ride (SeenProxy's).
     out.force = follower_->add_forces_at_tip(-tip_under_, out.force, lever_point, normal_, velocity, min_axis_,
@@ -726,6 +743,7 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
     out.vibration = float(follower_->blend().vibration);
   }
   out.torque = (lever_point - x_).cross(out.force);
+  ledger_.torque_on_device(out.torque);
   if (wall_.squaredNorm() > 0) out.force = coupling_.add_wall(out.force, wall_, normal_, x_ - position, velocity, dt);
   out.counts.contacts = std::uint32_t(touching_);
   return out;

@@ -53,9 +53,18 @@ class ClimbLedger {
     pay_slope_ = 0;
     last_force_.setZero();
     reaction_.setZero();
+    torque_.setZero();
   }
-  /// The hand's work against last tick's reaction over its step since (`device_step`, m) is credit.
-  void pay(const Eigen::Vector3d& device_step) noexcept { credit_ -= reaction_.dot(device_step); }
+  /// The hand's work against last tick's reaction over its step since (`device_step`, m) is credit,
+  /// and against last tick's torque on the device (torque_on_device()) over its turn since
+  /// (`device_turn`, rotation vector, rad, world frame): a compound tool turned onto a surface lifts
+  /// the proxy through its lever, paid by the hand's turn (the tool's own rigid lever, no spring).
+  void pay(const Eigen::Vector3d& device_step, const Eigen::Vector3d& device_turn = Eigen::Vector3d::Zero()) noexcept {
+    credit_ -= reaction_.dot(device_step) + torque_.dot(device_turn);
+  }
+  /// Records the torque commanded on the device this tick (N m, world frame, about the tool's
+  /// centre point), which the next pay() credits against the device's turn.
+  void torque_on_device(const Eigen::Vector3d& torque) noexcept { torque_ = torque; }
   /// How far the proxy may rise along -`axis` this tick (m) with its `slide` across the axis (m),
   /// under the unit outward `normal`: the step may put no more than the credit into the coupling,
   /// F_n (step . n) <= credit. +inf without load.
@@ -103,6 +112,7 @@ class ClimbLedger {
   double pay_slope_ = 0;  // the slope reaction() renders
   Eigen::Vector3d last_force_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d reaction_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d torque_ = Eigen::Vector3d::Zero();  // N m on the device, last tick
 };
 
 }  // namespace gshaptics

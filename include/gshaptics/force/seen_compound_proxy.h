@@ -59,6 +59,13 @@
 ///    wall a part's ray met, not a surface to slide onto: the proxy stays where it stood (a stylus
 ///    slid into a wall was thrown onto its top, 78-81 N).
 ///
+/// 6. The climb, paid for (ClimbLedger, SeenProxy's): under load the proxy rises along -a only as
+///    far as its own falls, the rendered normal's lean against its slide and the hand's work pay
+///    for; the hand pays through its slide against the ledger's reaction and through its turn
+///    against the torque on the device (a turn that swings a part onto the surface lifts the
+///    proxy through the tool's lever). A rise still owed is charged to a sliding hand; a straight
+///    press keeps its level, also after a contact begun past its surface (sink()).
+///
 /// Not done (the compound proxy on the ellipsoids does these): the proxy does not turn against
 /// the surface (a turn that would swing a part into the solid raises the proxy along a instead,
 /// and no rotational coupling is rendered). A wall is met on one line per part: one whose edge
@@ -83,6 +90,7 @@
 
 #include "gshaptics/collision/compound_tool.h"
 #include "gshaptics/collision/ellipsoid_line.h"
+#include "gshaptics/force/climb_ledger.h"
 #include "gshaptics/force/force_renderer.h"
 #include "gshaptics/force/friction_cone.h"
 #include "gshaptics/force/material.h"
@@ -249,8 +257,10 @@ class SeenCompoundProxy {
   [[nodiscard]] double sink(const std::array<double, kMaxToolParts>& past) noexcept;
   // How far the proxy backs off along -a from the device's place `y` in contact: `back`, unless
   // that rises it past where it stood by more than the rise allowance of its `slide` across the
-  // axis (seen_footprint::rise_allowance; `ahead`: how far y is past the proxy along a).
-  [[nodiscard]] double climb(double back, double ahead, double slide) const noexcept;
+  // axis (seen_footprint::rise_allowance; `ahead`: how far y is past the proxy along a), and
+  // under load by more than ledger_ says is paid for (ClimbLedger::rise_room of `lateral`, the
+  // proxy's move across the axis, m).
+  [[nodiscard]] double climb(double back, double ahead, double slide, const Eigen::Vector3d& lateral) const noexcept;
   void record_holds(const std::array<LineChoice, kMaxToolParts>& lines, const std::array<double, kMaxToolParts>& at,
                     const std::array<double, kMaxToolParts>& depth, double back) noexcept;
   // In contact: part j's next two footprint lines (next_lines) through its shadow (parts_ posed
@@ -328,11 +338,14 @@ class SeenCompoundProxy {
   int touching_ = 0;
   std::array<double, kMaxToolParts> weight_{};  // each part's contact weight at the last tick (0: not touching)
   // How far the seen surface under each part's leading point lies below the part's front after
-  // hold() (0: its ray holds it; deeper where its footprint holds it; +inf: none), and the touching
+  // hold() (0: its ray holds it; deeper where its footprint holds it; < 0: above it, a rise not yet
+  // paid for, ClimbLedger; +inf: none), and the touching
   // parts' mean of it (to one smallest semi-axis): the relief the proxy does not render, which
   // the texture tip reads.
   std::array<double, kMaxToolParts> under_{};
   double tip_under_ = 0;
+  ClimbLedger ledger_;  // the proxy's own steps against the coupling, and the hand's payments (SeenProxy's)
+  double deficit_ = 0;  // m: how far the parts' surfaces would back the proxy off beyond where it climbed
   // Each part's motion along its chord in the tick its contact began (begin_contact), and how
   // much deeper than its surfaces it holds for the contact (sink()).
   std::array<double, kMaxToolParts> entry_motion_{}, sunk_{};
