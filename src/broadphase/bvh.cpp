@@ -5,7 +5,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "../huge_pages.h"
+#include "gshaptics/internal/huge_pages.h"
 
 namespace gshaptics {
 

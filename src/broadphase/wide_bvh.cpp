@@ -58,7 +58,7 @@ std::size_t wide_count(std::span<const BvhNode> b, std::uint32_t i) noexcept {
 // Builds the wide node for binary inner node `i` (and, recursively, its inner children) at the
 // end of `out`; returns its index. `depth` is the wide depth of this node (0: the root).
 std::uint32_t collapse_from(std::span<const BvhNode> b, std::uint32_t i, int depth, int& max_depth,
-                            std::vector<WideBvhNode>& out) {
+                            internal::HugePageVector<WideBvhNode>& out) {
   if (depth >= Bvh::kMaxDepth) throw std::length_error("WideBvh: the binary tree is deeper than Bvh::kMaxDepth");
   max_depth = std::max(max_depth, depth + 1);
   std::array<std::uint32_t, 4> kids;

@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "gshaptics/broadphase/wide_bvh.h"
+#include "gshaptics/internal/huge_pages.h"
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/collision/ellipsoid_line.h"
 
@@ -166,6 +167,8 @@ class SeenSolid {
   explicit SeenSolid(const CollisionWorld& world);
 
   [[nodiscard]] std::size_t size() const noexcept { return entries_.size(); }
+  /// The four-wide BVH over the entries' alpha = 1/255 boxes (its leaves index the entries).
+  [[nodiscard]] const WideBvh& tree() const noexcept { return bvh_; }
   /// The median over its Gaussians of the middle of their three scales (world units; 0 when
   /// empty): the in-plane size of a typical disc. A normal's ring narrower than that reads one
   /// or two discs and carries their tilts (normal_ring() widens it to this).
@@ -388,9 +391,11 @@ class SeenSolid {
   // before (those peaking exactly there are not taken twice).
   void gather_more(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, double shared,
                    SeenScratch& scratch) const noexcept;
-  std::vector<Entry> entries_;  // BVH slot order
-  std::vector<Bound> bounds_;   // per entry
-  std::vector<std::uint32_t> slots_;  // per entry: its Gaussian's slot in the world
+  // (In huge pages: a tick reads a few hundred entries scattered over the scene, and on a virtual
+  // machine each 4 KiB page's TLB miss walks two page tables; internal/huge_pages.h.)
+  internal::HugePageVector<Entry> entries_;  // BVH slot order
+  internal::HugePageVector<Bound> bounds_;   // per entry
+  internal::HugePageVector<std::uint32_t> slots_;  // per entry: its Gaussian's slot in the world
   WideBvh bvh_;  // over the entries' alpha >= 1/255 boxes (the binary SAH tree, collapsed)
   double typical_scale_ = 0;
 };

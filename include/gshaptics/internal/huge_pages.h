@@ -1,5 +1,7 @@
 #pragma once
-// Internal: an allocator for the collision world's big arrays (records, BVH nodes) that asks
+/// @file
+// Internal: an allocator for the big arrays a servo tick reads at random (the collision world's
+// records and BVH nodes, the seen solid's entries, bounds and wide BVH) that asks
 // the kernel for transparent huge pages (madvise(MADV_HUGEPAGE), which works when THP is set to
 // "madvise", the Debian default). A query touches a few hundred records scattered over the
 // whole world; with 4 KiB pages each is a TLB miss, and on a virtual machine a TLB miss walks two
@@ -12,6 +14,7 @@
 #include <cstddef>
 #include <cstdlib>
 #include <new>
+#include <vector>
 
 namespace gshaptics::internal {
 
@@ -40,5 +43,9 @@ struct HugePageAllocator {
   template <typename U>
   bool operator==(const HugePageAllocator<U>&) const noexcept { return true; }
 };
+
+/// A std::vector in huge pages (HugePageAllocator) where it reaches 2 MiB.
+template <typename T>
+using HugePageVector = std::vector<T, HugePageAllocator<T>>;
 
 }  // namespace gshaptics::internal
