@@ -733,8 +733,7 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   out.force = coupling_.force(x_ - position, normal_, velocity, dt, {}, friction_step_, mu_k);
   // The proxy's own step against the coupling, and the hand's payment for a rise still owed.
   ledger_.book(x_ - before, out.force, normal_, min_axis_);
-  out.force += ledger_.reaction(deficit_, velocity, normal_, min_axis_, dt);
-  if (out.force.norm() > coupling_.f_max()) out.force *= coupling_.f_max() / out.force.norm();
+  out.force = coupling_.clamp(out.force + ledger_.reaction(deficit_, velocity, normal_, min_axis_, dt));
   if (follower_) {
     // The texture tip: below the touching parts, the relief they do not ride (SeenProxy's).
     out.force = follower_->add_forces_at_tip(-tip_under_, out.force, lever_point, normal_, velocity, min_axis_,

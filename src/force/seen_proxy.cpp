@@ -7,7 +7,7 @@
 namespace gshaptics {
 
 SeenProxy::SeenProxy(const CollisionWorld& world, const ProxyParams& params, double f_max)
-    : solid_(world), params_(params), f_max_(f_max), coupling_(params, f_max), friction_(params.mu_s, params.mu_k) {}
+    : solid_(world), params_(params), coupling_(params, f_max), friction_(params.mu_s, params.mu_k) {}
 
 void SeenProxy::reset() noexcept {
   started_ = false;
@@ -316,7 +316,7 @@ Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const E
   // (As first built the tip was the proxy's own height, so the relief was rendered twice: the
   // gratings' peak was 2 k A where the ellipsoids give k A; bench/RESULTS.md, sixty-first session.)
   const double tip = -std::clamp(under_, -radius, radius);
-  return follower_->add_forces_at_tip(tip, f, contact, normal_, velocity, radius, f_max_, dt);
+  return follower_->add_forces_at_tip(tip, f, contact, normal_, velocity, radius, coupling_.f_max(), dt);
 }
 
 RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
@@ -378,8 +378,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   out.force = coupling_.force(e, normal_, velocity, dt, {}, friction_step_, mu_k);
   // The proxy's own step against the coupling, and the hand's payment for a rise still owed.
   ledger_.book(proxy_ - before, out.force, normal_, r);
-  out.force += ledger_.reaction(deficit_, velocity, normal_, r, dt);
-  if (out.force.norm() > f_max_) out.force *= f_max_ / out.force.norm();
+  out.force = coupling_.clamp(out.force + ledger_.reaction(deficit_, velocity, normal_, r, dt));
   if (wall_.squaredNorm() > 0) out.force = coupling_.add_wall(out.force, wall_, normal_, e, velocity, dt);
   if (follower_) {
     out.force = add_material_forces(out.force, contact, velocity, r, dt);

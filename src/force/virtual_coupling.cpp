@@ -49,10 +49,7 @@ Eigen::Vector3d VirtualCoupling::force_at_depth(double depth, const Eigen::Vecto
     k *= opacity_;
   }
   const double fn = std::max(0.0, k * depth - b_ * velocity.dot(n));
-  Eigen::Vector3d f = coupling_force(fn, n, e, k, friction, mu_k);
-  const double fm = f.norm();
-  if (fm > f_max_) f *= f_max_ / fm;
-  return f;
+  return clamp(coupling_force(fn, n, e, k, friction, mu_k));
 }
 
 Eigen::Vector3d VirtualCoupling::add_wall(const Eigen::Vector3d& f, const Eigen::Vector3d& wall,
@@ -63,9 +60,7 @@ Eigen::Vector3d VirtualCoupling::add_wall(const Eigen::Vector3d& f, const Eigen:
   if (!(len > 1e-3)) return f;
   w /= len;
   if (!(offset.dot(w) > 0)) return f;
-  const Eigen::Vector3d sum = f + force_at_depth(offset.dot(w), offset, w, velocity, dt, {}, FrictionStep{}, 0.0);
-  const double m = sum.norm();
-  return m > f_max_ ? Eigen::Vector3d(sum * (f_max_ / m)) : sum;
+  return clamp(f + force_at_depth(offset.dot(w), offset, w, velocity, dt, {}, FrictionStep{}, 0.0));
 }
 
 }  // namespace gshaptics

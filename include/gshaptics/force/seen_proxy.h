@@ -171,7 +171,6 @@ class SeenProxy {
   SeenSolid solid_;
   SeenScratch scratch_;
   ProxyParams params_;
-  double f_max_;
   VirtualCoupling coupling_;
   FrictionCone friction_;
   FrictionStep friction_step_;

@@ -128,6 +128,12 @@ class VirtualCoupling {
 
   /// The force's bound, N (+inf: none).
   [[nodiscard]] double f_max() const noexcept { return f_max_; }
+  /// `f` (N) scaled down to |f| <= f_max, its direction kept: the one clamp every force this
+  /// coupling makes goes through (and a proxy's sum of the coupling and its own reaction).
+  [[nodiscard]] Eigen::Vector3d clamp(const Eigen::Vector3d& f) const noexcept {
+    const double m = f.norm();
+    return m > f_max_ ? Eigen::Vector3d(f * (f_max_ / m)) : f;
+  }
   /// The proxy is free: the opacity smoothing starts again from 1, the energy bound anew.
   void release() noexcept {
     opacity_ = 1.0;
