@@ -179,7 +179,7 @@ TEST(SeenSolid, APushsGuessChangesOnlyItsCost) {
   const SeenSolid& solid = cloud.solid;
   const SeenSurface& reference = cloud.reference;
   SeenScratch& scratch = cloud.scratch;
-  int hits = 0, later = 0;
+  int hits = 0, later = 0, eyes_behind = 0;
   for (int k = 0; k < 80; ++k) {
     Eigen::Vector3d u(cloud.uni() - 0.5, cloud.uni() - 0.5, cloud.uni() - 0.5);
     u.normalize();
@@ -199,17 +199,24 @@ TEST(SeenSolid, APushsGuessChangesOnlyItsCost) {
       EXPECT_NEAR(std::max(0.0, d.depth - from - lead), plain.t, 1e-6) << "ray " << k;
       later += plain.t > 0;
     }
-    for (const double guess : {-0.1, 0.0, 0.5 * plain.t, plain.t, plain.t + 0.01, 0.5 * len, len + 1.0}) {
-      double eye_g = -1;
-      const SeenHit h = solid.push(c, u, lead, 1.0, len, leaving, eye_g, scratch, guess);
-      EXPECT_EQ(h.hit, plain.hit) << "ray " << k << ", guess " << guess;
-      EXPECT_EQ(h.t, plain.t) << "ray " << k << ", guess " << guess;
-      EXPECT_EQ(h.layers, plain.layers) << "ray " << k << ", guess " << guess;
-      EXPECT_EQ(eye_g, eye) << "ray " << k << ", guess " << guess;
+    // The guesses of where the hit and the eye are, right, wrong and none, change nothing.
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    for (const double guess : {-0.1, 0.0, 0.5 * plain.t, plain.t, plain.t + 0.01, 0.5 * len, len + 1.0, nan}) {
+      for (const double eye_guess : {nan, -1.0, 0.0, 1e-4, 0.5 * eye, eye, 2 * eye, 1.0, 5.0}) {
+        double eye_g = -1;
+        const SeenHit h = solid.push(c, u, lead, 1.0, len, leaving, eye_g, scratch, guess, eye_guess);
+        const auto where = [&] { return "ray " + std::to_string(k) + ", guesses " + std::to_string(guess) + ", " + std::to_string(eye_guess); };
+        EXPECT_EQ(h.hit, plain.hit) << where();
+        EXPECT_EQ(h.t, plain.t) << where();
+        EXPECT_EQ(h.layers, plain.layers) << where();
+        EXPECT_EQ(eye_g, eye) << where();
+      }
     }
+    if (eye > 0 && eye < 1.0) ++eyes_behind;
   }
   EXPECT_GE(hits, 20);
   EXPECT_GE(later, 5);
+  EXPECT_GE(eyes_behind, 5);  // (eyes the look back found short of max_back: the guess's stages matter)
 }
 
 TEST(SeenSolid, TheEyeStopsInFrontOfASurfaceBehind) {

@@ -131,8 +131,11 @@ double SeenCompoundProxy::ring_gap(const ExitAlong& exit, int j, int k, const Ei
   return g.at[std::size_t(k)] - front.dot(g.axis);
 }
 
-double SeenCompoundProxy::line_surface(int j, const Eigen::Vector3d& front, const Eigen::Vector3d& u, double back,
-                                       double ahead, double last, SeenLineMemo& memo) noexcept {
+double SeenCompoundProxy::line_surface(int j, int slot, const Eigen::Vector3d& front, const Eigen::Vector3d& u,
+                                       double back, double ahead) noexcept {
+  Ring& g = rings_[std::size_t(j)];
+  const double last = g.at[std::size_t(slot)];
+  SeenLineMemo& memo = g.memo[std::size_t(slot)];
   const Eigen::Vector3d c = front - back * u;
   const double start = front.dot(u) - back, len = back + ahead;
   // (The line's eye is its own, found from c: a line that has not moved has the same eye.)
@@ -141,9 +144,11 @@ double SeenCompoundProxy::line_surface(int j, const Eigen::Vector3d& front, cons
   // (A part held while the device presses on reads its lines to the device's depth, tens of
   // middle semi-axes past the surface they meet: the layers up to the last answer come first.)
   const double guess = std::isfinite(last) ? last - start + kRingLook * middle_[std::size_t(j)] : kInf;
-  double eye = 0;
+  // (Its eye guessed from the line's last: what lies behind a line hardly changes tick to tick.)
+  double& eye = g.eye[std::size_t(slot)];
+  const double eye_guess = eye;
   const SeenHit hit = solid_->push(c, u, 0, params_.seen_window * middle_[std::size_t(j)], len, false, eye, scratch_,
-                                   std::isfinite(guess) ? guess : std::numeric_limits<double>::quiet_NaN());
+                                   std::isfinite(guess) ? guess : std::numeric_limits<double>::quiet_NaN(), eye_guess);
   if (scratch_.overflow)
     memo.forget();
   else
@@ -172,7 +177,7 @@ std::array<double, 2> SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& f
       g.at[std::size_t(line.slot)] = hit.hit ? front.dot(u) + hit.t : kInf;
     } else {
       g.at[std::size_t(line.slot)] =
-          line_surface(j, front, u, back, len + look, g.at[std::size_t(line.slot)], g.memo[std::size_t(line.slot)]);
+          line_surface(j, line.slot, front, u, back, len + look);
     }
   }
   // A line met later than its refresh allows (a slanted wall met line by line) does not hold:
@@ -247,9 +252,11 @@ bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Qua
     const Eigen::Vector3d tip = part.surface_point(u);
     const double lead = (tip - part.center).dot(u);
     const Eigen::Vector3d centre = tip - lead * u;
-    double eye = 0;
+    double& eye = free_eye_[std::size_t(j)];  // (the part's last eye: push()'s guess, only its cost)
+    const double eye_guess = eye;
     const bool leaving = u.dot(normal_) > 0;
-    const SeenHit hit = solid_->push(centre, u, lead, params_.seen_window * radius_, len, leaving, eye, scratch_);
+    const SeenHit hit = solid_->push(centre, u, lead, params_.seen_window * radius_, len, leaving, eye, scratch_,
+                                     std::numeric_limits<double>::quiet_NaN(), eye_guess);
     if (hit.hit && hit.t / len < first) {
       first = hit.t / len;
       first_u = u;
@@ -300,7 +307,7 @@ void SeenCompoundProxy::read_ring(int j, double reach) noexcept {
     const Eigen::Vector3d front = p + exit_along(part, p, axis_) * axis_;
     g.foot[std::size_t(line.slot)] = front;
     g.at[std::size_t(line.slot)] =
-        line_surface(j, front, axis_, 2 * look, reach, g.at[std::size_t(line.slot)], g.memo[std::size_t(line.slot)]);
+        line_surface(j, line.slot, front, axis_, 2 * look, reach);
   }
 }
 

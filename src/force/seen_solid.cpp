@@ -191,27 +191,29 @@ double SeenSolid::eye_distance(const Eigen::Vector3d& c, const Eigen::Vector3d& 
 }
 
 SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,
-                        bool leaving, double& eye, SeenScratch& s, double t_guess) const noexcept {
+                        bool leaving, double& eye, SeenScratch& s, double t_guess, double eye_guess) const noexcept {
   SeenHit hit;
   eye = 0;
   // Both looks read in stages, and each stage's layers all lie beyond every earlier stage's, so
   // the answer is the one-stage answer (first_inside's argument): ahead of c, up to the guess
   // first and the rest only when those do not reach ln 2; behind c, ranges growing x4 from
-  // kFirstStage of max_back until a surface hides c (a surface near behind spares the long look).
+  // kFirstStage of max_back (or from the eye guess) until a surface hides c (a surface near behind spares the long look).
   const double end = lead + len;
   const double split = std::isfinite(t_guess) ? std::clamp(lead + t_guess, 0.0, end) : end;
   double near = split;  // how far ahead the layers are read
   int stage = 0;        // the next range past the guess
   std::optional<std::size_t> around;
+  BackLook back{max_back, max_back * kFirstStage};
+  if (eye_guess > 0) back.first = std::clamp(kEyeGuessMargin * eye_guess, back.first, max_back);
   const std::size_t ahead =
-      end > 0 ? read_ahead(c, u, max_back, split, end, std::isfinite(t_guess), near, stage, around, s) : 0;
+      end > 0 ? read_ahead(c, u, back, split, end, std::isfinite(t_guess), near, stage, around, s) : 0;
   // The layers between the eye and c composite to less than ln 2 (that is where the eye is), so
   // a surface needs a layer peaking ahead of c: with none there, the eye is not searched (a free
   // tool away from the surfaces).
   if (end > 0 && !s.overflow && ahead == 0) return hit;
   if (!(end > 0)) s.gathered = 0;
   std::array<Span, kStages> behind;
-  const int stages = look_back(c, u, max_back, end > 0, around, behind, eye, s);
+  const int stages = look_back(c, u, back, end > 0, around, behind, eye, s);
   if (s.overflow) {
     eye = 0;
     hit.hit = true;  // blocked where it stands
@@ -255,15 +257,15 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   return hit;
 }
 
-std::size_t SeenSolid::read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, double split,
-                                  double end, bool guessed, double& near, int& stage,
+std::size_t SeenSolid::read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3d& u, const BackLook& back,
+                                  double split, double end, bool guessed, double& near, int& stage,
                                   std::optional<std::size_t>& around, SeenScratch& s) const noexcept {
   // With a guess (a resting tool's lines, which meet a surface near it), one traversal reads the
   // layers around c: the first range ahead and the look back's first stage,
-  // [-max_back kFirstStage, 0) (the look back takes them when it is searched). Without one (a
+  // [-back.first, 0) (the look back takes them when it is searched). Without one (a
   // free tool, usually far from every surface), the first range ahead alone.
   around.reset();
-  gather(c, u, guessed ? -stage_end(0.0, max_back, 0) : 0.0, split, s);
+  gather(c, u, guessed ? -back.end(0) : 0.0, split, s);
   if (guessed && s.overflow) {
     gather(c, u, 0.0, split, s);  // (read apart after all)
   } else if (guessed) {
@@ -293,7 +295,7 @@ double SeenSolid::stage_end(double from, double to, int stage) noexcept {
   return stage + 1 >= kStages ? to : std::min(to, from + (to - from) * std::ldexp(kFirstStage, 2 * stage));
 }
 
-int SeenSolid::look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double max_back, bool shared_zero,
+int SeenSolid::look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, const BackLook& back, bool shared_zero,
                          std::optional<std::size_t> around, std::array<Span, kStages>& behind, double& eye,
                          SeenScratch& s) const noexcept {
   // Back from c until a surface hides it: the layers of each stage after those gathered, sorted,
@@ -302,10 +304,10 @@ int SeenSolid::look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, dou
   // there is one.)
   double tau = 0;
   double near = 0;
-  eye = max_back;
+  eye = back.max_back;
   int stages = 0;
   for (int st = 0; st < kStages; ++st) {
-    const double far = stage_end(0.0, max_back, st);
+    const double far = back.end(st);
     if (st > 0 && !(far > near)) break;
     std::size_t first = s.gathered;
     if (st == 0 && around)

@@ -157,6 +157,7 @@ class SeenCompoundProxy {
     std::array<Eigen::Vector3d, kLines> foot{};
     std::array<double, kLines> at{};
     std::array<SeenLineMemo, kReadLines> memo{};  // the read lines' last searches (line_surface)
+    std::array<double, kReadLines> eye{};  // and their eyes' distances (push()'s eye guess; 0: none)
     std::array<std::uint32_t, kRoamLines> stamp{};  // the roaming slots' readings, by `roam`
     int next = 0, next_inner = 0;  // the ring's next line, and the inner turn
     std::uint32_t roam = 0;        // the roaming sequence's next index
@@ -220,11 +221,12 @@ class SeenCompoundProxy {
   // it to `ahead` past it, seen from the line's own eye: as far behind as the line is still seen
   // from (SeenSolid::push; at most seen_window of part j's middle semi-axes), so the faint layers
   // a viewer composites in front of it count, while a surface behind the eye (an overhang above
-  // the part) does not. +inf: none. `last`: the line's last answer (+inf: none), where the
-  // search reads first (SeenSolid::push's guess: only the cost depends on it); `memo`: its last
-  // search, the answer while the line and its window decide it (a resting part's lines).
-  double line_surface(int j, const Eigen::Vector3d& front, const Eigen::Vector3d& u, double back, double ahead,
-                      double last, SeenLineMemo& memo) noexcept;
+  // the part) does not. +inf: none. Line `slot` of part j's ring keeps what the search reads
+  // first: its last answer (at; +inf: none) and its last eye (eye; SeenSolid::push's guesses, only
+  // the cost depends on them), and its last search (memo), the answer while the line and its
+  // window decide it (a resting part's lines).
+  double line_surface(int j, int slot, const Eigen::Vector3d& front, const Eigen::Vector3d& u, double back,
+                      double ahead) noexcept;
   // How far past its surface a part's footprint may find it and still begin a contact, m: kRingSink
   // middle semi-axes for a part that moved `len` this tick, kLate for one at rest.
   double begin_sink(int j, double len) const noexcept;
@@ -346,6 +348,7 @@ class SeenCompoundProxy {
   double tip_under_ = 0;
   ClimbLedger ledger_;  // the proxy's own steps against the coupling, and the hand's payments (SeenProxy's)
   double deficit_ = 0;  // m: how far the parts' surfaces would back the proxy off beyond where it climbed
+  std::array<double, kMaxToolParts> free_eye_{};  // m: each part's last free push's eye (a guess; 0: none)
   // Each part's motion along its chord in the tick its contact began (begin_contact), and how
   // much deeper than its surfaces it holds for the contact (sink()).
   std::array<double, kMaxToolParts> entry_motion_{}, sunk_{};

@@ -197,6 +197,7 @@ class SeenProxy {
   double entry_motion_ = 0;  // the leading point's motion along the axis in the tick the contact began
   ClimbLedger ledger_;  // the proxy's own steps against the coupling, and the hand's payments
   double deficit_ = 0;  // m: how far the surface lies above where the proxy rests this tick
+  double free_eye_ = 0;  // m: the last free push's eye behind the proxy (a guess; 0: none)
   // How far the seen surface under the leading point lies below where the proxy rests (0: its
   // ray holds it; the footprint holding it over a valley or a hole: deeper; < 0: above it, a rise
   // not yet paid for; +inf: no surface): the relief the proxy does not render, which the texture
