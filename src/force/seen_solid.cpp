@@ -197,14 +197,15 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   // Both looks read in stages, and each stage's layers all lie beyond every earlier stage's, so
   // the answer is the one-stage answer (first_inside's argument): ahead of c, up to the guess
   // first and the rest only when those do not reach ln 2; behind c, ranges growing x4 from
-  // kFirstStage of max_back (or from the eye guess) until a surface hides c (a surface near behind spares the long look).
+  // kFirstStage of max_back (from the second on, from the eye guess) until a surface hides c (a
+  // surface near behind spares the long look).
   const double end = lead + len;
   const double split = std::isfinite(t_guess) ? std::clamp(lead + t_guess, 0.0, end) : end;
   double near = split;  // how far ahead the layers are read
   int stage = 0;        // the next range past the guess
   std::optional<std::size_t> around;
   BackLook back{max_back, max_back * kFirstStage};
-  if (eye_guess > 0) back.first = std::clamp(kEyeGuessMargin * eye_guess, back.first, max_back);
+  if (eye_guess > 0 && eye_guess < max_back) back.guess = std::min(max_back, kEyeGuessMargin * eye_guess);
   const std::size_t ahead =
       end > 0 ? read_ahead(c, u, back, split, end, std::isfinite(t_guess), near, stage, around, s) : 0;
   // The layers between the eye and c composite to less than ln 2 (that is where the eye is), so

@@ -208,15 +208,17 @@ class SeenSolid {
   /// searched (`eye` = 0): the layers behind c alone never make a surface seen from the eye.
   /// `t_guess`: where the hit likely is (first_inside()'s: the layers ahead up to it are read
   /// first, those past it only when needed; the answer does not depend on it, only the cost).
-  /// `eye_guess`: where the eye likely is (the same line's last `eye`, max_back when nothing hid
-  /// it): the look back reads up to kEyeGuessMargin times it first, in one traversal, rather than
-  /// in ranges growing x4 from kFirstStage of max_back. Again only the cost depends on it.
+  /// `eye_guess`: where the eye likely is (the same line's last `eye`): after its first range
+  /// (kFirstStage of max_back, so a surface just behind stays cheap to find), the look back reads
+  /// up to kEyeGuessMargin times the guess in one traversal, rather than in ranges growing x4.
+  /// Ignored unless in (0, max_back): a line nothing hid keeps the ranges growing x4, so a
+  /// surface come behind it is found near. Again only the cost depends on it.
   SeenHit push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,
                bool leaving, double& eye, SeenScratch& scratch,
                double t_guess = std::numeric_limits<double>::quiet_NaN(),
                double eye_guess = std::numeric_limits<double>::quiet_NaN()) const noexcept;
-  /// push()'s look back with an eye guess g reads [g kEyeGuessMargin, 0) behind c first (a line
-  /// moved since it found its eye finds it a little nearer or farther).
+  /// push()'s look back with an eye guess g reads its second range up to g kEyeGuessMargin behind
+  /// c (a line moved since it found its eye finds it a little nearer or farther).
   static constexpr double kEyeGuessMargin = 1.25;
 
   /// The seen surface's outward normal (unit, n . u < 0) at `point` (on the surface for a push
@@ -361,12 +363,15 @@ class SeenSolid {
   // until one holds a layer (`near`, `stage`: how far, and the next range), sorted at the start of
   // scratch, how many returned; when `guessed`, the look back's first stage in the same traversal,
   // its `around` layers after them (none when not read).
-  // The look back's reach, max_back behind c, and where its first stage ends (`first`, at most
-  // max_back): stage st ends at first 4^st, the last stage (kStages - 1 on) at max_back.
+  // The look back's reach, max_back behind c, where its first stage ends (`first`) and the eye
+  // guess's end of its second (`guess`; ignored unless past `first`): stage st ends at first 4^st,
+  // or with a guess at guess 4^(st - 1) from the second on; the last (kStages - 1 on) at max_back.
   struct BackLook {
-    double max_back, first;
+    double max_back, first, guess = 0;
     [[nodiscard]] double end(int st) const noexcept {
-      return st + 1 >= kStages ? max_back : std::min(max_back, first * std::ldexp(1.0, 2 * st));
+      if (st + 1 >= kStages) return max_back;
+      if (st > 0 && guess > first) return std::min(max_back, guess * std::ldexp(1.0, 2 * (st - 1)));
+      return std::min(max_back, first * std::ldexp(1.0, 2 * st));
     }
   };
   std::size_t read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3d& u, const BackLook& back, double split,
