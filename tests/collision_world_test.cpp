@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "gshaptics/force/seen_solid.h"
-#include "gshaptics/internal/huge_pages.h"
+#include "gshaptics/huge_pages.h"
 #include "gshaptics/scene/registration.h"
 #include "support/scenes.h"
 

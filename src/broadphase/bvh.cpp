@@ -5,7 +5,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "gshaptics/internal/huge_pages.h"
+#include "gshaptics/huge_pages.h"
 
 namespace gshaptics {
 

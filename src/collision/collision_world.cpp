@@ -4,7 +4,7 @@
 #include <chrono>
 #include <cmath>
 
-#include "gshaptics/internal/huge_pages.h"
+#include "gshaptics/huge_pages.h"
 #include "gshaptics/error.h"
 #include "gshaptics/narrowphase/k_min_batch.h"
 

@@ -27,7 +27,7 @@
 #endif
 
 #include "gshaptics/broadphase/bvh.h"
-#include "gshaptics/internal/huge_pages.h"
+#include "gshaptics/huge_pages.h"
 
 namespace gshaptics {
 
@@ -75,7 +75,7 @@ class WideBvh {
   // Which of node n's four children the segment may meet: bit c for child c.
   [[nodiscard]] static unsigned hits(const WideBvhNode& n, const Segment& s) noexcept;
 
-  internal::HugePageVector<WideBvhNode> nodes_;  // (huge pages: internal/huge_pages.h)
+  internal::HugePageVector<WideBvhNode> nodes_;  // (huge pages: gshaptics/huge_pages.h)
   int depth_ = 0;
   double scale_ = 0;  // the largest coordinate magnitude of any box
 };

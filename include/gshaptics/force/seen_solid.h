@@ -29,7 +29,7 @@
 #include <vector>
 
 #include "gshaptics/broadphase/wide_bvh.h"
-#include "gshaptics/internal/huge_pages.h"
+#include "gshaptics/huge_pages.h"
 #include "gshaptics/collision/collision_world.h"
 #include "gshaptics/collision/ellipsoid_line.h"
 
@@ -412,7 +412,7 @@ class SeenSolid {
   void gather_more(const Eigen::Vector3d& o, const Eigen::Vector3d& u, double ta, double tb, double shared,
                    SeenScratch& scratch) const noexcept;
   // (In huge pages: a tick reads a few hundred entries scattered over the scene, and on a virtual
-  // machine each 4 KiB page's TLB miss walks two page tables; internal/huge_pages.h.)
+  // machine each 4 KiB page's TLB miss walks two page tables; gshaptics/huge_pages.h.)
   internal::HugePageVector<Entry> entries_;  // BVH slot order
   internal::HugePageVector<Bound> bounds_;   // per entry
   internal::HugePageVector<std::uint32_t> slots_;  // per entry: its Gaussian's slot in the world
