@@ -203,8 +203,8 @@ TEST(SeenSolid, APushsGuessChangesOnlyItsCost) {
     const double nan = std::numeric_limits<double>::quiet_NaN();
     for (const double guess : {-0.1, 0.0, 0.5 * plain.t, plain.t, plain.t + 0.01, 0.5 * len, len + 1.0, nan}) {
       for (const double eye_guess : {nan, -1.0, 0.0, 1e-4, 0.5 * eye, eye, 2 * eye, 1.0, 5.0}) {
-        double eye_g = -1;
-        const SeenHit h = solid.push(c, u, lead, 1.0, len, leaving, eye_g, scratch, guess, eye_guess);
+        double eye_g = eye_guess;  // (in: the guess; out: the eye)
+        const SeenHit h = solid.push(c, u, lead, 1.0, len, leaving, eye_g, scratch, guess);
         const auto where = [&] { return "ray " + std::to_string(k) + ", guesses " + std::to_string(guess) + ", " + std::to_string(eye_guess); };
         EXPECT_EQ(h.hit, plain.hit) << where();
         EXPECT_EQ(h.t, plain.t) << where();

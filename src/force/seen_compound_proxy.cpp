@@ -61,6 +61,7 @@ void SeenCompoundProxy::reset() noexcept {
   release();
   normal_.setZero();
   fresh_normal_ = false;
+  free_eye_.fill(0);
   for (int j = 0; j < tool_.count; ++j) forget_ring(j, Eigen::Vector3d::Zero());
 }
 
@@ -115,6 +116,7 @@ void SeenCompoundProxy::forget_ring(int j, const Eigen::Vector3d& axis) noexcept
   Ring& g = rings_[std::size_t(j)];
   g.axis = axis;
   g.at.fill(kInf);
+  g.eye.fill(0);
   g.stamp.fill(0);
   for (SeenLineMemo& m : g.memo) m.forget();
   for (EdgeSearch& e : edges_[std::size_t(j)]) e = EdgeSearch{};
@@ -145,10 +147,9 @@ double SeenCompoundProxy::line_surface(int j, int slot, const Eigen::Vector3d& f
   // middle semi-axes past the surface they meet: the layers up to the last answer come first.)
   const double guess = std::isfinite(last) ? last - start + kRingLook * middle_[std::size_t(j)] : kInf;
   // (Its eye guessed from the line's last: what lies behind a line hardly changes tick to tick.)
-  double& eye = g.eye[std::size_t(slot)];
-  const double eye_guess = eye;
-  const SeenHit hit = solid_->push(c, u, 0, params_.seen_window * middle_[std::size_t(j)], len, false, eye, scratch_,
-                                   std::isfinite(guess) ? guess : std::numeric_limits<double>::quiet_NaN(), eye_guess);
+  const SeenHit hit = solid_->push(c, u, 0, params_.seen_window * middle_[std::size_t(j)], len, false,
+                                   g.eye[std::size_t(slot)], scratch_,
+                                   std::isfinite(guess) ? guess : std::numeric_limits<double>::quiet_NaN());
   if (scratch_.overflow)
     memo.forget();
   else
@@ -252,11 +253,9 @@ bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Qua
     const Eigen::Vector3d tip = part.surface_point(u);
     const double lead = (tip - part.center).dot(u);
     const Eigen::Vector3d centre = tip - lead * u;
-    double& eye = free_eye_[std::size_t(j)];  // (the part's last eye: push()'s guess, only its cost)
-    const double eye_guess = eye;
+    double& eye = free_eye_[std::size_t(j)];  // (in: the part's last eye, push()'s guess; out: this one's)
     const bool leaving = u.dot(normal_) > 0;
-    const SeenHit hit = solid_->push(centre, u, lead, params_.seen_window * radius_, len, leaving, eye, scratch_,
-                                     std::numeric_limits<double>::quiet_NaN(), eye_guess);
+    const SeenHit hit = solid_->push(centre, u, lead, params_.seen_window * radius_, len, leaving, eye, scratch_);
     if (hit.hit && hit.t / len < first) {
       first = hit.t / len;
       first_u = u;

@@ -19,6 +19,7 @@ void SeenProxy::reset() noexcept {
   friction_.reset();
   friction_step_ = {};
   ring_read_.fill(SeenLineMemo{});
+  free_eye_ = 0;
   forget_ledger();
   if (follower_) follower_->release();
 }
@@ -107,11 +108,9 @@ bool SeenProxy::begin_contact(const Eigen::Vector3d& device, double radius) noex
 bool SeenProxy::begin_contact_along(const Eigen::Vector3d& u, double len, double radius) noexcept {
   // The eye: as far behind the proxy as it is still seen from (at most seen_window R), so a
   // surface behind it (the floor it lifted off) does not hold it, and a faint layer it is in does.
-  double& eye = free_eye_;  // (the last free push's: push()'s guess, only its cost)
-  const double eye_guess = eye;
+  double& eye = free_eye_;  // (in: the last free push's eye, push()'s guess; out: this one's)
   const bool leaving = u.dot(normal_) > 0;  // away from the surface it last rested on
-  const SeenHit hit = solid_.push(proxy_, u, radius, params_.seen_window * radius, len, leaving, eye, scratch_,
-                                  std::numeric_limits<double>::quiet_NaN(), eye_guess);
+  const SeenHit hit = solid_.push(proxy_, u, radius, params_.seen_window * radius, len, leaving, eye, scratch_);
   // With the footprint, one of its rays is read a tick, and rays around the sphere may hold it
   // before the leading point's ray does: the rim of a hole narrower than it, a groove's walls
   // (the 10 mm ball in the 60-degree groove: its leading point 10 mm short of the groove line).

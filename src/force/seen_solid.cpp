@@ -191,8 +191,9 @@ double SeenSolid::eye_distance(const Eigen::Vector3d& c, const Eigen::Vector3d& 
 }
 
 SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,
-                        bool leaving, double& eye, SeenScratch& s, double t_guess, double eye_guess) const noexcept {
+                        bool leaving, double& eye, SeenScratch& s, double t_guess) const noexcept {
   SeenHit hit;
+  const double eye_guess = eye;
   eye = 0;
   // Both looks read in stages, and each stage's layers all lie beyond every earlier stage's, so
   // the answer is the one-stage answer (first_inside's argument): ahead of c, up to the guess
@@ -204,8 +205,8 @@ SeenHit SeenSolid::push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, doub
   double near = split;  // how far ahead the layers are read
   int stage = 0;        // the next range past the guess
   std::optional<std::size_t> around;
-  BackLook back{max_back, max_back * kFirstStage};
-  if (eye_guess > 0 && eye_guess < max_back) back.guess = std::min(max_back, kEyeGuessMargin * eye_guess);
+  BackLook back{max_back};
+  if (eye_guess > 0 && eye_guess < max_back) back.guess = kEyeGuessMargin * eye_guess;
   const std::size_t ahead =
       end > 0 ? read_ahead(c, u, back, split, end, std::isfinite(t_guess), near, stage, around, s) : 0;
   // The layers between the eye and c composite to less than ln 2 (that is where the eye is), so
@@ -290,10 +291,6 @@ std::size_t SeenSolid::read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3
                 s.layers.begin() + std::ptrdiff_t(s.gathered));
   sort_by_depth(s.layers.begin(), s.layers.begin() + std::ptrdiff_t(ahead));
   return ahead;
-}
-
-double SeenSolid::stage_end(double from, double to, int stage) noexcept {
-  return stage + 1 >= kStages ? to : std::min(to, from + (to - from) * std::ldexp(kFirstStage, 2 * stage));
 }
 
 int SeenSolid::look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, const BackLook& back, bool shared_zero,

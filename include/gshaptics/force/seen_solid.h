@@ -201,22 +201,21 @@ class SeenSolid {
 
   /// eye_distance() and first_inside() of a push in one pass over the layers: the tool's centre
   /// `c`, its leading point `lead` ahead along u, moving `len`. Sets `eye` to the eye's distance
-  /// behind c; the hit's t is from the leading point, in [0, len]. A surface that the layers
+  /// behind c (m); the hit's t is from the leading point, in [0, len]. A surface that the layers
   /// behind the leading point already make holds the tool where it stands (t = 0), unless it is
   /// `leaving` (moving away from the surface it last rested on: the shell it lifts off from).
   /// When no layer peaks ahead of c within lead + len, there is no hit and the eye is not
   /// searched (`eye` = 0): the layers behind c alone never make a surface seen from the eye.
   /// `t_guess`: where the hit likely is (first_inside()'s: the layers ahead up to it are read
   /// first, those past it only when needed; the answer does not depend on it, only the cost).
-  /// `eye_guess`: where the eye likely is (the same line's last `eye`): after its first range
-  /// (kFirstStage of max_back, so a surface just behind stays cheap to find), the look back reads
-  /// up to kEyeGuessMargin times the guess in one traversal, rather than in ranges growing x4.
-  /// Ignored unless in (0, max_back): a line nothing hid keeps the ranges growing x4, so a
-  /// surface come behind it is found near. Again only the cost depends on it.
+  /// On entry `eye` is where the eye likely is (the same line's last `eye`; 0: no guess): after
+  /// its first range (kFirstStage of max_back, so a surface just behind stays cheap to find), the
+  /// look back reads up to kEyeGuessMargin times the guess in one traversal, rather than in ranges
+  /// growing x4. Ignored unless in (0, max_back): a line nothing hid keeps the ranges growing x4,
+  /// so a surface come behind it is found near. Again only the cost depends on it.
   SeenHit push(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double lead, double max_back, double len,
                bool leaving, double& eye, SeenScratch& scratch,
-               double t_guess = std::numeric_limits<double>::quiet_NaN(),
-               double eye_guess = std::numeric_limits<double>::quiet_NaN()) const noexcept;
+               double t_guess = std::numeric_limits<double>::quiet_NaN()) const noexcept;
   /// push()'s look back with an eye guess g reads its second range up to g kEyeGuessMargin behind
   /// c (a line moved since it found its eye finds it a little nearer or farther).
   static constexpr double kEyeGuessMargin = 1.25;
@@ -363,24 +362,26 @@ class SeenSolid {
   // until one holds a layer (`near`, `stage`: how far, and the next range), sorted at the start of
   // scratch, how many returned; when `guessed`, the look back's first stage in the same traversal,
   // its `around` layers after them (none when not read).
-  // The look back's reach, max_back behind c, where its first stage ends (`first`) and the eye
-  // guess's end of its second (`guess`; ignored unless past `first`): stage st ends at first 4^st,
-  // or with a guess at guess 4^(st - 1) from the second on; the last (kStages - 1 on) at max_back.
+  // Where stage `stage` of a look over [from, to] ends: from + (to - from) kFirstStage 4^stage, the
+  // last stage (kStages - 1 on) at `to`. push()'s range `stage` past the guess is
+  // stage_end(split, end, stage + 1); the look back's, without a guess, stage_end(0, max_back, st).
+  static double stage_end(double from, double to, int stage) noexcept {
+    return stage + 1 >= kStages ? to : std::min(to, from + (to - from) * std::ldexp(kFirstStage, 2 * stage));
+  }
+  // The look back's reach, max_back behind c, and the eye guess's end of its second stage
+  // (`guess`; ignored unless past the first's end): stage st ends as stage_end(0, max_back, st), or
+  // with a guess at guess 4^(st - 1) from the second on; the last (kStages - 1 on) at max_back.
   struct BackLook {
-    double max_back, first, guess = 0;
+    double max_back, guess = 0;
     [[nodiscard]] double end(int st) const noexcept {
-      if (st + 1 >= kStages) return max_back;
-      if (st > 0 && guess > first) return std::min(max_back, guess * std::ldexp(1.0, 2 * (st - 1)));
-      return std::min(max_back, first * std::ldexp(1.0, 2 * st));
+      if (st > 0 && st + 1 < kStages && guess > stage_end(0.0, max_back, 0))
+        return std::min(max_back, guess * std::ldexp(1.0, 2 * (st - 1)));
+      return stage_end(0.0, max_back, st);
     }
   };
   std::size_t read_ahead(const Eigen::Vector3d& c, const Eigen::Vector3d& u, const BackLook& back, double split,
                          double end, bool guessed, double& near, int& stage, std::optional<std::size_t>& around,
                          SeenScratch& scratch) const noexcept;
-  // Where stage `stage` of a look over [from, to] ends: from + (to - from) kFirstStage 4^stage, the
-  // last stage (kStages - 1 on) at `to`. push()'s range `stage` past the guess is
-  // stage_end(split, end, stage + 1).
-  static double stage_end(double from, double to, int stage) noexcept;
   // The look back from c; `around`: how many layers of its first stage push() read already, at
   // the end of scratch (none: not read).
   int look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, const BackLook& back, bool shared_zero,
