@@ -136,6 +136,7 @@ bool SeenProxy::begin_contact_along(const Eigen::Vector3d& u, double len, double
   last_hit_ = std::numeric_limits<double>::quiet_NaN();
   sunk_ = 0;
   entry_motion_ = len;
+  axis_from_ = proxy_;
   forget_ledger();  // (a new contact's ledger starts empty)
   return true;
 }
@@ -265,6 +266,38 @@ double SeenProxy::climb(double rest, const Eigen::Vector3d& slide, double radius
   return std::max(rest, rest_ - most);
 }
 
+void SeenProxy::follow_surface(const Eigen::Vector3d& device, const Eigen::Vector3d& before,
+                               const Eigen::Vector3d& device_step, double radius, double dt) noexcept {
+  // The contact is a height field along its axis, and the sphere rests where its leading point's
+  // ray meets the surface. On a surface sloped theta to the axis, a rigid sphere touches at its
+  // tangent point (R sin theta across from its centre line) and rests R (1 / cos theta - 1) higher:
+  // sliding over a dome the proxy sank into the far side and the force faded to nothing
+  // (bench/RESULTS.md, eightieth session). Once the smoothed normal has turned kFollowAngle from
+  // the axis while the proxy slides across it, the contact begins again along the normal from
+  // where the proxy stands (begin_contact_along: its eye, footprint and ledger afresh), so the
+  // sink stays under R (1 / cos kFollowAngle - 1). A proxy that does not slide keeps its axis: a
+  // press at a crease, whose normal lies in its cone rather than along the push, is no slope, and
+  // one that has slid less than kFollowPath R since its axis was set keeps it too (a rough
+  // capture's normal wanders a few degrees under a resting sphere).
+  const Eigen::Vector3d step = proxy_ - before, path = proxy_ - axis_from_;
+  const double slid = (step - step.dot(axis_) * axis_).norm(), far = (path - path.dot(axis_) * axis_).norm();
+  if (fresh_normal_ || !(normal_.squaredNorm() > 0) || !(-normal_.dot(axis_) < std::cos(kFollowAngle)) ||
+      !(slid > kFollowSlide * radius) || !(far > kFollowPath * radius))
+    return;
+  const Eigen::Vector3d into = -normal_;
+  const double len = (device - proxy_).dot(into);
+  if (!(len > 1e-9 * radius)) return;
+  const Eigen::Vector3d axis = axis_, normal = normal_;
+  if (!begin_contact_along(into, len, radius)) {
+    if (ring_axis_.dot(axis) < kRingAxisCos) forget_ring(axis);  // (the tried push read its ring along `into`)
+    return;
+  }
+  friction_.reset();
+  friction_step_ = friction_.update(false, Eigen::Vector3d::Zero(), device, proxy_, device_step, radius);
+  in_contact_ = hold(device, friction_step_.goal, radius, dt);
+  normal_ = normal;  // (the force keeps its smoothed direction; the new readings turn it from there)
+}
+
 Eigen::Vector3d SeenProxy::slide_across(const Eigen::Vector3d& goal, double radius) noexcept {
   const Eigen::Vector3d& a = axis_;
   Eigen::Vector3d step = goal - proxy_;
@@ -361,6 +394,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
       }
     }
   }
+  if (in_contact_) follow_surface(tool.center, before, device_step, r, dt);
   if (!in_contact_) {
     forget_ledger();
     proxy_ = tool.center;

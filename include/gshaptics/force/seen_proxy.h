@@ -65,6 +65,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <numbers>
 
 #include "gshaptics/collision/tool_ellipsoid.h"
 #include "gshaptics/force/climb_ledger.h"
@@ -104,6 +105,16 @@ class SeenProxy {
   // point; false when the device has come out of the surface.
   // `goal`: where the friction cone puts the proxy across the axis (the device without friction).
   bool hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal, double radius, double dt) noexcept;
+  // In contact, after hold(): once the smoothed normal has turned kFollowAngle from the contact's
+  // axis while the proxy slid across it more than kFollowSlide R this tick (from `before`) and
+  // kFollowPath R since the axis was set (axis_from_), the
+  // contact begins again along the normal from where the proxy stands and holds the device
+  // (`device`, its `device_step` this tick) on that axis; the force's normal carries over.
+  void follow_surface(const Eigen::Vector3d& device, const Eigen::Vector3d& before, const Eigen::Vector3d& device_step,
+                      double radius, double dt) noexcept;
+  static constexpr double kFollowAngle = 5 * std::numbers::pi / 180;  // rad: the sink stays under 0.004 R
+  static constexpr double kFollowSlide = 0.002;  // R a tick
+  static constexpr double kFollowPath = 0.25;    // R
   // In contact: where the proxy gets across the contact's axis on its way to `goal` (the goal's
   // own place along the axis kept): stopped by a wall of the seen solid that its move across
   // meets (its line seen from the proxy's centre), then sliding along the wall once (a second
@@ -194,6 +205,7 @@ class SeenProxy {
   // starts where the device is instead of snapping back with a force step (constant over the
   // contact: a spring with a fixed rest offset gives back no more than it took).
   double sunk_ = 0;
+  Eigen::Vector3d axis_from_ = Eigen::Vector3d::Zero();  // where the proxy stood when the contact's axis was set
   double entry_motion_ = 0;  // the leading point's motion along the axis in the tick the contact began
   ClimbLedger ledger_;  // the proxy's own steps against the coupling, and the hand's payments
   double deficit_ = 0;  // m: how far the surface lies above where the proxy rests this tick
