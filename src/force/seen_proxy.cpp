@@ -266,6 +266,15 @@ double SeenProxy::climb(double rest, const Eigen::Vector3d& slide, double radius
   return std::max(rest, rest_ - most);
 }
 
+bool SeenProxy::restart_along(const Eigen::Vector3d& u, double len, const Eigen::Vector3d& device,
+                              const Eigen::Vector3d& device_step, double radius, double dt) noexcept {
+  if (!(len > 1e-9 * radius) || !begin_contact_along(u, len, radius)) return false;
+  friction_.reset();
+  friction_step_ = friction_.update(false, Eigen::Vector3d::Zero(), device, proxy_, device_step, radius);
+  in_contact_ = hold(device, friction_step_.goal, radius, dt);
+  return true;
+}
+
 void SeenProxy::follow_surface(const Eigen::Vector3d& device, const Eigen::Vector3d& before,
                                const Eigen::Vector3d& device_step, double radius, double dt) noexcept {
   // The contact is a height field along its axis, and the sphere rests where its leading point's
@@ -284,17 +293,13 @@ void SeenProxy::follow_surface(const Eigen::Vector3d& device, const Eigen::Vecto
   if (fresh_normal_ || !(normal_.squaredNorm() > 0) || !(-normal_.dot(axis_) < std::cos(kFollowAngle)) ||
       !(slid > kFollowSlide * radius) || !(far > kFollowPath * radius))
     return;
-  const Eigen::Vector3d into = -normal_;
+  const Eigen::Vector3d into = -normal_, axis = axis_, normal = normal_;
   const double len = (device - proxy_).dot(into);
   if (!(len > 1e-9 * radius)) return;
-  const Eigen::Vector3d axis = axis_, normal = normal_;
-  if (!begin_contact_along(into, len, radius)) {
+  if (!restart_along(into, len, device, device_step, radius, dt)) {
     if (ring_axis_.dot(axis) < kRingAxisCos) forget_ring(axis);  // (the tried push read its ring along `into`)
     return;
   }
-  friction_.reset();
-  friction_step_ = friction_.update(false, Eigen::Vector3d::Zero(), device, proxy_, device_step, radius);
-  in_contact_ = hold(device, friction_step_.goal, radius, dt);
   normal_ = normal;  // (the force keeps its smoothed direction; the new readings turn it from there)
 }
 
@@ -385,13 +390,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
     if (!in_contact_ && wall_.squaredNorm() > 0) {
       const Eigen::Vector3d into = -wall_;
       wall_.setZero();
-      const double len = (tool.center - proxy_).dot(into);
-      in_contact_ = len > 1e-9 * r && begin_contact_along(into, len, r);
-      if (in_contact_) {
-        friction_.reset();
-        friction_step_ = friction_.update(false, Eigen::Vector3d::Zero(), tool.center, proxy_, device_step, r);
-        in_contact_ = hold(tool.center, friction_step_.goal, r, dt);
-      }
+      (void)restart_along(into, (tool.center - proxy_).dot(into), tool.center, device_step, r, dt);  // (sets in_contact_)
     }
   }
   if (in_contact_) follow_surface(tool.center, before, device_step, r, dt);

@@ -105,6 +105,12 @@ class SeenProxy {
   // point; false when the device has come out of the surface.
   // `goal`: where the friction cone puts the proxy across the axis (the device without friction).
   bool hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal, double radius, double dt) noexcept;
+  // A contact begun again along the unit `u` for `len` from where the proxy stands
+  // (begin_contact_along), its friction cone restarted and the device held on it (hold(), which
+  // sets in_contact_); false, and nothing changed but the footprint's tried reading, when it does
+  // not begin.
+  bool restart_along(const Eigen::Vector3d& u, double len, const Eigen::Vector3d& device,
+                     const Eigen::Vector3d& device_step, double radius, double dt) noexcept;
   // In contact, after hold(): once the smoothed normal has turned kFollowAngle from the contact's
   // axis while the proxy slid across it more than kFollowSlide R this tick (from `before`) and
   // kFollowPath R since the axis was set (axis_from_), the
