@@ -322,6 +322,47 @@ TEST(SeenProxyOnAnalyticScenes, TheFootprintHoldsABallOnAGroovesWalls) {
   EXPECT_LT(lean_deg(out.force, Eigen::Vector3d::UnitZ()), 3.0) << out.force.transpose();
 }
 
+// The seen contact is a height field along the axis it began on: a sphere resting on its leading
+// point's ray sinks R (1 / cos theta - 1) into a surface sloped theta to that axis. Slid 2 mm deep
+// over the fidelity's 10 cm sphere (its own Gaussians, 2 mm apart) from 29 deg on one side to 26
+// on the other at 5 cm/s, the slope reaches 55 deg against the first axis; before the axis
+// followed the surface (SeenProxy::follow_surface) the far side read a mean of 0.8 N and at least
+// one tick of none.
+TEST(SeenProxyOnAnalyticScenes, ASphereSlidOverADomeKeepsItsForceOnTheFarSide) {
+  SynthParams sp;
+  sp.spacing = 0.002;
+  sp.floater_share = 0;
+  const SyntheticScene dome = make_synthetic_scene(AnalyticShape(ShapeKind::kSphere), sp);
+  WorldConfig wc;
+  wc.min_opacity = kSeenMinOpacity;
+  const CollisionWorld world = CollisionWorld::build(dome.scene, wc);
+  ProxyParams pp;
+  pp.surface = ProxySurface::kSeen;
+  ProxyRenderer proxy(world, pp, 30.0);
+  const double r = 0.005, radius = 0.1, delta = 0.002, k = pp.stiffness;
+  const auto centre = [&](double a, double off) {
+    return Eigen::Vector3d((radius + r - delta + off) * std::sin(a), 0, (radius + r - delta + off) * std::cos(a));
+  };
+  const double a0 = -0.5, a1 = 0.45;
+  for (int i = 1; i <= 400; ++i)  // pressed in along the surface's normal
+    (void)proxy.render(ToolEllipsoid::sphere(centre(a0, 0.02 * (1 - i / 400.0)), r), {0, 0, 0}, 1e-3);
+  double near_sum = 0, far_sum = 0, far_min = 1e9;
+  int near_n = 0, far_n = 0;
+  const int steps = 2000;
+  for (int i = 1; i <= steps; ++i) {
+    const double a = a0 + (a1 - a0) * i / double(steps);
+    const RenderOutput o =
+        proxy.render(ToolEllipsoid::sphere(centre(a, 0), r), Eigen::Vector3d(0.05 * std::cos(a), 0, -0.05 * std::sin(a)), 1e-3);
+    const double f = o.force.norm();
+    if (a < -0.3) near_sum += f, ++near_n;
+    if (a > 0.2) far_sum += f, far_min = std::min(far_min, f), ++far_n;
+  }
+  const double near = near_sum / near_n, far = far_sum / far_n;
+  EXPECT_NEAR(near, k * delta, 0.35 * k * delta);
+  EXPECT_NEAR(far, near, 0.25 * near);
+  EXPECT_GT(far_min, 0.5 * near);
+}
+
 // The footprint meets a groove's slanted walls ray by ray, and may find them surrounding the
 // tool only after it went millimetres past them: snapping the proxy back then started the
 // contact with a force step (W = -29 mJ a press in the groove with a 10 mm tool). A footprint

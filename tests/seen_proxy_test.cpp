@@ -877,55 +877,6 @@ TEST(SeenProxy, SlidingAlongAFloorIntoAWallTheWallHoldsAndTheProxyRisesAlongIt) 
   }
 }
 
-// A cap of flat opaque discs tangent to a ball of radius `radius` about the origin (up to
-// `cap` rad from +z), about `s` apart (a Fibonacci lattice over the ball), disc sigma 0.6 s.
-GaussianScene disc_dome(double radius, double cap, double s) {
-  GaussianScene g;
-  const double golden = 3.14159265358979323846 * (3 - std::sqrt(5.0));
-  const int n = int(std::ceil(4 * 3.14159265358979323846 * radius * radius / (s * s)));
-  for (int i = 0; i < n; ++i) {
-    const double z = 1 - 2 * (i + 0.5) / n;
-    if (z < std::cos(cap)) break;
-    const double rho = std::sqrt(1 - z * z), phi = golden * i;
-    const Eigen::Vector3d out(rho * std::cos(phi), rho * std::sin(phi), z);
-    const Eigen::Quaternionf turn(Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), out).cast<float>());
-    g.push_back((radius * out).cast<float>(), Eigen::Vector3f(float(0.6 * s), float(0.6 * s), 1e-5f),
-                Eigen::Vector4f(turn.w(), turn.x(), turn.y(), turn.z()), 0.9f, std::uint32_t(g.size()));
-  }
-  return g;
-}
-
-TEST(SeenProxy, ASphereSlidOverADomeKeepsItsForceOnTheFarSide) {
-  // The contact is a height field along the axis it began on: a sphere resting on its leading
-  // point's ray sinks R (1 / cos theta - 1) into a surface sloped theta to that axis. Slid 2 mm
-  // deep over a 10 cm dome from 29 deg on one side to 26 on the other (the fidelity slide), the
-  // slope reaches 55 deg against the first axis, and the force faded to nothing past the top
-  // before the axis followed the surface (follow_surface).
-  const double r = 0.005, dome = 0.1, delta = 0.002, k = ProxyParams{}.stiffness;
-  const CollisionWorld w = CollisionWorld::build(disc_dome(dome, 0.75, 0.002), seen_world());
-  ProxyRenderer p(w, seen_params());
-  const auto centre = [&](double a, double off) {
-    return Eigen::Vector3d((dome + r - delta + off) * std::sin(a), 0, (dome + r - delta + off) * std::cos(a));
-  };
-  const double a0 = -0.5, a1 = 0.45;
-  move(p, r, centre(a0, 0.02), centre(a0, 0), 400);  // pressed in along the surface's normal
-  double near_sum = 0, far_sum = 0, far_min = 1e9;
-  int near_n = 0, far_n = 0;
-  const int steps = 2000;  // 10 cm at 5 cm/s
-  for (int i = 1; i <= steps; ++i) {
-    const double a = a0 + (a1 - a0) * i / double(steps);
-    const Eigen::Vector3d c = centre(a, 0);
-    const RenderOutput o = p.render(ToolEllipsoid::sphere(c, r), Eigen::Vector3d(0.05 * std::cos(a), 0, -0.05 * std::sin(a)), 1e-3);
-    const double f = o.force.norm();
-    if (a < -0.3) near_sum += f, ++near_n;
-    if (a > 0.2) far_sum += f, far_min = std::min(far_min, f), ++far_n;
-  }
-  const double near = near_sum / near_n, far = far_sum / far_n;
-  EXPECT_NEAR(near, k * delta, 0.35 * k * delta);
-  EXPECT_NEAR(far, near, 0.2 * near);  // (it was 0.0 N before the axis followed)
-  EXPECT_GT(far_min, 0.5 * near);
-}
-
 TEST(SeenProxy, AWallSeenOnlyEdgeOnDoesNotThrowTheSphereOntoItsTop) {
   // An opaque floor, and across it a sheet of faint discs (opacity 0.15, 0.5 mm thick) standing
   // 8 cm tall: seen through from the side (the line across does not stop the proxy), but from
