@@ -610,6 +610,38 @@ TEST(SeenProxy, TenFaintLayersHoldAsTheRendererShowsThemAndNineDoNot) {
   EXPECT_EQ(through.last_force, 0.0);
 }
 
+// The touched Gaussians on the seen solid are the layers the eye composites into the surface
+// under the contact, weighed as the renderer weighs them: pressed through ten layers of opacity
+// 0.07 (1 mm apart) at a disc's centre line, the ten discs on that line in depth order with
+// weights 0.07 x 0.93^k (their neighbours, 4 sigma off the line, under 1/255), nothing once the
+// tool is lifted off.
+TEST(SeenProxy, ItsContactsAreTheLayersThatMakeTheSeenSurfaceWithTheirWeights) {
+  GaussianScene ten;
+  for (int k = 0; k < 10; ++k) add_layer(ten, -0.001 * k, 0.07f);
+  const CollisionWorld w = CollisionWorld::build(ten, seen_world());
+  ProxyRenderer p(w, seen_params());
+  const double r = 0.005;
+  EXPECT_GT(press(p, r, 0.05, -0.02, 500).last_force, 5.0);
+  const std::span<const Contact> touched = p.contacts();
+  ASSERT_EQ(touched.size(), 10u);
+  double sum = 0;
+  for (std::size_t k = 0; k < touched.size(); ++k) {
+    const Contact& c = touched[k];
+    const CollisionGaussian& g = w.gaussians()[c.slot];
+    EXPECT_EQ(c.index, g.source_index);
+    EXPECT_NEAR(c.center.x(), 0.0, 1e-6);
+    EXPECT_NEAR(c.center.y(), 0.0, 1e-6);
+    EXPECT_NEAR(c.center.z(), -0.001 * double(k), 1e-6) << k;
+    EXPECT_NEAR(c.k_min, 0.07 * std::pow(0.93, double(k)), 1e-6) << k;
+    EXPECT_NEAR(c.opacity, 0.07f, 1e-6f);
+    sum += c.k_min;
+  }
+  EXPECT_NEAR(sum, 1 - std::pow(0.93, 10.0), 1e-6);  // the opacity the eye sees there, over 1/2
+  EXPECT_NEAR(p.render(ToolEllipsoid::sphere(Eigen::Vector3d(0, 0, 0.05), r), Eigen::Vector3d::Zero(), 1e-3).force.norm(),
+              0.0, 1e-12);
+  EXPECT_TRUE(p.contacts().empty());
+}
+
 TEST(SeenProxy, LiftsOffAFloorAndPumpingDoesNotCreep) {
   GaussianScene g;
   for (int k = 0; k < 6; ++k) add_layer(g, -0.002 * k, 0.2f);  // a thick faint shell: 0.8^4 < 1/2 at z = -6 mm

@@ -7,10 +7,11 @@
 namespace gshaptics {
 
 SeenProxy::SeenProxy(const CollisionWorld& world, const ProxyParams& params, double f_max)
-    : solid_(world), params_(params), coupling_(params, f_max), friction_(params.mu_s, params.mu_k) {}
+    : world_(&world), solid_(world), params_(params), coupling_(params, f_max), friction_(params.mu_s, params.mu_k) {}
 
 void SeenProxy::reset() noexcept {
   started_ = false;
+  contact_count_ = 0;
   in_contact_ = false;
   wall_.setZero();
   normal_.setZero();
@@ -191,6 +192,7 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   // read first, those deeper only when the surface is not among them.)
   const double guess = std::isfinite(last_hit_) ? last_hit_ + kGuessMargin * radius : depth;
   const SeenHit hit = solid_.first_inside(foot, a, 0, 0, depth, scratch_, guess);
+  record_contacts(hit);
   target_held_ = false;
   if (follower_ && hit.hit) read_material_shares(hit);
   // With the footprint, one of its rays is read a tick, and rays around the sphere hold it where
@@ -250,6 +252,21 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   const Eigen::Vector3d blended = normal_ + rate * (target_normal_ - normal_);
   normal_ = blended.norm() > 1e-9 ? Eigen::Vector3d(blended.normalized()) : target_normal_;
   return true;
+}
+
+void SeenProxy::record_contacts(const SeenHit& hit) noexcept {
+  contact_count_ = 0;
+  const std::span<const CollisionGaussian> gaussians = world_->gaussians();
+  solid_.visit_hit_layers(hit, scratch_, [&](std::uint32_t slot, double w) {
+    if (w < kLeastContactWeight || contact_count_ == kMaxContacts) return;
+    const CollisionGaussian& g = gaussians[slot];
+    Contact& c = contacts_[contact_count_++];
+    c.index = g.source_index;
+    c.slot = slot;
+    c.opacity = g.opacity;
+    c.k_min = w;
+    c.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+  });
 }
 
 double SeenProxy::climb(double rest, const Eigen::Vector3d& slide, double radius) const noexcept {
@@ -361,6 +378,7 @@ Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const E
 RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
   RenderOutput out;
   out.proxy = tool.center;
+  contact_count_ = 0;
   if (!tool.valid() || !velocity.allFinite() || !(dt > 0)) {
     out.status = QueryStatus::kInvalidTool;
     return out;
@@ -395,6 +413,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   }
   if (in_contact_) follow_surface(tool.center, before, device_step, r, dt);
   if (!in_contact_) {
+    contact_count_ = 0;  // (a search that ended the contact may have read its layers)
     forget_ledger();
     proxy_ = tool.center;
     wall_.setZero();
@@ -419,7 +438,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
     out.texture_rms = float(follower_->texture_rms());
     out.vibration = float(follower_->blend().vibration);
   }
-  out.counts.contacts = 1;
+  out.counts.contacts = std::max<std::uint32_t>(1, std::uint32_t(contact_count_));
   return out;
 }
 

@@ -30,7 +30,9 @@ struct Contact {
   std::uint8_t part = 0;      ///< the compound tool's part that overlaps it (0 for one ellipsoid)
   /// The body it belongs to: 0 the static scene, i + 1 the scene's object i (objects/rigid_object.h).
   std::uint8_t body = 0;
-  double k_min = 0;           ///< K_min in (0, 1]: larger is deeper (paper eq. 6, Fig. 2)
+  /// K_min in (0, 1]: larger is deeper (paper eq. 6, Fig. 2). The seen sphere's contacts
+  /// (SeenProxy::contacts()) hold the layer's weight T_k alpha_k here instead.
+  double k_min = 0;
   Eigen::Vector3d center = Eigen::Vector3d::Zero();  ///< c_i, world frame
 };
 

@@ -66,6 +66,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <numbers>
+#include <span>
 
 #include "gshaptics/collision/tool_ellipsoid.h"
 #include "gshaptics/force/climb_ledger.h"
@@ -94,8 +95,21 @@ class SeenProxy {
   [[nodiscard]] const SeenSolid& solid() const noexcept { return solid_; }
   [[nodiscard]] const Eigen::Vector3d& position() const noexcept { return proxy_; }
   [[nodiscard]] const Eigen::Vector3d& contact_normal() const noexcept { return normal_; }
+  /// The Gaussians that make the seen surface under the contact, after the last render(): the
+  /// layers the leading point's ray composites up to its hit, in depth order, as the renderer
+  /// weighs them (SeenSolid::visit_hit_layers), those of weight at least kLeastContactWeight and
+  /// at most kMaxContacts of them. Contact::k_min holds the layer's weight T_k alpha_k in (0, 1]
+  /// (its share of what the eye sees there; the weights sum to at most 1), not a K_min: the seen
+  /// solid has no overlap depth. Empty out of contact, and on ticks whose surface was held by the
+  /// footprint's rays alone (the leading point's ray met nothing). What the viewer draws as the
+  /// touched Gaussians.
+  [[nodiscard]] std::span<const Contact> contacts() const noexcept { return {contacts_.data(), contact_count_}; }
+  static constexpr std::size_t kMaxContacts = 64;
+  static constexpr double kLeastContactWeight = 1.0 / 255;
 
  private:
+  // The hit's layers into contacts_ (contacts()), read from scratch_ right after the hit's search.
+  void record_contacts(const SeenHit& hit) noexcept;
   // Free: the proxy moves straight toward the device; true when the seen solid stops it (a
   // contact begins: its axis and eye plane are set).
   bool begin_contact(const Eigen::Vector3d& device, double radius) noexcept;
@@ -185,8 +199,11 @@ class SeenProxy {
   // centre line (+inf: they never do).
   [[nodiscard]] static double holding(const std::array<double, kRingRays>& support) noexcept;
   [[nodiscard]] Eigen::Vector3d ring_offset(int k, const Eigen::Vector3d& u, double radius) const noexcept;
+  const CollisionWorld* world_;
   SeenSolid solid_;
   SeenScratch scratch_;
+  std::array<Contact, kMaxContacts> contacts_{};
+  std::size_t contact_count_ = 0;
   ProxyParams params_;
   VirtualCoupling coupling_;
   FrictionCone friction_;
