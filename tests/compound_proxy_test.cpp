@@ -16,6 +16,7 @@
 #include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/force/shaded_normal.h"
 #include "support/allocation_counter.h"
+#include "support/ellipsoid_params.h"
 #include "support/gaussian_worlds.h"
 
 namespace gshaptics {
@@ -144,7 +145,7 @@ TEST(CompoundProxy, APartSmallerThanTheSpacingReReadsTheFieldAtTheSpacingsScale)
     out = proxy.render({0.001 + slide * k / 400, 0.0013, z}, q, {0.01, 0, 0}, Eigen::Vector3d::Zero(), 1e-3);
   EXPECT_GT(out.force.z(), 0.5);
   const double reads = double(proxy.shading_reads() - before);
-  const ProxyParams params;
+  const ProxyParams params = test::ellipsoid_params();
   const double at_spacing = 2 * slide / (params.shading_reuse * spacing);  // both parts
   EXPECT_GE(reads, 0.5 * at_spacing);
   EXPECT_LE(reads, 1.5 * at_spacing + 4);
@@ -171,7 +172,7 @@ TEST(CompoundProxy, OnAFlatFaceThePartsNormalIsAveragedWithTheDiscsMeanAxis) {
   const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.005");
   const Eigen::Quaterniond q(Eigen::AngleAxisd(60 * M_PI / 180, Eigen::Vector3d::UnitY()));
   const auto tilt_off_z = [&](const Eigen::Vector3d& at, bool average) {
-    ProxyParams params;
+    ProxyParams params = test::ellipsoid_params();
     params.face_average = average;
     CompoundProxy proxy(w, stylus, params);
     RenderOutput out;
@@ -225,7 +226,7 @@ TEST(CompoundProxy, TheProbeTakesAPartRestingAStandOffFromItsBlockerAsSettled) {
   // that stopped it; the probe knows a part's gap to two stand-offs (kProbeTolerance), so that
   // disc, tested first as a hint, settles the part and no other candidate is read. (To half a
   // stand-off, as the translation's sweeps search, both parts read their near lists.)
-  ProxyParams params;
+  ProxyParams params = test::ellipsoid_params();
   params.mu_s = 0.5;
   params.mu_k = 0.4;
   CompoundProxy proxy(plate(), dumbbell(), params);
@@ -270,14 +271,14 @@ TEST(CompoundProxy, ATurnThatWouldSwingAStylusThroughAThinPlateStopsAtTheContact
   EXPECT_NEAR(out.torque.y(), -(1.0 * gap) - 0.001 * 2094.0, 0.05);
   // Without the plate the same turn goes all the way.
   const CollisionWorld empty = world_of({{Eigen::Vector3f(5, 5, 5), Eigen::Vector3f::Constant(0.001f), Eigen::Quaternionf::Identity()}});
-  CompoundProxy free_proxy(empty, stylus, ProxyParams{.pass_isolated = false});
+  CompoundProxy free_proxy(empty, stylus, [] { ProxyParams p = test::ellipsoid_params(); p.pass_isolated = false; return p; }());
   free_proxy.render(x, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 1e-3);
   const RenderOutput free_out = free_proxy.render(x, about_y(120), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 1e-3);
   EXPECT_NEAR(Eigen::AngleAxisd(free_proxy.orientation()).angle() * 180 / M_PI, 120.0, 1e-6);
   EXPECT_EQ(free_out.torque, Eigen::Vector3d::Zero());
   EXPECT_EQ(free_out.force, Eigen::Vector3d::Zero());
   // A turn larger than a tick's sub-rotations catches up over ticks, with no torque in free space.
-  ProxyParams few;
+  ProxyParams few = test::ellipsoid_params();
   few.pass_isolated = false;
   few.max_rotation_steps = 2;
   CompoundProxy slow(empty, stylus, few);
@@ -374,7 +375,7 @@ struct Drag {
   bool ever_inside = false;
 };
 Drag drag(double mu_s, double mu_k) {
-  ProxyParams p;
+  ProxyParams p = test::ellipsoid_params();
   p.mu_s = mu_s;
   p.mu_k = mu_k;
   CompoundProxy proxy(plate(), dumbbell(), p);
@@ -429,7 +430,7 @@ TEST(CompoundProxy, FrictionSticksInsideTheConeSlidesWithMuKAndItsMomentIsInTheT
 }
 
 TEST(CompoundProxy, TheProxyRendererTakesCompoundToolsAndItsTickAllocatesNothing) {
-  ProxyRenderer r(plate());
+  ProxyRenderer r(plate(), test::ellipsoid_params());
   ASSERT_FALSE(r.renders_compound());
   const CompoundTool bell = dumbbell();
   r.set_tool(bell);
@@ -457,7 +458,7 @@ TEST(CompoundProxy, PressedAndPulledBackItsForceNeverPointsIntoThePlate) {
   // A tilted stylus pressed tip-first onto the plate, then pulled straight back up: the force
   // pushes out while pressed, never points into the plate (the proxy never pulls the hand in),
   // and is zero once the device is free above the surface.
-  ProxyRenderer r(plate());
+  ProxyRenderer r(plate(), test::ellipsoid_params());
   const CompoundTool stylus = parse_tool_spec("stylus:0.06,0.005");
   r.set_tool(stylus);
   std::array<ToolEllipsoid, kMaxToolParts> parts;
@@ -504,14 +505,14 @@ TEST(CompoundProxy, ReadsTheProxysOwnParametersAndRefusesTheOnesForAOnePartTool)
     return out.force;
   };
   const Eigen::Vector3d plain = press({}, INFINITY);
-  ProxyParams scaled;
+  ProxyParams scaled = test::ellipsoid_params();
   scaled.opacity_stiffness = true;
   const Eigen::Vector3d faint_force = press(scaled, INFINITY);
   ASSERT_GT(plain.z(), 4.0);
   EXPECT_NEAR(faint_force.z() / plain.z(), 0.5, 0.01);
   EXPECT_NEAR(press({}, 2.0).norm(), 2.0, 1e-9);
 
-  ProxyParams corner_off;
+  ProxyParams corner_off = test::ellipsoid_params();
   corner_off.corner_normal = false;
   ProxyRenderer renderer(faint, corner_off);
   CompoundTool stylus = parse_tool_spec("stylus:0.06,0.005");
@@ -522,7 +523,7 @@ TEST(CompoundProxy, ReadsTheProxysOwnParametersAndRefusesTheOnesForAOnePartTool)
     EXPECT_NE(std::string(e.what()).find("corner_normal (--corner-normal) serves one-part tools only"), std::string::npos)
         << e.what();
   }
-  ProxyParams lists_off;
+  ProxyParams lists_off = test::ellipsoid_params();
   lists_off.near_lists = false;
   ProxyRenderer sphere_renderer(faint, lists_off);
   EXPECT_THROW(sphere_renderer.set_tool(parse_tool_spec("sphere:0.005")), InputError);

@@ -24,6 +24,7 @@
 #include "support/allocation_counter.h"
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/scene/registration.h"
+#include "support/ellipsoid_params.h"
 #include "support/gaussian_worlds.h"
 #include "support/scenes.h"
 #include "support/shading_reference.h"
@@ -142,7 +143,7 @@ std::vector<GaussianSpec> inside_corner(float h, float extent) {
 
 TEST(ProxySolver, FaceEdgeAndCornerHoldOneTwoAndThreeConstraintsWithoutAllocating) {
   const CollisionWorld w = world_of(inside_corner(0.002f, 0.04f));
-  ProxySolver solver(w, ProxyParams{});
+  ProxySolver solver(w, test::ellipsoid_params());
   const double r = 0.004;
   struct Case {
     Eigen::Vector3d start, goal;
@@ -186,7 +187,7 @@ TEST(ProxySolver, HoldKeepsThePositionAndTheBlockers) {
   std::vector<GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.04f);
   const CollisionWorld w = world_of(gs);
-  ProxySolver solver(w, ProxyParams{});
+  ProxySolver solver(w, test::ellipsoid_params());
   const ToolEllipsoid tool = ToolEllipsoid::sphere({0.001, 0.001, 0.01}, 0.005);
   solver.place(tool);
   const ProxyMove pressed = solver.move_toward(tool, {0.001, 0.001, -0.002}, false);
@@ -209,7 +210,7 @@ TEST(ProxySolver, ASlideUnderHalfTheStandOffIsNotSwept) {
   const CollisionWorld w = world_of(gs);
   const double r = 0.005, eps = ProxySolver::kStandOff * r;
   for (const double aside : {0.3 * eps, 3.0 * eps}) {
-    ProxySolver solver(w, ProxyParams{});
+    ProxySolver solver(w, test::ellipsoid_params());
     const ToolEllipsoid tool = ToolEllipsoid::sphere({0.0, 0.0, 0.01}, r);  // over a disc's centre
     solver.place(tool);
     const ProxyMove rest = solver.move_toward(tool, {0.0, 0.0, -0.002}, false);
@@ -233,7 +234,7 @@ TEST(ProxySolver, FloatersAreSweptThroughAndCountedAsIsolated) {
   add_layer(gs, 0.0f, 0.004f, 0.04f);
   gs.emplace_back(Eigen::Vector3f(0, 0, 0.015f), Eigen::Vector3f::Constant(0.002f), Eigen::Quaternionf::Identity());
   const CollisionWorld w = world_of(gs);
-  ProxyParams sp;
+  ProxyParams sp = test::ellipsoid_params();
   for (const bool pass : {true, false}) {
     sp.pass_isolated = pass;
     ProxySolver solver(w, sp);
@@ -243,7 +244,7 @@ TEST(ProxySolver, FloatersAreSweptThroughAndCountedAsIsolated) {
     if (pass) EXPECT_LT(m.position.z(), 0.0055);  // on the layer (tops 0.2 mm)
     else EXPECT_GT(m.position.z(), 0.015 + 0.002 + 0.005 - 1e-4);  // on the floater
   }
-  ProxySolver solver(w, ProxyParams{});
+  ProxySolver solver(w, test::ellipsoid_params());
   std::uint32_t floater = 0;
   for (std::uint32_t s = 0; s < w.gaussians().size(); ++s)
     if (w.gaussians()[s].center[2] > 0.01f) floater = s;
@@ -304,10 +305,10 @@ TEST(ShadedNormal, LeavesOutTheFloatersTheRestingToolOverlaps) {
   }
 
   // Pressed 2 mm down from above, through the servo-free render call: the force is along +z.
-  ProxyRenderer single(w);
+  ProxyRenderer single(w, test::ellipsoid_params());
   CompoundTool ball = CompoundTool::single(Eigen::Vector3d::Constant(r));
   ball.parts[0].offset = Eigen::Vector3d(0, 0, r);  // TCP at the ball's bottom: the compound proxy
-  ProxyRenderer compound(w);
+  ProxyRenderer compound(w, test::ellipsoid_params());
   compound.set_tool(ball);
   std::array<ToolEllipsoid, kMaxToolParts> parts;
   for (int k = 0; k <= 400; ++k) {
@@ -438,7 +439,7 @@ TEST(ProxyRenderer, PressesOnASparseCylinderFollowItsCurvature) {
   const double r = 0.01;
   std::vector<double> err;
   for (const ContactSite& site : shape.press_sites(20, 1, 0.03)) {
-    ProxyRenderer proxy(w);
+    ProxyRenderer proxy(w, test::ellipsoid_params());
     const Script script = press_script(shape, site, r, 0.005, 1000);
     for (const ScriptTick& t : script.ticks) {
       const RenderOutput o = proxy.render(ToolEllipsoid::sphere(t.position, r), t.velocity, 1e-3);
@@ -738,7 +739,7 @@ TEST(ShadedNormalCache, ReadingAheadGivesThePlainReadingWithinReuseAndSpreadsIts
   sp.spacing = 0.002;
   const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{});
   const double r = 0.01, h = 0.1, reuse = 0.05 * r;
-  const std::size_t budget = ProxyParams{}.shading_budget;
+  const std::size_t budget = test::ellipsoid_params().shading_budget;
   ShadedNormalCache ahead, whole;
   ShadingScratch scratch, plain_scratch;
   int calls = 0, readings = 0;
@@ -906,7 +907,7 @@ TEST(ProxyRenderer, PressesIntoCubeEdgesAndCornersGiveBackNoEnergy) {
     for (double spacing : {0.004, 0.008}) {
       const CollisionWorld w = synthetic_world(shape, spacing, seed);
       for (int with = 0; with < 2; ++with) {
-        ProxyParams pp;  // with: the defaults
+        ProxyParams pp = test::ellipsoid_params();  // with: the defaults
         if (!with) {
           pp.energy_bound = false;
           pp.shading_turn = 0;
@@ -940,7 +941,7 @@ TEST(ProxyRenderer, PressesIntoAGrooveCreaseGiveBackNoEnergyWithTheEnergyBound) 
   for (std::uint64_t seed = 1; seed <= 6; ++seed) {
     const CollisionWorld w = synthetic_world(shape, 0.002, seed);
     for (int with = 0; with < 2; ++with) {
-      ProxyParams pp;
+      ProxyParams pp = test::ellipsoid_params();
       pp.energy_bound = with == 1;
       ProxyRenderer proxy(w, pp);
       for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
@@ -970,7 +971,7 @@ TEST(ProxyRenderer, TheFieldReadWhereTheDeviceWouldRestKeepsACurvedFacesDirectio
   const CollisionWorld w = synthetic_world(shape, 0.008, seed);
   double p95[2] = {0, 0}, worst_energy = 0;
   for (int with = 0; with < 2; ++with) {
-    ProxyParams pp;  // with: the defaults
+    ProxyParams pp = test::ellipsoid_params();  // with: the defaults
     if (!with) pp.device_shading = 0;
     ProxyRenderer proxy(w, pp);
     std::vector<double> directions;
@@ -1021,7 +1022,7 @@ double press_direction_p95(ShapeKind kind, double spacing, double radius, std::u
 TEST(ProxyRenderer, TheCornerNormalKeepsACubeCornersForceInItsConeAndLeavesCreasesAlone) {
   const auto corner_p95 = [](ShapeKind kind, double spacing, double radius, std::uint64_t seed, const char* feature,
                              bool with, double& worst_energy) {
-    ProxyParams pp;
+    ProxyParams pp = test::ellipsoid_params();
     pp.corner_normal = with;
     // (The overhang falloff alone also keeps this corner in its cone, 2.0 degrees p95, and so
     // does the crest hold, which keeps the proxy off the face: both off, so that the corner
@@ -1058,7 +1059,7 @@ TEST(ProxyRenderer, PressedIntoACubesEdgeOrCornerTheProxyHoldsOnTheCrest) {
   for (const double spacing : {0.002, 0.008}) {
     const CollisionWorld w = synthetic_world(shape, spacing, 1);
     for (const bool hold : {false, true}) {
-      ProxyParams pp;
+      ProxyParams pp = test::ellipsoid_params();
       pp.crest_hold = hold;
       ProxyRenderer proxy(w, pp);
       for (const char* feature : {"edge", "corner"}) {
@@ -1084,7 +1085,7 @@ TEST(ProxyRenderer, PressedIntoACubesEdgeOrCornerTheProxyHoldsOnTheCrest) {
     // The slide over the cube's edge, 2 mm deep at 5 cm/s.
     double p95[2];
     for (const bool hold : {false, true}) {
-      ProxyParams pp;
+      ProxyParams pp = test::ellipsoid_params();
       pp.crest_hold = hold;
       ProxyRenderer proxy(w, pp);
       const Script s = slide_script(shape, radius, 1000);
@@ -1105,7 +1106,7 @@ TEST(ProxyRenderer, PressedIntoACubesEdgeOrCornerTheProxyHoldsOnTheCrest) {
 // and no press gives energy back.
 TEST(ProxyRenderer, AnOverhangingDiscOfTheOtherFaceDoesNotTurnTheFaceItBlocks) {
   const auto p95 = [](std::uint64_t seed, const char* feature, bool with, double& worst_energy) {
-    ProxyParams pp;
+    ProxyParams pp = test::ellipsoid_params();
     pp.overhang_falloff = with;
     pp.crest_hold = false;  // (held on the crest, the tool does not come to rest against the fin)
     return press_direction_p95(ShapeKind::kCube, 0.008, 0.005, seed, feature, pp, worst_energy);
@@ -1133,7 +1134,7 @@ TEST(ProxyRenderer, AnOverhangingDiscOfTheOtherFaceDoesNotTurnTheFaceItBlocks) {
 // out by its strength.
 TEST(ProxyRenderer, TheCornerNormalGivesWayWhereAFinBlocksTheTool) {
   double energy = 0;
-  const double p95 = press_direction_p95(ShapeKind::kCube, 0.008, 0.005, 32, "corner", ProxyParams{}, energy);
+  const double p95 = press_direction_p95(ShapeKind::kCube, 0.008, 0.005, 32, "corner", test::ellipsoid_params(), energy);
   EXPECT_LE(p95, 5.0);
   EXPECT_GE(energy, 0.0);
   RecordProperty("corner_p95_deg", std::to_string(p95));
@@ -1156,7 +1157,7 @@ TEST(ProxySolver, AStepUpNeverLeavesTheProxyFartherFromItsGoal) {
       for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
         if (site.feature != "concave") continue;
         for (double r : {0.005, 0.01}) {
-          ProxySolver solver(w, ProxyParams{});
+          ProxySolver solver(w, test::ellipsoid_params());
           const Script s = press_script(shape, site, r, 0.010, 1000);
           solver.place(ToolEllipsoid::sphere(s.ticks.front().position, r));
           for (const ScriptTick& t : s.ticks) {
@@ -1185,7 +1186,7 @@ TEST(ProxySolver, AnUndoneStepUpIsNotRetriedWhileTheGoalStaysWithinALift) {
   for (const ContactSite& site : shape.press_sites(20, seed, 0.03)) {
     if (site.feature != "concave") continue;
     for (double r : {0.005, 0.01}) {
-      ProxySolver solver(w, ProxyParams{});
+      ProxySolver solver(w, test::ellipsoid_params());
       const Script s = press_script(shape, site, r, 0.010, 1000);
       solver.place(ToolEllipsoid::sphere(s.ticks.front().position, r));
       Eigen::Vector3d last = solver.position();
@@ -1296,7 +1297,7 @@ TEST(FrictionCone, SticksInsideTheConeAndSlidesOutsideIt) {
 }
 
 TEST(VirtualCoupling, SpringDamperAlongTheNormalNeverPullsAndIsClamped) {
-  ProxyParams params;
+  ProxyParams params = test::ellipsoid_params();
   params.stiffness = 1000.0;
   params.damping = 2.0;
   params.energy_bound = false;
@@ -1425,7 +1426,7 @@ TEST(SpringEnergyBound, RoundingNeverMakesANaNDepthOrANegativeBank) {
 }
 
 TEST(VirtualCoupling, OpacityStiffnessApproachesTheBlockersMeanOpacityWithItsTimeConstant) {
-  ProxyParams params;
+  ProxyParams params = test::ellipsoid_params();
   params.stiffness = 1000.0;
   params.damping = 0.0;
   params.opacity_stiffness = true;
@@ -1453,7 +1454,7 @@ TEST(VirtualCoupling, OpacityStiffnessApproachesTheBlockersMeanOpacityWithItsTim
 // and the sweeps after it every tick only to undo them (the fidelity side-on stylus at seed 12,
 // wedged between three discs: tick p99 81 -> 40 us).
 TEST(CompoundProxy, AnUndoneStepUpIsNotRetriedWhileTheGoalStaysWithinALift) {
-  const int per_tick = ProxyParams{}.substeps + 1;  // (the substeps and the contact probe)
+  const int per_tick = test::ellipsoid_params().substeps + 1;  // (the substeps and the contact probe)
   int held = 0, costly = 0;
   stylus_groove_presses({4, 9}, {0.004, 0.008}, [&](CompoundProxy& proxy, const Eigen::Quaterniond& q, const Script& s) {
     for (std::size_t k = 0; k < s.ticks.size(); ++k) {

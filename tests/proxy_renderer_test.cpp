@@ -22,6 +22,7 @@
 #include "gshaptics/sim/probe_run.h"
 #include "gshaptics/sim/probe_trajectory.h"
 #include "support/allocation_counter.h"
+#include "support/ellipsoid_params.h"
 #include "support/gaussian_worlds.h"
 #include "support/scenes.h"
 
@@ -36,7 +37,7 @@ double overlap(const CollisionWorld& w, const ToolEllipsoid& t) { return test::o
 TEST(ProxyRenderer, StopsOnASphereAtTheAnalyticDistanceWithItsNormal) {
   const float R = 0.02f;
   const CollisionWorld w = world_of({{Eigen::Vector3f::Zero(), Eigen::Vector3f::Constant(R), Eigen::Quaternionf::Identity()}});
-  ProxyParams p;
+  ProxyParams p = test::ellipsoid_params();
   p.pass_isolated = false;  // a lone Gaussian is the whole object here
   ProxyRenderer proxy(w, p);
   const double r = 0.005;
@@ -62,7 +63,7 @@ TEST(ProxyRenderer, PlaneOfGaussiansStopDistanceNormalAndSlideDirection) {
   std::vector<test::GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.08f);
   const CollisionWorld w = world_of(gs);
-  ProxyParams p;
+  ProxyParams p = test::ellipsoid_params();
   ProxyRenderer proxy(w, p);
   const double r = 0.005;
   Eigen::Vector3d x(0.001, 0.002, 0.02);
@@ -114,7 +115,7 @@ TEST(ProxyRenderer, DoesNotTunnelThroughAOneMillimetrePlateInOneTick) {
   const CollisionWorld w = world_of(gs);
   const double r = 0.004;
   // 1 m/s at 1 kHz: 1 mm per tick, straight through.
-  ProxyRenderer proxy(w);
+  ProxyRenderer proxy(w, test::ellipsoid_params());
   for (int k = 0; k <= 40; ++k) {
     const Eigen::Vector3d x(0.0, 0.0, 0.02 - 0.001 * k);
     const RenderOutput out = proxy.render(ToolEllipsoid::sphere(x, r), Eigen::Vector3d(0, 0, -1), 1e-3);
@@ -124,7 +125,7 @@ TEST(ProxyRenderer, DoesNotTunnelThroughAOneMillimetrePlateInOneTick) {
     }
   }
   // The whole plate and more in a single tick (9 mm): still held on the entry side.
-  ProxyRenderer jump(w);
+  ProxyRenderer jump(w, test::ellipsoid_params());
   (void)jump.render(ToolEllipsoid::sphere({0, 0, 0.0046}, r), Eigen::Vector3d::Zero(), 1e-3);
   const RenderOutput out = jump.render(ToolEllipsoid::sphere({0, 0, -0.0044}, r), Eigen::Vector3d::Zero(), 1e-3);
   EXPECT_GT(jump.proxy_position().z(), 0.0005 + r - 1e-5);
@@ -138,7 +139,7 @@ TEST(ProxyRenderer, FloatersDoNotCatchTheTool) {
   const CollisionWorld w = world_of(gs);
   const double r = 0.005;
   for (bool pass : {true, false}) {
-    ProxyParams p;
+    ProxyParams p = test::ellipsoid_params();
     p.pass_isolated = pass;
     ProxyRenderer proxy(w, p);
     for (double z = 0.03; z > 0.002; z -= 0.0005)
@@ -171,7 +172,7 @@ TEST(ProxyRenderer, FloaterClumpsDoNotCatchTheToolButSurfaceClumpsHold) {
   const CollisionWorld w = world_of(gs);
   const double r = 0.005, on_layer = r + 0.0002, on_clump = 0.012 + a + r;
   const auto press = [&](std::size_t cluster, double x, double y) {
-    ProxyParams p;
+    ProxyParams p = test::ellipsoid_params();
     p.floater_cluster = cluster;
     ProxyRenderer proxy(w, p);
     for (double z = 0.03; z > 0.003; z -= 0.0005)
@@ -183,7 +184,7 @@ TEST(ProxyRenderer, FloaterClumpsDoNotCatchTheToolButSurfaceClumpsHold) {
   EXPECT_GT(press(1, 0, 0), on_clump - 1e-3) << "single floaters only: the pair holds";
   EXPECT_GT(press(3, -0.02, 0), on_clump - 1e-3) << "a clump of four holds";
   EXPECT_GT(press(3, 0, 0.02), 0.0042 + a + r - 1e-3) << "a pair within its size of the surface holds";
-  EXPECT_THROW(ProxyRenderer(w, [] { ProxyParams p; p.floater_cluster = 0; return p; }()), InputError);
+  EXPECT_THROW(ProxyRenderer(w, [] { ProxyParams p = test::ellipsoid_params(); p.floater_cluster = 0; return p; }()), InputError);
 }
 
 // A sparse surface, as small trained objects have (fruitdrops: in-plane scales about half the
@@ -200,7 +201,7 @@ TEST(ProxyRenderer, SparseSurfacesHoldWhereFloatersPass) {
   const CollisionWorld w = world_of(gs);
   const double r = 0.005;
   for (const double gap : {0.0, 1.0}) {
-    ProxyParams p;
+    ProxyParams p = test::ellipsoid_params();
     p.isolation_gap = gap;
     ProxyRenderer proxy(w, p);
     for (double z = 0.03; z > -0.004; z -= 0.0005)
@@ -221,7 +222,7 @@ TEST(ProxyRenderer, FrictionSticksBelowMuSAndSlidesAtMuK) {
   std::vector<test::GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.1f);
   const CollisionWorld w = world_of(gs);
-  ProxyParams p;
+  ProxyParams p = test::ellipsoid_params();
   p.mu_s = 0.6;
   p.mu_k = 0.4;
   ProxyRenderer proxy(w, p);
@@ -256,7 +257,7 @@ TEST(ProxyRenderer, StartInsideGeometryPlacesTheProxyOutside) {
   std::vector<test::GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.05f);
   const CollisionWorld w = world_of(gs);
-  ProxyRenderer proxy(w);
+  ProxyRenderer proxy(w, test::ellipsoid_params());
   const double r = 0.005;
   const ToolEllipsoid start = ToolEllipsoid::sphere({0.001, 0.0, 0.001}, r);  // overlapping the layer
   const RenderOutput out = proxy.render(start, Eigen::Vector3d::Zero(), 1e-3);
@@ -283,7 +284,7 @@ TEST(ProxyRenderer, ATeleportStartsTheContactAfreshAsANewRendererDoes) {
         s.push_back(Eigen::Vector3f(x0 + x, y, 0.0f), Eigen::Vector3f(0.004f, 0.004f, 0.0002f), Eigen::Vector4f(1, 0, 0, 0),
                     opacity, id++);
   const CollisionWorld w = CollisionWorld::build(s, WorldConfig{});
-  ProxyParams p;
+  ProxyParams p = test::ellipsoid_params();
   p.opacity_stiffness = true;
   const double r = 0.005;
   const Eigen::Vector3d pressed_b(1.0, 0.001, r - 0.003);  // 3 mm into the opaque layer
@@ -311,7 +312,7 @@ TEST(ProxyRenderer, TickIsAllocationFreeAndNoexcept) {
   SynthParams sp;
   const SyntheticScene s = make_synthetic_scene(shape, sp);
   const CollisionWorld w = CollisionWorld::build(s.scene, WorldConfig{});
-  ProxyRenderer proxy(w);
+  ProxyRenderer proxy(w, test::ellipsoid_params());
   const ToolEllipsoid t0{};
   const Eigen::Vector3d v0 = Eigen::Vector3d::Zero();
   static_assert(noexcept(proxy.render(t0, v0, 1e-3)));
@@ -360,7 +361,7 @@ TEST(ProxyRenderer, TheShadedNormalsSupportBoundKeepsTheTrucksProbeRunsPathAndFo
   std::size_t pressed = 0;
   const auto replay = [&](double tail, double& worst_deg, double& worst_rel, std::size_t& path_differs) {
     pressed = 0;
-    ProxyParams bounded, wide;
+    ProxyParams bounded = test::ellipsoid_params(), wide = test::ellipsoid_params();
     bounded.shading_tail = kShadingTail;
     wide.shading_tail = tail;
     bounded.shading_visits = wide.shading_visits = 0;  // (every Gaussian: the tail alone differs)
@@ -411,7 +412,7 @@ TEST(ProxyRenderer, NearListsKeepTheCompoundProxysPathAndWrench) {
   };
   const auto replay = [](const CollisionWorld& w, const CompoundTool& tool, const std::vector<Tick>& ticks,
                          const std::string& name) {
-    ProxyParams on, off;
+    ProxyParams on = test::ellipsoid_params(), off = test::ellipsoid_params();
     off.near_lists = false;
     ProxyRenderer a(w, on), b(w, off);
     a.set_tool(tool);
@@ -497,7 +498,7 @@ TEST(ProxyRenderer, BadParametersAreErrors) {
   std::vector<test::GaussianSpec> gs;
   add_layer(gs, 0.0f, 0.004f, 0.01f);
   const CollisionWorld w = world_of(gs);
-  ProxyParams p;
+  ProxyParams p = test::ellipsoid_params();
   p.stiffness = 0;
   EXPECT_THROW(ProxyRenderer(w, p), InputError);
   p = {};
