@@ -210,6 +210,34 @@ TEST(SeenCompoundProxy, ATiltedStylusRestsOnItsTip) {
   EXPECT_LT(std::acos(std::min(1.0, held.out.force.normalized().z())) * 180 / kPi, 2.0);
   EXPECT_LT(held.out.torque.norm() / held.out.force.norm(), 0.004);
   EXPECT_EQ(r.seen_compound()->touching(), 1);
+  // The touched Gaussians: the discs the eye composites into the sheet under the tip, tagged
+  // with the tip's part, within 3 sigma (6 mm) of the tip's lowest point, their weights the
+  // opacity seen there (at least 1/2); nothing once the stylus is lifted off.
+  std::array<ToolEllipsoid, kMaxToolParts> parts{};
+  const int n = stylus.posed(held.out.proxy, q, parts);
+  int tip = 0;
+  for (int j = 1; j < n; ++j)
+    if (parts[std::size_t(j)].surface_point(-Eigen::Vector3d::UnitZ()).z() <
+        parts[std::size_t(tip)].surface_point(-Eigen::Vector3d::UnitZ()).z())
+      tip = j;
+  const Eigen::Vector3d low = parts[std::size_t(tip)].surface_point(-Eigen::Vector3d::UnitZ());
+  const std::span<const Contact> touched = r.contacts();
+  ASSERT_FALSE(touched.empty());
+  EXPECT_EQ(touched.data(), r.seen_compound()->contacts().data());
+  double sum = 0;
+  for (const Contact& c : touched) {
+    EXPECT_EQ(int(c.part), tip);
+    EXPECT_EQ(c.index, sheet.world.gaussians()[c.slot].source_index);
+    EXPECT_NEAR(c.center.z(), 0.0, 1e-9);
+    EXPECT_LT(Eigen::Vector2d(c.center.x() - low.x(), c.center.y() - low.y()).norm(), 0.006);
+    EXPECT_GT(c.k_min, 0.0);
+    sum += c.k_min;
+  }
+  EXPECT_GE(sum, 0.5);
+  EXPECT_LE(sum, 1.0 + 1e-12);
+  const auto lifted = drive(r, stylus, 0.05, [&](double) { return std::pair{Eigen::Vector3d(start + 0.05 * Eigen::Vector3d::UnitZ()), q}; });
+  EXPECT_EQ(lifted.back().out.force.norm(), 0.0);
+  EXPECT_TRUE(r.contacts().empty());
 }
 
 // A stylus (radius 4 mm) lying along an opaque sheet with its axis `over` above it, its underside

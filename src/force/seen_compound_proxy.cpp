@@ -75,6 +75,8 @@ void SeenCompoundProxy::release() noexcept {
   held_.fill(Hold{});
   weight_.fill(0);
   for (SeenLineMemo& m : leading_) m.forget();
+  part_layer_count_.fill(0);
+  contact_count_ = 0;
   part_held_.fill(false);
   ledger_.forget();
   deficit_ = 0;
@@ -457,7 +459,8 @@ double SeenCompoundProxy::leading_ray(int j, double band, double& depth) noexcep
   if (last.reuse(origin, axis_, 0, 0, reach, kSameLine * min_axis_, t)) return t;
   const double guess = last.valid && std::isfinite(last.t) ? last.t + kGuessMargin * min_axis_ : reach;
   const SeenHit hit = solid_->first_inside(origin, axis_, 0, 0, reach, scratch_, guess);
-  if (follower_) read_part_shares(j, hit);  // (a kept search keeps its shares)
+  if (follower_) read_part_shares(j, hit);  // (a kept search keeps its shares and its layers)
+  part_layer_count_[k] = solid_->hit_contacts(hit, scratch_, std::uint8_t(j), part_layers_[k]);
   if (scratch_.overflow) {
     last.forget();
     return hit.hit ? hit.t : kInf;
@@ -681,6 +684,7 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
                                        double dt) noexcept {
   RenderOutput out;
   out.proxy = position;
+  contact_count_ = 0;
   if (!position.allFinite() || !orientation.coeffs().allFinite() || !(orientation.norm() > 0) ||
       !velocity.allFinite() || !angular_velocity.allFinite() || !(dt > 0)) {
     out.status = QueryStatus::kInvalidTool;
@@ -751,7 +755,17 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   ledger_.torque_on_device(out.torque);
   if (wall_.squaredNorm() > 0) out.force = coupling_.add_wall(out.force, wall_, normal_, x_ - position, velocity, dt);
   out.counts.contacts = std::uint32_t(touching_);
+  gather_contacts();
   return out;
+}
+
+void SeenCompoundProxy::gather_contacts() noexcept {
+  contact_count_ = 0;
+  for (int j = 0; j < tool_.count; ++j) {
+    const std::size_t k = std::size_t(j);
+    if (!(weight_[k] > 0) || held_[k].by_ring) continue;
+    for (std::size_t i = 0; i < part_layer_count_[k]; ++i) contacts_[contact_count_++] = part_layers_[k][i];
+  }
 }
 
 }  // namespace gshaptics

@@ -7,7 +7,7 @@
 namespace gshaptics {
 
 SeenProxy::SeenProxy(const CollisionWorld& world, const ProxyParams& params, double f_max)
-    : world_(&world), solid_(world), params_(params), coupling_(params, f_max), friction_(params.mu_s, params.mu_k) {}
+    : solid_(world), params_(params), coupling_(params, f_max), friction_(params.mu_s, params.mu_k) {}
 
 void SeenProxy::reset() noexcept {
   started_ = false;
@@ -255,18 +255,7 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
 }
 
 void SeenProxy::record_contacts(const SeenHit& hit) noexcept {
-  contact_count_ = 0;
-  const std::span<const CollisionGaussian> gaussians = world_->gaussians();
-  solid_.visit_hit_layers(hit, scratch_, [&](std::uint32_t slot, double w) {
-    if (w < kLeastContactWeight || contact_count_ == kMaxContacts) return;
-    const CollisionGaussian& g = gaussians[slot];
-    Contact& c = contacts_[contact_count_++];
-    c.index = g.source_index;
-    c.slot = slot;
-    c.opacity = g.opacity;
-    c.k_min = w;
-    c.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
-  });
+  contact_count_ = solid_.hit_contacts(hit, scratch_, 0, contacts_);
 }
 
 double SeenProxy::climb(double rest, const Eigen::Vector3d& slide, double radius) const noexcept {

@@ -37,7 +37,7 @@ SeenSolid::Bound SeenSolid::bound_of(const Entry& e, double radius) noexcept {
   return b;
 }
 
-SeenSolid::SeenSolid(const CollisionWorld& world) {
+SeenSolid::SeenSolid(const CollisionWorld& world) : world_(&world) {
   const double sigma = world.config().sigma;
   std::vector<BvhBox> boxes;
   std::vector<double> middle_scales;

@@ -62,11 +62,11 @@ class ProxyRenderer final : public ForceRenderer {
   [[nodiscard]] std::string_view name() const noexcept override { return "proxy"; }
   RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept override;
   /// The Gaussians holding the proxy at the last tick (at most three).
-  /// The ellipsoid proxy's blockers; on the seen solid, the seen sphere's surface layers
-  /// (SeenProxy::contacts(): Contact::k_min holds a layer's weight there); the seen compound
-  /// proxy reports none.
+  /// The ellipsoid proxy's blockers; on the seen solid, the layers that make the seen surface
+  /// under the contact (SeenProxy::contacts(), SeenCompoundProxy::contacts(): Contact::k_min
+  /// holds a layer's weight there).
   [[nodiscard]] std::span<const Contact> contacts() const noexcept override {
-    if (seen_compound_) return {};
+    if (seen_compound_) return seen_compound_->contacts();
     if (seen_) return seen_->contacts();
     return compound_active_ ? compound_->blockers() : solver_.blockers();
   }

@@ -84,6 +84,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
+#include <span>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -127,8 +128,17 @@ class SeenCompoundProxy {
   [[nodiscard]] bool in_contact() const noexcept { return in_contact_; }
   /// The parts touching at the last tick (weight > 0).
   [[nodiscard]] int touching() const noexcept { return touching_; }
+  /// The Gaussians that make the seen surface under the touching parts after the last tick:
+  /// each part's leading-point ray's layers up to its hit (SeenSolid::hit_contacts(), weight at
+  /// least SeenSolid::kLeastContactWeight, at most kPartContacts a part), tagged with the part;
+  /// Contact::k_min holds the layer's weight, not a K_min. A part held by its footprint alone
+  /// reports none. Empty out of contact.
+  [[nodiscard]] std::span<const Contact> contacts() const noexcept { return {contacts_.data(), contact_count_}; }
+  static constexpr std::size_t kPartContacts = 32;
 
  private:
+  // The touching parts' layers (part_layers_) into contacts_, after contact() set weight_.
+  void gather_contacts() noexcept;
   static constexpr int kRingRays = seen_footprint::kRays;
   // Inner lines, read one a tick beside the ring's (their own turn, so the ring's refresh, which
   // the edge search leans on, stays kRingRays ticks), never an edge search's start: the shadow's
@@ -338,6 +348,12 @@ class SeenCompoundProxy {
   Eigen::Vector3d axis_ = Eigen::Vector3d::Zero(), eye_ = Eigen::Vector3d::Zero();
   SeenNormalReading normal_reading_;
   int touching_ = 0;
+  // Each part's leading ray's layers at its last search (kept with its line's memo) and the
+  // touching parts' together (contacts()).
+  std::array<std::array<Contact, kPartContacts>, kMaxToolParts> part_layers_{};
+  std::array<std::size_t, kMaxToolParts> part_layer_count_{};
+  std::array<Contact, kPartContacts * kMaxToolParts> contacts_{};
+  std::size_t contact_count_ = 0;
   std::array<double, kMaxToolParts> weight_{};  // each part's contact weight at the last tick (0: not touching)
   // How far the seen surface under each part's leading point lies below the part's front after
   // hold() (0: its ray holds it; deeper where its footprint holds it; < 0: above it, a rise not yet

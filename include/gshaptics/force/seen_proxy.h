@@ -97,7 +97,7 @@ class SeenProxy {
   [[nodiscard]] const Eigen::Vector3d& contact_normal() const noexcept { return normal_; }
   /// The Gaussians that make the seen surface under the contact, after the last render(): the
   /// layers the leading point's ray composites up to its hit, in depth order, as the renderer
-  /// weighs them (SeenSolid::visit_hit_layers), those of weight at least kLeastContactWeight and
+  /// weighs them (SeenSolid::hit_contacts()), those of weight at least 1/255 and
   /// at most kMaxContacts of them. Contact::k_min holds the layer's weight T_k alpha_k in (0, 1]
   /// (its share of what the eye sees there; the weights sum to at most 1), not a K_min: the seen
   /// solid has no overlap depth. Empty out of contact, and on ticks whose surface was held by the
@@ -105,7 +105,6 @@ class SeenProxy {
   /// touched Gaussians.
   [[nodiscard]] std::span<const Contact> contacts() const noexcept { return {contacts_.data(), contact_count_}; }
   static constexpr std::size_t kMaxContacts = 64;
-  static constexpr double kLeastContactWeight = 1.0 / 255;
 
  private:
   // The hit's layers into contacts_ (contacts()), read from scratch_ right after the hit's search.
@@ -199,7 +198,6 @@ class SeenProxy {
   // centre line (+inf: they never do).
   [[nodiscard]] static double holding(const std::array<double, kRingRays>& support) noexcept;
   [[nodiscard]] Eigen::Vector3d ring_offset(int k, const Eigen::Vector3d& u, double radius) const noexcept;
-  const CollisionWorld* world_;
   SeenSolid solid_;
   SeenScratch scratch_;
   std::array<Contact, kMaxContacts> contacts_{};

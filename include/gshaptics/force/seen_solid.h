@@ -26,11 +26,13 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <span>
 #include <vector>
 
 #include "gshaptics/broadphase/wide_bvh.h"
 #include "gshaptics/huge_pages.h"
 #include "gshaptics/collision/collision_world.h"
+#include "gshaptics/collision/contact_query.h"
 #include "gshaptics/collision/ellipsoid_line.h"
 
 namespace gshaptics {
@@ -164,6 +166,7 @@ class SeenSolid {
   /// (binned SAH, leaves of 2, collapsed four-wide: broadphase/wide_bvh.h). Throws
   /// std::length_error for a tree deeper than Bvh::kMaxDepth (the SAH falls back to the median
   /// where centroids do not spread, so a real scene stays far under it).
+  /// `world` must outlive the solid (hit_contacts() reads its Gaussians).
   explicit SeenSolid(const CollisionWorld& world);
 
   [[nodiscard]] std::size_t size() const noexcept { return entries_.size(); }
@@ -317,6 +320,30 @@ class SeenSolid {
   /// in CollisionWorld::gaussians() and w = T_k alpha_k (T_k: the transmittance in front of it;
   /// the weights sum to 1 - T, at least 1/2). What a material under the seen surface is read
   /// from (SeenProxy). Nothing when it did not hit or scratch overflowed. No allocation.
+  /// The least weight T_k alpha_k of a layer hit_contacts() reports (what 8-bit colour can show).
+  static constexpr double kLeastContactWeight = 1.0 / 255;
+  /// The layers of `hit` (visit_hit_layers()) of weight w >= kLeastContactWeight, in depth order, as contacts
+  /// of the tool's part `part` written to the front of `out` (at most out.size() of them): the
+  /// world's Gaussian (index, slot, opacity, centre) with Contact::k_min = w, its share of what
+  /// the eye sees at the hit. Returns how many were written. No allocation. What the seen proxies
+  /// report as the touched Gaussians (SeenProxy::contacts(), SeenCompoundProxy::contacts()).
+  std::size_t hit_contacts(const SeenHit& hit, const SeenScratch& scratch, std::uint8_t part,
+                           std::span<Contact> out) const noexcept {
+    std::size_t n = 0;
+    const std::span<const CollisionGaussian> gaussians = world_->gaussians();
+    visit_hit_layers(hit, scratch, [&](std::uint32_t slot, double w) {
+      if (w < kLeastContactWeight || n == out.size()) return;
+      const CollisionGaussian& g = gaussians[slot];
+      Contact& c = out[n++];
+      c.index = g.source_index;
+      c.slot = slot;
+      c.opacity = g.opacity;
+      c.part = part;
+      c.k_min = w;
+      c.center = Eigen::Vector3d(g.center[0], g.center[1], g.center[2]);
+    });
+    return n;
+  }
   template <class Visit>
   void visit_hit_layers(const SeenHit& hit, const SeenScratch& scratch, Visit&& visit) const {
     if (!hit.hit || scratch.overflow) return;
@@ -417,6 +444,7 @@ class SeenSolid {
   internal::HugePageVector<Entry> entries_;  // BVH slot order
   internal::HugePageVector<Bound> bounds_;   // per entry
   internal::HugePageVector<std::uint32_t> slots_;  // per entry: its Gaussian's slot in the world
+  const CollisionWorld* world_;
   WideBvh bvh_;  // over the entries' alpha >= 1/255 boxes (the binary SAH tree, collapsed)
   double typical_scale_ = 0;
 };
