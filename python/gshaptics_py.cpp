@@ -807,6 +807,7 @@ PYBIND11_MODULE(gshaptics, m) {
           d["friction_felt"] = run.friction_estimate;
           d["friction_expected"] = run.friction_expected;
           d["deepest_k_min"] = run.deepest_k_min;
+          d["deepest_box_depth"] = run.deepest_box_depth;
           d["lowest_energy"] = run.lowest_energy;
           d["peak_energy"] = run.peak_energy;
           return d;
@@ -818,7 +819,7 @@ PYBIND11_MODULE(gshaptics, m) {
         "simulating the box. Returns a dict of per-tick arrays (time (T,); hand, device, object_position, "
         "object_velocity, object_wrench_force: the coupling force on the box, N (T, 3); object_turn, rad, and "
         "k_min (T,)) and travelled (m), friction_felt and friction_expected (mu m g, N), deepest_k_min, "
-        "lowest_energy and peak_energy (the passivity observer's, J).");
+        "deepest_box_depth (how far the tool at its proxy reached into the box's faces, m), lowest_energy and peak_energy (the passivity observer's, J).");
 #endif
   m.def("k_min", &k_min_pairs, py::arg("cov_a"), py::arg("cov_b"), py::arg("d"),
         "K_min of the Gilitschenski-Hanebeck test for ellipsoids {x: (x-c)^T cov^-1 (x-c) <= 1}, "

@@ -17,6 +17,7 @@
 #include "gshaptics/scene/seen_surface.h"
 #include "gshaptics/session/probe_session.h"
 #include "support/allocation_counter.h"
+#include "support/ellipsoid_params.h"
 #include "support/scenes.h"
 
 namespace gshaptics {
@@ -371,7 +372,7 @@ TEST(ProbeRun, AMissedSitesNoteNamesTheRenderersOwnOptions) {
   ProxyParams seen;
   seen.surface = ProxySurface::kSeen;
   const RendererSpec on_seen = renderer_spec(RendererKind::kProxy, seen);
-  const RendererSpec on_ellipsoids = renderer_spec(RendererKind::kProxy);
+  const RendererSpec on_ellipsoids = renderer_spec(RendererKind::kProxy, test::ellipsoid_params());
   const RendererSpec paper = renderer_spec(RendererKind::kPaper);
   EXPECT_EQ(site_note(bounced, 0.05, on_seen), "2 bounces");
   EXPECT_EQ(site_note(SiteAccount{.touched = true, .episodes = 1}, 0.05, on_seen), "");

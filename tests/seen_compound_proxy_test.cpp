@@ -21,6 +21,7 @@
 #include "gshaptics/force/material.h"
 #include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/scene/seen_surface.h"
+#include "support/ellipsoid_params.h"
 
 namespace gshaptics {
 namespace {
@@ -588,7 +589,7 @@ TEST(SeenCompoundProxy, MaterialsServeItWhicheverIsSetFirstAndTheEllipsoidsKeepT
     EXPECT_EQ(r.materials()->name(r.material().dominant), "soft") << tool_first;
     EXPECT_DOUBLE_EQ(r.material().stiffness, 600) << tool_first;
   }
-  ProxyRenderer r(world, ProxyParams{});
+  ProxyRenderer r(world, test::ellipsoid_params());
   r.set_tool(stylus);
   EXPECT_NE(r.compound(), nullptr);
   EXPECT_EQ(r.seen_compound(), nullptr);

@@ -19,6 +19,7 @@
 #include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/force/seen_solid.h"
 #include "gshaptics/scene/seen_surface.h"
+#include "support/ellipsoid_params.h"
 
 namespace gshaptics {
 namespace {
@@ -673,7 +674,7 @@ TEST(SeenProxy, ALargeFlatGaussianTheFloaterRulePassesIsFeltWhereItIsSeen) {
   const Press held = press(seen, r, 0.05, -0.02, 1000);
   EXPECT_NEAR(held.lowest_lead, 0.0, 1e-4);
   EXPECT_NEAR(held.last_force, 1000.0 * 0.025, 0.5);  // k times the device centre 25 mm below the proxy's
-  ProxyRenderer ellipsoids(w);
+  ProxyRenderer ellipsoids(w, test::ellipsoid_params());
   EXPECT_LT(press(ellipsoids, r, 0.05, -0.02, 1000).lowest_lead, -0.02);
 }
 

@@ -15,8 +15,9 @@ namespace {
 // Forwards to the scene's ObjectRenderer and records each tick into storage reserved up front.
 class PushRecorder final : public ForceRenderer {
  public:
-  PushRecorder(ObjectRenderer& inner, const CollisionWorld& box, const ProbeTrajectory& path, std::size_t capacity)
-      : inner_(inner), query_(box), path_(path) {
+  PushRecorder(ObjectRenderer& inner, const CollisionWorld& box, const Eigen::Vector3d& half, const ProbeTrajectory& path,
+               std::size_t capacity)
+      : inner_(inner), query_(box), half_(half), path_(path) {
     samples.reserve(capacity);
   }
   [[nodiscard]] std::string_view name() const noexcept override { return inner_.name(); }
@@ -48,11 +49,20 @@ class PushRecorder final : public ForceRenderer {
       at.rotation = pose.rotation.conjugate() * tool.rotation;
       if (query_.run(at) == QueryStatus::kOk)
         for (const Contact& c : query_.result().contacts()) s.k_min = std::max(s.k_min, c.k_min);
+      s.box_depth = depth_into_box(at.center, tool.bounding_radius());
     }
     return s;
   }
+  // How far a sphere of `radius` at `centre` (the box's frame) reaches into the box of half
+  // extents half_ about its origin: radius less the box's signed distance at the centre.
+  [[nodiscard]] double depth_into_box(const Eigen::Vector3d& centre, double radius) const noexcept {
+    const Eigen::Vector3d q = centre.cwiseAbs() - half_;
+    const double distance = q.cwiseMax(0.0).norm() + std::min(q.maxCoeff(), 0.0);
+    return std::max(0.0, radius - distance);
+  }
   ObjectRenderer& inner_;
   ContactQuery query_;
+  Eigen::Vector3d half_;
   const ProbeTrajectory& path_;
   double t_ = 0;
 };
@@ -118,7 +128,7 @@ PushRun run_push_scenario(const PushScenario& scenario, const std::function<void
   config.duration = scenario.duration + scenario.release_time;
   config.tool = ToolShape{};
   config.tool.semi_axes = Eigen::Vector3d::Constant(scenario.tool_radius);
-  PushRecorder recorder(*renderer, *objects[0].body, path,
+  PushRecorder recorder(*renderer, *objects[0].body, h, path,
                         std::size_t((scenario.duration + scenario.release_time) * scenario.runtime.rate_hz) + 16);
   SimulatedRuntime runtime(device, config, std::make_unique<BorrowedRenderer>(recorder));
   runtime.run(progress);
@@ -128,7 +138,10 @@ PushRun run_push_scenario(const PushScenario& scenario, const std::function<void
   run.samples = std::move(recorder.samples);
   run.runtime = runtime.summary();
   run.travelled = dynamics->pose(0).position.x() - objects[0].rest_origin.x();
-  for (const PushSample& s : run.samples) run.deepest_k_min = std::max(run.deepest_k_min, s.k_min);
+  for (const PushSample& s : run.samples) {
+    run.deepest_k_min = std::max(run.deepest_k_min, s.k_min);
+    run.deepest_box_depth = std::max(run.deepest_box_depth, s.box_depth);
+  }
   for (const TickRecord& r : runtime.log().records()) {
     run.lowest_energy = std::min(run.lowest_energy, r.energy);
     run.peak_energy = std::max(run.peak_energy, r.energy);

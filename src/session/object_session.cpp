@@ -46,6 +46,7 @@ nlohmann::json push_summary(const PushRun& run, const SimulateOptions& o) {
   j["friction_expected_N"] = run.friction_expected;
   j["friction_felt_over_expected"] = run.friction_expected > 0 ? run.friction_estimate / run.friction_expected : 0.0;
   j["deepest_k_min"] = run.deepest_k_min;
+  j["deepest_box_depth_m"] = run.deepest_box_depth;
   j["energy_peak_J"] = run.peak_energy;
   j["energy_lowest_J"] = run.lowest_energy;
   j["passivity"] = o.safety.passivity.enabled ? "on" : "off (observed only)";
@@ -178,8 +179,9 @@ int run_simulate_push(const SimulateOptions& o) {
   fmt::print("box        travelled {:.1f} cm; slid on {} ticks; friction felt {:.3f} N against mu m g = {:.3f} N "
              "({:+.1f} %)\n", 100 * run.travelled, run.sliding_ticks, run.friction_estimate, run.friction_expected,
              run.friction_expected > 0 ? 100 * (run.friction_estimate / run.friction_expected - 1) : 0.0);
-  fmt::print("contact    deepest K_min of the box's Gaussians against the tool at its proxy: {:.2g}{}\n",
-             run.deepest_k_min, run.deepest_k_min < 1e-3 ? " (never inside)" : "");
+  fmt::print("contact    the tool at its proxy at most {:.2f} mm into the box's faces; deepest K_min of its "
+             "Gaussians there {:.2g}{}\n", 1e3 * run.deepest_box_depth, run.deepest_k_min,
+             run.deepest_k_min < 1e-3 ? " (never inside their ellipsoids)" : "");
   fmt::print("passivity  {}: energy into the scene and the box at most {:.3g} mJ, lowest {:.3g} mJ (below 0: "
              "energy given to the hand)\n", o.safety.passivity.enabled ? "on" : "off (observed only)",
              1e3 * run.peak_energy, 1e3 * run.lowest_energy);

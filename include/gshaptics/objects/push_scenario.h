@@ -41,6 +41,10 @@ struct PushSample {
   double box_turn = 0;                                      ///< the box's rotation from rest, rad
   Eigen::Vector3d push = Eigen::Vector3d::Zero();           ///< coupling force on the box, N
   double k_min = 0;  ///< deepest K_min of the box's Gaussians against the tool at its proxy (0: not inside)
+  /// How far the tool at the box's proxy reaches into the box (its faces' planes, where its
+  /// discs' centres lie), m; 0: not inside. A check for either surface: the ellipsoid proxy rests
+  /// on the discs' 1-sigma shells outside the faces, the seen proxy where the eye sees them.
+  double box_depth = 0;
 };
 
 /// What the run gave.
@@ -50,6 +54,7 @@ struct PushRun {
   RuntimeSummary runtime;         ///< of the SimulatedRuntime (ticks, forces, safety)
   double travelled = 0;           ///< the box's displacement along x, m
   double deepest_k_min = 0;       ///< max over the ticks of PushSample::k_min
+  double deepest_box_depth = 0;   ///< max over the ticks of PushSample::box_depth, m
   /// The passivity observer's energy into the environment (the static scene and the box) at its
   /// highest and its lowest, J (servo/passivity.h): negative would be energy given to the hand.
   /// (The observer forgets stored energy once nothing is held, so it reads 0 after the release.)
