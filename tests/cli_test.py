@@ -359,6 +359,18 @@ class Simulate(unittest.TestCase):
             self.assertEqual(summary["mode"], "inline" if mode[0] == "--inline" else "decoupled, 2 ticks latency")
 
 
+    def test_run_keeps_the_faint_gaussians_for_the_seen_solid(self):
+        """`run --surface seen` loads the world as `simulate --surface seen` does, with every
+        Gaussian a viewer draws (--min-opacity left to the model: 1/255), and 0.2 on the ellipsoids
+        (run once filtered at 0.2 whatever the surface)."""
+        sim_out = tempfile.mkdtemp()
+        run("simulate", "--sites", "1", "--out", sim_out, "--quiet", "--no-plot")
+        radius = repr(load_json(os.path.join(sim_out, "summary.json"))["tool_radius"])
+        for surface, kept in (("seen", "opacity > 0.00: kept 116544 (100.0%)"), ("ellipsoids", "opacity > 0.20")):
+            p = run("run", "--device", "replay:" + os.path.join(sim_out, "probe_log.csv"), "--simulated-time",
+                    "--tool-radius", radius, "--quiet", "--no-plot", "--out", tempfile.mkdtemp(), "--surface", surface)
+            self.assertIn(kept, p.stdout, surface)
+
     def test_energy_bound_is_an_option_of_the_proxy(self):
         self.assertIn("--energy-bound", run("simulate", "--help").stdout)
         for value in ("on", "off"):

@@ -27,7 +27,7 @@ void register_run(CLI::App& app) {
                       "one of" + registry_device_help(false).substr(1) + " (`gshaptics devices` says which this machine has)");
   add_object_option(*cmd, o->scene);
   cmd->callback([o] {
-    const SceneOptions so = with_bundled_defaults(o->scene, "run");
+    const SceneOptions so = with_bundled_defaults(o->scene, "run", o->force.spec());
     std::unique_ptr<HapticDevice> opened = validate_runtime_options(*o, /*allow_mouse=*/false);  // before the scene load
     if (o->simulated_time && o->device != "sim" && o->device.rfind("replay:", 0) != 0)
       throw InputError("--simulated-time: only the sim and replay:FILE devices run on simulated time, not '" +

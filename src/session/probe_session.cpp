@@ -422,7 +422,7 @@ int run_simulate(SimulateOptions o) {
   }
   if (o.tool.given() && o.tool_radius <= 0) o.tool_radius = o.tool.tool.largest_semi_axis();
   const RendererSpec renderer = o.force.spec();
-  const SceneOptions so = with_bundled_defaults(o.scene, "simulate", &renderer);
+  const SceneOptions so = with_bundled_defaults(o.scene, "simulate", renderer);
   const std::string out_dir =
       prepare_out_dir(o.out_dir, so.scene, {"probe_log.csv", "summary.json", "probe_run.png"});
   const PreparedWorld pw = prepare_world(so, o.quiet);

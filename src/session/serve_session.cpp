@@ -163,7 +163,7 @@ std::string find_web_root() {
 int run_serve(ServeOptions o) {
   if (o.run.simulated_time) throw InputError("--simulated-time: serve runs in real time (use `run --simulated-time`)");
   const RendererSpec renderer = o.run.force.spec();
-  const SceneOptions so = with_bundled_defaults(o.run.scene, "serve", &renderer);
+  const SceneOptions so = with_bundled_defaults(o.run.scene, "serve", renderer);
   std::unique_ptr<HapticDevice> opened = validate_runtime_options(o.run, /*allow_mouse=*/true);  // before the scene load
   prepare_run_out_dir(o.run, so);
   ViewerConfig vc;

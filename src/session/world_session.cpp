@@ -360,8 +360,8 @@ void run_info_command(const SceneOptions& so, bool quiet) {
   print_world_preview(s, so);
 }
 
-SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command, const RendererSpec* renderer) {
-  if (so.min_opacity < 0) so.min_opacity = renderer ? default_min_opacity(*renderer) : kDefaultMinOpacity;
+SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command, const RendererSpec& renderer) {
+  if (so.min_opacity < 0) so.min_opacity = default_min_opacity(renderer);
   if (so.scene.empty()) {
     so.scene = bundled_scene();
     if (so.scene.empty()) throw InputError(command + ": bundled scene data/truck.splat not found; give SCENE");

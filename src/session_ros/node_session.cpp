@@ -57,7 +57,7 @@ int run_node(NodeOptions o) {
   std::unique_ptr<HapticDevice> opened = o.run.device != "ros" ? validate_runtime_options(o.run, false) : nullptr;
   if (o.ros2) (void)Ros2Names::parse(o.topics.ros_args, o.topics.node_name);  // before the scene load too
   const RendererSpec renderer = o.run.force.spec();
-  const SceneOptions so = with_bundled_defaults(o.run.scene, "node", &renderer);
+  const SceneOptions so = with_bundled_defaults(o.run.scene, "node", renderer);
   prepare_run_out_dir(o.run, so);
   const PreparedWorld pw = prepare_world(so, o.run.quiet);
   warn_if_outside_profile(pw, o.run.force);
@@ -148,7 +148,7 @@ int run_node(NodeOptions o) {
 #ifdef GSHAPTICS_HAVE_ROS2
 
 int run_device_sim(DeviceSimOptions o) {
-  const SceneOptions so = with_bundled_defaults(o.scene, "device-sim");
+  const SceneOptions so = with_bundled_defaults(o.scene, "device-sim", ForceModelOptions{}.spec());
   const std::string out_dir = prepare_out_dir(o.out_dir, so.scene, {"device_log.csv", "device_summary.json"});
   const PreparedWorld pw = prepare_world(so, o.quiet);
   ProbeTrajectory traj = make_probe_trajectory(pw.world, is_scaled(so), o.sites, o.seed, o.tool_radius, ForceModelOptions{});

@@ -153,8 +153,9 @@ class Progress {
 /// Without SCENE: the bundled Truck and its registration. Throws InputError naming `command`
 /// when the bundled scene is missing.
 /// The opacity filter left to the model (kModelMinOpacity) becomes `renderer`'s default_min_opacity()
-/// (kDefaultMinOpacity without one).
-SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command, const RendererSpec* renderer = nullptr);
+/// (the seen solid keeps the faint Gaussians a viewer draws): every command passes the renderer
+/// it will hold the world against (`run` once did not, and its seen solid lost the faint ones).
+SceneOptions with_bundled_defaults(SceneOptions so, const std::string& command, const RendererSpec& renderer);
 
 /// True when a registration file, rotation, translation or --reg-scale was given: the world is
 /// then meant to be in metres (--up alone turns the scene, it does not change its units).
