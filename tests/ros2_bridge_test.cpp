@@ -18,6 +18,7 @@
 #include "gshaptics/io/scene_loader.h"
 #include "gshaptics/servo/haptic_runtime.h"
 #include "ros2_interfaces.h"
+#include "support/ellipsoid_params.h"
 #include "support/scenes.h"
 
 namespace gshaptics {
@@ -88,6 +89,9 @@ class Ros2Bridge : public ::testing::Test {
     options_.marker_hz = 50;
     device_ = std::make_unique<Ros2NetworkDevice>(options_, MonotonicClock::instance());
     RuntimeConfig rc;
+    // (The poses stream the tool straight into the truck and hold it there: the ellipsoid proxy
+    // pushes it out from the first pose; the seen solid, seen from an approach, would see none.)
+    rc.renderer = ProxyModelSpec{test::ellipsoid_params(), nullptr};
     rc.tool.semi_axes = Eigen::Vector3d::Constant(0.08);
     rc.safety.ramp_time = 0.02;
     rc.realtime.servo_priority = rc.realtime.worker_priority = 0;

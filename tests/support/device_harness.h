@@ -6,7 +6,9 @@
 #include <thread>
 
 #include "gshaptics/collision/collision_world.h"
+#include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/servo/haptic_runtime.h"
+#include "support/ellipsoid_params.h"
 
 namespace gshaptics::test {
 
@@ -29,9 +31,13 @@ inline Eigen::Vector3d contact_point(const CollisionWorld& world) {
   return g == nullptr ? Eigen::Vector3d::Zero() : Eigen::Vector3d(g->center[0], g->center[1], g->center[2]);
 }
 
-/// 1 kHz, a 5 cm spherical tool, `seconds` long, normal scheduling (CI has no privileges).
+/// 1 kHz, a 5 cm spherical tool, `seconds` long, normal scheduling (CI has no privileges), the
+/// proxy on the Gaussians' ellipsoids: these tests hold the device still at a Gaussian's centre
+/// (contact_point()) from the first tick, where the ellipsoid proxy places itself outside and
+/// pushes; the seen solid is seen from the tool's approach, and a device that never moved has none.
 inline RuntimeConfig device_test_config(double seconds) {
   RuntimeConfig c;
+  c.renderer = ProxyModelSpec{ellipsoid_params(), nullptr};
   c.rate_hz = 1000;
   c.duration = seconds;
   c.tool.semi_axes = Eigen::Vector3d::Constant(0.05);
