@@ -455,12 +455,17 @@ PYBIND11_MODULE(gshaptics, m) {
       "materials: a material map (JSON, as --materials; docs/usage.md) read under the proxy (colour regions "
       "select by the colour of the scene the world was built from: Scene.load(path, keep_color=True)); "
       "f_max clamps its output (default: none, as "
-      "in a runtime the safety layer limits the force). One per device; not thread-safe.")
+      "in a runtime the safety layer limits the force); surface: the solid the proxy rests on, 'ellipsoids' or "
+      "'seen' (as --surface: where the splats composite to half transmittance along the push, as a viewer sees "
+      "them; build its world with min_opacity=1/255 to keep the faint Gaussians a viewer draws; the options above "
+      "that serve the ellipsoids only are refused with it, by name). One per device; not thread-safe.")
       .def(py::init([](const PyWorld& w, double stiffness, double damping, double mu_s, double mu_k,
                        double f_max, bool opacity_stiffness, double isolation_gap, bool energy_bound,
                        std::size_t floater_cluster, bool near_lists, double device_shading, bool corner_normal,
-                       bool face_average, bool overhang_falloff, const std::optional<std::string>& materials) {
+                       bool face_average, bool overhang_falloff, const std::optional<std::string>& materials,
+                       const std::string& surface) {
              ProxyParams p;
+             p.surface = proxy_surface_from(surface, "ProxyRenderer: surface");
              p.overhang_falloff = overhang_falloff;
              p.device_shading = device_shading;
              p.corner_normal = corner_normal;
@@ -490,7 +495,8 @@ PYBIND11_MODULE(gshaptics, m) {
            py::arg("device_shading") = ProxyParams{}.device_shading,
            py::arg("corner_normal") = ProxyParams{}.corner_normal,
            py::arg("face_average") = ProxyParams{}.face_average,
-           py::arg("overhang_falloff") = ProxyParams{}.overhang_falloff, py::arg("materials") = py::none())
+           py::arg("overhang_falloff") = ProxyParams{}.overhang_falloff, py::arg("materials") = py::none(),
+           py::arg("surface") = std::string(proxy_surface_name(ProxyParams{}.surface)))
       .def("render", [](PyProxy& p, const py::object& center, const py::object& axes, const py::object& velocity,
                         double dt) {
              if (!(dt > 0)) throw py::value_error("dt: must be > 0 seconds");

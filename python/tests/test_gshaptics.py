@@ -179,6 +179,30 @@ def test_probe_run_on_bundled_truck(data_dir):
     assert np.all(np.linalg.norm(run["force"][~touching], axis=1) == 0)
 
 
+def test_the_seen_proxy_holds_the_bundled_truck_roof_where_it_is_seen(data_dir):
+    # surface="seen" (as --surface seen), on a world that keeps the faint Gaussians: lowered onto
+    # the roof, it is held there, its proxy and normal its own (not the ellipsoid proxy's).
+    scene = gshaptics.Scene.load(os.path.join(data_dir, "truck.splat"))
+    world = gshaptics.CollisionWorld(scene, min_opacity=1.0 / 255,
+                                     registration=os.path.join(data_dir, "truck.registration.json"))
+    proxy = gshaptics.ProxyRenderer(world, stiffness=800.0, f_max=30.0, surface="seen")
+    r = 0.03
+    z_touch = None
+    for k in range(1100):  # lowered 1 mm per tick from 2 m, to 10 cm under where it first touches
+        z = 2.0 - 0.001 * k if z_touch is None else max(2.0 - 0.001 * k, z_touch - 0.1)
+        f = proxy.render((0.0, 0.0, z), (r, r, r), (0.0, 0.0, -1.0), 1e-3)
+        if z_touch is None and np.linalg.norm(f) > 0:
+            z_touch = z
+    assert z_touch is not None and 0.9 < z_touch < 1.1  # the roof, ~1 m up
+    assert proxy.proxy[2] > z_touch - 0.02  # held on the roof, 10 cm above the device
+    assert f[2] > 0 and np.dot(f, proxy.normal) > 0.9 * np.linalg.norm(f)
+    np.testing.assert_allclose(np.linalg.norm(f), 30.0)  # 800 N/m x 10 cm, clamped at f_max
+    with pytest.raises(ValueError, match="surface"):
+        gshaptics.ProxyRenderer(world, surface="splats")
+    with pytest.raises(ValueError, match="isolation_gap"):
+        gshaptics.ProxyRenderer(world, surface="seen", isolation_gap=1.0)
+
+
 def test_proxy_holds_the_bundled_truck_roof(data_dir):
     scene = gshaptics.Scene.load(os.path.join(data_dir, "truck.splat"))
     world = gshaptics.CollisionWorld(scene, registration=os.path.join(data_dir, "truck.registration.json"))

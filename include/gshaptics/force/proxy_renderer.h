@@ -92,7 +92,13 @@ class ProxyRenderer final : public ForceRenderer {
   /// The compound proxy on the seen solid, when set_tool() gave one (nullptr otherwise).
   [[nodiscard]] const SeenCompoundProxy* seen_compound() const noexcept { return seen_compound_.get(); }
 
-  [[nodiscard]] const Eigen::Vector3d& proxy_position() const noexcept { return solver_.position(); }
+  /// The one-part proxy's centre, world, m; on the seen solid the seen proxy's (a tool with a
+  /// shape there: the seen compound proxy's TCP).
+  [[nodiscard]] const Eigen::Vector3d& proxy_position() const noexcept {
+    if (seen_compound_) return seen_compound_->position();
+    if (seen_) return seen_->position();
+    return solver_.position();
+  }
   /// The one-ellipsoid proxy's last move: its sweeps, candidates and exact searches (profiling;
   /// gshaptics_proxy_bench --breakdown).
   [[nodiscard]] const ProxyMove& last_move() const noexcept { return last_move_; }
@@ -100,7 +106,13 @@ class ProxyRenderer final : public ForceRenderer {
   [[nodiscard]] std::uint64_t shading_reads() const noexcept { return normals_.reads(); }
   /// The shaded normal's cache (its readings, whole and ahead; profiling).
   [[nodiscard]] const ShadedNormalCache& shading_cache() const noexcept { return normals_.cache(); }
-  [[nodiscard]] const Eigen::Vector3d& contact_normal() const noexcept { return normal_; }
+  /// The contact's normal (unit, world; zero before a first contact), as proxy_position() picks
+  /// its proxy.
+  [[nodiscard]] const Eigen::Vector3d& contact_normal() const noexcept {
+    if (seen_compound_) return seen_compound_->contact_normal();
+    if (seen_) return seen_->contact_normal();
+    return normal_;
+  }
   [[nodiscard]] bool sticking() const noexcept { return sticking_; }
   /// The depth the energy bound withholds now, m (SpringEnergyBound::withheld; 0 without contact).
   [[nodiscard]] double withheld_depth() const noexcept { return coupling_.withheld(); }
