@@ -315,11 +315,6 @@ class SeenSolid {
   /// axis (SeenProxy, SeenCompoundProxy).
   [[nodiscard]] Eigen::Vector3d wall_normal(const Eigen::Vector3d& u, const Eigen::Vector3d& axis, const SeenHit& hit,
                                             const SeenScratch& scratch) const noexcept;
-  /// The layers that make `hit`, the last first_inside() answer on `scratch`, as the renderer
-  /// weighs them: `visit(slot, w)` for each, in depth order, with `slot` the Gaussian's position
-  /// in CollisionWorld::gaussians() and w = T_k alpha_k (T_k: the transmittance in front of it;
-  /// the weights sum to 1 - T, at least 1/2). What a material under the seen surface is read
-  /// from (SeenProxy). Nothing when it did not hit or scratch overflowed. No allocation.
   /// The least weight T_k alpha_k of a layer hit_contacts() reports (what 8-bit colour can show).
   static constexpr double kLeastContactWeight = 1.0 / 255;
   /// The layers of `hit` (visit_hit_layers()) of weight w >= kLeastContactWeight, in depth order, as contacts
@@ -344,6 +339,11 @@ class SeenSolid {
     });
     return n;
   }
+  /// The layers that make `hit`, the last first_inside() answer on `scratch`, as the renderer
+  /// weighs them: `visit(slot, w)` for each, in depth order, with `slot` the Gaussian's position
+  /// in CollisionWorld::gaussians() and w = T_k alpha_k (T_k: the transmittance in front of it;
+  /// the weights sum to 1 - T, at least 1/2). What a material under the seen surface is read
+  /// from (SeenProxy). Nothing when it did not hit or scratch overflowed. No allocation.
   template <class Visit>
   void visit_hit_layers(const SeenHit& hit, const SeenScratch& scratch, Visit&& visit) const {
     if (!hit.hit || scratch.overflow) return;
