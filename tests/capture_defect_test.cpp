@@ -41,6 +41,17 @@ SyntheticScene plane_with(const std::vector<CaptureDefect>& defects, std::uint64
   return make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), p);
 }
 
+// The world of `shape`'s fidelity scene at `spacing` (no floaters), keeping every Gaussian a viewer
+// draws, as the seen solid wants it.
+CollisionWorld seen_world_of(ShapeKind shape, double spacing) {
+  SynthParams sp;
+  sp.spacing = spacing;
+  sp.floater_share = 0;
+  WorldConfig wc;
+  wc.min_opacity = kSeenMinOpacity;
+  return CollisionWorld::build(make_synthetic_scene(AnalyticShape(shape), sp).scene, wc);
+}
+
 // The surface Gaussians whose centre lies within `r` of the plane's centre (horizontally).
 std::vector<std::size_t> within(const SyntheticScene& s, double r) {
   std::vector<std::size_t> out;
@@ -300,13 +311,7 @@ TEST(SeenProxyOnAnalyticScenes, TheFootprintHoldsABallOnAGroovesWalls) {
   EXPECT_EQ(lines, 1);
   // Pressed 28 mm along the bisector past where the walls stop it: the ball stays on the walls and
   // the spring's pull grows past 20 N (without the search from the ball's point: 10 N, sinking).
-  SynthParams sp;
-  sp.spacing = kSpacing;
-  sp.floater_share = 0;
-  const SyntheticScene groove = make_synthetic_scene(AnalyticShape(ShapeKind::kVGroove60), sp);
-  WorldConfig wc;
-  wc.min_opacity = kSeenMinOpacity;
-  const CollisionWorld world = CollisionWorld::build(groove.scene, wc);
+  const CollisionWorld world = seen_world_of(ShapeKind::kVGroove60, kSpacing);
   ProxyParams pp;
   pp.surface = ProxySurface::kSeen;
   pp.seen_footprint = true;
@@ -329,13 +334,7 @@ TEST(SeenProxyOnAnalyticScenes, TheFootprintHoldsABallOnAGroovesWalls) {
 // followed the surface (SeenProxy::follow_surface) the far side read a mean of 0.8 N and at least
 // one tick of none.
 TEST(SeenProxyOnAnalyticScenes, ASphereSlidOverADomeKeepsItsForceOnTheFarSide) {
-  SynthParams sp;
-  sp.spacing = 0.002;
-  sp.floater_share = 0;
-  const SyntheticScene dome = make_synthetic_scene(AnalyticShape(ShapeKind::kSphere), sp);
-  WorldConfig wc;
-  wc.min_opacity = kSeenMinOpacity;
-  const CollisionWorld world = CollisionWorld::build(dome.scene, wc);
+  const CollisionWorld world = seen_world_of(ShapeKind::kSphere, 0.002);
   ProxyParams pp;
   pp.surface = ProxySurface::kSeen;
   ProxyRenderer proxy(world, pp, 30.0);
