@@ -46,6 +46,17 @@ TEST(WorldUp, UpAxisAloneAndARotatingRegistrationBothGivePlusZ) {
   EXPECT_FALSE(rotates_twice(scaled, UpAxis::kAuto));
 }
 
+TEST(WorldUp, AnAxisAgainstTheFilesOwnUpStandsTheSceneOnItsHead) {
+  // PLY/.splat (RDF): y down is the file's down, so y-up is upside down; SPZ (RUB) the other way.
+  EXPECT_TRUE(turns_upside_down(UpAxis::kYUp, SceneFrame::kRdf));
+  EXPECT_FALSE(turns_upside_down(UpAxis::kYDown, SceneFrame::kRdf));
+  EXPECT_TRUE(turns_upside_down(UpAxis::kYDown, SceneFrame::kRub));
+  EXPECT_FALSE(turns_upside_down(UpAxis::kYUp, SceneFrame::kRub));
+  // On its side is not on its head; none and auto take the file's own up.
+  for (UpAxis u : {UpAxis::kNone, UpAxis::kAuto, UpAxis::kZUp, UpAxis::kZDown, UpAxis::kXUp, UpAxis::kXDown})
+    EXPECT_FALSE(turns_upside_down(u, SceneFrame::kRdf)) << to_string(u);
+}
+
 TEST(ConversionTransform, RubToRdfIsTheHalfTurnAboutX) {
   const SimilarityTransform t = conversion_transform({}, UpAxis::kNone, SceneFrame::kRub, SceneFrame::kRdf);
   const Eigen::Matrix3d expect = Eigen::Vector3d(1, -1, -1).asDiagonal();

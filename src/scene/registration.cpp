@@ -177,6 +177,11 @@ bool rotates_twice(const SimilarityTransform& registration, UpAxis up) {
   return registration.rotation.normalized().angularDistance(Eigen::Quaterniond::Identity()) > 1e-6;
 }
 
+bool turns_upside_down(UpAxis up, SceneFrame frame) {
+  if (up == UpAxis::kNone || up == UpAxis::kAuto) return false;
+  return up_vector(up, frame).dot(up_of(frame)) < -0.5;
+}
+
 SimilarityTransform conversion_transform(const SimilarityTransform& registration, UpAxis up,
                                          SceneFrame from, SceneFrame to) {
   SimilarityTransform t = with_up_axis(registration, up, from);

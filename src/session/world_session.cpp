@@ -161,6 +161,13 @@ void OutputStage::commit() {
 }
 
 namespace {
+// The warning for an --up that stands the scene on its head (turns_upside_down).
+std::string upside_down_warning(UpAxis up, SceneFrame frame) {
+  return fmt::format("--up {} points against the file's own up ({}), so the scene stands upside down and a probe "
+                     "from above meets its underside; --up auto takes the file's convention",
+                     to_string(up), to_string(frame));
+}
+
 std::vector<std::pair<std::string, std::string>> frame_items(const SceneOptions& o) {
   return {{"up", o.up},
           {"registration", o.registration_file},
@@ -339,6 +346,7 @@ void print_world_preview(const LoadedScene& s, const SceneOptions& so) {
   if (rotates_twice(cfg.registration, cfg.up))
     fmt::print("warning    --up {} and the registration's rotation both turn the scene; a registration "
                "that already turns it upright wants --up none\n", to_string(cfg.up));
+  if (turns_upside_down(cfg.up, s.scene.frame)) fmt::print("warning    {}\n", upside_down_warning(cfg.up, s.scene.frame));
   fmt::print("\nsuggest\n");
   if (cfg.up == UpAxis::kNone && cfg.registration.is_identity())
     fmt::print("  --up auto            the file's convention ({}) turned to +z, so a probe comes from above\n",
@@ -453,6 +461,8 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
                "up ends at [{:.2f}, {:.2f}, {:.2f}]. A registration that already turns the scene "
                "upright (like the bundled Truck's) wants --up none.\n",
                to_string(cfg.up), up.x(), up.y(), up.z());
+  if (turns_upside_down(cfg.up, s.scene.frame))
+    fmt::print(stderr, "warning: {}\n", upside_down_warning(cfg.up, s.scene.frame));
   return {std::move(s), cfg, br, std::move(world), std::move(objects), std::move(supports)};
 }
 

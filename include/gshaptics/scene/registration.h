@@ -64,6 +64,11 @@ enum class UpAxis { kNone, kAuto, kYDown, kYUp, kZUp, kZDown, kXUp, kXDown };
 /// angle above 1e-6 rad): the scene is then rotated twice, which is rarely meant.
 [[nodiscard]] bool rotates_twice(const SimilarityTransform& registration, UpAxis up);
 
+/// True when `up` names an axis (not kNone or kAuto) that points against the file's own
+/// convention's up (up_of(frame)): a PLY or .splat scene (y down) given --up y-up, say, which
+/// stands it on its head. A captured object seen from above is then its underside.
+[[nodiscard]] bool turns_upside_down(UpAxis up, SceneFrame frame);
+
 /// The transform `convert` applies so that the written file, read in its own format's
 /// convention `to`, gives the same world under --up auto as the source (convention `from`)
 /// gives under `up` and `registration`:
