@@ -5,7 +5,9 @@
 // geometry_msgs/WrenchStamped and visualization_msgs/MarkerArray: wire compatibility across two
 // DDS vendors. Prints one JSON line with what it saw.
 //
-// Usage: fastdds_interop --domain D --pose X,Y,Z [--seconds S] [--topic-prefix gshaptics]
+// Usage: fastdds_interop --domain D --pose X,Y,Z [--from X,Y,Z] [--seconds S] [--topic-prefix gshaptics]
+// With --from, the pose moves in a straight line from there to --pose over the first second and
+// then holds: a tool that arrives at its contact, as a device or a robot does.
 // Discovery is unicast on loopback (as config/cyclonedds-loopback.xml): participant id 10,
 // initial peer 127.0.0.1, UDPv4 on 127.0.0.1 only.
 
@@ -20,6 +22,7 @@
 #include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
 #include <fastrtps/utils/IPLocator.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -45,11 +48,13 @@ double now_s() {
 int main(int argc, char** argv) {
   int domain = 0;
   double x = 0, y = 0, z = 0, seconds = 3.0;
+  double x0 = NAN, y0 = NAN, z0 = NAN;  // --from: where the approach begins (none: held at --pose)
   std::string prefix = "gshaptics";
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
     if (a == "--domain") domain = std::atoi(argv[i + 1]);
     else if (a == "--pose") std::sscanf(argv[i + 1], "%lf,%lf,%lf", &x, &y, &z);
+    else if (a == "--from") std::sscanf(argv[i + 1], "%lf,%lf,%lf", &x0, &y0, &z0);
     else if (a == "--seconds") seconds = std::atof(argv[i + 1]);
     else if (a == "--topic-prefix") prefix = argv[i + 1];
     else {
@@ -141,9 +146,10 @@ int main(int argc, char** argv) {
       const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(wall).count();
       p.header().stamp().sec(int32_t(ns / 1000000000));
       p.header().stamp().nanosec(uint32_t(ns % 1000000000));
-      p.pose().position().x(x);
-      p.pose().position().y(y);
-      p.pose().position().z(z);
+      const double u = std::isnan(x0) ? 1.0 : std::min(1.0, now_s() - start);  // along the approach
+      p.pose().position().x(std::isnan(x0) ? x : x0 + u * (x - x0));
+      p.pose().position().y(std::isnan(y0) ? y : y0 + u * (y - y0));
+      p.pose().position().z(std::isnan(z0) ? z : z0 + u * (z - z0));
       if (writer->write(&p)) ++poses;
       drain(false);
       next += std::chrono::microseconds(2000);  // 500 Hz

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """ROS 2 wire compatibility across two DDS vendors: a Fast DDS participant (fastdds_interop,
 types from fastddsgen) publishes geometry_msgs/PoseStamped to `gshaptics node --ros2` (Cyclone
-DDS) at a pose in contact with the bundled Truck, and must read back WrenchStamped with a contact
+DDS) arriving from above at a pose in contact with the bundled Truck, and must read back WrenchStamped with a contact
 force, zero force after its poses stop (the node's watchdog), and MarkerArrays with the tool and
 the touched Gaussians. The contact pose comes from `gshaptics poses` + `gshaptics query`.
 
@@ -47,8 +47,12 @@ class FastDdsToCyclone(unittest.TestCase):
                 line = node.stdout.readline()
                 if line == "":
                     self.fail("gshaptics node ended before it was ready: " + node.stderr.read())
+            # The tool arrives from 5 radii above (z up) over a second: the seen solid, like any
+            # god-object, holds a tool that comes to it, not one placed inside it.
+            above = [centre[0], centre[1], centre[2] + 5 * radius]
             p = subprocess.run([FASTDDS, "--domain", domain, "--pose", ",".join(map(repr, centre)),
-                                "--seconds", "3"], capture_output=True, text=True, timeout=120)
+                                "--from", ",".join(map(repr, above)), "--seconds", "3"],
+                               capture_output=True, text=True, timeout=120)
             self.assertEqual(p.returncode, 0, p.stderr)
             seen = json.loads(p.stdout.strip().splitlines()[-1])
         finally:
