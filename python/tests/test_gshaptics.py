@@ -203,11 +203,12 @@ def test_the_seen_proxy_holds_the_bundled_truck_roof_where_it_is_seen(data_dir):
         gshaptics.ProxyRenderer(world, surface="seen", isolation_gap=1.0)
 
 
-def test_proxy_holds_the_bundled_truck_roof(data_dir):
+def test_the_ellipsoid_proxy_holds_the_bundled_truck_roof(data_dir):
     scene = gshaptics.Scene.load(os.path.join(data_dir, "truck.splat"))
     world = gshaptics.CollisionWorld(scene, registration=os.path.join(data_dir, "truck.registration.json"))
-    proxy = gshaptics.ProxyRenderer(world, stiffness=800.0, f_max=30.0)  # a clamp of its own (a runtime's
-    r = 0.03                                                               # safety layer limits by default)
+    # A clamp of its own (a runtime's safety layer limits by default).
+    proxy = gshaptics.ProxyRenderer(world, surface="ellipsoids", stiffness=800.0, f_max=30.0)
+    r = 0.03
     z_touch = None
     for k in range(3000):  # lowered 1 mm per tick from above the roof to 1 m below it
         z = 2.0 - 0.001 * k
@@ -223,27 +224,27 @@ def test_proxy_holds_the_bundled_truck_roof(data_dir):
     with pytest.raises(ValueError):
         gshaptics.ProxyRenderer(world, stiffness=-1.0)
     # Single floaters only: the roof holds the same way; a clump size past the rule's range is refused.
-    single = gshaptics.ProxyRenderer(world, stiffness=800.0, f_max=30.0, floater_cluster=1)
+    single = gshaptics.ProxyRenderer(world, surface="ellipsoids", stiffness=800.0, f_max=30.0, floater_cluster=1)
     for k in range(3000):
         f1 = single.render((0.0, 0.0, 2.0 - 0.001 * k), (r, r, r), (0.0, 0.0, -1.0), 1e-3)
     assert single.proxy[2] > z_touch - 0.15 and f1[2] > 0
     for bad in (0, 5):
         with pytest.raises(ValueError):
-            gshaptics.ProxyRenderer(world, floater_cluster=bad)
+            gshaptics.ProxyRenderer(world, surface="ellipsoids", floater_cluster=bad)
     # Device shading off: the roof holds the same way; a negative share is refused.
-    plain = gshaptics.ProxyRenderer(world, stiffness=800.0, f_max=30.0, device_shading=0.0)
+    plain = gshaptics.ProxyRenderer(world, surface="ellipsoids", stiffness=800.0, f_max=30.0, device_shading=0.0)
     for k in range(3000):
         f2 = plain.render((0.0, 0.0, 2.0 - 0.001 * k), (r, r, r), (0.0, 0.0, -1.0), 1e-3)
     assert plain.proxy[2] > z_touch - 0.15 and f2[2] > 0
     with pytest.raises(ValueError):
         gshaptics.ProxyRenderer(world, device_shading=-0.1)
     # The corner normal off: the roof (a face, no corner) holds the same way.
-    shaded = gshaptics.ProxyRenderer(world, stiffness=800.0, f_max=30.0, corner_normal=False)
+    shaded = gshaptics.ProxyRenderer(world, surface="ellipsoids", stiffness=800.0, f_max=30.0, corner_normal=False)
     for k in range(3000):
         f3 = shaded.render((0.0, 0.0, 2.0 - 0.001 * k), (r, r, r), (0.0, 0.0, -1.0), 1e-3)
     assert shaded.proxy[2] > z_touch - 0.15 and f3[2] > 0
     # The overhang falloff off: the roof holds the same way.
-    every_disc = gshaptics.ProxyRenderer(world, stiffness=800.0, f_max=30.0, overhang_falloff=False)
+    every_disc = gshaptics.ProxyRenderer(world, surface="ellipsoids", stiffness=800.0, f_max=30.0, overhang_falloff=False)
     for k in range(3000):
         f4 = every_disc.render((0.0, 0.0, 2.0 - 0.001 * k), (r, r, r), (0.0, 0.0, -1.0), 1e-3)
     assert every_disc.proxy[2] > z_touch - 0.15 and f4[2] > 0
