@@ -341,8 +341,9 @@ struct PlaneTrial {
 
 // Issue 73's targets, in process (a shortcut: DeviceModel's delay lines stand for the ROS link,
 // no network): the proxy at 20x the default coupling stiffness on a Gaussian plane from synth,
-// the hand pushing 10 N, a 2 ms round trip (1 ms each way), passivity on.
-PlaneTrial press_plane(ControlMode control) {
+// the hand pushing 10 N, a 2 ms round trip (1 ms each way), passivity on. The tool starts with its
+// surface `start` m above the plane's centres (z = 0), on the proxy's `surface`.
+PlaneTrial press_plane(ControlMode control, ProxySurface surface, double start) {
   static const CollisionWorld world = [] {
     SynthParams sp;
     sp.spacing = 0.004;
@@ -353,11 +354,12 @@ PlaneTrial press_plane(ControlMode control) {
                                                              : StabilityOptions::default_impedance_device();
   dp.delay_up = dp.delay_down = 0.001;
   dp.hand.push = Eigen::Vector3d(0, 0, -10.0);
-  dp.initial_position = Eigen::Vector3d(0.013, 0.021, radius + 0.0005);  // the plane is z = 0
+  dp.initial_position = Eigen::Vector3d(0.013, 0.021, radius + start);
   DeviceModel device(dp);
   RuntimeConfig c;
   c.tool.semi_axes = Eigen::Vector3d::Constant(radius);
   ProxyModelSpec spec;
+  spec.params.surface = surface;
   spec.params.stiffness = 20 * ProxyParams{}.stiffness;
   c.renderer = spec;
   c.safety.ramp_time = 0;
@@ -378,9 +380,13 @@ PlaneTrial press_plane(ControlMode control) {
   return t;
 }
 
+// Issue 73's trial as it was measured: on the ellipsoids, the tool starting 0.5 mm above the
+// plane's centres, 0.4 mm inside the ellipsoids' shell, so the wall holds 9 N of the hand's 10 N
+// from the first tick: a preloaded press, not a step (AdmittanceTargets.AStep... is the step).
 TEST(AdmittanceTargets, TwentyTimesTheDefaultCouplingHoldsOnAGaussianPlaneWithATwoMillisecondRoundTrip) {
-  const PlaneTrial a = press_plane(ControlMode::kAdmittance);
+  const PlaneTrial a = press_plane(ControlMode::kAdmittance, ProxySurface::kEllipsoids, 0.0005);
   ASSERT_GT(a.contact_height, 0.0);
+  EXPECT_GT(a.r.force[2], 5.0);  // preloaded (measured 9.1 N two ticks in)
   double deepest = 0;
   for (double z : a.r.setpoint) deepest = std::max(deepest, a.contact_height - z);
   // The wall's reaction over the last 0.25 s against the hand's measured push.
@@ -404,10 +410,43 @@ TEST(AdmittanceTargets, TwentyTimesTheDefaultCouplingHoldsOnAGaussianPlaneWithAT
   EXPECT_GT(push, 9.0);
   EXPECT_GE(a.r.min_energy, -1e-6);
   // The impedance device (0.2 kg, 2 N s/m) at the same stiffness and delay goes unstable.
-  const PlaneTrial i = press_plane(ControlMode::kImpedance);
+  const PlaneTrial i = press_plane(ControlMode::kImpedance, ProxySurface::kEllipsoids, 0.0005);
   std::printf("impedance at 20 kN/m, 2 ms: amplitude %.3f -> %.3f mm, stable %d\n", i.r.first_amplitude * 1e3,
               i.r.last_amplitude * 1e3, int(i.r.stable));
   EXPECT_FALSE(i.r.stable);
+}
+
+// The same press as a step: the tool starts 1 mm above the plane's centres, clear of either solid
+// (0.6 mm above the ellipsoids' shell, 1 mm above the seen surface), and meets the wall at the
+// speed the hand's 10 N gives it. The 2 ms round trip gives energy back at the impact on either
+// solid: the observer learns of it two ticks late, and the coupling's 20 kN/m asks for more
+// damping than the passivity controller's 20 N s/m cap. The controller pays the deficit back as
+// the tool moves on, so the tool settles slowly (over seconds: the trial's judge reads that slow
+// settling as an amplitude of 0.05-0.1 mm, and the ellipsoids' tool, sliding into a dimple between
+// discs, ends 1.5 mm past first contact against a static 0.5 mm).
+// Issue 73's "no press cycle gives energy back" holds for the preloaded press above, not for a
+// step. Measured, lowest observer energy: ellipsoids -0.075 mJ, seen -1.16 mJ (the seen solid's
+// tool travels 1 mm to the wall, the ellipsoids' 0.6 mm).
+TEST(AdmittanceTargets, AStepOntoEitherSolidHoldsAtTheHandsForce) {
+  for (ProxySurface surface : {ProxySurface::kEllipsoids, ProxySurface::kSeen}) {
+    const PlaneTrial a = press_plane(ControlMode::kAdmittance, surface, 0.001);
+    const std::string name(proxy_surface_name(surface));
+    ASSERT_GT(a.contact_height, 0.0) << name;
+    ASSERT_GT(a.r.time.size(), 100u) << name;
+    EXPECT_EQ(a.r.force[2], 0.0) << name;  // a step: nothing held until the tool arrives
+    double deepest = 0, force = 0, push = 0;
+    int n = 0;
+    for (double z : a.r.setpoint) deepest = std::max(deepest, a.contact_height - z);
+    for (std::size_t i = 0; i < a.r.time.size(); ++i)
+      if (a.r.time[i] > a.r.time.back() - 0.25) force += a.r.force[i], push -= a.r.user_force[i], ++n;
+    force /= n;
+    push /= n;
+    std::printf("a step onto the %s: deepest %.3f mm past first contact, rest amplitude %.4f mm (first %.4f), "
+                "reaction %.3f N for %.3f N, lowest energy %.3g mJ\n", name.c_str(), deepest * 1e3,
+                a.r.last_amplitude * 1e3, a.r.first_amplitude * 1e3, force, push, a.r.min_energy * 1e3);
+    EXPECT_NEAR(force, push, 0.02 * push) << name;
+    EXPECT_GT(a.r.min_energy, -3e-3) << name;  // what the impact gives back: a few mJ at most
+  }
 }
 
 }  // namespace
