@@ -9,6 +9,7 @@ Usage: ros1_test.py PATH/TO/gshaptics
 import json
 import math
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -77,16 +78,25 @@ class Ros1Node(unittest.TestCase):
         self.pubs.append(p)
         return p
 
+    def wait_for_height(self, topic, z, seconds=30):
+        """Until a pose at height `z` is seen on `topic` (bounded by wall time)."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            if re.search(r"\bz: %s\b" % re.escape(repr(z)), echo_once(topic, self.env)):
+                return
+        self.fail(f"no pose at z = {z} on {topic} within {seconds} s")
+
     def arrive(self, topic="/gshaptics/tool_pose"):
-        """Streams ABOVE, then INSIDE on `topic` (the stream left running, returned)."""
+        """Streams ABOVE, then INSIDE on `topic` (the stream left running, returned), each seen on
+        the topic before the next step (rostopic takes its time to start on a busy machine)."""
         above = subprocess.Popen(["rostopic", "pub", "-r", "200", topic, POSE, ABOVE], env=self.env,
                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         self.pubs.append(above)
-        time.sleep(1.5)
+        self.wait_for_height(topic, 1.4)
         inside = subprocess.Popen(["rostopic", "pub", "-r", "200", topic, POSE, INSIDE], env=self.env,
                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         self.pubs.append(inside)
-        time.sleep(0.5)
+        self.wait_for_height(topic, 0.8)
         above.kill()
         above.wait()
         return inside
