@@ -62,6 +62,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  if (std::isnan(x0)) x0 = x, y0 = y, z0 = z;  // no --from: held at --pose from the start
 
   DomainParticipantQos pq;
   pq.name("gshaptics_fastdds_interop");
@@ -146,10 +147,10 @@ int main(int argc, char** argv) {
       const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(wall).count();
       p.header().stamp().sec(int32_t(ns / 1000000000));
       p.header().stamp().nanosec(uint32_t(ns % 1000000000));
-      const double u = std::isnan(x0) ? 1.0 : std::min(1.0, now_s() - start);  // along the approach
-      p.pose().position().x(std::isnan(x0) ? x : x0 + u * (x - x0));
-      p.pose().position().y(std::isnan(y0) ? y : y0 + u * (y - y0));
-      p.pose().position().z(std::isnan(z0) ? z : z0 + u * (z - z0));
+      const double u = std::min(1.0, now_s() - start);  // along the approach
+      p.pose().position().x(x0 + u * (x - x0));
+      p.pose().position().y(y0 + u * (y - y0));
+      p.pose().position().z(z0 + u * (z - z0));
       if (writer->write(&p)) ++poses;
       drain(false);
       next += std::chrono::microseconds(2000);  // 500 Hz
