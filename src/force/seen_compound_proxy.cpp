@@ -535,8 +535,11 @@ double SeenCompoundProxy::sink(const std::array<double, kMaxToolParts>& past) no
 }
 
 double SeenCompoundProxy::climb(double back, double ahead, double slide, const Eigen::Vector3d& lateral) const noexcept {
+  // (A room below zero, a debt that the sphere's proxy pays by coming toward the device, is not
+  // taken by the compound proxy: its parts' levels are not tried against it yet; an earlier
+  // trial of a passive rise for it is bench/experiments/seen-compound-passive-rise.patch.)
   return std::min(back, ahead + std::min(seen_footprint::rise_allowance(slide, min_axis_),
-                                         ledger_.rise_room(lateral, normal_, axis_)));
+                                         std::max(0.0, ledger_.rise_room(lateral, normal_, axis_))));
 }
 
 bool SeenCompoundProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,

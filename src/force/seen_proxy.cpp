@@ -205,7 +205,10 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   // proxy that much deeper; sunk_.)
   if (fresh_normal_ && std::isfinite(rest))
     sunk_ = std::max(0.0, depth - rest - (entry_motion_ + kSunkSlack * radius));
-  const double climbed = climb(rest, across - proxy_ - (across - proxy_).dot(a) * a, radius);
+  // (A climb that the ledger asks to come toward the device stops short of it: the force then
+  // ends, and the contact with it, only when the device itself leaves the surface.)
+  const double climbed = std::min(climb(rest, across - proxy_ - (across - proxy_).dot(a) * a, radius),
+                                  std::max(rest, depth - sunk_ - 1e-6 * radius));
   const double held = climbed + sunk_;
   if (!(held < depth)) return false;  // the device is out of the surface
   // A rise of more than kMaxClimb R in one tick is no surface the sphere slides onto but the top

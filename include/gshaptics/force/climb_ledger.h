@@ -67,12 +67,15 @@ class ClimbLedger {
   void torque_on_device(const Eigen::Vector3d& torque) noexcept { torque_ = torque; }
   /// How far the proxy may rise along -`axis` this tick (m) with its `slide` across the axis (m),
   /// under the unit outward `normal`: the step may put no more than the credit into the coupling,
-  /// F_n (step . n) <= credit. +inf without load.
+  /// F_n (step . n) <= credit. +inf without load. Negative where the slide alone moves the proxy
+  /// out along the normal by more than the credit pays for (an axis far off the normal, over a
+  /// surface that does not fall away with the slide): the proxy must then come that far toward
+  /// the device along the axis, or its slide would push the hand out for free.
   [[nodiscard]] double rise_room(const Eigen::Vector3d& slide, const Eigen::Vector3d& normal,
                                  const Eigen::Vector3d& axis) const noexcept {
     if (!(fn_ > 0) || !(normal.squaredNorm() > 0)) return std::numeric_limits<double>::infinity();
     const double c = std::max(-axis.dot(normal), 1e-3);
-    return std::max(0.0, (credit_ / fn_ - slide.dot(normal)) / c);
+    return (credit_ / fn_ - slide.dot(normal)) / c;
   }
   /// Books one tick: the proxy's `step` since the last tick (m), the coupling's `force` on the
   /// device this tick (N), the unit `normal` it was rendered along, the tool's `scale` (m). The
