@@ -186,6 +186,36 @@ TEST(FidelityMetrics, SlidesScoreSmoothnessAndDrag) {
   }
 }
 
+// The oracle that lets go once the tool's centre is past the cube's edge (x > 0.1): the force a
+// proxy gives when it loses the side face over a convex edge.
+class LosesTheSideFace : public Oracle {
+ public:
+  using Oracle::Oracle;
+  RenderOutput render(const ToolEllipsoid& tool, const Eigen::Vector3d& v, double dt) noexcept override {
+    return tool.center.x() > 0.1 ? RenderOutput{} : Oracle::render(tool, v, dt);
+  }
+};
+
+// A slide's lost share counts the scored ticks without force; the direction error cannot see
+// them (it is scored over ticks with force only).
+TEST(FidelityMetrics, ASlideThatLetsGoOfTheSurfaceIsCountedLost) {
+  const AnalyticShape cube(ShapeKind::kCube);
+  const Script s = slide_script(cube, 0.005, 1000);
+  Oracle ideal(cube, nullptr);
+  EXPECT_EQ(slide_metrics(cube, s, play_script(ideal, s, 1000, metrics_only())).lost_share, 0.0);
+  int measured = 0, past = 0;
+  for (const ScriptTick& t : s.ticks) {
+    if (!t.measured) continue;
+    ++measured;
+    past += t.position.x() > 0.1 ? 1 : 0;
+  }
+  ASSERT_GT(past, measured / 4);  // (the path goes down the side face for a third of its length)
+  LosesTheSideFace losing(cube, nullptr);
+  const SlideMetrics m = slide_metrics(cube, s, play_script(losing, s, 1000, metrics_only()));
+  EXPECT_NEAR(m.lost_share, double(past) / measured, 2.0 / measured);
+  EXPECT_LT(percentile(m.direction_deg, 100), 0.05);  // the ticks with force are all right
+}
+
 // A slide's force is scored against the faces the sphere reaches: in the concave corner a rigid
 // 5 mm sphere 3 mm above the floor and 4 mm from the wall touches both, and the exact god-object
 // (the sphere's centre held at 5 mm from each) pushes it along (1, 0, 2). The face nearest the

@@ -252,7 +252,7 @@ PressMetrics press_metrics(const AnalyticShape& shape, const Script& script, con
 SlideMetrics slide_metrics(const AnalyticShape& shape, const Script& script, const ScriptTrace& trace) {
   SlideMetrics m;
   double s = 0, ss = 0, ft = 0, fn = 0;
-  int count = 0;
+  int count = 0, lost = 0;
   for (std::size_t i = 0; i < script.ticks.size(); ++i) {
     const ScriptTick& t = script.ticks[i];
     if (!t.measured) continue;
@@ -265,10 +265,12 @@ SlideMetrics slide_metrics(const AnalyticShape& shape, const Script& script, con
     fn += f_n;
     ft += (f - f_n * nrm).norm();
     ++count;
+    if (fm < kOnsetForce) ++lost;
     if (fm >= kOnsetForce) m.direction_deg.push_back(shape.sphere_cone(t.position, script.tool_radius).angle_deg(f));
   }
   if (count == 0) return m;
   m.mean_force = s / count;
+  m.lost_share = double(lost) / count;
   const double var = std::max(0.0, ss / count - m.mean_force * m.mean_force);
   if (m.mean_force > 0) m.force_rsd = std::sqrt(var) / m.mean_force;
   if (fn > 0) m.tangential_over_normal = ft / fn;

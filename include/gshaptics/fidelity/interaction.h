@@ -104,6 +104,10 @@ struct SlideMetrics {
   double mean_force = 0;        ///< N
   double force_rsd = NAN;       ///< relative standard deviation of |F|
   double tangential_over_normal = NAN;  ///< mean |F_t| / mean F_n (true normal: grad of the distance)
+  /// Share of the measured ticks (0 to 1) with |F| below kOnsetForce: the tool is delta past the
+  /// surface all along the scored stretch, so any of them is a tick the surface was lost (the
+  /// direction error is not scored there, so it cannot show them).
+  double lost_share = NAN;
   std::vector<double> direction_deg;
 };
 [[nodiscard]] SlideMetrics slide_metrics(const AnalyticShape& shape, const Script& script, const ScriptTrace& trace);
