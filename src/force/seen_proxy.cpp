@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 namespace gshaptics {
 
@@ -136,6 +137,7 @@ bool SeenProxy::begin_contact_along(const Eigen::Vector3d& u, double len, double
   normal_reading_.forget();
   last_hit_ = std::numeric_limits<double>::quiet_NaN();
   sunk_ = 0;
+  continued_ = false;
   entry_motion_ = len;
   axis_from_ = proxy_;
   forget_ledger();  // (a new contact's ledger starts empty)
@@ -182,6 +184,7 @@ double SeenProxy::ring_support(const Eigen::Vector3d& device, double radius) con
 bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal, double radius, double dt) noexcept {
   const Eigen::Vector3d& a = axis_;
   const double depth = (device + radius * a - eye_).dot(a);  // the device's leading point, from the eye plane
+  const bool continued = std::exchange(continued_, false);
   deficit_ = 0;
   if (!(depth > 0)) return false;
   // The ray of the goal's leading point (the device's without friction, stopped by a wall across
@@ -203,11 +206,12 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   // (A new contact's surface more than the tick's motion behind the leading point: the device was
   // already in it, seen along this axis, or a footprint ray met it late; the contact holds the
   // proxy that much deeper; sunk_.)
-  if (fresh_normal_ && std::isfinite(rest))
+  if (fresh_normal_ && std::isfinite(rest) && !continued)
     sunk_ = std::max(0.0, depth - rest - (entry_motion_ + kSunkSlack * radius));
+  if (continued) rest_ = (proxy_ + radius * a - eye_).dot(a);  // (its level along the new axis: climb() rises from it)
   // (A climb that the ledger asks to come toward the device stops short of it: the force then
   // ends, and the contact with it, only when the device itself leaves the surface.)
-  const double climbed = std::min(climb(rest, across - proxy_ - (across - proxy_).dot(a) * a, radius),
+  const double climbed = std::min(climb(rest, across - proxy_ - (across - proxy_).dot(a) * a, radius, continued),
                                   std::max(rest, depth - sunk_ - 1e-6 * radius));
   const double held = climbed + sunk_;
   if (!(held < depth)) return false;  // the device is out of the surface
@@ -261,7 +265,7 @@ void SeenProxy::record_contacts(const SeenHit& hit) noexcept {
   contact_count_ = solid_.hit_contacts(hit, scratch_, 0, contacts_);
 }
 
-double SeenProxy::climb(double rest, const Eigen::Vector3d& slide, double radius) const noexcept {
+double SeenProxy::climb(double rest, const Eigen::Vector3d& slide, double radius, bool continued) const noexcept {
   // A rigid sphere rises onto a bump before its centre line reaches it, over the part of its
   // shadow the bump is in; the height field of its leading point (and its footprint's surround,
   // read one ray a tick) rises at once. The rise a tick is bounded by seen_footprint::
@@ -270,14 +274,15 @@ double SeenProxy::climb(double rest, const Eigen::Vector3d& slide, double radius
   // force step. A new contact starts where its surface is; the proxy never
   // sinks below the surface it rested on. Under load it rises only as far as the rise is paid for
   // (ClimbLedger::rise_room); what is left is deficit_, which the ledger's reaction charges.
-  if (fresh_normal_ || !std::isfinite(rest) || !std::isfinite(rest_)) return rest;
+  if ((fresh_normal_ && !continued) || !std::isfinite(rest) || !std::isfinite(rest_)) return rest;
   const double most = std::min(seen_footprint::rise_allowance(slide.norm(), radius), ledger_.rise_room(slide, normal_, axis_));
   return std::max(rest, rest_ - most);
 }
 
 bool SeenProxy::restart_along(const Eigen::Vector3d& u, double len, const Eigen::Vector3d& device,
-                              const Eigen::Vector3d& device_step, double radius, double dt) noexcept {
+                              const Eigen::Vector3d& device_step, double radius, double dt, bool continued) noexcept {
   if (!(len > 1e-9 * radius) || !begin_contact_along(u, len, radius)) return false;
+  continued_ = continued;
   friction_.reset();
   friction_step_ = friction_.update(false, Eigen::Vector3d::Zero(), device, proxy_, device_step, radius);
   in_contact_ = hold(device, friction_step_.goal, radius, dt);
@@ -305,7 +310,7 @@ void SeenProxy::follow_surface(const Eigen::Vector3d& device, const Eigen::Vecto
   const Eigen::Vector3d into = -normal_, axis = axis_, normal = normal_;
   const double len = (device - proxy_).dot(into);
   if (!(len > 1e-9 * radius)) return;
-  if (!restart_along(into, len, device, device_step, radius, dt)) {
+  if (!restart_along(into, len, device, device_step, radius, dt, /*continued=*/true)) {
     if (ring_axis_.dot(axis) < kRingAxisCos) forget_ring(axis);  // (the tried push read its ring along `into`)
     return;
   }

@@ -121,9 +121,12 @@ class SeenProxy {
   // A contact begun again along the unit `u` for `len` from where the proxy stands
   // (begin_contact_along), its friction cone restarted and the device held on it (hold(), which
   // sets in_contact_); false, and nothing changed but the footprint's tried reading, when it does
-  // not begin.
+  // not begin. `continued`: the same surface's contact along a turned axis (follow_surface): the
+  // proxy keeps its level and rises from there as a resting proxy does (climb()), rather than
+  // starting on the surface or, where it rested below it, held that much deeper for the
+  // whole contact (sunk_).
   bool restart_along(const Eigen::Vector3d& u, double len, const Eigen::Vector3d& device,
-                     const Eigen::Vector3d& device_step, double radius, double dt) noexcept;
+                     const Eigen::Vector3d& device_step, double radius, double dt, bool continued = false) noexcept;
   // In contact, after hold(): once the smoothed normal has turned kFollowAngle from the contact's
   // axis while the proxy slid across it more than kFollowSlide R this tick (from `before`) and
   // kFollowPath R since the axis was set (axis_from_), the
@@ -146,7 +149,9 @@ class SeenProxy {
   // Where the proxy rests this tick (depth from the eye plane): the surface's `rest`, risen from
   // last tick's by at most seen_footprint::rise_allowance of the `slide` across the axis (m,
   // world) and, under load, by what ledger_ says is paid for (ClimbLedger::rise_room).
-  [[nodiscard]] double climb(double rest, const Eigen::Vector3d& slide, double radius) const noexcept;
+  // `continued`: a contact's first tick after a turn of its axis (restart_along), which climbs
+  // from the proxy's own level as any later tick does.
+  [[nodiscard]] double climb(double rest, const Eigen::Vector3d& slide, double radius, bool continued) const noexcept;
   void forget_ledger() noexcept;  // a new contact, or none: no credit, deficit or reaction
   // With a follower: the materials of the layers that make `hit` (the last first_inside() on
   // scratch_) into target_ (target_held_: some layer holds a material share).
@@ -226,6 +231,11 @@ class SeenProxy {
   // starts where the device is instead of snapping back with a force step (constant over the
   // contact: a spring with a fixed rest offset gives back no more than it took).
   double sunk_ = 0;
+  // A contact restarted along a turned axis on the surface the proxy rests on (restart_along's
+  // `continued`), until its first hold(): its proxy starts at its own level, not the surface's.
+  // Measured in bench/RESULTS.md (eighty-fourth session): each turn of the axis over a dome had
+  // made the climb still owed a permanent sink, and the force faded along the slide.
+  bool continued_ = false;
   Eigen::Vector3d axis_from_ = Eigen::Vector3d::Zero();  // where the proxy stood when the contact's axis was set
   double entry_motion_ = 0;  // the leading point's motion along the axis in the tick the contact began
   ClimbLedger ledger_;  // the proxy's own steps against the coupling, and the hand's payments
