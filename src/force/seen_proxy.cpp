@@ -16,6 +16,7 @@ void SeenProxy::reset() noexcept {
   in_contact_ = false;
   wall_.setZero();
   normal_.setZero();
+  normal_trend_.setZero();
   fresh_normal_ = false;
   coupling_.release();
   friction_.reset();
@@ -250,14 +251,23 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   }
   if (fresh_normal_ || normal_.squaredNorm() == 0) {
     normal_ = target_normal_;
+    normal_trend_.setZero();
     fresh_normal_ = false;
   }
   // The normal follows its readings over kNormalTau and over kNormalPath R of the proxy's slide,
   // whichever is slower: relief finer than the tool (a grating under a sphere) does not turn it.
+  // A lag alone trails a steady turn (a dome) by the turn rate times its path; the smoothing
+  // follows the turn's trend per slide too, learnt over kTrendPath R (Holt's linear trend, 1957).
   const double slide = (moved - moved.dot(a) * a).norm();
   const double rate = std::min(-std::expm1(-dt / kNormalTau), -std::expm1(-slide / (kNormalPath * radius)));
-  const Eigen::Vector3d blended = normal_ + rate * (target_normal_ - normal_);
+  const Eigen::Vector3d predicted = normal_ + slide * normal_trend_;
+  const Eigen::Vector3d blended = predicted + rate * (target_normal_ - predicted);
+  const Eigen::Vector3d was = normal_;
   normal_ = blended.norm() > 1e-9 ? Eigen::Vector3d(blended.normalized()) : target_normal_;
+  if (slide > 0) {
+    const double follow = -std::expm1(-slide / (kTrendPath * radius));
+    normal_trend_ += follow * ((normal_ - was) / slide - normal_trend_);
+  }
   return true;
 }
 
@@ -307,7 +317,7 @@ void SeenProxy::follow_surface(const Eigen::Vector3d& device, const Eigen::Vecto
   if (fresh_normal_ || !(normal_.squaredNorm() > 0) || !(-normal_.dot(axis_) < std::cos(kFollowAngle)) ||
       !(slid > kFollowSlide * radius) || !(far > kFollowPath * radius))
     return;
-  const Eigen::Vector3d into = -normal_, axis = axis_, normal = normal_;
+  const Eigen::Vector3d into = -normal_, axis = axis_, normal = normal_, trend = normal_trend_;
   const double len = (device - proxy_).dot(into);
   if (!(len > 1e-9 * radius)) return;
   if (!restart_along(into, len, device, device_step, radius, dt, /*continued=*/true)) {
@@ -315,6 +325,7 @@ void SeenProxy::follow_surface(const Eigen::Vector3d& device, const Eigen::Vecto
     return;
   }
   normal_ = normal;  // (the force keeps its smoothed direction; the new readings turn it from there)
+  normal_trend_ = trend;
 }
 
 Eigen::Vector3d SeenProxy::slide_across(const Eigen::Vector3d& goal, double radius) noexcept {

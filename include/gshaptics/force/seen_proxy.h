@@ -169,6 +169,7 @@ class SeenProxy {
   static constexpr double kNormalTau = 0.005;   // s
   static constexpr double kNormalPath = 0.5;    // R: and over this much of the proxy's slide
   static constexpr double kNormalReuse = 0.05;  // R
+  static constexpr double kTrendPath = 4.0;     // R: the normal's turn per slide is followed over this much of it
   static constexpr double kNormalEye = 8;       // R: the normal's rays look from at most this far back
   static constexpr double kGuessMargin = 0.25;  // R: the layers first read reach this past the last hit
   static constexpr double kEyeMargin = 0.25;    // R: the contact's eye plane, this far in front of the surface behind
@@ -217,6 +218,7 @@ class SeenProxy {
   Eigen::Vector3d last_device_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d proxy_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal_trend_ = Eigen::Vector3d::Zero();  // 1/m: the smoothed normal's turn per slide
   bool fresh_normal_ = false;  // a new contact: its first reading sets normal_ (hold())
   Eigen::Vector3d axis_ = Eigen::Vector3d::Zero();  // the contact's push direction
   Eigen::Vector3d wall_ = Eigen::Vector3d::Zero();  // the outward normal of a wall holding the proxy across the axis this tick
