@@ -710,6 +710,14 @@ TEST(SeenProxy, AContactBegunPastASurfaceNotCrossedStartsWithoutAStep) {
   EXPECT_NEAR(last - first, 1000.0 * 2e-5 * 199, 0.3);  // then the spring, k times the push
 }
 
+// The fidelity's scene of `shape` with Gaussians `spacing` m apart (its first seed).
+SyntheticScene fidelity_scene(const AnalyticShape& shape, double spacing) {
+  SynthParams sp;
+  sp.spacing = spacing;
+  sp.seed = 1;
+  return make_synthetic_scene(shape, sp);
+}
+
 // The fidelity dome (a sphere of 0.1 m, Gaussians 2 mm apart), a 10 mm sphere slid 10 cm over
 // it at 2 mm deep and 5 cm/s: the contact's axis turns with the surface every few mm
 // (follow_surface). Each turn used to begin its contact with the climb still owed made a sink held
@@ -718,10 +726,7 @@ TEST(SeenProxy, AContactBegunPastASurfaceNotCrossedStartsWithoutAStep) {
 // proxy's level and climbs from there as a resting proxy does.
 TEST(SeenProxy, TurningTheAxisOverADomeDoesNotSinkTheProxy) {
   const AnalyticShape dome(ShapeKind::kSphere);
-  SynthParams sp;
-  sp.spacing = 0.002;
-  sp.seed = 1;
-  const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(dome, sp).scene, seen_world());
+  const CollisionWorld w = CollisionWorld::build(fidelity_scene(dome, 0.002).scene, seen_world());
   ProxyRenderer p(w, seen_params());
   const Script s = slide_script(dome, 0.01, 1000);
   const ScriptTrace tr = play_script(p, s, 1000);
@@ -746,10 +751,7 @@ TEST(SeenProxy, TurningTheAxisOverADomeDoesNotSinkTheProxy) {
 // 1.0 deg (2.3 deg with the lag alone).
 TEST(SeenProxy, TheSmoothedNormalKeepsUpWithADomesTurn) {
   const AnalyticShape dome(ShapeKind::kSphere);
-  SynthParams sp;
-  sp.spacing = 0.002;
-  sp.seed = 1;
-  const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(dome, sp).scene, seen_world());
+  const CollisionWorld w = CollisionWorld::build(fidelity_scene(dome, 0.002).scene, seen_world());
   ProxyRenderer p(w, seen_params());
   const Script s = slide_script(dome, 0.01, 1000);
   const SlideMetrics m = slide_metrics(dome, s, play_script(p, s, 1000));
@@ -769,10 +771,7 @@ TEST(SeenProxy, TheSmoothedNormalKeepsUpWithADomesTurn) {
 // 3DGS median depth along the true normal, SeenSurface, an independent reference), within 0.25 N.
 TEST(SeenProxy, ADomeSlideFeelsTheSeenSurfaceUnderIt) {
   const AnalyticShape dome(ShapeKind::kSphere);
-  SynthParams sp;
-  sp.spacing = 0.008;
-  sp.seed = 1;
-  const SyntheticScene syn = make_synthetic_scene(dome, sp);
+  const SyntheticScene syn = fidelity_scene(dome, 0.008);
   const SeenSurface seen(syn.scene);
   const CollisionWorld w = CollisionWorld::build(syn.scene, seen_world());
   const ProxyParams params = seen_params();
