@@ -18,6 +18,9 @@ void SeenProxy::reset() noexcept {
   normal_.setZero();
   normal_trend_.setZero();
   fresh_normal_ = false;
+  slide_mem_.setZero();
+  edge_load_ = 0;
+  on_lip_ = false;
   coupling_.release();
   friction_.reset();
   friction_step_ = {};
@@ -328,6 +331,117 @@ void SeenProxy::follow_surface(const Eigen::Vector3d& device, const Eigen::Vecto
   normal_trend_ = trend;
 }
 
+bool SeenProxy::begin_lip(const Eigen::Vector3d& device, double radius) noexcept {
+  // Where the face it slid on ends under load (the contact's last point, edge_point_), with the
+  // device gone on past it along the slide, the ball rolls over that point.
+  Eigen::Vector3d s = slide_mem_ - slide_mem_.dot(axis_) * axis_;
+  if (!(s.norm() > kEdgeSlideMin * radius)) return false;
+  s.normalize();
+  const Eigen::Vector3d d = device - edge_point_;
+  if (!(d.norm() < radius) || !(d.dot(s) > 0)) return false;
+  lip_ = edge_point_;
+  lip_out_ = s;
+  on_lip_ = true;
+  in_contact_ = false;
+  forget_ledger();
+  wall_.setZero();
+  coupling_.release();
+  friction_.reset();
+  if (follower_) follower_->release();
+  contact_count_ = 0;
+  return true;
+}
+
+bool SeenProxy::roll_over_lip(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, double radius,
+                              double dt) noexcept {
+  // A ball on a point: it rests R from it, along the line from it to the device, while the
+  // device is within R of it and on past it along the slide (back over the face it came from,
+  // the face holds it again: a new contact). A face beyond that the ball is less deep past takes
+  // the contact (turn_over_edge).
+  const Eigen::Vector3d d = device - lip_;
+  const double dist = d.norm();
+  on_lip_ = dist < radius && dist > 0 && d.dot(lip_out_) > 0;
+  if (!on_lip_) {
+    slide_mem_.setZero();
+    edge_load_ = 0;
+    if (dist > 0) proxy_ = lip_ + std::max(dist, radius) * (d / dist);  // (free: the next push starts here)
+    return false;
+  }
+  if (!turn_over_edge(device, device_step, radius, dt, radius - dist)) return false;
+  on_lip_ = false;
+  return true;
+}
+
+RenderOutput SeenProxy::lip_output(const Eigen::Vector3d& device, const Eigen::Vector3d& velocity, double radius,
+                                   double dt) noexcept {
+  const Eigen::Vector3d d = device - lip_;
+  normal_ = d.normalized();
+  proxy_ = lip_ + radius * normal_;
+  RenderOutput out;
+  out.proxy = proxy_;
+  out.constraints = 1;
+  out.force = coupling_.clamp(coupling_.force(proxy_ - device, normal_, velocity, dt, {}, FrictionStep{}, 0.0));
+  out.counts.contacts = 1;
+  return out;
+}
+
+void SeenProxy::track_slide(const Eigen::Vector3d& before, double radius, double load) noexcept {
+  Eigen::Vector3d step = proxy_ - before;
+  step -= step.dot(axis_) * axis_;
+  slide_mem_ = std::exp(-step.norm() / (kEdgeSlidePath * radius)) * slide_mem_ + step;
+  edge_settle_ = std::max(0.0, edge_settle_ - step.norm());
+  edge_load_ = load;
+  edge_point_ = proxy_ - radius * normal_;
+}
+
+bool SeenProxy::turn_over_edge(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, double radius,
+                               double dt, double load) noexcept {
+  // A contact is a height field along its axis; past a convex edge the face beyond is seen
+  // edge-on along it, so the proxy either holds the device on the first face's lip or, where
+  // that face's discs end, loses the surface (bench/RESULTS.md, eighty-sixth session). A rigid
+  // ball rolls over the edge onto the face nearer its centre: for a convex solid the depth a
+  // ball is in is the least of its depths past each face's plane. Looking back at the device
+  // along its slide from kEdgeEye R ahead, a face that faces the slide and that the ball is less
+  // deep past than past the face under it (by kEdgeMargin R), or one the ball is past at all
+  // when the contact has just ended under load, takes the contact: it begins along that face's
+  // inward normal from just outside it.
+  Eigen::Vector3d s = slide_mem_ - slide_mem_.dot(axis_) * axis_;
+  if (!(s.norm() > kEdgeSlideMin * radius) || (std::isfinite(load) && edge_settle_ > 0)) return false;
+  s.normalize();
+  const double reach = kEdgeEye * radius;
+  const Eigen::Vector3d eye = device + reach * s, u = -s;
+  const SeenHit hit = solid_.first_inside(eye, u, 0, 0, reach + radius, scratch_);
+  if (!hit.hit || scratch_.overflow || !(hit.t > 0)) return false;
+  Eigen::Vector3d m = solid_.shade(u, hit, scratch_);
+  if (!(m.norm() > 0)) return false;
+  m.normalize();
+  if (!(m.dot(s) > kEdgeFacing)) return false;
+  const Eigen::Vector3d at = eye + hit.t * u;
+  const double depth = radius - (device - at).dot(m);
+  if (!(depth > 0) || !(depth < load - kEdgeMargin * radius)) return false;
+  // A face: its seen normal over the reading's ring faces the slide as its shade does (not one
+  // disc met edge-on at the device's height).
+  const double h = solid_.normal_ring(radius);
+  if (!(solid_.normal(at, u, h, h, hit.t, scratch_).dot(m) > kEdgeAgree)) return false;
+  // The ball gets there without going through the seen solid: the line from where the proxy
+  // stands to where the new contact begins is clear (not a wall's far side, met after the device
+  // went through it).
+  const double gap = kEdgeGap * radius;
+  const Eigen::Vector3d start = device + (depth + gap) * m, path = start - proxy_;
+  const double far = path.norm();
+  if (far > 0 && (solid_.first_inside(proxy_, path / far, 0, 0, far, scratch_).hit || scratch_.overflow)) return false;
+  const Eigen::Vector3d was = proxy_;
+  proxy_ = start;
+  if (!restart_along(-m, depth + gap, device, device_step, radius, dt)) {
+    proxy_ = was;
+    return false;
+  }
+  slide_mem_.setZero();
+  edge_load_ = in_contact_ ? depth : 0;
+  edge_settle_ = kEdgeSettle * radius;
+  return true;
+}
+
 Eigen::Vector3d SeenProxy::slide_across(const Eigen::Vector3d& goal, double radius) noexcept {
   const Eigen::Vector3d& a = axis_;
   Eigen::Vector3d step = goal - proxy_;
@@ -404,8 +518,12 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   // came in on: the proxy rests on that surface (a height field along the axis) above the device,
   // or above where the friction cone holds it.
   const bool was_in_contact = in_contact_;
+  // Rolling over the lip where a face it slid on ended (roll_over_lip): a face beyond may take
+  // the contact (handed: it is held already this tick).
+  const bool handed = on_lip_ && roll_over_lip(tool.center, device_step, r, dt);
+  if (on_lip_) return lip_output(tool.center, velocity, r, dt);
   if (!in_contact_) in_contact_ = begin_contact(tool.center, r);
-  if (in_contact_) {
+  if (in_contact_ && !handed) {
     const Eigen::Vector3d held = fresh_normal_ ? Eigen::Vector3d::Zero() : normal_;  // (none yet in a new contact)
     friction_step_ = friction_.update(was_in_contact, held, tool.center, proxy_, device_step, r);
     in_contact_ = hold(tool.center, friction_step_.goal, r, dt);
@@ -420,7 +538,18 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
     }
   }
   if (in_contact_) follow_surface(tool.center, before, device_step, r, dt);
+  if (in_contact_) {
+    const double load = (proxy_ - tool.center).dot(normal_);
+    if (!turn_over_edge(tool.center, device_step, r, dt, load)) track_slide(before, r, load);
+  } else if (was_in_contact && edge_load_ > kEdgeLoad * r &&
+             !turn_over_edge(tool.center, device_step, r, dt, std::numeric_limits<double>::infinity()) &&
+             begin_lip(tool.center, r)) {
+    return lip_output(tool.center, velocity, r, dt);
+  }
   if (!in_contact_) {
+    slide_mem_.setZero();
+    edge_load_ = 0;
+    edge_settle_ = 0;
     contact_count_ = 0;  // (a search that ended the contact may have read its layers)
     forget_ledger();
     proxy_ = tool.center;

@@ -56,10 +56,17 @@
 ///   A wall the line does not see (seen edge-on from above, see-through from the side) but whose
 ///   top the height field over the device would throw the proxy onto, more than R up in one
 ///   tick, holds it where it stands as a wall too.
+/// - Over a convex edge: a face beyond, seen edge-on along the contact's axis, is looked for from
+///   ahead of the device along the proxy's slide, looking back at it; once the ball is less deep
+///   past that face than past the one under it (for a convex solid the depth is the least over
+///   its faces), and the face's seen normal faces the slide and the way to it is clear, the
+///   contact begins along that face's inward normal. Where the face under it ends under load
+///   with no face beyond found yet, the ball rolls over the face's last point (a sphere on a
+///   point: R from it, towards the device) until a face takes it or it lets go.
 /// Limits: a wall met by the line through the sphere's centre height only (a step lower than
-/// that is climbed by the height field); no friction on the wall; the proxy on a convex edge
-/// stays on the face it rests on while the device goes down the other face (a height field
-/// along the first face's axis).
+/// that is climbed by the height field); no friction on the wall or on a lip; a face beyond an
+/// edge whose discs stand above the first face taller than the ball's centre is a wall that holds
+/// it (the fidelity cube at 8 mm spacing with a 5 mm ball, as the ellipsoid proxy).
 ///
 /// Frame and units: world, metres as the world's. render() does not allocate, lock, log or throw.
 
@@ -137,6 +144,37 @@ class SeenProxy {
   static constexpr double kFollowAngle = 5 * std::numbers::pi / 180;  // rad: the sink stays under 0.004 R
   static constexpr double kFollowSlide = 0.002;  // R a tick
   static constexpr double kFollowPath = 0.25;    // R
+  // Over a convex edge: looking back at the device along the proxy's slide (slide_mem_) from
+  // kEdgeEye R ahead, a face the ball is less deep past than `load` (its depth past the face
+  // under it; +inf: the contact has just ended under load) takes the contact, begun along that
+  // face's inward normal from just outside it. True when it did.
+  bool turn_over_edge(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, double radius, double dt,
+                      double load) noexcept;
+  // A contact ended under load while sliding (edge_load_, slide_mem_), the device past its last
+  // point along the slide and within R of it: the ball rolls over that point (on_lip_). True
+  // when it does.
+  bool begin_lip(const Eigen::Vector3d& device, double radius) noexcept;
+  // On the lip: whether the ball still rolls on it (on_lip_), and true when a face beyond took
+  // the contact this tick (turn_over_edge; it is held already).
+  bool roll_over_lip(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, double radius, double dt) noexcept;
+  // On the lip: the ball R from it toward the device, and the coupling's force along that line.
+  RenderOutput lip_output(const Eigen::Vector3d& device, const Eigen::Vector3d& velocity, double radius, double dt) noexcept;
+  // In contact: the proxy's slide across the axis this tick (from `before`) into slide_mem_, and
+  // its `load` (depth past the surface along the normal) into edge_load_.
+  void track_slide(const Eigen::Vector3d& before, double radius, double load) noexcept;
+  static constexpr double kEdgeEye = 2.0;        // R: the edge's look starts this far ahead of the device
+  static constexpr double kEdgeSlidePath = 1.0;  // R: the slide's direction is its last this much of path
+  static constexpr double kEdgeSlideMin = 0.1;   // R: a slide shorter than this has no direction
+  static constexpr double kEdgeFacing = 0.7071;  // cos 45 deg: the face seen faces the slide
+  static constexpr double kEdgeAgree = 0.866;   // cos 30 deg: the face's seen normal agrees with its shade
+  static constexpr double kEdgeMargin = 0.02;    // R: the face beyond takes over once the ball is this much less deep past it
+  static constexpr double kEdgeGap = 0.05;       // R: the new contact begins this far outside the face
+  // R of slide on a face it turned onto before a ball in contact looks for the next edge: at a
+  // capture's edge the two faces' discs cross, and the first face's overhang, seen from below
+  // by the ball sliding down the second, is no edge to turn over (bench/RESULTS.md,
+  // eighty-seventh session).
+  static constexpr double kEdgeSettle = 2.0;
+  static constexpr double kEdgeLoad = 0.05;      // R: a contact ended under more than this load looks beyond the edge
   // In contact: where the proxy gets across the contact's axis on its way to `goal` (the goal's
   // own place along the axis kept): stopped by a wall of the seen solid that its move across
   // meets (its line seen from the proxy's centre), then sliding along the wall once (a second
@@ -238,6 +276,13 @@ class SeenProxy {
   // Measured in bench/RESULTS.md (eighty-fourth session): each turn of the axis over a dome had
   // made the climb still owed a permanent sink, and the force faded along the slide.
   bool continued_ = false;
+  Eigen::Vector3d slide_mem_ = Eigen::Vector3d::Zero();  // m: the proxy's slide across the axis, its last kEdgeSlidePath R
+  double edge_load_ = 0;  // m: the last tick in contact's depth past the surface along the normal
+  Eigen::Vector3d edge_point_ = Eigen::Vector3d::Zero();  // the last tick in contact's contact point
+  Eigen::Vector3d lip_ = Eigen::Vector3d::Zero();      // the point the ball rolls over (on_lip_)
+  Eigen::Vector3d lip_out_ = Eigen::Vector3d::Zero();  // the slide's direction when it began
+  bool on_lip_ = false;
+  double edge_settle_ = 0;  // m: slide left before a ball in contact looks for the next edge (kEdgeSettle)
   Eigen::Vector3d axis_from_ = Eigen::Vector3d::Zero();  // where the proxy stood when the contact's axis was set
   double entry_motion_ = 0;  // the leading point's motion along the axis in the tick the contact began
   ClimbLedger ledger_;  // the proxy's own steps against the coupling, and the hand's payments
