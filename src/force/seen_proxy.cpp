@@ -394,24 +394,46 @@ void SeenProxy::track_slide(const Eigen::Vector3d& before, double radius, double
   edge_point_ = proxy_ - radius * normal_;
 }
 
+bool SeenProxy::edge_ahead(double radius) const noexcept {
+  // The footprint's rays ahead along the slide (one read a tick) that met no surface where the
+  // sphere could rest on it, or met it kEdgeDrop R deeper than where the proxy rests: the face
+  // ends or falls away within R ahead. Without the footprint, always. Not within kEdgeSettle R
+  // of slide after a turn.
+  Eigen::Vector3d s = slide_mem_ - slide_mem_.dot(axis_) * axis_;
+  if (!(s.norm() > kEdgeSlideMin * radius) || edge_settle_ > 0) return false;
+  s.normalize();
+  if (!params_.seen_footprint) return true;
+  for (int k = 0; k < kRingRays; ++k) {
+    if (!ring_read_[std::size_t(k)].valid || !(ring_offset(k, axis_, radius).dot(s) > 0)) continue;
+    const double at = ring_at_[std::size_t(k)];
+    if (!std::isfinite(at) || at - eye_.dot(axis_) + radius - ring_lead(k, radius) > rest_ + kEdgeDrop * radius)
+      return true;
+  }
+  return false;
+}
+
 bool SeenProxy::turn_over_edge(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, double radius,
                                double dt, double load) noexcept {
   // A contact is a height field along its axis; past a convex edge the face beyond is seen
   // edge-on along it, so the proxy either holds the device on the first face's lip or, where
   // that face's discs end, loses the surface (bench/RESULTS.md, eighty-sixth session). A rigid
   // ball rolls over the edge onto the face nearer its centre: for a convex solid the depth a
-  // ball is in is the least of its depths past each face's plane. Looking back at the device
-  // along its slide from kEdgeEye R ahead, a face that faces the slide and that the ball is less
+  // ball is in is the least of its depths past each face's plane. Looking back along the slide
+  // from the device's centre, a face that faces the slide and that the ball is less
   // deep past than past the face under it (by kEdgeMargin R), or one the ball is past at all
   // when the contact has just ended under load, takes the contact: it begins along that face's
   // inward normal from just outside it.
   Eigen::Vector3d s = slide_mem_ - slide_mem_.dot(axis_) * axis_;
-  if (!(s.norm() > kEdgeSlideMin * radius) || (std::isfinite(load) && edge_settle_ > 0)) return false;
+  if (!(s.norm() > kEdgeSlideMin * radius)) return false;
   s.normalize();
-  const double reach = kEdgeEye * radius;
-  const Eigen::Vector3d eye = device + reach * s, u = -s;
-  const SeenHit hit = solid_.first_inside(eye, u, 0, 0, reach + radius, scratch_);
-  if (!hit.hit || scratch_.overflow || !(hit.t > 0)) return false;
+  // Seen from the device's centre along -s: a face that makes the ball less deep than `load`
+  // lies between the centre and the leading point, past R - load + kEdgeMargin R (its depth is
+  // R - t (s . m)); one already there at that point is no face beyond but one the centre is in.
+  const Eigen::Vector3d& eye = device;
+  const Eigen::Vector3d u = -s;
+  const double from = std::clamp(radius - load + kEdgeMargin * radius, 0.0, radius);
+  const SeenHit hit = solid_.first_inside(eye, u, 0, from, radius, scratch_);
+  if (!hit.hit || scratch_.overflow || !(hit.t > from)) return false;
   Eigen::Vector3d m = solid_.shade(u, hit, scratch_);
   if (!(m.norm() > 0)) return false;
   m.normalize();
@@ -540,7 +562,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   if (in_contact_) follow_surface(tool.center, before, device_step, r, dt);
   if (in_contact_) {
     const double load = (proxy_ - tool.center).dot(normal_);
-    if (!turn_over_edge(tool.center, device_step, r, dt, load)) track_slide(before, r, load);
+    if (!edge_ahead(r) || !turn_over_edge(tool.center, device_step, r, dt, load)) track_slide(before, r, load);
   } else if (was_in_contact && edge_load_ > kEdgeLoad * r &&
              !turn_over_edge(tool.center, device_step, r, dt, std::numeric_limits<double>::infinity()) &&
              begin_lip(tool.center, r)) {
