@@ -20,6 +20,7 @@ void SeenProxy::reset() noexcept {
   fresh_normal_ = false;
   slide_mem_.setZero();
   edge_load_ = 0;
+  edge_settle_ = 0;
   on_lip_ = false;
   coupling_.release();
   friction_.reset();
@@ -331,12 +332,16 @@ void SeenProxy::follow_surface(const Eigen::Vector3d& device, const Eigen::Vecto
   normal_trend_ = trend;
 }
 
+Eigen::Vector3d SeenProxy::slide_direction(double radius) const noexcept {
+  const Eigen::Vector3d s = slide_mem_ - slide_mem_.dot(axis_) * axis_;
+  return s.norm() > kEdgeSlideMin * radius ? Eigen::Vector3d(s.normalized()) : Eigen::Vector3d::Zero();
+}
+
 bool SeenProxy::begin_lip(const Eigen::Vector3d& device, double radius) noexcept {
   // Where the face it slid on ends under load (the contact's last point, edge_point_), with the
   // device gone on past it along the slide, the ball rolls over that point.
-  Eigen::Vector3d s = slide_mem_ - slide_mem_.dot(axis_) * axis_;
-  if (!(s.norm() > kEdgeSlideMin * radius)) return false;
-  s.normalize();
+  const Eigen::Vector3d s = slide_direction(radius);
+  if (s.squaredNorm() == 0) return false;
   const Eigen::Vector3d d = device - edge_point_;
   if (!(d.norm() < radius) || !(d.dot(s) > 0)) return false;
   lip_ = edge_point_;
@@ -399,9 +404,8 @@ bool SeenProxy::edge_ahead(double radius) const noexcept {
   // sphere could rest on it, or met it kEdgeDrop R deeper than where the proxy rests: the face
   // ends or falls away within R ahead. Without the footprint, always. Not within kEdgeSettle R
   // of slide after a turn.
-  Eigen::Vector3d s = slide_mem_ - slide_mem_.dot(axis_) * axis_;
-  if (!(s.norm() > kEdgeSlideMin * radius) || edge_settle_ > 0) return false;
-  s.normalize();
+  const Eigen::Vector3d s = slide_direction(radius);
+  if (s.squaredNorm() == 0 || edge_settle_ > 0) return false;
   if (!params_.seen_footprint) return true;
   for (int k = 0; k < kRingRays; ++k) {
     if (!ring_read_[std::size_t(k)].valid || !(ring_offset(k, axis_, radius).dot(s) > 0)) continue;
@@ -423,9 +427,8 @@ bool SeenProxy::turn_over_edge(const Eigen::Vector3d& device, const Eigen::Vecto
   // deep past than past the face under it (by kEdgeMargin R), or one the ball is past at all
   // when the contact has just ended under load, takes the contact: it begins along that face's
   // inward normal from just outside it.
-  Eigen::Vector3d s = slide_mem_ - slide_mem_.dot(axis_) * axis_;
-  if (!(s.norm() > kEdgeSlideMin * radius)) return false;
-  s.normalize();
+  const Eigen::Vector3d s = slide_direction(radius);
+  if (s.squaredNorm() == 0) return false;
   // Seen from the device's centre along -s: a face that makes the ball less deep than `load`
   // lies between the centre and the leading point, past R - load + kEdgeMargin R (its depth is
   // R - t (s . m)); one already there at that point is no face beyond but one the centre is in.

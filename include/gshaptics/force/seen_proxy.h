@@ -165,6 +165,9 @@ class SeenProxy {
   // 16-22 us when it looked on every tick of a slide).
   [[nodiscard]] bool edge_ahead(double radius) const noexcept;
   static constexpr double kEdgeDrop = 0.1;  // R
+  // The unit direction of the proxy's last kEdgeSlidePath R of slide across the axis (slide_mem_);
+  // zero when it slid less than kEdgeSlideMin R.
+  [[nodiscard]] Eigen::Vector3d slide_direction(double radius) const noexcept;
   // In contact: the proxy's slide across the axis this tick (from `before`) into slide_mem_, and
   // its `load` (depth past the surface along the normal) into edge_load_.
   void track_slide(const Eigen::Vector3d& before, double radius, double load) noexcept;
