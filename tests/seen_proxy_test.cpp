@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
 #include <functional>
 
 #include <Eigen/Geometry>
@@ -19,6 +21,7 @@
 #include "gshaptics/fidelity/interaction.h"
 #include "gshaptics/fidelity/synthetic_scene.h"
 #include "gshaptics/force/climb_ledger.h"
+#include "gshaptics/force/material.h"
 #include "gshaptics/force/proxy_renderer.h"
 #include "gshaptics/force/seen_solid.h"
 #include "gshaptics/scene/seen_surface.h"
@@ -1042,13 +1045,18 @@ TEST(SeenProxy, ABallSlidOverACubesEdgeRollsOntoTheSideFace) {
 // A floor that ends (discs up to x = 0, nothing beyond), a 5 mm sphere slid 2 mm deep off its
 // end at 5 cm/s. A rigid ball rolls over the lip and lets go as its centre moves R from it; the
 // contact used to end in one tick, the force dropping from 2 N to nothing.
-TEST(SeenProxy, ABallSlidOffALedgeRollsOverItsLipAndLetsGoSmoothly) {
+// A floor of discs 2 mm apart that ends at x = 0 (nothing beyond), as the seen solid keeps it.
+CollisionWorld ledge_world() {
   GaussianScene g;
   for (double x = -0.08; x <= 1e-12; x += 0.002)
     for (double y = -0.04; y <= 0.04 + 1e-12; y += 0.002)
       g.push_back(Eigen::Vector3f(float(x), float(y), 0), Eigen::Vector3f(0.0012f, 0.0012f, 1e-5f),
                   Eigen::Vector4f(1, 0, 0, 0), 0.9f, std::uint32_t(g.size()));
-  const CollisionWorld w = CollisionWorld::build(g, seen_world());
+  return CollisionWorld::build(g, seen_world());
+}
+
+TEST(SeenProxy, ABallSlidOffALedgeRollsOverItsLipAndLetsGoSmoothly) {
+  const CollisionWorld w = ledge_world();
   const double r = 0.005, k = ProxyParams{}.stiffness;
   ProxyRenderer p(w, seen_params());
   const Eigen::Vector3d start(-0.03, 0, r - 0.002), end(0.02, 0, r - 0.002);
@@ -1065,6 +1073,44 @@ TEST(SeenProxy, ABallSlidOffALedgeRollsOverItsLipAndLetsGoSmoothly) {
   }
   EXPECT_GT(past_lip, 0.5);  // 2.5 mm past the discs' centres, the ball still on the lip
   EXPECT_LT(jump, 0.25);     // and no step as it lets go
+  EXPECT_EQ(last.force.norm(), 0.0);
+}
+
+// The same ledge under a soft, rough material (600 N/m, mu_k 0.5), slid off at 5 cm/s. On the
+// lip the ball keeps the material it slid on: its stiffness, its kinetic friction against the
+// slide, and the Gaussians of the edge as the touched ones. The lip used to render with the
+// proxy's own stiffness and no friction: the force stepped by 0.8 N as the face ended, and the
+// viewer showed nothing touched.
+TEST(SeenProxy, OnALedgesLipTheBallKeepsItsMaterialAndItsTouchedGaussians) {
+  const CollisionWorld w = ledge_world();
+  const double r = 0.005, depth = 0.002, speed = 0.05, dt = 1e-3;
+  ProxyParams params = seen_params();
+  ProxyRenderer p(w, params);
+  p.set_materials(MaterialField::resolve(MaterialMap::parse(nlohmann::json::parse(R"({
+      "materials": [{"name": "felt", "stiffness": 600, "mu_s": 0.6, "mu_k": 0.5}],
+      "regions": [{"material": "felt", "box": {"min": [-1, -1, -1], "max": [1, 1, 1]}}]})"), "map"), w, params));
+  const Eigen::Vector3d start(-0.03, 0, r - depth), end(0.02, 0, r - depth);
+  move(p, r, Eigen::Vector3d(-0.03, 0, 0.03), start, 500);
+  RenderOutput last = move(p, r, start, start, 20).last;
+  const int n = int(std::lround((end - start).norm() / (speed * dt)));
+  double jump = 0, lip_ticks = 0, lip_touched = 0, lip_against = 0;
+  for (int i = 1; i <= n; ++i) {
+    const Eigen::Vector3d c = start + (end - start) * (double(i) / n);
+    const RenderOutput out = p.render(ToolEllipsoid::sphere(c, r), Eigen::Vector3d(speed, 0, 0), dt);
+    if (i > 20) jump = std::max(jump, (out.force - last.force).norm());  // (past the slide's start)
+    last = out;
+    if (c.x() < 0.0015 || !(out.force.norm() > 0)) continue;  // past the discs' rims: on the lip
+    ++lip_ticks;
+    bool near_edge = !p.contacts().empty();
+    for (const Contact& ct : p.contacts()) near_edge = near_edge && ct.center.x() > -0.006;
+    lip_touched += near_edge;
+    // (Without friction the lip's force leans along the slide: the device is past the lip.)
+    lip_against += out.force.x() < 0;
+  }
+  EXPECT_GT(lip_ticks, 20);
+  EXPECT_EQ(lip_touched, lip_ticks);
+  EXPECT_GT(lip_against, 5);
+  EXPECT_LT(jump, 0.25);
   EXPECT_EQ(last.force.norm(), 0.0);
 }
 

@@ -350,11 +350,26 @@ bool SeenProxy::begin_lip(const Eigen::Vector3d& device, double radius) noexcept
   in_contact_ = false;
   forget_ledger();
   wall_.setZero();
-  coupling_.release();
-  friction_.reset();
-  if (follower_) follower_->release();
-  contact_count_ = 0;
+  read_lip_layers(radius);
   return true;
+}
+
+void SeenProxy::read_lip_layers(double radius) noexcept {
+  // The layers that make the face at the lip, seen along the contact's axis just back from it
+  // on the face: the touched Gaussians while the ball rolls over it, and the material there (the
+  // coupling, the friction's coefficients and the follower carry on from the face).
+  const Eigen::Vector3d foot = lip_ - kLipLook * radius * lip_out_ - radius * axis_;
+  const SeenHit hit = solid_.first_inside(foot, axis_, 0, 0, 2 * radius, scratch_);
+  if (scratch_.overflow) {
+    contact_count_ = 0;
+    target_held_ = false;
+  } else {
+    record_contacts(hit);
+    target_held_ = false;
+    if (follower_ && hit.hit) read_material_shares(hit);
+  }
+  lip_contacts_ = contact_count_;
+  under_ = 0;  // (a point under the ball: no relief below it for the texture tip)
 }
 
 bool SeenProxy::roll_over_lip(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, double radius,
@@ -377,16 +392,29 @@ bool SeenProxy::roll_over_lip(const Eigen::Vector3d& device, const Eigen::Vector
   return true;
 }
 
-RenderOutput SeenProxy::lip_output(const Eigen::Vector3d& device, const Eigen::Vector3d& velocity, double radius,
-                                   double dt) noexcept {
-  const Eigen::Vector3d d = device - lip_;
-  normal_ = d.normalized();
-  proxy_ = lip_ + radius * normal_;
+RenderOutput SeenProxy::lip_output(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step,
+                                   const Eigen::Vector3d& velocity, double radius, double dt) noexcept {
+  // A sphere on a point: the proxy on the sphere of radius R round the lip, where the friction
+  // cone about its normal there puts it (the device's side without friction; trailing it as on
+  // the face while sliding, so the face's friction carries on over the lip), with the coupling
+  // along that normal and the face's material.
+  friction_step_ = friction_.update(true, normal_, device, proxy_, device_step, radius);
+  const Eigen::Vector3d to = friction_step_.goal - lip_;
+  if (to.norm() > 1e-9 * radius) proxy_ = lip_ + radius * to.normalized();
+  normal_ = (proxy_ - lip_) / radius;
+  contact_count_ = lip_contacts_;
+  if (follower_) apply_material(lip_, radius);
+  const double mu_k = follower_ ? follower_->blend().mu_k : params_.mu_k;
   RenderOutput out;
   out.proxy = proxy_;
   out.constraints = 1;
-  out.force = coupling_.clamp(coupling_.force(proxy_ - device, normal_, velocity, dt, {}, FrictionStep{}, 0.0));
-  out.counts.contacts = 1;
+  out.force = coupling_.clamp(coupling_.force(proxy_ - device, normal_, velocity, dt, {}, friction_step_, mu_k));
+  if (follower_) {
+    out.force = add_material_forces(out.force, lip_, velocity, radius, dt);
+    out.texture_rms = float(follower_->texture_rms());
+    out.vibration = float(follower_->blend().vibration);
+  }
+  out.counts.contacts = std::max<std::uint32_t>(1, std::uint32_t(contact_count_));
   return out;
 }
 
@@ -546,7 +574,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   // Rolling over the lip where a face it slid on ended (roll_over_lip): a face beyond may take
   // the contact (handed: it is held already this tick).
   const bool handed = on_lip_ && roll_over_lip(tool.center, device_step, r, dt);
-  if (on_lip_) return lip_output(tool.center, velocity, r, dt);
+  if (on_lip_) return lip_output(tool.center, device_step, velocity, r, dt);
   if (!in_contact_) in_contact_ = begin_contact(tool.center, r);
   if (in_contact_ && !handed) {
     const Eigen::Vector3d held = fresh_normal_ ? Eigen::Vector3d::Zero() : normal_;  // (none yet in a new contact)
@@ -569,7 +597,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   } else if (was_in_contact && edge_load_ > kEdgeLoad * r &&
              !turn_over_edge(tool.center, device_step, r, dt, std::numeric_limits<double>::infinity()) &&
              begin_lip(tool.center, r)) {
-    return lip_output(tool.center, velocity, r, dt);
+    return lip_output(tool.center, device_step, velocity, r, dt);
   }
   if (!in_contact_) {
     slide_mem_.setZero();

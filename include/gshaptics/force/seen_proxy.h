@@ -62,9 +62,11 @@
 ///   its faces), and the face's seen normal faces the slide and the way to it is clear, the
 ///   contact begins along that face's inward normal. Where the face under it ends under load
 ///   with no face beyond found yet, the ball rolls over the face's last point (a sphere on a
-///   point: R from it, towards the device) until a face takes it or it lets go.
+///   point: R from it, where the friction cone about its normal there puts it) until a face
+///   takes it or it lets go. On the lip the face's material, friction and touched Gaussians
+///   (those at the lip) carry on: sliding off a soft, rough ledge the force no longer steps.
 /// Limits: a wall met by the line through the sphere's centre height only (a step lower than
-/// that is climbed by the height field); no friction on the wall or on a lip; a face beyond an
+/// that is climbed by the height field); no friction on the wall; no texture relief on a lip; a face beyond an
 /// edge whose discs stand above the first face taller than the ball's centre is a wall that holds
 /// it (the fidelity cube at 8 mm spacing with a 5 mm ball, as the ellipsoid proxy).
 ///
@@ -108,7 +110,8 @@ class SeenProxy {
   /// at most kMaxContacts of them. Contact::k_min holds the layer's weight T_k alpha_k in (0, 1]
   /// (its share of what the eye sees there; the weights sum to at most 1), not a K_min: the seen
   /// solid has no overlap depth. Empty out of contact, and on ticks whose surface was held by the
-  /// footprint's rays alone (the leading point's ray met nothing). What the viewer draws as the
+  /// footprint's rays alone (the leading point's ray met nothing); on a lip, the face's layers
+  /// at the lip (read once as the ball begins to roll over it). What the viewer draws as the
   /// touched Gaussians.
   [[nodiscard]] std::span<const Contact> contacts() const noexcept { return {contacts_.data(), contact_count_}; }
   static constexpr std::size_t kMaxContacts = 64;
@@ -157,8 +160,15 @@ class SeenProxy {
   // On the lip: whether the ball still rolls on it (on_lip_), and true when a face beyond took
   // the contact this tick (turn_over_edge; it is held already).
   bool roll_over_lip(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, double radius, double dt) noexcept;
-  // On the lip: the ball R from it toward the device, and the coupling's force along that line.
-  RenderOutput lip_output(const Eigen::Vector3d& device, const Eigen::Vector3d& velocity, double radius, double dt) noexcept;
+  // On the lip's first tick: the layers of the face at the lip (seen along the contact's axis
+  // kLipLook R back from it) into contacts_ (kept as lip_contacts_) and, with a follower, the
+  // material's target there.
+  void read_lip_layers(double radius) noexcept;
+  static constexpr double kLipLook = 0.05;  // R
+  // On the lip: the ball R from it, toward the friction cone's goal (the device's side without
+  // friction), and the coupling's force along that line with the face's material.
+  RenderOutput lip_output(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, const Eigen::Vector3d& velocity,
+                          double radius, double dt) noexcept;
   // In contact: whether the face under the proxy ends or falls away within R ahead along its
   // slide (its footprint's rays ahead: kEdgeDrop), where turn_over_edge looks for a face beyond
   // (its look costs a search of the seen solid: burger's probe run's p99 rose from 11 to
@@ -290,6 +300,7 @@ class SeenProxy {
   Eigen::Vector3d lip_ = Eigen::Vector3d::Zero();      // the point the ball rolls over (on_lip_)
   Eigen::Vector3d lip_out_ = Eigen::Vector3d::Zero();  // the slide's direction when it began
   bool on_lip_ = false;
+  std::size_t lip_contacts_ = 0;  // the face's layers at the lip, in contacts_ (read_lip_layers)
   double edge_settle_ = 0;  // m: slide left before a ball in contact looks for the next edge (kEdgeSettle)
   Eigen::Vector3d axis_from_ = Eigen::Vector3d::Zero();  // where the proxy stood when the contact's axis was set
   double entry_motion_ = 0;  // the leading point's motion along the axis in the tick the contact began
