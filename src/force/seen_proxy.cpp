@@ -593,7 +593,11 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   if (in_contact_) follow_surface(tool.center, before, device_step, r, dt);
   if (in_contact_) {
     const double load = (proxy_ - tool.center).dot(normal_);
-    if (!edge_ahead(r) || !turn_over_edge(tool.center, device_step, r, dt, load)) track_slide(before, r, load);
+    const bool look = edge_ahead(r);
+    if (!look || !turn_over_edge(tool.center, device_step, r, dt, load)) {
+      if (look) edge_settle_ = kEdgeLookStride * r;  // (the next look after this much more slide)
+      track_slide(before, r, load);
+    }
   } else if (was_in_contact && edge_load_ > kEdgeLoad * r &&
              !turn_over_edge(tool.center, device_step, r, dt, std::numeric_limits<double>::infinity()) &&
              begin_lip(tool.center, r)) {

@@ -192,6 +192,11 @@ class SeenProxy {
   // by the ball sliding down the second, is no edge to turn over (bench/RESULTS.md,
   // eighty-seventh session).
   static constexpr double kEdgeSettle = 2.0;
+  // R of slide after a look that found no face to turn onto before the next: a look costs
+  // searches of the seen solid, and ran on 4 % of burger's probe-run ticks, 1 in 8 of them
+  // reading a normal (bench/RESULTS.md, eighty-eighth session). The turn comes at most this
+  // much slide late.
+  static constexpr double kEdgeLookStride = 0.02;
   static constexpr double kEdgeLoad = 0.05;      // R: a contact ended under more than this load looks beyond the edge
   // In contact: where the proxy gets across the contact's axis on its way to `goal` (the goal's
   // own place along the axis kept): stopped by a wall of the seen solid that its move across
@@ -301,7 +306,7 @@ class SeenProxy {
   Eigen::Vector3d lip_out_ = Eigen::Vector3d::Zero();  // the slide's direction when it began
   bool on_lip_ = false;
   std::size_t lip_contacts_ = 0;  // the face's layers at the lip, in contacts_ (read_lip_layers)
-  double edge_settle_ = 0;  // m: slide left before a ball in contact looks for the next edge (kEdgeSettle)
+  double edge_settle_ = 0;  // m: slide left before a ball in contact looks for the next edge (kEdgeSettle, kEdgeLookStride)
   Eigen::Vector3d axis_from_ = Eigen::Vector3d::Zero();  // where the proxy stood when the contact's axis was set
   double entry_motion_ = 0;  // the leading point's motion along the axis in the tick the contact began
   ClimbLedger ledger_;  // the proxy's own steps against the coupling, and the hand's payments
