@@ -200,9 +200,7 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   // read first, those deeper only when the surface is not among them.)
   const double guess = std::isfinite(last_hit_) ? last_hit_ + kGuessMargin * radius : depth;
   const SeenHit hit = solid_.first_inside(foot, a, 0, 0, depth, scratch_, guess);
-  record_contacts(hit);
-  target_held_ = false;
-  if (follower_ && hit.hit) read_material_shares(hit);
+  read_hit_layers(hit);
   // With the footprint, one of its rays is read a tick, and rays around the sphere hold it where
   // they do before the leading point's ray (a hole narrower than it, a groove's walls).
   if (params_.seen_footprint) read_ring(device, foot, radius, depth);
@@ -275,8 +273,11 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   return true;
 }
 
-void SeenProxy::record_contacts(const SeenHit& hit) noexcept {
+void SeenProxy::read_hit_layers(const SeenHit& hit) noexcept {
+  // (A search that overflowed its scratch has no layers: no contacts, no material shares.)
   contact_count_ = solid_.hit_contacts(hit, scratch_, 0, contacts_);
+  target_held_ = follower_ && hit.hit &&
+                 follower_->field().weighted_shares([&](auto&& add) { solid_.visit_hit_layers(hit, scratch_, add); }, target_);
 }
 
 double SeenProxy::climb(double rest, const Eigen::Vector3d& slide, double radius, bool continued) const noexcept {
@@ -359,15 +360,7 @@ void SeenProxy::read_lip_layers(double radius) noexcept {
   // on the face: the touched Gaussians while the ball rolls over it, and the material there (the
   // coupling, the friction's coefficients and the follower carry on from the face).
   const Eigen::Vector3d foot = lip_ - kLipLook * radius * lip_out_ - radius * axis_;
-  const SeenHit hit = solid_.first_inside(foot, axis_, 0, 0, 2 * radius, scratch_);
-  if (scratch_.overflow) {
-    contact_count_ = 0;
-    target_held_ = false;
-  } else {
-    record_contacts(hit);
-    target_held_ = false;
-    if (follower_ && hit.hit) read_material_shares(hit);
-  }
+  read_hit_layers(solid_.first_inside(foot, axis_, 0, 0, 2 * radius, scratch_));
   lip_contacts_ = contact_count_;
   under_ = 0;  // (a point under the ball: no relief below it for the texture tip)
 }
@@ -403,19 +396,9 @@ RenderOutput SeenProxy::lip_output(const Eigen::Vector3d& device, const Eigen::V
   if (to.norm() > 1e-9 * radius) proxy_ = lip_ + radius * to.normalized();
   normal_ = (proxy_ - lip_) / radius;
   contact_count_ = lip_contacts_;
-  if (follower_) apply_material(lip_, radius);
-  const double mu_k = follower_ ? follower_->blend().mu_k : params_.mu_k;
-  RenderOutput out;
-  out.proxy = proxy_;
-  out.constraints = 1;
-  out.force = coupling_.clamp(coupling_.force(proxy_ - device, normal_, velocity, dt, {}, friction_step_, mu_k));
-  if (follower_) {
-    out.force = add_material_forces(out.force, lip_, velocity, radius, dt);
-    out.texture_rms = float(follower_->texture_rms());
-    out.vibration = float(follower_->blend().vibration);
-  }
-  out.counts.contacts = std::max<std::uint32_t>(1, std::uint32_t(contact_count_));
-  return out;
+  const double mu_k = apply_material(lip_, radius);
+  const Eigen::Vector3d f = coupling_.clamp(coupling_.force(proxy_ - device, normal_, velocity, dt, {}, friction_step_, mu_k));
+  return contact_output(f, lip_, velocity, radius, dt);
 }
 
 void SeenProxy::track_slide(const Eigen::Vector3d& before, double radius, double load) noexcept {
@@ -527,17 +510,20 @@ void SeenProxy::read_normal(const Eigen::Vector3d& point, double radius, double 
   target_normal_ = normal_reading_.update(solid_, point, axis_, h, back, kNormalReuse * radius, scratch_);
 }
 
-void SeenProxy::read_material_shares(const SeenHit& hit) noexcept {
-  target_held_ = follower_->field().weighted_shares(
-      [&](auto&& add) { solid_.visit_hit_layers(hit, scratch_, add); }, target_);
-}
-
-void SeenProxy::apply_material(const Eigen::Vector3d& contact, double radius) noexcept {
+double SeenProxy::apply_material(const Eigen::Vector3d& contact, double radius) noexcept {
+  if (!follower_) return params_.mu_k;
   apply_blend(follower_->follow(proxy_, normal_, radius, contact, target_held_ ? &target_ : nullptr), coupling_, friction_);
+  return follower_->blend().mu_k;
 }
 
-Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& contact,
-                                               const Eigen::Vector3d& velocity, double radius, double dt) noexcept {
+RenderOutput SeenProxy::contact_output(const Eigen::Vector3d& f, const Eigen::Vector3d& contact,
+                                       const Eigen::Vector3d& velocity, double radius, double dt) noexcept {
+  RenderOutput out;
+  out.proxy = proxy_;
+  out.constraints = 1;
+  out.force = f;
+  out.counts.contacts = std::max<std::uint32_t>(1, std::uint32_t(contact_count_));
+  if (!follower_) return out;
   // The texture tip hangs from where the proxy rests down to the seen surface under the leading
   // point (a point tip under the sphere): the relief the proxy does not render itself. Where the
   // leading point's ray holds the proxy, the proxy rides that relief and the tip adds none; held
@@ -547,7 +533,10 @@ Eigen::Vector3d SeenProxy::add_material_forces(const Eigen::Vector3d& f, const E
   // (As first built the tip was the proxy's own height, so the relief was rendered twice: the
   // gratings' peak was 2 k A where the ellipsoids give k A; bench/RESULTS.md, sixty-first session.)
   const double tip = -std::clamp(under_, -radius, radius);
-  return follower_->add_forces_at_tip(tip, f, contact, normal_, velocity, radius, coupling_.f_max(), dt);
+  out.force = follower_->add_forces_at_tip(tip, f, contact, normal_, velocity, radius, coupling_.f_max(), dt);
+  out.texture_rms = float(follower_->texture_rms());
+  out.vibration = float(follower_->blend().vibration);
+  return out;
 }
 
 RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
@@ -616,24 +605,15 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
     if (follower_) follower_->release();
     return out;
   }
-  out.proxy = proxy_;
-  out.constraints = 1;
   const Eigen::Vector3d e = proxy_ - tool.center;
   const Eigen::Vector3d contact = proxy_ - r * normal_;  // where the tool meets the surface
-  if (follower_) apply_material(contact, r);
-  const double mu_k = follower_ ? follower_->blend().mu_k : params_.mu_k;
-  out.force = coupling_.force(e, normal_, velocity, dt, {}, friction_step_, mu_k);
+  const double mu_k = apply_material(contact, r);
+  Eigen::Vector3d f = coupling_.force(e, normal_, velocity, dt, {}, friction_step_, mu_k);
   // The proxy's own step against the coupling, and the hand's payment for a rise still owed.
-  ledger_.book(proxy_ - before, out.force, normal_, r);
-  out.force = coupling_.clamp(out.force + ledger_.reaction(deficit_, velocity, normal_, r, dt));
-  if (wall_.squaredNorm() > 0) out.force = coupling_.add_wall(out.force, wall_, normal_, e, velocity, dt);
-  if (follower_) {
-    out.force = add_material_forces(out.force, contact, velocity, r, dt);
-    out.texture_rms = float(follower_->texture_rms());
-    out.vibration = float(follower_->blend().vibration);
-  }
-  out.counts.contacts = std::max<std::uint32_t>(1, std::uint32_t(contact_count_));
-  return out;
+  ledger_.book(proxy_ - before, f, normal_, r);
+  f = coupling_.clamp(f + ledger_.reaction(deficit_, velocity, normal_, r, dt));
+  if (wall_.squaredNorm() > 0) f = coupling_.add_wall(f, wall_, normal_, e, velocity, dt);
+  return contact_output(f, contact, velocity, r, dt);
 }
 
 }  // namespace gshaptics

@@ -117,8 +117,10 @@ class SeenProxy {
   static constexpr std::size_t kMaxContacts = 64;
 
  private:
-  // The hit's layers into contacts_ (contacts()), read from scratch_ right after the hit's search.
-  void record_contacts(const SeenHit& hit) noexcept;
+  // The layers that make `hit` (the last first_inside() on scratch_, read right after it): the
+  // touched Gaussians into contacts_ (contacts()) and, with a follower, their materials into
+  // target_ (target_held_: some layer holds a material share). An overflowed search has none.
+  void read_hit_layers(const SeenHit& hit) noexcept;
   // Free: the proxy moves straight toward the device; true when the seen solid stops it (a
   // contact begins: its axis and eye plane are set).
   bool begin_contact(const Eigen::Vector3d& device, double radius) noexcept;
@@ -214,15 +216,14 @@ class SeenProxy {
   // from the proxy's own level as any later tick does.
   [[nodiscard]] double climb(double rest, const Eigen::Vector3d& slide, double radius, bool continued) const noexcept;
   void forget_ledger() noexcept;  // a new contact, or none: no credit, deficit or reaction
-  // With a follower: the materials of the layers that make `hit` (the last first_inside() on
-  // scratch_) into target_ (target_held_: some layer holds a material share).
-  void read_material_shares(const SeenHit& hit) noexcept;
   // With a follower: this tick's material at the resting proxy (its contact point `contact`),
-  // applied to the coupling and the friction cone (before the force); then its viscosity and
-  // texture added to the force `f`.
-  void apply_material(const Eigen::Vector3d& contact, double radius) noexcept;
-  Eigen::Vector3d add_material_forces(const Eigen::Vector3d& f, const Eigen::Vector3d& contact,
-                                      const Eigen::Vector3d& velocity, double radius, double dt) noexcept;
+  // applied to the coupling and the friction cone (before the force). Returns the kinetic
+  // friction coefficient the coupling's force uses (the proxy's own without a follower).
+  double apply_material(const Eigen::Vector3d& contact, double radius) noexcept;
+  // A contact's output, on a face or a lip: the proxy, the coupling's force `f` (N, world) with
+  // the material's viscosity and texture added at `contact` (with a follower), the touched count.
+  RenderOutput contact_output(const Eigen::Vector3d& f, const Eigen::Vector3d& contact, const Eigen::Vector3d& velocity,
+                              double radius, double dt) noexcept;
 
   // The normal's reading at the resting point `point` (`depth` from the eye plane) into
   // target_normal_: all its rays for a contact's first, one ray a tick for the later ones.
@@ -274,7 +275,7 @@ class SeenProxy {
   FrictionCone friction_;
   FrictionStep friction_step_;
   MaterialFollower* follower_ = nullptr;
-  MaterialField::Weights target_{};  // the material shares of the last hit (read_material_shares)
+  MaterialField::Weights target_{};  // the material shares of the last hit (read_hit_layers)
   bool target_held_ = false;
   Eigen::Vector3d last_device_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d proxy_ = Eigen::Vector3d::Zero();
