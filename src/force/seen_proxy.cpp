@@ -21,6 +21,7 @@ void SeenProxy::reset() noexcept {
   slide_mem_.setZero();
   edge_load_ = 0;
   edge_settle_ = 0;
+  turn_left_ = 0;
   on_lip_ = false;
   coupling_.release();
   friction_.reset();
@@ -472,10 +473,40 @@ bool SeenProxy::turn_over_edge(const Eigen::Vector3d& device, const Eigen::Vecto
     proxy_ = was;
     return false;
   }
+  begin_turn_blend(was, device, radius);
   slide_mem_.setZero();
   edge_load_ = in_contact_ ? depth : 0;
   edge_settle_ = kEdgeSettle * radius;
   return true;
+}
+
+void SeenProxy::begin_turn_blend(const Eigen::Vector3d& was, const Eigen::Vector3d& device, double radius) noexcept {
+  // The ball before the turn: centred at `was`, pushing the device along was - device. Within R
+  // of the device it rests on the point R from `was` through the device (the pivot: a ball on a
+  // point pushes exactly so), and rolls over it as the device moves on; deeper, it stays
+  // where it was.
+  const Eigen::Vector3d e = was - device;
+  const double depth = e.norm();
+  turn_from_ = was;
+  turn_on_pivot_ = depth > 1e-9 * radius && depth < radius;
+  if (turn_on_pivot_) turn_pivot_ = was - radius * (e / depth);
+  turn_left_ = kTurnBlend * radius;
+}
+
+Eigen::Vector3d SeenProxy::blend_turn(const Eigen::Vector3d& f, const Eigen::Vector3d& device,
+                                      const Eigen::Vector3d& velocity, double step, double radius, double dt) noexcept {
+  const double w = 1 - turn_left_ / (kTurnBlend * radius);
+  turn_left_ = std::max(0.0, turn_left_ - step);
+  Eigen::Vector3d before = turn_from_ - device;
+  if (turn_on_pivot_) {
+    const Eigen::Vector3d d = device - turn_pivot_;
+    const double dist = d.norm();
+    before = dist > 1e-9 * radius ? Eigen::Vector3d(std::max(0.0, radius - dist) / dist * d) : Eigen::Vector3d::Zero();
+  }
+  const double depth = before.norm();
+  const Eigen::Vector3d f_before =
+      depth > 0 ? coupling_.force(before, before / depth, velocity, dt, {}, FrictionStep{}, 0.0) : Eigen::Vector3d::Zero();
+  return coupling_.clamp((1 - w) * f_before + w * f);
 }
 
 Eigen::Vector3d SeenProxy::slide_across(const Eigen::Vector3d& goal, double radius) noexcept {
@@ -594,6 +625,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   }
   if (!in_contact_) {
     slide_mem_.setZero();
+    turn_left_ = 0;
     edge_load_ = 0;
     edge_settle_ = 0;
     contact_count_ = 0;  // (a search that ended the contact may have read its layers)
@@ -613,6 +645,7 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   ledger_.book(proxy_ - before, f, normal_, r);
   f = coupling_.clamp(f + ledger_.reaction(deficit_, velocity, normal_, r, dt));
   if (wall_.squaredNorm() > 0) f = coupling_.add_wall(f, wall_, normal_, e, velocity, dt);
+  if (turn_left_ > 0) f = blend_turn(f, tool.center, velocity, device_step.norm(), r, dt);
   return contact_output(f, contact, velocity, r, dt);
 }
 

@@ -65,6 +65,9 @@
 ///   point: R from it, where the friction cone about its normal there puts it) until a face
 ///   takes it or it lets go. On the lip the face's material, friction and touched Gaussians
 ///   (those at the lip) carry on: sliding off a soft, rough ledge the force no longer steps.
+///   A seen solid's faces need not meet where the ball turns (the top seen from above overhangs
+///   the side seen from the side), so over the device's next R / 4 of path the face beyond's
+///   force is blended in from the ball's as it was, rolling over the point it pushed from.
 /// Limits: a wall met by the line through the sphere's centre height only (a step lower than
 /// that is climbed by the height field); no friction on the wall; no texture relief on a lip; a face beyond an
 /// edge whose discs stand above the first face taller than the ball's centre is a wall that holds
@@ -155,6 +158,21 @@ class SeenProxy {
   // face's inward normal from just outside it. True when it did.
   bool turn_over_edge(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, double radius, double dt,
                       double load) noexcept;
+  // A turn over an edge from the ball centred at `was` (the tick before it), the device at
+  // `device`: the blend of blend_turn() begins.
+  void begin_turn_blend(const Eigen::Vector3d& was, const Eigen::Vector3d& device, double radius) noexcept;
+  // The force `f` (N) of the face beyond over the first kTurnBlend R of the device's path after a
+  // turn over an edge (turn_left_; `step`: this tick's), blended in from the spring of the ball as
+  // it was before the turn: where it was within R of the device, the ball rolls over the point
+  // it pushed from (turn_pivot_: R from it, toward the device), whose spring is that tick's;
+  // deeper, it stays where it was. A seen solid's faces need not meet: seen from above, the
+  // cube's top overhangs its side by the side's discs seen edge-on, the side face takes the
+  // contact about 40 deg round the edge, and the force turned 90 deg in one tick
+  // (bench/RESULTS.md, ninetieth session). The damping is the coupling's; no friction on the ball
+  // before (its spring's direction carries that tick's).
+  Eigen::Vector3d blend_turn(const Eigen::Vector3d& f, const Eigen::Vector3d& device, const Eigen::Vector3d& velocity,
+                             double step, double radius, double dt) noexcept;
+  static constexpr double kTurnBlend = 0.25;  // R of the device's path
   // A contact ended under load while sliding (edge_load_, slide_mem_), the device past its last
   // point along the slide and within R of it: the ball rolls over that point (on_lip_). True
   // when it does.
@@ -306,6 +324,10 @@ class SeenProxy {
   Eigen::Vector3d lip_ = Eigen::Vector3d::Zero();      // the point the ball rolls over (on_lip_)
   Eigen::Vector3d lip_out_ = Eigen::Vector3d::Zero();  // the slide's direction when it began
   bool on_lip_ = false;
+  // A turn's blend (blend_turn): the ball before it and the point it rolls over.
+  Eigen::Vector3d turn_from_ = Eigen::Vector3d::Zero(), turn_pivot_ = Eigen::Vector3d::Zero();
+  bool turn_on_pivot_ = false;
+  double turn_left_ = 0;  // m: the device's path left to blend after it
   std::size_t lip_contacts_ = 0;  // the face's layers at the lip, in contacts_ (read_lip_layers)
   double edge_settle_ = 0;  // m: slide left before a ball in contact looks for the next edge (kEdgeSettle, kEdgeLookStride)
   Eigen::Vector3d axis_from_ = Eigen::Vector3d::Zero();  // where the proxy stood when the contact's axis was set
