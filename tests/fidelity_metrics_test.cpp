@@ -197,12 +197,14 @@ class LosesTheSideFace : public Oracle {
 };
 
 // A slide's lost share counts the scored ticks without force; the direction error cannot see
-// them (it is scored over ticks with force only).
+// them (it is scored over ticks with force only), the largest step sees where they begin.
 TEST(FidelityMetrics, ASlideThatLetsGoOfTheSurfaceIsCountedLost) {
   const AnalyticShape cube(ShapeKind::kCube);
   const Script s = slide_script(cube, 0.005, 1000);
   Oracle ideal(cube, nullptr);
-  EXPECT_EQ(slide_metrics(cube, s, play_script(ideal, s, 1000, metrics_only())).lost_share, 0.0);
+  const SlideMetrics held = slide_metrics(cube, s, play_script(ideal, s, 1000, metrics_only()));
+  EXPECT_EQ(held.lost_share, 0.0);
+  EXPECT_LT(held.largest_step, 0.05 * held.mean_force);  // (the exact god-object rolls round the edge)
   int measured = 0, past = 0;
   for (const ScriptTick& t : s.ticks) {
     if (!t.measured) continue;
@@ -213,6 +215,7 @@ TEST(FidelityMetrics, ASlideThatLetsGoOfTheSurfaceIsCountedLost) {
   LosesTheSideFace losing(cube, nullptr);
   const SlideMetrics m = slide_metrics(cube, s, play_script(losing, s, 1000, metrics_only()));
   EXPECT_NEAR(m.lost_share, double(past) / measured, 2.0 / measured);
+  EXPECT_GT(m.largest_step, 0.9 * held.mean_force);  // and the force ended in one tick
   EXPECT_LT(percentile(m.direction_deg, 100), 0.05);  // the ticks with force are all right
 }
 

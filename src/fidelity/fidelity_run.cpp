@@ -30,7 +30,7 @@ double max_of(const std::vector<double>& v) { return v.empty() ? NAN : *std::max
 
 // Everything gathered for one row before it is summarised.
 struct Pool {
-  std::vector<double> onset, stiffness, hold, energy, energy_other, dirs, shallow, tick_us, rsd, ton, mean_force, lost;
+  std::vector<double> onset, stiffness, hold, energy, energy_other, dirs, shallow, tick_us, rsd, ton, mean_force, lost, steps;
   int runs = 0, never_lost = 0, active = 0, active_other = 0;
 
   void add_other_mode(const PressMetrics& m) {
@@ -56,6 +56,7 @@ struct Pool {
     if (!std::isnan(m.tangential_over_normal)) ton.push_back(m.tangential_over_normal);
     mean_force.push_back(m.mean_force);
     if (!std::isnan(m.lost_share)) lost.push_back(m.lost_share);
+    if (!std::isnan(m.largest_step)) steps.push_back(m.largest_step);
     dirs.insert(dirs.end(), m.direction_deg.begin(), m.direction_deg.end());
     for (float t : tr.render_us) tick_us.push_back(double(t));
   }
@@ -79,6 +80,7 @@ struct Pool {
     r.tangential_over_normal = median(ton);
     r.mean_force = median(mean_force);
     r.lost_share_max = max_of(lost);
+    r.step_max = max_of(steps);
     if (!dirs.empty()) {
       r.dir_p50 = percentile(dirs, 50);
       r.dir_p95 = percentile(dirs, 95);
@@ -484,12 +486,13 @@ std::string wrench_table(const std::vector<WrenchRow>& rows) {
 
 std::string slide_table(const std::vector<FidelityRow>& rows) {
   std::string t =
-      "| shape | path | spacing mm | tool mm | mean abs F N | RSD of abs F | F_t / F_n | lost % | direction error deg p50 / p95 / max | tick us p50 / p99 |\n"
-      "|---|---|---:|---:|---:|---:|---:|---:|---|---|\n";
+      "| shape | path | spacing mm | tool mm | mean abs F N | RSD of abs F | F_t / F_n | lost % | largest step N | direction error deg p50 / p95 / max | tick us p50 / p99 |\n"
+      "|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|\n";
   for (const FidelityRow& r : rows)
-    t += fmt::format("| {} | {} | {:g} | {:g} | {} | {} | {} | {} | {} / {} / {} | {} / {} |\n", r.shape, r.feature,
+    t += fmt::format("| {} | {} | {:g} | {:g} | {} | {} | {} | {} | {} | {} / {} / {} | {} / {} |\n", r.shape, r.feature,
                      r.spacing * 1e3, r.tool_radius * 1e3, num(r.mean_force, "{:.3f}"), num(r.force_rsd),
-                     num(r.tangential_over_normal), num(r.lost_share_max * 100, "{:.0f}"), num(r.dir_p50, "{:.1f}"), num(r.dir_p95, "{:.1f}"),
+                     num(r.tangential_over_normal), num(r.lost_share_max * 100, "{:.0f}"), num(r.step_max),
+                     num(r.dir_p50, "{:.1f}"), num(r.dir_p95, "{:.1f}"),
                      num(r.dir_max, "{:.1f}"), num(r.tick_p50_us, "{:.1f}"), num(r.tick_p99_us, "{:.1f}"));
   return t;
 }
@@ -591,7 +594,7 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
     md += press_table(rep.push) + "\n";
   }
   if (!rep.slide.empty()) {
-    md += "## Slide (10 cm at 5 cm/s, 2 mm past the surface; the first and last 5 mm not scored)\n\nLost %: the share of the scored path (the worst run) with abs F below 0.1 N. The tool is 2 mm past the surface all along it, so every such tick lost the surface; the direction error is scored over the other ticks only.\n\n";
+    md += "## Slide (10 cm at 5 cm/s, 2 mm past the surface; the first and last 5 mm not scored)\n\nLost %: the share of the scored path (the worst run) with abs F below 0.1 N. The tool is 2 mm past the surface all along it, so every such tick lost the surface; the direction error is scored over the other ticks only. Largest step: the largest change of the force from one tick to the next along the scored path (the worst run), N; a rigid surface's force turns smoothly at a constant depth and speed.\n\n";
     md += slide_table(rep.slide) + "\n";
   }
   if (!rep.wrench.empty()) {

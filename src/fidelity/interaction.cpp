@@ -267,6 +267,8 @@ SlideMetrics slide_metrics(const AnalyticShape& shape, const Script& script, con
     ++count;
     if (fm < kOnsetForce) ++lost;
     if (fm >= kOnsetForce) m.direction_deg.push_back(shape.sphere_cone(t.position, script.tool_radius).angle_deg(f));
+    if (i > 0 && script.ticks[i - 1].measured)
+      m.largest_step = std::max(std::isnan(m.largest_step) ? 0.0 : m.largest_step, (f - trace.force[i - 1]).norm());
   }
   if (count == 0) return m;
   m.mean_force = s / count;

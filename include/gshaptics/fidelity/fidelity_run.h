@@ -90,6 +90,7 @@ struct FidelityRow {
   // slides
   double force_rsd = NAN, tangential_over_normal = NAN, mean_force = NAN;
   double lost_share_max = NAN;  ///< slides: the largest SlideMetrics::lost_share of the runs
+  double step_max = NAN;        ///< slides: the largest SlideMetrics::largest_step of the runs, N
   // all
   double dir_p50 = NAN, dir_p95 = NAN, dir_max = NAN;  ///< degrees, ticks with |F| >= 0.1 N
   double shallow_dir_p95 = NAN;  ///< presses: p95 over ticks with |F| >= 0.1 N and delta <= 2 mm

@@ -108,6 +108,10 @@ struct SlideMetrics {
   /// surface all along the scored stretch, so any of them is a tick the surface was lost (the
   /// direction error is not scored there, so it cannot show them).
   double lost_share = NAN;
+  /// The largest change of the force (N) from one tick to the next over the scored stretch: at a
+  /// constant delta and speed a rigid surface's force turns and grows smoothly, so a step is the
+  /// renderer's (a contact handed from one face to another in one tick).
+  double largest_step = NAN;
   std::vector<double> direction_deg;
 };
 [[nodiscard]] SlideMetrics slide_metrics(const AnalyticShape& shape, const Script& script, const ScriptTrace& trace);
