@@ -297,7 +297,9 @@ double SeenProxy::climb(double rest, const Eigen::Vector3d& slide, double radius
 
 bool SeenProxy::restart_along(const Eigen::Vector3d& u, double len, const Eigen::Vector3d& device,
                               const Eigen::Vector3d& device_step, double radius, double dt, bool continued) noexcept {
+  const ClimbLedger kept = ledger_;
   if (!(len > 1e-9 * radius) || !begin_contact_along(u, len, radius)) return false;
+  if (continued) ledger_ = kept;  // (the same surface: what its climb has paid and owes carries on)
   continued_ = continued;
   friction_.reset();
   friction_step_ = friction_.update(false, Eigen::Vector3d::Zero(), device, proxy_, device_step, radius);

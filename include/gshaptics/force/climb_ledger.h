@@ -90,14 +90,17 @@ class ClimbLedger {
   }
   /// This tick's reaction on the device (N) for a rise still owed, `deficit` (m), with the device's
   /// `velocity` (m/s) across the unit `normal`, the tool's `scale` (m) and the tick `dt` (s): the
-  /// slope sqrt(2 (deficit - kOweFloor scale) / scale), at most kPaySlope and rising by at most
-  /// kPaySlope over kPayRamp (falling at once), times the normal force booked this tick; at most
+  /// slope sqrt(2 (deficit - kOweFloor scale) / scale), at most kPaySlope and rising or falling
+  /// by at most kPaySlope over kPayRamp (it opposes the slide, so a slow fall only dissipates; at
+  /// once, a rise owed that one tick's reading missed made burger's probe run buzz, 4.4 N at
+  /// 250 Hz: bench/RESULTS.md, ninetieth session), times the normal force booked this tick; at most
   /// kPayDamping times the speed across; against the motion across. Call after book().
   [[nodiscard]] Eigen::Vector3d reaction(double deficit, const Eigen::Vector3d& velocity, const Eigen::Vector3d& normal,
                                          double scale, double dt) noexcept {
     const double owed = deficit - kOweFloor * scale;
     const double slope = owed > 0 && scale > 0 ? std::min(std::sqrt(2 * owed / scale), kPaySlope) : 0.0;
-    pay_slope_ = std::min(slope, pay_slope_ + kPaySlope * std::max(dt, 0.0) / kPayRamp);
+    const double ramp = kPaySlope * std::max(dt, 0.0) / kPayRamp;
+    pay_slope_ = std::clamp(slope, pay_slope_ - ramp, pay_slope_ + ramp);
     reaction_.setZero();
     const Eigen::Vector3d across = velocity - velocity.dot(normal) * normal;
     const double speed = across.norm();

@@ -137,7 +137,8 @@ class SeenProxy {
   // (begin_contact_along), its friction cone restarted and the device held on it (hold(), which
   // sets in_contact_); false, and nothing changed but the footprint's tried reading, when it does
   // not begin. `continued`: the same surface's contact along a turned axis (follow_surface): the
-  // proxy keeps its level and rises from there as a resting proxy does (climb()), rather than
+  // proxy keeps its level and rises from there as a resting proxy does (climb(), its ledger
+  // kept: a fresh one let it climb 7.7 mm unpaid in one tick on burger), rather than
   // starting on the surface or, where it rested below it, held that much deeper for the
   // whole contact (sunk_).
   bool restart_along(const Eigen::Vector3d& u, double len, const Eigen::Vector3d& device,
