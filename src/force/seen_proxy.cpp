@@ -597,7 +597,10 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
   // the contact (handed: it is held already this tick).
   const bool handed = on_lip_ && roll_over_lip(tool.center, device_step, r, dt);
   if (on_lip_) return lip_output(tool.center, device_step, velocity, r, dt);
-  if (!in_contact_) in_contact_ = begin_contact(tool.center, r);
+  if (!in_contact_) {
+    turn_left_ = 0;  // (a blend after a turn ends with its contact, on a lip too)
+    in_contact_ = begin_contact(tool.center, r);
+  }
   if (in_contact_ && !handed) {
     const Eigen::Vector3d held = fresh_normal_ ? Eigen::Vector3d::Zero() : normal_;  // (none yet in a new contact)
     friction_step_ = friction_.update(was_in_contact, held, tool.center, proxy_, device_step, r);
