@@ -239,6 +239,58 @@ TEST(SeenSolid, TheEyeStopsInFrontOfASurfaceBehind) {
   EXPECT_DOUBLE_EQ(solid.eye_distance(Eigen::Vector3d(0, 0, 0.01), -Eigen::Vector3d::UnitZ(), 0.1, scratch), 0.1);
 }
 
+// A resting spot is read again with the ring turned, one ray a tick: after kPhases readings the
+// normal is the mean of SeenSolid::normal() at each turn (an independent sum here), it then stays
+// with no more rays read, and settling() says so; a point moved `reuse` away starts over with
+// one unturned reading. On jittered sparse discs the turned readings differ, so the mean is not
+// the first reading.
+TEST(SeenNormalReading, ARestingSpotIsReadWithTheRingTurnedAndAveraged) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> uni(-1, 1);
+  GaussianScene g;
+  for (int i = -12; i <= 12; ++i)
+    for (int j = -12; j <= 12; ++j) {
+      const Eigen::Quaterniond q = Eigen::Quaterniond(Eigen::AngleAxisd(0.08 * uni(rng), Eigen::Vector3d::UnitX())) *
+                                   Eigen::AngleAxisd(0.08 * uni(rng), Eigen::Vector3d::UnitY());
+      g.push_back(Eigen::Vector3f(0.008f * i, 0.008f * j, float(0.0008 * uni(rng))), Eigen::Vector3f(0.005f, 0.005f, 1e-5f),
+                  Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())), 0.9f, std::uint32_t(g.size()));
+    }
+  const SeenSolid solid(CollisionWorld::build(g, seen_world()));
+  SeenScratch scratch, reference;
+  const Eigen::Vector3d u = -Eigen::Vector3d::UnitZ();
+  const SeenHit hit = solid.first_inside(Eigen::Vector3d(0.003, -0.002, 0.05), u, 0, 0, 0.1, reference);
+  ASSERT_TRUE(hit.hit);
+  const Eigen::Vector3d point = Eigen::Vector3d(0.003, -0.002, 0.05) + hit.t * u;
+  const double h = 0.0075, back = 0.02, reuse = 0.00025;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  std::array<Eigen::Vector3d, SeenNormalReading::kPhases> turns;
+  for (int i = 0; i < SeenNormalReading::kPhases; ++i) {
+    turns[std::size_t(i)] = solid.normal(point, u, h, h, back, reference, SeenNormalReading::phase(i));
+    sum += turns[std::size_t(i)];
+  }
+  // The turns are distinct within the ring's period (pi / 2 for four rays).
+  for (int i = 0; i < SeenNormalReading::kPhases; ++i)
+    for (int j = 0; j < i; ++j) EXPECT_GT(std::fabs(SeenNormalReading::phase(i) - SeenNormalReading::phase(j)), 0.3);
+  EXPECT_LT(SeenNormalReading::phase(SeenNormalReading::kPhases - 1), std::numbers::pi / 2);
+
+  SeenNormalReading reading;
+  EXPECT_LT((reading.update(solid, point, u, h, back, reuse, scratch) - turns[0]).norm(), 1e-12);
+  EXPECT_FALSE(reading.settling());
+  for (int tick = 0; tick < SeenSolid::kNormalRays * (SeenNormalReading::kPhases - 1); ++tick)
+    reading.update(solid, point, u, h, back, reuse, scratch);
+  EXPECT_TRUE(reading.settling());
+  EXPECT_LT((reading.normal() - sum.normalized()).norm(), 1e-12);
+  EXPECT_GT((reading.normal() - turns[0]).norm(), 1e-4);  // the turns read other discs
+  for (int tick = 0; tick < 20; ++tick) reading.update(solid, point, u, h, back, reuse, scratch);
+  EXPECT_LT((reading.normal() - sum.normalized()).norm(), 1e-12);
+
+  const Eigen::Vector3d moved = point + Eigen::Vector3d(2 * reuse, 0, 0);
+  const Eigen::Vector3d fresh = solid.normal(moved, u, h, h, back, reference);
+  for (int tick = 0; tick < SeenSolid::kNormalRays; ++tick) reading.update(solid, moved, u, h, back, reuse, scratch);
+  EXPECT_FALSE(reading.settling());
+  EXPECT_LT((reading.normal() - fresh).norm(), 1e-12);
+}
+
 // Discs on a tilted plane, each lifted off it by up to +-1 mm at random (a capture's depth
 // jitter), their own normals the plane's. The normal is the mean of two readings of its four rays:
 // the shaded normal (the discs' normals composited: the plane's, within 0.5 deg) and the slope of

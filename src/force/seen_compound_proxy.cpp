@@ -727,7 +727,8 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
   // The normal follows its target over kNormalTau and over kNormalPath of the proxy's slide,
   // whichever is slower (SeenProxy's: the seen surface's relief finer than the tool does not turn
   // it); where footprints hold the tool more than its leading points, over kNormalTau alone (the
-  // parts' own normals on an edge are geometry, refined by the edge search as the tool rests).
+  // parts' own normals on an edge are geometry, refined by the edge search as the tool rests), and
+  // over kNormalTau alone while the seen reading refines its spot (SeenNormalReading::settling).
   if (fresh_normal_ || normal_.squaredNorm() == 0) {
     normal_ = target;
     fresh_normal_ = false;
@@ -735,7 +736,9 @@ RenderOutput SeenCompoundProxy::render(const Eigen::Vector3d& position, const Ei
     const Eigen::Vector3d moved = x_ - before;
     const double slide = (moved - moved.dot(axis_) * axis_).norm();
     const double by_time = -std::expm1(-dt / kNormalTau);
-    const double rate = own_share_ > 0.5 ? by_time : std::min(by_time, -std::expm1(-slide / (kNormalPath * min_axis_)));
+    const double rate = own_share_ > 0.5 || (normal_reading_.settling() && slide < kSlideMin * min_axis_)
+                            ? by_time
+                            : std::min(by_time, -std::expm1(-slide / (kNormalPath * min_axis_)));
     const Eigen::Vector3d blended = normal_ + rate * (target - normal_);
     normal_ = blended.norm() > 1e-9 ? Eigen::Vector3d(blended.normalized()) : target;
   }

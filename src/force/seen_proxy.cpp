@@ -262,7 +262,11 @@ bool SeenProxy::hold(const Eigen::Vector3d& device, const Eigen::Vector3d& goal,
   // A lag alone trails a steady turn (a dome) by the turn rate times its path; the smoothing
   // follows the turn's trend per slide too, learnt over kTrendPath R (Holt's linear trend, 1957).
   const double slide = (moved - moved.dot(a) * a).norm();
-  const double rate = std::min(-std::expm1(-dt / kNormalTau), -std::expm1(-slide / (kNormalPath * radius)));
+  // (A resting proxy's reading refined by the ring's turns, SeenNormalReading::settling, is the
+  // same spot's: it is taken over kNormalTau alone.)
+  const double by_time = -std::expm1(-dt / kNormalTau);
+  const double rate =
+      normal_reading_.settling() && slide < kSlideMin * radius ? by_time : std::min(by_time, -std::expm1(-slide / (kNormalPath * radius)));
   const Eigen::Vector3d predicted = normal_ + slide * normal_trend_;
   const Eigen::Vector3d blended = predicted + rate * (target_normal_ - predicted);
   const Eigen::Vector3d was = normal_;

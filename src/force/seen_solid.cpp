@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <numbers>
 #include <optional>
 #include <array>
 #include <cmath>
@@ -331,11 +332,11 @@ int SeenSolid::look_back(const Eigen::Vector3d& c, const Eigen::Vector3d& u, con
 }
 
 SeenHit SeenSolid::normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k, double h, double reach,
-                              double back, SeenScratch& s) const noexcept {
+                              double back, SeenScratch& s, double phase) const noexcept {
   // (Never seen from behind the eye: a nearer eye than the search's start would let a surface
   // that hides `point` from that eye, a groove's other face, make the reading.)
   const double from = -std::min(reach, back);
-  SeenHit hit = first_inside(normal_ray_origin(point, u, k, h), u, -back, from, reach, s);
+  SeenHit hit = first_inside(normal_ray_origin(point, u, k, h, phase), u, -back, from, reach, s);
   hit.hit = hit.hit && !s.overflow;
   // (Its shade from the layers in its window only: those in front lie between the contact's eye
   // and the surface there, a face that hides the ray's point or a floater, and their normals are
@@ -376,15 +377,15 @@ Eigen::Vector3d SeenSolid::shade(const Eigen::Vector3d& u, const SeenHit& hit, c
   return sum;
 }
 
-Eigen::Vector3d SeenSolid::ring_direction(const Eigen::Vector3d& u, int k) noexcept {
+Eigen::Vector3d SeenSolid::ring_direction(const Eigen::Vector3d& u, int k, double phase) noexcept {
   const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-  const double angle = 2 * 3.14159265358979323846 * k / kNormalRays;
+  const double angle = 2 * 3.14159265358979323846 * k / kNormalRays + phase;
   return std::cos(angle) * a + std::sin(angle) * b;
 }
 
 Eigen::Vector3d SeenSolid::normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
-                                             double h) noexcept {
-  return point + h * ring_direction(u, k);
+                                             double h, double phase) noexcept {
+  return point + h * ring_direction(u, k, phase);
 }
 
 double SeenSolid::shade_slope(const Eigen::Vector3d& n, const Eigen::Vector3d& u, const Eigen::Vector3d& e) noexcept {
@@ -395,9 +396,10 @@ double SeenSolid::shade_slope(const Eigen::Vector3d& n, const Eigen::Vector3d& u
   return n.dot(e) / facing;
 }
 
-std::array<Eigen::Vector3d, SeenSolid::kNormalRays / 2> SeenSolid::ring_axes(const Eigen::Vector3d& u) noexcept {
+std::array<Eigen::Vector3d, SeenSolid::kNormalRays / 2> SeenSolid::ring_axes(const Eigen::Vector3d& u,
+                                                                             double phase) noexcept {
   std::array<Eigen::Vector3d, kNormalRays / 2> axes;
-  for (int k = 0; k < kNormalRays / 2; ++k) axes[std::size_t(k)] = ring_direction(u, k);
+  for (int k = 0; k < kNormalRays / 2; ++k) axes[std::size_t(k)] = ring_direction(u, k, phase);
   return axes;
 }
 
@@ -446,8 +448,8 @@ std::array<bool, SeenSolid::kNormalRays> SeenSolid::past_crease(const Eigen::Vec
 }
 
 Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits,
-                                       double h) noexcept {
-  const RingAxes axes = ring_axes(u);
+                                       double h, double phase) noexcept {
+  const RingAxes axes = ring_axes(u, phase);
   return on_crest(u, axes, hits, h, shaded_normal(u, axes, hits, h));
 }
 
@@ -510,34 +512,62 @@ Eigen::Vector3d SeenSolid::shaded_normal(const Eigen::Vector3d& u, const RingAxe
 }
 
 Eigen::Vector3d SeenSolid::normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach,
-                                  double back, SeenScratch& s) const noexcept {
+                                  double back, SeenScratch& s, double phase) const noexcept {
   std::array<SeenHit, kNormalRays> hits;
-  for (int k = 0; k < kNormalRays; ++k) hits[std::size_t(k)] = normal_ray(point, u, k, h, reach, back, s);
-  return normal_from(u, hits, h);
+  for (int k = 0; k < kNormalRays; ++k) hits[std::size_t(k)] = normal_ray(point, u, k, h, reach, back, s, phase);
+  return normal_from(u, hits, h, phase);
+}
+
+double SeenNormalReading::phase(int i) noexcept {
+  // 0, 1/2, 1/4, 3/4 of the ring's period (its rays repeat every 2 pi / kNormalRays): each
+  // reading at a spot halves the largest gap its rays left.
+  static constexpr std::array<double, kPhases> kOrder{0.0, 0.5, 0.25, 0.75};
+  return 2 * std::numbers::pi / SeenSolid::kNormalRays * kOrder[std::size_t(i % kPhases)];
 }
 
 const Eigen::Vector3d& SeenNormalReading::update(const SeenSolid& solid, const Eigen::Vector3d& point,
                                                  const Eigen::Vector3d& u, double h, double back, double reuse,
                                                  SeenScratch& scratch) noexcept {
   if (!fresh_) {
-    normal_ = solid.normal(point, u, h, h, back, scratch);
+    normal_ = sum_ = solid.normal(point, u, h, h, back, scratch, phase(0));
     at_ = point;
     fresh_ = true;
     pending_ = -1;
+    spot_readings_ = 1;
+    next_phase_ = 1;
+    settling_ = false;
     return normal_;
   }
-  if (pending_ < 0 && (point - at_).norm() >= reuse) {
+  if (pending_ < 0) {
+    // A new spot once the point moved `reuse` from the last; else the spot's next turn of the
+    // ring, until kPhases of them.
+    const bool moved = (point - at_).norm() >= reuse;
+    if (!moved && spot_readings_ >= kPhases) return normal_;
     pending_ = 0;
-    pending_at_ = point;
+    refining_ = !moved;
+    pending_at_ = moved ? point : at_;
     pending_back_ = back;
     pending_h_ = h;
+    if (moved) next_phase_ = 0;  // (turned rings at successive spots of a slide made its normal wander)
+    pending_phase_ = phase(next_phase_);
+    next_phase_ = (next_phase_ + 1) % kPhases;
   }
-  if (pending_ < 0) return normal_;
-  hits_[std::size_t(pending_)] = solid.normal_ray(pending_at_, u, pending_, pending_h_, pending_h_, pending_back_, scratch);
+  hits_[std::size_t(pending_)] =
+      solid.normal_ray(pending_at_, u, pending_, pending_h_, pending_h_, pending_back_, scratch, pending_phase_);
   if (++pending_ < SeenSolid::kNormalRays) return normal_;
-  normal_ = SeenSolid::normal_from(u, hits_, pending_h_);
-  at_ = pending_at_;
   pending_ = -1;
+  const Eigen::Vector3d n = SeenSolid::normal_from(u, hits_, pending_h_, pending_phase_);
+  if (refining_) {
+    sum_ += n;
+    ++spot_readings_;
+    if (sum_.norm() > 1e-9) normal_ = sum_.normalized();
+    settling_ = true;
+    return normal_;
+  }
+  normal_ = sum_ = n;
+  at_ = pending_at_;
+  spot_readings_ = 1;
+  settling_ = false;
   return normal_;
 }
 

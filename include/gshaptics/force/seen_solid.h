@@ -249,18 +249,20 @@ class SeenSolid {
   /// rays' depths. Limit: an edge pushed obliquely along its line reads the push's direction
   /// too (a rigid sphere would slide along the edge). Each ray is seen from `back`
   /// before the point's depth and searched from there or from `reach` before, whichever is
-  /// nearer: never from behind the eye.
+  /// nearer: never from behind the eye. `phase` (rad) turns the ring about u (ray k at
+  /// 2 pi k / kNormalRays + phase from u.unitOrthogonal(); SeenNormalReading reads a resting spot
+  /// at several).
   /// Measured against the analytic normals in bench/RESULTS.md (fiftieth and fifty-sixth sessions).
   Eigen::Vector3d normal(const Eigen::Vector3d& point, const Eigen::Vector3d& u, double h, double reach, double back,
-                         SeenScratch& scratch) const noexcept;
+                         SeenScratch& scratch, double phase = 0) const noexcept;
   /// normal() one ray at a time (a caller may spread them over ticks): ray k (0 to kNormalRays - 1) of the
   /// reading at `point`, its hit's t from the ray's origin and its shade; normal_from() then
-  /// combines them (h: the ring's radius). normal() is exactly normal_from() of the kNormalRays
-  /// normal_ray()s.
+  /// combines them (h: the ring's radius; the same `phase` throughout). normal() is exactly
+  /// normal_from() of the kNormalRays normal_ray()s.
   SeenHit normal_ray(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k, double h, double reach,
-                     double back, SeenScratch& scratch) const noexcept;
+                     double back, SeenScratch& scratch, double phase = 0) const noexcept;
   [[nodiscard]] static Eigen::Vector3d normal_from(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits,
-                                                  double h) noexcept;
+                                                  double h, double phase = 0) noexcept;
   /// Which rays of a normal reading (opposite pairs at +-h across u, t from the point's depth, along
   /// the unit u) lie past a crease within h. Per axis, two measures a ray each, which a smooth
   /// surface (a tilt, a curvature) makes alike on both sides and a crease does not: the one-sided
@@ -416,13 +418,13 @@ class SeenSolid {
                 SeenScratch& scratch) const noexcept;
   // The layers peaking in [ta, tb] into scratch (after the ones there when `append`).
   static Eigen::Vector3d normal_ray_origin(const Eigen::Vector3d& point, const Eigen::Vector3d& u, int k,
-                                           double h) noexcept;
+                                           double h, double phase) noexcept;
   // Where ray k of a normal reading lies from its point: the unit 2 pi k / kNormalRays around u
   // from u.unitOrthogonal() towards u x that.
-  static Eigen::Vector3d ring_direction(const Eigen::Vector3d& u, int k) noexcept;
+  static Eigen::Vector3d ring_direction(const Eigen::Vector3d& u, int k, double phase = 0) noexcept;
   // ring_direction() of rays 0 to kNormalRays / 2 - 1: one per opposite pair (read once a reading).
   using RingAxes = std::array<Eigen::Vector3d, kNormalRays / 2>;
-  static RingAxes ring_axes(const Eigen::Vector3d& u) noexcept;
+  static RingAxes ring_axes(const Eigen::Vector3d& u, double phase = 0) noexcept;
   // past_crease() along those axes.
   static std::array<bool, kNormalRays> past_crease(const Eigen::Vector3d& u, const RingAxes& axes,
                                                    const std::array<SeenHit, kNormalRays>& hits, double h) noexcept;
@@ -486,13 +488,20 @@ template <typename NearestWall>
 /// SeenCompoundProxy): a contact's first reading takes its rays at once; a later one starts once
 /// the point has moved `reuse` from the last reading and takes one ray a tick (the solid does not
 /// move, so the rays of a reading fixed at its start give the same normal ticks later, and no
-/// tick pays for them all). No allocation.
+/// tick pays for them all). While the point stays within `reuse` of a spot, the spot is read
+/// again with the ring turned (phase(): kPhases turns, 4 kNormalRays rays in all), one ray a tick
+/// as a moving point's readings are, and its normal is the mean of its readings: on sparse discs
+/// a ring of four rays reads two or three of them and carries their tilts and facets (the seen
+/// cylinder's presses at 8 mm spacing erred 5.1 deg at p95 with one turn, 2.7 with four;
+/// bench/RESULTS.md, ninety-first session). A reading at a new spot starts unturned. No
+/// allocation.
 class SeenNormalReading {
  public:
   /// A new contact: the next update() reads at once.
   void forget() noexcept {
     fresh_ = false;
     pending_ = -1;
+    settling_ = false;
   }
   /// One tick at `point` (on the seen surface for a push along the unit `u`), on a ring of radius
   /// `h` (searched within +-h), seen from `back` before the point (SeenSolid::normal). Returns
@@ -500,13 +509,25 @@ class SeenNormalReading {
   const Eigen::Vector3d& update(const SeenSolid& solid, const Eigen::Vector3d& point, const Eigen::Vector3d& u,
                                 double h, double back, double reuse, SeenScratch& scratch) noexcept;
   [[nodiscard]] const Eigen::Vector3d& normal() const noexcept { return normal_; }
+  /// True from the first turned reading of a spot until a reading at a new spot: its normal
+  /// differs from the spot's first by the ring's turn alone, not by relief met along a slide,
+  /// so a proxy resting there (not sliding this tick) takes it over time; a sliding one smooths
+  /// over its path.
+  [[nodiscard]] bool settling() const noexcept { return settling_; }
+  /// How many turns of the ring a spot is read with.
+  static constexpr int kPhases = 4;
+  /// The ring's turn (rad about u) of a spot's i-th reading: 0, 1/2, 1/4, 3/4 of the ring's own
+  /// period 2 pi / kNormalRays (each halves the largest gap the readings before left).
+  [[nodiscard]] static double phase(int i) noexcept;
 
  private:
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero(), at_ = Eigen::Vector3d::Zero();
-  bool fresh_ = false;
+  Eigen::Vector3d sum_ = Eigen::Vector3d::Zero();  // the spot's readings summed
+  bool fresh_ = false, refining_ = false, settling_ = false;
   int pending_ = -1;  // the next ray of a reading under way (-1: none)
+  int spot_readings_ = 0, next_phase_ = 0;
   Eigen::Vector3d pending_at_ = Eigen::Vector3d::Zero();
-  double pending_back_ = 0, pending_h_ = 0;
+  double pending_back_ = 0, pending_h_ = 0, pending_phase_ = 0;
   std::array<SeenHit, SeenSolid::kNormalRays> hits_{};
 };
 
