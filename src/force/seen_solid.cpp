@@ -453,6 +453,19 @@ Eigen::Vector3d SeenSolid::normal_from(const Eigen::Vector3d& u, const std::arra
   return on_crest(u, axes, hits, h, shaded_normal(u, axes, hits, h));
 }
 
+bool SeenSolid::creased(const Eigen::Vector3d& u, const std::array<SeenHit, kNormalRays>& hits, double h,
+                        double phase) noexcept {
+  for (const SeenHit& x : hits)
+    if (!x.hit) return true;
+  const RingAxes axes = ring_axes(u, phase);
+  const std::array<bool, kNormalRays> past = past_crease(u, axes, hits, h);
+  for (const bool p : past)
+    if (p) return true;
+  for (int axis = 0; axis < kNormalRays / 2; ++axis)
+    if (crest_weight(hits[std::size_t(axis)].t / h, hits[std::size_t(axis + kNormalRays / 2)].t / h) > 0) return true;
+  return false;
+}
+
 Eigen::Vector3d SeenSolid::on_crest(const Eigen::Vector3d& u, const RingAxes& axes,
                                     const std::array<SeenHit, kNormalRays>& hits, double h,
                                     const Eigen::Vector3d& n) noexcept {
@@ -528,12 +541,14 @@ double SeenNormalReading::phase(int i) noexcept {
 const Eigen::Vector3d& SeenNormalReading::update(const SeenSolid& solid, const Eigen::Vector3d& point,
                                                  const Eigen::Vector3d& u, double h, double back, double reuse,
                                                  SeenScratch& scratch) noexcept {
-  if (!fresh_) {
-    normal_ = sum_ = solid.normal(point, u, h, h, back, scratch, phase(0));
+  if (!fresh_) {  // (SeenSolid::normal(), its rays kept)
+    for (int k = 0; k < SeenSolid::kNormalRays; ++k)
+      hits_[std::size_t(k)] = solid.normal_ray(point, u, k, h, h, back, scratch, phase(0));
+    normal_ = sum_ = SeenSolid::normal_from(u, hits_, h, phase(0));
     at_ = point;
     fresh_ = true;
     pending_ = -1;
-    spot_readings_ = 1;
+    spot_readings_ = SeenSolid::creased(u, hits_, h, phase(0)) ? kPhases : 1;
     next_phase_ = 1;
     settling_ = false;
     return normal_;
@@ -557,6 +572,11 @@ const Eigen::Vector3d& SeenNormalReading::update(const SeenSolid& solid, const E
   if (++pending_ < SeenSolid::kNormalRays) return normal_;
   pending_ = -1;
   const Eigen::Vector3d n = SeenSolid::normal_from(u, hits_, pending_h_, pending_phase_);
+  const bool creased = SeenSolid::creased(u, hits_, pending_h_, pending_phase_);
+  if (refining_ && creased) {  // (a turned ring met a crease the spot's first did not: no more turns)
+    spot_readings_ = kPhases;
+    return normal_;
+  }
   if (refining_) {
     sum_ += n;
     ++spot_readings_;
@@ -566,7 +586,7 @@ const Eigen::Vector3d& SeenNormalReading::update(const SeenSolid& solid, const E
   }
   normal_ = sum_ = n;
   at_ = pending_at_;
-  spot_readings_ = 1;
+  spot_readings_ = creased ? kPhases : 1;
   settling_ = false;
   return normal_;
 }
