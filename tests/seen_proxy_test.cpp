@@ -1067,6 +1067,66 @@ TEST(SeenProxy, SlidingAlongAFloorIntoAWallTheWallHoldsAndTheProxyRisesAlongIt) 
   }
 }
 
+// slide_along_walls cuts a step longer than its max_len to it: the walls are searched over that
+// length alone (the search's cost grows with its line), and the proxy catches up a tick at a time.
+TEST(WallSlide, AStepLongerThanTheLongestIsCutAndSearchedOnlyThatFar) {
+  const Eigen::Vector3d step(0.03, 0.04, 0);  // 5 cm
+  std::vector<double> searched;
+  const auto no_wall = [&](const Eigen::Vector3d&, const Eigen::Vector3d&, double len, Eigen::Vector3d&) {
+    searched.push_back(len);
+    return std::numeric_limits<double>::infinity();
+  };
+  const WallSlide free = slide_along_walls(step, 1e-6, 0.01, no_wall);
+  ASSERT_EQ(searched.size(), 1u);
+  EXPECT_NEAR(searched[0], 0.01, 1e-15);
+  EXPECT_NEAR((free.moved - 0.01 * step.normalized()).norm(), 0.0, 1e-15);  // cut along its own direction
+  EXPECT_EQ(free.wall, Eigen::Vector3d::Zero());
+  // A step within the longest goes all the way, searched at its own length.
+  searched.clear();
+  const WallSlide whole = slide_along_walls(step, 1e-6, 0.1, no_wall);
+  ASSERT_EQ(searched.size(), 1u);
+  EXPECT_NEAR(searched[0], 0.05, 1e-15);
+  EXPECT_NEAR((whole.moved - step).norm(), 0.0, 1e-15);
+  // A wall (normal -x) 4 mm along the cut step: the rest of the 10 mm slides along it, searched
+  // for the 6 mm left, not for what lay beyond the cut.
+  searched.clear();
+  const Eigen::Vector3d n(-1, 0, 0);
+  const auto wall = [&](const Eigen::Vector3d&, const Eigen::Vector3d&, double len, Eigen::Vector3d& normal) {
+    searched.push_back(len);
+    if (searched.size() > 1) return std::numeric_limits<double>::infinity();
+    normal = n;
+    return 0.004;
+  };
+  const WallSlide held = slide_along_walls(step, 1e-6, 0.01, wall);
+  ASSERT_EQ(searched.size(), 2u);
+  EXPECT_NEAR(searched[1], 0.006 * 0.8, 1e-12);  // the rest's part along the wall (0.8 of it is along y)
+  EXPECT_NEAR(held.moved.x(), 0.004 * 0.6, 1e-12);
+  EXPECT_NEAR(held.moved.y(), 0.004 * 0.8 + 0.006 * 0.8, 1e-12);
+  EXPECT_EQ(held.wall, n);
+}
+
+// A sphere resting on the floor, its device thrown 6 R across in one tick (a jammed tool let
+// go): the proxy follows at seen_footprint::kMaxSlide R a tick, not all at once, and arrives.
+TEST(SeenProxy, AProxyFarBehindItsGoalCatchesUpAtTheLongestSlideATick) {
+  const double r = 0.005;
+  const CollisionWorld w = CollisionWorld::build(floor_and_wall(), seen_world());
+  ProxyParams params = seen_params();
+  params.mu_s = params.mu_k = 0;  // (no friction: the goal is the device's place across the axis)
+  ProxyRenderer p(w, params);
+  const Eigen::Vector3d rest(0.03, 0, 0.004), far(0.06, 0, 0.004);  // 1 mm into the floor
+  move(p, r, Eigen::Vector3d(0.03, 0, 0.03), rest, 500);
+  (void)move(p, r, rest, rest, 50);
+  double x = p.render(ToolEllipsoid::sphere(rest, r), Eigen::Vector3d::Zero(), 1e-3).proxy.x();
+  for (int k = 1; k <= 5; ++k) {
+    const double next = p.render(ToolEllipsoid::sphere(far, r), Eigen::Vector3d::Zero(), 1e-3).proxy.x();
+    EXPECT_NEAR(next - x, seen_footprint::kMaxSlide * r, 1e-6 * r) << k;
+    x = next;
+  }
+  const RenderOutput there = move(p, r, far, far, 5).last;
+  EXPECT_NEAR(there.proxy.x(), far.x(), 1e-6);
+  EXPECT_GT(there.force.z(), 0.5);  // still on the floor
+}
+
 // The fidelity cube (Gaussians 2 mm apart), a 5 and a 10 mm sphere slid 2 mm deep over its
 // edge and down its side. Past the edge the side face is seen edge-on along the top's axis: the
 // contact ended and half the path felt nothing (lost 50 and 54 %, bench/RESULTS.md). The ball now

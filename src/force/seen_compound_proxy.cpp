@@ -480,7 +480,7 @@ Eigen::Vector3d SeenCompoundProxy::slide_across(const Eigen::Vector3d& goal,
   Eigen::Vector3d step = goal - x_;
   step -= step.dot(a) * a;
   const WallSlide slide = slide_along_walls(
-      step, kSlideMin * min_axis_, [&](const Eigen::Vector3d& u, const Eigen::Vector3d& moved, double len, Eigen::Vector3d& wall) {
+      step, kSlideMin * min_axis_, seen_footprint::kMaxSlide * min_axis_, [&](const Eigen::Vector3d& u, const Eigen::Vector3d& moved, double len, Eigen::Vector3d& wall) {
         double nearest = len;
         for (int j = 0; j < tool_.count; ++j) {
           const double m = middle_[std::size_t(j)];

@@ -526,7 +526,7 @@ Eigen::Vector3d SeenProxy::slide_across(const Eigen::Vector3d& goal, double radi
   // height field climbs, the footprint's groove walls) does not stop it.
   const double lead = (1 - kWallDepth) * radius, stop = (kWallDepth + kWallGap) * radius;
   const WallSlide slide = slide_along_walls(
-      step, kSlideMin * radius, [&](const Eigen::Vector3d& u, const Eigen::Vector3d& moved, double len, Eigen::Vector3d& wall) {
+      step, kSlideMin * radius, seen_footprint::kMaxSlide * radius, [&](const Eigen::Vector3d& u, const Eigen::Vector3d& moved, double len, Eigen::Vector3d& wall) {
         const SeenHit hit = solid_.first_inside(proxy_ + moved, u, 0, lead, lead + len + stop, scratch_);
         // (Kept kWallGap R short of the wall, so the next tick's line meets it ahead of the
         // leading point, not at it, where rounding would put it behind; < 0: backs out of the wall.)

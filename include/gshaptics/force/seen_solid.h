@@ -123,6 +123,12 @@ inline constexpr double kClimbSlope = 4.0;
 inline constexpr double kClimbTick = kLate / kRays;
 /// A rise of more than this in one tick is the top of a wall, not a surface slid onto.
 inline constexpr double kMaxClimb = 1.0;
+/// The farthest the proxy moves across its axis in one tick (slide_along_walls' `max_len`): a
+/// proxy left far behind its goal (a tool jammed by a wall while the device goes on) catches up
+/// at this a tick (R per ms: metres a second for millimetre tools, past any hand's speed), and
+/// the walls' search, whose cost grows with its line, reads no further a tick (the seen stylus
+/// held in halo's probe run searched lines 16-32 middle semi-axes long on most ticks).
+inline constexpr double kMaxSlide = 1.0;
 
 /// How far the resting proxy may rise along its axis in one tick (same unit as `slide`): a rigid
 /// body rises onto a bump over the part of its shadow the bump is in, while the seen height field
@@ -463,15 +469,20 @@ class SeenSolid {
 /// proxy moved by `moved`, the first wall stops it (>= len: none within the step's length len)
 /// and sets that wall's unit normal. The proxy goes there, and what is left of the step slides
 /// along that wall, searched again: a second wall stops it (no third search). Steps no longer
-/// than `min_len` are not searched. Returns how far the proxy moved and the last wall it met
-/// (zero: none). The god-object's constrained move (Zilles and Salisbury 1995) on the seen solid.
+/// than `min_len` are not searched; a step longer than `max_len` is cut to it, in its direction
+/// (the rest is left to the next ticks: seen_footprint::kMaxSlide). Returns how far the proxy
+/// moved and the last wall it met (zero: none). The god-object's constrained move (Zilles and
+/// Salisbury 1995) on the seen solid.
 struct WallSlide {
   Eigen::Vector3d moved = Eigen::Vector3d::Zero();
   Eigen::Vector3d wall = Eigen::Vector3d::Zero();
 };
 template <typename NearestWall>
-[[nodiscard]] WallSlide slide_along_walls(Eigen::Vector3d step, double min_len, NearestWall&& nearest_wall) noexcept {
+[[nodiscard]] WallSlide slide_along_walls(Eigen::Vector3d step, double min_len, double max_len,
+                                          NearestWall&& nearest_wall) noexcept {
   WallSlide s;
+  const double whole = step.norm();
+  if (whole > max_len) step *= max_len / whole;
   for (int pass = 0; pass < 2; ++pass) {
     const double len = step.norm();
     if (!(len > min_len)) break;
