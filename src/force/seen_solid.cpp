@@ -379,7 +379,7 @@ Eigen::Vector3d SeenSolid::shade(const Eigen::Vector3d& u, const SeenHit& hit, c
 
 Eigen::Vector3d SeenSolid::ring_direction(const Eigen::Vector3d& u, int k, double phase) noexcept {
   const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-  const double angle = 2 * 3.14159265358979323846 * k / kNormalRays + phase;
+  const double angle = 2 * std::numbers::pi * k / kNormalRays + phase;
   return std::cos(angle) * a + std::sin(angle) * b;
 }
 
@@ -544,14 +544,10 @@ const Eigen::Vector3d& SeenNormalReading::update(const SeenSolid& solid, const E
   if (!fresh_) {  // (SeenSolid::normal(), its rays kept)
     for (int k = 0; k < SeenSolid::kNormalRays; ++k)
       hits_[std::size_t(k)] = solid.normal_ray(point, u, k, h, h, back, scratch, phase(0));
-    normal_ = sum_ = SeenSolid::normal_from(u, hits_, h, phase(0));
-    at_ = point;
     fresh_ = true;
     pending_ = -1;
-    spot_readings_ = SeenSolid::creased(u, hits_, h, phase(0)) ? kPhases : 1;
     next_phase_ = 1;
-    settling_ = false;
-    return normal_;
+    return start_spot(point, SeenSolid::normal_from(u, hits_, h, phase(0)), SeenSolid::creased(u, hits_, h, phase(0)));
   }
   if (pending_ < 0) {
     // A new spot once the point moved `reuse` from the last; else the spot's next turn of the
@@ -584,9 +580,14 @@ const Eigen::Vector3d& SeenNormalReading::update(const SeenSolid& solid, const E
     settling_ = true;
     return normal_;
   }
+  return start_spot(pending_at_, n, creased);
+}
+
+const Eigen::Vector3d& SeenNormalReading::start_spot(const Eigen::Vector3d& at, const Eigen::Vector3d& n,
+                                                     bool creased) noexcept {
   normal_ = sum_ = n;
-  at_ = pending_at_;
-  spot_readings_ = creased ? kPhases : 1;
+  at_ = at;
+  spot_readings_ = creased ? kPhases : 1;  // (a creased spot is not read with the ring turned)
   settling_ = false;
   return normal_;
 }

@@ -540,6 +540,8 @@ class SeenNormalReading {
   [[nodiscard]] static double phase(int i) noexcept;
 
  private:
+  // A reading `n` at a new spot `at` (its first, unturned): the spot's normal and sum.
+  const Eigen::Vector3d& start_spot(const Eigen::Vector3d& at, const Eigen::Vector3d& n, bool creased) noexcept;
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero(), at_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d sum_ = Eigen::Vector3d::Zero();  // the spot's readings summed
   bool fresh_ = false, refining_ = false, settling_ = false;
