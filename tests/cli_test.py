@@ -949,7 +949,7 @@ class Stability(unittest.TestCase):
             out = os.path.join(d, "A.md")
             run("stability", "--no-plot", "--out", out, "--shape", "plane", "--rate", "1000", "--delay", "2",
                 "--push", "10", "--stiffness", "20000", "--trace-stiffness", "20000", "--duration", "1.5")
-            with open(os.path.join(d, "stability", "stability_traces.csv")) as f:
+            with open(os.path.join(d, "a", "stability_traces.csv")) as f:  # beside A.md, named after it
                 rows = list(csv.DictReader(f))
             heights = {}
             for r in rows:

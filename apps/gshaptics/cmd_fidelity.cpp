@@ -27,7 +27,7 @@ void register_fidelity(CLI::App& app) {
       "tick cost) and figures. --quick runs a small subset (CI).");
   cmd->add_flag("--quick", o->quick, "One density, one tool, 4 sites, 4 shapes");
   cmd->add_option("--out", o->out, "Markdown report")->capture_default_str();
-  cmd->add_option("--data-dir", o->data_dir, "Curves (CSV) and figures (default: beside --out, in fidelity/)");
+  cmd->add_option("--data-dir", o->data_dir, "Curves (CSV) and figures (default: beside --out, in a folder named after it: fidelity/ for FIDELITY.md)");
   cmd->add_option("--scene-dir", o->scene_dir, "Where the generated scenes are written and reused")->capture_default_str();
   cmd->add_option("--seed", o->seed, "Seed of the scenes and sites")->capture_default_str();
   cmd->add_flag("--no-plot", o->no_plot, "Skip the figures (matplotlib)");

@@ -23,7 +23,7 @@ void register_stability(CLI::App& app) {
       "runs a small subset (CI).");
   cmd->add_flag("--quick", o->quick, "The plane, 1 kHz, 0 and 5 ms, five stiffnesses, 1.5 s trials");
   cmd->add_option("--out", o->out, "Markdown report")->capture_default_str();
-  cmd->add_option("--data-dir", o->data_dir, "CSV and figure (default: beside --out, in stability/)");
+  cmd->add_option("--data-dir", o->data_dir, "CSV and figure (default: beside --out, in a folder named after it: stability/ for STABILITY.md)");
   cmd->add_flag("--no-plot", o->no_plot, "Skip the figure (matplotlib)");
   cmd->add_option("--control", o->control, "impedance, admittance or both")
       ->capture_default_str()->check(CLI::IsMember({"impedance", "admittance", "both"}));

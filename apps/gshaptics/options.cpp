@@ -174,42 +174,42 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
          "assigned to boxes, spheres, Gaussian indices or colours of the scene; docs/usage.md). The properties under the proxy blend by weight; what a material "
          "leaves out, and every surface no region claims, keeps --stiffness, --coupling-damping, --mu-s, --mu-k")
       ->type_name("FILE");
-  cmd.add_flag("--opacity-stiffness", p.opacity_stiffness, "proxy: scale k_c by the blocking Gaussians' opacity (paper eq. 9)");
-  cmd.add_option("--substeps", p.substeps, "proxy: sweeps per tick")->capture_default_str()->check(CLI::Range(1, 16));
+  cmd.add_flag("--opacity-stiffness", p.opacity_stiffness, "proxy, --surface ellipsoids: scale k_c by the blocking Gaussians' opacity (paper eq. 9)");
+  cmd.add_option("--substeps", p.substeps, "proxy, --surface ellipsoids: sweeps per tick")->capture_default_str()->check(CLI::Range(1, 16));
   cmd.add_option_function<std::string>(
          "--energy-bound", [&p](const std::string& v) { p.energy_bound = v == "on"; },
-         "proxy: the shaded normal's turns under the loaded coupling spring add no energy the contact's "
+         "proxy, --surface ellipsoids: the shaded normal's turns under the loaded coupling spring add no energy the contact's "
          "earlier turns did not take out (SpringEnergyBound). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option("--device-shading", p.device_shading,
-                 "proxy: where the shaded normal turns slowly, also read it where the device would rest, at most "
+                 "proxy, --surface ellipsoids: where the shaded normal turns slowly, also read it where the device would rest, at most "
                  "this many tool radii from the proxy, and blend the two while they agree (0: off)")
       ->capture_default_str()->check(check::non_negative());
   cmd.add_option_function<std::string>(
          "--corner-normal", [&p](const std::string& v) { p.corner_normal = v == "on"; },
-         "proxy: at a clean convex corner of the Gaussians (three faces) the force turns to the patch's "
+         "proxy, --surface ellipsoids: at a clean convex corner of the Gaussians (three faces) the force turns to the patch's "
          "support normal, which stays in the corner's normal cone (off: the shaded field). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option_function<std::string>(
          "--crest-hold", [&p](const std::string& v) { p.crest_hold = v == "on"; },
-         "proxy: pressed into a clean convex edge or corner of the Gaussians (the spring inside its normal cone, "
+         "proxy, --surface ellipsoids: pressed into a clean convex edge or corner of the Gaussians (the spring inside its normal cone, "
          "the device moving along the spring), the proxy holds where it rests, as a god-object on a polyhedron "
          "does (off: it slides off the crest). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option_function<std::string>(
          "--overhang-falloff", [&p](const std::string& v) { p.overhang_falloff = v == "on"; },
-         "proxy: where a disc of the other face overhangs a convex edge and blocks the tool beside it, the "
+         "proxy, --surface ellipsoids: where a disc of the other face overhangs a convex edge and blocks the tool beside it, the "
          "shaded normal leaves out that face's discs behind the face under the tool (off: every disc near "
          "counts). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option_function<std::string>(
          "--near-lists", [&p](const std::string& v) { p.near_lists = v == "on"; },
-         "proxy: a compound tool's sweeps read each part's last near list instead of the BVH while it rests "
+         "proxy, --surface ellipsoids: a compound tool's sweeps read each part's last near list instead of the BVH while it rests "
          "(the same contacts; off: the BVH every sweep). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option_function<std::string>(
          "--face-average", [&p](const std::string& v) { p.face_average = v == "on"; },
-         "proxy: on a clean flat face of the Gaussians, a compound tool's part averages its shaded normal with the "
+         "proxy, --surface ellipsoids: on a clean flat face of the Gaussians, a compound tool's part averages its shaded normal with the "
          "face's mean thin axis while they agree (off: the shaded field). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option_function<std::string>(
@@ -220,21 +220,21 @@ void add_force_options(CLI::App& cmd, ForceModelOptions& o, const ToolOption* to
              std::string(proxy_surface_name(ProxyParams{}.surface)))
       ->check(CLI::IsMember({"ellipsoids", "seen"}));
   cmd.add_option("--seen-window", p.seen_window,
-                 "proxy: with --surface seen, the layers within this many tool radii behind a point along the push "
+                 "proxy on the seen solid (the default): the layers within this many tool radii behind a point along the push "
                  "decide whether it is inside")
       ->capture_default_str()->check(check::positive());
   cmd.add_option_function<std::string>(
          "--seen-footprint", [&p](const std::string& v) { p.seen_footprint = v == "on"; },
-         "proxy: with --surface seen, a sphere tool's footprint: rays around its leading point hold it as a rigid "
+         "proxy on the seen solid (the default): a sphere tool's footprint: rays around its leading point hold it as a rigid "
          "ball on the rim of a see-through hole narrower than it and on the walls of a groove (one more short ray "
          "a tick; off: the leading point's ray alone). Default: on")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option("--isolation-gap", p.isolation_gap,
-                 "proxy: a Gaussian with no other within this many tool radii is a floater and does not block "
+                 "proxy, --surface ellipsoids: a Gaussian with no other within this many tool radii is a floater and does not block "
                  "(0: only overlapping Gaussians support each other, which lets the tool through sparse surfaces)")
       ->capture_default_str()->check(check::non_negative());
   cmd.add_option("--floater-cluster", p.floater_cluster,
-                 "proxy: a clump of at most this many overlapping Gaussians with nothing else within their own "
+                 "proxy, --surface ellipsoids: a clump of at most this many overlapping Gaussians with nothing else within their own "
                  "size is a floater too (1: single Gaussians only)")
       ->capture_default_str()->check(CLI::Range(std::size_t(1), FloaterRule::kLargestCluster));
   cmd.add_option("--device-profile", o.profile,

@@ -556,6 +556,14 @@ std::string describe_defects(const FidelityOptions& o) {
   return t;
 }
 
+// The default world's filter and solid in words, for the report's header.
+std::string world_words(const RendererSpec& renderer) {
+  const auto* proxy = std::get_if<ProxyModelSpec>(&renderer);
+  const bool seen = proxy != nullptr && proxy->params.surface == ProxySurface::kSeen;
+  return fmt::format("opacity > {:.4g}{}", default_min_opacity(renderer),
+                     seen ? ", the proxy on the seen solid" : proxy ? ", the proxy on the ellipsoids" : "");
+}
+
 }  // namespace
 
 void write_fidelity_markdown(const FidelityReport& rep, const std::string& path, const std::string& command,
@@ -566,8 +574,8 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
   md += fmt::format(
       "{} ticks at {:g} Hz in {:.0f} s. Scenes: Gaussians on analytic surfaces (`gshaptics synth`, seed {}; "
       "flat discs, log-normal sizes around the spacing, 0.5 mm normal jitter, 3 deg tilt, 15 % below the 0.2 "
-      "opacity filter, 0.3 % floaters 5-30 mm off the surface and clear of it by 2 mm), loaded as INRIA PLY, default world "
-      "(opacity > 0.2, 1 sigma). The device is ideal and position-controlled: it follows the script, and "
+      "opacity filter, 0.3 % floaters 5-30 mm off the surface and clear of it by 2 mm), loaded as INRIA PLY, the force model's "
+      "default world ({}, 1 sigma). The device is ideal and position-controlled: it follows the script, and "
       "the force the servo commands (the runtime's step: safety layer and execution mode included) is "
       "recorded. delta = how far the tool's surface is past the true surface. Direction error: "
       "angle between F and the nearest direction of the true normal cone (a slide: of the faces the sphere "
@@ -576,7 +584,7 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
       "which F points out (within 90 deg of the site normal) and stays >= 10 % of the peak reached so far. W = -sum F.v dt "
       "over the closed cycle (W < 0: the scene gave back more energy than it took). Tick: render() wall "
       "time including its collision queries.\n\n",
-      rep.ticks, o.rate_hz, rep.seconds, o.seed);
+      rep.ticks, o.rate_hz, rep.seconds, o.seed, world_words(o.renderer));
   PlayOptions other = o.play;
   other.inline_query = !other.inline_query;
   md += fmt::format("Execution mode: **{}**{}{}.\n\n", describe_mode(o.play),

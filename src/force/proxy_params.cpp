@@ -128,7 +128,8 @@ void validate_proxy_params(const ProxyParams& p, std::string_view who) {
   for (const ProxySurfaceField& f : kSurfaceFields) {
     if (f.serves == p.surface || f.at_default(p)) continue;
     refused += std::string(refused.empty() ? "" : "; ") + std::string(f.name) + " (" + std::string(f.option) +
-               ") serves the surface " + std::string(proxy_surface_name(f.serves)) + " only: " + std::string(f.why_not);
+               ") serves the surface " + std::string(proxy_surface_name(f.serves)) + " only (--surface " +
+               std::string(proxy_surface_name(f.serves)) + "): " + std::string(f.why_not);
   }
   if (!refused.empty()) fail(who, refused);
 }

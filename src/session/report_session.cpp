@@ -30,6 +30,15 @@ std::filesystem::path report_folder(const std::string& out, const std::string& c
   return path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
 }
 
+// The report's data folder: `data_dir` when given, else beside the report in a folder named after
+// it in lower case (bench/FIDELITY-paper.md: bench/fidelity-paper/), so two reports never share one.
+std::string report_data_dir(const std::string& out, const std::string& data_dir) {
+  if (!data_dir.empty()) return data_dir;
+  std::string stem = std::filesystem::path(out).stem().string();
+  std::transform(stem.begin(), stem.end(), stem.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return (std::filesystem::path(out).parent_path() / stem).string();
+}
+
 }  // namespace
 
 FidelityOptions fidelity_options_from(const FidelityCommandOptions& o) {
@@ -107,9 +116,7 @@ std::string fidelity_command_line(const FidelityCommandOptions& o) {
 void run_fidelity_command(const FidelityCommandOptions& o) {
   const FidelityOptions fo = fidelity_options_from(o);
   const std::filesystem::path folder = report_folder(o.out, "fidelity");
-  // (Beside the report; "fidelity" itself when the report has no folder.)
-  const std::string data_dir =
-      o.data_dir.empty() ? (std::filesystem::path(o.out).parent_path() / "fidelity").string() : o.data_dir;
+  const std::string data_dir = report_data_dir(o.out, o.data_dir);
   std::filesystem::create_directories(folder);
   const FidelityReport rep = run_fidelity(fo, [](const std::string& line) { fmt::print(stderr, "fidelity   {}\n", line); });
   write_fidelity_data(rep, data_dir);
@@ -215,10 +222,7 @@ void run_seen_felt_command(const SeenFeltCommandOptions& o) {
   const std::vector<std::string> scenes = o.scenes.empty() ? seen_felt_default_scenes() : o.scenes;
   if (scenes.empty())
     throw InputError("seen-felt: no scene given and none of the shared scenes found (set GSHAPTICS_SCENES)");
-  // Beside the report, in a folder named after it (bench/SEEN_FELT.md: bench/seen_felt/).
-  std::string stem = std::filesystem::path(o.out).stem().string();
-  std::transform(stem.begin(), stem.end(), stem.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  const std::string data_dir = o.data_dir.empty() ? (folder / stem).string() : o.data_dir;
+  const std::string data_dir = report_data_dir(o.out, o.data_dir);
   const SeenFeltProgressFn progress = [](const std::string& line) { fmt::print(stderr, "seen-felt  {}\n", line); };
   const SeenFeltReport rep = o.objects.objects.empty() ? run_seen_felt(scenes, so, progress)
                                                        : seen_felt_on_objects(scenes, o.objects, so, progress);
@@ -286,7 +290,7 @@ std::string stability_command_line(const StabilityCommandOptions& o) {
 void run_stability_command(const StabilityCommandOptions& o) {
   const StabilityOptions so = stability_options_from(o);
   const std::filesystem::path folder = report_folder(o.out, "stability");
-  const std::string data_dir = o.data_dir.empty() ? (folder / "stability").string() : o.data_dir;
+  const std::string data_dir = report_data_dir(o.out, o.data_dir);
   const StabilityReport rep = run_stability(so, [](const std::string& line) { fmt::print(stderr, "stability  {}\n", line); });
   std::filesystem::create_directories(data_dir);
   const std::string csv = (std::filesystem::path(data_dir) / "stability_trials.csv").string();

@@ -316,19 +316,20 @@ void print_world_preview(const LoadedScene& s, const SceneOptions& so) {
   const Eigen::Vector3d up = world_up(cfg.registration, cfg.up, s.scene.frame);
   const WorldPreview w = preview_world(s.scene, cfg.min_opacity, to_world, up);
   const double kept_share = double(w.kept) / double(std::max<std::size_t>(1, s.scene.size()));
-  fmt::print("filter     opacity > {:.2f} keeps {} of {} ({:.1f}%)\n", cfg.min_opacity, w.kept,
-             s.scene.size(), 100.0 * kept_share);
+  fmt::print("filter     opacity > {:.2f} keeps {} of {} ({:.1f}%): the world of --surface ellipsoids and "
+             "--force-model paper\n", cfg.min_opacity, w.kept, s.scene.size(), 100.0 * kept_share);
   std::size_t drawn = 0, faint = 0;  // what a viewer draws (alpha >= 1/255), and of it below 0.2
   for (float o : s.scene.opacities) {
     drawn += o > kSeenMinOpacity ? 1 : 0;
     faint += o > kSeenMinOpacity && o <= kDefaultMinOpacity ? 1 : 0;
   }
   fmt::print("faint      {} of {} Gaussians a viewer draws ({:.1f}%) have opacity <= {:.1f}: layers of them "
-             "composite to surfaces the ellipsoids miss; --surface seen keeps and composites all {}\n",
+             "composite to surfaces the ellipsoids miss; the seen solid (the default) keeps and composites all {}\n",
              faint, drawn, 100.0 * double(faint) / double(std::max<std::size_t>(1, drawn)), kDefaultMinOpacity, drawn);
   if (kept_share < 0.5)
     fmt::print("warning    the filter keeps only {:.0f}%: thin or semi-transparent parts may not be "
-               "touchable; a lower --min-opacity (0.1) keeps more, or --surface seen\n", 100 * kept_share);
+               "touchable with --surface ellipsoids or --force-model paper; a lower --min-opacity (0.1) keeps more, "
+               "and the seen solid (the default) keeps every Gaussian a viewer draws\n", 100 * kept_share);
   if (w.kept == 0) return;
   const bool transformed = cfg.up != UpAxis::kNone || !cfg.registration.is_identity();
   fmt::print("\nworld      {} (kept Gaussians' centres, world frame)\n",

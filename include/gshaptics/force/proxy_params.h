@@ -135,8 +135,9 @@ struct ProxyParams {
   /// back up to 12 mJ more than it took (bench/RESULTS.md, twenty-sixth session). false: the
   /// plain coupling. The rotational spring of a compound tool is not bounded.
   bool energy_bound = true;
-  /// Every tool. The solid the proxy rests on (kEllipsoids: the Gaussians' ellipsoids).
-  ProxySurface surface = ProxySurface::kEllipsoids;
+  /// Every tool. The solid the proxy rests on (kSeen: the surface the splats render, issue 71;
+  /// kEllipsoids: the Gaussians' exact ellipsoids, the solid before).
+  ProxySurface surface = ProxySurface::kSeen;
   /// kSeen, every tool. How far behind the tool's leading point the eye of the seen solid may
   /// be, in tool radii (> 0): the layers a push has come through since its approach began, up to
   /// this far back, count toward the surface it meets. Far enough that a viewer outside an

@@ -31,7 +31,7 @@ struct FidelityCommandOptions {
   bool quick = false;     ///< quick_fidelity_options() (CI)
   bool no_plot = false;   ///< no figures
   std::string out = "bench/FIDELITY.md";         ///< the Markdown report (.md)
-  std::string data_dir;                          ///< curves and figures; "": beside `out`, in fidelity/
+  std::string data_dir;                          ///< curves and figures; "": beside `out`, in a folder named after it (FIDELITY.md: fidelity/)
   std::string scene_dir = "runs/fidelity/scenes";  ///< where the generated scenes are written and reused
   std::uint64_t seed = FidelityOptions{}.seed;
   std::vector<std::string> shapes;     ///< shape names (parse_shape); empty: the run's default
@@ -95,7 +95,7 @@ void run_seen_felt_command(const SeenFeltCommandOptions& o);
 struct StabilityCommandOptions {
   bool quick = false, no_plot = false;
   std::string out = "bench/STABILITY.md";  ///< the Markdown report (.md)
-  std::string data_dir;                    ///< CSV and figure; "": beside `out`, in stability/
+  std::string data_dir;                    ///< CSV and figure; "": beside `out`, in a folder named after it (STABILITY.md: stability/)
   std::string control = "both";            ///< impedance, admittance or both
   std::vector<std::string> shapes;         ///< empty: the sweep's default
   std::vector<double> stiffnesses, delays_ms, rates;  ///< N/m, ms, Hz; empty: the sweep's default
