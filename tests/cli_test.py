@@ -159,7 +159,7 @@ class Info(unittest.TestCase):
         self.assertIn("4721 in file", p.stdout)
         self.assertIn("SH degree  3", p.stdout)
         self.assertIn("transform", p.stdout)
-        self.assertIn("opacity > 0.20 keeps", p.stdout)
+        self.assertIn("opacity > 0.2 keeps", p.stdout)
         # the seen normal's least ring: the drawn Gaussians' median middle axis (2 mm on a 0.45 m scene)
         self.assertIn("middle axis median, drawn Gaussians: 0.001911", p.stdout)
 
@@ -366,7 +366,7 @@ class Simulate(unittest.TestCase):
         sim_out = tempfile.mkdtemp()
         run("simulate", "--sites", "1", "--out", sim_out, "--quiet", "--no-plot")
         radius = repr(load_json(os.path.join(sim_out, "summary.json"))["tool_radius"])
-        for surface, kept in (("seen", "opacity > 0.00: kept 116544 (100.0%)"), ("ellipsoids", "opacity > 0.20")):
+        for surface, kept in (("seen", "opacity > 0.0039: kept 116544 (100.0%)"), ("ellipsoids", "opacity > 0.2")):
             p = run("run", "--device", "replay:" + os.path.join(sim_out, "probe_log.csv"), "--simulated-time",
                     "--tool-radius", radius, "--quiet", "--no-plot", "--out", tempfile.mkdtemp(), "--surface", surface)
             self.assertIn(kept, p.stdout, surface)

@@ -150,7 +150,7 @@ void run_convert_command(const ConvertCommandOptions& o) {
   if (o.min_opacity >= 0.f) {
     OpacityFilterReport rep;
     scene = filter_by_opacity(scene, o.min_opacity, &rep);
-    fmt::print("filter     opacity > {:.2f}: kept {} of {}\n", o.min_opacity, rep.after, rep.before);
+    fmt::print("filter     opacity > {:.2g}: kept {} of {}\n", o.min_opacity, rep.after, rep.before);
   }
   const WorldConfig cfg = world_config_from(o.scene);
   if (rotates_twice(cfg.registration, cfg.up))

@@ -316,7 +316,7 @@ void print_world_preview(const LoadedScene& s, const SceneOptions& so) {
   const Eigen::Vector3d up = world_up(cfg.registration, cfg.up, s.scene.frame);
   const WorldPreview w = preview_world(s.scene, cfg.min_opacity, to_world, up);
   const double kept_share = double(w.kept) / double(std::max<std::size_t>(1, s.scene.size()));
-  fmt::print("filter     opacity > {:.2f} keeps {} of {} ({:.1f}%): the world of --surface ellipsoids and "
+  fmt::print("filter     opacity > {:.2g} keeps {} of {} ({:.1f}%): the world of --surface ellipsoids and "
              "--force-model paper\n", cfg.min_opacity, w.kept, s.scene.size(), 100.0 * kept_share);
   std::size_t drawn = 0, faint = 0;  // what a viewer draws (alpha >= 1/255), and of it below 0.2
   for (float o : s.scene.opacities) {
@@ -450,7 +450,7 @@ PreparedWorld prepare_world(const SceneOptions& so, bool quiet, std::FILE* repor
   }
   fmt::print(report, "scene      {} ({}, {} Gaussians, {} skipped)\n", so.scene, to_string(s.report.format),
              s.report.loaded, s.report.skipped());
-  fmt::print(report, "filter     opacity > {:.2f}: kept {} ({:.1f}%)\n", cfg.min_opacity, br.filter.after,
+  fmt::print(report, "filter     opacity > {:.2g}: kept {} ({:.1f}%)\n", cfg.min_opacity, br.filter.after,
              100 * br.filter.kept_fraction());
   const Eigen::Vector3d up = for_print(world.up());
   fmt::print(report, "world      {} Gaussians, BVH built in {:.0f} ms, {:.1f} MB, up [{:.2f}, {:.2f}, {:.2f}]{}\n",
