@@ -94,8 +94,9 @@ void add_object_option(CLI::App& app, SceneOptions& o) {
 
 void add_world_options(CLI::App& app, SceneOptions& o) {
   app.add_option("--min-opacity", o.min_opacity,
-                 "Keep Gaussians with opacity > T (paper Sec. III-A: 0.1..0.3). Default: 0.2; 0.0039 (1/255, every "
-                 "Gaussian a viewer draws) with --surface seen")
+                 "Keep Gaussians with opacity > T (paper Sec. III-A: 0.1..0.3). Default: 0.0039 (1/255, every "
+                 "Gaussian a viewer draws) for the proxy on the seen solid, the default; 0.2 with --surface "
+                 "ellipsoids, with --force-model paper and for the commands without a force model")
       ->check(check::range(0.0, 1.0));
   app.add_option("--sigma", o.sigma, "Collision ellipsoid at K sigma (semi-axes K * scale)")
       ->capture_default_str()->check(check::positive());
