@@ -316,8 +316,8 @@ void print_world_preview(const LoadedScene& s, const SceneOptions& so) {
   const Eigen::Vector3d up = world_up(cfg.registration, cfg.up, s.scene.frame);
   const WorldPreview w = preview_world(s.scene, cfg.min_opacity, to_world, up);
   const double kept_share = double(w.kept) / double(std::max<std::size_t>(1, s.scene.size()));
-  fmt::print("filter     opacity > {:.2g} keeps {} of {} ({:.1f}%): the world of --surface ellipsoids and "
-             "--force-model paper\n", cfg.min_opacity, w.kept, s.scene.size(), 100.0 * kept_share);
+  fmt::print("filter     opacity > {:.2g} keeps {} of {} ({:.1f}%){}\n", cfg.min_opacity, w.kept, s.scene.size(),
+             100.0 * kept_share, so.min_opacity >= 0 ? "" : ": the world of --surface ellipsoids and --force-model paper");
   std::size_t drawn = 0, faint = 0;  // what a viewer draws (alpha >= 1/255), and of it below 0.2
   for (float o : s.scene.opacities) {
     drawn += o > kSeenMinOpacity ? 1 : 0;
