@@ -199,7 +199,7 @@ class InfoPreview(unittest.TestCase):
 
     def test_low_filter_share_warns(self):
         p = run("info", scene_file("fruitdrops.ply"))
-        self.assertRegex(p.stdout, r"warning +the filter keeps only 2[0-9]%")
+        self.assertRegex(p.stdout, r"warning +the 0.2 filter keeps only 2[0-9]%")
 
 
 class StrictInput(unittest.TestCase):

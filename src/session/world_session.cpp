@@ -309,27 +309,47 @@ void print_scene_report(const LoadedScene& s) {
              "of at least 1.5 times this, scaled by the registration)\n", st.drawn_middle_scale);
 }
 
-// The world the options make of it (filter, --up, registration) and the suggested options.
-void print_world_preview(const LoadedScene& s, const SceneOptions& so) {
-  const WorldConfig cfg = world_config_from(so);
-  const SimilarityTransform to_world = with_up_axis(cfg.registration, cfg.up, s.scene.frame);
-  const Eigen::Vector3d up = world_up(cfg.registration, cfg.up, s.scene.frame);
-  const WorldPreview w = preview_world(s.scene, cfg.min_opacity, to_world, up);
-  const double kept_share = double(w.kept) / double(std::max<std::size_t>(1, s.scene.size()));
-  fmt::print("filter     opacity > {:.2g} keeps {} of {} ({:.1f}%){}\n", cfg.min_opacity, w.kept, s.scene.size(),
-             100.0 * kept_share, so.min_opacity >= 0 ? "" : ": the world of --surface ellipsoids and --force-model paper");
+// The opacity filter's lines: the world a run makes (the default force model's filter unless
+// --min-opacity is given) and, when the filter is left to the model, what the 0.2 filter of
+// --surface ellipsoids and --force-model paper keeps, with a warning when that is little.
+void print_filter_lines(const GaussianScene& scene, std::size_t kept, float min_opacity, bool filter_left) {
+  const double total = double(std::max<std::size_t>(1, scene.size()));
+  fmt::print("filter     opacity > {:.2g} keeps {} of {} ({:.1f}%){}\n", min_opacity, kept, scene.size(),
+             100.0 * double(kept) / total, filter_left ? ": the world of run, simulate and serve (the seen solid)" : "");
+  double share = double(kept) / total;
+  if (filter_left) {
+    std::size_t kept_paper = 0;
+    for (float o : scene.opacities) kept_paper += o > kDefaultMinOpacity ? 1 : 0;
+    share = double(kept_paper) / total;
+    fmt::print("           opacity > {:.2g} keeps {} ({:.1f}%): the world of --surface ellipsoids and --force-model paper\n",
+               kDefaultMinOpacity, kept_paper, 100.0 * share);
+  }
   std::size_t drawn = 0, faint = 0;  // what a viewer draws (alpha >= 1/255), and of it below 0.2
-  for (float o : s.scene.opacities) {
+  for (float o : scene.opacities) {
     drawn += o > kSeenMinOpacity ? 1 : 0;
     faint += o > kSeenMinOpacity && o <= kDefaultMinOpacity ? 1 : 0;
   }
   fmt::print("faint      {} of {} Gaussians a viewer draws ({:.1f}%) have opacity <= {:.1f}: layers of them "
              "composite to surfaces the ellipsoids miss; the seen solid (the default) keeps and composites all {}\n",
              faint, drawn, 100.0 * double(faint) / double(std::max<std::size_t>(1, drawn)), kDefaultMinOpacity, drawn);
-  if (kept_share < 0.5)
-    fmt::print("warning    the filter keeps only {:.0f}%: thin or semi-transparent parts may not be "
+  if (share < 0.5)
+    fmt::print("warning    the {}filter keeps only {:.0f}%: thin or semi-transparent parts may not be "
                "touchable with --surface ellipsoids or --force-model paper; a lower --min-opacity (0.1) keeps more, "
-               "and the seen solid (the default) keeps every Gaussian a viewer draws\n", 100 * kept_share);
+               "and the seen solid (the default) keeps every Gaussian a viewer draws\n",
+               filter_left ? "0.2 " : "", 100 * share);
+}
+
+// The world the options make of it (filter, --up, registration) and the suggested options. With
+// the filter left to the model, the world is the default force model's (the seen solid keeps every
+// Gaussian a viewer draws), so the suggestions are those a default run would make.
+void print_world_preview(const LoadedScene& s, const SceneOptions& so) {
+  const bool filter_left = so.min_opacity < 0;
+  WorldConfig cfg = world_config_from(so);
+  if (filter_left) cfg.min_opacity = default_min_opacity(RendererSpec{});
+  const SimilarityTransform to_world = with_up_axis(cfg.registration, cfg.up, s.scene.frame);
+  const Eigen::Vector3d up = world_up(cfg.registration, cfg.up, s.scene.frame);
+  const WorldPreview w = preview_world(s.scene, cfg.min_opacity, to_world, up);
+  print_filter_lines(s.scene, w.kept, cfg.min_opacity, filter_left);
   if (w.kept == 0) return;
   const bool transformed = cfg.up != UpAxis::kNone || !cfg.registration.is_identity();
   fmt::print("\nworld      {} (kept Gaussians' centres, world frame)\n",
