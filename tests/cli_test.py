@@ -194,7 +194,11 @@ class SeenFelt(unittest.TestCase):
             self.assertEqual(r["no_force"], "0", r)
             self.assertLess(abs(float(r["felt_minus_seen"])), 0.5, r)
             self.assertGreater(float(r["onset_minus_seen"]), -1.0, r)
+            # over the sphere's shadow the force begins no earlier than on its centre line
+            self.assertGreaterEqual(float(r["onset_shadow_minus_seen"]), float(r["onset_minus_seen"]) - 1e-3, r)
+            self.assertGreater(float(r["onset_shadow_minus_seen"]), -0.5, r)
         self.assertIn("| truck.splat |", md)
+        self.assertIn("onset over the shadow, least (R)", md)
         self.assertFalse(any(n.endswith(".tmp") for n in os.listdir(out)))
 
     def test_a_stylus_on_the_seen_surface_is_felt_where_it_is_seen(self):
@@ -206,6 +210,8 @@ class SeenFelt(unittest.TestCase):
             self.assertEqual((r["tool"], r["tilt_deg"]), ("stylus", "30"))
             self.assertEqual(r["no_force"], "0", r)
             self.assertGreater(float(r["onset_minus_seen"]), -1.0, r)
+            # a stylus's onset is read over its shadow already
+            self.assertEqual(r["onset_shadow_minus_seen"], r["onset_minus_seen"], r)
         self.assertIn("styluses (stylus:24R,R", md)
         self.assertIn("--tool-shape stylus", md)
 

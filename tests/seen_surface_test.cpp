@@ -166,6 +166,13 @@ TEST(SeenFelt, TheProxyIsFeltWhereAnAnalyticSceneIsSeen) {
       EXPECT_LT(std::abs(r.felt_p90), 0.35);
       EXPECT_GT(r.onset_p10, -0.5);
       EXPECT_LT(r.onset_p10, 0.5);
+      EXPECT_GT(r.onset_shadow_min, -0.5);
+    }
+    // Over the sphere's shadow the force begins no earlier than on its centre line, and on a
+    // smooth surface facing the ray within 20 deg its rim meets nothing first: within 0.5 R.
+    for (const SeenFeltRay& r : rep.rays) {
+      EXPECT_GE(r.onset_shadow, r.onset_minus_seen - 1e-9);
+      EXPECT_LT(r.onset_shadow, 0.5);
     }
   }
 }

@@ -282,6 +282,13 @@ double depth_past_seen(const Viewer& seen, const SeenPoint& hit, const PressedTo
   return rel.dot(ray.dir) - (beside.hit ? beside.depth : hit.depth);
 }
 
+// The sphere of `tool` (count 0) as a one-part tool, for the readings over its shadow.
+PressedTool as_shape(const PressedTool& tool) {
+  PressedTool t = tool;
+  t.tool = CompoundTool::single(Eigen::Vector3d::Constant(tool.radius));
+  return t;
+}
+
 /// R: how far every part of a tool with a shape must start above the seen surface.
 constexpr double kStartClearance = 0.25;
 
@@ -310,6 +317,11 @@ bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit
       const std::optional<double> below =
           tool.tool.count > 0 ? depth_below_seen(seen, tool, tcp, ray.origin, ray.dir, whole) : std::nullopt;
       ray.onset_minus_seen = (below ? *below : (tcp + tool.lead - ray.origin).dot(ray.dir) - hit.depth) / r;
+      ray.onset_shadow = ray.onset_minus_seen;
+      if (tool.tool.count == 0) {  // the sphere's whole shadow too
+        const std::optional<double> side = depth_below_seen(seen, as_shape(tool), tcp, ray.origin, ray.dir, whole);
+        if (side) ray.onset_shadow = std::max(ray.onset_shadow, *side / r);
+      }
     }
     us.push_back(trace.render_us[i]);
   }
@@ -335,6 +347,8 @@ SeenFeltRow summarise(const std::vector<SeenFeltRay>& rays, SeenFeltRow row) {
   }
   if (!felt.empty()) row.felt_p90 = percentile(felt, 90);
   if (!onset.empty()) row.onset_p10 = percentile(onset, 10);
+  for (const SeenFeltRay& r : rays)
+    if (!std::isnan(r.onset_shadow)) row.onset_shadow_min = std::fmin(r.onset_shadow, row.onset_shadow_min);
   if (!us.empty()) row.render_p99_us = percentile(us, 99);
   return row;
 }
@@ -486,11 +500,12 @@ std::string summary_table(const SeenFeltReport& rep) {
 std::string detail_table(const SeenFeltReport& rep) {
   std::string md =
       "| scene | direction | R (% / units) | rays | through | no force | felt - seen p90 (R) | onset - seen p10 (R) | "
-      "caught | drawn | render p99 (us) | targets |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
+      "onset over the shadow, least (R) | caught | drawn | render p99 (us) | targets |\n"
+      "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
   for (const SeenFeltRow& r : rep.rows)
-    md += fmt::format("| {} | {} | {:g} / {:.4g} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", r.scene,
+    md += fmt::format("| {} | {} | {:g} / {:.4g} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", r.scene,
                       to_string(r.direction), r.tool_fraction * 100, r.tool_radius, r.rays, r.through, r.no_force,
-                      number(r.felt_p90), number(r.onset_p10), r.caught, r.drawn, number(r.render_p99_us, "{:.1f}"),
+                      number(r.felt_p90), number(r.onset_p10), number(r.onset_shadow_min), r.caught, r.drawn, number(r.render_p99_us, "{:.1f}"),
                       r.meets_targets(rep.options.rays) ? "met" : "missed");
   return md;
 }
@@ -513,9 +528,13 @@ void write_seen_felt_markdown(const SeenFeltReport& rep, const std::string& path
       "before the seen surface (the 3DGS median depth over every Gaussian of the file) to {:g} R past it, held {:g} s, "
       "through the servo step of a real-time run. Rays kept where the seen surface is within {:g} deg of facing the "
       "ray; {} per configuration wanted. Cells: rays through (felt more than 1 R past the seen surface) / rays, and "
-      "rays with no force at all.\n\n",
+      "rays with no force at all. The onset is read where the force first reaches {:g} N: a sphere's on its centre "
+      "line, a stylus's or a disc's over its whole shadow. \"Onset over the shadow\" (every configuration) reads a "
+      "sphere's over its shadow too, against every parallel line it started at least {:g} R above: about 0 where some "
+      "point of the tool touched what the eye sees (its side on a ledge beside the ray), well below 0 an invisible "
+      "wall.\n\n",
       command, rep.seconds, renderer_name(o.renderer), describe_mode(o.play), tool_description(o), o.speed, o.start, o.past, o.hold,
-      o.facing_deg, o.rays);
+      o.facing_deg, o.rays, o.force_threshold, kStartClearance);
   md += fmt::format("In all, {} of {} rays go more than 1 R through and {} feel nothing; {} of {} configurations meet "
                     "the targets (at most 1 ray through, none without force, felt - seen p90 <= 0.5 R, onset p10 >= "
                     "-1 R, all rays kept).\n\n",
@@ -529,13 +548,14 @@ void write_seen_felt_markdown(const SeenFeltReport& rep, const std::string& path
 void write_seen_felt_csv(const SeenFeltReport& rep, const std::string& path) {
   std::string csv =
       "scene,direction,tool_fraction,tool_radius,ox,oy,oz,ux,uy,uz,seen,facing_deg,felt_minus_seen,onset_minus_seen,"
-      "peak_force,through,no_force,render_p99_us,tool,tilt_deg\n";
+      "peak_force,through,no_force,render_p99_us,tool,tilt_deg,onset_shadow_minus_seen\n";
   for (const SeenFeltRay& r : rep.rays)
-    csv += fmt::format("{},{},{:g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.3f},{:.4f},{:.4f},{:.4f},{},{},{:.2f},{},{:g}\n",
+    csv += fmt::format("{},{},{:g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.3f},{:.4f},{:.4f},{:.4f},{},{},{:.2f},{},{:g},{:.4f}\n",
                        r.scene, to_string(r.direction), r.tool_fraction, r.tool_radius, r.origin.x(), r.origin.y(),
                        r.origin.z(), r.dir.x(), r.dir.y(), r.dir.z(), r.seen, r.facing_deg, r.felt_minus_seen,
                        r.onset_minus_seen, r.peak_force, int(r.through), int(r.no_force), r.render_p99_us,
-                       to_string(rep.options.tool), rep.options.tool == SeenFeltTool::kSphere ? 0.0 : rep.options.tilt_deg);
+                       to_string(rep.options.tool), rep.options.tool == SeenFeltTool::kSphere ? 0.0 : rep.options.tilt_deg,
+                       r.onset_shadow);
   write_file_atomically(path, csv);
 }
 

@@ -119,6 +119,12 @@ struct SeenFeltRay {
   double facing_deg = 0;        ///< seen normal against -dir
   double felt_minus_seen = NAN;  ///< R
   double onset_minus_seen = NAN; ///< R; NaN: no force
+  /// R; NaN: no force. Where the force began, the deepest point of the tool's whole shadow past
+  /// the seen surface (over the parallel lines it started at least 0.25 R above): about 0 or more
+  /// where some point of the tool touched what the eye sees (a sphere's side on a ledge beside the
+  /// ray), well below 0 an invisible wall. The stylus's and the disc's onset_minus_seen is read so
+  /// already; a sphere's is read on its centre line (the measure), this over its shadow.
+  double onset_shadow = NAN;
   double peak_force = 0;        ///< N
   bool through = false, no_force = false;
   double render_p99_us = NAN;   ///< over the ray's ticks
@@ -132,6 +138,7 @@ struct SeenFeltRow {
   int rays = 0, through = 0, no_force = 0, caught = 0, drawn = 0;
   double felt_p90 = NAN;   ///< R, p90 of felt - seen
   double onset_p10 = NAN;  ///< R, p10 of onset - seen over rays with a force
+  double onset_shadow_min = NAN;  ///< R, the least SeenFeltRay::onset_shadow over rays with a force
   double render_p99_us = NAN;
   /// The targets: <= 1 ray through, no ray without force, felt p90 <= 0.5 R, onset p10
   /// >= -1 R, and `rays` kept.
