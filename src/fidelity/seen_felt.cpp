@@ -343,12 +343,11 @@ SeenFeltRow summarise(const std::vector<SeenFeltRay>& rays, SeenFeltRow row) {
     row.no_force += r.no_force ? 1 : 0;
     felt.push_back(r.felt_minus_seen);
     if (!std::isnan(r.onset_minus_seen)) onset.push_back(r.onset_minus_seen);
+    if (!std::isnan(r.onset_shadow)) row.onset_shadow_min = std::fmin(r.onset_shadow, row.onset_shadow_min);
     us.push_back(r.render_p99_us);
   }
   if (!felt.empty()) row.felt_p90 = percentile(felt, 90);
   if (!onset.empty()) row.onset_p10 = percentile(onset, 10);
-  for (const SeenFeltRay& r : rays)
-    if (!std::isnan(r.onset_shadow)) row.onset_shadow_min = std::fmin(r.onset_shadow, row.onset_shadow_min);
   if (!us.empty()) row.render_p99_us = percentile(us, 99);
   return row;
 }

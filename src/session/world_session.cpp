@@ -316,18 +316,18 @@ void print_filter_lines(const GaussianScene& scene, std::size_t kept, float min_
   const double total = double(std::max<std::size_t>(1, scene.size()));
   fmt::print("filter     opacity > {:.2g} keeps {} of {} ({:.1f}%){}\n", min_opacity, kept, scene.size(),
              100.0 * double(kept) / total, filter_left ? ": the world of run, simulate and serve (the seen solid)" : "");
-  double share = double(kept) / total;
-  if (filter_left) {
-    std::size_t kept_paper = 0;
-    for (float o : scene.opacities) kept_paper += o > kDefaultMinOpacity ? 1 : 0;
-    share = double(kept_paper) / total;
-    fmt::print("           opacity > {:.2g} keeps {} ({:.1f}%): the world of --surface ellipsoids and --force-model paper\n",
-               kDefaultMinOpacity, kept_paper, 100.0 * share);
-  }
-  std::size_t drawn = 0, faint = 0;  // what a viewer draws (alpha >= 1/255), and of it below 0.2
+  // What a viewer draws (alpha >= 1/255), of it what is faint (opacity <= 0.2), and the rest.
+  std::size_t drawn = 0, faint = 0, kept_paper = 0;
   for (float o : scene.opacities) {
     drawn += o > kSeenMinOpacity ? 1 : 0;
     faint += o > kSeenMinOpacity && o <= kDefaultMinOpacity ? 1 : 0;
+    kept_paper += o > kDefaultMinOpacity ? 1 : 0;
+  }
+  double share = double(kept) / total;
+  if (filter_left) {
+    share = double(kept_paper) / total;
+    fmt::print("           opacity > {:.2g} keeps {} ({:.1f}%): the world of --surface ellipsoids and --force-model paper\n",
+               kDefaultMinOpacity, kept_paper, 100.0 * share);
   }
   fmt::print("faint      {} of {} Gaussians a viewer draws ({:.1f}%) have opacity <= {:.1f}: layers of them "
              "composite to surfaces the ellipsoids miss; the seen solid (the default) keeps and composites all {}\n",
