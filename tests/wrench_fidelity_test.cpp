@@ -200,6 +200,25 @@ TEST(WrenchFidelity, OnTheSeenSolidAStylusLiftedOffACoarseCubeEdgeIsNotPulledBac
   EXPECT_LT(f[f.size() * 95 / 100], 15.0);
 }
 
+// The stylus across the cube's edge on the seen solid at fidelity seeds 3 (2 mm) and 4 (4 mm),
+// every site: where the edge search's source line itself rests on the edge, no line between
+// meets the surface; that search found no edge point, the part was held on the line's own normal
+// and the force leaned along the edge, 30 degrees off (p95) on one site of each. The line is the
+// edge point; the direction the two searches give still errs (up to 13 degrees at p95 over these
+// sites against the 5-degree target: bench/RESULTS.md, ninety-sixth session).
+TEST(WrenchFidelity, OnTheSeenSolidAStylusRestingWithAFootprintLineOnTheEdgeIsHeldByTheEdge) {
+  for (const auto& [spacing, seed] : {std::pair{0.002, std::uint64_t{3}}, std::pair{0.004, std::uint64_t{4}}})
+    for (int site = 0; site < 3; ++site) {
+      SCOPED_TRACE(testing::Message() << "spacing " << spacing << ", seed " << seed << ", site " << site);
+      const WrenchMetrics m = play(ShapeKind::kCube, "stylus across an edge", spacing, seed, 3, site, seed, ProxySurface::kSeen);
+      std::vector<double> f = m.force_dir_deg;
+      ASSERT_GT(f.size(), 100u);
+      std::nth_element(f.begin(), f.begin() + std::ptrdiff_t(f.size() * 95 / 100), f.end());
+      EXPECT_LT(f[f.size() * 95 / 100], 15.0);  // (12.7 at 4 mm, site 2: the coarse edge's own raggedness)
+      EXPECT_TRUE(m.press.never_lost);
+    }
+}
+
 // Seed 27's third stylus across the 8 mm cube's edge (fidelity --seed 27): the stylus first
 // rests on a side-face disc standing proud of the top face, and the part beside the one resting
 // there comes within the contact band of the same disc, at a point inside its neighbour. It

@@ -343,6 +343,12 @@ void SeenCompoundProxy::search_edge(int j, int which, int source, const ToolElli
     g.foot[slot] = front;
     g.at[slot] = front.dot(axis_) + hit.t;
   }
+  // No line between met the surface: the source line itself is the last that does (a part
+  // resting with that line on the edge), not no edge.
+  if (!std::isfinite(g.at[slot])) {
+    g.foot[slot] = g.foot[std::size_t(source)];
+    g.at[slot] = g.at[std::size_t(source)];
+  }
 }
 
 void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllipsoid& resting) noexcept {
@@ -353,27 +359,18 @@ void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllip
   // point, and the part on a footprint line's own normal, 30 deg off, at 2 mm spacing).
   const double band = kContactBand * min_axis_;
   auto& e = edges_[std::size_t(j)];
-  // A search that found no edge is tried again once its line has come a quarter of the look nearer.
-  const double retry = 0.25 * kRingLook * middle_[std::size_t(j)];
   const auto holds = [&](int which, int r) {
     return r >= 0 && (which == 0 ? c.gaps[std::size_t(r)] <= c.nearest + band : std::isfinite(c.gaps[std::size_t(r)]));
   };
-  const auto stale = [&](int which) {
-    const EdgeSearch& s = e[std::size_t(which)];
-    return !holds(which, s.source) ||
-           (!std::isfinite(rings_[std::size_t(j)].at[std::size_t(kEdgeSlot + which)]) && c.gaps[std::size_t(s.source)] < s.tried - retry);
-  };
-  if (stale(0)) {
-    search_edge(j, 0, c.source, resting);
-    e[0].tried = c.nearest;
-  }
+  // (A search always ends on an edge point: where no line between met the surface, its source's.)
+  const auto stale = [&](int which) { return !holds(which, e[std::size_t(which)].source); };
+  if (stale(0)) search_edge(j, 0, c.source, resting);
   if (stale(1) || !apart(e[1].source, e[0].source)) {
     int second = -1;
     for (int r = 0; r < kRingRays; ++r)
       if (holds(1, r) && apart(r, e[0].source) && (second < 0 || c.gaps[std::size_t(r)] < c.gaps[std::size_t(second)]))
         second = r;
     search_edge(j, 1, second, resting);
-    e[1].tried = second >= 0 ? c.gaps[std::size_t(second)] : kInf;
   }
 }
 

@@ -188,7 +188,9 @@ class SeenCompoundProxy {
   // A search for the edge a part rests on by its footprint: bisection between a holding
   // footprint line (its surface under the part) and the part's leading point's line (none), both
   // points across the axis, kEdgeSteps lines at once; the last line that met the surface is the
-  // search's edge line. Two searches a part, from two holding lines 60 degrees or more apart
+  // search's edge line (the source line itself when none between did: a part resting with that
+  // line on the edge, which before was no edge, and the part held on that line's own normal, up
+  // to 30 deg off, at 2 and 4 mm spacing). Two searches a part, from two holding lines 60 degrees or more apart
   // around the shadow, give the edge's direction, and the part rests on the edge at its own
   // tangent point there (edge_gap).
   static constexpr int kEdgeSteps = 6;
@@ -196,7 +198,6 @@ class SeenCompoundProxy {
   static constexpr double kEdgeSpan = 0.2;  // middle semi-axes: two edge lines closer give no direction
   struct EdgeSearch {
     int source = -1;  // the footprint line it started from (-1: none)
-    double tried = std::numeric_limits<double>::infinity();  // that line's gap at the last update
   };
   // Part j's footprint judged at the device's depth: the line nearest the surface (`line`, -1:
   // none; kEdgeLine: the edge's tangent point) and its gap, every line's gap (+inf: does not
