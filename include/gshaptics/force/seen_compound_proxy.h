@@ -190,9 +190,9 @@ class SeenCompoundProxy {
   // points across the axis, kEdgeSteps lines at once; the last line that met the surface is the
   // search's edge line (the source line itself when none between did: a part resting with that
   // line on the edge, which before was no edge, and the part held on that line's own normal, up
-  // to 30 deg off, at 2 and 4 mm spacing). Two searches a part, from two holding lines 60 degrees or more apart
-  // around the shadow, give the edge's direction, and the part rests on the edge at its own
-  // tangent point there (edge_gap).
+  // to 30 deg off, at 2 and 4 mm spacing). Two searches a part, from two holding lines 60
+  // degrees or more apart around the shadow, give the edge's direction, and the part rests on
+  // the edge at its own tangent point there (edge_gap).
   static constexpr int kEdgeSteps = 6;
   static constexpr int kEdgeLine = kLines;  // Hold::line of a part resting on the edge's tangent point
   static constexpr double kEdgeSpan = 0.2;  // middle semi-axes: two edge lines closer give no direction
