@@ -370,7 +370,12 @@ void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllip
     for (int r = 0; r < kRingRays; ++r)
       if (holds(1, r) && apart(r, e[0].source) && (second < 0 || c.gaps[std::size_t(r)] < c.gaps[std::size_t(second)]))
         second = r;
-    search_edge(j, 1, second, resting);
+    // (No line to start from: the edge point found last stays while it lies under the part; the
+    // edge does not move while the part rests on it.)
+    const Ring& g = rings_[std::size_t(j)];
+    const bool keep = second < 0 && std::isfinite(g.at[kEdgeSlot + 1]) &&
+                      !std::isnan(ExitAlong(resting, g.axis)(g.foot[kEdgeSlot + 1]));
+    if (!keep) search_edge(j, 1, second, resting);
   }
 }
 
@@ -405,6 +410,22 @@ double SeenCompoundProxy::edge_gap(const ToolEllipsoid& part, int j, const Eigen
   // The edge's surface there, between its two readings.
   const double s = (contact - p1).dot(e) / span;
   return at1 + s * (at2 - at1) - contact.dot(axis);
+}
+
+bool SeenCompoundProxy::rests_on_edge(int j, double gap, Eigen::Vector3d& point) const noexcept {
+  // A line a little higher than the edge's fit (a disc standing proud of its neighbours at the
+  // edge, a fraction of a millimetre) is a bump on the edge, not a contact of its own: a stylus
+  // held there on its own normal, a few millimetres beside its tangent point, leaned 30 degrees
+  // along the edge (bench/RESULTS.md, ninety-seventh session). Two edge points closer than
+  // kSnapSpan middle semi-axes give too loose a direction to move the contact onto.
+  const std::size_t k = std::size_t(j);
+  Eigen::Vector3d span = rings_[k].foot[kEdgeSlot + 1] - rings_[k].foot[kEdgeSlot];
+  span -= span.dot(axis_) * axis_;
+  if (!(span.norm() >= kSnapSpan * middle_[k])) return false;
+  Eigen::Vector3d tangent;
+  if (!(edge_gap(parts_[k], j, axis_, tangent) <= gap + kEdgeSnap * min_axis_)) return false;
+  point = tangent;
+  return true;
 }
 
 SeenCompoundProxy::LineChoice SeenCompoundProxy::nearest_line(int j, const ToolEllipsoid& resting) const noexcept {
@@ -620,10 +641,12 @@ void SeenCompoundProxy::record_holds(const std::array<LineChoice, kMaxToolParts>
     h.line = h.by_ring ? c.line : -1;
     if (h.by_ring) {
       h.gap = std::max(0.0, c.gap + sunk_[k] + back);
-      if (c.line == kEdgeLine)
+      if (c.line == kEdgeLine) {
         (void)edge_gap(parts_[k], j, a, h.point);
-      else
+      } else {
         (void)ring_gap(ExitAlong(parts_[k], rings_[k].axis), j, c.line, a, h.point);
+        if (rests_on_edge(j, h.gap, h.point)) h.line = kEdgeLine;
+      }
     } else {
       h.gap = std::max(0.0, centre_gap);
       h.point = parts_[k].surface_point(a);

@@ -36,7 +36,9 @@
 ///    it does not hold.
 ///    Where a ring line holds a part, one more line a tick bisects between it and the
 ///    leading point's line, so that the part rests on the edge itself and its normal is taken
-///    there (six steps: to 1/64 of the distance).
+///    there (six steps: to 1/64 of the distance). A footprint line that holds the part but stands
+///    hardly higher than the edge those points fit (a disc proud of its neighbours) is a bump on
+///    the edge: the part's normal is still taken at its tangent point on the edge.
 /// 4. Wrench: the virtual coupling (Colgate, Stanley and Brown 1995) F = max(0, k e . n - b v . n) n,
 ///    e = x_proxy - x_device, plus friction; n is the touching parts' normals, each weighted
 ///    1 - (gap / band)^2 (gap: how far the part's front stands above the surface under it, band:
@@ -192,9 +194,14 @@ class SeenCompoundProxy {
   // line on the edge, which before was no edge, and the part held on that line's own normal, up
   // to 30 deg off, at 2 and 4 mm spacing). Two searches a part, from two holding lines 60
   // degrees or more apart around the shadow, give the edge's direction, and the part rests on
-  // the edge at its own tangent point there (edge_gap).
+  // the edge at its own tangent point there (edge_gap). The second search, left with no line to
+  // start from, keeps its last point while that lies under the part: the edge does not move under
+  // a resting part (dropped, the part fell back on a footprint line's own normal, 30 deg off, for
+  // the first 50 ms of a press at 2 mm spacing).
   static constexpr int kEdgeSteps = 6;
   static constexpr int kEdgeLine = kLines;  // Hold::line of a part resting on the edge's tangent point
+  static constexpr double kEdgeSnap = 0.1;  // smallest semi-axes: a line this near the edge's gap lies on the edge
+  static constexpr double kSnapSpan = 0.5;  // middle semi-axes: the edge points' least span to snap onto
   static constexpr double kEdgeSpan = 0.2;  // middle semi-axes: two edge lines closer give no direction
   struct EdgeSearch {
     int source = -1;  // the footprint line it started from (-1: none)
@@ -296,6 +303,10 @@ class SeenCompoundProxy {
   // in the plane through the edge along `axis`; +inf when there is no edge or it passes beside.
   [[nodiscard]] double edge_gap(const ToolEllipsoid& part, int j, const Eigen::Vector3d& axis,
                                 Eigen::Vector3d& contact) const noexcept;
+  // Whether part j (posed at the proxy), held by a footprint line with `gap` (m), rests on its
+  // edge: the edge's points span kSnapSpan middle semi-axes or more, and the part's tangent point
+  // on it stands no more than kEdgeSnap smallest semi-axes higher; then `point` is that tangent point.
+  [[nodiscard]] bool rests_on_edge(int j, double gap, Eigen::Vector3d& point) const noexcept;
   // How far a part (part j, posed; `exit`: its exits along the ring's axis) stands above footprint
   // line k's surface along `axis`, at its front over the line (set: `front`); < 0: past it; +inf
   // when the line is not under the part, was read along another axis, or has no surface.
