@@ -317,6 +317,7 @@ void SeenCompoundProxy::search_edge(int j, int which, int source, const ToolElli
   Ring& g = rings_[std::size_t(j)];
   const std::size_t slot = std::size_t(kEdgeSlot + which);
   e.source = source;
+  e.centre = part.center;
   g.at[slot] = kInf;
   if (source < 0) return;
   // A line of the search meets the edge's surface where its surface lies no deeper along the axis
@@ -370,10 +371,13 @@ void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllip
     for (int r = 0; r < kRingRays; ++r)
       if (holds(1, r) && apart(r, e[0].source) && (second < 0 || c.gaps[std::size_t(r)] < c.gaps[std::size_t(second)]))
         second = r;
-    // (No line to start from: the edge point found last stays while it lies under the part; the
-    // edge does not move while the part rests on it.)
+    // (No line to start from: the edge point found last stays while it lies under the part and
+    // the part has not moved from where it found it; the edge does not move under a resting part.)
     const Ring& g = rings_[std::size_t(j)];
+    Eigen::Vector3d moved = resting.center - e[1].centre;
+    moved -= moved.dot(g.axis) * g.axis;
     const bool keep = second < 0 && std::isfinite(g.at[kEdgeSlot + 1]) &&
+                      moved.norm() < kEdgeSpan * middle_[std::size_t(j)] &&
                       !std::isnan(ExitAlong(resting, g.axis)(g.foot[kEdgeSlot + 1]));
     if (!keep) search_edge(j, 1, second, resting);
   }

@@ -195,9 +195,11 @@ class SeenCompoundProxy {
   // to 30 deg off, at 2 and 4 mm spacing). Two searches a part, from two holding lines 60
   // degrees or more apart around the shadow, give the edge's direction, and the part rests on
   // the edge at its own tangent point there (edge_gap). The second search, left with no line to
-  // start from, keeps its last point while that lies under the part: the edge does not move under
-  // a resting part (dropped, the part fell back on a footprint line's own normal, 30 deg off, for
-  // the first 50 ms of a press at 2 mm spacing).
+  // start from, keeps its last point while that lies under the part and the part has moved less
+  // than kEdgeSpan middle semi-axes across the axis since: the edge does not move under a resting
+  // part (dropped, the part fell back on a footprint line's own normal, 30 deg off, for the first
+  // 50 ms of a press at 2 mm spacing; kept without the bound, a sliding part kept an edge made of
+  // stale points, and the stylus's p50 render time on halo's probe run rose 15 %).
   static constexpr int kEdgeSteps = 6;
   static constexpr int kEdgeLine = kLines;  // Hold::line of a part resting on the edge's tangent point
   static constexpr double kEdgeSnap = 0.1;  // smallest semi-axes: a line this near the edge's gap lies on the edge
@@ -205,6 +207,7 @@ class SeenCompoundProxy {
   static constexpr double kEdgeSpan = 0.2;  // middle semi-axes: two edge lines closer give no direction
   struct EdgeSearch {
     int source = -1;  // the footprint line it started from (-1: none)
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the part's centre when it ran
   };
   // Part j's footprint judged at the device's depth: the line nearest the surface (`line`, -1:
   // none; kEdgeLine: the edge's tangent point) and its gap, every line's gap (+inf: does not
