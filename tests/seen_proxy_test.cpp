@@ -252,7 +252,7 @@ TEST(SeenNormalReading, ARestingSpotIsReadWithTheRingTurnedAndAveraged) {
     for (int j = -12; j <= 12; ++j) {
       const Eigen::Quaterniond q = Eigen::Quaterniond(Eigen::AngleAxisd(0.08 * uni(rng), Eigen::Vector3d::UnitX())) *
                                    Eigen::AngleAxisd(0.08 * uni(rng), Eigen::Vector3d::UnitY());
-      g.push_back(Eigen::Vector3f(0.008f * i, 0.008f * j, float(0.0008 * uni(rng))), Eigen::Vector3f(0.005f, 0.005f, 1e-5f),
+      g.push_back(Eigen::Vector3f(0.008f * float(i), 0.008f * float(j), float(0.0008 * uni(rng))), Eigen::Vector3f(0.005f, 0.005f, 1e-5f),
                   Eigen::Vector4f(float(q.w()), float(q.x()), float(q.y()), float(q.z())), 0.9f, std::uint32_t(g.size()));
     }
   const SeenSolid solid(CollisionWorld::build(g, seen_world()));
