@@ -383,17 +383,25 @@ void SeenCompoundProxy::update_edges(int j, const LineChoice& c, const ToolEllip
   }
 }
 
+double SeenCompoundProxy::edge_span(int j, const Eigen::Vector3d& axis, Eigen::Vector3d& along) const noexcept {
+  const Ring& g = rings_[std::size_t(j)];
+  if (!(g.axis.dot(axis) >= kRingAxisCos) || !std::isfinite(g.at[kEdgeSlot]) || !std::isfinite(g.at[kEdgeSlot + 1]))
+    return 0;
+  along = g.foot[kEdgeSlot + 1] - g.foot[kEdgeSlot];
+  along -= along.dot(axis) * axis;
+  const double span = along.norm();
+  if (span > 0) along /= span;
+  return span;
+}
+
 double SeenCompoundProxy::edge_gap(const ToolEllipsoid& part, int j, const Eigen::Vector3d& axis,
                                    Eigen::Vector3d& contact) const noexcept {
+  Eigen::Vector3d e;
+  const double span = edge_span(j, axis, e);
+  if (!(span > kEdgeSpan * middle_[std::size_t(j)])) return kInf;
   const Ring& g = rings_[std::size_t(j)];
   const double at1 = g.at[kEdgeSlot], at2 = g.at[kEdgeSlot + 1];
-  if (!(g.axis.dot(axis) >= kRingAxisCos) || !std::isfinite(at1) || !std::isfinite(at2)) return kInf;
   const Eigen::Vector3d& p1 = g.foot[kEdgeSlot];
-  Eigen::Vector3d e = g.foot[kEdgeSlot + 1] - p1;
-  e -= e.dot(axis) * axis;
-  const double span = e.norm();
-  if (!(span > kEdgeSpan * middle_[std::size_t(j)])) return kInf;
-  e /= span;
   // The part's points whose normal is across the edge (n . e = 0) lie on the plane through its
   // centre with normal A e (A = Sigma^-1); the edge's plane along the axis has normal w. Their
   // line meets the part at its point resting on the edge.
@@ -423,9 +431,8 @@ bool SeenCompoundProxy::rests_on_edge(int j, double gap, Eigen::Vector3d& point)
   // along the edge (bench/RESULTS.md, ninety-seventh session). Two edge points closer than
   // kSnapSpan middle semi-axes give too loose a direction to move the contact onto.
   const std::size_t k = std::size_t(j);
-  Eigen::Vector3d span = rings_[k].foot[kEdgeSlot + 1] - rings_[k].foot[kEdgeSlot];
-  span -= span.dot(axis_) * axis_;
-  if (!(span.norm() >= kSnapSpan * middle_[k])) return false;
+  Eigen::Vector3d along;
+  if (!(edge_span(j, axis_, along) >= kSnapSpan * middle_[k])) return false;
   Eigen::Vector3d tangent;
   if (!(edge_gap(parts_[k], j, axis_, tangent) <= gap + kEdgeSnap * min_axis_)) return false;
   point = tangent;

@@ -301,6 +301,10 @@ class SeenCompoundProxy {
   // hit's depth from the eye plane (+inf: none within the band past it), `depth` the point's.
   // The last search is kept while the ray's line stays where it was (kSameLine; SeenLineMemo).
   double leading_ray(int j, double band, double& depth) noexcept;
+  // Part j's edge across `axis` (unit): how far apart its two points lie across the axis (m; 0
+  // when it has no two readings or was read along another axis), `along` the unit direction
+  // from the first to the second.
+  [[nodiscard]] double edge_span(int j, const Eigen::Vector3d& axis, Eigen::Vector3d& along) const noexcept;
   // How far `part` (part j, posed) stands above the edge its two edge lines found, at its own
   // tangent point on it (set: `contact`): the point of the part whose normal is across the edge,
   // in the plane through the edge along `axis`; +inf when there is no edge or it passes beside.
