@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <regex>
 #include <sstream>
 
@@ -60,7 +61,25 @@ struct Set {
   [[nodiscard]] bool restarts_at(std::size_t i) const {
     return i > 0 && std::binary_search(starts.begin(), starts.end(), i);
   }
+  /// A probe run's trajectory and the renderer it was recorded with (none: a fidelity set), so
+  /// a tool with a shape can record its own run of the same trajectory (record_probe).
+  std::optional<ProbeTrajectory> trajectory;
+  RendererSpec recorded_with;
 };
+
+// The device's poses of `trajectory` played by the simulated hand through the servo step (as
+// `gshaptics simulate` runs it) with `renderer`, holding `tool` (count 0: the trajectory's sphere).
+std::vector<Pose> record_probe(const CollisionWorld& world, const ProbeTrajectory& trajectory,
+                               const RendererSpec& renderer, const CompoundTool& tool = {}) {
+  ProbeRunParams rp;
+  rp.renderer = renderer;
+  rp.tool = tool;
+  const ProbeRunResult run = run_probe(world, trajectory, rp);
+  std::vector<Pose> poses;
+  poses.reserve(run.ticks.size());
+  for (const TickRecord& r : run.ticks) poses.push_back({r.position, r.velocity});
+  return poses;
+}
 
 std::string scene_path(const std::string& file) {
   if (file == "truck.splat") return std::string(GSHAPTICS_DATA_DIR) + "/truck.splat";
@@ -92,15 +111,13 @@ Set probe_set(const std::string& name, const std::string& file, double reg_scale
                                 3.0 * s.tool_radius);
   ProbeParams pp = default_probe_params(*s.world, s.tool_radius, 7, 1, depth);
   if (surface == ProxySurface::kSeen && !ellipsoid_path) pp.first_touch = session::seen_first_touch(*s.world, s.tool_radius);
-  const ProbeTrajectory traj = generate_probe_trajectory(*s.world, pp);
-  fmt::print(stderr, "proxy_bench: {}: recording the probe run ({:.0f} s simulated)\n", name, traj.duration());
-  ProbeRunParams rp;
+  s.trajectory = generate_probe_trajectory(*s.world, pp);
+  fmt::print(stderr, "proxy_bench: {}: recording the probe run ({:.0f} s simulated)\n", name, s.trajectory->duration());
   ProxyModelSpec spec;
   spec.params.surface = ellipsoid_path ? ProxySurface::kEllipsoids : surface;
   spec.params.seen_footprint = footprint;
-  rp.renderer = spec;
-  const ProbeRunResult run = run_probe(*s.world, traj, rp);
-  for (const TickRecord& r : run.ticks) s.poses.push_back({r.position, r.velocity});
+  s.recorded_with = spec;
+  s.poses = record_probe(*s.world, *s.trajectory, s.recorded_with);
   return s;
 }
 
@@ -231,7 +248,9 @@ int main(int argc, char** argv) {
   app.add_flag("--stylus", stylus,
                "Also time both models with a compound tool on the same paths: a 4-part stylus "
                "(stylus:6R,R, tilted 45 deg, its tip at the pose) against the sphere of radius R, and "
-               "write a second table");
+               "write a second table; on a probe run also the stylus's own run (the simulated hand "
+               "holding the tilted stylus on the same trajectory) and how far the device gets from "
+               "the stylus's proxy on each");
   bool materials = false;
   app.add_flag("--materials", materials,
                "Also time the one-part proxy with a material map (force/material.h): two materials split at the "
@@ -250,7 +269,8 @@ int main(int argc, char** argv) {
         "\n| set | tool radius R | ticks with contact, paper (sphere / stylus) | paper, sphere R: p50 / p99 us | "
         "paper, stylus 6R x R (4 parts): p50 / p99 us | p99 stylus / sphere | proxy, sphere R: p50 / p99 us | "
         "proxy, stylus: p50 / p99 / max us | p99 stylus / sphere | proxy, bounding sphere 3R (same tip): p50 / p99 us | "
-        "p99 stylus / bounding sphere |\n|---|---:|---|---|---|---:|---|---|---:|---|---:|\n";
+        "p99 stylus / bounding sphere | proxy, stylus on its own probe run: p50 / p99 / max us | device from the "
+        "stylus's proxy p99, R (sphere's run / own run) |\n|---|---:|---|---|---|---:|---|---|---:|---|---:|---|---|\n";
     std::string material_table =
         "\n| set | ticks in contact | proxy p50 / p99 us | with materials and texture p50 / p99 us | p99 added us |\n"
         "|---|---:|---|---|---:|\n";
@@ -399,23 +419,55 @@ int main(int argc, char** argv) {
                                                       s.poses[i].velocity, Eigen::Vector3d::Zero(), 1e-3)
                                  .counts.contacts > 0;
             });
-        // The proxy with a compound tool, tilted, its TCP on the poses.
-        const auto time_proxy = [&](const CompoundTool& t, bool with_materials = false) {
+        // The proxy with a compound tool, its TCP on the poses of `on` (default: the set's), the
+        // tool turned by `turn` (default: tilted); `past`, when given, gets the p99 of how far the
+        // device's TCP is from the proxy's, in R (a replay of its own, untimed).
+        const auto time_proxy = [&](const CompoundTool& t, bool with_materials = false, const Set* on = nullptr,
+                                    const Eigen::Quaterniond* turn = nullptr, double* past = nullptr) {
+          const Set& path = on ? *on : s;
+          const Eigen::Quaterniond& q = turn ? *turn : tilt;
           ProxyParams pp;
           pp.near_lists = !no_near_lists;
           pp.surface = surface;  // (--surface seen: the seen compound proxy; it was the ellipsoids' until the fifty-sixth session)
           ProxyRenderer timed(w, pp);
           timed.set_tool(t);
           if (with_materials) timed.set_materials(MaterialField::resolve(split_material_map(w, r), w, pp));
-          return time_replays(
-              s, passes, [&](bool) { timed.reset(); },
-              [&](std::size_t i) {
-                const int n = t.posed(s.poses[i].position, tilt, parts);
-                (void)timed.render_compound({parts.data(), std::size_t(n)}, s.poses[i].position, s.poses[i].velocity,
-                                            Eigen::Vector3d::Zero(), 1e-3);
-              });
+          const auto render = [&](std::size_t i) {
+            const int n = t.posed(path.poses[i].position, q, parts);
+            return timed.render_compound({parts.data(), std::size_t(n)}, path.poses[i].position, path.poses[i].velocity,
+                                         Eigen::Vector3d::Zero(), 1e-3);
+          };
+          if (past) {
+            std::vector<double> apart;
+            timed.reset();
+            for (std::size_t i = 0; i < path.poses.size(); ++i) {
+              if (path.restarts_at(i)) timed.reset();
+              apart.push_back((render(i).proxy - path.poses[i].position).norm() / r);
+            }
+            *past = percentile(apart, 99);
+          }
+          return time_replays(path, passes, [&](bool) { timed.reset(); }, [&](std::size_t i) { (void)render(i); });
         };
-        const Timing tq = time_proxy(tool);
+        double past_sphere_path = NAN, past_own_path = NAN;
+        const Timing tq = time_proxy(tool, false, nullptr, nullptr, &past_sphere_path);
+        // The stylus on its own probe run: the same trajectory, the simulated hand holding the
+        // tilted stylus (as `gshaptics simulate --tool` runs it). On the sphere's poses the hand
+        // goes where the sphere let it, often far past where the stylus's body stops.
+        Timing town{NAN, NAN, NAN};
+        if (s.trajectory) {
+          CompoundTool tilted = tool;
+          for (int k = 0; k < tilted.count; ++k) {
+            ToolPart& part = tilted.parts[std::size_t(k)];
+            part.offset = tilt * part.offset;
+            part.rotation = tilt * part.rotation;
+          }
+          fmt::print(stderr, "proxy_bench: {}: recording the stylus's own probe run\n", name);
+          Set own;
+          own.name = name + " (stylus's own run)";
+          own.poses = record_probe(w, *s.trajectory, s.recorded_with, tilted);
+          const Eigen::Quaterniond upright = Eigen::Quaterniond::Identity();
+          town = time_proxy(tilted, false, &own, &upright, &past_own_path);
+        }
         // The sphere of the stylus's overall size: its bounding sphere (radius 3R, centred at the
         // stylus's middle, so it touches with the same tip), one part through the same compound proxy.
         CompoundTool ball = CompoundTool::single(Eigen::Vector3d::Constant(3 * r));
@@ -428,10 +480,12 @@ int main(int argc, char** argv) {
         }
         compound_table += fmt::format(
             "| {} | {:.4g} | {} / {} | {:.1f} / {:.1f} | {:.1f} / {:.1f} | {:.1f}x | {:.1f} / {:.1f} | {:.1f} / {:.1f} / {:.0f} | "
-            "{:.1f}x | {:.1f} / {:.1f} | {:.1f}x |\n",
+            "{:.1f}x | {:.1f} / {:.1f} | {:.1f}x | {} | {} |\n",
             name, r, sphere_hits, stylus_hits, ts.p50, ts.p99, tc.p50, tc.p99, tc.p99 / std::max(ts.p99, 1e-3), tp.p50,
             tp.p99, tq.p50, tq.p99, tq.max, tq.p99 / std::max(tp.p99, 1e-3), tb.p50, tb.p99,
-            tq.p99 / std::max(tb.p99, 1e-3));
+            tq.p99 / std::max(tb.p99, 1e-3),
+            s.trajectory ? fmt::format("{:.1f} / {:.1f} / {:.0f}", town.p50, town.p99, town.max) : std::string("-"),
+            s.trajectory ? fmt::format("{:.1f} / {:.1f}", past_sphere_path, past_own_path) : fmt::format("{:.1f} / -", past_sphere_path));
       }
     }
     if (stylus) table += compound_table;
