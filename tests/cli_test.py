@@ -215,6 +215,20 @@ class SeenFelt(unittest.TestCase):
         self.assertIn("styluses (stylus:24R,R", md)
         self.assertIn("--tool-shape stylus", md)
 
+    def test_a_disc_on_the_droplets_tops_is_held_on_them(self):
+        # A disc (radius 4 R) pressed down on fruitdrops' droplets at the 0.5 % tool: its rim
+        # overhangs where the drops' tops fall away. The edge snap once moved its contact onto a
+        # tangent point a smallest semi-axis below the edge's fit, and a ray slid 1.6 R through.
+        out = tempfile.mkdtemp()
+        report = os.path.join(out, "SF.md")
+        run("seen-felt", scene_file("fruitdrops.ply"), "--direction", "vertical", "--tool-percent", "0.5",
+            "--tool-shape", "disc", "--rays", "10", "--surface", "seen", "--no-plot", "--out", report)
+        with open(os.path.join(out, "sf", "seen_felt_rays.csv"), newline="") as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(len(rows), 10)
+        self.assertLessEqual(sum(r["through"] == "1" for r in rows), 1, rows)
+        self.assertTrue(all(r["no_force"] == "0" for r in rows), rows)
+
     def test_rays_aim_at_the_objects_and_the_seen_truth_is_the_captured_file(self):
         out = tempfile.mkdtemp()
         report = os.path.join(out, "SF.md")

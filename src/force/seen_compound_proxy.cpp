@@ -433,8 +433,11 @@ bool SeenCompoundProxy::rests_on_edge(int j, double gap, Eigen::Vector3d& point)
   const std::size_t k = std::size_t(j);
   Eigen::Vector3d along;
   if (!(edge_span(j, axis_, along) >= kSnapSpan * middle_[k])) return false;
+  // Within kEdgeSnap either way: a tangent point well below the edge's fit (a disc on a
+  // droplet's curved top, the fit rising 0.9 smallest semi-axes over the line there) is a part
+  // already past the edge, and moving the contact onto it let the disc slide through.
   Eigen::Vector3d tangent;
-  if (!(edge_gap(parts_[k], j, axis_, tangent) <= gap + kEdgeSnap * min_axis_)) return false;
+  if (!(std::abs(edge_gap(parts_[k], j, axis_, tangent) - gap) <= kEdgeSnap * min_axis_)) return false;
   point = tangent;
   return true;
 }

@@ -312,7 +312,8 @@ class SeenCompoundProxy {
                                 Eigen::Vector3d& contact) const noexcept;
   // Whether part j (posed at the proxy), held by a footprint line with `gap` (m), rests on its
   // edge: the edge's points span kSnapSpan middle semi-axes or more, and the part's tangent point
-  // on it stands no more than kEdgeSnap smallest semi-axes higher; then `point` is that tangent point.
+  // on it stands within kEdgeSnap smallest semi-axes of the line's gap, higher or lower; then
+  // `point` is that tangent point.
   [[nodiscard]] bool rests_on_edge(int j, double gap, Eigen::Vector3d& point) const noexcept;
   // How far a part (part j, posed; `exit`: its exits along the ring's axis) stands above footprint
   // line k's surface along `axis`, at its front over the line (set: `front`); < 0: past it; +inf
