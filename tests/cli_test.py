@@ -199,6 +199,9 @@ class SeenFelt(unittest.TestCase):
             self.assertGreater(float(r["onset_shadow_minus_seen"]), -0.5, r)
         self.assertIn("| truck.splat |", md)
         self.assertIn("onset over the shadow, least (R)", md)
+        self.assertIn("rest over the shadow, least (R)", md)
+        for r in rows:  # held on what the eye sees, read over the sphere's shadow too
+            self.assertGreater(float(r["rest_shadow_minus_seen"]), -0.5, r)
         self.assertFalse(any(n.endswith(".tmp") for n in os.listdir(out)))
 
     def test_a_stylus_on_the_seen_surface_is_felt_where_it_is_seen(self):

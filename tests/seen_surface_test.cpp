@@ -167,12 +167,15 @@ TEST(SeenFelt, TheProxyIsFeltWhereAnAnalyticSceneIsSeen) {
       EXPECT_GT(r.onset_p10, -0.5);
       EXPECT_LT(r.onset_p10, 0.5);
       EXPECT_GT(r.onset_shadow_min, -0.5);
+      EXPECT_GT(r.rest_shadow_min, -0.35);
     }
     // Over the sphere's shadow the force begins no earlier than on its centre line, and on a
     // smooth surface facing the ray within 20 deg its rim meets nothing first: within 0.5 R.
     for (const SeenFeltRay& r : rep.rays) {
       EXPECT_GE(r.onset_shadow, r.onset_minus_seen - 1e-9);
       EXPECT_LT(r.onset_shadow, 0.5);
+      // Held on the surface, the sphere rests on it over its shadow too.
+      EXPECT_NEAR(r.rest_shadow, 0, 0.35);
     }
   }
 }
@@ -233,6 +236,12 @@ TEST(SeenFelt, ThePaperModelIsFeltAtTheDevice) {
     for (const SeenFeltRay& r : rep.rays) {
       EXPECT_TRUE(r.through);
       EXPECT_NEAR(r.felt_minus_seen, o.past, 0.2);
+      // Over its shadow at the end of the hold: the sphere, wholly through the layer of discs,
+      // feels nothing (no reading); the stylus, its shaft still in the layer, rests as deep as it went.
+      if (tool == SeenFeltTool::kSphere)
+        EXPECT_TRUE(std::isnan(r.rest_shadow)) << r.rest_shadow;
+      else
+        EXPECT_GT(r.rest_shadow, o.past - 1);
     }
   }
   EXPECT_THROW((void)parse_press_direction("sideways"), InputError);
@@ -267,6 +276,7 @@ TEST(SeenFelt, AStylusAndADiscAreFeltWhereAnAnalyticPlaneIsSeen) {
       EXPECT_LT(std::abs(r.felt_minus_seen), 0.35);
       EXPECT_GT(r.onset_minus_seen, -0.5);
       EXPECT_LT(r.onset_minus_seen, 0.5);
+      EXPECT_NEAR(r.rest_shadow, 0, 0.35);
       // Held fixed through the press: the stylus's axis 30 deg from the ray, pointing back up it.
       const Eigen::Vector3d axis = r.orientation * Eigen::Vector3d::UnitZ();
       if (tool == SeenFeltTool::kStylus) {

@@ -292,6 +292,43 @@ PressedTool as_shape(const PressedTool& tool) {
 /// R: how far every part of a tool with a shape must start above the seen surface.
 constexpr double kStartClearance = 0.25;
 
+/// R: how far behind the tool's rearmost point along the force the lines of rest_along_force()
+/// start (their eyes): close enough that what the tool did not come through is not read.
+constexpr double kRestEyeBack = 1;
+
+// How far the tool resting with its TCP at `tcp` is past the seen surface along the force that
+// holds it: depth_below_seen() over its whole shadow (kOnsetFraction) on lines along -force, each
+// seen from kRestEyeBack R behind the tool's rearmost point along them. A wall the tool is pressed
+// against from the side is seen so, where lines along the ray run beside it. Scene units; nullopt
+// when the force is under `threshold` (N) or no line sees a surface.
+std::optional<double> rest_along_force(const Viewer& seen, const PressedTool& tool, const Eigen::Vector3d& tcp,
+                                       const Eigen::Vector3d& force, double threshold) {
+  if (!(force.norm() >= threshold)) return std::nullopt;
+  const PressedTool shape = tool.tool.count > 0 ? tool : as_shape(tool);
+  const Eigen::Vector3d n = -force.normalized();
+  std::array<ToolEllipsoid, kMaxToolParts> parts{};
+  const int count = shape.tool.posed(tcp, shape.orientation, parts);
+  double rear = INFINITY;
+  for (int k = 0; k < count; ++k) rear = std::min(rear, parts[std::size_t(k)].surface_point(-n).dot(n));
+  const Eigen::Vector3d eye = tcp + (rear - tcp.dot(n) - kRestEyeBack * tool.radius) * n;
+  return depth_below_seen(seen, shape, tcp, eye, n, LineSet{kOnsetFraction});
+}
+
+// Where the tool rests with its TCP at `tcp` (from `start`), held by `force` (N): the larger of
+// its whole shadow's depth past the seen surface along the ray (the lines it started at least
+// kStartClearance R above, as the onset's) and along the force (rest_along_force()). Scene units;
+// NaN when the force is under `threshold` or no line sees a surface.
+double rest_shadow(const Viewer& seen, const PressedTool& tool, const Eigen::Vector3d& start, const Eigen::Vector3d& tcp,
+                   const Eigen::Vector3d& force, const SeenFeltRay& ray, double threshold) {
+  if (!(force.norm() >= threshold)) return NAN;
+  const PressedTool shape = tool.tool.count > 0 ? tool : as_shape(tool);
+  const LineSet whole{kOnsetFraction, (tcp - start).dot(ray.dir), kStartClearance * ray.tool_radius};
+  const std::optional<double> along_ray = depth_below_seen(seen, shape, tcp, ray.origin, ray.dir, whole);
+  const std::optional<double> along_force = rest_along_force(seen, tool, tcp, force, threshold);
+  if (!along_ray && !along_force) return NAN;
+  return std::max(along_ray.value_or(-INFINITY), along_force.value_or(-INFINITY));
+}
+
 /// Plays one kept ray and scores it; false when the tool was caught before its start (a tool
 /// with a shape: also when it starts less than kStartClearance R above the seen surface).
 bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit, const PressedTool& tool,
@@ -327,6 +364,7 @@ bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit
   }
   ray.render_p99_us = percentile(us, 99);
   ray.felt_minus_seen = depth_past_seen(seen, hit, tool, trace.proxy.back(), ray) / r;
+  ray.rest_shadow = rest_shadow(seen, tool, script.ticks.front().position, trace.proxy.back(), trace.force.back(), ray, o.force_threshold) / r;
   // No force where a surface is seen: the tool ends past the seen surface under it. (A stylus's
   // tip aimed at a feature thinner than itself can pass beside it: its middle never comes under
   // anything the eye sees, and nothing is the right force there.)
@@ -344,6 +382,7 @@ SeenFeltRow summarise(const std::vector<SeenFeltRay>& rays, SeenFeltRow row) {
     felt.push_back(r.felt_minus_seen);
     if (!std::isnan(r.onset_minus_seen)) onset.push_back(r.onset_minus_seen);
     if (!std::isnan(r.onset_shadow)) row.onset_shadow_min = std::fmin(r.onset_shadow, row.onset_shadow_min);
+    if (!std::isnan(r.rest_shadow)) row.rest_shadow_min = std::fmin(r.rest_shadow, row.rest_shadow_min);
     us.push_back(r.render_p99_us);
   }
   if (!felt.empty()) row.felt_p90 = percentile(felt, 90);
@@ -499,12 +538,12 @@ std::string summary_table(const SeenFeltReport& rep) {
 std::string detail_table(const SeenFeltReport& rep) {
   std::string md =
       "| scene | direction | R (% / units) | rays | through | no force | felt - seen p90 (R) | onset - seen p10 (R) | "
-      "onset over the shadow, least (R) | caught | drawn | render p99 (us) | targets |\n"
-      "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
+      "onset over the shadow, least (R) | rest over the shadow, least (R) | caught | drawn | render p99 (us) | targets |\n"
+      "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
   for (const SeenFeltRow& r : rep.rows)
-    md += fmt::format("| {} | {} | {:g} / {:.4g} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", r.scene,
+    md += fmt::format("| {} | {} | {:g} / {:.4g} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", r.scene,
                       to_string(r.direction), r.tool_fraction * 100, r.tool_radius, r.rays, r.through, r.no_force,
-                      number(r.felt_p90), number(r.onset_p10), number(r.onset_shadow_min), r.caught, r.drawn, number(r.render_p99_us, "{:.1f}"),
+                      number(r.felt_p90), number(r.onset_p10), number(r.onset_shadow_min), number(r.rest_shadow_min), r.caught, r.drawn, number(r.render_p99_us, "{:.1f}"),
                       r.meets_targets(rep.options.rays) ? "met" : "missed");
   return md;
 }
@@ -531,9 +570,12 @@ void write_seen_felt_markdown(const SeenFeltReport& rep, const std::string& path
       "line, a stylus's or a disc's over its whole shadow. \"Onset over the shadow\" (every configuration) reads a "
       "sphere's over its shadow too, against every parallel line it started at least {:g} R above: about 0 where some "
       "point of the tool touched what the eye sees (its side on a ledge beside the ray), well below 0 an invisible "
-      "wall.\n\n",
+      "wall. \"Rest over the shadow\" reads the tool where it rests at the end of the hold, over its whole shadow on "
+      "the lines along the ray it started {:g} R above and on lines along the force that holds it, each seen from {:g} R "
+      "behind the tool, the larger: about 0 or more where it rests on what the eye sees (a stylus's side against a "
+      "wall the ray runs beside is seen along the force), well below 0 an invisible wall.\n\n",
       command, rep.seconds, renderer_name(o.renderer), describe_mode(o.play), tool_description(o), o.speed, o.start, o.past, o.hold,
-      o.facing_deg, o.rays, o.force_threshold, kStartClearance);
+      o.facing_deg, o.rays, o.force_threshold, kStartClearance, kStartClearance, kRestEyeBack);
   md += fmt::format("In all, {} of {} rays go more than 1 R through and {} feel nothing; {} of {} configurations meet "
                     "the targets (at most 1 ray through, none without force, felt - seen p90 <= 0.5 R, onset p10 >= "
                     "-1 R, all rays kept).\n\n",
@@ -547,14 +589,14 @@ void write_seen_felt_markdown(const SeenFeltReport& rep, const std::string& path
 void write_seen_felt_csv(const SeenFeltReport& rep, const std::string& path) {
   std::string csv =
       "scene,direction,tool_fraction,tool_radius,ox,oy,oz,ux,uy,uz,seen,facing_deg,felt_minus_seen,onset_minus_seen,"
-      "peak_force,through,no_force,render_p99_us,tool,tilt_deg,onset_shadow_minus_seen\n";
+      "peak_force,through,no_force,render_p99_us,tool,tilt_deg,onset_shadow_minus_seen,rest_shadow_minus_seen\n";
   for (const SeenFeltRay& r : rep.rays)
-    csv += fmt::format("{},{},{:g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.3f},{:.4f},{:.4f},{:.4f},{},{},{:.2f},{},{:g},{:.4f}\n",
+    csv += fmt::format("{},{},{:g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.3f},{:.4f},{:.4f},{:.4f},{},{},{:.2f},{},{:g},{:.4f},{:.4f}\n",
                        r.scene, to_string(r.direction), r.tool_fraction, r.tool_radius, r.origin.x(), r.origin.y(),
                        r.origin.z(), r.dir.x(), r.dir.y(), r.dir.z(), r.seen, r.facing_deg, r.felt_minus_seen,
                        r.onset_minus_seen, r.peak_force, int(r.through), int(r.no_force), r.render_p99_us,
                        to_string(rep.options.tool), rep.options.tool == SeenFeltTool::kSphere ? 0.0 : rep.options.tilt_deg,
-                       r.onset_shadow);
+                       r.onset_shadow, r.rest_shadow);
   write_file_atomically(path, csv);
 }
 

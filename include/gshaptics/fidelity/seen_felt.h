@@ -125,6 +125,13 @@ struct SeenFeltRay {
   /// ray), well below 0 an invisible wall. The stylus's and the disc's onset_minus_seen is read so
   /// already; a sphere's is read on its centre line (the measure), this over its shadow.
   double onset_shadow = NAN;
+  /// R; NaN: no force at the end of the hold. Where the tool rests then, the deepest point of its
+  /// whole shadow past the seen surface, read on lines along the ray (those it started at least
+  /// 0.25 R above) and on lines along the force that holds it (into the surface, each seen from
+  /// just behind the tool), the larger: about 0 or more where it rests on what the eye sees (a
+  /// stylus's side against a wall the ray runs beside is seen along the force, a disc's rim on a
+  /// droplet's side along the ray), well below 0 an invisible wall holding it.
+  double rest_shadow = NAN;
   double peak_force = 0;        ///< N
   bool through = false, no_force = false;
   double render_p99_us = NAN;   ///< over the ray's ticks
@@ -139,6 +146,7 @@ struct SeenFeltRow {
   double felt_p90 = NAN;   ///< R, p90 of felt - seen
   double onset_p10 = NAN;  ///< R, p10 of onset - seen over rays with a force
   double onset_shadow_min = NAN;  ///< R, the least SeenFeltRay::onset_shadow over rays with a force
+  double rest_shadow_min = NAN;   ///< R, the least SeenFeltRay::rest_shadow over rays held at the end
   double render_p99_us = NAN;
   /// The targets: <= 1 ray through, no ray without force, felt p90 <= 0.5 R, onset p10
   /// >= -1 R, and `rays` kept.
