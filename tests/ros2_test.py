@@ -40,6 +40,17 @@ def episodes(rows, force_cols, t_col="time_s", gap=0.1):
     return eps
 
 
+def merged(episodes, gap):
+    """A summary's contact episodes with those less than `gap` s apart joined (the peaks the larger)."""
+    out = []
+    for e in episodes:
+        if out and e["t_start"] - out[-1]["t_end"] < gap:
+            out[-1] = dict(out[-1], t_end=e["t_end"], peak_contacts=max(out[-1]["peak_contacts"], e["peak_contacts"]))
+        else:
+            out.append(dict(e))
+    return out
+
+
 def start_node(*args):
     """`gshaptics node` with `args`, once it says it is ready."""
     node = subprocess.Popen([EXE, "node", *args, "--quiet", "--no-plot"], stdout=subprocess.PIPE,
@@ -96,9 +107,13 @@ class TwoProcesses(unittest.TestCase):
     def test_node_saw_the_contacts(self):
         node = load_json(os.path.join(self.dir, "node", "run_summary.json"))
         sim = load_json(os.path.join(self.dir, "sim", "summary.json"))
-        peaks = [e["peak_contacts"] for e in node["episodes"]]
-        self.assertEqual(len(peaks), len(sim["episodes"]))
-        for p, s in zip(peaks, sim["episodes"]):
+        # Episodes closer than the summaries' 0.1 s merge gap plus the round trip's jitter are one:
+        # two of the simulation's lie 0.103 s apart, which the node, a pose late here and there,
+        # once saw as 0.09 s and merged (2 episodes against 3).
+        node_eps, sim_eps = merged(node["episodes"], 0.15), merged(sim["episodes"], 0.15)
+        peaks = [e["peak_contacts"] for e in node_eps]
+        self.assertEqual(len(peaks), len(sim_eps), f"{node['episodes']} vs {sim['episodes']}")
+        for p, s in zip(peaks, sim_eps):
             # The seen solid's touched Gaussians are the layers composited down to the hit; the
             # round trip's period of delay moves the pose a little, and a peak's count with it
             # (20 against 12 once on a busy machine, with the forces within 10 %).
