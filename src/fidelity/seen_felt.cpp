@@ -289,28 +289,35 @@ PressedTool as_shape(const PressedTool& tool) {
   return t;
 }
 
+// `tool` itself when it has a shape, else its sphere as one (as_shape()).
+PressedTool shaped(const PressedTool& tool) { return tool.tool.count > 0 ? tool : as_shape(tool); }
+
 /// R: how far every part of a tool with a shape must start above the seen surface.
 constexpr double kStartClearance = 0.25;
+
+// The lines of a tool's whole shadow along the ray that it started at least kStartClearance R
+// above (their seen surface), for the TCP at `tcp` having come from `start`: the onset's and the
+// rest's reading along the ray.
+LineSet whole_shadow(const Eigen::Vector3d& start, const Eigen::Vector3d& tcp, const SeenFeltRay& ray) {
+  return LineSet{kOnsetFraction, (tcp - start).dot(ray.dir), kStartClearance * ray.tool_radius};
+}
 
 /// R: how far behind the tool's rearmost point along the force the lines of rest_along_force()
 /// start (their eyes): close enough that what the tool did not come through is not read.
 constexpr double kRestEyeBack = 1;
 
-// How far the tool resting with its TCP at `tcp` is past the seen surface along the force that
-// holds it: depth_below_seen() over its whole shadow (kOnsetFraction) on lines along -force, each
-// seen from kRestEyeBack R behind the tool's rearmost point along them. A wall the tool is pressed
-// against from the side is seen so, where lines along the ray run beside it. Scene units; nullopt
-// when the force is under `threshold` (N) or no line sees a surface.
-std::optional<double> rest_along_force(const Viewer& seen, const PressedTool& tool, const Eigen::Vector3d& tcp,
-                                       const Eigen::Vector3d& force, double threshold) {
-  if (!(force.norm() >= threshold)) return std::nullopt;
-  const PressedTool shape = tool.tool.count > 0 ? tool : as_shape(tool);
-  const Eigen::Vector3d n = -force.normalized();
+// How far the tool `shape` (shaped()) resting with its TCP at `tcp` is past the seen surface
+// along `n` (unit; against the force that holds it): depth_below_seen() over its whole shadow
+// (kOnsetFraction) on lines along n, each seen from kRestEyeBack R behind the tool's rearmost point
+// along them. A wall the tool is pressed against from the side is seen so, where lines along the
+// ray run beside it. Scene units; nullopt when no line sees a surface.
+std::optional<double> rest_along_force(const Viewer& seen, const PressedTool& shape, const Eigen::Vector3d& tcp,
+                                       const Eigen::Vector3d& n) {
   std::array<ToolEllipsoid, kMaxToolParts> parts{};
   const int count = shape.tool.posed(tcp, shape.orientation, parts);
   double rear = INFINITY;
   for (int k = 0; k < count; ++k) rear = std::min(rear, parts[std::size_t(k)].surface_point(-n).dot(n));
-  const Eigen::Vector3d eye = tcp + (rear - tcp.dot(n) - kRestEyeBack * tool.radius) * n;
+  const Eigen::Vector3d eye = tcp + (rear - tcp.dot(n) - kRestEyeBack * shape.radius) * n;
   return depth_below_seen(seen, shape, tcp, eye, n, LineSet{kOnsetFraction});
 }
 
@@ -321,10 +328,10 @@ std::optional<double> rest_along_force(const Viewer& seen, const PressedTool& to
 double rest_shadow(const Viewer& seen, const PressedTool& tool, const Eigen::Vector3d& start, const Eigen::Vector3d& tcp,
                    const Eigen::Vector3d& force, const SeenFeltRay& ray, double threshold) {
   if (!(force.norm() >= threshold)) return NAN;
-  const PressedTool shape = tool.tool.count > 0 ? tool : as_shape(tool);
-  const LineSet whole{kOnsetFraction, (tcp - start).dot(ray.dir), kStartClearance * ray.tool_radius};
-  const std::optional<double> along_ray = depth_below_seen(seen, shape, tcp, ray.origin, ray.dir, whole);
-  const std::optional<double> along_force = rest_along_force(seen, tool, tcp, force, threshold);
+  const PressedTool shape = shaped(tool);
+  const std::optional<double> along_ray =
+      depth_below_seen(seen, shape, tcp, ray.origin, ray.dir, whole_shadow(start, tcp, ray));
+  const std::optional<double> along_force = rest_along_force(seen, shape, tcp, -force.normalized());
   if (!along_ray && !along_force) return NAN;
   return std::max(along_ray.value_or(-INFINITY), along_force.value_or(-INFINITY));
 }
@@ -350,7 +357,7 @@ bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit
     ray.peak_force = std::max(ray.peak_force, f);
     if (std::isnan(ray.onset_minus_seen) && f >= o.force_threshold) {  // against the ray's own seen depth
       const Eigen::Vector3d& tcp = script.ticks[i].position;
-      const LineSet whole{kOnsetFraction, (tcp - script.ticks.front().position).dot(ray.dir), kStartClearance * r};
+      const LineSet whole = whole_shadow(script.ticks.front().position, tcp, ray);
       const std::optional<double> below =
           tool.tool.count > 0 ? depth_below_seen(seen, tool, tcp, ray.origin, ray.dir, whole) : std::nullopt;
       ray.onset_minus_seen = (below ? *below : (tcp + tool.lead - ray.origin).dot(ray.dir) - hit.depth) / r;
