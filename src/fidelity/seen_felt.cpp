@@ -337,14 +337,21 @@ double rest_shadow(const Viewer& seen, const PressedTool& tool, const Eigen::Vec
 }
 
 /// Plays one kept ray and scores it; false when the tool was caught before its start (a tool
-/// with a shape: also when it starts less than kStartClearance R above the seen surface).
+/// with a shape: also when some line of its whole shadow starts less than kStartClearance R above
+/// the seen surface).
 bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit, const PressedTool& tool,
                SeenFeltRay& ray, const SeenFeltOptions& o) {
   const double r = ray.tool_radius;
   const double from = std::max(0.0, hit.depth - o.start * r);
   const Script script = press_along(ray.origin, ray.dir, tool, from, hit.depth + o.past * r, o);
-  if (tool.tool.count > 0) {  // a tool with a shape may start with a part already inside what the eye sees
-    const std::optional<double> below = depth_below_seen(seen, tool, script.ticks.front().position, ray.origin, ray.dir);
+  if (tool.tool.count > 0) {
+    // A tool with a shape may start with a part already inside what the eye sees, its rim too: a
+    // stylus's tip started in a sheet seen edge-on beside the ray (a few tenths of R thick, the
+    // eye sees its near end only) was held by it 12.7 R short of the ray's seen surface, where a
+    // roaming footprint line of the proxy came to lie inside the sheet (bench/RESULTS.md, the
+    // hundredth session).
+    const std::optional<double> below =
+        depth_below_seen(seen, tool, script.ticks.front().position, ray.origin, ray.dir, LineSet{kOnsetFraction});
     if (below && *below > -kStartClearance * r) return false;
   }
   const ScriptTrace trace = play_script(renderer, script, o.rate_hz, o.play);
