@@ -349,10 +349,14 @@ bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit
     // stylus's tip started in a sheet seen edge-on beside the ray (a few tenths of R thick, the
     // eye sees its near end only) was held by it 12.7 R short of the ray's seen surface, where a
     // roaming footprint line of the proxy came to lie inside the sheet (bench/RESULTS.md, the
-    // hundredth session).
-    const std::optional<double> below =
-        depth_below_seen(seen, tool, script.ticks.front().position, ray.origin, ray.dir, LineSet{kOnsetFraction});
-    if (below && *below > -kStartClearance * r) return false;
+    // hundredth session). Every line a measure reads counts, the felt depth's (kMeasureFraction)
+    // and the onset's and the rest's (kOnsetFraction): a thin sheet one set passes between is
+    // met by the other.
+    const Eigen::Vector3d& start = script.ticks.front().position;
+    for (const double fraction : {kMeasureFraction, kOnsetFraction}) {
+      const std::optional<double> below = depth_below_seen(seen, tool, start, ray.origin, ray.dir, LineSet{fraction});
+      if (below && *below > -kStartClearance * r) return false;
+    }
   }
   const ScriptTrace trace = play_script(renderer, script, o.rate_hz, o.play);
   const std::size_t first = std::min<std::size_t>(trace.force.size(), std::size_t(o.play.latency_ticks) + 2);
