@@ -336,6 +336,20 @@ double rest_shadow(const Viewer& seen, const PressedTool& tool, const Eigen::Vec
   return std::max(along_ray.value_or(-INFINITY), along_force.value_or(-INFINITY));
 }
 
+// The onset, the TCP at `tcp` (from `start`) where the force first reaches the threshold, against
+// the ray's own seen depth: a tool with a shape over its whole shadow (the sphere's reading when no
+// line of it sees a surface), a sphere on its centre line; onset_shadow the larger of that and the
+// whole shadow's (a sphere's rim on a ledge beside the ray). R.
+void score_onset(const Viewer& seen, const SeenPoint& hit, const PressedTool& tool, const Eigen::Vector3d& start,
+                 const Eigen::Vector3d& tcp, SeenFeltRay& ray) {
+  const double r = ray.tool_radius;
+  const std::optional<double> shadow =
+      depth_below_seen(seen, shaped(tool), tcp, ray.origin, ray.dir, whole_shadow(start, tcp, ray));
+  const double centre = ((tcp + tool.lead - ray.origin).dot(ray.dir) - hit.depth) / r;
+  ray.onset_minus_seen = tool.tool.count > 0 && shadow ? *shadow / r : centre;
+  ray.onset_shadow = shadow ? std::max(ray.onset_minus_seen, *shadow / r) : ray.onset_minus_seen;
+}
+
 /// Plays one kept ray and scores it; false when the tool was caught before its start (a tool
 /// with a shape: also when some line of its whole shadow starts less than kStartClearance R above
 /// the seen surface).
@@ -366,18 +380,8 @@ bool score_ray(ForceRenderer& renderer, const Viewer& seen, const SeenPoint& hit
   for (std::size_t i = 0; i < trace.force.size(); ++i) {
     const double f = trace.force[i].norm();
     ray.peak_force = std::max(ray.peak_force, f);
-    if (std::isnan(ray.onset_minus_seen) && f >= o.force_threshold) {  // against the ray's own seen depth
-      const Eigen::Vector3d& tcp = script.ticks[i].position;
-      const LineSet whole = whole_shadow(script.ticks.front().position, tcp, ray);
-      const std::optional<double> below =
-          tool.tool.count > 0 ? depth_below_seen(seen, tool, tcp, ray.origin, ray.dir, whole) : std::nullopt;
-      ray.onset_minus_seen = (below ? *below : (tcp + tool.lead - ray.origin).dot(ray.dir) - hit.depth) / r;
-      ray.onset_shadow = ray.onset_minus_seen;
-      if (tool.tool.count == 0) {  // the sphere's whole shadow too
-        const std::optional<double> side = depth_below_seen(seen, as_shape(tool), tcp, ray.origin, ray.dir, whole);
-        if (side) ray.onset_shadow = std::max(ray.onset_shadow, *side / r);
-      }
-    }
+    if (std::isnan(ray.onset_minus_seen) && f >= o.force_threshold)
+      score_onset(seen, hit, tool, script.ticks.front().position, script.ticks[i].position, ray);
     us.push_back(trace.render_us[i]);
   }
   ray.render_p99_us = percentile(us, 99);
