@@ -148,10 +148,12 @@ class SeenCompoundProxy {
   // low-discrepancy sequence over the whole shadow (the R2 sequence, Roberts 2018, mapped onto
   // the ellipse by area, out to kRoamFraction of its radius), so a thin feature anywhere under the
   // part is met within a few dozen readings, and is written into the roaming slot that holds
-  // least (a feature found stays in memory while the part is over it). The ring covers the rim.
+  // least (a feature found stays in memory while the part is over it). Out to the rim: a droplet
+  // under a disc's rim, beyond the ring's outermost lines (0.85), let the disc down 9 R past what
+  // the eye sees on fruitdrops while the roaming lines stopped at 0.6 (bench/RESULTS.md).
   static constexpr int kInnerTurns = 4;
   static constexpr int kRoamLines = 6;
-  static constexpr double kRoamFraction = 0.6;
+  static constexpr double kRoamFraction = 0.95;
   static constexpr int kRoamRefresh = 16;  // ticks: the part's travel a roaming line allows for, as refresh()
   static constexpr int kCentreLine = kRingRays;
   static constexpr int kRoamLine = kCentreLine + 1;  // the first roaming slot
