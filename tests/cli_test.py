@@ -237,6 +237,22 @@ class SeenFelt(unittest.TestCase):
         self.assertLessEqual(sum(r["through"] == "1" for r in rows), 2, rows)
         self.assertTrue(all(r["no_force"] == "0" for r in rows), rows)
 
+    def test_a_disc_rim_on_a_thin_feature_is_a_touch_the_onset_sees(self):
+        # A disc (4 R by 3.5 R across the ray) pressed down on the guitar at the 1 % tool: its
+        # roaming footprint lines meet features under its rim thinner than 0.7 R. Read by 96 lines
+        # over its shadow the onset put two of these ten forces 1.2 and 5.2 R before anything seen;
+        # lines a third of its thickness apart see what it touched (bench/RESULTS.md).
+        out = tempfile.mkdtemp()
+        report = os.path.join(out, "SF.md")
+        run("seen-felt", scene_file("guitar.compressed.ply"), "--direction", "vertical", "--tool-percent", "1",
+            "--tool-shape", "disc", "--rays", "10", "--surface", "seen", "--no-plot", "--out", report)
+        with open(os.path.join(out, "sf", "seen_felt_rays.csv"), newline="") as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(len(rows), 10)
+        for r in rows:
+            self.assertGreater(float(r["onset_shadow_minus_seen"]), -0.5, r)
+            self.assertEqual(r["no_force"], "0", r)
+
     def test_rays_aim_at_the_objects_and_the_seen_truth_is_the_captured_file(self):
         out = tempfile.mkdtemp()
         report = os.path.join(out, "SF.md")

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -214,9 +215,9 @@ Script press_along(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, cons
 
 // How deep a tool with a shape, posed with its TCP at `tcp`, lies below the seen surface along
 // u: the largest front depth of a part minus the seen depth, over lines along u through the
-// middle of the tool's shadow (per part: the line through its leading point, and 96 lines on a
-// Vogel spiral over its shadow out to `fraction` of its radius, uniform by area, the
-// centre's among them), each line seen from its own eye (Viewer). Scene units; > 0: below the
+// middle of the tool's shadow (per part: the line through its leading point, and lines on a
+// Vogel spiral over its shadow out to `fraction` of its radius, uniform by area, the centre's
+// among them: spiral_lines()), each line seen from its own eye (Viewer). Scene units; > 0: below the
 // seen surface. Nullopt when no line sees a surface. A stylus resting on a ledge with its shaft
 // (its tip above the ground) gives 0, which a measure at its tip alone would count as early. The
 // rim of a part is left out as a sphere's sides are (its measure reads its centre's line): a tip
@@ -232,18 +233,23 @@ struct LineSet {
   double came = NAN;                   // how far the tool has come along u since its start (NaN: every line)
   double clearance = 0;                // how far above its seen surface the tool must have started on a line
 };
+
+// How many spiral lines read a part's shadow out to `fraction` of its radius: at least 96, and as
+// many as put them kLineSpacing of the part's smallest semi-axis apart (by area, at most 1024). A
+// disc's shadow (4 R by 3.5 R) read by 96 lines has them 0.7 R apart, and a thread thinner than
+// that under its rim, which the proxy's roaming lines met, was felt "5 R before anything seen"
+// (guitar vertical at 1 %: onset p10 -1.22 R on 96 lines, -0.09 R on 384; bench/RESULTS.md,
+// the hundred-and-first session). A stylus part's or a sphere's shadow keeps its 96.
+constexpr double kLineSpacing = 0.35;
+int spiral_lines(const ToolEllipsoid& part, const ToolShadow& shadow, double fraction) {
+  const double spacing = kLineSpacing * part.semi_axes.minCoeff();
+  const double area = std::numbers::pi * std::abs(shadow.l.determinant()) * fraction * fraction;
+  return int(std::clamp(std::ceil(area / (spacing * spacing)), 96.0, 1024.0));
+}
+
 std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& tool, const Eigen::Vector3d& tcp,
                                        const Eigen::Vector3d& origin, const Eigen::Vector3d& u,
                                        const LineSet& lines = {}) {
-  constexpr int kLines = 96;
-  static const std::array<Eigen::Vector2d, kLines> spiral = [] {  // on the unit disc
-    std::array<Eigen::Vector2d, kLines> w;
-    for (int i = 0; i < kLines; ++i) {
-      const double rho = std::sqrt(i / double(kLines - 1)), phi = kGoldenAngle * i;
-      w[std::size_t(i)] = Eigen::Vector2d(rho * std::cos(phi), rho * std::sin(phi));
-    }
-    return w;
-  }();
   std::array<ToolEllipsoid, kMaxToolParts> parts{};
   const int n = tool.tool.posed(tcp, tool.orientation, parts);
   std::optional<double> deepest;
@@ -259,8 +265,10 @@ std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& to
   for (int k = 0; k < n; ++k) {
     const ToolEllipsoid& e = parts[std::size_t(k)];
     const ToolShadow shadow = shadow_along(e, u);
-    for (const Eigen::Vector2d& w : spiral) {
-      const Eigen::Vector3d p = e.center + shadow.at(lines.fraction * w);
+    const int count = spiral_lines(e, shadow, lines.fraction);
+    for (int i = 0; i < count; ++i) {  // a Vogel spiral on the unit disc, mapped onto the shadow
+      const double rho = std::sqrt(i / double(count - 1)), phi = kGoldenAngle * i;
+      const Eigen::Vector3d p = e.center + shadow.at(lines.fraction * rho * Eigen::Vector2d(std::cos(phi), std::sin(phi)));
       read_line(p, exit_along(e, p, u));
     }
     read_line(e.surface_point(u), 0.0);  // the leading point: its line is tangent there
