@@ -186,6 +186,14 @@ class SeenFelt(unittest.TestCase):
         with open(report) as f:
             return rows, f.read()
 
+    def disc_rays(self, scene, percent):
+        """The rays of a disc pressed vertically onto `scene` at `percent` of its size, 10 rays."""
+        out = tempfile.mkdtemp()
+        run("seen-felt", scene_file(scene), "--direction", "vertical", "--tool-percent", percent,
+            "--tool-shape", "disc", "--rays", "10", "--surface", "seen", "--no-plot", "--out", os.path.join(out, "SF.md"))
+        with open(os.path.join(out, "sf", "seen_felt_rays.csv"), newline="") as f:
+            return list(csv.DictReader(f))
+
     def test_the_seen_surface_holds_where_it_is_seen(self):
         out = tempfile.mkdtemp()
         rows, md = self.rays(out, "--surface", "seen")
@@ -224,12 +232,7 @@ class SeenFelt(unittest.TestCase):
         # tangent point a smallest semi-axis below the edge's fit, and the ray at x = 0.6521,
         # z = -2.1234 slid 1.6 R through (0.24 R held). Roaming lines out to the rim hold on the
         # drops under it; one other ray of these ten still goes 2 R through (bench/RESULTS.md).
-        out = tempfile.mkdtemp()
-        report = os.path.join(out, "SF.md")
-        run("seen-felt", scene_file("fruitdrops.ply"), "--direction", "vertical", "--tool-percent", "0.5",
-            "--tool-shape", "disc", "--rays", "10", "--surface", "seen", "--no-plot", "--out", report)
-        with open(os.path.join(out, "sf", "seen_felt_rays.csv"), newline="") as f:
-            rows = list(csv.DictReader(f))
+        rows = self.disc_rays("fruitdrops.ply", "0.5")
         self.assertEqual(len(rows), 10)
         snapped = [r for r in rows if abs(float(r["ox"]) - 0.6521) < 1e-3 and abs(float(r["oz"]) + 2.1234) < 1e-3]
         self.assertEqual(len(snapped), 1, rows)
@@ -242,12 +245,7 @@ class SeenFelt(unittest.TestCase):
         # roaming footprint lines meet features under its rim thinner than 0.7 R. Read by 96 lines
         # over its shadow the onset put two of these ten forces 1.2 and 5.2 R before anything seen;
         # lines a third of its thickness apart see what it touched (bench/RESULTS.md).
-        out = tempfile.mkdtemp()
-        report = os.path.join(out, "SF.md")
-        run("seen-felt", scene_file("guitar.compressed.ply"), "--direction", "vertical", "--tool-percent", "1",
-            "--tool-shape", "disc", "--rays", "10", "--surface", "seen", "--no-plot", "--out", report)
-        with open(os.path.join(out, "sf", "seen_felt_rays.csv"), newline="") as f:
-            rows = list(csv.DictReader(f))
+        rows = self.disc_rays("guitar.compressed.ply", "1")
         self.assertEqual(len(rows), 10)
         for r in rows:
             self.assertGreater(float(r["onset_shadow_minus_seen"]), -0.5, r)
