@@ -17,6 +17,8 @@
 #include "gshaptics/scene/opacity_filter.h"
 #include "gshaptics/force/renderer_spec.h"
 #include "gshaptics/error.h"
+#include "gshaptics/io/scene_loader.h"
+#include "support/scenes.h"
 
 namespace gshaptics {
 namespace {
@@ -113,6 +115,66 @@ TEST(SeenSurface, MatchesASlowReferenceOnRandomClouds) {
     }
   }
   EXPECT_GE(hits, 10);
+}
+
+// The BVH's candidates against the loop over every Gaussian: the same answer bit for bit (depth,
+// optical depth, layers, the normal sum), from eyes outside and inside the cloud, along the axes
+// (a slab test's zero components) and at random, with needles, pancakes and wide faint Gaussians.
+void expect_same_as_exhaustive(const SeenSurface& seen, const Eigen::Vector3d& o, const Eigen::Vector3d& u,
+                               double t_max, int& hits, int& layers) {
+  const SeenDepth fast = seen.median_depth(o, u, t_max), slow = seen.median_depth_exhaustive(o, u, t_max);
+  ASSERT_EQ(fast.hit, slow.hit);
+  EXPECT_EQ(fast.depth, slow.depth);
+  EXPECT_EQ(fast.optical_depth, slow.optical_depth);
+  EXPECT_EQ(fast.composited, slow.composited);
+  EXPECT_EQ(fast.shade, slow.shade);
+  hits += fast.hit ? 1 : 0;
+  layers += int(fast.composited);
+}
+
+TEST(SeenSurface, TheBvhFindsWhatTheLoopOverEveryGaussianFinds) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> uni(0, 1);
+  GaussianScene s;
+  for (int i = 0; i < 4000; ++i) {
+    const Eigen::Quaternionf q = Eigen::Quaternionf::UnitRandom();
+    const int kind = i % 4;  // round, needle, pancake, wide and faint
+    const float a = float(0.002 + 0.05 * uni(rng));
+    const Eigen::Vector3f scale = kind == 0   ? Eigen::Vector3f(a, a, a)
+                                  : kind == 1 ? Eigen::Vector3f(1e-5f, 1e-5f, 8 * a)
+                                  : kind == 2 ? Eigen::Vector3f(4 * a, 4 * a, 1e-6f)
+                                              : Eigen::Vector3f(0.5f, 0.3f, 0.2f);
+    const float opacity = kind == 3 ? 0.02f : float(0.01 + 0.98 * uni(rng));
+    s.push_back(Eigen::Vector3f(float(uni(rng) - 0.5), float(uni(rng) - 0.5), float(uni(rng) - 0.5)), scale,
+                Eigen::Vector4f(q.w(), q.x(), q.y(), q.z()), opacity, std::uint32_t(i));
+  }
+  const SeenSurface seen(s);
+  int hits = 0, layers = 0;
+  for (int k = 0; k < 300; ++k) {
+    const bool inside = k % 3 == 0;
+    const Eigen::Vector3d o = inside ? Eigen::Vector3d(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5)
+                                     : 3.0 * Eigen::Vector3d::Random().normalized();
+    Eigen::Vector3d u = k % 5 == 0 ? Eigen::Vector3d::Unit(k % 3) : (Eigen::Vector3d::Random() - 0.3 * o).normalized();
+    if (k % 10 == 0) u = -u;
+    expect_same_as_exhaustive(seen, o, u, k % 7 == 0 ? 0.5 + uni(rng) : 1e300, hits, layers);
+  }
+  EXPECT_GE(hits, 100);
+  EXPECT_GE(layers, 3000);
+}
+
+TEST(SeenSurface, TheBvhFindsWhatTheLoopFindsOnTheTruck) {
+  const LoadedScene truck = load_scene(test::scene_path("truck.splat"));
+  const SeenSurface seen(truck.scene);
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> uni(-1, 1);
+  int hits = 0, layers = 0;
+  for (int k = 0; k < 40; ++k) {
+    const Eigen::Vector3d o = 6.0 * Eigen::Vector3d(uni(rng), uni(rng), uni(rng)).normalized();
+    const Eigen::Vector3d u = (Eigen::Vector3d(uni(rng), uni(rng), uni(rng)) - o).normalized();
+    expect_same_as_exhaustive(seen, o, u, 1e300, hits, layers);
+  }
+  EXPECT_GE(hits, 10);
+  EXPECT_GE(layers, 500);
 }
 
 TEST(SeenSurface, NormalOfATiltedPlaneOfDiscs) {

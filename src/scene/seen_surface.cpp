@@ -44,19 +44,63 @@ SeenSurface::SeenSurface(const GaussianScene& scene) {
     if (!std::isfinite(e.reach) || !e.mean.allFinite()) continue;
     gaussians_.push_back(e);
   }
+  build_bvh();
+}
+
+void SeenSurface::build_bvh() {
+  if (gaussians_.empty()) return;
+  std::vector<BvhBox> boxes(gaussians_.size());
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (std::size_t i = 0; i < gaussians_.size(); ++i) {
+    const Entry& g = gaussians_[i];
+    for (int k = 0; k < 3; ++k) {
+      boxes[i].lo[k] = round_down_to_float(g.mean[k] - g.reach);
+      boxes[i].hi[k] = round_up_to_float(g.mean[k] + g.reach);
+      lo[k] = std::min<double>(lo[k], boxes[i].lo[k]);
+      hi[k] = std::max<double>(hi[k], boxes[i].hi[k]);
+    }
+  }
+  centre_ = 0.5 * (lo + hi);
+  radius_ = 0.5 * (hi - lo).norm() * (1 + 1e-9) + 1e-12;
+  const Bvh binary = Bvh::build(boxes, 4, BvhSplit::kSah);
+  order_ = binary.order();
+  bvh_ = WideBvh::collapse(binary);
 }
 
 SeenDepth SeenSurface::median_depth(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_max) const {
-  SeenDepth out;
   const double len = dir.norm();
-  if (!(len > 0)) return out;
+  if (!(len > 0) || gaussians_.empty()) return {};
   const Eigen::Vector3d u = dir / len;
+  // Every box the infinite line meets lies along it within radius_ of centre_'s foot (the
+  // reach test below is the line's, not the ray's: t is checked on each layer's peak).
+  const double foot = (centre_ - origin).dot(u);
+  std::vector<std::uint32_t> candidates;
+  bvh_.for_each_leaf_on_segment(origin, u, foot - radius_, foot + radius_, [&](std::uint32_t first, std::uint32_t count) {
+    for (std::uint32_t k = first; k < first + count; ++k) candidates.push_back(order_[k]);
+  });
+  std::sort(candidates.begin(), candidates.end());
+  return composite(origin, u, t_max, candidates);
+}
+
+SeenDepth SeenSurface::median_depth_exhaustive(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                                               double t_max) const {
+  const double len = dir.norm();
+  if (!(len > 0)) return {};
+  std::vector<std::uint32_t> all(gaussians_.size());
+  for (std::size_t i = 0; i < all.size(); ++i) all[i] = std::uint32_t(i);
+  return composite(origin, dir / len, t_max, all);
+}
+
+SeenDepth SeenSurface::composite(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double t_max,
+                                 std::span<const std::uint32_t> candidates) const {
+  SeenDepth out;
   struct Layer {
     double t, alpha;
     const Entry* g;
   };
   std::vector<Layer> layers;
-  for (const Entry& g : gaussians_) {
+  for (const std::uint32_t i : candidates) {
+    const Entry& g = gaussians_[i];
     const Eigen::Vector3d w = g.mean - origin;
     const double along = w.dot(u);
     if ((w - along * u).squaredNorm() > g.reach * g.reach) continue;  // the ray misses its reach
