@@ -76,7 +76,12 @@ SeenDepth SeenSurface::median_depth(const Eigen::Vector3d& origin, const Eigen::
   const double foot = (centre_ - origin).dot(u);
   std::vector<std::uint32_t> candidates;
   bvh_.for_each_leaf_on_segment(origin, u, foot - radius_, foot + radius_, [&](std::uint32_t first, std::uint32_t count) {
-    for (std::uint32_t k = first; k < first + count; ++k) candidates.push_back(order_[k]);
+    for (std::uint32_t k = first; k < first + count; ++k) {
+      const Entry& g = gaussians_[order_[k]];
+      const Eigen::Vector3d w = g.mean - origin;
+      // (composite()'s own first test, so only what it keeps is sorted.)
+      if ((w - w.dot(u) * u).squaredNorm() <= g.reach * g.reach) candidates.push_back(order_[k]);
+    }
   });
   std::sort(candidates.begin(), candidates.end());
   return composite(origin, u, t_max, candidates);
