@@ -119,7 +119,8 @@ TEST(SeenSurface, MatchesASlowReferenceOnRandomClouds) {
 
 // The BVH's candidates against the loop over every Gaussian: the same answer bit for bit (depth,
 // optical depth, layers, the normal sum), from eyes outside and inside the cloud, along the axes
-// (a slab test's zero components) and at random, with needles, pancakes and wide faint Gaussians.
+// (a slab test's zero components) and at random, with needles, pancakes and wide faint Gaussians;
+// and first_seen(), chunk by chunk, the same surface.
 void expect_same_as_exhaustive(const SeenSurface& seen, const Eigen::Vector3d& o, const Eigen::Vector3d& u,
                                double t_max, int& hits, int& layers) {
   const SeenDepth fast = seen.median_depth(o, u, t_max), slow = seen.median_depth_exhaustive(o, u, t_max);
@@ -128,6 +129,13 @@ void expect_same_as_exhaustive(const SeenSurface& seen, const Eigen::Vector3d& o
   EXPECT_EQ(fast.optical_depth, slow.optical_depth);
   EXPECT_EQ(fast.composited, slow.composited);
   EXPECT_EQ(fast.shade, slow.shade);
+  // Front to back, stopped at the seen surface: the same surface.
+  const SeenDepth first = seen.first_seen(o, u, t_max);
+  ASSERT_EQ(first.hit, slow.hit);
+  EXPECT_EQ(first.depth, slow.depth);
+  EXPECT_EQ(first.shade, slow.shade);
+  EXPECT_LE(first.composited, slow.composited);
+  if (!slow.hit) EXPECT_EQ(first.composited, slow.composited);
   hits += fast.hit ? 1 : 0;
   layers += int(fast.composited);
 }

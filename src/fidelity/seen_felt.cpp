@@ -113,7 +113,7 @@ struct Viewer {
   [[nodiscard]] double back(const Eigen::Vector3d& origin) const { return (origin - centre).norm() + span; }
   [[nodiscard]] SeenDepth median_depth(const Eigen::Vector3d& origin, const Eigen::Vector3d& u) const {
     const double b = back(origin);
-    SeenDepth d = seen->median_depth(origin - b * u, u);
+    SeenDepth d = seen->first_seen(origin - b * u, u);
     d.depth -= b;
     return d;
   }

@@ -71,20 +71,44 @@ SeenDepth SeenSurface::median_depth(const Eigen::Vector3d& origin, const Eigen::
   const double len = dir.norm();
   if (!(len > 0) || gaussians_.empty()) return {};
   const Eigen::Vector3d u = dir / len;
-  // Every box the infinite line meets lies along it within radius_ of centre_'s foot (the
-  // reach test below is the line's, not the ray's: t is checked on each layer's peak).
+  // Every box the infinite line meets lies along it within radius_ of centre_'s foot.
   const double foot = (centre_ - origin).dot(u);
   std::vector<std::uint32_t> candidates;
-  bvh_.for_each_leaf_on_segment(origin, u, foot - radius_, foot + radius_, [&](std::uint32_t first, std::uint32_t count) {
-    for (std::uint32_t k = first; k < first + count; ++k) {
-      const Entry& g = gaussians_[order_[k]];
-      const Eigen::Vector3d w = g.mean - origin;
-      // (composite()'s own first test, so only what it keeps is sorted.)
-      if ((w - w.dot(u) * u).squaredNorm() <= g.reach * g.reach) candidates.push_back(order_[k]);
-    }
-  });
-  std::sort(candidates.begin(), candidates.end());
-  return composite(origin, u, t_max, candidates);
+  gather(origin, u, foot - radius_, foot + radius_, candidates);
+  SeenDepth out;
+  std::vector<Layer> layers;
+  add_layers(origin, u, 0, t_max, candidates, layers);
+  double transmittance = 1;
+  accumulate(u, layers, out, transmittance, false);
+  return out;
+}
+
+SeenDepth SeenSurface::first_seen(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_max) const {
+  const double len = dir.norm();
+  if (!(len > 0) || gaussians_.empty()) return {};
+  const Eigen::Vector3d u = dir / len;
+  const double foot = (centre_ - origin).dot(u);
+  const double last = std::min(t_max, foot + radius_);
+  // Chunks (a, b] of the ray, doubling from a 1/256 of the scene's span: a layer belongs to the
+  // chunk its peak lies in, and its reach box meets the chunk there (the peak is inside its
+  // reach), so the chunks in turn give the layers in median_depth()'s order.
+  SeenDepth out;
+  double transmittance = 1, a = std::max(0.0, foot - radius_), step = radius_ / 128;
+  std::vector<std::uint32_t> candidates;
+  std::vector<Layer> layers;
+  bool first = true;
+  while (!out.hit && a < last) {
+    const double b = std::min(last, a + step);
+    candidates.clear();
+    layers.clear();
+    gather(origin, u, a, b, candidates);
+    add_layers(origin, u, first ? 0.0 : a, b >= last ? t_max : b, candidates, layers);
+    accumulate(u, layers, out, transmittance, true);
+    first = false;
+    a = b;
+    step *= 2;
+  }
+  return out;
 }
 
 SeenDepth SeenSurface::median_depth_exhaustive(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
@@ -93,17 +117,30 @@ SeenDepth SeenSurface::median_depth_exhaustive(const Eigen::Vector3d& origin, co
   if (!(len > 0)) return {};
   std::vector<std::uint32_t> all(gaussians_.size());
   for (std::size_t i = 0; i < all.size(); ++i) all[i] = std::uint32_t(i);
-  return composite(origin, dir / len, t_max, all);
+  const Eigen::Vector3d u = dir / len;
+  SeenDepth out;
+  std::vector<Layer> layers;
+  add_layers(origin, u, 0, t_max, all, layers);
+  double transmittance = 1;
+  accumulate(u, layers, out, transmittance, false);
+  return out;
 }
 
-SeenDepth SeenSurface::composite(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double t_max,
-                                 std::span<const std::uint32_t> candidates) const {
-  SeenDepth out;
-  struct Layer {
-    double t, alpha;
-    const Entry* g;
-  };
-  std::vector<Layer> layers;
+void SeenSurface::gather(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double ta, double tb,
+                         std::vector<std::uint32_t>& candidates) const {
+  bvh_.for_each_leaf_on_segment(origin, u, ta, tb, [&](std::uint32_t first, std::uint32_t count) {
+    for (std::uint32_t k = first; k < first + count; ++k) {
+      const Entry& g = gaussians_[order_[k]];
+      const Eigen::Vector3d w = g.mean - origin;
+      // (add_layers()' own first test, so only what it keeps is sorted.)
+      if ((w - w.dot(u) * u).squaredNorm() <= g.reach * g.reach) candidates.push_back(order_[k]);
+    }
+  });
+  std::sort(candidates.begin(), candidates.end());
+}
+
+void SeenSurface::add_layers(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double after, double upto,
+                             std::span<const std::uint32_t> candidates, std::vector<Layer>& layers) const {
   for (const std::uint32_t i : candidates) {
     const Entry& g = gaussians_[i];
     const Eigen::Vector3d w = g.mean - origin;
@@ -111,7 +148,7 @@ SeenDepth SeenSurface::composite(const Eigen::Vector3d& origin, const Eigen::Vec
     if ((w - along * u).squaredNorm() > g.reach * g.reach) continue;  // the ray misses its reach
     const Eigen::Vector3d wu = whiten(g.m, u), ww = whiten(g.m, w);
     const double t = wu.dot(ww) / wu.squaredNorm();
-    if (!(t > 0) || t > t_max) continue;
+    if (!(t > after) || t > upto) continue;
     // The ray's squared Mahalanobis distance from the mean, at its peak.
     const double r2 = (ww - t * wu).squaredNorm();
     const double alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5 * r2));
@@ -119,11 +156,14 @@ SeenDepth SeenSurface::composite(const Eigen::Vector3d& origin, const Eigen::Vec
     layers.push_back({t, alpha, &g});
   }
   std::stable_sort(layers.begin(), layers.end(), [](const Layer& a, const Layer& b) { return a.t < b.t; });
-  out.composited = layers.size();
+}
+
+void SeenSurface::accumulate(const Eigen::Vector3d& u, std::span<const Layer> layers, SeenDepth& out,
+                             double& transmittance, bool stop) const {
   const double half = std::log(2.0);
-  double transmittance = 1;
   for (const Layer& l : layers) {
     out.optical_depth -= std::log1p(-l.alpha);
+    ++out.composited;
     if (out.hit) continue;
     const Eigen::Vector3d pu = l.g->precision * u;
     out.shade -= transmittance * l.alpha * pu.normalized();
@@ -131,9 +171,9 @@ SeenDepth SeenSurface::composite(const Eigen::Vector3d& origin, const Eigen::Vec
     if (out.optical_depth >= half) {
       out.hit = true;
       out.depth = l.t;
+      if (stop) return;
     }
   }
-  return out;
 }
 
 std::optional<SeenPoint> SeenSurface::surface_point(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
@@ -141,14 +181,14 @@ std::optional<SeenPoint> SeenSurface::surface_point(const Eigen::Vector3d& origi
   const double len = dir.norm();
   if (!(len > 0) || !(h > 0)) return std::nullopt;
   const Eigen::Vector3d u = dir / len;
-  const SeenDepth centre = median_depth(origin, u, t_max);
+  const SeenDepth centre = first_seen(origin, u, t_max);
   if (!centre.hit) return std::nullopt;
   const Eigen::Vector3d a = u.unitOrthogonal();
   const Eigen::Vector3d b = u.cross(a);
   Eigen::Vector3d pts[4];
   const Eigen::Vector3d offsets[4] = {h * a, -h * a, h * b, -h * b};
   for (int k = 0; k < 4; ++k) {
-    const SeenDepth d = median_depth(origin + offsets[k], u, t_max);
+    const SeenDepth d = first_seen(origin + offsets[k], u, t_max);
     if (!d.hit) return std::nullopt;
     pts[k] = origin + offsets[k] + d.depth * u;
   }

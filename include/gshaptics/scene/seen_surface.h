@@ -67,6 +67,12 @@ class SeenSurface {
   /// (it is normalised; the depth is in scene units along the unit direction).
   [[nodiscard]] SeenDepth median_depth(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
                                        double t_max = 1e300) const;
+  /// median_depth()'s hit, depth and shade bit for bit, composited front to back in chunks of the
+  /// ray and stopped at the seen surface: optical_depth and composited then count the layers up
+  /// to it only. The cheap call where only the seen surface matters (surface_point(), the
+  /// seen-felt measure's lines).
+  [[nodiscard]] SeenDepth first_seen(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                                     double t_max = 1e300) const;
   /// median_depth() by visiting every Gaussian (no BVH): the slow reference the tests hold the
   /// BVH's candidates to.
   [[nodiscard]] SeenDepth median_depth_exhaustive(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
@@ -87,10 +93,21 @@ class SeenSurface {
     double reach;      // Euclidean radius beyond which alpha < 1/255
     Eigen::Matrix3d precision;  // Sigma^-1 = R diag(s^-2) R^T
   };
-  // The ray's layers from the Gaussians `candidates` lists (indices into gaussians_, ascending:
-  // the file's order, so ties in depth composite as the exhaustive loop's), composited.
-  [[nodiscard]] SeenDepth composite(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double t_max,
-                                    std::span<const std::uint32_t> candidates) const;
+  struct Layer {
+    double t, alpha;
+    const Entry* g;
+  };
+  // The Gaussians whose reach the line origin + t u (|u| = 1) meets, of the BVH's leaves on
+  // t in [ta, tb], into `candidates` in ascending order (the file's: ties in depth composite as
+  // the exhaustive loop's).
+  void gather(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double ta, double tb,
+              std::vector<std::uint32_t>& candidates) const;
+  // Their layers peaking at t in (after, upto] with alpha >= 1/255, appended and stably sorted by t.
+  void add_layers(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double after, double upto,
+                  std::span<const std::uint32_t> candidates, std::vector<Layer>& layers) const;
+  // Composites `layers` (in depth order) onto `out`; `stop`: return at the seen surface.
+  void accumulate(const Eigen::Vector3d& u, std::span<const Layer> layers, SeenDepth& out, double& transmittance,
+                  bool stop) const;
   std::vector<Entry> gaussians_;
   WideBvh bvh_;                       // over the bounding spheres' boxes
   std::vector<std::uint32_t> order_;  // the BVH's slot -> index into gaussians_
