@@ -170,6 +170,45 @@ TEST(SeenSurface, TheBvhFindsWhatTheLoopOverEveryGaussianFinds) {
   EXPECT_GE(layers, 3000);
 }
 
+// Parallel rays read at once on the grid: each the same surface as first_seen() alone.
+void expect_parallel_same(const SeenSurface& seen, const Eigen::Vector3d& centre, double spread, std::mt19937_64& rng,
+                          int& hits) {
+  std::uniform_real_distribution<double> uni(-1, 1);
+  const Eigen::Vector3d u = Eigen::Vector3d(uni(rng), uni(rng), uni(rng)).normalized();
+  std::vector<Eigen::Vector3d> eyes;
+  for (int i = 0; i < 500; ++i)
+    eyes.push_back(centre - 3 * u + spread * Eigen::Vector3d(uni(rng), uni(rng), uni(rng)));
+  std::vector<SeenDepth> out(eyes.size());
+  seen.first_seen_parallel(eyes, u, out);
+  for (std::size_t i = 0; i < eyes.size(); ++i) {
+    const SeenDepth one = seen.first_seen(eyes[i], u);
+    ASSERT_EQ(out[i].hit, one.hit) << i;
+    EXPECT_EQ(out[i].depth, one.depth) << i;
+    EXPECT_EQ(out[i].shade, one.shade) << i;
+    hits += one.hit ? 1 : 0;
+  }
+}
+
+TEST(SeenSurface, ParallelRaysReadAtOnceSeeWhatEachSeesAlone) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> uni(0, 1);
+  GaussianScene s;
+  for (int i = 0; i < 3000; ++i) {
+    const Eigen::Quaternionf q = Eigen::Quaternionf::UnitRandom();
+    const float a = float(0.002 + 0.05 * uni(rng));
+    const Eigen::Vector3f scale = i % 3 == 0 ? Eigen::Vector3f(1e-5f, 1e-5f, 8 * a) : Eigen::Vector3f(a, 2 * a, 1e-6f);
+    s.push_back(Eigen::Vector3f(float(uni(rng) - 0.5), float(uni(rng) - 0.5), float(uni(rng) - 0.5)), scale,
+                Eigen::Vector4f(q.w(), q.x(), q.y(), q.z()), float(0.05 + 0.9 * uni(rng)), std::uint32_t(i));
+  }
+  const SeenSurface seen(s);
+  int hits = 0;
+  for (const double spread : {0.01, 0.1, 0.6}) expect_parallel_same(seen, Eigen::Vector3d::Zero(), spread, rng, hits);
+  EXPECT_GE(hits, 300);
+  std::vector<SeenDepth> wrong(3);
+  EXPECT_THROW(seen.first_seen_parallel(std::vector<Eigen::Vector3d>(2), Eigen::Vector3d::UnitZ(), wrong),
+               std::invalid_argument);
+}
+
 TEST(SeenSurface, TheBvhFindsWhatTheLoopFindsOnTheTruck) {
   const LoadedScene truck = load_scene(test::scene_path("truck.splat"));
   const SeenSurface seen(truck.scene);
@@ -183,6 +222,9 @@ TEST(SeenSurface, TheBvhFindsWhatTheLoopFindsOnTheTruck) {
   }
   EXPECT_GE(hits, 10);
   EXPECT_GE(layers, 500);
+  int parallel_hits = 0;
+  for (int k = 0; k < 3; ++k) expect_parallel_same(seen, Eigen::Vector3d::Zero(), 0.3, rng, parallel_hits);
+  EXPECT_GE(parallel_hits, 100);
 }
 
 TEST(SeenSurface, NormalOfATiltedPlaneOfDiscs) {

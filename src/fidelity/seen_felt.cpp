@@ -117,6 +117,14 @@ struct Viewer {
     d.depth -= b;
     return d;
   }
+  // median_depth() along parallel lines from `eyes` (overwritten with the eyes moved back) at once.
+  void median_depths(std::vector<Eigen::Vector3d>& eyes, const Eigen::Vector3d& u, std::vector<SeenDepth>& out) const {
+    std::vector<double> b(eyes.size());
+    for (std::size_t i = 0; i < eyes.size(); ++i) eyes[i] -= (b[i] = back(eyes[i])) * u;
+    out.resize(eyes.size());
+    seen->first_seen_parallel(eyes, u, out);
+    for (std::size_t i = 0; i < eyes.size(); ++i) out[i].depth -= b[i];
+  }
   [[nodiscard]] std::optional<SeenPoint> surface_point(const Eigen::Vector3d& origin, const Eigen::Vector3d& u,
                                                        double h) const {
     const double b = back(origin);
@@ -252,15 +260,14 @@ std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& to
                                        const LineSet& lines = {}) {
   std::array<ToolEllipsoid, kMaxToolParts> parts{};
   const int n = tool.tool.posed(tcp, tool.orientation, parts);
-  std::optional<double> deepest;
-  // The line along u through p, which leaves the part at p + exit u.
-  const auto read_line = [&](const Eigen::Vector3d& p, double exit) {
-    const Eigen::Vector3d q = p - (p - origin).dot(u) * u;  // the line's eye, on the plane through origin
-    const double front = exit + (p - q).dot(u);             // the part's leading crossing, from q
-    const SeenDepth sd = seen.median_depth(q, u);
-    if (!sd.hit || std::isnan(front)) return;
-    if (!std::isnan(lines.came) && !(front - lines.came - sd.depth <= -lines.clearance)) return;
-    deepest = std::max(deepest.value_or(-INFINITY), front - sd.depth);
+  // The line along u through p, which leaves the part at p + exit u: its eye q, on the plane
+  // through origin, and the part's leading crossing from q; all read at once.
+  std::vector<Eigen::Vector3d> eyes;
+  std::vector<double> fronts;
+  const auto add_line = [&](const Eigen::Vector3d& p, double exit) {
+    const Eigen::Vector3d q = p - (p - origin).dot(u) * u;
+    eyes.push_back(q);
+    fronts.push_back(exit + (p - q).dot(u));
   };
   for (int k = 0; k < n; ++k) {
     const ToolEllipsoid& e = parts[std::size_t(k)];
@@ -269,9 +276,19 @@ std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& to
     for (int i = 0; i < count; ++i) {  // a Vogel spiral on the unit disc, mapped onto the shadow
       const double rho = std::sqrt(i / double(count - 1)), phi = kGoldenAngle * i;
       const Eigen::Vector3d p = e.center + shadow.at(lines.fraction * rho * Eigen::Vector2d(std::cos(phi), std::sin(phi)));
-      read_line(p, exit_along(e, p, u));
+      add_line(p, exit_along(e, p, u));
     }
-    read_line(e.surface_point(u), 0.0);  // the leading point: its line is tangent there
+    add_line(e.surface_point(u), 0.0);  // the leading point: its line is tangent there
+  }
+  std::vector<SeenDepth> seen_depths;
+  seen.median_depths(eyes, u, seen_depths);
+  std::optional<double> deepest;
+  for (std::size_t i = 0; i < fronts.size(); ++i) {
+    const SeenDepth& sd = seen_depths[i];
+    const double front = fronts[i];
+    if (!sd.hit || std::isnan(front)) continue;
+    if (!std::isnan(lines.came) && !(front - lines.came - sd.depth <= -lines.clearance)) continue;
+    deepest = std::max(deepest.value_or(-INFINITY), front - sd.depth);
   }
   return deepest;
 }

@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <utility>
 
 namespace gshaptics {
@@ -109,6 +110,54 @@ SeenDepth SeenSurface::first_seen(const Eigen::Vector3d& origin, const Eigen::Ve
     step *= 2;
   }
   return out;
+}
+
+void SeenSurface::first_seen_parallel(std::span<const Eigen::Vector3d> origins, const Eigen::Vector3d& dir,
+                                      std::span<SeenDepth> out) const {
+  if (origins.size() != out.size()) throw std::invalid_argument("first_seen_parallel: origins and out differ in size");
+  std::fill(out.begin(), out.end(), SeenDepth{});
+  const double len = dir.norm();
+  if (!(len > 0) || origins.empty() || gaussians_.empty()) return;
+  const Eigen::Vector3d u = dir / len, a = u.unitOrthogonal(), b = u.cross(a);
+  // The rays' feet across u, and a grid of about one cell per ray over them.
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(INFINITY), hi = -lo;
+  for (const Eigen::Vector3d& o : origins) {
+    const Eigen::Vector2d f(o.dot(a), o.dot(b));
+    lo = lo.cwiseMin(f);
+    hi = hi.cwiseMax(f);
+  }
+  if (!lo.allFinite() || !hi.allFinite()) return;
+  const int side = std::clamp(int(std::sqrt(double(origins.size()))), 1, 256);
+  const Eigen::Vector2d cell = ((hi - lo) / side).cwiseMax(1e-12 * (1 + lo.cwiseAbs().maxCoeff()));
+  const auto index = [&](double x, double lo_x, double c) { return std::clamp(int(std::floor((x - lo_x) / c)), 0, side - 1); };
+  // Each Gaussian into every cell its reach disc (padded for rounding) meets, in the file's order.
+  std::vector<std::uint32_t> start(std::size_t(side * side) + 1, 0), items;
+  const auto bin = [&](auto&& put) {
+    for (std::size_t i = 0; i < gaussians_.size(); ++i) {
+      const Entry& g = gaussians_[i];
+      const Eigen::Vector2d f(g.mean.dot(a), g.mean.dot(b));
+      const double r = g.reach * (1 + 1e-9) + 1e-12 * (1 + f.cwiseAbs().maxCoeff());
+      if (f.x() + r < lo.x() || f.x() - r > hi.x() || f.y() + r < lo.y() || f.y() - r > hi.y()) continue;
+      const int x0 = index(f.x() - r, lo.x(), cell.x()), x1 = index(f.x() + r, lo.x(), cell.x());
+      const int y0 = index(f.y() - r, lo.y(), cell.y()), y1 = index(f.y() + r, lo.y(), cell.y());
+      for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) put(std::size_t(y * side + x), std::uint32_t(i));
+    }
+  };
+  bin([&](std::size_t c, std::uint32_t) { ++start[c + 1]; });
+  for (std::size_t c = 1; c < start.size(); ++c) start[c] += start[c - 1];
+  items.resize(start.back());
+  std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+  bin([&](std::size_t c, std::uint32_t i) { items[fill[c]++] = i; });
+  std::vector<Layer> layers;
+  for (std::size_t k = 0; k < origins.size(); ++k) {
+    const Eigen::Vector3d& o = origins[k];
+    const std::size_t c = std::size_t(index(o.dot(b), lo.y(), cell.y()) * side + index(o.dot(a), lo.x(), cell.x()));
+    layers.clear();
+    add_layers(o, u, 0, 1e300, std::span<const std::uint32_t>(items.data() + start[c], start[c + 1] - start[c]), layers);
+    double transmittance = 1;
+    accumulate(u, layers, out[k], transmittance, true);
+  }
 }
 
 SeenDepth SeenSurface::median_depth_exhaustive(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,

@@ -73,6 +73,12 @@ class SeenSurface {
   /// seen-felt measure's lines).
   [[nodiscard]] SeenDepth first_seen(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
                                      double t_max = 1e300) const;
+  /// first_seen() along many parallel rays origins[i] + t dir (t in (0, inf)) at once, into
+  /// out[i]: the Gaussians are binned once on a grid across dir over the rays' spread, so each
+  /// ray composites only those whose reach its cell meets (a part's shadow read by thousands of
+  /// lines). Throws std::invalid_argument when out and origins differ in size.
+  void first_seen_parallel(std::span<const Eigen::Vector3d> origins, const Eigen::Vector3d& dir,
+                           std::span<SeenDepth> out) const;
   /// median_depth() by visiting every Gaussian (no BVH): the slow reference the tests hold the
   /// BVH's candidates to.
   [[nodiscard]] SeenDepth median_depth_exhaustive(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
