@@ -149,14 +149,39 @@ void SeenSurface::first_seen_parallel(std::span<const Eigen::Vector3d> origins, 
   items.resize(start.back());
   std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
   bin([&](std::size_t c, std::uint32_t i) { items[fill[c]++] = i; });
-  std::vector<Layer> layers;
+  // Each cell's Gaussians by the least depth a layer of theirs can have along any of the rays
+  // (their mean's depth less their reach: the peak lies inside the reach), up to the rays' own
+  // offsets along u; a ray then composites its cell front to back and stops at its surface.
+  std::vector<double> key(gaussians_.size());
+  for (std::size_t i = 0; i < gaussians_.size(); ++i) key[i] = gaussians_[i].mean.dot(u) - gaussians_[i].reach;
+  std::vector<char> sorted(std::size_t(side * side), 0);
+  const auto by_key = [&](std::uint32_t x, std::uint32_t y) { return key[x] < key[y] || (key[x] == key[y] && x < y); };
+  std::vector<Layer> heap;  // the layers found, least (t, file order) first
+  const auto later = [](const Layer& x, const Layer& y) { return x.t > y.t || (x.t == y.t && x.g > y.g); };
   for (std::size_t k = 0; k < origins.size(); ++k) {
     const Eigen::Vector3d& o = origins[k];
     const std::size_t c = std::size_t(index(o.dot(b), lo.y(), cell.y()) * side + index(o.dot(a), lo.x(), cell.x()));
-    layers.clear();
-    add_layers(o, u, 0, 1e300, std::span<const std::uint32_t>(items.data() + start[c], start[c + 1] - start[c]), layers);
+    const std::span<std::uint32_t> in_cell(items.data() + start[c], start[c + 1] - start[c]);
+    if (!sorted[c]) std::sort(in_cell.begin(), in_cell.end(), by_key), sorted[c] = 1;
+    const double ou = o.dot(u);
+    heap.clear();
     double transmittance = 1;
-    accumulate(u, layers, out[k], transmittance, true);
+    SeenDepth& out_k = out[k];
+    const auto composite_before = [&](double t_lo) {  // every layer found that no later one can precede
+      while (!heap.empty() && !out_k.hit && heap.front().t < t_lo) {
+        std::pop_heap(heap.begin(), heap.end(), later);
+        accumulate(u, std::span<const Layer>(&heap.back(), 1), out_k, transmittance, true);
+        heap.pop_back();
+      }
+    };
+    for (const std::uint32_t i : in_cell) {
+      const double t_lo = key[i] - ou;
+      composite_before(t_lo - 1e-9 * (std::abs(key[i]) + std::abs(ou) + gaussians_[i].reach) - 1e-300);
+      if (out_k.hit) break;
+      Layer l;
+      if (layer_of(i, o, u, 0, 1e300, l)) heap.push_back(l), std::push_heap(heap.begin(), heap.end(), later);
+    }
+    composite_before(INFINITY);
   }
 }
 
@@ -188,22 +213,28 @@ void SeenSurface::gather(const Eigen::Vector3d& origin, const Eigen::Vector3d& u
   std::sort(candidates.begin(), candidates.end());
 }
 
+bool SeenSurface::layer_of(std::uint32_t i, const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double after,
+                           double upto, Layer& layer) const {
+  const Entry& g = gaussians_[i];
+  const Eigen::Vector3d w = g.mean - origin;
+  const double along = w.dot(u);
+  if ((w - along * u).squaredNorm() > g.reach * g.reach) return false;  // the ray misses its reach
+  const Eigen::Vector3d wu = whiten(g.m, u), ww = whiten(g.m, w);
+  const double t = wu.dot(ww) / wu.squaredNorm();
+  if (!(t > after) || t > upto) return false;
+  // The ray's squared Mahalanobis distance from the mean, at its peak.
+  const double r2 = (ww - t * wu).squaredNorm();
+  const double alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5 * r2));
+  if (alpha < kMinAlpha) return false;
+  layer = {t, alpha, &g};
+  return true;
+}
+
 void SeenSurface::add_layers(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double after, double upto,
                              std::span<const std::uint32_t> candidates, std::vector<Layer>& layers) const {
-  for (const std::uint32_t i : candidates) {
-    const Entry& g = gaussians_[i];
-    const Eigen::Vector3d w = g.mean - origin;
-    const double along = w.dot(u);
-    if ((w - along * u).squaredNorm() > g.reach * g.reach) continue;  // the ray misses its reach
-    const Eigen::Vector3d wu = whiten(g.m, u), ww = whiten(g.m, w);
-    const double t = wu.dot(ww) / wu.squaredNorm();
-    if (!(t > after) || t > upto) continue;
-    // The ray's squared Mahalanobis distance from the mean, at its peak.
-    const double r2 = (ww - t * wu).squaredNorm();
-    const double alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5 * r2));
-    if (alpha < kMinAlpha) continue;
-    layers.push_back({t, alpha, &g});
-  }
+  Layer l;
+  for (const std::uint32_t i : candidates)
+    if (layer_of(i, origin, u, after, upto, l)) layers.push_back(l);
   std::stable_sort(layers.begin(), layers.end(), [](const Layer& a, const Layer& b) { return a.t < b.t; });
 }
 

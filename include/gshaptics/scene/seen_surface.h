@@ -108,6 +108,9 @@ class SeenSurface {
   // the exhaustive loop's).
   void gather(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double ta, double tb,
               std::vector<std::uint32_t>& candidates) const;
+  // Gaussian i's layer on the ray when its peak lies at t in (after, upto] with alpha >= 1/255.
+  bool layer_of(std::uint32_t i, const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double after, double upto,
+                Layer& layer) const;
   // Their layers peaking at t in (after, upto] with alpha >= 1/255, appended and stably sorted by t.
   void add_layers(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double after, double upto,
                   std::span<const std::uint32_t> candidates, std::vector<Layer>& layers) const;
