@@ -127,42 +127,46 @@ void SeenSurface::first_seen_parallel(std::span<const Eigen::Vector3d> origins, 
     hi = hi.cwiseMax(f);
   }
   if (!lo.allFinite() || !hi.allFinite()) return;
-  const int side = std::clamp(int(std::sqrt(double(origins.size()))), 1, 256);
+  const int side = std::clamp(int(std::sqrt(double(origins.size())) / 2), 1, 128);
   const Eigen::Vector2d cell = ((hi - lo) / side).cwiseMax(1e-12 * (1 + lo.cwiseAbs().maxCoeff()));
   const auto index = [&](double x, double lo_x, double c) { return std::clamp(int(std::floor((x - lo_x) / c)), 0, side - 1); };
-  // Each Gaussian into every cell its reach disc (padded for rounding) meets, in the file's order.
+  // The Gaussians whose reach disc (padded for rounding) meets the rays' spread, by the least
+  // depth a layer of theirs can have along any of the rays (their mean's depth less their reach:
+  // the peak lies inside the reach), up to the rays' own offsets along u; then the file's order.
+  struct Near {
+    double key;
+    std::uint32_t i;
+    int x0, x1, y0, y1;  // the cells its disc meets
+  };
+  std::vector<Near> near;
+  for (std::size_t i = 0; i < gaussians_.size(); ++i) {
+    const Entry& g = gaussians_[i];
+    const Eigen::Vector2d f(g.mean.dot(a), g.mean.dot(b));
+    const double r = g.reach * (1 + 1e-9) + 1e-12 * (1 + f.cwiseAbs().maxCoeff());
+    if (f.x() + r < lo.x() || f.x() - r > hi.x() || f.y() + r < lo.y() || f.y() - r > hi.y()) continue;
+    near.push_back({g.mean.dot(u) - g.reach, std::uint32_t(i), index(f.x() - r, lo.x(), cell.x()),
+                    index(f.x() + r, lo.x(), cell.x()), index(f.y() - r, lo.y(), cell.y()), index(f.y() + r, lo.y(), cell.y())});
+  }
+  std::sort(near.begin(), near.end(), [](const Near& x, const Near& y) { return x.key < y.key || (x.key == y.key && x.i < y.i); });
+  // Into every cell each meets, in that order: a ray then composites its cell front to back and
+  // stops at its surface.
   std::vector<std::uint32_t> start(std::size_t(side * side) + 1, 0), items;
   const auto bin = [&](auto&& put) {
-    for (std::size_t i = 0; i < gaussians_.size(); ++i) {
-      const Entry& g = gaussians_[i];
-      const Eigen::Vector2d f(g.mean.dot(a), g.mean.dot(b));
-      const double r = g.reach * (1 + 1e-9) + 1e-12 * (1 + f.cwiseAbs().maxCoeff());
-      if (f.x() + r < lo.x() || f.x() - r > hi.x() || f.y() + r < lo.y() || f.y() - r > hi.y()) continue;
-      const int x0 = index(f.x() - r, lo.x(), cell.x()), x1 = index(f.x() + r, lo.x(), cell.x());
-      const int y0 = index(f.y() - r, lo.y(), cell.y()), y1 = index(f.y() + r, lo.y(), cell.y());
-      for (int y = y0; y <= y1; ++y)
-        for (int x = x0; x <= x1; ++x) put(std::size_t(y * side + x), std::uint32_t(i));
-    }
+    for (std::size_t n = 0; n < near.size(); ++n)
+      for (int y = near[n].y0; y <= near[n].y1; ++y)
+        for (int x = near[n].x0; x <= near[n].x1; ++x) put(std::size_t(y * side + x), std::uint32_t(n));
   };
   bin([&](std::size_t c, std::uint32_t) { ++start[c + 1]; });
   for (std::size_t c = 1; c < start.size(); ++c) start[c] += start[c - 1];
   items.resize(start.back());
   std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-  bin([&](std::size_t c, std::uint32_t i) { items[fill[c]++] = i; });
-  // Each cell's Gaussians by the least depth a layer of theirs can have along any of the rays
-  // (their mean's depth less their reach: the peak lies inside the reach), up to the rays' own
-  // offsets along u; a ray then composites its cell front to back and stops at its surface.
-  std::vector<double> key(gaussians_.size());
-  for (std::size_t i = 0; i < gaussians_.size(); ++i) key[i] = gaussians_[i].mean.dot(u) - gaussians_[i].reach;
-  std::vector<char> sorted(std::size_t(side * side), 0);
-  const auto by_key = [&](std::uint32_t x, std::uint32_t y) { return key[x] < key[y] || (key[x] == key[y] && x < y); };
+  bin([&](std::size_t c, std::uint32_t n) { items[fill[c]++] = n; });
   std::vector<Layer> heap;  // the layers found, least (t, file order) first
   const auto later = [](const Layer& x, const Layer& y) { return x.t > y.t || (x.t == y.t && x.g > y.g); };
   for (std::size_t k = 0; k < origins.size(); ++k) {
     const Eigen::Vector3d& o = origins[k];
     const std::size_t c = std::size_t(index(o.dot(b), lo.y(), cell.y()) * side + index(o.dot(a), lo.x(), cell.x()));
-    const std::span<std::uint32_t> in_cell(items.data() + start[c], start[c + 1] - start[c]);
-    if (!sorted[c]) std::sort(in_cell.begin(), in_cell.end(), by_key), sorted[c] = 1;
+    const std::span<const std::uint32_t> in_cell(items.data() + start[c], start[c + 1] - start[c]);
     const double ou = o.dot(u);
     heap.clear();
     double transmittance = 1;
@@ -174,9 +178,10 @@ void SeenSurface::first_seen_parallel(std::span<const Eigen::Vector3d> origins, 
         heap.pop_back();
       }
     };
-    for (const std::uint32_t i : in_cell) {
-      const double t_lo = key[i] - ou;
-      composite_before(t_lo - 1e-9 * (std::abs(key[i]) + std::abs(ou) + gaussians_[i].reach) - 1e-300);
+    for (const std::uint32_t n : in_cell) {
+      const std::uint32_t i = near[n].i;
+      const double t_lo = near[n].key - ou;
+      composite_before(t_lo - 1e-9 * (std::abs(near[n].key) + std::abs(ou) + gaussians_[i].reach) - 1e-300);
       if (out_k.hit) break;
       Layer l;
       if (layer_of(i, o, u, 0, 1e300, l)) heap.push_back(l), std::push_heap(heap.begin(), heap.end(), later);
