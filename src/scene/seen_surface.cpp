@@ -42,6 +42,8 @@ SeenSurface::SeenSurface(const GaussianScene& scene) {
     e.precision = r * s.cwiseAbs2().cwiseInverse().asDiagonal() * r.transpose();
     // alpha = o exp(-r^2/2) >= 1/255 needs r^2 <= 2 ln(255 o); r = |x - mu| / sigma at most.
     e.reach = std::sqrt(2.0 * std::log(o / kMinAlpha)) * s.maxCoeff();
+    // (o exp(-r2 / 2) < 1/255 from r2 > 2 ln(255 o); the margin is far above exp's rounding.)
+    e.r2_far = 2.0 * std::log(o / kMinAlpha) + 1e-6;
     if (!std::isfinite(e.reach) || !e.mean.allFinite()) continue;
     gaussians_.push_back(e);
   }
@@ -229,6 +231,7 @@ bool SeenSurface::layer_of(std::uint32_t i, const Eigen::Vector3d& origin, const
   if (!(t > after) || t > upto) return false;
   // The ray's squared Mahalanobis distance from the mean, at its peak.
   const double r2 = (ww - t * wu).squaredNorm();
+  if (r2 > g.r2_far) return false;
   const double alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5 * r2));
   if (alpha < kMinAlpha) return false;
   layer = {t, alpha, &g};

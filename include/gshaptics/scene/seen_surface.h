@@ -97,6 +97,7 @@ class SeenSurface {
     double m[9];       // whitening diag(1/s) R^T, row-major: |W (x - mean)| is the Mahalanobis distance
     double opacity;
     double reach;      // Euclidean radius beyond which alpha < 1/255
+    double r2_far;     // a squared Mahalanobis distance past which alpha < 1/255 for sure (exp not needed)
     Eigen::Matrix3d precision;  // Sigma^-1 = R diag(s^-2) R^T
   };
   struct Layer {
