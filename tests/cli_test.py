@@ -244,7 +244,7 @@ class SeenFelt(unittest.TestCase):
         # A disc (4 R by 3.5 R across the ray) pressed down on the guitar at the 1 % tool: its
         # roaming footprint lines meet features under its rim thinner than 0.7 R. Read by 96 lines
         # over its shadow the onset put two of these ten forces 1.2 and 5.2 R before anything seen;
-        # lines a third of its thickness apart see what it touched (bench/RESULTS.md).
+        # lines a twentieth of its half-thickness apart see what it touched (bench/RESULTS.md).
         rows = self.disc_rays("guitar.compressed.ply", "1")
         self.assertEqual(len(rows), 10)
         for r in rows:

@@ -242,17 +242,19 @@ struct LineSet {
   double clearance = 0;                // how far above its seen surface the tool must have started on a line
 };
 
-// How many spiral lines read a part's shadow out to `fraction` of its radius: at least 96, and as
-// many as put them kLineSpacing of the part's smallest semi-axis apart (by area, at most 1024). A
-// disc's shadow (4 R by 3.5 R) read by 96 lines has them 0.7 R apart, and a thread thinner than
-// that under its rim, which the proxy's roaming lines met, was felt "5 R before anything seen"
-// (guitar vertical at 1 %: onset p10 -1.22 R on 96 lines, -0.09 R on 384; bench/RESULTS.md,
-// the hundred-and-first session). A stylus part's or a sphere's shadow keeps its 96.
-constexpr double kLineSpacing = 0.35;
+// How many spiral lines read a part's shadow out to `fraction` of its radius: as many as put them
+// kLineSpacing of the part's smallest semi-axis apart (by area; at least 96, at most 32768). The
+// readings are maxima over lines, so a feature thinner than the lines are apart can hide between
+// them: at 0.35 R the Truck stylus's early onsets (-3.0 / -12.3 / -13.9 R) were a wire between
+// the lines, at 0.1 R one stayed at -2.8 R, at 0.05 R and at 0.035 R every reading of that
+// configuration agrees within 0.03 R (bench/RESULTS.md, the hundred-and-second session): the
+// measure has converged there. A stylus part's shadow (R by 2.2 R) takes about 2,600 lines, a
+// sphere's 1,200, a disc's 17,000, read at once (SeenSurface::first_seen_parallel).
+constexpr double kLineSpacing = 0.05;
 int spiral_lines(const ToolEllipsoid& part, const ToolShadow& shadow, double fraction) {
   const double spacing = kLineSpacing * part.semi_axes.minCoeff();
   const double area = std::numbers::pi * std::abs(shadow.l.determinant()) * fraction * fraction;
-  return int(std::clamp(std::ceil(area / (spacing * spacing)), 96.0, 1024.0));
+  return int(std::clamp(std::ceil(area / (spacing * spacing)), 96.0, 32768.0));
 }
 
 std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& tool, const Eigen::Vector3d& tcp,
