@@ -179,8 +179,11 @@ std::array<double, 2> SeenCompoundProxy::free_ring(int j, const ToolEllipsoid& f
       const SeenHit hit = solid_->first_inside(front, u, eye, eye, len + look, scratch_);
       g.at[std::size_t(line.slot)] = hit.hit ? front.dot(u) + hit.t : kInf;
     } else {
-      g.at[std::size_t(line.slot)] =
-          line_surface(j, line.slot, front, u, back, len + look);
+      // (A roaming line reads kRoamLook ahead: a feature under a tenth of a part's shadow is met
+      // by one reading in a hundred, so it needs a window of a few hundred readings before the
+      // part is past it; the centre line, read every kInnerTurns ticks, keeps kRingLook.)
+      const double ahead = (line.slot >= kRoamLine ? kRoamLook : kRingLook) * middle_[std::size_t(j)];
+      g.at[std::size_t(line.slot)] = line_surface(j, line.slot, front, u, back, len + ahead);
     }
   }
   // A line met later than its refresh allows (a slanted wall met line by line) does not hold:

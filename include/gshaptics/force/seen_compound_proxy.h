@@ -155,6 +155,11 @@ class SeenCompoundProxy {
   static constexpr int kRoamLines = 6;
   static constexpr double kRoamFraction = 0.95;
   static constexpr int kRoamRefresh = 16;  // ticks: the part's travel a roaming line allows for, as refresh()
+  // Middle semi-axes a roaming line reads ahead of the part's front in free motion (the ring's:
+  // kRingLook). At kRingLook a stylus tip beside a raised edge under a tenth of its shadow went
+  // 7.9 R into it on the Truck before a roaming line met the edge (bench/RESULTS.md, the
+  // hundred-and-second session).
+  static constexpr double kRoamLook = 4.0;
   static constexpr int kCentreLine = kRingRays;
   static constexpr int kRoamLine = kCentreLine + 1;  // the first roaming slot
   static constexpr int kReadLines = kRoamLine + kRoamLines;
