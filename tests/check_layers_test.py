@@ -46,8 +46,8 @@ def main():
                                            '#include "gshaptics/ros/r.h"\n')
         bad = run(t)
         assert bad.returncode == 1, bad.stdout
-        assert "io (level 1) includes collision (level 4) inside one target" in bad.stdout, bad.stdout
-        assert "broadphase (level 3) includes narrowphase" in bad.stdout, bad.stdout
+        assert "io (level 2) includes collision (level 4) inside one target" in bad.stdout, bad.stdout
+        assert "broadphase (level 1) includes narrowphase" in bad.stdout, bad.stdout
         assert "device (gshaptics_device) includes servo (gshaptics_runtime), which its target does not link" in bad.stdout, bad.stdout
         assert "includes 'ros', a folder of no library target" in bad.stdout, bad.stdout
         assert "4 violations" in bad.stdout, bad.stdout
