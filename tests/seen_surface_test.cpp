@@ -135,7 +135,9 @@ void expect_same_as_exhaustive(const SeenSurface& seen, const Eigen::Vector3d& o
   EXPECT_EQ(first.depth, slow.depth);
   EXPECT_EQ(first.shade, slow.shade);
   EXPECT_LE(first.composited, slow.composited);
-  if (!slow.hit) EXPECT_EQ(first.composited, slow.composited);
+  if (!slow.hit) {
+    EXPECT_EQ(first.composited, slow.composited);
+  }
   hits += fast.hit ? 1 : 0;
   layers += int(fast.composited);
 }

@@ -78,12 +78,7 @@ SeenDepth SeenSurface::median_depth(const Eigen::Vector3d& origin, const Eigen::
   const double foot = (centre_ - origin).dot(u);
   std::vector<std::uint32_t> candidates;
   gather(origin, u, foot - radius_, foot + radius_, candidates);
-  SeenDepth out;
-  std::vector<Layer> layers;
-  add_layers(origin, u, 0, t_max, candidates, layers);
-  double transmittance = 1;
-  accumulate(u, layers, out, transmittance, false);
-  return out;
+  return composite_whole(origin, u, t_max, candidates);
 }
 
 SeenDepth SeenSurface::first_seen(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_max) const {
@@ -198,10 +193,14 @@ SeenDepth SeenSurface::median_depth_exhaustive(const Eigen::Vector3d& origin, co
   if (!(len > 0)) return {};
   std::vector<std::uint32_t> all(gaussians_.size());
   for (std::size_t i = 0; i < all.size(); ++i) all[i] = std::uint32_t(i);
-  const Eigen::Vector3d u = dir / len;
+  return composite_whole(origin, dir / len, t_max, all);
+}
+
+SeenDepth SeenSurface::composite_whole(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double t_max,
+                                       std::span<const std::uint32_t> candidates) const {
   SeenDepth out;
   std::vector<Layer> layers;
-  add_layers(origin, u, 0, t_max, all, layers);
+  add_layers(origin, u, 0, t_max, candidates, layers);
   double transmittance = 1;
   accumulate(u, layers, out, transmittance, false);
   return out;

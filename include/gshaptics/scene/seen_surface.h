@@ -115,6 +115,9 @@ class SeenSurface {
   // Their layers peaking at t in (after, upto] with alpha >= 1/255, appended and stably sorted by t.
   void add_layers(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double after, double upto,
                   std::span<const std::uint32_t> candidates, std::vector<Layer>& layers) const;
+  // The whole ray's layers from `candidates` (as gather() gives them), composited.
+  [[nodiscard]] SeenDepth composite_whole(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double t_max,
+                                          std::span<const std::uint32_t> candidates) const;
   // Composites `layers` (in depth order) onto `out`; `stop`: return at the seen surface.
   void accumulate(const Eigen::Vector3d& u, std::span<const Layer> layers, SeenDepth& out, double& transmittance,
                   bool stop) const;
