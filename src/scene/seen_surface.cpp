@@ -109,82 +109,123 @@ SeenDepth SeenSurface::first_seen(const Eigen::Vector3d& origin, const Eigen::Ve
   return out;
 }
 
+// A bundle of parallel rays along u: its frame across u, a grid of about one cell per ray over
+// the rays' feet, and the Gaussians near the bundle binned into the cells their reach meets.
+struct SeenSurface::Bundle {
+  struct Near {
+    double key;          // the least depth a layer of theirs can have along u (mean's depth less reach)
+    std::uint32_t i;     // index into gaussians_
+    int x0, x1, y0, y1;  // the cells its disc meets
+  };
+  Eigen::Vector3d u, a, b;
+  Eigen::Vector2d lo, cell;
+  int side = 1;
+  std::vector<Near> near;                   // by key, then file order
+  std::vector<std::uint32_t> start, items;  // cell c holds items[start[c], start[c + 1]), indices into near
+
+  [[nodiscard]] int index(double x, double lo_x, double c) const noexcept {
+    return std::clamp(int(std::floor((x - lo_x) / c)), 0, side - 1);
+  }
+  [[nodiscard]] std::size_t cell_of(const Eigen::Vector3d& o) const noexcept {
+    return std::size_t(index(o.dot(b), lo.y(), cell.y()) * side + index(o.dot(a), lo.x(), cell.x()));
+  }
+};
+
+bool SeenSurface::frame_bundle(std::span<const Eigen::Vector3d> origins, const Eigen::Vector3d& u,
+                               Bundle& bundle) const {
+  bundle.u = u;
+  bundle.a = u.unitOrthogonal();
+  bundle.b = u.cross(bundle.a);
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(INFINITY), hi = -lo;
+  for (const Eigen::Vector3d& o : origins) {
+    const Eigen::Vector2d f(o.dot(bundle.a), o.dot(bundle.b));
+    lo = lo.cwiseMin(f);
+    hi = hi.cwiseMax(f);
+  }
+  if (!lo.allFinite() || !hi.allFinite()) return false;
+  bundle.side = std::clamp(int(std::sqrt(double(origins.size())) / 2), 1, 128);
+  bundle.lo = lo;
+  bundle.cell = ((hi - lo) / bundle.side).cwiseMax(1e-12 * (1 + lo.cwiseAbs().maxCoeff()));
+  // The Gaussians whose reach disc (padded for rounding) meets the rays' spread, by the least
+  // depth a layer of theirs can have along any of the rays (their mean's depth less their reach:
+  // the peak lies inside the reach), up to the rays' own offsets along u; then the file's order.
+  for (std::size_t i = 0; i < gaussians_.size(); ++i) {
+    const Entry& g = gaussians_[i];
+    const Eigen::Vector2d f(g.mean.dot(bundle.a), g.mean.dot(bundle.b));
+    const double r = g.reach * (1 + 1e-9) + 1e-12 * (1 + f.cwiseAbs().maxCoeff());
+    if (f.x() + r < lo.x() || f.x() - r > hi.x() || f.y() + r < lo.y() || f.y() - r > hi.y()) continue;
+    const double c = bundle.cell.x(), d = bundle.cell.y();
+    bundle.near.push_back({g.mean.dot(u) - g.reach, std::uint32_t(i), bundle.index(f.x() - r, lo.x(), c),
+                           bundle.index(f.x() + r, lo.x(), c), bundle.index(f.y() - r, lo.y(), d),
+                           bundle.index(f.y() + r, lo.y(), d)});
+  }
+  std::sort(bundle.near.begin(), bundle.near.end(), [](const Bundle::Near& x, const Bundle::Near& y) {
+    return x.key < y.key || (x.key == y.key && x.i < y.i);
+  });
+  return true;
+}
+
+void SeenSurface::bin_bundle(Bundle& bundle) {
+  // Into every cell each meets, in the near list's order (a counting sort: sizes, then places).
+  const std::size_t cells = std::size_t(bundle.side * bundle.side);
+  const auto bin = [&](auto&& put) {
+    for (std::size_t n = 0; n < bundle.near.size(); ++n) {
+      const Bundle::Near& g = bundle.near[n];
+      for (int y = g.y0; y <= g.y1; ++y)
+        for (int x = g.x0; x <= g.x1; ++x) put(std::size_t(y * bundle.side + x), std::uint32_t(n));
+    }
+  };
+  bundle.start.assign(cells + 1, 0);
+  bin([&](std::size_t c, std::uint32_t) { ++bundle.start[c + 1]; });
+  for (std::size_t c = 1; c < bundle.start.size(); ++c) bundle.start[c] += bundle.start[c - 1];
+  bundle.items.resize(bundle.start.back());
+  std::vector<std::uint32_t> fill(bundle.start.begin(), bundle.start.end() - 1);
+  bin([&](std::size_t c, std::uint32_t n) { bundle.items[fill[c]++] = n; });
+}
+
+SeenDepth SeenSurface::first_seen_in_bundle(const Bundle& bundle, const Eigen::Vector3d& o,
+                                            std::vector<Layer>& heap) const {
+  // The ray's cell front to back: a layer found is composited once no Gaussian still to come can
+  // precede it (their keys are lower bounds), and the ray stops at its surface.
+  const std::size_t c = bundle.cell_of(o);
+  const std::span<const std::uint32_t> in_cell(bundle.items.data() + bundle.start[c],
+                                               bundle.start[c + 1] - bundle.start[c]);
+  const Eigen::Vector3d& u = bundle.u;
+  const double ou = o.dot(u);
+  const auto later = [](const Layer& x, const Layer& y) { return x.t > y.t || (x.t == y.t && x.g > y.g); };
+  SeenDepth out;
+  double transmittance = 1;
+  heap.clear();
+  const auto composite_before = [&](double t_lo) {
+    while (!heap.empty() && !out.hit && heap.front().t < t_lo) {
+      std::pop_heap(heap.begin(), heap.end(), later);
+      accumulate(u, std::span<const Layer>(&heap.back(), 1), out, transmittance, true);
+      heap.pop_back();
+    }
+  };
+  for (const std::uint32_t n : in_cell) {
+    const Bundle::Near& g = bundle.near[n];
+    const double t_lo = g.key - ou;
+    composite_before(t_lo - 1e-9 * (std::abs(g.key) + std::abs(ou) + gaussians_[g.i].reach) - 1e-300);
+    if (out.hit) break;
+    Layer l;
+    if (layer_of(g.i, o, u, 0, 1e300, l)) heap.push_back(l), std::push_heap(heap.begin(), heap.end(), later);
+  }
+  composite_before(INFINITY);
+  return out;
+}
+
 void SeenSurface::first_seen_parallel(std::span<const Eigen::Vector3d> origins, const Eigen::Vector3d& dir,
                                       std::span<SeenDepth> out) const {
   if (origins.size() != out.size()) throw std::invalid_argument("first_seen_parallel: origins and out differ in size");
   std::fill(out.begin(), out.end(), SeenDepth{});
   const double len = dir.norm();
   if (!(len > 0) || origins.empty() || gaussians_.empty()) return;
-  const Eigen::Vector3d u = dir / len, a = u.unitOrthogonal(), b = u.cross(a);
-  // The rays' feet across u, and a grid of about one cell per ray over them.
-  Eigen::Vector2d lo = Eigen::Vector2d::Constant(INFINITY), hi = -lo;
-  for (const Eigen::Vector3d& o : origins) {
-    const Eigen::Vector2d f(o.dot(a), o.dot(b));
-    lo = lo.cwiseMin(f);
-    hi = hi.cwiseMax(f);
-  }
-  if (!lo.allFinite() || !hi.allFinite()) return;
-  const int side = std::clamp(int(std::sqrt(double(origins.size())) / 2), 1, 128);
-  const Eigen::Vector2d cell = ((hi - lo) / side).cwiseMax(1e-12 * (1 + lo.cwiseAbs().maxCoeff()));
-  const auto index = [&](double x, double lo_x, double c) { return std::clamp(int(std::floor((x - lo_x) / c)), 0, side - 1); };
-  // The Gaussians whose reach disc (padded for rounding) meets the rays' spread, by the least
-  // depth a layer of theirs can have along any of the rays (their mean's depth less their reach:
-  // the peak lies inside the reach), up to the rays' own offsets along u; then the file's order.
-  struct Near {
-    double key;
-    std::uint32_t i;
-    int x0, x1, y0, y1;  // the cells its disc meets
-  };
-  std::vector<Near> near;
-  for (std::size_t i = 0; i < gaussians_.size(); ++i) {
-    const Entry& g = gaussians_[i];
-    const Eigen::Vector2d f(g.mean.dot(a), g.mean.dot(b));
-    const double r = g.reach * (1 + 1e-9) + 1e-12 * (1 + f.cwiseAbs().maxCoeff());
-    if (f.x() + r < lo.x() || f.x() - r > hi.x() || f.y() + r < lo.y() || f.y() - r > hi.y()) continue;
-    near.push_back({g.mean.dot(u) - g.reach, std::uint32_t(i), index(f.x() - r, lo.x(), cell.x()),
-                    index(f.x() + r, lo.x(), cell.x()), index(f.y() - r, lo.y(), cell.y()), index(f.y() + r, lo.y(), cell.y())});
-  }
-  std::sort(near.begin(), near.end(), [](const Near& x, const Near& y) { return x.key < y.key || (x.key == y.key && x.i < y.i); });
-  // Into every cell each meets, in that order: a ray then composites its cell front to back and
-  // stops at its surface.
-  std::vector<std::uint32_t> start(std::size_t(side * side) + 1, 0), items;
-  const auto bin = [&](auto&& put) {
-    for (std::size_t n = 0; n < near.size(); ++n)
-      for (int y = near[n].y0; y <= near[n].y1; ++y)
-        for (int x = near[n].x0; x <= near[n].x1; ++x) put(std::size_t(y * side + x), std::uint32_t(n));
-  };
-  bin([&](std::size_t c, std::uint32_t) { ++start[c + 1]; });
-  for (std::size_t c = 1; c < start.size(); ++c) start[c] += start[c - 1];
-  items.resize(start.back());
-  std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-  bin([&](std::size_t c, std::uint32_t n) { items[fill[c]++] = n; });
+  Bundle bundle;
+  if (!frame_bundle(origins, dir / len, bundle)) return;
+  bin_bundle(bundle);
   std::vector<Layer> heap;  // the layers found, least (t, file order) first
-  const auto later = [](const Layer& x, const Layer& y) { return x.t > y.t || (x.t == y.t && x.g > y.g); };
-  for (std::size_t k = 0; k < origins.size(); ++k) {
-    const Eigen::Vector3d& o = origins[k];
-    const std::size_t c = std::size_t(index(o.dot(b), lo.y(), cell.y()) * side + index(o.dot(a), lo.x(), cell.x()));
-    const std::span<const std::uint32_t> in_cell(items.data() + start[c], start[c + 1] - start[c]);
-    const double ou = o.dot(u);
-    heap.clear();
-    double transmittance = 1;
-    SeenDepth& out_k = out[k];
-    const auto composite_before = [&](double t_lo) {  // every layer found that no later one can precede
-      while (!heap.empty() && !out_k.hit && heap.front().t < t_lo) {
-        std::pop_heap(heap.begin(), heap.end(), later);
-        accumulate(u, std::span<const Layer>(&heap.back(), 1), out_k, transmittance, true);
-        heap.pop_back();
-      }
-    };
-    for (const std::uint32_t n : in_cell) {
-      const std::uint32_t i = near[n].i;
-      const double t_lo = near[n].key - ou;
-      composite_before(t_lo - 1e-9 * (std::abs(near[n].key) + std::abs(ou) + gaussians_[i].reach) - 1e-300);
-      if (out_k.hit) break;
-      Layer l;
-      if (layer_of(i, o, u, 0, 1e300, l)) heap.push_back(l), std::push_heap(heap.begin(), heap.end(), later);
-    }
-    composite_before(INFINITY);
-  }
+  for (std::size_t k = 0; k < origins.size(); ++k) out[k] = first_seen_in_bundle(bundle, origins[k], heap);
 }
 
 SeenDepth SeenSurface::median_depth_exhaustive(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,

@@ -118,6 +118,13 @@ class SeenSurface {
   // The whole ray's layers from `candidates` (as gather() gives them), composited.
   [[nodiscard]] SeenDepth composite_whole(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double t_max,
                                           std::span<const std::uint32_t> candidates) const;
+  // first_seen_parallel()'s steps: a bundle's frame, grid and near Gaussians (false when a
+  // foot is not finite); the near Gaussians binned into the cells; one ray's first_seen() in it.
+  struct Bundle;
+  bool frame_bundle(std::span<const Eigen::Vector3d> origins, const Eigen::Vector3d& u, Bundle& bundle) const;
+  static void bin_bundle(Bundle& bundle);
+  [[nodiscard]] SeenDepth first_seen_in_bundle(const Bundle& bundle, const Eigen::Vector3d& o,
+                                               std::vector<Layer>& heap) const;
   // Composites `layers` (in depth order) onto `out`; `stop`: return at the seen surface.
   void accumulate(const Eigen::Vector3d& u, std::span<const Layer> layers, SeenDepth& out, double& transmittance,
                   bool stop) const;
