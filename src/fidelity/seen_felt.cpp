@@ -125,6 +125,12 @@ struct Viewer {
     seen->first_seen_parallel(eyes, u, out);
     for (std::size_t i = 0; i < eyes.size(); ++i) out[i].depth -= b[i];
   }
+  // The same lines seen from `eyes` themselves (a viewer inside the scene): what lies behind an
+  // eye does not count.
+  void depths_from(const std::vector<Eigen::Vector3d>& eyes, const Eigen::Vector3d& u, std::vector<SeenDepth>& out) const {
+    out.resize(eyes.size());
+    seen->first_seen_parallel(eyes, u, out);
+  }
   [[nodiscard]] std::optional<SeenPoint> surface_point(const Eigen::Vector3d& origin, const Eigen::Vector3d& u,
                                                        double h) const {
     const double b = back(origin);
@@ -225,7 +231,8 @@ Script press_along(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, cons
 // u: the largest front depth of a part minus the seen depth, over lines along u through the
 // middle of the tool's shadow (per part: the line through its leading point, and lines on a
 // Vogel spiral over its shadow out to `fraction` of its radius, uniform by area, the centre's
-// among them: spiral_lines()), each line seen from its own eye (Viewer). Scene units; > 0: below the
+// among them: spiral_lines()), each line seen from its own eye (Viewer; LineSet::from_outside false: from
+// its foot on the plane through origin). Scene units; > 0: below the
 // seen surface. Nullopt when no line sees a surface. A stylus resting on a ledge with its shaft
 // (its tip above the ground) gives 0, which a measure at its tip alone would count as early. The
 // rim of a part is left out as a sphere's sides are (its measure reads its centre's line): a tip
@@ -240,6 +247,7 @@ struct LineSet {
   double fraction = kMeasureFraction;  // of each part's shadow radius
   double came = NAN;                   // how far the tool has come along u since its start (NaN: every line)
   double clearance = 0;                // how far above its seen surface the tool must have started on a line
+  bool from_outside = true;            // each line's eye outside the scene (Viewer); false: its foot on the origin's plane
 };
 
 // How many spiral lines read a part's shadow out to `fraction` of its radius: as many as put them
@@ -283,7 +291,10 @@ std::optional<double> depth_below_seen(const Viewer& seen, const PressedTool& to
     add_line(e.surface_point(u), 0.0);  // the leading point: its line is tangent there
   }
   std::vector<SeenDepth> seen_depths;
-  seen.median_depths(eyes, u, seen_depths);
+  if (lines.from_outside)
+    seen.median_depths(eyes, u, seen_depths);
+  else
+    seen.depths_from(eyes, u, seen_depths);
   std::optional<double> deepest;
   for (std::size_t i = 0; i < fronts.size(); ++i) {
     const SeenDepth& sd = seen_depths[i];
@@ -345,7 +356,7 @@ std::optional<double> rest_along_force(const Viewer& seen, const PressedTool& sh
   double rear = INFINITY;
   for (int k = 0; k < count; ++k) rear = std::min(rear, parts[std::size_t(k)].surface_point(-n).dot(n));
   const Eigen::Vector3d eye = tcp + (rear - tcp.dot(n) - kRestEyeBack * shape.radius) * n;
-  return depth_below_seen(seen, shape, tcp, eye, n, LineSet{kOnsetFraction});
+  return depth_below_seen(seen, shape, tcp, eye, n, LineSet{.fraction = kOnsetFraction, .from_outside = false});
 }
 
 // Where the tool rests with its TCP at `tcp` (from `start`), held by `force` (N): the larger of
