@@ -283,6 +283,15 @@ bool SeenCompoundProxy::begin_contact(const Eigen::Vector3d& x, const Eigen::Qua
     // An inner line begins a contact only where it would hold the part (nearest_line's rule: the
     // ring and its edge meet nothing as near, by the contact band).
     if (c.line >= kRingRays && c.line < kReadLines) ring = std::min(ring, travel[1]);
+    // So does an edge search's own line (the last of its lines to meet the surface) where it
+    // would hold the part: nearer than every ring line. Left out, a disc whose edge search line
+    // stood 0.4 R under the raised patch an inner line had met (too little to hold by the band)
+    // went 1.5 R past both before a ring line met the surface (halo, vertical at 2 %).
+    if (c.line >= kEdgeSlot && c.line < kLines) {
+      Eigen::Vector3d front;
+      const double gap = ring_gap(ExitAlong(part, rings_[std::size_t(j)].axis), j, c.line, u, front);
+      if (gap <= len && gap >= -(refresh(c.line) * len + begin_sink(j, len))) ring = std::min(ring, gap);
+    }
     if (std::isfinite(ring) && std::max(0.0, ring) / len < first) {
       first = std::max(0.0, ring) / len;
       first_u = u;
