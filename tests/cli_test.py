@@ -274,7 +274,9 @@ class SeenFelt(unittest.TestCase):
         # patch an inner line met, with the ring's edge search line 0.4 R under it (too little for
         # the inner line to hold by the contact band). Before the edge search's own line began a
         # contact, the disc went 1.6 R past what the eye sees before its ring met the surface, and
-        # rested 0.63 R past it (bench/RESULTS.md).
+        # rested 0.63 R past it; with it, on the edge line 0.32 R past it (0.46 over its shadow). An
+        # inner line nearer by kInnerBand (0.3 of the smallest semi-axis) holds it on the patch
+        # (bench/RESULTS.md).
         out = tempfile.mkdtemp()
         run("seen-felt", scene_file("halo.ply"), "--direction", "vertical", "--tool-percent", "2",
             "--tool-shape", "disc", "--surface", "seen", "--rays", "1", "--no-plot", "--out", os.path.join(out, "SF.md"))
@@ -283,8 +285,8 @@ class SeenFelt(unittest.TestCase):
         self.assertEqual(len(rows), 1)
         self.assertAlmostEqual(float(rows[0]["ox"]), 1.31064, places=4)
         self.assertLess(float(rows[0]["onset_shadow_minus_seen"]), 1.0, rows)
-        self.assertLess(float(rows[0]["felt_minus_seen"]), 0.5, rows)
-        self.assertLess(float(rows[0]["rest_shadow_minus_seen"]), 0.5, rows)
+        self.assertLess(float(rows[0]["felt_minus_seen"]), 0.15, rows)
+        self.assertLess(float(rows[0]["rest_shadow_minus_seen"]), 0.3, rows)
 
     def test_rays_aim_at_the_objects_and_the_seen_truth_is_the_captured_file(self):
         out = tempfile.mkdtemp()

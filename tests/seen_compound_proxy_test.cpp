@@ -437,51 +437,6 @@ TEST(SeenCompoundProxy, AStylusAcrossAnEdgeRestsOnItWithItsOwnTangentNormal) {
   EXPECT_LT(std::hypot(c.x(), c.z()), 0.0075) << c.transpose();
 }
 
-// A post thinner than a stylus part, under the middle of a tilted part's shadow and nowhere
-// else (no floor): the ring of footprint lines passes beside it (the nearest 2 mm off its axis)
-// and the part's leading point lies 10 mm away, so only the inner line through the shadow's
-// centre meets it. Pressed down, the stylus stops on the post where the eye sees its top (the
-// reference's median depth) and pushes back; it does not slide through.
-TEST(SeenCompoundProxy, APostUnderTheMiddleOfAPartHoldsIt) {
-  GaussianScene g;
-  // A flat disc of sigma 0.8 mm on a thin column of discs down to -0.1 m (the post's top at z = 0).
-  for (double z = 0; z >= -0.1; z -= 0.0008)
-    g.push_back(Eigen::Vector3f(0.f, 0.f, float(z)), Eigen::Vector3f(0.0008f, 0.0008f, 1e-5f), Eigen::Vector4f(1, 0, 0, 0),
-                0.9f, std::uint32_t(g.size()));
-  const CollisionWorld world = seen_world(g);
-  const ProxyParams params = seen_params();
-  ProxyRenderer r(world, params);
-  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
-  r.set_tool(stylus);
-  const Eigen::Quaterniond q(Eigen::AngleAxisd(kPi / 6, Eigen::Vector3d::UnitY()));  // 30 deg from vertical
-  // The second part's underside below its centre: its surface along -z from the centre.
-  std::array<ToolEllipsoid, kMaxToolParts> parts{};
-  stylus.posed(Eigen::Vector3d::Zero(), q, parts);
-  const ToolEllipsoid& p1 = parts[1];
-  const Eigen::Matrix3d rot = p1.rotation.toRotationMatrix();
-  const Eigen::Vector3d down = rot.transpose() * -Eigen::Vector3d::UnitZ();
-  const double under = 1 / std::sqrt(down.cwiseQuotient(p1.semi_axes).squaredNorm());  // centre to underside
-  // The TCP placed so that the second part's centre is over the post, its underside 5 mm above.
-  const Eigen::Vector3d start = Eigen::Vector3d(0, 0, under + 0.005) - p1.center;
-  const auto ticks = drive(r, stylus, 1.0, [&](double t) {
-    return std::pair{Eigen::Vector3d(start - std::min(0.009, 0.02 * t) * Eigen::Vector3d::UnitZ()), q};
-  });
-  const SeenSurface reference(g);
-  const SeenDepth seen = reference.median_depth(Eigen::Vector3d(0, 0, 1), -Eigen::Vector3d::UnitZ(), 2.0);
-  ASSERT_TRUE(seen.hit);
-  const double top = 1 - seen.depth;
-  const Tick& held = ticks.back();
-  stylus.posed(held.out.proxy, q, parts);
-  EXPECT_NEAR(parts[1].center.z() - under, top, 0.0005);  // resting on the post's seen top
-  EXPECT_LT(std::hypot(parts[1].center.x(), parts[1].center.y()), 0.001);
-  // A rigid part on a point: the force is along the part's own normal there (60 degrees from
-  // vertical for a 4:1 part tilted 30 degrees), the coupling's k e . n, e the 4 mm press.
-  const Eigen::Vector3d n = (rot * down.cwiseQuotient(p1.semi_axes.cwiseAbs2())).normalized();
-  ASSERT_LT(n.z(), -0.3);  // (outward at the underside: downward)
-  EXPECT_NEAR(held.out.force.norm(), params.stiffness * 0.004 * -n.z(), 0.15 * params.stiffness * 0.004 * -n.z());
-  EXPECT_LT(std::acos(std::min(1.0, held.out.force.normalized().dot(-n))) * 180 / kPi, 5.0) << held.out.force.transpose();
-  EXPECT_GT(held.out.force.z(), 0.0);
-}
 
 // The stylus (tilted 30 degrees from vertical) pressed down 9 mm at 2 cm/s from 5 mm above a post
 // of 0.8 mm discs at `post` (x, y; its top at z = 0), its second part's centre over the origin.
@@ -523,6 +478,30 @@ PostRest press_onto_post(const CompoundTool& stylus, const Eigen::Quaterniond& q
       }
     }
   return rest;
+}
+
+// A post under the middle of a part: the stylus tilted 30 degrees, its second part's centre over
+// the post. The post seen from above is a flat top of about 0.9 mm radius over a cone, so the
+// tilted part's underside (about 60 degrees from horizontal there) meets the top's rim on its low
+// side before its centre comes down to the top: it rests on the seen top within the lines'
+// sampling, never into it, with the force along the part's own normal.
+TEST(SeenCompoundProxy, APostUnderTheMiddleOfAPartHoldsIt) {
+  const CompoundTool stylus = parse_tool_spec("stylus:0.12,0.004");
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(kPi / 6, Eigen::Vector3d::UnitY()));  // 30 deg from vertical
+  const PostRest rest = press_onto_post(stylus, q, Eigen::Vector2d::Zero());
+  EXPECT_GT(rest.sunk, -0.0005);  // touching the seen top ...
+  EXPECT_LT(rest.sunk, 0.0005);   // ... not into it
+  // A rigid part on a point: the force is along the part's own normal there (60 degrees from
+  // vertical for a 4:1 part tilted 30 degrees), outward at the underside: downward.
+  std::array<ToolEllipsoid, kMaxToolParts> parts{};
+  stylus.posed(Eigen::Vector3d::Zero(), q, parts);
+  const ToolEllipsoid& p1 = parts[1];
+  const Eigen::Matrix3d rot = p1.rotation.toRotationMatrix();
+  const Eigen::Vector3d down = rot.transpose() * -Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d n = (rot * down.cwiseQuotient(p1.semi_axes.cwiseAbs2())).normalized();
+  ASSERT_LT(n.z(), -0.3);
+  EXPECT_LT(std::acos(std::min(1.0, rest.force.normalized().dot(-n))) * 180 / kPi, 5.0) << rest.force.transpose();
+  EXPECT_GT(rest.force.z(), 0.15 * seen_params().stiffness * 0.004);
 }
 
 // A post under the middle of a part (about half its shadow's radius out, 4 x 10.6 mm), away from

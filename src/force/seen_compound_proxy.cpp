@@ -477,9 +477,10 @@ SeenCompoundProxy::LineChoice SeenCompoundProxy::nearest_line(int j, const ToolE
     if (gap < c.gap) c.gap = gap, c.line = kEdgeLine;
   }
   // An inner line holds the part only where it meets a surface the ring and the edge do not (a
-  // thin feature under the middle): nearer than all of them by the contact band. On a face or an
-  // edge they agree with the ring, and the ring's edge search places the part.
-  const double band = kContactBand * min_axis_;
+  // thin feature or a raised patch under the middle): nearer than all of them by kInnerBand. On a
+  // face or an edge they agree with the ring within the surface's roughness, and the ring's edge
+  // search places the part.
+  const double band = kInnerBand * min_axis_;
   for (int r = kRingRays; r < kReadLines; ++r) {
     const double gap = line_gap(r);
     if (gap < c.gap - band) c.gap = gap, c.line = r;
