@@ -437,7 +437,6 @@ TEST(SeenCompoundProxy, AStylusAcrossAnEdgeRestsOnItWithItsOwnTangentNormal) {
   EXPECT_LT(std::hypot(c.x(), c.z()), 0.0075) << c.transpose();
 }
 
-
 // The stylus (tilted 30 degrees from vertical) pressed down 9 mm at 2 cm/s from 5 mm above a post
 // of 0.8 mm discs at `post` (x, y; its top at z = 0), its second part's centre over the origin.
 // How far the resting tool reaches below the post's seen surface (brute force, on vertical lines
