@@ -14,6 +14,7 @@
 #include "gshaptics/collision/contact_query.h"
 #include "gshaptics/error.h"
 #include "gshaptics/io/scene_loader.h"
+#include "gshaptics/scene/seen_surface.h"
 #include "support/scenes.h"
 
 namespace gshaptics {
@@ -150,6 +151,64 @@ TEST(SyntheticScene, SeedReproducesTheFileByteForByteAndLoadsAsPly) {
   EXPECT_DOUBLE_EQ(j["parameters"]["spacing_m"].get<double>(), 0.008);
 }
 
+// The share of vertical rays, `past` m beyond the 0.2 m cube's top edge (x = 0.1) at y across the
+// face, on which the top face is seen (median depth within 1 mm of its level).
+double top_seen_past_edge(const SeenSurface& seen, double past) {
+  int top = 0;
+  constexpr int kRays = 100;
+  for (int i = 0; i < kRays; ++i) {
+    const double y = -0.08 + 0.16 * (i + 0.5) / kRays;
+    const SeenDepth d = seen.median_depth(Eigen::Vector3d(0.1 + past, y, 0.3), -Eigen::Vector3d::UnitZ());
+    if (d.hit && 0.3 - d.depth > 0.099) ++top;
+  }
+  return double(top) / kRays;
+}
+
+TEST(SyntheticScene, EdgeSigmasKeepTheCubesDiscsWithinItsEdges) {
+  const AnalyticShape cube(ShapeKind::kCube);
+  SynthParams p;
+  p.spacing = 0.008;
+  const SyntheticScene alike = make_synthetic_scene(cube, p);
+  p.edge_sigmas = 1.17;
+  const SyntheticScene crisp = make_synthetic_scene(cube, p);
+  ASSERT_EQ(alike.surface_count, crisp.surface_count);
+  const std::vector<SurfaceSample> samples = cube.sample_surface(p.spacing);
+  ASSERT_EQ(samples.size(), crisp.surface_count);
+  std::size_t narrowed = 0;
+  for (std::size_t i = 0; i < crisp.surface_count; ++i) {
+    std::array<FaceBorder, 2> borders;
+    ASSERT_EQ(cube.convex_borders(samples[i], borders), 2);
+    const auto cov = [](const GaussianScene& g, std::size_t k) {
+      const Eigen::Vector4f& q = g.rotations[k];
+      const Eigen::Matrix3d r = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized().toRotationMatrix();
+      return Eigen::Matrix3d(r * g.scales[k].cast<double>().cwiseAbs2().asDiagonal() * r.transpose());
+    };
+    bool reached = false;
+    for (const FaceBorder& b : borders) {
+      // Toward each edge, at most its distance over 1.17 standard deviations (float rounding aside).
+      EXPECT_LE(std::sqrt(b.outward.dot(cov(crisp.scene, i) * b.outward)), b.distance / 1.17 * (1 + 1e-5) + 1e-9) << i;
+      reached = reached || std::sqrt(b.outward.dot(cov(alike.scene, i) * b.outward)) > b.distance / 1.17;
+    }
+    // A disc the edges do not reach is the one drawn without the option, bit for bit.
+    if (!reached) {
+      EXPECT_EQ(crisp.scene.scales[i], alike.scene.scales[i]) << i;
+      EXPECT_EQ(crisp.scene.rotations[i], alike.scene.rotations[i]) << i;
+    }
+    EXPECT_EQ(crisp.scene.means[i], alike.scene.means[i]) << i;
+    narrowed += reached ? 1 : 0;
+  }
+  EXPECT_GT(narrowed, crisp.surface_count / 20);
+  // Seen from above, 5 mm past the edge: the overhanging top face without the option, nothing
+  // with it; the corner is still seen where it is along its diagonal (not a hole).
+  EXPECT_GT(top_seen_past_edge(SeenSurface(alike.scene), 0.005), 0.8);
+  const SeenSurface seen(crisp.scene);
+  EXPECT_LT(top_seen_past_edge(seen, 0.005), 0.05);
+  const Eigen::Vector3d diagonal = -Eigen::Vector3d(1, 1, 1).normalized();
+  const SeenDepth corner = seen.median_depth(Eigen::Vector3d(0.1, 0.1, 0.1) - 0.1 * diagonal, diagonal);
+  ASSERT_TRUE(corner.hit);
+  EXPECT_NEAR(corner.depth, 0.1, 0.001);
+}
+
 TEST(SyntheticScene, BadParametersAreErrors) {
   SynthParams p;
   p.spacing = 0;
@@ -157,6 +216,9 @@ TEST(SyntheticScene, BadParametersAreErrors) {
   p = {};
   p.low_opacity_share = 1.5;
   EXPECT_THROW((void)make_synthetic_scene(AnalyticShape(ShapeKind::kPlane), p), InputError);
+  p = {};
+  p.edge_sigmas = -1;
+  EXPECT_THROW((void)make_synthetic_scene(AnalyticShape(ShapeKind::kCube), p), InputError);
   EXPECT_THROW((void)parse_shape("torus", "test"), InputError);
   EXPECT_EQ(parse_shape("v-groove-60", "test"), ShapeKind::kVGroove60);
 }

@@ -242,6 +242,25 @@ std::vector<SurfaceSample> AnalyticShape::sample_surface(double spacing) const {
   return out;
 }
 
+int AnalyticShape::convex_borders(const SurfaceSample& sample, std::array<FaceBorder, 2>& out) const {
+  switch (kind_) {
+    case ShapeKind::kCube:
+    case ShapeKind::kPlate2mm:
+    case ShapeKind::kPlate5mm: break;
+    default: return 0;
+  }
+  const Eigen::Vector3d h = box_half(kind_);
+  int axis = 0;
+  sample.normal.cwiseAbs().maxCoeff(&axis);
+  for (int k = 0; k < 2; ++k) {
+    const int a = (axis + 1 + k) % 3;
+    const double p = sample.position[a];
+    out[std::size_t(k)].outward = Eigen::Vector3d::Unit(a) * (p >= 0 ? 1.0 : -1.0);
+    out[std::size_t(k)].distance = std::max(0.0, h[a] - std::abs(p));
+  }
+  return 2;
+}
+
 std::vector<ContactSite> AnalyticShape::press_sites(int count, std::uint64_t seed, double margin) const {
   std::mt19937_64 rng(seed);
   const auto uni = [&rng](double lo, double hi) {

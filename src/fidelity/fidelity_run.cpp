@@ -574,7 +574,7 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
   md += fmt::format(
       "{} ticks at {:g} Hz in {:.0f} s. Scenes: Gaussians on analytic surfaces (`gshaptics synth`, seed {}; "
       "flat discs, log-normal sizes around the spacing, 0.5 mm normal jitter, 3 deg tilt, 15 % below the 0.2 "
-      "opacity filter, 0.3 % floaters 5-30 mm off the surface and clear of it by 2 mm), loaded as INRIA PLY, the force model's "
+      "opacity filter, 0.3 % floaters 5-30 mm off the surface and clear of it by 2 mm{}), loaded as INRIA PLY, the force model's "
       "default world ({}, 1 sigma). The device is ideal and position-controlled: it follows the script, and "
       "the force the servo commands (the runtime's step: safety layer and execution mode included) is "
       "recorded. delta = how far the tool's surface is past the true surface. Direction error: "
@@ -584,7 +584,12 @@ void write_fidelity_markdown(const FidelityReport& rep, const std::string& path,
       "which F points out (within 90 deg of the site normal) and stays >= 10 % of the peak reached so far. W = -sum F.v dt "
       "over the closed cycle (W < 0: the scene gave back more energy than it took). Tick: render() wall "
       "time including its collision queries.\n\n",
-      rep.ticks, o.rate_hz, rep.seconds, o.seed, world_words(o.renderer));
+      rep.ticks, o.rate_hz, rep.seconds, o.seed,
+      o.synth.edge_sigmas > 0
+          ? fmt::format("; crisp convex edges, the discs near one narrowed to {:g} standard deviations within it",
+                        o.synth.edge_sigmas)
+          : "",
+      world_words(o.renderer));
   PlayOptions other = o.play;
   other.inline_query = !other.inline_query;
   md += fmt::format("Execution mode: **{}**{}{}.\n\n", describe_mode(o.play),

@@ -108,6 +108,7 @@ std::string fidelity_command_line(const FidelityCommandOptions& o) {
   if (o.wrench_sites >= 0) command += fmt::format(" --wrench-sites {}", o.wrench_sites);
   if (o.synth.floater_share != SynthParams{}.floater_share)
     command += fmt::format(" --floater-share {:g}", o.synth.floater_share);
+  if (o.synth.edge_sigmas != SynthParams{}.edge_sigmas) command += fmt::format(" --edge-sigmas {:g}", o.synth.edge_sigmas);
   if (!o.defects.empty()) command += fmt::format(" --defect {}", fmt::join(o.defects, ","));
   if (o.defect_sites > 0) command += fmt::format(" --defect-sites {}", o.defect_sites);
   return command;

@@ -5,6 +5,7 @@
 /// place Gaussians on, and contact sites to press at. World frame, metres.
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <nlohmann/json_fwd.hpp>
 #include <string>
@@ -38,6 +39,13 @@ struct SurfaceSample {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
   Eigen::Vector3d tangent = Eigen::Vector3d::UnitX();
+};
+
+/// Where a face ends at a convex edge of the solid, seen from a point on the face: the outward
+/// in-plane unit direction toward the edge and the distance to it, m.
+struct FaceBorder {
+  Eigen::Vector3d outward = Eigen::Vector3d::UnitX();
+  double distance = 0;
 };
 
 /// The outward normals of the surface features nearest a point: one on a face, two at an edge
@@ -83,6 +91,11 @@ class AnalyticShape {
   /// Points covering the surface at about `spacing` m apart (cell-centred grids on flat faces,
   /// a Fibonacci lattice on the sphere), with outward normals. Deterministic.
   [[nodiscard]] std::vector<SurfaceSample> sample_surface(double spacing) const;
+  /// The convex edges a face sample (sample_surface()'s) lies between: on the faces of the cube
+  /// and the plates, per in-plane axis the edge on the sample's side (the nearer one), written to
+  /// `out`; returns 2 there and 0 on the other shapes, whose borders are open ends (the plane,
+  /// the cylinder's rims, the concave shapes' far sides) or which have none (the sphere).
+  int convex_borders(const SurfaceSample& sample, std::array<FaceBorder, 2>& out) const;
   /// `count` press sites drawn with `seed`: faces, and for the cube also edges and corners (about
   /// 40 % faces, 40 % edges, 20 % corners), for the corner and groove also the concave line;
   /// kept at least `margin` m from the boundary of the covered surface.

@@ -34,6 +34,15 @@ struct SynthParams {
   /// One that reached the surface's discs would be a bump the analytic answer does not know (on
   /// the 8 mm plane of seed 36 a 7.2 mm one 7.7 mm up held the side-on stylus 7.5 mm above it).
   double floater_clearance = 0.002;
+  /// > 0: discs near a convex edge (the cube's, the plates' rims) narrowed across it, their
+  /// standard deviation toward the edge at most the distance to it over this many (a trained
+  /// capture's crisp edges; AnalyticShape::convex_borders). 0: every disc sized alike, edges
+  /// included, so a face's discs overhang its edge: at 8 mm spacing the cube's top face is seen
+  /// (median depth) up to 8 mm past the edge and its side faces 6 mm above the top. 1.17 (a disc
+  /// of opacity 0.99 alone is seen no farther out than the edge) leaves 1-3 mm of that at 8 mm
+  /// and sees the corners within 0.5 mm; 2 leaves no lip but opens the corners (seen through at 4
+  /// and 8 mm: bench/RESULTS.md, hundred-and-fifth session). In [0, 10].
+  double edge_sigmas = 0;
   /// Patches where the surface has what real captures leave (fidelity/capture_defect.h); none by
   /// default. Outside its patches a scene is the defect-free one, Gaussian for Gaussian.
   std::vector<CaptureDefect> defects;
