@@ -1160,6 +1160,30 @@ TEST(SeenProxy, ABallSlidOverACubesEdgeRollsOntoTheSideFace) {
   }
 }
 
+// The same slide over a cube with crisp edges (synth --edge-sigmas 1.17: no disc overhangs an
+// edge, and the seen edge is rounded by a few tenths of a mm): the contact's last point on the top
+// lay up to 0.1 mm ahead of the device as the contact ended, and with the lip holding only a device
+// past that point, the 5 mm ball fell off the edge (2.1 N to nothing in one tick) and felt nothing
+// down the side face, half the path.
+TEST(SeenProxy, ABallSlidOverACrispCubeEdgeRollsOntoTheSideFace) {
+  const AnalyticShape cube(ShapeKind::kCube);
+  SynthParams sp;
+  sp.spacing = 0.004;
+  sp.edge_sigmas = 1.17;
+  const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(cube, sp).scene, seen_world());
+  const double r = 0.005, k = ProxyParams{}.stiffness;
+  ProxyRenderer p(w, seen_params());
+  const Script s = slide_script(cube, r, 1000);
+  const ScriptTrace tr = play_script(p, s, 1000);
+  EXPECT_EQ(slide_metrics(cube, s, tr).lost_share, 0.0);
+  double sum = 0;
+  int n = 0;
+  for (std::size_t i = 0; i < s.ticks.size(); ++i)
+    if (s.ticks[i].measured && s.ticks[i].position.z() < 0.07) sum += tr.force[i].x(), ++n;
+  ASSERT_GT(n, 200);
+  EXPECT_NEAR(sum / n, k * 0.002, 0.6);  // down the side: k times the 2 mm, along +x
+}
+
 // A floor that ends (discs up to x = 0, nothing beyond), a 5 mm sphere slid 2 mm deep off its
 // end at 5 cm/s. A rigid ball rolls over the lip and lets go as its centre moves R from it; the
 // contact used to end in one tick, the force dropping from 2 N to nothing.

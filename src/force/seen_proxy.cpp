@@ -347,11 +347,12 @@ Eigen::Vector3d SeenProxy::slide_direction(double radius) const noexcept {
 
 bool SeenProxy::begin_lip(const Eigen::Vector3d& device, double radius) noexcept {
   // Where the face it slid on ends under load (the contact's last point, edge_point_), with the
-  // device gone on past it along the slide, the ball rolls over that point.
+  // device gone on past it along the slide, or short of it by less than kLipBehind R, the ball
+  // rolls over that point.
   const Eigen::Vector3d s = slide_direction(radius);
   if (s.squaredNorm() == 0) return false;
   const Eigen::Vector3d d = device - edge_point_;
-  if (!(d.norm() < radius) || !(d.dot(s) > 0)) return false;
+  if (!(d.norm() < radius) || !(d.dot(s) > -kLipBehind * radius)) return false;
   lip_ = edge_point_;
   lip_out_ = s;
   on_lip_ = true;
@@ -380,7 +381,7 @@ bool SeenProxy::roll_over_lip(const Eigen::Vector3d& device, const Eigen::Vector
   // the contact (turn_over_edge).
   const Eigen::Vector3d d = device - lip_;
   const double dist = d.norm();
-  on_lip_ = dist < radius && dist > 0 && d.dot(lip_out_) > 0;
+  on_lip_ = dist < radius && dist > 0 && d.dot(lip_out_) > -kLipBehind * radius;
   if (!on_lip_) {
     slide_mem_.setZero();
     edge_load_ = 0;

@@ -219,6 +219,12 @@ class SeenProxy {
   // much slide late.
   static constexpr double kEdgeLookStride = 0.02;
   static constexpr double kEdgeLoad = 0.05;      // R: a contact ended under more than this load looks beyond the edge
+  // R: the lip holds a device this far short of it along the slide. The seen edge of a crisp
+  // capture is rounded by a few tenths of a mm, so the contact's last point may lie ahead of the
+  // device as the contact ends there; with none short of it allowed, a 5 mm ball slid over the
+  // crisp 4 mm cube (synth --edge-sigmas 1.17) fell off the edge in one tick (2.1 N) and felt
+  // nothing down the side face (bench/RESULTS.md, hundred-and-fifth session).
+  static constexpr double kLipBehind = 0.2;
   // In contact: where the proxy gets across the contact's axis on its way to `goal` (the goal's
   // own place along the axis kept): stopped by a wall of the seen solid that its move across
   // meets (its line seen from the proxy's centre), then sliding along the wall once (a second
