@@ -492,6 +492,23 @@ class Simulate(unittest.TestCase):
             "--surface", "ellipsoids", "--near-lists", "off", "--opacity-stiffness")
         self.assertEqual(load_json(os.path.join(out, "summary.json"))["tool"]["spec"], "stylus:0.06,0.005")
 
+    def test_synth_edge_sigmas_apply_to_shapes_with_convex_edges_only(self):
+        d = tempfile.mkdtemp()
+        cube = os.path.join(d, "cube.ply")
+        run("synth", "cube", cube, "--spacing", "0.008", "--edge-sigmas", "1.17")
+        with open(cube, "rb") as f:
+            self.assertIn(b"comment edge_sigmas 1.17", f.read(4000))
+        for shape in ("sphere", "grating"):
+            path = os.path.join(d, shape + ".ply")
+            p = run("synth", shape, path, "--edge-sigmas", "1", check=False)
+            self.assertNotEqual(p.returncode, 0, shape)
+            self.assertIn("--edge-sigmas applies to the shapes with convex edges", p.stderr, shape)
+            self.assertFalse(os.path.exists(path), shape)
+        p = run("fidelity", "--quick", "--shape", "plane", "--edge-sigmas", "1", "--no-plot",
+                "--out", os.path.join(d, "F.md"), check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--edge-sigmas needs a shape with convex edges", p.stderr)
+
     def test_materials_from_synth_run_and_bad_maps_are_named(self):
         d = tempfile.mkdtemp()
         plane, mp = os.path.join(d, "plane.ply"), os.path.join(d, "two.json")

@@ -97,6 +97,13 @@ void register_synth(CLI::App& app) {
                   "A sin(2 pi x / lambda), Gaussians every lambda / 8 across the ridges; A = 0: the plane without relief)")
       ->capture_default_str();
   cmd->callback([o] {
+    // (An option that does not apply is refused: only the cube's and the plates' faces end at
+    // convex edges.)
+    if (o->params.edge_sigmas > 0 &&
+        (o->shape == "grating" || o->shape == "box-on-floor" ||
+         !AnalyticShape(parse_shape(o->shape, "synth")).has_convex_edges()))
+      throw InputError("synth: --edge-sigmas applies to the shapes with convex edges (cube, plate-2mm, plate-5mm), not '" +
+                       o->shape + "'");
     if (o->shape == "grating") {
       write_grating(*o);
       return;

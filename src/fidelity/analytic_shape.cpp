@@ -242,13 +242,12 @@ std::vector<SurfaceSample> AnalyticShape::sample_surface(double spacing) const {
   return out;
 }
 
+bool AnalyticShape::has_convex_edges() const noexcept {
+  return kind_ == ShapeKind::kCube || kind_ == ShapeKind::kPlate2mm || kind_ == ShapeKind::kPlate5mm;
+}
+
 int AnalyticShape::convex_borders(const SurfaceSample& sample, std::array<FaceBorder, 2>& out) const {
-  switch (kind_) {
-    case ShapeKind::kCube:
-    case ShapeKind::kPlate2mm:
-    case ShapeKind::kPlate5mm: break;
-    default: return 0;
-  }
+  if (!has_convex_edges()) return 0;
   const Eigen::Vector3d h = box_half(kind_);
   int axis = 0;
   sample.normal.cwiseAbs().maxCoeff(&axis);

@@ -341,6 +341,9 @@ FidelityReport run_fidelity(const FidelityOptions& o, const FidelityProgressFn& 
   if (!(o.press_sites >= 1 && o.push_sites >= 0 && o.rate_hz > 0 && o.press_depth > 0 && o.push_depth > 0))
     throw InputError("fidelity: sites >= 1, rate > 0 and depths > 0 are required");
   if (!o.defects.empty() && o.defect_sites < 1) throw InputError("fidelity: capture defects need defect_sites >= 1");
+  if (o.synth.edge_sigmas > 0 &&
+      std::none_of(o.shapes.begin(), o.shapes.end(), [](ShapeKind k) { return AnalyticShape(k).has_convex_edges(); }))
+    throw InputError("fidelity: --edge-sigmas needs a shape with convex edges (cube, plate-2mm, plate-5mm)");
   for (const CaptureDefect& d : o.defects) d.validate("fidelity");
   for (double r : o.tool_radii)
     if (!(r > 0.002)) throw InputError("fidelity: tool radii must be > 2 mm (slides run 2 mm deep)");

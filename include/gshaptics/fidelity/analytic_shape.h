@@ -96,6 +96,8 @@ class AnalyticShape {
   /// `out`; returns 2 there and 0 on the other shapes, whose borders are open ends (the plane,
   /// the cylinder's rims, the concave shapes' far sides) or which have none (the sphere).
   int convex_borders(const SurfaceSample& sample, std::array<FaceBorder, 2>& out) const;
+  /// Whether convex_borders() finds edges on this shape's faces (the cube and the plates).
+  [[nodiscard]] bool has_convex_edges() const noexcept;
   /// `count` press sites drawn with `seed`: faces, and for the cube also edges and corners (about
   /// 40 % faces, 40 % edges, 20 % corners), for the corner and groove also the concave line;
   /// kept at least `margin` m from the boundary of the covered surface.
