@@ -1376,5 +1376,27 @@ TEST(SeenProxy, TheForceTurnsOverACubesEdgeWithoutAStep) {
   }
 }
 
+
+// The 5 mm ball slid 2 mm deep over the crisp 2 mm cube's edge, seed 3. Just past the top face's
+// end the leading point's ray met the side face's discs seen edge-on 1.2 mm lower; the proxy sank
+// onto them, the load fell from 1.3 to 0.1 mm in one tick and the contact ended two ticks later
+// with none, so no lip began: the ball fell off the edge and felt nothing down the side (52 % of
+// the path lost). The point it rested on under load is kept (kLipKeep) and the ball rolls over it.
+TEST(SeenProxy, ABallThatSinksOffACrispEdgeRollsOverTheFacesEnd) {
+  const AnalyticShape cube(ShapeKind::kCube);
+  SynthParams sp;
+  sp.spacing = 0.002;
+  sp.seed = 3;
+  sp.edge_sigmas = 1.17;
+  const CollisionWorld w = CollisionWorld::build(make_synthetic_scene(cube, sp).scene, seen_world());
+  const double r = 0.005;
+  ProxyRenderer p(w, seen_params());
+  const Script s = slide_script(cube, r, 1000);
+  const SlideMetrics m = slide_metrics(cube, s, play_script(p, s, 1000));
+  EXPECT_EQ(m.lost_share, 0.0);
+  EXPECT_LT(m.largest_step, 0.8);  // (N: the sink and the lip's start are no click)
+  EXPECT_NEAR(m.mean_force, ProxyParams{}.stiffness * 0.002, 0.5);
+}
+
 }  // namespace
 }  // namespace gshaptics

@@ -20,6 +20,8 @@ void SeenProxy::reset() noexcept {
   fresh_normal_ = false;
   slide_mem_.setZero();
   edge_load_ = 0;
+  kept_load_ = 0;
+  lip_kept_ = std::numeric_limits<double>::infinity();
   edge_settle_ = 0;
   turn_left_ = 0;
   on_lip_ = false;
@@ -345,15 +347,27 @@ Eigen::Vector3d SeenProxy::slide_direction(double radius) const noexcept {
   return s.norm() > kEdgeSlideMin * radius ? Eigen::Vector3d(s.normalized()) : Eigen::Vector3d::Zero();
 }
 
-bool SeenProxy::begin_lip(const Eigen::Vector3d& device, double radius) noexcept {
+bool SeenProxy::sank_through_lip(double radius) const noexcept {
+  return kept_lip(radius) && (proxy_ - kept_point_).norm() < (1 - kEdgeLoad) * radius;
+}
+
+bool SeenProxy::kept_lip(double radius) const noexcept {
+  return lip_kept_ > 0 && lip_kept_ < kLipKeep * radius && kept_load_ > kEdgeLoad * radius;
+}
+
+bool SeenProxy::begin_lip(const Eigen::Vector3d& device, const Eigen::Vector3d& point, double radius, double rested) noexcept {
   // Where the face it slid on ends under load (the contact's last point, edge_point_), with the
   // device gone on past it along the slide, or short of it by less than kLipBehind R, the ball
   // rolls over that point.
   const Eigen::Vector3d s = slide_direction(radius);
   if (s.squaredNorm() == 0) return false;
-  const Eigen::Vector3d d = device - edge_point_;
+  const Eigen::Vector3d d = device - point;
   if (!(d.norm() < radius) || !(d.dot(s) > -kLipBehind * radius)) return false;
-  lip_ = edge_point_;
+  // (No deeper on the lip than it rested last tick, give or take kLipSlack R: a lip that would
+  // push harder than the contact did is no roll but a kick, a step from 0.2 to 1.9 N on one of
+  // firepit's probe-run releases.)
+  if (!(radius - d.norm() < rested + kLipSlack * radius)) return false;
+  lip_ = point;
   lip_out_ = s;
   on_lip_ = true;
   in_contact_ = false;
@@ -388,8 +402,29 @@ bool SeenProxy::roll_over_lip(const Eigen::Vector3d& device, const Eigen::Vector
     if (dist > 0) proxy_ = lip_ + std::max(dist, radius) * (d / dist);  // (free: the next push starts here)
     return false;
   }
-  if (!turn_over_edge(device, device_step, radius, dt, radius - dist)) return false;
+  if (!turn_over_edge(device, device_step, radius, dt, radius - dist) && !land_from_lip(device, device_step, radius, dt))
+    return false;
   on_lip_ = false;
+  return true;
+}
+
+bool SeenProxy::land_from_lip(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, double radius,
+                              double dt) noexcept {
+  const SeenHit hit = solid_.first_inside(proxy_, axis_, 0, 0, radius, scratch_);
+  if (!hit.hit || scratch_.overflow) return false;
+  // A face across the axis (its seen normal within 30 degrees of it), not the discs of a face
+  // along it met edge-on (a crisp cube's side below the lip).
+  const double h = solid_.normal_ring(radius);
+  if (!(-solid_.normal(proxy_ + hit.t * axis_, axis_, h, h, hit.t, scratch_).dot(axis_) > kEdgeAgree)) return false;
+  const Eigen::Vector3d axis = axis_, normal = normal_;
+  if (!restart_along(axis, (device - proxy_).dot(axis), device, device_step, radius, dt) || !in_contact_) {
+    if (ring_axis_.dot(axis) < kRingAxisCos) forget_ring(axis);
+    in_contact_ = false;
+    return false;
+  }
+  normal_ = normal;  // (the force keeps the lip's direction; the floor's readings turn it from there)
+  normal_trend_.setZero();
+  lip_kept_ = std::numeric_limits<double>::infinity();
   return true;
 }
 
@@ -414,8 +449,17 @@ void SeenProxy::track_slide(const Eigen::Vector3d& before, double radius, double
   step -= step.dot(axis_) * axis_;
   slide_mem_ = std::exp(-step.norm() / (kEdgeSlidePath * radius)) * slide_mem_ + step;
   edge_settle_ = std::max(0.0, edge_settle_ - step.norm());
+  // The point it rested on under load is kept through kLipKeep R of slide under less (the
+  // height field sinking off a rounded edge, or onto the discs of the face beyond seen edge-on),
+  // so a contact that ends there still rolls over the face's end.
   edge_load_ = load;
   edge_point_ = proxy_ - radius * normal_;
+  lip_kept_ += step.norm();
+  if (load > kEdgeLoad * radius || !(lip_kept_ < kLipKeep * radius)) {
+    kept_load_ = load;
+    kept_point_ = edge_point_;
+    lip_kept_ = 0;
+  }
 }
 
 bool SeenProxy::edge_ahead(double radius) const noexcept {
@@ -483,6 +527,7 @@ bool SeenProxy::turn_over_edge(const Eigen::Vector3d& device, const Eigen::Vecto
   begin_turn_blend(was, device, radius);
   slide_mem_.setZero();
   edge_load_ = in_contact_ ? depth : 0;
+  lip_kept_ = std::numeric_limits<double>::infinity();  // (the next tick's point is the new face's)
   edge_settle_ = kEdgeSettle * radius;
   return true;
 }
@@ -626,12 +671,16 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
     const bool look = edge_ahead(r);
     if (!look || !turn_over_edge(tool.center, device_step, r, dt, load)) {
       if (look) edge_settle_ = kEdgeLookStride * r;  // (the next look after this much more slide)
+      const double rested = edge_load_;  // (the load it rested under last tick)
       track_slide(before, r, load);
+      if (sank_through_lip(r) && begin_lip(tool.center, kept_point_, r, rested)) return lip_output(tool.center, device_step, velocity, r, dt);
     }
   } else if (was_in_contact && edge_load_ > kEdgeLoad * r &&
              !turn_over_edge(tool.center, device_step, r, dt, std::numeric_limits<double>::infinity()) &&
-             begin_lip(tool.center, r)) {
+             begin_lip(tool.center, edge_point_, r, std::numeric_limits<double>::infinity())) {
     return lip_output(tool.center, device_step, velocity, r, dt);
+  } else if (was_in_contact && !(edge_load_ > kEdgeLoad * r) && kept_lip(r) && begin_lip(tool.center, kept_point_, r, edge_load_)) {
+    return lip_output(tool.center, device_step, velocity, r, dt);  // (it sank off the face, and the load faded)
   }
   if (!in_contact_) {
     slide_mem_.setZero();

@@ -174,13 +174,22 @@ class SeenProxy {
   Eigen::Vector3d blend_turn(const Eigen::Vector3d& f, const Eigen::Vector3d& device, const Eigen::Vector3d& velocity,
                              double step, double radius, double dt) noexcept;
   static constexpr double kTurnBlend = 0.25;  // R of the device's path
-  // A contact ended under load while sliding (edge_load_, slide_mem_), the device past its last
-  // point along the slide and within R of it: the ball rolls over that point (on_lip_). True
-  // when it does.
-  bool begin_lip(const Eigen::Vector3d& device, double radius) noexcept;
+  // A contact ended under load while sliding (edge_load_, slide_mem_; `point`: its last contact
+  // point, edge_point_), or it sank off the face (sank_through_lip, or ended with the load faded:
+  // `point` is kept_point_), the device past `point` along the slide and within R of it, and no
+  // deeper than it rested last tick (`rested`, m) plus kLipSlack R: the ball rolls over that
+  // point (on_lip_). True when it does.
+  bool begin_lip(const Eigen::Vector3d& device, const Eigen::Vector3d& point, double radius, double rested) noexcept;
   // On the lip: whether the ball still rolls on it (on_lip_), and true when a face beyond took
   // the contact this tick (turn_over_edge; it is held already).
   bool roll_over_lip(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, double radius, double dt) noexcept;
+  // On the lip: the ball, where it rolled to last tick, meets a surface along the contact's axis
+  // within R of its centre (the floor past a bump or a step down it rolled off),
+  // a face across the axis (its seen normal within acos kEdgeAgree of it): that surface takes
+  // the contact along the axis (restart_along; it is held already). True
+  // when it does. A rigid ball lands there; without it, the ball rolled over a bump's lip on
+  // seed 6's crisp cube until the device was R from it and the floor then held nothing.
+  bool land_from_lip(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, double radius, double dt) noexcept;
   // On the lip's first tick: the layers of the face at the lip (seen along the contact's axis
   // kLipLook R back from it) into contacts_ (kept as lip_contacts_) and, with a follower, the
   // material's target there.
@@ -225,6 +234,23 @@ class SeenProxy {
   // crisp 4 mm cube (synth --edge-sigmas 1.17) fell off the edge in one tick (2.1 N) and felt
   // nothing down the side face (bench/RESULTS.md, hundred-and-fifth session).
   static constexpr double kLipBehind = 0.2;
+  // R of slide under less than kEdgeLoad R through which the last point it rested on under more
+  // (kept_point_, kept_load_) is kept (track_slide; kept_lip()). On the crisp cube (synth --edge-sigmas
+  // 1.17) the leading point's ray, just past the top face's end, met the side face's discs seen
+  // edge-on 1-1.5 mm lower; the proxy sank onto them and the contact ended a tick or two later
+  // with no load, so no lip began, and the ball fell off the edge (bench/RESULTS.md,
+  // hundred-and-sixth session).
+  static constexpr double kLipKeep = 0.1;
+  // R: the most a lip may push deeper than the contact it follows did (k times 0.2 mm on a
+  // 10 mm ball); a kept point deeper than that is no roll but a kick (begin_lip).
+  static constexpr double kLipSlack = 0.02;
+  // In contact: the proxy sank (under kEdgeLoad R of load, within kLipKeep R of slide) to within
+  // (1 - kEdgeLoad) R of the point it rested on under load (kept_point_): a rigid ball would
+  // have rolled over that point rather than through it; so it does (begin_lip).
+  [[nodiscard]] bool sank_through_lip(double radius) const noexcept;
+  // Whether a point it rested on under more than kEdgeLoad R is kept (kept_point_: the load
+  // fell below that within the last kLipKeep R of slide).
+  [[nodiscard]] bool kept_lip(double radius) const noexcept;
   // In contact: where the proxy gets across the contact's axis on its way to `goal` (the goal's
   // own place along the axis kept): stopped by a wall of the seen solid that its move across
   // meets (its line seen from the proxy's centre), then sliding along the wall once (a second
@@ -328,6 +354,9 @@ class SeenProxy {
   Eigen::Vector3d slide_mem_ = Eigen::Vector3d::Zero();  // m: the proxy's slide across the axis, its last kEdgeSlidePath R
   double edge_load_ = 0;  // m: the last tick in contact's depth past the surface along the normal
   Eigen::Vector3d edge_point_ = Eigen::Vector3d::Zero();  // the last tick in contact's contact point
+  double kept_load_ = 0;  // m: the last load over kEdgeLoad R (kLipKeep)
+  Eigen::Vector3d kept_point_ = Eigen::Vector3d::Zero();  // the contact point under it
+  double lip_kept_ = std::numeric_limits<double>::infinity();  // m: slide since kept_point_ was taken
   Eigen::Vector3d lip_ = Eigen::Vector3d::Zero();      // the point the ball rolls over (on_lip_)
   Eigen::Vector3d lip_out_ = Eigen::Vector3d::Zero();  // the slide's direction when it began
   bool on_lip_ = false;
