@@ -622,6 +622,24 @@ RenderOutput SeenProxy::contact_output(const Eigen::Vector3d& f, const Eigen::Ve
   return out;
 }
 
+bool SeenProxy::at_edge(const Eigen::Vector3d& device, const Eigen::Vector3d& before, const Eigen::Vector3d& device_step,
+                        double r, double dt, bool was_in_contact) noexcept {
+  if (in_contact_) {
+    const double load = (proxy_ - device).dot(normal_);
+    const bool look = edge_ahead(r);
+    if (look && turn_over_edge(device, device_step, r, dt, load)) return false;
+    if (look) edge_settle_ = kEdgeLookStride * r;  // (the next look after this much more slide)
+    const double rested = edge_load_;  // (the load it rested under last tick)
+    track_slide(before, r, load);
+    return sank_through_lip(r) && begin_lip(device, kept_point_, r, rested);
+  }
+  if (!was_in_contact) return false;
+  if (edge_load_ > kEdgeLoad * r)  // (ended under load)
+    return !turn_over_edge(device, device_step, r, dt, std::numeric_limits<double>::infinity()) &&
+           begin_lip(device, edge_point_, r, std::numeric_limits<double>::infinity());
+  return kept_lip(r) && begin_lip(device, kept_point_, r, edge_load_);  // (it sank off the face, and the load faded)
+}
+
 RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d& velocity, double dt) noexcept {
   RenderOutput out;
   out.proxy = tool.center;
@@ -666,22 +684,8 @@ RenderOutput SeenProxy::render(const ToolEllipsoid& tool, const Eigen::Vector3d&
     }
   }
   if (in_contact_) follow_surface(tool.center, before, device_step, r, dt);
-  if (in_contact_) {
-    const double load = (proxy_ - tool.center).dot(normal_);
-    const bool look = edge_ahead(r);
-    if (!look || !turn_over_edge(tool.center, device_step, r, dt, load)) {
-      if (look) edge_settle_ = kEdgeLookStride * r;  // (the next look after this much more slide)
-      const double rested = edge_load_;  // (the load it rested under last tick)
-      track_slide(before, r, load);
-      if (sank_through_lip(r) && begin_lip(tool.center, kept_point_, r, rested)) return lip_output(tool.center, device_step, velocity, r, dt);
-    }
-  } else if (was_in_contact && edge_load_ > kEdgeLoad * r &&
-             !turn_over_edge(tool.center, device_step, r, dt, std::numeric_limits<double>::infinity()) &&
-             begin_lip(tool.center, edge_point_, r, std::numeric_limits<double>::infinity())) {
+  if (at_edge(tool.center, before, device_step, r, dt, was_in_contact))
     return lip_output(tool.center, device_step, velocity, r, dt);
-  } else if (was_in_contact && !(edge_load_ > kEdgeLoad * r) && kept_lip(r) && begin_lip(tool.center, kept_point_, r, edge_load_)) {
-    return lip_output(tool.center, device_step, velocity, r, dt);  // (it sank off the face, and the load faded)
-  }
   if (!in_contact_) {
     slide_mem_.setZero();
     turn_left_ = 0;

@@ -244,6 +244,11 @@ class SeenProxy {
   // R: the most a lip may push deeper than the contact it follows did (k times 0.2 mm on a
   // 10 mm ball); a kept point deeper than that is no roll but a kick (begin_lip).
   static constexpr double kLipSlack = 0.02;
+  // After the tick's hold (from `before`): in contact, a turn over an edge ahead or the slide
+  // tracked (and a sink off the face's end: a lip); out of it just now, a turn onto a face beyond
+  // or a lip. True when the ball is on a lip now (the caller renders lip_output).
+  bool at_edge(const Eigen::Vector3d& device, const Eigen::Vector3d& before, const Eigen::Vector3d& device_step, double r,
+               double dt, bool was_in_contact) noexcept;
   // In contact: the proxy sank (under kEdgeLoad R of load, within kLipKeep R of slide) to within
   // (1 - kEdgeLoad) R of the point it rested on under load (kept_point_): a rigid ball would
   // have rolled over that point rather than through it; so it does (begin_lip).
