@@ -55,7 +55,7 @@ void register_fidelity(CLI::App& app) {
   cmd->add_option("--edge-sigmas", o->synth.edge_sigmas,
                   "Scenes with crisp convex edges: discs near the cube's edges narrowed to this many standard "
                   "deviations within them (gshaptics synth --edge-sigmas; 1.17 suggested); 0: sized alike, as the reports")
-      ->capture_default_str()->check(check::range(0.0, 10.0));
+      ->capture_default_str()->check(check::range(0.0, SynthParams::kMaxEdgeSigmas));
   add_force_options(*cmd, o->force);
   add_execution_options(*cmd, o->exec, /*simulated=*/true);
   add_passivity_option(*cmd, o->passivity);

@@ -84,7 +84,7 @@ void register_synth(CLI::App& app) {
                   "Crisp convex edges (cube, plates): discs near an edge narrowed so their standard deviation toward "
                   "it is at most the distance over this (1.17: a disc alone is seen no farther than the edge); 0: sized alike, "
                   "overhanging the edge")
-      ->capture_default_str()->check(check::range(0.0, 10.0));
+      ->capture_default_str()->check(check::range(0.0, SynthParams::kMaxEdgeSigmas));
   cmd->add_option("--defect", o->defects,
                   "A capture defect patch, KIND[:RADIUS_MM] (faint-patch, hole, large-flat, interior-clutter; "
                   "radius 15 mm, a hole 4 mm), centred at the surface point nearest (0, 0, 1) m; repeatable");

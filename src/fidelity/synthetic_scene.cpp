@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cmath>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "gshaptics/collision/collision_world.h"
@@ -91,8 +92,8 @@ SyntheticScene make_synthetic_scene(const AnalyticShape& shape, const SynthParam
   if (!(p.normal_jitter >= 0 && p.tilt_deg >= 0 && p.scale_log_sigma >= 0 && p.floater_min >= 0 &&
         p.floater_max >= p.floater_min && p.floater_clearance >= 0))
     throw InputError("synth: jitters, sigmas and floater distances must be >= 0 (floater_max >= floater_min)");
-  if (!(p.edge_sigmas >= 0 && p.edge_sigmas <= 10))
-    throw InputError("synth: edge sigmas must be in [0, 10], got " + std::to_string(p.edge_sigmas));
+  if (!(p.edge_sigmas >= 0 && p.edge_sigmas <= SynthParams::kMaxEdgeSigmas))
+    throw InputError(fmt::format("synth: edge sigmas must be in [0, {:g}], got {:g}", SynthParams::kMaxEdgeSigmas, p.edge_sigmas));
   if (p.floater_share > 0 && !(p.floater_max - 0.3 * p.spacing >= p.floater_clearance))
     throw InputError("synth: floaters cannot clear the surface: floater_max less the smallest floater (0.3 spacing) "
                      "must be >= floater_clearance");

@@ -43,6 +43,7 @@ struct SynthParams {
   /// and sees the corners within 0.5 mm; 2 leaves no lip but opens the corners (seen through at 4
   /// and 8 mm: bench/RESULTS.md, hundred-and-fifth session). In [0, 10].
   double edge_sigmas = 0;
+  static constexpr double kMaxEdgeSigmas = 10;  ///< edge_sigmas' upper bound
   /// Patches where the surface has what real captures leave (fidelity/capture_defect.h); none by
   /// default. Outside its patches a scene is the defect-free one, Gaussian for Gaussian.
   std::vector<CaptureDefect> defects;
