@@ -414,8 +414,7 @@ bool SeenProxy::land_from_lip(const Eigen::Vector3d& device, const Eigen::Vector
   if (!hit.hit || scratch_.overflow) return false;
   // A face across the axis (its seen normal within 30 degrees of it), not the discs of a face
   // along it met edge-on (a crisp cube's side below the lip).
-  const double h = solid_.normal_ring(radius);
-  if (!(-solid_.normal(proxy_ + hit.t * axis_, axis_, h, h, hit.t, scratch_).dot(axis_) > kEdgeAgree)) return false;
+  if (!face_agrees(proxy_ + hit.t * axis_, axis_, hit.t, -axis_, radius)) return false;
   const Eigen::Vector3d axis = axis_, normal = normal_;
   if (!restart_along(axis, (device - proxy_).dot(axis), device, device_step, radius, dt) || !in_contact_) {
     if (ring_axis_.dot(axis) < kRingAxisCos) forget_ring(axis);
@@ -426,6 +425,12 @@ bool SeenProxy::land_from_lip(const Eigen::Vector3d& device, const Eigen::Vector
   normal_trend_.setZero();
   lip_kept_ = std::numeric_limits<double>::infinity();
   return true;
+}
+
+bool SeenProxy::face_agrees(const Eigen::Vector3d& at, const Eigen::Vector3d& u, double t, const Eigen::Vector3d& m,
+                            double radius) noexcept {
+  const double h = solid_.normal_ring(radius);
+  return solid_.normal(at, u, h, h, t, scratch_).dot(m) > kEdgeAgree;
 }
 
 RenderOutput SeenProxy::lip_output(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step,
@@ -509,8 +514,7 @@ bool SeenProxy::turn_over_edge(const Eigen::Vector3d& device, const Eigen::Vecto
   if (!(depth > 0) || !(depth < load - kEdgeMargin * radius)) return false;
   // A face: its seen normal over the reading's ring faces the slide as its shade does (not one
   // disc met edge-on at the device's height).
-  const double h = solid_.normal_ring(radius);
-  if (!(solid_.normal(at, u, h, h, hit.t, scratch_).dot(m) > kEdgeAgree)) return false;
+  if (!face_agrees(at, u, hit.t, m, radius)) return false;
   // The ball gets there without going through the seen solid: the line from where the proxy
   // stands to where the new contact begins is clear (not a wall's far side, met after the device
   // went through it).

@@ -190,6 +190,11 @@ class SeenProxy {
   // when it does. A rigid ball lands there; without it, the ball rolled over a bump's lip on
   // seed 6's crisp cube until the device was R from it and the floor then held nothing.
   bool land_from_lip(const Eigen::Vector3d& device, const Eigen::Vector3d& device_step, double radius, double dt) noexcept;
+  // Whether the seen surface a line along `u` met at `at` (`t` along it from its origin) is a face
+  // facing `m` (unit): its seen normal over the normal's ring (SeenSolid::normal) within acos
+  // kEdgeAgree of m, not one disc met edge-on (turn_over_edge, land_from_lip).
+  [[nodiscard]] bool face_agrees(const Eigen::Vector3d& at, const Eigen::Vector3d& u, double t, const Eigen::Vector3d& m,
+                                 double radius) noexcept;
   // On the lip's first tick: the layers of the face at the lip (seen along the contact's axis
   // kLipLook R back from it) into contacts_ (kept as lip_contacts_) and, with a follower, the
   // material's target there.
