@@ -121,19 +121,23 @@ Set probe_set(const std::string& name, const std::string& file, double reg_scale
   return s;
 }
 
-// A fidelity set named `fidelity-SHAPE-Smm-Tmm[-slide]`: presses to 10 mm at 8 sites (seed 1)
-// on a ground-truth shape at Gaussian spacing S with a tool of radius T, or with `-slide` the
-// fidelity run's slide (plane, sphere, cube).
+// A fidelity set named `fidelity-SHAPE-Smm-Tmm[-slide][-crisp][-seedN]`: presses to 10 mm at 8
+// sites on a ground-truth shape (seed N, default 1) at Gaussian spacing S with a tool of radius
+// T, or with `-slide` the fidelity run's slide (plane, sphere, cube: over its edge); with `-crisp`
+// the scene's convex edges crisp (SynthParams::kCrispEdgeSigmas, as bench/FIDELITY-crisp-edges.md:
+// where the seen proxy's lips and landings run).
 Set fidelity_set(const std::string& name) {
-  static const std::regex pattern("fidelity-(.+)-([0-9.]+)mm-([0-9.]+)mm(-slide)?");
+  static const std::regex pattern("fidelity-(.+)-([0-9.]+)mm-([0-9.]+)mm(-slide)?(-crisp)?(-seed([0-9]+))?");
   std::smatch m;
   if (!std::regex_match(name, m, pattern))
-    throw InputError("proxy_bench: set '" + name + "': expected fidelity-SHAPE-SPACINGmm-TOOLmm[-slide]");
+    throw InputError("proxy_bench: set '" + name + "': expected fidelity-SHAPE-SPACINGmm-TOOLmm[-slide][-crisp][-seedN]");
   Set s;
   s.name = name;
   const AnalyticShape shape(parse_shape(m[1].str(), "proxy_bench --sets"));
   SynthParams sp;
   sp.spacing = std::stod(m[2].str()) * 1e-3;
+  if (m[5].matched) sp.edge_sigmas = SynthParams::kCrispEdgeSigmas;
+  if (m[7].matched) sp.seed = std::stoull(m[7].str());
   const double radius = std::stod(m[3].str()) * 1e-3;
   s.world = std::make_unique<CollisionWorld>(CollisionWorld::build(make_synthetic_scene(shape, sp).scene, WorldConfig{}));
   s.tool_radius = radius;
@@ -206,7 +210,7 @@ int main(int argc, char** argv) {
   std::string out;
   app.add_option("--sets", sets,
                  "Comma-separated sets: truck, burger, halo, firepit, karangkidul (probe runs) and "
-                 "fidelity-SHAPE-SPACINGmm-TOOLmm[-slide] (8 fidelity presses, or the slide; e.g. "
+                 "fidelity-SHAPE-SPACINGmm-TOOLmm[-slide][-crisp][-seedN] (8 fidelity presses, or the slide; -crisp: crisp convex edges; -seedN: the scene's seed, default 1; e.g. "
                  "fidelity-v-groove-60-2mm-10mm, fidelity-plane-2mm-10mm-slide)")->capture_default_str();
   app.add_option("--passes", passes, "Replays of each path; a tick's time is its median over them")
       ->capture_default_str()->check(CLI::Range(1, 99));

@@ -44,6 +44,9 @@ struct SynthParams {
   /// and 8 mm: bench/RESULTS.md, hundred-and-fifth session). In [0, 10].
   double edge_sigmas = 0;
   static constexpr double kMaxEdgeSigmas = 10;  ///< edge_sigmas' upper bound
+  /// The suggested edge_sigmas (crisp edges: a disc of opacity 0.99 alone is seen no farther out
+  /// than the edge; bench/FIDELITY-crisp-edges.md).
+  static constexpr double kCrispEdgeSigmas = 1.17;
   /// Patches where the surface has what real captures leave (fidelity/capture_defect.h); none by
   /// default. Outside its patches a scene is the defect-free one, Gaussian for Gaussian.
   std::vector<CaptureDefect> defects;
