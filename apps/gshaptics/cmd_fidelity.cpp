@@ -53,8 +53,10 @@ void register_fidelity(CLI::App& app) {
   cmd->add_option("--floater-share", o->synth.floater_share, "Floaters per surface Gaussian in the scenes")
       ->capture_default_str()->check(check::range(0.0, 1.0));
   cmd->add_option("--edge-sigmas", o->synth.edge_sigmas,
-                  "Scenes with crisp convex edges: discs near the cube's edges narrowed to this many standard "
-                  "deviations within them (gshaptics synth --edge-sigmas; 1.17 suggested); 0: sized alike, as the reports")
+                  fmt::format("Scenes with crisp convex edges: discs near the cube's edges narrowed to this many "
+                              "standard deviations within them (gshaptics synth --edge-sigmas; {} suggested); 0: sized "
+                              "alike, as the reports",
+                              SynthParams::kCrispEdgeSigmas))
       ->capture_default_str()->check(check::range(0.0, SynthParams::kMaxEdgeSigmas));
   add_force_options(*cmd, o->force);
   add_execution_options(*cmd, o->exec, /*simulated=*/true);

@@ -81,9 +81,10 @@ void register_synth(CLI::App& app) {
   cmd->add_option("--floater-share", p.floater_share, "Floaters per surface Gaussian")
       ->capture_default_str()->check(check::range(0.0, 1.0));
   cmd->add_option("--edge-sigmas", p.edge_sigmas,
-                  "Crisp convex edges (cube, plates): discs near an edge narrowed so their standard deviation toward "
-                  "it is at most the distance over this (1.17: a disc alone is seen no farther than the edge); 0: sized alike, "
-                  "overhanging the edge")
+                  fmt::format("Crisp convex edges (cube, plates): discs near an edge narrowed so their standard "
+                              "deviation toward it is at most the distance over this ({}: a disc alone is seen no farther "
+                              "than the edge); 0: sized alike, overhanging the edge",
+                              SynthParams::kCrispEdgeSigmas))
       ->capture_default_str()->check(check::range(0.0, SynthParams::kMaxEdgeSigmas));
   cmd->add_option("--defect", o->defects,
                   "A capture defect patch, KIND[:RADIUS_MM] (faint-patch, hole, large-flat, interior-clutter; "
