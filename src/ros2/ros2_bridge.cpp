@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <initializer_list>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -74,6 +75,20 @@ Endpoint make_writer(dds_entity_t pp, const dds_topic_descriptor_t* desc, const 
   Qos q(stream_qos(o.reliable_output, o.depth));
   e.entity = check(dds_create_writer(pp, e.topic, q.q, nullptr), "writer on " + name);
   return e;
+}
+
+// Before a participant goes: waits, at most kAckWait in all, until the matched readers have
+// acknowledged what `writers` wrote (Cyclone DDS's dds_wait_for_acks; a reliable writer deleted
+// with samples unacknowledged drops them, so a node's last wrench and setpoint at rest, or a
+// device's last poses, would not arrive). Best-effort writers and writers never created (entity
+// 0) return at once.
+constexpr dds_duration_t kAckWait = DDS_MSECS(500);
+void wait_for_acks(std::initializer_list<const Endpoint*> writers) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::nanoseconds(kAckWait);
+  for (const Endpoint* w : writers) {
+    const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(end - std::chrono::steady_clock::now());
+    if (w->entity > 0 && left.count() > 0) (void)dds_wait_for_acks(w->entity, dds_duration_t(left.count()));
+  }
 }
 
 // An entity's DDS GUID as a ROS 2 GID (Humble: 24 octets, the GUID's 16 then zeros), as
@@ -161,6 +176,7 @@ struct Ros2Impl {
   }
   ~Ros2Impl() {
     shutdown();
+    wait_for_acks({&wrench_writer, &setpoint_writer, &setpoint_twist_writer});
     dds_delete(participant);
   }
 
@@ -478,7 +494,11 @@ Ros2DeviceLink::Ros2DeviceLink(const Ros2Options& options) : state_(std::make_un
   }
 }
 
-Ros2DeviceLink::~Ros2DeviceLink() { dds_delete(state_->participant); }
+Ros2DeviceLink::~Ros2DeviceLink() {
+  State& s = *state_;
+  wait_for_acks({&s.pose_writer, &s.twist_writer, &s.sensor_writer});
+  dds_delete(s.participant);
+}
 
 bool Ros2DeviceLink::wait_for_node(double timeout_s) {
   const auto t0 = std::chrono::steady_clock::now();
