@@ -480,11 +480,19 @@ SeenCompoundProxy::LineChoice SeenCompoundProxy::nearest_line(int j, const ToolE
   // thin feature or a raised patch under the middle): nearer than all of them by kInnerBand. On a
   // face or an edge they agree with the ring within the surface's roughness, and the ring's edge
   // search places the part.
-  const double band = kInnerBand * min_axis_;
+  // The nearest inner line, whichever slot it is read in, or the one that holds the part while it
+  // is as near within kInnerKeep: lines re-read on one raised patch trade places by less (held by
+  // the first slot within the band of the nearest, the hold jumped between two lines 1.2 mm apart).
+  int inner = -1;
+  double inner_gap = kInf;
   for (int r = kRingRays; r < kReadLines; ++r) {
     const double gap = line_gap(r);
-    if (gap < c.gap - band) c.gap = gap, c.line = r;
+    if (gap < inner_gap) inner_gap = gap, inner = r;
   }
+  const int held = held_[k].line;
+  if (held >= kRingRays && held < kReadLines && held != inner && c.gaps[std::size_t(held)] <= inner_gap + kInnerKeep * min_axis_)
+    inner_gap = c.gaps[std::size_t(held)], inner = held;
+  if (inner_gap < c.gap - kInnerBand * min_axis_) c.gap = inner_gap, c.line = inner;
   return c;
 }
 

@@ -351,6 +351,12 @@ class SeenCompoundProxy {
   // across a cube edge: 0.2 turns the force 21-34 deg at two of 12 seeds); above it, a raised
   // patch under the middle (halo, 0.38) is passed (bench/RESULTS.md, hundred-and-fourth session).
   static constexpr double kInnerBand = 0.3;
+  // Of the inner lines, the nearest holds; the one holding the part keeps it while it is within
+  // kInnerKeep smallest semi-axes of the nearest (lines re-read on one raised patch trade places
+  // by less: taking the nearest each tick, the stylus across a crisp edge turned 5.8 deg at seed
+  // 6; taking the first within the band, 14 deg at seed 1: bench/RESULTS.md, hundred-and-eighth
+  // session).
+  static constexpr double kInnerKeep = 0.1;
 
   const SeenSolid* solid_;
   CompoundTool tool_;
