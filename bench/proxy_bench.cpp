@@ -176,6 +176,48 @@ Timing time_replays(const Set& s, int passes, Reset&& reset, Tick&& tick) {
   return {percentile(med, 50), percentile(med, 99), *std::max_element(med.begin(), med.end())};
 }
 
+// --breakdown with a tool on the seen solid: one more replay of `s` (untimed by the table), each
+// tick's time with what its queries read (SeenCompoundProxy::seen_work()) and whether it began in
+// contact, and per band of that replay's times (p50-p95, p95-p99, the top 1 %) the means.
+template <typename Render>
+void seen_breakdown(const Set& s, int parts, const ProxyRenderer& timed, Render&& render) {
+  struct TickWork {
+    double us;
+    SeenScratch::Work work;
+    bool held;  // in contact when the tick began
+  };
+  std::vector<TickWork> ticks(s.poses.size());
+  bool held = false;
+  for (std::size_t i = 0; i < s.poses.size(); ++i) {
+    if (s.restarts_at(i)) held = false;
+    const SeenScratch::Work before = timed.seen_compound()->seen_work();
+    const auto t0 = Clock::now();
+    (void)render(i);
+    const double us = std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
+    const SeenScratch::Work& after = timed.seen_compound()->seen_work();
+    ticks[i] = {us, {after.walks - before.walks, after.entries - before.entries, after.layers - before.layers}, held};
+    held = timed.seen_compound()->in_contact();
+  }
+  std::vector<double> us(ticks.size());
+  for (std::size_t i = 0; i < ticks.size(); ++i) us[i] = ticks[i].us;
+  const double p50 = percentile(us, 50), p95 = percentile(us, 95), p99 = percentile(us, 99);
+  const auto describe = [&](const char* label, double lo, double hi) {
+    double n = 0, t = 0, walks = 0, entries = 0, layers = 0, in = 0;
+    for (const TickWork& k : ticks)
+      if (k.us >= lo && k.us < hi)
+        n += 1, t += k.us, walks += double(k.work.walks), entries += double(k.work.entries),
+            layers += double(k.work.layers), in += k.held;
+    if (n == 0) return;
+    fmt::print(stderr,
+               "proxy_bench: {}: seen compound proxy, {}-part tool, {} ticks {}: mean {:.1f} us, {:.1f} tree walks, {:.0f} leaf "
+               "entries tested, {:.0f} layers taken, {:.0f} % began in contact\n",
+               s.name, parts, n, label, t / n, walks / n, entries / n, layers / n, 100 * in / n);
+  };
+  describe("p50-p95", p50, p95);
+  describe("p95-p99", p95, p99);
+  describe("top 1 %", p99, INFINITY);
+}
+
 // Two materials split at the world's centre along x (world frame), both textured; the second
 // with a procedural noise relief at the tool's scale. No friction: the proxy moves as without the map
 // (friction would change its path, and the cost with it), so the difference is what the blend
@@ -219,7 +261,9 @@ int main(int argc, char** argv) {
   app.add_flag("--breakdown", breakdown,
                "Also print, per set, what the proxy's slow ticks do: over one more replay, the ticks between "
                "the p95 and the p99 and the top 1 % (by that replay's times), their mean sweeps, candidates "
-               "and exact first-contact searches, and how many read the shaded normal");
+               "and exact first-contact searches, and how many read the shaded normal; with --stylus on the "
+               "seen surface, also the stylus proxy's ticks by band (p50-p95, p95-p99, top 1 %): their tree "
+               "walks, leaf entries tested and layers taken on the seen solid");
   bool stylus = false;
   bool no_overhang_falloff = false;
   app.add_flag("--no-overhang-falloff", no_overhang_falloff,
@@ -450,6 +494,7 @@ int main(int argc, char** argv) {
             }
             *past = percentile(apart, 99);
           }
+          if (breakdown && timed.seen_compound() && !with_materials) seen_breakdown(path, t.count, timed, render);
           return time_replays(path, passes, [&](bool) { timed.reset(); }, [&](std::size_t i) { (void)render(i); });
         };
         double past_sphere_path = NAN, past_own_path = NAN;

@@ -176,6 +176,34 @@ TEST(SeenSolid, FirstInsideFromAFarEyeIsTheSeenDepth) {
   EXPECT_GE(hits, 30);
 }
 
+// A scratch counts what its queries read (SeenScratch::Work, what gshaptics_proxy_bench
+// --breakdown reports): a search without a guess walks the tree once and takes the layers it
+// gathered, after testing at least as many leaf entries; a ray beside the cloud walks once and
+// tests nothing.
+TEST(SeenSolid, ItsScratchCountsWhatTheQueriesRead) {
+  CloudCase cloud(5);
+  SeenScratch& scratch = cloud.scratch;
+  int with_layers = 0;
+  for (int k = 0; k < 20; ++k) {
+    Eigen::Vector3d u(cloud.uni() - 0.5, cloud.uni() - 0.5, cloud.uni() - 0.5);
+    u.normalize();
+    const Eigen::Vector3d o = Eigen::Vector3d(0.3 * (cloud.uni() - 0.5), 0.3 * (cloud.uni() - 0.5), 0.3 * (cloud.uni() - 0.5)) - 1.5 * u;
+    const SeenScratch::Work before = scratch.work;
+    (void)cloud.solid.first_inside(o, u, 0, 0, 3.0, scratch);
+    ASSERT_FALSE(scratch.overflow);
+    EXPECT_EQ(scratch.work.walks - before.walks, 1u) << "ray " << k;
+    EXPECT_EQ(scratch.work.layers - before.layers, scratch.gathered) << "ray " << k;
+    EXPECT_GE(scratch.work.entries - before.entries, scratch.work.layers - before.layers) << "ray " << k;
+    with_layers += scratch.gathered > 0;
+  }
+  EXPECT_GE(with_layers, 15);
+  const SeenScratch::Work before = scratch.work;
+  (void)cloud.solid.first_inside(Eigen::Vector3d(5, 5, 5), Eigen::Vector3d::UnitX(), 0, 0, 3.0, scratch);
+  EXPECT_EQ(scratch.work.walks - before.walks, 1u);
+  EXPECT_EQ(scratch.work.entries, before.entries);
+  EXPECT_EQ(scratch.work.layers, before.layers);
+}
+
 // A push's guess (SeenSolid::push's two stages: the layers ahead up to the guess first) changes
 // only what the search costs: over random rays through a cloud, every guess, short of the hit,
 // at it, past it, behind the centre and past the push's end, gives the answer of no guess to the

@@ -99,8 +99,10 @@ void SeenSolid::gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, doubl
                        SeenScratch& s, bool append) const noexcept {
   if (!append) s.gathered = 0;
   s.overflow = false;
+  ++s.work.walks;
   const double len2 = u.squaredNorm(), inv_len2 = 1 / len2, inv_len = std::sqrt(inv_len2);
   bvh_.for_each_leaf_on_segment(o, u, ta, tb, [&](std::uint32_t first, std::uint32_t count) {
+    s.work.entries += count;
     for (std::uint32_t k = first; k < first + count; ++k) {
       // The entry's ball first: a peak with alpha >= 1/255 lies in it, so a line passing
       // beside it, or meeting it outside [ta, tb], has no layer here.
@@ -127,6 +129,7 @@ void SeenSolid::gather(const Eigen::Vector3d& o, const Eigen::Vector3d& u, doubl
         return false;
       }
       s.layers[s.gathered++] = {t, -std::log1p(-alpha), k};
+      ++s.work.layers;
     }
     return true;
   });

@@ -137,6 +137,9 @@ class SeenCompoundProxy {
   /// reports none. Empty out of contact.
   [[nodiscard]] std::span<const Contact> contacts() const noexcept { return {contacts_.data(), contact_count_}; }
   static constexpr std::size_t kPartContacts = 32;
+  /// What this proxy's queries on the seen solid have read since it was made (SeenScratch::Work,
+  /// cumulative): a benchmark takes the difference across a tick.
+  [[nodiscard]] const SeenScratch::Work& seen_work() const noexcept { return scratch_.work; }
 
  private:
   // The touching parts' layers (part_layers_) into contacts_, after contact() set weight_.

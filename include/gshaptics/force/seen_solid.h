@@ -48,6 +48,13 @@ struct SeenScratch {
   std::vector<Layer> layers;
   std::size_t gathered = 0;
   bool overflow = false;  ///< more layers than capacity: the query answered conservatively
+  /// What the queries on this scratch have read since it was made, cumulative (a reader takes
+  /// differences across a call): tree walks (one per range gathered), leaf entries the walks
+  /// tested, and layers they took. For benchmarks' breakdowns (`gshaptics_proxy_bench
+  /// --breakdown`); counting costs three increments in loops that already touch the scratch.
+  struct Work {
+    std::uint64_t walks = 0, entries = 0, layers = 0;
+  } work;
 };
 
 /// A blocking point along a ray.
