@@ -490,7 +490,7 @@ SeenCompoundProxy::LineChoice SeenCompoundProxy::nearest_line(int j, const ToolE
     if (gap < inner_gap) inner_gap = gap, inner = r;
   }
   const int held = held_[k].line;
-  if (held >= kRingRays && held < kReadLines && held != inner && c.gaps[std::size_t(held)] <= inner_gap + kInnerKeep * min_axis_)
+  if (held >= kRingRays && held < kReadLines && c.gaps[std::size_t(held)] <= inner_gap + kInnerKeep * min_axis_)
     inner_gap = c.gaps[std::size_t(held)], inner = held;
   if (inner_gap < c.gap - kInnerBand * min_axis_) c.gap = inner_gap, c.line = inner;
   return c;
