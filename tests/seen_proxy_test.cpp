@@ -65,6 +65,13 @@ struct CloudCase {
   explicit CloudCase(std::uint64_t seed)
       : rng(seed), g(random_cloud(rng)), world(CollisionWorld::build(g, seen_world())), solid(world), reference(g) {}
   double uni() { return dist(rng); }
+  // A ray through the cloud's middle from outside it: a random unit direction u, and an origin
+  // o 1.5 before a random point within 0.15 of the centre (per axis) along it.
+  void random_ray(Eigen::Vector3d& o, Eigen::Vector3d& u) {
+    u = Eigen::Vector3d(uni() - 0.5, uni() - 0.5, uni() - 0.5).normalized();
+    const Eigen::Vector3d x(uni() - 0.5, uni() - 0.5, uni() - 0.5);
+    o = 0.3 * x - 1.5 * u;
+  }
   std::mt19937_64 rng;
   std::uniform_real_distribution<double> dist{0, 1};
   GaussianScene g;
@@ -151,9 +158,8 @@ TEST(SeenSolid, FirstInsideFromAFarEyeIsTheSeenDepth) {
   SeenScratch& scratch = cloud.scratch;
   int hits = 0;
   for (int k = 0; k < 60; ++k) {
-    Eigen::Vector3d u(cloud.uni() - 0.5, cloud.uni() - 0.5, cloud.uni() - 0.5);
-    u.normalize();
-    const Eigen::Vector3d o = Eigen::Vector3d(0.3 * (cloud.uni() - 0.5), 0.3 * (cloud.uni() - 0.5), 0.3 * (cloud.uni() - 0.5)) - 1.5 * u;
+    Eigen::Vector3d o, u;
+    cloud.random_ray(o, u);
     const SeenDepth d = reference.median_depth(o, u);
     const SeenHit h = solid.first_inside(o, u, 0, 0, 3.0, scratch);
     ASSERT_FALSE(scratch.overflow);
@@ -185,9 +191,8 @@ TEST(SeenSolid, ItsScratchCountsWhatTheQueriesRead) {
   SeenScratch& scratch = cloud.scratch;
   int with_layers = 0;
   for (int k = 0; k < 20; ++k) {
-    Eigen::Vector3d u(cloud.uni() - 0.5, cloud.uni() - 0.5, cloud.uni() - 0.5);
-    u.normalize();
-    const Eigen::Vector3d o = Eigen::Vector3d(0.3 * (cloud.uni() - 0.5), 0.3 * (cloud.uni() - 0.5), 0.3 * (cloud.uni() - 0.5)) - 1.5 * u;
+    Eigen::Vector3d o, u;
+    cloud.random_ray(o, u);
     const SeenScratch::Work before = scratch.work;
     (void)cloud.solid.first_inside(o, u, 0, 0, 3.0, scratch);
     ASSERT_FALSE(scratch.overflow);
