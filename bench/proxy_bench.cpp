@@ -176,6 +176,26 @@ Timing time_replays(const Set& s, int passes, Reset&& reset, Tick&& tick) {
   return {percentile(med, 50), percentile(med, 99), *std::max_element(med.begin(), med.end())};
 }
 
+// A --breakdown's bands: a replay's ticks by band of their time (p50-p95 when `from_median`,
+// then p95-p99 and the top 1 %), `describe(label, ticks)` for each band that holds a tick.
+template <typename TickT, typename Describe>
+void by_time_band(const std::vector<TickT>& ticks, bool from_median, Describe&& describe) {
+  std::vector<double> us(ticks.size());
+  for (std::size_t i = 0; i < ticks.size(); ++i) us[i] = ticks[i].us;
+  struct Band {
+    const char* label;
+    double lo, hi;
+  };
+  const double p50 = percentile(us, 50), p95 = percentile(us, 95), p99 = percentile(us, 99);
+  const std::array<Band, 3> bands{{{"p50-p95", p50, p95}, {"p95-p99", p95, p99}, {"top 1 %", p99, INFINITY}}};
+  for (std::size_t b = from_median ? 0 : 1; b < bands.size(); ++b) {
+    std::vector<const TickT*> in;
+    for (const TickT& k : ticks)
+      if (k.us >= bands[b].lo && k.us < bands[b].hi) in.push_back(&k);
+    if (!in.empty()) describe(bands[b].label, in);
+  }
+}
+
 // --breakdown with a tool on the seen solid: one more replay of `s` (untimed by the table), each
 // tick's time with what its queries read (SeenCompoundProxy::seen_work()) and whether it began in
 // contact, and per band of that replay's times (p50-p95, p95-p99, the top 1 %) the means.
@@ -195,27 +215,20 @@ void seen_breakdown(const Set& s, int parts, const ProxyRenderer& timed, Render&
     (void)render(i);
     const double us = std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
     const SeenScratch::Work& after = timed.seen_compound()->seen_work();
-    ticks[i] = {us, {after.walks - before.walks, after.entries - before.entries, after.layers - before.layers}, held};
+    ticks[i] = {us, after - before, held};
     held = timed.seen_compound()->in_contact();
   }
-  std::vector<double> us(ticks.size());
-  for (std::size_t i = 0; i < ticks.size(); ++i) us[i] = ticks[i].us;
-  const double p50 = percentile(us, 50), p95 = percentile(us, 95), p99 = percentile(us, 99);
-  const auto describe = [&](const char* label, double lo, double hi) {
-    double n = 0, t = 0, walks = 0, entries = 0, layers = 0, in = 0;
-    for (const TickWork& k : ticks)
-      if (k.us >= lo && k.us < hi)
-        n += 1, t += k.us, walks += double(k.work.walks), entries += double(k.work.entries),
-            layers += double(k.work.layers), in += k.held;
-    if (n == 0) return;
+  by_time_band(ticks, true, [&](const char* label, const std::vector<const TickWork*>& band) {
+    double t = 0, walks = 0, entries = 0, layers = 0, in = 0;
+    for (const TickWork* k : band)
+      t += k->us, walks += double(k->work.walks), entries += double(k->work.entries), layers += double(k->work.layers),
+          in += k->held;
+    const double n = double(band.size());
     fmt::print(stderr,
                "proxy_bench: {}: seen compound proxy, {}-part tool, {} ticks {}: mean {:.1f} us, {:.1f} tree walks, {:.0f} leaf "
                "entries tested, {:.0f} layers taken, {:.0f} % began in contact\n",
                s.name, parts, n, label, t / n, walks / n, entries / n, layers / n, 100 * in / n);
-  };
-  describe("p50-p95", p50, p95);
-  describe("p95-p99", p95, p99);
-  describe("top 1 %", p99, INFINITY);
+  });
 }
 
 // Two materials split at the world's centre along x (world frame), both textured; the second
@@ -376,23 +389,15 @@ int main(int argc, char** argv) {
           const ProxyMove& m = proxy.last_move();
           work[i] = {us, m.sweeps, m.candidates, m.exact, proxy.shading_reads() != reads};
         }
-        std::vector<double> us(work.size());
-        for (std::size_t i = 0; i < work.size(); ++i) us[i] = work[i].us;
-        const double p95 = percentile(us, 95), p99 = percentile(us, 99);
-        const auto describe = [&](const char* label, double lo, double hi) {
-          double n = 0, t = 0, sw = 0, cand = 0, ex = 0, rd = 0;
-          for (const TickWork& k : work)
-            if (k.us >= lo && k.us < hi) {
-              n += 1, t += k.us, sw += k.sweeps, cand += k.candidates, ex += k.exact, rd += k.read;
-            }
-          if (n == 0) return;
+        by_time_band(work, false, [&](const char* label, const std::vector<const TickWork*>& band) {
+          double t = 0, sw = 0, cand = 0, ex = 0, rd = 0;
+          for (const TickWork* k : band) t += k->us, sw += k->sweeps, cand += k->candidates, ex += k->exact, rd += k->read;
+          const double n = double(band.size());
           fmt::print(stderr,
                      "proxy_bench: {}: {} ticks {}: mean {:.1f} us, {:.1f} sweeps, {:.0f} candidates, {:.1f} exact "
                      "searches, {:.0f} % read the shaded normal\n",
                      name, n, label, t / n, sw / n, cand / n, ex / n, 100 * rd / n);
-        };
-        describe("p95-p99", p95, p99);
-        describe("top 1 %", p99, INFINITY);
+        });
         std::size_t reads = 0;
         for (const TickWork& k : work) reads += k.read;
         {

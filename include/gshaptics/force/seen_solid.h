@@ -54,6 +54,10 @@ struct SeenScratch {
   /// --breakdown`); counting costs three increments in loops that already touch the scratch.
   struct Work {
     std::uint64_t walks = 0, entries = 0, layers = 0;
+    /// What was read between two readings of the counters (`after - before`).
+    friend Work operator-(const Work& after, const Work& before) noexcept {
+      return {after.walks - before.walks, after.entries - before.entries, after.layers - before.layers};
+    }
   } work;
 };
 
