@@ -244,6 +244,41 @@ TEST(SeenSurface, NormalOfATiltedPlaneOfDiscs) {
   ASSERT_TRUE(sp.has_value());
   EXPECT_NEAR(sp->depth, 2.0, 0.01);
   EXPECT_GT(sp->normal.dot(n), std::cos(2.0 * M_PI / 180));
+  EXPECT_NEAR(sp->kink, 0.0, 0.002);  // a face: the centre on its neighbours' plane
+}
+
+// A grille 3 cm in front of a wall (both of discs, facing +z, seen from z > 0 along -z): slats
+// along x every `period`, each a row of discs 1.2 mm across it, so that a slot's middle (half
+// way between two slats) is seen through to the wall behind.
+GaussianScene grille_before_a_wall(double period = 0.005) {
+  GaussianScene g;
+  const Eigen::Vector4f flat(1, 0, 0, 0);
+  for (int i = -25; i <= 25; ++i)
+    for (int j = -25; j <= 25; ++j)
+      g.push_back(Eigen::Vector3f(0.004f * float(i), 0.004f * float(j), 0), Eigen::Vector3f(0.003f, 0.003f, 1e-4f), flat,
+                  0.95f, std::uint32_t(g.size()));
+  for (int k = -20; k <= 20; ++k)
+    for (int i = -50; i <= 50; ++i)
+      g.push_back(Eigen::Vector3f(0.002f * float(i), float(period * k), 0.03f), Eigen::Vector3f(0.002f, 0.0012f, 1e-4f),
+                  flat, 0.95f, std::uint32_t(g.size()));
+  return g;
+}
+
+TEST(SeenSurface, ARayThroughASlotSeesBehindItsNeighbours) {
+  const SeenSurface seen(grille_before_a_wall());
+  const Eigen::Vector3d down = -Eigen::Vector3d::UnitZ();
+  // Through the middle of a slot (y = 2.5 mm): the wall, 3 cm behind the slats its neighbours
+  // 2 mm across meet; the mean of the four is half way.
+  const std::optional<SeenPoint> slot = seen.surface_point(Eigen::Vector3d(0.0011, 0.0025, 0.1), down, 0.002);
+  ASSERT_TRUE(slot.has_value());
+  EXPECT_NEAR(slot->depth, 0.1, 1e-3);
+  EXPECT_NEAR(slot->kink, 0.015, 2e-3);
+  // On a slat, the neighbours 2.5 mm across it in the slots' middles: they see the wall (a
+  // spike, < 0).
+  const std::optional<SeenPoint> slat = seen.surface_point(Eigen::Vector3d(0.0011, 0.0, 0.1), down, 0.0025);
+  ASSERT_TRUE(slat.has_value());
+  EXPECT_NEAR(slat->depth, 0.07, 1e-3);
+  EXPECT_NEAR(slat->kink, -0.015, 2e-3);
 }
 
 // Small seen-felt runs on the analytic scenes: `rays` rays per configuration, the 2 % tool,
@@ -398,6 +433,46 @@ TEST(SeenFelt, AStylusAndADiscAreFeltWhereAnAnalyticPlaneIsSeen) {
       }
     }
   }
+}
+
+// A sphere wider than a grille's slots rests on its slats. A ray threading a slot sees the wall
+// 3 cm (several R) behind them, and on its centre line the force begins that much before the seen
+// surface: the seen depth is no face the sphere can press on. Such rays are played (a sphere
+// through the slats would still count as through) but stay out of the onset and felt
+// percentiles; counted in, they miss the onset target.
+TEST(SeenFelt, ARayThroughASlotNarrowerThanTheToolIsPlayedButNotScored) {
+  const GaussianScene g = grille_before_a_wall();
+  WorldConfig config;
+  config.min_opacity = kSeenMinOpacity;
+  const CollisionWorld world = CollisionWorld::build(g, config);
+  SeenFeltOptions o = small_vertical_run(6, 400);
+  SeenFeltReport rep;
+  measure_seen_felt("grille", g, world, o, rep);
+  ASSERT_EQ(rep.rows.size(), 1u);
+  const SeenFeltRow& row = rep.rows[0];
+  EXPECT_GT(row.tool_radius, 0.0024);  // wider than the slots
+  EXPECT_EQ(row.rays, o.rays);
+  ASSERT_GE(row.slots, 1);
+  EXPECT_EQ(row.through, 0);
+  EXPECT_EQ(row.no_force, 0);
+  EXPECT_TRUE(row.meets_targets(o.rays));
+  int slots = 0;
+  for (const SeenFeltRay& r : rep.rays) {
+    if (!r.slot) continue;
+    ++slots;
+    EXPECT_NEAR(r.origin.z() - r.seen, 0.0, 1e-3);  // the wall behind the slot
+    EXPECT_LT(r.felt_minus_seen, -3.0);             // held on the slats, R = about 4 mm
+    EXPECT_FALSE(r.through);
+  }
+  EXPECT_EQ(slots, row.slots);
+  // Scored as faces, the slots' rays are invisible walls to the centre-line measure.
+  o.max_kink = 1e9;
+  SeenFeltReport all;
+  measure_seen_felt("grille", g, world, o, all);
+  ASSERT_EQ(all.rows.size(), 1u);
+  EXPECT_EQ(all.rows[0].slots, 0);
+  EXPECT_LT(all.rows[0].onset_p10, -3.0);
+  EXPECT_FALSE(all.rows[0].meets_targets(o.rays));
 }
 
 TEST(SeenFelt, ToolsAreSizedByTheirRadius) {

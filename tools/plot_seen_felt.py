@@ -7,7 +7,8 @@ proxy rested (felt - seen) and where the force began (onset - seen), both in too
 per ray, with the targets (felt within +0.5 R, through beyond +1 R, onset no earlier than -1 R)
 shaded. Rays with no force are drawn as crosses at the felt panel's top. Where a sphere's onset
 over its whole shadow (onset_shadow_minus_seen) differs from its centre line's, it is drawn as a
-circle. Writes OUT_PNG through a temporary name.
+circle. Rays in a slot narrower than the tool (slot = 1) show only when they felt nothing.
+Writes OUT_PNG through a temporary name.
 """
 import csv
 import math
@@ -40,9 +41,11 @@ def main():
     fig, axes = plt.subplots(2, 1, figsize=(max(6.0, 0.32 * len(keys) + 2), 6.4), sharex=True)
     colors = {"vertical": "tab:blue", "around": "tab:orange"}
     for x, key in enumerate(keys):
-        ray = [r for r in rows if (r["scene"], r["direction"], float(r["tool_fraction"])) == key]
+        every = [r for r in rows if (r["scene"], r["direction"], float(r["tool_fraction"])) == key]
+        # (rays in a slot are scored for through and no force only; older CSVs have no such column)
+        ray = [r for r in every if r.get("slot", "0") == "0"]
         felt = [float(r["felt_minus_seen"]) for r in ray if r["no_force"] == "0"]
-        none = [float(r["felt_minus_seen"]) for r in ray if r["no_force"] == "1"]
+        none = [float(r["felt_minus_seen"]) for r in every if r["no_force"] == "1"]
         onset = [float(r["onset_minus_seen"]) for r in ray if not math.isnan(float(r["onset_minus_seen"]))]
         # a sphere's onset over its whole shadow, where it differs from its centre line's (older
         # CSVs have no such column)

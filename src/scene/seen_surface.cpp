@@ -315,10 +315,12 @@ std::optional<SeenPoint> SeenSurface::surface_point(const Eigen::Vector3d& origi
   const Eigen::Vector3d b = u.cross(a);
   Eigen::Vector3d pts[4];
   const Eigen::Vector3d offsets[4] = {h * a, -h * a, h * b, -h * b};
+  double around = 0;  // the neighbours' mean depth
   for (int k = 0; k < 4; ++k) {
     const SeenDepth d = first_seen(origin + offsets[k], u, t_max);
     if (!d.hit) return std::nullopt;
     pts[k] = origin + offsets[k] + d.depth * u;
+    around += 0.25 * d.depth;
   }
   Eigen::Vector3d n = (pts[0] - pts[1]).cross(pts[2] - pts[3]);
   if (!(n.norm() > 0)) return std::nullopt;
@@ -328,6 +330,7 @@ std::optional<SeenPoint> SeenSurface::surface_point(const Eigen::Vector3d& origi
   sp.depth = centre.depth;
   sp.point = origin + centre.depth * u;
   sp.normal = n;
+  sp.kink = centre.depth - around;
   return sp;
 }
 

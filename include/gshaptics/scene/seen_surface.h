@@ -52,6 +52,10 @@ struct SeenPoint {
   Eigen::Vector3d point = Eigen::Vector3d::Zero();   ///< o + depth u
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit, facing the eye (n . u < 0)
   double depth = 0;
+  /// Scene units: the centre's depth minus the mean of the four neighbours' (surface_point()).
+  /// About 0 on a face (h^2 / (2 rho) on a surface of curvature radius rho); large where the
+  /// centre line threads a gap narrower than 2 h (> 0) or meets a spike narrower than it (< 0).
+  double kink = 0;
 };
 
 class SeenSurface {
@@ -86,7 +90,8 @@ class SeenSurface {
 
   /// The seen point along the ray and the seen surface's normal there, from the seen depth of
   /// four parallel rays offset by +-`h` (scene units, > 0) across the ray: the normal of the
-  /// plane through their four seen points. Empty when any of the five rays sees nothing.
+  /// plane through their four seen points, and the centre's kink against them (SeenPoint::kink).
+  /// Empty when any of the five rays sees nothing.
   [[nodiscard]] std::optional<SeenPoint> surface_point(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
                                                        double h, double t_max = 1e300) const;
 
