@@ -29,6 +29,12 @@ def scene_file(name):
     return path
 
 
+def scored(rows):
+    """seen-felt's scored rays: those not in a slot narrower than the tool (the CSV's `slot`), which
+    are played besides them and count for through and no force only."""
+    return [r for r in rows if r["slot"] == "0"]
+
+
 def load_json(path):
     with open(path) as f:
         return json.load(f)
@@ -196,8 +202,10 @@ class SeenFelt(unittest.TestCase):
 
     def test_the_seen_surface_holds_where_it_is_seen(self):
         out = tempfile.mkdtemp()
-        rows, md = self.rays(out, "--surface", "seen")
+        every, md = self.rays(out, "--surface", "seen")
+        rows = scored(every)
         self.assertEqual(len(rows), 2 * 2 * 3)  # scenes x directions x rays
+        self.assertTrue(all(r["no_force"] == "0" and r["through"] == "0" for r in every), every)
         for r in rows:
             self.assertEqual(r["no_force"], "0", r)
             self.assertLess(abs(float(r["felt_minus_seen"])), 0.5, r)
@@ -214,9 +222,10 @@ class SeenFelt(unittest.TestCase):
 
     def test_a_stylus_on_the_seen_surface_is_felt_where_it_is_seen(self):
         out = tempfile.mkdtemp()
-        rows, md = self.rays(out, "--surface", "seen", "--tool-shape", "stylus", "--tool-tilt", "30")
+        every, md = self.rays(out, "--surface", "seen", "--tool-shape", "stylus", "--tool-tilt", "30")
+        rows = scored(every)
         self.assertEqual(len(rows), 2 * 2 * 3)
-        self.assertLessEqual(sum(r["through"] == "1" for r in rows), 1)
+        self.assertLessEqual(sum(r["through"] == "1" for r in every), 1)
         for r in rows:
             self.assertEqual((r["tool"], r["tilt_deg"]), ("stylus", "30"))
             self.assertEqual(r["no_force"], "0", r)
@@ -232,20 +241,21 @@ class SeenFelt(unittest.TestCase):
         # tangent point a smallest semi-axis below the edge's fit, and the ray at x = 0.6521,
         # z = -2.1234 slid 1.6 R through (0.24 R held). Roaming lines out to the rim hold on the
         # drops under it; one other ray of these ten still goes 2 R through (bench/RESULTS.md).
-        rows = self.disc_rays("fruitdrops.ply", "0.5")
+        every = self.disc_rays("fruitdrops.ply", "0.5")
+        rows = scored(every)
         self.assertEqual(len(rows), 10)
         snapped = [r for r in rows if abs(float(r["ox"]) - 0.6521) < 1e-3 and abs(float(r["oz"]) + 2.1234) < 1e-3]
         self.assertEqual(len(snapped), 1, rows)
         self.assertLess(float(snapped[0]["felt_minus_seen"]), 0.5, snapped)
-        self.assertLessEqual(sum(r["through"] == "1" for r in rows), 1, rows)
-        self.assertTrue(all(r["no_force"] == "0" for r in rows), rows)
+        self.assertLessEqual(sum(r["through"] == "1" for r in every), 1, every)
+        self.assertTrue(all(r["no_force"] == "0" for r in every), every)
 
     def test_a_disc_rim_on_a_thin_feature_is_a_touch_the_onset_sees(self):
         # A disc (4 R by 3.5 R across the ray) pressed down on the guitar at the 1 % tool: its
         # roaming footprint lines meet features under its rim thinner than 0.7 R. Read by 96 lines
         # over its shadow the onset put two of these ten forces 1.2 and 5.2 R before anything seen;
         # lines a twentieth of its half-thickness apart see what it touched (bench/RESULTS.md).
-        rows = self.disc_rays("guitar.compressed.ply", "1")
+        rows = scored(self.disc_rays("guitar.compressed.ply", "1"))
         self.assertEqual(len(rows), 10)
         for r in rows:
             self.assertGreater(float(r["onset_shadow_minus_seen"]), -0.5, r)
@@ -260,9 +270,10 @@ class SeenFelt(unittest.TestCase):
         run("seen-felt", scene_file("truck.splat"), "--direction", "vertical", "--tool-percent", "1",
             "--tool-shape", "stylus", "--surface", "seen", "--no-plot", "--out", os.path.join(out, "SF.md"))
         with open(os.path.join(out, "sf", "seen_felt_rays.csv"), newline="") as f:
-            rows = list(csv.DictReader(f))
+            every = list(csv.DictReader(f))
+        rows = scored(every)
         self.assertEqual(len(rows), 20)
-        for r in rows:
+        for r in every:
             self.assertEqual(r["through"], "0", r)
         beside = [r for r in rows if abs(float(r["ox"]) + 0.1047) < 1e-3 and abs(float(r["oz"]) - 0.2447) < 1e-3]
         self.assertEqual(len(beside), 1, rows)
@@ -281,7 +292,7 @@ class SeenFelt(unittest.TestCase):
         run("seen-felt", scene_file("halo.ply"), "--direction", "vertical", "--tool-percent", "2",
             "--tool-shape", "disc", "--surface", "seen", "--rays", "1", "--no-plot", "--out", os.path.join(out, "SF.md"))
         with open(os.path.join(out, "sf", "seen_felt_rays.csv"), newline="") as f:
-            rows = list(csv.DictReader(f))
+            rows = scored(list(csv.DictReader(f)))
         self.assertEqual(len(rows), 1)
         self.assertAlmostEqual(float(rows[0]["ox"]), 1.31064, places=4)
         self.assertLess(float(rows[0]["onset_shadow_minus_seen"]), 1.0, rows)
@@ -295,7 +306,7 @@ class SeenFelt(unittest.TestCase):
         run("seen-felt", scene_file("truck.splat"), "--quick", "--no-plot", "--out", report,
             "--object", "box:" + ",".join(str(v) for v in box) + ":mass=1000:friction=1", "--direction", "vertical")
         with open(os.path.join(out, "sf", "seen_felt_rays.csv"), newline="") as f:
-            rows = list(csv.DictReader(f))
+            rows = scored(list(csv.DictReader(f)))
         self.assertEqual(len(rows), 3)
         for r in rows:
             seen = [float(r["o" + a]) + float(r["seen"]) * float(r["u" + a]) for a in "xyz"]
@@ -311,7 +322,8 @@ class SeenFelt(unittest.TestCase):
         self.assertIn("exactly one scene", bad.stderr)
 
     def test_the_paper_model_is_felt_at_the_device(self):
-        rows, _ = self.rays(tempfile.mkdtemp(), "--force-model", "paper", "--direction", "vertical")
+        every, _ = self.rays(tempfile.mkdtemp(), "--force-model", "paper", "--direction", "vertical")
+        rows = scored(every)
         self.assertEqual(len(rows), 2 * 3)
         for r in rows:
             self.assertAlmostEqual(float(r["felt_minus_seen"]), 4.0, delta=0.1)
