@@ -268,6 +268,29 @@ TEST(WrenchFidelity, OnTheSeenSolidAStylusOnACrispEdgesProudPatchKeepsOneInnerLi
     }
 }
 
+// The stylus across the crisp-edged 8 mm cube at seeds 7 and 11 (fidelity --shape cube
+// --edge-sigmas 1.17 --defect none --seed S): a ring line on the rim's top held the third part
+// from the first tick to the last, 2.5 mm along the edge from the part's plane of symmetry, and
+// the force leaned asin(2.5 / 5) = 30 degrees (p95 30.3). The edge searches ended down the rim's
+// shoulder, so the edge's fit lay 0.125 smallest semi-axes under the line: past kEdgeSnap, the
+// part was not moved onto its tangent point. A line up to kRimTop above the fit is the rim's top.
+TEST(WrenchFidelity, OnTheSeenSolidAStylusOnACrispRimsTopIsHeldAtItsTangentPoint) {
+  for (const std::uint64_t seed : {std::uint64_t{7}, std::uint64_t{11}}) {
+    SCOPED_TRACE(testing::Message() << "seed " << seed);
+    std::vector<double> f;
+    for (int site = 0; site < 3; ++site) {
+      const WrenchMetrics m = play(ShapeKind::kCube, "stylus across an edge", 0.008, seed, 3, site, seed,
+                                   ProxySurface::kSeen, SynthParams::kCrispEdgeSigmas);
+      EXPECT_TRUE(m.press.never_lost);
+      EXPECT_GE(m.press.energy_j, 0.0);
+      f.insert(f.end(), m.force_dir_deg.begin(), m.force_dir_deg.end());
+    }
+    ASSERT_GT(f.size(), 300u);
+    std::nth_element(f.begin(), f.begin() + std::ptrdiff_t(f.size() * 95 / 100), f.end());
+    EXPECT_LT(f[f.size() * 95 / 100], 5.0);  // (30.3 before)
+  }
+}
+
 // Seed 27's third stylus across the 8 mm cube's edge (fidelity --seed 27): the stylus first
 // rests on a side-face disc standing proud of the top face, and the part beside the one resting
 // there comes within the contact band of the same disc, at a point inside its neighbour. It

@@ -445,11 +445,13 @@ bool SeenCompoundProxy::rests_on_edge(int j, double gap, Eigen::Vector3d& point)
   const std::size_t k = std::size_t(j);
   Eigen::Vector3d along;
   if (!(edge_span(j, axis_, along) >= kSnapSpan * middle_[k])) return false;
-  // Within kEdgeSnap either way: a tangent point well below the edge's fit (a disc on a
+  // Within kEdgeSnap under the fit: a tangent point well below the edge's fit (a disc on a
   // droplet's curved top, the fit rising 0.9 smallest semi-axes over the line there) is a part
-  // already past the edge, and moving the contact onto it let the disc slide through.
+  // already past the edge, and moving the contact onto it let the disc slide through. Up to
+  // kRimTop over it: the line on the rim's top, the fit through points down its shoulder.
   Eigen::Vector3d tangent;
-  if (!(std::abs(edge_gap(parts_[k], j, axis_, tangent) - gap) <= kEdgeSnap * min_axis_)) return false;
+  const double above = edge_gap(parts_[k], j, axis_, tangent) - gap;  // the line over the edge's fit
+  if (!(above >= -kEdgeSnap * min_axis_ && above <= kRimTop * min_axis_)) return false;
   point = tangent;
   return true;
 }

@@ -213,6 +213,10 @@ class SeenCompoundProxy {
   static constexpr int kEdgeSteps = 6;
   static constexpr int kEdgeLine = kLines;  // Hold::line of a part resting on the edge's tangent point
   static constexpr double kEdgeSnap = 0.1;  // smallest semi-axes: a line this near the edge's gap lies on the edge
+  // Smallest semi-axes: a line this far above the edge's fit is the rim's top (a crisp edge's
+  // searches end down its shoulder, 0.125 under the top at 8 mm spacing, seeds 7 and 11: held on
+  // its own line 2.5 mm beside the tangent point, the stylus leaned 30 deg along the edge).
+  static constexpr double kRimTop = 0.2;
   static constexpr double kSnapSpan = 0.5;  // middle semi-axes: the edge points' least span to snap onto
   static constexpr double kEdgeSpan = 0.2;  // middle semi-axes: two edge lines closer give no direction
   struct EdgeSearch {
@@ -321,9 +325,10 @@ class SeenCompoundProxy {
   [[nodiscard]] double edge_gap(const ToolEllipsoid& part, int j, const Eigen::Vector3d& axis,
                                 Eigen::Vector3d& contact) const noexcept;
   // Whether part j (posed at the proxy), held by a footprint line with `gap` (m), rests on its
-  // edge: the edge's points span kSnapSpan middle semi-axes or more, and the part's tangent point
-  // on it stands within kEdgeSnap smallest semi-axes of the line's gap, higher or lower; then
-  // `point` is that tangent point.
+  // edge: the edge's points span kSnapSpan middle semi-axes or more, and the line stands at most
+  // kEdgeSnap smallest semi-axes below the edge's fit at the part's tangent point or kRimTop above
+  // it (the rim's top over a fit through points down its shoulder); then `point` is that tangent
+  // point.
   [[nodiscard]] bool rests_on_edge(int j, double gap, Eigen::Vector3d& point) const noexcept;
   // How far a part (part j, posed; `exit`: its exits along the ring's axis) stands above footprint
   // line k's surface along `axis`, at its front over the line (set: `front`); < 0: past it; +inf
